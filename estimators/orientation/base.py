@@ -1,0 +1,339 @@
+r"""The orientation family: one contract, one input check, one initial alignment.
+
+Every method estimates ``q_earth_sensor`` — the unit quaternion (w, x, y, z) mapping sensor
+coordinates to the ENU earth frame (x east, y magnetic north, z up) — from accelerometer
+(m/s², specific force: at rest the upward axis reads +9.81), gyroscope (rad/s) and, for 9D
+methods, magnetometer (µT; any unit works, only directions are used) samples on one time grid.
+
+Contract
+--------
+``Method(params).estimate(acc, gyr, mag=None, *, fs_hz) -> self`` fills
+
+* ``orientation_``: ``(N, 4)`` ``q_earth_sensor`` per sample, the estimate *after* sample ``k``;
+* ``flags_``: :class:`SampleFlags`, which samples were missing or saturated;
+* ``state_``: the filter state after the last sample (see *Online form*).
+
+Online form (state in, state out)
+---------------------------------
+``state = method.initial_state(acc, mag)`` aligns a new state on the first samples, and
+``q, state = method.update(state, acc, gyr, mag, fs_hz=...)`` runs the *same* compiled kernel on
+one sample ``(3,)`` or a block ``(n, 3)``.  Running two halves of a recording through
+``update`` gives exactly the result of one batch.  The state is a 1-D float64 array whose first
+four entries are the quaternion; the rest is documented by each method.
+
+Missing and saturated samples (documented handling, not errors)
+---------------------------------------------------------------
+* A row with NaN in the accelerometer or magnetometer skips that correction (the filter predicts
+  with the gyroscope only); a row with NaN in the gyroscope holds the orientation (zero rate).
+* Samples whose absolute value on any axis reaches ``acc_range_m_s2`` / ``gyr_range_rad_s``
+  (when those ranges are given) are *saturated*: a saturated accelerometer row is treated as
+  missing; a saturated gyroscope row is still integrated (nothing better is known) and flagged.
+* Every such sample is reported in ``flags_``.
+
+Everything else a user can get wrong raises ``ValueError`` naming the problem: wrong shapes,
+mismatched lengths, empty arrays, ``±inf`` values (corrupted data, not a missing sample),
+``fs_hz`` not finite and positive, no valid accelerometer sample at all.
+
+Initial alignment
+-----------------
+Unless ``q0`` is given, the state starts from the mean of the valid samples in the first
+``init_window_s`` (0.1 s): gravity fixes roll and pitch; with a magnetometer, the horizontal part
+of the field fixes heading (TRIAD in ENU: east = m × up, north = up × east); without one, heading
+starts at zero (the smallest rotation taking the measured "up" to the earth's z axis).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar, Self
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from estimators import quaternion as quat
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+INIT_WINDOW_S = 0.1
+
+
+@dataclass(frozen=True)
+class SampleFlags:
+    """Per-sample booleans ``(N,)`` describing what the filter could not use."""
+
+    acc_missing: BoolArray
+    gyr_missing: BoolArray
+    mag_missing: BoolArray
+    acc_saturated: BoolArray
+    gyr_saturated: BoolArray
+
+    @property
+    def any(self) -> BoolArray:
+        """True where any flag is set."""
+        return self.acc_missing | self.gyr_missing | self.mag_missing | self.acc_saturated | self.gyr_saturated
+
+
+@dataclass(frozen=True)
+class ImuInput:
+    """Validated inputs on one time grid: finite arrays (missing rows zeroed) and validity masks.
+
+    ``acc_ok[k]`` / ``mag_ok[k]`` say whether that row may correct the estimate;
+    ``mag`` is ``None`` for 6D estimation.
+    """
+
+    acc: FloatArray
+    gyr: FloatArray
+    mag: FloatArray | None
+    acc_ok: BoolArray
+    mag_ok: BoolArray
+    fs_hz: float
+    flags: SampleFlags
+
+    @property
+    def n(self) -> int:
+        return self.acc.shape[0]
+
+    @property
+    def dt_s(self) -> float:
+        return 1.0 / self.fs_hz
+
+
+def _as_stream(name: str, values: ArrayLike) -> FloatArray:
+    try:
+        arr = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array of shape (N, 3): {exc}") from None
+    if arr.ndim == 1 and arr.shape[0] == 3:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (N, 3) with time along axis 0, got {arr.shape}")
+    if arr.shape[0] == 0:
+        raise ValueError(f"{name} is empty: at least one sample is needed")
+    if np.isinf(arr).any():
+        row = int(np.flatnonzero(np.isinf(arr).any(axis=1))[0])
+        raise ValueError(
+            f"{name} holds an infinite value at sample {row}: the recording is corrupted "
+            "(mark missing samples with NaN instead)"
+        )
+    return arr
+
+
+def check_fs(fs_hz: float) -> float:
+    """Return ``fs_hz`` as a float; ``ValueError`` unless finite and > 0."""
+    try:
+        fs = float(fs_hz)
+    except (TypeError, ValueError):
+        raise ValueError(f"fs_hz must be a number in Hz, got {fs_hz!r}") from None
+    if not np.isfinite(fs) or fs <= 0.0:
+        raise ValueError(f"fs_hz must be finite and > 0 Hz, got {fs_hz!r}")
+    return fs
+
+
+def validate_imu(
+    acc: ArrayLike,
+    gyr: ArrayLike,
+    mag: ArrayLike | None = None,
+    *,
+    fs_hz: float,
+    acc_range_m_s2: float | None = None,
+    gyr_range_rad_s: float | None = None,
+) -> ImuInput:
+    """Check and prepare raw inputs for a filter (see the module docstring for the rules)."""
+    fs = check_fs(fs_hz)
+    acc_arr = _as_stream("acc", acc)
+    gyr_arr = _as_stream("gyr", gyr)
+    n = acc_arr.shape[0]
+    if gyr_arr.shape[0] != n:
+        raise ValueError(f"acc and gyr must have the same number of samples, got {n} and {gyr_arr.shape[0]}")
+    mag_arr = None if mag is None else _as_stream("mag", mag)
+    if mag_arr is not None and mag_arr.shape[0] != n:
+        raise ValueError(
+            f"mag must be on the accelerometer's time grid ({n} samples), got {mag_arr.shape[0]}: "
+            "resample it first (ingestion interpolates the 20 Hz magnetometer onto the 100 Hz grid)"
+        )
+
+    acc_missing = np.isnan(acc_arr).any(axis=1)
+    gyr_missing = np.isnan(gyr_arr).any(axis=1)
+    mag_missing = np.isnan(mag_arr).any(axis=1) if mag_arr is not None else np.zeros(n, dtype=bool)
+    acc_saturated = _saturated(acc_arr, acc_range_m_s2, "acc_range_m_s2")
+    gyr_saturated = _saturated(gyr_arr, gyr_range_rad_s, "gyr_range_rad_s")
+    acc_zero = np.all(acc_arr == 0.0, axis=1)  # free fall or a zero-filled gap: no direction
+    acc_ok = ~(acc_missing | acc_saturated | acc_zero)
+    if not acc_ok.any():
+        raise ValueError("acc has no valid sample (all missing, saturated or zero): orientation cannot be aligned")
+    mag_ok = ~mag_missing
+    if mag_arr is not None:
+        mag_ok &= ~np.all(mag_arr == 0.0, axis=1)
+
+    def finite(arr: FloatArray, bad: BoolArray) -> FloatArray:
+        if bad.any():
+            arr = arr.copy()
+            arr[bad] = 0.0
+        return np.ascontiguousarray(arr)
+
+    return ImuInput(
+        acc=finite(acc_arr, acc_missing),
+        gyr=finite(gyr_arr, gyr_missing),
+        mag=None if mag_arr is None else finite(mag_arr, mag_missing),
+        acc_ok=acc_ok,
+        mag_ok=mag_ok,
+        fs_hz=fs,
+        flags=SampleFlags(acc_missing, gyr_missing, mag_missing, acc_saturated, gyr_saturated),
+    )
+
+
+def _saturated(arr: FloatArray, range_: float | None, name: str) -> BoolArray:
+    if range_ is None:
+        return np.zeros(arr.shape[0], dtype=bool)
+    if not np.isfinite(range_) or range_ <= 0.0:
+        raise ValueError(f"{name} must be finite and > 0, got {range_!r}")
+    with np.errstate(invalid="ignore"):
+        return (np.abs(arr) >= range_ * (1.0 - 1e-9)).any(axis=1)
+
+
+def align(acc: ArrayLike, mag: ArrayLike | None = None) -> FloatArray:
+    """``q_earth_sensor`` from one specific-force direction and (optionally) one field direction.
+
+    TRIAD in ENU: up = â; east = m̂ × up; north = up × east.  Without ``mag`` (or with a field
+    parallel to gravity) heading is zero: the smallest rotation taking ``up`` to ``(0, 0, 1)``.
+    """
+    up = np.asarray(acc, dtype=np.float64)
+    up = up / np.linalg.norm(up)
+    if mag is not None:
+        east = np.cross(np.asarray(mag, dtype=np.float64), up)
+        norm = np.linalg.norm(east)
+        if norm > 1e-9 * max(np.linalg.norm(mag), 1e-300):
+            east /= norm
+            north = np.cross(up, east)
+            # rows of R_earth_sensor are the earth axes written in sensor coordinates
+            return quat.from_matrix(np.stack([east, north, up]))
+    return quat.from_two_vectors(up, np.array([0.0, 0.0, 1.0]))
+
+
+def initial_orientation(data: ImuInput, use_mag: bool, window_s: float = INIT_WINDOW_S) -> FloatArray:
+    """Align on the mean of the valid samples in the first ``window_s`` (at least the first valid one)."""
+    n_window = max(1, int(round(window_s * data.fs_hz)))
+    first = int(np.flatnonzero(data.acc_ok)[0])
+    sel = np.flatnonzero(data.acc_ok[first:first + n_window]) + first
+    acc_mean = data.acc[sel].mean(axis=0)
+    mag_mean = None
+    if use_mag and data.mag is not None:
+        sel_m = np.flatnonzero(data.mag_ok[first:first + n_window]) + first
+        if sel_m.size == 0 and data.mag_ok.any():
+            sel_m = np.flatnonzero(data.mag_ok)[:1]
+        if sel_m.size:
+            mag_mean = data.mag[sel_m].mean(axis=0)
+    return align(acc_mean, mag_mean)
+
+
+def params_from_kwargs(params_type: type, values: dict[str, Any]) -> Any:
+    """Build a parameter dataclass from keyword values; unknown names raise ``ValueError`` listing the valid ones."""
+    names = {f.name for f in fields(params_type)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ValueError(
+            f"unknown parameter(s) {', '.join(unknown)} for {params_type.__name__}; "
+            f"valid: {', '.join(sorted(names))}"
+        )
+    return params_type(**values)
+
+
+class OrientationMethod(ABC):
+    """Base of every orientation filter.
+
+    Subclasses set ``name``, ``params_type`` (a frozen dataclass whose ``__post_init__`` validates),
+    ``supports_6d`` / ``supports_9d``, and implement :meth:`_state_from_quaternion`,
+    :meth:`_run` (the compiled kernel) and :meth:`_run_reference` (readable numpy, same numbers).
+    """
+
+    name: ClassVar[str]
+    params_type: ClassVar[type]
+    supports_6d: ClassVar[bool] = True
+    supports_9d: ClassVar[bool] = True
+
+    def __init__(self, params: Any | None = None) -> None:
+        if params is None:
+            params = self.params_type()
+        elif not isinstance(params, self.params_type):
+            raise TypeError(f"{type(self).__name__} takes {self.params_type.__name__}, got {type(params).__name__}")
+        self.params = params
+
+    # ------------------------------------------------------------------ batch
+    def estimate(
+        self,
+        acc: ArrayLike,
+        gyr: ArrayLike,
+        mag: ArrayLike | None = None,
+        *,
+        fs_hz: float,
+        q0: ArrayLike | None = None,
+        acc_range_m_s2: float | None = None,
+        gyr_range_rad_s: float | None = None,
+    ) -> Self:
+        """Run the filter over a recording; results in ``orientation_``, ``flags_``, ``state_``."""
+        data = validate_imu(acc, gyr, mag, fs_hz=fs_hz, acc_range_m_s2=acc_range_m_s2,
+                            gyr_range_rad_s=gyr_range_rad_s)
+        self._check_dimension(data.mag is not None)
+        state0 = self._initial_state_for(data, q0)
+        self.orientation_, self.state_ = self._run(data, state0)
+        self.flags_ = data.flags
+        return self
+
+    def reference(
+        self, acc: ArrayLike, gyr: ArrayLike, mag: ArrayLike | None = None, *, fs_hz: float,
+        q0: ArrayLike | None = None,
+    ) -> FloatArray:
+        """The readable numpy implementation on the same inputs (slow; for tests and study)."""
+        data = validate_imu(acc, gyr, mag, fs_hz=fs_hz)
+        self._check_dimension(data.mag is not None)
+        q, _ = self._run_reference(data, self._initial_state_for(data, q0))
+        return q
+
+    # ----------------------------------------------------------------- online
+    def initial_state(self, acc: ArrayLike, mag: ArrayLike | None = None, *, q0: ArrayLike | None = None) -> FloatArray:
+        """A fresh state aligned on ``acc`` (and ``mag``): one sample ``(3,)`` or the first samples ``(n, 3)``."""
+        acc_arr = np.atleast_2d(np.asarray(acc, dtype=np.float64))
+        gyr = np.zeros_like(acc_arr)
+        data = validate_imu(acc_arr, gyr, mag if mag is None else np.atleast_2d(mag), fs_hz=1.0)
+        self._check_dimension(data.mag is not None)
+        return self._initial_state_for(data, q0, window_s=float(data.n))
+
+    def update(
+        self, state: ArrayLike, acc: ArrayLike, gyr: ArrayLike, mag: ArrayLike | None = None, *, fs_hz: float,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Advance ``state`` over one sample or a block; returns ``(q_earth_sensor, new_state)``."""
+        data = validate_imu(acc, gyr, mag, fs_hz=fs_hz)
+        self._check_dimension(data.mag is not None)
+        state_arr = np.array(state, dtype=np.float64)  # a copy: the caller's state is never mutated
+        q, new_state = self._run(data, state_arr)
+        return (q[0] if np.ndim(acc) == 1 else q), new_state
+
+    # ---------------------------------------------------------------- helpers
+    def _check_dimension(self, has_mag: bool) -> None:
+        if has_mag and not self.supports_9d:
+            raise ValueError(f"method {self.name!r} has no magnetometer (9D) variant; call it with mag=None")
+        if not has_mag and not self.supports_6d:
+            raise ValueError(f"method {self.name!r} needs a magnetometer: it has no 6D variant")
+
+    def _initial_state_for(self, data: ImuInput, q0: ArrayLike | None, window_s: float = INIT_WINDOW_S) -> FloatArray:
+        if q0 is None:
+            q = initial_orientation(data, use_mag=data.mag is not None, window_s=window_s)
+        else:
+            q = quat.normalize(quat.as_quaternion(q0))
+            if q.shape != (4,):
+                raise ValueError(f"q0 must be one quaternion of shape (4,), got {q.shape}")
+        return self._state_from_quaternion(q, data)
+
+    @abstractmethod
+    def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
+        """A fresh state vector whose first four entries are ``q``."""
+
+    @abstractmethod
+    def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Compiled kernel: ``(q (N, 4), final state)``; must not modify ``state0``."""
+
+    @abstractmethod
+    def _run_reference(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Readable numpy implementation with the same results as :meth:`_run` (≤ 1e-9)."""
