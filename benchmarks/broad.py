@@ -1,0 +1,557 @@
+r"""Accuracy on BROAD: total, heading and inclination RMSE against optical ground truth.
+
+Usage
+-----
+``python -m benchmarks.broad [--mode 9d|6d|both] [--methods guo madgwick ...] [--trials 02 27 ...] [--no-ahrs]
+[--jobs 2] [--json OUT]`` (about 2.5 min on one core, most of it the pure-Python ``ahrs`` rows; 2 s with ``--no-ahrs``)
+prints, per mode, a summary (undisturbed trials 02–18, disturbed 24–35) and per-trial tables of every
+method in ``estimators.orientation.METHODS`` (methods whose module is not written yet are skipped with a
+note) beside the comparison rows (VQF offline/online, the ``ahrs`` package's Madgwick, FKF and AQUA) and
+BROAD's published Madgwick numbers.  From Python: ``trials()`` yields :class:`Trial` objects (``acc``,
+``gyr``, ``mag``, ``quat_ref``, ``movement``, ``fs_hz``, ``name``, ``group``); ``broad_errors(q, trial)``
+scores one estimate; ``evaluate(fn, mode="9d")`` scores ``fn(acc, gyr, mag_or_None, fs_hz) -> q_earth_sensor``
+(ENU) on every trial and returns one row (a dict) per trial — the tool for tuning a filter.  The data is
+looked up in ``$CHAKAMO_BROAD_DIR``, else ``../shared/data/broad`` next to the repository; when it is
+absent ``trials()`` yields nothing and warns, and ``main`` says so and exits with status 2.
+
+The data
+--------
+Laidig, Caruso, Cereatti, Seel (2021), *BROAD — A Benchmark for Robust Inertial Orientation Estimation*,
+Data 6(7):72, CC BY 4.0.  One 9-axis IMU (≈ 285.7 Hz) and an optical reference ``q_ENU_marker``
+(NaN where markers were lost); ``movement`` marks the samples that count.
+
+The metric (Laidig et al. 2021, §3.3)
+--------------------------------------
+The error is expressed in the earth frame,
+
+.. math::  q_\mathrm{err} = q_\mathrm{est} \otimes q_\mathrm{ref}^{*},
+
+and split by a swing–twist decomposition about the vertical axis:
+
+* total error  :math:`e = 2\operatorname{atan2}(\lVert \mathbf v_\mathrm{err}\rVert, |w_\mathrm{err}|)` — the angle of
+  :math:`q_\mathrm{err}`;
+* heading error :math:`e_h = 2\operatorname{atan2}(|z_\mathrm{err}|, |w_\mathrm{err}|)` — the twist about ``z``;
+* inclination error :math:`e_i = 2\operatorname{atan2}(\sqrt{x^2+y^2}, \sqrt{w^2+z^2})` — the remaining swing
+  (the tilt of the estimated vertical).
+
+Each is reduced to an RMSE (degrees) over the ``movement`` samples where the reference is valid.
+
+Alignment.  The reference and the estimate may differ by two constant rotations: the marker frame vs the
+IMU frame (``q_marker_imu``) and the optical ENU frame vs the estimate's earth frame (a rotation about the
+vertical, ``q_earth_opt``), so that :math:`q_\mathrm{ref,aligned} = q_{earth,opt} \otimes q_\mathrm{ref}
+\otimes q_{marker,imu}`.  Both are fitted on *every* reference-valid sample of the trial (not only the
+movement phase) by alternating least squares on the chordal cost :math:`\sum_k 1 - (q_{\mathrm{est},k} \cdot
+q_{\mathrm{ref,aligned},k})^2`: with one rotation fixed, the other is the dominant eigenvector of a 4×4
+(body) or 2×2 (heading, quaternions restricted to the span of ``w`` and ``z``) scatter matrix (Markley's
+quaternion average).  Its per-sample cost :math:`\sin^2(e/2)` saturates, so short large errors barely pull
+the fit.  Two starts (body first, heading first) are tried and the lower cost is kept.
+
+What BROAD does, and what this module does by default (``align="broad"``).  The published files are
+already aligned by the dataset's authors (the HDF5 ``info`` attribute says "synchronized and aligned
+optical reference data": marker frame = IMU frame, optical ENU = magnetic ENU), and BROAD's own evaluation
+compares the estimate with the stored reference directly.  So:
+
+* **9D**: no alignment at all.  Fitting a heading offset per estimate would absorb a filter's constant
+  heading error — exactly what the magnetically disturbed trials test (VQF offline, trial 27: 6.4° as
+  published, 0.8° after a fitted heading offset);
+* **6D**: heading is unobservable, so one constant heading offset per trial (the least-squares one above)
+  is removed before scoring.
+
+``align="full"`` fits both rotations (body misalignment and heading offset) in both modes — for
+recordings whose reference is not pre-aligned; on BROAD it makes 9D scores optimistic.  Checks: VQF
+offline scores 1.66° / 3.02° (9D, undisturbed / disturbed means) and 1.08° / 2.56° (6D); the ``ahrs``
+Madgwick (β = 0.12 rad/s, as BROAD's run) lands near BROAD's published Madgwick table (``PUBLISHED_MADGWICK``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from estimators import quaternion as quat
+
+FloatArray = NDArray[np.float64]
+EstimateFn = Callable[[FloatArray, FloatArray, "FloatArray | None", float], ArrayLike]
+
+DATA_ENV = "CHAKAMO_BROAD_DIR"
+GROUPS = ("undisturbed", "disturbed")
+MODES = ("9d", "6d")
+ALIGNMENTS = ("broad", "full")
+
+#: BROAD's own Madgwick run (their C code, β = 0.12), 9D RMSE in degrees: total, heading, inclination
+#: (from the data folder's README, which quotes the publication's results).
+PUBLISHED_MADGWICK: dict[str, tuple[float, float, float]] = {
+    "02": (1.50, 1.26, 0.80), "07": (5.00, 4.33, 2.50), "10": (3.57, 1.71, 3.13),
+    "15": (12.30, 11.41, 4.62), "18": (4.46, 2.87, 3.42), "24": (1.77, 1.24, 1.26),
+    "27": (10.62, 10.50, 1.57), "30": (5.57, 1.81, 5.26), "32": (15.76, 14.96, 4.97),
+    "35": (3.27, 1.14, 3.06),
+}
+
+_Q_Z90 = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])  # q_ENU_NWU: +90° about the vertical
+
+
+# --------------------------------------------------------------------------------------------- data
+@dataclass(frozen=True)
+class Trial:
+    """One BROAD trial; arrays as in ``../shared/DESIGN.md`` §3, ``quat_ref`` = ``q_ENU_marker`` (NaN rows: no reference)."""
+
+    name: str
+    group: str  # "undisturbed" | "disturbed"
+    acc: FloatArray  # (N, 3) m/s²
+    gyr: FloatArray  # (N, 3) rad/s
+    mag: FloatArray  # (N, 3) µT
+    quat_ref: FloatArray  # (N, 4)
+    movement: NDArray[np.bool_]  # (N,) samples that count for the metric
+    fs_hz: float
+    description: str = ""
+
+    @property
+    def number(self) -> str:
+        """The two-digit trial number, e.g. ``"02"``."""
+        return self.name[:2]
+
+    @property
+    def n(self) -> int:
+        return self.acc.shape[0]
+
+
+def data_dir(dir: str | os.PathLike[str] | None = None) -> Path | None:
+    """The BROAD folder: ``dir``, else ``$CHAKAMO_BROAD_DIR``, else ``../shared/data/broad`` beside the repo; ``None`` if absent."""
+    if dir is not None:
+        candidates = [Path(dir)]
+    elif os.environ.get(DATA_ENV):
+        candidates = [Path(os.environ[DATA_ENV])]
+    else:
+        repo = Path(__file__).resolve().parents[1]
+        candidates = [repo.parent / "shared" / "data" / "broad", repo.parent.parent / "shared" / "data" / "broad"]
+    for path in candidates:
+        if path.is_dir() and any(path.glob("*.hdf5")):
+            return path
+    return None
+
+
+def _group_of(name: str, info: dict[str, Any] | None) -> str:
+    if info is not None and name in info.get("trials", {}):
+        groups = info["trials"][name]["groups"]
+        return "disturbed" if "disturbed" in groups else "undisturbed"
+    return "disturbed" if "disturbed" in name.split("_")[1:2] else "undisturbed"
+
+
+def load_trial(path: str | os.PathLike[str]) -> Trial:
+    """Read one BROAD HDF5 file (its group comes from ``trials.json`` beside it, else from its name)."""
+    import h5py  # optional dependency (the "bench" extra)
+
+    path = Path(path)
+    info_path = path.parent / "trials.json"
+    info = json.loads(info_path.read_text()) if info_path.exists() else None
+    with h5py.File(path, "r") as f:
+        missing = {"imu_acc", "imu_gyr", "imu_mag", "opt_quat", "movement"} - set(f.keys())
+        if missing:
+            raise ValueError(f"{path} is not a BROAD trial: datasets {sorted(missing)} are missing")
+        description = f.attrs.get("info", "")
+        return Trial(
+            name=path.stem,
+            group=_group_of(path.stem, info),
+            acc=np.ascontiguousarray(f["imu_acc"][:], dtype=np.float64),
+            gyr=np.ascontiguousarray(f["imu_gyr"][:], dtype=np.float64),
+            mag=np.ascontiguousarray(f["imu_mag"][:], dtype=np.float64),
+            quat_ref=np.asarray(f["opt_quat"][:], dtype=np.float64),
+            movement=np.asarray(f["movement"][:], dtype=bool).reshape(-1),
+            fs_hz=float(f.attrs["sampling_rate"]),
+            description=description.decode() if isinstance(description, bytes) else str(description),
+        )
+
+
+def trials(dir: str | os.PathLike[str] | None = None) -> Iterator[Trial]:
+    """Yield every trial of the BROAD folder in name order; nothing (with a warning) when it is absent."""
+    path = data_dir(dir)
+    if path is None:
+        warnings.warn(
+            f"BROAD data not found (set {DATA_ENV} or place it in ../shared/data/broad): no trials", stacklevel=2
+        )
+        return
+    for file in sorted(path.glob("*.hdf5")):
+        yield load_trial(file)
+
+
+_iter_trials = trials  # evaluate() has a parameter of that name
+
+
+# ------------------------------------------------------------------------------------------- metric
+@dataclass(frozen=True)
+class Errors:
+    """RMSE (degrees) of one estimate on one trial, and the alignment that was removed first."""
+
+    total_deg: float
+    heading_deg: float
+    inclination_deg: float
+    n_samples: int  # movement samples with a valid reference
+    heading_offset_deg: float  # fitted earth-frame heading offset (0 when not fitted)
+    body_misalignment_deg: float  # fitted IMU-vs-marker rotation angle (0 when not fitted)
+
+
+def error_angles(q_est: ArrayLike, q_ref: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per-sample total, heading and inclination error (rad) of ``q_err = q_est ⊗ q_ref*`` (earth frame)."""
+    e = quat.multiply(q_est, quat.conjugate(q_ref))
+    e = e / np.linalg.norm(e, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(np.abs(e), -1, 0)
+    total = 2.0 * np.arctan2(np.sqrt(x * x + y * y + z * z), w)
+    heading = 2.0 * np.arctan2(z, w)
+    inclination = 2.0 * np.arctan2(np.sqrt(x * x + y * y), np.sqrt(w * w + z * z))
+    return total, heading, inclination
+
+
+def _dominant(scatter: FloatArray) -> FloatArray:
+    return np.linalg.eigh(scatter)[1][:, -1]
+
+
+def _fit_heading(q_est: FloatArray, q_ref_body: FloatArray) -> FloatArray:
+    """The rotation about z, ``h``, maximising Σ (q_est · h ⊗ q_ref_body)²."""
+    c = quat.multiply(q_est, quat.conjugate(q_ref_body))[:, [0, 3]]
+    v = _dominant(c.T @ c)
+    return np.array([v[0], 0.0, 0.0, v[1]])
+
+
+def _fit_body(q_est: FloatArray, q_ref_earth: FloatArray) -> FloatArray:
+    """The constant ``b`` maximising Σ (q_est · q_ref_earth ⊗ b)²."""
+    a = quat.multiply(quat.conjugate(q_ref_earth), q_est)
+    return _dominant(a.T @ a)
+
+
+def _cost(q_est: FloatArray, q_aligned: FloatArray) -> float:
+    return float(np.sum(1.0 - np.sum(q_est * q_aligned, axis=-1) ** 2))
+
+
+def fit_alignment(
+    q_est: ArrayLike, q_ref: ArrayLike, *, heading: bool = True, body: bool = False, iterations: int = 30,
+) -> tuple[FloatArray, FloatArray]:
+    """Constant ``(q_earth_opt, q_marker_imu)`` with ``q_est ≈ q_earth_opt ⊗ q_ref ⊗ q_marker_imu`` (least squares).
+
+    ``q_earth_opt`` is a rotation about the vertical (identity unless ``heading``), ``q_marker_imu`` any
+    rotation (identity unless ``body``).  Rows with NaN in either input are ignored.
+    """
+    q_est = np.asarray(q_est, dtype=np.float64)
+    q_ref = np.asarray(q_ref, dtype=np.float64)
+    ok = np.isfinite(q_est).all(axis=1) & np.isfinite(q_ref).all(axis=1)
+    q_est, q_ref = quat.normalize(q_est[ok]), quat.normalize(q_ref[ok])
+    one = quat.identity()
+    if q_est.shape[0] == 0 or not (heading or body):
+        return one, one.copy()
+    best: tuple[float, FloatArray, FloatArray] | None = None
+    for heading_first in ((True, False) if heading and body else (heading,)):
+        h, b = one, one.copy()
+        cost = np.inf
+        for it in range(iterations if heading and body else 1):  # a single rotation is fitted exactly at once
+            if heading and (heading_first or it > 0):
+                h = _fit_heading(q_est, quat.multiply(q_ref, b))
+            if body:
+                b = _fit_body(q_est, quat.multiply(h, q_ref))
+            previous, cost = cost, _cost(q_est, quat.multiply(quat.multiply(h, q_ref), b))
+            if previous - cost <= 1e-12 * max(cost, 1.0):
+                break
+        if best is None or cost < best[0]:
+            best = (cost, h, b)
+    assert best is not None
+    return quat.positive_scalar(best[1]), quat.positive_scalar(best[2])
+
+
+def broad_errors(
+    q_est: ArrayLike,
+    trial_or_ref: Trial | ArrayLike,
+    movement: ArrayLike | None = None,
+    *,
+    mode: str = "9d",
+    align: str = "broad",
+) -> Errors:
+    """Score ``q_est`` (``q_earth_sensor`` (N, 4), ENU) against a trial (or a reference and a movement mask).
+
+    ``mode="6d"`` removes one constant heading offset; ``align="full"`` also fits the body misalignment
+    and (in 9D too) the heading offset — see the module docstring.  NaN in ``q_est`` on a scored sample makes
+    the RMSE NaN (a broken filter is not hidden).
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if align not in ALIGNMENTS:
+        raise ValueError(f"align must be one of {ALIGNMENTS}, got {align!r}")
+    if isinstance(trial_or_ref, Trial):
+        q_ref, move = trial_or_ref.quat_ref, trial_or_ref.movement
+    else:
+        if movement is None:
+            raise ValueError("give a Trial, or a reference (N, 4) and a movement mask (N,)")
+        q_ref, move = np.asarray(trial_or_ref, dtype=np.float64), np.asarray(movement, dtype=bool)
+    q_est = np.asarray(q_est, dtype=np.float64)
+    if q_est.shape != q_ref.shape or q_ref.ndim != 2 or q_ref.shape[1] != 4 or move.shape != q_ref.shape[:1]:
+        raise ValueError(
+            f"shapes disagree: q_est {q_est.shape}, reference {q_ref.shape}, movement {move.shape} "
+            "(expected (N, 4), (N, 4), (N,))"
+        )
+    valid = np.isfinite(q_ref).all(axis=1)
+    fit_heading = mode == "6d" or align == "full"
+    h, b = fit_alignment(q_est[valid], q_ref[valid], heading=fit_heading, body=align == "full")
+    scored = valid & move
+    if not scored.any():
+        raise ValueError("no movement sample has a valid reference: nothing to score")
+    q_aligned = quat.multiply(quat.multiply(h, q_ref[scored]), b)
+    total, heading, inclination = error_angles(q_est[scored], q_aligned)
+
+    def rmse_deg(e: FloatArray) -> float:
+        return float(np.degrees(np.sqrt(np.mean(e * e))))
+
+    return Errors(
+        total_deg=rmse_deg(total),
+        heading_deg=rmse_deg(heading),
+        inclination_deg=rmse_deg(inclination),
+        n_samples=int(scored.sum()),
+        heading_offset_deg=float(np.degrees(2.0 * np.arctan2(h[3], h[0]))),
+        body_misalignment_deg=float(np.degrees(quat.angle_between(quat.identity(), b))),
+    )
+
+
+# ---------------------------------------------------------------------------------------- evaluate
+def evaluate(
+    estimate_fn: EstimateFn,
+    *,
+    trials: Iterable[Trial] | None = None,
+    mode: str = "9d",
+    align: str = "broad",
+    name: str = "",
+) -> list[dict[str, Any]]:
+    """Run ``estimate_fn(acc, gyr, mag_or_None, fs_hz) -> q_earth_sensor (N, 4)`` on every trial and score it.
+
+    ``mode="6d"`` passes ``mag=None``.  One row per trial: ``method, mode, trial, group, total_deg,
+    heading_deg, inclination_deg, n_samples, heading_offset_deg, body_misalignment_deg, runtime_s``.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    trial_list = list(_iter_trials() if trials is None else trials)
+    rows = []
+    for trial in trial_list:
+        start = time.perf_counter()
+        q = np.asarray(estimate_fn(trial.acc, trial.gyr, trial.mag if mode == "9d" else None, trial.fs_hz),
+                       dtype=np.float64)
+        runtime_s = time.perf_counter() - start
+        errors = broad_errors(q, trial, mode=mode, align=align)
+        rows.append({
+            "method": name or getattr(estimate_fn, "__name__", "estimate"), "mode": mode, "trial": trial.name,
+            "group": trial.group, **errors.__dict__, "runtime_s": runtime_s,
+        })
+    return rows
+
+
+def group_means(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """Mean RMSE per group over trials (BROAD averages per-trial RMSEs), plus ``"all"``."""
+    out = {}
+    for group in (*GROUPS, "all"):
+        sel = [r for r in rows if group in ("all", r["group"])]
+        if sel:
+            out[group] = {k: float(np.mean([r[k] for r in sel])) for k in ("total_deg", "heading_deg", "inclination_deg")}
+    return out
+
+
+# ----------------------------------------------------------------------------- methods to compare
+def project_method(name: str, **params: Any) -> EstimateFn:
+    """``estimate_fn`` of one method of ``estimators.orientation`` (its import errors surface on first call)."""
+    from estimators import orientation
+
+    def fn(acc: FloatArray, gyr: FloatArray, mag: FloatArray | None, fs_hz: float) -> FloatArray:
+        return orientation.estimate(acc, gyr, mag, fs_hz=fs_hz, method=name, **params)
+
+    fn.__name__ = name
+    return fn
+
+
+def _vqf(offline: bool) -> EstimateFn:
+    def fn(acc: FloatArray, gyr: FloatArray, mag: FloatArray | None, fs_hz: float) -> FloatArray:
+        import vqf  # VQF's earth frame is ENU and it returns q_earth_sensor: no conversion
+
+        args = [np.ascontiguousarray(gyr), np.ascontiguousarray(acc)]
+        m = None if mag is None else np.ascontiguousarray(mag)
+        out = vqf.offlineVQF(*args, m, 1.0 / fs_hz) if offline else vqf.VQF(1.0 / fs_hz).updateBatch(*args, m)
+        return out["quat6D" if mag is None else "quat9D"]
+
+    fn.__name__ = "vqf_offline" if offline else "vqf_online"
+    return fn
+
+
+def _ahrs(kind: str, gain: float = 0.12) -> EstimateFn:
+    """ahrs 0.4.0 filters, started like BROAD's runs (aligned on the first sample), converted to ``q_ENU_sensor``.
+
+    Frames checked on static synthetic data: Madgwick and FKF return ``q_NWU_sensor`` (FKF not normalised),
+    AQUA returns ``q_sensor_NWU``; ``q_ENU = q_z(+90°) ⊗ q_NWU``.
+    """
+    def fn(acc: FloatArray, gyr: FloatArray, mag: FloatArray | None, fs_hz: float) -> FloatArray:
+        from ahrs import filters
+
+        from estimators.orientation.base import align
+
+        q0_nwu = quat.multiply(quat.conjugate(_Q_Z90), align(acc[0], None if mag is None else mag[0]))
+        kw: dict[str, Any] = {"gyr": gyr, "acc": acc, "frequency": fs_hz}
+        if mag is not None:
+            kw["mag"] = mag
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            if kind == "madgwick":
+                q = filters.Madgwick(**kw, gain=gain, q0=q0_nwu).Q
+            elif kind == "fkf":
+                q = filters.FKF(**kw).Q
+            elif kind == "aqua":
+                q = quat.conjugate(filters.AQUA(**kw).Q)
+            else:
+                raise ValueError(f"unknown ahrs filter {kind!r}")
+        return quat.multiply(_Q_Z90, quat.normalize(q))
+
+    fn.__name__ = f"ahrs_{kind}"
+    return fn
+
+
+#: comparison rows: name -> (estimate_fn, modes it supports, is it a slow pure-Python ahrs filter)
+COMPARISONS: dict[str, tuple[EstimateFn, tuple[str, ...], bool]] = {
+    "vqf_offline": (_vqf(True), MODES, False),
+    "vqf_online": (_vqf(False), MODES, False),
+    "ahrs_madgwick": (_ahrs("madgwick"), MODES, True),  # β = 0.12 rad/s as BROAD's run (same units as ahrs' gain)
+    "ahrs_fkf": (_ahrs("fkf"), ("9d",), True),  # FKF needs a magnetometer
+    "ahrs_aqua": (_ahrs("aqua"), MODES, True),
+}
+
+
+def method_table(names: Sequence[str] | None, with_ahrs: bool) -> dict[str, tuple[EstimateFn, tuple[str, ...]]]:
+    """The project's methods (``estimators.orientation.METHODS``) and the comparison rows, by name."""
+    from estimators.orientation import METHODS
+
+    table: dict[str, tuple[EstimateFn, tuple[str, ...]]] = {m: (project_method(m), MODES) for m in METHODS}
+    for key, (fn, modes, slow) in COMPARISONS.items():
+        if with_ahrs or not slow:
+            table[key] = (fn, modes)
+    if names:
+        unknown = [n for n in names if n not in table and n not in COMPARISONS]
+        if unknown:
+            raise SystemExit(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join([*table, *COMPARISONS])}")
+        table = {n: table.get(n) or COMPARISONS[n][:2] for n in names}
+    return table
+
+
+# ------------------------------------------------------------------------------------------ report
+def _fmt(x: float) -> str:
+    return f"{x:6.2f}" if np.isfinite(x) else "   nan"
+
+
+def format_tables(rows: Sequence[dict[str, Any]], mode: str) -> str:
+    """Summary (group means) and per-trial tables (total / heading / inclination) for one mode."""
+    rows = [r for r in rows if r["mode"] == mode]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    trial_names = list(dict.fromkeys(r["trial"] for r in rows))
+    published = mode == "9d" and all(t[:2] in PUBLISHED_MADGWICK for t in trial_names)
+    width = max([len(m) for m in methods] + [len("BROAD madgwick (published)")])
+    lines = [f"== BROAD {mode.upper()}: RMSE in degrees (total / heading / inclination) ==", ""]
+    head = f"{'method':<{width}} | {'undisturbed T':>13} {'H':>6} {'I':>6} | {'disturbed T':>11} {'H':>6} {'I':>6} | {'all T':>6} | {'s':>6}"
+    lines += [head, "-" * len(head)]
+
+    def summary(label: str, by_group: dict[str, dict[str, float]], seconds: float | None) -> str:
+        cells = []
+        for g, w in (("undisturbed", 13), ("disturbed", 11)):
+            m = by_group.get(g)
+            cells.append(
+                f"{_fmt(m['total_deg']):>{w}} {_fmt(m['heading_deg'])} {_fmt(m['inclination_deg'])}" if m
+                else f"{'':>{w}} {'':>6} {'':>6}"
+            )
+        secs = f"{seconds:6.1f}" if seconds is not None else f"{'':>6}"
+        return f"{label:<{width}} | {cells[0]} | {cells[1]} | {_fmt(by_group['all']['total_deg'])} | {secs}"
+
+    for m in methods:
+        sel = [r for r in rows if r["method"] == m]
+        lines.append(summary(m, group_means(sel), sum(r["runtime_s"] for r in sel)))
+    if published:
+        pub = [{"group": "disturbed" if int(t[:2]) >= 22 else "undisturbed",
+                **dict(zip(("total_deg", "heading_deg", "inclination_deg"), PUBLISHED_MADGWICK[t[:2]]))}
+               for t in trial_names]
+        lines.append(summary("BROAD madgwick (published)", group_means(pub), None))
+    for key, label in (("total_deg", "total"), ("heading_deg", "heading"), ("inclination_deg", "inclination")):
+        lines += ["", f"-- per trial, {label} RMSE (deg) --"]
+        head = f"{'method':<{width}} | " + " ".join(f"{t[:2]:>6}" for t in trial_names)
+        lines += [head, "-" * len(head)]
+        for m in methods:
+            by_trial = {r["trial"]: r[key] for r in rows if r["method"] == m}
+            lines.append(f"{m:<{width}} | " + " ".join(_fmt(by_trial.get(t, np.nan)) for t in trial_names))
+        if published:
+            i = ("total_deg", "heading_deg", "inclination_deg").index(key)
+            lines.append(f"{'BROAD madgwick (published)':<{width}} | "
+                         + " ".join(_fmt(PUBLISHED_MADGWICK[t[:2]][i]) for t in trial_names))
+    return "\n".join(lines)
+
+
+_WORKER_TRIALS: list[Trial] = []  # set before the worker pool forks, so trials are not pickled per task
+
+
+def _run_one(task: tuple[str, str, str]) -> tuple[list[dict[str, Any]], str | None]:
+    name, mode, align = task
+    fn = COMPARISONS[name][0] if name in COMPARISONS else project_method(name)
+    try:
+        return evaluate(fn, trials=_WORKER_TRIALS, mode=mode, align=align, name=name), None
+    except (ImportError, NotImplementedError) as exc:  # a method whose module is not written yet
+        return [], f"skipped {name} ({mode}): {type(exc).__name__}: {exc}"
+    except Exception as exc:  # noqa: BLE001 - one broken method must not stop the others' table
+        return [], f"FAILED {name} ({mode}): {type(exc).__name__}: {exc}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.broad", description=__doc__.split("\n")[0])
+    parser.add_argument("--mode", choices=(*MODES, "both"), default="both")
+    parser.add_argument("--methods", nargs="+", metavar="NAME", help="methods to run (default: all)")
+    parser.add_argument("--no-ahrs", action="store_true", help="skip the slow pure-Python ahrs comparison rows")
+    parser.add_argument("--align", choices=ALIGNMENTS, default="broad", help="alignment (module docstring)")
+    parser.add_argument("--trials", nargs="+", metavar="NN", help="only these trial numbers (e.g. 02 27)")
+    parser.add_argument("--data", help=f"BROAD folder (default: ${DATA_ENV} or ../shared/data/broad)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (one (method, mode) per task)")
+    parser.add_argument("--json", metavar="OUT", help="also write every row to this JSON file")
+    args = parser.parse_args(argv)
+
+    folder = data_dir(args.data)
+    if folder is None:
+        print(f"BROAD data not found: set {DATA_ENV}, pass --data, or place it in ../shared/data/broad", file=sys.stderr)
+        return 2
+    trial_list = [t for t in trials(folder) if not args.trials or t.number in args.trials]
+    if not trial_list:
+        print(f"no trial numbered {' '.join(args.trials)} in {folder}", file=sys.stderr)
+        return 2
+    _WORKER_TRIALS[:] = trial_list
+    modes = MODES if args.mode == "both" else (args.mode,)
+    table = method_table(args.methods, with_ahrs=not args.no_ahrs)
+    tasks = [(name, mode, args.align) for name, (_, ms) in table.items() for mode in modes if mode in ms]
+    print(f"BROAD: {len(trial_list)} trials from {folder}; {len(tasks)} (method, mode) runs; align={args.align}",
+          flush=True)
+    start = time.perf_counter()
+    if args.jobs > 1:
+        from multiprocessing import get_context
+
+        slow_first = sorted(tasks, key=lambda t: not COMPARISONS.get(t[0], (None, None, False))[2])
+        with get_context("fork").Pool(args.jobs) as pool:
+            done = dict(zip(slow_first, pool.map(_run_one, slow_first, chunksize=1)))
+        results = [done[t] for t in tasks]
+    else:
+        results = [_run_one(t) for t in tasks]
+    rows = [r for rs, _ in results for r in rs]
+    notes = [n for _, n in results if n]
+    for mode in modes:
+        if any(r["mode"] == mode for r in rows):
+            print("\n" + format_tables(rows, mode))
+    for note in notes:
+        print(note)
+    print(f"\ntotal wall time {time.perf_counter() - start:.0f} s")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"align": args.align, "rows": rows, "notes": notes}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
