@@ -1,0 +1,269 @@
+r"""Two-segment leg motions (thigh, shank) with true knee angles: step-up task and calibration postures.
+
+Segment frames (ISB, shared/DESIGN.md §3): x anterior, y proximal along the long axis, z to the
+right, for both legs.  The thigh origin is the hip joint centre, the shank origin the knee joint
+centre.  A standing segment has ``q_earth_segment`` with columns
+:math:`[\hat f, \hat z_{up}, \hat f \times \hat z_{up}]`, where :math:`\hat f = (\cos\psi, \sin\psi, 0)`
+is the anterior (facing) direction at ENU yaw :math:`\psi` (``facing_rad``).
+
+Knee angles (Grood & Suntay joint coordinate system)
+----------------------------------------------------
+The JCS axes are the femoral z (flexion), the tibial y (internal/external rotation) and the
+floating axis perpendicular to both (ad/abduction).  That is the intrinsic Cardan sequence Z-X'-Y''
+from thigh to shank:
+
+.. math::
+    q_{thigh,shank} = \exp(-\phi\,\hat z) \otimes \exp(s\,\alpha\,\hat x) \otimes \exp(s\,\rho\,\hat y)
+    \qquad\text{(K1)}
+
+with flexion :math:`\phi` (+ flexed), adduction :math:`\alpha` (+ varus), internal rotation
+:math:`\rho` (+ internal), and :math:`s = +1` for the right leg, :math:`-1` for the left (mirror:
+z points laterally on the right leg and medially on the left, so the clinical signs are kept).
+Flexion is a *negative* rotation about z because flexing the knee swings the tibia's distal end
+posteriorly.  :func:`knee_quaternion` is (K1); :func:`knee_angles` its inverse (scipy's intrinsic
+``"ZXY"`` Euler angles, then the signs of K1).
+
+Single-leg step-up (seed 004 §2.2, DESIGN.md §3)
+------------------------------------------------
+The tested foot stands on the step (ankle fixed at ``step_height_m + 0.08`` m), the body rises by
+extending the knee and lowers back.  Flexion is a chain of minimum-jerk ramps between key frames:
+rest in the start posture :math:`\phi_0` (60° at 17 cm, 90° at 34 cm: :math:`30° + 176.5°/\mathrm{m}
+\cdot h`, ±3° per cycle) → *impulse*: rise by 5–10° to the peak → *extension* to ~0° (0–3°) and hold
+it → *fall* back to :math:`\phi_0` → rest.  Adduction and internal rotation follow the flexion
+(:math:`\alpha = 2° + 3°\,\phi/\phi_0`, :math:`\rho = -2° + 10°\,\phi/\phi_0`: screw-home).  The
+thigh is hip-flexed by :math:`0.6\,\phi` (plus a small ad/abduction and rotation), the shank is
+the thigh times (K1), so it tilts forward by about :math:`0.4\,\phi`; the knee is at
+:math:`A + R_{shank}[0, L_s, 0]` and the hip at :math:`K + R_{thigh}[0, L_t, 0]`
+(:math:`L_s = 0.40`, :math:`L_t = 0.42` m).
+
+True boundaries, per cycle k (columns of ``phases_s``): impulse onset (= cycle start), peak
+flexion (impulse → extension), leaving full extension (extension → fall), back at rest in the
+start posture (end of the fall).  ``cycles_s[k] = [onset_k, onset_{k+1}]``; the last cycle ends
+when it is back at rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from estimators import quaternion as quat
+from estimators.simulation.trajectory import DEFAULT_FS_HZ, Trajectory, intrinsic_rotation, min_jerk, time_grid
+
+FloatArray = NDArray[np.float64]
+
+__all__ = ["LegMotion", "THIGH_LENGTH_M", "SHANK_LENGTH_M", "knee_angles", "knee_quaternion",
+           "segment_frame", "standing", "step_up", "supine"]
+
+THIGH_LENGTH_M = 0.42
+SHANK_LENGTH_M = 0.40
+ANKLE_HEIGHT_M = 0.08
+
+
+def _side_sign(side: str) -> float:
+    if side == "right":
+        return 1.0
+    if side == "left":
+        return -1.0
+    raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+
+
+def knee_quaternion(angles_rad: ArrayLike, side: str = "right") -> FloatArray:
+    """``q_thigh_shank`` (..., 4) from Grood & Suntay angles (..., 3), rad (K1).
+
+    The angles are (flexion, adduction, internal rotation) with clinical signs for ``side``.
+    """
+    a = np.asarray(angles_rad, dtype=np.float64)
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise ValueError(f"angles_rad must have shape (..., 3), got {a.shape}")
+    s = _side_sign(side)
+    flat = a.reshape(-1, 3)
+    q = intrinsic_rotation(np.column_stack([-flat[:, 0], s * flat[:, 1], s * flat[:, 2]]), "ZXY")
+    return quat.positive_scalar(q).reshape(a.shape[:-1] + (4,))
+
+
+def knee_angles(q_thigh_shank: ArrayLike, side: str = "right") -> FloatArray:
+    """Grood & Suntay angles (..., 3) = (flexion, adduction, internal rotation), rad: the inverse of (K1)."""
+    s = _side_sign(side)
+    e = quat.to_euler(q_thigh_shank, "ZXY")
+    return np.stack([-e[..., 0], s * e[..., 1], s * e[..., 2]], axis=-1)
+
+
+def segment_frame(facing_rad: float = 0.0, posture: str = "standing") -> FloatArray:
+    """``q_earth_segment`` (4,) of a segment standing upright (y up, x facing) or lying supine (x up, y = facing).
+
+    For ``"supine"``, ``facing_rad`` is the ENU yaw of the direction from the feet to the head.
+    """
+    h = np.array([np.cos(facing_rad), np.sin(facing_rad), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    if posture == "standing":
+        x, y = h, up
+    elif posture == "supine":
+        x, y = up, h
+    else:
+        raise ValueError(f"posture must be 'standing' or 'supine', got {posture!r}")
+    return quat.from_matrix(np.column_stack([x, y, np.cross(x, y)]))
+
+
+@dataclass(frozen=True, eq=False)
+class LegMotion:
+    """Thigh and shank trajectories of one leg with the true knee kinematics.
+
+    t_s : (M,) dense true times, s (the grid of both trajectories).
+    thigh, shank : :class:`Trajectory` in ISB segment frames (origins: hip and knee joint centres).
+    knee_angles_rad : (M, 3) Grood & Suntay flexion, adduction, internal rotation, rad (clinical signs).
+    side : ``"right"`` or ``"left"``.
+    thigh_lever_arm_m, shank_lever_arm_m : (3,) typical sensor positions in segment coordinates (lateral,
+        mid-thigh / below the knee), to pass as ``simulate(..., lever_arm_m=...)``.
+    cycles_s : (K, 2) true cycle [start, end) times (empty for postures).
+    phases_s : (K, 4) per cycle: impulse onset, peak flexion, leaving full extension, back at rest.
+    """
+
+    t_s: FloatArray
+    thigh: Trajectory
+    shank: Trajectory
+    knee_angles_rad: FloatArray
+    side: str
+    thigh_lever_arm_m: FloatArray
+    shank_lever_arm_m: FloatArray
+    cycles_s: FloatArray
+    phases_s: FloatArray
+
+    def knee_angles_at(self, t_s: ArrayLike) -> FloatArray:
+        """True knee angles (n, 3), rad, at arbitrary times (from the segments' orientations, K1 inverted)."""
+        q = quat.multiply(quat.conjugate(self.thigh.orientation(t_s)), self.shank.orientation(t_s))
+        return knee_angles(q, self.side)
+
+
+def _lever_arms(side: str) -> tuple[FloatArray, FloatArray]:
+    s = _side_sign(side)
+    return np.array([0.0, -0.21, 0.08 * s]), np.array([0.03, -0.12, 0.05 * s])
+
+
+def _keyframes(t: FloatArray, times: FloatArray, values: FloatArray) -> FloatArray:
+    """Minimum-jerk ramps between key frames (C²); constant before the first and after the last."""
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    tau = (t - times[i]) / (times[i + 1] - times[i])
+    return values[i] + (values[i + 1] - values[i]) * min_jerk(tau)
+
+
+def _leg(t: FloatArray, flex: FloatArray, flex_ref: float, side: str, facing_rad: float,
+         ankle_m: FloatArray) -> tuple[Trajectory, Trajectory, FloatArray]:
+    s = _side_sign(side)
+    r = flex / flex_ref
+    angles = np.column_stack([flex, np.deg2rad(2.0) + np.deg2rad(3.0) * r, np.deg2rad(-2.0) + np.deg2rad(10.0) * r])
+    q_face = segment_frame(facing_rad, "standing")
+    hip = np.column_stack([0.6 * flex, s * np.deg2rad(1.5) * r, s * np.deg2rad(3.0) * r])
+    q_thigh = quat.multiply(q_face, intrinsic_rotation(hip, "ZXY"))
+    q_shank = quat.multiply(q_thigh, knee_quaternion(angles, side))
+    knee = ankle_m + quat.rotate(q_shank, np.array([0.0, SHANK_LENGTH_M, 0.0]))
+    hip_pos = knee + quat.rotate(q_thigh, np.array([0.0, THIGH_LENGTH_M, 0.0]))
+    return Trajectory(t, q_thigh, hip_pos), Trajectory(t, q_shank, knee), angles
+
+
+def step_up(
+    n_cycles: int = 10,
+    step_height_m: float = 0.17,
+    side: str = "right",
+    *,
+    facing_rad: float = 0.0,
+    rest_s: float = 1.5,
+    initial_rest_s: float = 2.0,
+    final_rest_s: float = 2.0,
+    variability: float = 0.1,
+    seed: int | np.random.Generator | None = 0,
+    fs_hz: float = DEFAULT_FS_HZ,
+) -> LegMotion:
+    """Single-leg step-up cycles with true knee angles, cycles and phases (see module docstring).
+
+    n_cycles : number of cycles (>= 1).   step_height_m : step height, m (0.05–0.5).
+    side : ``"right"`` or ``"left"``.   facing_rad : ENU yaw of the patient's anterior direction.
+    rest_s : mean rest in the start posture between cycles, s.
+    initial_rest_s, final_rest_s : rest before the first / after the last cycle, s.
+    variability : relative random spread of the phase durations (uniform ±); amplitudes vary too.
+    Mean phase durations: impulse 0.45 s, extension 1.0 s, hold at full extension 0.8 s, fall 1.2 s.
+    """
+    if int(n_cycles) != n_cycles or n_cycles < 1:
+        raise ValueError(f"n_cycles must be a positive integer, got {n_cycles!r}")
+    if not (0.05 <= step_height_m <= 0.5):
+        raise ValueError(f"step_height_m must be between 0.05 and 0.5 m, got {step_height_m!r}")
+    if not (0.0 <= variability < 0.5):
+        raise ValueError(f"variability must be in [0, 0.5), got {variability!r}")
+    for name, v in (("rest_s", rest_s), ("initial_rest_s", initial_rest_s), ("final_rest_s", final_rest_s)):
+        if not (np.isfinite(v) and v >= 0.05):
+            raise ValueError(f"{name} must be at least 0.05 s, got {v!r}")
+    _side_sign(side)
+    rng = np.random.default_rng(seed)
+    n = int(n_cycles)
+    f0_ref = np.deg2rad(np.clip(30.0 + 176.5 * step_height_m, 20.0, 110.0))
+
+    def spread(mean: float, size: int) -> FloatArray:
+        return mean * rng.uniform(1.0 - variability, 1.0 + variability, size)
+
+    f0 = f0_ref + np.deg2rad(3.0) * (variability / 0.1) * rng.uniform(-1.0, 1.0, n + 1)
+    rise = np.deg2rad(rng.uniform(5.5, 9.5, n))
+    ext = np.deg2rad(rng.uniform(0.0, 3.0, n))
+    d_imp, d_ext, d_hold, d_fall = spread(0.45, n), spread(1.0, n), spread(0.8, n), spread(1.2, n)
+    d_rest = spread(rest_s, n)
+    times, values = [0.0], [f0[0]]
+    phases = np.zeros((n, 4))
+    t = initial_rest_s
+    for k in range(n):  # key frames: a handful per cycle
+        phases[k, 0] = t
+        times += [t, t + d_imp[k]]
+        values += [f0[k], f0[k] + rise[k]]
+        t += d_imp[k]
+        phases[k, 1] = t
+        times += [t + d_ext[k], t + d_ext[k] + d_hold[k]]
+        values += [ext[k], ext[k]]
+        t += d_ext[k] + d_hold[k]
+        phases[k, 2] = t
+        t += d_fall[k]
+        times.append(t)
+        values.append(f0[k + 1])
+        phases[k, 3] = t
+        if k < n - 1:
+            t += d_rest[k]
+    duration = t + final_rest_s
+    times.append(duration)
+    values.append(f0[n])
+    # events on the dense grid (keeps the spline from ringing into the rests)
+    times_a = np.round(np.array(times) * fs_hz) / fs_hz
+    phases = np.round(phases * fs_hz) / fs_hz
+    duration = float(times_a[-1])
+    tt = time_grid(duration, fs_hz)
+    flex = _keyframes(tt, times_a, np.array(values))
+    ankle = np.array([0.0, 0.0, step_height_m + ANKLE_HEIGHT_M])
+    thigh, shank, angles = _leg(tt, flex, f0_ref, side, facing_rad, ankle)
+    cycles = np.column_stack([phases[:, 0], np.append(phases[1:, 0], phases[-1, 3])])
+    la_t, la_s = _lever_arms(side)
+    return LegMotion(tt, thigh, shank, angles, side, la_t, la_s, cycles, phases)
+
+
+def _posture(duration_s: float, side: str, facing_rad: float, posture: str, fs_hz: float) -> LegMotion:
+    _side_sign(side)
+    t = time_grid(duration_s, fs_hz)
+    q = segment_frame(facing_rad, posture)
+    if posture == "standing":
+        knee = np.array([0.0, 0.0, ANKLE_HEIGHT_M + SHANK_LENGTH_M])
+    else:
+        knee = np.array([0.0, 0.0, 0.55])  # on an examination table
+    hip = knee + quat.rotate(q, np.array([0.0, THIGH_LENGTH_M, 0.0]))
+    thigh = Trajectory.static(duration_s, q, hip, fs_hz=fs_hz)
+    shank = Trajectory.static(duration_s, q, knee, fs_hz=fs_hz)
+    la_t, la_s = _lever_arms(side)
+    return LegMotion(t, thigh, shank, np.zeros((len(t), 3)), side, la_t, la_s, np.zeros((0, 2)), np.zeros((0, 4)))
+
+
+def standing(duration_s: float = 30.0, side: str = "right", *, facing_rad: float = 0.0,
+             fs_hz: float = DEFAULT_FS_HZ) -> LegMotion:
+    """Static standing posture for sensor-to-segment calibration: both segments' y axes up, knee straight."""
+    return _posture(duration_s, side, facing_rad, "standing", fs_hz)
+
+
+def supine(duration_s: float = 30.0, side: str = "right", *, head_rad: float = 0.0,
+           fs_hz: float = DEFAULT_FS_HZ) -> LegMotion:
+    """Static supine lying posture: both segments' x (anterior) axes up, y towards the head (ENU yaw ``head_rad``)."""
+    return _posture(duration_s, side, head_rad, "supine", fs_hz)
