@@ -15,9 +15,9 @@ so input validation and the initial alignment are included, as a user pays them:
 
 Comparison rows: VQF 2.1.2 (C++ via Cython; ``offlineVQF`` and ``VQF.updateBatch``) on the same samples,
 and the pure-Python ``ahrs`` 0.4.0 filters (Madgwick, FKF, AQUA), which are ~10⁴ times slower, on only
-``--ahrs-samples`` samples (said so in the table).  The input is a synthetic rotating body at 100 Hz
-(smooth random rotation, gravity plus small linear accelerations, a [0, 20, -40] µT field, white noise),
-made here so that the benchmark does not depend on the simulator's API.
+``--ahrs-samples`` samples (said so in the table).  The input is the project simulator's varied rotation
+sequence at 100 Hz (``estimators.simulation.motions.rotations``, rests and turns up to 300 °/s, small
+translations) recorded by a sensor with a MetaMotionR-like error model (``ImuSpec.random``).
 """
 
 from __future__ import annotations
@@ -39,27 +39,14 @@ FS_HZ = 100.0
 FIRST_CALL_SAMPLES = 1000
 
 
-def synthetic_imu(n: int, fs_hz: float = FS_HZ, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``acc, gyr, mag`` ``(n, 3)`` of a body turning smoothly in all axes (up to ~3 rad/s), with noise."""
-    from estimators import quaternion as quat
+def simulated_imu(n: int, fs_hz: float = FS_HZ, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``acc, gyr, mag`` ``(n, 3)`` of the project simulator's varied rotations with a MetaMotionR-like error model."""
+    from estimators.simulation import ImuSpec, motions, simulate_on_grid
 
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) / fs_hz
-    freq = rng.uniform(0.05, 0.5, size=(3, 3))
-    amp = rng.uniform(0.3, 1.0, size=(3, 3))
-    phase = rng.uniform(0, 2 * np.pi, size=(3, 3))
-    rotvec = np.stack([(amp[i] * np.sin(2 * np.pi * freq[i] * t[:, None] + phase[i])).sum(axis=1) for i in range(3)],
-                      axis=1)
-    q = quat.exp(rotvec)  # q_earth_sensor
-    dq = np.gradient(q, 1.0 / fs_hz, axis=0)
-    gyr = 2.0 * quat.multiply(quat.conjugate(q), dq)[:, 1:]  # ω_s = 2 vec(q* ⊗ q̇)
-    lin_acc = 0.5 * np.sin(2 * np.pi * 0.7 * t)[:, None] * np.array([1.0, -0.5, 0.3])
-    acc = quat.rotate(quat.conjugate(q), lin_acc + [0.0, 0.0, 9.81])
-    mag = quat.rotate(quat.conjugate(q), [0.0, 20.0, -40.0])
-    acc += rng.normal(scale=0.05, size=acc.shape)
-    gyr += rng.normal(scale=0.005, size=gyr.shape) + [0.01, -0.005, 0.003]
-    mag += rng.normal(scale=0.3, size=mag.shape)
-    return acc, gyr, mag
+    duration_s = n / fs_hz + 1.0
+    grid = simulate_on_grid(motions.rotations(duration_s, seed=seed, translation_m=0.05), ImuSpec.random(seed),
+                            fs_hz=fs_hz, seed=seed)
+    return grid.acc[:n], grid.gyr[:n], grid.mag[:n]
 
 
 def _time_call(fn: Callable[[], Any], repeats: int) -> float:
@@ -173,7 +160,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from estimators.orientation import METHODS
 
     names = args.methods or list(METHODS)
-    data = synthetic_imu(args.samples)
+    data = simulated_imu(args.samples)
     print(f"speed: synthetic rotating body, {args.samples} samples at {FS_HZ:g} Hz, median of {args.repeats} calls; "
           f"numba cache {'warm' if args.warm_cache else 'cold (first call = compilation)'}", flush=True)
     rows, notes = bench_project(names, data, args.repeats)

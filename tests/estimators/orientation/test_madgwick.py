@@ -1,0 +1,159 @@
+"""Madgwick (2011): kernel vs reference, oracle vs ahrs, convergence, tracking, validation, online form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimators import quaternion as quat
+from estimators.orientation import make
+from estimators.orientation.madgwick import Madgwick, MadgwickParams
+
+FS_HZ = 100.0
+GRAVITY_ENU = np.array([0.0, 0.0, 9.81])
+FIELD_ENU_UT = np.array([0.0, 20.0, -40.0])
+Q_Z90 = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])  # q_ENU_NWU
+
+
+def rotating_body(n: int, *, seed: int = 0, noise: bool = True, still: bool = False):
+    """Truth q_earth_sensor after each sample, (acc, gyr, mag) and the orientation before sample 0."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / FS_HZ
+    if still:
+        omega = np.zeros((n, 3))
+    else:
+        omega = np.stack([1.5 * np.sin(2 * np.pi * 0.5 * t), 1.0 * np.cos(2 * np.pi * 0.3 * t),
+                          0.8 * np.sin(2 * np.pi * 0.2 * t + 1.0)], axis=1)
+    q_all = np.empty((n + 1, 4))
+    q_all[0] = quat.from_euler([0.4, 0.2, -0.3], "ZYX")  # before the first sample
+    for k in range(n):  # gyro sample k is the rate over the interval that ends at sample k
+        q_all[k + 1] = quat.multiply(q_all[k], quat.exp(omega[k] / FS_HZ))
+    q = q_all[1:]
+    acc = quat.rotate(quat.conjugate(q), GRAVITY_ENU)
+    mag = quat.rotate(quat.conjugate(q), FIELD_ENU_UT)
+    gyr = omega.copy()
+    if noise:
+        acc += rng.normal(0.0, 0.1, acc.shape)
+        mag += rng.normal(0.0, 0.5, mag.shape)
+        gyr += rng.normal(0.0, 0.01, gyr.shape) + np.array([0.01, -0.02, 0.015])
+    return q, acc, gyr, mag, q_all[0]
+
+
+def angle_deg(q1, q2):
+    return np.degrees(quat.angle_between(q1, q2))
+
+
+@pytest.mark.parametrize("use_mag", [False, True])
+def test_kernel_matches_reference(use_mag):
+    q, acc, gyr, mag, q_start = rotating_body(300, seed=1)
+    acc[50] = np.nan            # missing accelerometer row: gyroscope only
+    mag[120:125] = np.nan       # missing magnetometer rows: 6D objective
+    gyr[200] = np.nan           # missing gyroscope row: zero rate
+    m = Madgwick(MadgwickParams(beta_rad_s=0.2))
+    q0 = quat.multiply(quat.from_axis_angle([1.0, 1.0, 0.0], 0.3), q_start)
+    fast = m.estimate(acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=q0).orientation_
+    slow = m.reference(acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=q0)
+    assert np.abs(fast - slow).max() <= 1e-9
+    np.testing.assert_allclose(np.linalg.norm(fast, axis=1), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("use_mag", [False, True])
+def test_equals_ahrs_madgwick_after_frame_change(use_mag):
+    """ahrs works in NWU with the same q (sensor -> earth): q_ENU = q_z(90°) ⊗ q_NWU."""
+    ahrs_filters = pytest.importorskip("ahrs.filters")
+    q, acc, gyr, mag, q_start = rotating_body(400, seed=2)
+    beta = 0.15
+    q0 = quat.normalize(quat.multiply(quat.from_axis_angle([0.3, -1.0, 0.2], 0.25), q_start))
+    ours = Madgwick(MadgwickParams(beta_rad_s=beta, warmup_s=0.0)).estimate(
+        acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=q0).orientation_
+
+    oracle = ahrs_filters.Madgwick(gain=beta, Dt=1.0 / FS_HZ)
+    q_nwu = quat.multiply(quat.conjugate(Q_Z90), q0)
+    theirs = np.empty_like(ours)
+    for k in range(len(acc)):  # every gyro sample is non-zero, so ahrs never skips its correction
+        if use_mag:
+            q_nwu = oracle.updateMARG(q_nwu, gyr[k], acc[k], mag[k])
+        else:
+            q_nwu = oracle.updateIMU(q_nwu, gyr[k], acc[k])
+        theirs[k] = q_nwu
+    theirs = quat.multiply(Q_Z90, theirs)
+    assert np.abs(quat.positive_scalar(ours) - quat.positive_scalar(theirs)).max() <= 1e-6
+
+
+@pytest.mark.parametrize("use_mag", [False, True])
+def test_converges_from_wrong_start_at_rest(use_mag):
+    """Defaults (with the 1 s warm-up): a 20° error is gone within 2 s."""
+    q, acc, gyr, mag, q_start = rotating_body(int(2.0 * FS_HZ), seed=3, still=True)
+    wrong = quat.multiply(quat.from_axis_angle([1.0, -0.5, 0.3], np.radians(20.0)), q_start)
+    est = Madgwick().estimate(acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=wrong).orientation_
+    assert angle_deg(est[0], q[0]) > 18.0
+    if use_mag:
+        err = angle_deg(est[-1], q[-1])
+    else:  # 6D: heading is not observable, compare the tilt (the direction of "up" in the sensor)
+        up_est = quat.rotate(quat.conjugate(est[-1]), [0.0, 0.0, 1.0])
+        up_true = quat.rotate(quat.conjugate(q[-1]), [0.0, 0.0, 1.0])
+        err = np.degrees(np.arccos(np.clip(up_est @ up_true, -1.0, 1.0)))
+    assert err < 2.0
+
+
+def test_published_filter_converges_at_its_rate_limit():
+    """Without warm-up (the paper's filter) the estimate turns at most 2β rad/s: 10° takes about 1 s."""
+    q, acc, gyr, mag, q_start = rotating_body(int(3.0 * FS_HZ), seed=3, still=True)
+    wrong = quat.multiply(quat.from_axis_angle([1.0, -0.5, 0.3], np.radians(10.0)), q_start)
+    est = Madgwick(MadgwickParams(warmup_s=0.0)).estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=wrong).orientation_
+    err = angle_deg(est, q)
+    rate_deg_s = np.degrees(2.0 * 0.1)
+    assert err[int(0.5 * FS_HZ)] > 10.0 - rate_deg_s * 0.5 - 0.5  # no faster than the rate limit
+    assert err[int(3.0 * FS_HZ) - 1] < 2.0
+
+
+def test_tracks_known_rotation_noise_free():
+    q, acc, gyr, mag, q_start = rotating_body(1000, noise=False)
+    est = Madgwick().estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q_start).orientation_
+    rmse = np.sqrt(np.mean(angle_deg(est, q) ** 2))
+    assert rmse <= 1.0
+
+
+def test_heading_follows_the_enu_north():
+    """At rest with the field's horizontal part on sensor +x, the sensor x axis must point north (+y)."""
+    n = 300
+    q_true = quat.from_axis_angle([0.0, 0.0, 1.0], np.pi / 2)  # sensor x -> earth y (north)
+    acc = np.tile(quat.rotate(quat.conjugate(q_true), GRAVITY_ENU), (n, 1))
+    mag = np.tile(quat.rotate(quat.conjugate(q_true), FIELD_ENU_UT), (n, 1))
+    gyr = np.full((n, 3), 1e-4)
+    start = quat.from_axis_angle([0.0, 0.0, 1.0], np.pi / 2 + 0.3)
+    est = Madgwick(MadgwickParams(beta_rad_s=0.3)).estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=start).orientation_
+    assert angle_deg(est[-1], q_true) < 0.5
+
+
+def test_two_half_batches_equal_one_batch():
+    q, acc, gyr, mag, q_start = rotating_body(300, seed=4)
+    m = Madgwick(MadgwickParams(beta_rad_s=0.1))
+    full = m.estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q_start)
+    state = m.initial_state(acc[0], mag[0], q0=q_start)
+    # split inside the 1 s warm-up: the elapsed time travels in the state
+    first, state = m.update(state, acc[:50], gyr[:50], mag[:50], fs_hz=FS_HZ)
+    assert state[4] == pytest.approx(0.5)
+    second, state = m.update(state, acc[50:], gyr[50:], mag[50:], fs_hz=FS_HZ)
+    np.testing.assert_array_equal(np.vstack([first, second]), full.orientation_)
+    np.testing.assert_array_equal(state, full.state_)
+
+
+def test_registry_and_estimate_contract():
+    _, acc, gyr, mag, _ = rotating_body(50, seed=5)
+    m = make("madgwick", beta_rad_s=0.05)
+    assert isinstance(m, Madgwick) and m.params.beta_rad_s == 0.05
+    out = m.estimate(acc, gyr, mag, fs_hz=FS_HZ).orientation_
+    assert out.shape == (50, 4) and np.isfinite(out).all()
+
+
+@pytest.mark.parametrize("name", ["beta_rad_s", "warmup_s", "beta_warmup_rad_s"])
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), "0.1", True])
+def test_parameter_validation(name, bad):
+    with pytest.raises(ValueError, match=name):
+        MadgwickParams(**{name: bad})
+
+
+def test_unknown_parameter_is_named():
+    with pytest.raises(ValueError, match="gain"):
+        make("madgwick", gain=0.1)
