@@ -139,8 +139,13 @@ def validate_imu(
     fs_hz: float,
     acc_range_m_s2: float | None = None,
     gyr_range_rad_s: float | None = None,
+    require_valid_acc: bool = True,
 ) -> ImuInput:
-    """Check and prepare raw inputs for a filter (see the module docstring for the rules)."""
+    """Check and prepare raw inputs for a filter (see the module docstring for the rules).
+
+    ``require_valid_acc=False`` accepts a block without any usable accelerometer sample: an online
+    ``update`` of an already aligned state can predict through a gap.
+    """
     fs = check_fs(fs_hz)
     acc_arr = _as_stream("acc", acc)
     gyr_arr = _as_stream("gyr", gyr)
@@ -161,7 +166,7 @@ def validate_imu(
     gyr_saturated = _saturated(gyr_arr, gyr_range_rad_s, "gyr_range_rad_s")
     acc_zero = np.all(acc_arr == 0.0, axis=1)  # free fall or a zero-filled gap: no direction
     acc_ok = ~(acc_missing | acc_saturated | acc_zero)
-    if not acc_ok.any():
+    if require_valid_acc and not acc_ok.any():
         raise ValueError("acc has no valid sample (all missing, saturated or zero): orientation cannot be aligned")
     mag_ok = ~mag_missing
     if mag_arr is not None:
@@ -303,8 +308,12 @@ class OrientationMethod(ABC):
     def update(
         self, state: ArrayLike, acc: ArrayLike, gyr: ArrayLike, mag: ArrayLike | None = None, *, fs_hz: float,
     ) -> tuple[FloatArray, FloatArray]:
-        """Advance ``state`` over one sample or a block; returns ``(q_earth_sensor, new_state)``."""
-        data = validate_imu(acc, gyr, mag, fs_hz=fs_hz)
+        """Advance ``state`` over one sample or a block; returns ``(q_earth_sensor, new_state)``.
+
+        A block may lie wholly inside a gap of the accelerometer (all NaN): the state then predicts
+        with the gyroscope only.
+        """
+        data = validate_imu(acc, gyr, mag, fs_hz=fs_hz, require_valid_acc=False)
         self._check_dimension(data.mag is not None)
         state_arr = np.array(state, dtype=np.float64)  # a copy: the caller's state is never mutated
         q, new_state = self._run(data, state_arr)

@@ -83,6 +83,10 @@ def test_two_half_batches_equal_one_batch(name, mode, noisy_motion):
     # one sample at a time (the online form) gives the same next estimate
     q_one, _ = method.update(state, g.acc[0], g.gyr[0], None if mag is None else mag[0], fs_hz=g.fs_hz)
     assert q_one.shape == (4,)
+    # a block wholly inside an accelerometer gap predicts with the gyroscope only
+    gap = np.full((5, 3), np.nan)
+    q_gap, _ = method.update(state, gap, g.gyr[:5], None if mag is None else mag[:5], fs_hz=g.fs_hz)
+    assert np.isfinite(q_gap).all()
 
 
 @pytest.mark.parametrize("name, mode", CASES)
