@@ -92,7 +92,7 @@ def test_equals_ahrs_aqua_after_frame_change(use_mag):
     """AQUA estimates the conjugate quaternion in NWU: q_ENU,s = q_z(90°) ⊗ conj(q_AQUA)."""
     ahrs_filters = pytest.importorskip("ahrs.filters")
     q, acc, gyr, mag, q_start = rotating_body(400, seed=2)
-    params = ValentiCFParams(adaptive_gain=False, warmup_s=0.0)
+    params = ValentiCFParams(tau_acc_s=TAU_DEFAULT_S, tau_mag_s=TAU_DEFAULT_S, adaptive_gain=False, warmup_s=0.0)
     q0 = quat.multiply(quat.from_axis_angle([0.3, -1.0, 0.2], 0.9), q_start)  # SLERP branch at first
     ours = ValentiCF(params).estimate(acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=q0).orientation_
     alpha = per_sample_gain(params.tau_acc_s, 1.0 / FS_HZ)
@@ -125,7 +125,8 @@ def test_published_filter_converges_with_its_time_constant():
     """Without warm-up the error decays as exp(-t/τ): after τ about 37 % of a 10° tilt error is left."""
     q, acc, gyr, mag, q_start = rotating_body(int(3.0 * FS_HZ), seed=3, still=True, noise=False)
     wrong = quat.multiply(quat.from_axis_angle([1.0, 0.0, 0.0], np.radians(10.0)), q_start)
-    est = ValentiCF(ValentiCFParams(warmup_s=0.0)).estimate(acc, gyr, None, fs_hz=FS_HZ, q0=wrong).orientation_
+    published = ValentiCFParams(tau_acc_s=TAU_DEFAULT_S, tau_mag_s=TAU_DEFAULT_S, warmup_s=0.0)
+    est = ValentiCF(published).estimate(acc, gyr, None, fs_hz=FS_HZ, q0=wrong).orientation_
     k_tau = int(round(TAU_DEFAULT_S * FS_HZ)) - 1
     assert tilt_deg(est[k_tau], q[k_tau]) == pytest.approx(10.0 * math.exp(-1.0), rel=0.02)
 
@@ -186,7 +187,8 @@ def test_gyroscope_bias_is_estimated_at_rest():
 
 
 def test_rate_conversion_of_gains():
-    p = ValentiCFParams()
+    p = ValentiCFParams.from_per_sample(0.01, 0.01, 100.0)  # the authors' gains
+    assert p.tau_acc_s == pytest.approx(TAU_DEFAULT_S, rel=1e-12)
     assert per_sample_gain(p.tau_acc_s, 0.01) == pytest.approx(0.01, abs=1e-15)
     assert per_sample_gain(p.tau_mag_s, 0.01) == pytest.approx(0.01, abs=1e-15)
     # at 200 Hz the per-sample gain halves (to first order): same time constant
