@@ -233,6 +233,32 @@ def initial_orientation(data: ImuInput, use_mag: bool, window_s: float = INIT_WI
     return align(acc_mean, mag_mean)
 
 
+def check_parameter(
+    name: str,
+    value: Any,
+    *,
+    unit: str = "",
+    low: float = 0.0,
+    low_open: bool = False,
+    high: float = np.inf,
+    allow_inf: bool = False,
+    hint: str = "",
+) -> None:
+    """Refuse a parameter outside ``[low, high]`` (``(low, high]`` with ``low_open``) with a message naming it.
+
+    ``allow_inf`` admits ``+inf`` (a tolerance switched off); NaN and non-numbers are always refused.
+    """
+    where = f" ({hint})" if hint else ""
+    units = f" {unit}" if unit else ""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ValueError(f"{name} must be a number{units}, got {value!r}")
+    if np.isnan(value) or (np.isinf(value) and not (allow_inf and value > 0)):
+        raise ValueError(f"{name} must be a finite number{units}{where}, got {value!r}")
+    if (value <= low if low_open else value < low) or value > high:
+        bounds = f"{'(' if low_open else '['}{low:g}, {high:g}]"
+        raise ValueError(f"{name} must be in {bounds}{units}{where}, got {value!r}")
+
+
 def params_from_kwargs(params_type: type, values: dict[str, Any]) -> Any:
     """Build a parameter dataclass from keyword values; unknown names raise ``ValueError`` listing the valid ones."""
     names = {f.name for f in fields(params_type)}

@@ -111,16 +111,9 @@ import numpy as np
 from numba import njit
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod
+from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
 
 _TINY = 1e-300
-
-
-def _check_non_negative(name: str, value, unit: str, hint: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"{name} must be a number in {unit}, got {value!r}")
-    if not math.isfinite(value) or value < 0.0:
-        raise ValueError(f"{name} must be finite and >= 0 {unit} ({hint}), got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -142,9 +135,9 @@ class MadgwickParams:
     beta_warmup_rad_s: float = 1.0
 
     def __post_init__(self) -> None:
-        _check_non_negative("beta_rad_s", self.beta_rad_s, "rad/s", "typically 0.01–0.5")
-        _check_non_negative("warmup_s", self.warmup_s, "s", "0 disables the warm-up")
-        _check_non_negative("beta_warmup_rad_s", self.beta_warmup_rad_s, "rad/s", "typically 0.5–2")
+        check_parameter("beta_rad_s", self.beta_rad_s, unit="rad/s", hint="typically 0.01–0.5")
+        check_parameter("warmup_s", self.warmup_s, unit="s", hint="0 disables the warm-up")
+        check_parameter("beta_warmup_rad_s", self.beta_warmup_rad_s, unit="rad/s", hint="typically 0.5–2")
 
 
 # --------------------------------------------------------------------------------------- kernel

@@ -128,7 +128,7 @@ import numpy as np
 from numba import njit
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod
+from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
 
 #: time constant giving exactly the per-sample gain 0.01 at 100 Hz (the authors' default gains)
 TAU_DEFAULT_S = -0.01 / math.log1p(-0.01)
@@ -144,15 +144,6 @@ STATE_SIZE = 11  # q (4), gyroscope bias b (3) rad/s, previous gyroscope sample 
 def per_sample_gain(tau_s: float, dt_s: float) -> float:
     """The paper's per-sample gain for time constant ``tau_s`` at step ``dt_s``: ``1 - exp(-dt/tau)``."""
     return -math.expm1(-dt_s / tau_s)
-
-
-def _check_number(name: str, value, low: float, high: float, *, low_open: bool = False, unit: str = "") -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"{name} must be a number{unit}, got {value!r}")
-    ok = math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
-    if not ok:
-        bracket = "(" if low_open else "["
-        raise ValueError(f"{name} must be in {bracket}{low}, {high}]{unit}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -203,25 +194,25 @@ class ValentiCFParams:
     tau_warmup_s: float = 0.1
 
     def __post_init__(self) -> None:
-        _check_number("warmup_s", self.warmup_s, 0.0, math.inf, unit=" s")
+        check_parameter("warmup_s", self.warmup_s, low=0.0, unit="s")
         for name in ("tau_acc_s", "tau_mag_s", "tau_bias_s", "tau_warmup_s"):
-            _check_number(name, getattr(self, name), 0.0, math.inf, low_open=True, unit=" s")
-        _check_number("lerp_threshold", self.lerp_threshold, 0.0, 1.0)
+            check_parameter(name, getattr(self, name), low=0.0, low_open=True, unit="s")
+        check_parameter("lerp_threshold", self.lerp_threshold, low=0.0, high=1.0)
         if self.lerp_threshold >= 1.0:
             raise ValueError(f"lerp_threshold must be in [0, 1) (1 would never interpolate), got {self.lerp_threshold!r}")
         for name in ("adaptive_gain", "estimate_bias"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
-        _check_number("acc_error_low", self.acc_error_low, 0.0, 1.0)
-        _check_number("acc_error_high", self.acc_error_high, 0.0, math.inf)
+        check_parameter("acc_error_low", self.acc_error_low, low=0.0, high=1.0)
+        check_parameter("acc_error_high", self.acc_error_high, low=0.0)
         if not self.acc_error_high > self.acc_error_low:
             raise ValueError(
                 f"acc_error_high ({self.acc_error_high!r}) must be greater than acc_error_low ({self.acc_error_low!r})"
             )
-        _check_number("gravity_m_s2", self.gravity_m_s2, 0.0, math.inf, low_open=True, unit=" m/s²")
+        check_parameter("gravity_m_s2", self.gravity_m_s2, low=0.0, low_open=True, unit="m/s²")
         for name in ("rest_gyr_rad_s", "rest_gyr_change_rad_s"):
-            _check_number(name, getattr(self, name), 0.0, math.inf, low_open=True, unit=" rad/s")
-        _check_number("rest_acc_m_s2", self.rest_acc_m_s2, 0.0, math.inf, low_open=True, unit=" m/s²")
+            check_parameter(name, getattr(self, name), low=0.0, low_open=True, unit="rad/s")
+        check_parameter("rest_acc_m_s2", self.rest_acc_m_s2, low=0.0, low_open=True, unit="m/s²")
 
     @classmethod
     def from_per_sample(cls, alpha: float, beta: float, fs_hz: float, **others) -> ValentiCFParams:

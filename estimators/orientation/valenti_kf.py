@@ -168,7 +168,7 @@ import numpy as np
 from numba import njit
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod
+from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
 
 STATE_SIZE = 20
 """State layout: ``0:4`` q_earth_sensor; ``4:20`` the covariance P (4×4, row-major)."""
@@ -210,23 +210,15 @@ class ValentiKFParams:
     innovation_gate: float = 3.0
 
     def __post_init__(self) -> None:
-        gate = self.innovation_gate
-        if isinstance(gate, bool) or not isinstance(gate, (int, float, np.floating, np.integer)):
-            raise ValueError(f"innovation_gate must be a number (dimensionless), got {gate!r}")
-        if not math.isfinite(gate) or gate < 0.0:
-            raise ValueError(f"innovation_gate must be finite and >= 0 (0 = the paper's plain update; "
-                             f"typically 1–20), got {gate!r}")
+        check_parameter("innovation_gate", self.innovation_gate,
+                        hint="0 = the paper's plain update; typically 1–20")
         for name, unit, typical in (
             ("gyr_noise_rad_s_sqrt_hz", "rad/s/√Hz", "1e-4–0.01"),
             ("acc_noise_m_s2_sqrt_hz", "m/s²/√Hz", "0.002–0.5"),
             ("mag_noise_ut_sqrt_hz", "µT/√Hz", "0.05–2"),
             ("initial_std_rad", "rad", "0.01–3"),
         ):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-                raise ValueError(f"{name} must be a number in {unit}, got {value!r}")
-            if not math.isfinite(value) or value <= 0.0:
-                raise ValueError(f"{name} must be finite and > 0 {unit} (typically {typical}), got {value!r}")
+            check_parameter(name, getattr(self, name), unit=unit, low_open=True, hint=f"typically {typical}")
 
 
 # --------------------------------------------------------------------------------------- kernel
