@@ -25,6 +25,7 @@ _REGISTRY: dict[str, str] = {
     "madgwick": "estimators.orientation.madgwick:Madgwick",
     "valenti_cf": "estimators.orientation.valenti_cf:ValentiCF",
     "valenti_kf": "estimators.orientation.valenti_kf:ValentiKF",
+    "chakamo": "estimators.orientation.chakamo:Chakamo",
 }
 
 METHODS: tuple[str, ...] = tuple(_REGISTRY)

@@ -1,0 +1,621 @@
+r"""Compiled kernels of :mod:`estimators.orientation.chakamo` and their readable numpy references.
+
+The theory is in the module docstring of :mod:`estimators.orientation.chakamo`; this module only
+holds the per-sample arithmetic.  Every ``@njit`` function has a numpy twin (``*_reference``) that
+runs the same maths with vector operations and :mod:`estimators.quaternion`; the tests check that
+both agree to ≤ 1e-9.
+
+State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` constants)
+-------------------------------------------------------------------------------------
+====================  ==========================================================================
+``0:4``   q           output ``q_earth_sensor`` = R_z(δ) ⊗ q_E'I ⊗ q_IS
+``4:8``   q_IS        strapdown quaternion, sensor → quasi-inertial frame I
+``8:12``  q_EI        inclination correction, I → heading-free earth frame E'
+``12``    δ           heading offset (rad) about the earth z axis, E' → E
+``13:19`` lp_state    Butterworth DF2T state of the I-frame acceleration, ``[z1(3), z2(3)]``
+``19:22`` a_lp        last low-pass output (m/s², I frame)
+``22``    n_acc       accelerometer samples seen (the first ``n_init`` are averaged, not filtered)
+``23:26`` b           gyroscope bias estimate (rad/s, sensor frame)
+``26:32`` P           bias covariance (rad²/s²), upper triangle ``P00 P01 P02 P11 P12 P22``
+``32:35`` g_rest      first-order low-pass of the gyroscope for rest detection (rad/s)
+``35:38`` a_rest      first-order low-pass of the accelerometer for rest detection (m/s²)
+``38``    t_rest      time the rest conditions have held (s)
+``39``    rest        1 when at rest
+``40``    m_norm_ref  reference field norm (µT); ``41`` dip_ref (rad); ``42`` reference valid (0/1)
+``43``    t_reject    time the field has been rejected as disturbed (s)
+``44``    m_norm_cand candidate norm; ``45`` candidate dip; ``46`` time the candidate has held (s)
+``47``    n_mag       undisturbed magnetometer samples since the reference was (re)set
+``48``    disturbed   1 when the last magnetometer sample was rejected
+``49:67`` R_lp        Butterworth state of R_IS (row-major, ``[z1(9), z2(9)]``), for eq. (8)
+``67:73`` u_lp        Butterworth state of R_IS·b̂ (``[z1(3), z2(3)]``), for eq. (8)
+``73:85`` outputs     last outputs of those two filters (9 + 3; scratch, overwritten every sample)
+``85``    w2_lp       first-order low-pass (τ_acc) of |ω - b̂|² (rad²/s²), scales the motion noise (8)
+``86``    t_undist    time the field has stayed near the reference (s), for the hysteresis of (11)
+``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
+                      its product with b̂_used (1), for the heading bias measurement (12b)
+====================  ==========================================================================
+
+Coefficient vector ``c`` (built by ``chakamo.coefficients``; indices are the ``C_*`` constants):
+dt, Butterworth ``b0 b1 b2 a1 a2``, n_init, rest low-pass gain, squared rest thresholds, rest time,
+bias noise terms, clip, switches, magnetometer gains and thresholds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from estimators import quaternion as quat
+
+# --- state indices
+S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = 0, 4, 8, 12, 13, 19, 22
+S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = 23, 26, 32, 35, 38, 39
+S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = (
+    40, 41, 42, 43, 44, 45, 46, 47, 48)
+S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP = 49, 67, 73, 85, 86, 87
+STATE_SIZE = 91
+
+# --- coefficient indices
+(C_DT, C_B0, C_B1, C_B2, C_A1, C_A2, C_NINIT, C_KREST, C_THG2, C_THA2, C_RESTMIN, C_RREST, C_RMOT,
+ C_QBIAS, C_CLIP, C_RESTON, C_MOTON, C_KMAG, C_KREF, C_NORMTH, C_DIPTH, C_NEWS, C_MAXREJ, C_REJON,
+ C_KCAND, C_USEMAG, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG) = range(34)
+COEFF_SIZE = 34
+
+# --- auxiliary per-sample outputs (columns of ``aux``)
+A_BIAS, A_P, A_REST, A_MAGUSED = 0, 3, 9, 10
+AUX_SIZE = 11
+
+
+# =====================================================================================
+# scalar helpers (numba)
+# =====================================================================================
+@njit(cache=True)
+def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
+    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+            a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+            a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+            a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
+
+
+@njit(cache=True)
+def _qrot(w, x, y, z, vx, vy, vz):
+    # v' = v + 2w (u × v) + 2 u × (u × v), u = (x, y, z)
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (vx + w * tx + (y * tz - z * ty),
+            vy + w * ty + (z * tx - x * tz),
+            vz + w * tz + (x * ty - y * tx))
+
+
+@njit(cache=True)
+def _qnorm(s, i):
+    n = math.sqrt(s[i] ** 2 + s[i + 1] ** 2 + s[i + 2] ** 2 + s[i + 3] ** 2)
+    s[i] /= n
+    s[i + 1] /= n
+    s[i + 2] /= n
+    s[i + 3] /= n
+
+
+@njit(cache=True)
+def _qmat(w, x, y, z):
+    """Rotation matrix of a unit quaternion, row-major 9-tuple."""
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+
+
+@njit(cache=True)
+def _biquad(s, i1, i2, x, c, steady):
+    """One DF2T step of the Butterworth filter with state ``s[i1], s[i2]``; ``steady`` resets it to ``x``."""
+    if steady:
+        s[i1] = (1.0 - c[C_B0]) * x
+        s[i2] = (c[C_B2] - c[C_A2]) * x
+        return x
+    y = c[C_B0] * x + s[i1]
+    s[i1] = c[C_B1] * x - c[C_A1] * y + s[i2]
+    s[i2] = c[C_B2] * x - c[C_A2] * y
+    return y
+
+
+@njit(cache=True)
+def _wrap(a):
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+@njit(cache=True)
+def _bias_scalar_update(s, h0, h1, h2, innov, r, clip):
+    """Scalar Kalman update of the bias with measurement row h and innovation ``innov``."""
+    p00, p01, p02, p11, p12, p22 = s[S_P], s[S_P + 1], s[S_P + 2], s[S_P + 3], s[S_P + 4], s[S_P + 5]
+    ph0 = p00 * h0 + p01 * h1 + p02 * h2
+    ph1 = p01 * h0 + p11 * h1 + p12 * h2
+    ph2 = p02 * h0 + p12 * h1 + p22 * h2
+    sv = h0 * ph0 + h1 * ph1 + h2 * ph2 + r
+    k0, k1, k2 = ph0 / sv, ph1 / sv, ph2 / sv
+    s[S_BIAS] = min(max(s[S_BIAS] + k0 * innov, -clip), clip)
+    s[S_BIAS + 1] = min(max(s[S_BIAS + 1] + k1 * innov, -clip), clip)
+    s[S_BIAS + 2] = min(max(s[S_BIAS + 2] + k2 * innov, -clip), clip)
+    s[S_P] = p00 - k0 * ph0
+    s[S_P + 1] = p01 - k0 * ph1
+    s[S_P + 2] = p02 - k0 * ph2
+    s[S_P + 3] = p11 - k1 * ph1
+    s[S_P + 4] = p12 - k1 * ph2
+    s[S_P + 5] = p22 - k2 * ph2
+
+
+# =====================================================================================
+# the causal filter, one sample (numba)
+# =====================================================================================
+@njit(cache=True)
+def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
+    """Advance state ``s`` (in place) by one sample; returns 1.0 if the magnetometer corrected heading."""
+    dt = c[C_DT]
+    # (1) strapdown: q_IS <- q_IS ⊗ exp((ω - b) dt)                       [eq. 1]
+    # a missing gyroscope row is NaN here: the orientation is held and rest detection paused
+    gyr_ok = gx == gx and gy == gy and gz == gz
+    bx, by, bz = s[S_BIAS], s[S_BIAS + 1], s[S_BIAS + 2]  # the bias used for this sample
+    wx, wy, wz = gx - bx, gy - by, gz - bz
+    ang = math.sqrt(wx * wx + wy * wy + wz * wz) * dt
+    if gyr_ok:
+        s[S_W2] += c[C_KW2] * (wx * wx + wy * wy + wz * wz - s[S_W2])
+    if gyr_ok and ang > 1e-12:
+        sh = math.sin(0.5 * ang) / ang * dt
+        d0, d1, d2, d3 = math.cos(0.5 * ang), wx * sh, wy * sh, wz * sh
+        q = _qmul(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], d0, d1, d2, d3)
+        s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3] = q
+        _qnorm(s, S_QIS)
+
+    # (2) rest detection and bias at rest                                    [eqs. 6-7]
+    kr = c[C_KREST]
+    if gyr_ok:
+        for i in range(3):
+            s[S_GREST + i] += kr * ((gx, gy, gz)[i] - s[S_GREST + i])
+        dg2 = (gx - s[S_GREST]) ** 2 + (gy - s[S_GREST + 1]) ** 2 + (gz - s[S_GREST + 2]) ** 2
+        lg2 = s[S_GREST] ** 2 + s[S_GREST + 1] ** 2 + s[S_GREST + 2] ** 2
+        rest_now = dg2 < c[C_THG2] and lg2 < c[C_THG2]
+        if acc_ok:
+            for i in range(3):
+                s[S_AREST + i] += kr * ((ax, ay, az)[i] - s[S_AREST + i])
+            da2 = (ax - s[S_AREST]) ** 2 + (ay - s[S_AREST + 1]) ** 2 + (az - s[S_AREST + 2]) ** 2
+            rest_now = rest_now and da2 < c[C_THA2]
+        s[S_TREST] = s[S_TREST] + dt if rest_now else 0.0
+        s[S_REST] = 1.0 if s[S_TREST] >= c[C_RESTMIN] else 0.0
+    # bias random walk: P <- P + q I, variances capped at the initial one      [eq. 5]
+    s[S_P] = min(s[S_P] + c[C_QBIAS], max(s[S_P], c[C_P0]))
+    s[S_P + 3] = min(s[S_P + 3] + c[C_QBIAS], max(s[S_P + 3], c[C_P0]))
+    s[S_P + 5] = min(s[S_P + 5] + c[C_QBIAS], max(s[S_P + 5], c[C_P0]))
+    if s[S_REST] > 0.5 and c[C_RESTON] > 0.5:
+        for i in range(3):
+            h0 = 1.0 if i == 0 else 0.0
+            h1 = 1.0 if i == 1 else 0.0
+            h2 = 1.0 if i == 2 else 0.0
+            _bias_scalar_update(s, h0, h1, h2, s[S_GREST + i] - s[S_BIAS + i], c[C_RREST], c[C_CLIP])
+
+    # (3) inclination from low-passed acceleration in the quasi-inertial frame  [eqs. 2-4]
+    if acc_ok:
+        aix, aiy, aiz = _qrot(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], ax, ay, az)
+        n = s[S_NACC]
+        if n < c[C_NINIT]:
+            # initial phase: running mean, filter state set to its steady state
+            f = 1.0 / (n + 1.0)
+            s[S_ALP] += f * (aix - s[S_ALP])
+            s[S_ALP + 1] += f * (aiy - s[S_ALP + 1])
+            s[S_ALP + 2] += f * (aiz - s[S_ALP + 2])
+            for i in range(3):
+                s[S_LP + 3 + i] = (c[C_B2] - c[C_A2]) * s[S_ALP + i]
+                s[S_LP + i] = (1.0 - c[C_B0]) * s[S_ALP + i]
+        else:
+            for i in range(3):
+                x = (aix, aiy, aiz)[i]
+                y = c[C_B0] * x + s[S_LP + i]
+                s[S_LP + i] = c[C_B1] * x - c[C_A1] * y + s[S_LP + 3 + i]
+                s[S_LP + 3 + i] = c[C_B2] * x - c[C_A2] * y
+                s[S_ALP + i] = y
+        s[S_NACC] = n + 1.0
+        # low-passes of R_IS and R_IS·b̂ (same filter as the acceleration), for eq. (8)
+        r = _qmat(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
+        ub = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz,
+              r[6] * bx + r[7] * by + r[8] * bz)
+        for i in range(9):
+            s[S_RLPOUT + i] = _biquad(s, S_RLP + i, S_RLP + 9 + i, r[i], c, n < c[C_NINIT])
+        for i in range(3):
+            s[S_RLPOUT + 9 + i] = _biquad(s, S_ULP + i, S_ULP + 3 + i, ub[i], c, n < c[C_NINIT])
+        rlp = s[S_RLPOUT:S_RLPOUT + 9]
+        ulp = s[S_RLPOUT + 9:S_RLPOUT + 12]
+        ex, ey, ez = _qrot(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
+                           s[S_ALP], s[S_ALP + 1], s[S_ALP + 2])
+        en = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if en > 1e-9:
+            ex, ey, ez = ex / en, ey / en, ez / en
+            # shortest rotation taking (ex, ey, ez) to (0, 0, 1): axis (ey, -ex, 0)
+            cw = 1.0 + ez
+            if cw < 1e-12:
+                c0, c1, c2 = 0.0, 1.0, 0.0
+            else:
+                cn = math.sqrt(cw * cw + ey * ey + ex * ex)
+                c0, c1, c2 = cw / cn, ey / cn, -ex / cn
+            q = _qmul(c0, c1, c2, 0.0, s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3])
+            s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3] = q
+            _qnorm(s, S_QEI)
+            # (4) bias during motion from the correction rate                  [eq. 8]
+            if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT]:
+                un = math.sqrt(c1 * c1 + c2 * c2)  # log of the correction (as quaternion.log)
+                scale = (2.0 / c0 if un < 1e-12 else 2.0 * math.atan2(un, c0) / un) / dt
+                y0, y1 = c1 * scale, c2 * scale
+                # M = R_E'I · LP(R_IS), v = R_E'I · LP(R_IS b̂): rows x and y
+                e0 = _qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 1.0, 0.0, 0.0)
+                e1 = _qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 0.0, 1.0, 0.0)
+                m00 = e0[0] * rlp[0] + e0[1] * rlp[3] + e0[2] * rlp[6]
+                m01 = e0[0] * rlp[1] + e0[1] * rlp[4] + e0[2] * rlp[7]
+                m02 = e0[0] * rlp[2] + e0[1] * rlp[5] + e0[2] * rlp[8]
+                m10 = e1[0] * rlp[0] + e1[1] * rlp[3] + e1[2] * rlp[6]
+                m11 = e1[0] * rlp[1] + e1[1] * rlp[4] + e1[2] * rlp[7]
+                m12 = e1[0] * rlp[2] + e1[1] * rlp[5] + e1[2] * rlp[8]
+                v0 = e0[0] * ulp[0] + e0[1] * ulp[1] + e0[2] * ulp[2]
+                v1 = e1[0] * ulp[0] + e1[1] * ulp[1] + e1[2] * ulp[2]
+                r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
+                clip = c[C_CLIP]
+                innov = y0 - v0 + m00 * s[S_BIAS] + m01 * s[S_BIAS + 1] + m02 * s[S_BIAS + 2]
+                _bias_scalar_update(s, -m00, -m01, -m02, min(max(innov, -clip), clip), r_mot, clip)
+                innov = y1 - v1 + m10 * s[S_BIAS] + m11 * s[S_BIAS + 1] + m12 * s[S_BIAS + 2]
+                _bias_scalar_update(s, -m10, -m11, -m12, min(max(innov, -clip), clip), r_mot, clip)
+
+    # (5) heading from the magnetometer with disturbance rejection          [eqs. 9-12]
+    used = 0.0
+    if c[C_USEMAG] > 0.5 and mag_ok:
+        qe = _qmul(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
+                   s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
+        ex, ey, ez = _qrot(qe[0], qe[1], qe[2], qe[3], mx, my, mz)
+        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if norm > 1e-9:
+            dip = math.asin(min(max(-ez / norm, -1.0), 1.0))
+            if s[S_MREFOK] < 0.5:
+                s[S_MREFN], s[S_MREFD], s[S_MREFOK] = norm, dip, 1.0
+                s[S_MCANDN], s[S_MCANDD], s[S_TCAND] = norm, dip, 0.0
+                s[S_TUND] = c[C_MINUND]
+            near = (abs(norm - s[S_MREFN]) < c[C_NORMTH] * s[S_MREFN]
+                    and abs(dip - s[S_MREFD]) < c[C_DIPTH])
+            s[S_TUND] = s[S_TUND] + dt if near else 0.0
+            ok = near and s[S_TUND] >= c[C_MINUND]
+            if c[C_REJON] < 0.5:
+                ok = True
+            # candidate for a new reference: held while the field stays near it
+            if (abs(norm - s[S_MCANDN]) < c[C_NORMTH] * s[S_MCANDN]
+                    and abs(dip - s[S_MCANDD]) < c[C_DIPTH]):
+                s[S_MCANDN] += c[C_KCAND] * (norm - s[S_MCANDN])
+                s[S_MCANDD] += c[C_KCAND] * (dip - s[S_MCANDD])
+                s[S_TCAND] += dt
+            else:
+                s[S_MCANDN], s[S_MCANDD], s[S_TCAND] = norm, dip, 0.0
+            if not ok:
+                s[S_TREJ] += dt
+                if s[S_TREJ] >= c[C_MAXREJ] and s[S_TCAND] >= c[C_NEWS]:
+                    # a long, stable disturbance: the field there is the new reference
+                    s[S_MREFN], s[S_MREFD] = s[S_MCANDN], s[S_MCANDD]
+                    s[S_NMAG] = 0.0
+                    s[S_TUND] = c[C_MINUND]
+                    ok = True
+            if ok:
+                s[S_TREJ] = 0.0
+                s[S_MREFN] += c[C_KREF] * (norm - s[S_MREFN])
+                s[S_MREFD] += c[C_KREF] * (dip - s[S_MREFD])
+                k = max(c[C_KMAG], 1.0 / (s[S_NMAG] + 1.0))
+                err = _wrap(math.atan2(ex, ey) - s[S_DELTA])
+                if c[C_MAGBIAS] > 0.5:
+                    # (12b) vertical bias from the heading lag: err ≈ -τ_mag LP(R_E'S e)_z
+                    rz = _qrot(qe[0], -qe[1], -qe[2], -qe[3], 0.0, 0.0, 1.0)
+                    uz = rz[0] * bx + rz[1] * by + rz[2] * bz
+                    steady = s[S_NMAG] < c[C_NMAGINIT]
+                    km = c[C_KMAG]
+                    for i in range(3):
+                        s[S_MLP + i] = rz[i] if steady else s[S_MLP + i] + km * (rz[i] - s[S_MLP + i])
+                    s[S_MLP + 3] = uz if steady else s[S_MLP + 3] + km * (uz - s[S_MLP + 3])
+                    if not steady and s[S_REST] < 0.5:
+                        clip = c[C_CLIP]
+                        innov = (err / c[C_TAUMAG] - s[S_MLP + 3] + s[S_MLP] * s[S_BIAS]
+                                 + s[S_MLP + 1] * s[S_BIAS + 1] + s[S_MLP + 2] * s[S_BIAS + 2])
+                        _bias_scalar_update(s, -s[S_MLP], -s[S_MLP + 1], -s[S_MLP + 2],
+                                            min(max(innov, -clip), clip), c[C_RMAG], clip)
+                s[S_NMAG] += 1.0
+                s[S_DELTA] = _wrap(s[S_DELTA] + k * err)
+                used = 1.0
+            s[S_MDIST] = 0.0 if ok else 1.0
+
+    # (6) output q = R_z(δ) ⊗ q_E'I ⊗ q_IS
+    qe = _qmul(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
+               s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
+    hc, hs = math.cos(0.5 * s[S_DELTA]), math.sin(0.5 * s[S_DELTA])
+    q = _qmul(hc, 0.0, 0.0, hs, qe[0], qe[1], qe[2], qe[3])
+    s[S_Q], s[S_Q + 1], s[S_Q + 2], s[S_Q + 3] = q
+    _qnorm(s, S_Q)
+    return used
+
+
+@njit(cache=True)
+def chakamo_batch(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_aux):
+    """Run :func:`chakamo_step` over ``(N, 3)`` arrays; returns ``(q (N, 4), state, aux (N, AUX) or (0, AUX))``."""
+    n = acc.shape[0]
+    s = state0.copy()
+    out = np.empty((n, 4))
+    aux = np.empty((n if want_aux else 0, AUX_SIZE))
+    has_mag = mag.shape[0] == n
+    for k in range(n):
+        if has_mag:
+            mx, my, mz, mok = mag[k, 0], mag[k, 1], mag[k, 2], mag_ok[k]
+        else:
+            mx, my, mz, mok = 0.0, 0.0, 0.0, False
+        used = chakamo_step(s, coeffs, acc[k, 0], acc[k, 1], acc[k, 2], gyr[k, 0], gyr[k, 1], gyr[k, 2],
+                            mx, my, mz, acc_ok[k], mok)
+        for j in range(4):
+            out[k, j] = s[S_Q + j]
+        if want_aux:
+            for j in range(3):
+                aux[k, A_BIAS + j] = s[S_BIAS + j]
+            for j in range(6):
+                aux[k, A_P + j] = s[S_P + j]
+            aux[k, A_REST] = s[S_REST]
+            aux[k, A_MAGUSED] = used
+    return out, s, aux
+
+
+@njit(cache=True)
+def strapdown_batch(gyr, bias, q0, dt):
+    """``q_IS`` (N, 4) integrated with a per-sample bias ``(N, 3)`` from ``q0``: eq. (1), bias known.
+
+    Rows of ``gyr`` that are NaN (missing) hold the orientation.
+    """
+    n = gyr.shape[0]
+    out = np.empty((n, 4))
+    q = (q0[0], q0[1], q0[2], q0[3])
+    for k in range(n):
+        wx, wy, wz = gyr[k, 0] - bias[k, 0], gyr[k, 1] - bias[k, 1], gyr[k, 2] - bias[k, 2]
+        ang = math.sqrt(wx * wx + wy * wy + wz * wz) * dt
+        if ang > 1e-12:
+            sh = math.sin(0.5 * ang) / ang * dt
+            q = _qmul(q[0], q[1], q[2], q[3], math.cos(0.5 * ang), wx * sh, wy * sh, wz * sh)
+            nq = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+            q = (q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q
+    return out
+
+
+# =====================================================================================
+# readable numpy references (same maths, vector notation)
+# =====================================================================================
+def _bias_update_reference(b, p, h, innov, r, clip):
+    gain = p @ h / (h @ p @ h + r)
+    return np.clip(b + gain * innov, -clip, clip), p - np.outer(gain, h @ p)
+
+
+def _unpack_p(s):
+    p00, p01, p02, p11, p12, p22 = s[S_P:S_P + 6]
+    return np.array([[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]])
+
+
+def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
+    """Numpy twin of :func:`chakamo_step` (``s`` updated in place); returns 1.0 if heading was corrected."""
+    dt = c[C_DT]
+    b = s[S_BIAS:S_BIAS + 3].copy()
+    b_used = b.copy()  # the bias integrated at this sample
+    p = _unpack_p(s)
+    # (1) strapdown
+    gyr_ok = bool(np.all(np.isfinite(gyr)))  # a missing row (NaN) holds the orientation
+    omega = gyr - b
+    if gyr_ok:
+        s[S_W2] += c[C_KW2] * (omega @ omega - s[S_W2])
+        if np.linalg.norm(omega) * dt > 1e-12:
+            s[S_QIS:S_QIS + 4] = quat.normalize(quat.multiply(s[S_QIS:S_QIS + 4], quat.exp(omega * dt)))
+    # (2) rest detection (paused on a missing gyroscope row), bias random walk, bias at rest
+    g_lp = s[S_GREST:S_GREST + 3]
+    if gyr_ok:
+        s[S_GREST:S_GREST + 3] += c[C_KREST] * (gyr - s[S_GREST:S_GREST + 3])
+        rest_now = np.sum((gyr - g_lp) ** 2) < c[C_THG2] and np.sum(g_lp ** 2) < c[C_THG2]
+        if acc_ok:
+            s[S_AREST:S_AREST + 3] += c[C_KREST] * (acc - s[S_AREST:S_AREST + 3])
+            rest_now = rest_now and np.sum((acc - s[S_AREST:S_AREST + 3]) ** 2) < c[C_THA2]
+        s[S_TREST] = s[S_TREST] + dt if rest_now else 0.0
+        s[S_REST] = float(s[S_TREST] >= c[C_RESTMIN])
+    diag = np.diag(p)
+    p = p + np.diag(np.minimum(diag + c[C_QBIAS], np.maximum(diag, c[C_P0])) - diag)
+    if s[S_REST] > 0.5 and c[C_RESTON] > 0.5:
+        for i in range(3):
+            b, p = _bias_update_reference(b, p, np.eye(3)[i], g_lp[i] - b[i], c[C_RREST], c[C_CLIP])
+    # (3) inclination
+    if acc_ok:
+        acc_i = quat.rotate(s[S_QIS:S_QIS + 4], acc)
+        n = s[S_NACC]
+        bb = c[[C_B0, C_B1, C_B2]]
+        aa = c[[C_A1, C_A2]]
+        if n < c[C_NINIT]:
+            s[S_ALP:S_ALP + 3] += (acc_i - s[S_ALP:S_ALP + 3]) / (n + 1.0)
+            s[S_LP + 3:S_LP + 6] = (bb[2] - aa[1]) * s[S_ALP:S_ALP + 3]
+            s[S_LP:S_LP + 3] = (1.0 - bb[0]) * s[S_ALP:S_ALP + 3]
+        else:
+            y = bb[0] * acc_i + s[S_LP:S_LP + 3]
+            s[S_LP:S_LP + 3] = bb[1] * acc_i - aa[0] * y + s[S_LP + 3:S_LP + 6]
+            s[S_LP + 3:S_LP + 6] = bb[2] * acc_i - aa[1] * y
+            s[S_ALP:S_ALP + 3] = y
+        s[S_NACC] = n + 1.0
+        r_is = quat.to_matrix(s[S_QIS:S_QIS + 4])
+        r_lp = _biquad_reference(s, S_RLP, 9, r_is.ravel(), bb, aa, n < c[C_NINIT]).reshape(3, 3)
+        u_lp = _biquad_reference(s, S_ULP, 3, r_is @ b_used, bb, aa, n < c[C_NINIT])
+        s[S_RLPOUT:S_RLPOUT + 9] = r_lp.ravel()
+        s[S_RLPOUT + 9:S_RLPOUT + 12] = u_lp
+        acc_e = quat.rotate(s[S_QEI:S_QEI + 4], s[S_ALP:S_ALP + 3])
+        if np.linalg.norm(acc_e) > 1e-9:
+            acc_e = acc_e / np.linalg.norm(acc_e)
+            if 1.0 + acc_e[2] < 1e-12:
+                corr = np.array([0.0, 1.0, 0.0, 0.0])
+            else:
+                corr = quat.normalize(np.array([1.0 + acc_e[2], acc_e[1], -acc_e[0], 0.0]))
+            s[S_QEI:S_QEI + 4] = quat.normalize(quat.multiply(corr, s[S_QEI:S_QEI + 4]))
+            if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT]:
+                rate = quat.log(corr) / dt  # rotation vector of the correction per second
+                r_ei = quat.to_matrix(s[S_QEI:S_QEI + 4])
+                m_mat = r_ei @ r_lp
+                v = r_ei @ u_lp
+                r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
+                for j in range(2):
+                    innov = np.clip(rate[j] - v[j] + m_mat[j] @ b, -c[C_CLIP], c[C_CLIP])
+                    b, p = _bias_update_reference(b, p, -m_mat[j], innov, r_mot, c[C_CLIP])
+    s[S_BIAS:S_BIAS + 3] = b
+    s[S_P:S_P + 6] = p[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    # (5) heading
+    used = 0.0
+    if c[C_USEMAG] > 0.5 and mag_ok:
+        mag_e = quat.rotate(quat.multiply(s[S_QEI:S_QEI + 4], s[S_QIS:S_QIS + 4]), mag)
+        norm = np.linalg.norm(mag_e)
+        if norm > 1e-9:
+            dip = np.arcsin(np.clip(-mag_e[2] / norm, -1.0, 1.0))
+
+            def near(ref_norm, ref_dip):
+                return abs(norm - ref_norm) < c[C_NORMTH] * ref_norm and abs(dip - ref_dip) < c[C_DIPTH]
+
+            if s[S_MREFOK] < 0.5:
+                s[[S_MREFN, S_MREFD, S_MREFOK]] = norm, dip, 1.0
+                s[[S_MCANDN, S_MCANDD, S_TCAND]] = norm, dip, 0.0
+                s[S_TUND] = c[C_MINUND]
+            near_ref = near(s[S_MREFN], s[S_MREFD])
+            s[S_TUND] = s[S_TUND] + dt if near_ref else 0.0
+            ok = (near_ref and s[S_TUND] >= c[C_MINUND]) or c[C_REJON] < 0.5
+            if near(s[S_MCANDN], s[S_MCANDD]):
+                s[[S_MCANDN, S_MCANDD]] += c[C_KCAND] * (np.array([norm, dip]) - s[[S_MCANDN, S_MCANDD]])
+                s[S_TCAND] += dt
+            else:
+                s[[S_MCANDN, S_MCANDD, S_TCAND]] = norm, dip, 0.0
+            if not ok:
+                s[S_TREJ] += dt
+                if s[S_TREJ] >= c[C_MAXREJ] and s[S_TCAND] >= c[C_NEWS]:
+                    s[[S_MREFN, S_MREFD]] = s[[S_MCANDN, S_MCANDD]]
+                    s[S_NMAG] = 0.0
+                    s[S_TUND] = c[C_MINUND]
+                    ok = True
+            if ok:
+                s[S_TREJ] = 0.0
+                s[[S_MREFN, S_MREFD]] += c[C_KREF] * (np.array([norm, dip]) - s[[S_MREFN, S_MREFD]])
+                k = max(c[C_KMAG], 1.0 / (s[S_NMAG] + 1.0))
+                err = _wrap_reference(np.arctan2(mag_e[0], mag_e[1]) - s[S_DELTA])
+                if c[C_MAGBIAS] > 0.5:
+                    r_es = quat.to_matrix(quat.multiply(s[S_QEI:S_QEI + 4], s[S_QIS:S_QIS + 4]))
+                    x = np.append(r_es[2], r_es[2] @ b_used)  # E' z axis in sensor coordinates, its bias term
+                    steady = s[S_NMAG] < c[C_NMAGINIT]
+                    s[S_MLP:S_MLP + 4] = x if steady else s[S_MLP:S_MLP + 4] + c[C_KMAG] * (x - s[S_MLP:S_MLP + 4])
+                    if not steady and s[S_REST] < 0.5:
+                        m_z, v_z = s[S_MLP:S_MLP + 3], s[S_MLP + 3]
+                        b = s[S_BIAS:S_BIAS + 3].copy()
+                        p = _unpack_p(s)
+                        innov = np.clip(err / c[C_TAUMAG] - v_z + m_z @ b, -c[C_CLIP], c[C_CLIP])
+                        b, p = _bias_update_reference(b, p, -m_z, innov, c[C_RMAG], c[C_CLIP])
+                        s[S_BIAS:S_BIAS + 3] = b
+                        s[S_P:S_P + 6] = p[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+                s[S_NMAG] += 1.0
+                s[S_DELTA] = _wrap_reference(s[S_DELTA] + k * err)
+                used = 1.0
+            s[S_MDIST] = 0.0 if ok else 1.0
+    # (6) output
+    heading = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), s[S_DELTA])
+    s[S_Q:S_Q + 4] = quat.normalize(
+        quat.multiply(heading, quat.multiply(s[S_QEI:S_QEI + 4], s[S_QIS:S_QIS + 4])))
+    return used
+
+
+def _biquad_reference(s, start, m, x, bb, aa, steady):
+    """Numpy twin of ``_biquad`` on ``m`` channels whose state is ``s[start:start + 2m]``."""
+    z1, z2 = slice(start, start + m), slice(start + m, start + 2 * m)
+    if steady:
+        s[z1] = (1.0 - bb[0]) * x
+        s[z2] = (bb[2] - aa[1]) * x
+        return x.copy()
+    y = bb[0] * x + s[z1]
+    s[z1] = bb[1] * x - aa[0] * y + s[z2]
+    s[z2] = bb[2] * x - aa[1] * y
+    return y
+
+
+def _wrap_reference(a):
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def chakamo_batch_reference(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_aux):
+    """Numpy twin of :func:`chakamo_batch`."""
+    n = acc.shape[0]
+    s = np.array(state0, dtype=np.float64)
+    out = np.empty((n, 4))
+    aux = np.empty((n if want_aux else 0, AUX_SIZE))
+    has_mag = mag.shape[0] == n
+    for k in range(n):
+        m = mag[k] if has_mag else np.zeros(3)
+        used = chakamo_step_reference(s, coeffs, acc[k], gyr[k], m, bool(acc_ok[k]), has_mag and bool(mag_ok[k]))
+        out[k] = s[S_Q:S_Q + 4]
+        if want_aux:
+            aux[k, A_BIAS:A_BIAS + 3] = s[S_BIAS:S_BIAS + 3]
+            aux[k, A_P:A_P + 6] = s[S_P:S_P + 6]
+            aux[k, A_REST] = s[S_REST]
+            aux[k, A_MAGUSED] = used
+    return out, s, aux
+
+
+def strapdown_reference(gyr, bias, q0, dt):
+    """Numpy twin of :func:`strapdown_batch`."""
+    out = np.empty((gyr.shape[0], 4))
+    q = np.array(q0, dtype=np.float64)
+    for k in range(gyr.shape[0]):
+        omega = gyr[k] - bias[k]
+        if np.all(np.isfinite(omega)) and np.linalg.norm(omega) * dt > 1e-12:
+            q = quat.normalize(quat.multiply(q, quat.exp(omega * dt)))
+        out[k] = q
+    return out
+
+
+# =====================================================================================
+# offline: two-filter bias smoother (13)
+# =====================================================================================
+@njit(cache=True)
+def _sym_inv(a00, a01, a02, a11, a12, a22):
+    """Inverse of a symmetric 3×3 matrix (upper triangle in and out) by cofactors."""
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    return (c00 / det, c01 / det, c02 / det, (a00 * a22 - a02 * a02) / det, (a01 * a02 - a00 * a12) / det,
+            (a00 * a11 - a01 * a01) / det)
+
+
+@njit(cache=True)
+def smooth_bias_batch(b_f, p_f, b_b, p_b):
+    """Information-weighted mean of forward and backward bias estimates (eq. 13); ``p_*`` are ``(N, 6)``."""
+    n = b_f.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        f = _sym_inv(p_f[k, 0], p_f[k, 1], p_f[k, 2], p_f[k, 3], p_f[k, 4], p_f[k, 5])
+        g = _sym_inv(p_b[k, 0], p_b[k, 1], p_b[k, 2], p_b[k, 3], p_b[k, 4], p_b[k, 5])
+        r0 = f[0] * b_f[k, 0] + f[1] * b_f[k, 1] + f[2] * b_f[k, 2] \
+            + g[0] * b_b[k, 0] + g[1] * b_b[k, 1] + g[2] * b_b[k, 2]
+        r1 = f[1] * b_f[k, 0] + f[3] * b_f[k, 1] + f[4] * b_f[k, 2] \
+            + g[1] * b_b[k, 0] + g[3] * b_b[k, 1] + g[4] * b_b[k, 2]
+        r2 = f[2] * b_f[k, 0] + f[4] * b_f[k, 1] + f[5] * b_f[k, 2] \
+            + g[2] * b_b[k, 0] + g[4] * b_b[k, 1] + g[5] * b_b[k, 2]
+        s = _sym_inv(f[0] + g[0], f[1] + g[1], f[2] + g[2], f[3] + g[3], f[4] + g[4], f[5] + g[5])
+        out[k, 0] = s[0] * r0 + s[1] * r1 + s[2] * r2
+        out[k, 1] = s[1] * r0 + s[3] * r1 + s[4] * r2
+        out[k, 2] = s[2] * r0 + s[4] * r1 + s[5] * r2
+    return out
+
+
+def smooth_bias_reference(b_f, p_f, b_b, p_b):
+    """Numpy twin of :func:`smooth_bias_batch`."""
+    i_f = np.linalg.inv(_sym_reference(p_f))
+    i_b = np.linalg.inv(_sym_reference(p_b))
+    rhs = np.einsum("nij,nj->ni", i_f, b_f) + np.einsum("nij,nj->ni", i_b, b_b)
+    return np.linalg.solve(i_f + i_b, rhs[..., None])[..., 0]
+
+
+def _sym_reference(p6):
+    """``(N, 6)`` upper triangles → ``(N, 3, 3)`` symmetric matrices."""
+    rows, cols = [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]
+    p = np.empty((p6.shape[0], 3, 3))
+    p[:, rows, cols] = p6
+    p[:, cols, rows] = p6
+    return p
