@@ -342,7 +342,7 @@ class OrientationMethod(ABC):
         data = validate_imu(acc, gyr, mag, fs_hz=fs_hz, require_valid_acc=False)
         self._check_dimension(data.mag is not None)
         state_arr = np.array(state, dtype=np.float64)  # a copy: the caller's state is never mutated
-        q, new_state = self._run(data, state_arr)
+        q, new_state = self._run_online(data, state_arr)
         return (q[0] if np.ndim(acc) == 1 else q), new_state
 
     # ---------------------------------------------------------------- helpers
@@ -368,6 +368,10 @@ class OrientationMethod(ABC):
     @abstractmethod
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Compiled kernel: ``(q (N, 4), final state)``; must not modify ``state0``."""
+
+    def _run_online(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """What :meth:`update` runs: the causal kernel.  A method whose batch is non-causal overrides this."""
+        return self._run(data, state0)
 
     @abstractmethod
     def _run_reference(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

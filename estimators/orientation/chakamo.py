@@ -149,7 +149,7 @@ from scipy import signal
 from estimators import quaternion as quat
 from estimators.orientation import chakamo_kernels as kern
 from estimators.orientation.base import (
-    FloatArray, ImuInput, OrientationMethod, SampleFlags, check_parameter, validate_imu,
+    FloatArray, ImuInput, OrientationMethod, SampleFlags, check_parameter,
 )
 
 _DEG = math.pi / 180.0
@@ -313,16 +313,12 @@ class Chakamo(OrientationMethod):
         """Run the offline forward-backward smoother regardless of ``params.offline``."""
         return self._with_offline(True).estimate(acc, gyr, mag, fs_hz=fs_hz, q0=q0)._copy_results(self)
 
-    def update(self, state: ArrayLike, acc: ArrayLike, gyr: ArrayLike, mag: ArrayLike | None = None, *,
-               fs_hz: float) -> tuple[FloatArray, FloatArray]:
-        """Advance ``state`` with the *causal* filter (the offline smoother needs the whole recording)."""
-        data = validate_imu(acc, gyr, mag, fs_hz=fs_hz)
-        self._check_dimension(data.mag is not None)
-        state_arr = np.array(state, dtype=np.float64)
-        if state_arr.shape != (kern.STATE_SIZE,):
-            raise ValueError(f"state must have shape ({kern.STATE_SIZE},), got {state_arr.shape}")
-        q, new_state, _ = self._causal(data, state_arr, reference=False, want_aux=False)
-        return (q[0] if np.ndim(acc) == 1 else q), new_state
+    def _run_online(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``update`` runs the *causal* filter: the offline smoother needs the whole recording."""
+        if state0.shape != (kern.STATE_SIZE,):
+            raise ValueError(f"state must have shape ({kern.STATE_SIZE},), got {state0.shape}")
+        q, new_state, _ = self._causal(data, state0, reference=False, want_aux=False)
+        return q, new_state
 
     # ------------------------------------------------------------ base contract
     def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
