@@ -2,6 +2,9 @@
 
 The methods (``METHODS``) share the contract of :mod:`estimators.orientation.base`:
 
+* ``chakamo`` (default) — ChakaMo's own filter: strapdown in a quasi-inertial frame, gyroscope bias
+  estimation, magnetic-disturbance rejection and an offline forward-backward smoother; on the BROAD
+  benchmark it is more accurate than the published VQF (see README, ``python -m benchmarks.broad``);
 * ``guo`` — Guo, Wu, Wang, Qian (2017), fast Kalman filter (the source thesis' choice);
 * ``madgwick`` — Madgwick (2011) gradient descent with magnetic distortion compensation;
 * ``valenti_cf`` — Valenti, Dryanovski, Xiao (2015), complementary filter with delta quaternions;
@@ -29,7 +32,7 @@ _REGISTRY: dict[str, str] = {
 }
 
 METHODS: tuple[str, ...] = tuple(_REGISTRY)
-DEFAULT_METHOD = "guo"
+DEFAULT_METHOD = "chakamo"
 
 
 def get_method(name: str) -> type[OrientationMethod]:
