@@ -63,6 +63,19 @@ def _row(method: str, mode: str, n: int, per_call_s: float, first_s: float | Non
             "first_call_s": first_s, "repeats": repeats, "note": note}
 
 
+def _variants(name: str) -> list[tuple[str, dict[str, Any]]]:
+    """A method's rows: its defaults, plus its causal pass when the default is an offline smoother."""
+    from dataclasses import fields
+
+    from estimators import orientation
+
+    variants: list[tuple[str, dict[str, Any]]] = [(name, {})]
+    params = {f.name: f.default for f in fields(orientation.get_method(name).params_type)}
+    if params.get("offline") is True:
+        variants.append((f"{name}_causal", {"offline": False}))
+    return variants
+
+
 def bench_project(names: Sequence[str], data: tuple, repeats: int) -> tuple[list[dict], list[str]]:
     """Time the project's methods; ``(rows, notes)``."""
     from estimators import orientation
@@ -72,24 +85,28 @@ def bench_project(names: Sequence[str], data: tuple, repeats: int) -> tuple[list
     rows, notes = [], []
     short = slice(0, FIRST_CALL_SAMPLES)
     for name in names:
-        for mode in ("9d", "6d"):
-            m = mag if mode == "9d" else None
-            m_short = None if m is None else m[short]
-            try:
-                start = time.perf_counter()
-                orientation.get_method(name)  # import first, so that the first call is the compilation
-                import_s = time.perf_counter() - start
-                start = time.perf_counter()
-                orientation.estimate(acc[short], gyr[short], m_short, fs_hz=FS_HZ, method=name)
-                first_s = time.perf_counter() - start
-            except (ImportError, NotImplementedError) as exc:
-                notes.append(f"skipped {name}: {type(exc).__name__}: {exc}")
-                break
-            except Exception as exc:  # noqa: BLE001 - e.g. no 6D variant, or a method still being written
-                notes.append(f"skipped {name} {mode}: {type(exc).__name__}: {exc}")
-                continue
-            per_call = _time_call(lambda: orientation.estimate(acc, gyr, m, fs_hz=FS_HZ, method=name), repeats)
-            rows.append(_row(name, mode, n, per_call, first_s, repeats, f"import {import_s:.2f} s" if mode == "9d" else ""))
+        try:
+            start = time.perf_counter()
+            variants = _variants(name)  # imports the module, so that the first call is the compilation
+            import_s = time.perf_counter() - start
+        except (ImportError, NotImplementedError) as exc:
+            notes.append(f"skipped {name}: {type(exc).__name__}: {exc}")
+            continue
+        for label, params in variants:
+            for mode in ("9d", "6d"):
+                m = mag if mode == "9d" else None
+                m_short = None if m is None else m[short]
+                try:
+                    start = time.perf_counter()
+                    orientation.estimate(acc[short], gyr[short], m_short, fs_hz=FS_HZ, method=name, **params)
+                    first_s = time.perf_counter() - start
+                except Exception as exc:  # noqa: BLE001 - e.g. no 6D variant, or a method still being written
+                    notes.append(f"skipped {label} {mode}: {type(exc).__name__}: {exc}")
+                    continue
+                per_call = _time_call(
+                    lambda: orientation.estimate(acc, gyr, m, fs_hz=FS_HZ, method=name, **params), repeats)
+                note = f"import {import_s:.2f} s" if mode == "9d" and label == name else ""
+                rows.append(_row(label, mode, n, per_call, first_s, repeats, note))
     return rows, notes
 
 
@@ -161,7 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     names = args.methods or list(METHODS)
     data = simulated_imu(args.samples)
-    print(f"speed: synthetic rotating body, {args.samples} samples at {FS_HZ:g} Hz, median of {args.repeats} calls; "
+    print(f"speed: simulated rotations (MetaMotionR-like errors), {args.samples} samples at {FS_HZ:g} Hz, median of {args.repeats} calls; "
           f"numba cache {'warm' if args.warm_cache else 'cold (first call = compilation)'}", flush=True)
     rows, notes = bench_project(names, data, args.repeats)
     for part in (bench_vqf(data, args.repeats),
