@@ -240,7 +240,11 @@ def slerp(q0: ArrayLike, q1: ArrayLike, t: ArrayLike) -> FloatArray:
 
 
 def from_two_vectors(a: ArrayLike, b: ArrayLike) -> FloatArray:
-    """Shortest-arc rotation ``q`` with ``rotate(q, â) == b̂`` (antiparallel: a half turn about a perpendicular)."""
+    r"""Shortest-arc rotation ``q`` with ``rotate(q, â) == b̂`` (antiparallel: a half turn about a perpendicular).
+
+    The angle is :math:`\operatorname{atan2}(|a \times b|, a \cdot b)` and the axis :math:`a \times b`, both
+    accurate near 0 and π, where the textbook :math:`(1 + a\cdot b, a \times b)` loses its digits.
+    """
     a = _as_vector(a)
     b = _as_vector(b)
     na = np.linalg.norm(a, axis=-1, keepdims=True)
@@ -249,17 +253,15 @@ def from_two_vectors(a: ArrayLike, b: ArrayLike) -> FloatArray:
         raise ValueError("cannot rotate a zero vector")
     a = a / na
     b = b / nb
-    dot = np.sum(a * b, axis=-1, keepdims=True)
     cross = np.cross(a, b)
-    q = np.concatenate([1.0 + dot, cross], axis=-1)
-    # antiparallel: any axis perpendicular to a
-    anti = (1.0 + dot[..., 0]) < 1e-12
-    if np.any(anti):
-        helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
-        perp = np.cross(a, helper)
-        perp /= np.linalg.norm(perp, axis=-1, keepdims=True)
-        q = np.where(anti[..., None], np.concatenate([np.zeros_like(dot), perp], axis=-1), q)
-    return normalize(q)
+    sin = np.linalg.norm(cross, axis=-1, keepdims=True)
+    angle = np.arctan2(sin, np.sum(a * b, axis=-1, keepdims=True))
+    # exactly (anti)parallel: any axis perpendicular to a (irrelevant when the angle is 0)
+    helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    perp = np.cross(a, helper)
+    perp /= np.linalg.norm(perp, axis=-1, keepdims=True)
+    axis = np.where(sin > 0.0, cross / np.where(sin > 0.0, sin, 1.0), perp)
+    return np.concatenate([np.cos(0.5 * angle), np.sin(0.5 * angle) * axis], axis=-1)
 
 
 def _check_sequence(seq: str) -> str:

@@ -20,8 +20,8 @@ with flexion :math:`\phi` (+ flexed), adduction :math:`\alpha` (+ varus), intern
 :math:`\rho` (+ internal), and :math:`s = +1` for the right leg, :math:`-1` for the left (mirror:
 z points laterally on the right leg and medially on the left, so the clinical signs are kept).
 Flexion is a *negative* rotation about z because flexing the knee swings the tibia's distal end
-posteriorly.  :func:`knee_quaternion` is (K1); :func:`knee_angles` its inverse (scipy's intrinsic
-``"ZXY"`` Euler angles, then the signs of K1).
+posteriorly.  :func:`knee_quaternion` is (K1) and :func:`knee_angles` its inverse: both are defined once,
+in :mod:`estimators.knee`, and re-exported here so the truth uses the pipeline's own convention.
 
 Single-leg step-up (seed 004 §2.2, DESIGN.md §3)
 ------------------------------------------------
@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimators import quaternion as quat
+from estimators.knee import knee_angles, knee_quaternion, side_sign
 from estimators.simulation.trajectory import DEFAULT_FS_HZ, Trajectory, intrinsic_rotation, min_jerk, time_grid
 
 FloatArray = NDArray[np.float64]
@@ -62,33 +63,7 @@ SHANK_LENGTH_M = 0.40
 ANKLE_HEIGHT_M = 0.08
 
 
-def _side_sign(side: str) -> float:
-    if side == "right":
-        return 1.0
-    if side == "left":
-        return -1.0
-    raise ValueError(f"side must be 'right' or 'left', got {side!r}")
-
-
-def knee_quaternion(angles_rad: ArrayLike, side: str = "right") -> FloatArray:
-    """``q_thigh_shank`` (..., 4) from Grood & Suntay angles (..., 3), rad (K1).
-
-    The angles are (flexion, adduction, internal rotation) with clinical signs for ``side``.
-    """
-    a = np.asarray(angles_rad, dtype=np.float64)
-    if a.ndim == 0 or a.shape[-1] != 3:
-        raise ValueError(f"angles_rad must have shape (..., 3), got {a.shape}")
-    s = _side_sign(side)
-    flat = a.reshape(-1, 3)
-    q = intrinsic_rotation(np.column_stack([-flat[:, 0], s * flat[:, 1], s * flat[:, 2]]), "ZXY")
-    return quat.positive_scalar(q).reshape(a.shape[:-1] + (4,))
-
-
-def knee_angles(q_thigh_shank: ArrayLike, side: str = "right") -> FloatArray:
-    """Grood & Suntay angles (..., 3) = (flexion, adduction, internal rotation), rad: the inverse of (K1)."""
-    s = _side_sign(side)
-    e = quat.to_euler(q_thigh_shank, "ZXY")
-    return np.stack([-e[..., 0], s * e[..., 1], s * e[..., 2]], axis=-1)
+_side_sign = side_sign
 
 
 def segment_frame(facing_rad: float = 0.0, posture: str = "standing") -> FloatArray:

@@ -128,6 +128,12 @@ def test_from_two_vectors(a, b):
     np.testing.assert_allclose(quat.rotate(q, a / np.linalg.norm(a)), b / np.linalg.norm(b), atol=1e-7)
 
 
+def test_from_two_vectors_nearly_antiparallel():
+    """Found by hypothesis: 1 + a·b cancels near π; the atan2 form keeps full precision."""
+    a, b = np.array([1.0, 0.0, 0.0]), np.array([-495.0, 7e-4, 0.0])
+    np.testing.assert_allclose(quat.rotate(quat.from_two_vectors(a, b), a), b / np.linalg.norm(b), atol=1e-12)
+
+
 def test_from_two_vectors_antiparallel():
     q = quat.from_two_vectors([0, 0, 1.0], [0, 0, -2.0])
     np.testing.assert_allclose(quat.rotate(q, [0, 0, 1.0]), [0, 0, -1.0], atol=1e-12)
