@@ -71,6 +71,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimators import quaternion as quat
+from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
 
@@ -84,14 +85,6 @@ _Z = np.array([0.0, 0.0, 1.0])
 
 class CalibrationError(ValueError):
     """The postures cannot define a segment frame (no still data, or the two gravity directions coincide)."""
-
-
-@dataclass(frozen=True)
-class QualityWarning:
-    """A quality warning for ``results.json`` ``quality.warnings``: a stable ``code`` and a sentence for people."""
-
-    code: str
-    message: str
 
 
 def side_sign(side: str) -> float:

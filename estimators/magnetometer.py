@@ -88,6 +88,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
+from estimators.quality import QualityWarning
+
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
@@ -118,14 +120,6 @@ _SHAPE_MAP = {"ellipsoid": np.eye(6), "sphere": np.array([[1.0], [1.0], [1.0], [
 
 
 @dataclass(frozen=True)
-class MagWarning:
-    """A quality problem: a stable ``code`` for software and a ``message`` for the clinician."""
-
-    code: str
-    message: str
-
-
-@dataclass(frozen=True)
 class MagQuality:
     """Quality figures of one calibration recording (units in the names; fractions in 0..1)."""
 
@@ -139,7 +133,7 @@ class MagQuality:
     n_samples: int  # samples used by the final fit
     n_dropped_nan: int  # rows dropped because they held NaN
     n_outliers: int  # samples rejected as magnetic disturbances
-    warnings: tuple[MagWarning, ...] = ()
+    warnings: tuple[QualityWarning, ...] = ()
 
     @property
     def reliable(self) -> bool:
@@ -407,7 +401,7 @@ def _calibration(params: FloatArray, x: FloatArray, shape_map: FloatArray, model
                           quality=replace(quality, warnings=warnings))
 
 
-def _warnings(q: MagQuality, anisotropy: float, expected_field_ut: float | None) -> tuple[MagWarning, ...]:
+def _warnings(q: MagQuality, anisotropy: float, expected_field_ut: float | None) -> tuple[QualityWarning, ...]:
     lo, hi = EARTH_FIELD_UT
     checks = [
         (q.coverage_fraction < COVERAGE_WARN or q.direction_spread < SPREAD_WARN, "MAG_COVERAGE_LOW",
@@ -433,4 +427,4 @@ def _warnings(q: MagQuality, anisotropy: float, expected_field_ut: float | None)
         (q.n_samples < FEW_SAMPLES, "MAG_FEW_SAMPLES",
          f"Only {q.n_samples} samples were used: record the figure-eight for ~60 s."),
     ]
-    return tuple(MagWarning(code, message) for fired, code, message in checks if fired)
+    return tuple(QualityWarning(code, message) for fired, code, message in checks if fired)

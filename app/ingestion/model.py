@@ -1,0 +1,198 @@
+"""Data model of the ingestion layer: streams as read, recordings, aligned recordings, the session.
+
+Every array is in the project's units (DESIGN §3): acc m/s² (specific force), gyr rad/s, mag µT,
+time in seconds.  Conversion from file units happens once, in the readers (:mod:`.units`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+#: Segment names used everywhere in the pipeline.
+SEGMENTS = ("thigh", "shank")
+#: Recording roles of one session (seed 004 §8.4): magnetometer calibration, standing, lying, task.
+ROLES = ("mag_calibration", "standing", "lying", "task")
+#: Stream kinds and their project unit.
+KINDS = {"acc": "m/s²", "gyr": "rad/s", "mag": "µT"}
+
+
+class IngestionError(ValueError):
+    """A file or folder cannot be ingested.  The message names the file and says what to do."""
+
+
+@dataclass(frozen=True)
+class Recognition:
+    """How a value (segment, role, side, ...) was found.
+
+    value : the canonical value (``"thigh"``, ``"task"``, ``"right"``, ``0.34``...).
+    method : ``"file name"``, ``"MetaBase label"``, ``"session.json"``, ``"default"`` or ``"argument"``.
+    evidence : the word or entry that decided it (``"muslo"``, ``"-H suffix"``, ``"recordings[2].segment"``).
+    """
+
+    value: Any
+    method: str
+    evidence: str = ""
+
+    def describe(self) -> str:
+        return f"{self.value} (from {self.method}{': ' + repr(self.evidence) if self.evidence else ''})"
+
+
+@dataclass(frozen=True, eq=False)
+class Stream:
+    """One sensor stream as read from a file, already in project units.
+
+    kind : ``"acc"``, ``"gyr"`` or ``"mag"``.
+    t_s : (n,) time stamps, s, strictly increasing.  Absolute (Unix epoch seconds) when the file has
+        epoch stamps (MetaBase); otherwise seconds from the file's own start (``time_base="elapsed"``).
+    values : (n, 3) float64 in m/s², rad/s or µT; rows may hold NaN (missing samples).
+    declared_unit : the unit the file declared (``"g"``, ``"deg/s"``, ``"T"``...).
+    file : the source file.   nominal_fs_hz : the rate the file name declares, if any.
+    time_base : ``"epoch"`` or ``"elapsed"``.
+    """
+
+    kind: str
+    t_s: FloatArray
+    values: FloatArray
+    declared_unit: str
+    file: Path
+    nominal_fs_hz: float | None = None
+    time_base: str = "epoch"
+
+    @property
+    def fs_hz(self) -> float:
+        """Rate measured from the stamps, Hz: 1 / mean period, periods longer than 1.5 median ones (gaps)
+        left out, so millisecond rounding of the stamps does not hide a 1 % clock drift."""
+        d = np.diff(self.t_s)
+        return float(1.0 / np.mean(d[d <= 1.5 * np.median(d)]))
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0])
+
+
+@dataclass(frozen=True, eq=False)
+class RawRecording:
+    """One sensor × one role, three streams as read (each with its own stamps), not yet aligned.
+
+    fmt : ``"metabase"``, ``"thesis-xlsx"`` or ``"generic-csv"``.
+    segment, role : :class:`Recognition` of the segment (thigh/shank) and role.
+    sensor_id : MAC address (MetaBase) or ``None``.   label : the recording label / file stem.
+    extras : other facts found in the names (patient id, date, trial number, side, step height),
+        each a :class:`Recognition`.
+    notes : human-readable remarks from the reader (sheet chosen, ...).
+    """
+
+    acc: Stream
+    gyr: Stream
+    mag: Stream
+    fmt: str
+    segment: Recognition | None
+    role: Recognition | None
+    label: str
+    sensor_id: str | None = None
+    extras: dict[str, Recognition] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    @property
+    def files(self) -> tuple[Path, ...]:
+        return tuple(dict.fromkeys((self.acc.file, self.gyr.file, self.mag.file)))
+
+    @property
+    def streams(self) -> tuple[Stream, Stream, Stream]:
+        return (self.acc, self.gyr, self.mag)
+
+
+@dataclass(frozen=True, eq=False)
+class AlignedRecording:
+    """One sensor × one role with acc, gyr and mag on one uniform grid.
+
+    t_s : (N,) grid, s, ``t_s[k] = k / fs_hz`` (starts at 0).
+    acc, gyr, mag : (N, 3) in m/s², rad/s, µT, linearly interpolated on each stream's own stamps;
+        rows inside a gap of a stream (> 2.5 of its periods without a valid sample) are NaN.
+    fs_hz : grid rate, Hz.
+    t0_s : the grid's first instant on the files' time base (epoch s for MetaBase, else elapsed s).
+    time_base : ``"epoch"`` or ``"elapsed"``.
+    segment, role : canonical names (``"thigh"``, ``"task"``...).
+    source : where the data came from: ``files``, ``format``, ``segment`` / ``role``
+        (:meth:`Recognition.describe` strings), ``sensor_id``, ``label``.
+    flags : facts about the alignment: ``stream_fs_hz`` (measured rates), ``trimmed_s`` (per stream,
+        seconds cut at start/end to reach the common span), ``nan_rows`` (per stream, rows NaN on
+        the grid), ``notes`` (list of sentences worth showing a user).
+    """
+
+    t_s: FloatArray
+    acc: FloatArray
+    gyr: FloatArray
+    mag: FloatArray
+    fs_hz: float
+    t0_s: float
+    time_base: str
+    segment: str
+    role: str
+    source: dict[str, Any]
+    flags: dict[str, Any]
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    @property
+    def duration_s(self) -> float:
+        return float(len(self.t_s) / self.fs_hz)
+
+
+@dataclass(frozen=True)
+class SessionMetadata:
+    """Facts about the session found in names or the manifest, each with how it was found.
+
+    patient_id, side (``"right"``/``"left"``), step_height_m, date (ISO ``YYYY-MM-DD``), trial:
+    :class:`Recognition` or ``None`` when nothing said it.
+    """
+
+    patient_id: Recognition | None = None
+    side: Recognition | None = None
+    step_height_m: Recognition | None = None
+    date: Recognition | None = None
+    trial: Recognition | None = None
+
+    def value(self, name: str) -> Any:
+        r = getattr(self, name)
+        return None if r is None else r.value
+
+
+@dataclass(frozen=True, eq=False)
+class Session:
+    """One session folder: 2 sensors × 4 recordings, each aligned, plus the task pair on one grid.
+
+    folder : the session folder.   fmt : the input format(s) used.
+    recordings : ``{(segment, role): AlignedRecording}``.
+    raw : ``{(segment, role): RawRecording}`` (the streams as read, own stamps).
+    task : ``(thigh, shank)`` task recordings resampled onto one common grid.
+    metadata : :class:`SessionMetadata`.   manifest : path of ``session.json`` if one was used.
+    notes : sentences worth showing a user (sheet chosen, streams trimmed, default step height...).
+    """
+
+    folder: Path
+    recordings: dict[tuple[str, str], AlignedRecording]
+    raw: dict[tuple[str, str], RawRecording]
+    task: tuple[AlignedRecording, AlignedRecording]
+    metadata: SessionMetadata
+    manifest: Path | None = None
+    notes: tuple[str, ...] = ()
+
+    def recording(self, segment: str, role: str) -> AlignedRecording:
+        """The aligned recording of ``segment`` (thigh/shank) in ``role`` (see :data:`ROLES`)."""
+        key = (segment, role)
+        if key not in self.recordings:
+            raise KeyError(f"no {role} recording of the {segment} in {self.folder}; have {sorted(self.recordings)}")
+        return self.recordings[key]
+
+    def task_pair(self) -> tuple[AlignedRecording, AlignedRecording]:
+        """``(thigh, shank)`` task recordings on one common grid (same ``t_s``, same length)."""
+        return self.task

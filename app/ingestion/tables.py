@@ -1,0 +1,94 @@
+"""Shared checks for tabular files: rows, numeric cells, time stamps.  Every failure names file, row, column."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from app.ingestion.model import FloatArray, IngestionError
+
+#: Fewest samples / shortest span a stream may have.
+MIN_SAMPLES = 10
+MIN_DURATION_S = 1.0
+
+
+def read_csv_rows(path: Path) -> tuple[list[str], list[list[str]]]:
+    """Header and data rows of a comma-separated file; refuses empty, header-only and ragged (truncated) files."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = [r for r in csv.reader(fh)]
+    except UnicodeDecodeError as exc:
+        raise IngestionError(f"{path}: not a text CSV file ({exc.reason}); export it again as CSV.") from None
+    except OSError as exc:
+        raise IngestionError(f"{path}: cannot be read ({exc.strerror}).") from None
+    while rows and not any(c.strip() for c in rows[-1]):
+        rows.pop()
+    if not rows:
+        raise IngestionError(f"{path}: the file is empty; export the recording again.")
+    header = [h.strip() for h in rows[0]]
+    if len(header) == 1 and ";" in header[0]:
+        raise IngestionError(f"{path}: the columns are separated by ';'; save the file as comma-separated CSV "
+                             f"with '.' as the decimal point.")
+    data = rows[1:]
+    if not data:
+        raise IngestionError(f"{path}: the file has a header but no data rows; export the recording again.")
+    k = len(header)
+    for i, r in enumerate(data):
+        if len(r) != k:
+            where = "the last row" if i == len(data) - 1 else f"row {i + 2}"
+            raise IngestionError(
+                f"{path}: {where} has {len(r)} cells but the header has {k}"
+                + ("; the file looks truncated (copy or export it again)." if i == len(data) - 1
+                   else "; the file is damaged or has a stray separator — export it again."))
+    return header, data
+
+
+def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], columns: Sequence[int],
+                    first_row: int = 2) -> FloatArray:
+    """Columns ``columns`` of ``rows`` as float64 (n, len(columns)); empty cells → NaN, text → error.
+
+    ``first_row`` is the 1-based file row of ``rows[0]`` (for messages).
+    """
+    out = np.empty((len(rows), len(columns)))
+    for j, c in enumerate(columns):
+        col = [r[c] for r in rows]
+        try:
+            out[:, j] = np.array(col, dtype=np.float64)
+        except ValueError:
+            for i, cell in enumerate(col):
+                cell = cell.strip()
+                if cell == "":
+                    out[i, j] = np.nan
+                    continue
+                try:
+                    out[i, j] = float(cell)
+                except ValueError:
+                    raise IngestionError(
+                        f"{path}: row {i + first_row}, column '{header[c]}' holds {cell!r}, which is not a number; "
+                        f"fix or delete that row (decimal point '.', no thousands separator).") from None
+    if np.isinf(out).any():
+        i, j = np.argwhere(np.isinf(out))[0]
+        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' is infinite; "
+                             f"fix or delete that row.")
+    return out
+
+
+def check_stamps(path: Path, t_s: FloatArray, what: str = "time stamps", first_row: int = 2) -> None:
+    """Time stamps present, strictly increasing, enough of them."""
+    if np.isnan(t_s).any():
+        i = int(np.argmax(np.isnan(t_s)))
+        raise IngestionError(f"{path}: row {i + first_row} has no {what}; fix or delete that row.")
+    if len(t_s) < MIN_SAMPLES or t_s[-1] - t_s[0] < MIN_DURATION_S:
+        raise IngestionError(f"{path}: only {len(t_s)} samples ({t_s[-1] - t_s[0]:.2f} s); the recording is too "
+                             f"short (at least {MIN_DURATION_S:g} s) — record again.")
+    d = np.diff(t_s)
+    if (d <= 0).any():
+        i = int(np.argmax(d <= 0))
+        kind = "repeats" if d[i] == 0 else "goes back in time at"
+        raise IngestionError(
+            f"{path}: rows {i + first_row} and {i + first_row + 1}: the {what} {kind} {float(t_s[i + 1]):.6g} s "
+            f"(duplicated or out-of-order rows). Export the recording again, or remove the "
+            f"{'duplicated' if d[i] == 0 else 'out-of-order'} rows.")

@@ -1,0 +1,294 @@
+r"""Detection: task span, excursions, still regions and the five events of each cycle (sample indices).
+
+Everything here works in *sample units* (fractional indices); :mod:`.analysis` converts to seconds.
+The equations (D1–D6) are those of the package docstring.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter, sosfiltfilt
+
+from estimators.motor_task.tasks import MotorTaskParams, TaskSpec
+
+FloatArray = NDArray[np.float64]
+
+#: Fractions of a transition whose crossing times feed the minimum-jerk fit (D5).
+FRACTIONS = np.arange(1, 10) / 10.0
+
+
+def _min_jerk_inverse(f: FloatArray) -> FloatArray:
+    """τ such that :math:`10τ^3 - 15τ^4 + 6τ^5 = f` (monotone on [0, 1])."""
+    tau = np.linspace(0.0, 1.0, 20001)
+    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+    return np.interp(f, s, tau)
+
+
+TAU_F = _min_jerk_inverse(FRACTIONS)
+
+
+def lowpass(x: FloatArray, fs_hz: float, cutoff_hz: float) -> FloatArray:
+    """Zero-phase 2nd-order Butterworth low-pass along axis 0 (D1); returned unchanged when not applicable."""
+    if cutoff_hz >= 0.45 * fs_hz or len(x) < 16:
+        return np.array(x, dtype=np.float64, copy=True)
+    sos = butter(2, cutoff_hz / (0.5 * fs_hz), output="sos")
+    return sosfiltfilt(sos, x, axis=0, padlen=min(len(x) - 1, 3 * int(fs_hz / cutoff_hz)))
+
+
+def moving_sd(x: FloatArray, n: int) -> FloatArray:
+    """Centred moving standard deviation over ``n`` samples (shorter at the ends), via cumulative sums (D2)."""
+    n = max(int(n), 2)
+    m = len(x)
+    xc = x - np.mean(x)
+    c1 = np.concatenate([[0.0], np.cumsum(xc)])
+    c2 = np.concatenate([[0.0], np.cumsum(xc * xc)])
+    i = np.arange(m)
+    lo = np.clip(i - n // 2, 0, m)
+    hi = np.clip(i - n // 2 + n, 0, m)
+    k = (hi - lo).astype(np.float64)
+    mean = (c1[hi] - c1[lo]) / k
+    var = (c2[hi] - c2[lo]) / k - mean * mean
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def runs(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """Half-open ``[start, end)`` runs of True, shape (k, 2)."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)]).astype(np.int64)
+
+
+def merge_runs(r: NDArray[np.int64], max_gap: int) -> NDArray[np.int64]:
+    """Merge runs separated by fewer than ``max_gap`` samples."""
+    if len(r) < 2 or max_gap <= 0:
+        return r
+    keep = np.concatenate([[True], r[1:, 0] - r[:-1, 1] >= max_gap])
+    starts = r[keep, 0]
+    ends = np.append(r[np.flatnonzero(keep)[1:] - 1, 1], r[-1, 1])
+    return np.column_stack([starts, ends])
+
+
+def task_span(flex: FloatArray, fs_hz: float, p: MotorTaskParams) -> tuple[int, int] | None:
+    """``[start, end)`` from the first to the last sample whose moving SD of flexion exceeds the threshold (D2),
+    widened by half a window; None when the knee never moves that much."""
+    n = int(round(p.activity_window_s * fs_hz))
+    active = np.flatnonzero(moving_sd(flex, n) > p.activity_sd_rad)
+    if len(active) == 0:
+        return None
+    return max(0, int(active[0]) - n // 2), min(len(flex), int(active[-1]) + n // 2 + 1)
+
+
+def excursions(y: FloatArray, span: tuple[int, int], p: MotorTaskParams) -> NDArray[np.int64]:
+    """Runs where ``y`` is above the midline between its 5th and 95th percentile in the task span, with
+    hysteresis of ±15 % of that amplitude (D3); empty when the amplitude is below ``min_excursion_rad``."""
+    lo, hi = np.percentile(y[span[0]:span[1]], [5.0, 95.0])
+    if hi - lo < p.min_excursion_rad:
+        return np.zeros((0, 2), dtype=np.int64)
+    mid, h = 0.5 * (lo + hi), 0.15 * (hi - lo)
+    state = np.where(y > mid + h, 1, np.where(y < mid - h, 0, -1))
+    idx = np.where(state >= 0, np.arange(len(y)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    filled = state[idx]
+    filled[filled < 0] = (y[0] > mid)  # undecided before the first clear sample: side of the midline
+    return runs(filled == 1)
+
+
+@dataclass
+class Region:
+    """A still region ``[start, end)`` (a rest, a hold or a turning point) and its levels next to each edge."""
+
+    start: int
+    end: int
+    level_in: float   # median of y over the first level_window of the region
+    level_out: float  # median of y over the last level_window of the region
+
+    @property
+    def length(self) -> int:
+        return self.end - self.start
+
+
+def _region(y: FloatArray, start: int, end: int, w: int) -> Region:
+    end = max(end, start + 1)
+    return Region(start, end, float(np.median(y[start:min(end, start + w)])),
+                  float(np.median(y[max(start, end - w):end])))
+
+
+def _longest_still(still: NDArray[np.int64], lo: int, hi: int) -> tuple[int, int] | None:
+    """The longest still run clipped to ``[lo, hi)``."""
+    if hi <= lo or len(still) == 0:
+        return None
+    s = np.clip(still[:, 0], lo, hi)
+    e = np.clip(still[:, 1], lo, hi)
+    length = e - s
+    k = int(np.argmax(length))
+    return (int(s[k]), int(e[k])) if length[k] > 0 else None
+
+
+def _containing(still: NDArray[np.int64], i: int, lo: int, hi: int) -> tuple[int, int]:
+    """The still run containing sample ``i``, clipped to ``[lo, hi)``; ``[i, i+1)`` when none does."""
+    k = int(np.searchsorted(still[:, 0], i, side="right")) - 1 if len(still) else -1
+    if k >= 0 and still[k, 1] > i:
+        return max(int(still[k, 0]), lo), min(int(still[k, 1]), hi)
+    return i, i + 1
+
+
+def fit_transition(y: FloatArray, i0: int, i1: int, level0: float, level1: float,
+                   p: MotorTaskParams) -> tuple[float, float]:
+    """Start and end (fractional samples) of the monotone transition of ``y`` from ``level0`` to ``level1``
+    within samples ``[i0, i1]`` (D5 minimum-jerk fit or D6 threshold); NaN when it cannot be measured."""
+    a = level1 - level0
+    if i1 - i0 < 2 or a == 0.0:
+        return float("nan"), float("nan")
+    u = (y[i0:i1 + 1] - level0) / a
+    above = np.flatnonzero(u >= 0.5)
+    if len(above) == 0 or above[0] == 0:
+        return float("nan"), float("nan")
+    jm = int(above[0])
+
+    def crossing(f: float) -> float:
+        if f < 0.5:
+            below = np.flatnonzero(u[:jm] < f)
+            if len(below) == 0:
+                return 0.0
+            j = int(below[-1])
+        else:
+            hit = np.flatnonzero(u[jm:] >= f)
+            if len(hit) == 0:
+                return float(len(u) - 1)
+            j = jm + int(hit[0]) - 1
+        du = u[j + 1] - u[j]
+        return j + ((f - u[j]) / du if du > 0 else 0.0)
+
+    if p.boundary_model == "threshold":
+        f = float(np.clip(p.boundary_threshold_rad / abs(a), 1e-3, 0.5))
+        return i0 + crossing(f), i0 + crossing(1.0 - f)
+    c = np.array([crossing(f) for f in FRACTIONS])
+    tau_c = TAU_F - TAU_F.mean()
+    duration = float(np.dot(tau_c, c - c.mean()) / np.dot(tau_c, tau_c))  # D5: c_f = t0 + T τ_f
+    if not duration > 0.0:
+        return float("nan"), float("nan")
+    low, high = FRACTIONS <= 0.5, FRACTIONS >= 0.5
+    t0 = float(np.mean(c[low] - duration * TAU_F[low]))
+    t1 = float(np.mean(c[high] + duration * (1.0 - TAU_F[high])))
+    return i0 + t0, i0 + t1
+
+
+@dataclass
+class Gap:
+    """What lies between two excursions: the rest region and (countermovement tasks) the countermovement peak."""
+
+    rest: Region | None
+    cm_index: int | None  # sample of the countermovement peak (None: none measurable)
+
+
+def analyse_gap(y: FloatArray, g0: int, g1: int, still: NDArray[np.int64], task: TaskSpec, p: MotorTaskParams,
+                w: int, expect_cm: bool) -> Gap:
+    """Rest and countermovement between two excursions (D4)."""
+    if g1 <= g0:
+        return Gap(None, None)
+    if task.countermovement and expect_cm:
+        cm = g0 + int(np.argmin(y[g0:g1]))
+        # the rest lies before the countermovement, at least half the minimum countermovement above it
+        ok = np.flatnonzero(y[g0:cm] >= y[cm] + 0.5 * p.min_countermovement_rad)
+        if len(ok):
+            hi = g0 + int(ok[-1]) + 1
+            r = _longest_still(still, g0, hi)
+            if r is None:  # no still sample: a degenerate rest at the slowest sample
+                v_abs = np.abs(np.gradient(y[g0:hi])) if hi - g0 > 1 else np.zeros(1)
+                i = g0 + int(np.argmin(v_abs))
+                r = (i, i + 1)
+            region = _region(y, r[0], r[1], w)
+            if region.level_out - y[cm] >= p.min_countermovement_rad:
+                return Gap(region, cm)
+        # no countermovement distinguishable from the rest: the rest is the still run at the lowest point
+        r = _containing(still, cm, g0, g1)
+        return Gap(_region(y, r[0], r[1], w), None)
+    r = _longest_still(still, g0, g1)
+    if r is None:
+        return Gap(None, None)
+    return Gap(_region(y, r[0], r[1], w), None)
+
+
+@dataclass
+class CycleEvents:
+    """Events of one detected cycle in fractional samples (NaN when unknown) and why it is incomplete."""
+
+    events: FloatArray          # (5,) onset, countermovement_peak, far_reached, far_left, rest_reached
+    incomplete: str | None      # None, or the reason code
+    message: str = ""
+    amplitude: float = float("nan")
+
+
+def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: TaskSpec,
+                  p: MotorTaskParams) -> list[CycleEvents]:
+    """All cycles (one per excursion) with their events, from the sign-normalised smoothed flexion ``y``."""
+    n = len(y)
+    exc = excursions(y, span, p)
+    if len(exc) == 0:
+        return []
+    v = np.gradient(y) * fs_hz
+    still = merge_runs(runs(np.abs(v) < p.stationary_rad_s), int(round(p.merge_gap_s * fs_hz)))
+    w = max(1, int(round(p.level_window_s * fs_hz)))
+    edge_rest = int(round(p.min_edge_rest_s * fs_hz))
+    k_n = len(exc)
+    gaps = []
+    for k in range(k_n + 1):
+        g0 = int(exc[k - 1, 1]) if k > 0 else 0
+        g1 = int(exc[k, 0]) if k < k_n else n
+        gaps.append(analyse_gap(y, g0, g1, still, task, p, w, expect_cm=k < k_n))
+    out = []
+    for k in range(k_n):
+        a, b = int(exc[k, 0]), int(exc[k, 1])
+        ev = np.full(5, np.nan)
+        before, after = gaps[k], gaps[k + 1]
+        top = a + int(np.argmax(y[a:b]))
+        pr = _containing(still, top, a, b)
+        far = _region(y, pr[0], pr[1], w)
+        reason, msg = None, ""
+        if a == 0:
+            reason, msg = "incomplete_start", "the recording starts during this cycle"
+        elif b == n:
+            reason, msg = "incomplete_end", "the recording ends during this cycle"
+        elif before.rest is None or (k == 0 and before.rest.length < edge_rest):
+            reason, msg = "incomplete_start", "no rest in the start posture before this cycle"
+        elif after.rest is None or (k == k_n - 1 and after.rest.length < edge_rest):
+            reason, msg = "incomplete_end", "no return to rest in the start posture after this cycle"
+        amplitude = float("nan")
+        if before.rest is not None:
+            rest = before.rest
+            amplitude = far.level_in - rest.level_out
+            if before.cm_index is not None:
+                cm = before.cm_index
+                s0, s1 = fit_transition(y, max(rest.start, rest.end - w), cm, rest.level_out, y[cm], p)
+                e0, e1 = fit_transition(y, cm, min(far.end, far.start + w), y[cm], far.level_in, p)
+                ev[0] = np.clip(s0, rest.start, cm)
+                ev[1] = np.clip(np.nanmean([s1, e0]) if np.isfinite(s1) or np.isfinite(e0) else cm, ev[0], far.end)
+                ev[2] = np.clip(e1, ev[1], far.end)
+            else:
+                e0, e1 = fit_transition(y, max(rest.start, rest.end - w), min(far.end, far.start + w),
+                                        rest.level_out, far.level_in, p)
+                ev[0] = np.clip(e0, rest.start, far.start + 1)
+                ev[1] = ev[0] if task.countermovement else np.nan
+                ev[2] = np.clip(e1, ev[0], far.end)
+        if after.rest is not None:
+            rest = after.rest
+            f0, f1 = fit_transition(y, max(far.start, far.end - w), min(rest.end, rest.start + w),
+                                    far.level_out, rest.level_in, p)
+            ev[3] = np.clip(f0, far.start, rest.end)
+            ev[4] = np.clip(f1, ev[3], rest.end)
+        if reason == "incomplete_start":  # events before the excursion are not measurable
+            ev[:2] = np.nan
+            if a == 0:
+                ev[2] = np.nan
+        elif reason == "incomplete_end":
+            ev[4] = np.nan
+            if b == n:
+                ev[3] = np.nan
+        if reason is None and not np.all(np.isfinite(ev[[0, 2, 3, 4]])):
+            reason, msg = "unmeasurable", "a transition of this cycle could not be measured"
+        if reason is None and amplitude < p.min_excursion_rad:
+            reason, msg = "small_excursion", "the excursion towards the far plateau is too small"
+        out.append(CycleEvents(ev, reason, msg, amplitude))
+    return out

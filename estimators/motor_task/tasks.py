@@ -1,0 +1,202 @@
+"""Task specifications (which way the knee moves, which phases a cycle has) and the analysis parameters."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+__all__ = ["EVENTS", "MotorTaskParams", "PhaseSpec", "TASKS", "TaskSpec", "get_task"]
+
+#: The five events of every cycle, in time order (see the package docstring, "Events").
+EVENTS: tuple[str, ...] = ("onset", "countermovement_peak", "far_reached", "far_left", "rest_reached")
+
+
+@dataclass(frozen=True)
+class PhaseSpec:
+    """One phase of a cycle: the span from event ``start`` to event ``end`` (names from :data:`EVENTS`)."""
+
+    name: str
+    start: str
+    end: str
+
+    def __post_init__(self) -> None:
+        for e in (self.start, self.end):
+            if e not in EVENTS:
+                raise ValueError(f"phase {self.name!r}: unknown event {e!r}; valid events are {EVENTS}")
+        if EVENTS.index(self.end) <= EVENTS.index(self.start):
+            raise ValueError(f"phase {self.name!r}: end event {self.end!r} must come after {self.start!r}")
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A repetitive knee task as the detector sees it.
+
+    name : key in :data:`TASKS` and the ``task`` of ``results.json``.
+    excursion : ``"extension"`` when each repetition moves from a flexed rest towards full extension
+        (step-up, seated knee extension); ``"flexion"`` when it moves from an extended rest into
+        flexion (squat).  The detector works on ``y = -flexion`` or ``y = +flexion`` so that the
+        excursion always goes up.
+    countermovement : the repetition starts with a small movement the *other* way (the step-up
+        impulse: flexion first rises 5–10° before the extension); gives the ``countermovement_peak`` event.
+    phases : the reported phases, consecutive and covering onset → rest_reached.
+    far_label : what the far plateau is called in messages ("full extension", "deepest flexion").
+    tested : True only when the test-suite checks this task against synthetic truth.
+    """
+
+    name: str
+    excursion: str
+    countermovement: bool
+    phases: tuple[PhaseSpec, ...]
+    far_label: str
+    description: str = ""
+    tested: bool = False
+
+    def __post_init__(self) -> None:
+        if self.excursion not in ("extension", "flexion"):
+            raise ValueError(f"TaskSpec.excursion must be 'extension' or 'flexion', got {self.excursion!r}")
+        if not self.phases:
+            raise ValueError("TaskSpec.phases must not be empty")
+        if self.phases[0].start != "onset" or self.phases[-1].end != "rest_reached":
+            raise ValueError("TaskSpec.phases must run from 'onset' to 'rest_reached'")
+        for a, b in zip(self.phases[:-1], self.phases[1:]):
+            if a.end != b.start:
+                raise ValueError(f"TaskSpec.phases must be consecutive: {a.name!r} ends at {a.end!r} "
+                                 f"but {b.name!r} starts at {b.start!r}")
+        if not self.countermovement and any("countermovement_peak" in (p.start, p.end) for p in self.phases):
+            raise ValueError("a task without countermovement cannot use the 'countermovement_peak' event")
+
+    @property
+    def sign(self) -> float:
+        """``y = sign * flexion`` makes the excursion go up."""
+        return -1.0 if self.excursion == "extension" else 1.0
+
+    @property
+    def phase_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.phases)
+
+
+TASKS: dict[str, TaskSpec] = {
+    "step_up": TaskSpec(
+        name="step_up", excursion="extension", countermovement=True,
+        phases=(PhaseSpec("impulse", "onset", "countermovement_peak"),
+                PhaseSpec("extension", "countermovement_peak", "far_left"),
+                PhaseSpec("fall", "far_left", "rest_reached")),
+        far_label="full extension",
+        description="single-leg step-up (seed 004 §8.1; DESIGN.md §3): rest flexed on the step, impulse "
+                    "(flexion rises 5–10°), extension to ~0° held, fall back to the start posture",
+        tested=True),
+    "seated_knee_extension": TaskSpec(
+        name="seated_knee_extension", excursion="extension", countermovement=False,
+        phases=(PhaseSpec("extension", "onset", "far_reached"),
+                PhaseSpec("hold", "far_reached", "far_left"),
+                PhaseSpec("flexion", "far_left", "rest_reached")),
+        far_label="full extension",
+        description="seated knee flexion-extension: rest at ~90° flexion, extend, (hold), flex back",
+        tested=True),
+    "squat": TaskSpec(
+        name="squat", excursion="flexion", countermovement=False,
+        phases=(PhaseSpec("descent", "onset", "far_reached"),
+                PhaseSpec("hold", "far_reached", "far_left"),
+                PhaseSpec("ascent", "far_left", "rest_reached")),
+        far_label="deepest flexion",
+        description="squat: rest standing (~0°), flex down, (hold), extend back up",
+        tested=True),
+}
+
+
+def get_task(task: str | TaskSpec) -> TaskSpec:
+    """The :class:`TaskSpec` for a name in :data:`TASKS` (or the spec itself)."""
+    if isinstance(task, TaskSpec):
+        return task
+    try:
+        return TASKS[task]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown task {task!r}; valid tasks are {sorted(TASKS)}") from None
+
+
+def _deg(x: float) -> float:
+    return math.radians(x)
+
+
+@dataclass(frozen=True)
+class MotorTaskParams:
+    """Parameters of :func:`~estimators.motor_task.analyse_task`; every value in SI units and radians.
+
+    lowpass_hz : zero-phase Butterworth (2nd order, run forward and backward) cut-off used for the
+        *detection* only; curves and ROM use the angles as given.  Default 5 Hz.
+    activity_window_s : window of the moving SD of flexion that finds the task span (thesis
+        ``deteccion_inicio/final_tarea_motora``).  Default 1.0 s.
+    activity_sd_rad : the moving SD above which the knee is "in the task".  Default 2° (0.0349 rad).
+    stationary_rad_s : |flexion rate| below which the knee is "still" (rests, holds, turning points).
+        Default 12°/s (0.209 rad/s).
+    merge_gap_s : still runs separated by less than this are merged (noise).  Default 0.1 s.
+    level_window_s : the plateau level next to a transition is the median over this much of the
+        plateau.  Default 0.3 s.
+    min_excursion_rad : smallest rest → far-plateau amplitude that makes a cycle.  Default 20°.
+    min_countermovement_rad : smallest countermovement (impulse) that counts as one; a smaller one gives an
+        impulse of zero duration.  Default 1.5°.
+    min_edge_rest_s : rest needed before the first and after the last cycle, else it is incomplete.
+        Default 0.2 s.
+    boundary_model : ``"min_jerk"`` (default): each transition's start and end are those of the
+        minimum-jerk movement fitting its 10 %…90 % crossing times; ``"threshold"``: the instants the
+        knee is ``boundary_threshold_rad`` away from the plateau it leaves / reaches.
+    boundary_threshold_rad : threshold of the ``"threshold"`` model.  Default 2°.
+    normalise_span : ``"movement"`` (default): a cycle is normalised, and phase % computed, over
+        onset → rest_reached (the phases add up to 100 %, as in the thesis' Table 8.1; a pause in the
+        start posture does not stretch the curve); ``"cycle"``: over onset → next onset.
+    n_points : points of a normalised cycle (0 … 100 %).  Default 101.
+    rejection_rmse_rad : per angle (flexion, adduction, internal rotation) the largest RMSE of a
+        normalised cycle to the mean of the accepted ones; ``None`` does not check that angle.
+        Default (8°, None, None).
+    min_accepted_cycles : rejection stops before fewer cycles than this would remain.  Default 3.
+    """
+
+    lowpass_hz: float = 5.0
+    activity_window_s: float = 1.0
+    activity_sd_rad: float = field(default_factory=lambda: _deg(2.0))
+    stationary_rad_s: float = field(default_factory=lambda: _deg(12.0))
+    merge_gap_s: float = 0.1
+    level_window_s: float = 0.3
+    min_excursion_rad: float = field(default_factory=lambda: _deg(20.0))
+    min_countermovement_rad: float = field(default_factory=lambda: _deg(1.5))
+    min_edge_rest_s: float = 0.2
+    boundary_model: str = "min_jerk"
+    boundary_threshold_rad: float = field(default_factory=lambda: _deg(2.0))
+    normalise_span: str = "movement"
+    n_points: int = 101
+    rejection_rmse_rad: tuple[float | None, float | None, float | None] = field(
+        default_factory=lambda: (_deg(8.0), None, None))
+    min_accepted_cycles: int = 3
+
+    def __post_init__(self) -> None:
+        positive = ("lowpass_hz", "activity_window_s", "activity_sd_rad", "stationary_rad_s", "level_window_s",
+                    "min_excursion_rad", "boundary_threshold_rad")
+        for name in positive:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"MotorTaskParams.{name} must be a positive finite number, got {v!r}")
+        for name in ("merge_gap_s", "min_countermovement_rad", "min_edge_rest_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"MotorTaskParams.{name} must be a finite number >= 0, got {v!r}")
+        if self.boundary_model not in ("min_jerk", "threshold"):
+            raise ValueError(f"MotorTaskParams.boundary_model must be 'min_jerk' or 'threshold', "
+                             f"got {self.boundary_model!r}")
+        if self.normalise_span not in ("movement", "cycle"):
+            raise ValueError(f"MotorTaskParams.normalise_span must be 'movement' or 'cycle', "
+                             f"got {self.normalise_span!r}")
+        if int(self.n_points) != self.n_points or self.n_points < 3:
+            raise ValueError(f"MotorTaskParams.n_points must be an integer >= 3, got {self.n_points!r}")
+        r = tuple(self.rejection_rmse_rad)
+        if len(r) != 3 or any(x is not None and not (math.isfinite(x) and x > 0) for x in r):
+            raise ValueError("MotorTaskParams.rejection_rmse_rad must be three positive thresholds in rad "
+                             f"(or None to skip an angle), got {self.rejection_rmse_rad!r}")
+        object.__setattr__(self, "rejection_rmse_rad", r)
+        if int(self.min_accepted_cycles) != self.min_accepted_cycles or self.min_accepted_cycles < 1:
+            raise ValueError(f"MotorTaskParams.min_accepted_cycles must be an integer >= 1, "
+                             f"got {self.min_accepted_cycles!r}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["rejection_rmse_rad"] = list(self.rejection_rmse_rad)
+        return d
