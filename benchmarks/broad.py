@@ -6,8 +6,8 @@ Usage
 [--jobs 2] [--json OUT]`` (about 2.5 min on one core, most of it the pure-Python ``ahrs`` rows; 2 s with ``--no-ahrs``)
 prints, per mode, a summary (undisturbed trials 02–18, disturbed 24–35) and per-trial tables of every
 method in ``estimators.orientation.METHODS`` (methods whose module is not written yet are skipped with a
-note) beside the comparison rows (VQF offline/online, the ``ahrs`` package's Madgwick, FKF and AQUA) and
-BROAD's published Madgwick numbers.  From Python: ``trials()`` yields :class:`Trial` objects (``acc``,
+note) beside the comparison rows of :mod:`benchmarks.baselines` (VQF offline/online, the ``ahrs``
+package's Madgwick, FKF and AQUA) and BROAD's published Madgwick numbers.  From Python: ``trials()`` yields :class:`Trial` objects (``acc``,
 ``gyr``, ``mag``, ``quat_ref``, ``movement``, ``fs_hz``, ``name``, ``group``); ``broad_errors(q, trial)``
 scores one estimate; ``evaluate(fn, mode="9d")`` scores ``fn(acc, gyr, mag_or_None, fs_hz) -> q_earth_sensor``
 (ENU) on every trial and returns one row (a dict) per trial — the tool for tuning a filter.  The data is
@@ -71,7 +71,7 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,14 +79,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from benchmarks.baselines import COMPARISONS, MODES, EstimateFn, FloatArray, project_method
 from estimators import quaternion as quat
-
-FloatArray = NDArray[np.float64]
-EstimateFn = Callable[[FloatArray, FloatArray, "FloatArray | None", float], ArrayLike]
 
 DATA_ENV = "CHAKAMO_BROAD_DIR"
 GROUPS = ("undisturbed", "disturbed")
-MODES = ("9d", "6d")
 ALIGNMENTS = ("broad", "full")
 
 #: BROAD's own Madgwick run (their C code, β = 0.12), 9D RMSE in degrees: total, heading, inclination
@@ -97,8 +94,6 @@ PUBLISHED_MADGWICK: dict[str, tuple[float, float, float]] = {
     "27": (10.62, 10.50, 1.57), "30": (5.57, 1.81, 5.26), "32": (15.76, 14.96, 4.97),
     "35": (3.27, 1.14, 3.06),
 }
-
-_Q_Z90 = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])  # q_ENU_NWU: +90° about the vertical
 
 
 # --------------------------------------------------------------------------------------------- data
@@ -357,74 +352,6 @@ def group_means(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, float]]:
         if sel:
             out[group] = {k: float(np.mean([r[k] for r in sel])) for k in ("total_deg", "heading_deg", "inclination_deg")}
     return out
-
-
-# ----------------------------------------------------------------------------- methods to compare
-def project_method(name: str, **params: Any) -> EstimateFn:
-    """``estimate_fn`` of one method of ``estimators.orientation`` (its import errors surface on first call)."""
-    from estimators import orientation
-
-    def fn(acc: FloatArray, gyr: FloatArray, mag: FloatArray | None, fs_hz: float) -> FloatArray:
-        return orientation.estimate(acc, gyr, mag, fs_hz=fs_hz, method=name, **params)
-
-    fn.__name__ = name
-    return fn
-
-
-def _vqf(offline: bool) -> EstimateFn:
-    def fn(acc: FloatArray, gyr: FloatArray, mag: FloatArray | None, fs_hz: float) -> FloatArray:
-        import vqf  # VQF's earth frame is ENU and it returns q_earth_sensor: no conversion
-
-        args = [np.ascontiguousarray(gyr), np.ascontiguousarray(acc)]
-        m = None if mag is None else np.ascontiguousarray(mag)
-        out = vqf.offlineVQF(*args, m, 1.0 / fs_hz) if offline else vqf.VQF(1.0 / fs_hz).updateBatch(*args, m)
-        return out["quat6D" if mag is None else "quat9D"]
-
-    fn.__name__ = "vqf_offline" if offline else "vqf_online"
-    return fn
-
-
-def _ahrs(kind: str, gain: float = 0.12) -> EstimateFn:
-    """ahrs 0.4.0 filters, started like BROAD's runs (aligned on the first sample), converted to ``q_ENU_sensor``.
-
-    Frames checked on static synthetic data: Madgwick and FKF return ``q_NWU_sensor`` (FKF not normalised),
-    AQUA returns ``q_sensor_NWU``; ``q_ENU = q_z(+90°) ⊗ q_NWU``.
-    """
-    def fn(acc: FloatArray, gyr: FloatArray, mag: FloatArray | None, fs_hz: float) -> FloatArray:
-        from ahrs import filters
-
-        from estimators.orientation.base import align
-
-        q0_nwu = quat.multiply(quat.conjugate(_Q_Z90), align(acc[0], None if mag is None else mag[0]))
-        kw: dict[str, Any] = {"gyr": gyr, "acc": acc, "frequency": fs_hz}
-        if mag is not None:
-            kw["mag"] = mag
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            if kind == "madgwick":
-                q = filters.Madgwick(**kw, gain=gain, q0=q0_nwu).Q
-            elif kind == "fkf":
-                q = filters.FKF(**kw).Q
-            elif kind == "aqua":
-                q = quat.conjugate(filters.AQUA(**kw).Q)
-            else:
-                raise ValueError(f"unknown ahrs filter {kind!r}")
-        return quat.multiply(_Q_Z90, quat.normalize(q))
-
-    fn.__name__ = f"ahrs_{kind}"
-    return fn
-
-
-#: comparison rows: name -> (estimate_fn, modes it supports, is it a slow pure-Python ahrs filter)
-COMPARISONS: dict[str, tuple[EstimateFn, tuple[str, ...], bool]] = {
-    # our Madgwick as BROAD ran theirs (β = 0.12, no warm-up): the row to hold against the published table
-    "madgwick_broad": (project_method("madgwick", beta_rad_s=0.12, warmup_s=0.0), MODES, False),
-    "vqf_offline": (_vqf(True), MODES, False),
-    "vqf_online": (_vqf(False), MODES, False),
-    "ahrs_madgwick": (_ahrs("madgwick"), MODES, True),  # β = 0.12 rad/s as BROAD's run (same units as ahrs' gain)
-    "ahrs_fkf": (_ahrs("fkf"), ("9d",), True),  # FKF needs a magnetometer
-    "ahrs_aqua": (_ahrs("aqua"), MODES, True),
-}
 
 
 def method_table(names: Sequence[str] | None, with_ahrs: bool) -> dict[str, tuple[EstimateFn, tuple[str, ...]]]:

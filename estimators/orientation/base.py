@@ -25,6 +25,9 @@ Missing and saturated samples (documented handling, not errors)
 ---------------------------------------------------------------
 * A row with NaN in the accelerometer or magnetometer skips that correction (the filter predicts
   with the gyroscope only); a row with NaN in the gyroscope holds the orientation (zero rate).
+* 6D (``mag=None``) is 9D with every field sample missing: ``ImuInput.mag`` is ``None`` (what
+  :meth:`OrientationMethod._check_dimension` and the initial alignment look at), ``mag_ok`` is all
+  False and :attr:`ImuInput.mag_array` is zeros, so every kernel takes one code path for both.
 * Samples whose absolute value on any axis reaches ``acc_range_m_s2`` / ``gyr_range_rad_s``
   (when those ranges are given) are *saturated*: a saturated accelerometer row is treated as
   missing; a saturated gyroscope row is still integrated (nothing better is known) and flagged.
@@ -80,7 +83,8 @@ class ImuInput:
     """Validated inputs on one time grid: finite arrays (missing rows zeroed) and validity masks.
 
     ``acc_ok[k]`` / ``mag_ok[k]`` say whether that row may correct the estimate;
-    ``mag`` is ``None`` for 6D estimation.
+    ``mag`` is ``None`` for 6D estimation, and then ``mag_ok`` is all False (6D is 9D with every
+    field sample missing) and :attr:`mag_array` is zeros.
     """
 
     acc: FloatArray
@@ -98,6 +102,11 @@ class ImuInput:
     @property
     def dt_s(self) -> float:
         return 1.0 / self.fs_hz
+
+    @property
+    def mag_array(self) -> FloatArray:
+        """The field rows for a kernel, ``(N, 3)``: ``mag``, or zeros in 6D (never read: no ``mag_ok``)."""
+        return self.mag if self.mag is not None else np.zeros((self.n, 3))
 
 
 def _as_stream(name: str, values: ArrayLike) -> FloatArray:
@@ -168,9 +177,8 @@ def validate_imu(
     acc_ok = ~(acc_missing | acc_saturated | acc_zero)
     if require_valid_acc and not acc_ok.any():
         raise ValueError("acc has no valid sample (all missing, saturated or zero): orientation cannot be aligned")
-    mag_ok = ~mag_missing
-    if mag_arr is not None:
-        mag_ok &= ~np.all(mag_arr == 0.0, axis=1)
+    # 6D: no field sample may correct (9D with every field sample missing); flags.mag_missing stays False
+    mag_ok = ~(mag_missing | np.all(mag_arr == 0.0, axis=1)) if mag_arr is not None else np.zeros(n, dtype=bool)
 
     def finite(arr: FloatArray, bad: BoolArray) -> FloatArray:
         if bad.any():
@@ -217,14 +225,17 @@ def align(acc: ArrayLike, mag: ArrayLike | None = None) -> FloatArray:
     return quat.from_two_vectors(up, np.array([0.0, 0.0, 1.0]))
 
 
-def initial_orientation(data: ImuInput, use_mag: bool, window_s: float = INIT_WINDOW_S) -> FloatArray:
-    """Align on the mean of the valid samples in the first ``window_s`` (at least the first valid one)."""
+def initial_orientation(data: ImuInput, use_mag: bool = True, window_s: float = INIT_WINDOW_S) -> FloatArray:
+    """Align on the mean of the valid samples in the first ``window_s`` (at least the first valid one).
+
+    The heading comes from the field samples marked ``mag_ok`` (none in 6D) unless ``use_mag`` is False.
+    """
     n_window = max(1, int(round(window_s * data.fs_hz)))
     first = int(np.flatnonzero(data.acc_ok)[0])
     sel = np.flatnonzero(data.acc_ok[first:first + n_window]) + first
     acc_mean = data.acc[sel].mean(axis=0)
     mag_mean = None
-    if use_mag and data.mag is not None:
+    if use_mag:  # 6D: no mag_ok, so no field and heading zero
         sel_m = np.flatnonzero(data.mag_ok[first:first + n_window]) + first
         if sel_m.size == 0 and data.mag_ok.any():
             sel_m = np.flatnonzero(data.mag_ok)[:1]
@@ -259,6 +270,12 @@ def check_parameter(
         raise ValueError(f"{name} must be in {bounds}{units}{where}, got {value!r}")
 
 
+def check_flag(name: str, value: Any) -> None:
+    """Refuse a switch that is not ``True`` or ``False`` with a message naming it."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+
+
 def params_from_kwargs(params_type: type, values: dict[str, Any]) -> Any:
     """Build a parameter dataclass from keyword values; unknown names raise ``ValueError`` listing the valid ones."""
     names = {f.name for f in fields(params_type)}
@@ -275,12 +292,14 @@ class OrientationMethod(ABC):
     """Base of every orientation filter.
 
     Subclasses set ``name``, ``params_type`` (a frozen dataclass whose ``__post_init__`` validates),
-    ``supports_6d`` / ``supports_9d``, and implement :meth:`_state_from_quaternion`,
-    :meth:`_run` (the compiled kernel) and :meth:`_run_reference` (readable numpy, same numbers).
+    ``state_size`` (length of the state vector), ``supports_6d`` / ``supports_9d`` (both True unless
+    set), and implement :meth:`_run` (the compiled kernel) and :meth:`_run_reference` (readable
+    numpy, same numbers); :meth:`_state_from_quaternion` when the rest of a fresh state is not zero.
     """
 
     name: ClassVar[str]
     params_type: ClassVar[type]
+    state_size: ClassVar[int]
     supports_6d: ClassVar[bool] = True
     supports_9d: ClassVar[bool] = True
 
@@ -342,6 +361,9 @@ class OrientationMethod(ABC):
         data = validate_imu(acc, gyr, mag, fs_hz=fs_hz, require_valid_acc=False)
         self._check_dimension(data.mag is not None)
         state_arr = np.array(state, dtype=np.float64)  # a copy: the caller's state is never mutated
+        if state_arr.shape != (self.state_size,):
+            raise ValueError(f"{self.name} state must have shape ({self.state_size},) (layout in the class "
+                             f"docstring; make one with initial_state), got {state_arr.shape}")
         q, new_state = self._run_online(data, state_arr)
         return (q[0] if np.ndim(acc) == 1 else q), new_state
 
@@ -354,16 +376,18 @@ class OrientationMethod(ABC):
 
     def _initial_state_for(self, data: ImuInput, q0: ArrayLike | None, window_s: float = INIT_WINDOW_S) -> FloatArray:
         if q0 is None:
-            q = initial_orientation(data, use_mag=data.mag is not None, window_s=window_s)
+            q = initial_orientation(data, window_s=window_s)
         else:
             q = quat.normalize(quat.as_quaternion(q0))
             if q.shape != (4,):
                 raise ValueError(f"q0 must be one quaternion of shape (4,), got {q.shape}")
         return self._state_from_quaternion(q, data)
 
-    @abstractmethod
     def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
-        """A fresh state vector whose first four entries are ``q``."""
+        """A fresh state vector whose first four entries are ``q``; here the rest is zero."""
+        state = np.zeros(self.state_size)
+        state[:4] = q
+        return state
 
     @abstractmethod
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -3,8 +3,10 @@ disturbance rejection and an offline (non-causal) smoother.
 
 The design builds on the ideas of VQF (D. Laidig, T. Seel, "VQF: Highly accurate IMU orientation
 estimation with bias estimation and magnetic disturbance rejection", Information Fusion 91:187–204,
-2023; "[VQF]" below) and is an independent implementation.  Equation numbers (1)–(14) refer to this
-docstring; the kernels in :mod:`estimators.orientation.chakamo_kernels` cite them.
+2023; "[VQF]" below) and is an independent implementation.  Equation numbers (1)–(15) refer to this
+docstring; the code that cites them: :mod:`~estimators.orientation.chakamo_kernels` (compiled causal
+filter, state layout), :mod:`~estimators.orientation.chakamo_reference` (its readable numpy twin) and
+:mod:`~estimators.orientation.chakamo_offline` (the offline smoother's numpy steps).
 
 Frames
 ------
@@ -144,12 +146,15 @@ from typing import Self
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import signal
 
 from estimators import quaternion as quat
 from estimators.orientation import chakamo_kernels as kern
+from estimators.orientation import chakamo_reference as ref
+from estimators.orientation.chakamo_offline import (
+    butterworth, field_weights, smooth_heading, zero_phase_inclination,
+)
 from estimators.orientation.base import (
-    FloatArray, ImuInput, OrientationMethod, SampleFlags, check_parameter,
+    FloatArray, ImuInput, OrientationMethod, SampleFlags, check_flag, check_parameter,
 )
 
 _DEG = math.pi / 180.0
@@ -237,16 +242,7 @@ class ChakamoParams:
             check_parameter(name, getattr(self, name))
         check_parameter("mag_dip_th_rad", self.mag_dip_th_rad, low_open=True, high=math.pi, unit="rad")
         for name in ("rest_bias", "motion_bias", "mag_rejection", "mag_bias", "offline"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
-
-
-def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
-    """Second-order Butterworth low-pass ``(b (3,), a (3,))`` with :math:`f_c = \\sqrt2/(2\\pi\\tau)` (2)."""
-    fc_hz = math.sqrt(2.0) / (2.0 * math.pi * tau_s)
-    fc_hz = min(fc_hz, 0.45 * fs_hz)
-    b, a = signal.butter(2, fc_hz, btype="low", fs=fs_hz)
-    return b / a[0], a / a[0]
+            check_flag(name, getattr(self, name))
 
 
 def _gain(tau_s: float, dt_s: float) -> float:
@@ -254,7 +250,7 @@ def _gain(tau_s: float, dt_s: float) -> float:
     return 1.0 - math.exp(-dt_s / tau_s)
 
 
-def coefficients(p: ChakamoParams, fs_hz: float, use_mag: bool) -> FloatArray:
+def coefficients(p: ChakamoParams, fs_hz: float) -> FloatArray:
     """The kernel's coefficient vector (layout ``chakamo_kernels.C_*``) for rate ``fs_hz``."""
     dt = 1.0 / fs_hz
     b, a = butterworth(p.tau_acc_s, fs_hz)
@@ -281,11 +277,10 @@ def coefficients(p: ChakamoParams, fs_hz: float, use_mag: bool) -> FloatArray:
     c[kern.C_MAXREJ] = p.mag_max_rejection_s
     c[kern.C_REJON] = float(p.mag_rejection)
     c[kern.C_KCAND] = _gain(p.mag_ref_tau_s, dt)
-    c[kern.C_USEMAG] = float(use_mag)
     c[kern.C_KW2] = _gain(p.tau_acc_s, dt)
     c[kern.C_MINUND] = p.mag_min_undisturbed_s
     c[kern.C_P0] = p.bias_sigma_init_rad_s ** 2
-    c[kern.C_MAGBIAS] = float(p.mag_bias and use_mag)
+    c[kern.C_MAGBIAS] = float(p.mag_bias)  # 6D: never read (no field sample corrects)
     c[kern.C_NMAGINIT] = math.ceil(p.tau_mag_s * fs_hz)
     c[kern.C_RMAG] = p.bias_sigma_mag_rad_s ** 2 * p.tau_mag_s / dt
     c[kern.C_TAUMAG] = p.tau_mag_s
@@ -299,8 +294,7 @@ class Chakamo(OrientationMethod):
 
     name = "chakamo"
     params_type = ChakamoParams
-    supports_6d = True
-    supports_9d = True
+    state_size = kern.STATE_SIZE
 
     # ------------------------------------------------------------- entry points
     def estimate_causal(self, acc: ArrayLike, gyr: ArrayLike, mag: ArrayLike | None = None, *, fs_hz: float,
@@ -315,8 +309,6 @@ class Chakamo(OrientationMethod):
 
     def _run_online(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``update`` runs the *causal* filter: the offline smoother needs the whole recording."""
-        if state0.shape != (kern.STATE_SIZE,):
-            raise ValueError(f"state must have shape ({kern.STATE_SIZE},), got {state0.shape}")
         q, new_state, _ = self._causal(data, state0, reference=False, want_aux=False)
         return q, new_state
 
@@ -354,12 +346,10 @@ class Chakamo(OrientationMethod):
 
     def _causal(self, data: ImuInput, state0: FloatArray, *, reference: bool, want_aux: bool,
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        use_mag = data.mag is not None
-        coeffs = coefficients(self.params, data.fs_hz, use_mag)
-        mag = data.mag if use_mag else np.zeros((0, 3))
-        batch = kern.chakamo_batch_reference if reference else kern.chakamo_batch
-        return batch(data.acc, _gyr_with_gaps(data), mag, data.acc_ok, data.mag_ok, coeffs, np.asarray(state0, np.float64),
-                     want_aux)
+        coeffs = coefficients(self.params, data.fs_hz)
+        batch = ref.chakamo_batch_reference if reference else kern.chakamo_batch
+        return batch(data.acc, _gyr_with_gaps(data), data.mag_array, data.acc_ok, data.mag_ok, coeffs,
+                     np.asarray(state0, np.float64), want_aux)
 
     def _offline(self, data: ImuInput, state0: FloatArray, *, reference: bool) -> tuple[FloatArray, FloatArray]:
         p = self.params
@@ -376,16 +366,16 @@ class Chakamo(OrientationMethod):
                                    want_aux=True)
         aux_b = aux_b[::-1]
         # (13) two-filter bias smoother
-        smooth = kern.smooth_bias_reference if reference else kern.smooth_bias_batch
+        smooth = ref.smooth_bias_reference if reference else kern.smooth_bias_batch
         bias = smooth(aux_f[:, kern.A_BIAS:kern.A_BIAS + 3], np.ascontiguousarray(aux_f[:, kern.A_P:kern.A_P + 6]),
                       np.ascontiguousarray(-aux_b[:, kern.A_BIAS:kern.A_BIAS + 3]),
                       np.ascontiguousarray(aux_b[:, kern.A_P:kern.A_P + 6]))
         # strapdown with the smoothed bias, zero-phase inclination
-        strap = kern.strapdown_reference if reference else kern.strapdown_batch
+        strap = ref.strapdown_reference if reference else kern.strapdown_batch
         q_is = strap(_gyr_with_gaps(data), bias, np.asarray(state0[:4], np.float64), dt)
         q_ei = zero_phase_inclination(q_is, data.acc, data.acc_ok, p.tau_acc_s, data.fs_hz)
         q_es = quat.multiply(q_ei, q_is)
-        if data.mag is not None:
+        if data.mag is not None:  # 9D: smooth the heading (6D keeps the heading of the strapdown)
             weight = data.mag_ok & (aux_f[:, kern.A_MAGUSED] > 0.5) & (aux_b[:, kern.A_MAGUSED] > 0.5)
             if not weight.any():
                 weight = data.mag_ok & ((aux_f[:, kern.A_MAGUSED] > 0.5) | (aux_b[:, kern.A_MAGUSED] > 0.5))
@@ -405,68 +395,3 @@ def _gyr_with_gaps(data: ImuInput) -> FloatArray:
     gyr = data.gyr.copy()
     gyr[missing] = np.nan
     return gyr
-
-
-def zero_phase_inclination(q_is: FloatArray, acc: FloatArray, acc_ok: FloatArray, tau_acc_s: float,
-                           fs_hz: float) -> FloatArray:
-    """``q_E'I`` per sample from the zero-phase low-pass of the acceleration in ``I`` (offline step 2)."""
-    n = acc.shape[0]
-    acc_i = quat.rotate(q_is, acc)
-    idx = np.flatnonzero(acc_ok)
-    if idx.size < n:
-        t = np.arange(n)
-        acc_i = np.stack([np.interp(t, idx, acc_i[idx, j]) for j in range(3)], axis=1)
-    b, a = butterworth(tau_acc_s, fs_hz)
-    if n > 9:
-        pad = min(n - 1, int(math.ceil(3.0 * tau_acc_s * fs_hz)))
-        acc_lp = signal.filtfilt(b, a, acc_i, axis=0, padtype="odd", padlen=pad)
-    else:
-        acc_lp = np.repeat(acc_i.mean(axis=0, keepdims=True), n, axis=0)
-    return quat.from_two_vectors(acc_lp, np.array([0.0, 0.0, 1.0]))
-
-
-def field_weights(mag_e: FloatArray, accepted: FloatArray, norm_sigma: float, dip_sigma_rad: float) -> FloatArray:
-    r"""Soft weights ``(N,)`` of the field samples for the offline heading (14).
-
-    Offline, the reference norm and dip are the medians over the samples both passes accepted; each
-    accepted sample is weighted by a Gaussian of its deviation,
-    :math:`w = \exp(-\tfrac12[(|m| - |m|_{ref})/(\sigma_n |m|_{ref})]^2 - \tfrac12[(dip - dip_{ref})/\sigma_d]^2)`,
-    so that slightly disturbed samples (below the rejection thresholds) count less.
-    """
-    w = np.zeros(mag_e.shape[0])
-    if not accepted.any():
-        return w
-    norm = np.linalg.norm(mag_e, axis=1)
-    dip = np.arcsin(np.clip(-mag_e[:, 2] / np.where(norm > 0, norm, 1.0), -1.0, 1.0))
-    n_ref = np.median(norm[accepted])
-    d_ref = np.median(dip[accepted])
-    z2 = ((norm - n_ref) / (norm_sigma * n_ref)) ** 2 + ((dip - d_ref) / dip_sigma_rad) ** 2
-    w[accepted] = np.exp(-0.5 * z2[accepted])
-    return w
-
-
-def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float) -> FloatArray:
-    """Heading offset (14): two-sided exponential, weighted mean of the unwrapped target ``(N,)``, rad."""
-    n = target_rad.shape[0]
-    w = np.asarray(weight, dtype=np.float64)
-    used = w > 0.0
-    if not used.any():
-        return np.zeros(n)
-    unwrapped = np.zeros(n)
-    unwrapped[used] = np.unwrap(target_rad[used])
-    decay = math.exp(-dt_s / tau_s)
-
-    def two_sided(x: FloatArray) -> FloatArray:
-        fwd = signal.lfilter([1.0], [1.0, -decay], x)
-        bwd = signal.lfilter([1.0], [1.0, -decay], x[::-1])[::-1]
-        return fwd + bwd - x
-
-    num = two_sided(w * unwrapped)
-    den = two_sided(w)
-    ok = den > 1e-200
-    delta = np.zeros(n)
-    delta[ok] = num[ok] / den[ok]
-    if not ok.all():  # gaps longer than ~700 τ: hold the nearest smoothed value
-        idx = np.flatnonzero(ok)
-        delta = np.interp(np.arange(n), idx, delta[idx])
-    return delta

@@ -142,7 +142,7 @@ class MadgwickParams:
 
 # --------------------------------------------------------------------------------------- kernel
 @njit(cache=True, fastmath=False)
-def _madgwick_step(w, x, y, z, gx, gy, gz, ax, ay, az, mx, my, mz, use_acc, use_mag, dt_s, beta):
+def _madgwick_step(w, x, y, z, gx, gy, gz, ax, ay, az, mx, my, mz, acc_ok, mag_ok, dt_s, beta):
     """One sample; returns the normalised quaternion (w, x, y, z) as four floats."""
     # eq. (12): gyroscope rate of change, 0.5 q ⊗ (0, ω)
     dw = 0.5 * (-x * gx - y * gy - z * gz)
@@ -150,7 +150,7 @@ def _madgwick_step(w, x, y, z, gx, gy, gz, ax, ay, az, mx, my, mz, use_acc, use_
     dy = 0.5 * (w * gy - x * gz + z * gx)
     dz = 0.5 * (w * gz + x * gy - y * gx)
 
-    if use_acc:
+    if acc_ok:
         na = math.sqrt(ax * ax + ay * ay + az * az)
         ax /= na
         ay /= na
@@ -169,7 +169,7 @@ def _madgwick_step(w, x, y, z, gx, gy, gz, ax, ay, az, mx, my, mz, use_acc, use_
         v1 = 0.0
         v2 = 0.0
         c = fg2
-        if use_mag:
+        if mag_ok:
             nm = math.sqrt(mx * mx + my * my + mz * mz)
             mx /= nm
             my /= nm
@@ -219,8 +219,8 @@ def _madgwick_step(w, x, y, z, gx, gy, gz, ax, ay, az, mx, my, mz, use_acc, use_
 
 
 @njit(cache=True)
-def _madgwick_batch(acc, gyr, mag, acc_ok, mag_ok, use_mag, dt_s, beta, warmup_s, beta_warmup, state0):
-    """Run :func:`_madgwick_step` over ``(N, 3)`` inputs; ``mag`` is ignored when ``use_mag`` is false.
+def _madgwick_batch(acc, gyr, mag, acc_ok, mag_ok, dt_s, beta, warmup_s, beta_warmup, state0):
+    """Run :func:`_madgwick_step` over ``(N, 3)`` inputs (6D: ``mag_ok`` all false, ``mag`` zeros).
 
     Returns ``q (N, 4)`` (estimate after each sample) and the final state (a copy, ``(5,)``).
     """
@@ -235,19 +235,9 @@ def _madgwick_batch(acc, gyr, mag, acc_ok, mag_ok, use_mag, dt_s, beta, warmup_s
     for k in range(n):
         b = beta_fast if elapsed < warmup_s else beta
         elapsed = min(elapsed + dt_s, warmup_s)
-        if use_mag:
-            mx = mag[k, 0]
-            my = mag[k, 1]
-            mz = mag[k, 2]
-            mk = mag_ok[k]
-        else:
-            mx = 0.0
-            my = 0.0
-            mz = 0.0
-            mk = False
         w, x, y, z = _madgwick_step(w, x, y, z, gyr[k, 0], gyr[k, 1], gyr[k, 2],
-                                    acc[k, 0], acc[k, 1], acc[k, 2], mx, my, mz,
-                                    acc_ok[k], mk, dt_s, b)
+                                    acc[k, 0], acc[k, 1], acc[k, 2], mag[k, 0], mag[k, 1], mag[k, 2],
+                                    acc_ok[k], mag_ok[k], dt_s, b)
         out[k, 0] = w
         out[k, 1] = x
         out[k, 2] = y
@@ -302,20 +292,12 @@ class Madgwick(OrientationMethod):
 
     name = "madgwick"
     params_type = MadgwickParams
-    supports_6d = True
-    supports_9d = True
-
-    def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
-        return np.concatenate([q, [0.0]]).astype(np.float64)
+    state_size = 5
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         state0 = np.asarray(state0, dtype=np.float64)
-        if state0.shape != (5,):
-            raise ValueError(f"madgwick state must have shape (5,) (q and elapsed time), got {state0.shape}")
         p = self.params
-        use_mag = data.mag is not None
-        mag = data.mag if use_mag else data.acc
-        return _madgwick_batch(data.acc, data.gyr, mag, data.acc_ok, data.mag_ok, use_mag, data.dt_s,
+        return _madgwick_batch(data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok, data.dt_s,
                                float(p.beta_rad_s), float(p.warmup_s), float(p.beta_warmup_rad_s), state0)
 
     def _run_reference(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -327,7 +309,7 @@ class Madgwick(OrientationMethod):
             beta = max(p.beta_rad_s, p.beta_warmup_rad_s) if elapsed < p.warmup_s else p.beta_rad_s
             elapsed = min(elapsed + data.dt_s, p.warmup_s)
             acc = data.acc[k] if data.acc_ok[k] else None
-            mag = data.mag[k] if (data.mag is not None and data.mag_ok[k] and acc is not None) else None
+            mag = data.mag[k] if (data.mag_ok[k] and acc is not None) else None
             q = _reference_step(q, data.gyr[k], acc, mag, data.dt_s, float(beta))
             out[k] = q
         return out, np.concatenate([q, [elapsed]])

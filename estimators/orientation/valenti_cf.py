@@ -125,10 +125,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_flag, check_parameter
+from estimators.orientation.valenti_cf_kernels import valenti_cf_batch
 
 #: time constant giving exactly the per-sample gain 0.01 at 100 Hz (the authors' default gains)
 TAU_DEFAULT_S = -0.01 / math.log1p(-0.01)
@@ -201,8 +201,7 @@ class ValentiCFParams:
         if self.lerp_threshold >= 1.0:
             raise ValueError(f"lerp_threshold must be in [0, 1) (1 would never interpolate), got {self.lerp_threshold!r}")
         for name in ("adaptive_gain", "estimate_bias"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+            check_flag(name, getattr(self, name))
         check_parameter("acc_error_low", self.acc_error_low, low=0.0, high=1.0)
         check_parameter("acc_error_high", self.acc_error_high, low=0.0)
         if not self.acc_error_high > self.acc_error_low:
@@ -224,175 +223,6 @@ class ValentiCFParams:
             raise ValueError(f"fs_hz must be finite and > 0 Hz, got {fs_hz!r}")
         dt = 1.0 / fs_hz
         return cls(tau_acc_s=-dt / math.log1p(-alpha), tau_mag_s=-dt / math.log1p(-beta), **others)
-
-
-# --------------------------------------------------------------------------------------- kernel
-@njit(cache=True)
-def _to_identity(dw, dx, dy, dz, gain, eps):
-    """Eqs. (50)–(52): interpolate a unit delta quaternion (dw >= 0) towards the identity."""
-    if dw > eps:  # LERP, then normalise
-        w = (1.0 - gain) + gain * dw
-        x = gain * dx
-        y = gain * dy
-        z = gain * dz
-    else:  # SLERP
-        omega = math.acos(dw)
-        s = math.sin(omega)
-        a = math.sin((1.0 - gain) * omega) / s
-        b = math.sin(gain * omega) / s
-        w = a + b * dw
-        x = b * dx
-        y = b * dy
-        z = b * dz
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    return w / n, x / n, y / n, z / n
-
-
-@njit(cache=True)
-def _valenti_cf_step(st, gx, gy, gz, ax, ay, az, mx, my, mz, gyr_ok, acc_ok, mag_ok,
-                     dt_s, alpha, beta, eps, adaptive, t1, t2, grav, est_bias, alpha_b,
-                     th_w, th_dw, th_a):
-    """One sample; updates the state ``st`` (10,) in place."""
-    w = st[0]
-    x = st[1]
-    y = st[2]
-    z = st[3]
-    na = math.sqrt(ax * ax + ay * ay + az * az) if acc_ok else 0.0
-
-    # 5. bias at rest (before the prediction)
-    if gyr_ok:
-        if est_bias and acc_ok:
-            if (abs(na - grav) < th_a
-                    and abs(gx - st[7]) < th_dw and abs(gy - st[8]) < th_dw and abs(gz - st[9]) < th_dw
-                    and abs(gx - st[4]) < th_w and abs(gy - st[5]) < th_w and abs(gz - st[6]) < th_w):
-                st[4] += alpha_b * (gx - st[4])
-                st[5] += alpha_b * (gy - st[5])
-                st[6] += alpha_b * (gz - st[6])
-        st[7] = gx
-        st[8] = gy
-        st[9] = gz
-        # 1. prediction, eqs. (38)-(42): q + 0.5 q ⊗ (0, ω - b) Δt
-        ux = gx - st[4]
-        uy = gy - st[5]
-        uz = gz - st[6]
-        h = 0.5 * dt_s
-        w, x, y, z = (w + h * (-x * ux - y * uy - z * uz),
-                      x + h * (w * ux + y * uz - z * uy),
-                      y + h * (w * uy - x * uz + z * ux),
-                      z + h * (w * uz + x * uy - y * ux))
-        n = math.sqrt(w * w + x * x + y * y + z * z)
-        w /= n
-        x /= n
-        y /= n
-        z /= n
-
-    # 2-3. accelerometer correction (tilt)
-    if acc_ok:
-        gain = alpha
-        if adaptive:
-            em = abs(na - grav) / grav
-            if em >= t2:
-                gain = 0.0
-            elif em > t1:
-                gain = alpha * (t2 - em) / (t2 - t1)
-        if gain > 0.0:
-            ax /= na
-            ay /= na
-            az /= na
-            # eq. (44): predicted gravity g_p = R(q) a
-            px = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
-            py = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
-            pz = 2.0 * (x * z - w * y) * ax + 2.0 * (y * z + w * x) * ay + (1.0 - 2.0 * (x * x + y * y)) * az
-            if pz > 1.0:
-                pz = 1.0
-            if pz + 1.0 > 1e-12:  # eq. (47), conjugated
-                r = math.sqrt(2.0 * (pz + 1.0))
-                dw = 0.5 * r
-                dx = py / r
-                dy = -px / r
-            else:  # upside down: half turn about x
-                dw = 0.0
-                dx = 1.0
-                dy = 0.0
-            dw, dx, dy, dz = _to_identity(dw, dx, dy, 0.0, gain, eps)
-            # q' = Δq_acc ⊗ q  (dz == 0)
-            w, x, y, z = (dw * w - dx * x - dy * y,
-                          dw * x + dx * w + dy * z,
-                          dw * y - dx * z + dy * w,
-                          dw * z + dx * y - dy * x)
-
-    # 4. magnetometer correction (heading), ENU
-    if mag_ok and beta > 0.0:
-        lx = (1.0 - 2.0 * (y * y + z * z)) * mx + 2.0 * (x * y - w * z) * my + 2.0 * (x * z + w * y) * mz
-        ly = 2.0 * (x * y + w * z) * mx + (1.0 - 2.0 * (x * x + z * z)) * my + 2.0 * (y * z - w * x) * mz
-        gam = lx * lx + ly * ly
-        if gam > 1e-300:
-            sg = math.sqrt(gam)
-            if ly >= 0.0:
-                s = math.sqrt(gam + ly * sg)
-                dw = s / math.sqrt(2.0 * gam)
-                dz = lx / (math.sqrt(2.0) * s)
-            else:
-                s = math.sqrt(gam - ly * sg)
-                dw = abs(lx) / (math.sqrt(2.0) * s)
-                dz = s / math.sqrt(2.0 * gam)
-                if lx < 0.0:
-                    dz = -dz
-            dw, _, _, dz = _to_identity(dw, 0.0, 0.0, dz, beta, eps)
-            # q = Δq_mag ⊗ q'  (rotation about the earth z axis)
-            w, x, y, z = (dw * w - dz * z, dw * x - dz * y, dw * y + dz * x, dw * z + dz * w)
-
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    st[0] = w / n
-    st[1] = x / n
-    st[2] = y / n
-    st[3] = z / n
-
-
-@njit(cache=True)
-def _valenti_cf_batch(acc, gyr, mag, acc_ok, mag_ok, use_mag, dt_s, tau_acc_s, tau_mag_s, eps, adaptive,
-                      t1, t2, grav, est_bias, tau_bias_s, th_w, th_dw, th_a, warmup_s, tau_warmup_s,
-                      gyr_ok, state0):
-    """Run :func:`_valenti_cf_step` over ``(N, 3)`` inputs (``mag`` ignored unless ``use_mag``).
-
-    ``gyr_ok`` (N,) marks usable gyroscope rows (a missing row holds the orientation and the bias).
-    Returns ``q (N, 4)`` and the final state ``(11,)`` (a copy; ``state0`` is not modified).
-    """
-    alpha_run = -math.expm1(-dt_s / tau_acc_s)
-    beta_run = -math.expm1(-dt_s / tau_mag_s)
-    gain_warm = -math.expm1(-dt_s / tau_warmup_s)
-    alpha_warm = max(alpha_run, gain_warm)
-    beta_warm = max(beta_run, gain_warm)
-    alpha_b = -math.expm1(-dt_s / tau_bias_s)
-    n = acc.shape[0]
-    out = np.empty((n, 4))
-    st = state0.copy()
-    for k in range(n):
-        if st[10] < warmup_s:
-            alpha = alpha_warm
-            beta = beta_warm
-        else:
-            alpha = alpha_run
-            beta = beta_run
-        st[10] = min(st[10] + dt_s, warmup_s)
-        if use_mag:
-            mx = mag[k, 0]
-            my = mag[k, 1]
-            mz = mag[k, 2]
-            mk = mag_ok[k]
-        else:
-            mx = 0.0
-            my = 0.0
-            mz = 0.0
-            mk = False
-        _valenti_cf_step(st, gyr[k, 0], gyr[k, 1], gyr[k, 2], acc[k, 0], acc[k, 1], acc[k, 2], mx, my, mz,
-                         gyr_ok[k], acc_ok[k], mk, dt_s, alpha, beta, eps, adaptive, t1, t2, grav,
-                         est_bias, alpha_b, th_w, th_dw, th_a)
-        out[k, 0] = st[0]
-        out[k, 1] = st[1]
-        out[k, 2] = st[2]
-        out[k, 3] = st[3]
-    return out, st
 
 
 # ------------------------------------------------------------------------------------ reference
@@ -441,22 +271,13 @@ class ValentiCF(OrientationMethod):
 
     name = "valenti_cf"
     params_type = ValentiCFParams
-    supports_6d = True
-    supports_9d = True
-
-    def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
-        state = np.zeros(STATE_SIZE)
-        state[:4] = q
-        return state
+    state_size = STATE_SIZE
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         p = self.params
         state0 = np.asarray(state0, dtype=np.float64)
-        if state0.shape != (STATE_SIZE,):
-            raise ValueError(f"valenti_cf state must have shape ({STATE_SIZE},), got {state0.shape}")
-        use_mag = data.mag is not None
-        return _valenti_cf_batch(
-            data.acc, data.gyr, data.mag if use_mag else data.acc, data.acc_ok, data.mag_ok, use_mag, data.dt_s,
+        return valenti_cf_batch(
+            data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok, data.dt_s,
             float(p.tau_acc_s), float(p.tau_mag_s), float(p.lerp_threshold), bool(p.adaptive_gain),
             float(p.acc_error_low), float(p.acc_error_high), float(p.gravity_m_s2), bool(p.estimate_bias),
             float(p.tau_bias_s), float(p.rest_gyr_rad_s), float(p.rest_gyr_change_rad_s), float(p.rest_acc_m_s2),
@@ -502,7 +323,7 @@ class ValentiCF(OrientationMethod):
                     g_p = quat.rotate(q, acc / a_norm)                              # eq. (44)
                     d_acc = _interpolate_to_identity(_delta_acc(g_p), alpha, p.lerp_threshold)
                     q = quat.multiply(d_acc, q)                                     # eq. (53)
-            if data.mag is not None and data.mag_ok[k] and beta > 0.0:
+            if data.mag_ok[k] and beta > 0.0:
                 l_earth = quat.rotate(q, data.mag[k])                               # eq. (54)
                 d_mag = _delta_mag(l_earth)
                 if d_mag is not None:

@@ -102,7 +102,7 @@ taken from the prediction: a *virtual field*
 :math:`m` in AQUA.  Then :math:`z` has the measured tilt and the predicted heading: a tilt error
 :math:`\delta\theta` about any horizontal earth axis leaves the projection of :math:`m_v` on north, so the
 innovation has no heading component to first order.  Its noise is a fixed, weak heading
-standard deviation of 2 rad (``_VIRTUAL_HEADING_STD_RAD``), which keeps :math:`S` well conditioned.
+standard deviation of 2 rad (``VIRTUAL_HEADING_STD_RAD``), which keeps :math:`S` well conditioned.
 Being (weakly) informative, it makes the 6D heading variance settle near :math:`\sqrt{Q R}` instead of
 growing without bound; the estimate is unaffected because the heading innovation is zero.
 (Only if the measured "up" lies exactly along the predicted north, a 90° tilt error, is the virtual
@@ -161,14 +161,13 @@ Deviations from the paper (and why)
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from estimators import quaternion as quat
 from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.valenti_kf_kernels import GAMMA_MIN, VIRTUAL_HEADING_STD_RAD, valenti_kf_batch
 
 STATE_SIZE = 20
 """State layout: ``0:4`` q_earth_sensor; ``4:20`` the covariance P (4×4, row-major)."""
@@ -176,8 +175,6 @@ STATE_SIZE = 20
 GATE_REFERENCE_HZ = 100.0
 """Rate at which ``innovation_gate`` is the plain χ² threshold (see the module docstring)."""
 
-_VIRTUAL_HEADING_STD_RAD = 2.0
-_GAMMA_MIN = 1e-6
 _NORTH_ENU = np.array([0.0, 1.0, 0.0])
 
 
@@ -219,335 +216,6 @@ class ValentiKFParams:
             ("initial_std_rad", "rad", "0.01–3"),
         ):
             check_parameter(name, getattr(self, name), unit=unit, low_open=True, hint=f"typically {typical}")
-
-
-# --------------------------------------------------------------------------------------- kernel
-@njit(cache=True)
-def _predict(st, gx, gy, gz, dt_s, gyr_var, xm, pm, phi, tmp):
-    """Eqs. 5.33–5.34: ``xm = normalise(Φ x)``, ``pm = Φ P Φᵀ + Q`` (upper triangle mirrored)."""
-    h = 0.5 * dt_s
-    hx = h * gx
-    hy = h * gy
-    hz = h * gz
-    phi[0] = 1.0
-    phi[1] = -hx
-    phi[2] = -hy
-    phi[3] = -hz
-    phi[4] = hx
-    phi[5] = 1.0
-    phi[6] = hz
-    phi[7] = -hy
-    phi[8] = hy
-    phi[9] = -hz
-    phi[10] = 1.0
-    phi[11] = hx
-    phi[12] = hz
-    phi[13] = hy
-    phi[14] = -hx
-    phi[15] = 1.0
-    # tmp = Φ P
-    for i in range(4):
-        for j in range(4):
-            tmp[4 * i + j] = (phi[4 * i] * st[4 + j] + phi[4 * i + 1] * st[8 + j]
-                              + phi[4 * i + 2] * st[12 + j] + phi[4 * i + 3] * st[16 + j])
-    c = h * h * gyr_var
-    for i in range(4):
-        for j in range(i, 4):
-            v = (tmp[4 * i] * phi[4 * j] + tmp[4 * i + 1] * phi[4 * j + 1]
-                 + tmp[4 * i + 2] * phi[4 * j + 2] + tmp[4 * i + 3] * phi[4 * j + 3])
-            v -= c * st[i] * st[j]
-            if i == j:
-                v += c
-            pm[4 * i + j] = v
-            pm[4 * j + i] = v
-    n2 = 0.0
-    for i in range(4):
-        v = phi[4 * i] * st[0] + phi[4 * i + 1] * st[1] + phi[4 * i + 2] * st[2] + phi[4 * i + 3] * st[3]
-        xm[i] = v
-        n2 += v * v
-    inv = 1.0 / math.sqrt(n2)
-    for i in range(4):
-        xm[i] *= inv
-
-
-@njit(cache=True)
-def _aqua(ax, ay, az, mx, my, mz, virtual, xm, z, jt):
-    """AQUA measurement ``z`` (q_earth_sensor, sign matched to ``xm``) and its tangent Jacobians.
-
-    ``a`` and ``m`` are unit vectors; ``virtual`` replaces ``m`` by the predicted north axis.
-    Fills ``jt`` (4×3 row-major, ∂z/∂a projected on the tangent plane of a) and returns
-    ``(gamma, h0, h1, h2, h3)`` with ``h`` = ∂z/∂ψ; ``gamma < 0`` when the field is unusable.
-    """
-    # eq. 5.11: q_acc (intermediate → sensor) and D = ∂q_acc/∂a, columns (ax, ay, az)
-    if az >= 0.0:
-        s = math.sqrt(2.0 * (az + 1.0))
-        w = 0.5 * s
-        x = -ay / s
-        y = ax / s
-        zz = 0.0
-        s3 = s * s * s
-        d00 = 0.0
-        d01 = 0.0
-        d02 = 0.5 / s
-        d10 = 0.0
-        d11 = -1.0 / s
-        d12 = ay / s3
-        d20 = 1.0 / s
-        d21 = 0.0
-        d22 = -ax / s3
-        d30 = 0.0
-        d31 = 0.0
-        d32 = 0.0
-    else:
-        t = math.sqrt(2.0 * (1.0 - az))
-        w = -ay / t
-        x = 0.5 * t
-        y = 0.0
-        zz = ax / t
-        t3 = t * t * t
-        d00 = 0.0
-        d01 = -1.0 / t
-        d02 = -ay / t3
-        d10 = 0.0
-        d11 = 0.0
-        d12 = -0.5 / t
-        d20 = 0.0
-        d21 = 0.0
-        d22 = 0.0
-        d30 = 1.0 / t
-        d31 = 0.0
-        d32 = ax / t3
-    if virtual:
-        # predicted north axis in sensor coordinates: second row of R(xm)
-        qw = xm[0]
-        qx = xm[1]
-        qy = xm[2]
-        qz = xm[3]
-        mx = 2.0 * (qx * qy + qw * qz)
-        my = 1.0 - 2.0 * (qx * qx + qz * qz)
-        mz = 2.0 * (qy * qz - qw * qx)
-    # u = q_acc* ⊗ (0, m);  l = Vec(u ⊗ q_acc)  (eq. 5.12)
-    u0 = x * mx + y * my + zz * mz
-    u1 = w * mx - (y * mz - zz * my)
-    u2 = w * my - (zz * mx - x * mz)
-    u3 = w * mz - (x * my - y * mx)
-    lx = u0 * x + w * u1 + (u2 * zz - u3 * y)
-    ly = u0 * y + w * u2 + (u3 * x - u1 * zz)
-    gamma = lx * lx + ly * ly
-    if gamma < _GAMMA_MIN:
-        return -1.0, 0.0, 0.0, 0.0, 0.0
-    # eq. 5.13 with l' = (ly, -lx): ENU north on +y
-    g = math.sqrt(gamma)
-    if ly >= 0.0:
-        b = gamma + ly * g
-        c = math.sqrt(b / (2.0 * gamma))
-        sn = -lx / math.sqrt(2.0 * b)
-    else:
-        b = gamma - ly * g
-        sn = math.sqrt(b / (2.0 * gamma))
-        c = -lx / math.sqrt(2.0 * b)
-    # p = q_acc ⊗ q_mag (eq. 5.25)
-    p0 = c * w - sn * zz
-    p1 = c * x + sn * y
-    p2 = c * y - sn * x
-    p3 = c * zz + sn * w
-    # h = ½ p ⊗ k = ∂p/∂ψ;  d = ∂ψ/∂l
-    h0 = -0.5 * p3
-    h1 = 0.5 * p2
-    h2 = -0.5 * p1
-    h3 = 0.5 * p0
-    dx = -ly / gamma
-    dy = lx / gamma
-    # columns of ∂p/∂a: R⊗(q_mag) D_j + h ∂ψ/∂a_j,  ∂ψ/∂a_j = d · 2 Vec(u ⊗ D_j)
-    for j in range(3):
-        if j == 0:
-            e0 = d00
-            e1 = d10
-            e2 = d20
-            e3 = d30
-        elif j == 1:
-            e0 = d01
-            e1 = d11
-            e2 = d21
-            e3 = d31
-        else:
-            e0 = d02
-            e1 = d12
-            e2 = d22
-            e3 = d32
-        vx = u0 * e1 + e0 * u1 + (u2 * e3 - u3 * e2)
-        vy = u0 * e2 + e0 * u2 + (u3 * e1 - u1 * e3)
-        dpsi = 2.0 * (dx * vx + dy * vy)
-        jt[j] = c * e0 - sn * e3 + h0 * dpsi
-        jt[3 + j] = c * e1 + sn * e2 + h1 * dpsi
-        jt[6 + j] = c * e2 - sn * e1 + h2 * dpsi
-        jt[9 + j] = c * e3 + sn * e0 + h3 * dpsi
-    # project on the tangent plane of a, and conjugate: z = p*, rows 1..3 change sign
-    for i in range(4):
-        r = jt[3 * i] * ax + jt[3 * i + 1] * ay + jt[3 * i + 2] * az
-        sg = 1.0 if i == 0 else -1.0
-        jt[3 * i] = sg * (jt[3 * i] - r * ax)
-        jt[3 * i + 1] = sg * (jt[3 * i + 1] - r * ay)
-        jt[3 * i + 2] = sg * (jt[3 * i + 2] - r * az)
-    z[0] = p0
-    z[1] = -p1
-    z[2] = -p2
-    z[3] = -p3
-    # double cover: same hemisphere as the prediction
-    if z[0] * xm[0] + z[1] * xm[1] + z[2] * xm[2] + z[3] * xm[3] < 0.0:
-        for i in range(4):
-            z[i] = -z[i]
-    return gamma, h0, -h1, -h2, -h3
-
-
-@njit(cache=True)
-def _factor_solve(s, v, xm, pm, z, r, r_scale):
-    """Cholesky of S = P⁻ + r_scale·R into ``s`` (lower); ``v`` = S⁻¹[z − x⁻ | P⁻] (5 columns of 4)."""
-    for i in range(16):
-        s[i] = pm[i] + r_scale * r[i]
-    for j in range(4):
-        t = s[5 * j]
-        for k in range(j):
-            t -= s[4 * j + k] * s[4 * j + k]
-        ljj = math.sqrt(t)
-        s[5 * j] = ljj
-        for i in range(j + 1, 4):
-            t = s[4 * i + j]
-            for k in range(j):
-                t -= s[4 * i + k] * s[4 * j + k]
-            s[4 * i + j] = t / ljj
-    for col in range(5):
-        for i in range(4):
-            b = z[i] - xm[i] if col == 0 else pm[4 * i + col - 1]
-            for k in range(i):
-                b -= s[4 * i + k] * v[4 * col + k]
-            v[4 * col + i] = b / s[5 * i]
-        for i in range(3, -1, -1):
-            b = v[4 * col + i]
-            for k in range(i + 1, 4):
-                b -= s[4 * k + i] * v[4 * col + k]
-            v[4 * col + i] = b / s[5 * i]
-
-
-@njit(cache=True)
-def _update(st, xm, pm, z, r, s, v, gate):
-    """Eqs. 5.22–5.24 with H = I: S = P⁻ + R (Cholesky), x = x⁻ + P⁻S⁻¹(z − x⁻), P = P⁻ − P⁻S⁻¹P⁻.
-
-    Innovation gate (deviation 5): when ``d² = νᵀS⁻¹ν > gate > 0``, R is scaled by ``d²/gate``.
-    """
-    _factor_solve(s, v, xm, pm, z, r, 1.0)
-    if gate > 0.0:
-        d2 = 0.0
-        for i in range(4):
-            d2 += (z[i] - xm[i]) * v[i]
-        if d2 > gate:
-            _factor_solve(s, v, xm, pm, z, r, d2 / gate)
-    n2 = 0.0
-    for i in range(4):
-        val = xm[i] + pm[4 * i] * v[0] + pm[4 * i + 1] * v[1] + pm[4 * i + 2] * v[2] + pm[4 * i + 3] * v[3]
-        st[i] = val
-        n2 += val * val
-    inv = 1.0 / math.sqrt(n2)
-    for i in range(4):
-        st[i] *= inv
-    # P = P⁻ − P⁻ W, W = S⁻¹P⁻ (column j of W is v[4(j+1):4(j+2)])
-    for i in range(4):
-        for j in range(i, 4):
-            val = pm[4 * i + j] - (pm[4 * i] * v[4 * (j + 1)] + pm[4 * i + 1] * v[4 * (j + 1) + 1]
-                                   + pm[4 * i + 2] * v[4 * (j + 1) + 2] + pm[4 * i + 3] * v[4 * (j + 1) + 3])
-            st[4 + 4 * i + j] = val
-            st[4 + 4 * j + i] = val
-
-
-@njit(cache=True)
-def _measure(ax, ay, az, mx, my, mz, use_mag, acc_var, mag_var, xm, z, jt, r):
-    """AQUA measurement ``z`` and its covariance ``r`` (4×4); False when no measurement can be formed."""
-    na2 = ax * ax + ay * ay + az * az
-    na = math.sqrt(na2)
-    ax /= na
-    ay /= na
-    az /= na
-    sa = acc_var / na2
-    gamma = -1.0
-    sm = 0.0
-    h0 = 0.0
-    h1 = 0.0
-    h2 = 0.0
-    h3 = 0.0
-    if use_mag:
-        nm2 = mx * mx + my * my + mz * mz
-        nm = math.sqrt(nm2)
-        sm = mag_var / nm2
-        gamma, h0, h1, h2, h3 = _aqua(ax, ay, az, mx / nm, my / nm, mz / nm, False, xm, z, jt)
-    if gamma < 0.0:
-        sm = _VIRTUAL_HEADING_STD_RAD * _VIRTUAL_HEADING_STD_RAD
-        gamma, h0, h1, h2, h3 = _aqua(ax, ay, az, 0.0, 0.0, 0.0, True, xm, z, jt)
-        if gamma < 0.0:  # measured "up" 90° from the predicted one, along predicted north: no heading
-            return False
-    # R = σa² Jt Jtᵀ + σm²/Γ h hᵀ + σa²/4 z zᵀ  (eqs. 5.30, 5.32; deviation 2)
-    sh = sm / gamma
-    sz = 0.25 * sa
-    for i in range(4):
-        hi = h0 if i == 0 else (h1 if i == 1 else (h2 if i == 2 else h3))
-        for j in range(i, 4):
-            hj = h0 if j == 0 else (h1 if j == 1 else (h2 if j == 2 else h3))
-            val = (sa * (jt[3 * i] * jt[3 * j] + jt[3 * i + 1] * jt[3 * j + 1] + jt[3 * i + 2] * jt[3 * j + 2])
-                   + sh * hi * hj + sz * z[i] * z[j])
-            r[4 * i + j] = val
-            r[4 * j + i] = val
-    return True
-
-
-@njit(cache=True)
-def _valenti_kf_step(st, gx, gy, gz, ax, ay, az, mx, my, mz, use_acc, use_mag,
-                     dt_s, gyr_var, acc_var, mag_var, gate, work):
-    """One sample in place on ``st`` (layout: :data:`STATE_SIZE`); ``work`` is scratch (104 floats)."""
-    xm = work[0:4]
-    pm = work[4:20]
-    phi = work[20:36]
-    tmp = work[36:52]
-    z = work[52:56]
-    jt = work[56:68]
-    r = work[68:84]
-    v = work[84:104]
-    _predict(st, gx, gy, gz, dt_s, gyr_var, xm, pm, phi, tmp)
-    if use_acc and _measure(ax, ay, az, mx, my, mz, use_mag, acc_var, mag_var, xm, z, jt, r):
-        _update(st, xm, pm, z, r, tmp, v, gate)
-    else:  # no accelerometer: prediction only
-        for i in range(4):
-            st[i] = xm[i]
-        for i in range(16):
-            st[4 + i] = pm[i]
-
-
-@njit(cache=True)
-def _valenti_kf_batch(acc, gyr, mag, acc_ok, mag_ok, use_mag, dt_s, gyr_var, acc_var, mag_var, gate, state0):
-    """Run :func:`_valenti_kf_step` over ``(N, 3)`` inputs; ``mag`` is ignored when ``use_mag`` is false.
-
-    Variances are per sample (``N² f_s``).  Returns ``q (N, 4)`` and the final state (a copy).
-    """
-    n = acc.shape[0]
-    out = np.empty((n, 4))
-    st = state0.copy()
-    work = np.empty(104)
-    for k in range(n):
-        if use_mag:
-            mx = mag[k, 0]
-            my = mag[k, 1]
-            mz = mag[k, 2]
-            mk = mag_ok[k]
-        else:
-            mx = 0.0
-            my = 0.0
-            mz = 0.0
-            mk = False
-        _valenti_kf_step(st, gyr[k, 0], gyr[k, 1], gyr[k, 2], acc[k, 0], acc[k, 1], acc[k, 2],
-                         mx, my, mz, acc_ok[k], mk, dt_s, gyr_var, acc_var, mag_var, gate, work)
-        out[k, 0] = st[0]
-        out[k, 1] = st[1]
-        out[k, 2] = st[2]
-        out[k, 3] = st[3]
-    return out, st
 
 
 # ------------------------------------------------------------------------------------ reference
@@ -601,7 +269,7 @@ def aqua_reference(a: FloatArray, m: FloatArray) -> tuple[FloatArray | None, Flo
     q_acc, d = acc_quaternion(a)
     l = quat.rotate(quat.conjugate(q_acc), m)                       # eq. 5.12
     gamma = l[0] ** 2 + l[1] ** 2
-    if gamma < _GAMMA_MIN:  # field (nearly) vertical: no heading
+    if gamma < GAMMA_MIN:  # field (nearly) vertical: no heading
         return None, None, None, float(gamma)
     q_mag = mag_quaternion(l)                                       # eq. 5.13
     p = quat.multiply(q_acc, q_mag)                                 # eq. 5.25
@@ -636,7 +304,7 @@ def _reference_step(x: FloatArray, p_cov: FloatArray, gyr: FloatArray, acc: Floa
     if z is None:  # 6D: heading of the prediction through the virtual field
         m_virtual = quat.rotate(quat.conjugate(x_pred), _NORTH_ENU)
         z, jac_a, jac_m, gamma = aqua_reference(a, m_virtual)
-        sm = _VIRTUAL_HEADING_STD_RAD**2
+        sm = VIRTUAL_HEADING_STD_RAD**2
         if z is None:  # measured "up" 90° from the predicted one, along predicted north
             return x_pred, p_pred
     if z @ x_pred < 0.0:                                                    # double cover
@@ -661,8 +329,7 @@ class ValentiKF(OrientationMethod):
 
     name = "valenti_kf"
     params_type = ValentiKFParams
-    supports_6d = True
-    supports_9d = True
+    state_size = STATE_SIZE
 
     def _variances(self, fs_hz: float) -> tuple[float, float, float]:
         p = self.params
@@ -681,12 +348,8 @@ class ValentiKF(OrientationMethod):
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         state0 = np.asarray(state0, dtype=np.float64)
-        if state0.shape != (STATE_SIZE,):
-            raise ValueError(f"valenti_kf state must have shape ({STATE_SIZE},), got {state0.shape}")
-        use_mag = data.mag is not None
-        mag = data.mag if use_mag else data.acc
-        return _valenti_kf_batch(data.acc, data.gyr, mag, data.acc_ok, data.mag_ok, use_mag, data.dt_s,
-                                 *self._variances(data.fs_hz), self._gate(data.fs_hz), state0)
+        return valenti_kf_batch(data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok, data.dt_s,
+                                *self._variances(data.fs_hz), self._gate(data.fs_hz), state0)
 
     def _run_reference(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         gyr_var, acc_var, mag_var = self._variances(data.fs_hz)
@@ -696,7 +359,7 @@ class ValentiKF(OrientationMethod):
         out = np.empty((data.n, 4))
         for k in range(data.n):
             acc = data.acc[k] if data.acc_ok[k] else None
-            mag = data.mag[k] if (data.mag is not None and data.mag_ok[k]) else None
+            mag = data.mag[k] if data.mag_ok[k] else None
             x, p_cov = _reference_step(x, p_cov, data.gyr[k], acc, mag, data.dt_s, gyr_var, acc_var, mag_var,
                                        gate)
             out[k] = x

@@ -146,6 +146,19 @@ def test_missing_rows_are_skipped_and_flagged(name, mode, noisy_motion):
 
 
 @pytest.mark.parametrize("name", METHODS)
+def test_6d_is_9d_with_every_field_sample_missing(name, noisy_motion):
+    g = noisy_motion
+    sl = slice(150, 550)
+    no_field = np.full_like(g.mag[sl], np.nan)
+    for kwargs in ({}, {"offline": False}) if name == "chakamo" else ({},):
+        six = make(name, **kwargs).estimate(g.acc[sl], g.gyr[sl], None, fs_hz=g.fs_hz)
+        nine = make(name, **kwargs).estimate(g.acc[sl], g.gyr[sl], no_field, fs_hz=g.fs_hz)
+        assert np.array_equal(six.orientation_, nine.orientation_)
+        assert np.array_equal(six.state_, nine.state_)
+        assert nine.flags_.mag_missing.all() and not six.flags_.mag_missing.any()
+
+
+@pytest.mark.parametrize("name", METHODS)
 def test_contract_function_and_unknown_parameter(name, noisy_motion):
     g = noisy_motion
     q = estimate(g.acc, g.gyr, g.mag, fs_hz=g.fs_hz, method=name)
@@ -165,6 +178,15 @@ def test_every_parameter_validated(name):
         for bad in (-1.0, float("nan")):
             with pytest.raises(ValueError, match=f.name):
                 cls.params_type(**{f.name: bad})
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_wrong_state_shape_is_rejected(name):
+    method = make(name)
+    state = method.initial_state([0.0, 0.0, 9.81])
+    assert state.shape == (method.state_size,)
+    with pytest.raises(ValueError, match=f"{name} state must have shape \\({method.state_size},\\)"):
+        method.update(state[:4], [0.0, 0.0, 9.81], np.zeros(3), fs_hz=FS_HZ)
 
 
 def test_unknown_method():

@@ -1,0 +1,87 @@
+r"""The numpy steps of ChakaMo's offline smoother (13–15) and the Butterworth design (2) it shares with
+the causal filter.  Theory and equation numbers: :mod:`estimators.orientation.chakamo`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import signal
+
+from estimators import quaternion as quat
+from estimators.orientation.base import FloatArray
+
+
+def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
+    """Second-order Butterworth low-pass ``(b (3,), a (3,))`` with :math:`f_c = \\sqrt2/(2\\pi\\tau)` (2)."""
+    fc_hz = math.sqrt(2.0) / (2.0 * math.pi * tau_s)
+    fc_hz = min(fc_hz, 0.45 * fs_hz)
+    b, a = signal.butter(2, fc_hz, btype="low", fs=fs_hz)
+    return b / a[0], a / a[0]
+
+
+
+def zero_phase_inclination(q_is: FloatArray, acc: FloatArray, acc_ok: FloatArray, tau_acc_s: float,
+                           fs_hz: float) -> FloatArray:
+    """``q_E'I`` per sample from the zero-phase low-pass of the acceleration in ``I`` (offline step 2)."""
+    n = acc.shape[0]
+    acc_i = quat.rotate(q_is, acc)
+    idx = np.flatnonzero(acc_ok)
+    if idx.size < n:
+        t = np.arange(n)
+        acc_i = np.stack([np.interp(t, idx, acc_i[idx, j]) for j in range(3)], axis=1)
+    b, a = butterworth(tau_acc_s, fs_hz)
+    if n > 9:
+        pad = min(n - 1, int(math.ceil(3.0 * tau_acc_s * fs_hz)))
+        acc_lp = signal.filtfilt(b, a, acc_i, axis=0, padtype="odd", padlen=pad)
+    else:
+        acc_lp = np.repeat(acc_i.mean(axis=0, keepdims=True), n, axis=0)
+    return quat.from_two_vectors(acc_lp, np.array([0.0, 0.0, 1.0]))
+
+
+def field_weights(mag_e: FloatArray, accepted: FloatArray, norm_sigma: float, dip_sigma_rad: float) -> FloatArray:
+    r"""Soft weights ``(N,)`` of the field samples for the offline heading (14).
+
+    Offline, the reference norm and dip are the medians over the samples both passes accepted; each
+    accepted sample is weighted by a Gaussian of its deviation,
+    :math:`w = \exp(-\tfrac12[(|m| - |m|_{ref})/(\sigma_n |m|_{ref})]^2 - \tfrac12[(dip - dip_{ref})/\sigma_d]^2)`,
+    so that slightly disturbed samples (below the rejection thresholds) count less.
+    """
+    w = np.zeros(mag_e.shape[0])
+    if not accepted.any():
+        return w
+    norm = np.linalg.norm(mag_e, axis=1)
+    dip = np.arcsin(np.clip(-mag_e[:, 2] / np.where(norm > 0, norm, 1.0), -1.0, 1.0))
+    n_ref = np.median(norm[accepted])
+    d_ref = np.median(dip[accepted])
+    z2 = ((norm - n_ref) / (norm_sigma * n_ref)) ** 2 + ((dip - d_ref) / dip_sigma_rad) ** 2
+    w[accepted] = np.exp(-0.5 * z2[accepted])
+    return w
+
+
+def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float) -> FloatArray:
+    """Heading offset (14): two-sided exponential, weighted mean of the unwrapped target ``(N,)``, rad."""
+    n = target_rad.shape[0]
+    w = np.asarray(weight, dtype=np.float64)
+    used = w > 0.0
+    if not used.any():
+        return np.zeros(n)
+    unwrapped = np.zeros(n)
+    unwrapped[used] = np.unwrap(target_rad[used])
+    decay = math.exp(-dt_s / tau_s)
+
+    def two_sided(x: FloatArray) -> FloatArray:
+        fwd = signal.lfilter([1.0], [1.0, -decay], x)
+        bwd = signal.lfilter([1.0], [1.0, -decay], x[::-1])[::-1]
+        return fwd + bwd - x
+
+    num = two_sided(w * unwrapped)
+    den = two_sided(w)
+    ok = den > 1e-200
+    delta = np.zeros(n)
+    delta[ok] = num[ok] / den[ok]
+    if not ok.all():  # gaps longer than ~700 τ: hold the nearest smoothed value
+        idx = np.flatnonzero(ok)
+        delta = np.interp(np.arange(n), idx, delta[idx])
+    return delta
