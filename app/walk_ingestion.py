@@ -179,6 +179,8 @@ def read_npz(path: str | Path, sensor: int = 1) -> WalkRecording:
 
 def read_walk(path: str | Path, *, fmt: str = "iez", sensor: int = 1) -> WalkRecording:
     """Read a walk file of format ``fmt`` (one of ``FORMATS``)."""
+    if not Path(path).is_file():
+        raise ValueError(f"{path}: no such file")
     if fmt == "iez":
         return read_iez(path, sensor)
     if fmt == "npz":

@@ -2,23 +2,33 @@
 
 import json
 
+import pytest
+
 from app.cli import main
-from estimators.orientation import METHODS
 
 
-def test_demo_writes_every_filter_with_its_accuracy(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--duration", "15"]) == 0
-    result = json.loads((tmp_path / "filters.json").read_text())
-    assert {row["method"] for row in result["filters"]} == set(METHODS)
-    calibration = result["calibration"]["magnetometer"]
-    assert 20.0 < calibration["field_ut"] < 70.0
-    # madgwick on the calibrated field stays within a few degrees of the truth
-    madgwick_9d = next(r for r in result["filters"] if r["method"] == "madgwick" and r["mode"] == "9d")
-    assert madgwick_9d["total_rmse_deg"] < 5.0
-    assert "total RMSE" in capsys.readouterr().out
+def test_demo_processes_a_simulated_session_and_reports_accuracy(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path), "--cycles", "5"]) == 0
+    accuracy = json.loads((tmp_path / "demo_accuracy.json").read_text())
+    assert accuracy["cycles_found"] == accuracy["cycles_true"] == 5
+    assert accuracy["rmse_deg"]["flexion"] < 1.0
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["cycles"]["detected"] == 5
+    assert any(p.name.endswith(".csv") and "MetaWear" in p.name for p in (tmp_path / "session").iterdir())
+    assert "Knee angles against the simulated truth" in capsys.readouterr().out
 
 
-def test_demo_rejects_a_too_short_motion(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--duration", "2"]) == 2
-    assert "at least 10 s" in capsys.readouterr().err
-    assert not (tmp_path / "filters.json").exists()
+@pytest.mark.parametrize("argv, message", [
+    (["demo", "--cycles", "1"], "between 3 and 30"),
+    (["process", "/no/such/folder", "--out", "OUT"], "no such session folder"),
+    (["walk", "/no/such/walk.csv"], "no such file"),
+    (["markov", "/no/such/file.csv", "--out", "OUT"], "no such file"),
+])
+def test_user_errors_exit_2_with_a_message(argv, message, tmp_path, capsys):
+    argv = [a if a != "OUT" else str(tmp_path / "out") for a in argv]
+    if argv[0] == "demo":
+        argv += ["--out", str(tmp_path / "demo")]
+    assert main(argv) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]  # progress lines may come first
+    assert last.startswith(f"chakamo {argv[0]}: error:") and message in last.lower()
+    assert not (tmp_path / "out").exists()
