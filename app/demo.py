@@ -1,95 +1,173 @@
-"""``chakamo demo``: the estimator core end to end on a simulated sensor with known truth.
+"""``chakamo demo``: a realistic simulated session with known truth, processed like a real one.
 
-One simulated MetaMotionR-like sensor (noise, gyroscope bias and drift, scale errors, hard and soft
-iron, clock offsets, 20 Hz magnetometer interpolated onto the 100 Hz grid) records
+The simulator (:mod:`estimators.simulation`) makes two MetaMotionR-like sensors (noise, gyroscope
+bias and drift, scale and axis errors, hard and soft iron, up to 15° mounting misalignment, clock
+drift, streams starting milliseconds apart, 20 Hz magnetometer) on the thigh and shank of one leg
+recording the protocol of seed 004 §8.4: a figure-eight per sensor, standing, supine lying and ten
+single-leg step-up cycles.  The recordings are written as real MetaBase CSV files with the quirks of
+real exports (the ``epoc``/``timestamp`` header dialect, '.' in the time of day, Spanish labels, a
+stream running on after the others), processed by :func:`app.process.process_folder` — the code path
+of ``chakamo process`` — and compared with the truth: knee-angle RMSE, cycles found, phase boundaries.
 
-1. a figure-eight magnetometer calibration (60 s) → ellipsoid fit and its quality figures;
-2. a varied motion of ``duration_s`` → every orientation filter, 9D on the calibrated field and 6D,
-
-and the accuracy against the simulator's truth is printed and written to ``OUT/filters.json``.
-The knee-pipeline issue replaces this with a whole simulated session.
+Output: ``OUT/session/`` (the files), ``OUT/results.json`` and ``OUT/demo_accuracy.json``.
 """
 
 from __future__ import annotations
 
 import json
-import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from estimators import __version__
-from estimators import quaternion as quat
-from estimators.magnetometer import fit_ellipsoid
-from estimators.orientation import DEFAULT_METHOD, METHODS, make
-from estimators.simulation import ImuSpec, motions, simulate_on_grid
+from estimators import simulation as sim
+from estimators.motor_task import ANGLES
+from estimators.simulation.knee import LegMotion
 
-FS_HZ = 100.0
+from app.ingestion import (
+    session_label, simulated_streams, write_generic_csv, write_session_metabase, write_thesis_xlsx,
+)
+from app.pipeline import ProcessOptions, SessionOutcome
+from app.process import process_folder
 
-
-def _inclination_error_rad(q_est: np.ndarray, q_true: np.ndarray) -> np.ndarray:
-    up_est = quat.rotate(quat.conjugate(q_est), [0.0, 0.0, 1.0])
-    up_true = quat.rotate(quat.conjugate(q_true), [0.0, 0.0, 1.0])
-    return np.arccos(np.clip(np.sum(up_est * up_true, axis=-1), -1.0, 1.0))
-
-
-def _rms_deg(err_rad: np.ndarray) -> float:
-    return float(np.rad2deg(np.sqrt(np.mean(np.square(err_rad)))))
+EPOCH0_S = 1_795_341_600.0  # 2026-11-22 10:00 UTC: the phone clock of the simulated session
+STEP_HEIGHT_M = 0.17
+MOUNTING_MAX_DEG = 15.0
 
 
-def run_demo(out_dir: Path, *, seed: int = 7, duration_s: float = 60.0) -> dict:
-    """Simulate, calibrate, estimate, score; print a table and write ``filters.json``; return the results."""
-    if not np.isfinite(duration_s) or duration_s < 10.0:
-        raise ValueError(f"--duration must be at least 10 s, got {duration_s}")
+@dataclass(frozen=True, eq=False)
+class SimulatedSession:
+    """Streams of one simulated session and its truth.
+
+    recordings : ``{(segment, role): {"acc"|"gyr"|"mag": (t_s on the phone clock, values)}}``.
+    motion : the task's :class:`LegMotion` (true knee angles, cycles, phases).
+    role_epoch_s : ``{role: start on the phone clock}`` (both sensors of a role start together).
+    """
+
+    recordings: dict
+    motion: LegMotion
+    role_epoch_s: dict[str, float]
+    side: str
+    step_height_m: float
+
+
+def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_errors: bool = True) -> SimulatedSession:
+    """Simulate the four recordings of both sensors (module docstring).
+
+    ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
+    issue's accuracy goal (noise, gyroscope bias, hard/soft iron, mounting, clock drift).  With them, a
+    0.1–0.3 m/s² accelerometer bias tilts each sensor's vertical by up to ~1.5°, which the 63° magnetic
+    dip turns into ~3° of heading and so of knee rotation: the figure-eight never holds still, so the
+    protocol gives no way to measure that bias (it would need still pauses in varied orientations).
+    """
+    motion = sim.step_up(n_cycles, STEP_HEIGHT_M, side, seed=seed)
+    postures = {"standing": sim.standing(30.0, side), "lying": sim.supine(30.0, side)}
+    epochs = {"mag_calibration": EPOCH0_S, "standing": EPOCH0_S + 180.0, "lying": EPOCH0_S + 230.0,
+              "task": EPOCH0_S + 300.0}
+    recordings = {}
+    for i, seg in enumerate(("thigh", "shank")):
+        clock = replace(sim.ClockSpec.metamotion(), clock_drift_ppm=(40.0, 8000.0)[i])  # shank clock 0.8 % fast
+        spec = sim.ImuSpec.random(seed * 10 + i, clock=clock)
+        if not accelerometer_errors:
+            spec = replace(spec, acc=sim.AccErrors.noise_only())
+        mount = sim.random_rotation(np.deg2rad(MOUNTING_MAX_DEG), seed * 10 + i)
+        lever = motion.thigh_lever_arm_m if seg == "thigh" else motion.shank_lever_arm_m
+        fig8 = sim.simulate(sim.figure_eight(60.0, seed=seed + i), spec, seed=seed * 100 + i)
+        recordings[(seg, "mag_calibration")] = simulated_streams(fig8, epochs["mag_calibration"] + 80.0 * i)
+        for j, (role, leg) in enumerate(postures.items()):
+            imu = sim.simulate(getattr(leg, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
+                               seed=seed * 100 + 10 * (j + 1) + i)
+            recordings[(seg, role)] = simulated_streams(imu, epochs[role])
+        imu = sim.simulate(getattr(motion, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
+                           seed=seed * 100 + 50 + i)
+        recordings[(seg, "task")] = simulated_streams(imu, epochs["task"], run_on_s={"gyr": 1.5} if i == 0 else None)
+    return SimulatedSession(recordings, motion, epochs, side, STEP_HEIGHT_M)
+
+
+def write_session(folder: Path, session: SimulatedSession, fmt: str = "metabase") -> list[Path]:
+    """Write ``session`` as MetaBase CSV (with real exports' quirks), the thesis' Excel or generic CSV files.
+
+    Excel and generic CSV carry elapsed seconds only: each recording's times count from its role's start,
+    which both sensors share (the assumption ingestion makes for those formats).
+    """
+    manifest = {"side": session.side, "step_height_m": session.step_height_m, "patient_id": "DEMO-001"}
+    if fmt == "metabase":
+        return write_session_metabase(folder, session.recordings, lang="es", dialect="epoc", time_sep=".",
+                                      manifest=manifest)
+    if fmt not in ("xlsx", "generic"):
+        raise ValueError(f"unknown session format {fmt!r}; use metabase, xlsx or generic")
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for (seg, role), streams in session.recordings.items():
+        t0 = session.role_epoch_s[role] if role != "mag_calibration" else streams["acc"][0][0]
+        acc, gyr, mag = ((streams[k][0] - t0, streams[k][1]) for k in ("acc", "gyr", "mag"))
+        name = session_label(seg, role, "DEMO-001", "22112026", lang="en")
+        if fmt == "xlsx":
+            gyr_on_acc = np.stack([np.interp(acc[0], gyr[0], gyr[1][:, i]) for i in range(3)], axis=1)
+            written.append(write_thesis_xlsx(folder / f"{name}.xlsx", acc, gyr_on_acc, mag))
+        else:
+            written.append(write_generic_csv(folder / f"{name}.csv", acc, gyr, mag))
+    path = folder / "session.json"
+    path.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+    return [*written, path]
+
+
+def accuracy(outcome: SessionOutcome, truth: SimulatedSession, task_epoch_s: float | None = None) -> dict:
+    """Knee-angle RMSE (°) over the task, cycles found, and phase-boundary errors (% of the true cycle).
+
+    ``task_epoch_s``: where the task's time stamps start on the truth's clock — by default the phone-clock
+    start for epoch stamps (MetaBase), 0 for elapsed stamps (Excel, generic CSV: :func:`write_session`).
+    """
+    motion = truth.motion
+    if task_epoch_s is None:
+        epoch_stamps = outcome.session.task_pair()[0].time_base == "epoch"
+        task_epoch_s = truth.role_epoch_s["task"] if epoch_stamps else 0.0
+    t_true = np.clip(outcome.t0_s + outcome.t_s - task_epoch_s, motion.t_s[0], motion.t_s[-1])
+    err = np.rad2deg(outcome.angles_rad - motion.knee_angles_at(t_true))
+    rmse = {a: float(np.sqrt(np.nanmean(err[:, i] ** 2))) for i, a in enumerate(ANGLES)}
+    a = outcome.analysis
+    onsets = outcome.t0_s + a.events_s[:, 0] - task_epoch_s
+    true_cycles = motion.cycles_s
+    found, worst_pct = 0, 0.0
+    for k, (t_start, t_end) in enumerate(true_cycles):
+        if not np.isfinite(onsets).any():
+            break
+        j = int(np.nanargmin(np.abs(onsets - t_start)))
+        duration = t_end - t_start
+        if abs(onsets[j] - t_start) > 0.25 * duration:
+            continue
+        found += 1
+        detected = outcome.t0_s + a.events_s[j, [0, 1, 3, 4]] - task_epoch_s
+        worst_pct = max(worst_pct, float(np.nanmax(np.abs(detected - motion.phases_s[k])) / duration * 100))
+    return {"rmse_deg": rmse, "cycles_true": int(len(true_cycles)), "cycles_found": found,
+            "cycles_accepted": int(a.n_accepted), "phase_boundary_max_error_pct": worst_pct}
+
+
+def run_demo(out_dir: Path, *, seed: int = 7, side: str = "right", n_cycles: int = 10,
+             filter_name: str | None = None) -> dict:
+    """Simulate, write, process and score one session; print the accuracy; return it."""
+    if side not in ("right", "left"):
+        raise ValueError(f"--side must be right or left, got {side!r}")
+    if not 3 <= n_cycles <= 30:
+        raise ValueError(f"--cycles must be between 3 and 30, got {n_cycles}")
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    spec = ImuSpec.random(seed)
+    session_dir = out_dir / "session"
+    truth = simulate_session(seed=seed, side=side, n_cycles=n_cycles)
+    write_session(session_dir, truth)
+    options = ProcessOptions() if filter_name is None else ProcessOptions(filter_name=filter_name)
+    outcome, _ = process_folder(session_dir, out_dir, options)
+    acc = accuracy(outcome, truth)
+    acc["filter"] = options.filter_name
+    (out_dir / "demo_accuracy.json").write_text(json.dumps(acc, indent=2) + "\n", encoding="utf-8")
 
-    calib_grid = simulate_on_grid(motions.figure_eight(60.0, seed=seed), spec, fs_hz=FS_HZ, seed=seed)
-    calibration = fit_ellipsoid(calib_grid.mag)
-    q = calibration.quality
-    print(f"Magnetometer calibration (figure-eight, 60 s): field {calibration.field_ut:.1f} µT, "
-          f"residual {q.residual_rms_ut:.2f} µT, coverage {100 * q.coverage_fraction:.0f} % of directions"
-          + ("" if not q.warnings else "; warnings: " + ", ".join(w.code for w in q.warnings)))
-
-    grid = simulate_on_grid(motions.rotations(duration_s, seed=seed + 1, translation_m=0.05), spec,
-                            fs_hz=FS_HZ, seed=seed + 1)
-    mag = calibration.apply(grid.mag)
-    rows = []
-    for name in METHODS:
-        method = make(name)
-        for mode in ("9d", "6d"):
-            supported = method.supports_9d if mode == "9d" else method.supports_6d
-            if not supported:
-                continue
-            method.estimate(grid.acc[:200], grid.gyr[:200], mag[:200] if mode == "9d" else None, fs_hz=FS_HZ)  # JIT warm-up
-            t0 = time.perf_counter()
-            q_est = method.estimate(grid.acc, grid.gyr, mag if mode == "9d" else None, fs_hz=FS_HZ).orientation_
-            us_per_sample = 1e6 * (time.perf_counter() - t0) / len(q_est)
-            row = {
-                "method": name,
-                "mode": mode,
-                "inclination_rmse_deg": _rms_deg(_inclination_error_rad(q_est, grid.q_earth_sensor)),
-                "us_per_sample": us_per_sample,
-            }
-            if mode == "9d":
-                row["total_rmse_deg"] = _rms_deg(quat.angle_between(q_est, grid.q_earth_sensor))
-            rows.append(row)
-
-    print(f"\nOrientation accuracy against the simulated truth ({duration_s:.0f} s of motion at {FS_HZ:.0f} Hz, "
-          f"default method: {DEFAULT_METHOD})")
-    print(f"{'method':<12} {'mode':<4} {'total RMSE °':>13} {'inclination RMSE °':>19} {'µs/sample':>10}")
-    for r in rows:
-        total = f"{r['total_rmse_deg']:.2f}" if "total_rmse_deg" in r else "—"
-        print(f"{r['method']:<12} {r['mode']:<4} {total:>13} {r['inclination_rmse_deg']:>19.2f} {r['us_per_sample']:>10.2f}")
-
-    result = {
-        "software": {"version": __version__},
-        "simulation": {"seed": seed, "duration_s": duration_s, "fs_hz": FS_HZ},
-        "calibration": {"magnetometer": calibration.to_dict()},
-        "filters": rows,
-    }
-    path = out_dir / "filters.json"
-    path.write_text(json.dumps(result, indent=2, default=float))
-    print(f"\nWritten: {path}")
-    return result
+    print(f"Simulated session ({side} leg, {n_cycles} step-up cycles of {100 * STEP_HEIGHT_M:.0f} cm, two sensors "
+          f"mounted up to {MOUNTING_MAX_DEG:.0f}° off, MetaBase files) in {session_dir}")
+    print(f"Processed with filter {options.filter_name!r}: results in {out_dir / 'results.json'}\n")
+    print("Knee angles against the simulated truth (RMSE over the task):")
+    for name, value in acc["rmse_deg"].items():
+        print(f"  {name:<18} {value:5.2f}°")
+    print(f"Cycles: {acc['cycles_found']} of {acc['cycles_true']} true cycles found, {acc['cycles_accepted']} accepted; "
+          f"phase boundaries within {acc['phase_boundary_max_error_pct']:.2f} % of the cycle")
+    for w in outcome.warnings:
+        print(f"  warning [{w.code}] {w.message}")
+    return acc

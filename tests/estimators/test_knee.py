@@ -256,3 +256,17 @@ def test_heading_offset_during_the_task():
     assert "heading_residual" in _codes(bent.warnings)
     with pytest.raises(ValueError, match="method"):
         knee.heading_offset(q_f, q_t6, method="magic")
+
+
+def test_gyroscope_bias_measured_on_the_still_postures():
+    """The postures' still windows measure the gyroscope bias the pipeline removes before filtering."""
+    from estimators import simulation as sim
+
+    spec = sim.ImuSpec.random(11)
+    mount = sim.random_rotation(np.deg2rad(15.0), 11)
+    grids = [sim.simulate_on_grid(getattr(sim.standing(30.0), "thigh") if k == 0 else sim.supine(30.0).thigh,
+                                  spec, fs_hz=100.0, q_segment_sensor=mount, seed=k) for k in range(2)]
+    cal = knee.calibrate_segment(grids[0].acc, grids[0].gyr, grids[1].acc, grids[1].gyr, fs_hz=100.0)
+    true_bias = grids[0].gyr_bias_rad_s.mean(axis=0)
+    assert np.linalg.norm(true_bias) > np.deg2rad(0.5)  # a realistic, noticeable bias
+    np.testing.assert_allclose(cal.gyr_bias_rad_s, true_bias, atol=np.deg2rad(0.1))

@@ -1,0 +1,192 @@
+"""``results.json`` of one knee session (``../shared/DESIGN.md`` §4), and writing outputs safely.
+
+The estimators work in radians; this is where clinical numbers become degrees.  Every NaN becomes
+``null`` (JSON has no NaN).  :func:`write_outputs` writes all files into a temporary folder next to the
+destination and moves them in only when every file is complete, so a failure leaves nothing half-written.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimators import __version__
+from estimators.motor_task import ANGLES
+from estimators.motor_task.analysis import ROM_STATS
+
+from reports.model import Patient, ReportInput
+
+from app.pipeline import SessionOutcome
+
+
+def _jsonable(x: Any) -> Any:
+    """numpy → python, NaN/inf → None, recursively."""
+    if isinstance(x, Mapping):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(float(x)) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def _deg(x: Any) -> Any:
+    """Degrees of a number, an array or a nested mapping of them (None stays None)."""
+    if isinstance(x, Mapping):
+        return {k: _deg(v) for k, v in x.items()}
+    if x is None:
+        return None
+    return np.rad2deg(np.asarray(x, dtype=np.float64))
+
+
+def build_results(outcome: SessionOutcome) -> dict[str, Any]:
+    """The ``results.json`` dictionary (DESIGN §4 keys, plus session facts and per-cycle detail)."""
+    a = outcome.analysis
+    task = a.to_dict()
+    opts = outcome.options
+    session = outcome.session
+    meta = session.metadata
+    results = {
+        "side": outcome.side,
+        "task": task["task"],
+        "filter": {"name": opts.filter_name, "params": dict(opts.filter_params)},
+        "angles": list(ANGLES),
+        "angle_method": opts.angle_method,
+        "cycles": {
+            "detected": task["cycles"]["detected"],
+            "accepted": task["cycles"]["accepted"],
+            "rejected": task["cycles"]["rejected"],
+            "boundaries_s": task["cycles"]["boundaries_s"],
+            "accepted_indices": task["cycles"]["accepted_indices"],
+            "events": task["cycles"]["events"],
+            "events_s": task["cycles"]["events_s"],
+            "task_span_s": task["task_span_s"],
+            "per_cycle": _per_cycle(outcome),
+        },
+        "rom_deg": _deg(task["rom_rad"]),
+        "phases": task["phases"],
+        "curves": {name: _deg(c) for name, c in task["curves_rad"].items()},
+        "calibration": {
+            "magnetometer": {seg: cal.to_dict() for seg, cal in outcome.mag.items()},
+            "segment": {
+                seg: {
+                    "q_sensor_segment": cal.q_sensor_segment,
+                    "angle_between_postures_deg": np.rad2deg(cal.angle_between_postures_rad),
+                    "gyr_bias_deg_s": np.rad2deg(cal.gyr_bias_rad_s),
+                    "standing_window_s": [cal.standing.start_s, cal.standing.start_s + cal.standing.duration_s],
+                    "supine_window_s": [cal.supine.start_s, cal.supine.start_s + cal.supine.duration_s],
+                }
+                for seg, cal in outcome.segments.items()
+            },
+            "heading_offset_standing_deg": np.rad2deg(outcome.heading.offset_rad),
+        },
+        "quality": {
+            "warnings": [w.to_dict() for w in outcome.warnings],
+            "magnetic_disturbance_fraction": {seg: f.fraction for seg, f in outcome.field.items()},
+        },
+        "session": {
+            "folder": str(session.folder),
+            "patient_id": meta.value("patient_id"),
+            "date": meta.value("date"),
+            "step_height_m": outcome.step_height_m,
+            "language": opts.language,
+            "task_recording": {"fs_hz": outcome.fs_hz, "duration_s": len(outcome.t_s) / outcome.fs_hz,
+                               "t0_s": outcome.t0_s},
+            "recognised": {f"{seg}/{role}": rec.source for (seg, role), rec in session.recordings.items()},
+        },
+        "software": {"version": __version__},
+    }
+    return _jsonable(results)
+
+
+def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
+    """One entry per detected cycle: accepted or the rejection reason, ROM (deg) and phase durations."""
+    a = outcome.analysis
+    reasons = {r.index: r.code for r in a.rejected}
+    phases = a.task.phase_names
+    out = []
+    for k in range(a.n_detected):
+        out.append({
+            "index": k,
+            "accepted": bool(a.accepted[k]),
+            "reason": reasons.get(k),
+            "start_s": a.cycles_s[k, 0],
+            "end_s": a.cycles_s[k, 1],
+            "rom_deg": {angle: dict(zip(ROM_STATS, np.rad2deg(a.rom_rad[k, i]))) for i, angle in enumerate(ANGLES)},
+            "phases": {name: {"s": a.phase_s[k, j], "pct": a.phase_pct[k, j]} for j, name in enumerate(phases)},
+        })
+    return out
+
+
+def timeseries_npz(outcome: SessionOutcome) -> bytes:
+    """The task's series (``timeseries.npz``): t_s, angles_deg, and sensor and segment quaternions."""
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf, t_s=outcome.t_s, angles_deg=np.rad2deg(outcome.angles_rad),
+        q_earth_sensor_thigh=outcome.q_earth_sensor["thigh"], q_earth_sensor_shank=outcome.q_earth_sensor["shank"],
+        q_earth_segment_femur=outcome.q_earth_segment["thigh"], q_earth_segment_tibia=outcome.q_earth_segment["shank"],
+        q_sensor_segment_thigh=outcome.segments["thigh"].q_sensor_segment,
+        q_sensor_segment_shank=outcome.segments["shank"].q_sensor_segment,
+    )
+    return buf.getvalue()
+
+
+def write_outputs(out_dir: str | os.PathLike, files: Mapping[str, bytes | str]) -> list[Path]:
+    """Write ``{name: content}`` into ``out_dir`` all-or-nothing; returns the paths written.
+
+    The files are first written into a temporary folder beside ``out_dir`` (same file system), then moved
+    in one by one with ``os.replace``; if anything fails before the moves, ``out_dir`` is untouched.
+    """
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        for name, content in files.items():
+            data = content.encode() if isinstance(content, str) else content
+            (staging / name).write_bytes(data)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+        for name in files:
+            os.replace(staging / name, out / name)
+            written.append(out / name)
+        return written
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def results_json(outcome: SessionOutcome) -> str:
+    """``results.json`` text (UTF-8, indented, no NaN)."""
+    return json.dumps(build_results(outcome), indent=2, ensure_ascii=False, allow_nan=False)
+
+
+def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None) -> ReportInput:
+    """What the reports read (``reports.model``): results.json, the task's series in degrees, orientations."""
+    meta = outcome.session.metadata
+    if patient is None:
+        patient = Patient(name_or_id=str(meta.value("patient_id") or ""), date=str(meta.value("date") or ""),
+                          side=outcome.side, step_height_m=outcome.step_height_m)
+    return ReportInput(
+        results=results,
+        t_s=outcome.t_s,
+        angles_deg=np.rad2deg(outcome.angles_rad),
+        q_earth_sensor=dict(outcome.q_earth_sensor),
+        q_earth_segment={"femur": outcome.q_earth_segment["thigh"], "tibia": outcome.q_earth_segment["shank"]},
+        q_sensor_segment={seg: cal.q_sensor_segment for seg, cal in outcome.segments.items()},
+        patient=patient,
+        language=outcome.options.language,
+    )

@@ -1,0 +1,138 @@
+"""The knee session pipeline end to end on simulated sessions with known truth (issue 3 goals)."""
+
+import json
+import shutil
+
+import pytest
+
+from app.cli import main
+from app.demo import accuracy, simulate_session, write_session
+from app.pipeline import PipelineError, ProcessOptions
+from app.process import process_folder
+
+GOALS_DEG = {"flexion": 1.0, "adduction": 2.0, "internal_rotation": 2.0}
+
+
+# The goal's conditions (issue 3): noise, gyroscope bias, hard/soft iron, mounting up to 15°, clock drift.
+@pytest.fixture(scope="module")
+def right_session():
+    return simulate_session(seed=3, side="right", n_cycles=6, accelerometer_errors=False)
+
+
+@pytest.fixture(scope="module")
+def left_session():
+    return simulate_session(seed=4, side="left", n_cycles=6, accelerometer_errors=False)
+
+
+def check_goals(outcome, truth):
+    acc = accuracy(outcome, truth)
+    for angle, limit in GOALS_DEG.items():
+        assert acc["rmse_deg"][angle] <= limit, (angle, acc)
+    assert acc["cycles_found"] == acc["cycles_true"] == len(truth.motion.cycles_s)
+    assert acc["phase_boundary_max_error_pct"] <= 2.0
+    return acc
+
+
+@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx"])
+def test_every_input_format_meets_the_accuracy_goals(fmt, right_session, tmp_path):
+    write_session(tmp_path / "session", right_session, fmt)
+    outcome, written = process_folder(tmp_path / "session", tmp_path / "out")
+    assert [p.name for p in written] == ["results.json", "timeseries.npz"]
+    check_goals(outcome, right_session)
+
+
+def test_left_leg_keeps_clinical_signs(left_session, tmp_path):
+    write_session(tmp_path / "session", left_session)
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out")
+    assert outcome.side == "left"
+    check_goals(outcome, left_session)
+
+
+def test_realistic_accelerometer_errors_stay_bounded(tmp_path):
+    """With accelerometer bias and scale errors too (the demo's sensor), rotation loses accuracy through
+    the magnetic dip (demo docstring) but stays within a few degrees; flexion and adduction keep the goals."""
+    truth = simulate_session(seed=3, side="right", n_cycles=6)
+    write_session(tmp_path / "session", truth)
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out")
+    acc = accuracy(outcome, truth)
+    assert acc["rmse_deg"]["flexion"] <= 1.0 and acc["rmse_deg"]["adduction"] <= 2.0
+    assert acc["rmse_deg"]["internal_rotation"] <= 3.5
+    assert acc["cycles_found"] == 6
+
+
+def test_results_json_follows_the_contract(right_session, tmp_path):
+    write_session(tmp_path / "session", right_session)
+    assert main(["process", str(tmp_path / "session"), "--out", str(tmp_path / "out"), "--lang", "en"]) == 0
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["side"] == "right" and r["task"] == "step_up"
+    assert r["filter"]["name"] == "chakamo"
+    assert r["angles"] == ["flexion", "adduction", "internal_rotation"]
+    assert r["cycles"]["detected"] == 6 and r["cycles"]["accepted"] == 6 and r["cycles"]["rejected"] == []
+    assert len(r["cycles"]["boundaries_s"]) == 6
+    for angle in r["angles"]:
+        assert set(r["rom_deg"][angle]) == {"max", "min", "range"}
+        assert set(r["rom_deg"][angle]["range"]) == {"mean", "sd"}
+        assert len(r["curves"][angle]["mean"]) == len(r["curves"][angle]["sd"]) == 101
+    assert 40.0 < r["rom_deg"]["flexion"]["range"]["mean"] < 100.0  # degrees, not radians
+    for phase in ("impulse", "extension", "fall"):
+        assert set(r["phases"][phase]) == {"mean_s", "sd_s", "mean_pct", "sd_pct"}
+    assert sum(r["phases"][p]["mean_pct"] for p in ("impulse", "extension", "fall")) == pytest.approx(100.0, abs=0.5)
+    assert set(r["calibration"]["magnetometer"]) == {"thigh", "shank"}
+    assert set(r["calibration"]["segment"]) == {"thigh", "shank"}
+    assert all({"code", "message"} <= set(w) for w in r["quality"]["warnings"])
+    assert r["software"]["version"]
+    assert r["session"]["language"] == "en"
+
+
+def test_thesis_angle_option(right_session, tmp_path):
+    write_session(tmp_path / "session", right_session)
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out", ProcessOptions(angle_method="thesis_zyx"))
+    acc = accuracy(outcome, right_session)
+    assert acc["rmse_deg"]["flexion"] <= 1.5  # ZYX differs from Grood & Suntay mostly off the sagittal plane
+
+
+def test_missing_recording_is_named_and_nothing_is_written(right_session, tmp_path, capsys):
+    session = tmp_path / "session"
+    write_session(session, right_session)
+    for f in session.glob("*Gyroscope*"):
+        if "de-pie-muslo" in f.name or "standing" in f.name.lower():
+            f.unlink()
+    code = main(["process", str(session), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "error" in err and "standing" in err.lower() or "de pie" in err.lower()
+    assert not (tmp_path / "out").exists()
+
+
+def test_side_must_be_known(right_session, tmp_path):
+    session = tmp_path / "session"
+    write_session(session, right_session)
+    (session / "session.json").write_text(json.dumps({"step_height_m": 0.17}))
+    with pytest.raises(PipelineError, match="side"):
+        process_folder(session, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    outcome, _ = process_folder(session, tmp_path / "out", ProcessOptions(side="right"))
+    assert outcome.side == "right"
+
+
+def test_only_one_sensor(right_session, tmp_path, capsys):
+    session = tmp_path / "session"
+    write_session(session, right_session)
+    for f in session.glob("*pierna*"):
+        f.unlink()
+    assert main(["process", str(session), "--out", str(tmp_path / "out")]) == 2
+    assert "shank" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_failed_run_leaves_earlier_results_untouched(right_session, tmp_path):
+    session = tmp_path / "session"
+    write_session(session, right_session)
+    out = tmp_path / "out"
+    process_folder(session, out)
+    before = (out / "results.json").read_bytes()
+    broken = tmp_path / "broken"
+    shutil.copytree(session, broken)
+    next(broken.glob("*Accelerometer*")).write_text("epoc (ms),timestamp (-0000),elapsed (s),x-axis (g)\n")
+    with pytest.raises(ValueError):
+        process_folder(broken, out)
+    assert (out / "results.json").read_bytes() == before
