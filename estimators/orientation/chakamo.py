@@ -151,7 +151,7 @@ from estimators import quaternion as quat
 from estimators.orientation import chakamo_kernels as kern
 from estimators.orientation import chakamo_reference as ref
 from estimators.orientation.chakamo_offline import (
-    butterworth, field_weights, smooth_heading, zero_phase_inclination,
+    butterworth, field_weights, smooth_heading, zero_phase_inclination, zero_phase_lowpass,
 )
 from estimators.orientation.base import (
     FloatArray, ImuInput, OrientationMethod, SampleFlags, check_flag, check_parameter,
@@ -373,18 +373,25 @@ class Chakamo(OrientationMethod):
         # strapdown with the smoothed bias, zero-phase inclination
         strap = ref.strapdown_reference if reference else kern.strapdown_batch
         q_is = strap(_gyr_with_gaps(data), bias, np.asarray(state0[:4], np.float64), dt)
-        q_ei = zero_phase_inclination(q_is, data.acc, data.acc_ok, p.tau_acc_s, data.fs_hz)
-        q_es = quat.multiply(q_ei, q_is)
-        if data.mag is not None:  # 9D: smooth the heading (6D keeps the heading of the strapdown)
-            weight = data.mag_ok & (aux_f[:, kern.A_MAGUSED] > 0.5) & (aux_b[:, kern.A_MAGUSED] > 0.5)
-            if not weight.any():
-                weight = data.mag_ok & ((aux_f[:, kern.A_MAGUSED] > 0.5) | (aux_b[:, kern.A_MAGUSED] > 0.5))
-            mag_e = quat.rotate(q_es, data.mag)
-            weight = field_weights(mag_e, weight, p.mag_norm_th * p.offline_mag_sigma,
-                                   p.mag_dip_th_rad * p.offline_mag_sigma)
-            delta = smooth_heading(np.arctan2(mag_e[:, 0], mag_e[:, 1]), weight, p.offline_tau_mag_s, dt)
-            q_es = quat.multiply(quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), delta), q_es)
-        return quat.normalize(q_es), s_fwd
+        if reference:  # the readable numpy form
+            q_ei = zero_phase_inclination(q_is, data.acc, data.acc_ok, p.tau_acc_s, data.fs_hz)
+            q_es = quat.multiply(q_ei, q_is)
+            mag_e = quat.rotate(q_es, data.mag_array)
+        else:  # the same steps fused per sample in numba
+            acc_lp = zero_phase_lowpass(kern.rotate_batch(q_is, data.acc), data.acc_ok, p.tau_acc_s, data.fs_hz)
+            q_es, mag_e = kern.compose_offline(q_is, np.ascontiguousarray(acc_lp), data.mag_array)
+        if data.mag is None:  # 6D keeps the heading of the strapdown
+            return quat.normalize(q_es), s_fwd
+        # 9D: smooth the heading (14-15)
+        weight = data.mag_ok & (aux_f[:, kern.A_MAGUSED] > 0.5) & (aux_b[:, kern.A_MAGUSED] > 0.5)
+        if not weight.any():
+            weight = data.mag_ok & ((aux_f[:, kern.A_MAGUSED] > 0.5) | (aux_b[:, kern.A_MAGUSED] > 0.5))
+        weight = field_weights(mag_e, weight, p.mag_norm_th * p.offline_mag_sigma,
+                               p.mag_dip_th_rad * p.offline_mag_sigma)
+        delta = smooth_heading(np.arctan2(mag_e[:, 0], mag_e[:, 1]), weight, p.offline_tau_mag_s, dt)
+        if reference:
+            return quat.normalize(quat.multiply(quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), delta), q_es)), s_fwd
+        return kern.apply_heading(q_es, delta), s_fwd
 
 
 def _gyr_with_gaps(data: ImuInput) -> FloatArray:

@@ -378,6 +378,55 @@ def strapdown_batch(gyr, bias, q0, dt):
     return out
 
 
+@njit(cache=True)
+def rotate_batch(q, v):
+    """``v`` (N, 3) rotated by ``q`` (N, 4) per sample: the fused form of ``quaternion.rotate``."""
+    n = v.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        out[k, 0], out[k, 1], out[k, 2] = _qrot(q[k, 0], q[k, 1], q[k, 2], q[k, 3], v[k, 0], v[k, 1], v[k, 2])
+    return out
+
+
+@njit(cache=True)
+def compose_offline(q_is, acc_lp_i, mag):
+    """Offline step 2 per sample, fused: ``q_E'I`` = shortest rotation taking the low-passed acceleration in
+    ``I`` to ``z`` (3-4), ``q_ES = q_E'I ⊗ q_IS``, and the field in ``E'`` (for the heading step, 14).
+
+    Returns ``(q_es (N, 4), mag_e (N, 3))``; ``mag`` rows may be anything where unused (6D: zeros).
+    """
+    n = q_is.shape[0]
+    q_es = np.empty((n, 4))
+    mag_e = np.empty((n, 3))
+    for k in range(n):
+        ax, ay, az = acc_lp_i[k, 0], acc_lp_i[k, 1], acc_lp_i[k, 2]
+        na = math.sqrt(ax * ax + ay * ay + az * az)
+        ax, ay, az = ax / na, ay / na, az / na
+        cw = 1.0 + az
+        if cw < 1e-12:  # pointing down: any half turn about a horizontal axis
+            c0, c1, c2 = 0.0, 1.0, 0.0
+        else:
+            cn = math.sqrt(cw * cw + ay * ay + ax * ax)
+            c0, c1, c2 = cw / cn, ay / cn, -ax / cn
+        q = _qmul(c0, c1, c2, 0.0, q_is[k, 0], q_is[k, 1], q_is[k, 2], q_is[k, 3])
+        q_es[k, 0], q_es[k, 1], q_es[k, 2], q_es[k, 3] = q
+        mag_e[k, 0], mag_e[k, 1], mag_e[k, 2] = _qrot(q[0], q[1], q[2], q[3], mag[k, 0], mag[k, 1], mag[k, 2])
+    return q_es, mag_e
+
+
+@njit(cache=True)
+def apply_heading(q_es, delta):
+    """``exp(δ ẑ) ⊗ q_ES`` per sample, normalised (offline heading, 14)."""
+    n = q_es.shape[0]
+    out = np.empty((n, 4))
+    for k in range(n):
+        h = 0.5 * delta[k]
+        q = _qmul(math.cos(h), 0.0, 0.0, math.sin(h), q_es[k, 0], q_es[k, 1], q_es[k, 2], q_es[k, 3])
+        nq = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq
+    return out
+
+
 # =====================================================================================
 # offline: two-filter bias smoother (13)
 # =====================================================================================

@@ -22,11 +22,10 @@ def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
 
 
 
-def zero_phase_inclination(q_is: FloatArray, acc: FloatArray, acc_ok: FloatArray, tau_acc_s: float,
-                           fs_hz: float) -> FloatArray:
-    """``q_E'I`` per sample from the zero-phase low-pass of the acceleration in ``I`` (offline step 2)."""
-    n = acc.shape[0]
-    acc_i = quat.rotate(q_is, acc)
+def zero_phase_lowpass(acc_i: FloatArray, acc_ok: FloatArray, tau_acc_s: float, fs_hz: float) -> FloatArray:
+    """The acceleration in ``I`` low-passed forward and backward (zero phase; offline step 2); missing rows
+    are interpolated first."""
+    n = acc_i.shape[0]
     idx = np.flatnonzero(acc_ok)
     if idx.size < n:
         t = np.arange(n)
@@ -34,9 +33,14 @@ def zero_phase_inclination(q_is: FloatArray, acc: FloatArray, acc_ok: FloatArray
     b, a = butterworth(tau_acc_s, fs_hz)
     if n > 9:
         pad = min(n - 1, int(math.ceil(3.0 * tau_acc_s * fs_hz)))
-        acc_lp = signal.filtfilt(b, a, acc_i, axis=0, padtype="odd", padlen=pad)
-    else:
-        acc_lp = np.repeat(acc_i.mean(axis=0, keepdims=True), n, axis=0)
+        return signal.filtfilt(b, a, acc_i, axis=0, padtype="odd", padlen=pad)
+    return np.repeat(acc_i.mean(axis=0, keepdims=True), n, axis=0)
+
+
+def zero_phase_inclination(q_is: FloatArray, acc: FloatArray, acc_ok: FloatArray, tau_acc_s: float,
+                           fs_hz: float) -> FloatArray:
+    """``q_E'I`` per sample from the zero-phase low-pass of the acceleration in ``I`` (offline step 2)."""
+    acc_lp = zero_phase_lowpass(quat.rotate(q_is, acc), acc_ok, tau_acc_s, fs_hz)
     return quat.from_two_vectors(acc_lp, np.array([0.0, 0.0, 1.0]))
 
 
