@@ -13,7 +13,7 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -146,19 +146,26 @@ def timeseries_npz(outcome: SessionOutcome) -> bytes:
     return buf.getvalue()
 
 
-def write_outputs(out_dir: str | os.PathLike, files: Mapping[str, bytes | str]) -> list[Path]:
+def write_outputs(out_dir: str | os.PathLike, files: Mapping[str, Any]) -> list[Path]:
     """Write ``{name: content}`` into ``out_dir`` all-or-nothing; returns the paths written.
 
-    The files are first written into a temporary folder beside ``out_dir`` (same file system), then moved
-    in one by one with ``os.replace``; if anything fails before the moves, ``out_dir`` is untouched.
+    ``content`` is bytes, text, or a callable that writes the file at the path it is given (for writers
+    such as openpyxl's).  Everything is first written into a temporary folder beside ``out_dir`` (same
+    file system), then moved in with ``os.replace``; if anything fails before the moves, ``out_dir`` is
+    untouched.
     """
     out = Path(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         for name, content in files.items():
-            data = content.encode() if isinstance(content, str) else content
-            (staging / name).write_bytes(data)
+            target = staging / name
+            if callable(content):
+                content(target)
+                if not target.is_file():
+                    raise OSError(f"the writer of {name} produced no file")
+            else:
+                target.write_bytes(content.encode() if isinstance(content, str) else content)
         out.mkdir(parents=True, exist_ok=True)
         written = []
         for name in files:
