@@ -7,6 +7,8 @@ Subcommands
     same code path as real data and print the accuracy against the truth.
 ``chakamo process SESSION_DIR --out DIR [--filter NAME] [--lang es|en|pt] [--side right|left]``
     Process one recorded session into ``results.json``.
+``chakamo view OUT_DIR [--host 127.0.0.1] [--port 8080] [--lang es|en|pt]``
+    Serve the 3D femur-tibia animation of a processed session live (viser), until Ctrl-C.
 ``chakamo walk FILE [--format iez|npz] [--sensor 1|2] [--method NAME] [--json OUT] [--plot OUT.svg]``
     Foot-mounted pedestrian dead reckoning: trajectory, strides and metrics.
 ``chakamo markov FILE --out DIR [--method auto|mjls|kf|sme|smea] [--zeta G] [--joint-axis x|y|z] [--still S]``
@@ -54,6 +56,12 @@ def _build_parser() -> argparse.ArgumentParser:
     proc.add_argument("--any-rate", action="store_true",
                       help="accept recordings whose rate is not the protocol's 100 Hz")
 
+    view = sub.add_parser("view", help="serve the live 3D femur-tibia animation of a processed session")
+    view.add_argument("out", type=Path, metavar="OUT_DIR", help="a folder written by chakamo process or demo")
+    view.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
+    view.add_argument("--port", type=int, default=8080, help="port (default: 8080)")
+    view.add_argument("--lang", choices=("es", "en", "pt"), default=None, help="viewer language (default: the session's)")
+
     walk = sub.add_parser("walk", help="foot-mounted pedestrian dead reckoning of one walk")
     walk.add_argument("file", type=Path, metavar="FILE", help="the walk recording")
     walk.add_argument("--format", choices=("iez", "npz"), default="iez", help="input format (default: iez)")
@@ -94,6 +102,10 @@ def main(argv: list[str] | None = None) -> int:
             _, written = process_folder(args.session, args.out, options, progress=_progress)
             for path in written:
                 print(path)
+        elif args.command == "view":
+            from app.view import serve_view
+
+            serve_view(args.out, host=args.host, port=args.port, language=args.lang)
         elif args.command == "walk":
             from app.walk import run_walk
 

@@ -93,7 +93,7 @@ def write_session(folder: Path, session: SimulatedSession, fmt: str = "metabase"
     manifest = {"side": session.side, "step_height_m": session.step_height_m, "patient_id": "DEMO-001"}
     if fmt == "metabase":
         return write_session_metabase(folder, session.recordings, lang="es", dialect="epoc", time_sep=".",
-                                      manifest=manifest)
+                                      manifest=manifest, patient_id="DEMO-001", date_ddmmyyyy="22112026")
     if fmt not in ("xlsx", "generic"):
         raise ValueError(f"unknown session format {fmt!r}; use metabase, xlsx or generic")
     folder.mkdir(parents=True, exist_ok=True)

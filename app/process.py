@@ -1,5 +1,10 @@
 """The ``chakamo process`` job: load a session folder, process it, write its outputs (all or nothing).
 
+Outputs: ``results.json`` (DESIGN §4), ``timeseries.npz`` (the task's angles and orientations),
+``report.pdf`` (the clinical report in the chosen language), ``angles.xlsx`` and ``quaternions.xlsx``,
+``report.html`` (interactive, self-contained) and ``scene.viser`` (the recorded 3D femur-tibia
+animation, played by viser's bundled client or ``chakamo view``).
+
 The CLI, the demo and (later) the web application's job runner call :func:`process_folder`, so the
 demo's simulated session goes through exactly the code path of a real one.
 """
@@ -9,14 +14,19 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from reports.excel import write_angles_xlsx, write_quaternions_xlsx
+from reports.html import render_html
+from reports.pdf import render_pdf
+from reports.scene import scene_bytes
+
 from app.ingestion import load_session
 from app.pipeline import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
-from app.results import results_json, timeseries_npz, write_outputs
+from app.results import build_results, report_input, results_json, timeseries_npz, write_outputs
 
 
 def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, options: ProcessOptions | None = None,
                    *, progress: Progress = _no_progress) -> tuple[SessionOutcome, list[Path]]:
-    """Read ``session_dir``, compute everything, then write ``results.json`` and ``timeseries.npz`` into ``out_dir``.
+    """Read ``session_dir``, compute everything, render every output, then write them all into ``out_dir``.
 
     Raises :class:`app.ingestion.IngestionError` or :class:`app.pipeline.PipelineError` (both
     ``ValueError``) with a message for the user; nothing is written then.
@@ -25,5 +35,17 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     progress("read", 0.0)
     session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
     outcome = process_session(session, options, progress=progress)
-    written = write_outputs(out_dir, {"results.json": results_json(outcome), "timeseries.npz": timeseries_npz(outcome)})
+    progress("reports", 0.97)
+    ri = report_input(outcome, build_results(outcome))
+    files = {
+        "results.json": results_json(outcome),
+        "timeseries.npz": timeseries_npz(outcome),
+        "report.pdf": render_pdf(ri),
+        "angles.xlsx": lambda path: write_angles_xlsx(ri, path),
+        "quaternions.xlsx": lambda path: write_quaternions_xlsx(ri, path),
+        "report.html": render_html(ri),
+        "scene.viser": scene_bytes(ri),
+    }
+    written = write_outputs(out_dir, files)
+    progress("done", 1.0)
     return outcome, written

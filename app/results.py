@@ -181,12 +181,40 @@ def results_json(outcome: SessionOutcome) -> str:
     return json.dumps(build_results(outcome), indent=2, ensure_ascii=False, allow_nan=False)
 
 
+def session_patient(outcome: SessionOutcome) -> Patient:
+    """The patient block: what the names and ``session.json`` said (its optional keys ``name``, ``professional``,
+    ``weight_kg``, ``height_m``, ``observations`` are shown as typed)."""
+    meta = outcome.session.metadata
+    extra: dict[str, Any] = {}
+    if outcome.session.manifest is not None:
+        try:
+            extra = json.loads(Path(outcome.session.manifest).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            extra = {}
+
+    def number(key: str) -> float | None:
+        try:
+            value = float(extra[key])
+        except (KeyError, TypeError, ValueError):
+            return None
+        return value if math.isfinite(value) else None
+
+    return Patient(
+        name_or_id=str(extra.get("name") or meta.value("patient_id") or ""),
+        date=str(meta.value("date") or ""),
+        professional=str(extra.get("professional") or ""),
+        side=outcome.side,
+        step_height_m=outcome.step_height_m,
+        weight_kg=number("weight_kg"),
+        height_m=number("height_m"),
+        observations=str(extra.get("observations") or ""),
+    )
+
+
 def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None) -> ReportInput:
     """What the reports read (``reports.model``): results.json, the task's series in degrees, orientations."""
-    meta = outcome.session.metadata
     if patient is None:
-        patient = Patient(name_or_id=str(meta.value("patient_id") or ""), date=str(meta.value("date") or ""),
-                          side=outcome.side, step_height_m=outcome.step_height_m)
+        patient = session_patient(outcome)
     return ReportInput(
         results=results,
         t_s=outcome.t_s,

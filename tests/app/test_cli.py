@@ -14,6 +14,8 @@ def test_demo_processes_a_simulated_session_and_reports_accuracy(tmp_path, capsy
     assert accuracy["rmse_deg"]["flexion"] < 1.0
     results = json.loads((tmp_path / "results.json").read_text())
     assert results["cycles"]["detected"] == 5
+    for name in ("report.pdf", "angles.xlsx", "quaternions.xlsx", "report.html", "scene.viser", "timeseries.npz"):
+        assert (tmp_path / name).stat().st_size > 1000, name
     assert any(p.name.endswith(".csv") and "MetaWear" in p.name for p in (tmp_path / "session").iterdir())
     assert "Knee angles against the simulated truth" in capsys.readouterr().out
 
@@ -23,6 +25,7 @@ def test_demo_processes_a_simulated_session_and_reports_accuracy(tmp_path, capsy
     (["process", "/no/such/folder", "--out", "OUT"], "no such session folder"),
     (["walk", "/no/such/walk.csv"], "no such file"),
     (["markov", "/no/such/file.csv", "--out", "OUT"], "no such file"),
+    (["view", "/no/such/folder"], "chakamo process"),
 ])
 def test_user_errors_exit_2_with_a_message(argv, message, tmp_path, capsys):
     argv = [a if a != "OUT" else str(tmp_path / "out") for a in argv]

@@ -1,0 +1,375 @@
+"""Excel workbooks of one knee session: ``angles.xlsx`` and ``quaternions.xlsx``.
+
+Reports present; they compute nothing clinical.  Every number comes from :class:`~reports.model.ReportInput`
+(``results.json`` plus the task's series); the only work done here is *labelling*: which detected cycle and
+which phase each sample falls in, from ``results["cycles"]["boundaries_s"]`` / ``["events_s"]`` and the
+task's phase definitions (:data:`estimators.motor_task.tasks.TASKS`; step-up: impulse = onset →
+countermovement_peak, extension = countermovement_peak → far_left, fall = far_left → rest_reached).
+Sample ranges are half-open ``[start, end)`` (DESIGN §3).
+
+``angles.xlsx`` sheets: angles over time (time s, flexion, adduction, internal rotation in degrees, cycle
+1-based — empty outside a cycle —, phase); per cycle (accepted / rejected and why, start/end s, ROM
+max/min/range per angle, phase durations s and %, from ``results["cycles"]["per_cycle"]``); normalised
+curves (0..100 % of the cycle, mean and SD per angle); patient and session.
+``quaternions.xlsx`` sheets: sensor orientations ``q_earth_sensor`` of thigh and shank, segment
+orientations ``q_earth_segment`` of femur and tibia (w, x, y, z) with time, and the sensor-to-segment
+calibrations.
+
+Safety: every text cell is written as a string cell (never a formula), characters XML cannot carry are
+dropped, and a text that a spreadsheet could take for a formula (starting with ``=``, ``+``, ``-``, ``@``,
+tab or a line end — OWASP "CSV injection") also gets Excel's *quote prefix* style, so that editing the
+cell in Excel keeps it text.  The stored text is the exact literal the user typed (line ends as LF: XML
+readers turn a stored CR into LF anyway).
+
+Speed: openpyxl writes ~6 µs per cell (no lxml), ~0.8 s for 5000 rows × 4 sheets.  So openpyxl writes the
+workbook (styles, headers, small sheets, all user text); the long numeric tables are then generated as
+SpreadsheetML rows directly and spliced into their (header-only) sheets.  Floats are written with
+``repr`` (shortest round-trip form): reading back gives the same float64 values; NaN/inf cells are empty.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import re
+import zipfile
+from pathlib import Path
+from typing import Any, Sequence
+from xml.sax.saxutils import escape as _xml_escape
+
+import numpy as np
+from openpyxl import Workbook
+from openpyxl.cell import WriteOnlyCell
+from openpyxl.styles import Font
+from openpyxl.utils import get_column_letter
+
+from reports import i18n
+from reports.model import ANGLES, ReportInput
+
+__all__ = ["write_angles_xlsx", "write_quaternions_xlsx", "neutralise_text", "cycle_and_phase_per_sample",
+           "phase_specs", "tr"]
+
+#: first characters that make a spreadsheet read a text as a formula (OWASP CSV injection; CR is stored as LF)
+FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n")
+_ILLEGAL_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+_DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
+                   ("extension", "countermovement_peak", "far_left"),
+                   ("fall", "far_left", "rest_reached"))
+_BOLD = Font(bold=True)
+
+
+# ---------------------------------------------------------------------------------------------- texts
+def tr(key: str, lang: str, /, **fields: Any) -> str:
+    """Translated text of ``key`` (:func:`reports.i18n.t`; keys of ``reports/translations_data.json``)."""
+    return i18n.t(key, lang, **fields)
+
+
+def _label(prefix: str, code: Any, lang: str) -> str:
+    """Translation of a code from the data (``data.phase.impulse``...), the raw code when the table has none."""
+    key = f"{prefix}.{code}"
+    return i18n.t(key, lang) if i18n.has(key) else str(code)
+
+
+def neutralise_text(value: Any) -> str:
+    """The text as it will be stored: ``str(value)`` without the control characters XML cannot hold.
+
+    Line ends become ``\n`` (XML parsers, Excel's included, turn a stored CR into LF anyway, so this
+    makes the stored text what every reader sees).  The text is not altered otherwise; formula-looking
+    texts are made harmless by the cell type and the quote-prefix style (see :func:`_text_cell`), so what
+    the user typed reads back unchanged.
+    """
+    text = "" if value is None else str(value)
+    return _ILLEGAL_XML.sub("", text.replace("\r\n", "\n").replace("\r", "\n"))
+
+
+def _text_cell(ws: Any, value: Any, *, bold: bool = False) -> WriteOnlyCell:
+    """A string cell that no spreadsheet evaluates, whatever the text starts with."""
+    text = neutralise_text(value)
+    cell = WriteOnlyCell(ws, value=text)
+    cell.data_type = "s"                       # openpyxl would make "=..." a formula
+    if text.startswith(FORMULA_TRIGGERS):
+        cell.quotePrefix = True                # Excel keeps it text even when the cell is edited
+    if bold:
+        cell.font = _BOLD
+    return cell
+
+
+def _cell(ws: Any, value: Any) -> Any:
+    """Numbers stay numbers (NaN/inf → empty), booleans and None as they are, everything else is text."""
+    if value is None or isinstance(value, bool):
+        return value
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(float(value)) else None
+    return _text_cell(ws, value)
+
+
+def _append(ws: Any, values: Sequence[Any]) -> None:
+    ws.append([_cell(ws, v) for v in values])
+
+
+def _header(ws: Any, titles: Sequence[str], widths: Sequence[float] | None = None) -> None:
+    for j, w in enumerate(widths or [max(10.0, 1.1 * len(t) + 2) for t in titles]):
+        ws.column_dimensions[get_column_letter(j + 1)].width = w
+    ws.freeze_panes = "A2"
+    ws.append([_text_cell(ws, t, bold=True) for t in titles])
+
+
+def _sheet_title(text: str) -> str:
+    """Excel sheet names: ≤ 31 characters, none of ``[]:*?/\\``."""
+    return re.sub(r"[\[\]:*?/\\]", " ", text)[:31] or "Sheet"
+
+
+# ------------------------------------------------------------------------------- fast numeric tables
+class _Bulk:
+    """Columns to splice into a header-only sheet: ``("num", float array)``, ``("int", ints/None)``,
+    ``("str", texts)``; all of length n, written from spreadsheet row 2."""
+
+    def __init__(self, columns: Sequence[tuple[str, Any]]):
+        self.columns = columns
+
+    def rows_xml(self, first_row: int = 2) -> str:
+        if not self.columns:
+            return ""
+        n = len(self.columns[0][1])
+        rows = range(first_row, first_row + n)
+        cols: list[list[str]] = []
+        for j, (kind, values) in enumerate(self.columns):
+            col = get_column_letter(j + 1)
+            if kind == "num":
+                arr = np.asarray(values, dtype=np.float64)
+                vals = arr.tolist()
+                if np.isfinite(arr).all():
+                    cells = [f'<c r="{col}{r}"><v>{v!r}</v></c>' for r, v in zip(rows, vals)]
+                else:
+                    cells = [f'<c r="{col}{r}"><v>{v!r}</v></c>' if math.isfinite(v) else ""
+                             for r, v in zip(rows, vals)]
+            elif kind == "int":
+                cells = [f'<c r="{col}{r}"><v>{int(v)}</v></c>' if v is not None else ""
+                         for r, v in zip(rows, values)]
+            else:  # str: our own labels, escaped anyway
+                esc = {v: _xml_escape(neutralise_text(v)) for v in set(values) if v}
+                cells = [f'<c r="{col}{r}" t="inlineStr"><is><t>{esc[v]}</t></is></c>' if v else ""
+                         for r, v in zip(rows, values)]
+            cols.append(cells)
+        return "".join([f'<row r="{r}">' + "".join(c) + "</row>" for r, *c in zip(rows, *cols)])
+
+
+def _save(wb: Workbook, bulk: dict[int, _Bulk], path: str | os.PathLike) -> None:
+    """Save ``wb``, splicing the numeric rows of ``bulk`` ({sheet number (1-based): rows}) into their sheets."""
+    buf = io.BytesIO()
+    wb.save(buf)
+    buf.seek(0)
+    out = Path(path)
+    tmp = out.with_name(f".{out.name}.tmp")
+    try:
+        with zipfile.ZipFile(buf) as src, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as dst:
+            for info in src.infolist():
+                data = src.read(info.filename)
+                m = re.fullmatch(r"xl/worksheets/sheet(\d+)\.xml", info.filename)
+                if m and int(m.group(1)) in bulk:
+                    xml = data.decode("utf-8")
+                    if xml.count("<row ") != 1:   # header only, else the sheet numbering assumption broke
+                        raise RuntimeError(f"{info.filename}: expected a header-only sheet to fill")
+                    k = xml.rindex("</sheetData>")
+                    data = (xml[:k] + bulk[int(m.group(1))].rows_xml() + xml[k:]).encode("utf-8")
+                dst.writestr(info.filename, data)
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+# ------------------------------------------------------------------------------------------ labelling
+def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:
+    """``(phase, start event, end event)`` of the session's task (:data:`estimators.motor_task.tasks.TASKS`).
+
+    Falls back to the step-up definitions when the task is unknown to this version.
+    """
+    try:
+        from estimators.motor_task.tasks import get_task
+
+        return tuple((p.name, p.start, p.end) for p in get_task(results.get("task", "step_up")).phases)
+    except (ImportError, ValueError):
+        return _DEFAULT_PHASES
+
+
+def cycle_and_phase_per_sample(ri: ReportInput) -> tuple[list[int | None], list[str]]:
+    """Per sample: the detected cycle (1-based; None outside every cycle) and the phase name ("" outside).
+
+    Cycles are ``results["cycles"]["boundaries_s"]`` (half-open); phases are spans between the cycle's
+    events (``events_s`` in the order of ``events``); unknown (null) boundaries or events are skipped.
+    """
+    cycles = ri.results.get("cycles", {})
+    t = np.asarray(ri.t_s, dtype=np.float64)
+    n = len(t)
+    cycle = np.zeros(n, dtype=np.int64)
+    phase = np.full(n, -1, dtype=np.int64)
+    specs = phase_specs(ri.results)
+    events = list(cycles.get("events", ()))
+    events_s = cycles.get("events_s") or []
+    for k, bounds in enumerate(cycles.get("boundaries_s") or []):
+        if bounds is None or None in bounds[:2]:
+            continue
+        i0, i1 = np.searchsorted(t, bounds[:2], side="left")
+        cycle[i0:i1] = k + 1
+        ev = events_s[k] if k < len(events_s) and events_s[k] is not None else []
+        for j, (_, start, end) in enumerate(specs):
+            if start not in events or end not in events:
+                continue
+            a, b = events.index(start), events.index(end)
+            if max(a, b) >= len(ev) or ev[a] is None or ev[b] is None:
+                continue
+            p0, p1 = np.searchsorted(t, [ev[a], ev[b]], side="left")
+            phase[p0:p1] = j
+    names = [name for name, _, _ in specs]
+    cycle_list = [c if c else None for c in cycle.tolist()]
+    return cycle_list, [names[p] if p >= 0 else "" for p in phase.tolist()]
+
+
+# ------------------------------------------------------------------------------------------ angles.xlsx
+def _angle_titles(lang: str) -> list[str]:
+    return [f"{tr('data.angle.' + a, lang)} (°)" for a in ANGLES]
+
+
+def _angles_sheet(wb: Workbook, ri: ReportInput, lang: str) -> _Bulk:
+    ws = wb.create_sheet(_sheet_title(tr("data.sheet.angles", lang)))
+    _header(ws, [tr("data.col.time_s", lang), *_angle_titles(lang), tr("data.col.cycle", lang),
+                 tr("data.col.phase", lang)], [11, 22, 22, 26, 8, 14])
+    cycle, phase = cycle_and_phase_per_sample(ri)
+    labels = {p: _label("data.phase", p, lang) for p in set(phase) if p}
+    a = np.asarray(ri.angles_deg, dtype=np.float64)
+    return _Bulk([("num", ri.t_s), ("num", a[:, 0]), ("num", a[:, 1]), ("num", a[:, 2]),
+                  ("int", cycle), ("str", [labels.get(p, "") for p in phase])])
+
+
+def _get(d: Any, *keys: str) -> Any:
+    """``d[k1][k2]...`` or None when any level is missing."""
+    for k in keys:
+        if not isinstance(d, dict) or k not in d:
+            return None
+        d = d[k]
+    return d
+
+
+def _cycles_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
+    ws = wb.create_sheet(_sheet_title(tr("data.sheet.cycles", lang)))
+    names = [name for name, _, _ in phase_specs(ri.results)]
+    stats = ("max", "min", "range")
+    titles = [tr("data.col.cycle", lang), tr("data.col.status", lang), tr("data.col.reason", lang),
+              tr("data.col.start_s", lang), tr("data.col.end_s", lang)]
+    titles += [f"{tr('data.angle.' + a, lang)} {tr('data.stat.' + s, lang)} (°)" for a in ANGLES for s in stats]
+    titles += [f"{_label('data.phase', p, lang)} ({u})" for p in names for u in ("s", "%")]
+    titles.append(tr("data.col.message", lang))
+    _header(ws, titles, [8, 12, 24, 10, 10] + [14] * (len(titles) - 6) + [50])
+    cycles = ri.results.get("cycles", {})
+    per_cycle = cycles.get("per_cycle")
+    if not per_cycle:
+        _append(ws, ["", tr("data.not_available", lang)])
+        return
+    messages = {r.get("index"): r.get("message", "") for r in cycles.get("rejected", []) if isinstance(r, dict)}
+    for c in per_cycle:
+        reason = c.get("reason")
+        row = [int(c["index"]) + 1 if c.get("index") is not None else None,
+               tr("data.status.accepted" if c.get("accepted") else "data.status.rejected", lang),
+               _label("data.reason", reason, lang) if reason else "",
+               c.get("start_s"), c.get("end_s")]
+        row += [_get(c, "rom_deg", a, s) for a in ANGLES for s in stats]
+        row += [_get(c, "phases", p, u) for p in names for u in ("s", "pct")]
+        row.append(messages.get(c.get("index"), "") or "")
+        _append(ws, row)
+
+
+def _curves_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
+    ws = wb.create_sheet(_sheet_title(tr("data.sheet.curves", lang)))
+    mean, sd = tr("data.stat.mean", lang), tr("data.stat.sd", lang)
+    titles = [tr("data.col.cycle_pct", lang)]
+    titles += [f"{tr('data.angle.' + a, lang)} {s} (°)" for a in ANGLES for s in (mean, sd)]
+    _header(ws, titles, [10] + [26] * 6)
+    curves = ri.results.get("curves") or {}
+    cols = [(curves.get(a) or {}).get(k) for a in ANGLES for k in ("mean", "sd")]
+    n = max((len(c) for c in cols if c), default=0)
+    if n == 0:
+        _append(ws, ["", tr("data.not_available", lang)])
+        return
+    pct = np.linspace(0.0, 100.0, n) if n > 1 else np.zeros(1)
+    for i in range(n):
+        _append(ws, [float(pct[i])] + [(c[i] if c and i < len(c) else None) for c in cols])
+
+
+def _session_rows(ri: ReportInput, lang: str) -> list[tuple[str, Any]]:
+    p, r = ri.patient, ri.results
+    side = p.side or r.get("side") or ""
+    task = r.get("task", "")
+    filt = _get(r, "filter", "name")
+    cycles = r.get("cycles", {})
+    return [
+        (tr("data.patient.name_or_id", lang), p.name_or_id),
+        (tr("data.patient.date", lang), p.date),
+        (tr("data.patient.professional", lang), p.professional),
+        (tr("data.patient.side", lang), _label("data.side", side, lang) if side else ""),
+        (tr("data.patient.step_height_m", lang), p.step_height_m),
+        (tr("data.patient.weight_kg", lang), p.weight_kg),
+        (tr("data.patient.height_m", lang), p.height_m),
+        (tr("data.patient.observations", lang), p.observations),
+        (tr("data.session.task", lang), _label("data.task", task, lang) if task else ""),
+        (tr("data.session.filter", lang), filt or ""),
+        (tr("data.session.angle_method", lang), r.get("angle_method", "")),
+        (tr("data.session.fs_hz", lang), ri.fs_hz),
+        (tr("data.session.cycles_detected", lang), cycles.get("detected")),
+        (tr("data.session.cycles_accepted", lang), cycles.get("accepted")),
+        (tr("data.session.software", lang), _get(r, "software", "version") or ""),
+    ]
+
+
+def _session_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
+    ws = wb.create_sheet(_sheet_title(tr("data.sheet.session", lang)))
+    _header(ws, [tr("data.col.field", lang), tr("data.col.value", lang)], [32, 60])
+    for name, value in _session_rows(ri, lang):
+        _append(ws, [name, value])
+
+
+def write_angles_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
+    """Write ``angles.xlsx``: angles over time with cycle and phase, per-cycle table, normalised curves,
+    patient and session.  Labels in ``ri.language``; the file appears complete or not at all."""
+    lang = ri.language
+    wb = Workbook(write_only=True)
+    bulk = {1: _angles_sheet(wb, ri, lang)}
+    _cycles_sheet(wb, ri, lang)
+    _curves_sheet(wb, ri, lang)
+    _session_sheet(wb, ri, lang)
+    _save(wb, bulk, path)
+
+
+# ------------------------------------------------------------------------------------- quaternions.xlsx
+def _quat_sheet(wb: Workbook, ri: ReportInput, lang: str, title_key: str, qs: dict[str, Any],
+                names: Sequence[str]) -> _Bulk:
+    ws = wb.create_sheet(_sheet_title(tr(title_key, lang)))
+    present = [s for s in names if s in qs] + [s for s in qs if s not in names]
+    titles = [tr("data.col.time_s", lang)]
+    titles += [f"{_label('data.seg', s, lang)} {c}" for s in present for c in "wxyz"]
+    _header(ws, titles, [11] + [12] * (len(titles) - 1))
+    cols: list[tuple[str, Any]] = [("num", ri.t_s)]
+    for s in present:
+        q = np.asarray(qs[s], dtype=np.float64)
+        cols += [("num", q[:, j]) for j in range(4)]
+    return _Bulk(cols)
+
+
+def write_quaternions_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
+    """Write ``quaternions.xlsx``: ``q_earth_sensor`` (thigh, shank) and ``q_earth_segment`` (femur, tibia)
+    as w, x, y, z with time, and the ``q_sensor_segment`` calibrations."""
+    lang = ri.language
+    wb = Workbook(write_only=True)
+    bulk = {1: _quat_sheet(wb, ri, lang, "data.sheet.sensors", ri.q_earth_sensor, ("thigh", "shank")),
+            2: _quat_sheet(wb, ri, lang, "data.sheet.segments", ri.q_earth_segment, ("femur", "tibia"))}
+    ws = wb.create_sheet(_sheet_title(tr("data.sheet.calibration", lang)))
+    _header(ws, [tr("data.col.segment", lang), "w", "x", "y", "z"], [40, 14, 14, 14, 14])
+    for seg, q in ri.q_sensor_segment.items():
+        _append(ws, [f"{_label('data.seg', seg, lang)}: {tr('data.quat.sensor_segment', lang)}",
+                     *np.asarray(q, dtype=np.float64).tolist()])
+    _append(ws, [])
+    _append(ws, [tr("data.quat.note", lang)])
+    _save(wb, bulk, path)
