@@ -182,7 +182,6 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             "cycles_rejected",
             f"{len(analysis.rejected)} of {analysis.n_detected} cycles were left out of the statistics: "
             + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in analysis.rejected)))
-    progress("done", 1.0)
     return SessionOutcome(
         session=session, options=options, side=side, step_height_m=session.metadata.value("step_height_m"),
         t_s=thigh.t_s, fs_hz=thigh.fs_hz, t0_s=thigh.t0_s, angles_rad=angles, q_earth_sensor=q_es,

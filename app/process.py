@@ -14,19 +14,16 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from reports.excel import write_angles_xlsx, write_quaternions_xlsx
-from reports.html import render_html
-from reports.pdf import render_pdf
-from reports.scene import scene_bytes
-
 from app.ingestion import load_session
 from app.pipeline import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
 from app.results import build_results, report_input, results_json, timeseries_npz, write_outputs
 
 
 def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, options: ProcessOptions | None = None,
-                   *, progress: Progress = _no_progress) -> tuple[SessionOutcome, list[Path]]:
+                   *, progress: Progress = _no_progress, reports: bool = True) -> tuple[SessionOutcome, list[Path]]:
     """Read ``session_dir``, compute everything, render every output, then write them all into ``out_dir``.
+
+    ``reports=False`` writes only ``results.json`` and ``timeseries.npz`` (no PDF, Excel, HTML or scene).
 
     Raises :class:`app.ingestion.IngestionError` or :class:`app.pipeline.PipelineError` (both
     ``ValueError``) with a message for the user; nothing is written then.
@@ -35,17 +32,23 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     progress("read", 0.0)
     session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
     outcome = process_session(session, options, progress=progress)
-    progress("reports", 0.97)
-    ri = report_input(outcome, build_results(outcome))
-    files = {
-        "results.json": results_json(outcome),
-        "timeseries.npz": timeseries_npz(outcome),
-        "report.pdf": render_pdf(ri),
-        "angles.xlsx": lambda path: write_angles_xlsx(ri, path),
-        "quaternions.xlsx": lambda path: write_quaternions_xlsx(ri, path),
-        "report.html": render_html(ri),
-        "scene.viser": scene_bytes(ri),
-    }
+    files = {"results.json": results_json(outcome), "timeseries.npz": timeseries_npz(outcome)}
+    if reports:  # imported here: matplotlib, plotly and viser cost ~80 MB a process that needs no report
+        from reports.excel import write_angles_xlsx, write_quaternions_xlsx
+        from reports.html import render_html
+        from reports.pdf import render_pdf
+        from reports.scene import scene_bytes
+
+        progress("reports", 0.97)
+        ri = report_input(outcome, build_results(outcome))
+        files |= {
+            "report.pdf": render_pdf(ri),
+            "angles.xlsx": lambda path: write_angles_xlsx(ri, path),
+            "quaternions.xlsx": lambda path: write_quaternions_xlsx(ri, path),
+            "report.html": render_html(ri),
+            "scene.viser": scene_bytes(ri),
+        }
+    progress("write", 0.99)
     written = write_outputs(out_dir, files)
     progress("done", 1.0)
     return outcome, written

@@ -1,6 +1,11 @@
 r"""Speed and memory of one knee session through ``chakamo process`` (issue 3 goals: ≤ 1 s, ≤ 300 MB).
 
-Usage: ``python -m benchmarks.pipeline [--cycles 10] [--repeats 5] [--filter NAME] [--format metabase|generic|xlsx]``
+Usage: ``python -m benchmarks.pipeline [--cycles 10] [--repeats 5] [--filter NAME] [--format metabase|generic|xlsx]
+[--outputs results|all]``
+
+``--outputs results`` (issue 3's goal) writes ``results.json`` and ``timeseries.npz`` only and never imports the
+report libraries; ``all`` (the default, issue 4's goal ≤ 0.5 s for the outputs) adds the PDF, Excel, HTML and
+3D scene.  Run each in its own process: the peak resident memory is per process.
 
 The demo's simulated session (two sensors × four recordings: 60 s figure-eight, 30 s standing,
 30 s supine, the step-up task; ~3.5 min of data per sensor) is written once as files, then processed
@@ -32,11 +37,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--filter", choices=METHODS, default=DEFAULT_METHOD)
     parser.add_argument("--format", choices=("metabase", "generic", "xlsx"), default="metabase")
+    parser.add_argument("--outputs", choices=("results", "all"), default="all")
     args = parser.parse_args(argv)
 
     from app.demo import simulate_session, write_session
     from app.pipeline import ProcessOptions
     from app.process import process_folder
+
+    with_reports = args.outputs == "all"
 
     work = Path(tempfile.mkdtemp(prefix="chakamo-bench-"))
     truth = simulate_session(seed=7, side="right", n_cycles=args.cycles)
@@ -53,24 +61,25 @@ def main(argv: Sequence[str] | None = None) -> int:
             stages.setdefault(last["stage"], []).append(now - last["t"])
         last.update(t=now, stage=stage)
 
-    process_folder(work / "session", work / "out", options)  # warm-up: compilation and imports
+    process_folder(work / "session", work / "out", options, reports=with_reports)  # warm-up: compilation, imports
     totals = []
     for _ in range(args.repeats):
         start = time.perf_counter()
         last.update(t=start, stage="")
-        process_folder(work / "session", work / "out", options, progress=progress)
+        process_folder(work / "session", work / "out", options, progress=progress, reports=with_reports)
         end = time.perf_counter()
-        stages.setdefault("write", []).append(end - last["t"])
+        stages.setdefault(last["stage"], []).append(end - last["t"])
         totals.append(end - start)
     tracemalloc.start()
-    process_folder(work / "session", work / "out", options)
+    process_folder(work / "session", work / "out", options, reports=with_reports)
     _, peak_bytes = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB on Linux
 
     n_task = sum(len(s["acc"][0]) for (seg, role), s in truth.recordings.items() if role == "task") // 2
     print(f"pipeline: {args.cycles}-cycle session, {len(files)} {args.format} files ({size_mb:.1f} MB), "
-          f"task {n_task / 100:.0f} s, filter {args.filter}; median of {args.repeats} runs after warm-up")
+          f"task {n_task / 100:.0f} s, filter {args.filter}, outputs: {args.outputs}; "
+          f"median of {args.repeats} runs after warm-up")
     print(f"{'stage':<20} {'ms':>8}")
     print("-" * 29)
     for stage, values in stages.items():

@@ -36,14 +36,14 @@ def check_goals(outcome, truth):
 @pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx"])
 def test_every_input_format_meets_the_accuracy_goals(fmt, right_session, tmp_path):
     write_session(tmp_path / "session", right_session, fmt)
-    outcome, written = process_folder(tmp_path / "session", tmp_path / "out")
+    outcome, written = process_folder(tmp_path / "session", tmp_path / "out", reports=False)
     assert [p.name for p in written] == ["results.json", "timeseries.npz"]
     check_goals(outcome, right_session)
 
 
 def test_left_leg_keeps_clinical_signs(left_session, tmp_path):
     write_session(tmp_path / "session", left_session)
-    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out")
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out", reports=False)
     assert outcome.side == "left"
     check_goals(outcome, left_session)
 
@@ -53,7 +53,7 @@ def test_realistic_accelerometer_errors_stay_bounded(tmp_path):
     the magnetic dip (demo docstring) but stays within a few degrees; flexion and adduction keep the goals."""
     truth = simulate_session(seed=3, side="right", n_cycles=6)
     write_session(tmp_path / "session", truth)
-    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out")
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out", reports=False)
     acc = accuracy(outcome, truth)
     assert acc["rmse_deg"]["flexion"] <= 1.0 and acc["rmse_deg"]["adduction"] <= 2.0
     assert acc["rmse_deg"]["internal_rotation"] <= 3.5
@@ -63,6 +63,9 @@ def test_realistic_accelerometer_errors_stay_bounded(tmp_path):
 def test_results_json_follows_the_contract(right_session, tmp_path):
     write_session(tmp_path / "session", right_session)
     assert main(["process", str(tmp_path / "session"), "--out", str(tmp_path / "out"), "--lang", "en"]) == 0
+    written = {p.name for p in (tmp_path / "out").iterdir()}
+    assert written == {"results.json", "timeseries.npz", "report.pdf", "angles.xlsx", "quaternions.xlsx",
+                       "report.html", "scene.viser"}
     r = json.loads((tmp_path / "out" / "results.json").read_text())
     assert r["side"] == "right" and r["task"] == "step_up"
     assert r["filter"]["name"] == "chakamo"
