@@ -17,9 +17,11 @@ Stages (each reported to ``progress(stage, fraction)``):
 6. **task** — cycles, phases, normalised curves, ROM (:func:`estimators.motor_task.analyse_task`).
 
 Quality checks gathered on the way (``results["quality"]["warnings"]``): magnetometer coverage and
-residual, postures not still or not distinct, sensors upside down or swapped, a large heading offset
+residual, postures not still or not distinct, a sensor mounted upside down, a large heading offset
 or drift between the two sensors, magnetic disturbance during the task, cycles rejected, and every
-note the ingestion made.  :func:`process_session` computes everything before anything is written;
+note the ingestion made.  Sensors swapped between thigh and shank (the task's flexion comes out
+negative) stop the processing with a message instead.  :func:`process_session` computes everything
+before anything is written;
 :mod:`app.results` turns the outcome into ``results.json``.
 """
 
@@ -169,7 +171,11 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         warnings += list(field[seg].warnings)
     q_ft = knee.q_femur_tibia(q_seg["thigh"], q_seg["shank"])
     angles = knee.knee_angles(q_ft, side, method=options.angle_method)
-    warnings += knee.task_warnings(angles)
+    implausible = knee.task_warnings(angles)
+    if implausible:  # a report of negative flexion helps nobody: refuse, naming the files to check
+        raise PipelineError(
+            f"{_files(thigh)} (thigh) and {_files(shank)} (shank): {implausible[0].message}. Check which "
+            "recordings belong to which segment (file names or session.json) and how the sensors were worn.")
 
     progress("task", 0.95)
     try:

@@ -139,3 +139,15 @@ def test_failed_run_leaves_earlier_results_untouched(right_session, tmp_path):
     with pytest.raises(ValueError):
         process_folder(broken, out)
     assert (out / "results.json").read_bytes() == before
+
+
+def test_swapped_segments_are_refused(right_session, tmp_path, capsys):
+    session = tmp_path / "session"
+    write_session(session, right_session)
+    for f in list(session.glob("*.csv")):  # the thigh's files named as the shank's and vice versa
+        swapped = f.name.replace("muslo", "@").replace("pierna", "muslo").replace("@", "pierna")
+        f.rename(session / swapped)
+    assert main(["process", str(session), "--out", str(tmp_path / "out")]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "swapped" in last and "thigh" in last and "shank" in last and ".csv" in last
+    assert not (tmp_path / "out").exists()
