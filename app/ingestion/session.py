@@ -199,8 +199,8 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     notes: list[str] = []
     entries = manifest.get("recordings")
-    if entries is None:
-        entries = [{"files": g} for g in _discover(folder, notes)]
+    if entries is None:  # discovered files are already paths inside folder: keep only their names
+        entries = [{"files": [p.name for p in g]} for g in _discover(folder, notes)]
     if not entries:
         raise IngestionError(f"{folder}: no recordings found (MetaBase .csv, thesis .xlsx or generic .csv); "
                              f"check the folder.")

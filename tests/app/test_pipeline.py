@@ -151,3 +151,11 @@ def test_swapped_segments_are_refused(right_session, tmp_path, capsys):
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert "swapped" in last and "thigh" in last and "shank" in last and ".csv" in last
     assert not (tmp_path / "out").exists()
+
+
+def test_relative_paths_as_in_the_readme(right_session, tmp_path, monkeypatch):
+    """The README runs ``chakamo demo --out out/demo``: relative folders must work (they once were joined twice)."""
+    monkeypatch.chdir(tmp_path)
+    write_session(tmp_path / "rel" / "session", right_session)
+    assert main(["process", "rel/session", "--out", "rel/out"]) == 0
+    assert (tmp_path / "rel" / "out" / "results.json").is_file()
