@@ -298,22 +298,21 @@ def _tables(pdf: _Report, ri: ReportInput) -> None:
     pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=_GREY)
 
 
-def _curves(pdf: _Report, ri: ReportInput) -> None:
+def _figure_section(pdf: _Report, fig, section: str, note: str) -> None:
+    """A section heading, its grey note and a full-width matplotlib figure kept on one page."""
     w = pdf.epw
-    fig = figures.curves_figure(ri)
     h = w * fig.get_figheight() / fig.get_figwidth()
-    pdf.section("section_curves", space_after_mm=h + 8)
-    pdf.paragraph(pdf.tr("curves_note"), size=8, color=_GREY)
+    pdf.section(section, space_after_mm=h + 8)
+    pdf.paragraph(pdf.tr(note), size=8, color=_GREY)
     pdf.image_block(figures.to_image(fig), w, h)
+
+
+def _curves(pdf: _Report, ri: ReportInput) -> None:
+    _figure_section(pdf, figures.curves_figure(ri), "section_curves", "curves_note")
 
 
 def _task_over_time(pdf: _Report, ri: ReportInput) -> None:
-    w = pdf.epw
-    fig = figures.task_figure(ri)
-    h = w * fig.get_figheight() / fig.get_figwidth()
-    pdf.section("section_task_time", space_after_mm=h + 8)
-    pdf.paragraph(pdf.tr("task_time_note"), size=8, color=_GREY)
-    pdf.image_block(figures.to_image(fig), w, h)
+    _figure_section(pdf, figures.task_figure(ri), "section_task_time", "task_time_note")
 
 
 def _key_poses(pdf: _Report, ri: ReportInput) -> bool:
