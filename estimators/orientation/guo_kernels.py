@@ -1,7 +1,8 @@
 """Compiled kernel of :mod:`estimators.orientation.guo` (numba; theory, deviations and equation numbers there).
 
-:func:`guo_step` advances one sample in place (bias at rest, exact prediction, measurement quaternion
-with robust weights, Cholesky Kalman update), :func:`guo_batch` loops it; the readable numpy twin is
+:func:`guo_step` advances one sample in place (bias at rest, exact prediction of the joint (q, b)
+covariance, measurement quaternion with robust weights, Cholesky Kalman update of q and of the gyroscope
+bias state), :func:`guo_batch` loops it; the readable numpy twin is
 ``guo._reference_step`` (tests check both agree to ≤ 1e-9).  State layout: ``STATE_SIZE`` in ``guo``.
 """
 
@@ -20,8 +21,8 @@ MIN_FIELD_COS = 1e-3          # |m × a| below this: field parallel to gravity, 
 @njit(cache=True)
 def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, dt_s,
              var_gyr, var_acc, var_mag, inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2,
-             mag_innov_tol, ref_alpha, bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, w):
-    """One sample in place on ``state`` (STATE_SIZE,); ``w`` is scratch (≥ 80)."""
+             mag_innov_tol, ref_alpha, bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, w):
+    """One sample in place on ``state`` (STATE_SIZE,); ``w`` is scratch (≥ 128)."""
     q0, q1, q2, q3 = state[0], state[1], state[2], state[3]
     # ---- gyroscope bias at rest (deviation 8)
     if bias_alpha > 0.0 and gyr_ok:
@@ -37,6 +38,7 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
                 state[24] += bias_alpha * (gz - state[24])
         else:
             state[25] = 0.0
+    if gyr_ok:  # the bias estimate (deviation 8: at rest; deviation 12: Kalman state)
         gx -= state[22]
         gy -= state[23]
         gz -= state[24]
@@ -81,9 +83,41 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
                 v += qn
             Sm[4 * i + j] = v
             Sm[4 * j + i] = v
+    # ---- bias block (deviation 12): ∂q⁻/∂b = B = −(Δt/2) Ξ(q⁻), Ξ(q⁻) = [q⁻⊗i, q⁻⊗j, q⁻⊗k]
+    # Σqb⁻ = M = Φ Σqb + B Σbb,  Σqq⁻ += M Bᵀ + B (Φ Σqb)ᵀ,  Σbb⁻ = Σbb + σbw² Δt I
+    Bm = w[80:92]  # 4×3
+    hb = -0.5 * dt_s if gyr_ok else 0.0
+    Bm[0] = -p1 * hb; Bm[1] = -p2 * hb; Bm[2] = -p3 * hb
+    Bm[3] = p0 * hb; Bm[4] = -p3 * hb; Bm[5] = p2 * hb
+    Bm[6] = p3 * hb; Bm[7] = p0 * hb; Bm[8] = -p1 * hb
+    Bm[9] = -p2 * hb; Bm[10] = p1 * hb; Bm[11] = p0 * hb
+    G = w[92:104]  # Φ Σqb
+    M = w[104:116]  # Σqb⁻
+    for i in range(4):
+        for j in range(3):
+            v = 0.0
+            for k in range(4):
+                v += F[4 * i + k] * state[26 + 3 * k + j]
+            G[3 * i + j] = v
+            u = v
+            for k in range(3):
+                u += Bm[3 * i + k] * state[38 + 3 * k + j]
+            M[3 * i + j] = u
+    for i in range(4):
+        for j in range(i, 4):
+            v = 0.0
+            for k in range(3):
+                v += M[3 * i + k] * Bm[3 * j + k] + Bm[3 * i + k] * G[3 * j + k]
+            Sm[4 * i + j] += v
+            if j != i:
+                Sm[4 * j + i] += v
+    for i in range(3):
+        state[38 + 4 * i] += var_bias_walk * dt_s
     if not acc_ok:
         for i in range(16):
             state[4 + i] = Sm[i]
+        for i in range(12):
+            state[26 + i] = M[i]
         n = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2 + p3 * p3)
         state[0] = p0 / n; state[1] = p1 / n; state[2] = p2 / n; state[3] = p3 / n
         return
@@ -102,7 +136,19 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
     r20 = 2.0 * (p1 * p3 - p0 * p2); r21 = 2.0 * (p2 * p3 + p0 * p1); r22 = 1.0 - 2.0 * (p1 * p1 + p2 * p2)
     dg = an - G_M_S2
     tilt = math.acos(min(max(r20 * ux + r21 * uy + r22 * uz, -1.0), 1.0))
-    va = var_acc * (1.0 + dg * dg * inv_acc_tol2) * max(1.0, tilt / acc_innov_tol)
+    # Huber bound ≥ the predicted tilt std √(2 (c₁ᵀΣ⁻c₁ + c₂ᵀΣ⁻c₂)) (deviation 13)
+    s11 = 0.0
+    s22 = 0.0
+    for i in range(4):
+        u1 = 0.0
+        u2 = 0.0
+        for j in range(4):
+            u1 += Sm[4 * i + j] * C[4 * j + 1]
+            u2 += Sm[4 * i + j] * C[4 * j + 2]
+        s11 += C[4 * i + 1] * u1
+        s22 += C[4 * i + 2] * u2
+    tol_eff = max(acc_innov_tol, math.sqrt(max(2.0 * (s11 + s22), 0.0)))
+    va = var_acc * (1.0 + dg * dg * inv_acc_tol2) * max(1.0, tilt / tol_eff)
     # ½(W_a + I) q⁻  (5.37): the accelerometer-consistent quaternion nearest to the prediction
     a0 = 0.5 * (p0 + uz * p0 + uy * p1 - ux * p2)
     a1 = 0.5 * (p1 + uy * p0 - uz * p1 + ux * p3)
@@ -112,6 +158,8 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
     if nrm < 1e-9:  # prediction exactly upside down: no nearest point, skip the correction
         for i in range(16):
             state[4 + i] = Sm[i]
+        for i in range(12):
+            state[26 + i] = M[i]
         state[0] = p0; state[1] = p1; state[2] = p2; state[3] = p3
         return
     a0 /= nrm; a1 /= nrm; a2 /= nrm; a3 /= nrm
@@ -201,7 +249,7 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
                 S[4 * i + i] = math.sqrt(v)
             else:
                 S[4 * i + j] = v / S[4 * j + j]
-    # ---- Y = L⁻¹ Σ⁻ (into A), z = L⁻¹ (q_am − q⁻)
+    # ---- Y = L⁻¹ Σ⁻ (into A), Z = L⁻¹ Σqb⁻ (into G), z = L⁻¹ (q_am − q⁻)
     r0 = m0 - p0; r1 = m1 - p1; r2 = m2 - p2; r3 = m3 - p3
     z = w[0:4]  # F is no longer needed
     for i in range(4):
@@ -214,6 +262,11 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
             for k in range(i):
                 v -= S[4 * i + k] * A[4 * k + j]
             A[4 * i + j] = v / S[4 * i + i]
+        for j in range(3):
+            v = M[3 * i + j]
+            for k in range(i):
+                v -= S[4 * i + k] * G[3 * k + j]
+            G[3 * i + j] = v / S[4 * i + i]
     # ---- q = q⁻ + Yᵀ z ; Σ = Σ⁻ − YᵀY ; normalise
     for j in range(4):
         v = 0.0
@@ -221,6 +274,28 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
             v += A[4 * k + j] * z[k]
         w[4 + j] = v
     p0 += w[4]; p1 += w[5]; p2 += w[6]; p3 += w[7]
+    # ---- b += w Zᵀ z (w = σa²/va, robust weight) ; Σqb = Σqb⁻ − Yᵀ Z ; Σbb = Σbb⁻ − Zᵀ Z
+    wb = var_acc / va
+    for j in range(3):
+        v = 0.0
+        for k in range(4):
+            v += G[3 * k + j] * z[k]
+        state[22 + j] += wb * v
+    for i in range(4):
+        for j in range(3):
+            v = M[3 * i + j]
+            u = 0.0
+            for k in range(4):
+                u += A[4 * k + i] * G[3 * k + j]
+            state[26 + 3 * i + j] = v - u
+    for i in range(3):
+        for j in range(i, 3):
+            v = 0.0
+            for k in range(4):
+                v += G[3 * k + i] * G[3 * k + j]
+            state[38 + 3 * i + j] -= v
+            if j != i:
+                state[38 + 3 * j + i] = state[38 + 3 * i + j]
     for i in range(4):
         for j in range(i, 4):
             v = Sm[4 * i + j]
@@ -235,7 +310,7 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
 @njit(cache=True)
 def guo_batch(acc, gyr, mag, acc_ok, gyr_ok, mag_ok, dt_s, var_gyr, var_acc, var_mag,
               inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
-              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, state0):
+              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, state0):
     """Run :func:`guo_step` over ``(N, 3)`` inputs (6D: ``mag_ok`` all false, ``mag`` zeros).
 
     Returns ``q (N, 4)`` and the final state (a copy; ``state0`` is not modified).
@@ -243,12 +318,12 @@ def guo_batch(acc, gyr, mag, acc_ok, gyr_ok, mag_ok, dt_s, var_gyr, var_acc, var
     n = acc.shape[0]
     state = state0.copy()
     out = np.empty((n, 4))
-    work = np.empty(80)
+    work = np.empty(128)
     for k in range(n):
         guo_step(state, acc[k, 0], acc[k, 1], acc[k, 2], gyr[k, 0], gyr[k, 1], gyr[k, 2],
                  mag[k, 0], mag[k, 1], mag[k, 2], acc_ok[k], gyr_ok[k], mag_ok[k], dt_s, var_gyr, var_acc,
                  var_mag, inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
-                 bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, work)
+                 bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, work)
         for j in range(4):
             out[k, j] = state[j]
     return out, state

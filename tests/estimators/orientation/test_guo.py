@@ -7,7 +7,7 @@ import pytest
 
 from estimators import quaternion as quat
 from estimators.orientation import estimate, make
-from estimators.orientation.base import align
+from estimators.orientation.base import align, validate_imu
 from estimators.orientation.guo import STATE_SIZE, Guo, GuoParams, jacobian, measurement_9d, w_matrix
 
 G = 9.81
@@ -44,20 +44,25 @@ def inclination_deg(q_est, q_true):
 
 
 # ----------------------------------------------------------------------------- kernel == reference
+@pytest.mark.parametrize("bias_init", [0.0, 0.03])
 @pytest.mark.parametrize("measurement", ["decoupled", "triad"])
 @pytest.mark.parametrize("with_mag", [True, False])
-def test_kernel_matches_reference(measurement, with_mag):
-    _, acc, gyr, mag = rotating_body(300, rest_s=1.2, noise=True, seed=3)
+def test_kernel_matches_reference(measurement, with_mag, bias_init):
+    _, acc, gyr, mag = rotating_body(300, rest_s=1.2, noise=True, seed=3, bias_rad_s=(0.02, -0.01, 0.03))
     acc[150] *= 3.0          # a shock: robust weights
     acc[40] = np.nan         # missing rows of every kind
     gyr[41] = np.nan
     mag[42] = np.nan
     mag[200:230] *= 1.4      # a field disturbance: norm test
-    method = Guo(GuoParams(measurement=measurement, rest_min_s=0.5, mag_norm_tol=0.1))
+    method = Guo(GuoParams(measurement=measurement, rest_min_s=0.5, mag_norm_tol=0.1, bias_init_rad_s=bias_init,
+                           bias_walk_rad_s15=1e-3 if bias_init else 0.0))
     m = mag if with_mag else None
     fast = method.estimate(acc, gyr, m, fs_hz=FS_HZ)
     slow = method.reference(acc, gyr, m, fs_hz=FS_HZ)
     assert np.abs(fast.orientation_ - slow).max() <= 1e-9
+    data = validate_imu(acc, gyr, m, fs_hz=FS_HZ)
+    _, slow_state = method._run_reference(data, method._initial_state_for(data, None))
+    assert np.abs(fast.state_ - slow_state).max() <= 1e-9  # bias and the joint covariance too
     assert np.all(np.isfinite(fast.orientation_))
     np.testing.assert_allclose(np.linalg.norm(fast.orientation_, axis=1), 1.0, atol=1e-12)
 
@@ -175,6 +180,41 @@ def test_gyroscope_bias_is_learned_at_rest():
     assert np.mean(err) < 0.5 * np.mean(err_blind)
 
 
+def test_gyroscope_bias_is_learned_in_motion_as_a_kalman_state():
+    """Deviation 12: a constant bias with no rest at all is estimated from the innovations."""
+    bias = np.array([0.03, -0.02, 0.025])
+    q_true, acc, gyr, mag = rotating_body(3000, bias_rad_s=bias, noise=True, seed=5)
+    params = dict(bias_tau_s=math.inf, rest_min_s=1.0)
+    on = Guo(GuoParams(bias_init_rad_s=0.03, **params)).estimate(acc, gyr, mag, fs_hz=FS_HZ)
+    off = Guo(GuoParams(bias_init_rad_s=0.0, **params)).estimate(acc, gyr, mag, fs_hz=FS_HZ)
+    np.testing.assert_allclose(on.state_[22:25], bias, atol=3e-3)
+    np.testing.assert_array_equal(off.state_[22:25], 0.0)  # Σbb₀ = 0: the paper's filter
+    err_on = np.degrees(quat.angle_between(on.orientation_[1000:], q_true[1000:]))
+    err_off = np.degrees(quat.angle_between(off.orientation_[1000:], q_true[1000:]))
+    assert err_on.max() < 1.5 < err_off.max()
+    sigma = on.state_[4:20].reshape(4, 4)
+    joint = np.block([[sigma, on.state_[26:38].reshape(4, 3)],
+                      [on.state_[26:38].reshape(4, 3).T, on.state_[38:47].reshape(3, 3)]])
+    np.testing.assert_allclose(joint, joint.T, atol=1e-15)
+    assert np.linalg.eigvalsh(joint).min() > 0.0
+
+
+def test_knee_step_up_with_a_realistic_gyroscope_bias():
+    """Thigh sensor on a simulated step-up, BMI160-like constant bias 1.7 °/s, short rests only."""
+    from dataclasses import replace
+
+    from estimators import simulation as sim
+
+    motion = sim.step_up(10, 0.17, "right", seed=7)
+    base = sim.ImuSpec.noise_only()
+    spec = replace(base, gyr=replace(base.gyr, bias_rad_s=sim.ImuSpec.random(70).gyr.bias_rad_s))
+    g = sim.simulate_on_grid(motion.thigh, spec, fs_hz=100, q_segment_sensor=sim.random_rotation(np.deg2rad(15), 70),
+                             lever_arm_m=motion.thigh_lever_arm_m, seed=4)
+    q = make("guo").estimate(g.acc, g.gyr, g.mag, fs_hz=100).orientation_
+    rms_deg = np.degrees(np.sqrt(np.mean(quat.angle_between(q, g.q_earth_sensor) ** 2)))
+    assert rms_deg <= 3.0  # 0.6° (without the bias state, bias_init_rad_s=0: ≈ 40°)
+
+
 def test_missing_samples_are_bridged():
     q_true, acc, gyr, mag = rotating_body(500)
     acc[100:140] = np.nan
@@ -202,6 +242,7 @@ def test_registry_and_state_layout():
     "name, value",
     [("gyr_noise_rad_s", 0.0), ("acc_noise_rad", -1.0), ("mag_noise_rad", math.nan), ("init_noise_rad", math.inf),
      ("acc_innov_tol_rad", 0.0), ("mag_dip_tol", math.nan), ("bias_tau_s", -2.0), ("rest_min_s", -1.0),
+     ("bias_init_rad_s", -0.01), ("bias_walk_rad_s15", math.nan), ("bias_init_rad_s", math.inf),
      ("measurement", "fixed_point")],
 )
 def test_invalid_parameters_are_rejected(name, value):
