@@ -121,8 +121,11 @@ def _task_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
     custom = [[c if c is not None else "", phase_names.get(p, "")] for c, p in zip(cycle, phase)]
     cyc_lbl, ph_lbl = tr("data.col.cycle", lang), tr("data.col.phase", lang)
     data: list[dict[str, Any]] = []
-    layout: dict[str, Any] = {"height": 640, "margin": {"l": 60, "r": 20, "t": 30, "b": 50},
-                              "hovermode": "x unified", "legend": {"orientation": "h", "y": 1.06},
+    # top margin: plotly's mode bar (top right), then the legend, then the cycle numbers just above the
+    # plot — stacked so that none overlaps another (seen in a browser screenshot: with t=30 they did)
+    layout: dict[str, Any] = {"height": 680, "margin": {"l": 60, "r": 20, "t": 80, "b": 50},
+                              "hovermode": "x unified",
+                              "legend": {"orientation": "h", "y": 1.04, "yanchor": "bottom", "x": 0},
                               "shapes": [], "annotations": []}
     domains = _stacked_axes(len(ANGLES))
     for i, angle in enumerate(ANGLES):
@@ -173,7 +176,8 @@ def _curves_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
     curves = ri.results.get("curves") or {}
     mean_sd = tr("html.mean_sd", lang)
     data: list[dict[str, Any]] = []
-    layout: dict[str, Any] = {"height": 640, "margin": {"l": 60, "r": 20, "t": 30, "b": 50},
+    # t=60: the phase names above the plot stay clear of plotly's mode bar (top right)
+    layout: dict[str, Any] = {"height": 660, "margin": {"l": 60, "r": 20, "t": 60, "b": 50},
                               "hovermode": "x unified", "showlegend": False, "shapes": [], "annotations": []}
     domains = _stacked_axes(len(ANGLES))
     for i, angle in enumerate(ANGLES):

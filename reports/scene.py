@@ -179,7 +179,7 @@ def add_nodes(server: Any, data: SceneData, *, with_label: bool) -> SceneNodes:
                                    section_size=0.5, position=(0.0, 0.0, -0.035))
     # lateral view: the right leg's lateral side is −y after heading removal, the left leg's +y
     lateral = -1.0 if data.side == "right" else 1.0
-    server.initial_camera.position = (0.35, 1.7 * lateral, 0.55)
+    server.initial_camera.position = (0.25, 1.1 * lateral, 0.5)  # ~1.1 m away: the leg fills the view
     server.initial_camera.look_at = (0.05, 0.0, 0.42)
     server.initial_camera.up = (0.0, 0.0, 1.0)
     return SceneNodes(knee, tibia, femur, label, ground)
