@@ -141,6 +141,7 @@ References
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Self
 
@@ -354,16 +355,23 @@ class Chakamo(OrientationMethod):
     def _offline(self, data: ImuInput, state0: FloatArray, *, reference: bool) -> tuple[FloatArray, FloatArray]:
         p = self.params
         dt = data.dt_s
-        # forward and backward causal passes
-        q_fwd, s_fwd, aux_f = self._causal(data, state0, reference=reference, want_aux=True)
+        # forward and backward causal passes: independent (each aligns on its own first samples), so the
+        # compiled kernels run them concurrently on two cores; the numpy reference runs them in turn
         rev = ImuInput(acc=np.ascontiguousarray(data.acc[::-1]), gyr=np.ascontiguousarray(-data.gyr[::-1]),
                        mag=None if data.mag is None else np.ascontiguousarray(data.mag[::-1]),
                        acc_ok=np.ascontiguousarray(data.acc_ok[::-1]), mag_ok=np.ascontiguousarray(data.mag_ok[::-1]),
                        fs_hz=data.fs_hz, flags=SampleFlags(*(np.ascontiguousarray(f[::-1]) for f in (
                            data.flags.acc_missing, data.flags.gyr_missing, data.flags.mag_missing,
                            data.flags.acc_saturated, data.flags.gyr_saturated))))
-        _, _, aux_b = self._causal(rev, self._state_from_quaternion(q_fwd[-1], rev), reference=reference,
-                                   want_aux=True)
+        state0_b = self._initial_state_for(rev, None)
+        if reference:
+            _, s_fwd, aux_f = self._causal(data, state0, reference=True, want_aux=True)
+            _, _, aux_b = self._causal(rev, state0_b, reference=True, want_aux=True)
+        else:
+            with ThreadPoolExecutor(max_workers=1) as pool:
+                backward = pool.submit(self._causal, rev, state0_b, reference=False, want_aux=True)
+                _, s_fwd, aux_f = self._causal(data, state0, reference=False, want_aux=True)
+                _, _, aux_b = backward.result()
         aux_b = aux_b[::-1]
         # (13) two-filter bias smoother
         smooth = ref.smooth_bias_reference if reference else kern.smooth_bias_batch

@@ -332,7 +332,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     return used
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # releases the GIL: the offline smoother runs its two passes concurrently
 def chakamo_batch(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_aux):
     """Run :func:`chakamo_step` over ``(N, 3)`` arrays; returns ``(q (N, 4), state, aux (N, AUX) or (0, AUX))``.
 
