@@ -20,29 +20,13 @@ from typing import Any
 import numpy as np
 
 from estimators import __version__
+from estimators.jsonable import json_ready
 from estimators.motor_task import ANGLES
 from estimators.motor_task.analysis import ROM_STATS
 
 from reports.model import Patient, ReportInput
 
 from app.pipeline import SessionOutcome
-
-
-def _jsonable(x: Any) -> Any:
-    """numpy → python, NaN/inf → None, recursively."""
-    if isinstance(x, Mapping):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(float(x)) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
 
 
 def _deg(x: Any) -> Any:
@@ -111,7 +95,7 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         },
         "software": {"version": __version__},
     }
-    return _jsonable(results)
+    return json_ready(results)
 
 
 def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:

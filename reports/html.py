@@ -119,7 +119,7 @@ def _task_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
     cycle, phase = cycle_and_phase_per_sample(ri)
     phase_names = {p: _label("data.phase", p, lang) for p in set(phase) if p}
     custom = [[c if c is not None else "", phase_names.get(p, "")] for c, p in zip(cycle, phase)]
-    cyc_lbl, ph_lbl = tr("data.col.cycle", lang), tr("data.col.phase", lang)
+    cyc_lbl = tr("data.col.cycle", lang)
     data: list[dict[str, Any]] = []
     # top margin: plotly's mode bar (top right), then the legend, then the cycle numbers just above the
     # plot — stacked so that none overlaps another (seen in a browser screenshot: with t=30 they did)

@@ -334,7 +334,7 @@ def _key_poses(pdf: _Report, ri: ReportInput) -> bool:
 
 
 def _quality(pdf: _Report, ri: ReportInput) -> None:
-    r, lang = ri.results, pdf.lang
+    r = ri.results
     pdf.section("section_quality", space_after_mm=40)
     # magnetometer
     pdf.paragraph(pdf.tr("quality_mag"), style="B")

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimators.jsonable import json_ready
 from estimators.quality import QualityWarning
 from estimators.motor_task.detection import detect_cycles, lowpass, task_span
 from estimators.motor_task.tasks import EVENTS, MotorTaskParams, TaskSpec, get_task
@@ -46,21 +47,6 @@ def _stat(x: FloatArray) -> tuple[float, float]:
     if len(x) == 0:
         return float("nan"), float("nan")
     return float(np.mean(x)), float(np.std(x, ddof=1)) if len(x) > 1 else float("nan")
-
-
-def _none_nan(x):
-    """JSON-friendly: NaN → None, numpy → python, recursively."""
-    if isinstance(x, dict):
-        return {k: _none_nan(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_none_nan(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _none_nan(x.tolist())
-    if isinstance(x, (float, np.floating)):
-        return None if not math.isfinite(float(x)) else float(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,7 +139,7 @@ class TaskAnalysis:
             "warnings": [{"code": w.code, "message": w.message} for w in self.warnings],
             "params": self.params.to_dict(),
         }
-        return _none_nan(d)
+        return json_ready(d)
 
 
 def normalise_cycles(angles: FloatArray, spans: FloatArray, n_points: int) -> FloatArray:

@@ -163,8 +163,10 @@ def test_contract_function_and_unknown_parameter(name, noisy_motion):
     g = noisy_motion
     q = estimate(g.acc, g.gyr, g.mag, fs_hz=g.fs_hz, method=name)
     assert q.shape == (len(g.acc), 4)
-    with pytest.raises(ValueError, match="unknown parameter"):
+    with pytest.raises(ValueError, match="unknown parameter") as refused:
         estimate(g.acc, g.gyr, g.mag, fs_hz=g.fs_hz, method=name, no_such_parameter=1.0)
+    first_valid = fields(get_method(name).params_type)[0].name
+    assert first_valid in str(refused.value)  # the message lists the valid names
 
 
 @pytest.mark.parametrize("name", METHODS)

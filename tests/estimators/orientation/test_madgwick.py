@@ -8,7 +8,7 @@ import pytest
 from estimators import quaternion as quat
 from estimators.orientation import make
 from estimators.orientation.madgwick import Madgwick, MadgwickParams
-from orientation_signals import FIELD_ENU_UT, FS_HZ, GRAVITY_ENU, Q_Z90, angle_deg, rotating_body, tilt_deg
+from orientation_signals import FIELD_ENU_UT, FS_HZ, GRAVITY_ENU, Q_Z90, angle_deg, rotating_body
 
 
 @pytest.mark.parametrize("use_mag", [False, True])
@@ -48,18 +48,6 @@ def test_equals_ahrs_madgwick_after_frame_change(use_mag):
     assert np.abs(quat.positive_scalar(ours) - quat.positive_scalar(theirs)).max() <= 1e-6
 
 
-@pytest.mark.parametrize("use_mag", [False, True])
-def test_converges_from_wrong_start_at_rest(use_mag):
-    """Defaults (with the 1 s warm-up): a 20° error is gone within 2 s."""
-    q, acc, gyr, mag, q_start = rotating_body(int(2.0 * FS_HZ), seed=3, still=True)
-    wrong = quat.multiply(quat.from_axis_angle([1.0, -0.5, 0.3], np.radians(20.0)), q_start)
-    est = Madgwick().estimate(acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=wrong).orientation_
-    assert angle_deg(est[0], q[0]) > 18.0
-    # 6D: heading is not observable, compare the tilt (the direction of "up" in the sensor)
-    err = angle_deg(est[-1], q[-1]) if use_mag else tilt_deg(est[-1], q[-1])
-    assert err < 2.0
-
-
 def test_published_filter_converges_at_its_rate_limit():
     """Without warm-up (the paper's filter) the estimate turns at most 2β rad/s: 10° takes about 1 s."""
     q, acc, gyr, mag, q_start = rotating_body(int(3.0 * FS_HZ), seed=3, still=True)
@@ -69,13 +57,6 @@ def test_published_filter_converges_at_its_rate_limit():
     rate_deg_s = np.degrees(2.0 * 0.1)
     assert err[int(0.5 * FS_HZ)] > 10.0 - rate_deg_s * 0.5 - 0.5  # no faster than the rate limit
     assert err[int(3.0 * FS_HZ) - 1] < 2.0
-
-
-def test_tracks_known_rotation_noise_free():
-    q, acc, gyr, mag, q_start = rotating_body(1000, noise=False)
-    est = Madgwick().estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q_start).orientation_
-    rmse = np.sqrt(np.mean(angle_deg(est, q) ** 2))
-    assert rmse <= 1.0
 
 
 def test_heading_follows_the_enu_north():
@@ -118,6 +99,3 @@ def test_parameter_validation(name, bad):
         MadgwickParams(**{name: bad})
 
 
-def test_unknown_parameter_is_named():
-    with pytest.raises(ValueError, match="gain"):
-        make("madgwick", gain=0.1)

@@ -73,17 +73,6 @@ def test_equals_ahrs_aqua_after_frame_change(use_mag):
     assert np.abs(quat.positive_scalar(ours) - quat.positive_scalar(theirs)).max() <= 1e-9
 
 
-@pytest.mark.parametrize("use_mag", [False, True])
-def test_converges_from_wrong_start_at_rest(use_mag):
-    """Defaults (1 s warm-up at τ = 0.1 s): a 20° error is gone within 2 s."""
-    q, acc, gyr, mag, q_start = rotating_body(int(2.0 * FS_HZ), seed=3, still=True)
-    wrong = quat.multiply(quat.from_axis_angle([1.0, -0.5, 0.3], np.radians(20.0)), q_start)
-    est = ValentiCF().estimate(acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=wrong).orientation_
-    assert angle_deg(est[0], q[0]) > 18.0
-    err = angle_deg(est[-1], q[-1]) if use_mag else tilt_deg(est[-1], q[-1])
-    assert err < 2.0
-
-
 def test_published_filter_converges_with_its_time_constant():
     """Without warm-up the error decays as exp(-t/τ): after τ about 37 % of a 10° tilt error is left."""
     q, acc, gyr, mag, q_start = rotating_body(int(3.0 * FS_HZ), seed=3, still=True, noise=False)
@@ -92,12 +81,6 @@ def test_published_filter_converges_with_its_time_constant():
     est = ValentiCF(published).estimate(acc, gyr, None, fs_hz=FS_HZ, q0=wrong).orientation_
     k_tau = int(round(TAU_DEFAULT_S * FS_HZ)) - 1
     assert tilt_deg(est[k_tau], q[k_tau]) == pytest.approx(10.0 * math.exp(-1.0), rel=0.02)
-
-
-def test_tracks_known_rotation_noise_free():
-    q, acc, gyr, mag, q_start = rotating_body(1000, noise=False)
-    est = ValentiCF().estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q_start).orientation_
-    assert np.sqrt(np.mean(angle_deg(est, q) ** 2)) <= 1.0
 
 
 @pytest.mark.parametrize("heading_error_deg", [30.0, 120.0, 175.0, -175.0])
