@@ -43,10 +43,10 @@ from numpy.typing import ArrayLike
 
 from estimators.markov.core import FilterState, FloatArray, initial_state, run_filter, run_filter_reference
 from estimators.markov.fkc import GRAVITY_M_S2, accelerometer_angles
+from estimators.markov.mjls import markov_state
 
 __all__ = ["SpatialParams", "SpatialResult", "sme", "spatial_inputs", "run_spatial"]
 
-AXES = ("R", "P", "Y")
 
 
 def _seq(value, name, n=None, positive=True):
@@ -181,9 +181,7 @@ def sme(gyr: Sequence[ArrayLike], acc: Sequence[ArrayLike], encoder_rad: ArrayLi
     params = SpatialParams() if params is None else params
     w, za, proj, norms = spatial_inputs(gyr, acc, gravity_ref)
     n_seg = norms.shape[1]
-    d = np.abs(norms - params.gravity_m_s2)
-    xi = np.argmin(d, axis=1)                                                   # eqs. 47 / 60
-    ok = d[np.arange(len(d)), xi] <= params.zeta_g * params.gravity_m_s2        # eqs. 78–79
+    xi, _, ok = markov_state(norms, params.gravity_m_s2, params.zeta_g * params.gravity_m_s2)  # eqs. 47/60, 78–79
     use_seg = np.zeros((len(w), n_seg), dtype=bool)
     use_seg[np.arange(len(w)), xi] = ok
     joint = np.full((len(w), n_seg - 1), np.nan) if encoder_rad is None else \

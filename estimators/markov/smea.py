@@ -32,6 +32,7 @@ from estimators import joint_axis
 from estimators.markov.core import FilterState
 from estimators.markov.fkc import FkcParams
 from estimators.markov.sme import SpatialParams, SpatialResult, run_spatial, spatial_inputs
+from estimators.markov.mjls import markov_state
 
 __all__ = ["smea", "self_aligned_joint_angle", "smea_state"]
 
@@ -39,9 +40,9 @@ __all__ = ["smea", "self_aligned_joint_angle", "smea_state"]
 def smea_state(acc_norm_m_s2: ArrayLike, gravity_m_s2: float, zeta_m_s2: float):
     """Eq. 75: ``(Ξ (N,) with 0 = T, 1 = S, 2 = TS, reliable (N, 2) bool)``."""
     d = np.abs(np.asarray(acc_norm_m_s2, dtype=np.float64) - gravity_m_s2)
-    reliable = d <= zeta_m_s2
-    xi = np.where(reliable.sum(axis=1) == 2, 2, np.argmin(d, axis=1))
-    return xi, reliable
+    reliable = d <= zeta_m_s2  # NaN compares False: a missing sample is never reliable
+    best, _, _ = markov_state(acc_norm_m_s2, gravity_m_s2, zeta_m_s2)
+    return np.where(reliable.sum(axis=1) == 2, 2, best), reliable
 
 
 def self_aligned_joint_angle(acc_t, gyr_t, acc_s, gyr_s, *, fs_hz: float, axis_index: int = 0,

@@ -111,22 +111,15 @@ smoother when ``params.offline`` is true and ``state_`` is then the forward filt
 
 State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 91, first four = ``q``).
 
-Accuracy and speed (``benchmarks/broad.py``, 10 BROAD trials, one parameter set: these defaults)
-----------------------------------------------------------------------------------------------
-Mean RMSE in degrees, undisturbed (02–18) / disturbed (24–35), at the time of writing:
-
-=======  ===================  ===============  ===================  ===============
-mode     ChakaMo offline      VQF offline      ChakaMo causal       VQF causal
-=======  ===================  ===============  ===================  ===============
-9D       1.15 / 2.51          1.66 / 3.00      1.52 / 2.91          1.61 / 3.92
-6D       0.99 / 2.44          1.08 / 2.56      1.03 / 2.43          1.12 / 2.59
-=======  ===================  ===============  ===================  ===============
+Accuracy and speed
+------------------
+Measured by ``python -m benchmarks.broad`` (10 BROAD trials, one parameter set: these defaults) and
+``python -m benchmarks.speed``; the current numbers are in the README, beside VQF run in the same tables.
 
 Tuned on BROAD (so with a risk of overfitting these 10 trials): ``bias_sigma_motion_rad_s``,
 ``bias_motion_rate_scale``, ``offline_tau_mag_s``, ``offline_mag_sigma``; the others are VQF's
 published defaults where the concepts correspond.  Weak spot: trial 35 (magnet attached at 4 cm)
-causal 9D, 3.2° vs VQF's 1.1° (≈ 55 s of rejection, gyroscope heading drift).  The compiled causal
-kernel runs at ≈ 0.35–0.4 µs per sample, the offline variant ≈ 1.2–1.4 µs per sample (2 cores, 286 Hz).
+in the causal 9D filter (≈ 55 s of field rejection, gyroscope heading drift).
 
 References
 ----------
@@ -357,12 +350,21 @@ class Chakamo(OrientationMethod):
         dt = data.dt_s
         # forward and backward causal passes: independent (each aligns on its own first samples), so the
         # compiled kernels run them concurrently on two cores; the numpy reference runs them in turn
-        rev = ImuInput(acc=np.ascontiguousarray(data.acc[::-1]), gyr=np.ascontiguousarray(-data.gyr[::-1]),
+        # time reversed: gyroscope sample k is the rate over (k-1, k], so the backward step k+1 -> k uses
+        # -gyr[k+1]; the first backward sample has no step before it (rate 0)
+        def step_aligned(x: np.ndarray, fill) -> np.ndarray:
+            out = np.full_like(x, fill)
+            out[1:] = x[:0:-1]
+            return out
+
+        flags = data.flags
+        rev = ImuInput(acc=np.ascontiguousarray(data.acc[::-1]), gyr=-step_aligned(data.gyr, 0.0),
                        mag=None if data.mag is None else np.ascontiguousarray(data.mag[::-1]),
                        acc_ok=np.ascontiguousarray(data.acc_ok[::-1]), mag_ok=np.ascontiguousarray(data.mag_ok[::-1]),
-                       fs_hz=data.fs_hz, flags=SampleFlags(*(np.ascontiguousarray(f[::-1]) for f in (
-                           data.flags.acc_missing, data.flags.gyr_missing, data.flags.mag_missing,
-                           data.flags.acc_saturated, data.flags.gyr_saturated))))
+                       fs_hz=data.fs_hz, flags=SampleFlags(
+                           np.ascontiguousarray(flags.acc_missing[::-1]), step_aligned(flags.gyr_missing, False),
+                           np.ascontiguousarray(flags.mag_missing[::-1]), np.ascontiguousarray(flags.acc_saturated[::-1]),
+                           step_aligned(flags.gyr_saturated, False)))
         state0_b = self._initial_state_for(rev, None)
         if reference:
             _, s_fwd, aux_f = self._causal(data, state0, reference=True, want_aux=True)

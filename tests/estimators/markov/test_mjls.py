@@ -125,3 +125,14 @@ def test_collaborative_kf_couples_segments_through_the_encoders(gait):
     # the relative angles follow the encoders (absolute accuracy is not better than the local KF here:
     # using every "reliable" accelerometer lets the poor shank/foot angles pull the shared offset)
     assert np.degrees(np.sqrt(np.mean((c.joint_rad[:, 1] - (truth[:, 1] - truth[:, 2])) ** 2))) < 2.0
+
+
+def test_a_missing_sample_never_becomes_the_trusted_segment():
+    """A NaN accelerometer norm must not win the argmin (SMe and SMeA once lost the guard markov_state has)."""
+    from estimators.markov.smea import smea_state
+
+    norms = np.array([[np.nan, 9.81, 12.0], [9.5, np.nan, 9.81]])
+    state, _, ok = mjls.markov_state(norms, 9.81, 0.5)
+    assert state.tolist() == [1, 2] and ok.all()
+    xi, reliable = smea_state(np.array([[np.nan, 9.81], [9.81, 9.81]]), 9.81, 0.5)
+    assert xi.tolist() == [1, 2] and not reliable[0, 0]
