@@ -156,18 +156,19 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
 
     thigh, shank = session.task_pair()
     q_es: dict[str, FloatArray] = {}
+    mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in (("thigh", thigh), ("shank", shank))}
     for i, (seg, rec) in enumerate((("thigh", thigh), ("shank", shank))):
         progress(f"orientation {seg}", 0.45 + 0.2 * i)
         gyr = rec.gyr - segments[seg].gyr_bias_rad_s
-        q_es[seg] = filt.estimate(rec.acc, gyr, mag[seg].apply(rec.mag), fs_hz=rec.fs_hz).orientation_
+        q_es[seg] = filt.estimate(rec.acc, gyr, mag_task[seg], fs_hz=rec.fs_hz).orientation_
     q_seg = {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
 
     progress("knee", 0.85)
     heading = _standing_heading(session, filt, mag, segments)
     warnings += list(heading.warnings)
     field: dict[str, FieldCheck] = {}
-    for seg, rec in (("thigh", thigh), ("shank", shank)):
-        field[seg] = field_disturbance(mag[seg].apply(rec.mag), q_es[seg], mag[seg].field_ut, label=seg)
+    for seg in ("thigh", "shank"):
+        field[seg] = field_disturbance(mag_task[seg], q_es[seg], mag[seg].field_ut, label=seg)
         warnings += list(field[seg].warnings)
     q_ft = knee.q_femur_tibia(q_seg["thigh"], q_seg["shank"])
     angles = knee.knee_angles(q_ft, side, method=options.angle_method)

@@ -32,7 +32,8 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     progress("read", 0.0)
     session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
     outcome = process_session(session, options, progress=progress)
-    files = {"results.json": results_json(outcome), "timeseries.npz": timeseries_npz(outcome)}
+    results = build_results(outcome)
+    files = {"results.json": results_json(results), "timeseries.npz": timeseries_npz(outcome)}
     if reports:  # imported here: matplotlib, plotly and viser cost ~80 MB a process that needs no report
         from reports.excel import write_angles_xlsx, write_quaternions_xlsx
         from reports.html import render_html
@@ -40,7 +41,7 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
         from reports.scene import scene_bytes
 
         progress("reports", 0.97)
-        ri = report_input(outcome, build_results(outcome))
+        ri = report_input(outcome, results)
         files |= {
             "report.pdf": render_pdf(ri),
             "angles.xlsx": lambda path: write_angles_xlsx(ri, path),

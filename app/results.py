@@ -160,9 +160,9 @@ def write_outputs(out_dir: str | os.PathLike, files: Mapping[str, Any]) -> list[
         shutil.rmtree(staging, ignore_errors=True)
 
 
-def results_json(outcome: SessionOutcome) -> str:
-    """``results.json`` text (UTF-8, indented, no NaN)."""
-    return json.dumps(build_results(outcome), indent=2, ensure_ascii=False, allow_nan=False)
+def results_json(results: dict[str, Any]) -> str:
+    """``results.json`` text of :func:`build_results`' dictionary (UTF-8, indented, no NaN)."""
+    return json.dumps(results, indent=2, ensure_ascii=False, allow_nan=False)
 
 
 def session_patient(outcome: SessionOutcome) -> Patient:

@@ -297,8 +297,6 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
         items.append(_e(tr("html.mag_field", lang, 
             segment=_label("data.seg", seg, lang), field=_num(field_ut, lang, 1),
             coverage=_num(None if cov is None else 100.0 * cov, lang, 0))))
-        for w in q.get("warnings", []) or []:
-            items.append(_e(w.get("message", w) if isinstance(w, dict) else w))
     for seg, cal in (_get(r, "calibration", "segment") or {}).items():
         angle = cal.get("angle_between_postures_deg") if isinstance(cal, dict) else None
         if angle is not None:

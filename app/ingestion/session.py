@@ -43,7 +43,9 @@ from app.ingestion.model import (ROLES, SEGMENTS, IngestionError, RawRecording, 
 from app.ingestion.units import check_gyro_unit
 
 MANIFEST = "session.json"
-_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings"}
+#: keys of session.json; the last five are only shown in the reports' patient block, as typed
+_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings",
+                  "name", "professional", "weight_kg", "height_m", "observations"}
 _ENTRY_KEYS = {"files", "segment", "role", "sheet"}
 
 

@@ -97,12 +97,12 @@ def test_thesis_angle_option(right_session, tmp_path):
 def test_missing_recording_is_named_and_nothing_is_written(right_session, tmp_path, capsys):
     session = tmp_path / "session"
     write_session(session, right_session)
-    for f in session.glob("*Gyroscope*"):
-        if "de-pie-muslo" in f.name or "standing" in f.name.lower():
-            f.unlink()
+    for f in session.glob("standing-muslo*Gyroscope*"):  # the thigh's standing gyroscope export is missing
+        f.unlink()
     code = main(["process", str(session), "--out", str(tmp_path / "out")])
-    err = capsys.readouterr().err
-    assert code == 2 and "error" in err and "standing" in err.lower() or "de pie" in err.lower()
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2 and last.startswith("chakamo process: error:")
+    assert "standing-muslo" in last and "Gyroscope" in last  # names the recording and what is missing
     assert not (tmp_path / "out").exists()
 
 
@@ -159,3 +159,20 @@ def test_relative_paths_as_in_the_readme(right_session, tmp_path, monkeypatch):
     write_session(tmp_path / "rel" / "session", right_session)
     assert main(["process", "rel/session", "--out", "rel/out"]) == 0
     assert (tmp_path / "rel" / "out" / "results.json").is_file()
+
+
+def test_patient_block_from_session_json(right_session, tmp_path):
+    """session.json's patient fields (README) reach the reports' patient block as typed."""
+    from app.results import build_results, report_input
+
+    session = tmp_path / "session"
+    write_session(session, right_session)
+    manifest = json.loads((session / "session.json").read_text())
+    manifest |= {"name": "Ana Núñez", "professional": "Dra. Peña", "weight_kg": 61.5, "height_m": 1.64,
+                 "observations": "=dolor anterior; 3 días"}
+    (session / "session.json").write_text(json.dumps(manifest, ensure_ascii=False))
+    outcome, _ = process_folder(session, tmp_path / "out", reports=False)
+    patient = report_input(outcome, build_results(outcome)).patient
+    assert (patient.name_or_id, patient.professional, patient.weight_kg, patient.height_m, patient.observations) == (
+        "Ana Núñez", "Dra. Peña", 61.5, 1.64, "=dolor anterior; 3 días")
+    assert patient.side == "right"
