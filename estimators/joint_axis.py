@@ -88,7 +88,7 @@ from estimators.markov.fkc import FkcParams, fkc
 FloatArray = NDArray[np.float64]
 
 __all__ = ["JointAxisResult", "estimate", "estimate_axis", "estimate_position", "joint_angle", "spherical",
-           "axis_residual", "position_residual", "angular_acceleration"]
+           "position_residual", "angular_acceleration"]
 
 
 @dataclass
@@ -120,10 +120,6 @@ def _norm_cross(g: FloatArray, j: FloatArray) -> tuple[FloatArray, FloatArray]:
     nc = np.sqrt(np.maximum(np.einsum("ij,ij->i", g, g) - gj**2, 1e-12))
     return nc, gj
 
-
-def axis_residual(gyr_a: FloatArray, gyr_b: FloatArray, j_a: FloatArray, j_b: FloatArray) -> FloatArray:
-    """Eq. 68: ``‖g_a × j_a‖ − ‖g_b × j_b‖`` per sample (rad/s)."""
-    return np.linalg.norm(np.cross(gyr_a, j_a), axis=1) - np.linalg.norm(np.cross(gyr_b, j_b), axis=1)
 
 
 def _axis_fun(p, ga, gb):

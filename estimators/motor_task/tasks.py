@@ -40,7 +40,6 @@ class TaskSpec:
         impulse: flexion first rises 5–10° before the extension); gives the ``countermovement_peak`` event.
     phases : the reported phases, consecutive and covering onset → rest_reached.
     far_label : what the far plateau is called in messages ("full extension", "deepest flexion").
-    tested : True only when the test-suite checks this task against synthetic truth.
     """
 
     name: str
@@ -49,7 +48,6 @@ class TaskSpec:
     phases: tuple[PhaseSpec, ...]
     far_label: str
     description: str = ""
-    tested: bool = False
 
     def __post_init__(self) -> None:
         if self.excursion not in ("extension", "flexion"):
@@ -83,24 +81,21 @@ TASKS: dict[str, TaskSpec] = {
                 PhaseSpec("fall", "far_left", "rest_reached")),
         far_label="full extension",
         description="single-leg step-up (seed 004 §8.1; DESIGN.md §3): rest flexed on the step, impulse "
-                    "(flexion rises 5–10°), extension to ~0° held, fall back to the start posture",
-        tested=True),
+                    "(flexion rises 5–10°), extension to ~0° held, fall back to the start posture"),
     "seated_knee_extension": TaskSpec(
         name="seated_knee_extension", excursion="extension", countermovement=False,
         phases=(PhaseSpec("extension", "onset", "far_reached"),
                 PhaseSpec("hold", "far_reached", "far_left"),
                 PhaseSpec("flexion", "far_left", "rest_reached")),
         far_label="full extension",
-        description="seated knee flexion-extension: rest at ~90° flexion, extend, (hold), flex back",
-        tested=True),
+        description="seated knee flexion-extension: rest at ~90° flexion, extend, (hold), flex back"),
     "squat": TaskSpec(
         name="squat", excursion="flexion", countermovement=False,
         phases=(PhaseSpec("descent", "onset", "far_reached"),
                 PhaseSpec("hold", "far_reached", "far_left"),
                 PhaseSpec("ascent", "far_left", "rest_reached")),
         far_label="deepest flexion",
-        description="squat: rest standing (~0°), flex down, (hold), extend back up",
-        tested=True),
+        description="squat: rest standing (~0°), flex down, (hold), extend back up"),
 }
 
 

@@ -181,7 +181,7 @@ def first_still_period(gyr: ArrayLike, fs_hz: float, *, threshold_rad_s: float =
     end = min(end - int(round(0.1 * fs_hz)), int(round(max_s * fs_hz)))
     if end < int(round(min_s * fs_hz)):
         raise ValueError(f"the walk must start with the foot still for at least {min_s} s (found {max(end, 0) / fs_hz:.2f} s "
-                         "with |gyr| below 0.15 rad/s); the initial alignment needs it")
+                         f"with |gyr| below {threshold_rad_s:g} rad/s); the initial alignment needs it")
     return 0, end
 
 

@@ -29,7 +29,7 @@ is the initial gyroscope bias) and uses the same stance mask (detector ``c123`` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -152,6 +152,3 @@ def reconstruct(t_s: ArrayLike, acc: ArrayLike, gyr: ArrayLike, *, method: str =
                      strides(t, out.pos_m, stance_mask), gyr_used)
 
 
-def with_params(method: str, **changes) -> EkfParams:
-    """The filter parameters of ``method`` with some fields changed (for studies)."""
-    return replace(_EKF[method], **changes)

@@ -63,7 +63,6 @@ SHANK_LENGTH_M = 0.40
 ANKLE_HEIGHT_M = 0.08
 
 
-_side_sign = side_sign
 
 
 def segment_frame(facing_rad: float = 0.0, posture: str = "standing") -> FloatArray:
@@ -113,7 +112,7 @@ class LegMotion:
 
 
 def _lever_arms(side: str) -> tuple[FloatArray, FloatArray]:
-    s = _side_sign(side)
+    s = side_sign(side)
     return np.array([0.0, -0.21, 0.08 * s]), np.array([0.03, -0.12, 0.05 * s])
 
 
@@ -126,7 +125,7 @@ def _keyframes(t: FloatArray, times: FloatArray, values: FloatArray) -> FloatArr
 
 def _leg(t: FloatArray, flex: FloatArray, flex_ref: float, side: str, facing_rad: float,
          ankle_m: FloatArray) -> tuple[Trajectory, Trajectory, FloatArray]:
-    s = _side_sign(side)
+    s = side_sign(side)
     r = flex / flex_ref
     angles = np.column_stack([flex, np.deg2rad(2.0) + np.deg2rad(3.0) * r, np.deg2rad(-2.0) + np.deg2rad(10.0) * r])
     q_face = segment_frame(facing_rad, "standing")
@@ -169,7 +168,7 @@ def step_up(
     for name, v in (("rest_s", rest_s), ("initial_rest_s", initial_rest_s), ("final_rest_s", final_rest_s)):
         if not (np.isfinite(v) and v >= 0.05):
             raise ValueError(f"{name} must be at least 0.05 s, got {v!r}")
-    _side_sign(side)
+    side_sign(side)
     rng = np.random.default_rng(seed)
     n = int(n_cycles)
     f0_ref = np.deg2rad(np.clip(30.0 + 176.5 * step_height_m, 20.0, 110.0))
@@ -218,7 +217,7 @@ def step_up(
 
 
 def _posture(duration_s: float, side: str, facing_rad: float, posture: str, fs_hz: float) -> LegMotion:
-    _side_sign(side)
+    side_sign(side)
     t = time_grid(duration_s, fs_hz)
     q = segment_frame(facing_rad, posture)
     if posture == "standing":

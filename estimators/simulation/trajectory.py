@@ -42,7 +42,7 @@ FloatArray = NDArray[np.float64]
 
 DEFAULT_FS_HZ = 1000.0
 
-__all__ = ["DEFAULT_FS_HZ", "KinematicState", "Trajectory", "bump", "intrinsic_rotation", "min_jerk", "min_jerk_rate",
+__all__ = ["DEFAULT_FS_HZ", "KinematicState", "Trajectory", "bump", "intrinsic_rotation", "min_jerk",
            "time_grid"]
 
 
@@ -51,11 +51,6 @@ def min_jerk(tau: ArrayLike) -> FloatArray:
     x = np.clip(np.asarray(tau, dtype=np.float64), 0.0, 1.0)
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
 
-
-def min_jerk_rate(tau: ArrayLike) -> FloatArray:
-    r""":math:`ds/d\tau = 30\tau^2(1-\tau)^2` (peak 1.875 at :math:`\tau = 1/2`), zero outside ``[0, 1]``."""
-    x = np.clip(np.asarray(tau, dtype=np.float64), 0.0, 1.0)
-    return 30.0 * x**2 * (1.0 - x) ** 2
 
 
 def bump(tau: ArrayLike) -> FloatArray:
