@@ -314,21 +314,6 @@ def test_walking_foot_stance_truth_is_still_and_loop_closes():
 
 
 # ---------------------------------------------------------------------------------------- knee
-def test_knee_angle_convention_signs_and_roundtrip():
-    down = np.array([0.0, -1.0, 0.0])  # towards the ankle, shank frame
-    d = quat.rotate(sim.knee_quaternion([0.5, 0, 0], "right"), down)
-    assert d[0] < -0.4  # flexion: the ankle swings posteriorly
-    for side, medial in (("right", -1.0), ("left", 1.0)):
-        d = quat.rotate(sim.knee_quaternion([0, 0.2, 0], side), down)
-        assert np.sign(d[2]) == medial  # varus: the ankle moves medially
-        a = quat.rotate(sim.knee_quaternion([0, 0, 0.3], side), [1.0, 0, 0])
-        assert np.sign(a[2]) == medial  # internal rotation: the tibia's front turns medially
-    rng = np.random.default_rng(0)
-    ang = np.column_stack([rng.uniform(-0.2, 2.0, 200), rng.uniform(-0.3, 0.3, 200), rng.uniform(-0.5, 0.5, 200)])
-    for side in ("right", "left"):
-        np.testing.assert_allclose(sim.knee_angles(sim.knee_quaternion(ang, side), side), ang, atol=1e-10)
-
-
 @pytest.mark.parametrize("step_height_m, start_deg", [(0.17, 60.0), (0.34, 90.0)])
 def test_step_up_cycles_match_the_flexion_curve(step_height_m, start_deg):
     leg = sim.step_up(n_cycles=4, step_height_m=step_height_m, side="right", seed=1)
@@ -393,5 +378,7 @@ def test_two_sensor_session_runs():
     sh = sim.simulate(leg.shank, q_segment_sensor=mount, lever_arm_m=leg.shank_lever_arm_m, seed=2)
     g_th, g_sh = th.on_grid(), sh.on_grid()
     q_knee = quat.multiply(quat.conjugate(g_th.q_earth_segment), g_sh.q_earth_segment)
-    np.testing.assert_allclose(sim.knee_angles(q_knee), leg.knee_angles_at(g_th.t_true_s), atol=1e-9)
+    # the two segments' simulated orientations realise the knee angles the motion was generated from
+    truth = np.column_stack([np.interp(g_th.t_true_s, leg.t_s, leg.knee_angles_rad[:, i]) for i in range(3)])
+    np.testing.assert_allclose(sim.knee_angles(q_knee), truth, atol=1e-3)
     assert not np.any(th.acc.saturated | sh.acc.saturated)
