@@ -59,7 +59,7 @@ compares the estimate with the stored reference directly.  So:
 
 ``align="full"`` fits both rotations (body misalignment and heading offset) in both modes — for
 recordings whose reference is not pre-aligned; on BROAD it makes 9D scores optimistic.  Checks: VQF
-offline scores 1.66° / 3.02° (9D, undisturbed / disturbed means) and 1.08° / 2.56° (6D); the ``ahrs``
+offline scores 1.66° / 3.00° (9D, undisturbed / disturbed means) and 1.08° / 2.56° (6D); the ``ahrs``
 Madgwick (β = 0.12 rad/s, as BROAD's run) lands near BROAD's published Madgwick table (``PUBLISHED_MADGWICK``).
 """
 
