@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfiltfilt
 
 from estimators.motor_task.tasks import MotorTaskParams, TaskSpec
+from estimators.windows import moving_variance
 
 FloatArray = NDArray[np.float64]
 
@@ -40,18 +41,7 @@ def lowpass(x: FloatArray, fs_hz: float, cutoff_hz: float) -> FloatArray:
 
 def moving_sd(x: FloatArray, n: int) -> FloatArray:
     """Centred moving standard deviation over ``n`` samples (shorter at the ends), via cumulative sums (D2)."""
-    n = max(int(n), 2)
-    m = len(x)
-    xc = x - np.mean(x)
-    c1 = np.concatenate([[0.0], np.cumsum(xc)])
-    c2 = np.concatenate([[0.0], np.cumsum(xc * xc)])
-    i = np.arange(m)
-    lo = np.clip(i - n // 2, 0, m)
-    hi = np.clip(i - n // 2 + n, 0, m)
-    k = (hi - lo).astype(np.float64)
-    mean = (c1[hi] - c1[lo]) / k
-    var = (c2[hi] - c2[lo]) / k - mean * mean
-    return np.sqrt(np.maximum(var, 0.0))
+    return np.sqrt(moving_variance(x, max(int(n), 2)))
 
 
 def runs(mask: NDArray[np.bool_]) -> NDArray[np.int64]:

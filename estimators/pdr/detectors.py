@@ -36,6 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimators.windows import centred_bounds, moving_variance
+
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
@@ -45,27 +47,12 @@ __all__ = ["DETECTORS", "PitchParams", "ShoeParams", "moving_majority", "moving_
            "stance_c123", "stance_intervals"]
 
 
-def moving_variance(x: ArrayLike, n: int) -> FloatArray:
-    """Population variance of ``x`` (N,) over the window of ``n`` samples centred on each sample (truncated at the ends)."""
-    x = np.asarray(x, dtype=np.float64)
-    m = len(x)
-    lo = np.clip(np.arange(m) - n // 2, 0, m)
-    hi = np.clip(lo + n, 0, m)
-    c1 = np.concatenate([[0.0], np.cumsum(x - x.mean())])
-    c2 = np.concatenate([[0.0], np.cumsum((x - x.mean()) ** 2)])
-    cnt = (hi - lo).astype(np.float64)
-    mean = (c1[hi] - c1[lo]) / cnt
-    return np.maximum((c2[hi] - c2[lo]) / cnt - mean * mean, 0.0)
-
-
 def moving_majority(mask: ArrayLike, n: int) -> BoolArray:
     """True where at least half of the ``n``-sample window centred on the sample is True (``n`` ≤ 1: unchanged)."""
     b = np.asarray(mask, dtype=bool)
     if n <= 1:
         return b.copy()
-    m = len(b)
-    lo = np.clip(np.arange(m) - n // 2, 0, m)
-    hi = np.clip(lo + n, 0, m)
+    lo, hi = centred_bounds(len(b), n)
     c = np.concatenate([[0], np.cumsum(b)])
     return 2 * (c[hi] - c[lo]) >= (hi - lo)
 
