@@ -2,7 +2,7 @@
 
 A loopback HTTP server (127.0.0.1, free port) serves a temp folder holding the outputs of
 :func:`app.process.process_folder` on a simulated 3-cycle session, plus viser's static client
-(:func:`reports.scene.static_client_path`) as ``index.html``.  Debian's ``chromium`` takes screenshots of
+(:func:`reports.scene.static_client_path`) as ``index.html``.  Headless Chromium takes screenshots of
 
 (a) ``report.html``: the plotly charts must be drawn — pixels of each angle's line colour exist;
 (b) ``index.html?playbackPath=scene.viser``: the femur and tibia must be drawn — warm bone-coloured
@@ -13,30 +13,24 @@ A loopback HTTP server (127.0.0.1, free port) serves a temp folder holding the o
 Checked by hand that the checks bite: with ``Plotly.newPlot`` broken the report has 0 line-coloured
 pixels; the client without a recording, or with a missing one, has 0 bone-coloured pixels.
 
-Skipped when ``chromium`` is not on PATH (Debian package ``chromium``).  WebGL runs in software
-(SwiftShader) here, so the scene page is small and its virtual time short (~6 s wall).
+The ``browser`` fixture (tests/conftest.py: Playwright on Debian's ``chromium``) skips when either is
+missing.  Each check polls screenshots until it holds (or 90 s pass), so a slow, loaded machine only waits
+longer: WebGL runs in software (SwiftShader) here.
 """
 
 from __future__ import annotations
 
 import functools
 import http.server
+import io
 import shutil
-import subprocess
-import tempfile
 import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-CHROMIUM = shutil.which("chromium")
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (apt-get install chromium)")
-
-_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-          "--disable-background-networking", "--disable-component-update", "--disable-sync",
-          "--disable-extensions", "--hide-scrollbars", "--enable-unsafe-swiftshader")
-
 
 class _QuietHandler(http.server.SimpleHTTPRequestHandler):
     """Static files with Content-Length and no compression (what viser's playback needs), no log."""
@@ -72,16 +66,25 @@ def site(tmp_path_factory):
         thread.join(timeout=5)
 
 
-def _screenshot(url: str, png: Path, *, width: int, height: int, budget_ms: int) -> np.ndarray:
-    """Headless Chromium screenshot of ``url`` after ``budget_ms`` of virtual time; (H, W, 3) uint8."""
+def _look(browser, url: str, png: Path, *, width: int, height: int, until: Callable[[np.ndarray], bool],
+          timeout_s: float = 90.0) -> np.ndarray:
+    """Open ``url`` in a fresh page and take screenshots until ``until(image)`` holds or ``timeout_s`` passes;
+    the last (H, W, 3) uint8 image is returned (and saved to ``png`` for a human to look at)."""
     from PIL import Image
 
-    with tempfile.TemporaryDirectory() as profile:
-        proc = subprocess.run([CHROMIUM, *_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
-                               f"--virtual-time-budget={budget_ms}", f"--screenshot={png}", url],
-                              capture_output=True, text=True, timeout=120)
-    assert png.is_file(), f"no screenshot (exit {proc.returncode}):\n{proc.stderr[-2000:]}"
-    return np.asarray(Image.open(png).convert("RGB"))
+    page = browser.new_page(viewport={"width": width, "height": height})
+    try:
+        page.goto(url, wait_until="load", timeout=timeout_s * 1000)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            shot = page.screenshot(timeout=timeout_s * 1000)
+            img = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB"))
+            if until(img) or time.monotonic() > deadline:
+                png.write_bytes(shot)
+                return img
+            page.wait_for_timeout(500)
+    finally:
+        page.close()
 
 
 def _near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 30) -> int:
@@ -89,13 +92,21 @@ def _near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 30) -> int:
     return int(np.all(np.abs(img.astype(np.int16) - np.asarray(rgb, np.int16)) <= tol, axis=-1).sum())
 
 
-def test_report_html_charts_drawn(site, tmp_path):
+_LINE_COLOURS = {"flexion": (0x1f, 0x77, 0xb4), "adduction": (0xff, 0x7f, 0x0e),   # html._ANGLE_COLOURS
+                 "internal_rotation": (0x2c, 0xa0, 0x2c)}
+
+
+def _lines_drawn(img: np.ndarray) -> bool:
+    return all(_near(img, rgb) > 500 for rgb in _LINE_COLOURS.values())
+
+
+def test_report_html_charts_drawn(browser, site, tmp_path):
     base, _, _ = site
-    img = _screenshot(f"{base}/report.html", tmp_path / "report.png", width=1280, height=2000, budget_ms=5000)
+    img = _look(browser, f"{base}/report.html", tmp_path / "report.png", width=1280, height=2000,
+                until=_lines_drawn)
     assert img.std() > 10.0, "blank page"
-    # the angle lines (html._ANGLE_COLOURS): only plotly draws them; the page's own CSS has no such colours
-    for name, rgb in {"flexion": (0x1f, 0x77, 0xb4), "adduction": (0xff, 0x7f, 0x0e),
-                      "internal_rotation": (0x2c, 0xa0, 0x2c)}.items():
+    # the angle lines: only plotly draws them; the page's own CSS has no such colours
+    for name, rgb in _LINE_COLOURS.items():
         assert _near(img, rgb) > 500, f"no {name} line drawn"
 
 
@@ -107,18 +118,23 @@ def _bone_pixels(img: np.ndarray) -> int:
     return int(((r - b >= 8) & (r - b <= 60) & (r >= g) & (r >= 60) & (r <= 245)).sum())
 
 
-def test_scene_viser_plays_in_static_client(site, tmp_path):
+def _bones_drawn(img: np.ndarray) -> bool:
+    return _bone_pixels(img) > 300
+
+
+def test_scene_viser_plays_in_static_client(browser, site, tmp_path):
     base, out_dir, _ = site
     assert (out_dir / "scene.viser").stat().st_size > 1000
-    img = _screenshot(f"{base}/index.html?playbackPath={base}/scene.viser", tmp_path / "scene.png",
-                      width=640, height=480, budget_ms=500)
+    img = _look(browser, f"{base}/index.html?playbackPath={base}/scene.viser", tmp_path / "scene.png",
+                width=640, height=480, until=_bones_drawn)
     assert img.std() > 5.0, "blank page"
     n = _bone_pixels(img)
     assert n > 300, f"femur and tibia not drawn ({n} bone-coloured pixels)"
 
 
-def test_scene_html_single_file_offline(site, tmp_path):
+def test_scene_html_single_file_offline(browser, site, tmp_path):
     _, _, single = site
-    img = _screenshot(single.as_uri(), tmp_path / "scene_single.png", width=640, height=480, budget_ms=500)
+    img = _look(browser, single.as_uri(), tmp_path / "scene_single.png", width=640, height=480,
+                until=_bones_drawn)
     n = _bone_pixels(img)
     assert n > 300, f"femur and tibia not drawn ({n} bone-coloured pixels)"
