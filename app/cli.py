@@ -53,6 +53,9 @@ def _build_parser() -> argparse.ArgumentParser:
                       help="leg under study (default: from the file names or session.json)")
     proc.add_argument("--angles", choices=("grood_suntay", "thesis_zyx"), default="grood_suntay",
                       help="knee angle convention (default: grood_suntay, the clinical one)")
+    proc.add_argument("--calibration", choices=("static", "functional"), default="static",
+                      help="segment axes from standing + supine (static, default) or standing + the knee's "
+                           "flexion axis on the task (functional: for a lying posture not held toes-up)")
     proc.add_argument("--any-rate", action="store_true",
                       help="accept recordings whose rate is not the protocol's 100 Hz")
 
@@ -98,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
             from app.process import process_folder
 
             options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
+                                     calibration=args.calibration,
                                      expected_fs_hz=None if args.any_rate else 100.0, language=args.lang)
             _, written = process_folder(args.session, args.out, options, progress=_progress)
             for path in written:

@@ -51,7 +51,8 @@ class SimulatedSession:
     step_height_m: float
 
 
-def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_errors: bool = True) -> SimulatedSession:
+def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_errors: bool = True,
+                     supine_roll_out_deg: float = 0.0) -> SimulatedSession:
     """Simulate the four recordings of both sensors (module docstring).
 
     ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
@@ -59,9 +60,10 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
     0.1–0.3 m/s² accelerometer bias tilts each sensor's vertical by up to ~1.5°, which the 63° magnetic
     dip turns into ~3° of heading and so of knee rotation: the figure-eight never holds still, so the
     protocol gives no way to measure that bias (it would need still pauses in varied orientations).
+    ``supine_roll_out_deg`` lets the leg lie rolled outwards (toes out) in the supine recording.
     """
     motion = sim.step_up(n_cycles, STEP_HEIGHT_M, side, seed=seed)
-    postures = {"standing": sim.standing(30.0, side), "lying": sim.supine(30.0, side)}
+    postures = {"standing": sim.standing(30.0, side), "lying": sim.supine(30.0, side, roll_out_rad=np.deg2rad(supine_roll_out_deg))}
     epochs = {"mag_calibration": EPOCH0_S, "standing": EPOCH0_S + 180.0, "lying": EPOCH0_S + 230.0,
               "task": EPOCH0_S + 300.0}
     recordings = {}

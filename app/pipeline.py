@@ -10,6 +10,11 @@ Stages (each reported to ``progress(stage, fraction)``):
    and the gyroscope bias measured while those postures are still, subtracted from every later recording
    (a BMI160's bias reaches ±3 °/s; on a simulated step-up a 1.7 °/s bias costs Guo's filter 30° of
    rotation error and the default filter 3°, both back under 1.5° with the bias removed);
+   with ``calibration="functional"`` the femur's z axis is then the knee's flexion axis estimated on the
+   task's gyroscopes (:func:`estimators.joint_axis.estimate_axis`, :func:`estimators.knee.functional_calibration`)
+   instead of the supine posture's, and the tibia is turned about its long axis so that the knee's rotation
+   is zero while standing (:func:`estimators.knee.turn_about_long_axis`; in 9D, so it trusts the magnetometer
+   while standing as much as the heading check does);
 4. **orientation** — both sensors through the task with the chosen filter (default: the estimator
    core's default, whose offline smoother needs no convergence time, so the first cycle is not lost
    as it was in the thesis);
@@ -47,6 +52,7 @@ FloatArray = NDArray[np.float64]
 Progress = Callable[[str, float], None]
 
 ANGLE_METHODS = ("grood_suntay", "thesis_zyx")
+CALIBRATIONS = ("static", "functional")
 #: a larger constant heading offset between the two sensors' earth frames (standing) deserves a warning
 HEADING_OFFSET_WARN_RAD = float(np.deg2rad(10.0))
 
@@ -62,6 +68,8 @@ class ProcessOptions:
     filter_name : orientation method (``estimators.orientation.METHODS``).   filter_params : its parameters.
     side : ``"right"`` / ``"left"``, overriding what the files or ``session.json`` say.
     angle_method : ``"grood_suntay"`` (clinical, default) or ``"thesis_zyx"`` (the thesis' extraction).
+    calibration : ``"static"`` (standing + supine, default) or ``"functional"`` (standing + the flexion axis
+        of the task, for a lying posture that was not held toes-up).
     task : motor task analysed (``estimators.motor_task.TASKS``).
     expected_fs_hz : rate the protocol uses; ``None`` accepts the files' own rate.
     language : report language (``es``/``en``/``pt``), recorded for the reports.
@@ -71,6 +79,7 @@ class ProcessOptions:
     filter_params: Mapping[str, Any] = field(default_factory=dict)
     side: str | None = None
     angle_method: str = "grood_suntay"
+    calibration: str = "static"
     task: str = "step_up"
     expected_fs_hz: float | None = 100.0
     language: str = "es"
@@ -80,6 +89,8 @@ class ProcessOptions:
             raise PipelineError(f"side must be 'right' or 'left', got {self.side!r}")
         if self.angle_method not in ANGLE_METHODS:
             raise PipelineError(f"angle method must be one of {', '.join(ANGLE_METHODS)}, got {self.angle_method!r}")
+        if self.calibration not in CALIBRATIONS:
+            raise PipelineError(f"calibration must be one of {', '.join(CALIBRATIONS)}, got {self.calibration!r}")
         if self.language not in ("es", "en", "pt"):
             raise PipelineError(f"language must be es, en or pt, got {self.language!r}")
 
@@ -155,6 +166,10 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         warnings += list(cal.warnings) + knee.mounting_warnings(cal, label=seg)
 
     thigh, shank = session.task_pair()
+    q_standing = _standing_orientations(session, filt, mag, segments)
+    if options.calibration == "functional":
+        segments = _functional(segments, thigh, shank, q_standing)
+        warnings += [w for seg in SEGMENTS for w in segments[seg].warnings if w.code == "functional_axis_far"]
     q_es: dict[str, FloatArray] = {}
     mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in (("thigh", thigh), ("shank", shank))}
     for i, (seg, rec) in enumerate((("thigh", thigh), ("shank", shank))):
@@ -164,7 +179,7 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     q_seg = {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
 
     progress("knee", 0.85)
-    heading = _standing_heading(session, filt, mag, segments)
+    heading = _standing_heading(q_standing, segments)
     warnings += list(heading.warnings)
     field: dict[str, FieldCheck] = {}
     for seg in ("thigh", "shank"):
@@ -196,22 +211,51 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         analysis=analysis, warnings=tuple(warnings))
 
 
-def _standing_heading(session: Session, filt, mag: dict[str, MagCalibration],
-                      segments: dict[str, knee.SegmentCalibration]) -> knee.HeadingOffset:
-    """Heading offset between the two sensors' earth frames while standing (knee straight: should be ~0)."""
+def _standing_orientations(session: Session, filt, mag: dict[str, MagCalibration],
+                           segments: dict[str, knee.SegmentCalibration]) -> dict[str, FloatArray]:
+    """``q_earth_sensor`` of both sensors over their standing recordings, paired by index (separate files of
+    one static posture)."""
     q = {}
     for seg in SEGMENTS:
         rec = session.recording(seg, "standing")
         gyr = rec.gyr - segments[seg].gyr_bias_rad_s
-        q_es = filt.estimate(rec.acc, gyr, mag[seg].apply(rec.mag), fs_hz=rec.fs_hz).orientation_
-        q[seg] = knee.segment_orientation(q_es, segments[seg].q_sensor_segment)
-    n = min(len(q["thigh"]), len(q["shank"]))  # separate files of a static posture: pair by index
-    return knee.heading_offset(q["thigh"][:n], q["shank"][:n], method="straight_knee",
-                               max_offset_rad=HEADING_OFFSET_WARN_RAD)
+        q[seg] = filt.estimate(rec.acc, gyr, mag[seg].apply(rec.mag), fs_hz=rec.fs_hz).orientation_
+    n = min(len(q["thigh"]), len(q["shank"]))
+    return {seg: q[seg][:n] for seg in SEGMENTS}
+
+
+def _standing_heading(q_standing: dict[str, FloatArray], segments: dict[str, knee.SegmentCalibration], *,
+                      max_offset_rad: float | None = HEADING_OFFSET_WARN_RAD) -> knee.HeadingOffset:
+    """Heading offset between the two segments' earth frames while standing (knee straight: should be ~0)."""
+    q = {seg: knee.segment_orientation(q_standing[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
+    return knee.heading_offset(q["thigh"], q["shank"], method="straight_knee", max_offset_rad=max_offset_rad)
+
+
+def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank,
+                q_standing: dict[str, FloatArray]) -> dict[str, knee.SegmentCalibration]:
+    """Femur on the task's flexion axis, tibia's rotation zeroed while standing (rows where a gyroscope is
+    missing are skipped)."""
+    from estimators.joint_axis import estimate_axis
+
+    g_t = thigh.gyr - segments["thigh"].gyr_bias_rad_s
+    g_s = shank.gyr - segments["shank"].gyr_bias_rad_s
+    ok = np.all(np.isfinite(g_t), axis=1) & np.all(np.isfinite(g_s), axis=1)
+    if ok.sum() < 10 * thigh.fs_hz:
+        raise PipelineError(f"{_files(thigh)}: functional calibration needs at least 10 s of task with both "
+                            "gyroscopes; use the static calibration")
+    j_t, _, _ = estimate_axis(g_t[ok], g_s[ok])
+    try:
+        femur = knee.functional_calibration(segments["thigh"], j_t, label="thigh")
+    except ValueError as exc:
+        raise PipelineError(f"functional calibration on {_files(thigh)}: {exc}") from None
+    out = {"thigh": femur, "shank": segments["shank"]}
+    delta = _standing_heading(q_standing, out, max_offset_rad=None).offset_rad
+    out["shank"] = knee.turn_about_long_axis(segments["shank"], delta, label="shank")
+    return out
 
 
 def _files(rec) -> str:
     return ", ".join(str(getattr(f, "name", f)) for f in rec.source.get("files", ())) or rec.segment
 
 
-__all__ = ["ANGLE_METHODS", "IngestionError", "PipelineError", "ProcessOptions", "SessionOutcome", "process_session"]
+__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "IngestionError", "PipelineError", "ProcessOptions", "SessionOutcome", "process_session"]

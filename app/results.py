@@ -70,6 +70,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "segment": {
                 seg: {
                     "q_sensor_segment": cal.q_sensor_segment,
+                    "method": cal.method,
+                    "axis_change_deg": None if cal.axis_change_rad is None else np.rad2deg(cal.axis_change_rad),
                     "angle_between_postures_deg": np.rad2deg(cal.angle_between_postures_rad),
                     "gyr_bias_deg_s": np.rad2deg(cal.gyr_bias_rad_s),
                     "standing_window_s": [cal.standing.start_s, cal.standing.start_s + cal.standing.duration_s],

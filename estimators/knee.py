@@ -76,7 +76,8 @@ from estimators.quality import QualityWarning
 FloatArray = NDArray[np.float64]
 
 __all__ = ["CalibrationError", "CalibrationParams", "HeadingOffset", "PostureWindow", "QualityWarning",
-           "SegmentCalibration", "apply_heading_offset", "calibrate_segment", "heading_offset", "knee_angles",
+           "SegmentCalibration", "apply_heading_offset", "calibrate_segment", "functional_calibration",
+           "heading_offset", "knee_angles", "turn_about_long_axis",
            "knee_quaternion", "mounting_warnings", "q_femur_tibia", "segment_orientation", "side_sign",
            "stillest_window", "task_warnings"]
 
@@ -225,6 +226,8 @@ class SegmentCalibration:
     q_sensor_segment : (4,) segment → sensor (use ``q_earth_segment = q_earth_sensor ⊗ q_sensor_segment``).
     angle_between_postures_rad : angle between the standing and supine gravity directions (ideal π/2).
     standing, supine : the :class:`PostureWindow` used.   warnings : tuple of :class:`QualityWarning`.
+    method : ``"static"`` (two postures) or ``"functional"`` (standing + the joint's flexion axis).
+    axis_change_rad : functional only, the angle between the static and the functional segment axes.
     gyr_bias_rad_s : (3,) the gyroscope bias seen while still (property).
     """
 
@@ -233,6 +236,8 @@ class SegmentCalibration:
     standing: PostureWindow
     supine: PostureWindow
     warnings: tuple[QualityWarning, ...]
+    method: str = "static"
+    axis_change_rad: float | None = None
 
     @property
     def gyr_bias_rad_s(self) -> FloatArray:
@@ -344,6 +349,66 @@ def calibrate_segment(acc_standing: ArrayLike, gyr_standing: ArrayLike, acc_supi
             f"(expected about 90°, accepted {np.rad2deg(p.min_angle_rad):.0f}–{np.rad2deg(p.max_angle_rad):.0f}°); "
             "the segment axes are unreliable, repeat the lying posture flat on the back, toes up"))
     return SegmentCalibration(q, angle, stand, sup, tuple(warnings))
+
+
+def functional_calibration(cal: SegmentCalibration, axis_sensor: ArrayLike, *, label: str = "sensor",
+                           max_change_rad: float = float(np.deg2rad(25.0))) -> SegmentCalibration:
+    r"""The femur's frame with the knee's functional flexion axis as z instead of the supine posture's (FC1–FC2).
+
+    ``axis_sensor`` (3,) is the flexion axis in the thigh sensor's coordinates, up to sign, e.g.
+    :func:`estimators.joint_axis.estimate_axis` over the motor task (seed 000 eqs. 68–69).  The long axis
+    stays the standing gravity direction :math:`\hat y`; the axis is orthogonalised against it and signed
+    to agree with the static z (which points to the right of the body on both legs):
+
+    .. math::
+        \hat z = s\,\frac{j - (j\cdot\hat y)\hat y}{|j - (j\cdot\hat y)\hat y|},\quad
+        s = \operatorname{sign}(j\cdot\hat z_{static}),\qquad \hat x = \hat y\times\hat z \quad (FC1)
+
+    Only the femur: the Grood & Suntay flexion axis is fixed in the femur, while in the tibia it turns with
+    internal rotation (the tibia's functional axis sits off its z by the task's mean rotation, ~10° on a
+    step-up).  The tibia gets its rotation zero from the standing posture instead
+    (:func:`turn_about_long_axis`).  A change above ``max_change_rad`` between the static and functional z
+    warns (``functional_axis_far``) (FC2).
+    """
+    j = np.asarray(axis_sensor, dtype=np.float64).reshape(3)
+    if not np.all(np.isfinite(j)) or np.linalg.norm(j) == 0.0:
+        raise CalibrationError(f"{label}: the functional axis must be a finite non-zero vector, got {j!r}")
+    r_static = quat.to_matrix(cal.q_sensor_segment)
+    y, z_static = r_static[:, 1], r_static[:, 2]
+    z = j - np.dot(j, y) * y
+    if np.linalg.norm(z) < np.sin(np.deg2rad(30.0)) * np.linalg.norm(j):
+        raise CalibrationError(f"{label}: the functional flexion axis is within 30° of the segment's long axis; "
+                               "the task did not flex the knee about a mediolateral axis (use the static calibration)")
+    z /= np.linalg.norm(z)
+    if np.dot(z, z_static) < 0.0:
+        z = -z
+    change = float(np.arccos(np.clip(np.dot(z, z_static), -1.0, 1.0)))
+    q = quat.from_matrix(np.column_stack([np.cross(y, z), y, z]))
+    return _functional_result(cal, q, change, label, max_change_rad)
+
+
+def turn_about_long_axis(cal: SegmentCalibration, angle_rad: float, *, label: str = "sensor",
+                         max_change_rad: float = float(np.deg2rad(25.0))) -> SegmentCalibration:
+    r"""The segment frame turned by ``angle_rad`` about its long axis y (FC3):
+    :math:`q_{sensor,seg}' = q_{sensor,seg}\otimes\exp(\tfrac{\gamma}{2}\hat y)`.
+
+    While standing y is vertical, so this turns the segment's heading by γ: with γ the femur–tibia heading
+    offset over the standing posture (:func:`heading_offset`, ``"straight_knee"``) the knee's internal
+    rotation is zero while standing, whatever the lying posture did (FC3)."""
+    q = quat.multiply(cal.q_sensor_segment, quat.from_axis_angle([0.0, 1.0, 0.0], angle_rad))
+    return _functional_result(cal, q, abs(float(np.angle(np.exp(1j * angle_rad)))), label, max_change_rad)
+
+
+def _functional_result(cal: SegmentCalibration, q: FloatArray, change: float, label: str,
+                       max_change_rad: float) -> SegmentCalibration:
+    warnings = list(cal.warnings)
+    if change > max_change_rad:
+        warnings.append(QualityWarning(
+            "functional_axis_far", f"{label}: the functional calibration turned the segment axes by "
+            f"{np.rad2deg(change):.0f}° from the supine posture's (more than {np.rad2deg(max_change_rad):.0f}°); "
+            "check the lying posture and the task"))
+    return SegmentCalibration(q, cal.angle_between_postures_rad, cal.standing, cal.supine, tuple(warnings),
+                              method="functional", axis_change_rad=change)
 
 
 def mounting_warnings(cal: SegmentCalibration, expected_up_sensor: ArrayLike = (0.0, 1.0, 0.0), *,

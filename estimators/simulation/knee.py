@@ -216,10 +216,13 @@ def step_up(
     return LegMotion(tt, thigh, shank, angles, side, la_t, la_s, cycles, phases)
 
 
-def _posture(duration_s: float, side: str, facing_rad: float, posture: str, fs_hz: float) -> LegMotion:
-    side_sign(side)
+def _posture(duration_s: float, side: str, facing_rad: float, posture: str, fs_hz: float,
+             roll_out_rad: float = 0.0) -> LegMotion:
+    s = side_sign(side)
     t = time_grid(duration_s, fs_hz)
-    q = segment_frame(facing_rad, posture)
+    # roll about the long axis y: toes out (external rotation) turns x towards the lateral side, which is +z on
+    # the right leg (a negative turn about y) and -z on the left
+    q = quat.multiply(segment_frame(facing_rad, posture), quat.from_axis_angle([0.0, 1.0, 0.0], -s * roll_out_rad))
     if posture == "standing":
         knee = np.array([0.0, 0.0, ANKLE_HEIGHT_M + SHANK_LENGTH_M])
     else:
@@ -237,7 +240,10 @@ def standing(duration_s: float = 30.0, side: str = "right", *, facing_rad: float
     return _posture(duration_s, side, facing_rad, "standing", fs_hz)
 
 
-def supine(duration_s: float = 30.0, side: str = "right", *, head_rad: float = 0.0,
+def supine(duration_s: float = 30.0, side: str = "right", *, head_rad: float = 0.0, roll_out_rad: float = 0.0,
            fs_hz: float = DEFAULT_FS_HZ) -> LegMotion:
-    """Static supine lying posture: both segments' x (anterior) axes up, y towards the head (ENU yaw ``head_rad``)."""
-    return _posture(duration_s, side, head_rad, "supine", fs_hz)
+    """Static supine lying posture: both segments' x (anterior) axes up, y towards the head (ENU yaw ``head_rad``).
+
+    ``roll_out_rad``: the leg rolled outwards about its long axis (toes out), as a relaxed leg lies when
+    nobody holds the toes up; the static calibration takes the anterior axis from this posture."""
+    return _posture(duration_s, side, head_rad, "supine", fs_hz, roll_out_rad)

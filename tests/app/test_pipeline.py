@@ -87,6 +87,29 @@ def test_results_json_follows_the_contract(right_session, tmp_path):
     assert r["session"]["language"] == "en"
 
 
+@pytest.mark.parametrize("seed, side", [(3, "right"), (4, "left")])
+def test_functional_calibration_recovers_a_rolled_lying_posture(seed, side, tmp_path):
+    """A leg lying rolled 15° outwards spoils the static frames (adduction ~10° RMSE); the functional option
+    (femur on the task's flexion axis, tibia's rotation zeroed standing) meets the accuracy goals."""
+    truth = simulate_session(seed=seed, side=side, n_cycles=6, accelerometer_errors=False, supine_roll_out_deg=15.0)
+    write_session(tmp_path / "session", truth)
+    static, _ = process_folder(tmp_path / "session", tmp_path / "static", reports=False)
+    assert accuracy(static, truth)["rmse_deg"]["adduction"] > 5.0
+    assert main(["process", str(tmp_path / "session"), "--out", str(tmp_path / "functional"),
+                 "--calibration", "functional"]) == 0
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "again", ProcessOptions(calibration="functional"),
+                                reports=False)
+    check_goals(outcome, truth)
+    seg = json.loads((tmp_path / "functional" / "results.json").read_text())["calibration"]["segment"]
+    assert seg["thigh"]["method"] == seg["shank"]["method"] == "functional"
+    assert 10.0 < seg["thigh"]["axis_change_deg"] < 20.0 and 10.0 < seg["shank"]["axis_change_deg"] < 20.0
+
+
+def test_calibration_option_is_checked():
+    with pytest.raises(PipelineError, match="calibration must be one of static, functional"):
+        ProcessOptions(calibration="dynamic")
+
+
 def test_thesis_angle_option(right_session, tmp_path):
     write_session(tmp_path / "session", right_session)
     outcome, _ = process_folder(tmp_path / "session", tmp_path / "out", ProcessOptions(angle_method="thesis_zyx"))

@@ -272,3 +272,53 @@ def test_gyroscope_bias_measured_on_the_still_postures():
     true_bias = grids[0].gyr_bias_rad_s.mean(axis=0)
     assert np.linalg.norm(true_bias) > np.deg2rad(0.5)  # a realistic, noticeable bias
     np.testing.assert_allclose(cal.gyr_bias_rad_s, true_bias, atol=np.deg2rad(0.1))
+
+
+# ------------------------------------------------------------------------------------------ functional calibration
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_functional_calibration_uses_the_true_flexion_axis(side):
+    """A lying posture rolled 12° outwards turns the static frame about y; given the femur's true z (in sensor
+    coordinates, either sign) the functional frame is the true one again."""
+    mount = sim.random_rotation(15 * DEG, seed=5)
+    spec = sim.ImuSpec.noise_only()
+    st = getattr(sim.standing(8.0, side), "thigh")
+    su = getattr(sim.supine(8.0, side, roll_out_rad=12 * DEG), "thigh")
+    gs = sim.simulate_on_grid(st, spec, q_segment_sensor=mount, seed=1)
+    gu = sim.simulate_on_grid(su, spec, q_segment_sensor=mount, seed=2)
+    cal = knee.calibrate_segment(gs.acc, gs.gyr, gu.acc, gu.gyr, fs_hz=gs.fs_hz, label="thigh")
+    truth = quat.conjugate(mount)  # q_sensor_segment
+    assert quat.angle_between(cal.q_sensor_segment, truth) > 11 * DEG
+    z_sensor = quat.rotate(truth, [0.0, 0.0, 1.0])
+    for sign in (1.0, -1.0):
+        fc = knee.functional_calibration(cal, sign * 3.0 * z_sensor, label="thigh")
+        assert quat.angle_between(fc.q_sensor_segment, truth) < 0.1 * DEG
+        assert fc.method == "functional" and abs(fc.axis_change_rad - 12 * DEG) < 0.3 * DEG
+        assert fc.warnings == cal.warnings  # 12° is within the 25° warning limit
+    far = knee.functional_calibration(cal, z_sensor, max_change_rad=5 * DEG)
+    assert _codes(far.warnings)[-1] == "functional_axis_far"
+
+
+def test_functional_calibration_refuses_a_long_axis_and_bad_input():
+    acc, gyr = _static([0.0, 1.0, 0.0])
+    acc2, gyr2 = _static([1.0, 0.0, 0.0], seed=1)
+    cal = knee.calibrate_segment(acc, gyr, acc2, gyr2, fs_hz=FS_HZ)
+    with pytest.raises(knee.CalibrationError, match="within 30° of the segment's long axis"):
+        knee.functional_calibration(cal, [0.1, 1.0, 0.0])
+    with pytest.raises(knee.CalibrationError, match="finite non-zero"):
+        knee.functional_calibration(cal, [np.nan, 0.0, 1.0])
+
+
+def test_turn_about_long_axis_turns_the_standing_heading():
+    acc, gyr = _static([0.0, 1.0, 0.0])
+    acc2, gyr2 = _static([1.0, 0.0, 0.0], seed=1)
+    cal = knee.calibrate_segment(acc, gyr, acc2, gyr2, fs_hz=FS_HZ)
+    turned = knee.turn_about_long_axis(cal, 0.3)
+    q_earth_sensor = quat.from_axis_angle([1.0, 0.0, 0.0], 0.4)  # any sensor orientation while standing
+    before = knee.segment_orientation(q_earth_sensor, cal.q_sensor_segment)
+    after = knee.segment_orientation(q_earth_sensor, turned.q_sensor_segment)
+    # the long axis keeps its direction; the segment turned by 0.3 rad about it
+    assert np.allclose(quat.rotate(after, [0, 1, 0]), quat.rotate(before, [0, 1, 0]), atol=1e-12)
+    assert abs(quat.angle_between(before, after) - 0.3) < 1e-9
+    assert np.allclose(knee.turn_about_long_axis(turned, -0.3).q_sensor_segment * np.sign(
+        knee.turn_about_long_axis(turned, -0.3).q_sensor_segment[0]), cal.q_sensor_segment * np.sign(
+        cal.q_sensor_segment[0]), atol=1e-12)
