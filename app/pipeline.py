@@ -11,8 +11,8 @@ Stages (each reported to ``progress(stage, fraction)``):
    (a BMI160's bias reaches ±3 °/s; on a simulated step-up a 1.7 °/s bias costs Guo's filter 30° of
    rotation error and the default filter 3°, both back under 1.5° with the bias removed);
    with ``calibration="functional"`` the femur's z axis is then the knee's flexion axis estimated on the
-   task's gyroscopes (:func:`estimators.joint_axis.estimate_axis`, :func:`estimators.knee.functional_calibration`)
-   instead of the supine posture's, and the tibia is turned about its long axis so that the knee's rotation
+   task's gyroscopes (:func:`estimators.joint_axis.estimate_axis`, checked against the filters' relative
+   motion; :func:`estimators.knee.functional_calibration`) instead of the supine posture's, and the tibia is turned about its long axis so that the knee's rotation
    is zero while standing (:func:`estimators.knee.turn_about_long_axis`; in 9D, so it trusts the magnetometer
    while standing as much as the heading check does);
 4. **orientation** — both sensors through the task with the chosen filter (default: the estimator
@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators import knee
+from estimators import quaternion as quat
 from estimators.disturbance import FieldCheck, field_disturbance
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
 from estimators.motor_task import TaskAnalysis, analyse_task
@@ -53,6 +54,8 @@ Progress = Callable[[str, float], None]
 
 ANGLE_METHODS = ("grood_suntay", "thesis_zyx")
 CALIBRATIONS = ("static", "functional")
+#: Seel's and the relative-velocity flexion axes further apart than this (transverse plane) → the latter, warned
+FUNCTIONAL_AXIS_AGREE_RAD = float(np.deg2rad(8.0))
 #: a larger constant heading offset between the two sensors' earth frames (standing) deserves a warning
 HEADING_OFFSET_WARN_RAD = float(np.deg2rad(10.0))
 
@@ -167,15 +170,15 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
 
     thigh, shank = session.task_pair()
     q_standing = _standing_orientations(session, filt, mag, segments)
-    if options.calibration == "functional":
-        segments = _functional(segments, thigh, shank, q_standing)
-        warnings += [w for seg in SEGMENTS for w in segments[seg].warnings if w.code == "functional_axis_far"]
     q_es: dict[str, FloatArray] = {}
     mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in (("thigh", thigh), ("shank", shank))}
     for i, (seg, rec) in enumerate((("thigh", thigh), ("shank", shank))):
         progress(f"orientation {seg}", 0.45 + 0.2 * i)
         gyr = rec.gyr - segments[seg].gyr_bias_rad_s
         q_es[seg] = filt.estimate(rec.acc, gyr, mag_task[seg], fs_hz=rec.fs_hz).orientation_
+    if options.calibration == "functional":
+        segments, functional_warnings = _functional(segments, thigh, shank, q_es, q_standing)
+        warnings += functional_warnings
     q_seg = {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
 
     progress("knee", 0.85)
@@ -231,27 +234,41 @@ def _standing_heading(q_standing: dict[str, FloatArray], segments: dict[str, kne
     return knee.heading_offset(q["thigh"], q["shank"], method="straight_knee", max_offset_rad=max_offset_rad)
 
 
-def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank,
-                q_standing: dict[str, FloatArray]) -> dict[str, knee.SegmentCalibration]:
-    """Femur on the task's flexion axis, tibia's rotation zeroed while standing (rows where a gyroscope is
-    missing are skipped)."""
+def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, q_es: dict[str, FloatArray],
+                q_standing: dict[str, FloatArray]) -> tuple[dict[str, knee.SegmentCalibration], list[QualityWarning]]:
+    """Femur on the task's flexion axis, the tibia's rotation zeroed while standing.
+
+    The axis is Seel's gyroscope-only estimate (:func:`estimators.joint_axis.estimate_axis`, seed 000 eqs.
+    68–69), checked against the dominant axis of the filters' relative angular velocity
+    (:func:`estimators.knee.flexion_axis`): a sagittal-plane task can leave Seel's problem ill-posed (one
+    simulated step-up put it 18° off); when the two differ by more than ``FUNCTIONAL_AXIS_AGREE_RAD`` in the
+    transverse plane the relative-velocity axis is used, with a warning (it absorbs the adduction that moves
+    with flexion: ~5° of adduction on simulated step-ups, against ~1° for a well-posed Seel estimate)."""
     from estimators.joint_axis import estimate_axis
 
     g_t = thigh.gyr - segments["thigh"].gyr_bias_rad_s
     g_s = shank.gyr - segments["shank"].gyr_bias_rad_s
     ok = np.all(np.isfinite(g_t), axis=1) & np.all(np.isfinite(g_s), axis=1)
-    if ok.sum() < 10 * thigh.fs_hz:
-        raise PipelineError(f"{_files(thigh)}: functional calibration needs at least 10 s of task with both "
-                            "gyroscopes; use the static calibration")
-    j_t, _, _ = estimate_axis(g_t[ok], g_s[ok])
+    warnings: list[QualityWarning] = []
     try:
+        j_rel = knee.flexion_axis(q_es["thigh"], q_es["shank"], g_t, g_s)
+        j_seel, _, _ = estimate_axis(g_t[ok], g_s[ok])
+        y = quat.to_matrix(segments["thigh"].q_sensor_segment)[:, 1]
+        a, b = (j - np.dot(j, y) * y for j in (j_seel, j_rel))
+        gap = float(np.arccos(min(1.0, abs(np.dot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b)))))
+        j_t = j_seel
+        if gap > FUNCTIONAL_AXIS_AGREE_RAD:
+            j_t = j_rel
+            warnings.append(QualityWarning(
+                "functional_axis_uncertain", f"the task's gyroscopes alone place the flexion axis {np.rad2deg(gap):.0f}° "
+                "from the sensors' relative motion; the latter was used, adduction may read a few degrees off"))
         femur = knee.functional_calibration(segments["thigh"], j_t, label="thigh")
     except ValueError as exc:
-        raise PipelineError(f"functional calibration on {_files(thigh)}: {exc}") from None
+        raise PipelineError(f"functional calibration on {_files(thigh)} and {_files(shank)}: {exc}") from None
     out = {"thigh": femur, "shank": segments["shank"]}
     delta = _standing_heading(q_standing, out, max_offset_rad=None).offset_rad
     out["shank"] = knee.turn_about_long_axis(segments["shank"], delta, label="shank")
-    return out
+    return out, warnings + [w for seg in SEGMENTS for w in out[seg].warnings if w.code == "functional_axis_far"]
 
 
 def _files(rec) -> str:

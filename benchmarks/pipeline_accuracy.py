@@ -1,13 +1,14 @@
 r"""Knee-angle accuracy of the whole pipeline on simulated sessions with known truth (issue 3's goal).
 
 Usage: ``python -m benchmarks.pipeline_accuracy [--seeds 10] [--cycles 6] [--filter NAME]
-[--accelerometer-errors]``
+[--accelerometer-errors] [--calibration static|functional] [--supine-roll-out DEG]``
 
 Each seed simulates a session (:func:`app.demo.simulate_session`; odd seeds the right leg, even seeds the
 left), writes it as MetaBase files, processes it with ``chakamo process``'s code path and compares with the
 truth.  By default the sensors carry the goal's error set — noise, gyroscope bias, hard and soft iron, up to
 15° mounting misalignment, clock drift; ``--accelerometer-errors`` adds accelerometer bias, scale and axis
-errors (the demo's sensor).  Prints per seed and the worst: RMSE of flexion, adduction and internal
+errors (the demo's sensor); ``--supine-roll-out`` lets the leg lie rolled outwards in the supine
+recording, which ``--calibration functional`` is for.  Prints per seed and the worst: RMSE of flexion, adduction and internal
 rotation (°), cycles found of the true ones, and the largest phase-boundary error (% of the cycle).
 """
 
@@ -30,6 +31,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--cycles", type=int, default=6)
     parser.add_argument("--filter", choices=METHODS, default=DEFAULT_METHOD)
     parser.add_argument("--accelerometer-errors", action="store_true")
+    parser.add_argument("--calibration", choices=("static", "functional"), default="static")
+    parser.add_argument("--supine-roll-out", type=float, default=0.0, metavar="DEG")
     args = parser.parse_args(argv)
 
     from app.demo import accuracy, simulate_session, write_session
@@ -37,16 +40,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     from app.process import process_folder
 
     print(f"pipeline accuracy: {args.seeds} simulated sessions, {args.cycles} step-up cycles, filter {args.filter}, "
-          f"accelerometer errors {'on' if args.accelerometer_errors else 'off (the goal conditions)'}")
+          f"accelerometer errors {'on' if args.accelerometer_errors else 'off (the goal conditions)'}, "
+          f"{args.calibration} calibration, supine rolled out {args.supine_roll_out:g}°")
     print(f"{'seed':>4} {'side':<5} {'flexion °':>9} {'adduction °':>11} {'rotation °':>10} {'cycles':>7} {'phase %':>8}")
     rows = []
     for seed in range(1, args.seeds + 1):
         side = "right" if seed % 2 else "left"
         truth = simulate_session(seed=seed, side=side, n_cycles=args.cycles,
-                                 accelerometer_errors=args.accelerometer_errors)
+                                 accelerometer_errors=args.accelerometer_errors,
+                                 supine_roll_out_deg=args.supine_roll_out)
         work = Path(tempfile.mkdtemp(prefix="chakamo-acc-"))
         write_session(work / "session", truth)
-        outcome, _ = process_folder(work / "session", work / "out", ProcessOptions(filter_name=args.filter),
+        outcome, _ = process_folder(work / "session", work / "out", ProcessOptions(filter_name=args.filter, calibration=args.calibration),
                                     reports=False)
         a = accuracy(outcome, truth)
         r = a["rmse_deg"]

@@ -76,7 +76,7 @@ from estimators.quality import QualityWarning
 FloatArray = NDArray[np.float64]
 
 __all__ = ["CalibrationError", "CalibrationParams", "HeadingOffset", "PostureWindow", "QualityWarning",
-           "SegmentCalibration", "apply_heading_offset", "calibrate_segment", "functional_calibration",
+           "SegmentCalibration", "apply_heading_offset", "calibrate_segment", "flexion_axis", "functional_calibration",
            "heading_offset", "knee_angles", "turn_about_long_axis",
            "knee_quaternion", "mounting_warnings", "q_femur_tibia", "segment_orientation", "side_sign",
            "stillest_window", "task_warnings"]
@@ -351,12 +351,41 @@ def calibrate_segment(acc_standing: ArrayLike, gyr_standing: ArrayLike, acc_supi
     return SegmentCalibration(q, angle, stand, sup, tuple(warnings))
 
 
+def flexion_axis(q_earth_thigh: ArrayLike, q_earth_shank: ArrayLike, gyr_thigh: ArrayLike, gyr_shank: ArrayLike,
+                 *, min_samples: int = 200) -> FloatArray:
+    r"""The knee's dominant rotation axis in the thigh sensor's coordinates, up to sign (FA1).
+
+    The shank's angular velocity relative to the thigh, in thigh-sensor coordinates, from both sensors'
+    orientations (:math:`q_{earth,sensor}`) and bias-free gyroscopes:
+
+    .. math:: \omega_{rel} = R_{T,S}\,\omega_S - \omega_T,\qquad R_{T,S} = R_{earth,T}^\top R_{earth,S},
+        \qquad \hat j = \text{dominant eigenvector of } \textstyle\sum \omega_{rel}\omega_{rel}^\top \quad (FA1)
+
+    Unlike the gyroscope-only constraint of Seel et al. (seed 000 eqs. 68–69), which needs the segments to
+    turn about more than one axis and is ill-posed for sagittal-plane tasks such as the step-up (one
+    simulated session put the axis 18° off), this uses the relative heading the orientation filters
+    already provide.  Rows with a missing value are skipped."""
+    qt, qs = quat.as_quaternion(q_earth_thigh), quat.as_quaternion(q_earth_shank)
+    gt, gs = np.asarray(gyr_thigh, dtype=np.float64), np.asarray(gyr_shank, dtype=np.float64)
+    if not (qt.shape == qs.shape and qt.ndim == 2 and gt.shape == gs.shape == (len(qt), 3)):
+        raise ValueError(f"orientations (N, 4) and gyroscopes (N, 3) of one grid expected, got {qt.shape}, "
+                         f"{qs.shape}, {gt.shape}, {gs.shape}")
+    q_ts = quat.multiply(quat.conjugate(qt), qs)
+    w = quat.rotate(q_ts, gs) - gt
+    ok = np.all(np.isfinite(w), axis=1)
+    if ok.sum() < min_samples:
+        raise CalibrationError(f"the functional axis needs at least {min_samples} samples of motion with both "
+                               f"sensors, got {int(ok.sum())}")
+    w = w[ok]
+    return np.linalg.eigh(w.T @ w)[1][:, -1]
+
+
 def functional_calibration(cal: SegmentCalibration, axis_sensor: ArrayLike, *, label: str = "sensor",
                            max_change_rad: float = float(np.deg2rad(25.0))) -> SegmentCalibration:
     r"""The femur's frame with the knee's functional flexion axis as z instead of the supine posture's (FC1–FC2).
 
     ``axis_sensor`` (3,) is the flexion axis in the thigh sensor's coordinates, up to sign, e.g.
-    :func:`estimators.joint_axis.estimate_axis` over the motor task (seed 000 eqs. 68–69).  The long axis
+    :func:`flexion_axis` over the motor task.  The long axis
     stays the standing gravity direction :math:`\hat y`; the axis is orthogonalised against it and signed
     to agree with the static z (which points to the right of the body on both legs):
 
