@@ -1,0 +1,386 @@
+"""FHIR R4 export of one knee session: a ``DiagnosticReport`` for hospital systems (issue 5, item 6).
+
+:func:`diagnostic_report` turns a session's ``results.json`` and its PDF report into one JSON-ready
+FHIR R4 (4.0.1) ``DiagnosticReport``; the API route ``GET /api/v1/fhir/DiagnosticReport/{session_id}``
+returns it as is.  Pure: no database, no web framework, no clock unless ``issued`` is left out.
+
+Decisions (each a FHIR choice a hospital integrator will ask about):
+
+- **One resource, everything contained.**  The route answers one resource, so the ``Patient`` and the
+  three Observations (one per knee angle) are ``contained`` and referenced as ``#patient``,
+  ``#flexion``, ``#adduction``, ``#internal-rotation`` (FHIR ids may not hold ``_``).  Hospitals match
+  the patient on the contained Patient's identifiers: their own ``external_id`` (type ``MR`` of
+  HL7 v2 table 0203, system ``patient_identifier_system`` when the caller knows the hospital's MRN
+  namespace, none otherwise) and ChakaMo's id (system ``{base_url}/patients``).  The report itself
+  carries ``id`` = the session id and the identifier ``{base_url}/sessions`` | session id.
+- **Codes.**  Category: HL7 v2 table 0074 ``PT`` "Physical Therapy" (report) and observation-category
+  ``exam`` (observations: range of motion is a physical-examination finding).  LOINC has no term for
+  an instrumented 3D knee angle during a motor task (its range-of-motion terms, e.g. 92851-5, are CMS
+  assessment items, not angles), so report, observation, component and method codes come from ChakaMo's
+  own code system :data:`CODE_SYSTEM`.  Its URI sits under the reserved ``.example`` domain so that it
+  never resolves to someone else's; it is part of the interface: never change it or a code in it.
+- **Body site and laterality** (SNOMED CT): 49076000 |Knee joint structure| refined by the attribute
+  272741003 |Laterality| = 24028007 |Right| or 7771000 |Left| as a post-coordinated expression
+  (``49076000:272741003=24028007``; FHIR allows SNOMED CT expressions in ``Coding.code``), plus the plain
+  knee-joint code for receivers that cannot read expressions, and the text "Right knee joint".  The side
+  is ``results["side"]``: the knee that was measured (the patient record's side may name the other).
+- **Numbers.**  Each Observation has no ``value[x]`` but components: ROM maximum, minimum and range
+  over a cycle, mean and SD (ddof = 1) over the accepted cycles, as UCUM ``deg`` quantities with the
+  numbers of ``results.json`` unrounded; a value that is ``null`` there (SD of a single cycle) gets
+  ``dataAbsentReason`` ``not-applicable``.  The accepted and detected cycle counts (``valueInteger``),
+  the orientation filter and the angle convention (``valueString``) are components too: they belong to
+  the measurement, and a machine can read them.  Method: ChakaMo's ``imu-thigh-shank``.
+- **Texts.**  ``conclusion`` summarises side, task, cycles and the quality warnings (English, as the
+  warnings in ``results.json`` are); the session's notes follow.  R4 ``DiagnosticReport`` has no
+  ``note`` element (R5 added it).  The narrative (``text``) repeats the table in XHTML.  The PDF goes in
+  ``presentedForm`` with its language, translated title, size and SHA-1 hash (base64, as R4 defines).
+- **Validation, twice.**  The dictionary is built by hand, then parsed by two maintained model
+  packages, and any complaint raises :class:`FhirExportError`:  ``fhirclient`` (SMART on FHIR), whose
+  models are generated from exactly FHIR 4.0.1 and reject unknown elements, missing required ones and
+  wrong types; and ``fhir.resources``, whose pydantic models are stricter on primitives (id and instant
+  patterns, one choice of ``[x]``) but exist only for R4B (4.3.0) and R5 since version 7, so its ``R4B``
+  package is used.  Every element used here is identical in R4 and R4B.
+
+References: FHIR R4 (4.0.1) DiagnosticReport, Observation, Attachment (``hash`` = base64 SHA-1) and
+"Using SNOMED CT with FHIR" (concept ids and compositional-grammar expressions are valid codes);
+HL7 v2 tables 0074 (``PT`` Physical Therapy) and 0203 (``MR``); SNOMED CT International Edition for
+49076000, 272741003, 24028007 and 7771000 (the last two are the laterality value set of HL7 Europe's
+base IG); UCUM ``deg``.  Measured on a 4-cycle demo session (this machine): 8.6 ms per report
+(263 kB PDF, 364 kB JSON), 0.27 s to import this module.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import html
+import math
+import re
+from collections.abc import Mapping
+from datetime import date, datetime, timezone
+from typing import Any
+
+import pydantic
+from fhir.resources.R4B.diagnosticreport import DiagnosticReport as R4BDiagnosticReport
+from fhirclient.models.diagnosticreport import DiagnosticReport as R4DiagnosticReport
+from fhirclient.models.fhirabstractbase import FHIRValidationError
+
+from reports.i18n import LANGUAGES, t
+
+#: ChakaMo's own code system (report, observation, component and method codes).  Stable: never change.
+CODE_SYSTEM = "http://chakamo.example/fhir/CodeSystem/knee-kinematics"
+SNOMED = "http://snomed.info/sct"
+UCUM = "http://unitsofmeasure.org"
+V2_0074 = "http://terminology.hl7.org/CodeSystem/v2-0074"
+V2_0203 = "http://terminology.hl7.org/CodeSystem/v2-0203"
+OBSERVATION_CATEGORY = "http://terminology.hl7.org/CodeSystem/observation-category"
+DATA_ABSENT_REASON = "http://terminology.hl7.org/CodeSystem/data-absent-reason"
+
+#: SNOMED CT: 49076000 |Knee joint structure|, 272741003 |Laterality|, 24028007 |Right|, 7771000 |Left|
+KNEE_JOINT = ("49076000", "Knee joint structure")
+LATERALITY_ATTRIBUTE = "272741003"
+LATERALITY = {"right": ("24028007", "Right"), "left": ("7771000", "Left")}
+
+ANGLES = ("flexion", "adduction", "internal_rotation")
+ROM_STATS = ("max", "min", "range")
+_ANGLE_TEXT = {"flexion": "Knee flexion (+) / extension angle",
+               "adduction": "Knee adduction (varus, +) / abduction angle",
+               "internal_rotation": "Knee internal (+) / external rotation angle"}
+_STAT_TEXT = {"max": "maximum", "min": "minimum", "range": "range of motion (maximum - minimum)"}
+_TASK_TEXT = {"step_up": "single-leg step-up"}
+_CONVENTION_TEXT = {"grood_suntay": "Grood & Suntay joint coordinate system, left leg mirrored",
+                    "thesis_zyx": "ZYX Euler angles of the calibrated knee quaternion (thesis-compatible)"}
+_GENDER = {"male": "male", "m": "male", "female": "female", "f": "female", "other": "other", "unknown": "unknown"}
+_FHIR_ID = re.compile(r"[A-Za-z0-9\-.]{1,64}")
+
+SESSION_KEYS = ("id", "date", "task", "professional", "notes", "created_at")
+PATIENT_KEYS = ("id", "external_id", "side", "name", "birth_date", "sex")
+
+
+class FhirExportError(ValueError):
+    """The input cannot be exported (the message says what and how to fix it), or the result is not FHIR R4."""
+
+
+def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes, lang: str, base_url: str,
+                      issued: datetime | None = None, patient_identifier_system: str | None = None) -> dict:
+    """The FHIR R4 ``DiagnosticReport`` of one processed knee session, as a JSON-ready dict (validated).
+
+    session : ``{"id", "date", "task", "professional", "notes", "created_at"}``; ``date`` (ISO string,
+        ``date`` or ``datetime``; ``created_at`` when it is None) becomes ``effectiveDateTime``.
+    patient : ``{"id", "external_id", "side", "name", "birth_date", "sex"}``; ``sex`` one of male, female,
+        other, unknown, m, f (any case) or None.
+    results : the session's ``results.json`` as a dict (DESIGN §4).
+    pdf : the clinical report in ``lang`` (es, en or pt), put in ``presentedForm``.
+    base_url : the API root, e.g. ``"http://host/api/v1"``: namespace of the session and patient identifiers.
+    issued : when the report was released (timezone-aware; default: now, UTC, whole seconds).
+    patient_identifier_system : the URI of the hospital's namespace of ``external_id`` when known.
+
+    Raises :class:`FhirExportError` (a ``ValueError``) naming the missing or malformed input.
+    """
+    for name, value, keys in (("session", session, SESSION_KEYS), ("patient", patient, PATIENT_KEYS)):
+        if not isinstance(value, Mapping):
+            raise FhirExportError(f"{name} must be a dict with the keys {', '.join(keys)}, got {type(value).__name__}")
+        missing = [k for k in keys if k not in value]
+        if missing:
+            raise FhirExportError(f"{name} is missing the key(s) {', '.join(missing)}; pass all of {', '.join(keys)} "
+                                  "(None where unknown)")
+    if lang not in LANGUAGES:
+        raise FhirExportError(f"lang must be one of {', '.join(LANGUAGES)}, got {lang!r}")
+    if not isinstance(pdf, (bytes, bytearray)) or not bytes(pdf[:5]) == b"%PDF-":
+        raise FhirExportError("pdf must be the bytes of the PDF report (starting with %PDF-); render the report first")
+    if not isinstance(base_url, str) or not re.fullmatch(r"https?://\S+", base_url):
+        raise FhirExportError(f"base_url must be an absolute http(s) URL such as http://host/api/v1, got {base_url!r}")
+    base_url = base_url.rstrip("/")
+    r = _results(results)
+    report_id = _fhir_id(session["id"], "session id")
+    effective = _date_time(session["date"] if session["date"] is not None else session["created_at"],
+                           "session date (or created_at when the date is None)")
+    issued_at = _instant(issued)
+    side = r["side"]
+    task = _TASK_TEXT.get(r["task"], str(r["task"]).replace("_", " "))
+    professional = session["professional"] or None
+    performer = [{"display": str(professional)}] if professional else None
+
+    observations = [_observation(angle, r, side, task, effective, issued_at, performer) for angle in ANGLES]
+    doc: dict[str, Any] = {
+        "resourceType": "DiagnosticReport",
+        "id": report_id,
+        "language": "en",
+        "text": {"status": "generated", "div": _narrative(r, side, task, effective, patient)},
+        "contained": [_patient(patient, base_url, patient_identifier_system), *observations],
+        "identifier": [{"system": f"{base_url}/sessions", "value": str(session["id"])}],
+        "status": "final",
+        "category": [{"coding": [{"system": V2_0074, "code": "PT", "display": "Physical Therapy"}]}],
+        "code": {"coding": [_local("knee-kinematics-report", "Instrumented knee kinematics report")],
+                 "text": f"Knee kinematics, {task}, two magneto-inertial sensors (thigh, shank)"},
+        "subject": {"reference": "#patient"},
+        "effectiveDateTime": effective,
+        "issued": issued_at,
+        "performer": performer,
+        "result": [{"reference": f"#{obs['id']}", "display": _ANGLE_TEXT[a]} for a, obs in zip(ANGLES, observations)],
+        "conclusion": _conclusion(r, side, task, session["notes"]),
+        "presentedForm": [{
+            "contentType": "application/pdf",
+            "language": lang,
+            "data": base64.b64encode(bytes(pdf)).decode("ascii"),
+            "size": len(pdf),
+            "hash": base64.b64encode(hashlib.sha1(bytes(pdf)).digest()).decode("ascii"),
+            "title": t("report_title", lang),
+        }],
+    }
+    doc = _drop_none(doc)
+    validate(doc)
+    return doc
+
+
+def _results(results: Any) -> dict[str, Any]:
+    """The parts of results.json the export reads, checked (FhirExportError names the first bad key)."""
+    def need(path: str) -> Any:
+        node = results
+        for key in path.split("."):
+            if not isinstance(node, Mapping) or key not in node:
+                raise FhirExportError(f"results is missing {path!r}; pass the session's results.json as written by "
+                                      "chakamo process (reprocess the session if it predates this key)")
+            node = node[key]
+        return node
+
+    if not isinstance(results, Mapping):
+        raise FhirExportError(f"results must be the session's results.json as a dict, got {type(results).__name__}")
+    side = need("side")
+    if side not in LATERALITY:
+        raise FhirExportError(f"results['side'] must be 'right' or 'left', got {side!r}")
+    # results.json files written before "angle_method" existed hold Grood & Suntay angles
+    out = {"side": side, "task": need("task"), "filter": need("filter.name"),
+           "angle_method": results.get("angle_method", "grood_suntay"), "rom": {}}
+    for key in ("detected", "accepted"):
+        n = need(f"cycles.{key}")
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise FhirExportError(f"results['cycles']['{key}'] must be a count (int >= 0), got {n!r}")
+        out[key] = n
+    for angle in ANGLES:
+        for stat in ROM_STATS:
+            for m in ("mean", "sd"):
+                path = f"rom_deg.{angle}.{stat}.{m}"
+                out["rom"][(angle, stat, m)] = _number(need(path), path)
+    warnings = need("quality.warnings")
+    if not isinstance(warnings, list) or not all(isinstance(w, Mapping) and "message" in w for w in warnings):
+        raise FhirExportError("results['quality']['warnings'] must be a list of {'code', 'message'} objects")
+    out["warnings"] = [(str(w.get("code", "")), str(w["message"])) for w in warnings]
+    return out
+
+
+def _number(x: Any, where: str) -> float | None:
+    if x is None:
+        return None
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise FhirExportError(f"results {where} must be a number or null, got {x!r}")
+    return float(x) if math.isfinite(x) else None
+
+
+def _fhir_id(value: Any, what: str) -> str:
+    s = str(value)
+    if value is None or not _FHIR_ID.fullmatch(s):
+        raise FhirExportError(f"the {what} {value!r} cannot be a FHIR id (1-64 of A-Z a-z 0-9 - .)")
+    return s
+
+
+def _date_time(value: Any, what: str) -> str:
+    """A FHIR dateTime: a date stays a date; a naive datetime is taken as UTC (the database stores UTC)."""
+    if isinstance(value, str):
+        try:
+            value = date.fromisoformat(value) if len(value) == 10 else datetime.fromisoformat(value)
+        except ValueError:
+            raise FhirExportError(f"the {what} {value!r} is not an ISO date (YYYY-MM-DD) or date-time") from None
+    if isinstance(value, datetime):
+        if value.tzinfo is None:
+            value = value.replace(tzinfo=timezone.utc)
+        return value.isoformat()
+    if isinstance(value, date):
+        return value.isoformat()
+    raise FhirExportError(f"the {what} is required: give an ISO date (YYYY-MM-DD), a date or a datetime, got {value!r}")
+
+
+def _instant(value: datetime | None) -> str:
+    if value is None:
+        value = datetime.now(timezone.utc).replace(microsecond=0)
+    if not isinstance(value, datetime) or value.tzinfo is None:
+        raise FhirExportError(f"issued must be a timezone-aware datetime, got {value!r}")
+    return value.isoformat()
+
+
+def _local(code: str, display: str) -> dict[str, str]:
+    return {"system": CODE_SYSTEM, "code": code, "display": display}
+
+
+def _body_site(side: str) -> dict[str, Any]:
+    knee, knee_display = KNEE_JOINT
+    lat, lat_display = LATERALITY[side]
+    return {"coding": [{"system": SNOMED, "code": f"{knee}:{LATERALITY_ATTRIBUTE}={lat}"},
+                       {"system": SNOMED, "code": knee, "display": knee_display}],
+            "text": f"{lat_display} knee joint"}
+
+
+def _observation(angle: str, r: dict, side: str, task: str, effective: str, issued: str,
+                 performer: list | None) -> dict[str, Any]:
+    name = angle.replace("_", "-")
+    components = []
+    for stat in ROM_STATS:
+        for m in ("mean", "sd"):
+            what = "mean over the accepted cycles" if m == "mean" else "SD over the accepted cycles (ddof = 1)"
+            code = _local(f"{stat}-{m}", f"{_STAT_TEXT[stat]} per cycle, {what}")
+            comp: dict[str, Any] = {"code": {"coding": [code]}}
+            value = r["rom"][(angle, stat, m)]
+            if value is None:
+                comp["dataAbsentReason"] = {"coding": [{"system": DATA_ABSENT_REASON, "code": "not-applicable",
+                                                        "display": "Not Applicable"}]}
+            else:
+                comp["valueQuantity"] = {"value": value, "unit": "deg", "system": UCUM, "code": "deg"}
+            components.append(comp)
+    components += [
+        {"code": {"coding": [_local("cycles-accepted", "Motor-task cycles accepted")]}, "valueInteger": r["accepted"]},
+        {"code": {"coding": [_local("cycles-detected", "Motor-task cycles detected")]}, "valueInteger": r["detected"]},
+        {"code": {"coding": [_local("orientation-filter", "Orientation filter")]}, "valueString": str(r["filter"])},
+        {"code": {"coding": [_local("angle-convention", "Knee angle convention")]},
+         "valueString": str(r["angle_method"])},
+    ]
+    convention = _CONVENTION_TEXT.get(r["angle_method"], str(r["angle_method"]))
+    return {
+        "resourceType": "Observation",
+        "id": name,
+        "status": "final",
+        "category": [{"coding": [{"system": OBSERVATION_CATEGORY, "code": "exam", "display": "Exam"}]}],
+        "code": {"coding": [_local(f"knee-{name}", _ANGLE_TEXT[angle])],
+                 "text": f"{_ANGLE_TEXT[angle]} during {task}, degrees"},
+        "subject": {"reference": "#patient"},
+        "effectiveDateTime": effective,
+        "issued": issued,
+        "performer": performer,
+        "bodySite": _body_site(side),
+        "method": {"coding": [_local("imu-thigh-shank", "Two magneto-inertial measurement units, thigh and shank")],
+                   "text": f"Two magneto-inertial sensors (thigh, shank), orientation filter {r['filter']!r}, "
+                           f"{convention}"},
+        "component": components,
+    }
+
+
+def _patient(patient: Mapping, base_url: str, identifier_system: str | None) -> dict[str, Any]:
+    identifiers = []
+    if patient["external_id"] not in (None, ""):
+        identifiers.append({"use": "usual", "system": identifier_system,
+                            "type": {"coding": [{"system": V2_0203, "code": "MR", "display": "Medical record number"}]},
+                            "value": str(patient["external_id"])})
+    if patient["id"] is not None:
+        identifiers.append({"use": "secondary", "system": f"{base_url}/patients", "value": str(patient["id"])})
+    sex = patient["sex"]
+    gender = None
+    if sex not in (None, ""):
+        gender = _GENDER.get(str(sex).strip().lower())
+        if gender is None:
+            raise FhirExportError(f"patient sex {sex!r} is not one of male, female, other, unknown (or m, f); "
+                                  "fix the patient record")
+    birth = patient["birth_date"]
+    if birth not in (None, ""):
+        birth = _date_time(birth, "patient birth_date")[:10]
+    return {"resourceType": "Patient", "id": "patient", "identifier": identifiers or None,
+            "name": [{"text": str(patient["name"])}] if patient["name"] else None,
+            "gender": gender, "birthDate": birth or None}
+
+
+def _conclusion(r: dict, side: str, task: str, notes: Any) -> str:
+    text = (f"{side.capitalize()} knee, {task}: {r['accepted']} of {r['detected']} detected cycles accepted; "
+            f"orientation filter {r['filter']!r}. ")
+    if r["warnings"]:
+        text += f"Quality warnings ({len(r['warnings'])}): " + "; ".join(
+            f"[{code}] {message}" if code else message for code, message in r["warnings"]) + "."
+    else:
+        text += "Quality warnings: none."
+    if notes:
+        text += f" Session notes: {notes}"
+    return text
+
+
+def _narrative(r: dict, side: str, task: str, effective: str, patient: Mapping) -> str:
+    esc = html.escape
+
+    def cell(angle: str, stat: str) -> str:
+        mean, sd = r["rom"][(angle, stat, "mean")], r["rom"][(angle, stat, "sd")]
+        if mean is None:
+            return "—"
+        return f"{mean:.1f}" if sd is None else f"{mean:.1f} ± {sd:.1f}"
+
+    rows = "".join(f"<tr><td>{esc(_ANGLE_TEXT[a])}</td>" + "".join(f"<td>{cell(a, s)}</td>" for s in ROM_STATS)
+                   + "</tr>" for a in ANGLES)
+    who = esc(str(patient["external_id"] or patient["id"]))
+    warnings = "".join(f"<li>{esc(m)}</li>" for _, m in r["warnings"]) or "<li>none</li>"
+    return ('<div xmlns="http://www.w3.org/1999/xhtml">'
+            f"<p>Knee kinematics, {esc(task)}, {esc(side)} knee; patient {who}; {esc(effective)}. "
+            f"{r['accepted']} of {r['detected']} cycles accepted, orientation filter {esc(str(r['filter']))}.</p>"
+            "<table><tr><th>angle (degrees, mean ± SD over cycles)</th><th>maximum</th><th>minimum</th>"
+            f"<th>range</th></tr>{rows}</table><p>Quality warnings:</p><ul>{warnings}</ul></div>")
+
+
+def _drop_none(x: Any) -> Any:
+    """``x`` without None values and empty lists (FHIR forbids ``null`` and empty arrays)."""
+    if isinstance(x, dict):
+        return {k: _drop_none(v) for k, v in x.items() if v is not None and v != []}
+    if isinstance(x, list):
+        return [_drop_none(v) for v in x]
+    return x
+
+
+def validate(doc: dict) -> None:
+    """Check that ``doc`` is a valid FHIR R4 ``DiagnosticReport`` with both model packages (module docstring).
+
+    Raises :class:`FhirExportError` quoting the packages' complaints (for :func:`diagnostic_report`'s
+    output that is a ChakaMo bug: report it with the session).
+    """
+    try:
+        R4DiagnosticReport(doc, strict=True)
+    except FHIRValidationError as exc:
+        raise FhirExportError(f"DiagnosticReport {doc.get('id')!r} is not valid FHIR R4 (4.0.1, fhirclient): "
+                              f"{exc}") from None
+    try:
+        R4BDiagnosticReport.model_validate(doc)
+    except pydantic.ValidationError as exc:
+        raise FhirExportError(f"DiagnosticReport {doc.get('id')!r} fails FHIR validation (fhir.resources R4B): "
+                              f"{exc}") from None
