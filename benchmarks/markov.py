@@ -233,7 +233,7 @@ def _print_tables(mj: dict, sv: dict, sp: dict) -> None:
     mean_roll = {n: np.mean([sv["rmse_deg"][n][s]["roll"] for s in SEGS]) for n in ("SMe", "SMeA")}
     print(f"  mean roll RMSE: SMe {mean_roll['SMe']:.3f}, SMeA {mean_roll['SMeA']:.3f} "
           f"({100 * (1 - mean_roll['SMeA'] / mean_roll['SMe']):+.1f} % lower with SMeA; seed: 23.6 %)")
-    print("  where ours differ: pitch is lower because our simulated accelerometers carry no soft-tissue artefact;\n"
+    print("  where ours differ: pitch is lower because our simulated sensors sit rigidly on the segments (no strap or soft-tissue motion, unlike the seed's real trials);\n"
           "  yaw is about the long axis, where gravity gives no angle: the 'accelerometer yaw' is undefined\n"
           "  (atan2 of two near-zero components), so its RMSE (up to ~120°) compares nothing; the seed's sensor\n"
           "  frames differ there.  Roll, the angle the filters estimate against the reference, is the comparison.")
