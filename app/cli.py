@@ -13,6 +13,8 @@ Subcommands
     Foot-mounted pedestrian dead reckoning: trajectory, strides and metrics.
 ``chakamo markov FILE --out DIR [--method auto|mjls|kf|sme|smea] [--zeta G] [--joint-axis x|y|z] [--still S]``
     Markovian Kalman filters on a research CSV of several segment IMUs (format in ``app/markov.py``).
+``chakamo serve`` / ``clinics create`` / ``users create`` / ``tokens create``
+    The web application and its set-up (``app/admin_cli.py``).
 
 Errors a user can cause end with a one-line message on stderr and exit status 2; nothing is written.
 """
@@ -86,6 +88,10 @@ def _build_parser() -> argparse.ArgumentParser:
     markov.add_argument("--joint-axis", choices=("x", "y", "z"), default="x", help="sensor axis of the joints")
     markov.add_argument("--still", type=float, default=1.0, metavar="S",
                         help="seconds of still reference pose at the start (default: 1)")
+
+    from app.admin_cli import add_parsers
+
+    add_parsers(sub)
     return parser
 
 
@@ -120,6 +126,10 @@ def main(argv: list[str] | None = None) -> int:
 
             run_markov(args.file, args.out, method=args.method, zeta_g=args.zeta, joint_axis=args.joint_axis,
                        still_s=args.still)
+        elif args.command in ("serve", "clinics", "users", "tokens"):
+            from app.admin_cli import run
+
+            return run(args)
     except (ValueError, OSError) as exc:
         print(f"chakamo {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -1,0 +1,62 @@
+"""``/auth``: browser login (session cookie + CSRF token), logout, and who am I.
+
+The cookie ``chakamo_session`` is HttpOnly, SameSite=Strict, ``Secure`` outside development, and lives
+``CHAKAMO_SESSION_HOURS``; only its sha256 is stored.  A wrong email and a wrong password get the same 401
+after the same scrypt work, so login does not reveal which emails exist; repeated failures for one email are
+throttled (:class:`app.security.LoginThrottle`: 429).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+
+from fastapi import APIRouter, HTTPException, Request, Response
+from sqlalchemy import delete, select
+
+from app.api.deps import COOKIE, DbDep, PrincipalDep, SettingsDep
+from app.api.schemas import LoginIn, MeOut, user_out
+from app.db.models import BrowserSession, User, utcnow
+from app.security import csrf_token, hash_password, new_session_id, sha256_hex, verify_password
+
+router = APIRouter(prefix="/auth", tags=["auth"])
+_DUMMY_HASH = hash_password("not-a-real-password-only-for-equal-timing")
+
+
+@router.post("/login", response_model=MeOut)
+def login(body: LoginIn, request: Request, response: Response, db: DbDep, settings: SettingsDep):
+    """Check email and password; set the session cookie; return the user and the CSRF token."""
+    email = body.email.lower()
+    throttle = request.app.state.login_throttle
+    if throttle.blocked(email):
+        raise HTTPException(429, "Too many failed logins for this email; wait 15 minutes and try again, or ask "
+                                 "your clinic admin.")
+    user = db.scalar(select(User).where(User.email == email))
+    ok = verify_password(body.password, user.password_hash if user else _DUMMY_HASH)
+    if user is None or not ok or not user.active:
+        throttle.fail(email)
+        raise HTTPException(401, "Wrong email or password; try again or ask your clinic admin to reset it.")
+    throttle.reset(email)
+    sid = new_session_id()
+    now = utcnow()
+    db.execute(delete(BrowserSession).where(BrowserSession.expires_at < now))  # housekeeping
+    db.add(BrowserSession(user_id=user.id, session_sha256=sha256_hex(sid), created_at=now,
+                          expires_at=now + dt.timedelta(hours=settings.session_hours)))
+    response.set_cookie(COOKIE, sid, max_age=int(settings.session_hours * 3600), httponly=True, samesite="strict",
+                        secure=not settings.development, path="/")
+    return {"user": user_out(user), "csrf_token": csrf_token(settings.key, sid)}
+
+
+@router.post("/logout", status_code=204)
+def logout(principal: PrincipalDep, db: DbDep, settings: SettingsDep) -> Response:
+    """Close the browser session (a bearer caller has none: nothing to do) and clear the cookie."""
+    if principal.session_id:
+        db.execute(delete(BrowserSession).where(BrowserSession.session_sha256 == sha256_hex(principal.session_id)))
+    response = Response(status_code=204)
+    response.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict", secure=not settings.development)
+    return response
+
+
+@router.get("/me", response_model=MeOut)
+def me(principal: PrincipalDep):
+    """The logged-in user and CSRF token; for a bearer token, ``user`` is null and so is ``csrf_token``."""
+    return {"user": user_out(principal.user) if principal.user else None, "csrf_token": principal.csrf_token}

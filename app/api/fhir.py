@@ -1,0 +1,46 @@
+"""``GET /fhir/DiagnosticReport/{session_id}``: the session's latest analysis as a FHIR R4 DiagnosticReport.
+
+The document is built by :func:`app.fhir.diagnostic_report` (another module of the project) from the
+session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
+``/api/v1`` address (the namespace of the session and patient identifiers).  ``?analysis_id=`` picks an
+earlier analysis.
+"""
+
+from __future__ import annotations
+
+import json
+
+from fastapi import APIRouter, HTTPException, Request
+from fastapi.responses import Response
+
+from app.api.deps import DbDep, Reader, StoreDep, scoped_session
+from app.api.results import artefact_row, pick_analysis
+from app.api.schemas import patient_out
+
+router = APIRouter(prefix="/fhir", tags=["fhir"])
+
+
+@router.get("/DiagnosticReport/{session_id}", response_class=Response,
+            responses={200: {"content": {"application/fhir+json": {}}}})
+def diagnostic_report_route(session_id: int, request: Request, principal: Reader, db: DbDep, store: StoreDep,
+                            analysis_id: int | None = None):
+    try:
+        from app.fhir import diagnostic_report
+    except ImportError:
+        raise HTTPException(501, "The FHIR export is not installed in this build; update ChakaMo.") from None
+    session = scoped_session(db, principal, session_id)
+    analysis = pick_analysis(db, session, analysis_id)
+    results = json.loads(store.read(artefact_row(db, analysis, "results.json").sha256))
+    pdf = store.read(artefact_row(db, analysis, "report.pdf", analysis.lang).sha256)
+    sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
+            "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
+            "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,
+            "analysis_created_at": analysis.created_at.isoformat(), "filter": analysis.filter}
+    patient = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in patient_out(session.patient).items()}
+    base_url = str(request.base_url).rstrip("/") + "/api/v1"
+    try:
+        doc = diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
+                                base_url=base_url)
+    except ValueError as exc:  # the stored analysis cannot be exported: a server-side problem, said plainly
+        raise HTTPException(500, f"The FHIR export of session {session_id} failed: {exc}") from None
+    return Response(json.dumps(doc, ensure_ascii=False), media_type="application/fhir+json")

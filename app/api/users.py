@@ -1,0 +1,30 @@
+"""``/users``: the clinic's accounts (admin only).  Emails are the login names, unique across clinics."""
+
+from fastapi import APIRouter, HTTPException
+from sqlalchemy import select
+
+from app.api.deps import Admin, DbDep
+from app.api.schemas import UserIn, UserOut, user_out
+from app.db.models import User
+from app.security import hash_password
+
+router = APIRouter(prefix="/users", tags=["users"])
+
+
+@router.get("", response_model=list[UserOut])
+def list_users(principal: Admin, db: DbDep):
+    rows = db.scalars(select(User).where(User.clinic_id == principal.clinic_id).order_by(User.id))
+    return [user_out(u) for u in rows]
+
+
+@router.post("", response_model=UserOut, status_code=201)
+def create_user(body: UserIn, principal: Admin, db: DbDep):
+    email = body.email.lower()
+    if db.scalar(select(User.id).where(User.email == email)) is not None:
+        raise HTTPException(409, f"The email {email} already has an account; use another email.")
+    user = User(clinic_id=principal.clinic_id, email=email, name=body.name, role=body.role,
+                password_hash=hash_password(body.password))
+    db.add(user)
+    db.flush()
+    db.refresh(user)
+    return user_out(user)

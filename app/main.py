@@ -1,0 +1,147 @@
+"""The web application: :func:`create_app` assembles API v1, the UI's static files and the job runner.
+
+``create_app(settings)`` builds a fresh app (nothing global: tests make one per temporary data dir).
+Start-up (the lifespan): create the data folders, apply the Alembic migrations, start the job runner (which
+resumes the jobs a previous run left queued or running), and when the database has no user yet print how
+to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
+its current jobs.
+
+Routes besides ``/api/v1`` (see ``app.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
+(the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
+``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI from the
+``swagger-ui-bundle`` package: no CDN, clinics are often offline) and ``/healthz``.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
+from sqlalchemy import func, select
+
+import app as _app_pkg
+from app.api import api_router
+from app.db import Database
+from app.db.models import User
+from app.jobs import ThreadJobRunner
+from app.security import LoginThrottle
+from app.settings import Settings, get_settings
+from app.storage import BlobStore, CorruptBlob
+from estimators import __version__
+
+log = logging.getLogger("chakamo")
+
+STATIC_DIR = Path(_app_pkg.__file__).resolve().parents[1] / "static"
+FIRST_ADMIN_HINT = (
+    "ChakaMo has no user yet. Create a clinic and its first admin:\n"
+    "  chakamo clinics create \"My clinic\"\n"
+    "  chakamo users create --clinic \"My clinic\" --email you@example.org --role admin --name \"Your Name\"\n"
+    "(the second command asks for the password; use the same CHAKAMO_DATA_DIR / DATABASE_URL as the server)")
+
+
+def _plotly_js() -> Path:
+    import plotly
+
+    return Path(plotly.__file__).resolve().parent / "package_data" / "plotly.min.js"
+
+
+def _viser_client_dir() -> Path:
+    from reports.scene import static_client_path
+
+    return static_client_path().parent
+
+
+def _swagger_dir() -> Path:
+    from swagger_ui_bundle import swagger_ui_path
+
+    return Path(str(swagger_ui_path))
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """A new ChakaMo application for ``settings`` (default: :func:`app.settings.get_settings`)."""
+    settings = settings or get_settings()
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    settings.tmp_dir.mkdir(parents=True, exist_ok=True)
+    db = Database(settings.db_url)
+    store = BlobStore(settings.blob_dir)
+    runner = ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
+                             render_processes=settings.render_processes)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI):
+        db.migrate()
+        with db.session() as s:
+            if not s.scalar(select(func.count()).select_from(User)):
+                print(FIRST_ADMIN_HINT, file=sys.stderr, flush=True)
+        runner.start()
+        try:
+            yield
+        finally:
+            runner.shutdown(wait=True)
+            db.dispose()
+
+    app = FastAPI(title="ChakaMo", version=__version__, lifespan=lifespan, docs_url=None, redoc_url=None,
+                  description="Clinical 3D knee kinematics from two IMUs: patients, sessions, uploads, processing, "
+                              "reports. Authenticate with `Authorization: Bearer <token>` (`chakamo tokens "
+                              "create`) or the browser login.")
+    app.state.settings, app.state.db, app.state.store, app.state.runner = settings, db, store, runner
+    app.state.login_throttle = LoginThrottle()
+    app.include_router(api_router())
+
+    @app.exception_handler(RequestValidationError)
+    async def validation_error(request: Request, exc: RequestValidationError):
+        """422 with one sentence (the contract's error shape), the pydantic details kept under ``errors``."""
+        parts = []
+        for err in exc.errors()[:3]:
+            where = ".".join(str(x) for x in err.get("loc", ()) if x not in ("body", "query", "path"))
+            parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
+        detail = "; ".join(parts) + ". Correct the request and send it again."
+        return JSONResponse({"detail": detail, "errors": jsonable_encoder(exc.errors())}, status_code=422)
+
+    @app.exception_handler(CorruptBlob)
+    async def corrupt_blob(request: Request, exc: CorruptBlob):
+        log.error("corrupt blob: %s", exc)
+        return JSONResponse({"detail": f"A stored file is damaged or missing ({exc})."}, status_code=500)
+
+    @app.get("/healthz", include_in_schema=False)
+    def healthz():
+        return {"status": "ok"}
+
+    @app.get("/", include_in_schema=False)
+    def index():
+        page = STATIC_DIR / "index.html"
+        if page.is_file():
+            return FileResponse(page, media_type="text/html", headers={"Cache-Control": "no-cache"})
+        return HTMLResponse("<!doctype html><title>ChakaMo</title><p>The ChakaMo user interface is not installed "
+                            "(static/index.html is missing). The API is at <a href='/docs'>/docs</a>.</p>",
+                            status_code=503)
+
+    @app.get("/vendor/plotly.min.js", include_in_schema=False)
+    def plotly_js():
+        return FileResponse(_plotly_js(), media_type="text/javascript",
+                            headers={"Cache-Control": "public, max-age=86400"})
+
+    swagger = _swagger_dir()
+    app.mount("/docs-assets", StaticFiles(directory=swagger), name="docs-assets")
+
+    @app.get("/docs", include_in_schema=False)
+    def docs():
+        return get_swagger_ui_html(openapi_url=app.openapi_url, title="ChakaMo API",
+                                   swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+                                   swagger_css_url="/docs-assets/swagger-ui.css",
+                                   swagger_favicon_url="/docs-assets/favicon-32x32.png")
+
+    app.mount("/static", StaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+    app.mount("/viser", StaticFiles(directory=_viser_client_dir(), html=True), name="viser")
+    return app
+
+
+__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "create_app"]

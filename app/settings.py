@@ -1,0 +1,128 @@
+"""Settings of the web application (environment variables, read once through :func:`get_settings`).
+
+| variable | default | what |
+| --- | --- | --- |
+| ``CHAKAMO_ENV`` | ``production`` | ``development`` allows the insecure conveniences below; ``production`` refuses them |
+| ``CHAKAMO_DATA_DIR`` | the per-user data dir (platformdirs) | database, blobs (uploads and artefacts), temporary files |
+| ``DATABASE_URL`` | ``sqlite:///<data_dir>/chakamo.db`` | any SQLAlchemy URL (PostgreSQL needs its driver installed) |
+| ``CHAKAMO_SECRET_KEY`` | none | keys the CSRF tokens; required (≥ 32 characters) outside development |
+| ``CHAKAMO_JOB_BACKEND`` | ``threads`` | the embedded worker pool; ``celery`` is not available yet (refused) |
+| ``CHAKAMO_WORKERS`` | 2 | processing threads of the embedded pool |
+| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread (0: none) |
+| ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
+| ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
+| ``CHAKAMO_SESSION_HOURS`` | 12 | browser login lifetime |
+
+Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
+missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
+key and drops the cookie's ``Secure`` flag so plain-http localhost works).  Settings are never created at
+import time: :func:`get_settings` builds them on first use and caches them; tests pass their own
+:class:`Settings` to :func:`app.main.create_app`.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, field_validator, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+#: the development key: public, so refused outside development
+DEV_SECRET_KEY = "chakamo-development-key-not-secret-do-not-use-in-production"
+#: file types an upload may carry (ingestion reads MetaBase/generic CSV, thesis Excel and session.json)
+ALLOWED_SUFFIXES = (".csv", ".xlsx", ".json")
+
+
+class SettingsError(ValueError):
+    """The environment asks for something unsafe or unavailable; the message says what to set."""
+
+
+def _default_data_dir() -> Path:
+    from platformdirs import user_data_dir
+
+    return Path(user_data_dir("chakamo", appauthor=False))
+
+
+class Settings(BaseSettings):
+    """Validated settings (see the module docstring for the variables and defaults)."""
+
+    model_config = SettingsConfigDict(extra="ignore", populate_by_name=True)
+
+    env: Literal["development", "production"] = Field("production", validation_alias="CHAKAMO_ENV")
+    data_dir: Path = Field(default_factory=_default_data_dir, validation_alias="CHAKAMO_DATA_DIR")
+    database_url: str | None = Field(None, validation_alias="DATABASE_URL")
+    secret_key: str | None = Field(None, validation_alias="CHAKAMO_SECRET_KEY")
+    job_backend: str = Field("threads", validation_alias="CHAKAMO_JOB_BACKEND")
+    workers: int = Field(2, ge=1, le=64, validation_alias="CHAKAMO_WORKERS")
+    render_processes: int = Field(1, ge=0, le=16, validation_alias="CHAKAMO_RENDER_PROCESSES")
+    max_file_mb: float = Field(50.0, gt=0, validation_alias="CHAKAMO_MAX_FILE_MB")
+    max_files: int = Field(40, ge=1, validation_alias="CHAKAMO_MAX_FILES")
+    session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
+    allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
+
+    @field_validator("env", mode="before")
+    @classmethod
+    def _env_lower(cls, value: object) -> object:
+        return value.strip().lower() if isinstance(value, str) else value
+
+    @model_validator(mode="after")
+    def _refuse_insecure(self) -> "Settings":
+        if self.job_backend != "threads":
+            raise SettingsError(
+                f"CHAKAMO_JOB_BACKEND={self.job_backend!r} is not available in this version; use 'threads' (the "
+                "embedded worker pool) — the Celery backend comes with the scaled-out deployment.")
+        if self.env == "production":
+            if not self.secret_key:
+                raise SettingsError(
+                    "CHAKAMO_SECRET_KEY is not set; set it to a long random string (e.g. the output of "
+                    "`python -c \"import secrets; print(secrets.token_urlsafe(48))\"`), or set "
+                    "CHAKAMO_ENV=development for a local trial.")
+            if len(self.secret_key) < 32 or self.secret_key == DEV_SECRET_KEY:
+                raise SettingsError("CHAKAMO_SECRET_KEY is too weak (the development key, or shorter than 32 "
+                                    "characters); set a long random string.")
+        return self
+
+    @property
+    def development(self) -> bool:
+        return self.env == "development"
+
+    @property
+    def key(self) -> bytes:
+        """The secret key as bytes (the development key in development when none is set)."""
+        return (self.secret_key or DEV_SECRET_KEY).encode()
+
+    @property
+    def db_url(self) -> str:
+        return self.database_url or f"sqlite:///{(self.data_dir / 'chakamo.db').as_posix()}"
+
+    @property
+    def blob_dir(self) -> Path:
+        return self.data_dir / "blobs"
+
+    @property
+    def tmp_dir(self) -> Path:
+        return self.data_dir / "tmp"
+
+    @property
+    def max_file_bytes(self) -> int:
+        return int(self.max_file_mb * 1024 * 1024)
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process' settings from the environment, built once (raises :class:`SettingsError` if unsafe)."""
+    try:
+        return Settings()
+    except SettingsError:
+        raise
+    except ValueError as exc:  # pydantic's ValidationError wraps our SettingsError: keep its one sentence
+        errors = getattr(exc, "errors", None)
+        if callable(errors):
+            msgs = [str(e.get("ctx", {}).get("error", e.get("msg"))) for e in errors()]
+            raise SettingsError("; ".join(msgs)) from None
+        raise
+
+
+__all__ = ["ALLOWED_SUFFIXES", "DEV_SECRET_KEY", "Settings", "SettingsError", "get_settings"]

@@ -1,0 +1,122 @@
+"""Browser login: cookie flags, CSRF on every cookie-authenticated unsafe request, logout, users (admin)."""
+
+from __future__ import annotations
+
+import pytest
+
+EMAIL, PASSWORD = "admin@clinic.test", "a long enough password"
+
+
+@pytest.fixture
+def admin(settings):
+    from app import admin_cli
+
+    admin_cli.create_clinic(settings, "Clínica Sur")
+    admin_cli.create_user(settings, clinic="Clínica Sur", email=EMAIL, role="admin", password=PASSWORD, name="Ana")
+
+
+def login(client, email=EMAIL, password=PASSWORD):
+    return client.post("/api/v1/auth/login", json={"email": email, "password": password})
+
+
+def test_login_sets_a_strict_httponly_cookie_and_returns_csrf(client, admin):
+    r = login(client)
+    assert r.status_code == 200
+    body = r.json()
+    assert body["user"]["email"] == EMAIL and body["user"]["role"] == "admin"
+    assert body["user"]["clinic"]["name"] == "Clínica Sur" and body["csrf_token"]
+    cookie = r.headers["set-cookie"]
+    assert cookie.startswith("chakamo_session=") and "HttpOnly" in cookie and "SameSite=strict" in cookie
+    assert "Secure" not in cookie  # development: plain-http localhost
+    me = client.get("/api/v1/auth/me").json()
+    assert me["user"]["email"] == EMAIL and me["csrf_token"] == body["csrf_token"]
+
+
+def test_secure_cookie_outside_development(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from app import admin_cli
+    from app.main import create_app
+    from app.settings import Settings
+
+    settings = Settings(CHAKAMO_ENV="production", CHAKAMO_DATA_DIR=tmp_path, CHAKAMO_SECRET_KEY="k" * 40,
+                        CHAKAMO_WORKERS=1)
+    admin_cli.create_clinic(settings, "P")
+    admin_cli.create_user(settings, clinic="P", email=EMAIL, role="admin", password=PASSWORD)
+    with TestClient(create_app(settings), base_url="https://testserver") as c:
+        r = login(c)
+        assert r.status_code == 200 and "Secure" in r.headers["set-cookie"]
+
+
+def test_wrong_credentials(client, admin):
+    assert login(client, password="wrong password!").status_code == 401
+    r = login(client, email="nobody@clinic.test")
+    assert r.status_code == 401 and "Wrong email or password" in r.json()["detail"]
+
+
+def test_repeated_failures_are_throttled(client, admin):
+    for _ in range(10):
+        assert login(client, password="wrong password!").status_code == 401
+    r = login(client)  # even the right password, until the window passes
+    assert r.status_code == 429 and "wait 15 minutes" in r.json()["detail"]
+    assert login(client, email="other@clinic.test").status_code == 401  # other emails unaffected
+
+
+def test_csrf_required_for_cookie_writes(client, admin):
+    csrf = login(client).json()["csrf_token"]
+    body = {"external_id": "P-9", "side": "left"}
+    r = client.post("/api/v1/patients", json=body)
+    assert r.status_code == 403 and "X-CSRF-Token" in r.json()["detail"]
+    r = client.post("/api/v1/patients", json=body, headers={"X-CSRF-Token": "0" * 64})
+    assert r.status_code == 403
+    r = client.post("/api/v1/patients", json=body, headers={"X-CSRF-Token": csrf})
+    assert r.status_code == 201
+    assert client.get("/api/v1/patients").status_code == 200  # reads need no header
+    # a 409 for the same external id, with a sentence
+    r = client.post("/api/v1/patients", json=body, headers={"X-CSRF-Token": csrf})
+    assert r.status_code == 409 and "already exists" in r.json()["detail"]
+    # uploads too
+    r = client.post("/api/v1/sessions/1/recordings", files=[("files", ("a.csv", b"x", "text/csv"))])
+    assert r.status_code == 403
+
+
+def test_logout_needs_csrf_and_closes_the_session(client, admin):
+    csrf = login(client).json()["csrf_token"]
+    assert client.post("/api/v1/auth/logout").status_code == 403
+    r = client.post("/api/v1/auth/logout", headers={"X-CSRF-Token": csrf})
+    assert r.status_code == 204 and 'chakamo_session=""' in r.headers["set-cookie"]
+    assert client.get("/api/v1/auth/me").status_code == 401
+
+
+def test_stolen_cookie_after_logout_is_dead(client, admin):
+    csrf = login(client).json()["csrf_token"]
+    sid = client.cookies.get("chakamo_session")
+    client.post("/api/v1/auth/logout", headers={"X-CSRF-Token": csrf})
+    client.cookies.set("chakamo_session", sid)
+    assert client.get("/api/v1/auth/me").status_code == 401
+
+
+def test_users_admin_only(client, admin, settings):
+    csrf = login(client).json()["csrf_token"]
+    h = {"X-CSRF-Token": csrf}
+    r = client.post("/api/v1/users", json={"email": "Clin@Clinic.test", "name": "Carlos", "role": "clinician",
+                                           "password": "another long one"}, headers=h)
+    assert r.status_code == 201 and r.json()["email"] == "clin@clinic.test"
+    r = client.post("/api/v1/users", json={"email": "clin@clinic.test", "name": "X", "role": "clinician",
+                                           "password": "another long one"}, headers=h)
+    assert r.status_code == 409
+    r = client.post("/api/v1/users", json={"email": "x@clinic.test", "name": "X", "role": "clinician",
+                                           "password": "short"}, headers=h)
+    assert r.status_code == 422
+    assert [u["email"] for u in client.get("/api/v1/users").json()] == [EMAIL, "clin@clinic.test"]
+    # the clinician logs in and is refused the users list
+    client.cookies.clear()
+    login(client, "clin@clinic.test", "another long one")
+    assert client.get("/api/v1/users").status_code == 403
+
+
+def test_bearer_me_has_no_user_and_no_csrf(client, settings):
+    from web_helpers import clinic_token
+
+    h = clinic_token(settings, "Z")
+    assert client.get("/api/v1/auth/me", headers=h).json() == {"user": None, "csrf_token": None}

@@ -1,0 +1,87 @@
+"""Clinic isolation: clinic B cannot read, list, process, change or download anything of clinic A by any id
+(always 404, the answer for an unknown id), and roles limit what a clinic's own callers may do."""
+
+from __future__ import annotations
+
+import pytest
+
+from web_helpers import clinic_token, demo_files, make_settings, new_session, wait_job
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory, demo_dir):
+    """Clinic A with a processed session; clinic B with a token (and a patient of its own)."""
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+
+    settings = make_settings(tmp_path_factory.mktemp("authz") / "data")
+    a = clinic_token(settings, "Clinic A")
+    b = clinic_token(settings, "Clinic B")
+    with TestClient(create_app(settings)) as client:
+        pid, sid = new_session(client, a, "A-1")
+        rec = client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=a).json()
+        job = wait_job(client, client.post(f"/api/v1/sessions/{sid}/process", json={}, headers=a).json()["job_id"], a)
+        assert job["status"] == "done", job
+        new_session(client, b, "B-1")
+        yield {"client": client, "a": a, "b": b, "pid": pid, "sid": sid, "jid": job["id"],
+               "aid": job["analysis_id"], "rid": rec["recordings"][0]["id"], "settings": settings}
+
+
+READS = ["/api/v1/patients/{pid}", "/api/v1/patients/{pid}/sessions", "/api/v1/patients/{pid}/trend",
+         "/api/v1/sessions/{sid}", "/api/v1/jobs/{jid}", "/api/v1/sessions/{sid}/results",
+         "/api/v1/sessions/{sid}/results?analysis_id={aid}", "/api/v1/sessions/{sid}/report.pdf?lang=pt",
+         "/api/v1/sessions/{sid}/angles.xlsx", "/api/v1/sessions/{sid}/quaternions.xlsx",
+         "/api/v1/sessions/{sid}/report.html", "/api/v1/sessions/{sid}/scene.viser",
+         "/api/v1/fhir/DiagnosticReport/{sid}"]
+
+
+@pytest.mark.parametrize("path", READS)
+def test_other_clinic_cannot_read(world, path):
+    c, url = world["client"], path.format(**world)
+    assert c.get(url, headers=world["a"]).status_code in (200, 501)  # 501: FHIR builder not installed yet
+    r = c.get(url, headers=world["b"])
+    assert r.status_code == 404, (url, r.status_code, r.text[:200])
+    assert "check the id" in r.json()["detail"]
+
+
+def test_other_clinic_cannot_list(world):
+    c = world["client"]
+    mine = c.get("/api/v1/patients", headers=world["b"]).json()
+    assert [p["external_id"] for p in mine] == ["B-1"]
+    assert c.get("/api/v1/patients?q=A-1", headers=world["b"]).json() == []
+    assert c.get("/api/v1/clinics/current", headers=world["b"]).json()["name"] == "Clinic B"
+
+
+def test_other_clinic_cannot_write(world):
+    c, b = world["client"], world["b"]
+    sid, pid, rid = world["sid"], world["pid"], world["rid"]
+    assert c.post(f"/api/v1/sessions/{sid}/process", json={}, headers=b).status_code == 404
+    assert c.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=b).status_code == 404
+    r = c.post(f"/api/v1/sessions/{sid}/recordings", files=[("files", ("x.csv", b"a,b\n", "text/csv"))], headers=b)
+    assert r.status_code == 404
+    assert c.delete(f"/api/v1/sessions/{sid}/recordings/{rid}", headers=b).status_code == 404
+    # nothing changed for A
+    s = c.get(f"/api/v1/sessions/{sid}", headers=world["a"]).json()
+    assert s["n_recordings"] == 24 and len(s["jobs"]) == 1
+    # the same external id is free in another clinic (ids are per clinic)
+    assert c.post("/api/v1/patients", json={"external_id": "A-1", "side": "left"}, headers=b).status_code == 201
+
+
+def test_roles(world):
+    c, settings = world["client"], world["settings"]
+    ro = clinic_token(settings, "Clinic A", role="read_only")
+    assert c.get(f"/api/v1/sessions/{world['sid']}", headers=ro).status_code == 200
+    r = c.post("/api/v1/patients", json={"external_id": "RO", "side": "left"}, headers=ro)
+    assert r.status_code == 403 and "clinician" in r.json()["detail"]
+    assert c.post(f"/api/v1/sessions/{world['sid']}/process", json={}, headers=ro).status_code == 403
+    assert c.get("/api/v1/users", headers=world["a"]).status_code == 403  # clinician token: not admin
+    admin = clinic_token(settings, "Clinic A", role="admin")
+    assert c.get("/api/v1/users", headers=admin).json() == []
+
+
+def test_no_or_bad_credentials(world):
+    c = world["client"]
+    assert c.get("/api/v1/patients").status_code == 401
+    assert c.get("/api/v1/patients", headers={"Authorization": "Bearer chk_nope"}).status_code == 401
+    assert c.get("/api/v1/patients", headers={"Authorization": "Basic abc"}).status_code == 401
