@@ -1,0 +1,277 @@
+// Patients list (search, new patient) and one patient's page (details, sessions, new session, ROM trend).
+
+import { api } from "../api.js";
+import { h, clear, field, alertBox, errorText, date, dateTime, num, label } from "../dom.js";
+import { t } from "../i18n.js";
+import { navigate, canEdit } from "../app.js";
+import { ANGLES, drawTrend, purge } from "../charts.js";
+
+/** The name shown for a patient: the name when given, else the external id. */
+export function patientTitle(p) {
+  return p.name ? `${p.name} (${p.external_id})` : p.external_id;
+}
+
+/** A status badge of a session. */
+export function statusBadge(status) {
+  return h("span", { class: `badge status-${status}` }, label("status", status));
+}
+
+function numberOrNull(input) {
+  const v = input.value.trim().replace(",", ".");
+  return v === "" ? null : Number(v);
+}
+
+function textOrNull(input) {
+  const v = input.value.trim();
+  return v === "" ? null : v;
+}
+
+// ------------------------------------------------------------------------------------------- list
+export function patientsView() {
+  const section = h("section", { class: "view" });
+  const search = h("input", { type: "search", name: "q", autocomplete: "off", placeholder: t("patients.search_placeholder") });
+  const [searchField] = field(t("patients.search"), search);
+  const listArea = h("div", { class: "list-area", "aria-live": "polite" });
+  const formArea = h("div");
+  const newButton = h("button", { type: "button", "aria-expanded": "false" }, t("patients.new"));
+  newButton.addEventListener("click", () => {
+    const open = newButton.getAttribute("aria-expanded") === "true";
+    newButton.setAttribute("aria-expanded", String(!open));
+    clear(formArea);
+    if (!open) formArea.append(newPatientForm(() => { newButton.setAttribute("aria-expanded", "false"); clear(formArea); }));
+  });
+  section.append(
+    h("div", { class: "title-row" }, h("h1", {}, t("patients.title")), canEdit() ? newButton : null),
+    formArea,
+    h("div", { class: "card" }, h("div", { class: "toolbar" }, searchField), listArea),
+  );
+
+  let seq = 0;
+  async function refresh() {
+    const mine = ++seq;
+    try {
+      const patients = await api("GET", "/patients", { query: { q: search.value.trim() } });
+      if (mine !== seq) return;   // a newer search answered meanwhile
+      clear(listArea).append(patientsTable(patients, search.value.trim()));
+    } catch (err) {
+      clear(listArea).append(alertBox(errorText(err)));
+    }
+  }
+  let timer = null;
+  search.addEventListener("input", () => {
+    clearTimeout(timer);
+    timer = setTimeout(refresh, 250);
+  });
+  refresh();
+  return section;
+}
+
+function patientsTable(patients, q) {
+  if (!patients.length) {
+    return h("p", { class: "empty" }, q ? t("patients.none_found", { q }) : t("patients.none"));
+  }
+  const rows = patients.map((p) => h("tr", {},
+    h("td", {}, h("a", { href: `#/patients/${p.id}` }, p.external_id)),
+    h("td", {}, p.name || "—"),
+    h("td", {}, label("side", p.side)),
+    h("td", {}, date(p.birth_date)),
+    h("td", {}, dateTime(p.created_at))));
+  return h("table", { class: "data", id: "patients-table" },
+    h("caption", { class: "visually-hidden" }, t("patients.title")),
+    h("thead", {}, h("tr", {}, [t("patient.external_id"), t("patient.name"), t("patient.side"),
+      t("patient.birth_date"), t("patient.created_at")].map((c) => h("th", { scope: "col" }, c)))),
+    h("tbody", {}, rows));
+}
+
+function newPatientForm(onCancel) {
+  const f = {
+    external_id: h("input", { name: "external_id", required: true, maxlength: 64, autocomplete: "off" }),
+    side: h("select", { name: "side", required: true },
+      h("option", { value: "right" }, label("side", "right")), h("option", { value: "left" }, label("side", "left"))),
+    name: h("input", { name: "name", maxlength: 200, autocomplete: "off" }),
+    birth_date: h("input", { name: "birth_date", type: "date" }),
+    height_cm: h("input", { name: "height_cm", type: "number", min: 30, max: 250, step: "0.1", inputmode: "decimal" }),
+    mass_kg: h("input", { name: "mass_kg", type: "number", min: 2, max: 400, step: "0.1", inputmode: "decimal" }),
+    notes: h("textarea", { name: "notes", rows: 2 }),
+  };
+  const message = h("div", { class: "form-message", "aria-live": "polite" });
+  const submit = h("button", { type: "submit" }, t("patients.create"));
+  const cancel = h("button", { type: "button", class: "secondary", onclick: onCancel }, t("common.cancel"));
+  const form = h("form", { class: "card form-grid", "aria-label": t("patients.new") },
+    h("h2", {}, t("patients.new")),
+    field(t("patient.external_id"), f.external_id, t("patient.external_id_hint"))[0],
+    field(t("patient.side"), f.side, t("patient.side_hint"))[0],
+    field(t("patient.name_optional"), f.name)[0],
+    field(t("patient.birth_date"), f.birth_date)[0],
+    field(t("patient.height_cm"), f.height_cm)[0],
+    field(t("patient.mass_kg"), f.mass_kg)[0],
+    h("div", { class: "wide" }, field(t("patient.notes"), f.notes)[0]),
+    h("div", { class: "wide" }, message),
+    h("div", { class: "actions wide" }, submit, cancel));
+  form.addEventListener("submit", async (e) => {
+    e.preventDefault();
+    clear(message);
+    const body = {
+      external_id: f.external_id.value.trim(), side: f.side.value, name: textOrNull(f.name),
+      birth_date: f.birth_date.value || null, height_cm: numberOrNull(f.height_cm), mass_kg: numberOrNull(f.mass_kg),
+      notes: textOrNull(f.notes),
+    };
+    if (!body.external_id) {
+      message.append(alertBox(t("patients.external_id_required")));
+      f.external_id.focus();
+      return;
+    }
+    submit.disabled = true;
+    try {
+      const patient = await api("POST", "/patients", { json: body });
+      navigate(`#/patients/${patient.id}`);
+    } catch (err) {
+      message.append(alertBox(errorText(err)));
+    } finally {
+      submit.disabled = false;
+    }
+  });
+  queueMicrotask(() => f.external_id.focus());
+  return form;
+}
+
+// ------------------------------------------------------------------------------------------ patient
+export function patientView(id) {
+  const section = h("section", { class: "view" }, h("p", { class: "loading" }, t("common.loading")));
+  (async () => {
+    let patient, sessions;
+    try {
+      [patient, sessions] = await Promise.all([api("GET", `/patients/${id}`), api("GET", `/patients/${id}/sessions`)]);
+    } catch (err) {
+      clear(section).append(h("h1", {}, t("patient.title")), alertBox(errorText(err)),
+        h("p", {}, h("a", { href: "#/patients" }, t("common.back_to_patients"))));
+      return;
+    }
+    const formArea = h("div");
+    const newSession = h("button", { type: "button", "aria-expanded": "false" }, t("sessions.new"));
+    newSession.addEventListener("click", () => {
+      const open = newSession.getAttribute("aria-expanded") === "true";
+      newSession.setAttribute("aria-expanded", String(!open));
+      clear(formArea);
+      if (!open) formArea.append(newSessionForm(id, () => { newSession.setAttribute("aria-expanded", "false"); clear(formArea); }));
+    });
+    const trendArea = h("div", { class: "card" }, h("h2", {}, t("patient.trend")));
+    clear(section).append(
+      h("nav", { class: "crumbs", "aria-label": t("common.breadcrumbs") }, h("a", { href: "#/patients" }, t("nav.patients"))),
+      h("div", { class: "title-row" }, h("h1", {}, patientTitle(patient)), canEdit() ? newSession : null),
+      formArea,
+      h("div", { class: "columns" },
+        h("div", { class: "card" }, h("h2", {}, t("patient.details")), patientDetails(patient)),
+        h("div", { class: "card grow" }, h("h2", {}, t("sessions.title")), sessionsTable(sessions))),
+      trendArea);
+    loadTrend(id, trendArea, section);
+  })();
+  return section;
+}
+
+function patientDetails(p) {
+  const rows = [
+    [t("patient.external_id"), p.external_id], [t("patient.name"), p.name || "—"], [t("patient.side"), label("side", p.side)],
+    [t("patient.birth_date"), date(p.birth_date)], [t("patient.height_cm"), p.height_cm == null ? "—" : num(p.height_cm, 1)],
+    [t("patient.mass_kg"), p.mass_kg == null ? "—" : num(p.mass_kg, 1)], [t("patient.notes"), p.notes || "—"],
+    [t("patient.created_at"), dateTime(p.created_at)],
+  ];
+  return h("dl", { class: "details" }, rows.map(([k, v]) => [h("dt", {}, k), h("dd", {}, v)]));
+}
+
+function sessionsTable(sessions) {
+  if (!sessions.length) return h("p", { class: "empty" }, t("sessions.none"));
+  const rows = sessions.map((s) => {
+    const done = s.status === "done";
+    return h("tr", {},
+      h("td", { class: "nowrap" }, h("a", { href: done ? `#/sessions/${s.id}` : `#/sessions/${s.id}/wizard` }, date(s.date))),
+      h("td", {}, label("task", s.task)),
+      h("td", { class: "num" }, String(s.n_recordings ?? 0)),
+      h("td", {}, statusBadge(s.status)),
+      h("td", { class: "actions" },
+        h("a", { href: `#/sessions/${s.id}/wizard`, class: "button-link secondary small" }, t("sessions.open_wizard")),
+        done ? h("a", { href: `#/sessions/${s.id}`, class: "button-link small" }, t("sessions.open_results")) : null));
+  });
+  return h("table", { class: "data", id: "sessions-table" },
+    h("thead", {}, h("tr", {}, [t("session.date"), t("session.task"), t("session.recordings"), t("session.status"), ""]
+      .map((c) => h("th", { scope: "col" }, c)))),
+    h("tbody", {}, rows));
+}
+
+function newSessionForm(patientId, onCancel) {
+  const today = new Date();
+  const iso = new Date(today.getTime() - today.getTimezoneOffset() * 60000).toISOString().slice(0, 10);
+  const f = {
+    date: h("input", { type: "date", name: "date", value: iso, required: true }),
+    step: h("select", { name: "step_height_m" },
+      h("option", { value: "0.17" }, t("session.step_low")), h("option", { value: "0.34" }, t("session.step_high"))),
+    professional: h("input", { name: "professional", maxlength: 200, autocomplete: "name" }),
+    notes: h("textarea", { name: "notes", rows: 2 }),
+  };
+  const message = h("div", { class: "form-message", "aria-live": "polite" });
+  const submit = h("button", { type: "submit" }, t("sessions.create"));
+  const form = h("form", { class: "card form-grid", "aria-label": t("sessions.new") },
+    h("h2", {}, t("sessions.new")),
+    field(t("session.date"), f.date)[0],
+    field(t("session.step_height"), f.step, t("session.task_step_up"))[0],
+    field(t("session.professional"), f.professional)[0],
+    h("div", { class: "wide" }, field(t("session.notes"), f.notes)[0]),
+    h("div", { class: "wide" }, message),
+    h("div", { class: "actions wide" }, submit,
+      h("button", { type: "button", class: "secondary", onclick: onCancel }, t("common.cancel"))));
+  form.addEventListener("submit", async (e) => {
+    e.preventDefault();
+    clear(message);
+    submit.disabled = true;
+    try {
+      const session = await api("POST", `/patients/${patientId}/sessions`, { json: {
+        date: f.date.value || null, task: "step_up", step_height_m: Number(f.step.value),
+        professional: textOrNull(f.professional), notes: textOrNull(f.notes) } });
+      navigate(`#/sessions/${session.id}/wizard`);
+    } catch (err) {
+      message.append(alertBox(errorText(err)));
+    } finally {
+      submit.disabled = false;
+    }
+  });
+  return form;
+}
+
+async function loadTrend(patientId, area, section) {
+  let trend;
+  try {
+    trend = await api("GET", `/patients/${patientId}/trend`);
+  } catch (err) {
+    area.append(alertBox(errorText(err)));
+    return;
+  }
+  const points = (trend && trend.points) || [];
+  if (!points.length) {
+    area.append(h("p", { class: "empty" }, t("patient.trend_none")));
+    return;
+  }
+  const chart = h("div", { class: "chart", id: "trend-chart", role: "img", "aria-label": t("patient.trend_alt") });
+  area.append(h("p", { class: "hint" }, t("patient.trend_hint")), chart, trendTable(points));
+  try {
+    await drawTrend(chart, points);
+  } catch (err) {
+    chart.replaceWith(alertBox(errorText(err)));
+  }
+  const observer = new MutationObserver(() => { if (!section.isConnected) { purge(chart); observer.disconnect(); } });
+  observer.observe(document.getElementById("main"), { childList: true });
+}
+
+function trendTable(points) {
+  const rangeOf = (p, a) => (p.rom_deg && p.rom_deg[a] && p.rom_deg[a].range) || null;
+  return h("details", { class: "trend-table" }, h("summary", {}, t("patient.trend_table")),
+    h("table", { class: "data" },
+      h("thead", {}, h("tr", {}, [t("session.date"), t("results.filter"),
+        ...ANGLES.map((a) => `${label("angle", a)} · ${t("results.rom_range")} (°)`)].map((c) => h("th", { scope: "col" }, c)))),
+      h("tbody", {}, points.map((p) => h("tr", {},
+        h("td", {}, h("a", { href: `#/sessions/${p.session_id}?analysis_id=${p.analysis_id}` }, date(p.date))),
+        h("td", {}, label("filter", p.filter)),
+        ANGLES.map((a) => {
+          const r = rangeOf(p, a);
+          return h("td", { class: "num" }, r ? `${num(r.mean)} ± ${num(r.sd)}` : "—");
+        }))))));
+}

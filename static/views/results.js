@@ -1,0 +1,194 @@
+// Results of one session (#/sessions/{id}[?analysis_id=N]): the analysis selector (one analysis per
+// filter run; earlier ones are kept), mean ± SD curves, ROM and phase tables, quality warnings, downloads,
+// and the 3D animation in viser's static client.
+//
+// Everything shown comes from results.json (GET /sessions/{id}/results) — the UI computes nothing clinical.
+// The 3D view is an <iframe> of /viser/index.html?playbackPath=<the session's scene.viser URL> (same origin,
+// so the session cookie goes along); WebGL may be software-rendered on clinic PCs, so it is lazy-loaded.
+
+import { api, apiUrl } from "../api.js";
+import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
+import { t, lang, LANGUAGES } from "../i18n.js";
+import { ANGLES, drawCurve, purge } from "../charts.js";
+import { patientTitle, statusBadge } from "./patients.js";
+import { navigate } from "../app.js";
+
+/** The results page of session `sessionId`; `query` may carry analysis_id. */
+export function resultsView(sessionId, query) {
+  const section = h("section", { class: "view results" }, h("p", { class: "loading" }, t("common.loading")));
+  (async () => {
+    let session, patient;
+    try {
+      session = await api("GET", `/sessions/${sessionId}`);
+      patient = await api("GET", `/patients/${session.patient_id}`);
+    } catch (err) {
+      clear(section).append(h("h1", {}, t("results.title")), alertBox(errorText(err)),
+        h("p", {}, h("a", { href: "#/patients" }, t("common.back_to_patients"))));
+      return;
+    }
+    const analyses = [...(session.analyses || [])].sort((a, b) => b.id - a.id);
+    const head = [
+      h("nav", { class: "crumbs", "aria-label": t("common.breadcrumbs") },
+        h("a", { href: "#/patients" }, t("nav.patients")), " › ",
+        h("a", { href: `#/patients/${patient.id}` }, patientTitle(patient))),
+      h("div", { class: "title-row" },
+        h("h1", {}, t("results.title_session", { date: date(session.date) })), statusBadge(session.status),
+        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link secondary" }, t("results.reprocess"))),
+    ];
+    if (!analyses.length) {
+      clear(section).append(...head, h("div", { class: "card" }, h("p", {}, t("results.none")),
+        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))));
+      return;
+    }
+    const wanted = Number(query.get("analysis_id"));
+    const analysis = analyses.find((a) => a.id === wanted) || analyses[0];
+    const body = h("div", { class: "results-body" }, h("p", { class: "loading" }, t("common.loading")));
+    clear(section).append(...head, analysisSelector(sessionId, analyses, analysis), body);
+    let results;
+    try {
+      results = await api("GET", `/sessions/${sessionId}/results`, { query: { analysis_id: analysis.id } });
+    } catch (err) {
+      clear(body).append(alertBox(errorText(err)));
+      return;
+    }
+    renderResults(body, session, patient, analysis, results, section);
+  })();
+  return section;
+}
+
+function analysisSelector(sessionId, analyses, current) {
+  const select = h("select", { id: "analysis", name: "analysis_id" }, analyses.map((a) => h("option",
+    { value: String(a.id), selected: a.id === current.id },
+    t("results.analysis_option", { id: a.id, filter: label("filter", a.filter), date: dateTime(a.created_at),
+      cycles: a.accepted_cycles ?? "—" }))));
+  select.addEventListener("change", () => navigate(`#/sessions/${sessionId}?analysis_id=${select.value}`));
+  return h("div", { class: "card toolbar analysis-picker" },
+    h("label", { for: "analysis" }, t("results.analysis")), select,
+    analyses.length > 1 ? h("span", { class: "hint" }, t("results.analyses_n", { n: analyses.length })) : null);
+}
+
+function renderResults(body, session, patient, analysis, r, section) {
+  const cycles = r.cycles || {};
+  const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
+    [[t("patient.side"), label("side", r.side || patient.side)],
+      [t("results.filter"), label("filter", (r.filter && r.filter.name) || analysis.filter)],
+      [t("results.cycles"), t("results.cycles_value", { accepted: cycles.accepted ?? "—", detected: cycles.detected ?? "—" })],
+      [t("session.step_height"), session.step_height_m ? `${num(session.step_height_m * 100, 0)} cm` : "—"],
+      [t("results.software"), (r.software && r.software.version) || "—"]]
+      .map(([k, v]) => h("div", {}, h("dt", {}, k), h("dd", {}, v)))));
+
+  const charts = ANGLES.map((a) => h("div", { class: "chart", id: `curve-${a}`, role: "img",
+    "aria-label": t("results.curve_alt", { angle: label("angle", a) }) }));
+  const curves = h("section", { class: "card", "aria-labelledby": "h-curves" },
+    h("h2", { id: "h-curves" }, t("results.curves")), h("p", { class: "hint" }, t("results.curves_hint")),
+    h("div", { class: "charts" }, charts));
+
+  clear(body).append(summary, curves,
+    h("div", { class: "columns" },
+      h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
+      h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
+    qualitySection(r),
+    downloadsSection(session.id, analysis.id),
+    sceneSection(session.id, analysis.id));
+
+  ANGLES.forEach((a, i) => {
+    drawCurve(charts[i], a, (r.curves || {})[a], r.phases).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
+  });
+  const observer = new MutationObserver(() => {
+    if (!section.isConnected) { charts.forEach(purge); observer.disconnect(); }
+  });
+  observer.observe(document.getElementById("main"), { childList: true });
+}
+
+function romTable(r) {
+  const rom = r.rom_deg || {};
+  const stats = ["range", "max", "min"];
+  return h("table", { class: "data", id: "rom-table" },
+    h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("results.angle")),
+      stats.map((s) => h("th", { scope: "col", class: "num" }, `${t(`results.rom_${s}`)} (°)`)))),
+    h("tbody", {}, ANGLES.map((a) => h("tr", {}, h("th", { scope: "row" }, label("angle", a)),
+      stats.map((s) => h("td", { class: "num" }, meanSd((rom[a] || {})[s])))))),
+    h("caption", { class: "caption" }, t("results.mean_sd_caption")));
+}
+
+function phaseTable(r) {
+  const phases = r.phases || {};
+  return h("table", { class: "data", id: "phase-table" },
+    h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("results.phase")),
+      h("th", { scope: "col", class: "num" }, t("results.duration_s")),
+      h("th", { scope: "col", class: "num" }, t("results.cycle_share")))),
+    h("tbody", {}, Object.entries(phases).map(([name, p]) => h("tr", {},
+      h("th", { scope: "row" }, label("phase", name)),
+      h("td", { class: "num" }, meanSd(p, 2, "mean_s", "sd_s")),
+      h("td", { class: "num" }, meanSd(p, 1, "mean_pct", "sd_pct"))))),
+    h("caption", { class: "caption" }, t("results.mean_sd_caption")));
+}
+
+function qualitySection(r) {
+  const warnings = ((r.quality || {}).warnings) || [];
+  const rejected = ((r.cycles || {}).rejected) || [];
+  const items = [
+    ...warnings.map((w) => h("li", { class: "warning" }, typeof w === "string" ? w : (w.message || w.code || ""))),
+    ...rejected.map((c) => h("li", { class: "warning" }, t("results.rejected_cycle", {
+      n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message ? ` — ${c.message}` : "")),
+  ];
+  return h("section", { class: "card quality", "aria-labelledby": "h-quality" },
+    h("h2", { id: "h-quality" }, t("results.quality")),
+    items.length ? h("ul", { class: "warnings", id: "warnings" }, items)
+      : h("p", { class: "ok-line" }, t("results.no_warnings")),
+    calibrationFacts(r));
+}
+
+/** The calibration figures worth a glance: magnetometer field and coverage, posture angle, disturbance. */
+function calibrationFacts(r) {
+  const cal = r.calibration || {};
+  const mag = cal.magnetometer || {};
+  const seg = cal.segment || {};
+  const disturbed = (r.quality || {}).magnetic_disturbance_fraction || {};
+  const rows = ["thigh", "shank"].filter((s) => mag[s] || seg[s]).map((s) => {
+    const q = (mag[s] && (mag[s].quality || mag[s])) || {};
+    const field = q.field_ut ?? (mag[s] || {}).field_ut;
+    const cover = q.coverage_fraction;
+    const angle = (seg[s] || {}).angle_between_postures_deg;
+    const dist = disturbed[s];
+    return h("tr", {}, h("th", { scope: "row" }, label("segment", s)),
+      h("td", { class: "num" }, field == null ? "—" : `${num(field, 1)} µT`),
+      h("td", { class: "num" }, cover == null ? "—" : `${num(100 * cover, 0)} %`),
+      h("td", { class: "num" }, angle == null ? "—" : `${num(angle, 1)}°`),
+      h("td", { class: "num" }, dist == null ? "—" : `${num(100 * dist, 1)} %`));
+  });
+  if (!rows.length) return null;
+  return h("details", { class: "calibration" }, h("summary", {}, t("results.calibration")),
+    h("table", { class: "data" },
+      h("thead", {}, h("tr", {}, [t("results.segment"), t("results.mag_field"), t("results.mag_coverage"),
+        t("results.posture_angle"), t("results.mag_disturbance")].map((c, i) => h("th", { scope: "col", class: i ? "num" : null }, c)))),
+      h("tbody", {}, rows)),
+    h("p", { class: "hint" }, t("results.calibration_hint")));
+}
+
+function downloadsSection(sessionId, analysisId) {
+  const link = (path, query, text, name) => h("a", { href: apiUrl(`/sessions/${sessionId}/${path}`, { ...query, analysis_id: analysisId }),
+    class: "button-link secondary", download: name || true }, text);
+  const pdfs = LANGUAGES.map((code) => link("report.pdf", { lang: code }, t("results.pdf_lang", { lang: t(`lang.${code}`) }),
+    `chakamo-session-${sessionId}-${code}.pdf`));
+  const current = pdfs.splice(LANGUAGES.indexOf(lang()), 1)[0];
+  current.classList.replace("secondary", "primary");
+  return h("section", { class: "card downloads", "aria-labelledby": "h-downloads" },
+    h("h2", { id: "h-downloads" }, t("results.downloads")),
+    h("div", { class: "actions wrap" }, current, ...pdfs,
+      link("angles.xlsx", {}, t("results.angles_xlsx")),
+      link("quaternions.xlsx", {}, t("results.quaternions_xlsx")),
+      h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId }), class: "button-link secondary",
+        target: "_blank", rel: "noopener" }, t("results.report_html"))));
+}
+
+function sceneSection(sessionId, analysisId) {
+  const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
+  const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
+  const frame = h("iframe", { src, id: "scene-frame", title: t("results.scene_title"), loading: "lazy",
+    allow: "fullscreen" });
+  return h("section", { class: "card scene", "aria-labelledby": "h-scene" },
+    h("h2", { id: "h-scene" }, t("results.scene")), h("p", { class: "hint" }, t("results.scene_hint")),
+    h("div", { class: "scene-box" }, frame),
+    h("p", {}, h("a", { href: src, target: "_blank", rel: "noopener" }, t("results.scene_open"))));
+}
