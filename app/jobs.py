@@ -280,8 +280,9 @@ def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: R
 
 
 def warm_up() -> None:
-    """Before the first job needs them: import the processing and report modules (≈1 s), and run the default
-    orientation filter once on one second of still data (loads its compiled numba kernels, ≈0.3 s)."""
+    """Before the first job needs them: import the processing and report modules (≈1 s), make the PDF's font
+    cut (once per machine, ≈0.3 s) and run the default orientation filter once on one second of still data
+    (loads its compiled numba kernels, ≈0.3 s)."""
     import importlib
 
     for name in ("app.pipeline", "app.results", "reports.excel", "reports.html", "reports.pdf", "reports.scene"):
@@ -289,6 +290,12 @@ def warm_up() -> None:
             importlib.import_module(name)
         except Exception:  # noqa: BLE001 — the job importing it will report the problem
             log.exception("warm-up import of %s failed", name)
+    try:
+        from reports.fonts import font_files
+
+        font_files()
+    except Exception:  # noqa: BLE001 — only a warm-up
+        log.exception("warm-up of the PDF font failed")
     try:
         import numpy as np
 

@@ -26,9 +26,9 @@ Default lengths 0.42 m (femur) and 0.40 m (tibia); with a patient height H they 
 
 Key poses still
 ---------------
-:func:`render_key_poses` draws the bones (matplotlib Agg, shaded polygons, orthographic lateral
-view) at three instants of the first accepted cycle: its onset (start posture), peak flexion
-(``countermovement_peak``) and full extension (``far_reached``, else ``far_left``), with the tibia
+:func:`key_poses` computes the bones as shaded 2D triangles (orthographic lateral view; the PDF draws
+them as vectors) at three instants of the first accepted
+cycle: its onset (start posture), peak flexion (``countermovement_peak``) and full extension (``far_reached``, else ``far_left``), with the tibia
 anchored at the ankle and the femur attached at the knee::
 
     p_ankle = 0,   p_knee = p_ankle + R_earth_tibia · [0, L_tibia, 0]
@@ -39,7 +39,6 @@ side.  Nothing clinical is computed: the instants come from ``results["cycles"]`
 
 from __future__ import annotations
 
-import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -261,7 +260,7 @@ def heading_free(q_earth_segment: FloatArray, q_heading_ref: FloatArray) -> Floa
 
 
 def key_pose_times_s(ri: ReportInput) -> list[float]:
-    """The three instants drawn by :func:`render_key_poses`: onset, peak flexion, full extension (s).
+    """The three instants drawn by :func:`key_poses`: onset, peak flexion, full extension (s).
 
     From ``results["cycles"]`` (first accepted cycle; events ``onset``, ``countermovement_peak``,
     ``far_reached`` or else ``far_left``).  When an event is missing, the instant falls back to the
@@ -313,22 +312,34 @@ def pose_vertices(meshes: dict[str, Mesh], q_earth_femur: FloatArray, q_earth_ti
     return {"tibia": meshes["tibia"].vertices @ r_t.T, "femur": meshes["femur"].vertices @ r_f.T + knee}
 
 
-def render_key_poses(ri: ReportInput, *, titles: Sequence[str] | None = None, width_in: float = 6.3,
-                     dpi: int = 150, n_theta: int = 16) -> bytes:
-    """PNG of the bones at the three key poses (see module docstring), lateral view, side by side.
+@dataclass(frozen=True)
+class KeyPoses:
+    """The key-pose still as flat geometry, ready for any 2D renderer (PDF vectors, or a raster).
 
-    titles: three captions (e.g. translated pose names) printed above the poses; the flexion angle at
-    each instant is printed below (degrees, from ``ri.angles_deg``).  Deterministic for a given input.
-
-    Drawing: orthographic projection on the sagittal plane (after heading removal: anterior = earth +x,
-    up = earth z), faces sorted far-to-near (painter's algorithm) and Lambert-shaded, drawn as one
-    matplotlib ``PolyCollection`` per pose — what ``Poly3DCollection`` does, without mplot3d's
-    per-draw overhead and loose axes framing.
+    triangles : (T, 3, 2) screen coordinates in metres (x right, y up), all three poses side by side,
+        ordered far to near (draw in this order: painter's algorithm).
+    rgb : (T, 3) Lambert-shaded colour of each triangle, 0..1.
+    centres_x : (3,) the x of each pose's ankle (captions are centred there).
+    flexion_deg : (3,) knee flexion at each instant (printed under each pose).
+    ground : ``(x_lo, x_hi, y)`` the floor line.   view : ``(x_lo, x_hi, y_lo, y_hi)`` the framed area,
+        twice as wide as high, equal scale on both axes.   height_m : femur + tibia length (text offsets).
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # no pyplot: the host's backend is left alone
-    from matplotlib.collections import PolyCollection
-    from matplotlib.figure import Figure
 
+    triangles: FloatArray
+    rgb: FloatArray
+    centres_x: FloatArray
+    flexion_deg: FloatArray
+    ground: tuple[float, float, float]
+    view: tuple[float, float, float, float]
+    height_m: float
+
+
+def key_poses(ri: ReportInput, *, n_theta: int = 16) -> KeyPoses:
+    """The bones at the three key poses (module docstring), lateral view, as shaded 2D triangles.
+
+    Orthographic projection on the sagittal plane (after heading removal: anterior = earth +x, up =
+    earth z); back faces dropped, faces sorted far-to-near and Lambert-shaded.  Deterministic.
+    """
     side = ri.results.get("side", ri.patient.side or "right")
     side = side if side in ("right", "left") else "right"
     femur_m, tibia_m = segment_lengths_m(ri.patient.height_m)
@@ -361,24 +372,15 @@ def render_key_poses(ri: ReportInput, *, titles: Sequence[str] | None = None, wi
         rgbs.append(np.clip(colour[None, :] * shade[:, None], 0.0, 1.0))
 
     height_m = femur_m + tibia_m
-    fig = Figure(figsize=(width_in, width_in * 0.5), dpi=dpi)
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-    for p, (poly, rgb) in enumerate(zip(polys, rgbs)):
-        ax.add_collection(PolyCollection(poly, facecolors=rgb, edgecolors=rgb, linewidths=0.15))
-        x_c = p * spacing_m
-        ax.text(x_c, -0.07 * height_m, f"{ri.angles_deg[idx[p], 0]:.0f}°", ha="center", va="top", fontsize=9)
-        if titles is not None and p < len(titles):
-            ax.text(x_c, 1.04 * height_m, str(titles[p]), ha="center", va="bottom", fontsize=9)
-    all_x = np.concatenate([poly[:, :, 0].ravel() for poly in polys])
+    triangles = np.concatenate(polys)
+    all_x = triangles[:, :, 0]
     x_lo, x_hi = min(all_x.min(), -0.25 * height_m), max(all_x.max(), 2 * spacing_m + 0.25 * height_m)
-    ax.plot([x_lo, x_hi], [-0.03 * height_m] * 2, color="0.6", linewidth=0.8)
     y_lo, y_hi = -0.16 * height_m, 1.16 * height_m
-    half_w = max((x_hi - x_lo) / 2.0 + 0.05, (y_hi - y_lo) / 0.5 / 2.0)      # equal scale, figure is 2:1
-    x_mid = (x_lo + x_hi) / 2.0
-    ax.set_xlim(x_mid - half_w, x_mid + half_w)
-    ax.set_ylim((y_lo + y_hi) / 2.0 - half_w * 0.5, (y_lo + y_hi) / 2.0 + half_w * 0.5)
-    ax.set_axis_off()
-    buf = io.BytesIO()
-    FigureCanvasAgg(fig)
-    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
-    return buf.getvalue()
+    half_w = max((x_hi - x_lo) / 2.0 + 0.05, (y_hi - y_lo) / 0.5 / 2.0)      # equal scale, view is 2:1
+    x_mid, y_mid = (x_lo + x_hi) / 2.0, (y_lo + y_hi) / 2.0
+    return KeyPoses(triangles=triangles, rgb=np.concatenate(rgbs),
+                    centres_x=np.arange(3, dtype=np.float64) * spacing_m,
+                    flexion_deg=np.array([ri.angles_deg[i, 0] for i in idx], dtype=np.float64),
+                    ground=(float(x_lo), float(x_hi), -0.03 * height_m),
+                    view=(x_mid - half_w, x_mid + half_w, y_mid - half_w * 0.5, y_mid + half_w * 0.5),
+                    height_m=height_m)

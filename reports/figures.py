@@ -1,99 +1,71 @@
-"""The report's figures as PNG bytes (matplotlib, Agg canvas, in memory, deterministic).
+"""The PDF report's figures, drawn as vectors with fpdf2's own drawing operations.
 
-Figures are drawn on :class:`matplotlib.figure.Figure` objects attached to an explicit
-:class:`~matplotlib.backends.backend_agg.FigureCanvasAgg`: no ``pyplot``, no global backend switch and
-no global state, so rendering works the same whether or not an application already chose a matplotlib
-backend, from any thread.  Fonts are matplotlib's own DejaVu Sans (no download); PNG metadata carries
-no timestamp, so the same input gives the same bytes.
+Why vectors: a matplotlib raster cost ~100 ms per figure (layout, Agg rendering, then fpdf2 deflating
+1.3 million pixels), a third of the whole report; lines, filled polygons and text drawn straight into
+the page cost a few milliseconds, print sharply at any zoom, and their labels are real text (searchable,
+extracted by ``pdftotext``).  The price is that axes are laid out here by hand: a fixed grid of three
+stacked panels sharing the x axis, "nice" ticks (1, 2, 2.5, 5 × 10ⁿ), the language's decimal mark.
+
+Public entry points draw into an :class:`fpdf.FPDF` page inside a box ``(x, y, w, h)`` in mm:
+
+* :func:`draw_curves` — mean ± SD over the normalised cycle of flexion-extension, internal-external
+  rotation and abduction-adduction, the mean phase boundaries dashed, the phase names on top;
+* :func:`draw_task` — the three angles over the whole task, accepted cycles shaded and numbered,
+  rejected ones hatched and numbered in red;
+* :func:`draw_key_poses` — the bones at the key poses (:func:`reports.bones.key_poses`), ~7,000 shaded
+  triangles, with the pose names and the knee flexion at each.
+
+Long curves and the triangles go through :mod:`reports.vector` (one content-stream string per array).
 
 Everything plotted comes from ``results`` (curves, phases, cycles) or the task's series; nothing
-clinical is computed here.  Tick labels use the language's decimal mark (:mod:`reports.i18n`).
+clinical is computed here.  Texts come from the translation tables (:mod:`reports.i18n`); the font is
+whatever the document set up (the report's DejaVu Sans).  Drawing changes colours, line widths and dash
+patterns inside :meth:`fpdf.FPDF.local_context`, so the page's state is left as it was found.
 """
 
 from __future__ import annotations
 
-import io
+import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from matplotlib.patches import Patch
-from matplotlib.ticker import ScalarFormatter
-from PIL import Image
 
-from reports.i18n import t
+from reports.i18n import fmt_number, t
 from reports.model import ANGLES, ReportInput
+from reports.vector import fill_triangles, stroke_polyline
 
-#: the order angles are shown in (clinical reading order), with their column in ``angles_deg``
+#: the order angles are shown in (clinical reading order)
 ANGLE_ORDER: tuple[str, ...] = ("flexion", "internal_rotation", "adduction")
 PHASES: tuple[str, ...] = ("impulse", "extension", "fall")
-DPI = 150
 
-_LINE = "#1f4e79"
-_BAND = "#9dc3e6"
-_ACCEPTED = "#2e8b57"
-_REJECTED = "#c0392b"
-_PHASE_LINE = "#555555"
+#: figure heights in mm for the full text width (180 mm on A4 with 15 mm margins)
+CURVES_HEIGHT_MM = 132.0
+TASK_HEIGHT_MM = 126.0
 
+_PT = 25.4 / 72.0            # mm per point
+_LINE = (31, 78, 121)
+_BAND = (187, 216, 239)      # the mean line's colour, light (opaque: no transparency group needed)
+_ACCEPTED_FILL = (228, 242, 233)
+_ACCEPTED = (46, 139, 87)
+_REJECTED = (192, 57, 43)
+_PHASE_LINE = (85, 85, 85)
+_GRID = (221, 221, 221)
+_AXIS = (60, 60, 60)
+_TEXT = (30, 30, 30)
 
-class _DecimalFormatter(ScalarFormatter):
-    """Matplotlib's tick labels with the language's decimal mark."""
-
-    def __init__(self, mark: str) -> None:
-        super().__init__(useOffset=False)
-        self._mark = mark
-
-    def __call__(self, x: float, pos: int | None = None) -> str:
-        s = super().__call__(x, pos)
-        return s.replace(".", self._mark) if self._mark != "." else s
-
-
-def _decimal_mark(lang: str) -> str:
-    return "." if lang == "en" else ","
-
-
-def _new_figure(width_in: float, height_in: float, top: float) -> Figure:
-    """A figure on its own Agg canvas; fixed margins (a layout engine would double the drawing time)."""
-    fig = Figure(figsize=(width_in, height_in), dpi=DPI)
-    FigureCanvasAgg(fig)
-    fig.subplots_adjust(left=0.095, right=0.985, bottom=0.075, top=top, hspace=0.42)
-    return fig
+_LEFT_MM = 17.0              # y tick labels and the rotated y label
+_RIGHT_MM = 2.0
+_TOP_FIRST_MM = 11.0         # title, legend and phase names / cycle numbers above the first panel
+_TOP_MM = 5.5                # title above the other panels
+_BOTTOM_MM = 10.0            # x tick labels and the x label
+_GAP_MM = 4.5
+_TICK_PT = 6.5
+_LABEL_PT = 7.0
+_TITLE_PT = 8.5
 
 
-def to_png(fig: Figure) -> bytes:
-    """PNG bytes of ``fig`` (no timestamp or software metadata: deterministic)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
-    return buf.getvalue()
-
-
-def to_image(fig: Figure) -> Image.Image:
-    """``fig`` drawn by Agg as an RGB :class:`PIL.Image.Image` (the same pixels as :func:`to_png`).
-
-    The PDF embeds this directly: fpdf2 re-compresses every raster image itself, so going through PNG
-    would only add an encode and a decode (~30 ms per figure).
-    """
-    fig.canvas.draw()
-    return Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy(), mode="RGB")
-
-
-def _style_axes(ax: Any, lang: str) -> None:
-    mark = _decimal_mark(lang)
-    ax.xaxis.set_major_formatter(_DecimalFormatter(mark))
-    ax.yaxis.set_major_formatter(_DecimalFormatter(mark))
-    ax.grid(True, color="#dddddd", linewidth=0.5)
-    ax.tick_params(labelsize=7)
-    for side in ("top", "right"):
-        ax.spines[side].set_visible(False)
-
-
-def _title(ax: Any, text: str, raised: bool) -> None:
-    """A panel title at the top left (a plain text: ``set_title`` would re-measure the tick labels
-    on every draw to avoid them, a third of the drawing time here)."""
-    ax.text(0.0, 1.13 if raised else 1.03, text, transform=ax.transAxes, ha="left", va="bottom", fontsize=9)
-
-
+# ------------------------------------------------------------------------------------------- helpers
 def phase_boundaries_pct(results: dict[str, Any]) -> list[float]:
     """Mean phase boundaries in % of the cycle: cumulative mean % of impulse, then of extension.
 
@@ -111,49 +83,224 @@ def phase_boundaries_pct(results: dict[str, Any]) -> list[float]:
     return out
 
 
-def curves_png(ri: ReportInput) -> bytes:
-    """:func:`curves_figure` as PNG bytes."""
-    return to_png(curves_figure(ri))
+def nice_ticks(lo: float, hi: float, target: int = 5, *, expand: bool = True) -> tuple[float, float, list[float]]:
+    """Axis limits and ticks at 1, 2, 2.5 or 5 × 10ⁿ steps: the smallest step that makes at most about
+    ``target`` intervals.
+
+    ``expand=True`` widens ``[lo, hi]`` to the enclosing ticks (value axes); ``False`` keeps the limits
+    and returns the ticks inside them (time axes).  Non-finite or empty ranges become ``[lo − 1, lo + 1]``
+    (``[0, 1]`` if ``lo`` is not finite).  Returns ``(lo, hi, ticks)``.
+    """
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        lo, hi = 0.0, 1.0
+    if hi <= lo:
+        lo, hi = lo - 1.0, hi + 1.0
+    raw = (hi - lo) / max(target, 1)
+    mag = 10.0 ** math.floor(math.log10(raw))
+    step = next(m * mag for m in (1.0, 2.0, 2.5, 5.0, 10.0) if m * mag >= raw * 0.999)
+    first, last = math.floor(lo / step + 1e-9), math.ceil(hi / step - 1e-9)
+    if expand:
+        lo, hi = first * step, last * step
+    else:
+        first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+    ticks = [k * step for k in range(first, last + 1)]
+    return lo, hi, ticks
 
 
-def task_png(ri: ReportInput) -> bytes:
-    """:func:`task_figure` as PNG bytes."""
-    return to_png(task_figure(ri))
+def _tick_decimals(ticks: Sequence[float]) -> int:
+    """Fewest decimals that print every tick exactly (0 for integers, 1 for 2.5 steps...)."""
+    for d in range(4):
+        if all(abs(v * 10**d - round(v * 10**d)) < 1e-6 for v in ticks):
+            return d
+    return 4
 
 
-def curves_figure(ri: ReportInput) -> Figure:
-    """Mean ± SD over the normalised cycle of flexion-extension, internal-external rotation and
-    abduction-adduction, with the mean phase boundaries as vertical lines and the phase names on top."""
+def _finite_runs(*arrays: np.ndarray) -> list[slice]:
+    """Slices of consecutive samples where every array is finite (a line is broken at NaN)."""
+    ok = np.logical_and.reduce([np.isfinite(a) for a in arrays])
+    if not ok.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], ok.view(np.int8), [0]))))
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+
+
+class _Panel:
+    """One plot area: data → page coordinates, the frame, the grid and the tick labels."""
+
+    def __init__(self, pdf: Any, x: float, y: float, w: float, h: float,
+                 xlim: tuple[float, float], ylim: tuple[float, float]) -> None:
+        self.pdf, self.x, self.y, self.w, self.h = pdf, x, y, w, h
+        self.x0, self.x1 = xlim
+        self.y0, self.y1 = ylim
+
+    def px(self, v: Any) -> Any:
+        return self.x + (np.asarray(v, dtype=np.float64) - self.x0) * (self.w / (self.x1 - self.x0))
+
+    def py(self, v: Any) -> Any:
+        return self.y + self.h - (np.asarray(v, dtype=np.float64) - self.y0) * (self.h / (self.y1 - self.y0))
+
+    def grid(self, xticks: Sequence[float], yticks: Sequence[float]) -> None:
+        pdf = self.pdf
+        pdf.set_draw_color(*_GRID)
+        pdf.set_line_width(0.1)
+        for v in xticks:
+            xx = float(self.px(v))
+            pdf.line(xx, self.y, xx, self.y + self.h)
+        for v in yticks:
+            yy = float(self.py(v))
+            pdf.line(self.x, yy, self.x + self.w, yy)
+
+    def frame(self) -> None:
+        """Left and bottom spines (top and right left open, as in the clinical figures of the thesis)."""
+        pdf = self.pdf
+        pdf.set_draw_color(*_AXIS)
+        pdf.set_line_width(0.2)
+        pdf.line(self.x, self.y, self.x, self.y + self.h)
+        pdf.line(self.x, self.y + self.h, self.x + self.w, self.y + self.h)
+
+    def y_labels(self, ticks: Sequence[float], lang: str, label: str) -> None:
+        pdf = self.pdf
+        d = _tick_decimals(ticks)
+        pdf.set_font(size=_TICK_PT)
+        pdf.set_text_color(*_TEXT)
+        for v in ticks:
+            s = fmt_number(v, d, lang)
+            yy = float(self.py(v))
+            pdf.line(self.x - 0.8, yy, self.x, yy)
+            pdf.text(self.x - 1.3 - pdf.get_string_width(s), yy + 0.35 * _TICK_PT * _PT, s)
+        pdf.set_font(size=_LABEL_PT)
+        xc, yc = self.x - _LEFT_MM + 2.6, self.y + self.h / 2
+        with pdf.rotation(90, xc, yc):
+            pdf.text(xc - pdf.get_string_width(label) / 2, yc, label)
+
+    def x_labels(self, ticks: Sequence[float], lang: str, label: str | None) -> None:
+        pdf = self.pdf
+        d = _tick_decimals(ticks)
+        pdf.set_font(size=_TICK_PT)
+        pdf.set_text_color(*_TEXT)
+        yb = self.y + self.h
+        for v in ticks:
+            s = fmt_number(v, d, lang)
+            xx = float(self.px(v))
+            pdf.line(xx, yb, xx, yb + 0.8)
+            pdf.text(xx - pdf.get_string_width(s) / 2, yb + 1.2 + _TICK_PT * _PT, s)
+        if label:
+            pdf.set_font(size=_LABEL_PT)
+            pdf.text(self.x + self.w / 2 - pdf.get_string_width(label) / 2, yb + 8.5, label)
+
+    def title(self, text: str, baseline_y: float | None = None) -> None:
+        """The panel's title at its top left (``baseline_y`` raises it above what the first panel shows)."""
+        pdf = self.pdf
+        pdf.set_font(style="B", size=_TITLE_PT)
+        pdf.set_text_color(*_TEXT)
+        pdf.text(self.x, self.y - 1.6 if baseline_y is None else baseline_y, text)
+        pdf.set_font(style="", size=_TICK_PT)
+
+    def line(self, xs: np.ndarray, ys: np.ndarray, rgb: tuple[int, int, int], width_mm: float) -> None:
+        """A polyline, broken where a value is missing."""
+        pdf = self.pdf
+        pdf.set_draw_color(*rgb)
+        pdf.set_line_width(width_mm)
+        px, py = self.px(xs), self.py(ys)
+        for run in _finite_runs(px, py):
+            stroke_polyline(pdf, px[run], py[run])
+
+    def band(self, xs: np.ndarray, lo: np.ndarray, hi: np.ndarray, rgb: tuple[int, int, int]) -> None:
+        """The filled area between ``lo`` and ``hi`` (one polygon per run of finite values)."""
+        pdf = self.pdf
+        pdf.set_fill_color(*rgb)
+        px, plo, phi = self.px(xs), self.py(lo), self.py(hi)
+        for run in _finite_runs(plo, phi):
+            pts = list(zip(px[run].tolist(), phi[run].tolist())) + list(zip(px[run][::-1].tolist(),
+                                                                            plo[run][::-1].tolist()))
+            pdf.polygon(pts, style="F")
+
+
+def _legend(pdf: Any, right_x: float, y: float, items: Sequence[tuple[str, Any]]) -> None:
+    """A one-line legend ending at ``right_x``; items are ``(label, draw_swatch(x, y, w, h))``."""
+    pdf.set_font(size=_TICK_PT)
+    pdf.set_text_color(*_TEXT)
+    sw, gap = 4.0, 1.2
+    widths = [sw + gap + pdf.get_string_width(label) + 3.0 for label, _ in items]
+    x = right_x - sum(widths) + 3.0
+    for (label, swatch), w in zip(items, widths):
+        swatch(x, y - 1.6, sw, 1.8)
+        pdf.text(x + sw + gap, y, label)
+        x += w
+
+
+def _layout(x: float, y: float, w: float, h: float, n: int = 3) -> list[tuple[float, float, float, float]]:
+    """Boxes of ``n`` stacked panels inside the figure box (titles above each, x labels below the last)."""
+    inner = h - _TOP_FIRST_MM - _BOTTOM_MM - (n - 1) * (_TOP_MM + _GAP_MM)
+    ph = inner / n
+    boxes, yy = [], y + _TOP_FIRST_MM
+    for _ in range(n):
+        boxes.append((x + _LEFT_MM, yy, w - _LEFT_MM - _RIGHT_MM, ph))
+        yy += ph + _TOP_MM + _GAP_MM
+    return boxes
+
+
+def _curve(curves: dict[str, Any], angle: str, key: str) -> np.ndarray:
+    values = (curves.get(angle) or {}).get(key) or []
+    return np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
+
+
+# ------------------------------------------------------------------------------------------- figures
+def draw_curves(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: float = CURVES_HEIGHT_MM) -> None:
+    """Mean ± SD over the normalised cycle (0–100 %) of the three angles in the box ``(x, y, w, h)`` mm,
+    the mean phase boundaries (:func:`phase_boundaries_pct`) dashed and the phase names above."""
     lang = ri.language
     curves = ri.results.get("curves") or {}
     bounds = phase_boundaries_pct(ri.results)
-    fig = _new_figure(7.0, 5.6, top=0.93)
-    axes = fig.subplots(3, 1, sharex=True)
-    for k, (ax, angle) in enumerate(zip(axes, ANGLE_ORDER)):
-        c = curves.get(angle) or {}
-        mean = np.asarray([np.nan if v is None else v for v in c.get("mean", [])], dtype=np.float64)
-        sd = np.asarray([np.nan if v is None else v for v in c.get("sd", [])], dtype=np.float64)
-        _style_axes(ax, lang)
-        if mean.size:
-            x = np.linspace(0.0, 100.0, mean.size)
-            if sd.size == mean.size:
-                ax.fill_between(x, mean - sd, mean + sd, color=_BAND, alpha=0.7, linewidth=0,
-                                label=t("fig_sd", lang))
-            ax.plot(x, mean, color=_LINE, linewidth=1.4, label=t("fig_mean", lang))
-        for b in bounds:
-            ax.axvline(b, color=_PHASE_LINE, linestyle="--", linewidth=0.8)
-        _title(ax, t(f"angle_{angle}", lang), raised=k == 0)
-        ax.set_ylabel(t(f"axis_{angle}", lang), fontsize=8)
-        ax.set_xlim(0.0, 100.0)
-        if k == 0:
-            edges = [0.0, *bounds, 100.0] if len(bounds) == 2 else []
-            for name, lo, hi in zip(PHASES, edges[:-1], edges[1:]):
-                ax.text((lo + hi) / 2, 1.01, t(f"phase_{name}", lang), transform=ax.get_xaxis_transform(),
-                        ha="center", va="bottom", fontsize=7, color=_PHASE_LINE)
-            ax.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.1), ncol=2, frameon=False,
-                      borderaxespad=0.0)
-    axes[-1].set_xlabel(t("fig_cycle_pct", lang), fontsize=8)
-    return fig
+    _, _, xticks = nice_ticks(0.0, 100.0, 10, expand=False)
+    with pdf.local_context():
+        for k, (box, angle) in enumerate(zip(_layout(x, y, w, h), ANGLE_ORDER)):
+            mean, sd = _curve(curves, angle, "mean"), _curve(curves, angle, "sd")
+            has_sd = sd.size == mean.size
+            lo_hi = np.concatenate([mean - sd, mean + sd]) if has_sd else mean
+            finite = lo_hi[np.isfinite(lo_hi)] if lo_hi.size else lo_hi
+            if finite.size == 0 and mean.size:
+                finite = mean[np.isfinite(mean)]
+            lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (math.nan, math.nan)
+            y0, y1, yticks = nice_ticks(lo, hi, 4)
+            panel = _Panel(pdf, *box, (0.0, 100.0), (y0, y1))
+            panel.grid(xticks, yticks)
+            if mean.size:
+                xs = np.linspace(0.0, 100.0, mean.size)
+                if has_sd:
+                    panel.band(xs, mean - sd, mean + sd, _BAND)
+                panel.line(xs, mean, _LINE, 0.45)
+            pdf.set_draw_color(*_PHASE_LINE)
+            pdf.set_line_width(0.25)
+            pdf.set_dash_pattern(1.2, 0.8)
+            for b in bounds:
+                bx = float(panel.px(b))
+                pdf.line(bx, panel.y, bx, panel.y + panel.h)
+            pdf.set_dash_pattern()
+            panel.frame()
+            panel.y_labels(yticks, lang, t(f"axis_{angle}", lang))
+            panel.x_labels(xticks, lang, t("fig_cycle_pct", lang) if k == 2 else None)
+            panel.title(t(f"angle_{angle}", lang), y + 3.4 if k == 0 else None)
+            if k == 0:
+                pdf.set_font(size=_TICK_PT)
+                pdf.set_text_color(*_PHASE_LINE)
+                if len(bounds) == 2:
+                    edges = [0.0, *bounds, 100.0]
+                    for name, a, b in zip(PHASES, edges[:-1], edges[1:]):
+                        label = t(f"phase_{name}", lang)
+                        pdf.text(float(panel.px((a + b) / 2)) - pdf.get_string_width(label) / 2, panel.y - 0.8, label)
+
+                def band_swatch(sx: float, sy: float, sw: float, sh: float) -> None:
+                    pdf.set_fill_color(*_BAND)
+                    pdf.rect(sx, sy, sw, sh, style="F")
+
+                def line_swatch(sx: float, sy: float, sw: float, sh: float) -> None:
+                    pdf.set_draw_color(*_LINE)
+                    pdf.set_line_width(0.45)
+                    pdf.line(sx, sy + sh / 2, sx + sw, sy + sh / 2)
+
+                _legend(pdf, panel.x + panel.w, y + 3.2, [(t("fig_sd", lang), band_swatch),
+                                                          (t("fig_mean", lang), line_swatch)])
 
 
 def _cycle_spans(ri: ReportInput) -> list[tuple[int, float, float, bool]]:
@@ -165,37 +312,102 @@ def _cycle_spans(ri: ReportInput) -> list[tuple[int, float, float, bool]]:
             for i, (a, b, ok) in enumerate(ri.cycle_bounds_s())]
 
 
-def task_figure(ri: ReportInput) -> Figure:
-    """The three angles over the whole task; accepted cycles shaded and numbered, rejected ones hatched."""
+def _hatch(pdf: Any, x: float, y: float, w: float, h: float, spacing_mm: float = 1.6) -> None:
+    """Diagonal hatching of the rectangle (lines clipped to it; colour and width as currently set)."""
+    if w <= 0 or h <= 0:
+        return
+    with pdf.rect_clip(x, y, w, h):
+        c = -h
+        while c < w:
+            pdf.line(x + c, y + h, x + c + h, y)
+            c += spacing_mm
+
+
+def draw_task(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: float = TASK_HEIGHT_MM) -> None:
+    """The three angles over the whole task in the box ``(x, y, w, h)`` mm; accepted cycles shaded green
+    and numbered, rejected ones hatched and numbered in bold red, cycle starts as thin grey lines."""
     lang = ri.language
-    fig = _new_figure(7.0, 5.4, top=0.92)
-    axes = fig.subplots(3, 1, sharex=True)
+    t_s = np.asarray(ri.t_s, dtype=np.float64)
     spans = _cycle_spans(ri)
-    accepted = [(a, b - a) for _, a, b, ok in spans if ok]
-    rejected = [(a, b - a) for _, a, b, ok in spans if not ok]
-    for k, (ax, angle) in enumerate(zip(axes, ANGLE_ORDER)):
-        _style_axes(ax, lang)
-        band = ax.get_xaxis_transform()  # x in seconds, y from the bottom (0) to the top (1) of the panel
-        # one collection per kind (not one artist per cycle: drawing time grows with the artist count)
-        if accepted:
-            ax.broken_barh(accepted, (0.0, 1.0), transform=band, facecolor=_ACCEPTED, alpha=0.12, linewidth=0)
-        if rejected:
-            ax.broken_barh(rejected, (0.0, 1.0), transform=band, facecolor="none", edgecolor=_REJECTED,
-                           hatch="///", alpha=0.6, linewidth=0)
-        if spans:
-            ax.vlines([a for _, a, _, _ in spans], 0.0, 1.0, transform=band, color="#999999", linewidth=0.5)
-        if k == 0:
-            for i, a, b, ok in spans:
-                ax.text((a + b) / 2, 1.02, str(i + 1), transform=band, ha="center", va="bottom", fontsize=7,
-                        color=_ACCEPTED if ok else _REJECTED, fontweight="normal" if ok else "bold")
-        ax.plot(ri.t_s, ri.angles_deg[:, ANGLES.index(angle)], color=_LINE, linewidth=0.7)
-        _title(ax, t(f"angle_{angle}", lang), raised=k == 0)
-        ax.set_ylabel(t(f"axis_{angle}", lang), fontsize=8)
-        if len(ri.t_s):
-            ax.set_xlim(float(ri.t_s[0]), float(ri.t_s[-1]))
-    handles = [Patch(facecolor=_ACCEPTED, alpha=0.25, label=t("fig_accepted", lang)),
-               Patch(facecolor="none", edgecolor=_REJECTED, hatch="///", label=t("fig_rejected", lang))]
-    axes[0].legend(handles=handles, fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.1), ncol=2,
-                   frameon=False, borderaxespad=0.0)
-    axes[-1].set_xlabel(t("fig_time_s", lang), fontsize=8)
-    return fig
+    if len(t_s):
+        xlim = (float(t_s[0]), float(t_s[-1]) if t_s[-1] > t_s[0] else float(t_s[0]) + 1.0)
+    else:
+        xlim = (0.0, 1.0)
+    _, _, xticks = nice_ticks(*xlim, 10, expand=False)
+    with pdf.local_context():
+        for k, (box, angle) in enumerate(zip(_layout(x, y, w, h), ANGLE_ORDER)):
+            values = ri.angles_deg[:, ANGLES.index(angle)] if len(t_s) else np.zeros(0)
+            finite = values[np.isfinite(values)]
+            lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (math.nan, math.nan)
+            y0, y1, yticks = nice_ticks(lo, hi, 4)
+            panel = _Panel(pdf, *box, xlim, (y0, y1))
+            for _, a, b, ok in spans:
+                xa, xb = float(panel.px(max(a, xlim[0]))), float(panel.px(min(b, xlim[1])))
+                if ok:
+                    pdf.set_fill_color(*_ACCEPTED_FILL)
+                    pdf.rect(xa, panel.y, xb - xa, panel.h, style="F")
+            pdf.set_draw_color(*_REJECTED)
+            pdf.set_line_width(0.15)
+            for _, a, b, ok in spans:
+                if not ok:
+                    xa, xb = float(panel.px(max(a, xlim[0]))), float(panel.px(min(b, xlim[1])))
+                    _hatch(pdf, xa, panel.y, xb - xa, panel.h)
+            panel.grid(xticks, yticks)
+            pdf.set_draw_color(153, 153, 153)
+            pdf.set_line_width(0.12)
+            for _, a, _, _ in spans:
+                xa = float(panel.px(a))
+                pdf.line(xa, panel.y, xa, panel.y + panel.h)
+            if len(t_s):
+                panel.line(t_s, values, _LINE, 0.25)
+            panel.frame()
+            panel.y_labels(yticks, lang, t(f"axis_{angle}", lang))
+            panel.x_labels(xticks, lang, t("fig_time_s", lang) if k == 2 else None)
+            panel.title(t(f"angle_{angle}", lang), y + 3.4 if k == 0 else None)
+            if k == 0:
+                for i, a, b, ok in spans:
+                    label = str(i + 1)
+                    pdf.set_font(style="" if ok else "B", size=_TICK_PT)
+                    pdf.set_text_color(*(_ACCEPTED if ok else _REJECTED))
+                    xc = float(panel.px((max(a, xlim[0]) + min(b, xlim[1])) / 2))
+                    pdf.text(xc - pdf.get_string_width(label) / 2, panel.y - 0.8, label)
+                pdf.set_font(style="", size=_TICK_PT)
+
+                def accepted_swatch(sx: float, sy: float, sw: float, sh: float) -> None:
+                    pdf.set_fill_color(*_ACCEPTED_FILL)
+                    pdf.set_draw_color(*_ACCEPTED)
+                    pdf.set_line_width(0.1)
+                    pdf.rect(sx, sy, sw, sh, style="DF")
+
+                def rejected_swatch(sx: float, sy: float, sw: float, sh: float) -> None:
+                    pdf.set_draw_color(*_REJECTED)
+                    pdf.set_line_width(0.15)
+                    _hatch(pdf, sx, sy, sw, sh, spacing_mm=0.9)
+                    pdf.rect(sx, sy, sw, sh, style="D")
+
+                _legend(pdf, panel.x + panel.w, y + 3.2, [(t("fig_accepted", lang), accepted_swatch),
+                                                          (t("fig_rejected", lang), rejected_swatch)])
+
+
+def draw_key_poses(pdf: Any, kp: Any, titles: Sequence[str], lang: str, x: float, y: float, w: float,
+                   h: float) -> None:
+    """The key-pose still (:class:`reports.bones.KeyPoses`) centred in the box ``(x, y, w, h)`` mm at equal
+    scale: shaded bones, the floor line, ``titles`` above each pose and its knee flexion (°) below."""
+    vx0, vx1, vy0, vy1 = kp.view
+    scale = min(w / (vx1 - vx0), h / (vy1 - vy0))
+    x0 = x + (w - scale * (vx1 - vx0)) / 2
+    px = lambda v: x0 + (np.asarray(v) - vx0) * scale  # noqa: E731
+    py = lambda v: y + (vy1 - np.asarray(v)) * scale   # noqa: E731
+    with pdf.local_context():
+        fill_triangles(pdf, np.stack([px(kp.triangles[..., 0]), py(kp.triangles[..., 1])], axis=-1), kp.rgb)
+        gx0, gx1, gy = kp.ground
+        pdf.set_draw_color(153, 153, 153)
+        pdf.set_line_width(0.3)
+        pdf.line(float(px(gx0)), float(py(gy)), float(px(gx1)), float(py(gy)))
+        pdf.set_font(size=9)
+        pdf.set_text_color(0, 0, 0)
+        for xc, title, flexion in zip(kp.centres_x, titles, kp.flexion_deg):
+            angle = f"{fmt_number(flexion, 0, lang)}°"
+            xm = float(px(xc))
+            pdf.text(xm - pdf.get_string_width(title) / 2, float(py(1.04 * kp.height_m)) - 1.0, title)
+            pdf.text(xm - pdf.get_string_width(angle) / 2, float(py(-0.07 * kp.height_m)) + 2.5, angle)

@@ -29,6 +29,7 @@ import numpy as np
 
 from reports.excel import _get, _label, _session_rows, cycle_and_phase_per_sample, phase_specs, tr
 from reports import i18n
+from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
 
 __all__ = ["render_html", "figure_specs"]
@@ -307,7 +308,7 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
             segment=_label("data.seg", seg, lang), pct=_num(None if frac is None else 100.0 * frac, lang, 1))))
     warnings = _get(r, "quality", "warnings") or []
     for w in warnings:
-        items.append(_e(w.get("message", w.get("code", "")) if isinstance(w, dict) else w))
+        items.append(_e(warning_text(w, lang, r)[0]))
     if not warnings:
         items.append(_e(tr("html.no_warnings", lang)))
     parts.append('<ul class="warnings">' + "".join(f"<li>{i}</li>" for i in items) + "</ul>")

@@ -12,46 +12,45 @@
 4. phase table (impulse, extension, fall: time mean ± SD in s and % of the cycle) and range-of-motion
    table (range, maximum, minimum: mean ± SD in degrees per angle);
 5. mean ± SD curves over the normalised cycle with the mean phase boundaries (:mod:`reports.figures`);
-6. optional still of the key poses: start, peak flexion, full extension (``reports.bones.render_key_poses``,
-   when that module is importable; if it fails the report is written without it and the error logged);
+6. optional still of the key poses: start, peak flexion, full extension (``reports.bones.key_poses``, drawn
+   as shaded vector triangles, when that module is importable; if it fails the report is written without
+   it and the error logged);
 7. the whole task over time, accepted cycles shaded and numbered, rejected ones hatched;
 8. quality: magnetometer field and coverage per sensor, cycles accepted / rejected with the reasons,
    the posture check (angle between standing and supine), every warning; then the signature line.
 
 Every text comes from the translation tables through :func:`reports.i18n.t`; numbers through
-:func:`reports.i18n.fmt_number` (decimal comma in es/pt).  Warnings' messages come from the estimators in
-English and are printed as given (a note says so in es/pt).  Figures are embedded as the Agg canvas' RGB
-pixels at 150 dpi (fpdf2 deflates raster images itself, so a PNG round trip would only cost time).
+:func:`reports.i18n.fmt_number` (decimal comma in es/pt).  Quality warnings are translated by their code
+(:mod:`reports.warning_text`); one without a complete translation is printed in English as the software
+wrote it, and then a note says so.  Figures and the key-pose still are vectors drawn with fpdf2's own
+operations (:mod:`reports.figures`; a matplotlib raster cost ~100 ms per figure).
 Page totals are written after the content (no ``{nb}`` alias), so no user text is ever substituted.
 The output is deterministic for a given input and ``report_date``.  The font is DejaVu Sans from the installed
-matplotlib package (Unicode: á, ñ, ç, °, µ, ±), embedded as a subset.  Nothing is computed here: every
-number is read from ``results``.
+matplotlib package (Unicode: á, ñ, ç, °, µ, ±), embedded as a subset; :mod:`reports.fonts` gives fpdf2 a
+cut of it that parses fast, or the full files when typed text needs more (a Greek or Cyrillic name).
+Nothing is computed here: every number is read from ``results``.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
-import io
 import logging
 import math
 import re
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
-import matplotlib
 from fpdf import FPDF, FontFace
 from fpdf.enums import TableBordersLayout, XPos, YPos
-from PIL import Image
 
-from reports import figures
+from reports import figures, fonts
 from reports.i18n import MISSING, fmt_mean_sd, fmt_number, has, t
 from reports.model import ReportInput
+from reports.warning_text import warning_text
 
 log = logging.getLogger(__name__)
 
 FONT = "dejavu"
-_FONT_DIR = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
-_FONT_FILES = {"": "DejaVuSans.ttf", "B": "DejaVuSans-Bold.ttf"}
 
 MARGIN_MM = 15.0
 HEADER_BOTTOM_MM = 26.0     # content starts below the header rule
@@ -79,12 +78,12 @@ def user_text(value: Any) -> str:
 class _Report(FPDF):
     """FPDF with the report's font and helpers; header/footer are drawn at the end on every page."""
 
-    def __init__(self, lang: str) -> None:
+    def __init__(self, lang: str, *, full_font: bool = False) -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
         self.lang = lang
         self.alias_nb_pages(None)  # page totals are written after the content: user text is never substituted
-        for style, name in _FONT_FILES.items():
-            self.add_font(FONT, style, str(_FONT_DIR / name))
+        for style, path in fonts.font_files(full=full_font).items():
+            self.add_font(FONT, style, str(path))
         self.set_margins(MARGIN_MM, HEADER_BOTTOM_MM, MARGIN_MM)
         self.set_auto_page_break(True, margin=297.0 - FOOTER_TOP_MM + 3.0)
         self.set_font(FONT, "", 9.5)
@@ -152,12 +151,6 @@ class _Report(FPDF):
         while text and self.get_string_width(text + "…") > width_mm:
             text = text[:-1]
         return text + "…"
-
-    def image_block(self, image: Any, width_mm: float, height_mm: float) -> None:
-        self.ensure_space(height_mm + 2.0)
-        x = self.l_margin + (self.epw - width_mm) / 2
-        self.image(image, x=x, y=self.get_y(), w=width_mm, h=height_mm)
-        self.set_y(self.get_y() + height_mm + 2.0)
 
     def draw_page_chrome(self, version: str, date_text: str, patient: str) -> None:
         """Header and footer on every page (after the content, so the page total is known)."""
@@ -298,38 +291,51 @@ def _tables(pdf: _Report, ri: ReportInput) -> None:
     pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=_GREY)
 
 
-def _figure_section(pdf: _Report, fig, section: str, note: str) -> None:
-    """A section heading, its grey note and a full-width matplotlib figure kept on one page."""
-    w = pdf.epw
-    h = w * fig.get_figheight() / fig.get_figwidth()
-    pdf.section(section, space_after_mm=h + 8)
+def _figure_section(pdf: _Report, ri: ReportInput, draw: Callable[..., None], height_mm: float, section: str,
+                    note: str) -> None:
+    """A section heading, its grey note and a full-width vector figure kept on one page; ``draw`` is one
+    of :mod:`reports.figures`' ``draw_*(pdf, ri, x, y, w, h)``."""
+    pdf.section(section, space_after_mm=height_mm + 8)
     pdf.paragraph(pdf.tr(note), size=8, color=_GREY)
-    pdf.image_block(figures.to_image(fig), w, h)
+    pdf.ensure_space(height_mm + 2.0)
+    y = pdf.get_y()
+    draw(pdf, ri, pdf.l_margin, y, pdf.epw, height_mm)
+    pdf.set_font(FONT, "", 9.5)
+    pdf.set_text_color(0, 0, 0)
+    pdf.set_xy(pdf.l_margin, y + height_mm + 2.0)
 
 
 def _curves(pdf: _Report, ri: ReportInput) -> None:
-    _figure_section(pdf, figures.curves_figure(ri), "section_curves", "curves_note")
+    _figure_section(pdf, ri, figures.draw_curves, figures.CURVES_HEIGHT_MM, "section_curves", "curves_note")
 
 
 def _task_over_time(pdf: _Report, ri: ReportInput) -> None:
-    _figure_section(pdf, figures.task_figure(ri), "section_task_time", "task_time_note")
+    _figure_section(pdf, ri, figures.draw_task, figures.TASK_HEIGHT_MM, "section_task_time", "task_time_note")
 
 
 def _key_poses(pdf: _Report, ri: ReportInput) -> bool:
-    """The key-pose still from ``reports.bones`` when that module is installed; False when absent."""
+    """The key-pose still (``reports.bones.key_poses``, drawn by :func:`reports.figures.draw_key_poses`);
+    False when the bones module is absent or its geometry fails (the report is then written without it,
+    the error logged)."""
     try:
-        from reports.bones import render_key_poses  # optional module (3D bones); absent → no figure
+        from reports.bones import key_poses  # optional module (3D bones); absent → no figure
     except ImportError:
         return False
     try:
-        png = render_key_poses(ri, titles=[pdf.tr(f"pose_{k}") for k in ("start", "peak_flexion", "full_extension")])
+        kp = key_poses(ri)
     except Exception:  # a failed still must not cost the clinician the report
-        log.exception("key-pose still could not be rendered; the PDF is written without it")
+        log.exception("key-pose still could not be computed; the PDF is written without it")
         return False
-    img = Image.open(io.BytesIO(png))
-    h = min(KEY_POSES_MAX_H_MM, pdf.epw * img.height / img.width)
+    vx0, vx1, vy0, vy1 = kp.view
+    h = min(KEY_POSES_MAX_H_MM, pdf.epw * (vy1 - vy0) / (vx1 - vx0))
     pdf.section("section_key_poses", space_after_mm=h + 4)
-    pdf.image_block(img, h * img.width / img.height, h)
+    pdf.ensure_space(h + 2.0)
+    y = pdf.get_y()
+    titles = [pdf.tr(f"pose_{k}") for k in ("start", "peak_flexion", "full_extension")]
+    figures.draw_key_poses(pdf, kp, titles, pdf.lang, pdf.l_margin, y, pdf.epw, h)
+    pdf.set_font(FONT, "", 9.5)
+    pdf.set_text_color(0, 0, 0)
+    pdf.set_xy(pdf.l_margin, y + h + 2.0)
     return True
 
 
@@ -379,19 +385,19 @@ def _quality(pdf: _Report, ri: ReportInput) -> None:
         rows.append([pdf.tr(f"seg_{seg}"), pdf.num(_get(seg_cal, seg, "angle_between_postures_deg"), "deg")])
     pdf.grid(rows, (1, 1), align=("LEFT", "RIGHT"), bold_cols=(0,))
 
-    # warnings, printed as the estimators wrote them
+    # warnings, translated by code (reports.warning_text); English where no complete translation exists
     warnings = list(_get(r, "quality", "warnings", default=[]))
     pdf.ensure_space(15)
     pdf.paragraph(pdf.tr("quality_warnings"), style="B")
     if not warnings:
         pdf.paragraph(pdf.tr("no_warnings"))
         return
+    texts = [warning_text(w, pdf.lang, r) for w in warnings]
     note = pdf.tr("warnings_language_note")
-    if note:
+    if note and not all(translated for _, translated in texts):
         pdf.paragraph(note, size=8, color=_GREY)
-    for w in warnings:
-        msg = user_text(w.get("message") if isinstance(w, dict) else w)
-        pdf.paragraph("• " + (msg or user_text(w.get("code") if isinstance(w, dict) else "")))
+    for text, _ in texts:
+        pdf.paragraph("• " + (user_text(text) or MISSING))
 
 
 def _pct(pdf: _Report, fraction: Any, kind: str) -> str:
@@ -417,6 +423,23 @@ def _signature(pdf: _Report) -> None:
     pdf.set_y(y + 6)
 
 
+def _data_texts(ri: ReportInput) -> list[str]:
+    """Every text the report may print that is not from the translation tables: what people typed and
+    the strings of ``results`` (warnings, filter name, codes) — to choose the font cut (:mod:`reports.fonts`)."""
+    out = [str(v) for v in vars(ri.patient).values() if v is not None]
+    stack: list[Any] = [ri.results]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, str):
+            out.append(item)
+        elif isinstance(item, dict):
+            stack.extend(item.keys())
+            stack.extend(v for v in item.values() if isinstance(v, (str, dict, list)))
+        elif isinstance(item, list):
+            stack.extend(v for v in item if isinstance(v, (str, dict, list)))
+    return out
+
+
 def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_poses: bool = True) -> bytes:
     """The PDF report of ``ri`` in ``ri.language`` (module docstring for the layout).
 
@@ -426,7 +449,7 @@ def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_pose
     """
     lang = ri.language
     report_date = report_date or _dt.datetime.now(_dt.timezone.utc).date()
-    pdf = _Report(lang)
+    pdf = _Report(lang, full_font=fonts.needs_full_font(_data_texts(ri)))
     version = str(_get(ri.results, "software", "version", default=MISSING))
     pdf.set_title(f"{t('product', lang)} — {t('report_title', lang)}")
     pdf.set_creator(f"ChakaMo {version}")

@@ -331,7 +331,10 @@ def _record(server: Any, data: SceneData, rate_hz: float, label_every: int, *, f
     emit = _direct_inserter(server, serializer) if fast else None
     dt = 1.0 / rate_hz
     last_text = data.label_text(int(idx[0]))
-    last_q = (data.q_earth_tibia[idx[0]], data.q_tibia_femur[idx[0]])
+    # what the public setters skip (np.allclose to the previous value), skipped: decided for all frames at once
+    q_t_all, q_tf_all = data.q_earth_tibia[idx], data.q_tibia_femur[idx]
+    moved_t = np.concatenate([[False], ~np.isclose(q_t_all[1:], q_t_all[:-1]).all(axis=1)])
+    moved_tf = np.concatenate([[False], ~np.isclose(q_tf_all[1:], q_tf_all[:-1]).all(axis=1)])
     for k, i in enumerate(idx):
         i = int(i)
         if k:
@@ -343,14 +346,12 @@ def _record(server: Any, data: SceneData, rate_hz: float, label_every: int, *, f
                 if text != last_text:
                     nodes.label.text = text
         else:
-            q_t, q_tf = data.q_earth_tibia[i], data.q_tibia_femur[i]
-            if not np.allclose(q_t, last_q[0]):               # what the public setter skips, skipped
-                emit(nodes.tibia.name, q_t)
-            if not np.allclose(q_tf, last_q[1]):
-                emit(nodes.femur.name, q_tf)
+            if moved_t[k]:
+                emit(nodes.tibia.name, q_t_all[k])
+            if moved_tf[k]:
+                emit(nodes.femur.name, q_tf_all[k])
             if text != last_text:
                 emit(nodes.label.name, text=text)
-            last_q = (q_t, q_tf)
         last_text = text
     serializer.insert_sleep(dt)
     return serializer

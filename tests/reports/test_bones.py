@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 
 import numpy as np
 import pytest
@@ -194,17 +193,33 @@ def test_key_pose_times_fall_back_to_the_flexion_extremes_without_events():
 
 
 @pytest.mark.parametrize("side", ["right", "left"])
-def test_render_key_poses_is_a_deterministic_non_blank_png(side):
-    import matplotlib.image
-
+def test_key_poses_are_three_side_by_side_poses(side):
     ri = make_input(side=side, height_m=1.7)
-    png = bones.render_key_poses(ri, titles=["a", "b", "c"])
-    assert png[:8] == b"\x89PNG\r\n\x1a\n"
-    assert png == bones.render_key_poses(ri, titles=["a", "b", "c"])
-    img = matplotlib.image.imread(io.BytesIO(png))
-    ink = (img[:, :, :3].mean(axis=2) < 0.95)
-    assert ink.mean() > 0.03                                  # bones drawn
-    # three poses: ink in the left, middle and right thirds of the picture
-    cols = ink.any(axis=0)
-    w = len(cols)
-    assert cols[: w // 3].any() and cols[w // 3: 2 * w // 3].any() and cols[2 * w // 3:].any()
+    kp = bones.key_poses(ri)
+    assert kp.triangles.shape[1:] == (3, 2) and len(kp.rgb) == len(kp.triangles) > 1000
+    x = kp.triangles[:, :, 0].mean(axis=1)
+    # three poses around their centres, each pose's bones nearer its own centre than the others'
+    nearest = np.argmin(np.abs(x[:, None] - kp.centres_x[None, :]), axis=1)
+    assert set(np.unique(nearest)) == {0, 1, 2}
+    assert np.all((kp.triangles[:, :, 0] >= kp.view[0]) & (kp.triangles[:, :, 0] <= kp.view[1]))
+    assert np.all((kp.triangles[:, :, 1] >= kp.view[2]) & (kp.triangles[:, :, 1] <= kp.view[3]))
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_key_poses_geometry_is_framed_shaded_and_at_the_key_instants(side):
+    ri = make_input(side=side, height_m=1.7)
+    kp = bones.key_poses(ri)
+    x0, x1, y0, y1 = kp.view
+    assert kp.triangles.ndim == 3 and kp.triangles.shape[1:] == (3, 2) and len(kp.triangles) > 1000
+    assert len(kp.rgb) == len(kp.triangles) and (kp.rgb >= 0).all() and (kp.rgb <= 1).all()
+    assert (x1 - x0) == pytest.approx(2 * (y1 - y0))                      # 2:1 frame, equal scale
+    xs, ys = kp.triangles[..., 0], kp.triangles[..., 1]
+    assert x0 <= xs.min() and xs.max() <= x1 and y0 <= ys.min() and ys.max() <= y1
+    assert kp.ground[2] < ys.min() + 0.05 and ys.max() < 1.04 * kp.height_m   # on the floor, below the titles
+    # three legs side by side, each around its centre; flexion printed = the angle at the key instants
+    for c in kp.centres_x:
+        assert np.any(np.abs(xs.mean(axis=1) - c) < 0.2)
+    idx = [int(np.searchsorted(ri.t_s, t)) for t in bones.key_pose_times_s(ri)]
+    assert kp.flexion_deg == pytest.approx(ri.angles_deg[idx, 0])
+    again = bones.key_poses(ri)
+    assert np.array_equal(again.triangles, kp.triangles) and np.array_equal(again.rgb, kp.rgb)

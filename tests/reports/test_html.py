@@ -147,3 +147,18 @@ def test_missing_parts_do_not_break_the_page():
     figs = _figures(page)
     assert figs["fig-curves"]["data"] == []
     assert figs["fig-task"]["data"][0]["y"][10] is None                     # NaN → gap, valid JSON
+
+
+def test_warnings_are_translated_by_code():
+    from dataclasses import replace
+
+    ri = make_report_input("es")
+    warning = {"code": "ingestion_note", "message": "thigh task: gyr ran on 1.53 s after the common span (cut)"}
+    results = {**ri.results, "quality": {**ri.results["quality"], "warnings": [warning]}}
+    for lang, expected in (("es", "Muslo, tarea: el giroscopio siguió registrando 1,53 s después del intervalo "
+                                  "común (recortado)"),
+                           ("pt", "Coxa, tarefa: o giroscópio continuou registrando 1,53 s após o intervalo comum "
+                                  "(cortado)"),
+                           ("en", warning["message"])):
+        page = _without_plotly_js(render_html(replace(ri, results=results, language=lang)))
+        assert expected in page and (warning["message"] in page) == (lang == "en")

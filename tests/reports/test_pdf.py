@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import datetime as dt
 import importlib.util
-import io
 import re
 import shutil
 import subprocess
@@ -25,6 +24,7 @@ from reports import figures
 from reports.i18n import LANGUAGES, t
 from reports.model import Patient, ReportInput
 from reports.pdf import DECIMALS, render_pdf
+from reports.warning_text import warning_text
 
 HAS_POPPLER = shutil.which("pdftoppm") is not None and shutil.which("pdftotext") is not None
 needs_poppler = pytest.mark.skipif(not HAS_POPPLER, reason="poppler-utils (pdftoppm, pdftotext) not installed")
@@ -120,7 +120,10 @@ def _synthetic_ri(language: str = "en", patient: Patient | None = None) -> Repor
                         "segment": {}},
         "quality": {"warnings": [{"code": "mag_field", "message": "Thigh sensor: field 80.0 µT is far from the "
                                   "expected 25–65 µT"},
-                                 {"code": "cycles_rejected", "message": "3 of 4 cycles were left out"}]},
+                                 {"code": "cycles_rejected", "message": "3 of 4 cycles were left out of the "
+                                  "statistics: cycle 1: starts during; cycle 2: rmse; cycle 4: ?"},
+                                 {"code": "MAG_FIELD_IMPLAUSIBLE", "message": "x", "params": {
+                                     "segment": "thigh", "field_ut": 80.04, "lo_ut": 25, "hi_ut": 65}}]},
         "software": {"version": "9.8.7"},
     }
     return ReportInput(results, t_s, angles, {"thigh": q, "shank": q}, {"femur": q, "tibia": q},
@@ -142,14 +145,49 @@ def test_render_is_deterministic(demo_ri):
     assert render_pdf(demo_ri, report_date=REPORT_DATE) == render_pdf(demo_ri, report_date=REPORT_DATE)
 
 
-def test_figures_are_deterministic_pngs(demo_ri):
-    a, b = figures.curves_png(demo_ri), figures.curves_png(demo_ri)
-    assert a == b and a.startswith(b"\x89PNG")
-    img = Image.open(io.BytesIO(figures.task_png(demo_ri)))
-    assert img.width == round(7.0 * figures.DPI)
+def test_figure_axes_use_nice_ticks_and_the_mean_phase_boundaries(demo_ri):
+    lo, hi, ticks = figures.nice_ticks(-3.2, 67.9, 4)
+    assert lo <= -3.2 and hi >= 67.9 and ticks[0] == lo and ticks[-1] == hi
+    steps = np.diff(ticks)
+    assert np.allclose(steps, steps[0]) and steps[0] == 20.0
+    lo, hi, ticks = figures.nice_ticks(0.0, 51.7, 10, expand=False)   # time axis: limits kept, ticks inside
+    assert (lo, hi) == (0.0, 51.7) and ticks == [10.0 * k for k in range(6)]
+    assert figures.nice_ticks(4.0, 4.0)[:2] == (3.0, 5.0)               # flat data still gets an axis
+    assert figures.nice_ticks(float("nan"), float("nan"))[:2] == (0.0, 1.0)
     assert figures.phase_boundaries_pct(demo_ri.results) == pytest.approx(
         [demo_ri.results["phases"]["impulse"]["mean_pct"],
          demo_ri.results["phases"]["impulse"]["mean_pct"] + demo_ri.results["phases"]["extension"]["mean_pct"]])
+
+
+def test_figures_and_key_poses_are_vectors_not_images(demo_pdfs):
+    for pdf in demo_pdfs.values():
+        assert b"/Subtype /Image" not in pdf
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_figure_labels_are_translated_text(demo_ri, demo_pdfs, lang):
+    text = _flat(_text(demo_pdfs[lang]))
+    for key in ("axis_flexion", "axis_internal_rotation", "axis_adduction", "fig_cycle_pct", "fig_time_s",
+                "fig_mean", "fig_sd", "fig_accepted", "fig_rejected", "pose_start", "pose_peak_flexion",
+                "pose_full_extension"):
+        assert _flat(t(key, lang)) in text, (lang, key)
+    assert text.count(t("angle_flexion", lang)) >= 3  # ROM table, curves panel, task panel
+    # the cycle numbers over the task figure, in order
+    n = demo_ri.results["cycles"]["detected"]
+    assert " ".join(str(i) for i in range(1, n + 1)) in text
+
+
+@needs_poppler
+def test_curves_are_drawn_in_the_line_colour(demo_pdfs, tmp_path):
+    pdf = tmp_path / "r.pdf"
+    pdf.write_bytes(demo_pdfs["en"])
+    subprocess.run(["pdftoppm", "-r", "60", "-png", str(pdf), str(tmp_path / "p")], check=True)
+    blue = 0
+    for page in sorted(tmp_path.glob("p-*.png")):
+        rgb = np.asarray(Image.open(page).convert("RGB"), dtype=np.int32)
+        blue += int(np.sum(np.abs(rgb - np.array([31, 78, 121])).sum(axis=2) < 60))
+    assert blue > 1500  # two figures × three panels of curves (a blank figure area gives ~0)
 
 
 @needs_poppler
@@ -218,8 +256,24 @@ def test_golden_numbers_printed_equal_results_json(demo_ri, demo_pdfs, lang):
     assert t("stats_note", lang, n=c["accepted"]) in text
     assert t("header_version", lang, version=r["software"]["version"]) in text
     assert r["filter"]["name"] in text
-    for w in r["quality"]["warnings"]:  # printed as the estimators wrote them (English)
-        assert _flat(w["message"]) in text
+    assert r["quality"]["warnings"]      # the demo has warnings (a stream cut at alignment)
+    for w in r["quality"]["warnings"]:   # translated by code; English verbatim
+        printed, translated = warning_text(w, lang, r)
+        assert translated and _flat(printed) in text
+        assert (_flat(w["message"]) in text) == (lang == "en")
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", ["es", "pt"])
+def test_demo_warnings_print_without_english(demo_ri, demo_pdfs, lang):
+    text = _flat(_text(demo_pdfs[lang]))
+    warnings = demo_ri.results["quality"]["warnings"]
+    assert warnings
+    for w in warnings:
+        assert _flat(w["message"]) not in text
+        for words in ("ran on", "common span", "sensor:", "cut)", "thigh", "shank", "gyr "):
+            assert words not in w["message"] or words not in text, (lang, words)
+    assert _flat(t("warnings_language_note", lang)) not in text   # nothing left in English
 
 
 @needs_poppler
@@ -243,6 +297,13 @@ def test_formula_and_html_like_patient_text_prints_literally():
         assert s in text, s
 
 
+@needs_poppler
+def test_names_outside_the_font_cut_print_with_the_full_font():
+    patient = Patient(name_or_id="Иван Петров", professional="Αθηνά Παπαδοπούλου")
+    text = _flat(_text(render_pdf(_synthetic_ri("es", patient), report_date=REPORT_DATE)))
+    assert "Иван Петров" in text and "Αθηνά Παπαδοπούλου" in text
+
+
 def test_characters_missing_from_the_font_do_not_break_the_report():
     patient = Patient(name_or_id="患者 7 🦵", observations="tab\there\r\nnew line \x07bell")
     pdf = render_pdf(_synthetic_ri("pt", patient), report_date=REPORT_DATE)
@@ -258,8 +319,18 @@ def test_rejected_cycles_missing_sd_and_warnings(lang):
     assert t("cycle_rejected", lang, n=2, reason=t("reason_rmse", lang)) in text
     assert t("cycle_rejected", lang, n=4, reason="something_new") in text  # unknown code shown as it is
     assert t("cycles_summary", lang, detected=4, accepted=1, rejected=3) in text
-    for w in ri.results["quality"]["warnings"]:
-        assert w["message"] in text
+    unknown, rejected, with_params = ri.results["quality"]["warnings"]
+    assert unknown["message"] in text                          # unknown code: English as written, in any language
+    assert lang == "en" or _flat(t("warnings_language_note", lang)) in text   # ... and a note says so
+    assert (rejected["message"] in text) == (lang == "en")
+    reasons = [t("reason_incomplete_start", lang), t("reason_rmse", lang), "something_new"]
+    if lang != "en":                                          # translated reasons from the rejection codes
+        assert all(_flat(reason) in text for reason in reasons)
+        assert "3 de 4" in text
+    printed = {"es": "Muslo: La intensidad de campo ajustada es 80,0 µT; el campo terrestre es de 25–65 µT.",
+               "pt": "Coxa: A intensidade de campo ajustada é 80,0 µT; o campo terrestre é de 25–65 µT.",
+               "en": "x"}[lang]                               # params: numbers formatted here; en prints the message
+    assert _flat(printed) in text
     assert t("side_left", lang) in text and "madgwick" in text and "9.8.7" in text
     assert _flat(t("task_description_no_height", lang, leg=t("leg_left", lang))) in text  # no step height
     # one accepted cycle: no SD, the mean alone, rounded as printed (no negative zero)
