@@ -67,6 +67,27 @@ def test_kernel_matches_reference(measurement, with_mag, bias_init):
     np.testing.assert_allclose(np.linalg.norm(fast.orientation_, axis=1), 1.0, atol=1e-12)
 
 
+
+@pytest.mark.parametrize(
+    "fs_hz, params",
+    [(4.0, {}),  # half rotation angles up to 0.26 rad: the kernel's libm sin/cos branch, not its series
+     (FS_HZ, {"bias_init_rad_s": 0.0, "bias_walk_rad_s15": 0.05}),  # Σbb grows from zero: noise after Φ
+     (FS_HZ, {"acc_innov_tol_rad": math.inf, "mag_innov_tol_rad": math.inf, "acc_norm_tol_m_s2": math.inf}),
+     (FS_HZ, {"acc_innov_tol_rad": 1e-4, "mag_innov_tol_rad": 1e-4})],  # acos and atan2 on every sample
+)
+def test_kernel_matches_reference_on_every_fast_path(fs_hz, params):
+    """The kernel's shortcuts (series, skipped acos/atan2, register-held covariance) keep the reference's numbers."""
+    _, acc, gyr, mag = rotating_body(250, fs_hz=fs_hz, rest_s=0.5, noise=True, seed=8, bias_rad_s=(0.02, 0.0, -0.01))
+    acc[120] *= 2.0
+    mag[150:170] *= 1.3
+    for m in (mag, None):
+        method = Guo(GuoParams(rest_min_s=0.3, **params))
+        fast = method.estimate(acc, gyr, m, fs_hz=fs_hz)
+        data = validate_imu(acc, gyr, m, fs_hz=fs_hz)
+        slow, slow_state = method._run_reference(data, method._initial_state_for(data, None))
+        assert np.abs(fast.orientation_ - slow).max() <= 1e-9
+        assert np.abs(fast.state_ - slow_state).max() <= 1e-9
+
 # ------------------------------------------------------------------------------- measurement model
 @pytest.mark.parametrize("seed", range(4))
 def test_measurement_is_the_fixed_point_and_matches_triad(seed):
