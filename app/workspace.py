@@ -37,8 +37,19 @@ def _number(x: Any) -> float | None:
 
 def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[Recording],
                    uploaded: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The ``session.json`` of ``session`` (module docstring)."""
+    """The ``session.json`` of ``session`` (module docstring).
+
+    An uploaded manifest may only name this session's stored files, by their bare names: anything else (a
+    path, ``..``, a file that was not uploaded) raises :class:`IngestionError`, so a manifest can never make
+    the ingestion read a file outside the session's own folder."""
     manifest: dict[str, Any] = dict(uploaded or {})
+    stored = {r.file_name for r in recordings if r.file_name != MANIFEST}
+    for entry in manifest.get("recordings") or []:
+        files = entry.get("files") if isinstance(entry, dict) else None
+        for name in files if isinstance(files, list) else [files]:
+            if not isinstance(name, str) or Path(name).name != name or name not in stored:
+                raise IngestionError(f"{MANIFEST}: the recording file {name!r} is not one of this session's "
+                                     "uploaded files; list only the uploaded files' names")
     facts = {
         "side": patient.side, "patient_id": patient.external_id, "date": session.date.isoformat(),
         "step_height_m": _number(session.step_height_m), "name": patient.name,
