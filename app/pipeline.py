@@ -24,9 +24,11 @@ Stages (each reported to ``progress(stage, fraction)``):
 Quality checks gathered on the way (``results["quality"]["warnings"]``): magnetometer coverage and
 residual, postures not still or not distinct, a sensor mounted upside down, a large heading offset
 or drift between the two sensors, magnetic disturbance during the task, cycles rejected, and every
-note the ingestion made.  Sensors swapped between thigh and shank (the task's flexion comes out
-negative) stop the processing with a message instead.  :func:`process_session` computes everything
-before anything is written;
+note the ingestion made.  Each warning carries ``params`` (its values by the field names of
+``reports/translations_warnings.json``); the magnetometer's, re-worded here with the sensor in front, get
+``params["segment"]``, the ingestion notes the :class:`app.ingestion.Note` params.  Sensors swapped
+between thigh and shank (the task's flexion comes out negative) stop the processing with a message instead.
+:func:`process_session` computes everything before anything is written;
 :mod:`app.results` turns the outcome into ``results.json``.
 """
 
@@ -47,7 +49,7 @@ from estimators.motor_task import TaskAnalysis, analyse_task
 from estimators.orientation import DEFAULT_METHOD, make
 from estimators.quality import QualityWarning
 
-from app.ingestion import SEGMENTS, IngestionError, Session
+from app.ingestion import SEGMENTS, IngestionError, Note, Session
 
 FloatArray = NDArray[np.float64]
 Progress = Callable[[str, float], None]
@@ -137,7 +139,8 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
                     progress: Progress = _no_progress) -> SessionOutcome:
     """Run stages 2–6 on a loaded session (see the module docstring)."""
     options = options or ProcessOptions()
-    warnings: list[QualityWarning] = [QualityWarning("ingestion_note", n) for n in session.notes]
+    warnings: list[QualityWarning] = [QualityWarning("ingestion_note", n, n.params if isinstance(n, Note) else {})
+                                      for n in session.notes]
     side = options.side or session.metadata.value("side")
     if side is None:
         raise PipelineError(
@@ -153,7 +156,8 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             mag[seg] = fit_ellipsoid(rec.mag)
         except ValueError as exc:
             raise PipelineError(f"{seg} magnetometer calibration ({_files(rec)}): {exc}") from None
-        warnings += [QualityWarning(w.code, f"{seg.capitalize()} sensor: {w.message}") for w in mag[seg].quality.warnings]
+        warnings += [QualityWarning(w.code, f"{seg.capitalize()} sensor: {w.message}", {**w.params, "segment": seg})
+                     for w in mag[seg].quality.warnings]
 
     progress("segments", 0.3)
     segments: dict[str, knee.SegmentCalibration] = {}
@@ -206,7 +210,8 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         warnings.append(QualityWarning(
             "cycles_rejected",
             f"{len(analysis.rejected)} of {analysis.n_detected} cycles were left out of the statistics: "
-            + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in analysis.rejected)))
+            + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in analysis.rejected),
+            {"rejected": len(analysis.rejected), "detected": analysis.n_detected}))
     return SessionOutcome(
         session=session, options=options, side=side, step_height_m=session.metadata.value("step_height_m"),
         t_s=thigh.t_s, fs_hz=thigh.fs_hz, t0_s=thigh.t0_s, angles_rad=angles, q_earth_sensor=q_es,
@@ -259,9 +264,11 @@ def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, q_es
         j_t = j_seel
         if gap > FUNCTIONAL_AXIS_AGREE_RAD:
             j_t = j_rel
+            gap_deg = float(np.rad2deg(gap))
             warnings.append(QualityWarning(
-                "functional_axis_uncertain", f"the task's gyroscopes alone place the flexion axis {np.rad2deg(gap):.0f}° "
-                "from the sensors' relative motion; the latter was used, adduction may read a few degrees off"))
+                "functional_axis_uncertain", f"the task's gyroscopes alone place the flexion axis {gap_deg:.0f}° "
+                "from the sensors' relative motion; the latter was used, adduction may read a few degrees off",
+                {"angle_deg": gap_deg}))
         femur = knee.functional_calibration(segments["thigh"], j_t, label="thigh")
     except ValueError as exc:
         raise PipelineError(f"functional calibration on {_files(thigh)} and {_files(shank)}: {exc}") from None

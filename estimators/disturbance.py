@@ -79,11 +79,13 @@ def field_disturbance(
     fraction = float(disturbed[valid].mean())
     warnings = ()
     if fraction > WARN_FRACTION:
+        pct, norm_pct, dip_deg = 100.0 * fraction, 100.0 * float(norm_dev.max()), float(np.rad2deg(dip_dev.max()))
         warnings = (QualityWarning(
             "magnetic_disturbance",
-            f"The magnetic field at the {label} sensor was disturbed during {100 * fraction:.0f} % of the task "
-            f"(norm off by up to {100 * norm_dev.max():.0f} %, dip by up to {np.rad2deg(dip_dev.max()):.0f}°): "
+            f"The magnetic field at the {label} sensor was disturbed during {pct:.0f} % of the task "
+            f"(norm off by up to {norm_pct:.0f} %, dip by up to {dip_deg:.0f}°): "
             "heading-dependent angles (adduction, rotation) may be less accurate. Keep metal and electronics "
             "away from the sensors.",
+            {"segment": label, "pct": pct, "norm_pct": norm_pct, "dip_deg": dip_deg},
         ),)
     return FieldCheck(disturbed, fraction, dip_ref, float(norm_dev.max()), float(dip_dev.max()), warnings)

@@ -302,18 +302,24 @@ def stillest_window(acc: ArrayLike, gyr: ArrayLike, *, fs_hz: float, params: Cal
 
 def _window_warnings(win: PostureWindow, name: str, label: str, p: CalibrationParams, n: int) -> list[QualityWarning]:
     out = []
-    if n / win.fs_hz < p.window_s:
-        out.append(QualityWarning("posture_too_short", f"{label}: the {name} recording lasts {n / win.fs_hz:.1f} s, "
-                                  f"less than the {p.window_s:.0f} s still window; hold the posture ~30 s"))
+    where = {"segment": label, "posture": name}
+    duration = n / win.fs_hz
+    if duration < p.window_s:
+        out.append(QualityWarning("posture_too_short", f"{label}: the {name} recording lasts {duration:.1f} s, "
+                                  f"less than the {p.window_s:.0f} s still window; hold the posture ~30 s",
+                                  {**where, "duration_s": duration, "window_s": p.window_s}))
     if not win.still:
+        gyr_sd = float(np.rad2deg(win.gyr_sd_rad_s))
         out.append(QualityWarning(
             "posture_not_still", f"{label}: the {name} posture was not still (stillest {win.duration_s:.1f} s: gyro SD "
-            f"{np.rad2deg(win.gyr_sd_rad_s):.1f}°/s, acc SD {win.acc_sd_m_s2:.2f} m/s²); repeat it without moving"))
+            f"{gyr_sd:.1f}°/s, acc SD {win.acc_sd_m_s2:.2f} m/s²); repeat it without moving",
+            {**where, "still_s": win.duration_s, "gyr_sd_deg_s": gyr_sd, "acc_sd_m_s2": win.acc_sd_m_s2}))
     g = float(np.linalg.norm(win.acc_mean_m_s2))
     if abs(g - p.gravity_m_s2) > p.gravity_tolerance * p.gravity_m_s2:
         out.append(QualityWarning(
             "gravity_magnitude", f"{label}: the {name} specific force is {g:.2f} m/s², not ~{p.gravity_m_s2:.2f}; "
-            "check the accelerometer units (g vs m/s²) and range"))
+            "check the accelerometer units (g vs m/s²) and range",
+            {**where, "g_m_s2": g, "gravity_m_s2": p.gravity_m_s2}))
     return out
 
 
@@ -344,10 +350,13 @@ def calibrate_segment(acc_standing: ArrayLike, gyr_standing: ArrayLike, acc_supi
     warnings = (_window_warnings(stand, "standing", label, p, len(np.asarray(acc_standing)))
                 + _window_warnings(sup, "supine", label, p, len(np.asarray(acc_supine))))
     if not (p.min_angle_rad <= angle <= p.max_angle_rad):
+        deg = {"angle_deg": float(np.rad2deg(angle)), "min_deg": float(np.rad2deg(p.min_angle_rad)),
+               "max_deg": float(np.rad2deg(p.max_angle_rad))}
         warnings.append(QualityWarning(
-            "postures_not_distinct", f"{label}: gravity turned {np.rad2deg(angle):.0f}° between standing and supine "
-            f"(expected about 90°, accepted {np.rad2deg(p.min_angle_rad):.0f}–{np.rad2deg(p.max_angle_rad):.0f}°); "
-            "the segment axes are unreliable, repeat the lying posture flat on the back, toes up"))
+            "postures_not_distinct", f"{label}: gravity turned {deg['angle_deg']:.0f}° between standing and supine "
+            f"(expected about 90°, accepted {deg['min_deg']:.0f}–{deg['max_deg']:.0f}°); "
+            "the segment axes are unreliable, repeat the lying posture flat on the back, toes up",
+            {"segment": label, **deg}))
     return SegmentCalibration(q, angle, stand, sup, tuple(warnings))
 
 
@@ -432,10 +441,12 @@ def _functional_result(cal: SegmentCalibration, q: FloatArray, change: float, la
                        max_change_rad: float) -> SegmentCalibration:
     warnings = list(cal.warnings)
     if change > max_change_rad:
+        angle_deg, max_deg = float(np.rad2deg(change)), float(np.rad2deg(max_change_rad))
         warnings.append(QualityWarning(
             "functional_axis_far", f"{label}: the functional calibration turned the segment axes by "
-            f"{np.rad2deg(change):.0f}° from the supine posture's (more than {np.rad2deg(max_change_rad):.0f}°); "
-            "check the lying posture and the task"))
+            f"{angle_deg:.0f}° from the supine posture's (more than {max_deg:.0f}°); "
+            "check the lying posture and the task",
+            {"segment": label, "angle_deg": angle_deg, "max_deg": max_deg}))
     return SegmentCalibration(q, cal.angle_between_postures_rad, cal.standing, cal.supine, tuple(warnings),
                               method="functional", axis_change_rad=change)
 
@@ -448,9 +459,10 @@ def mounting_warnings(cal: SegmentCalibration, expected_up_sensor: ArrayLike = (
     e = np.asarray(expected_up_sensor, dtype=np.float64)
     angle = float(np.arccos(np.clip(np.dot(cal.standing.gravity_sensor, e / np.linalg.norm(e)), -1.0, 1.0)))
     if angle > max_angle_rad:
+        axis = f"{e[0]:.2g}, {e[1]:.2g}, {e[2]:.2g}"
         return [QualityWarning("sensor_upside_down", f"{label}: standing gravity is {np.rad2deg(angle):.0f}° from "
-                               f"the sensor axis [{e[0]:.2g}, {e[1]:.2g}, {e[2]:.2g}] expected up; the sensor seems mounted upside "
-                               "down")]
+                               f"the sensor axis [{axis}] expected up; the sensor seems mounted upside down",
+                               {"segment": label, "angle_deg": float(np.rad2deg(angle)), "axis": axis})]
     return []
 
 
@@ -522,15 +534,18 @@ def heading_offset(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike, *, method
     residual = float(np.sqrt(np.mean(res**2)))
     warns = []
     if max_offset_rad is not None and abs(delta) > max_offset_rad:
+        deg = float(np.rad2deg(delta))
         warns.append(QualityWarning("heading_mismatch", f"the thigh and shank headings differ by "
-                                    f"{np.rad2deg(delta):.0f}° while the knee should be straight; the magnetometer "
-                                    "calibration or the magnetic field is unreliable"))
+                                    f"{deg:.0f}° while the knee should be straight; the magnetometer "
+                                    "calibration or the magnetic field is unreliable", {"angle_deg": deg}))
     if residual > max_residual_rad:
+        deg = float(np.rad2deg(residual))
         warns.append(QualityWarning("heading_residual", f"after aligning the headings the segments still differ by "
-                                    f"{np.rad2deg(residual):.1f}° RMS; the knee was not straight/hinge-like here"))
+                                    f"{deg:.1f}° RMS; the knee was not straight/hinge-like here", {"angle_deg": deg}))
     if spread > max_spread_rad:
+        deg = float(np.rad2deg(spread))
         warns.append(QualityWarning("heading_drift", f"the relative heading of the two sensors varies by "
-                                    f"{np.rad2deg(spread):.1f}° (SD); transverse-plane angles are unreliable"))
+                                    f"{deg:.1f}° (SD); transverse-plane angles are unreliable", {"angle_deg": deg}))
     return HeadingOffset(delta, residual, spread, tuple(warns))
 
 
@@ -548,7 +563,9 @@ def task_warnings(knee_angles_rad: ArrayLike, *, min_flexion_rad: float = float(
         return []
     frac = float(np.mean(flex < min_flexion_rad))
     if frac > fraction:
-        return [QualityWarning("flexion_negative", f"knee flexion is below {np.rad2deg(min_flexion_rad):.0f}° in "
-                               f"{100 * frac:.0f}% of the task (median {np.rad2deg(np.median(flex)):.0f}°); "
-                               "the thigh and shank sensors are probably swapped or mounted upside down")]
+        values = {"min_deg": float(np.rad2deg(min_flexion_rad)), "pct": 100.0 * frac,
+                  "median_deg": float(np.rad2deg(np.median(flex)))}
+        return [QualityWarning("flexion_negative", f"knee flexion is below {values['min_deg']:.0f}° in "
+                               f"{values['pct']:.0f}% of the task (median {values['median_deg']:.0f}°); "
+                               "the thigh and shank sensors are probably swapped or mounted upside down", values)]
     return []

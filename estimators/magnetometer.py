@@ -402,29 +402,40 @@ def _calibration(params: FloatArray, x: FloatArray, shape_map: FloatArray, model
 
 
 def _warnings(q: MagQuality, anisotropy: float, expected_field_ut: float | None) -> tuple[QualityWarning, ...]:
+    """The fired checks as warnings; ``params`` carry the message's values unrounded, named as the fields
+    of ``reports/translations_warnings.json``."""
     lo, hi = EARTH_FIELD_UT
+    expected = 0.0 if expected_field_ut is None else float(expected_field_ut)
     checks = [
         (q.coverage_fraction < COVERAGE_WARN or q.direction_spread < SPREAD_WARN, "MAG_COVERAGE_LOW",
          f"The figure-eight reached {q.coverage_cells} of 20 regions of directions (spread {q.direction_spread:.2f}, "
          "1 = all directions): offset and field strength may be wrong. Repeat it turning the sensor through all "
-         "orientations, also upside down."),
+         "orientations, also upside down.",
+         {"cells": q.coverage_cells, "spread": q.direction_spread}),
         (q.residual_pct > RESIDUAL_WARN_PCT, "MAG_RESIDUAL_HIGH",
          f"After calibration the field strength still varies by {q.residual_rms_ut:.2f} µT RMS "
-         f"({q.residual_pct:.1f} %): metal or a moving magnet nearby; repeat away from metal."),
+         f"({q.residual_pct:.1f} %): metal or a moving magnet nearby; repeat away from metal.",
+         {"residual_ut": q.residual_rms_ut, "residual_pct": q.residual_pct}),
         (not lo <= q.field_ut <= hi, "MAG_FIELD_IMPLAUSIBLE",
          f"The fitted field strength is {q.field_ut:.1f} µT; the Earth's field is {lo:.0f}–{hi:.0f} µT. "
-         "Check the units of the recording, its coverage and nearby metal."),
+         "Check the units of the recording, its coverage and nearby metal.",
+         {"field_ut": q.field_ut, "lo_ut": lo, "hi_ut": hi}),
         (expected_field_ut is not None and abs(q.field_ut / expected_field_ut - 1.0) > FIELD_MISMATCH_WARN,
          "MAG_FIELD_MISMATCH",
-         f"The fitted field strength is {q.field_ut:.1f} µT, the local field {expected_field_ut or 0.0:.1f} µT."),
+         f"The fitted field strength is {q.field_ut:.1f} µT, the local field {expected:.1f} µT.",
+         {"field_ut": q.field_ut, "expected_ut": expected}),
         (q.offset_sd_ut > OFFSET_SD_WARN_UT, "MAG_OFFSET_UNCERTAIN",
-         f"The offset is uncertain by ±{q.offset_sd_ut:.2f} µT: the recording constrains it poorly."),
+         f"The offset is uncertain by ±{q.offset_sd_ut:.2f} µT: the recording constrains it poorly.",
+         {"offset_sd_ut": q.offset_sd_ut}),
         (anisotropy > SOFT_IRON_WARN, "MAG_SOFT_IRON_LARGE",
          f"The axes' sensitivities differ by {100 * anisotropy:.0f} %, unusual for the sensor alone: "
-         "metal fixed near it or poor coverage."),
+         "metal fixed near it or poor coverage.",
+         {"anisotropy_pct": 100.0 * anisotropy}),
         (q.n_outliers > DISTURBED_WARN * (q.n_samples + q.n_outliers), "MAG_DISTURBED",
-         f"{q.n_outliers} samples were rejected as magnetic disturbances: keep metal away while recording."),
+         f"{q.n_outliers} samples were rejected as magnetic disturbances: keep metal away while recording.",
+         {"n_outliers": q.n_outliers}),
         (q.n_samples < FEW_SAMPLES, "MAG_FEW_SAMPLES",
-         f"Only {q.n_samples} samples were used: record the figure-eight for ~60 s."),
+         f"Only {q.n_samples} samples were used: record the figure-eight for ~60 s.",
+         {"n_samples": q.n_samples}),
     ]
-    return tuple(QualityWarning(code, message) for fired, code, message in checks if fired)
+    return tuple(QualityWarning(code, message, params) for fired, code, message, params in checks if fired)

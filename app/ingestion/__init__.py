@@ -15,7 +15,8 @@ Public API
     The two task recordings on one common grid (same ``t_s``), aligned on their time stamps.
 ``Session.metadata``: :class:`SessionMetadata` (patient_id, side, step_height_m, date, trial — each a
     :class:`Recognition` saying whether the file name, the MetaBase label or ``session.json`` gave it).
-``Session.notes``: sentences worth showing the user (sheet chosen, stream cut, default step height...).
+``Session.notes``: sentences worth showing the user (sheet chosen, stream cut, default step height...); those
+    the reports translate are :class:`Note` (a ``str`` with ``params``: variant, segment, role, values).
 ``read_recording(files, sheet=None) -> RawRecording``: one recording as read (streams with own stamps).
 ``read_metabase_csv``, ``read_thesis_xlsx``, ``read_generic_csv``: single-file readers → :class:`Stream`.
 ``align_recording``, ``align_pair``: the alignment on its own.
@@ -52,13 +53,14 @@ from app.ingestion.align import align_pair, align_recording
 from app.ingestion.excel import read_thesis_xlsx, write_thesis_xlsx
 from app.ingestion.generic import read_generic_csv, write_generic_csv
 from app.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
-from app.ingestion.model import (KINDS, ROLES, SEGMENTS, AlignedRecording, IngestionError, RawRecording, Recognition,
-                                 Session, SessionMetadata, Stream)
+from app.ingestion.model import (KINDS, ROLES, SEGMENTS, AlignedRecording, IngestionError, Note, RawRecording,
+                                 Recognition, Session, SessionMetadata, Stream)
 from app.ingestion.session import MANIFEST, load_session, read_recording
 from app.ingestion.writers import session_label, simulated_streams, write_session_metabase
 
 __all__ = [
-    "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "RawRecording", "Recognition",
+    "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
+    "Recognition",
     "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_session", "read_generic_csv",
     "read_metabase_csv", "read_recording", "read_thesis_xlsx", "session_label", "simulated_streams",
     "write_generic_csv",

@@ -28,7 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
-from app.ingestion.model import AlignedRecording, FloatArray, IngestionError, RawRecording, Stream
+from app.ingestion.model import AlignedRecording, FloatArray, IngestionError, Note, RawRecording, Stream
 
 GAP_PERIODS = 2.5
 #: Relative tolerance between a stream's measured rate and the expected one.
@@ -98,14 +98,18 @@ def _grid(t0: float, t1: float, fs_hz: float, what: str) -> FloatArray:
 def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role: str) -> AlignedRecording:
     arrays = {s.kind: resample(s, t) for s in rec.streams}
     trimmed = {s.kind: (round(float(t[0] - s.t_s[0]), 4), round(float(s.t_s[-1] - t[-1]), 4)) for s in rec.streams}
-    notes = [f"{s.kind} ran on {after:.2f} s after the common span (cut)" for s, (_, after) in
-             zip(rec.streams, trimmed.values()) if after > 0.5]
-    notes += [f"{s.kind} started {before:.2f} s before the common span (cut)" for s, (before, _) in
-              zip(rec.streams, trimmed.values()) if before > 0.5]
+    cut = {s.kind: (float(t[0] - s.t_s[0]), float(s.t_s[-1] - t[-1])) for s in rec.streams}  # unrounded
+    notes = [Note(f"{k} ran on {cut[k][1]:.2f} s after the common span (cut)",
+                  {"variant": "stream_cut_after", "stream": k, "seconds": cut[k][1]})
+             for k, (_, after) in trimmed.items() if after > 0.5]
+    notes += [Note(f"{k} started {cut[k][0]:.2f} s before the common span (cut)",
+                   {"variant": "stream_cut_before", "stream": k, "seconds": cut[k][0]})
+              for k, (before, _) in trimmed.items() if before > 0.5]
     nan_rows = {k: int(np.isnan(v).any(axis=1).sum()) for k, v in arrays.items()}
-    notes += [f"{k}: {n} grid rows missing (gaps in the stream)" for k, n in nan_rows.items() if n]
+    notes += [Note(f"{k}: {n} grid rows missing (gaps in the stream)",
+                   {"variant": "rows_missing", "stream": k, "rows": n}) for k, n in nan_rows.items() if n]
     if rec.acc.time_base != "epoch":
-        notes.append("no epoch time stamps: streams assumed to start together")
+        notes.append(Note("no epoch time stamps: streams assumed to start together", {"variant": "no_epoch"}))
     source = {"files": [str(f) for f in rec.files], "format": rec.fmt, "label": rec.label,
               "sensor_id": rec.sensor_id,
               "segment": rec.segment.describe() if rec.segment else segment,
@@ -139,6 +143,7 @@ def align_pair(thigh: RawRecording, shank: RawRecording, fs_hz: float,
     for r in (a, b):
         r.flags["pair_rate_ratio"] = round(ratio, 6)
         if abs(ratio - 1.0) > 0.002:
-            r.flags["notes"].append(f"the sensors' rates differ by {100 * (ratio - 1):+.2f} % (clock drift), "
-                                    f"aligned on the time stamps")
+            pct = 100.0 * (ratio - 1.0)
+            r.flags["notes"].append(Note(f"the sensors' rates differ by {pct:+.2f} % (clock drift), aligned on the "
+                                         "time stamps", {"variant": "clock_drift", "pct": pct}))
     return a, b

@@ -6,8 +6,10 @@ time in seconds.  Conversion from file units happens once, in the readers (:mod:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,31 @@ KINDS = {"acc": "m/s²", "gyr": "rad/s", "mag": "µT"}
 
 class IngestionError(ValueError):
     """A file or folder cannot be ingested.  The message names the file and says what to do."""
+
+
+class Note(str):
+    """A note for the user (an English sentence, usable wherever a ``str`` is) that also carries ``params``:
+    its values by name (``{"variant": "stream_cut_after", "stream": "gyr", "seconds": 1.53}``, plus
+    ``segment``/``role`` once the session prefixes it), so the pipeline's ``ingestion_note`` warning can be
+    translated from data (``reports/translations_warnings.json``, ``warning.ingestion_note.<variant>``).
+
+    A ``str`` subclass so ``Session.notes`` stays a tuple of sentences for every reader of it; ``params``
+    is a read-only copy.  Notes without a translation (sheet chosen, file ignored) stay plain ``str``.
+    """
+
+    params: Mapping[str, Any]
+
+    def __new__(cls, text: str, params: Mapping[str, Any] | None = None) -> "Note":
+        note = super().__new__(cls, text)
+        note.params = MappingProxyType(dict(params or {}))
+        return note
+
+    def __reduce__(self):  # pickle/deepcopy: a mappingproxy cannot be pickled, its dict can
+        return (type(self), (str(self), dict(self.params)))
+
+    def prefixed(self, segment: str, role: str) -> "Note":
+        """``"<segment> <role>: <note>"`` with ``segment`` and ``role`` added to the params."""
+        return Note(f"{segment} {role}: {self}", {**self.params, "segment": segment, "role": role})
 
 
 @dataclass(frozen=True)

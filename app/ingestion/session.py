@@ -38,7 +38,7 @@ from app.ingestion.generic import read_generic_csv
 from app.ingestion.labels import (LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
                                   recognise_step_height)
 from app.ingestion.metabase import group_metabase_files, parse_file_name, read_metabase_csv
-from app.ingestion.model import (ROLES, SEGMENTS, IngestionError, RawRecording, Recognition, Session,
+from app.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
 from app.ingestion.units import check_gyro_unit
 
@@ -249,7 +249,8 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     for key, rec in recs.items():
         fs[key] = check_rates(rec, expected_fs_hz)
         aligned[key] = align_recording(rec, fs[key], *key)
-        notes += [f"{key[0]} {key[1]}: {n}" for n in list(rec.notes) + aligned[key].flags["notes"]]
+        notes += [n.prefixed(*key) if isinstance(n, Note) else f"{key[0]} {key[1]}: {n}"
+                  for n in list(rec.notes) + aligned[key].flags["notes"]]
     task = None
     if "task" in roles:
         task = align_pair(recs[("thigh", "task")], recs[("shank", "task")], fs[("thigh", "task")])

@@ -136,7 +136,7 @@ class TaskAnalysis:
             "rom_rad": self.rom_stats(),
             "phases": self.phase_stats(),
             "curves_rad": {a: {"mean": self.mean_rad[:, i], "sd": self.sd_rad[:, i]} for i, a in enumerate(ANGLES)},
-            "warnings": [{"code": w.code, "message": w.message} for w in self.warnings],
+            "warnings": [w.to_dict() for w in self.warnings],
             "params": self.params.to_dict(),
         }
         return json_ready(d)
@@ -233,7 +233,8 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
     if stopped:
         warnings.append(QualityWarning("MOTOR_TASK_REJECTION_STOPPED",
                                        f"more cycles exceed the RMSE threshold, but rejection stopped to keep "
-                                       f"{p.min_accepted_cycles} cycles; the mean curve may include poor cycles"))
+                                       f"{p.min_accepted_cycles} cycles; the mean curve may include poor cycles",
+                                       {"min_cycles": p.min_accepted_cycles}))
     # events → durations
     idx = {e: i for i, e in enumerate(EVENTS)}
     ph = np.full((k, n_ph), np.nan)
@@ -257,11 +258,13 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
                                        "the knee flexion never varies enough to contain a task; check the recording"))
     elif k == 0:
         warnings.append(QualityWarning("MOTOR_TASK_NO_CYCLES",
-                                       f"no {spec.name} cycle reaching {spec.far_label} was found"))
+                                       f"no {spec.name} cycle reaching {spec.far_label} was found",
+                                       {"task": spec.name, "far_label": spec.far_label}))
     n_acc = int(accepted.sum())
     if 0 < k and n_acc < p.min_accepted_cycles:
         warnings.append(QualityWarning("MOTOR_TASK_FEW_CYCLES",
-                                       f"only {n_acc} usable cycle(s) of {k} detected; means and SDs are unreliable"))
+                                       f"only {n_acc} usable cycle(s) of {k} detected; means and SDs are unreliable",
+                                       {"accepted": n_acc, "detected": k}))
     scale = 1.0 / fs_hz
     span_s = None if span is None else (t0_s + span[0] * scale, t0_s + (span[1] - 1) * scale)
     return TaskAnalysis(

@@ -2,6 +2,7 @@
 
 import json
 import shutil
+from dataclasses import replace
 
 import pytest
 
@@ -82,7 +83,7 @@ def test_results_json_follows_the_contract(right_session, tmp_path):
     assert sum(r["phases"][p]["mean_pct"] for p in ("impulse", "extension", "fall")) == pytest.approx(100.0, abs=0.5)
     assert set(r["calibration"]["magnetometer"]) == {"thigh", "shank"}
     assert set(r["calibration"]["segment"]) == {"thigh", "shank"}
-    assert all({"code", "message"} <= set(w) for w in r["quality"]["warnings"])
+    assert all(set(w) == {"code", "message", "params"} for w in r["quality"]["warnings"])
     assert r["software"]["version"]
     assert r["session"]["language"] == "en"
 
@@ -108,6 +109,32 @@ def test_functional_calibration_recovers_a_rolled_lying_posture(seed, side, tmp_
     seg = json.loads((tmp_path / "functional" / "results.json").read_text())["calibration"]["segment"]
     assert seg["thigh"]["method"] == seg["shank"]["method"] == "functional"
     assert 5.0 < seg["thigh"]["axis_change_deg"] < 25.0 and 5.0 < seg["shank"]["axis_change_deg"] < 25.0
+
+
+def test_warnings_carry_params_and_translate(right_session, tmp_path):
+    """A 4 s figure-eight of the thigh (coverage low) and elapsed-time files (no epoch): every warning of
+    results.json carries its params, the magnetometer's with the sensor the pipeline put in front, and
+    prints in Spanish and Portuguese (reports.warning_text) without falling back to English."""
+    from reports.warning_text import warning_text
+
+    recs = dict(right_session.recordings)
+    fig8 = recs[("thigh", "mag_calibration")]
+    t0 = fig8["acc"][0][0]
+    recs[("thigh", "mag_calibration")] = {k: (t[t - t0 < 4.0], v[t - t0 < 4.0]) for k, (t, v) in fig8.items()}
+    write_session(tmp_path / "session", replace(right_session, recordings=recs), "generic")
+    process_folder(tmp_path / "session", tmp_path / "out", ProcessOptions(calibration="functional"), reports=False)
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    warnings = r["quality"]["warnings"]
+    mag = [w for w in warnings if w["code"].startswith("MAG_")]
+    assert mag and all(w["message"].startswith("Thigh sensor: ") and w["params"]["segment"] == "thigh" for w in mag)
+    notes = [w for w in warnings if w["code"] == "ingestion_note"]
+    assert {(w["params"]["segment"], w["params"]["role"]) for w in notes if w["params"]["variant"] == "no_epoch"} \
+        == {(s, role) for s in ("thigh", "shank") for role in ("mag_calibration", "standing", "lying", "task")}
+    for w in warnings:
+        assert isinstance(w["params"], dict), w
+        for lang in ("es", "pt"):
+            text, translated = warning_text(w, lang, r)
+            assert translated and text != w["message"], (lang, w)
 
 
 def test_calibration_option_is_checked():

@@ -28,6 +28,10 @@ def test_rotated_field_of_right_norm_is_caught_by_dip(grid):
     assert check.disturbed[bad].mean() > 0.5 and check.disturbed[:400].mean() < 0.02
     assert [w.code for w in check.warnings] == ["magnetic_disturbance"]
     assert "thigh" in check.warnings[0].message
+    p = check.warnings[0].params
+    assert p == {"segment": "thigh", "pct": 100.0 * check.fraction, "norm_pct": 100.0 * check.max_norm_dev,
+                 "dip_deg": np.rad2deg(check.max_dip_dev_rad)}
+    assert f"during {p['pct']:.0f} %" in check.warnings[0].message and 10.0 < p["dip_deg"] < 20.0
 
 
 def test_norm_change_and_missing_rows(grid):

@@ -118,6 +118,11 @@ def test_postures_not_distinct_warn(angle_deg, distinct):
     assert ("postures_not_distinct" in _codes(cal.warnings)) is not distinct
     if not distinct:
         assert "thigh" in cal.warnings[0].message
+        p = cal.warnings[0].params
+        assert p["segment"] == "thigh" and p["angle_deg"] == pytest.approx(angle_deg, abs=0.5)
+        assert (p["min_deg"], p["max_deg"]) == pytest.approx((np.rad2deg(knee.CalibrationParams().min_angle_rad),
+                                                              np.rad2deg(knee.CalibrationParams().max_angle_rad)))
+        assert f"{p['angle_deg']:.0f}°" in cal.warnings[0].message
     acc_su, gyr_su = _static([np.sin(0.05), np.cos(0.05), 0.0], seed=1)  # ~3°: no anterior axis at all
     with pytest.raises(knee.CalibrationError, match="undefined"):
         knee.calibrate_segment(acc_st, gyr_st, acc_su, gyr_su, fs_hz=FS_HZ)
@@ -138,6 +143,10 @@ def test_stillest_window_is_found_and_not_still_warns():
                                  label="shank")
     assert _codes(cal.warnings) == ["posture_not_still"] and not cal.standing.still
     assert "shank" in cal.warnings[0].message and "standing" in cal.warnings[0].message
+    p = cal.warnings[0].params
+    assert (p["segment"], p["posture"], p["still_s"]) == ("shank", "standing", cal.standing.duration_s)
+    assert p["gyr_sd_deg_s"] == pytest.approx(np.rad2deg(cal.standing.gyr_sd_rad_s))
+    assert p["acc_sd_m_s2"] == cal.standing.acc_sd_m_s2
 
 
 def test_missing_rows_short_recordings_and_wrong_units():
@@ -154,6 +163,11 @@ def test_missing_rows_short_recordings_and_wrong_units():
         knee.calibrate_segment(acc_st * np.nan, gyr_st, acc_su, gyr_su, fs_hz=FS_HZ)
     cal = knee.calibrate_segment(acc_su[:200] / 9.81, gyr_su[:200], acc_st[:200], gyr_st[:200], fs_hz=FS_HZ)
     assert set(_codes(cal.warnings)) == {"gravity_magnitude", "posture_too_short"}
+    short = next(w for w in cal.warnings if w.code == "posture_too_short")
+    assert dict(short.params) == {"segment": "sensor", "posture": "standing", "duration_s": 200 / FS_HZ,
+                                  "window_s": 5.0}
+    g = next(w for w in cal.warnings if w.code == "gravity_magnitude").params
+    assert g["g_m_s2"] == pytest.approx(1.0, abs=0.05) and g["gravity_m_s2"] == knee.CalibrationParams().gravity_m_s2
     with pytest.raises(ValueError, match="shape"):
         knee.calibrate_segment(acc_st[:, :2], gyr_st, acc_su, gyr_su, fs_hz=FS_HZ)
 
@@ -172,7 +186,9 @@ def test_upside_down_sensor_warns():
     bad = _calibrate("right", "thigh", flipped, sim.ImuSpec.noise_only())
     assert bad.warnings == ()  # the calibration itself is fine
     assert quat.angle_between(bad.q_sensor_segment, quat.conjugate(flipped)) < 0.05 * DEG
-    assert _codes(knee.mounting_warnings(bad, label="thigh")) == ["sensor_upside_down"]
+    (w,) = knee.mounting_warnings(bad, label="thigh")
+    assert w.code == "sensor_upside_down" and w.params["angle_deg"] > 150.0
+    assert (w.params["segment"], w.params["axis"]) == ("thigh", "0, 1, 0") and "[0, 1, 0]" in w.message
 
 
 # ------------------------------------------------------------------------------------------ knee angles
@@ -219,7 +235,9 @@ def test_left_leg_mirror():
 def test_swapped_sensors_warn():
     _, q_f, q_t, _ = _session("right", sim.ImuSpec.noise_only())
     swapped = knee.knee_angles(knee.q_femur_tibia(q_t, q_f), "right")
-    assert _codes(knee.task_warnings(swapped)) == ["flexion_negative"]
+    (w,) = knee.task_warnings(swapped)
+    assert w.code == "flexion_negative" and w.params["min_deg"] == pytest.approx(-15.0)
+    assert w.params["pct"] > 20.0 and w.params["median_deg"] == pytest.approx(np.rad2deg(np.median(swapped[:, 0])))
 
 
 # ------------------------------------------------------------------------------------------ heading
@@ -239,7 +257,8 @@ def test_heading_offset_from_standing_recovers_the_offset():
     ang = knee.knee_angles(knee.q_femur_tibia(seg["thigh"], q_t6, h.offset_rad), side)
     assert np.max(np.abs(ang)) < 0.1 * DEG
     # 9D: both share north, so a 25° offset in the standing posture is a magnetic problem
-    assert "heading_mismatch" in _codes(knee.heading_offset(seg["thigh"], q_t6, max_offset_rad=10 * DEG).warnings)
+    mismatch = knee.heading_offset(seg["thigh"], q_t6, max_offset_rad=10 * DEG).warnings
+    assert _codes(mismatch) == ["heading_mismatch"] and mismatch[0].params["angle_deg"] == pytest.approx(25.0, abs=0.05)
     # a heading that drifts between the sensors
     drift = knee.apply_heading_offset(seg["shank"], 0.0)
     drift = quat.multiply(quat.from_axis_angle([0, 0, 1], np.linspace(0, 30 * DEG, len(drift))), drift)
@@ -296,6 +315,8 @@ def test_functional_calibration_uses_the_true_flexion_axis(side):
         assert fc.warnings == cal.warnings  # 12° is within the 25° warning limit
     far = knee.functional_calibration(cal, z_sensor, max_change_rad=5 * DEG)
     assert _codes(far.warnings)[-1] == "functional_axis_far"
+    assert dict(far.warnings[-1].params) == pytest.approx({"segment": "sensor", "angle_deg": np.rad2deg(
+        far.axis_change_rad), "max_deg": 5.0})
 
 
 def test_functional_calibration_refuses_a_long_axis_and_bad_input():

@@ -141,6 +141,8 @@ def test_half_sphere_recording_warns_coverage():
     m = m[m[:, 2] > 0.0]  # never upside down
     q = fit_ellipsoid(distort(m, rng)).quality
     assert "MAG_COVERAGE_LOW" in q.codes and not q.reliable
+    low = next(w for w in q.warnings if w.code == "MAG_COVERAGE_LOW")
+    assert dict(low.params) == {"cells": q.coverage_cells, "spread": q.direction_spread}
     assert q.coverage_fraction <= 0.6 and q.direction_spread < 0.3
 
 
@@ -203,6 +205,10 @@ def test_field_strength_warnings():
     assert "MAG_FIELD_IMPLAUSIBLE" in fit_ellipsoid(weak).quality.codes
     cal = fit_ellipsoid(distort(true_field_directions(rng, 800), rng), expected_field_ut=22.6)
     assert cal.quality.codes == ("MAG_FIELD_MISMATCH",)
+    assert dict(cal.quality.warnings[0].params) == {"field_ut": cal.field_ut, "expected_ut": 22.6}
+    implausible = fit_ellipsoid(weak).quality.warnings
+    (p,) = [w.params for w in implausible if w.code == "MAG_FIELD_IMPLAUSIBLE"]
+    assert (p["lo_ut"], p["hi_ut"]) == (20.0, 70.0) and p["field_ut"] == pytest.approx(18.4, abs=0.3)
     assert fit_ellipsoid(weak * 1.0, expected_field_ut=18.5).quality.codes == ("MAG_FIELD_IMPLAUSIBLE",)
 
 
@@ -212,6 +218,12 @@ def test_noisy_and_short_recordings_warn():
     assert "MAG_RESIDUAL_HIGH" in noisy.quality.codes
     short = fit_ellipsoid(distort(true_field_directions(rng, 120), rng))
     assert "MAG_FEW_SAMPLES" in short.quality.codes
+    q = noisy.quality
+    residual = next(w for w in q.warnings if w.code == "MAG_RESIDUAL_HIGH")
+    assert dict(residual.params) == {"residual_ut": q.residual_rms_ut, "residual_pct": q.residual_pct}
+    assert f"{q.residual_rms_ut:.2f} µT RMS" in residual.message
+    few = next(w for w in short.quality.warnings if w.code == "MAG_FEW_SAMPLES")
+    assert dict(few.params) == {"n_samples": short.quality.n_samples} and type(few.params["n_samples"]) is int
 
 
 # --- bad input -----------------------------------------------------------------------------------

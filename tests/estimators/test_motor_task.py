@@ -312,7 +312,23 @@ def test_single_cycle_warns_few_cycles():
     a, cyc, ph, t = _step_up(1, seed=1)
     r = analyse_task(a, FS_HZ)
     assert r.n_accepted == 1 and "MOTOR_TASK_FEW_CYCLES" in [w.code for w in r.warnings]
+    few = next(w for w in r.warnings if w.code == "MOTOR_TASK_FEW_CYCLES")
+    assert few.params == {"accepted": 1, "detected": r.n_detected}
+    assert r.to_dict()["warnings"] == [w.to_dict() for w in r.warnings]
     assert np.isnan(r.phase_stats()["impulse"]["sd_s"])
+
+
+@pytest.mark.parametrize("task", ["step_up", "squat"])
+def test_motion_without_cycles_and_stopped_rejection_warn_with_their_values(task):
+    t = np.arange(3000) / FS_HZ
+    wobble = DEG * (30.0 + 5.0 * np.sin(2 * np.pi * 3.0 * t))  # moves, but never a task cycle
+    r = analyse_task(np.column_stack([wobble, 0 * t, 0 * t]), FS_HZ, task=task)
+    (w,) = r.warnings
+    assert w.code == "MOTOR_TASK_NO_CYCLES" and w.params == {"task": task, "far_label": TASKS[task].far_label}
+    a, _, _, _ = _step_up(4, seed=1)
+    r = analyse_task(a, FS_HZ, params=MotorTaskParams(rejection_rmse_rad=(1e-4, None, None), min_accepted_cycles=2))
+    stopped = [w for w in r.warnings if w.code == "MOTOR_TASK_REJECTION_STOPPED"]
+    assert len(stopped) == 1 and stopped[0].params == {"min_cycles": 2} and r.n_accepted == 2
 
 
 @pytest.mark.parametrize("kwargs, match", [

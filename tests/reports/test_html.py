@@ -153,7 +153,9 @@ def test_warnings_are_translated_by_code():
     from dataclasses import replace
 
     ri = make_report_input("es")
-    warning = {"code": "ingestion_note", "message": "thigh task: gyr ran on 1.53 s after the common span (cut)"}
+    warning = {"code": "ingestion_note", "message": "thigh task: gyr ran on 1.53 s after the common span (cut)",
+               "params": {"variant": "stream_cut_after", "stream": "gyr", "seconds": 1.532, "segment": "thigh",
+                          "role": "task"}}
     results = {**ri.results, "quality": {**ri.results["quality"], "warnings": [warning]}}
     for lang, expected in (("es", "Muslo, tarea: el giroscopio siguió registrando 1,53 s después del intervalo "
                                   "común (recortado)"),

@@ -121,7 +121,8 @@ def _synthetic_ri(language: str = "en", patient: Patient | None = None) -> Repor
         "quality": {"warnings": [{"code": "mag_field", "message": "Thigh sensor: field 80.0 µT is far from the "
                                   "expected 25–65 µT"},
                                  {"code": "cycles_rejected", "message": "3 of 4 cycles were left out of the "
-                                  "statistics: cycle 1: starts during; cycle 2: rmse; cycle 4: ?"},
+                                  "statistics: cycle 1: starts during; cycle 2: rmse; cycle 4: ?",
+                                  "params": {"rejected": 3, "detected": 4}},
                                  {"code": "MAG_FIELD_IMPLAUSIBLE", "message": "x", "params": {
                                      "segment": "thigh", "field_ut": 80.04, "lo_ut": 25, "hi_ut": 65}}]},
         "software": {"version": "9.8.7"},

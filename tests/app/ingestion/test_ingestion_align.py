@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.ingestion import RawRecording, Stream, align_pair, align_recording
+from app.ingestion import Note, RawRecording, Stream, align_pair, align_recording
 from app.ingestion.align import resample
 from conftest import EPOCH0_S
 
@@ -34,6 +34,10 @@ def test_streams_with_different_starts_and_a_run_on_magnetometer():
     t_abs = a.t0_s + a.t_s
     assert t_abs[-1] <= EPOCH0_S + 9.99 + 1e-9                         # earliest last stamp (acc/gyr), mag cut
     assert a.flags["trimmed_s"]["mag"][1] > 1.9 and any("mag ran on" in n for n in a.flags["notes"])
+    (cut,) = [n for n in a.flags["notes"] if "ran on" in n]          # the note carries its values, unrounded
+    assert isinstance(cut, Note) and dict(cut.params) == {"variant": "stream_cut_after", "stream": "mag",
+                                                          "seconds": rec.mag.t_s[-1] - t_abs[-1]}
+    assert f"{cut.params['seconds']:.2f} s" in cut
     truth = _f(t_abs - EPOCH0_S)
     np.testing.assert_allclose(a.acc, truth, atol=1e-3)               # 100 Hz: interpolation error ~ 1e-4
     # 20 Hz mag interpolated (error <= dt²/8 max|f''| ≈ 3e-3), never repeated
@@ -52,6 +56,8 @@ def test_nan_rows_and_gaps_become_nan_on_the_grid_only_inside_the_gap():
     assert bad[500:510].all() and bad.sum() == 10
     a = align_recording(RawRecording(rec.acc, gyr, rec.mag, "test", None, None, "x"), 100.0, "thigh", "task")
     assert 8 <= a.flags["nan_rows"]["gyr"] <= 11 and a.flags["nan_rows"]["acc"] == 0
+    (gaps,) = [n for n in a.flags["notes"] if "rows missing" in n]
+    assert gaps.params == {"variant": "rows_missing", "stream": "gyr", "rows": a.flags["nan_rows"]["gyr"]}
 
 
 def test_two_sensors_with_one_percent_drift_share_one_grid():
@@ -60,6 +66,9 @@ def test_two_sensors_with_one_percent_drift_share_one_grid():
     a, b = align_pair(thigh, shank, 100.0)
     assert np.array_equal(a.t_s, b.t_s) and a.t0_s == b.t0_s
     assert a.flags["pair_rate_ratio"] == pytest.approx(100.0 / 101.0, rel=1e-4)
+    (drift,) = [n for n in b.flags["notes"] if "clock drift" in n]
+    assert drift.params["variant"] == "clock_drift" and drift.params["pct"] == pytest.approx(-0.99, abs=0.01)
+    assert f"{drift.params['pct']:+.2f} %" in drift
     truth = _f(a.t0_s + a.t_s - EPOCH0_S)
     np.testing.assert_allclose(b.gyr, truth, atol=1e-3)                 # on the stamps: drift removed
     # aligning on sample counts instead would be off by ~1 % of 10 s = 0.1 s at the end

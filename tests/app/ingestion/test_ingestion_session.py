@@ -1,6 +1,8 @@
 """load_session end to end on simulated sessions: MetaBase (3 languages, both dialects), Excel, generic, manifest."""
 
+import copy
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -114,4 +116,11 @@ def test_demo_style_session_with_a_stream_running_on(tmp_path):
     s = load_session(tmp_path)
     thigh, shank = s.task_pair()
     assert any("gyr ran on 1.5" in n for n in thigh.flags["notes"])
+    # the session's note names segment and role, in the sentence and in the params the reports translate
+    (note,) = [n for n in s.notes if n.startswith("thigh task: gyr ran on")]
+    assert note.params["seconds"] == pytest.approx(1.5, abs=0.05) and f"{note.params['seconds']:.2f} s" in note
+    assert {k: note.params[k] for k in ("variant", "stream", "segment", "role")} == {
+        "variant": "stream_cut_after", "stream": "gyr", "segment": "thigh", "role": "task"}
+    for clone in (pickle.loads(pickle.dumps(note)), copy.deepcopy(note)):
+        assert clone == note and clone.params == note.params
     assert s.metadata.value("side") == "left" and len(s.recordings) == 8
