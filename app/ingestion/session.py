@@ -116,6 +116,11 @@ def _read_manifest(path: Path) -> dict[str, Any]:
         if not isinstance(e, dict) or not isinstance(e.get("files"), list) or set(e) - _ENTRY_KEYS:
             raise IngestionError(f"{path}: recordings[{i}] must be an object with 'files' (a list) and optional "
                                  f"'segment', 'role', 'sheet'.")
+        root = path.parent.resolve()
+        for f in e["files"]:
+            if not isinstance(f, str) or not (root / f).resolve().is_relative_to(root):
+                raise IngestionError(f"{path}: recordings[{i}] lists {f!r}, which is not a file inside the session "
+                                     "folder; list the recordings by their names in this folder.")
     return data
 
 

@@ -74,6 +74,16 @@ def test_manifest_lists_recordings_with_any_names(tmp_path, sim_session):
     assert r.time_base == "elapsed"          # generic CSV with seconds: no common clock
 
 
+@pytest.mark.parametrize("name", ["../outside.csv", "/etc/hostname", "sub/../../outside.csv"])
+def test_manifest_may_not_name_files_outside_the_folder(tmp_path, name):
+    (tmp_path / "outside.csv").write_text("a,b\n1,2\n")
+    folder = tmp_path / "session"
+    folder.mkdir()
+    (folder / "session.json").write_text(json.dumps({"recordings": [{"files": [name]}]}))
+    with pytest.raises(ValueError, match="not a file inside the session folder"):
+        load_session(folder)
+
+
 def test_thesis_excel_session(tmp_path, sim_session):
     streams, _ = sim_session
     words = {"mag_calibration": "calibracion-sensor", "standing": "standing", "lying": "laydown", "task": "step"}
