@@ -25,12 +25,13 @@ import getpass
 import sys
 from typing import TYPE_CHECKING
 
+from app.security import ROLES  # the one definition of the roles (a stdlib-only module: cheap to import)
+
 if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does not pay for it
     from app.db import Database
     from app.settings import Settings
 
 COMMANDS = ("serve", "clinics", "users", "tokens")
-ROLES = ("admin", "clinician", "read_only")  # = app.db.models.ROLES (a test checks)
 
 
 def _database(settings: Settings | None) -> Database:

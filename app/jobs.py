@@ -11,57 +11,50 @@ never run the same job twice.  On ``start()`` jobs found ``running`` (their proc
 to ``queued`` with a log line, and every queued job is submitted again, oldest first: nothing is lost by a
 restart; a resumed job starts over from its stored files (processing is deterministic); one interrupted
 :data:`MAX_ATTEMPTS` times is failed instead (it may be what brings the server down).  The embedded
-runner assumes one server process per database (``chakamo serve``): a second process starting up would
-requeue the first one's running jobs.  Several processes or machines need the distributed backend
-(``CHAKAMO_JOB_BACKEND``, next issue), which calls :func:`run_job` from its workers.
+runner allows one server process per database (``chakamo serve``), and enforces it: ``start()`` takes a
+:class:`RunnerLock` (an exclusive ``flock`` on ``<database file>.runner.lock`` for SQLite, a session-level
+``pg_try_advisory_lock`` for PostgreSQL; the operating system or the server frees both when the process
+dies) and a second server on the same database refuses to start with :class:`RunnerLocked`, instead of
+requeueing — and running a second time — the first one's jobs.  Several processes or machines need the
+distributed backend (``CHAKAMO_JOB_BACKEND``, next issue), which calls :func:`run_job` from its workers.
+Holding the lock, ``start()`` also removes what a crashed server left behind: its temporary ``session-*``
+folders and unfinished uploads (``blobs/.incoming/up-*``).  ``shutdown()`` waits for the running jobs and
+says whether they all stopped; the application disposes the database only then.
 
 A job's work (:func:`run_job`): copy the session's stored files into a temporary folder with its
 ``session.json`` (:mod:`app.workspace`), load and process them (:func:`app.pipeline.process_session`, its
 ``progress(stage, fraction)`` calls written to the job row), build ``results.json`` once and render every
-artefact from one report input — ``report.pdf`` in es, en and pt, ``angles.xlsx``, ``quaternions.xlsx``,
-``report.html``, ``scene.viser`` (in the job's language) and ``timeseries.npz`` — the two other PDFs and
-angles.xlsx in a warm helper process when one is configured (:class:`RenderPool`) — store them as blobs and
-record a new :class:`~app.db.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the
-data (ingestion or pipeline error) fails the job with the pipeline's sentence as ``error``; an unexpected
-exception fails it with its type and message and the traceback in the log.
+artefact from one report input (:func:`app.render.render_all`: the PDFs in every language, the Excel files,
+report.html, scene.viser, timeseries.npz; part of them in the warm render process), store them as blobs
+(:func:`app.db.ensure_blob`: identical artefacts of concurrent jobs never collide) and record a new
+:class:`~app.db.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the data
+(ingestion or pipeline error) fails the job with the pipeline's sentence as ``error``; an unexpected
+exception fails it with a sentence and a reference id — the traceback goes to the server log only (under that
+reference), never to the job row that read-only users and API tokens see.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import io
 import logging
-import os
 import queue
-import tempfile
+import secrets
+import shutil
 import threading
-import time
-import traceback
 from pathlib import Path
 from typing import Protocol
 
-from sqlalchemy import select, update
+from sqlalchemy import create_engine, select, text, update
+from sqlalchemy.pool import NullPool
 
-from app.db import Database
-from app.db.models import Analysis, Artefact, Blob, Job, KneeSession, Patient, Recording, utcnow
+from app.db import Database, ensure_blob
+from app.db.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
+from app.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all, warm_up
 from app.storage import BlobStore
 
 log = logging.getLogger("chakamo.jobs")
 
-LANGS = ("es", "en", "pt")
-MEDIA = {
-    "results.json": "application/json",
-    "report.pdf": "application/pdf",
-    "angles.xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
-    "quaternions.xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
-    "report.html": "text/html; charset=utf-8",
-    "scene.viser": "application/octet-stream",
-    "timeseries.npz": "application/octet-stream",
-}
 #: a job interrupted by this many server stops is failed instead of resumed again
 MAX_ATTEMPTS = 3
-#: share of the progress bar taken by the pipeline; the rest is the reports
-_PIPELINE_SHARE = 0.6
 
 
 class JobRunner(Protocol):
@@ -87,12 +80,11 @@ class _Progress:
             job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} {note or stage}"]
 
 
-def _fail(db: Database, job_id: int, error: str, detail: str | None = None) -> None:
+def _fail(db: Database, job_id: int, error: str) -> None:
     with db.session() as s:
         job = s.get(Job, job_id)
         job.status, job.error, job.finished_at = "failed", error, utcnow()
-        job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} failed: {error}",
-                   *([detail] if detail else [])]
+        job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} failed: {error}"]
 
 
 def claim(db: Database, job_id: int) -> bool:
@@ -114,117 +106,8 @@ def _public_results(results: dict, session_id: int) -> dict:
     return results
 
 
-def render_artefact(ri, name: str, lang: str = "") -> bytes:
-    """One artefact of report input ``ri`` as bytes (top-level: runs in the render process too)."""
-    if name == "report.pdf":
-        from reports.pdf import render_pdf
-
-        return render_pdf(dataclasses.replace(ri, language=lang))
-    if name in ("angles.xlsx", "quaternions.xlsx"):
-        from reports.excel import write_angles_xlsx, write_quaternions_xlsx
-
-        writer = write_angles_xlsx if name == "angles.xlsx" else write_quaternions_xlsx
-        with tempfile.TemporaryDirectory() as tmp:
-            path = Path(tmp) / name
-            writer(ri, path)
-            return path.read_bytes()
-    if name == "report.html":
-        from reports.html import render_html
-
-        return render_html(ri).encode("utf-8")
-    if name == "scene.viser":
-        from reports.scene import scene_bytes
-
-        return scene_bytes(ri)
-    raise ValueError(f"unknown artefact {name!r}")
-
-
-def render_many(ri, keys: list[tuple[str, str]]) -> dict[tuple[str, str], bytes]:
-    """:func:`render_artefact` for each ``(name, lang)`` of ``keys``."""
-    return {key: render_artefact(ri, *key) for key in keys}
-
-
-def _render(outcome, results: dict, lang: str, progress: _Progress, pool: "RenderPool | None" = None
-            ) -> dict[tuple[str, str], bytes]:
-    """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF).
-
-    With a warm :class:`RenderPool`, the two other-language PDFs and angles.xlsx are rendered in the
-    render process while this thread renders the rest (the report code holds the GIL: threads would not
-    overlap); without one, or if that process fails, everything is rendered here.
-    """
-    from app.results import report_input, results_json, timeseries_npz
-
-    ri = report_input(outcome, results)
-    files: dict[tuple[str, str], bytes] = {("results.json", ""): results_json(results).encode("utf-8"),
-                                           ("timeseries.npz", ""): timeseries_npz(outcome)}
-    others = [("report.pdf", x) for x in LANGS if x != lang]
-    # about equal halves (measured: a PDF 0.2-0.4 s, angles.xlsx 0.1 s, quaternions.xlsx 0.2 s, html 0.05 s,
-    # scene 0.2 s)
-    local = [("report.pdf", lang), ("report.html", ""), ("scene.viser", ""), ("quaternions.xlsx", "")]
-    remote = [*others, ("angles.xlsx", "")]
-    future = pool.submit(render_many, ri, remote) if pool is not None else None
-    if future is None:
-        local, remote = local + remote, []
-    for i, (name, x) in enumerate(local):
-        progress(f"{name} {x}".strip(), _PIPELINE_SHARE + (1 - _PIPELINE_SHARE) * i / (len(local) + 1))
-        files[(name, x)] = render_artefact(ri, name, x)
-    if future is not None:
-        progress("reports (render process)", 0.95)
-        try:
-            files |= future.result()
-        except Exception:  # noqa: BLE001 — e.g. the render process died: render here instead
-            log.exception("render process failed; rendering in the job thread")
-            files |= render_many(ri, remote)
-    return files
-
-
-def _exit_with_parent(parent_pid: int) -> None:
-    """In a render process: exit as soon as the server process is gone (even killed with SIGKILL)."""
-    def watch() -> None:
-        while os.getppid() == parent_pid:
-            time.sleep(1.0)
-        os._exit(0)
-
-    threading.Thread(target=watch, name="chakamo-parent-watch", daemon=True).start()
-
-
-class RenderPool:
-    """One warm helper process for report rendering (``CHAKAMO_RENDER_PROCESSES``; 0 = none).
-
-    Started with ``spawn`` (forking a threaded server is unsafe), exits when the server process does (even
-    one killed with SIGKILL), and is warmed up by importing the report modules; :meth:`submit` returns None until it is warm, so a job never waits for its start-up.
-    """
-
-    def __init__(self, processes: int) -> None:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        self._pool = ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_exit_with_parent, initargs=(os.getpid(),))
-        self._warm = self._pool.submit(warm_up)
-
-    def submit(self, fn, *args):
-        if not self._warm.done() or self._warm.exception() is not None:
-            return None
-        try:
-            return self._pool.submit(fn, *args)
-        except Exception:  # noqa: BLE001 — a broken pool: the caller renders itself
-            log.exception("render pool unavailable")
-            return None
-
-    def wait_warm(self, timeout_s: float = 120.0) -> bool:
-        """Block until the process is warm (benchmarks, tests); True if it is usable."""
-        try:
-            self._warm.result(timeout_s)
-            return True
-        except Exception:  # noqa: BLE001
-            return False
-
-    def shutdown(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
-
-
-def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: RenderPool | None = None) -> None:
+def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: RenderPool | None = None,
+            render_timeout_s: float = RENDER_TIMEOUT_S) -> None:
     """Claim and run job ``job_id`` to ``done`` or ``failed`` (module docstring).  Never raises for bad data."""
     from app.ingestion import IngestionError, load_session
     from app.pipeline import PipelineError, ProcessOptions, process_session
@@ -248,15 +131,14 @@ def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: R
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             loaded = load_session(folder)
             outcome = process_session(loaded, options,
-                                      progress=lambda st, f: progress(st, 0.02 + (_PIPELINE_SHARE - 0.02) * f))
+                                      progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
         results = _public_results(build_results(outcome), session.id)
-        files = _render(outcome, results, job.lang, progress, pool)
+        files = render_all(outcome, results, job.lang, progress, pool, render_timeout_s)
         progress("store", 0.99)
         stored = {key: store.put(data) for key, data in files.items()}
         with db.session() as s:
-            for sha, size in set(stored.values()):
-                if s.get(Blob, sha) is None:
-                    s.add(Blob(sha256=sha, size_bytes=size))
+            for sha, size in sorted(set(stored.values())):
+                ensure_blob(s, sha, size)
             analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
                                 accepted_cycles=int(results["cycles"]["accepted"]),
                                 warnings=len(results["quality"]["warnings"]))
@@ -271,58 +153,118 @@ def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: R
                                  f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
     except (IngestionError, PipelineError) as exc:
         _fail(db, job_id, public_message(str(exc), folder))
-    except Exception as exc:  # noqa: BLE001 — a job must end failed, never stay running
-        log.exception("job %s failed", job_id)
-        buf = io.StringIO()
-        traceback.print_exc(file=buf)
-        _fail(db, job_id, f"internal error ({type(exc).__name__}: {exc}); the log has the details — report it "
-                          "to the ChakaMo maintainers", buf.getvalue()[-4000:])
+    except Exception:  # noqa: BLE001 — a job must end failed, never stay running
+        ref = secrets.token_hex(4)
+        log.exception("job %s failed: internal error, reference %s", job_id, ref)
+        _fail(db, job_id, f"An internal error stopped the processing (reference {ref}); try again, and if it "
+                          "happens again give the reference to your ChakaMo administrator.")
 
 
-def warm_up() -> None:
-    """Before the first job needs them: import the processing and report modules (≈1 s), make the PDF's font
-    cut (once per machine, ≈0.3 s) and run the default orientation filter once on one second of still data
-    (loads its compiled numba kernels, ≈0.3 s)."""
-    import importlib
+class RunnerLocked(RuntimeError):
+    """Another server already runs the jobs of this database."""
 
-    for name in ("app.pipeline", "app.results", "reports.excel", "reports.html", "reports.pdf", "reports.scene"):
-        try:
-            importlib.import_module(name)
-        except Exception:  # noqa: BLE001 — the job importing it will report the problem
-            log.exception("warm-up import of %s failed", name)
-    try:
-        from reports.fonts import font_files
 
-        font_files()
-    except Exception:  # noqa: BLE001 — only a warm-up
-        log.exception("warm-up of the PDF font failed")
-    try:
-        import numpy as np
+#: the PostgreSQL advisory-lock key of the job runner ("CHKMjobs")
+_PG_LOCK_KEY = 0x43484B4D6A6F6273
 
-        from estimators.orientation import DEFAULT_METHOD, make
 
-        n = 100
-        acc = np.tile([0.0, 0.0, 9.81], (n, 1))
-        mag = np.tile([0.0, 20.0, -40.0], (n, 1))
-        make(DEFAULT_METHOD).estimate(acc, np.zeros((n, 3)), mag, fs_hz=100.0)
-    except Exception:  # noqa: BLE001 — only a warm-up
-        log.exception("warm-up run of the orientation filter failed")
+class RunnerLock:
+    """At most one embedded job runner per database (module docstring): :meth:`acquire`, :meth:`release`."""
+
+    def __init__(self, db: Database) -> None:
+        self.db = db
+        self._file = None
+        self._conn = None
+        self._engine = None
+
+    def acquire(self) -> None:
+        """Take the lock or raise :class:`RunnerLocked` with a sentence saying what to do."""
+        url = self.db.engine.url
+        where = None
+        if url.get_backend_name() == "sqlite":
+            path = url.database
+            if not path or path == ":memory:":
+                return
+            where = f"{path}.runner.lock"
+            try:
+                import fcntl
+            except ImportError:  # no flock (Windows): one server per database is then up to the operator
+                log.warning("cannot lock %s on this system; run one ChakaMo server per database", where)
+                return
+            f = open(where, "a+")  # noqa: SIM115 — held open while the runner lives
+            try:
+                fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                f.close()
+                raise RunnerLocked(self._message(path)) from None
+            self._file = f
+        elif url.get_backend_name() == "postgresql":
+            # a connection of its own, outside the request pool, in autocommit (never "idle in transaction")
+            self._engine = create_engine(url, poolclass=NullPool, isolation_level="AUTOCOMMIT")
+            conn = self._engine.connect()
+            if not conn.scalar(text("SELECT pg_try_advisory_lock(:k)"), {"k": _PG_LOCK_KEY}):
+                conn.close()
+                self._engine.dispose()
+                self._engine = None
+                raise RunnerLocked(self._message(url.render_as_string(hide_password=True)))
+            self._conn = conn
+        else:
+            log.warning("no job-runner lock for %s; run one ChakaMo server per database", url.get_backend_name())
+
+    @staticmethod
+    def _message(where: str) -> str:
+        return (f"Another ChakaMo server is already running the jobs of this database ({where}); stop it first, or "
+                "give this server its own CHAKAMO_DATA_DIR / DATABASE_URL (several servers on one database need "
+                "the distributed job backend).")
+
+    def release(self) -> None:
+        if self._file is not None:
+            self._file.close()  # closing the file drops the flock
+            self._file = None
+        if self._conn is not None:
+            try:
+                self._conn.scalar(text("SELECT pg_advisory_unlock(:k)"), {"k": _PG_LOCK_KEY})
+            except Exception:  # noqa: BLE001 — closing the connection frees it anyway
+                log.exception("could not release the job-runner lock")
+            self._conn.close()
+            self._conn = None
+            self._engine.dispose()
+            self._engine = None
+
+
+def clear_tmp(tmp_root: Path) -> int:
+    """Remove the ``session-*`` folders a crashed server left in ``tmp_root``; returns how many.  Only while
+    no job or upload check runs (the runner calls it at start-up, holding the :class:`RunnerLock`)."""
+    n = 0
+    if tmp_root.is_dir():
+        for p in tmp_root.glob("session-*"):
+            if p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+                n += 1
+    return n
 
 
 class ThreadJobRunner:
     """The embedded engine: ``workers`` threads taking job ids from a queue (module docstring)."""
 
     def __init__(self, db: Database, store: BlobStore, tmp_root: Path, workers: int = 2,
-                 render_processes: int = 0) -> None:
+                 render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S) -> None:
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
-        self.render_processes = render_processes
+        self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
+        self.lock = RunnerLock(db)
         self.pool: RenderPool | None = None
         self._queue: queue.Queue[int | None] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self._stop = threading.Event()
 
     def start(self) -> None:
-        """Requeue jobs left ``running``, start the threads and submit every queued job, oldest first."""
+        """Take the :class:`RunnerLock` (:class:`RunnerLocked` if another server has it), clear a crashed
+        server's leftovers, requeue jobs left ``running``, start the threads and submit every queued job,
+        oldest first."""
+        self.lock.acquire()
+        n_tmp, n_up = clear_tmp(self.tmp_root), self.store.clear_incoming()
+        if n_tmp or n_up:
+            log.info("removed %d temporary session folders and %d unfinished uploads left by a crash", n_tmp, n_up)
         self._stop.clear()
         if self.render_processes > 0 and self.pool is None:
             self.pool = RenderPool(self.render_processes)
@@ -355,24 +297,30 @@ class ThreadJobRunner:
             if job_id is None or self._stop.is_set():  # a queued job left here stays queued in the database
                 return
             try:
-                run_job(job_id, self.db, self.store, self.tmp_root, self.pool)
+                run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s)
             except Exception:  # noqa: BLE001 — e.g. the database went away: keep the worker alive
                 log.exception("worker could not run job %s", job_id)
 
-    def shutdown(self, wait: bool = True, timeout_s: float = 60.0) -> None:
+    def shutdown(self, wait: bool = True, timeout_s: float = 60.0) -> bool:
         """Stop the threads after their current job; queued jobs stay queued for the next start (a job cut
-        short by the process' exit is resumed then too)."""
+        short by the process' exit is resumed then too).  True when every thread has stopped (only then may
+        the caller dispose the database: a job thread may still be writing to it)."""
         self._stop.set()
         for _ in self._threads:
             self._queue.put(None)
         if wait:
             for t in self._threads:
                 t.join(timeout_s)
+        alive = [t for t in self._threads if t.is_alive()]
+        if alive:
+            log.warning("%d job threads still running at shutdown; their jobs resume at the next start", len(alive))
         self._threads.clear()
         if self.pool is not None:
             self.pool.shutdown()
             self.pool = None
+        self.lock.release()
+        return not alive
 
 
-__all__ = ["JobRunner", "MEDIA", "RenderPool", "ThreadJobRunner", "claim", "render_artefact", "render_many", "run_job",
-           "warm_up"]
+__all__ = ["MAX_ATTEMPTS", "JobRunner", "RunnerLock", "RunnerLocked", "ThreadJobRunner", "claim", "clear_tmp",
+           "run_job"]

@@ -2,9 +2,11 @@
 
 ``create_app(settings)`` builds a fresh app (nothing global: tests make one per temporary data dir).
 Start-up (the lifespan): create the data folders, apply the Alembic migrations, start the job runner (which
+refuses to start when another server runs this database's jobs, clears a crashed run's temporary files and
 resumes the jobs a previous run left queued or running), and when the database has no user yet print how
 to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
-its current jobs.
+its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
+internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
 
 Routes besides ``/api/v1`` (see ``app.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
@@ -15,7 +17,9 @@ Routes besides ``/api/v1`` (see ``app.api``): ``/`` (``static/index.html``, the 
 from __future__ import annotations
 
 import logging
+import secrets
 import sys
+import threading
 from contextlib import asynccontextmanager
 from pathlib import Path
 
@@ -89,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     db = Database(settings.db_url)
     store = BlobStore(settings.blob_dir)
     runner = ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
-                             render_processes=settings.render_processes)
+                             render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -97,12 +101,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         with db.session() as s:
             if not s.scalar(select(func.count()).select_from(User)):
                 print(FIRST_ADMIN_HINT, file=sys.stderr, flush=True)
-        runner.start()
+        try:
+            runner.start()  # refuses (RunnerLocked) when another server runs this database's jobs
+        except Exception:
+            db.dispose()
+            raise
         try:
             yield
         finally:
-            runner.shutdown(wait=True)
-            db.dispose()
+            if runner.shutdown(wait=True):  # a job thread still running keeps its database
+                db.dispose()
 
     app = FastAPI(title="ChakaMo", version=__version__, lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Clinical 3D knee kinematics from two IMUs: patients, sessions, uploads, processing, "
@@ -110,6 +118,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                               "create`) or the browser login.")
     app.state.settings, app.state.db, app.state.store, app.state.runner = settings, db, store, runner
     app.state.login_throttle = LoginThrottle()
+    #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
+    app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
 
     @app.middleware("http")
@@ -144,8 +154,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.exception_handler(CorruptBlob)
     async def corrupt_blob(request: Request, exc: CorruptBlob):
-        log.error("corrupt blob: %s", exc)
-        return JSONResponse({"detail": f"A stored file is damaged or missing ({exc})."}, status_code=500)
+        """500 with a sentence and a reference id; the details (which file, where) go to the server log only."""
+        ref = secrets.token_hex(4)
+        log.error("corrupt blob (reference %s) under %s: %s", ref, store.root, exc)
+        return JSONResponse({"detail": f"A stored file is damaged or missing (reference {ref}); give the reference "
+                                       "to your ChakaMo administrator, who can restore it from a backup."},
+                            status_code=500)
 
     @app.get("/healthz", include_in_schema=False)
     def healthz():

@@ -4,18 +4,27 @@ Layout: ``<root>/aa/bbbbb…`` where ``aabbbbb…`` is the sha256 hex digest of 
 stored once.  Writing goes through :class:`BlobWriter`: bytes are streamed into a temporary file in
 ``<root>/.incoming`` (same file system) while they are hashed and counted; going past the size limit raises
 :class:`TooLarge` at once (the API answers 413 before reading the rest); :meth:`BlobWriter.commit` moves the
-file to its final name with ``os.replace`` (atomic), so a blob is never seen half-written.  Reading verifies
-the checksum (:meth:`BlobStore.read`, :meth:`BlobStore.copy_to`): a file altered on disk raises
-:class:`CorruptBlob` instead of being served or processed.
+file to its final name with ``os.replace`` (atomic), so a blob is never seen half-written.  Durability: the
+temporary file is fsynced before the rename and its folder after it, so once the database row that names a
+blob is committed (and the upload acknowledged) a power cut loses neither.  A file already at the target
+address is kept only if its content still hashes to that address; a damaged one is replaced by the new,
+good copy (uploading the file again repairs the store).  Reading verifies the checksum
+(:meth:`BlobStore.read`, :meth:`BlobStore.copy_to`): a file altered on disk raises :class:`CorruptBlob`
+instead of being served or processed; its message names the blob, never the server's storage path.
+:meth:`BlobStore.clear_incoming` removes temporary files a crashed server left behind (called at start-up,
+before anything writes).
 """
 
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import re
 import tempfile
 from pathlib import Path
+
+log = logging.getLogger("chakamo.storage")
 
 _HEX = re.compile(r"^[0-9a-f]{64}$")
 _CHUNK = 1 << 20
@@ -51,21 +60,51 @@ class BlobWriter:
         self._file.write(chunk)
 
     def commit(self) -> str:
-        """Move the file to its content address; returns the sha256 hex digest."""
+        """Move the file to its content address, durably (module docstring); returns the sha256 hex digest."""
+        self._file.flush()
+        os.fsync(self._file.fileno())
         self._file.close()
         digest = self._hash.hexdigest()
         target = self._store.path(digest)
         target.parent.mkdir(parents=True, exist_ok=True)
-        if target.is_file() and target.stat().st_size == self.size_bytes:
-            self._path.unlink(missing_ok=True)  # already stored (same content)
-        else:
-            os.replace(self._path, target)
+        if target.is_file() and _file_sha256(target) == digest:
+            self._path.unlink(missing_ok=True)  # already stored, intact
+            return digest
+        if target.exists():
+            log.warning("stored file %s… was damaged; replaced by a good copy", digest[:12])
+        os.replace(self._path, target)
+        _fsync_dir(target.parent)
         return digest
 
     def discard(self) -> None:
         if not self._file.closed:
             self._file.close()
         self._path.unlink(missing_ok=True)
+
+
+def _file_sha256(path: Path) -> str | None:
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            while chunk := f.read(_CHUNK):
+                h.update(chunk)
+    except OSError:
+        return None
+    return h.hexdigest()
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make a rename inside ``folder`` durable (no-op where folders cannot be opened, e.g. Windows)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 class BlobStore:
@@ -81,6 +120,18 @@ class BlobStore:
             raise ValueError(f"not a sha256 hex digest: {sha256!r}")
         return self.root / sha256[:2] / sha256[2:]
 
+    def clear_incoming(self) -> int:
+        """Remove the temporary ``up-*`` files of uploads cut short by a crash; returns how many.  Call only
+        when no upload is running (at start-up)."""
+        n = 0
+        for p in self.incoming.glob("up-*"):
+            try:
+                p.unlink()
+                n += 1
+            except OSError:
+                log.warning("could not remove the temporary upload file %s", p.name)
+        return n
+
     def writer(self, max_bytes: int | None = None) -> BlobWriter:
         return BlobWriter(self, max_bytes)
 
@@ -95,7 +146,7 @@ class BlobStore:
         try:
             data = self.path(sha256).read_bytes()
         except FileNotFoundError:
-            raise CorruptBlob(f"stored file {sha256[:12]}… is missing from {self.root}; restore it from a backup") from None
+            raise CorruptBlob(f"stored file {sha256[:12]}… is missing; restore it from a backup") from None
         if hashlib.sha256(data).hexdigest() != sha256:
             raise CorruptBlob(f"stored file {sha256[:12]}… does not match its checksum; restore it from a backup")
         return data
@@ -109,7 +160,7 @@ class BlobStore:
                     h.update(chunk)
                     dst.write(chunk)
         except FileNotFoundError:
-            raise CorruptBlob(f"stored file {sha256[:12]}… is missing from {self.root}; restore it from a backup") from None
+            raise CorruptBlob(f"stored file {sha256[:12]}… is missing; restore it from a backup") from None
         if h.hexdigest() != sha256:
             Path(target).unlink(missing_ok=True)
             raise CorruptBlob(f"stored file {sha256[:12]}… does not match its checksum; restore it from a backup")

@@ -9,13 +9,12 @@ name, notes), so even if escaping failed its scripts could not act as the logged
 
 from __future__ import annotations
 
-from typing import Literal
-
 from fastapi import APIRouter
 from fastapi.responses import Response
 
 from app.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.api.results import artefact_row, pick_analysis
+from app.api.schemas import Lang
 
 router = APIRouter(prefix="/sessions", tags=["artefacts"])
 
@@ -40,7 +39,7 @@ def _send(db, store, principal, session_id: int, name: str, analysis_id: int | N
 @router.get("/{session_id}/report.pdf", response_class=Response,
             responses={200: {"content": {"application/pdf": {}}}})
 def report_pdf(session_id: int, principal: Reader, db: DbDep, store: StoreDep,
-               lang: Literal["es", "en", "pt"] | None = None, analysis_id: int | None = None):
+               lang: Lang | None = None, analysis_id: int | None = None):
     """The clinical report (default: the language the job was started with)."""
     return _send(db, store, principal, session_id, "report.pdf", analysis_id, lang or "")
 

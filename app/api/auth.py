@@ -2,8 +2,11 @@
 
 The cookie ``chakamo_session`` is HttpOnly, SameSite=Strict, ``Secure`` outside development, and lives
 ``CHAKAMO_SESSION_HOURS``; only its sha256 is stored.  A wrong email and a wrong password get the same 401
-after the same scrypt work, so login does not reveal which emails exist; repeated failures for one email are
-throttled (:class:`app.security.LoginThrottle`: 429).
+after the same scrypt work, so login does not reveal which emails exist; repeated failures for one email, or
+from one client address, are throttled (:class:`app.security.LoginThrottle`: 429); when too many password
+checks run at once the answer is 503 (:class:`app.security.Busy`), never an exhausted machine.  The client
+address is the connection's peer: behind a reverse proxy run uvicorn with ``--proxy-headers`` so that it is
+the browser's.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from sqlalchemy import delete, select
 from app.api.deps import COOKIE, DbDep, PrincipalDep, SettingsDep
 from app.api.schemas import LoginIn, MeOut, user_out
 from app.db.models import BrowserSession, User, utcnow
-from app.security import csrf_token, hash_password, new_session_id, sha256_hex, verify_password
+from app.security import Busy, csrf_token, hash_password, new_session_id, sha256_hex, verify_password
 
 router = APIRouter(prefix="/auth", tags=["auth"])
 _DUMMY_HASH = hash_password("not-a-real-password-only-for-equal-timing")
@@ -26,14 +29,19 @@ _DUMMY_HASH = hash_password("not-a-real-password-only-for-equal-timing")
 def login(body: LoginIn, request: Request, response: Response, db: DbDep, settings: SettingsDep):
     """Check email and password; set the session cookie; return the user and the CSRF token."""
     email = body.email.lower()
+    ip = request.client.host if request.client else None
     throttle = request.app.state.login_throttle
-    if throttle.blocked(email):
-        raise HTTPException(429, "Too many failed logins for this email; wait 15 minutes and try again, or ask "
-                                 "your clinic admin.")
+    if throttle.blocked(email, ip):
+        raise HTTPException(429, "Too many failed logins for this email or from this computer; wait 15 minutes "
+                                 "and try again, or ask your clinic admin.")
     user = db.scalar(select(User).where(User.email == email))
-    ok = verify_password(body.password, user.password_hash if user else _DUMMY_HASH)
+    try:
+        ok = verify_password(body.password, user.password_hash if user else _DUMMY_HASH)
+    except Busy:
+        raise HTTPException(503, "The server is busy checking other logins; try again in a moment.",
+                            headers={"Retry-After": "5"}) from None
     if user is None or not ok or not user.active:
-        throttle.fail(email)
+        throttle.fail(email, ip)
         raise HTTPException(401, "Wrong email or password; try again or ask your clinic admin to reset it.")
     throttle.reset(email)
     sid = new_session_id()

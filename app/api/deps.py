@@ -7,8 +7,14 @@ several apps (tests) and tests can swap any of them with ``app.dependency_overri
 The caller (:class:`Principal`) is found from ``Authorization: Bearer <token>`` (an API token: its clinic and
 role) or from the ``chakamo_session`` cookie (a browser session: its user's clinic and role).  A
 cookie-authenticated POST/PUT/PATCH/DELETE must carry ``X-CSRF-Token`` (else 403); bearer requests need
-none (a browser never adds that header by itself).  Roles are ordered read_only < clinician < admin;
-:func:`require` builds a dependency refusing lower roles with 403.  Clinic scoping: every router loads rows
+none (a browser never adds that header by itself).  Roles are ordered read_only < clinician < admin
+(:data:`app.security.ROLE_RANK`); :func:`require` builds a dependency refusing lower roles with 403.
+
+The upload route does not use the per-request session: a request body can stream for minutes, and a
+session opened by a dependency stays open (a pooled connection, on PostgreSQL an open transaction) until
+the route returns.  :data:`UploadClinician` finds the caller in a short session of its own, closed before
+the body is read, and gives a detached :class:`Principal` (tests overriding the caller override
+:func:`get_upload_principal` too).  Clinic scoping: every router loads rows
 through :func:`scoped` helpers which answer 404 for another clinic's ids — the same answer as for an unknown
 id, so ids of other clinics cannot even be probed.
 """
@@ -26,13 +32,13 @@ from sqlalchemy.orm import Session
 
 from app.db.models import ApiToken, BrowserSession, Job, KneeSession, Patient, User, utcnow
 from app.jobs import JobRunner
-from app.security import csrf_ok, csrf_token, sha256_hex
+from app.security import ROLE_RANK, csrf_ok, csrf_token, sha256_hex
 from app.settings import Settings
 from app.storage import BlobStore
 
 COOKIE = "chakamo_session"
 CSRF_HEADER = "X-CSRF-Token"
-RANK = {"read_only": 0, "clinician": 1, "admin": 2}
+RANK = ROLE_RANK
 _UNSAFE = {"POST", "PUT", "PATCH", "DELETE"}
 
 
@@ -81,6 +87,11 @@ _bearer_doc = HTTPBearer(auto_error=False, description="An API token from `chaka
 
 def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depends(_bearer_doc)) -> Principal:
     """The authenticated caller, or 401; 403 for a cookie-authenticated unsafe request without CSRF header."""
+    return resolve_principal(request, db, settings)
+
+
+def resolve_principal(request: Request, db: Session, settings: Settings) -> Principal:
+    """:func:`get_principal`'s work on a given database session."""
     auth = request.headers.get("authorization", "")
     if auth:
         scheme, _, token = auth.partition(" ")
@@ -111,14 +122,28 @@ def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depen
 PrincipalDep = Annotated[Principal, Depends(get_principal)]
 
 
+def _check_role(principal: Principal, role: str) -> Principal:
+    if RANK.get(principal.role, -1) < RANK[role]:
+        raise HTTPException(403, f"This needs the {role} role (yours is {principal.role}); ask a clinic admin.")
+    return principal
+
+
+def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Principal:
+    """The caller of an upload, at least clinician: looked up in a short session closed before the body is
+    read (module docstring)."""
+    with request.app.state.db.session() as db:
+        principal = resolve_principal(request, db, request.app.state.settings)
+    return _check_role(principal, "clinician")
+
+
+UploadClinician = Annotated[Principal, Depends(get_upload_principal)]
+
+
 def require(role: str):
     """A dependency giving the caller if their role is at least ``role``, else 403."""
 
     async def dependency(principal: PrincipalDep) -> Principal:  # async: no thread hop for a comparison
-        if RANK.get(principal.role, -1) < RANK[role]:
-            raise HTTPException(403, f"This needs the {role} role (yours is {principal.role}); ask a clinic "
-                                     "admin.")
-        return principal
+        return _check_role(principal, role)
 
     return dependency
 
@@ -135,11 +160,24 @@ def scoped_patient(db: Session, principal: Principal, patient_id: int) -> Patien
     return row
 
 
-def scoped_session(db: Session, principal: Principal, session_id: int) -> KneeSession:
+def scoped_session(db: Session, principal: Principal, session_id: int, lock: bool = False) -> KneeSession:
+    """Session ``session_id`` of the caller's clinic, or 404.  ``lock``: ``SELECT … FOR UPDATE`` (PostgreSQL;
+    SQLite serialises writers anyway), so that changes of one session's files and jobs happen one at a time."""
+    if lock:  # the row alone (the ORM's joined patient cannot be locked on PostgreSQL's outer join)
+        db.execute(select(KneeSession.id).where(KneeSession.id == session_id).with_for_update())
     row = db.get(KneeSession, session_id)
     if row is None or row.clinic_id != principal.clinic_id:
         raise HTTPException(404, f"No session {session_id} in your clinic; check the id.")
     return row
+
+
+def refuse_while_processing(db: Session, session_id: int, what: str) -> None:
+    """409 when a job of session ``session_id`` is queued or running (its files must not change under it)."""
+    job_id = db.scalar(select(Job.id).where(Job.session_id == session_id, Job.status.in_(("queued", "running")))
+                       .order_by(Job.id))
+    if job_id is not None:
+        raise HTTPException(409, f"Session {session_id} is being processed (job {job_id}); {what} when that job has "
+                                 "finished.")
 
 
 def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
@@ -150,5 +188,6 @@ def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
 
 
 __all__ = ["COOKIE", "CSRF_HEADER", "Admin", "Clinician", "DbDep", "Principal", "PrincipalDep", "Reader", "RunnerDep",
-           "SettingsDep", "StoreDep", "get_db", "get_principal", "get_runner", "get_settings_dep", "get_store",
-           "require", "scoped_job", "scoped_patient", "scoped_session"]
+           "SettingsDep", "StoreDep", "UploadClinician", "get_db", "get_principal", "get_runner", "get_settings_dep",
+           "get_store", "get_upload_principal", "refuse_while_processing", "require", "resolve_principal",
+           "scoped_job", "scoped_patient", "scoped_session"]

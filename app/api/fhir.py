@@ -3,7 +3,8 @@
 The document is built by :func:`app.fhir.diagnostic_report` (another module of the project) from the
 session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
 ``/api/v1`` address (the namespace of the session and patient identifiers).  ``?analysis_id=`` picks an
-earlier analysis.
+earlier analysis.  Stored data the export cannot express (e.g. a patient's sex recorded before the API
+restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.
 """
 
 from __future__ import annotations
@@ -16,18 +17,16 @@ from fastapi.responses import Response
 from app.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.api.results import artefact_row, pick_analysis
 from app.api.schemas import patient_out
+from app.fhir import FhirExportError, diagnostic_report
 
 router = APIRouter(prefix="/fhir", tags=["fhir"])
 
 
 @router.get("/DiagnosticReport/{session_id}", response_class=Response,
-            responses={200: {"content": {"application/fhir+json": {}}}})
+            responses={200: {"content": {"application/fhir+json": {}}},
+                       409: {"description": "the stored data cannot be expressed in FHIR (the sentence says why)"}})
 def diagnostic_report_route(session_id: int, request: Request, principal: Reader, db: DbDep, store: StoreDep,
                             analysis_id: int | None = None):
-    try:
-        from app.fhir import diagnostic_report
-    except ImportError:
-        raise HTTPException(501, "The FHIR export is not installed in this build; update ChakaMo.") from None
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, analysis_id)
     results = json.loads(store.read(artefact_row(db, analysis, "results.json").sha256))
@@ -41,6 +40,7 @@ def diagnostic_report_route(session_id: int, request: Request, principal: Reader
     try:
         doc = diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
                                 base_url=base_url)
-    except ValueError as exc:  # the stored analysis cannot be exported: a server-side problem, said plainly
-        raise HTTPException(500, f"The FHIR export of session {session_id} failed: {exc}") from None
+    except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
+        raise HTTPException(409, f"Session {session_id} cannot be exported to FHIR: {exc}; correct the record and "
+                                 "try again.") from None
     return Response(json.dumps(doc, ensure_ascii=False), media_type="application/fhir+json")

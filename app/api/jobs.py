@@ -2,34 +2,56 @@
 
 The job row is committed before the runner hears of it, so a crash between the two loses nothing (the
 runner's start-up resubmits queued jobs).  Every analysis is kept: processing again (e.g. with another
-filter) adds one.
+filter) adds one — once the previous job of the session has finished: while one is queued or running a
+new request answers 409 (checked before and, for SQLite's concurrent writers, again after inserting).  A
+stale ingestion check (files changed since) is redone before deciding (409 when it is not ok).
 """
 
-from fastapi import APIRouter, HTTPException
+from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import JSONResponse
 
-from app.api.deps import Clinician, DbDep, Reader, RunnerDep, scoped_job, scoped_session
-from app.api.schemas import JobCreatedOut, JobOut, ProcessIn, job_out
+from app.api.deps import Clinician, DbDep, Reader, RunnerDep, refuse_while_processing, scoped_job, scoped_session
+from app.api.recordings import refresh_ingestion
+from app.api.schemas import JobCreatedOut, JobOut, ProcessIn, ingestion_fresh, job_out
+from sqlalchemy import select
+
 from app.db.models import Job
 from estimators.orientation import DEFAULT_METHOD, METHODS
 
 router = APIRouter(tags=["jobs"])
 
 
-@router.post("/sessions/{session_id}/process", response_model=JobCreatedOut, status_code=202)
-def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep, body: ProcessIn | None = None):
+@router.post("/sessions/{session_id}/process", response_model=JobCreatedOut, status_code=202,
+             responses={409: {"description": "recordings not ready, or the session is being processed"}})
+def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep, request: Request,
+            body: ProcessIn | None = None):
     body = body or ProcessIn()
     session = scoped_session(db, principal, session_id)
     name = body.filter or DEFAULT_METHOD
     if name not in METHODS:
         raise HTTPException(400, f"Unknown filter {name!r}; use one of {', '.join(METHODS)}.")
-    ingestion = session.ingestion or {}
+    refuse_while_processing(db, session.id, "process it again")
+    if not ingestion_fresh(session) and session.recordings:
+        state = request.app.state
+        db.rollback()  # no transaction held while the files are checked
+        refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session.id)
+        session = scoped_session(db, principal, session_id)
+        db.refresh(session)
+    session = scoped_session(db, principal, session_id, lock=True)
+    refuse_while_processing(db, session.id, "process it again")
+    ingestion = session.ingestion if ingestion_fresh(session) else {}
     if not ingestion.get("ok"):
         raise HTTPException(409, "The session's recordings are not ready to process: "
                                  f"{ingestion.get('error') or 'no recordings yet'}")
     job = Job(clinic_id=principal.clinic_id, session_id=session.id, filter=name, lang=body.lang,
               log=[], stage="queued")
     db.add(job)
+    db.flush()
+    other = db.scalar(select(Job.id).where(Job.session_id == session.id, Job.id != job.id,
+                                           Job.status.in_(("queued", "running"))))
+    if other is not None:  # another request queued one at the same moment (SQLite has no row locks)
+        raise HTTPException(409, f"Session {session.id} is being processed (job {other}); process it again when "
+                                 "that job has finished.")
     db.commit()  # committed before the runner can look for it
     runner.submit(job.id)
     return JSONResponse({"job_id": job.id}, status_code=202)

@@ -1,4 +1,8 @@
-"""``/patients``: list/search, create, read; a patient's sessions, their ROM trend, and new sessions."""
+"""``/patients``: list/search, create, read; a patient's sessions, their ROM trend, and new sessions.
+
+Creating a patient whose external id exists in the clinic answers 409 — also when two requests race (the
+database's unique constraint decides; the loser gets the same 409, never a 500).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ import json
 
 from fastapi import APIRouter, HTTPException, Query
 from sqlalchemy import func, or_, select
+from sqlalchemy.exc import IntegrityError
 
 from app.api.deps import Clinician, DbDep, Reader, StoreDep, scoped_patient
 from app.api.schemas import (PatientIn, PatientOut, SessionIn, SessionOut, SessionSummaryOut, TrendOut, patient_out,
@@ -39,7 +44,11 @@ def create_patient(body: PatientIn, principal: Clinician, db: DbDep):
                                  "open that patient instead.")
     patient = Patient(clinic_id=principal.clinic_id, **body.model_dump())
     db.add(patient)
-    db.flush()
+    try:
+        db.flush()
+    except IntegrityError:  # created by a concurrent request between the check and the insert
+        raise HTTPException(409, f"Patient {body.external_id!r} already exists in your clinic; open that patient "
+                                 "instead.") from None
     return patient_out(patient)
 
 

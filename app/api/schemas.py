@@ -16,10 +16,17 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Analysis, Job, KneeSession, Patient, Recording, User
+from app.security import ROLES
+from reports.i18n import LANGUAGES
 
-Lang = Literal["es", "en", "pt"]
+#: the report languages (one definition: :data:`reports.i18n.LANGUAGES`)
+Lang = Literal[LANGUAGES]  # type: ignore[valid-type]
 Side = Literal["right", "left"]
-RoleName = Literal["admin", "clinician", "read_only"]
+#: the roles (one definition: :data:`app.security.ROLES`)
+RoleName = Literal[ROLES]  # type: ignore[valid-type]
+#: a patient's sex as FHIR's administrative gender takes it
+SEXES = ("male", "female", "other", "unknown")
+Sex = Literal[SEXES]  # type: ignore[valid-type]
 
 
 class _In(BaseModel):
@@ -43,7 +50,7 @@ class PatientIn(_In):
     side: Side
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
-    sex: str | None = Field(None, max_length=20)
+    sex: Sex | None = None
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
@@ -198,8 +205,21 @@ def analysis_out(a: Analysis) -> dict[str, Any]:
     return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings")}
 
 
-def ingestion_out(s: KneeSession) -> dict[str, Any]:
-    return s.ingestion or {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
+NO_RECORDINGS = {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
+BEING_CHECKED = {"ok": False, "messages": [], "error": "The session's files are being checked; reload in a moment."}
+
+
+def ingestion_fresh(s: KneeSession) -> bool:
+    """True when the stored ingestion check was computed from the session's current files."""
+    return s.ingestion is not None and s.ingestion_version == s.files_version
+
+
+def ingestion_out(s: KneeSession, n_recordings: int | None = None) -> dict[str, Any]:
+    """The stored check when fresh; "no recordings" for an empty session; else "being checked"."""
+    if ingestion_fresh(s):
+        return s.ingestion
+    n = len(s.recordings) if n_recordings is None else n_recordings
+    return dict(NO_RECORDINGS if n == 0 else BEING_CHECKED)
 
 
 def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None) -> str:
@@ -224,7 +244,7 @@ def summaries(db: Session, sessions: list[KneeSession]) -> list[dict[str, Any]]:
 
 
 def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None) -> dict[str, Any]:
-    ok = bool((s.ingestion or {}).get("ok"))
+    ok = ingestion_fresh(s) and bool(s.ingestion.get("ok"))
     return {"id": s.id, "patient_id": s.patient_id, "date": s.date, "task": s.task, "created_at": s.created_at,
             "n_recordings": n_recordings, "status": session_status(n_recordings, ok, latest_job)}
 
@@ -235,6 +255,6 @@ def session_out(db: Session, s: KneeSession) -> dict[str, Any]:
     recs = list(s.recordings)
     out = summary_out(s, len(recs), jobs[0] if jobs else None)
     out |= {"step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
-            "recordings": [recording_out(r) for r in recs], "ingestion": ingestion_out(s),
+            "recordings": [recording_out(r) for r in recs], "ingestion": ingestion_out(s, len(recs)),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out

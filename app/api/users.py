@@ -1,12 +1,14 @@
-"""``/users``: the clinic's accounts (admin only).  Emails are the login names, unique across clinics."""
+"""``/users``: the clinic's accounts (admin only).  Emails are the login names, unique across clinics: a
+taken email answers 409, also when two requests race (the unique constraint decides)."""
 
 from fastapi import APIRouter, HTTPException
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
 from app.api.deps import Admin, DbDep
 from app.api.schemas import UserIn, UserOut, user_out
 from app.db.models import User
-from app.security import hash_password
+from app.security import Busy, hash_password
 
 router = APIRouter(prefix="/users", tags=["users"])
 
@@ -22,9 +24,17 @@ def create_user(body: UserIn, principal: Admin, db: DbDep):
     email = body.email.lower()
     if db.scalar(select(User.id).where(User.email == email)) is not None:
         raise HTTPException(409, f"The email {email} already has an account; use another email.")
+    try:
+        password_hash = hash_password(body.password)
+    except Busy:
+        raise HTTPException(503, "The server is busy checking passwords; try again in a moment.",
+                            headers={"Retry-After": "5"}) from None
     user = User(clinic_id=principal.clinic_id, email=email, name=body.name, role=body.role,
-                password_hash=hash_password(body.password))
+                password_hash=password_hash)
     db.add(user)
-    db.flush()
+    try:
+        db.flush()
+    except IntegrityError:  # created by a concurrent request between the check and the insert
+        raise HTTPException(409, f"The email {email} already has an account; use another email.") from None
     db.refresh(user)
     return user_out(user)

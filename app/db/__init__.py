@@ -1,8 +1,12 @@
 """Database access: engine and session factory for one URL, and the Alembic upgrade applied at start-up.
 
 ``Database(url)`` owns one engine; SQLite gets WAL journaling (readers never wait for the job threads'
-writes), foreign keys on and a busy timeout, on every connection.  ``Database.migrate()`` upgrades the
-schema to the newest revision of ``app/migrations`` programmatically (no ``alembic.ini`` needed).
+writes), ``synchronous=FULL`` (a commit — an acknowledged upload — survives a power cut; NORMAL could
+roll the last commits back), foreign keys on and a busy timeout, on every connection.
+:func:`ensure_blob` records a stored file with the dialect's ``INSERT … ON CONFLICT DO NOTHING``
+(SQLite, PostgreSQL): two transactions storing equal content at the same time never collide.
+``Database.migrate()`` upgrades the schema to the newest revision of ``app/migrations`` programmatically
+(no ``alembic.ini`` needed).
 Nothing is created at import time.
 """
 
@@ -16,7 +20,7 @@ from sqlalchemy import create_engine, event
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.db.models import Base
+from app.db.models import Base, Blob
 
 MIGRATIONS_DIR = Path(__file__).resolve().parents[1] / "migrations"
 
@@ -26,7 +30,7 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.execute("PRAGMA busy_timeout=15000")
-    cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.execute("PRAGMA synchronous=FULL")
     cursor.close()
 
 
@@ -50,6 +54,24 @@ def alembic_config(engine: Engine):
     cfg.set_main_option("script_location", str(MIGRATIONS_DIR))
     cfg.set_main_option("sqlalchemy.url", engine.url.render_as_string(hide_password=False).replace("%", "%%"))
     return cfg
+
+
+def ensure_blob(db: Session, sha256: str, size_bytes: int) -> None:
+    """Add the :class:`Blob` row of ``sha256`` unless it exists — atomic, safe against concurrent inserts."""
+    name = db.get_bind().dialect.name
+    if name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert
+    elif name == "sqlite":
+        from sqlalchemy.dialects.sqlite import insert
+    else:  # another database: check, then insert (no concurrent guarantee)
+        if db.get(Blob, sha256) is None:
+            db.add(Blob(sha256=sha256, size_bytes=size_bytes))
+            db.flush()
+        return
+    from app.db.models import utcnow
+
+    db.execute(insert(Blob).values(sha256=sha256, size_bytes=size_bytes, created_at=utcnow())
+               .on_conflict_do_nothing(index_elements=["sha256"]))
 
 
 class Database:
@@ -84,4 +106,4 @@ class Database:
         self.engine.dispose()
 
 
-__all__ = ["Base", "Database", "MIGRATIONS_DIR", "alembic_config", "make_engine"]
+__all__ = ["Base", "Database", "MIGRATIONS_DIR", "alembic_config", "ensure_blob", "make_engine"]

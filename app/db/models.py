@@ -18,7 +18,8 @@ from sqlalchemy import (JSON, Boolean, Date, DateTime, Float, ForeignKey, Intege
                         TypeDecorator, UniqueConstraint)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-ROLES = ("admin", "clinician", "read_only")
+from app.security import ROLES  # the one definition of the roles (re-exported here)
+
 JOB_STATES = ("queued", "running", "done", "failed")
 
 NAMING = {"ix": "ix_%(column_0_label)s", "uq": "uq_%(table_name)s_%(column_0_name)s",
@@ -131,6 +132,10 @@ class KneeSession(Base):
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     #: the last ingestion check over all stored files (``{"ok", "messages", "error"}``), refreshed on every change
     ingestion: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    #: bumped (in the same transaction) by every upload or deletion of a recording
+    files_version: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    #: the ``files_version`` the stored ``ingestion`` was computed from (fresh when equal)
+    ingestion_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
     patient: Mapped[Patient] = relationship(lazy="joined")
     recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
                                                           cascade="all, delete-orphan")

@@ -37,3 +37,27 @@ def demo_dir(tmp_path_factory) -> Path:
     write_session(folder, simulate_session(seed=7, side="right", n_cycles=6))
     (folder / "session.json").unlink()
     return folder
+
+
+@pytest.fixture
+def pg_url():
+    """URL of a new empty PostgreSQL database (``CHAKAMO_TEST_POSTGRES_URL``'s server; dropped after the test)."""
+    import os
+    import uuid
+
+    from sqlalchemy import create_engine
+    from sqlalchemy.engine import make_url
+
+    server = os.environ.get("CHAKAMO_TEST_POSTGRES_URL")
+    if not server:
+        pytest.skip("CHAKAMO_TEST_POSTGRES_URL not set (no PostgreSQL server)")
+    admin = create_engine(server, isolation_level="AUTOCOMMIT")
+    name = f"chakamo_test_{uuid.uuid4().hex[:12]}"
+    with admin.connect() as conn:
+        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
+    try:
+        yield make_url(server).set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        admin.dispose()

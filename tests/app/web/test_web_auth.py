@@ -120,3 +120,43 @@ def test_bearer_me_has_no_user_and_no_csrf(client, settings):
 
     h = clinic_token(settings, "Z")
     assert client.get("/api/v1/auth/me", headers=h).json() == {"user": None, "csrf_token": None}
+
+
+def test_failures_from_one_address_are_throttled_across_emails(client, admin):
+    """Guessing over many emails from one machine: after 30 failures that address is refused (429)."""
+    for i in range(30):
+        assert login(client, email=f"guess{i}@clinic.test", password="wrong password!").status_code == 401
+    r = login(client)  # a fresh email, right password, same address
+    assert r.status_code == 429 and "from this computer" in r.json()["detail"]
+
+
+def test_the_throttle_forgets_expired_failures():
+    import time
+
+    from app.security import LoginThrottle
+
+    throttle = LoginThrottle(max_failures=2, window_s=0.05)
+    for i in range(500):
+        throttle.fail(f"user{i}@x.org", "10.0.0.1")
+    time.sleep(0.1)  # every failure is now outside the window
+    throttle.fail("last@x.org", "10.0.0.2")
+    assert len(throttle) <= 2  # the 500 expired emails and the first address are gone
+    assert not throttle.blocked("user1@x.org", "10.0.0.1")
+
+
+def test_too_many_password_checks_at_once_answer_503(client, admin, monkeypatch):
+    """All scrypt slots busy (held here): a login waits a bounded time, then answers 503, not a pile-up."""
+    from app import security
+
+    monkeypatch.setattr(security, "SCRYPT_WAIT_S", 0.05)
+    held = 0
+    try:
+        while security._scrypt_slots.acquire(blocking=False):
+            held += 1
+        assert held == security.SCRYPT_CONCURRENCY
+        r = login(client)
+        assert r.status_code == 503 and "try again" in r.json()["detail"]
+    finally:
+        for _ in range(held):
+            security._scrypt_slots.release()
+    assert login(client).status_code == 200

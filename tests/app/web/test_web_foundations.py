@@ -43,24 +43,6 @@ def test_get_settings_reads_the_environment_once(monkeypatch, tmp_path):
 
 
 # -------------------------------------------------------------------------------------------- database
-def test_migrations_match_the_models(tmp_path):
-    from alembic.autogenerate import compare_metadata
-    from alembic.migration import MigrationContext
-
-    from app.db import Database
-    from app.db.models import Base
-
-    db = Database(f"sqlite:///{tmp_path}/m.db")
-    db.migrate()
-    db.migrate()  # idempotent
-    with db.engine.connect() as conn:
-        diff = compare_metadata(MigrationContext.configure(conn, opts={"compare_type": True}), Base.metadata)
-        assert diff == [], diff
-        assert conn.exec_driver_sql("PRAGMA journal_mode").scalar() == "wal"
-        assert conn.exec_driver_sql("PRAGMA foreign_keys").scalar() == 1
-    db.dispose()
-
-
 def test_foreign_keys_are_enforced(tmp_path):
     from sqlalchemy.exc import IntegrityError
 
@@ -168,3 +150,18 @@ def test_non_api_routes_work_offline(client):
     viser = client.get("/viser/index.html")
     assert viser.status_code == 200 and "<html" in viser.text.lower()
     assert client.get("/").status_code in (200, 503)  # 503 names the missing UI if static/ is absent
+
+
+def test_roles_and_languages_are_defined_once():
+    import typing
+
+    from app import admin_cli, security
+    from app.api import deps, schemas
+    from app.db import models
+    from app.render import LANGS
+    from reports.i18n import LANGUAGES
+
+    assert admin_cli.ROLES is models.ROLES is security.ROLES
+    assert typing.get_args(schemas.RoleName) == security.ROLES and deps.RANK is security.ROLE_RANK
+    assert security.ROLE_RANK["admin"] > security.ROLE_RANK["clinician"] > security.ROLE_RANK["read_only"]
+    assert typing.get_args(schemas.Lang) == LANGUAGES and LANGS is LANGUAGES

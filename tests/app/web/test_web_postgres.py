@@ -3,13 +3,12 @@
 Runs when ``CHAKAMO_TEST_POSTGRES_URL`` names a server and a role allowed to create databases, e.g.
 ``postgresql+psycopg://chakamo:chakamo@127.0.0.1:5432/postgres``; ``.ci/run`` installs Debian's
 ``postgresql``, starts it and sets the variable.  Skipped otherwise.  Each test gets a fresh database,
-dropped afterwards.
+dropped afterwards (the ``pg_url`` fixture of ``conftest.py``).
 """
 
 from __future__ import annotations
 
 import os
-import uuid
 
 import pytest
 
@@ -17,24 +16,6 @@ from web_helpers import demo_files, make_settings, wait_job
 
 PG = os.environ.get("CHAKAMO_TEST_POSTGRES_URL")
 pytestmark = pytest.mark.skipif(not PG, reason="CHAKAMO_TEST_POSTGRES_URL not set (no PostgreSQL server)")
-
-
-@pytest.fixture
-def pg_url():
-    """URL of a new empty database on the server (dropped after the test)."""
-    from sqlalchemy import create_engine
-    from sqlalchemy.engine import make_url
-
-    admin = create_engine(PG, isolation_level="AUTOCOMMIT")
-    name = f"chakamo_test_{uuid.uuid4().hex[:12]}"
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    try:
-        yield make_url(PG).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as conn:
-            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        admin.dispose()
 
 
 def test_migrations_match_the_models_on_postgresql(pg_url):

@@ -50,3 +50,82 @@ def new_session(client, headers, external_id: str = "P-1", side: str = "right") 
     r = client.post(f"/api/v1/patients/{pid}/sessions", json={"step_height_m": 0.17}, headers=headers)
     assert r.status_code == 201, r.text
     return pid, r.json()["id"]
+
+
+# ------------------------------------------------------------------ raw ASGI (bodies the test clients cannot send)
+BOUNDARY = "chakamo-test-boundary"
+
+
+def multipart(files=(), fields=(), boundary: str = BOUNDARY) -> bytes:
+    """A multipart/form-data body: ``files`` as ``(name, bytes)`` in field ``files``, ``fields`` as ``(k, v)``."""
+    out = b""
+    for key, value in fields:
+        out += (f'--{boundary}\r\nContent-Disposition: form-data; name="{key}"\r\n\r\n{value}\r\n').encode()
+    for name, data in files:
+        out += (f'--{boundary}\r\nContent-Disposition: form-data; name="files"; filename="{name}"\r\n'
+                'Content-Type: text/csv\r\n\r\n').encode() + data + b"\r\n"
+    return out + f"--{boundary}--\r\n".encode()
+
+
+class AsgiCall:
+    """One HTTP request driven by hand against an ASGI app: the body goes in ``chunks``; after ``pause_after``
+    chunks the request waits until :meth:`resume` (``disconnect=True``: the client then goes away).
+    ``status`` / ``body`` / ``json()`` after :meth:`run`; ``paused`` is set while it waits for more body."""
+
+    def __init__(self, app, method: str, path: str, headers: dict, chunks=(), pause_after: int | None = None,
+                 content_length: bool = True) -> None:
+        import asyncio
+
+        self.app, self.method, self.path = app, method, path
+        self.chunks = list(chunks)
+        hdrs = [(k.lower().encode(), v.encode()) for k, v in headers.items()]
+        if content_length:
+            hdrs.append((b"content-length", str(sum(len(c) for c in self.chunks)).encode()))
+        self.headers = hdrs
+        self.pause_after = pause_after
+        self.paused, self._resume, self._done = asyncio.Event(), asyncio.Event(), asyncio.Event()
+        self.disconnect = False
+        self.status: int | None = None
+        self.body = b""
+        self._i = 0
+
+    def resume(self, disconnect: bool = False) -> None:
+        self.disconnect = disconnect
+        self._resume.set()
+
+    async def _receive(self):
+        if self.pause_after is not None and self._i == self.pause_after:
+            self.paused.set()
+            await self._resume.wait()
+            if self.disconnect:
+                return {"type": "http.disconnect"}
+        if self._i < len(self.chunks):
+            self._i += 1
+            return {"type": "http.request", "body": self.chunks[self._i - 1], "more_body": self._i < len(self.chunks)}
+        await self._done.wait()
+        return {"type": "http.disconnect"}
+
+    async def _send(self, message) -> None:
+        if message["type"] == "http.response.start":
+            self.status = message["status"]
+        elif message["type"] == "http.response.body":
+            self.body += message.get("body", b"")
+            if not message.get("more_body"):
+                self._done.set()
+
+    async def run(self) -> "AsgiCall":
+        path, _, query = self.path.partition("?")
+        scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": self.method,
+                 "scheme": "http", "path": path, "raw_path": path.encode(), "query_string": query.encode(),
+                 "root_path": "", "headers": self.headers, "client": ("127.0.0.1", 50000),
+                 "server": ("testserver", 80), "state": {}}
+        try:
+            await self.app(scope, self._receive, self._send)
+        finally:
+            self._done.set()
+        return self
+
+    def json(self):
+        import json
+
+        return json.loads(self.body)
