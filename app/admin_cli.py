@@ -11,6 +11,15 @@
 ``chakamo tokens create --clinic NAME [--label L] [--role clinician|read_only|admin]``
     An API token for a hospital system; printed once, alone on the last line of the output (only its
     sha256 is stored, so it cannot be shown again).
+``chakamo tokens list --clinic NAME`` / ``chakamo tokens revoke ID``
+    The clinic's API tokens (id, label, role, created, revoked; never the token), and revocation: the API
+    then answers 401 to it.  Revoking a revoked token changes nothing, so offboarding scripts can run twice.
+``chakamo users deactivate --email E``
+    Logins refused, and the user's browser sessions deleted, so an open browser is logged out at its next
+    request rather than when its cookie expires.
+``chakamo users set-password --email E [--password-stdin]``
+    A new password (same rules as ``users create``); the user's browser sessions are deleted too (a reset
+    after a suspected leak must close the sessions opened with the old password); ``active`` is unchanged.
 
 The commands use the same settings as the server (``CHAKAMO_DATA_DIR``, ``DATABASE_URL``...), apply the
 migrations first, and raise ``ValueError`` with one sentence for anything the user can fix (the CLI prints
@@ -161,6 +170,7 @@ def add_parsers(sub) -> None:
     t_create.add_argument("--clinic", required=True, metavar="NAME")
     t_create.add_argument("--label", default="", help="what the token is for, e.g. the hospital system")
     t_create.add_argument("--role", default="clinician", choices=ROLES, help="(default: clinician)")
+    _add_account_parsers(users, tokens)
 
 
 def _read_password(from_stdin: bool) -> str:
@@ -179,17 +189,174 @@ def run(args: argparse.Namespace) -> int:
     elif args.command == "clinics":
         clinic_id = create_clinic(None, args.name)
         print(f"clinic {args.name!r} created (id {clinic_id})")
-    elif args.command == "users":
+    elif args.command == "users" and args.action == "create":
         password = _read_password(args.password_stdin)
         user_id = create_user(None, clinic=args.clinic, email=args.email, role=args.role, password=password,
                               name=args.name)
         print(f"user {args.email.strip().lower()} ({args.role}) created in {args.clinic!r} (id {user_id})")
-    elif args.command == "tokens":
+    elif args.command == "tokens" and args.action == "create":
         token = create_token(None, clinic=args.clinic, label=args.label, role=args.role)
         print(f"API token for {args.clinic!r} ({args.role}{', ' + args.label if args.label else ''}). It is shown "
               "only now: store it in the hospital system; send it as 'Authorization: Bearer <token>'.")
         print(token)
+    else:
+        return run_account(args)
     return 0
 
 
 __all__ = ["COMMANDS", "add_parsers", "create_clinic", "create_token", "create_user", "run", "serve"]
+
+
+# ------------------------------------------------------------------------------------------ offboarding
+
+
+def _user(s, email: str):
+    from sqlalchemy import select
+
+    from app.db.models import User
+
+    email = email.strip().lower()
+    user = s.scalar(select(User).where(User.email == email))
+    if user is None:
+        raise ValueError(f"no user with the email {email!r}; check it (emails are the login names)")
+    return user
+
+
+def _close_browser_sessions(s, user_id: int) -> int:
+    from sqlalchemy import delete
+
+    from app.db.models import BrowserSession
+
+    return s.execute(delete(BrowserSession).where(BrowserSession.user_id == user_id)).rowcount or 0
+
+
+def list_tokens(settings: Settings | None, *, clinic: str) -> list[dict]:
+    """The API tokens of clinic ``clinic``, oldest first, as dicts ``id, label, role, created_at, revoked_at``
+    (datetimes in UTC; ``revoked_at`` None while the token works).  Never the token itself."""
+    from sqlalchemy import select
+
+    from app.db.models import ApiToken
+
+    db = _database(settings)
+    try:
+        with db.session() as s:
+            c = _clinic(s, clinic)
+            rows = s.scalars(select(ApiToken).where(ApiToken.clinic_id == c.id).order_by(ApiToken.id))
+            return [{"id": t.id, "label": t.label, "role": t.role, "created_at": t.created_at,
+                     "revoked_at": t.revoked_at} for t in rows]
+    finally:
+        db.dispose()
+
+
+def revoke_token(settings: Settings | None, token_id: int) -> dict:
+    """Revoke API token ``token_id`` (any clinic); returns ``id, clinic, label, revoked_at, already`` where
+    ``already`` is True when it had been revoked before (its first date is kept).  ValueError for an
+    unknown id."""
+    from app.db.models import ApiToken, utcnow
+
+    db = _database(settings)
+    try:
+        with db.session() as s:
+            token = s.get(ApiToken, token_id)
+            if token is None:
+                raise ValueError(f"no API token with id {token_id}; see the ids with `chakamo tokens list "
+                                 "--clinic NAME`")
+            already = token.revoked_at is not None
+            if not already:
+                token.revoked_at = utcnow()
+            return {"id": token.id, "clinic": token.clinic.name, "label": token.label,
+                    "revoked_at": token.revoked_at, "already": already}
+    finally:
+        db.dispose()
+
+
+def deactivate_user(settings: Settings | None, *, email: str) -> int:
+    """Deactivate the user with ``email`` (login refused) and delete their browser sessions; returns how many
+    sessions were closed.  ValueError for an unknown email."""
+    db = _database(settings)
+    try:
+        with db.session() as s:
+            user = _user(s, email)
+            user.active = False
+            return _close_browser_sessions(s, user.id)
+    finally:
+        db.dispose()
+
+
+def set_password(settings: Settings | None, *, email: str, password: str) -> int:
+    """Give the user with ``email`` a new ``password`` (at least 10 characters, as for ``users create``) and
+    delete their browser sessions; returns how many were closed.  ValueError for an unknown email or a weak
+    password (checked first: nothing changes)."""
+    from app.security import check_password_strength, hash_password
+
+    check_password_strength(password)
+    db = _database(settings)
+    try:
+        with db.session() as s:
+            user = _user(s, email)
+            user.password_hash = hash_password(password)
+            return _close_browser_sessions(s, user.id)
+    finally:
+        db.dispose()
+
+
+def _add_account_parsers(users, tokens) -> None:
+    """``tokens list|revoke`` and ``users deactivate|set-password`` on :func:`add_parsers`' sub-parsers."""
+    t_list = tokens.add_parser("list", help="list a clinic's API tokens (never the tokens themselves)")
+    t_list.add_argument("--clinic", required=True, metavar="NAME")
+    t_revoke = tokens.add_parser("revoke", help="revoke an API token: the API answers 401 to it")
+    t_revoke.add_argument("token_id", type=int, metavar="ID", help="the token's id (see `chakamo tokens list`)")
+
+    u_off = users.add_parser("deactivate", help="refuse a user's logins and log out their browsers")
+    u_off.add_argument("--email", required=True)
+    u_pw = users.add_parser("set-password", help="set a user's password and log out their browsers")
+    u_pw.add_argument("--email", required=True)
+    u_pw.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
+
+
+def _check_user_exists(email: str) -> None:
+    db = _database(None)
+    try:
+        with db.session() as s:
+            _user(s, email)
+    finally:
+        db.dispose()
+
+
+def _when(value) -> str:
+    return "-" if value is None else value.strftime("%Y-%m-%d %H:%M UTC")
+
+
+def run_account(args: argparse.Namespace) -> int:
+    """Carry out a parsed ``tokens list|revoke`` or ``users deactivate|set-password`` command."""
+    if args.command == "tokens" and args.action == "list":
+        rows = list_tokens(None, clinic=args.clinic)
+        if not rows:
+            print(f"no API tokens in {args.clinic!r}; create one with `chakamo tokens create`")
+            return 0
+        print(f"{'id':>5}  {'role':<10} {'created':<20} {'revoked':<20} label")
+        for r in rows:
+            print(f"{r['id']:>5}  {r['role']:<10} {_when(r['created_at']):<20} {_when(r['revoked_at']):<20} "
+                  f"{r['label']}")
+    elif args.command == "tokens" and args.action == "revoke":
+        r = revoke_token(None, args.token_id)
+        what = f"API token {r['id']} of {r['clinic']!r}{' (' + r['label'] + ')' if r['label'] else ''}"
+        if r["already"]:
+            print(f"{what} was already revoked on {_when(r['revoked_at'])}; nothing changed")
+        else:
+            print(f"{what} revoked: the API now answers 401 to it")
+    elif args.command == "users" and args.action == "deactivate":
+        closed = deactivate_user(None, email=args.email)
+        print(f"user {args.email.strip().lower()} deactivated: logins refused, {closed} browser session(s) closed")
+    elif args.command == "users" and args.action == "set-password":
+        if not args.password_stdin:  # an unknown email is said before the prompts, not after
+            _check_user_exists(args.email)
+        password = _read_password(args.password_stdin)
+        closed = set_password(None, email=args.email, password=password)
+        print(f"password of {args.email.strip().lower()} changed; {closed} browser session(s) closed")
+    else:  # pragma: no cover - argparse only lets the registered actions through
+        raise ValueError(f"unknown action {args.command} {args.action}; see chakamo {args.command} --help")
+    return 0
+
+
+__all__ += ["deactivate_user", "list_tokens", "revoke_token", "run_account", "set_password"]

@@ -15,6 +15,8 @@ Subcommands
     Markovian Kalman filters on a research CSV of several segment IMUs (format in ``app/markov.py``).
 ``chakamo serve`` / ``clinics create`` / ``users create`` / ``tokens create``
     The web application and its set-up (``app/admin_cli.py``).
+``chakamo tokens list|revoke`` / ``users deactivate|set-password``
+    Offboarding: list and revoke API tokens, deactivate users, reset passwords (``app/admin_cli.py``).
 
 Errors a user can cause end with a one-line message on stderr and exit status 2; nothing is written.
 """

@@ -1,0 +1,223 @@
+"""Offboarding: ``chakamo tokens list|revoke`` and ``users deactivate|set-password``, checked through the CLI
+functions, through ``app.cli.main`` and through the API (a revoked token, a deactivated user's open browser,
+an old password after a reset)."""
+
+from __future__ import annotations
+
+import io
+
+import pytest
+
+CLINIC, EMAIL, PASSWORD = "Clínica Este", "ana@clinic.test", "a long enough password"
+NEW_PASSWORD = "another long password"
+
+
+@pytest.fixture
+def cli_env(monkeypatch, settings):
+    """``app.cli.main`` on the same data dir (hence database) as the ``client`` fixture's app."""
+    from app.settings import get_settings
+
+    monkeypatch.setenv("CHAKAMO_ENV", "development")
+    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(settings.data_dir))
+    monkeypatch.setenv("CHAKAMO_WORKERS", "1")
+    get_settings.cache_clear()
+    yield
+    get_settings.cache_clear()
+
+
+@pytest.fixture
+def user(settings):
+    from app import admin_cli
+
+    admin_cli.create_clinic(settings, CLINIC)
+    admin_cli.create_user(settings, clinic=CLINIC, email=EMAIL, role="clinician", password=PASSWORD, name="Ana")
+
+
+def login(client, email=EMAIL, password=PASSWORD):
+    return client.post("/api/v1/auth/login", json={"email": email, "password": password})
+
+
+def _sessions_of(settings, email: str) -> tuple[bool, int]:
+    """(active, number of browser sessions) of the user ``email``, read from the database."""
+    from sqlalchemy import func, select
+
+    from app.db import Database
+    from app.db.models import BrowserSession, User
+
+    db = Database(settings.db_url)
+    try:
+        with db.session() as s:
+            u = s.scalar(select(User).where(User.email == email))
+            n = s.scalar(select(func.count()).select_from(BrowserSession).where(BrowserSession.user_id == u.id))
+            return u.active, n
+    finally:
+        db.dispose()
+
+
+# ------------------------------------------------------------------------------------------------ tokens
+def test_revoked_token_gets_401_and_the_others_still_work(client, settings, cli_env, capsys):
+    from web_helpers import clinic_token
+
+    from app import admin_cli
+    from app.cli import main
+
+    his = clinic_token(settings, CLINIC)
+    lab = clinic_token(settings, CLINIC, role="read_only")
+    other_clinic = clinic_token(settings, "Otra")
+    for h in (his, lab, other_clinic):
+        assert client.get("/api/v1/patients", headers=h).status_code == 200
+
+    rows = admin_cli.list_tokens(settings, clinic=CLINIC)
+    assert [(r["role"], r["label"], r["revoked_at"]) for r in rows] == [("clinician", "tests", None),
+                                                                        ("read_only", "tests", None)]
+    assert rows[0]["created_at"].tzinfo is not None
+    his_id = rows[0]["id"]
+
+    # the listing shows ids, roles and dates but never a token
+    assert main(["tokens", "list", "--clinic", CLINIC]) == 0
+    out = capsys.readouterr().out
+    assert "revoked" in out.splitlines()[0] and str(his_id) in out and "read_only" in out
+    for h in (his, lab, other_clinic):
+        assert h["Authorization"].removeprefix("Bearer ") not in out
+    assert "chk_" not in out
+
+    assert main(["tokens", "revoke", str(his_id)]) == 0
+    assert "revoked" in capsys.readouterr().out
+    r = client.get("/api/v1/patients", headers=his)
+    assert r.status_code == 401 and "revoked" in r.json()["detail"]
+    assert client.get("/api/v1/auth/me", headers=his).status_code == 401
+    assert client.get("/api/v1/patients", headers=lab).status_code == 200  # only that one
+    assert client.get("/api/v1/patients", headers=other_clinic).status_code == 200
+
+    rows = admin_cli.list_tokens(settings, clinic=CLINIC)
+    assert rows[0]["revoked_at"] is not None and rows[1]["revoked_at"] is None
+    first = rows[0]["revoked_at"]
+    # revoking again changes nothing (scripts may run twice) and says so
+    assert main(["tokens", "revoke", str(his_id)]) == 0
+    assert "already revoked" in capsys.readouterr().out
+    assert admin_cli.list_tokens(settings, clinic=CLINIC)[0]["revoked_at"] == first
+    assert client.get("/api/v1/patients", headers=his).status_code == 401
+
+    assert len(admin_cli.list_tokens(settings, clinic="Otra")) == 1  # each clinic sees its own
+
+
+def test_token_errors_are_one_clear_sentence(settings, cli_env, capsys):
+    from app import admin_cli
+    from app.cli import main
+
+    admin_cli.create_clinic(settings, CLINIC)
+    assert main(["tokens", "list", "--clinic", CLINIC]) == 0
+    assert "no API tokens" in capsys.readouterr().out
+    assert main(["tokens", "revoke", "999"]) == 2
+    assert "no API token with id 999" in capsys.readouterr().err
+    assert main(["tokens", "list", "--clinic", "Nowhere"]) == 2
+    assert "no clinic named 'Nowhere'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="no API token with id 5"):
+        admin_cli.revoke_token(settings, 5)
+    with pytest.raises(SystemExit):  # argparse: an id must be a number
+        main(["tokens", "revoke", "abc"])
+    # the existing command is untouched
+    assert main(["tokens", "create", "--clinic", CLINIC, "--label", "HIS"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].startswith("chk_")
+
+
+# ------------------------------------------------------------------------------------------------- users
+def test_deactivated_user_is_logged_out_at_once_and_cannot_log_in(client, settings, user, cli_env, capsys):
+    from app import admin_cli
+    from app.cli import main
+
+    assert login(client).status_code == 200
+    assert client.get("/api/v1/auth/me").status_code == 200
+    assert _sessions_of(settings, EMAIL) == (True, 1)
+
+    assert main(["users", "deactivate", "--email", " Ana@Clinic.TEST "]) == 0
+    assert "1 browser session(s) closed" in capsys.readouterr().out
+    assert _sessions_of(settings, EMAIL) == (False, 0)
+    # the open browser (it still sends its cookie) is out at its next request
+    assert client.cookies.get("chakamo_session")
+    assert client.get("/api/v1/auth/me").status_code == 401
+    assert client.get("/api/v1/patients").status_code == 401
+    # and cannot log in again, not even with the right password
+    r = login(client)
+    assert r.status_code == 401 and "Wrong email or password" in r.json()["detail"]
+
+    assert admin_cli.deactivate_user(settings, email=EMAIL) == 0  # twice: nothing left to close
+    assert main(["users", "deactivate", "--email", "nobody@clinic.test"]) == 2
+    assert "no user with the email 'nobody@clinic.test'" in capsys.readouterr().err
+
+
+def test_deactivation_closes_every_browser_of_that_user_only(client, settings, user):
+    from fastapi.testclient import TestClient
+
+    from app import admin_cli
+
+    admin_cli.create_user(settings, clinic=CLINIC, email="bea@clinic.test", role="clinician", password=PASSWORD)
+    # more browsers on the same app: separate cookie jars (no `with`: the app's lifespan already runs)
+    second, colleague = TestClient(client.app), TestClient(client.app)
+    assert login(client).status_code == 200
+    assert login(second).status_code == 200
+    assert login(colleague, email="bea@clinic.test").status_code == 200
+    assert admin_cli.deactivate_user(settings, email=EMAIL) == 2
+    assert client.get("/api/v1/auth/me").status_code == 401
+    assert second.get("/api/v1/auth/me").status_code == 401
+    assert colleague.get("/api/v1/auth/me").status_code == 200
+
+
+def test_set_password_from_stdin(client, settings, user, cli_env, capsys, monkeypatch):
+    from app.cli import main
+
+    assert login(client).status_code == 200
+    monkeypatch.setattr("sys.stdin", io.StringIO(NEW_PASSWORD + "\n"))
+    assert main(["users", "set-password", "--email", EMAIL, "--password-stdin"]) == 0
+    assert "1 browser session(s) closed" in capsys.readouterr().out
+    assert client.get("/api/v1/auth/me").status_code == 401  # the session opened with the old password is gone
+    client.cookies.clear()
+    assert login(client).status_code == 401
+    r = login(client, password=NEW_PASSWORD)
+    assert r.status_code == 200 and r.json()["user"]["email"] == EMAIL
+    assert client.get("/api/v1/auth/me").status_code == 200
+    assert _sessions_of(settings, EMAIL) == (True, 1)
+
+    # too short: refused with the users-create rule, nothing changes (the new session stays open)
+    monkeypatch.setattr("sys.stdin", io.StringIO("short\n"))
+    assert main(["users", "set-password", "--email", EMAIL, "--password-stdin"]) == 2
+    assert "at least 10 characters" in capsys.readouterr().err
+    assert client.get("/api/v1/auth/me").status_code == 200
+    client.cookies.clear()
+    assert login(client, password=NEW_PASSWORD).status_code == 200
+
+
+def test_set_password_prompts_twice(client, settings, user, cli_env, capsys, monkeypatch):
+    import getpass
+
+    from app import admin_cli
+    from app.cli import main
+
+    answers = iter([NEW_PASSWORD, NEW_PASSWORD + "x"])
+    monkeypatch.setattr(getpass, "getpass", lambda prompt="": next(answers))
+    assert main(["users", "set-password", "--email", EMAIL]) == 2
+    assert "the two passwords differ" in capsys.readouterr().err
+    assert login(client).status_code == 200  # unchanged
+
+    answers = iter([NEW_PASSWORD, NEW_PASSWORD])
+    assert main(["users", "set-password", "--email", EMAIL]) == 0
+    client.cookies.clear()
+    assert login(client).status_code == 401 and login(client, password=NEW_PASSWORD).status_code == 200
+
+    # an unknown email is said before any prompt
+    def no_prompt(prompt=""):
+        raise AssertionError("asked for a password of an unknown user")
+
+    monkeypatch.setattr(getpass, "getpass", no_prompt)
+    assert main(["users", "set-password", "--email", "nobody@clinic.test"]) == 2
+    assert "no user with the email" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="no user with the email"):
+        admin_cli.set_password(settings, email="nobody@clinic.test", password=NEW_PASSWORD)
+
+
+def test_set_password_keeps_a_deactivated_account_closed(client, settings, user):
+    from app import admin_cli
+
+    admin_cli.deactivate_user(settings, email=EMAIL)
+    assert admin_cli.set_password(settings, email=EMAIL, password=NEW_PASSWORD) == 0
+    assert login(client, password=NEW_PASSWORD).status_code == 401
