@@ -2,9 +2,17 @@
 // process, with a progress bar while the job runs.
 //
 // Decisions:
-// - The sensor labels / MAC typed in step 1 are only shown (stored in this browser's localStorage per
-//   session): what the server needs is the segment of each file, and each drop zone of step 2 is tied to a
-//   segment and a role, sent as the `segment` / `role` form fields of its upload.
+// - The sensor labels / MAC typed in step 1 stay in this browser (localStorage per session): what the
+//   server needs is the segment of each file, and each drop zone of step 2 is tied to a segment and a role,
+//   sent as the `segment` / `role` form fields of its upload.
+// - A MAC typed in step 1 is used to catch swapped sensors, in the browser only (no server change):
+//   MetaBase file names carry their sensor's MAC (`…_MetaWear_{date}_{MAC}_{Stream}_{rate}Hz….csv`, the
+//   pattern of app/ingestion/metabase.py).  A zone whose files (being dropped, or stored) carry the MAC
+//   given to the OTHER segment's sensor shows "sensors swapped?"; with a MAC given to the zone's own
+//   segment, files carrying a third MAC show "not this segment's sensor".  A MAC that matches neither is
+//   not flagged when only the other segment's MAC is known (it is then presumably this sensor's).  Only a
+//   warning: the upload goes ahead (the MAC typed may be the wrong one), and it is recomputed whenever the
+//   zone is drawn, so it also appears for files stored before the MAC was typed.
 // - Each zone uploads as soon as files are dropped or picked (several files per zone: a MetaBase recording
 //   is three CSV files).  The answer's ingestion check (app.ingestion over every stored file of the session)
 //   is shown at once, before processing; "Process" stays disabled until it is ok.
@@ -38,6 +46,46 @@ function loadSensors(sessionId) {
 
 function saveSensors(sessionId, sensors) {
   try { localStorage.setItem(sensorsKey(sessionId), JSON.stringify(sensors)); } catch (_) { /* storage off */ }
+}
+
+// A MetaBase file name (FILE_NAME of app/ingestion/metabase.py); group 1 is the MAC.
+const METABASE_NAME = /^.*_MetaWear_\d{4}-\d{2}-\d{2}T\d{2}[.:]\d{2}[.:]\d{2}(?:[.:]\d{1,6})?_([0-9A-Fa-f]{12})_[A-Za-z ]+?_\d+(?:\.\d+)?Hz(?:_[^_]*)?\.csv$/;
+// A MAC inside a typed label: six hex pairs joined by ":" or "-" ("D4:F1:A2:B3:C4:E5"), or 12 hex digits.
+const TYPED_MAC = /(?:^|[^0-9A-Fa-f])((?:[0-9A-Fa-f]{2}[:-]){5}[0-9A-Fa-f]{2}|[0-9A-Fa-f]{12})(?![0-9A-Fa-f])/;
+
+/** The MAC (12 upper-case hex digits) in a MetaBase file name, or null. */
+export function macOfFile(name) {
+  const m = METABASE_NAME.exec(name || "");
+  return m ? m[1].toUpperCase() : null;
+}
+
+/** The MAC (12 upper-case hex digits) typed in a step-1 label, or null. */
+export function typedMac(text) {
+  const m = TYPED_MAC.exec(text || "");
+  return m ? m[1].replace(/[:-]/g, "").toUpperCase() : null;
+}
+
+function showMac(mac) {
+  return mac.match(/../g).join(":");
+}
+
+/** The sentence warning that the files `names` dropped on / stored in a zone of `segment` come from the
+ * wrong sensor (module decisions), or null. */
+function macWarning(sensors, segment, names) {
+  if (!segment) return null;
+  const macOn = (seg) => typedMac((sensors.find((s) => s.segment === seg) || {}).label);
+  const own = macOn(segment);
+  const other = macOn(SEGMENTS.find((s) => s !== segment));
+  if (!own && !other) return null;
+  const macs = [...new Set(names.map(macOfFile).filter(Boolean))];
+  if (other && other !== own && macs.includes(other)) {
+    return t(`wizard.mac_swapped.${segment}`, { mac: showMac(other) });
+  }
+  const strangers = own ? macs.filter((m) => m !== own && m !== other) : [];
+  if (strangers.length) {
+    return t(`wizard.mac_unknown.${segment}`, { mac: strangers.map(showMac).join(", "), expected: showMac(own) });
+  }
+  return null;
 }
 
 /** "Sensor 1 (label)" of the sensor placed on `segment`. */
@@ -184,12 +232,20 @@ function dropZone(ctx, segment, role) {
     tabindex: "-1", "aria-hidden": "true" });
   const list = h("ul", { class: "files" });
   const status = h("div", { class: "zone-status", role: "status" });
+  const macNote = h("div", { class: "zone-mac" });
+  const showMacWarning = (names) => {
+    const text = macWarning(ctx.sensors, segment, names);
+    const shown = macNote.firstChild ? macNote.firstChild.textContent : null;
+    if (text === shown) return;          // unchanged: not announced again
+    clear(macNote);
+    if (text) macNote.append(h("div", { class: "notice warning mac-warning", role: "alert" }, text));
+  };
   const choose = h("button", { type: "button", class: "secondary small" }, t("wizard.choose_files"));
   choose.setAttribute("aria-label", `${t("wizard.choose_files")}: ${segment ? `${label("segment", segment)}, ` : ""}${title}`);
   const zone = h("div", { class: "zone", "data-segment": segment || "", "data-role": role || "" },
     h("h3", {}, title), h("p", { class: "hint" }, hint), list,
     h("div", { class: "zone-actions" }, choose, h("span", { class: "drop-hint" }, t("wizard.or_drop"))),
-    input, status);
+    input, status, macNote);
   const refreshList = () => {
     clear(list);
     const recs = zoneRecordings(ctx, segment, role);
@@ -212,6 +268,7 @@ function dropZone(ctx, segment, role) {
         stream ? h("span", { class: "tag" }, t(`stream.${stream[1]}`)) : null,
         h("span", { class: "file-size" }, bytes(rec.size_bytes)), remove));
     }
+    showMacWarning(recs.map((rec) => rec.file_name || ""));
   };
   if (!canEdit()) {   // read-only: the zone lists its files, nothing more
     zone.querySelector(".zone-actions").remove();
@@ -228,6 +285,9 @@ function dropZone(ctx, segment, role) {
       form.append("segment", segment);
       form.append("role", role);
     }
+    // warned before the upload (dropped + stored files); redrawn from the stored files once it is done
+    const stored = zoneRecordings(ctx, segment, role).map((rec) => rec.file_name || "");
+    showMacWarning([...stored, ...files.map((f) => f.name)]);
     const bar = h("progress", { max: "1", value: "0", "aria-label": t("wizard.uploading") });
     clear(status).append(h("span", {}, t("wizard.uploading_n", { n: files.length })), bar);
     zone.classList.add("busy");
@@ -238,6 +298,7 @@ function dropZone(ctx, segment, role) {
       await reloadSession(ctx, answer.ingestion);
     } catch (err) {
       clear(status).append(alertBox(errorText(err)));
+      showMacWarning(zoneRecordings(ctx, segment, role).map((rec) => rec.file_name || ""));   // nothing stored
     } finally {
       zone.classList.remove("busy");
       choose.disabled = false;

@@ -1,0 +1,98 @@
+"""The wizard's sensor check in a real browser: a MAC typed in step 1 makes step 2 warn when a zone gets the
+files of another sensor (MetaBase file names carry the MAC).
+
+Same set-up as ``test_browser_e2e.py`` (its ``server``, ``demo_files`` and ``slow_expect`` fixtures: the real
+app under uvicorn on loopback, the demo session's real MetaBase files, Debian's Chromium): the thigh sensor's
+MAC is typed, the shank's task recording is dropped (a real ``drop`` event) on the thigh's task zone → the
+zone warns, naming the files' MAC; the shank's own zone stays quiet; once the shank's MAC is typed too, the
+stored files are flagged as swapped sensors.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
+    EMAIL, PASSWORD, WAIT_MS, _no_raw_values, demo_files, server, slow_expect)
+
+THIGH_MAC, SHANK_MAC = "D4:F1:A2:B3:C4:E5", "E8:C2:B1:A0:F9:D7"   # app.ingestion.writers.DEFAULT_MACS
+
+
+def _drop(page, zone, paths: list[str]) -> None:
+    """Drop ``paths`` on ``zone`` as a user drags them from the file manager (a DataTransfer of Files)."""
+    files = [{"name": Path(p).name, "text": Path(p).read_text(encoding="utf-8")} for p in paths]
+    dropped = page.evaluate_handle("(files) => { const d = new DataTransfer();"
+                                   " for (const f of files) d.items.add(new File([f.text], f.name, {type: 'text/csv'}));"
+                                   " return d; }", files)
+    zone.dispatch_event("dragover", {"dataTransfer": dropped})
+    zone.dispatch_event("drop", {"dataTransfer": dropped})
+
+
+def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow_expect):  # noqa: F811
+    expect = slow_expect
+    for files in demo_files.values():   # the fixture's files carry the MACs this test types
+        assert all(THIGH_MAC.replace(":", "") in Path(f).name or SHANK_MAC.replace(":", "") in Path(f).name
+                   for f in files)
+    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        page.goto(f"{server}/#/patients")
+        page.get_by_label("Email").fill(EMAIL)
+        page.get_by_label("Password").fill(PASSWORD)
+        page.get_by_role("button", name="Log in").click()
+        expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        api = f"{server}/api/v1"
+        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        r = context.request.post(f"{api}/patients", data={"external_id": "E2E-MAC", "side": "right"}, headers=csrf)
+        assert r.status == 201, r.text()
+        r = context.request.post(f"{api}/patients/{r.json()['id']}/sessions", data={}, headers=csrf)
+        assert r.status == 201, r.text()
+        sid = r.json()["id"]
+
+        # step 1: sensor 1 (on the thigh by default) gets the thigh's MAC, in lower case without colons
+        page.goto(f"{server}/#/sessions/{sid}/wizard")
+        expect(page.get_by_role("heading", name="1. Which sensor is on which segment?")).to_be_visible()
+        page.get_by_label("Name or MAC (optional)").first.fill("MetaWear " + THIGH_MAC.replace(":", "").lower())
+        page.get_by_role("button", name="Next").click()
+        expect(page.get_by_role("heading", name="2. The four recordings of each sensor")).to_be_visible()
+
+        # the shank's task recording dropped on the THIGH's task zone: a warning naming the files' MAC
+        thigh_task = page.locator(".zone[data-segment=thigh][data-role=task]")
+        _drop(page, thigh_task, demo_files[("shank", "task")])
+        expect(thigh_task.locator("ul.files li")).to_have_count(3)       # stored anyway: only a warning
+        warning = thigh_task.locator(".zone-mac [role=alert]")
+        expect(warning).to_contain_text("Not the thigh sensor?")
+        expect(warning).to_contain_text(SHANK_MAC)
+        expect(warning).to_contain_text(THIGH_MAC)
+
+        # the shank's own files in the shank zone: nothing to say (only the thigh's MAC is known)
+        shank_task = page.locator(".zone[data-segment=shank][data-role=task]")
+        _drop(page, shank_task, demo_files[("shank", "standing")])
+        expect(shank_task.locator("ul.files li")).to_have_count(3)
+        assert shank_task.locator(".zone-mac [role=alert]").count() == 0
+        # the thigh's own files in the thigh zone: nothing either
+        thigh_standing = page.locator(".zone[data-segment=thigh][data-role=standing]")
+        _drop(page, thigh_standing, demo_files[("thigh", "standing")])
+        expect(thigh_standing.locator("ul.files li")).to_have_count(3)
+        assert thigh_standing.locator(".zone-mac [role=alert]").count() == 0
+        _no_raw_values(page)
+
+        # the shank's MAC typed too: the stored files of the thigh's task zone are now "swapped sensors"
+        page.get_by_role("button", name="Back").click()
+        page.get_by_label("Name or MAC (optional)").nth(1).fill(SHANK_MAC)
+        page.get_by_role("button", name="Next").click()
+        warning = page.locator(".zone[data-segment=thigh][data-role=task] .zone-mac [role=alert]")
+        expect(warning).to_contain_text("Sensors swapped?")
+        expect(warning).to_contain_text(SHANK_MAC)
+        assert page.locator(".zone-mac [role=alert]").count() == 1    # the other zones hold the right files
+
+        # the same warning in Spanish once the language is switched (the page is drawn again)
+        page.get_by_label("Language").select_option("es")
+        expect(page.locator(".zone[data-segment=thigh][data-role=task] .zone-mac [role=alert]")).to_contain_text(
+            "¿Sensores intercambiados?")
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors: {errors}"
