@@ -41,10 +41,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators.physics import GRAVITY_M_S2  # the thesis converted counts with 9.81
+
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-GRAVITY_M_S2 = 9.81
 ACC_COUNTS_PER_G = (16384.0, 8192.0, 4096.0, 2048.0)
 GYR_COUNTS_PER_DEG_S = (131.0, 65.5, 32.8, 16.4)
 ACC_RANGE_G = (2, 4, 8, 16)

@@ -28,8 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from app.ingestion.model import FloatArray, IngestionError, Stream
-
-G_M_S2 = 9.80665
+from estimators.physics import STANDARD_GRAVITY_M_S2 as G_M_S2
 
 ACC_UNITS = {"g": G_M_S2, "mg": G_M_S2 * 1e-3, "m/s2": 1.0}
 GYR_UNITS = {"deg/s": math.pi / 180.0, "mdeg/s": math.pi / 180e3, "rad/s": 1.0}

@@ -24,10 +24,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimators.markov.core import FilterState, FloatArray, initial_state, run_filter, run_filter_reference
+from estimators.physics import GRAVITY_M_S2
 
 __all__ = ["FkcParams", "FkcResult", "fkc", "accelerometer_angles", "GRAVITY_M_S2"]
 
-GRAVITY_M_S2 = 9.81
 
 
 def _positive(value: float, name: str, allow_zero: bool = False) -> float:

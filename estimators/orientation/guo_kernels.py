@@ -34,7 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
-G_M_S2 = 9.81
+from estimators.physics import GRAVITY_M_S2 as G_M_S2
+
 FREE_VAR_RAD2 = 1.0           # variance of unobserved directions (6D heading, quaternion norm)
 MIN_FIELD_COS = 1e-3          # |m × a| below this: field parallel to gravity, heading undefined
 

@@ -48,11 +48,11 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from estimators import quaternion as quat
+from estimators.physics import GRAVITY_M_S2
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-GRAVITY_M_S2 = 9.81
 
 __all__ = ["GRAVITY_M_S2", "Alignment", "align", "cayley", "first_still_period", "strapdown", "strapdown_reference"]
 

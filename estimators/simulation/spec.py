@@ -16,13 +16,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimators import quaternion as quat
+from estimators.physics import GRAVITY_M_S2
 
 FloatArray = NDArray[np.float64]
 
 __all__ = ["AccErrors", "ClockSpec", "GRAVITY_M_S2", "GyrErrors", "ImuSpec", "MAG_EARTH_UT", "MagErrors",
            "random_rotation"]
 
-GRAVITY_M_S2 = 9.81
 MAG_EARTH_UT = (0.0, 20.0, -40.0)
 
 
