@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.files import write_text_atomic
 from app.ingestion.model import IngestionError, Stream
 from app.ingestion.tables import check_stamps, numeric_columns, read_csv_rows
 from app.ingestion.units import check_magnitude, normalise_unit, unit_factor
@@ -106,7 +107,4 @@ def write_generic_csv(path: str | os.PathLike, acc: tuple, gyr: tuple, mag: tupl
         for t, v in (acc, gyr, mag):
             cells += ([f"{t[k]:.6f}"] + [f"{x:.6f}" for x in v[k]]) if k < len(t) else ["", "", "", ""]
         lines.append(",".join(cells))
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(path, "\n".join(lines) + "\n")

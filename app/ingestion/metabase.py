@@ -23,6 +23,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from app.files import write_text_atomic
 from app.ingestion.model import IngestionError, Stream
 from app.ingestion.tables import check_stamps, numeric_columns, read_csv_rows
 from app.ingestion.units import check_magnitude, unit_factor
@@ -146,10 +147,7 @@ def write_metabase_csv(path: str | os.PathLike, kind: str, epoch_ms: ArrayLike, 
     for k in range(len(ms)):
         cells = ",".join(f"{x:.{dec}f}" for x in v[k]) if np.all(np.isfinite(v[k])) else ",,"
         lines.append(f"{ms[k]},{tstr[k]},{(ms[k] - ms[0]) / 1e3:.3f},{cells}")
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def write_recording_metabase(folder: str | os.PathLike, label: str, mac: str,

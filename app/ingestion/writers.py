@@ -15,6 +15,7 @@ from typing import Mapping
 
 from numpy.typing import ArrayLike
 
+from app.files import write_text_atomic
 from app.ingestion.metabase import write_recording_metabase
 from app.ingestion.model import ROLES, SEGMENTS
 
@@ -78,9 +79,6 @@ def write_session_metabase(folder: str | os.PathLike,
         out += write_recording_metabase(folder, label, macs[segment], streams, rates_hz=rates_hz, dialect=dialect,
                                         time_sep=time_sep, utc_offset_h=utc_offset_h)
     if manifest is not None:
-        p = folder / "session.json"
-        tmp = p.with_name(p.name + ".part")
-        tmp.write_text(json.dumps(dict(manifest), indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
-        os.replace(tmp, p)
-        out.append(p)
+        out.append(write_text_atomic(folder / "session.json",
+                                     json.dumps(dict(manifest), indent=2, ensure_ascii=False) + "\n"))
     return out
