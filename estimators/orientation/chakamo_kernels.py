@@ -47,6 +47,8 @@ import math
 import numpy as np
 from numba import njit
 
+from estimators.orientation.quat_kernels import qmat, qmul, qrot
+
 
 # --- state indices
 S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = 0, 4, 8, 12, 13, 19, 22
@@ -71,39 +73,12 @@ AUX_SIZE = 11
 # scalar helpers (numba)
 # =====================================================================================
 @njit(cache=True)
-def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
-    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
-            a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
-            a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
-            a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
-
-
-@njit(cache=True)
-def _qrot(w, x, y, z, vx, vy, vz):
-    # v' = v + 2w (u × v) + 2 u × (u × v), u = (x, y, z)
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    return (vx + w * tx + (y * tz - z * ty),
-            vy + w * ty + (z * tx - x * tz),
-            vz + w * tz + (x * ty - y * tx))
-
-
-@njit(cache=True)
 def _qnorm(s, i):
     n = math.sqrt(s[i] ** 2 + s[i + 1] ** 2 + s[i + 2] ** 2 + s[i + 3] ** 2)
     s[i] /= n
     s[i + 1] /= n
     s[i + 2] /= n
     s[i + 3] /= n
-
-
-@njit(cache=True)
-def _qmat(w, x, y, z):
-    """Rotation matrix of a unit quaternion, row-major 9-tuple."""
-    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
-            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
-            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
 
 
 @njit(cache=True)
@@ -162,7 +137,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     if gyr_ok and ang > 1e-12:
         sh = math.sin(0.5 * ang) / ang * dt
         d0, d1, d2, d3 = math.cos(0.5 * ang), wx * sh, wy * sh, wz * sh
-        q = _qmul(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], d0, d1, d2, d3)
+        q = qmul(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], d0, d1, d2, d3)
         s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3] = q
         _qnorm(s, S_QIS)
 
@@ -194,7 +169,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
 
     # (3) inclination from low-passed acceleration in the quasi-inertial frame  [eqs. 2-4]
     if acc_ok:
-        aix, aiy, aiz = _qrot(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], ax, ay, az)
+        aix, aiy, aiz = qrot(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], ax, ay, az)
         n = s[S_NACC]
         if n < c[C_NINIT]:
             # initial phase: running mean, filter state set to its steady state
@@ -214,7 +189,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 s[S_ALP + i] = y
         s[S_NACC] = n + 1.0
         # low-passes of R_IS and R_IS·b̂ (same filter as the acceleration), for eq. (8)
-        r = _qmat(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
+        r = qmat(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
         ub = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz,
               r[6] * bx + r[7] * by + r[8] * bz)
         for i in range(9):
@@ -223,7 +198,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
             s[S_RLPOUT + 9 + i] = _biquad(s, S_ULP + i, S_ULP + 3 + i, ub[i], c, n < c[C_NINIT])
         rlp = s[S_RLPOUT:S_RLPOUT + 9]
         ulp = s[S_RLPOUT + 9:S_RLPOUT + 12]
-        ex, ey, ez = _qrot(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
+        ex, ey, ez = qrot(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
                            s[S_ALP], s[S_ALP + 1], s[S_ALP + 2])
         en = math.sqrt(ex * ex + ey * ey + ez * ez)
         if en > 1e-9:
@@ -235,7 +210,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
             else:
                 cn = math.sqrt(cw * cw + ey * ey + ex * ex)
                 c0, c1, c2 = cw / cn, ey / cn, -ex / cn
-            q = _qmul(c0, c1, c2, 0.0, s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3])
+            q = qmul(c0, c1, c2, 0.0, s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3])
             s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3] = q
             _qnorm(s, S_QEI)
             # (4) bias during motion from the correction rate                  [eq. 8]
@@ -244,8 +219,8 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 scale = (2.0 / c0 if un < 1e-12 else 2.0 * math.atan2(un, c0) / un) / dt
                 y0, y1 = c1 * scale, c2 * scale
                 # M = R_E'I · LP(R_IS), v = R_E'I · LP(R_IS b̂): rows x and y
-                e0 = _qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 1.0, 0.0, 0.0)
-                e1 = _qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 0.0, 1.0, 0.0)
+                e0 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 1.0, 0.0, 0.0)
+                e1 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 0.0, 1.0, 0.0)
                 m00 = e0[0] * rlp[0] + e0[1] * rlp[3] + e0[2] * rlp[6]
                 m01 = e0[0] * rlp[1] + e0[1] * rlp[4] + e0[2] * rlp[7]
                 m02 = e0[0] * rlp[2] + e0[1] * rlp[5] + e0[2] * rlp[8]
@@ -264,9 +239,9 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     # (5) heading from the magnetometer with disturbance rejection          [eqs. 9-12]
     used = 0.0
     if mag_ok:
-        qe = _qmul(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
+        qe = qmul(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
                    s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
-        ex, ey, ez = _qrot(qe[0], qe[1], qe[2], qe[3], mx, my, mz)
+        ex, ey, ez = qrot(qe[0], qe[1], qe[2], qe[3], mx, my, mz)
         norm = math.sqrt(ex * ex + ey * ey + ez * ez)
         if norm > 1e-9:
             dip = math.asin(min(max(-ez / norm, -1.0), 1.0))
@@ -304,7 +279,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 err = _wrap(math.atan2(ex, ey) - s[S_DELTA])
                 if c[C_MAGBIAS] > 0.5:
                     # (12b) vertical bias from the heading lag: err ≈ -τ_mag LP(R_E'S e)_z
-                    rz = _qrot(qe[0], -qe[1], -qe[2], -qe[3], 0.0, 0.0, 1.0)
+                    rz = qrot(qe[0], -qe[1], -qe[2], -qe[3], 0.0, 0.0, 1.0)
                     uz = rz[0] * bx + rz[1] * by + rz[2] * bz
                     steady = s[S_NMAG] < c[C_NMAGINIT]
                     km = c[C_KMAG]
@@ -323,10 +298,10 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
             s[S_MDIST] = 0.0 if ok else 1.0
 
     # (6) output q = R_z(δ) ⊗ q_E'I ⊗ q_IS
-    qe = _qmul(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
+    qe = qmul(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
                s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
     hc, hs = math.cos(0.5 * s[S_DELTA]), math.sin(0.5 * s[S_DELTA])
-    q = _qmul(hc, 0.0, 0.0, hs, qe[0], qe[1], qe[2], qe[3])
+    q = qmul(hc, 0.0, 0.0, hs, qe[0], qe[1], qe[2], qe[3])
     s[S_Q], s[S_Q + 1], s[S_Q + 2], s[S_Q + 3] = q
     _qnorm(s, S_Q)
     return used
@@ -371,7 +346,7 @@ def strapdown_batch(gyr, bias, q0, dt):
         ang = math.sqrt(wx * wx + wy * wy + wz * wz) * dt
         if ang > 1e-12:
             sh = math.sin(0.5 * ang) / ang * dt
-            q = _qmul(q[0], q[1], q[2], q[3], math.cos(0.5 * ang), wx * sh, wy * sh, wz * sh)
+            q = qmul(q[0], q[1], q[2], q[3], math.cos(0.5 * ang), wx * sh, wy * sh, wz * sh)
             nq = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
             q = (q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q
@@ -384,7 +359,7 @@ def rotate_batch(q, v):
     n = v.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        out[k, 0], out[k, 1], out[k, 2] = _qrot(q[k, 0], q[k, 1], q[k, 2], q[k, 3], v[k, 0], v[k, 1], v[k, 2])
+        out[k, 0], out[k, 1], out[k, 2] = qrot(q[k, 0], q[k, 1], q[k, 2], q[k, 3], v[k, 0], v[k, 1], v[k, 2])
     return out
 
 
@@ -408,9 +383,9 @@ def compose_offline(q_is, acc_lp_i, mag):
         else:
             cn = math.sqrt(cw * cw + ay * ay + ax * ax)
             c0, c1, c2 = cw / cn, ay / cn, -ax / cn
-        q = _qmul(c0, c1, c2, 0.0, q_is[k, 0], q_is[k, 1], q_is[k, 2], q_is[k, 3])
+        q = qmul(c0, c1, c2, 0.0, q_is[k, 0], q_is[k, 1], q_is[k, 2], q_is[k, 3])
         q_es[k, 0], q_es[k, 1], q_es[k, 2], q_es[k, 3] = q
-        mag_e[k, 0], mag_e[k, 1], mag_e[k, 2] = _qrot(q[0], q[1], q[2], q[3], mag[k, 0], mag[k, 1], mag[k, 2])
+        mag_e[k, 0], mag_e[k, 1], mag_e[k, 2] = qrot(q[0], q[1], q[2], q[3], mag[k, 0], mag[k, 1], mag[k, 2])
     return q_es, mag_e
 
 
@@ -421,7 +396,7 @@ def apply_heading(q_es, delta):
     out = np.empty((n, 4))
     for k in range(n):
         h = 0.5 * delta[k]
-        q = _qmul(math.cos(h), 0.0, 0.0, math.sin(h), q_es[k, 0], q_es[k, 1], q_es[k, 2], q_es[k, 3])
+        q = qmul(math.cos(h), 0.0, 0.0, math.sin(h), q_es[k, 0], q_es[k, 1], q_es[k, 2], q_es[k, 3])
         nq = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq
     return out

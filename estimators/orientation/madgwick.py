@@ -112,6 +112,7 @@ from numba import njit
 
 from estimators import quaternion as quat
 from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.quat_kernels import qrot
 
 _TINY = 1e-300
 
@@ -175,9 +176,7 @@ def _madgwick_step(w, x, y, z, gx, gy, gz, ax, ay, az, mx, my, mz, acc_ok, mag_o
             my /= nm
             mz /= nm
             # eq. (45): h = q ⊗ m ⊗ q*  (R m, R = matrix of q)
-            hx = (1.0 - 2.0 * (y * y + z * z)) * mx + 2.0 * (x * y - w * z) * my + 2.0 * (x * z + w * y) * mz
-            hy = 2.0 * (x * y + w * z) * mx + (1.0 - 2.0 * (x * x + z * z)) * my + 2.0 * (y * z - w * x) * mz
-            hz = 2.0 * (x * z - w * y) * mx + 2.0 * (y * z + w * x) * my + (1.0 - 2.0 * (x * x + y * y)) * mz
+            hx, hy, hz = qrot(w, x, y, z, mx, my, mz)
             # eq. (46) in ENU: b = (0, |h_xy|, h_z)
             bh = math.sqrt(hx * hx + hy * hy)
             bz = hz

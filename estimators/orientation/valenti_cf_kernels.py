@@ -11,6 +11,8 @@ import math
 import numpy as np
 from numba import njit
 
+from estimators.orientation.quat_kernels import qrot
+
 
 @njit(cache=True)
 def to_identity(dw, dx, dy, dz, gain, eps):
@@ -85,9 +87,7 @@ def valenti_cf_step(st, gx, gy, gz, ax, ay, az, mx, my, mz, gyr_ok, acc_ok, mag_
             ay /= na
             az /= na
             # eq. (44): predicted gravity g_p = R(q) a
-            px = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
-            py = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
-            pz = 2.0 * (x * z - w * y) * ax + 2.0 * (y * z + w * x) * ay + (1.0 - 2.0 * (x * x + y * y)) * az
+            px, py, pz = qrot(w, x, y, z, ax, ay, az)
             if pz > 1.0:
                 pz = 1.0
             if pz + 1.0 > 1e-12:  # eq. (47), conjugated
@@ -108,8 +108,7 @@ def valenti_cf_step(st, gx, gy, gz, ax, ay, az, mx, my, mz, gyr_ok, acc_ok, mag_
 
     # 4. magnetometer correction (heading), ENU
     if mag_ok and beta > 0.0:
-        lx = (1.0 - 2.0 * (y * y + z * z)) * mx + 2.0 * (x * y - w * z) * my + 2.0 * (x * z + w * y) * mz
-        ly = 2.0 * (x * y + w * z) * mx + (1.0 - 2.0 * (x * x + z * z)) * my + 2.0 * (y * z - w * x) * mz
+        lx, ly, _ = qrot(w, x, y, z, mx, my, mz)
         gam = lx * lx + ly * ly
         if gam > 1e-300:
             sg = math.sqrt(gam)
