@@ -44,6 +44,7 @@ __all__ = [
     "exp",
     "from_axis_angle",
     "from_euler",
+    "from_intrinsic",
     "from_matrix",
     "from_two_vectors",
     "identity",
@@ -282,12 +283,35 @@ def to_euler(q: ArrayLike, seq: str = "ZYX") -> FloatArray:
     return angles.reshape(q.shape[:-1] + (3,))
 
 
+def from_intrinsic(angles_rad: ArrayLike, axes: str) -> FloatArray:
+    r"""Product of turns about the moving axes, ``(..., 4)``: ``"ZXY"`` gives :math:`R_z(a)\,R_x(b)\,R_y(c)`.
+
+    ``angles_rad`` has shape ``(..., len(axes))``, any number of axes from ``"XYZ"``.  The closed form
+    (one product of axis quaternions, no sign flip) keeps a time series of angles a continuous series of
+    quaternions, which the simulator differentiates; :func:`from_euler` adds ``w >= 0``.
+    """
+    a = np.asarray(angles_rad, dtype=np.float64)
+    if not axes or not set(axes) <= set("XYZ") or a.ndim == 0 or a.shape[-1] != len(axes):
+        raise ValueError(f"angles_rad must have shape (..., {len(axes)}) and axes letters from 'XYZ', "
+                         f"got {a.shape}, {axes!r}")
+    q = None
+    for i, ax in enumerate(axes):
+        qi = np.zeros(a.shape[:-1] + (4,))
+        qi[..., 0] = np.cos(0.5 * a[..., i])
+        qi[..., 1 + "XYZ".index(ax)] = np.sin(0.5 * a[..., i])
+        q = qi if q is None else multiply(q, qi)
+    return q
+
+
 def from_euler(angles_rad: ArrayLike, seq: str = "ZYX") -> FloatArray:
-    """Unit quaternion(s) ``(..., 4)`` from Euler angles ``(..., 3)`` in rad (``w >= 0``)."""
+    """Unit quaternion(s) ``(..., 4)`` from Euler angles ``(..., 3)`` in rad (``w >= 0``).
+
+    Extrinsic ``"abc"`` is intrinsic ``"CBA"`` with the angles reversed (:func:`from_intrinsic`).
+    """
     a = _as_vector(angles_rad)
     seq = _check_sequence(seq)
-    xyzw = Rotation.from_euler(seq, a.reshape(-1, 3)).as_quat()
-    return positive_scalar(xyzw[:, [3, 0, 1, 2]].reshape(a.shape[:-1] + (4,)))
+    q = from_intrinsic(a, seq) if seq.isupper() else from_intrinsic(a[..., ::-1], seq[::-1].upper())
+    return positive_scalar(q)
 
 
 def euler_zyx_thesis(q: ArrayLike) -> FloatArray:

@@ -28,11 +28,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators import quaternion as quat
+from estimators.simulation.imu import simulate_on_grid
+from estimators.simulation.spec import ImuSpec, random_rotation
 from estimators.simulation.trajectory import Trajectory, intrinsic_rotation, min_jerk, time_grid
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["HingeChain", "hinge_pair", "gait_chain", "joint_in_sensor"]
+__all__ = ["DEFAULT_LEVERS_M", "HingeChain", "gait_chain", "hinge_pair", "joint_in_sensor", "sagittal_mount",
+           "simulate_chain"]
 
 
 @dataclass
@@ -66,11 +69,8 @@ class HingeChain:
 def _chain(t: FloatArray, q_root: FloatArray, p_root: FloatArray, joints: FloatArray, lengths, names) -> HingeChain:
     qs, ps = [q_root], [p_root]
     for i in range(joints.shape[1]):
-        rz = np.zeros((len(t), 4))
-        rz[:, 0] = np.cos(-0.5 * joints[:, i])
-        rz[:, 3] = np.sin(-0.5 * joints[:, i])
         ps.append(ps[-1] + quat.rotate(qs[-1], np.array([0.0, -lengths[i], 0.0])))
-        qs.append(quat.multiply(qs[-1], rz))
+        qs.append(quat.multiply(qs[-1], intrinsic_rotation(-joints[:, i:i + 1], "Z")))
     segs = tuple(Trajectory(t, q, p) for q, p in zip(qs, ps))
     return HingeChain(tuple(names), segs, tuple(float(v) for v in lengths), t, joints)
 
@@ -146,8 +146,6 @@ def sagittal_mount(misalign_rad: float = 0.0, seed: int | None = None) -> FloatA
     """``q_segment_sensor`` of a sensor whose x axis is the segment's lateral z axis (the seed's "roll" is
     the sagittal angle, seed 000 §2.3), y along the segment, z = x × y; optionally misaligned by a random
     rotation of up to ``misalign_rad``."""
-    from estimators.simulation.spec import random_rotation
-
     q = quat.from_matrix(np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]))
     if misalign_rad > 0.0:
         q = quat.multiply(q, random_rotation(misalign_rad, seed))
@@ -162,9 +160,6 @@ def simulate_chain(chain: HingeChain, fs_hz: float = 100.0, spec=None, *, misali
                    seed: int = 0) -> list:
     """One :class:`~estimators.simulation.ImuOnGrid` per segment, sensors with :func:`sagittal_mount`
     (misaligned by up to ``misalign_rad``) at :data:`DEFAULT_LEVERS_M`; ``spec`` default ``ImuSpec()``."""
-    from estimators.simulation.imu import simulate_on_grid
-    from estimators.simulation.spec import ImuSpec
-
     out = []
     for i, (name, seg) in enumerate(zip(chain.names, chain.segments)):
         q = sagittal_mount(misalign_rad, seed=seed * 31 + i)

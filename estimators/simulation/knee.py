@@ -63,8 +63,6 @@ SHANK_LENGTH_M = 0.40
 ANKLE_HEIGHT_M = 0.08
 
 
-
-
 def segment_frame(facing_rad: float = 0.0, posture: str = "standing") -> FloatArray:
     """``q_earth_segment`` (4,) of a segment standing upright (y up, x facing) or lying supine (x up, y = facing).
 

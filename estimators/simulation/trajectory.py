@@ -52,7 +52,6 @@ def min_jerk(tau: ArrayLike) -> FloatArray:
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
 
 
-
 def bump(tau: ArrayLike) -> FloatArray:
     r"""C²-smooth bump :math:`64\tau^3(1-\tau)^3` on ``[0, 1]`` (peak 1 at the middle), zero outside."""
     x = np.clip(np.asarray(tau, dtype=np.float64), 0.0, 1.0)
@@ -62,20 +61,13 @@ def bump(tau: ArrayLike) -> FloatArray:
 def intrinsic_rotation(angles_rad: ArrayLike, axes: str) -> FloatArray:
     r"""Quaternions (n, 4) of intrinsic rotations, e.g. ``"ZXY"``: :math:`R_z(a)\,R_x(b)\,R_y(c)`.
 
-    The same as ``quaternion.from_euler(angles, axes)`` up to sign, without scipy's per-call overhead;
-    ``angles_rad`` has shape (n, len(axes)).
+    :func:`estimators.quaternion.from_intrinsic` on ``angles_rad`` of shape (n, len(axes)): no sign flip,
+    so smooth angles give a smooth quaternion series (``from_euler`` would force ``w >= 0``).
     """
     a = np.asarray(angles_rad, dtype=np.float64)
-    if a.ndim != 2 or a.shape[1] != len(axes) or not set(axes) <= set("XYZ"):
-        raise ValueError(f"angles_rad must have shape (n, {len(axes)}) and axes letters from 'XYZ', "
-                         f"got {a.shape}, {axes!r}")
-    q = None
-    for i, ax in enumerate(axes):
-        qi = np.zeros((len(a), 4))
-        qi[:, 0] = np.cos(0.5 * a[:, i])
-        qi[:, 1 + "XYZ".index(ax)] = np.sin(0.5 * a[:, i])
-        q = qi if q is None else quat.multiply(q, qi)
-    return q
+    if a.ndim != 2:
+        raise ValueError(f"angles_rad must have shape (n, {len(axes)}), got {a.shape}")
+    return quat.from_intrinsic(a, axes)
 
 
 def time_grid(duration_s: float, fs_hz: float = DEFAULT_FS_HZ, t_start_s: float = 0.0) -> FloatArray:

@@ -380,5 +380,5 @@ def test_two_sensor_session_runs():
     q_knee = quat.multiply(quat.conjugate(g_th.q_earth_segment), g_sh.q_earth_segment)
     # the two segments' simulated orientations realise the knee angles the motion was generated from
     truth = np.column_stack([np.interp(g_th.t_true_s, leg.t_s, leg.knee_angles_rad[:, i]) for i in range(3)])
-    np.testing.assert_allclose(sim.knee_angles(q_knee), truth, atol=1e-3)
+    np.testing.assert_allclose(sim.knee_angles(q_knee), truth, atol=1e-9)
     assert not np.any(th.acc.saturated | sh.acc.saturated)
