@@ -319,16 +319,10 @@ class Chakamo(OrientationMethod):
         return s
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
-        if self.params.offline:
-            return self._offline(data, state0, reference=False)
-        q, s, _ = self._causal(data, state0, reference=False, want_aux=False)
-        return q, s
+        return self._batch(data, state0, reference=False)
 
     def _run_reference(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
-        if self.params.offline:
-            return self._offline(data, state0, reference=True)
-        q, s, _ = self._causal(data, state0, reference=True, want_aux=False)
-        return q, s
+        return self._batch(data, state0, reference=True)
 
     # ----------------------------------------------------------------- helpers
     def _with_offline(self, offline: bool) -> "Chakamo":
@@ -337,6 +331,12 @@ class Chakamo(OrientationMethod):
     def _copy_results(self, target: "Chakamo") -> "Chakamo":
         target.orientation_, target.state_, target.flags_ = self.orientation_, self.state_, self.flags_
         return target
+
+    def _batch(self, data: ImuInput, state0: FloatArray, *, reference: bool) -> tuple[FloatArray, FloatArray]:
+        if self.params.offline:
+            return self._offline(data, state0, reference=reference)
+        q, s, _ = self._causal(data, state0, reference=reference, want_aux=False)
+        return q, s
 
     def _causal(self, data: ImuInput, state0: FloatArray, *, reference: bool, want_aux: bool,
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:

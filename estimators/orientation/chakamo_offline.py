@@ -21,7 +21,6 @@ def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
     return b / a[0], a / a[0]
 
 
-
 def zero_phase_lowpass(acc_i: FloatArray, acc_ok: FloatArray, tau_acc_s: float, fs_hz: float) -> FloatArray:
     """The acceleration in ``I`` low-passed forward and backward (zero phase; offline step 2); missing rows
     are interpolated first."""

@@ -53,7 +53,6 @@ def test_nan_rows_are_flagged_and_zeroed():
     assert data.flags.any.sum() == 3
 
 
-
 def test_6d_input_is_9d_with_every_field_sample_missing():
     acc, gyr, mag = sensor_readings(quat.identity(), 5)
     data = validate_imu(acc, gyr, None, fs_hz=100.0)
@@ -61,6 +60,7 @@ def test_6d_input_is_9d_with_every_field_sample_missing():
     assert data.mag_array.shape == (5, 3) and not data.mag_array.any()
     nine = validate_imu(acc, gyr, mag, fs_hz=100.0)
     assert nine.mag_array is nine.mag and nine.mag_ok.all()
+
 
 def test_saturation_marks_acc_unusable_and_flags_gyr():
     acc, gyr, mag = sensor_readings(quat.identity(), 4)

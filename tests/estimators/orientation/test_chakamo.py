@@ -175,8 +175,9 @@ def test_missing_gyroscope_rows_hold_the_orientation(offline):
     assert np.all(np.isfinite(q))
     assert np.max(np.abs(q - method.reference(acc, gyr, mag, fs_hz=fs))) <= 1e-9
     if not offline:
-        # gyro-only prediction over the gap: no rotation at all (the bias is not integrated)
-        assert np.max(quat.angle_between(q[300:310], q[299])) < 1e-6 + 0.002
+        # gyro-only prediction over the gap: no rotation (the bias is not integrated: 0.02 rad/s over the
+        # 0.1 s gap would turn it 0.002 rad); only the accelerometer's small corrections remain (~6e-5 rad)
+        assert np.max(quat.angle_between(q[300:310], q[299])) < 5e-4
 
 
 def test_short_recordings():
@@ -319,4 +320,6 @@ def test_offline_recovers_a_recording_that_starts_disturbed():
     acc, gyr, mag = imu(q_true, w, fs, field_e=field, noise=0.002, seed=5)
     q = Chakamo(ChakamoParams(offline=True)).estimate(acc, gyr, mag, fs_hz=fs).orientation_
     err = np.degrees(quat.angle_between(q, q_true))
-    assert err.mean() < 1.0  # the backward pass knows the clean field; the causal filter does not (~25°)
+    assert err.mean() < 1.0  # the backward pass knows the clean field
+    q_causal = Chakamo(ChakamoParams(offline=False)).estimate(acc, gyr, mag, fs_hz=fs).orientation_
+    assert np.degrees(quat.angle_between(q_causal, q_true))[:1000].mean() > 10.0  # the causal filter does not (~45°)

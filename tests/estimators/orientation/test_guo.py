@@ -67,7 +67,6 @@ def test_kernel_matches_reference(measurement, with_mag, bias_init):
     np.testing.assert_allclose(np.linalg.norm(fast.orientation_, axis=1), 1.0, atol=1e-12)
 
 
-
 @pytest.mark.parametrize(
     "fs_hz, params",
     [(4.0, {}),  # half rotation angles up to 0.26 rad: the kernel's libm sin/cos branch, not its series
