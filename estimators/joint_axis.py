@@ -195,13 +195,14 @@ def position_residual(acc_a, gyr_a, dgyr_a, acc_b, gyr_b, dgyr_b, o_a, o_b) -> F
     return (np.linalg.norm(acc_a + ma @ o_a, axis=1) - np.linalg.norm(acc_b + mb @ o_b, axis=1))
 
 
-def estimate_position(acc_a, gyr_a, acc_b, gyr_b, *, fs_hz: float) -> tuple[FloatArray, FloatArray, float]:
-    """Joint centre (eqs. 70–71) before the shift of eq. 72: ``(o_a, o_b, rms m/s²)``."""
-    aa, ab = np.asarray(acc_a, float), np.asarray(acc_b, float)
-    ga, gb = np.asarray(gyr_a, float), np.asarray(gyr_b, float)
-    ma = _gamma_matrices(ga, angular_acceleration(ga, fs_hz))
-    mb = _gamma_matrices(gb, angular_acceleration(gb, fs_hz))
+def _gammas(gyr_a: FloatArray, gyr_b: FloatArray, fs_hz: float) -> tuple[FloatArray, FloatArray]:
+    """Γ matrices (eq. 71) of both sensors; computed once per call of :func:`estimate`/:func:`joint_angle`."""
+    return (_gamma_matrices(gyr_a, angular_acceleration(gyr_a, fs_hz)),
+            _gamma_matrices(gyr_b, angular_acceleration(gyr_b, fs_hz)))
 
+
+def _solve_position(aa: FloatArray, ma: FloatArray, ab: FloatArray,
+                    mb: FloatArray) -> tuple[FloatArray, FloatArray, float]:
     def fun(p):
         return np.linalg.norm(aa + ma @ p[:3], axis=1) - np.linalg.norm(ab + mb @ p[3:], axis=1)
 
@@ -214,6 +215,13 @@ def estimate_position(acc_a, gyr_a, acc_b, gyr_b, *, fs_hz: float) -> tuple[Floa
 
     sol = least_squares(fun, np.full(6, 0.01), jac=jac, method="lm", xtol=1e-12, ftol=1e-12)
     return sol.x[:3].copy(), sol.x[3:].copy(), float(np.sqrt(2.0 * sol.cost / len(aa)))
+
+
+def estimate_position(acc_a, gyr_a, acc_b, gyr_b, *, fs_hz: float) -> tuple[FloatArray, FloatArray, float]:
+    """Joint centre (eqs. 70–71) before the shift of eq. 72: ``(o_a, o_b, rms m/s²)``."""
+    aa, ab = np.asarray(acc_a, float), np.asarray(acc_b, float)
+    ma, mb = _gammas(np.asarray(gyr_a, float), np.asarray(gyr_b, float), fs_hz)
+    return _solve_position(aa, ma, ab, mb)
 
 
 def _common_c(j_a: FloatArray, j_b: FloatArray) -> FloatArray:
@@ -232,14 +240,27 @@ def _phi(acc_tilde: FloatArray, j: FloatArray, c: FloatArray) -> FloatArray:
     return np.arctan2(acc_tilde @ y, acc_tilde @ x)
 
 
-def _raw_angles(acc_a, gyr_a, acc_b, gyr_b, fs_hz, j_a, j_b, o_a, o_b):
-    ta = acc_a + _gamma_matrices(gyr_a, angular_acceleration(gyr_a, fs_hz)) @ o_a
-    tb = acc_b + _gamma_matrices(gyr_b, angular_acceleration(gyr_b, fs_hz)) @ o_b
+def _raw_angles(acc_a, gyr_a, ma, acc_b, gyr_b, mb, fs_hz, j_a, j_b, o_a, o_b):
+    ta = acc_a + ma @ o_a
+    tb = acc_b + mb @ o_b
     c = _common_c(j_a, j_b)
     alpha_acc = np.unwrap(_phi(tb, j_b, c) - _phi(ta, j_a, c))
     rate = gyr_a @ j_a - gyr_b @ j_b                                   # integrand of eq. 73
     alpha_gyr = np.cumsum(rate) / fs_hz
     return alpha_gyr, alpha_acc, rate
+
+
+def _checked(acc_a, gyr_a, acc_b, gyr_b, fs_hz) -> list[FloatArray]:
+    arrays = [np.asarray(v, dtype=np.float64) for v in (acc_a, gyr_a, acc_b, gyr_b)]
+    n = len(arrays[0])
+    for name, v in zip(("acc_a", "gyr_a", "acc_b", "gyr_b"), arrays):
+        if v.shape != (n, 3):
+            raise ValueError(f"{name} must have shape (N, 3) like acc_a ({n}, 3), got {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"{name} contains NaN or infinite values; remove or fill the gaps first")
+    if not (np.isfinite(fs_hz) and fs_hz > 0):
+        raise ValueError(f"fs_hz must be a positive number, got {fs_hz!r}")
+    return arrays
 
 
 def estimate(acc_a: ArrayLike, gyr_a: ArrayLike, acc_b: ArrayLike, gyr_b: ArrayLike, *,
@@ -250,26 +271,21 @@ def estimate(acc_a: ArrayLike, gyr_a: ArrayLike, acc_b: ArrayLike, gyr_b: ArrayL
     consistent relative sign, ``o_a``, ``o_b`` the joint centre in each sensor frame, m, after eq. 72).
     The data must contain rotation about more than the joint axis alone (e.g. the whole limb moving).
     """
-    arrays = [np.asarray(v, dtype=np.float64) for v in (acc_a, gyr_a, acc_b, gyr_b)]
-    n = len(arrays[0])
-    for name, v in zip(("acc_a", "gyr_a", "acc_b", "gyr_b"), arrays):
-        if v.shape != (n, 3):
-            raise ValueError(f"{name} must have shape (N, 3) like acc_a ({n}, 3), got {v.shape}")
-        if not np.all(np.isfinite(v)):
-            raise ValueError(f"{name} contains NaN or infinite values; remove or fill the gaps first")
-    if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"fs_hz must be a positive number, got {fs_hz!r}")
-    if n < 50:
-        raise ValueError(f"need at least 50 samples of motion to estimate a joint axis, got {n}")
-    aa, ga, ab, gb = arrays
+    aa, ga, ab, gb = _checked(acc_a, gyr_a, acc_b, gyr_b, fs_hz)
+    return _estimate(aa, ga, ab, gb, fs_hz, *_gammas(ga, gb, fs_hz))
+
+
+def _estimate(aa, ga, ab, gb, fs_hz, ma, mb) -> JointAxisResult:
+    if len(aa) < 50:
+        raise ValueError(f"need at least 50 samples of motion to estimate a joint axis, got {len(aa)}")
     j_a, j_b, rms_axis = estimate_axis(ga, gb)
     if j_a[int(np.argmax(np.abs(j_a)))] < 0:
         j_a = -j_a
-    o_a_hat, o_b_hat, rms_pos = estimate_position(aa, ga, ab, gb, fs_hz=fs_hz)
+    o_a_hat, o_b_hat, rms_pos = _solve_position(aa, ma, ab, mb)
     # relative sign: perpendicular rates and joint-centre forces seen from b must be those seen from a
     # turned by the gyroscope joint angle (eq. 73); the wrong sign of j_b breaks this
-    ta = aa + _gamma_matrices(ga, angular_acceleration(ga, fs_hz)) @ o_a_hat
-    tb = ab + _gamma_matrices(gb, angular_acceleration(gb, fs_hz)) @ o_b_hat
+    ta = aa + ma @ o_a_hat
+    tb = ab + mb @ o_b_hat
     best = None
     for s in (1.0, -1.0):
         jb = s * j_b
@@ -295,9 +311,10 @@ def joint_angle(acc_a: ArrayLike, gyr_a: ArrayLike, acc_b: ArrayLike, gyr_b: Arr
     Eq. 73 (gyroscopes), eq. 74 (accelerometers, signed) and their FKC fusion (eq. 77).  The angles
     are zero at the start pose unless ``offset_rad`` (the accelerometer angle's offset) is given.
     """
-    aa, ga, ab, gb = (np.asarray(v, dtype=np.float64) for v in (acc_a, gyr_a, acc_b, gyr_b))
-    axes = estimate(aa, ga, ab, gb, fs_hz=fs_hz) if axes is None else axes
-    alpha_gyr, alpha_acc, rate = _raw_angles(aa, ga, ab, gb, fs_hz, axes.j_a, axes.j_b, axes.o_a, axes.o_b)
+    aa, ga, ab, gb = _checked(acc_a, gyr_a, acc_b, gyr_b, fs_hz)
+    ma, mb = _gammas(ga, gb, fs_hz)
+    axes = _estimate(aa, ga, ab, gb, fs_hz, ma, mb) if axes is None else axes
+    alpha_gyr, alpha_acc, rate = _raw_angles(aa, ga, ma, ab, gb, mb, fs_hz, axes.j_a, axes.j_b, axes.o_a, axes.o_b)
     if offset_rad is None:
         n0 = max(1, min(len(rate), int(round(fs_hz))))
         d = alpha_acc[:n0] - alpha_gyr[:n0]

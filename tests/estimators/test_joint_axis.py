@@ -73,6 +73,15 @@ def test_joint_angle_fused(trial):
     assert np.degrees(np.sqrt(np.mean((gyr - truth) ** 2))) < 2.0    # noise only: no bias to drift
 
 
+def test_joint_angle_estimates_the_axes_itself(trial):
+    """Without ``axes`` the angle is the one obtained with the axes of :func:`estimate` on the same data."""
+    ch, a, b, j_a, o_a, j_b, o_b, res = trial
+    own = ja.joint_angle(a.acc, a.gyr, b.acc, b.gyr, fs_hz=FS)
+    given = ja.joint_angle(a.acc, a.gyr, b.acc, b.gyr, fs_hz=FS, axes=res)
+    for x, y in zip(own, given):
+        np.testing.assert_allclose(x, y, atol=1e-9)
+
+
 def test_validation():
     z = np.zeros((100, 3))
     with pytest.raises(ValueError, match="gyr_b"):
@@ -83,3 +92,5 @@ def test_validation():
     bad[3, 1] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         ja.estimate(bad, z, z, z, fs_hz=FS)
+    with pytest.raises(ValueError, match="gyr_a"):
+        ja.joint_angle(z, bad, z, z, fs_hz=FS)
