@@ -98,13 +98,6 @@ def side_sign(side: str) -> float:
 
 
 # ------------------------------------------------------------------------------------------ knee angles
-def _axis_turn(angle_rad: FloatArray, axis: int) -> FloatArray:
-    q = np.zeros(angle_rad.shape + (4,))
-    q[..., 0] = np.cos(0.5 * angle_rad)
-    q[..., 1 + axis] = np.sin(0.5 * angle_rad)
-    return q
-
-
 def knee_quaternion(angles_rad: ArrayLike, side: str = "right") -> FloatArray:
     """``q_femur_tibia`` (..., 4), w >= 0, from Grood & Suntay angles (..., 3) = (flexion, adduction,
     internal rotation), rad, with clinical signs for ``side`` (K1)."""
@@ -112,9 +105,8 @@ def knee_quaternion(angles_rad: ArrayLike, side: str = "right") -> FloatArray:
     if a.ndim == 0 or a.shape[-1] != 3:
         raise ValueError(f"angles_rad must have shape (..., 3), got {a.shape}")
     s = side_sign(side)
-    q = quat.multiply(quat.multiply(_axis_turn(-a[..., 0], 2), _axis_turn(s * a[..., 1], 0)),
-                      _axis_turn(s * a[..., 2], 1))
-    return quat.positive_scalar(q)
+    turns = np.stack([-a[..., 0], s * a[..., 1], s * a[..., 2]], axis=-1)
+    return quat.positive_scalar(quat.from_intrinsic(turns, "ZXY"))  # R_z(−flex) R_x(s·add) R_y(s·rot)
 
 
 def knee_angles(q_femur_tibia: ArrayLike, side: str = "right", *, method: str = "grood_suntay") -> FloatArray:
@@ -371,8 +363,7 @@ def flexion_axis(q_earth_thigh: ArrayLike, q_earth_shank: ArrayLike, gyr_thigh: 
         \qquad \hat j = \text{dominant eigenvector of } \textstyle\sum \omega_{rel}\omega_{rel}^\top \quad (FA1)
 
     Unlike the gyroscope-only constraint of Seel et al. (seed 000 eqs. 68–69), which needs the segments to
-    turn about more than one axis and is ill-posed for sagittal-plane tasks such as the step-up (one
-    simulated session put the axis 18° off), this uses the relative heading the orientation filters
+    turn about more than one axis and is ill-posed for sagittal-plane tasks such as the step-up, this uses the relative heading the orientation filters
     already provide.  Rows with a missing value are skipped."""
     qt, qs = quat.as_quaternion(q_earth_thigh), quat.as_quaternion(q_earth_shank)
     gt, gs = np.asarray(gyr_thigh, dtype=np.float64), np.asarray(gyr_shank, dtype=np.float64)
