@@ -77,10 +77,10 @@ C3  Statistics over the accepted cycles, SD with ddof = 1: curves mean ± SD per
     and % of the span per cycle, then averaged; ROM per angle: max, min, range over the samples of each
     cycle's span (the input angles, not the smoothed ones).
 
-Accuracy on the simulator (``simulation.step_up``, 10 cycles, 17 and 34 cm, 20 seeds each, 0.5° RMS noise
-on all angles + 2° drift of flexion): every cycle found and accepted; boundary error / cycle duration
-median 0.27 / 0.14 / 0.05 / 0.05 %, max 1.1 / 0.8 / 0.3 / 0.3 % (onset, peak, leaving extension, back at
-rest).  About 4 ms for a 10-cycle task at 100 Hz.
+Accuracy on the simulator, as ``tests/estimators/test_motor_task.py`` checks it (``simulation.step_up``,
+5 and 15 cycles, 17 and 34 cm, 0.5° RMS noise on all angles + 2° drift of flexion): every cycle found and
+accepted, every boundary (onset, peak, leaving extension, back at rest) within 2 % of the cycle duration
+(0.3 % without noise).
 """
 
 from estimators.motor_task.analysis import (

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 __all__ = ["EVENTS", "MotorTaskParams", "PhaseSpec", "TASKS", "TaskSpec", "get_task"]
 
@@ -109,10 +109,6 @@ def get_task(task: str | TaskSpec) -> TaskSpec:
         raise ValueError(f"unknown task {task!r}; valid tasks are {sorted(TASKS)}") from None
 
 
-def _deg(x: float) -> float:
-    return math.radians(x)
-
-
 @dataclass(frozen=True)
 class MotorTaskParams:
     """Parameters of :func:`~estimators.motor_task.analyse_task`; every value in SI units and radians.
@@ -148,19 +144,19 @@ class MotorTaskParams:
 
     lowpass_hz: float = 5.0
     activity_window_s: float = 1.0
-    activity_sd_rad: float = field(default_factory=lambda: _deg(2.0))
-    stationary_rad_s: float = field(default_factory=lambda: _deg(12.0))
+    activity_sd_rad: float = math.radians(2.0)
+    stationary_rad_s: float = math.radians(12.0)
     merge_gap_s: float = 0.1
     level_window_s: float = 0.3
-    min_excursion_rad: float = field(default_factory=lambda: _deg(20.0))
-    min_countermovement_rad: float = field(default_factory=lambda: _deg(1.5))
+    min_excursion_rad: float = math.radians(20.0)
+    min_countermovement_rad: float = math.radians(1.5)
     min_edge_rest_s: float = 0.2
     boundary_model: str = "min_jerk"
-    boundary_threshold_rad: float = field(default_factory=lambda: _deg(2.0))
+    boundary_threshold_rad: float = math.radians(2.0)
     normalise_span: str = "movement"
     n_points: int = 101
-    rejection_rmse_rad: tuple[float | None, float | None, float | None] = field(
-        default_factory=lambda: (_deg(8.0), None, None))
+    rejection_rmse_rad: tuple[float | None, float | None, float | None] = (
+        math.radians(8.0), None, None)
     min_accepted_cycles: int = 3
 
     def __post_init__(self) -> None:
