@@ -9,12 +9,11 @@ stale ingestion check (files changed since) is redone before deciding (409 when 
 
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import JSONResponse
-
-from app.api.deps import Clinician, DbDep, Reader, RunnerDep, refuse_while_processing, scoped_job, scoped_session
-from app.api.recordings import refresh_ingestion
-from app.api.schemas import JobCreatedOut, JobOut, ProcessIn, ingestion_fresh, job_out
 from sqlalchemy import select
 
+from app.api.deps import Clinician, DbDep, Reader, RunnerDep, refuse_while_processing, scoped_job, scoped_session
+from app.api.recordings import ensure_fresh_ingestion
+from app.api.schemas import JobCreatedOut, JobOut, ProcessIn, ingestion_fresh, job_out
 from app.db.models import Job
 from estimators.orientation import DEFAULT_METHOD, METHODS
 
@@ -31,12 +30,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
     if name not in METHODS:
         raise HTTPException(400, f"Unknown filter {name!r}; use one of {', '.join(METHODS)}.")
     refuse_while_processing(db, session.id, "process it again")
-    if not ingestion_fresh(session) and session.recordings:
-        state = request.app.state
-        db.rollback()  # no transaction held while the files are checked
-        refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session.id)
-        session = scoped_session(db, principal, session_id)
-        db.refresh(session)
+    ensure_fresh_ingestion(db, request, session)
     session = scoped_session(db, principal, session_id, lock=True)
     refuse_while_processing(db, session.id, "process it again")
     ingestion = session.ingestion if ingestion_fresh(session) else {}

@@ -42,10 +42,11 @@ from python_multipart.exceptions import MultipartParseError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from sqlalchemy import select, update
 from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
 from starlette.requests import ClientDisconnect
 
 from app.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, refuse_while_processing, scoped_session
-from app.api.schemas import UploadOut, recording_out
+from app.api.schemas import UploadOut, ingestion_fresh, recording_out
 from app.db import Database, ensure_blob
 from app.db.models import KneeSession, Recording
 from app.ingestion import MANIFEST, ROLES, SEGMENTS
@@ -229,6 +230,17 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir, session_id: int)
     return ingestion
 
 
+def ensure_fresh_ingestion(db: Session, request: Request, session: KneeSession) -> None:
+    """When the stored check of ``session`` (a row of the request's ``db``) is stale, check its files again
+    (:func:`refresh_ingestion`) with no transaction of ``db`` held meanwhile, then reload ``session``."""
+    if ingestion_fresh(session) or not session.recordings:
+        return
+    state = request.app.state
+    db.rollback()  # the check may take seconds: no open transaction (nor row lock) while it runs
+    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session.id)
+    db.refresh(session)
+
+
 def _too_large(settings) -> HTTPException:
     return HTTPException(413, f"The upload is larger than {settings.max_files} files of {settings.max_file_mb:g} MB; "
                               "send fewer or smaller files.")
@@ -328,4 +340,4 @@ def delete_recording(session_id: int, recording_id: int, principal: Clinician, r
     return Response(status_code=204)
 
 
-__all__ = ["FORM_FIELDS", "refresh_ingestion", "router", "save_ingestion"]
+__all__ = ["FORM_FIELDS", "ensure_fresh_ingestion", "refresh_ingestion", "router", "save_ingestion"]

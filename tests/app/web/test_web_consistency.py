@@ -92,6 +92,28 @@ def test_a_lost_check_is_redone_not_reported_as_no_recordings(client, settings, 
     db.dispose()
 
 
+def test_processing_a_session_whose_check_was_lost_checks_it_again(client, settings):
+    """POST /process on a stale check redoes it before deciding: the 409 gives the files' real problem, and
+    the check is stored for the current files."""
+    from app.db.models import KneeSession
+
+    h = clinic_token(settings, "R")
+    _, sid = new_session(client, h)
+    up = client.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=F)
+    assert up.status_code == 201 and up.json()["ingestion"]["ok"] is False
+    db = _db(settings)
+    with db.session() as s:
+        row = s.get(KneeSession, sid)
+        row.ingestion, row.ingestion_version = None, None
+    r = client.post(f"/api/v1/sessions/{sid}/process", headers=h, json={})
+    assert r.status_code == 409, r.text
+    assert r.json()["detail"].endswith(up.json()["ingestion"]["error"])
+    with db.session() as s:
+        row = s.get(KneeSession, sid)
+        assert row.ingestion == up.json()["ingestion"] and row.ingestion_version == row.files_version
+    db.dispose()
+
+
 def test_a_second_process_request_waits_for_the_first(client, settings, demo_dir):
     from web_helpers import demo_files, wait_job
 
