@@ -12,6 +12,7 @@ the browser's.
 from __future__ import annotations
 
 import datetime as dt
+import functools
 
 from fastapi import APIRouter, HTTPException, Request, Response
 from sqlalchemy import delete, select
@@ -22,7 +23,12 @@ from app.db.models import BrowserSession, User, utcnow
 from app.security import Busy, csrf_token, hash_password, new_session_id, sha256_hex, verify_password
 
 router = APIRouter(prefix="/auth", tags=["auth"])
-_DUMMY_HASH = hash_password("not-a-real-password-only-for-equal-timing")
+
+
+@functools.cache
+def _dummy_hash() -> str:
+    """A hash to check unknown emails against (same scrypt work); made at the first login, not at import."""
+    return hash_password("not-a-real-password-only-for-equal-timing")
 
 
 @router.post("/login", response_model=MeOut)
@@ -36,7 +42,7 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
                                  "and try again, or ask your clinic admin.")
     user = db.scalar(select(User).where(User.email == email))
     try:
-        ok = verify_password(body.password, user.password_hash if user else _DUMMY_HASH)
+        ok = verify_password(body.password, user.password_hash if user else _dummy_hash())
     except Busy:
         raise HTTPException(503, "The server is busy checking other logins; try again in a moment.",
                             headers={"Retry-After": "5"}) from None
