@@ -32,11 +32,15 @@ from __future__ import annotations
 import argparse
 import getpass
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 from app.security import ROLES  # the one definition of the roles (a stdlib-only module: cheap to import)
 
 if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does not pay for it
+    from sqlalchemy.orm import Session
+
     from app.db import Database
     from app.settings import Settings
 
@@ -52,6 +56,17 @@ def _database(settings: Settings | None) -> Database:
     db = Database(settings.db_url)
     db.migrate()
     return db
+
+
+@contextmanager
+def _session(settings: Settings | None) -> Iterator[Session]:
+    """A session of the migrated database of ``settings``, committed on success; the engine is disposed after."""
+    db = _database(settings)
+    try:
+        with db.session() as s:
+            yield s
+    finally:
+        db.dispose()
 
 
 def _clinic(s, name: str):
@@ -75,17 +90,13 @@ def create_clinic(settings: Settings | None, name: str) -> int:
 
     from app.db.models import Clinic
 
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            if s.scalar(select(Clinic.id).where(Clinic.name == name)) is not None:
-                raise ValueError(f"a clinic named {name!r} already exists; choose another name")
-            clinic = Clinic(name=name)
-            s.add(clinic)
-            s.flush()
-            return clinic.id
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        if s.scalar(select(Clinic.id).where(Clinic.name == name)) is not None:
+            raise ValueError(f"a clinic named {name!r} already exists; choose another name")
+        clinic = Clinic(name=name)
+        s.add(clinic)
+        s.flush()
+        return clinic.id
 
 
 def create_user(settings: Settings | None, *, clinic: str, email: str, role: str, password: str,
@@ -103,18 +114,14 @@ def create_user(settings: Settings | None, *, clinic: str, email: str, role: str
     from app.security import check_password_strength, hash_password
 
     check_password_strength(password)
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            c = _clinic(s, clinic)
-            if s.scalar(select(User.id).where(User.email == email)) is not None:
-                raise ValueError(f"the email {email} already has an account; use another email")
-            user = User(clinic_id=c.id, email=email, name=name, role=role, password_hash=hash_password(password))
-            s.add(user)
-            s.flush()
-            return user.id
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        c = _clinic(s, clinic)
+        if s.scalar(select(User.id).where(User.email == email)) is not None:
+            raise ValueError(f"the email {email} already has an account; use another email")
+        user = User(clinic_id=c.id, email=email, name=name, role=role, password_hash=hash_password(password))
+        s.add(user)
+        s.flush()
+        return user.id
 
 
 def create_token(settings: Settings | None, *, clinic: str, label: str = "", role: str = "clinician") -> str:
@@ -125,14 +132,10 @@ def create_token(settings: Settings | None, *, clinic: str, label: str = "", rol
     from app.security import new_token, sha256_hex
 
     token = new_token()
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            c = _clinic(s, clinic)
-            s.add(ApiToken(clinic_id=c.id, label=label, role=role, token_sha256=sha256_hex(token)))
-        return token
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        c = _clinic(s, clinic)
+        s.add(ApiToken(clinic_id=c.id, label=label, role=role, token_sha256=sha256_hex(token)))
+    return token
 
 
 def serve(host: str = "127.0.0.1", port: int = 8000) -> None:
@@ -237,15 +240,11 @@ def list_tokens(settings: Settings | None, *, clinic: str) -> list[dict]:
 
     from app.db.models import ApiToken
 
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            c = _clinic(s, clinic)
-            rows = s.scalars(select(ApiToken).where(ApiToken.clinic_id == c.id).order_by(ApiToken.id))
-            return [{"id": t.id, "label": t.label, "role": t.role, "created_at": t.created_at,
-                     "revoked_at": t.revoked_at} for t in rows]
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        c = _clinic(s, clinic)
+        rows = s.scalars(select(ApiToken).where(ApiToken.clinic_id == c.id).order_by(ApiToken.id))
+        return [{"id": t.id, "label": t.label, "role": t.role, "created_at": t.created_at,
+                 "revoked_at": t.revoked_at} for t in rows]
 
 
 def revoke_token(settings: Settings | None, token_id: int) -> dict:
@@ -254,33 +253,25 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
     unknown id."""
     from app.db.models import ApiToken, utcnow
 
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            token = s.get(ApiToken, token_id)
-            if token is None:
-                raise ValueError(f"no API token with id {token_id}; see the ids with `chakamo tokens list "
-                                 "--clinic NAME`")
-            already = token.revoked_at is not None
-            if not already:
-                token.revoked_at = utcnow()
-            return {"id": token.id, "clinic": token.clinic.name, "label": token.label,
-                    "revoked_at": token.revoked_at, "already": already}
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        token = s.get(ApiToken, token_id)
+        if token is None:
+            raise ValueError(f"no API token with id {token_id}; see the ids with `chakamo tokens list "
+                             "--clinic NAME`")
+        already = token.revoked_at is not None
+        if not already:
+            token.revoked_at = utcnow()
+        return {"id": token.id, "clinic": token.clinic.name, "label": token.label,
+                "revoked_at": token.revoked_at, "already": already}
 
 
 def deactivate_user(settings: Settings | None, *, email: str) -> int:
     """Deactivate the user with ``email`` (login refused) and delete their browser sessions; returns how many
     sessions were closed.  ValueError for an unknown email."""
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            user = _user(s, email)
-            user.active = False
-            return _close_browser_sessions(s, user.id)
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        user = _user(s, email)
+        user.active = False
+        return _close_browser_sessions(s, user.id)
 
 
 def set_password(settings: Settings | None, *, email: str, password: str) -> int:
@@ -290,14 +281,10 @@ def set_password(settings: Settings | None, *, email: str, password: str) -> int
     from app.security import check_password_strength, hash_password
 
     check_password_strength(password)
-    db = _database(settings)
-    try:
-        with db.session() as s:
-            user = _user(s, email)
-            user.password_hash = hash_password(password)
-            return _close_browser_sessions(s, user.id)
-    finally:
-        db.dispose()
+    with _session(settings) as s:
+        user = _user(s, email)
+        user.password_hash = hash_password(password)
+        return _close_browser_sessions(s, user.id)
 
 
 def _add_account_parsers(users, tokens) -> None:
@@ -315,12 +302,8 @@ def _add_account_parsers(users, tokens) -> None:
 
 
 def _check_user_exists(email: str) -> None:
-    db = _database(None)
-    try:
-        with db.session() as s:
-            _user(s, email)
-    finally:
-        db.dispose()
+    with _session(None) as s:
+        _user(s, email)
 
 
 def _when(value) -> str:
