@@ -118,7 +118,7 @@ def csrf_ok(key: bytes, session_id: str, header_value: str | None) -> bool:
 class LoginThrottle:
     """Failed-login counters per key (``email:<address>`` and ``ip:<address>``), in memory, thread-safe.
 
-    ``max_failures`` within ``window_s`` blocks a key; :meth:`check` / :meth:`fail` / :meth:`reset` take the
+    ``max_failures`` within ``window_s`` blocks a key; :meth:`blocked` / :meth:`fail` / :meth:`reset` take the
     email and the client address together (per-IP limit ``max_ip_failures``).  Expired entries are pruned
     at most once per ``window_s / 10`` (and whenever the table passes ``max_keys``)."""
 

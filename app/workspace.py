@@ -31,6 +31,10 @@ from app.ingestion.metabase import group_metabase_files, parse_file_name
 from app.storage import BlobStore
 
 
+#: the Ingestion object of a session without recordings (the API answers it too before any check ran)
+NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
+
+
 def _number(x: Any) -> float | None:
     return None if x is None else float(x)
 
@@ -113,7 +117,7 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
                     recordings: Sequence[Recording]) -> dict[str, Any]:
     """The contract's Ingestion ``{"ok", "messages", "error"}`` of the session's stored files."""
     if not [r for r in recordings if r.file_name != MANIFEST]:
-        return {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
+        return dict(NO_RECORDINGS)
     folder = None
     try:
         with materialise(store, tmp_root, session, patient, recordings) as folder:
@@ -132,4 +136,4 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
         return {"ok": False, "messages": [], "error": public_message(text, folder)}
 
 
-__all__ = ["build_manifest", "check_ingestion", "materialise", "public_message"]
+__all__ = ["NO_RECORDINGS", "build_manifest", "check_ingestion", "materialise", "public_message"]

@@ -38,7 +38,6 @@ from app.storage import BlobStore
 
 COOKIE = "chakamo_session"
 CSRF_HEADER = "X-CSRF-Token"
-RANK = ROLE_RANK
 _UNSAFE = {"POST", "PUT", "PATCH", "DELETE"}
 
 
@@ -123,7 +122,7 @@ PrincipalDep = Annotated[Principal, Depends(get_principal)]
 
 
 def _check_role(principal: Principal, role: str) -> Principal:
-    if RANK.get(principal.role, -1) < RANK[role]:
+    if ROLE_RANK.get(principal.role, -1) < ROLE_RANK[role]:
         raise HTTPException(403, f"This needs the {role} role (yours is {principal.role}); ask a clinic admin.")
     return principal
 

@@ -17,6 +17,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Analysis, Job, KneeSession, Patient, Recording, User
 from app.security import ROLES
+from app.workspace import NO_RECORDINGS
 from reports.i18n import LANGUAGES
 
 #: the report languages (one definition: :data:`reports.i18n.LANGUAGES`)
@@ -205,7 +206,6 @@ def analysis_out(a: Analysis) -> dict[str, Any]:
     return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings")}
 
 
-NO_RECORDINGS = {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
 BEING_CHECKED = {"ok": False, "messages": [], "error": "The session's files are being checked; reload in a moment."}
 
 

@@ -149,7 +149,8 @@ def test_non_api_routes_work_offline(client):
     assert js.status_code == 200 and "javascript" in js.headers["content-type"] and len(js.content) > 1_000_000
     viser = client.get("/viser/index.html")
     assert viser.status_code == 200 and "<html" in viser.text.lower()
-    assert client.get("/").status_code in (200, 503)  # 503 names the missing UI if static/ is absent
+    ui = client.get("/")  # the repository's static/index.html (503 only where static/ is not installed)
+    assert ui.status_code == 200 and "text/html" in ui.headers["content-type"]
 
 
 def test_roles_and_languages_are_defined_once():
@@ -162,6 +163,6 @@ def test_roles_and_languages_are_defined_once():
     from reports.i18n import LANGUAGES
 
     assert admin_cli.ROLES is models.ROLES is security.ROLES
-    assert typing.get_args(schemas.RoleName) == security.ROLES and deps.RANK is security.ROLE_RANK
+    assert typing.get_args(schemas.RoleName) == security.ROLES and deps.ROLE_RANK is security.ROLE_RANK
     assert security.ROLE_RANK["admin"] > security.ROLE_RANK["clinician"] > security.ROLE_RANK["read_only"]
     assert typing.get_args(schemas.Lang) == LANGUAGES and LANGS is LANGUAGES
