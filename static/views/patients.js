@@ -26,6 +26,21 @@ function textOrNull(input) {
   return v === "" ? null : v;
 }
 
+// A button that opens (and closes again) the form ``makeForm(close)`` in ``formArea``; aria-expanded follows.
+function disclosure(text, formArea, makeForm) {
+  const button = h("button", { type: "button", "aria-expanded": "false" }, text);
+  const close = () => { button.setAttribute("aria-expanded", "false"); clear(formArea); };
+  button.addEventListener("click", () => {
+    const open = button.getAttribute("aria-expanded") === "true";
+    close();
+    if (!open) {
+      button.setAttribute("aria-expanded", "true");
+      formArea.append(makeForm(close));
+    }
+  });
+  return button;
+}
+
 // ------------------------------------------------------------------------------------------- list
 export function patientsView() {
   const section = h("section", { class: "view" });
@@ -33,13 +48,7 @@ export function patientsView() {
   const [searchField] = field(t("patients.search"), search);
   const listArea = h("div", { class: "list-area", "aria-live": "polite" });
   const formArea = h("div");
-  const newButton = h("button", { type: "button", "aria-expanded": "false" }, t("patients.new"));
-  newButton.addEventListener("click", () => {
-    const open = newButton.getAttribute("aria-expanded") === "true";
-    newButton.setAttribute("aria-expanded", String(!open));
-    clear(formArea);
-    if (!open) formArea.append(newPatientForm(() => { newButton.setAttribute("aria-expanded", "false"); clear(formArea); }));
-  });
+  const newButton = disclosure(t("patients.new"), formArea, newPatientForm);
   section.append(
     h("div", { class: "title-row" }, h("h1", {}, t("patients.title")), canEdit() ? newButton : null),
     formArea,
@@ -148,13 +157,7 @@ export function patientView(id) {
       return;
     }
     const formArea = h("div");
-    const newSession = h("button", { type: "button", "aria-expanded": "false" }, t("sessions.new"));
-    newSession.addEventListener("click", () => {
-      const open = newSession.getAttribute("aria-expanded") === "true";
-      newSession.setAttribute("aria-expanded", String(!open));
-      clear(formArea);
-      if (!open) formArea.append(newSessionForm(id, () => { newSession.setAttribute("aria-expanded", "false"); clear(formArea); }));
-    });
+    const newSession = disclosure(t("sessions.new"), formArea, (close) => newSessionForm(id, close));
     const trendArea = h("div", { class: "card" }, h("h2", {}, t("patient.trend")));
     clear(section).append(
       h("nav", { class: "crumbs", "aria-label": t("common.breadcrumbs") }, h("a", { href: "#/patients" }, t("nav.patients"))),

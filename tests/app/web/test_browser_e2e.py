@@ -176,6 +176,18 @@ def _no_raw_values(page) -> None:
     assert not leftovers, f"raw values on the page: {leftovers}"
 
 
+def _api_session(context, server: str, external_id: str, side: str) -> int:
+    """A new patient and an empty session of it made through the API with the logged-in browser's cookie and
+    CSRF token; returns the session id."""
+    api = f"{server}/api/v1"
+    csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+    r = context.request.post(f"{api}/patients", data={"external_id": external_id, "side": side}, headers=csrf)
+    assert r.status == 201, r.text()
+    r = context.request.post(f"{api}/patients/{r.json()['id']}/sessions", data={}, headers=csrf)
+    assert r.status == 201, r.text()
+    return r.json()["id"]
+
+
 # --------------------------------------------------------------------------------------------- test
 def test_login_patient_wizard_process_results_download(browser, server, demo_files, slow_expect, tmp_path):
     context = browser.new_context(locale="en-US", accept_downloads=True, viewport={"width": 1280, "height": 900})
@@ -345,14 +357,7 @@ def test_errors_are_shown_plainly(browser, server, slow_expect, tmp_path):
         page.get_by_role("button", name="Log in").click()
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
 
-        # a patient and an empty session through the API, with the browser's cookie and CSRF token
-        api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
-        r = context.request.post(f"{api}/patients", data={"external_id": "E2E-ERR", "side": "left"}, headers=csrf)
-        assert r.status == 201, r.text()
-        r = context.request.post(f"{api}/patients/{r.json()['id']}/sessions", data={}, headers=csrf)
-        assert r.status == 201, r.text()
-        sid = r.json()["id"]
+        sid = _api_session(context, server, "E2E-ERR", "left")
 
         page.goto(f"{server}/#/sessions/{sid}/wizard")
         expect(page.get_by_role("heading", name="1. Which sensor is on which segment?")).to_be_visible()

@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
-    EMAIL, PASSWORD, WAIT_MS, _no_raw_values, demo_files, server, slow_expect)
+    EMAIL, PASSWORD, WAIT_MS, _api_session, _no_raw_values, demo_files, server, slow_expect)
 
 THIGH_MAC, SHANK_MAC = "D4:F1:A2:B3:C4:E5", "E8:C2:B1:A0:F9:D7"   # app.ingestion.writers.DEFAULT_MACS
 
@@ -44,13 +44,7 @@ def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow
         page.get_by_label("Password").fill(PASSWORD)
         page.get_by_role("button", name="Log in").click()
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
-        api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
-        r = context.request.post(f"{api}/patients", data={"external_id": "E2E-MAC", "side": "right"}, headers=csrf)
-        assert r.status == 201, r.text()
-        r = context.request.post(f"{api}/patients/{r.json()['id']}/sessions", data={}, headers=csrf)
-        assert r.status == 201, r.text()
-        sid = r.json()["id"]
+        sid = _api_session(context, server, "E2E-MAC", "right")
 
         # step 1: sensor 1 (on the thigh by default) gets the thigh's MAC, in lower case without colons
         page.goto(f"{server}/#/sessions/{sid}/wizard")
