@@ -1,4 +1,5 @@
-"""Centred moving-window statistics (truncated at the ends), by cumulative sums: O(N) for any window."""
+"""Centred moving-window statistics (truncated at the ends), by cumulative sums: O(N) for any window; and
+the runs of True in a boolean mask."""
 
 from __future__ import annotations
 
@@ -24,3 +25,11 @@ def moving_variance(x: ArrayLike, n: int) -> FloatArray:
     k = (hi - lo).astype(np.float64)
     mean = (c1[hi] - c1[lo]) / k
     return np.maximum((c2[hi] - c2[lo]) / k - mean * mean, 0.0)
+
+
+def true_runs(mask: ArrayLike, min_samples: int = 1) -> NDArray[np.int64]:
+    """(K, 2) half-open ``[start, end)`` sample ranges of the runs of True in ``mask`` at least ``min_samples`` long."""
+    d = np.diff(np.concatenate([[0], np.asarray(mask, dtype=bool).astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    keep = (ends - starts) >= min_samples
+    return np.column_stack([starts[keep], ends[keep]]).astype(np.int64)

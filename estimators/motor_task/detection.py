@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfiltfilt
 
 from estimators.motor_task.tasks import MotorTaskParams, TaskSpec
-from estimators.windows import moving_variance
+from estimators.windows import moving_variance, true_runs
 
 FloatArray = NDArray[np.float64]
 
@@ -42,12 +42,6 @@ def lowpass(x: FloatArray, fs_hz: float, cutoff_hz: float) -> FloatArray:
 def moving_sd(x: FloatArray, n: int) -> FloatArray:
     """Centred moving standard deviation over ``n`` samples (shorter at the ends), via cumulative sums (D2)."""
     return np.sqrt(moving_variance(x, max(int(n), 2)))
-
-
-def runs(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
-    """Half-open ``[start, end)`` runs of True, shape (k, 2)."""
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)]).astype(np.int64)
 
 
 def merge_runs(r: NDArray[np.int64], max_gap: int) -> NDArray[np.int64]:
@@ -82,7 +76,7 @@ def excursions(y: FloatArray, span: tuple[int, int], p: MotorTaskParams) -> NDAr
     np.maximum.accumulate(idx, out=idx)
     filled = state[idx]
     filled[filled < 0] = (y[0] > mid)  # undecided before the first clear sample: side of the midline
-    return runs(filled == 1)
+    return true_runs(filled == 1)
 
 
 @dataclass
@@ -219,7 +213,7 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
     if len(exc) == 0:
         return []
     v = np.gradient(y) * fs_hz
-    still = merge_runs(runs(np.abs(v) < p.stationary_rad_s), int(round(p.merge_gap_s * fs_hz)))
+    still = merge_runs(true_runs(np.abs(v) < p.stationary_rad_s), int(round(p.merge_gap_s * fs_hz)))
     w = max(1, int(round(p.level_window_s * fs_hz)))
     edge_rest = int(round(p.min_edge_rest_s * fs_hz))
     k_n = len(exc)

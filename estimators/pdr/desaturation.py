@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimators.windows import true_runs
+
 FloatArray = NDArray[np.float64]
 
 __all__ = ["rebuild_saturated"]
@@ -39,8 +41,7 @@ def rebuild_saturated(dt_s: ArrayLike, gyr: ArrayLike, saturated: ArrayLike, ran
         clipped = flagged & (np.abs(g[:, j]) >= near)
         if not clipped.any():
             continue
-        d = np.diff(np.concatenate([[0], clipped.astype(np.int8), [0]]))
-        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        for a, b in true_runs(clipped):
             if b - a <= max_run and a - edge >= 0 and b + edge <= n:
                 runs.append((j, a, b))
     if not runs:

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimators.windows import centred_bounds, moving_variance
+from estimators.windows import centred_bounds, moving_variance, true_runs
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -133,10 +133,5 @@ def pitch_detector(pitch_rad: ArrayLike, pitch_ref_rad: float, params: PitchPara
 
 
 def stance_intervals(mask: ArrayLike, min_samples: int = 1) -> NDArray[np.int64]:
-    """(K, 2) half-open ``[start, end)`` sample ranges of the True runs of ``mask`` at least ``min_samples`` long."""
-    b = np.asarray(mask, dtype=bool).astype(np.int8)
-    d = np.diff(np.concatenate([[0], b, [0]]))
-    starts = np.flatnonzero(d == 1)
-    ends = np.flatnonzero(d == -1)
-    keep = (ends - starts) >= min_samples
-    return np.column_stack([starts[keep], ends[keep]]).astype(np.int64)
+    """(K, 2) half-open ``[start, end)`` sample ranges of the stance runs of ``mask`` at least ``min_samples`` long."""
+    return true_runs(mask, min_samples)

@@ -16,3 +16,12 @@ def test_moving_variance_equals_direct_computation():
     got = moving_variance(x, 7)
     want = [np.var(x[max(i - 3, 0):min(i + 4, 50)]) for i in range(50)]
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-9)
+
+
+def test_true_runs_are_half_open_and_filtered_by_length():
+    from estimators.windows import true_runs
+
+    mask = np.array([1, 1, 0, 1, 0, 0, 1, 1, 1], dtype=bool)
+    assert true_runs(mask).tolist() == [[0, 2], [3, 4], [6, 9]]
+    assert true_runs(mask, min_samples=2).tolist() == [[0, 2], [6, 9]]
+    assert true_runs(np.zeros(4, bool)).shape == (0, 2)
