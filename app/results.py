@@ -171,12 +171,7 @@ def session_patient(outcome: SessionOutcome) -> Patient:
     """The patient block: what the names and ``session.json`` said (its optional keys ``name``, ``professional``,
     ``weight_kg``, ``height_m``, ``observations`` are shown as typed)."""
     meta = outcome.session.metadata
-    extra: dict[str, Any] = {}
-    if outcome.session.manifest is not None:
-        try:
-            extra = json.loads(Path(outcome.session.manifest).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            extra = {}
+    extra = outcome.session.manifest_data  # parsed and checked once by load_session
 
     def number(key: str) -> float | None:
         try:

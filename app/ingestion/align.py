@@ -97,14 +97,14 @@ def _grid(t0: float, t1: float, fs_hz: float, what: str) -> FloatArray:
 
 def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role: str) -> AlignedRecording:
     arrays = {s.kind: resample(s, t) for s in rec.streams}
-    trimmed = {s.kind: (round(float(t[0] - s.t_s[0]), 4), round(float(s.t_s[-1] - t[-1]), 4)) for s in rec.streams}
-    cut = {s.kind: (float(t[0] - s.t_s[0]), float(s.t_s[-1] - t[-1])) for s in rec.streams}  # unrounded
-    notes = [Note(f"{k} ran on {cut[k][1]:.2f} s after the common span (cut)",
-                  {"variant": "stream_cut_after", "stream": k, "seconds": cut[k][1]})
-             for k, (_, after) in trimmed.items() if after > 0.5]
-    notes += [Note(f"{k} started {cut[k][0]:.2f} s before the common span (cut)",
-                   {"variant": "stream_cut_before", "stream": k, "seconds": cut[k][0]})
-              for k, (before, _) in trimmed.items() if before > 0.5]
+    cut = {s.kind: (float(t[0] - s.t_s[0]), float(s.t_s[-1] - t[-1])) for s in rec.streams}
+    trimmed = {k: (round(before, 4), round(after, 4)) for k, (before, after) in cut.items()}
+    notes = [Note(f"{k} ran on {after:.2f} s after the common span (cut)",
+                  {"variant": "stream_cut_after", "stream": k, "seconds": after})
+             for k, (_, after) in cut.items() if after > 0.5]
+    notes += [Note(f"{k} started {before:.2f} s before the common span (cut)",
+                   {"variant": "stream_cut_before", "stream": k, "seconds": before})
+              for k, (before, _) in cut.items() if before > 0.5]
     nan_rows = {k: int(np.isnan(v).any(axis=1).sum()) for k, v in arrays.items()}
     notes += [Note(f"{k}: {n} grid rows missing (gaps in the stream)",
                    {"variant": "rows_missing", "stream": k, "rows": n}) for k, n in nan_rows.items() if n]
@@ -142,8 +142,8 @@ def align_pair(thigh: RawRecording, shank: RawRecording, fs_hz: float,
     ratio = thigh.acc.fs_hz / shank.acc.fs_hz
     for r in (a, b):
         r.flags["pair_rate_ratio"] = round(ratio, 6)
-        if abs(ratio - 1.0) > 0.002:
-            pct = 100.0 * (ratio - 1.0)
-            r.flags["notes"].append(Note(f"the sensors' rates differ by {pct:+.2f} % (clock drift), aligned on the "
-                                         "time stamps", {"variant": "clock_drift", "pct": pct}))
+    if abs(ratio - 1.0) > 0.002:  # noted once, on the shank (a session's notes list every recording's)
+        pct = 100.0 * (ratio - 1.0)
+        b.flags["notes"].append(Note(f"the sensors' rates differ by {pct:+.2f} % (clock drift), aligned on the "
+                                     "time stamps", {"variant": "clock_drift", "pct": pct}))
     return a, b

@@ -198,11 +198,13 @@ class Session:
     """One session folder: 2 sensors × 4 recordings, each aligned, plus the task pair on one grid.
 
     folder : the session folder.   fmt : the input format(s) used.
-    recordings : ``{(segment, role): AlignedRecording}``.
+    recordings : ``{(segment, role): AlignedRecording}``, each on its own grid.
     raw : ``{(segment, role): RawRecording}`` (the streams as read, own stamps).
     task : ``(thigh, shank)`` task recordings resampled onto one common grid.
     metadata : :class:`SessionMetadata`.   manifest : path of ``session.json`` if one was used.
-    notes : sentences worth showing a user (sheet chosen, streams trimmed, default step height...).
+    manifest_data : its parsed, checked content (``{}`` without one), read once here.
+    notes : sentences worth showing a user (sheet chosen, streams trimmed, default step height...); for
+        the task, those of ``task`` (trimmed to the pair's span, clock drift between the sensors).
     """
 
     folder: Path
@@ -212,6 +214,7 @@ class Session:
     metadata: SessionMetadata
     manifest: Path | None = None
     notes: tuple[str, ...] = ()
+    manifest_data: Mapping[str, Any] = field(default_factory=dict)
 
     def recording(self, segment: str, role: str) -> AlignedRecording:
         """The aligned recording of ``segment`` (thigh/shank) in ``role`` (see :data:`ROLES`)."""

@@ -249,19 +249,19 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     notes += [f"ignored {u}" for u in unrecognised]
     for rec in recs.values():
         check_gyro_unit(rec.acc, rec.gyr)
-    aligned = {}
-    fs = {}
-    for key, rec in recs.items():
-        fs[key] = check_rates(rec, expected_fs_hz)
-        aligned[key] = align_recording(rec, fs[key], *key)
-        notes += [n.prefixed(*key) if isinstance(n, Note) else f"{key[0]} {key[1]}: {n}"
-                  for n in list(rec.notes) + aligned[key].flags["notes"]]
+    fs = {key: check_rates(rec, expected_fs_hz) for key, rec in recs.items()}
+    aligned = {key: align_recording(rec, fs[key], *key) for key, rec in recs.items()}
     task = None
+    processed = dict(aligned)  # what the pipeline uses: the task pair on its common grid, whose notes it gives
     if "task" in roles:
         task = align_pair(recs[("thigh", "task")], recs[("shank", "task")], fs[("thigh", "task")])
+        processed[("thigh", "task")], processed[("shank", "task")] = task
+    for key, rec in recs.items():
+        notes += [n.prefixed(*key) if isinstance(n, Note) else f"{key[0]} {key[1]}: {n}"
+                  for n in list(rec.notes) + processed[key].flags["notes"]]
     metadata = _metadata(manifest, mpath, recs, notes)
     return Session(folder=folder, recordings=aligned, raw=recs, task=task, metadata=metadata, manifest=mpath,
-                   notes=tuple(dict.fromkeys(notes)))
+                   notes=tuple(dict.fromkeys(notes)), manifest_data=manifest)
 
 
 __all__ = ["MANIFEST", "load_session", "read_recording"]

@@ -37,6 +37,9 @@ def test_metabase_session_in_three_languages(tmp_path, sim_session, lang, dialec
     assert s.metadata.value("step_height_m") == (0.34 if lang == "en" else 0.17)
     assert s.metadata.value("side") is None and s.manifest is None
     assert s.task[1].flags["pair_rate_ratio"] == pytest.approx(1 / 1.008, rel=5e-4)   # shank clock 0.8 % fast
+    # the pair's clock-drift note reaches the user, once
+    (drift,) = [n for n in s.notes if getattr(n, "params", {}).get("variant") == "clock_drift"]
+    assert drift.startswith("shank task: ") and drift.params["pct"] == pytest.approx(-0.79, abs=0.02)
 
 
 def test_manifest_maps_sensors_and_gives_side(tmp_path, sim_session):
