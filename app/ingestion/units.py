@@ -52,23 +52,21 @@ def normalise_unit(text: str) -> str:
     return _ALIASES.get(u, u)
 
 
-def unit_factor(kind: str, unit: str) -> float | None:
-    """Factor taking ``unit`` to the project unit of ``kind`` (acc/gyr/mag/time), ``None`` if unknown.
-
-    For the magnetometer ``g``/``mg`` mean gauss/milligauss (the accelerometer's g is never a field unit).
-    """
+def _key(kind: str, unit: str) -> str:
+    """``unit``'s spelling in ``UNITS[kind]``: for the magnetometer ``g``/``mg`` mean gauss/milligauss (the
+    accelerometer's g is never a field unit)."""
     u = normalise_unit(unit)
-    if kind == "mag":
-        u = {"g": "gauss", "mg": "mgauss"}.get(u, u)
-    return UNITS[kind].get(u)
+    return {"g": "gauss", "mg": "mgauss"}.get(u, u) if kind == "mag" else u
+
+
+def unit_factor(kind: str, unit: str) -> float | None:
+    """Factor taking ``unit`` to the project unit of ``kind`` (acc/gyr/mag/time), ``None`` if unknown."""
+    return UNITS[kind].get(_key(kind, unit))
 
 
 def pretty(kind: str, unit: str) -> str:
-    u = normalise_unit(unit)
-    if kind == "mag":
-        u = {"g": "gauss", "mg": "mgauss"}.get(u, u)
-        return _PRETTY.get(u, unit)
-    return unit
+    """``unit`` as printed to a user (magnetometer units in their usual case: µT, G...)."""
+    return _PRETTY.get(_key(kind, unit), unit) if kind == "mag" else unit
 
 
 def _median_norm(values: FloatArray) -> float:
@@ -81,28 +79,29 @@ def _guess(kind: str, declared: str, norm_si: float, lo: float, hi: float) -> st
     """Name the unit that would make ``norm_si`` fall in [lo, hi], as advice."""
     raw = norm_si / unit_factor(kind, declared)
     for u, f in UNITS[kind].items():
-        if lo <= raw * f <= hi and normalise_unit(u) != normalise_unit(declared):
-            return f"The numbers look like {_PRETTY.get(u, u) if kind == 'mag' else u}, not {declared}"
+        if lo <= raw * f <= hi and u != _key(kind, declared):
+            return f"The numbers look like {pretty(kind, u)}, not {declared}"
     return "No common unit explains them"
+
+
+#: kind → (plausible median norm lo, hi; range a correct unit would give, for the hint; what, SI unit, reference)
+_PLAUSIBLE = {
+    "acc": (4.0, 25.0, 8.0, 12.0, "accelerometer's typical magnitude", "m/s²", "gravity is 9.81 m/s²"),
+    "mag": (5.0, 1000.0, 15.0, 200.0, "magnetometer's typical field", "µT", "the earth's field is 25–65 µT"),
+}
 
 
 def check_magnitude(kind: str, values_si: FloatArray, declared: str, file: Path) -> None:
     """Refuse acc/mag whose median norm is implausible for the declared unit (see module docstring)."""
-    m = _median_norm(values_si)
-    if kind == "acc":
-        if not 4.0 <= m <= 25.0:
-            hint = _guess(kind, declared, m, 8.0, 12.0)
+    if kind in _PLAUSIBLE:
+        lo, hi, guess_lo, guess_hi, what, si, reference = _PLAUSIBLE[kind]
+        m = _median_norm(values_si)
+        if not lo <= m <= hi:
+            hint = _guess(kind, declared, m, guess_lo, guess_hi)
+            shown = pretty(kind, declared)
             raise IngestionError(
-                f"{file}: the accelerometer's typical magnitude is {m:.4g} m/s² when read as ({declared}); "
-                f"gravity is 9.81 m/s². {hint}: correct the unit in the column header (or re-export the file "
-                f"in {declared}).")
-    elif kind == "mag":
-        if not 5.0 <= m <= 1000.0:
-            hint = _guess(kind, declared, m, 15.0, 200.0)
-            raise IngestionError(
-                f"{file}: the magnetometer's typical field is {m:.4g} µT when read as ({pretty(kind, declared)}); "
-                f"the earth's field is 25–65 µT. {hint}: correct the unit in the column header (or re-export "
-                f"the file in {pretty(kind, declared)}).")
+                f"{file}: the {what} is {m:.4g} {si} when read as ({shown}); {reference}. {hint}: correct the "
+                f"unit in the column header (or re-export the file in {shown}).")
     elif kind == "gyr":
         n = np.linalg.norm(values_si, axis=1)
         n = n[np.isfinite(n)]
