@@ -8,8 +8,7 @@ Stages (each reported to ``progress(stage, fraction)``):
    applied to all its recordings;
 3. **segments** — per sensor, ``q_sensor_segment`` from standing and supine (:func:`estimators.knee.calibrate_segment`),
    and the gyroscope bias measured while those postures are still, subtracted from every later recording
-   (a BMI160's bias reaches ±3 °/s; on a simulated step-up a 1.7 °/s bias costs Guo's filter 30° of
-   rotation error and the default filter 3°, both back under 1.5° with the bias removed);
+   (a BMI160's bias reaches ±3 °/s, which the filters would otherwise have to learn during the motion);
    with ``calibration="functional"`` the femur's z axis is then the knee's flexion axis estimated on the
    task's gyroscopes (:func:`estimators.joint_axis.estimate_axis`, checked against the filters' relative
    motion; :func:`estimators.knee.functional_calibration`) instead of the supine posture's, and the tibia is turned about its long axis so that the knee's rotation
@@ -173,15 +172,16 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         warnings += list(cal.warnings) + knee.mounting_warnings(cal, label=seg)
 
     thigh, shank = session.task_pair()
+    task = {"thigh": thigh, "shank": shank}
     q_standing = _standing_orientations(session, filt, mag, segments)
     q_es: dict[str, FloatArray] = {}
-    mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in (("thigh", thigh), ("shank", shank))}
-    for i, (seg, rec) in enumerate((("thigh", thigh), ("shank", shank))):
+    mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in task.items()}
+    gyr_task = {seg: rec.gyr - segments[seg].gyr_bias_rad_s for seg, rec in task.items()}
+    for i, (seg, rec) in enumerate(task.items()):
         progress(f"orientation {seg}", 0.45 + 0.2 * i)
-        gyr = rec.gyr - segments[seg].gyr_bias_rad_s
-        q_es[seg] = filt.estimate(rec.acc, gyr, mag_task[seg], fs_hz=rec.fs_hz).orientation_
+        q_es[seg] = filt.estimate(rec.acc, gyr_task[seg], mag_task[seg], fs_hz=rec.fs_hz).orientation_
     if options.calibration == "functional":
-        segments, functional_warnings = _functional(segments, thigh, shank, q_es, q_standing)
+        segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)
         warnings += functional_warnings
     q_seg = {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
 
@@ -239,20 +239,21 @@ def _standing_heading(q_standing: dict[str, FloatArray], segments: dict[str, kne
     return knee.heading_offset(q["thigh"], q["shank"], method="straight_knee", max_offset_rad=max_offset_rad)
 
 
-def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, q_es: dict[str, FloatArray],
-                q_standing: dict[str, FloatArray]) -> tuple[dict[str, knee.SegmentCalibration], list[QualityWarning]]:
+def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, gyr_task: dict[str, FloatArray],
+                q_es: dict[str, FloatArray], q_standing: dict[str, FloatArray],
+                ) -> tuple[dict[str, knee.SegmentCalibration], list[QualityWarning]]:
     """Femur on the task's flexion axis, the tibia's rotation zeroed while standing.
 
     The axis is Seel's gyroscope-only estimate (:func:`estimators.joint_axis.estimate_axis`, seed 000 eqs.
     68–69), checked against the dominant axis of the filters' relative angular velocity
-    (:func:`estimators.knee.flexion_axis`): a sagittal-plane task can leave Seel's problem ill-posed (one
-    simulated step-up put it 18° off); when the two differ by more than ``FUNCTIONAL_AXIS_AGREE_RAD`` in the
+    (:func:`estimators.knee.flexion_axis`): a sagittal-plane task can leave Seel's problem ill-posed (on
+    simulated step-ups its axis can land far off with the same residual); when the two differ by more than ``FUNCTIONAL_AXIS_AGREE_RAD`` in the
     transverse plane the relative-velocity axis is used, with a warning (it absorbs the adduction that moves
-    with flexion: ~5° of adduction on simulated step-ups, against ~1° for a well-posed Seel estimate)."""
+    with flexion: ~5° of adduction RMSE on simulated step-ups against 0.2–1.7° for a well-posed Seel estimate,
+    ``python -m benchmarks.pipeline_accuracy --supine-roll-out 15 --calibration functional``)."""
     from estimators.joint_axis import estimate_axis
 
-    g_t = thigh.gyr - segments["thigh"].gyr_bias_rad_s
-    g_s = shank.gyr - segments["shank"].gyr_bias_rad_s
+    g_t, g_s = gyr_task["thigh"], gyr_task["shank"]  # bias removed
     ok = np.all(np.isfinite(g_t), axis=1) & np.all(np.isfinite(g_s), axis=1)
     warnings: list[QualityWarning] = []
     try:
