@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict
+from html import escape
 from pathlib import Path
 from typing import Any
 
@@ -72,7 +73,7 @@ def trajectory_svg(result: PdrResult, *, title: str = "", size_px: int = 640) ->
     for p, col in ((xy[0], "#2a9d3a"), (xy[-1], "#c0392b")):
         a, b = px(p)
         parts.append(f'<circle cx="{a:.1f}" cy="{b:.1f}" r="5" fill="{col}"/>')
-    parts.append(f'<text x="{margin:.0f}" y="20">{title} (grid 1 m; green start, red end)</text>')
+    parts.append(f'<text x="{margin:.0f}" y="20">{escape(title)} (grid 1 m; green start, red end)</text>')
     parts.append("</svg>")
     return "\n".join(parts)
 
@@ -86,21 +87,22 @@ def run_walk(path: str | Path, *, fmt: str = "iez", sensor: int = 1, method: str
                       gyr_range_rad_s=None if np.isnan(rec.gyr_range_rad_s) else rec.gyr_range_rad_s)
     m = res.metrics(true_distance_m)
     strides = [asdict(s) for s in res.strides]
-    lengths = np.array([s["length_m"] for s in strides]) if strides else np.zeros(0)
-    durs = np.array([s["duration_s"] for s in strides]) if strides else np.zeros(0)
-    mean_dur = float(durs.mean()) if len(durs) else float("nan")
+    summary: dict[str, Any] = {"n_strides": len(strides), "mean_stride_length_m": None, "mean_stride_duration_s": None,
+                               "cadence_strides_min": None, "cadence_steps_min": None, "mean_speed_m_s": None,
+                               "duration_s": float(res.t_s[-1] - res.t_s[0])}
+    if strides:
+        lengths = np.array([s["length_m"] for s in strides])
+        durs = np.array([s["duration_s"] for s in strides])
+        mean_dur = float(durs.mean())
+        summary.update(mean_stride_length_m=float(lengths.mean()), mean_stride_duration_s=mean_dur,
+                       cadence_strides_min=60.0 / mean_dur, cadence_steps_min=120.0 / mean_dur,
+                       mean_speed_m_s=float(lengths.sum() / durs.sum()))
     out: dict[str, Any] = {
         "metrics": {k: float(v) for k, v in asdict(m).items()},
         "trajectory": {"t_s": _round(res.t_s, 4), "pos_m": _round(res.pos_m, 4), "vel_m_s": _round(res.vel_m_s, 4),
                        "q_earth_sensor": _round(res.q_earth_sensor, 6), "stance": res.stance.astype(int).tolist()},
         "strides": strides,
-        "summary": {"n_strides": len(strides),
-                    "mean_stride_length_m": float(lengths.mean()) if len(lengths) else None,
-                    "mean_stride_duration_s": mean_dur if len(durs) else None,
-                    "cadence_strides_min": 60.0 / mean_dur if len(durs) else None,
-                    "cadence_steps_min": 120.0 / mean_dur if len(durs) else None,
-                    "mean_speed_m_s": float(lengths.sum() / durs.sum()) if len(durs) else None,
-                    "duration_s": float(res.t_s[-1] - res.t_s[0])},
+        "summary": summary,
         "method": res.method,
         "detector": res.detector,
         "input": {"file": rec.source, "format": fmt, "sensor": sensor, "samples": len(rec),

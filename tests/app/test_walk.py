@@ -108,6 +108,16 @@ def test_run_walk_json_and_svg(sim_iez, tmp_path):
     assert root.tag.endswith("svg") and any(e.tag.endswith("polyline") for e in root)
 
 
+def test_svg_title_with_markup_characters_stays_valid(sim_iez, tmp_path):
+    _, _, path = sim_iez
+    odd = tmp_path / "conf-3333-a&b<c>.csv"
+    odd.write_bytes(path.read_bytes())
+    run_walk(odd, plot_out=tmp_path / "w.svg")
+    root = ET.fromstring((tmp_path / "w.svg").read_text())  # an unescaped & or < would not parse
+    (text,) = [e for e in root if e.tag.endswith("text")]
+    assert text.text.startswith(f"{odd.name} sensor 1")
+
+
 @pytest.mark.skipif(not IEZ_DIR.is_dir(), reason="../shared/data/iez not present")
 def test_real_iez_file_reads_and_flags_gyroscope_saturation():
     files = sorted(IEZ_DIR.glob("conf-3030-*.csv"))
