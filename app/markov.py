@@ -140,7 +140,7 @@ def run_markov(path: str | Path, out: str | Path, *, method: str = "auto", zeta_
             cols[f"{s}_sagittal_deg"] = np.degrees(r.theta_rad[:, i])
         joint_rad, state, used = r.joint_rad, r.markov_state, r.corrected
         summary["params"] = asdict(p)
-        summary["occupancy"] = {s: float(np.mean(state == i)) for i, s in enumerate(segs)}
+        labels = segs
         summary["corrected"] = float(np.mean(used))
     else:
         p = SpatialParams(joint_axis=ax)
@@ -152,13 +152,12 @@ def run_markov(path: str | Path, out: str | Path, *, method: str = "auto", zeta_
             labels = segs
         else:
             r = smea(data["gyr"], data["acc"], fs_hz=fs, params=p, gravity_ref=gref, theta0_rad=th0)
-            labels = segs + ["both"]
+            labels = segs + ["thigh+shank"]
         for i, s in enumerate(segs):
             for a, name in enumerate(("roll", "pitch", "yaw")):
                 cols[f"{s}_{name}_deg"] = np.degrees(r.theta_rad[:, i, a])
         joint_rad, state = r.joint_rad, r.markov_state
         summary["params"] = asdict(p)
-        summary["occupancy"] = {s: float(np.mean(state == i)) for i, s in enumerate(labels)}
         summary["accelerometer_use"] = {s: float(r.acc_used[:, i].mean()) for i, s in enumerate(segs)}
     for i, j in enumerate(joints):
         cols[f"{j}_deg"] = np.degrees(joint_rad[:, i])
@@ -172,6 +171,7 @@ def run_markov(path: str | Path, out: str | Path, *, method: str = "auto", zeta_
         for k in range(n):
             wr.writerow([f"{cols[c][k]:.6g}" if c != "markov_state" else int(cols[c][k]) for c in names])
     summary["params"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in summary["params"].items()}
-    summary["markov_state_labels"] = segs if method != "smea" else segs + ["thigh+shank"]
+    summary["occupancy"] = {s: float(np.mean(state == i)) for i, s in enumerate(labels)}
+    summary["markov_state_labels"] = labels
     (out / "markov.json").write_text(json.dumps(summary, indent=2, default=float))
     return summary

@@ -40,6 +40,7 @@ def test_run_markov_writes_angles_and_occupancy(tmp_path, method):
     summary = run_markov(src, tmp_path / "out", method=method)
     assert summary["method"] == method
     assert abs(sum(summary["occupancy"].values()) - 1.0) < 1e-9
+    assert list(summary["occupancy"]) == summary["markov_state_labels"]   # one naming of the states
     js = json.loads((tmp_path / "out" / "markov.json").read_text())
     assert js["fs_hz"] == pytest.approx(50.0)
     with open(tmp_path / "out" / "angles.csv") as fh:
