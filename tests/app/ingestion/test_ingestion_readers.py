@@ -121,8 +121,8 @@ def test_real_metabase_export_units_and_rates():
     assert 20.0 < np.median(np.linalg.norm(mag.values, axis=1)) < 150.0        # µT (earth + hard iron)
     from app.ingestion.units import check_gyro_unit, gyro_scale_ratio
     check_gyro_unit(acc, gyr)                                                   # deg/s declared and consistent
-    r = gyro_scale_ratio(acc, gyr)
-    assert r is None or 0.1 < r < 2.0
+    # too few 0.5 s windows where gravity turns > 15° to judge the unit: check_gyro_unit leaves it unchecked
+    assert gyro_scale_ratio(acc, gyr) is None
     assert acc.t_s[0] == pytest.approx(1635517120.016) and gyr.t_s[0] - acc.t_s[0] == pytest.approx(0.009, abs=1e-6)
 
 
