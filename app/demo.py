@@ -57,7 +57,7 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
 
     ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
     issue's accuracy goal (noise, gyroscope bias, hard/soft iron, mounting, clock drift).  With them, a
-    0.1–0.3 m/s² accelerometer bias tilts each sensor's vertical by up to ~1.5°, which the 63° magnetic
+    0.1–0.3 m/s² accelerometer bias tilts each sensor's vertical by up to ~1.7°, which the 63° magnetic
     dip turns into ~3° of heading and so of knee rotation: the figure-eight never holds still, so the
     protocol gives no way to measure that bias (it would need still pauses in varied orientations).
     ``supine_roll_out_deg`` lets the leg lie rolled outwards (toes out) in the supine recording.
