@@ -1,11 +1,8 @@
 """Excel workbooks of one knee session: ``angles.xlsx`` and ``quaternions.xlsx``.
 
 Reports present; they compute nothing clinical.  Every number comes from :class:`~reports.model.ReportInput`
-(``results.json`` plus the task's series); the only work done here is *labelling*: which detected cycle and
-which phase each sample falls in, from ``results["cycles"]["boundaries_s"]`` / ``["events_s"]`` and the
-task's phase definitions (:data:`estimators.motor_task.tasks.TASKS`; step-up: impulse = onset →
-countermovement_peak, extension = countermovement_peak → far_left, fall = far_left → rest_reached).
-Sample ranges are half-open ``[start, end)`` (DESIGN §3).
+(``results.json`` plus the task's series); which cycle and phase each sample falls in comes from
+:mod:`reports.labels` (shared with the HTML and PDF reports).
 
 ``angles.xlsx`` sheets: angles over time (time s, flexion, adduction, internal rotation in degrees, cycle
 1-based — empty outside a cycle —, phase); per cycle (accepted / rejected and why, start/end s, ROM
@@ -44,33 +41,18 @@ from openpyxl.cell import WriteOnlyCell
 from openpyxl.styles import Font
 from openpyxl.utils import get_column_letter
 
-from reports import i18n
+from reports.labels import code_label, cycle_and_phase_per_sample, get_path, phase_names, session_rows, tr
 from reports.model import ANGLES, ReportInput
 
-__all__ = ["write_angles_xlsx", "write_quaternions_xlsx", "neutralise_text", "cycle_and_phase_per_sample",
-           "phase_specs", "tr"]
+__all__ = ["write_angles_xlsx", "write_quaternions_xlsx", "neutralise_text"]
 
 #: first characters that make a spreadsheet read a text as a formula (OWASP CSV injection; CR is stored as LF)
 FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n")
 _ILLEGAL_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
-_DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
-                   ("extension", "countermovement_peak", "far_left"),
-                   ("fall", "far_left", "rest_reached"))
 _BOLD = Font(bold=True)
 
 
 # ---------------------------------------------------------------------------------------------- texts
-def tr(key: str, lang: str, /, **fields: Any) -> str:
-    """Translated text of ``key`` (:func:`reports.i18n.t`; keys of ``reports/translations_data.json``)."""
-    return i18n.t(key, lang, **fields)
-
-
-def _label(prefix: str, code: Any, lang: str) -> str:
-    """Translation of a code from the data (``data.phase.impulse``...), the raw code when the table has none."""
-    key = f"{prefix}.{code}"
-    return i18n.t(key, lang) if i18n.has(key) else str(code)
-
-
 def neutralise_text(value: Any) -> str:
     """The text as it will be stored: ``str(value)`` without the control characters XML cannot hold.
 
@@ -182,53 +164,6 @@ def _save(wb: Workbook, bulk: dict[int, _Bulk], path: str | os.PathLike) -> None
             tmp.unlink()
 
 
-# ------------------------------------------------------------------------------------------ labelling
-def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:
-    """``(phase, start event, end event)`` of the session's task (:data:`estimators.motor_task.tasks.TASKS`).
-
-    Falls back to the step-up definitions when the task is unknown to this version.
-    """
-    try:
-        from estimators.motor_task.tasks import get_task
-
-        return tuple((p.name, p.start, p.end) for p in get_task(results.get("task", "step_up")).phases)
-    except (ImportError, ValueError):
-        return _DEFAULT_PHASES
-
-
-def cycle_and_phase_per_sample(ri: ReportInput) -> tuple[list[int | None], list[str]]:
-    """Per sample: the detected cycle (1-based; None outside every cycle) and the phase name ("" outside).
-
-    Cycles are ``results["cycles"]["boundaries_s"]`` (half-open); phases are spans between the cycle's
-    events (``events_s`` in the order of ``events``); unknown (null) boundaries or events are skipped.
-    """
-    cycles = ri.results.get("cycles", {})
-    t = np.asarray(ri.t_s, dtype=np.float64)
-    n = len(t)
-    cycle = np.zeros(n, dtype=np.int64)
-    phase = np.full(n, -1, dtype=np.int64)
-    specs = phase_specs(ri.results)
-    events = list(cycles.get("events", ()))
-    events_s = cycles.get("events_s") or []
-    for k, bounds in enumerate(cycles.get("boundaries_s") or []):
-        if bounds is None or None in bounds[:2]:
-            continue
-        i0, i1 = np.searchsorted(t, bounds[:2], side="left")
-        cycle[i0:i1] = k + 1
-        ev = events_s[k] if k < len(events_s) and events_s[k] is not None else []
-        for j, (_, start, end) in enumerate(specs):
-            if start not in events or end not in events:
-                continue
-            a, b = events.index(start), events.index(end)
-            if max(a, b) >= len(ev) or ev[a] is None or ev[b] is None:
-                continue
-            p0, p1 = np.searchsorted(t, [ev[a], ev[b]], side="left")
-            phase[p0:p1] = j
-    names = [name for name, _, _ in specs]
-    cycle_list = [c if c else None for c in cycle.tolist()]
-    return cycle_list, [names[p] if p >= 0 else "" for p in phase.tolist()]
-
-
 # ------------------------------------------------------------------------------------------ angles.xlsx
 def _angle_titles(lang: str) -> list[str]:
     return [f"{tr('data.angle.' + a, lang)} (°)" for a in ANGLES]
@@ -239,29 +174,20 @@ def _angles_sheet(wb: Workbook, ri: ReportInput, lang: str) -> _Bulk:
     _header(ws, [tr("data.col.time_s", lang), *_angle_titles(lang), tr("data.col.cycle", lang),
                  tr("data.col.phase", lang)], [11, 22, 22, 26, 8, 14])
     cycle, phase = cycle_and_phase_per_sample(ri)
-    labels = {p: _label("data.phase", p, lang) for p in set(phase) if p}
+    labels = {p: code_label("data.phase", p, lang) for p in set(phase) if p}
     a = np.asarray(ri.angles_deg, dtype=np.float64)
     return _Bulk([("num", ri.t_s), ("num", a[:, 0]), ("num", a[:, 1]), ("num", a[:, 2]),
                   ("int", cycle), ("str", [labels.get(p, "") for p in phase])])
 
 
-def _get(d: Any, *keys: str) -> Any:
-    """``d[k1][k2]...`` or None when any level is missing."""
-    for k in keys:
-        if not isinstance(d, dict) or k not in d:
-            return None
-        d = d[k]
-    return d
-
-
 def _cycles_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
     ws = wb.create_sheet(_sheet_title(tr("data.sheet.cycles", lang)))
-    names = [name for name, _, _ in phase_specs(ri.results)]
+    names = phase_names(ri.results)
     stats = ("max", "min", "range")
     titles = [tr("data.col.cycle", lang), tr("data.col.status", lang), tr("data.col.reason", lang),
               tr("data.col.start_s", lang), tr("data.col.end_s", lang)]
     titles += [f"{tr('data.angle.' + a, lang)} {tr('data.stat.' + s, lang)} (°)" for a in ANGLES for s in stats]
-    titles += [f"{_label('data.phase', p, lang)} ({u})" for p in names for u in ("s", "%")]
+    titles += [f"{code_label('data.phase', p, lang)} ({u})" for p in names for u in ("s", "%")]
     titles.append(tr("data.col.message", lang))
     _header(ws, titles, [8, 12, 24, 10, 10] + [14] * (len(titles) - 6) + [50])
     cycles = ri.results.get("cycles", {})
@@ -274,10 +200,10 @@ def _cycles_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
         reason = c.get("reason")
         row = [int(c["index"]) + 1 if c.get("index") is not None else None,
                tr("data.status.accepted" if c.get("accepted") else "data.status.rejected", lang),
-               _label("data.reason", reason, lang) if reason else "",
+               code_label("data.reason", reason, lang) if reason else "",
                c.get("start_s"), c.get("end_s")]
-        row += [_get(c, "rom_deg", a, s) for a in ANGLES for s in stats]
-        row += [_get(c, "phases", p, u) for p in names for u in ("s", "pct")]
+        row += [get_path(c, "rom_deg", a, s) for a in ANGLES for s in stats]
+        row += [get_path(c, "phases", p, u) for p in names for u in ("s", "pct")]
         row.append(messages.get(c.get("index"), "") or "")
         _append(ws, row)
 
@@ -299,35 +225,10 @@ def _curves_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
         _append(ws, [float(pct[i])] + [(c[i] if c and i < len(c) else None) for c in cols])
 
 
-def _session_rows(ri: ReportInput, lang: str) -> list[tuple[str, Any]]:
-    p, r = ri.patient, ri.results
-    side = p.side or r.get("side") or ""
-    task = r.get("task", "")
-    filt = _get(r, "filter", "name")
-    cycles = r.get("cycles", {})
-    return [
-        (tr("data.patient.name_or_id", lang), p.name_or_id),
-        (tr("data.patient.date", lang), p.date),
-        (tr("data.patient.professional", lang), p.professional),
-        (tr("data.patient.side", lang), _label("data.side", side, lang) if side else ""),
-        (tr("data.patient.step_height_m", lang), p.step_height_m),
-        (tr("data.patient.weight_kg", lang), p.weight_kg),
-        (tr("data.patient.height_m", lang), p.height_m),
-        (tr("data.patient.observations", lang), p.observations),
-        (tr("data.session.task", lang), _label("data.task", task, lang) if task else ""),
-        (tr("data.session.filter", lang), filt or ""),
-        (tr("data.session.angle_method", lang), r.get("angle_method", "")),
-        (tr("data.session.fs_hz", lang), ri.fs_hz),
-        (tr("data.session.cycles_detected", lang), cycles.get("detected")),
-        (tr("data.session.cycles_accepted", lang), cycles.get("accepted")),
-        (tr("data.session.software", lang), _get(r, "software", "version") or ""),
-    ]
-
-
 def _session_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
     ws = wb.create_sheet(_sheet_title(tr("data.sheet.session", lang)))
     _header(ws, [tr("data.col.field", lang), tr("data.col.value", lang)], [32, 60])
-    for name, value in _session_rows(ri, lang):
+    for name, value in session_rows(ri, lang):
         _append(ws, [name, value])
 
 
@@ -349,7 +250,7 @@ def _quat_sheet(wb: Workbook, ri: ReportInput, lang: str, title_key: str, qs: di
     ws = wb.create_sheet(_sheet_title(tr(title_key, lang)))
     present = [s for s in names if s in qs] + [s for s in qs if s not in names]
     titles = [tr("data.col.time_s", lang)]
-    titles += [f"{_label('data.seg', s, lang)} {c}" for s in present for c in "wxyz"]
+    titles += [f"{code_label('data.seg', s, lang)} {c}" for s in present for c in "wxyz"]
     _header(ws, titles, [11] + [12] * (len(titles) - 1))
     cols: list[tuple[str, Any]] = [("num", ri.t_s)]
     for s in present:
@@ -368,7 +269,7 @@ def write_quaternions_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
     ws = wb.create_sheet(_sheet_title(tr("data.sheet.calibration", lang)))
     _header(ws, [tr("data.col.segment", lang), "w", "x", "y", "z"], [40, 14, 14, 14, 14])
     for seg, q in ri.q_sensor_segment.items():
-        _append(ws, [f"{_label('data.seg', seg, lang)}: {tr('data.quat.sensor_segment', lang)}",
+        _append(ws, [f"{code_label('data.seg', seg, lang)}: {tr('data.quat.sensor_segment', lang)}",
                      *np.asarray(q, dtype=np.float64).tolist()])
     _append(ws, [])
     _append(ws, [tr("data.quat.note", lang)])

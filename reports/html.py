@@ -27,8 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from reports.excel import _get, _label, _session_rows, cycle_and_phase_per_sample, phase_specs, tr
 from reports import i18n
+from reports.labels import (code_label, cycle_and_phase_per_sample, get_path, phase_names, phase_spans_pct,
+                            session_rows, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
 
@@ -118,7 +119,7 @@ def _task_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
     """Whole task over time: one panel per angle, detected cycles shaded (accepted green, rejected red)."""
     t = _finite_list(ri.t_s)
     cycle, phase = cycle_and_phase_per_sample(ri)
-    phase_names = {p: _label("data.phase", p, lang) for p in set(phase) if p}
+    phase_names = {p: code_label("data.phase", p, lang) for p in set(phase) if p}
     custom = [[c if c is not None else "", phase_names.get(p, "")] for c, p in zip(cycle, phase)]
     cyc_lbl = tr("data.col.cycle", lang)
     data: list[dict[str, Any]] = []
@@ -160,18 +161,6 @@ def _task_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
     return _drop_none({"data": data, "layout": layout})
 
 
-def _phase_boundaries_pct(results: dict[str, Any]) -> list[tuple[str, float, float]]:
-    """``(phase, start %, end %)`` from the mean phase percentages (consecutive phases, cumulative)."""
-    out, acc = [], 0.0
-    for name, _, _ in phase_specs(results):
-        pct = _get(results, "phases", name, "mean_pct")
-        if pct is None or not math.isfinite(float(pct)):
-            return out
-        out.append((name, acc, acc + float(pct)))
-        acc += float(pct)
-    return out
-
-
 def _curves_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
     """Mean ± SD over the normalised cycle, one panel per angle, phase boundaries as dashed lines."""
     curves = ri.results.get("curves") or {}
@@ -203,14 +192,14 @@ def _curves_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
         data.append({**common, "type": "scatter", "y": _finite_list(m), "name": f"{name} ({mean_sd})",
                      "line": {"color": _ANGLE_COLOURS[angle], "width": 2},
                      "customdata": _finite_list(s), "hovertemplate": "%{y:.1f} ± %{customdata:.1f}°<extra></extra>"})
-    bounds = _phase_boundaries_pct(ri.results)
+    bounds = phase_spans_pct(ri.results)
     for k, (name, p0, p1) in enumerate(bounds):
         if k > 0:
             layout["shapes"].append({"type": "line", "xref": "x", "yref": "paper", "x0": p0, "x1": p0, "y0": 0,
                                      "y1": 1, "line": {"color": "#444", "width": 1, "dash": "dash"}})
         layout["annotations"].append({"x": (p0 + p1) / 2, "y": 1.0, "xref": "x", "yref": "paper",
                                       "yanchor": "bottom", "showarrow": False,
-                                      "text": _e(_label("data.phase", name, lang)), "font": {"size": 12}})
+                                      "text": _e(code_label("data.phase", name, lang)), "font": {"size": 12}})
     return _drop_none({"data": data, "layout": layout})
 
 
@@ -236,7 +225,7 @@ def _rom_table(r: dict[str, Any], lang: str) -> str:
     rom = r.get("rom_deg") or {}
     head = [_e(tr("data.col.angle", lang))] + [
         f"{_e(tr('data.stat.' + s, lang))} (°), {_e(tr('html.mean_sd', lang))}" for s in ("range", "max", "min")]
-    rows = [([_e(tr(f"data.angle.{a}", lang))] + [_pm(_get(rom, a, s), lang) for s in ("range", "max", "min")], "")
+    rows = [([_e(tr(f"data.angle.{a}", lang))] + [_pm(get_path(rom, a, s), lang) for s in ("range", "max", "min")], "")
             for a in ANGLES]
     return _table(head, rows)
 
@@ -246,33 +235,33 @@ def _phase_table(r: dict[str, Any], lang: str) -> str:
     head = [_e(tr("data.col.phase", lang)), f"{_e(tr('data.col.duration_s', lang))}, {_e(ms)}",
             f"{_e(tr('data.col.cycle_pct', lang))}, {_e(ms)}"]
     rows = []
-    for name, _, _ in phase_specs(r):
-        ph = _get(r, "phases", name)
-        rows.append(([_e(_label("data.phase", name, lang)), _pm(ph, lang, "mean_s", "sd_s", 2),
+    for name in phase_names(r):
+        ph = get_path(r, "phases", name)
+        rows.append(([_e(code_label("data.phase", name, lang)), _pm(ph, lang, "mean_s", "sd_s", 2),
                       _pm(ph, lang, "mean_pct", "sd_pct", 1)], ""))
     return _table(head, rows)
 
 
 def _cycles_table(r: dict[str, Any], lang: str) -> str:
-    per_cycle = _get(r, "cycles", "per_cycle")
+    per_cycle = get_path(r, "cycles", "per_cycle")
     if not per_cycle:
         return f'<p class="muted">{_e(tr("data.not_available", lang))}</p>'
-    names = [n for n, _, _ in phase_specs(r)]
+    names = phase_names(r)
     head = [_e(tr("data.col.cycle", lang)), _e(tr("data.col.status", lang)), _e(tr("data.col.start_s", lang)),
             _e(tr("data.col.end_s", lang))]
     head += [f"{_e(tr('data.angle.' + a, lang))} {_e(tr('data.stat.range', lang))} (°)" for a in ANGLES]
-    head += [f"{_e(_label('data.phase', p, lang))} (%)" for p in names]
+    head += [f"{_e(code_label('data.phase', p, lang))} (%)" for p in names]
     rows = []
     for c in per_cycle:
         ok = bool(c.get("accepted"))
         status = tr("data.status.accepted" if ok else "data.status.rejected", lang)
         if not ok and c.get("reason"):
-            status += f": {_label('data.reason', c['reason'], lang)}"
+            status += f": {code_label('data.reason', c['reason'], lang)}"
         idx = c.get("index")
         cells = [_e(idx + 1 if isinstance(idx, int) else i18n.MISSING), _e(status), _num(c.get("start_s"), lang, 2),
                  _num(c.get("end_s"), lang, 2)]
-        cells += [_num(_get(c, "rom_deg", a, "range"), lang) for a in ANGLES]
-        cells += [_num(_get(c, "phases", p, "pct"), lang) for p in names]
+        cells += [_num(get_path(c, "rom_deg", a, "range"), lang) for a in ANGLES]
+        cells += [_num(get_path(c, "phases", p, "pct"), lang) for p in names]
         rows.append((cells, "" if ok else "rejected"))
     return _table(head, rows, numeric_from=2)
 
@@ -288,25 +277,25 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
         if not isinstance(rej, dict):
             continue
         idx = rej.get("index")
-        label = _label("data.reason", rej.get("reason"), lang) if rej.get("reason") else ""
+        label = code_label("data.reason", rej.get("reason"), lang) if rej.get("reason") else ""
         items.append(f"{_e(tr('data.col.cycle', lang))} {_e(idx + 1 if isinstance(idx, int) else i18n.MISSING)}: "
                      f"{_e(label)} — {_e(rej.get('message', ''))}")
-    for seg, cal in (_get(r, "calibration", "magnetometer") or {}).items():
+    for seg, cal in (get_path(r, "calibration", "magnetometer") or {}).items():
         q = cal.get("quality", {}) if isinstance(cal, dict) else {}
         field_ut = q.get("field_ut", cal.get("field_ut") if isinstance(cal, dict) else None)
         cov = q.get("coverage_fraction")
         items.append(_e(tr("html.mag_field", lang, 
-            segment=_label("data.seg", seg, lang), field=_num(field_ut, lang, 1),
+            segment=code_label("data.seg", seg, lang), field=_num(field_ut, lang, 1),
             coverage=_num(None if cov is None else 100.0 * cov, lang, 0))))
-    for seg, cal in (_get(r, "calibration", "segment") or {}).items():
+    for seg, cal in (get_path(r, "calibration", "segment") or {}).items():
         angle = cal.get("angle_between_postures_deg") if isinstance(cal, dict) else None
         if angle is not None:
-            items.append(_e(tr("html.posture_angle", lang, segment=_label("data.seg", seg, lang),
+            items.append(_e(tr("html.posture_angle", lang, segment=code_label("data.seg", seg, lang),
                                                                  angle=_num(angle, lang, 1))))
-    for seg, frac in (_get(r, "quality", "magnetic_disturbance_fraction") or {}).items():
+    for seg, frac in (get_path(r, "quality", "magnetic_disturbance_fraction") or {}).items():
         items.append(_e(tr("html.mag_disturbance", lang, 
-            segment=_label("data.seg", seg, lang), pct=_num(None if frac is None else 100.0 * frac, lang, 1))))
-    warnings = _get(r, "quality", "warnings") or []
+            segment=code_label("data.seg", seg, lang), pct=_num(None if frac is None else 100.0 * frac, lang, 1))))
+    warnings = get_path(r, "quality", "warnings") or []
     for w in warnings:
         items.append(_e(warning_text(w, lang, r)[0]))
     if not warnings:
@@ -317,7 +306,7 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
 
 def _patient_block(ri: ReportInput, lang: str) -> str:
     rows = []
-    for name, value in _session_rows(ri, lang):
+    for name, value in session_rows(ri, lang):
         if isinstance(value, float):
             value = _num(value, lang, 2)
         rows.append(f"<tr><th>{_e(name)}</th><td>{_e('' if value is None else value)}</td></tr>")
@@ -352,7 +341,7 @@ def render_html(ri: ReportInput) -> str:
         section("html.section.cycles", _cycles_table(r, lang)),
         section("html.section.quality", _quality_block(r, lang)),
     ])
-    version = _get(r, "software", "version") or ""
+    version = get_path(r, "software", "version") or ""
     return (
         f'<!DOCTYPE html>\n<html lang="{_e(lang)}"><head><meta charset="utf-8">'
         f'<meta name="viewport" content="width=device-width, initial-scale=1">'

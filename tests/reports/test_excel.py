@@ -9,7 +9,8 @@ import numpy as np
 import openpyxl
 import pytest
 
-from reports.excel import cycle_and_phase_per_sample, tr, write_angles_xlsx, write_quaternions_xlsx
+from reports.excel import write_angles_xlsx, write_quaternions_xlsx
+from reports.labels import cycle_and_phase_per_sample, tr
 from reports.model import ANGLES, Patient, ReportInput
 
 INJECTIONS = ['=HYPERLINK("http://evil.example","click")', "+1+2", "-2+3", "@SUM(A1:A2)", "\t=1+1", "\r=1+1",
@@ -67,11 +68,16 @@ def _sheet_rows(ws) -> list[tuple]:
     return list(ws.iter_rows(values_only=True))
 
 
-def test_angles_round_trip_and_labels(tmp_path):
-    ri = make_report_input("es")
+def _angles_workbook(ri: ReportInput, tmp_path) -> openpyxl.Workbook:
+    """``angles.xlsx`` of ``ri`` written under ``tmp_path`` and read back."""
     path = tmp_path / "angles.xlsx"
     write_angles_xlsx(ri, path)
-    wb = openpyxl.load_workbook(path)
+    return openpyxl.load_workbook(path)
+
+
+def test_angles_round_trip_and_labels(tmp_path):
+    ri = make_report_input("es")
+    wb = _angles_workbook(ri, tmp_path)
     assert wb.sheetnames == ["Ángulos", "Ciclos", "Curvas normalizadas", "Paciente y sesión"]
     rows = _sheet_rows(wb["Ángulos"])
     assert rows[0] == ("Tiempo (s)", "Flexión-extensión (°)", "Aducción-abducción (°)",
@@ -109,9 +115,7 @@ def test_cycle_labels_helper_matches_events():
 
 def test_per_cycle_curves_and_session_sheets(tmp_path):
     ri = make_report_input("en")
-    path = tmp_path / "angles.xlsx"
-    write_angles_xlsx(ri, path)
-    wb = openpyxl.load_workbook(path)
+    wb = _angles_workbook(ri, tmp_path)
     assert wb.sheetnames == ["Angles", "Cycles", "Normalised curves", "Patient and session"]
     rows = _sheet_rows(wb["Cycles"])
     head = rows[0]
@@ -146,9 +150,7 @@ def test_per_cycle_curves_and_session_sheets(tmp_path):
 
 def test_missing_per_cycle_says_not_available(tmp_path):
     ri = make_report_input("pt", per_cycle=False)
-    path = tmp_path / "angles.xlsx"
-    write_angles_xlsx(ri, path)
-    wb = openpyxl.load_workbook(path)
+    wb = _angles_workbook(ri, tmp_path)
     rows = _sheet_rows(wb["Ciclos"])
     assert rows[1][1] == "Não disponível"
 
@@ -156,9 +158,7 @@ def test_missing_per_cycle_says_not_available(tmp_path):
 def test_formula_injection_stays_text(tmp_path):
     patient = Patient(name_or_id=INJECTIONS[0], date=INJECTIONS[3], professional=INJECTIONS[2],
                       observations=INJECTIONS[1], side=INJECTIONS[6])
-    path = tmp_path / "angles.xlsx"
-    write_angles_xlsx(make_report_input("en", patient), path)
-    wb = openpyxl.load_workbook(path)
+    wb = _angles_workbook(make_report_input("en", patient), tmp_path)
     ws = wb["Patient and session"]
     cells = {row[0].value: row[1] for row in ws.iter_rows(min_row=2)}
     expected = {"Patient (name or ID)": INJECTIONS[0], "Date": INJECTIONS[3], "Professional": INJECTIONS[2],
@@ -168,7 +168,7 @@ def test_formula_injection_stays_text(tmp_path):
         assert cell.value == literal                     # the exact text, no added quote
         assert cell.data_type == "s"                     # a string cell, never a formula
         assert cell.quotePrefix                          # Excel keeps it text when edited
-    with zipfile.ZipFile(path) as z:                     # no formula element anywhere in the workbook
+    with zipfile.ZipFile(tmp_path / "angles.xlsx") as z:                  # no formula element anywhere in the workbook
         assert not any(b"<f>" in z.read(n) or b"<f " in z.read(n) for n in z.namelist() if n.endswith(".xml"))
 
 
@@ -184,9 +184,7 @@ def test_each_injection_string_reads_back_literally(tmp_path, text):
 
 def test_control_characters_and_nan_do_not_break_the_workbook(tmp_path):
     ri = make_report_input("es", Patient(name_or_id="Ana\x00\x07 Pérez\tñ\ud800\uffff"), nan_rows=True)
-    path = tmp_path / "angles.xlsx"
-    write_angles_xlsx(ri, path)
-    wb = openpyxl.load_workbook(path)
+    wb = _angles_workbook(ri, tmp_path)
     values = dict(_sheet_rows(wb["Paciente y sesión"])[1:])
     assert values["Paciente (nombre o ID)"] == "Ana Pérez\tñ"
     rows = _sheet_rows(wb["Ángulos"])

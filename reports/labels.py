@@ -1,0 +1,137 @@
+"""Labelling shared by every report: translated texts, the task's phases, which cycle and phase each
+sample falls in, and the patient-and-session rows.
+
+Reports present; they compute nothing clinical.  The work here is *labelling* only, from ``results``
+(:class:`~reports.model.ReportInput`): cycles from ``results["cycles"]["boundaries_s"]`` /
+``["events_s"]`` and phases from the session task's definitions (:data:`estimators.motor_task.tasks.TASKS`;
+step-up: impulse = onset → countermovement_peak, extension = countermovement_peak → far_left, fall =
+far_left → rest_reached).  Sample ranges are half-open ``[start, end)`` (DESIGN §3).  The PDF, Excel and
+HTML reports all read phases through :func:`phase_specs`, so a squat or a seated extension shows its own
+phases everywhere, not the step-up's.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from reports import i18n
+from reports.model import ReportInput
+
+__all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_spans_pct",
+           "cycle_and_phase_per_sample", "session_rows"]
+
+_DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
+                   ("extension", "countermovement_peak", "far_left"),
+                   ("fall", "far_left", "rest_reached"))
+
+
+def get_path(d: Any, *keys: str, default: Any = None) -> Any:
+    """``d[k1][k2]...``; ``default`` when a level is missing, not a dict, or the value is None."""
+    for k in keys:
+        if not isinstance(d, dict) or k not in d:
+            return default
+        d = d[k]
+    return default if d is None else d
+
+
+def tr(key: str, lang: str, /, **fields: Any) -> str:
+    """Translated text of ``key`` (:func:`reports.i18n.t`; keys of ``reports/translations*.json``)."""
+    return i18n.t(key, lang, **fields)
+
+
+def code_label(prefix: str, code: Any, lang: str) -> str:
+    """Translation of a code from the data (``data.phase.impulse``...), the raw code when the table has none."""
+    key = f"{prefix}.{code}"
+    return i18n.t(key, lang) if i18n.has(key) else str(code)
+
+
+def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:
+    """``(phase, start event, end event)`` of the session's task (:data:`estimators.motor_task.tasks.TASKS`).
+
+    Falls back to the step-up definitions when the task is unknown to this version.
+    """
+    try:
+        from estimators.motor_task.tasks import get_task
+
+        return tuple((p.name, p.start, p.end) for p in get_task(results.get("task", "step_up")).phases)
+    except (ImportError, ValueError):
+        return _DEFAULT_PHASES
+
+
+def phase_names(results: dict[str, Any]) -> tuple[str, ...]:
+    """The session task's phase names, in order (:func:`phase_specs`)."""
+    return tuple(name for name, _, _ in phase_specs(results))
+
+
+def phase_spans_pct(results: dict[str, Any]) -> list[tuple[str, float, float]]:
+    """``(phase, start %, end %)`` of the mean cycle: the task's phases laid end to end by their mean
+    percentage ``results["phases"][phase]["mean_pct"]``; a missing or non-finite percentage ends the list."""
+    out, start = [], 0.0
+    for name in phase_names(results):
+        pct = get_path(results, "phases", name, "mean_pct")
+        if pct is None or not math.isfinite(float(pct)):
+            break
+        out.append((name, start, start + float(pct)))
+        start += float(pct)
+    return out
+
+
+def cycle_and_phase_per_sample(ri: ReportInput) -> tuple[list[int | None], list[str]]:
+    """Per sample: the detected cycle (1-based; None outside every cycle) and the phase name ("" outside).
+
+    Cycles are ``results["cycles"]["boundaries_s"]`` (half-open); phases are spans between the cycle's
+    events (``events_s`` in the order of ``events``); unknown (null) boundaries or events are skipped.
+    """
+    cycles = ri.results.get("cycles", {})
+    t = np.asarray(ri.t_s, dtype=np.float64)
+    n = len(t)
+    cycle = np.zeros(n, dtype=np.int64)
+    phase = np.full(n, -1, dtype=np.int64)
+    specs = phase_specs(ri.results)
+    events = list(cycles.get("events", ()))
+    events_s = cycles.get("events_s") or []
+    for k, bounds in enumerate(cycles.get("boundaries_s") or []):
+        if bounds is None or None in bounds[:2]:
+            continue
+        i0, i1 = np.searchsorted(t, bounds[:2], side="left")
+        cycle[i0:i1] = k + 1
+        ev = events_s[k] if k < len(events_s) and events_s[k] is not None else []
+        for j, (_, start, end) in enumerate(specs):
+            if start not in events or end not in events:
+                continue
+            a, b = events.index(start), events.index(end)
+            if max(a, b) >= len(ev) or ev[a] is None or ev[b] is None:
+                continue
+            p0, p1 = np.searchsorted(t, [ev[a], ev[b]], side="left")
+            phase[p0:p1] = j
+    names = [name for name, _, _ in specs]
+    cycle_list = [c if c else None for c in cycle.tolist()]
+    return cycle_list, [names[p] if p >= 0 else "" for p in phase.tolist()]
+
+
+def session_rows(ri: ReportInput, lang: str) -> list[tuple[str, Any]]:
+    """``(field, value)`` rows of the patient and session block (Excel sheet, HTML table)."""
+    p, r = ri.patient, ri.results
+    side = p.side or r.get("side") or ""
+    task = r.get("task", "")
+    cycles = r.get("cycles", {})
+    return [
+        (tr("data.patient.name_or_id", lang), p.name_or_id),
+        (tr("data.patient.date", lang), p.date),
+        (tr("data.patient.professional", lang), p.professional),
+        (tr("data.patient.side", lang), code_label("data.side", side, lang) if side else ""),
+        (tr("data.patient.step_height_m", lang), p.step_height_m),
+        (tr("data.patient.weight_kg", lang), p.weight_kg),
+        (tr("data.patient.height_m", lang), p.height_m),
+        (tr("data.patient.observations", lang), p.observations),
+        (tr("data.session.task", lang), code_label("data.task", task, lang) if task else ""),
+        (tr("data.session.filter", lang), get_path(r, "filter", "name", default="")),
+        (tr("data.session.angle_method", lang), r.get("angle_method", "")),
+        (tr("data.session.fs_hz", lang), ri.fs_hz),
+        (tr("data.session.cycles_detected", lang), cycles.get("detected")),
+        (tr("data.session.cycles_accepted", lang), cycles.get("accepted")),
+        (tr("data.session.software", lang), get_path(r, "software", "version", default="")),
+    ]
