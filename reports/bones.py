@@ -158,12 +158,16 @@ def _smooth(t: FloatArray) -> FloatArray:
 # ---------------------------------------------------------------- bones (right leg, unit design length)
 
 
+def _check_bone_args(length_m: float, n_theta: int) -> None:
+    if not length_m > 0:
+        raise ValueError(f"length_m must be > 0 (the bone length in metres), got {length_m}")
+    if n_theta < 6:
+        raise ValueError(f"n_theta must be >= 6 (points around each cross-section), got {n_theta}")
+
+
 def femur_mesh(length_m: float = FEMUR_LENGTH_M, *, n_theta: int = 24) -> Mesh:
     """Right femur in its ISB frame, origin at the knee joint centre, hip centre at (0, length_m, 0)."""
-    if not length_m > 0:
-        raise ValueError(f"length_m must be > 0, got {length_m}")
-    if n_theta < 6:
-        raise ValueError(f"n_theta must be >= 6, got {n_theta}")
+    _check_bone_args(length_m, n_theta)
     s = length_m / FEMUR_LENGTH_M
     L = FEMUR_LENGTH_M
     parts = []
@@ -193,10 +197,7 @@ def femur_mesh(length_m: float = FEMUR_LENGTH_M, *, n_theta: int = 24) -> Mesh:
 def tibia_mesh(length_m: float = TIBIA_LENGTH_M, *, n_theta: int = 24, fibula: bool = True) -> Mesh:
     """Right tibia (and fibula) in the tibia's ISB frame, origin at the ankle joint centre, knee joint
     centre at (0, length_m, 0)."""
-    if not length_m > 0:
-        raise ValueError(f"length_m must be > 0, got {length_m}")
-    if n_theta < 6:
-        raise ValueError(f"n_theta must be >= 6, got {n_theta}")
+    _check_bone_args(length_m, n_theta)
     s = length_m / TIBIA_LENGTH_M
     L = TIBIA_LENGTH_M
     parts = []

@@ -32,12 +32,12 @@ from typing import Any
 import numpy as np
 
 from reports.i18n import fmt_number, t
+from reports.labels import code_label, phase_names, phase_spans_pct
 from reports.model import ANGLES, ReportInput
 from reports.vector import fill_triangles, stroke_polyline
 
 #: the order angles are shown in (clinical reading order)
 ANGLE_ORDER: tuple[str, ...] = ("flexion", "internal_rotation", "adduction")
-PHASES: tuple[str, ...] = ("impulse", "extension", "fall")
 
 #: figure heights in mm for the full text width (180 mm on A4 with 15 mm margins)
 CURVES_HEIGHT_MM = 132.0
@@ -67,20 +67,10 @@ _TITLE_PT = 8.5
 
 # ------------------------------------------------------------------------------------------- helpers
 def phase_boundaries_pct(results: dict[str, Any]) -> list[float]:
-    """Mean phase boundaries in % of the cycle: cumulative mean % of impulse, then of extension.
-
-    Read from ``results["phases"][phase]["mean_pct"]``; a missing percentage ends the list early.
-    """
-    phases = results.get("phases") or {}
-    out: list[float] = []
-    acc = 0.0
-    for name in PHASES[:-1]:
-        pct = (phases.get(name) or {}).get("mean_pct")
-        if pct is None or not np.isfinite(pct):
-            break
-        acc += float(pct)
-        out.append(acc)
-    return out
+    """Mean phase boundaries in % of the cycle: the ends of every phase of the session's task but the last
+    (step-up: impulse, then impulse + extension; :func:`reports.labels.phase_spans_pct`).  A missing
+    percentage ends the list early."""
+    return [end for _, _, end in phase_spans_pct(results)[:len(phase_names(results)) - 1]]
 
 
 def nice_ticks(lo: float, hi: float, target: int = 5, *, expand: bool = True) -> tuple[float, float, list[float]]:
@@ -284,11 +274,12 @@ def draw_curves(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: floa
             if k == 0:
                 pdf.set_font(size=_TICK_PT)
                 pdf.set_text_color(*_PHASE_LINE)
-                if len(bounds) == 2:
+                names = phase_names(ri.results)
+                if len(bounds) == len(names) - 1:
                     edges = [0.0, *bounds, 100.0]
-                    for name, a, b in zip(PHASES, edges[:-1], edges[1:]):
-                        label = t(f"phase_{name}", lang)
-                        pdf.text(float(panel.px((a + b) / 2)) - pdf.get_string_width(label) / 2, panel.y - 0.8, label)
+                    for name, a, b in zip(names, edges[:-1], edges[1:]):
+                        text = code_label("data.phase", name, lang)
+                        pdf.text(float(panel.px((a + b) / 2)) - pdf.get_string_width(text) / 2, panel.y - 0.8, text)
 
                 def band_swatch(sx: float, sy: float, sw: float, sh: float) -> None:
                     pdf.set_fill_color(*_BAND)

@@ -9,12 +9,13 @@
 3. motor task (single-leg step-up, step height, the three phases) and protocol (sensor placement,
    magnetometer ellipsoid calibration, sensor-to-segment calibration from standing and supine postures,
    the orientation filter ``results["filter"]["name"]``, the knee-angle convention);
-4. phase table (impulse, extension, fall: time mean ± SD in s and % of the cycle) and range-of-motion
+4. phase table (the session task's phases, :func:`reports.labels.phase_names`; step-up: impulse,
+   extension, fall: time mean ± SD in s and % of the cycle) and range-of-motion
    table (range, maximum, minimum: mean ± SD in degrees per angle);
 5. mean ± SD curves over the normalised cycle with the mean phase boundaries (:mod:`reports.figures`);
 6. optional still of the key poses: start, peak flexion, full extension (``reports.bones.key_poses``, drawn
-   as shaded vector triangles, when that module is importable; if it fails the report is written without
-   it and the error logged);
+   as shaded vector triangles; if the geometry fails the report is written without it and the error
+   logged);
 7. the whole task over time, accepted cycles shaded and numbered, rejected ones hatched;
 8. quality: magnetometer field and coverage per sensor, cycles accepted / rejected with the reasons,
    the posture check (angle between standing and supine), every warning; then the signature line.
@@ -24,7 +25,8 @@ Every text comes from the translation tables through :func:`reports.i18n.t`; num
 (:mod:`reports.warning_text`); one without a complete translation is printed in English as the software
 wrote it, and then a note says so.  Figures and the key-pose still are vectors drawn with fpdf2's own
 operations (:mod:`reports.figures`; a matplotlib raster cost ~100 ms per figure).
-Page totals are written after the content (no ``{nb}`` alias), so no user text is ever substituted.
+The page itself (A4, margins, font, header and footer, headings, paragraphs, tables; page totals written
+after the content so no user text is ever substituted) is :mod:`reports.pdf_page`.
 The output is deterministic for a given input and ``report_date``.  The font is DejaVu Sans from the installed
 matplotlib package (Unicode: á, ñ, ç, °, µ, ±), embedded as a subset; :mod:`reports.fonts` gives fpdf2 a
 cut of it that parses fast, or the full files when typed text needs more (a Greek or Cyrillic name).
@@ -36,164 +38,22 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
-import re
 from collections.abc import Callable
 from typing import Any
 
-from fpdf import FPDF, FontFace
-from fpdf.enums import TableBordersLayout, XPos, YPos
+from fpdf.enums import XPos, YPos
 
-from reports import figures, fonts
+from reports import bones, figures, fonts
 from reports.i18n import MISSING, fmt_mean_sd, fmt_number, has, t
+from reports.labels import code_label, get_path, phase_names
 from reports.model import ReportInput
+from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
 from reports.warning_text import warning_text
 
 log = logging.getLogger(__name__)
 
-FONT = "dejavu"
-
-MARGIN_MM = 15.0
-HEADER_BOTTOM_MM = 26.0     # content starts below the header rule
-FOOTER_TOP_MM = 282.0       # the footer line sits here (A4 is 297 mm high)
-_ACCENT = (31, 78, 121)     # headings and rules
-_GREY = (90, 90, 90)
-
-#: decimals printed for each kind of number (the golden tests read these too)
-DECIMALS = {"time_s": 2, "pct": 1, "deg": 1, "field_ut": 1, "coverage_pct": 0, "residual_pct": 1,
-            "disturbance_pct": 1, "weight_kg": 1, "height_m": 2}
 ROM_ORDER = figures.ANGLE_ORDER
 KEY_POSES_MAX_H_MM = 75.0
-_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
-
-
-def user_text(value: Any) -> str:
-    """What a person typed, as printable text: str() of it, CR/LF normalised, tabs to spaces, other
-    control characters removed.  Never interpreted (no markdown, no HTML, no templates)."""
-    if value is None:
-        return ""
-    s = str(value).replace("\r\n", "\n").replace("\r", "\n").replace("\t", " ")
-    return _CONTROL.sub("", s).strip()
-
-
-class _Report(FPDF):
-    """FPDF with the report's font and helpers; header/footer are drawn at the end on every page."""
-
-    def __init__(self, lang: str, *, full_font: bool = False) -> None:
-        super().__init__(orientation="P", unit="mm", format="A4")
-        self.lang = lang
-        self.alias_nb_pages(None)  # page totals are written after the content: user text is never substituted
-        for style, path in fonts.font_files(full=full_font).items():
-            self.add_font(FONT, style, str(path))
-        self.set_margins(MARGIN_MM, HEADER_BOTTOM_MM, MARGIN_MM)
-        self.set_auto_page_break(True, margin=297.0 - FOOTER_TOP_MM + 3.0)
-        self.set_font(FONT, "", 9.5)
-
-    def tr(self, key: str, **fields: Any) -> str:
-        return t(key, self.lang, **fields)
-
-    def num(self, x: Any, kind: str) -> str:
-        return fmt_number(x, DECIMALS[kind], self.lang)
-
-    def ensure_space(self, height_mm: float) -> None:
-        """A new page unless ``height_mm`` fits above the footer."""
-        if self.get_y() + height_mm > self.page_break_trigger:
-            self.add_page()
-
-    def section(self, key: str, space_after_mm: float = 14.0) -> None:
-        """A section heading (kept with at least ``space_after_mm`` of what follows)."""
-        self.ensure_space(10.0 + space_after_mm)
-        self.ln(3.0)
-        self.set_font(FONT, "B", 11.5)
-        self.set_text_color(*_ACCENT)
-        self.cell(0, 6.5, self.tr(key), new_x=XPos.LMARGIN, new_y=YPos.NEXT)
-        self.set_draw_color(*_ACCENT)
-        self.set_line_width(0.3)
-        self.line(self.l_margin, self.get_y(), self.w - self.r_margin, self.get_y())
-        self.ln(1.8)
-        self.set_text_color(0, 0, 0)
-        self.set_font(FONT, "", 9.5)
-
-    def paragraph(self, text: str, size: float = 9.5, style: str = "", color=(0, 0, 0)) -> None:
-        self.set_font(FONT, style, size)
-        self.set_text_color(*color)
-        self.multi_cell(0, size * 0.48, text, align="L", new_x=XPos.LMARGIN, new_y=YPos.NEXT)
-        self.set_text_color(0, 0, 0)
-        self.set_font(FONT, "", 9.5)
-
-    def labelled(self, label: str, text: str) -> None:
-        """``label: text`` with the label in bold, wrapped to the page width."""
-        self.set_font(FONT, "B", 9.5)
-        self.write(4.6, label + ": ")
-        self.set_font(FONT, "", 9.5)
-        self.write(4.6, text)
-        self.ln(5.2)
-
-    def grid(self, rows: list[list[str]], col_widths: tuple[float, ...], *, headings: bool = True,
-             align: tuple[str, ...] | None = None, bold_cols: tuple[int, ...] = ()) -> None:
-        """A table; every cell is literal text (fpdf2 tables do not interpret markup by default)."""
-        self.set_font(FONT, "", 9)
-        head = FontFace(emphasis="BOLD", color=(255, 255, 255), fill_color=_ACCENT)
-        with self.table(col_widths=col_widths, text_align=align or "LEFT", line_height=5.2,
-                        first_row_as_headings=headings, headings_style=head, padding=(0.8, 1.5),
-                        borders_layout=TableBordersLayout.HORIZONTAL_LINES, align="LEFT",
-                        width=self.epw) as table:
-            for r, row in enumerate(rows):
-                tr = table.row()
-                for c, text in enumerate(row):
-                    style = FontFace(emphasis="BOLD") if c in bold_cols and (r or not headings) else None
-                    tr.cell(text, style=style)
-        self.ln(1.5)
-
-    def fit(self, text: str, width_mm: float) -> str:
-        """``text`` cut with an ellipsis so that it fits ``width_mm`` on one line in the current font."""
-        if self.get_string_width(text) <= width_mm:
-            return text
-        while text and self.get_string_width(text + "…") > width_mm:
-            text = text[:-1]
-        return text + "…"
-
-    def draw_page_chrome(self, version: str, date_text: str, patient: str) -> None:
-        """Header and footer on every page (after the content, so the page total is known)."""
-        total = self.pages_count
-        self.set_auto_page_break(False)
-        for p in range(1, total + 1):
-            self.page = p
-            # header
-            self.set_xy(self.l_margin, 10.0)
-            self.set_font(FONT, "B", 13)
-            self.set_text_color(*_ACCENT)
-            product = self.tr("product")
-            self.cell(self.get_string_width(product) + 2.0, 7, product)
-            self.set_font(FONT, "", 10)
-            self.set_text_color(*_GREY)
-            self.cell(0, 7, self.tr("report_title"))
-            self.set_xy(self.l_margin, 10.0)
-            self.set_font(FONT, "", 8)
-            self.cell(0, 3.5, self.tr("header_version", version=version), align="R")
-            self.set_xy(self.l_margin, 13.8)
-            self.cell(0, 3.5, self.tr("header_date", date=date_text), align="R")
-            self.set_draw_color(*_ACCENT)
-            self.set_line_width(0.5)
-            self.line(self.l_margin, 19.0, self.w - self.r_margin, 19.0)
-            # footer
-            self.set_line_width(0.2)
-            self.set_draw_color(*_GREY)
-            self.line(self.l_margin, FOOTER_TOP_MM, self.w - self.r_margin, FOOTER_TOP_MM)
-            self.set_xy(self.l_margin, FOOTER_TOP_MM + 1.5)
-            self.set_font(FONT, "", 8)
-            if patient:
-                self.cell(self.epw * 0.7, 4, self.fit(self.tr("footer_patient", patient=patient), self.epw * 0.7))
-            self.set_xy(self.l_margin, FOOTER_TOP_MM + 1.5)
-            self.cell(0, 4, self.tr("page_number", page=p, pages=total), align="R")
-        self.set_text_color(0, 0, 0)
-
-
-def _get(d: Any, *keys: str, default: Any = None) -> Any:
-    for k in keys:
-        if not isinstance(d, dict) or k not in d:
-            return default
-        d = d[k]
-    return default if d is None else d
 
 
 def _side_key(side: str) -> str | None:
@@ -203,12 +63,18 @@ def _side_key(side: str) -> str | None:
             "esquerdo": "left", "esquerda": "left"}.get(s)
 
 
-def _patient_block(pdf: _Report, ri: ReportInput) -> None:
+def _step_height_m(ri: ReportInput) -> Any:
+    """The step height typed for the patient, else the session's (``results["session"]["step_height_m"]``)."""
+    p = ri.patient.step_height_m
+    return p if p is not None else get_path(ri.results, "session", "step_height_m")
+
+
+def _patient_block(pdf: ReportPDF, ri: ReportInput) -> None:
     p, r = ri.patient, ri.results
     side_raw = user_text(p.side) or str(r.get("side") or "")
     side_key = _side_key(side_raw)
     side = pdf.tr(f"side_{side_key}") if side_key else side_raw
-    step_m = p.step_height_m if p.step_height_m is not None else _get(r, "session", "step_height_m")
+    step_m = _step_height_m(ri)
     step = _step_text(pdf, step_m)
     weight = pdf.tr("value_kg", value=pdf.num(p.weight_kg, "weight_kg")) if p.weight_kg is not None else ""
     height = pdf.tr("value_m", value=pdf.num(p.height_m, "height_m")) if p.height_m is not None else ""
@@ -228,7 +94,7 @@ def _patient_block(pdf: _Report, ri: ReportInput) -> None:
     pdf.paragraph(obs or none)
 
 
-def _step_text(pdf: _Report, step_m: Any) -> str:
+def _step_text(pdf: ReportPDF, step_m: Any) -> str:
     try:
         cm = float(step_m) * 100.0
     except (TypeError, ValueError):
@@ -238,11 +104,11 @@ def _step_text(pdf: _Report, step_m: Any) -> str:
     return pdf.tr("value_cm", value=fmt_number(cm, 0 if abs(cm - round(cm)) < 1e-6 else 1, pdf.lang))
 
 
-def _task_and_protocol(pdf: _Report, ri: ReportInput) -> None:
+def _task_and_protocol(pdf: ReportPDF, ri: ReportInput) -> None:
     r = ri.results
     side_raw = user_text(ri.patient.side) or str(r.get("side") or "")
     side_key = _side_key(side_raw)
-    step_m = ri.patient.step_height_m if ri.patient.step_height_m is not None else _get(r, "session", "step_height_m")
+    step_m = _step_height_m(ri)
     pdf.section("section_task")
     pdf.paragraph(pdf.tr("task_step_up"), style="B")
     leg = pdf.tr(f"leg_{side_key}") if side_key else (side_raw or MISSING)
@@ -254,19 +120,19 @@ def _task_and_protocol(pdf: _Report, ri: ReportInput) -> None:
     pdf.labelled(pdf.tr("protocol_sensors_label"), pdf.tr("protocol_sensors"))
     pdf.labelled(pdf.tr("protocol_mag_label"), pdf.tr("protocol_mag"))
     pdf.labelled(pdf.tr("protocol_segment_label"), pdf.tr("protocol_segment"))
-    pdf.labelled(pdf.tr("protocol_filter_label"), str(_get(r, "filter", "name", default=MISSING)))
+    pdf.labelled(pdf.tr("protocol_filter_label"), str(get_path(r, "filter", "name", default=MISSING)))
     method = str(r.get("angle_method") or "grood_suntay")
     pdf.labelled(pdf.tr("protocol_angles_label"),
                  pdf.tr(f"angle_method_{method}") if has(f"angle_method_{method}") else method)
 
 
-def _tables(pdf: _Report, ri: ReportInput) -> None:
+def _tables(pdf: ReportPDF, ri: ReportInput) -> None:
     r, lang = ri.results, pdf.lang
     phases = r.get("phases") or {}
     rows = [[pdf.tr("col_phase"), pdf.tr("col_time_s"), pdf.tr("col_pct_cycle")]]
-    for name in figures.PHASES:
+    for name in phase_names(r):
         ph = phases.get(name) or {}
-        rows.append([pdf.tr(f"phase_{name}"),
+        rows.append([code_label("data.phase", name, lang),
                      fmt_mean_sd(ph.get("mean_s"), ph.get("sd_s"), DECIMALS["time_s"], lang),
                      fmt_mean_sd(ph.get("mean_pct"), ph.get("sd_pct"), DECIMALS["pct"], lang)])
     for name in ("movement", "cycle"):
@@ -274,29 +140,29 @@ def _tables(pdf: _Report, ri: ReportInput) -> None:
             ph = phases[name] or {}
             rows.append([pdf.tr(f"phase_{name}"),
                          fmt_mean_sd(ph.get("mean_s"), ph.get("sd_s"), DECIMALS["time_s"], lang), MISSING])
-    n = _get(r, "cycles", "accepted", default=0)
+    n = get_path(r, "cycles", "accepted", default=0)
     pdf.section("section_phases", space_after_mm=40)
     pdf.grid(rows, (2, 1.5, 1.5), align=("LEFT", "RIGHT", "RIGHT"), bold_cols=(0,))
-    pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=_GREY)
+    pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=GREY)
 
     rom = r.get("rom_deg") or {}
     rows = [[pdf.tr("col_angle"), pdf.tr("col_range"), pdf.tr("col_max"), pdf.tr("col_min")]]
     for angle in ROM_ORDER:
         a = rom.get(angle) or {}
         rows.append([pdf.tr(f"angle_{angle}")] + [
-            fmt_mean_sd(_get(a, stat, "mean"), _get(a, stat, "sd"), DECIMALS["deg"], lang)
+            fmt_mean_sd(get_path(a, stat, "mean"), get_path(a, stat, "sd"), DECIMALS["deg"], lang)
             for stat in ("range", "max", "min")])
     pdf.section("section_rom", space_after_mm=30)
     pdf.grid(rows, (2, 1.2, 1.2, 1.2), align=("LEFT", "RIGHT", "RIGHT", "RIGHT"), bold_cols=(0,))
-    pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=_GREY)
+    pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=GREY)
 
 
-def _figure_section(pdf: _Report, ri: ReportInput, draw: Callable[..., None], height_mm: float, section: str,
+def _figure_section(pdf: ReportPDF, ri: ReportInput, draw: Callable[..., None], height_mm: float, section: str,
                     note: str) -> None:
     """A section heading, its grey note and a full-width vector figure kept on one page; ``draw`` is one
     of :mod:`reports.figures`' ``draw_*(pdf, ri, x, y, w, h)``."""
     pdf.section(section, space_after_mm=height_mm + 8)
-    pdf.paragraph(pdf.tr(note), size=8, color=_GREY)
+    pdf.paragraph(pdf.tr(note), size=8, color=GREY)
     pdf.ensure_space(height_mm + 2.0)
     y = pdf.get_y()
     draw(pdf, ri, pdf.l_margin, y, pdf.epw, height_mm)
@@ -305,24 +171,19 @@ def _figure_section(pdf: _Report, ri: ReportInput, draw: Callable[..., None], he
     pdf.set_xy(pdf.l_margin, y + height_mm + 2.0)
 
 
-def _curves(pdf: _Report, ri: ReportInput) -> None:
+def _curves(pdf: ReportPDF, ri: ReportInput) -> None:
     _figure_section(pdf, ri, figures.draw_curves, figures.CURVES_HEIGHT_MM, "section_curves", "curves_note")
 
 
-def _task_over_time(pdf: _Report, ri: ReportInput) -> None:
+def _task_over_time(pdf: ReportPDF, ri: ReportInput) -> None:
     _figure_section(pdf, ri, figures.draw_task, figures.TASK_HEIGHT_MM, "section_task_time", "task_time_note")
 
 
-def _key_poses(pdf: _Report, ri: ReportInput) -> bool:
+def _key_poses(pdf: ReportPDF, ri: ReportInput) -> bool:
     """The key-pose still (``reports.bones.key_poses``, drawn by :func:`reports.figures.draw_key_poses`);
-    False when the bones module is absent or its geometry fails (the report is then written without it,
-    the error logged)."""
+    False when its geometry fails (the report is then written without it, the error logged)."""
     try:
-        from reports.bones import key_poses  # optional module (3D bones); absent → no figure
-    except ImportError:
-        return False
-    try:
-        kp = key_poses(ri)
+        kp = bones.key_poses(ri)
     except Exception:  # a failed still must not cost the clinician the report
         log.exception("key-pose still could not be computed; the PDF is written without it")
         return False
@@ -339,21 +200,21 @@ def _key_poses(pdf: _Report, ri: ReportInput) -> bool:
     return True
 
 
-def _quality(pdf: _Report, ri: ReportInput) -> None:
+def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
     r = ri.results
     pdf.section("section_quality", space_after_mm=40)
     # magnetometer
     pdf.paragraph(pdf.tr("quality_mag"), style="B")
-    mag = _get(r, "calibration", "magnetometer", default={})
-    dist = _get(r, "quality", "magnetic_disturbance_fraction", default={})
+    mag = get_path(r, "calibration", "magnetometer", default={})
+    dist = get_path(r, "quality", "magnetic_disturbance_fraction", default={})
     rows = [[pdf.tr("col_sensor"), pdf.tr("col_field_ut"), pdf.tr("col_coverage"), pdf.tr("col_residual_pct"),
              pdf.tr("col_disturbance"), pdf.tr("col_reliable")]]
     for seg in ("thigh", "shank"):
-        q = _get(mag, seg, "quality", default={})
+        q = get_path(mag, seg, "quality", default={})
         cov = q.get("coverage_fraction")
         d = dist.get(seg) if isinstance(dist, dict) else None
         reliable = q.get("reliable")
-        rows.append([pdf.tr(f"seg_{seg}"), pdf.num(q.get("field_ut", _get(mag, seg, "field_ut")), "field_ut"),
+        rows.append([pdf.tr(f"seg_{seg}"), pdf.num(q.get("field_ut", get_path(mag, seg, "field_ut")), "field_ut"),
                      _pct(pdf, cov, "coverage_pct"), pdf.num(q.get("residual_pct"), "residual_pct"),
                      _pct(pdf, d, "disturbance_pct"),
                      MISSING if reliable is None else pdf.tr("yes" if reliable else "no")])
@@ -378,15 +239,15 @@ def _quality(pdf: _Report, ri: ReportInput) -> None:
     pdf.ln(1.5)
     pdf.ensure_space(25)
     pdf.paragraph(pdf.tr("quality_posture"), style="B")
-    pdf.paragraph(pdf.tr("posture_note"), size=8, color=_GREY)
-    seg_cal = _get(r, "calibration", "segment", default={})
+    pdf.paragraph(pdf.tr("posture_note"), size=8, color=GREY)
+    seg_cal = get_path(r, "calibration", "segment", default={})
     rows = [[pdf.tr("col_sensor"), pdf.tr("col_posture_angle")]]
     for seg in ("thigh", "shank"):
-        rows.append([pdf.tr(f"seg_{seg}"), pdf.num(_get(seg_cal, seg, "angle_between_postures_deg"), "deg")])
+        rows.append([pdf.tr(f"seg_{seg}"), pdf.num(get_path(seg_cal, seg, "angle_between_postures_deg"), "deg")])
     pdf.grid(rows, (1, 1), align=("LEFT", "RIGHT"), bold_cols=(0,))
 
     # warnings, translated by code (reports.warning_text); English where no complete translation exists
-    warnings = list(_get(r, "quality", "warnings", default=[]))
+    warnings = list(get_path(r, "quality", "warnings", default=[]))
     pdf.ensure_space(15)
     pdf.paragraph(pdf.tr("quality_warnings"), style="B")
     if not warnings:
@@ -395,18 +256,18 @@ def _quality(pdf: _Report, ri: ReportInput) -> None:
     texts = [warning_text(w, pdf.lang, r) for w in warnings]
     note = pdf.tr("warnings_language_note")
     if note and not all(translated for _, translated in texts):
-        pdf.paragraph(note, size=8, color=_GREY)
+        pdf.paragraph(note, size=8, color=GREY)
     for text, _ in texts:
         pdf.paragraph("• " + (user_text(text) or MISSING))
 
 
-def _pct(pdf: _Report, fraction: Any, kind: str) -> str:
+def _pct(pdf: ReportPDF, fraction: Any, kind: str) -> str:
     if fraction is None or not math.isfinite(float(fraction)):
         return MISSING
     return pdf.tr("value_pct", value=pdf.num(100.0 * float(fraction), kind))
 
 
-def _signature(pdf: _Report) -> None:
+def _signature(pdf: ReportPDF) -> None:
     pdf.ensure_space(30)
     pdf.ln(10)
     y = pdf.get_y() + 8
@@ -444,13 +305,13 @@ def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_pose
     """The PDF report of ``ri`` in ``ri.language`` (module docstring for the layout).
 
     report_date : the date printed in the header (default: today, UTC).
-    key_poses : include the key-pose still when ``reports.bones`` is available.
+    key_poses : include the key-pose still (``reports.bones``).
     Returns the PDF file's bytes.
     """
     lang = ri.language
     report_date = report_date or _dt.datetime.now(_dt.timezone.utc).date()
-    pdf = _Report(lang, full_font=fonts.needs_full_font(_data_texts(ri)))
-    version = str(_get(ri.results, "software", "version", default=MISSING))
+    pdf = ReportPDF(lang, full_font=fonts.needs_full_font(_data_texts(ri)))
+    version = str(get_path(ri.results, "software", "version", default=MISSING))
     pdf.set_title(f"{t('product', lang)} — {t('report_title', lang)}")
     pdf.set_creator(f"ChakaMo {version}")
     pdf.set_lang(lang)

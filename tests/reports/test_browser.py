@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+
 class _QuietHandler(http.server.SimpleHTTPRequestHandler):
     """Static files with Content-Length and no compression (what viser's playback needs), no log."""
 

@@ -8,7 +8,6 @@ decimal comma in Spanish and Portuguese.  The expected strings are formatted her
 from __future__ import annotations
 
 import datetime as dt
-import importlib.util
 import re
 import shutil
 import subprocess
@@ -216,7 +215,8 @@ def test_translated_headings_and_labels_are_printed(demo_pdfs, lang):
     keys = ["report_title", "section_patient", "section_task", "section_protocol", "section_phases", "section_rom",
             "section_curves", "section_task_time", "section_quality", "quality_mag", "quality_cycles",
             "quality_posture", "quality_warnings", "signature", "task_step_up", "col_phase", "col_time_s",
-            "col_pct_cycle", "col_range", "col_max", "col_min", "phase_impulse", "phase_extension", "phase_fall",
+            "col_pct_cycle", "col_range", "col_max", "col_min", "data.phase.impulse", "data.phase.extension",
+            "data.phase.fall",
             "angle_flexion", "angle_internal_rotation", "angle_adduction", "seg_thigh", "seg_shank",
             "patient_name", "professional", "step_height", "observations", "side_right"]
     for key in keys:
@@ -344,10 +344,10 @@ def test_rejected_cycles_missing_sd_and_warnings(lang):
 
 
 @needs_poppler
-def test_key_poses_figure_when_the_bones_module_exists(demo_pdfs):
+def test_key_poses_figure_is_printed(demo_pdfs):
     text = _flat(_text(demo_pdfs["en"]))
-    has_bones = importlib.util.find_spec("reports.bones") is not None
-    assert (t("section_key_poses", "en") in text) == has_bones
+    assert t("section_key_poses", "en") in text
+    assert all(_flat(t(f"pose_{k}", "en")) in text for k in ("start", "peak_flexion", "full_extension"))
 
 
 @needs_poppler
@@ -362,3 +362,19 @@ def test_long_patient_name_wraps_in_the_block_and_is_cut_in_the_footer():
     text = _flat(_text(render_pdf(_synthetic_ri("es", Patient(name_or_id=name)), report_date=REPORT_DATE)))
     assert text.count("Ángeles") >= 12 + 1  # the patient block wraps it whole (+ part of it in the footer)
     assert "…" in text                 # the footer line is cut with an ellipsis
+
+
+@needs_poppler
+def test_phase_table_and_curves_follow_the_session_task():
+    """A squat session shows the squat's phases (descent, hold, ascent), not the step-up's."""
+    ri = _synthetic_ri("en")
+    ri.results["task"] = "squat"
+    ri.results["phases"] = {"descent": {"mean_s": 1.11, "sd_s": 0.12, "mean_pct": 30.0, "sd_pct": 1.5},
+                            "hold": {"mean_s": 0.55, "sd_s": 0.05, "mean_pct": 15.0, "sd_pct": 0.5},
+                            "ascent": {"mean_s": 2.22, "sd_s": 0.21, "mean_pct": 55.0, "sd_pct": 2.0}}
+    assert figures.phase_boundaries_pct(ri.results) == pytest.approx([30.0, 45.0])
+    text = _flat(_text(render_pdf(ri, report_date=REPORT_DATE)))
+    for name, mean_s, mean_pct in (("descent", "1.11 ± 0.12", "30.0 ± 1.5"), ("hold", "0.55 ± 0.05", "15.0 ± 0.5"),
+                                   ("ascent", "2.22 ± 0.21", "55.0 ± 2.0")):
+        assert f"{t('data.phase.' + name, 'en')} {mean_s} {mean_pct}" in text
+    assert t("data.phase.impulse", "en") not in text
