@@ -172,6 +172,12 @@ class Job(Base):
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     started_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     finished_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: the pipeline version the job runs (:data:`app.PIPELINE_VERSION`); with the session it keys the work
+    pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
+    #: when the job was last handed to the engine (the sweeper hands it again when it stays queued too long)
+    dispatched_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: refreshed while a worker runs the job; a running job whose heartbeat is older than the lease is orphaned
+    heartbeat_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
 
 
 class Analysis(Base):
@@ -184,6 +190,9 @@ class Analysis(Base):
     accepted_cycles: Mapped[int] = mapped_column(Integer, default=0)
     warnings: Mapped[int] = mapped_column(Integer, default=0)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    #: the pipeline version and the session's ``files_version`` this analysis was computed from
+    pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
+    files_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
     artefacts: Mapped[list["Artefact"]] = relationship(order_by="Artefact.id", cascade="all, delete-orphan")
 
 
@@ -201,5 +210,27 @@ class Artefact(Base):
     size_bytes: Mapped[int] = mapped_column(Integer)
 
 
-__all__ = ["ROLES", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BrowserSession", "Clinic",
+class AuditEvent(Base):
+    """Who viewed, downloaded, exported or changed which patient's data (append-only; ``app.audit``)."""
+
+    __tablename__ = "audit_events"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow, index=True)
+    #: ``user`` (browser) or ``token`` (hospital system); the ids stay even if the account is deleted later
+    actor_kind: Mapped[str] = mapped_column(String(10))
+    user_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
+    token_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: a readable label of the actor at the time (user email or token label)
+    actor: Mapped[str] = mapped_column(String(320), default="")
+    #: ``view``, ``download``, ``export``, ``create``, ``update``, ``delete``, ``process``
+    action: Mapped[str] = mapped_column(String(20))
+    patient_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
+    session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: the method and path (e.g. ``GET /api/v1/sessions/3/report.pdf``)
+    resource: Mapped[str] = mapped_column(String(300))
+    client: Mapped[str] = mapped_column(String(64), default="")
+
+
+__all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BrowserSession", "Clinic",
            "Job", "KneeSession", "Patient", "Recording", "User", "utcnow"]
