@@ -17,6 +17,8 @@ Subcommands
     The web application and its set-up (``app/admin_cli.py``).
 ``chakamo tokens list|revoke`` / ``users deactivate|set-password``
     Offboarding: list and revoke API tokens, deactivate users, reset passwords (``app/admin_cli.py``).
+``chakamo migrate`` / ``worker`` / ``reprocess --filter NAME --since DATE``
+    The scaled-out deployment: schema upgrade, a Celery worker, a cohort queued again (``app/ops_cli.py``).
 
 Errors a user can cause end with a one-line message on stderr and exit status 2; nothing is written.
 """
@@ -91,9 +93,10 @@ def _build_parser() -> argparse.ArgumentParser:
     markov.add_argument("--still", type=float, default=1.0, metavar="S",
                         help="seconds of still reference pose at the start (default: 1)")
 
-    from app.admin_cli import add_parsers
+    from app import admin_cli, ops_cli
 
-    add_parsers(sub)
+    admin_cli.add_parsers(sub)
+    ops_cli.add_parsers(sub)
     return parser
 
 
@@ -130,6 +133,10 @@ def main(argv: list[str] | None = None) -> int:
                        still_s=args.still)
         elif args.command in ("serve", "clinics", "users", "tokens"):
             from app.admin_cli import run
+
+            return run(args)
+        elif args.command in ("migrate", "worker", "reprocess"):
+            from app.ops_cli import run
 
             return run(args)
     except (ValueError, OSError) as exc:

@@ -1,25 +1,25 @@
 """Processing jobs: persisted in the database, run off the request path, resumed after a restart.
 
-Interface (ready for a distributed engine): a :class:`JobRunner` has ``start()``, ``submit(job_id)`` and
-``shutdown()``.  The API only inserts a ``jobs`` row (status ``queued``) in the same transaction that
-checks the session, then calls ``submit``; the runner does the rest.  :func:`run_job` is the unit of
-work any engine calls with a job id — a Celery task would call it too.
+Interface: a :class:`JobRunner` has ``start()``, ``submit(job_id)``, ``problem()`` and ``shutdown()``.  The
+API only inserts a ``jobs`` row (status ``queued``) in the same transaction that checks the session, then
+calls ``submit``; the runner does the rest.  :func:`run_job` is the unit of work every engine calls with a
+job id.
 
-:class:`ThreadJobRunner`, the embedded default, is N worker threads fed by a queue of job ids.  A worker
-*claims* a job with a conditional UPDATE (``queued`` → ``running``), so two runners sharing one database
-never run the same job twice.  On ``start()`` jobs found ``running`` (their process died mid-way) go back
-to ``queued`` with a log line, and every queued job is submitted again, oldest first: nothing is lost by a
-restart; a resumed job starts over from its stored files (processing is deterministic); one interrupted
-:data:`MAX_ATTEMPTS` times is failed instead (it may be what brings the server down).  The embedded
-runner allows one server process per database (``chakamo serve``), and enforces it: ``start()`` takes a
-:class:`RunnerLock` (an exclusive ``flock`` on ``<database file>.runner.lock`` for SQLite, a session-level
-``pg_try_advisory_lock`` for PostgreSQL; the operating system or the server frees both when the process
-dies) and a second server on the same database refuses to start with :class:`RunnerLocked`, instead of
-requeueing — and running a second time — the first one's jobs.  Several processes or machines need the
-distributed backend (``CHAKAMO_JOB_BACKEND``, next issue), which calls :func:`run_job` from its workers.
-Holding the lock, ``start()`` also removes what a crashed server left behind: its temporary ``session-*``
-folders and unfinished uploads (``blobs/.incoming/up-*``).  ``shutdown()`` waits for the running jobs and
-says whether they all stopped; the application disposes the database only then.
+The embedded engine is :class:`app.inprocess.ThreadJobRunner` (worker threads inside ``chakamo serve``); the
+distributed one is :mod:`app.celery_jobs` (Celery workers fed through Redis).  Both call :func:`run_job`.
+
+Leases and the sweeper (both engines).  While a worker runs a job a heartbeat thread refreshes
+``heartbeat_at`` every quarter of the lease (``CHAKAMO_JOB_LEASE_S``).  :func:`sweep` finds what a lost worker
+or a lost message left: a ``running`` job whose heartbeat is older than the lease goes back to ``queued`` (or
+to ``failed`` after :data:`MAX_ATTEMPTS`), and a ``queued`` job handed to the engine longer ago than
+``CHAKAMO_REDISPATCH_S`` (or never) is handed again.  Handing a job twice is harmless: :func:`claim` is a
+conditional UPDATE, so only one worker runs it, and the analysis row is unique per job, so a job never
+yields two analyses (the work is idempotent, keyed by the job — a session, its files' version and the
+pipeline version).  :class:`ThreadJobRunner` sweeps every few seconds (so jobs queued by ``chakamo
+reprocess`` from another process are found too); the Celery engine (:mod:`app.celery_jobs`) sweeps in the API
+server and in every worker.  A database outage during a job (``OperationalError``) is not the data's fault:
+:func:`run_job` re-raises it as :class:`TransientJobError` (the Celery task retries with back-off; the
+embedded runner leaves it to the sweeper) instead of failing the job.
 
 A job's work (:func:`run_job`): copy the session's stored files into a temporary folder with its
 ``session.json`` (:mod:`app.workspace`), load and process them (:func:`app.pipeline.process_session`, its
@@ -29,32 +29,42 @@ report.html, scene.viser, timeseries.npz; part of them in the warm render proces
 (:func:`app.db.ensure_blob`: identical artefacts of concurrent jobs never collide) and record a new
 :class:`~app.db.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the data
 (ingestion or pipeline error) fails the job with the pipeline's sentence as ``error``; an unexpected
-exception fails it with a sentence and a reference id — the traceback goes to the server log only (under that
+exception fails it with a sentence and a reference id (a full disk — ``ENOSPC`` while storing the
+artefacts — with a sentence saying so: nothing half-stored is recorded, and processing again works once there
+is space) — the traceback goes to the server log only (under that
 reference), never to the job row that read-only users and API tokens see.
 """
 
 from __future__ import annotations
 
+import datetime as dt
+import errno
 import logging
-import queue
 import secrets
-import shutil
 import threading
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Protocol
+from typing import Literal, Protocol
 
-from sqlalchemy import create_engine, select, text, update
-from sqlalchemy.pool import NullPool
+from sqlalchemy import or_, select, update
+from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from app.db import Database, ensure_blob
 from app.db.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
-from app.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all, warm_up
+from app.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
 from app.storage import BlobStore
 
 log = logging.getLogger("chakamo.jobs")
 
 #: a job interrupted by this many server stops is failed instead of resumed again
 MAX_ATTEMPTS = 3
+#: default lease of a running job (``CHAKAMO_JOB_LEASE_S``) and re-dispatch delay (``CHAKAMO_REDISPATCH_S``)
+LEASE_S = 60.0
+REDISPATCH_S = 120.0
+
+
+class TransientJobError(RuntimeError):
+    """The job could not run for a reason outside its data (the database went away); run it again later."""
 
 
 class JobRunner(Protocol):
@@ -64,7 +74,10 @@ class JobRunner(Protocol):
 
     def submit(self, job_id: int) -> None: ...
 
-    def shutdown(self, wait: bool = True) -> None: ...
+    def shutdown(self, wait: bool = True) -> bool: ...
+
+    def problem(self) -> str | None:
+        """None when the engine can take jobs, else one sentence saying what is wrong (``/readyz``)."""
 
 
 class _Progress:
@@ -89,11 +102,87 @@ def _fail(db: Database, job_id: int, error: str) -> None:
 
 def claim(db: Database, job_id: int) -> bool:
     """Mark job ``job_id`` running if it is queued; False when another worker has it (or it is finished)."""
+    now = utcnow()
     with db.session() as s:
         res = s.execute(update(Job).where(Job.id == job_id, Job.status == "queued")
-                        .values(status="running", started_at=utcnow(), attempts=Job.attempts + 1,
+                        .values(status="running", started_at=now, heartbeat_at=now, attempts=Job.attempts + 1,
                                 stage="start", progress=0.0, error=None))
         return res.rowcount == 1
+
+
+def job_state(db: Database, job_id: int) -> str | None:
+    """The job's status (None for an unknown id)."""
+    with db.session() as s:
+        return s.scalar(select(Job.status).where(Job.id == job_id))
+
+
+@contextmanager
+def heartbeat(db: Database, job_id: int, lease_s: float = LEASE_S):
+    """Refresh the job's ``heartbeat_at`` every ``lease_s / 4`` seconds while the block runs (module docstring).
+    A failed beat (database briefly away) is logged and tried again at the next tick."""
+    stop = threading.Event()
+
+    def beat() -> None:
+        while not stop.wait(lease_s / 4):
+            try:
+                with db.session() as s:
+                    s.execute(update(Job).where(Job.id == job_id, Job.status == "running")
+                              .values(heartbeat_at=utcnow()))
+            except Exception:  # noqa: BLE001 — the next beat tries again; the lease is 4 beats long
+                log.warning("heartbeat of job %s not written", job_id, exc_info=True)
+
+    t = threading.Thread(target=beat, name=f"chakamo-heartbeat-{job_id}", daemon=True)
+    t.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        t.join(5.0)
+
+
+def sweep(db: Database, lease_s: float = LEASE_S, redispatch_s: float = REDISPATCH_S) -> list[int]:
+    """Requeue the ``running`` jobs whose heartbeat is older than ``lease_s`` (fail them after
+    :data:`MAX_ATTEMPTS`), and return the ``queued`` jobs to hand to the engine: never handed, or handed
+    more than ``redispatch_s`` ago (module docstring).  The caller calls :func:`mark_dispatched` for each
+    one it could hand over."""
+    now = utcnow()
+    stale = now - dt.timedelta(seconds=lease_s)
+    with db.session() as s:
+        lost = s.scalars(select(Job).where(Job.status == "running",
+                                           or_(Job.heartbeat_at < stale,
+                                               Job.heartbeat_at.is_(None) & (Job.started_at < stale)))
+                         .with_for_update(skip_locked=True))
+        for job in lost:
+            stamp = now.isoformat(timespec="seconds")
+            if job.attempts >= MAX_ATTEMPTS:
+                job.status, job.finished_at = "failed", now
+                job.error = (f"processing was interrupted {job.attempts} times (its worker stopped each time); "
+                             "check the workers' memory and logs, then process the session again")
+                job.log = [*job.log, f"{stamp} worker lost again; given up"]
+            else:
+                job.status, job.stage, job.dispatched_at = "queued", "queued", None
+                job.log = [*job.log, f"{stamp} worker lost (no heartbeat for {lease_s:g} s); queued again"]
+                log.warning("job %s: worker lost, queued again", job.id)
+        due = now - dt.timedelta(seconds=redispatch_s)
+        return list(s.scalars(select(Job.id).where(Job.status == "queued",
+                                                   or_(Job.dispatched_at.is_(None), Job.dispatched_at < due))
+                              .order_by(Job.id)))
+
+
+def mark_dispatched(db: Database, job_ids: list[int]) -> None:
+    """Record that ``job_ids`` were handed to the engine now."""
+    if job_ids:
+        with db.session() as s:
+            s.execute(update(Job).where(Job.id.in_(job_ids), Job.status == "queued").values(dispatched_at=utcnow()))
+
+
+def _is_disk_full(exc: BaseException) -> bool:
+    return isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def _transient(exc: BaseException) -> bool:
+    """A database that went away (connection refused or dropped), not a problem of this job."""
+    return isinstance(exc, OperationalError) or (isinstance(exc, DBAPIError) and exc.connection_invalidated)
 
 
 def _public_results(results: dict, session_id: int) -> dict:
@@ -106,16 +195,32 @@ def _public_results(results: dict, session_id: int) -> dict:
     return results
 
 
+Outcome = Literal["done", "failed", "busy", "finished"]
+
+
 def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: RenderPool | None = None,
-            render_timeout_s: float = RENDER_TIMEOUT_S) -> None:
-    """Claim and run job ``job_id`` to ``done`` or ``failed`` (module docstring).  Never raises for bad data."""
+            render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S) -> Outcome:
+    """Claim and run job ``job_id`` (module docstring).  Returns ``done`` or ``failed`` when this call ran it,
+    ``busy`` when another worker holds it (running, lease not expired), ``finished`` when it had already ended
+    (or is unknown).  Never raises for bad data; raises :class:`TransientJobError` when the database went away
+    (the job is then left to the sweeper or to the engine's retry)."""
+    try:
+        claimed = claim(db, job_id)
+    except OperationalError as exc:
+        raise TransientJobError(f"job {job_id}: database unreachable") from exc
+    if not claimed:
+        return "busy" if job_state(db, job_id) in ("queued", "running") else "finished"
+    with heartbeat(db, job_id, lease_s):
+        return _run_claimed(job_id, db, store, tmp_root, pool, render_timeout_s)
+
+
+def _run_claimed(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: RenderPool | None,
+                 render_timeout_s: float) -> Outcome:
     from app.ingestion import IngestionError, load_session
-    from app.pipeline import PipelineError, ProcessOptions, process_session
+    from app.pipeline import PIPELINE_VERSION, PipelineError, ProcessOptions, process_session
     from app.results import build_results
     from app.workspace import materialise, public_message
 
-    if not claim(db, job_id):
-        return
     progress = _Progress(db, job_id)
     folder = None
     try:
@@ -141,7 +246,8 @@ def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: R
                 ensure_blob(s, sha, size)
             analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
                                 accepted_cycles=int(results["cycles"]["accepted"]),
-                                warnings=len(results["quality"]["warnings"]))
+                                warnings=len(results["quality"]["warnings"]),
+                                pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
             analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
                                   for (name, lang), (sha, size) in stored.items()]
             s.add(analysis)
@@ -151,176 +257,27 @@ def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: R
             row.analysis_id = analysis.id
             row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
                                  f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
+        return "done"
+    except IntegrityError:  # a second run of this job stored its analysis first: that one stands
+        log.warning("job %s: another run stored its analysis first; this run's results are dropped", job_id)
+        return "finished"
     except (IngestionError, PipelineError) as exc:
         _fail(db, job_id, public_message(str(exc), folder))
-    except Exception:  # noqa: BLE001 — a job must end failed, never stay running
+    except Exception as exc:  # noqa: BLE001 — a job must end failed, never stay running
+        if _transient(exc):  # not the job's fault: leave it running; its lease expires and it is run again
+            log.warning("job %s: database unreachable (%s); it will run again", job_id, type(exc).__name__)
+            raise TransientJobError(f"job {job_id}: database unreachable") from exc
+        if _is_disk_full(exc):
+            log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)
+            _fail(db, job_id, "The server's disk is full, so the reports could not be stored; nothing was kept. "
+                              "Ask your ChakaMo administrator to free space, then process the session again.")
+            return "failed"
         ref = secrets.token_hex(4)
         log.exception("job %s failed: internal error, reference %s", job_id, ref)
         _fail(db, job_id, f"An internal error stopped the processing (reference {ref}); try again, and if it "
                           "happens again give the reference to your ChakaMo administrator.")
+    return "failed"
 
 
-class RunnerLocked(RuntimeError):
-    """Another server already runs the jobs of this database."""
-
-
-#: the PostgreSQL advisory-lock key of the job runner ("CHKMjobs")
-_PG_LOCK_KEY = 0x43484B4D6A6F6273
-
-
-class RunnerLock:
-    """At most one embedded job runner per database (module docstring): :meth:`acquire`, :meth:`release`."""
-
-    def __init__(self, db: Database) -> None:
-        self.db = db
-        self._file = None
-        self._conn = None
-        self._engine = None
-
-    def acquire(self) -> None:
-        """Take the lock or raise :class:`RunnerLocked` with a sentence saying what to do."""
-        url = self.db.engine.url
-        where = None
-        if url.get_backend_name() == "sqlite":
-            path = url.database
-            if not path or path == ":memory:":
-                return
-            where = f"{path}.runner.lock"
-            try:
-                import fcntl
-            except ImportError:  # no flock (Windows): one server per database is then up to the operator
-                log.warning("cannot lock %s on this system; run one ChakaMo server per database", where)
-                return
-            f = open(where, "a+")  # noqa: SIM115 — held open while the runner lives
-            try:
-                fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                f.close()
-                raise RunnerLocked(self._message(path)) from None
-            self._file = f
-        elif url.get_backend_name() == "postgresql":
-            # a connection of its own, outside the request pool, in autocommit (never "idle in transaction")
-            self._engine = create_engine(url, poolclass=NullPool, isolation_level="AUTOCOMMIT")
-            conn = self._engine.connect()
-            if not conn.scalar(text("SELECT pg_try_advisory_lock(:k)"), {"k": _PG_LOCK_KEY}):
-                conn.close()
-                self._engine.dispose()
-                self._engine = None
-                raise RunnerLocked(self._message(url.render_as_string(hide_password=True)))
-            self._conn = conn
-        else:
-            log.warning("no job-runner lock for %s; run one ChakaMo server per database", url.get_backend_name())
-
-    @staticmethod
-    def _message(where: str) -> str:
-        return (f"Another ChakaMo server is already running the jobs of this database ({where}); stop it first, or "
-                "give this server its own CHAKAMO_DATA_DIR / DATABASE_URL (several servers on one database need "
-                "the distributed job backend).")
-
-    def release(self) -> None:
-        if self._file is not None:
-            self._file.close()  # closing the file drops the flock
-            self._file = None
-        if self._conn is not None:
-            try:
-                self._conn.scalar(text("SELECT pg_advisory_unlock(:k)"), {"k": _PG_LOCK_KEY})
-            except Exception:  # noqa: BLE001 — closing the connection frees it anyway
-                log.exception("could not release the job-runner lock")
-            self._conn.close()
-            self._conn = None
-            self._engine.dispose()
-            self._engine = None
-
-
-def clear_tmp(tmp_root: Path) -> int:
-    """Remove the ``session-*`` folders a crashed server left in ``tmp_root``; returns how many.  Only while
-    no job or upload check runs (the runner calls it at start-up, holding the :class:`RunnerLock`)."""
-    n = 0
-    if tmp_root.is_dir():
-        for p in tmp_root.glob("session-*"):
-            if p.is_dir():
-                shutil.rmtree(p, ignore_errors=True)
-                n += 1
-    return n
-
-
-class ThreadJobRunner:
-    """The embedded engine: ``workers`` threads taking job ids from a queue (module docstring)."""
-
-    def __init__(self, db: Database, store: BlobStore, tmp_root: Path, workers: int = 2,
-                 render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S) -> None:
-        self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
-        self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
-        self.lock = RunnerLock(db)
-        self.pool: RenderPool | None = None
-        self._queue: queue.Queue[int | None] = queue.Queue()
-        self._threads: list[threading.Thread] = []
-        self._stop = threading.Event()
-
-    def start(self) -> None:
-        """Take the :class:`RunnerLock` (:class:`RunnerLocked` if another server has it), clear a crashed
-        server's leftovers, requeue jobs left ``running``, start the threads and submit every queued job,
-        oldest first."""
-        self.lock.acquire()
-        n_tmp, n_up = clear_tmp(self.tmp_root), self.store.clear_incoming()
-        if n_tmp or n_up:
-            log.info("removed %d temporary session folders and %d unfinished uploads left by a crash", n_tmp, n_up)
-        self._stop.clear()
-        if self.render_processes > 0 and self.pool is None:
-            self.pool = RenderPool(self.render_processes)
-        with self.db.session() as s:
-            for job in s.scalars(select(Job).where(Job.status == "running")):
-                stamp = utcnow().isoformat(timespec="seconds")
-                if job.attempts >= MAX_ATTEMPTS:  # it keeps taking the server down with it: stop trying
-                    job.status, job.finished_at = "failed", utcnow()
-                    job.error = (f"processing was interrupted {job.attempts} times (the server stopped each time); "
-                                 "check the server's memory and logs, then process the session again")
-                    job.log = [*job.log, f"{stamp} interrupted again; given up"]
-                    continue
-                job.status, job.stage = "queued", "queued"
-                job.log = [*job.log, f"{stamp} interrupted (server stopped); queued again"]
-            pending = list(s.scalars(select(Job.id).where(Job.status == "queued").order_by(Job.id)))
-        for i in range(self.workers):
-            t = threading.Thread(target=self._work, name=f"chakamo-job-{i}", daemon=True)
-            t.start()
-            self._threads.append(t)
-        for job_id in pending:
-            self.submit(job_id)
-        threading.Thread(target=warm_up, name="chakamo-warm-up", daemon=True).start()
-
-    def submit(self, job_id: int) -> None:
-        self._queue.put(job_id)
-
-    def _work(self) -> None:
-        while True:
-            job_id = self._queue.get()
-            if job_id is None or self._stop.is_set():  # a queued job left here stays queued in the database
-                return
-            try:
-                run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s)
-            except Exception:  # noqa: BLE001 — e.g. the database went away: keep the worker alive
-                log.exception("worker could not run job %s", job_id)
-
-    def shutdown(self, wait: bool = True, timeout_s: float = 60.0) -> bool:
-        """Stop the threads after their current job; queued jobs stay queued for the next start (a job cut
-        short by the process' exit is resumed then too).  True when every thread has stopped (only then may
-        the caller dispose the database: a job thread may still be writing to it)."""
-        self._stop.set()
-        for _ in self._threads:
-            self._queue.put(None)
-        if wait:
-            for t in self._threads:
-                t.join(timeout_s)
-        alive = [t for t in self._threads if t.is_alive()]
-        if alive:
-            log.warning("%d job threads still running at shutdown; their jobs resume at the next start", len(alive))
-        self._threads.clear()
-        if self.pool is not None:
-            self.pool.shutdown()
-            self.pool = None
-        self.lock.release()
-        return not alive
-
-
-__all__ = ["MAX_ATTEMPTS", "JobRunner", "RunnerLock", "RunnerLocked", "ThreadJobRunner", "claim", "clear_tmp",
-           "run_job"]
+__all__ = ["LEASE_S", "MAX_ATTEMPTS", "REDISPATCH_S", "JobRunner", "TransientJobError", "claim", "heartbeat",
+           "job_state", "mark_dispatched", "run_job", "sweep"]

@@ -1,9 +1,11 @@
 """The web application: :func:`create_app` assembles API v1, the UI's static files and the job runner.
 
 ``create_app(settings)`` builds a fresh app (nothing global: tests make one per temporary data dir).
-Start-up (the lifespan): create the data folders, apply the Alembic migrations, start the job runner (which
-refuses to start when another server runs this database's jobs, clears a crashed run's temporary files and
-resumes the jobs a previous run left queued or running), and when the database has no user yet print how
+Start-up (the lifespan): create the data folders, apply the Alembic migrations, start the job runner
+(``CHAKAMO_JOB_BACKEND``: the embedded :class:`app.inprocess.ThreadJobRunner`, which refuses to start when
+another server runs this database's jobs, clears a crashed run's temporary files and resumes the jobs a
+previous run left queued or running; or :class:`app.celery_jobs.CeleryJobRunner`, which hands jobs to the
+Celery workers), and when the database has no user yet print how
 to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
@@ -11,7 +13,9 @@ internals (a damaged stored file) answer a sentence with a reference id; the det
 Routes besides ``/api/v1`` (see ``app.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
 ``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI from the
-``swagger-ui-bundle`` package: no CDN, clinics are often offline) and ``/healthz``.
+``swagger-ui-bundle`` package: no CDN, clinics are often offline), ``/healthz`` (the process answers: for
+a liveness probe) and ``/readyz`` (200 only when the database answers and the job engine can take jobs —
+the broker is reachable, or the embedded workers run; else 503 naming what is down: for a load balancer).
 """
 
 from __future__ import annotations
@@ -29,13 +33,12 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
-from sqlalchemy import func, select
+from sqlalchemy import func, select, text
 
 import app as _app_pkg
 from app.api import api_router
 from app.db import Database
 from app.db.models import User
-from app.jobs import ThreadJobRunner
 from app.security import LoginThrottle
 from app.settings import Settings, get_settings
 from app.storage import BlobStore, CorruptBlob
@@ -85,6 +88,19 @@ def _swagger_dir() -> Path:
     return Path(str(swagger_ui_path))
 
 
+def make_runner(settings: Settings, db: Database, store: BlobStore):
+    """The job engine ``CHAKAMO_JOB_BACKEND`` names (an :class:`app.jobs.JobRunner`)."""
+    if settings.job_backend == "celery":
+        from app.celery_jobs import CeleryJobRunner
+
+        return CeleryJobRunner(db, settings)
+    from app.inprocess import ThreadJobRunner
+
+    return ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
+                           render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s,
+                           lease_s=settings.job_lease_s, redispatch_s=settings.redispatch_s)
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """A new ChakaMo application for ``settings`` (default: :func:`app.settings.get_settings`)."""
     settings = settings or get_settings()
@@ -92,8 +108,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings.tmp_dir.mkdir(parents=True, exist_ok=True)
     db = Database(settings.db_url)
     store = BlobStore(settings.blob_dir)
-    runner = ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
-                             render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s)
+    runner = make_runner(settings, db, store)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -165,6 +180,23 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     def healthz():
         return {"status": "ok"}
 
+    @app.get("/readyz", include_in_schema=False)
+    def readyz():
+        """200 when the database answers and the job engine can take jobs, else 503 saying what is down."""
+        checks: dict[str, str] = {}
+        try:
+            with db.engine.connect() as conn:
+                conn.execute(text("SELECT 1"))
+            checks["database"] = "ok"
+        except Exception as exc:  # noqa: BLE001 — any failure means not ready; the reason is logged
+            log.warning("readiness: database unreachable: %s", exc)
+            checks["database"] = "unreachable"
+        engine_problem = runner.problem()
+        checks["jobs"] = engine_problem or "ok"
+        ready = all(v == "ok" for v in checks.values())
+        return JSONResponse({"status": "ready" if ready else "not ready", "backend": settings.job_backend, **checks},
+                            status_code=200 if ready else 503)
+
     @app.get("/", include_in_schema=False)
     def index():
         page = STATIC_DIR / "index.html"
@@ -194,4 +226,4 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
-__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "create_app"]
+__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "create_app", "make_runner"]

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators import knee
+from estimators import __version__, knee
 from estimators import quaternion as quat
 from estimators.disturbance import FieldCheck, field_disturbance
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
@@ -53,6 +53,9 @@ from app.ingestion import SEGMENTS, IngestionError, Note, Session
 FloatArray = NDArray[np.float64]
 Progress = Callable[[str, float], None]
 
+#: what an analysis was computed with: with the session and its files' version it keys the processing
+#: (``chakamo reprocess`` skips sessions already analysed by this version with the same filter)
+PIPELINE_VERSION = __version__
 ANGLE_METHODS = ("grood_suntay", "thesis_zyx")
 CALIBRATIONS = ("static", "functional")
 #: Seel's and the relative-velocity flexion axes further apart than this (transverse plane) → the latter, warned
@@ -283,4 +286,4 @@ def _files(rec) -> str:
     return ", ".join(str(getattr(f, "name", f)) for f in rec.source.get("files", ())) or rec.segment
 
 
-__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "IngestionError", "PipelineError", "ProcessOptions", "SessionOutcome", "process_session"]
+__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "IngestionError", "PIPELINE_VERSION", "PipelineError", "ProcessOptions", "SessionOutcome", "process_session"]

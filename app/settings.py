@@ -6,8 +6,12 @@
 | ``CHAKAMO_DATA_DIR`` | the per-user data dir (platformdirs) | database, blobs (uploads and artefacts), temporary files |
 | ``DATABASE_URL`` | ``sqlite:///<data_dir>/chakamo.db`` | any SQLAlchemy URL (PostgreSQL needs its driver installed) |
 | ``CHAKAMO_SECRET_KEY`` | none | keys the CSRF tokens; required (≥ 32 characters) outside development |
-| ``CHAKAMO_JOB_BACKEND`` | ``threads`` | the embedded worker pool; ``celery`` is not available yet (refused) |
-| ``CHAKAMO_WORKERS`` | 2 | processing threads of the embedded pool |
+| ``CHAKAMO_JOB_BACKEND`` | ``inprocess`` | ``inprocess``: worker threads inside ``chakamo serve``; ``celery``: Celery workers (``chakamo worker``) fed through the broker |
+| ``CHAKAMO_BROKER_URL`` | ``redis://127.0.0.1:6379/0`` | the Celery broker (Redis), with ``celery`` |
+| ``CHAKAMO_WORKERS`` | 2 | processing threads of the embedded pool; the default concurrency of ``chakamo worker`` |
+| ``CHAKAMO_JOB_LEASE_S`` | 60 | a running job whose worker has not beaten its heartbeat for this long is taken as lost and queued again |
+| ``CHAKAMO_REDISPATCH_S`` | 120 | a job still queued this long after it was handed to the engine is handed again (a broker restarted empty) |
+| ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
 | ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread (0: none) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
@@ -56,8 +60,12 @@ class Settings(BaseSettings):
     data_dir: Path = Field(default_factory=_default_data_dir, validation_alias="CHAKAMO_DATA_DIR")
     database_url: str | None = Field(None, validation_alias="DATABASE_URL")
     secret_key: str | None = Field(None, validation_alias="CHAKAMO_SECRET_KEY")
-    job_backend: str = Field("threads", validation_alias="CHAKAMO_JOB_BACKEND")
+    job_backend: Literal["inprocess", "celery"] = Field("inprocess", validation_alias="CHAKAMO_JOB_BACKEND")
+    broker_url: str = Field("redis://127.0.0.1:6379/0", validation_alias="CHAKAMO_BROKER_URL")
     workers: int = Field(2, ge=1, le=64, validation_alias="CHAKAMO_WORKERS")
+    job_lease_s: float = Field(60.0, ge=2.0, le=3600.0, validation_alias="CHAKAMO_JOB_LEASE_S")
+    redispatch_s: float = Field(120.0, ge=1.0, le=86400.0, validation_alias="CHAKAMO_REDISPATCH_S")
+    broker_visibility_timeout_s: float = Field(3600.0, ge=5.0, validation_alias="CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S")
     render_processes: int = Field(1, ge=0, le=16, validation_alias="CHAKAMO_RENDER_PROCESSES")
     max_file_mb: float = Field(50.0, gt=0, validation_alias="CHAKAMO_MAX_FILE_MB")
     max_files: int = Field(40, ge=1, validation_alias="CHAKAMO_MAX_FILES")
@@ -66,17 +74,16 @@ class Settings(BaseSettings):
     session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
-    @field_validator("env", mode="before")
+    @field_validator("env", "job_backend", mode="before")
     @classmethod
-    def _env_lower(cls, value: object) -> object:
+    def _lower(cls, value: object) -> object:
         return value.strip().lower() if isinstance(value, str) else value
 
     @model_validator(mode="after")
     def _refuse_insecure(self) -> "Settings":
-        if self.job_backend != "threads":
-            raise SettingsError(
-                f"CHAKAMO_JOB_BACKEND={self.job_backend!r} is not available in this version; use 'threads' (the "
-                "embedded worker pool) — the Celery backend comes with the scaled-out deployment.")
+        if self.job_backend == "celery" and not self.broker_url.startswith(("redis://", "rediss://")):
+            raise SettingsError(f"CHAKAMO_BROKER_URL={self.broker_url!r} is not a Redis URL; set it to "
+                                "redis://HOST:6379/0 (the broker the Celery workers read).")
         if self.env == "production":
             if not self.secret_key:
                 raise SettingsError(

@@ -15,6 +15,7 @@ from app.api.deps import Clinician, DbDep, Reader, RunnerDep, refuse_while_proce
 from app.api.recordings import ensure_fresh_ingestion
 from app.api.schemas import JobCreatedOut, JobOut, ProcessIn, ingestion_fresh, job_out
 from app.db.models import Job
+from app.pipeline import PIPELINE_VERSION
 from estimators.orientation import DEFAULT_METHOD, METHODS
 
 router = APIRouter(tags=["jobs"])
@@ -38,7 +39,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
         raise HTTPException(409, "The session's recordings are not ready to process: "
                                  f"{ingestion.get('error') or 'no recordings yet'}")
     job = Job(clinic_id=principal.clinic_id, session_id=session.id, filter=name, lang=body.lang,
-              log=[], stage="queued")
+              log=[], stage="queued", pipeline_version=PIPELINE_VERSION)
     db.add(job)
     db.flush()
     other = db.scalar(select(Job.id).where(Job.session_id == session.id, Job.id != job.id,

@@ -20,9 +20,15 @@ def test_production_refuses_a_missing_or_weak_secret(tmp_path):
     assert not ok.development and ok.db_url == f"sqlite:///{tmp_path.as_posix()}/chakamo.db"
 
 
-def test_celery_backend_is_refused_with_a_sentence(tmp_path):
-    with pytest.raises(ValueError, match="not available in this version"):
-        Settings(CHAKAMO_ENV="development", CHAKAMO_DATA_DIR=tmp_path, CHAKAMO_JOB_BACKEND="celery")
+def test_job_backends_are_inprocess_or_celery_with_a_redis_broker(tmp_path):
+    base = dict(CHAKAMO_ENV="development", CHAKAMO_DATA_DIR=tmp_path)
+    assert Settings(**base).job_backend == "inprocess"
+    s = Settings(**base, CHAKAMO_JOB_BACKEND="Celery", CHAKAMO_BROKER_URL="redis://broker:6379/1")
+    assert (s.job_backend, s.broker_url) == ("celery", "redis://broker:6379/1")
+    with pytest.raises(ValueError, match="inprocess"):
+        Settings(**base, CHAKAMO_JOB_BACKEND="threads")
+    with pytest.raises(ValueError, match="not a Redis URL"):
+        Settings(**base, CHAKAMO_JOB_BACKEND="celery", CHAKAMO_BROKER_URL="amqp://guest@localhost//")
 
 
 def test_get_settings_reads_the_environment_once(monkeypatch, tmp_path):
@@ -86,7 +92,7 @@ def test_passwords_tokens_csrf():
     from app import security
 
     h = security.hash_password("correct horse battery")
-    assert h.startswith("scrypt$") and "correct" not in h
+    assert h.startswith("$argon2id$") and "correct" not in h
     assert security.hash_password("correct horse battery") != h  # per-password salt
     assert security.verify_password("correct horse battery", h)
     assert not security.verify_password("correct horse batterY", h)

@@ -79,7 +79,8 @@ def test_a_job_interrupted_too_often_is_failed_not_resumed(settings, tmp_path):
 
     from app.db import Database
     from app.db.models import Clinic, Job, KneeSession, Patient
-    from app.jobs import MAX_ATTEMPTS, ThreadJobRunner
+    from app.inprocess import ThreadJobRunner
+    from app.jobs import MAX_ATTEMPTS
     from app.storage import BlobStore
 
     db = Database(settings.db_url)

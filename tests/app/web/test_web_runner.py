@@ -14,7 +14,7 @@ from web_helpers import clinic_token, demo_files, new_session, wait_job
 
 def _runner_pair(url, tmp_path):
     from app.db import Database
-    from app.jobs import ThreadJobRunner
+    from app.inprocess import ThreadJobRunner
     from app.storage import BlobStore
 
     db = Database(url)
@@ -24,7 +24,7 @@ def _runner_pair(url, tmp_path):
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_a_second_runner_on_the_same_database_is_refused(tmp_path, backend, request):
-    from app.jobs import RunnerLocked
+    from app.inprocess import RunnerLocked
 
     url = f"sqlite:///{tmp_path}/r.db" if backend == "sqlite" else request.getfixturevalue("pg_url")
     db, (first, second) = _runner_pair(url, tmp_path)
@@ -42,7 +42,7 @@ def test_a_second_runner_on_the_same_database_is_refused(tmp_path, backend, requ
 def test_a_second_app_on_the_same_data_dir_does_not_start(settings):
     from fastapi.testclient import TestClient
 
-    from app.jobs import RunnerLocked
+    from app.inprocess import RunnerLocked
     from app.main import create_app
 
     with TestClient(create_app(settings)) as c:
