@@ -28,7 +28,9 @@ With :math:`\hat\omega = \omega_m - \hat b_\omega`, :math:`\hat f = f_m - \hat b
     P_{k+1} &= F P_k F^\top + Q\,\Delta t
 
 (the bias columns are the thesis' :math:`C^n_b\Delta t` blocks of eq. 3.44, with the sign of our error
-convention).  ``F`` is applied by its block structure (row then column operations), never as a dense
+convention).  Optionally ``att_var_body`` (N, 3) adds :math:`\hat C\,\operatorname{diag}(v_k)\,\hat C^\top`
+to the attitude block at sample *k*: extra attitude variance about the body axes where the gyroscope
+rates are known to be wrong (clipped runs, :func:`estimators.pdr.desaturation.clipped_attitude_variance`).  ``F`` is applied by its block structure (row then column operations), never as a dense
 matrix product.  :math:`Q = \operatorname{diag}(q_\omega I, 0, q_a I, q_{b\omega} I, q_{ba} I)` are
 intensities (variance per second, so the defaults hold at any rate).  The thesis' text quotes Fischer et
 al.'s :math:`\sigma_\omega = 10^{-2}` rad/s, :math:`\sigma_a = 10^{-2}` m/s²; its published code
@@ -264,7 +266,8 @@ def _wrap(a):
 @njit(cache=True)
 def _ekf_kernel(acc, gyr, dt_s, stance, c_ext, use_ext, ns, zaru, c0, bg0, ba0, p0_diag,
                 q_gyr, q_acc, q_bg, q_ba, r_zupt, r_zaru, gravity,
-                use_hdr, hdr_gate, hdr_straight, r_hdr, use_height, height_gate, r_height):
+                use_hdr, hdr_gate, hdr_straight, r_hdr, use_height, height_gate, r_height,
+                att_var_body, use_att_var):
     n = acc.shape[0]
     pos_out = np.empty((n, 3))
     vel_out = np.empty((n, 3))
@@ -329,6 +332,12 @@ def _ekf_kernel(acc, gyr, dt_s, stance, c_ext, use_ext, ns, zaru, c0, bg0, ba0, 
                 if ns == 15:
                     p[9 + i, 9 + i] += q_bg * dt
                     p[12 + i, 12 + i] += q_ba * dt
+            if use_att_var:                                                   # clipped rates: C diag(v) Cᵀ
+                v0, v1, v2 = att_var_body[k, 0], att_var_body[k, 1], att_var_body[k, 2]
+                if v0 > 0.0 or v1 > 0.0 or v2 > 0.0:
+                    for i in range(3):
+                        for j in range(3):
+                            p[i, j] += c[i, 0] * v0 * c[j, 0] + c[i, 1] * v1 * c[j, 1] + c[i, 2] * v2 * c[j, 2]
         if stance[k]:
             _update3(p, ns, 6, vel[0], vel[1], vel[2], r_zupt, dx, pht, kg)  # ZUPT (3.33–3.38)
             _correct(dx, ns, c, pos, vel, bg, ba, fix_att, r, tmp)           # (3.39–3.41)
@@ -377,7 +386,7 @@ def _p0(params: EkfParams) -> FloatArray:
     return d[: params.n_states]
 
 
-def _args(acc, gyr, dt_s, stance, c0, gyr_bias0, params, c_ext, gravity_m_s2):
+def _args(acc, gyr, dt_s, stance, c0, gyr_bias0, params, c_ext, gravity_m_s2, att_var_body=None):
     acc = np.ascontiguousarray(acc, dtype=np.float64)
     gyr = np.ascontiguousarray(gyr, dtype=np.float64)
     n = len(acc)
@@ -391,21 +400,28 @@ def _args(acc, gyr, dt_s, stance, c0, gyr_bias0, params, c_ext, gravity_m_s2):
     if use_ext and c_ext_arr.shape != (n, 3, 3):
         raise ValueError(f"c_ext must be (N, 3, 3), got {c_ext_arr.shape}")
     g = float(gravity_m_s2 if params.gravity_m_s2 is None else params.gravity_m_s2)
+    use_att_var = att_var_body is not None
+    att_var = np.ascontiguousarray(att_var_body, dtype=np.float64) if use_att_var else np.zeros((1, 3))
+    if use_att_var and (att_var.shape != (n, 3) or not np.all(np.isfinite(att_var)) or np.any(att_var < 0)):
+        raise ValueError(f"att_var_body must be (N, 3) finite and >= 0 (rad²), got shape {att_var.shape}")
     return (acc, gyr, dt_s, stance, c_ext_arr, use_ext, params.n_states, params.zaru,
             np.asarray(c0, dtype=np.float64), np.asarray(gyr_bias0, dtype=np.float64), np.zeros(3), _p0(params),
             params.gyr_noise_rad2_s, params.acc_noise_m2_s3, params.gyr_bias_walk_rad2_s3, params.acc_bias_walk_m2_s5,
             params.zupt_std_m_s ** 2, params.zaru_std_rad_s ** 2, g,
             params.heading_update, params.hdr_gate_rad, params.hdr_straight_rad, params.hdr_std_rad ** 2,
-            params.height_update, params.height_gate_m, params.height_std_m ** 2)
+            params.height_update, params.height_gate_m, params.height_std_m ** 2, att_var, use_att_var)
 
 
 def run_ekf(acc: ArrayLike, gyr: ArrayLike, dt_s: ArrayLike, stance: ArrayLike, c0: ArrayLike,
             gyr_bias0_rad_s: ArrayLike, params: EkfParams = EkfParams(), *, c_ext: ArrayLike | None = None,
-            gravity_m_s2: float = GRAVITY_M_S2) -> EkfOutput:
+            gravity_m_s2: float = GRAVITY_M_S2, att_var_body: ArrayLike | None = None) -> EkfOutput:
     """Run the ZUPT EKF (compiled kernel) over a walk.
 
     acc (N, 3) m/s², gyr (N, 3) rad/s, dt_s (N,) step ending at each sample, stance (N,) bool,
     c0 (3, 3) initial :math:`C^n_b` (alignment), gyr_bias0_rad_s (3,) initial gyroscope bias,
-    c_ext (N, 3, 3) optional external attitude (9IEZ+MAD / +KF), gravity_m_s2 used when ``params.gravity_m_s2`` is None.
+    c_ext (N, 3, 3) optional external attitude (9IEZ+MAD / +KF), gravity_m_s2 used when ``params.gravity_m_s2`` is None,
+    att_var_body (N, 3) optional extra attitude variance, rad², added at each sample about the body axes
+    (:func:`estimators.pdr.desaturation.clipped_attitude_variance`).
     """
-    return EkfOutput(*_ekf_kernel(*_args(acc, gyr, dt_s, stance, c0, gyr_bias0_rad_s, params, c_ext, gravity_m_s2)))
+    return EkfOutput(*_ekf_kernel(*_args(acc, gyr, dt_s, stance, c0, gyr_bias0_rad_s, params, c_ext, gravity_m_s2,
+                                         att_var_body)))

@@ -21,7 +21,7 @@ def _skew(a: FloatArray) -> FloatArray:
 
 def _reference(acc, gyr, dt_s, stance, c_ext, use_ext, ns, zaru, c0, bg0, ba0, p0_diag,
                q_gyr, q_acc, q_bg, q_ba, r_zupt, r_zaru, gravity,
-               use_hdr, hdr_gate, hdr_straight, r_hdr, use_height, height_gate, r_height):
+               use_hdr, hdr_gate, hdr_straight, r_hdr, use_height, height_gate, r_height, att_var_body, use_att_var):
     n = len(acc)
     i3 = np.eye(3)
     p = np.diag(p0_diag).astype(np.float64)
@@ -73,6 +73,8 @@ def _reference(acc, gyr, dt_s, stance, c_ext, use_ext, ns, zaru, c0, bg0, ba0, p
             if ns == 15:
                 q[9:12], q[12:15] = q_bg * dt, q_ba * dt
             p = f @ p @ f.T + np.diag(q)                                           # (3.37)
+            if use_att_var:                                                        # clipped rates
+                p[0:3, 0:3] += state["c"] @ np.diag(att_var_body[k]) @ state["c"].T
         if stance[k]:
             update(sel(6, 3), state["vel"].copy(), r_zupt)                         # ZUPT
             if zaru:
@@ -105,6 +107,8 @@ def _reference(acc, gyr, dt_s, stance, c_ext, use_ext, ns, zaru, c0, bg0, ba0, p
 
 def run_ekf_reference(acc: ArrayLike, gyr: ArrayLike, dt_s: ArrayLike, stance: ArrayLike, c0: ArrayLike,
                       gyr_bias0_rad_s: ArrayLike, params: EkfParams = EkfParams(), *,
-                      c_ext: ArrayLike | None = None, gravity_m_s2: float = GRAVITY_M_S2) -> EkfOutput:
+                      c_ext: ArrayLike | None = None, gravity_m_s2: float = GRAVITY_M_S2,
+                      att_var_body: ArrayLike | None = None) -> EkfOutput:
     """Readable dense-matrix numpy version of :func:`run_ekf` (same maths; for tests)."""
-    return EkfOutput(*_reference(*_args(acc, gyr, dt_s, stance, c0, gyr_bias0_rad_s, params, c_ext, gravity_m_s2)))
+    return EkfOutput(*_reference(*_args(acc, gyr, dt_s, stance, c0, gyr_bias0_rad_s, params, c_ext, gravity_m_s2,
+                                        att_var_body)))
