@@ -18,6 +18,10 @@ tab or a line end — OWASP "CSV injection") also gets Excel's *quote prefix* st
 cell in Excel keeps it text.  The stored text is the exact literal the user typed (line ends as LF: XML
 readers turn a stored CR into LF anyway).
 
+Reproducible: the same input gives byte-identical files (a retried processing job stores the same
+artefacts): the zip entries carry a fixed time stamp and the document's created/modified properties are the
+fixed :data:`DOC_TIME`, never the wall clock.
+
 Speed: openpyxl writes ~6 µs per cell (no lxml), ~0.8 s for 5000 rows × 4 sheets.  So openpyxl writes the
 workbook (styles, headers, small sheets, all user text); the long numeric tables are then generated as
 SpreadsheetML rows directly and spliced into their (header-only) sheets.  Floats are written with
@@ -50,6 +54,10 @@ __all__ = ["write_angles_xlsx", "write_quaternions_xlsx", "neutralise_text"]
 FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n")
 _ILLEGAL_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 _BOLD = Font(bold=True)
+#: the zip entries' time stamp (the zip format's epoch) and the workbook's created/modified properties
+ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+DOC_TIME = "1980-01-01T00:00:00Z"
+_CORE_TIMES = re.compile(r"(<dcterms:(created|modified)[^>]*>)[^<]*(</dcterms:\2>)")
 
 
 # ---------------------------------------------------------------------------------------------- texts
@@ -157,7 +165,10 @@ def _save(wb: Workbook, bulk: dict[int, _Bulk], path: str | os.PathLike) -> None
                         raise RuntimeError(f"{info.filename}: expected a header-only sheet to fill")
                     k = xml.rindex("</sheetData>")
                     data = (xml[:k] + bulk[int(m.group(1))].rows_xml() + xml[k:]).encode("utf-8")
-                dst.writestr(info.filename, data)
+                elif info.filename == "docProps/core.xml":
+                    data = _CORE_TIMES.sub(lambda t: t.group(1) + DOC_TIME + t.group(3), data.decode("utf-8")).encode()
+                dst.writestr(zipfile.ZipInfo(info.filename, date_time=ZIP_TIME), data,
+                             compress_type=zipfile.ZIP_DEFLATED, compresslevel=1)
         os.replace(tmp, out)
     finally:
         if tmp.exists():

@@ -229,3 +229,19 @@ def test_write_replaces_an_existing_file_completely(tmp_path):
     write_angles_xlsx(make_report_input("en"), path)
     assert zipfile.is_zipfile(path)
     assert [p.name for p in tmp_path.iterdir()] == ["angles.xlsx"]     # no temporary file left behind
+
+
+def test_the_same_input_gives_byte_identical_workbooks(tmp_path):
+    """A retried processing job must store the same artefacts: no wall-clock time inside the files."""
+    import time
+
+    ri = make_report_input("es")
+    for writer, name in ((write_angles_xlsx, "angles.xlsx"), (write_quaternions_xlsx, "quaternions.xlsx")):
+        writer(ri, tmp_path / f"a-{name}")
+        time.sleep(1.1)  # zip stamps have a 2 s resolution and core.xml 1 s: cross at least one tick
+        writer(ri, tmp_path / f"b-{name}")
+        assert (tmp_path / f"a-{name}").read_bytes() == (tmp_path / f"b-{name}").read_bytes(), name
+        with zipfile.ZipFile(tmp_path / f"a-{name}") as z:
+            core = z.read("docProps/core.xml").decode()
+        assert "1980-01-01T00:00:00Z</dcterms:modified>" in core
+        assert openpyxl.load_workbook(tmp_path / f"a-{name}", read_only=True).sheetnames  # still a valid workbook
