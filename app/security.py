@@ -1,8 +1,18 @@
 """Passwords, API tokens, browser sessions and CSRF tokens.
 
-* Passwords: ``hashlib.scrypt`` (n=2**14, r=8, p=1, 32 bytes) with a random 16-byte salt per password,
-  stored as ``scrypt$n$r$p$salt$hash`` (base64) so the cost can rise later; verified with
-  ``hmac.compare_digest``.  Minimum length 10 characters; no default passwords anywhere.
+* Passwords: argon2id through ``argon2-cffi`` (a maintained binding of the reference implementation), in
+  its PHC string format ``$argon2id$v=19$m=65536,t=2,p=1$<salt>$<hash>``, which carries its own
+  parameters and random 16-byte salt.  The parameters (:data:`ARGON2_MEMORY_KIB`, :data:`ARGON2_TIME_COST`,
+  :data:`ARGON2_PARALLELISM`): 64 MiB of memory and 2 passes (OWASP's password-storage minimum is 19 MiB
+  and 2 passes; RFC 9106's low-memory profile is 64 MiB and 3 passes over 4 lanes), one lane so that one
+  hash occupies one core (≈ 90 ms on this project's 2-core test machine) — memory-hardness is what makes
+  a stolen database expensive to crack on GPUs, and one lane keeps the concurrency bound below honest.
+  Hashes made by earlier versions (``scrypt$n$r$p$salt$hash``, base64; n=2**14, r=8, p=1) still verify,
+  in constant time; :func:`needs_rehash` is true for them and for argon2 hashes with weaker parameters than
+  today's, and the login stores a fresh hash after the next successful password check, so the parameters
+  can rise later without a migration.  (Until an old account logs in once, a wrong password for it costs
+  scrypt's ≈ 30 ms instead of argon2's ≈ 90 ms: that timing tells only that the account is old.)
+  Minimum length 10 characters; no default passwords anywhere.
 * API tokens: ``chk_`` + ``secrets.token_urlsafe(32)`` (256 bits), shown once; only their sha256 is stored
   (a fast hash is right for 256-bit random secrets: there is nothing to brute-force).
 * Browser sessions: a random id in the ``chakamo_session`` cookie, stored as its sha256.
@@ -11,9 +21,9 @@
   price is that someone who knows an email can delay its owner's login by 15 minutes.  The same counter
   runs per client address (30 failures in 15 minutes), so one machine cannot guess across many emails;
   keys whose failures have all expired are pruned, so the table cannot grow without bound.
-* CPU and memory of scrypt: at most :data:`SCRYPT_CONCURRENCY` hashes run at once (each takes ≈16 MB and
-  tens of ms of one core); a request that waits longer than :data:`SCRYPT_WAIT_S` for a slot gets
-  :class:`Busy` (the API answers 503), so a flood of logins cannot exhaust the machine.
+* CPU and memory of password hashing: at most :data:`HASH_CONCURRENCY` hashes (argon2 or legacy scrypt) run
+  at once (each takes 64 MiB and ≈ 90 ms of one core); a request that waits longer than :data:`HASH_WAIT_S`
+  for a slot gets :class:`Busy` (the API answers 503), so a flood of logins cannot exhaust the machine.
 * Roles: :data:`ROLES` (highest first) and :data:`ROLE_RANK` are the one definition the database, the API
   and the CLI use.
 * CSRF: ``HMAC-SHA256(secret key, session id)`` — tied to the session, nothing extra to store, checked
@@ -23,41 +33,64 @@
 from __future__ import annotations
 
 import base64
+import functools
 import hashlib
 import hmac
 import secrets
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
+from typing import TYPE_CHECKING, TypeVar
+
+if TYPE_CHECKING:
+    from argon2 import PasswordHasher
 
 MIN_PASSWORD_LENGTH = 10
 TOKEN_PREFIX = "chk_"
-_N, _R, _P, _LEN = 2 ** 14, 8, 1, 32
+#: argon2id cost of new hashes (module docstring): memory in KiB, passes, lanes
+ARGON2_MEMORY_KIB, ARGON2_TIME_COST, ARGON2_PARALLELISM = 64 * 1024, 2, 1
+#: the legacy scheme's prefix (hashes of earlier versions; verified, never made any more)
+_SCRYPT_PREFIX = "scrypt$"
 #: the roles of users and API tokens, highest first (admin > clinician > read_only)
 ROLES: tuple[str, ...] = ("admin", "clinician", "read_only")
 #: role → rank (higher may do more)
 ROLE_RANK: dict[str, int] = {role: len(ROLES) - 1 - i for i, role in enumerate(ROLES)}
-#: scrypt hashes computed at the same time, at most; and how long a caller waits for a slot
-SCRYPT_CONCURRENCY = 2
-SCRYPT_WAIT_S = 10.0
-_scrypt_slots = threading.BoundedSemaphore(SCRYPT_CONCURRENCY)
+#: password hashes computed at the same time, at most; and how long a caller waits for a slot
+HASH_CONCURRENCY = 2
+HASH_WAIT_S = 10.0
+_hash_slots = threading.BoundedSemaphore(HASH_CONCURRENCY)
+#: the names of the scrypt era, kept because tests/app/web/test_web_auth.py holds the slots through them
+SCRYPT_CONCURRENCY, SCRYPT_WAIT_S, _scrypt_slots = HASH_CONCURRENCY, HASH_WAIT_S, _hash_slots
+
+_T = TypeVar("_T")
 
 
 class Busy(RuntimeError):
     """Too many password checks at once; the caller should try again shortly."""
 
 
-def _scrypt(password: str, salt: bytes, n: int, r: int, p: int, dklen: int) -> bytes:
-    if not _scrypt_slots.acquire(timeout=SCRYPT_WAIT_S):
+def _in_slot(work: Callable[..., _T], *args) -> _T:
+    """Run one password hash in a slot of :data:`_hash_slots` (:class:`Busy` after :data:`HASH_WAIT_S`)."""
+    if not _hash_slots.acquire(timeout=HASH_WAIT_S):
         raise Busy("the server is busy checking passwords; try again in a moment")
     try:
-        return hashlib.scrypt(password.encode("utf-8"), salt=salt, n=n, r=r, p=p, dklen=dklen, maxmem=64 << 20)
+        return work(*args)
     finally:
-        _scrypt_slots.release()
+        _hash_slots.release()
 
 
-def _b64(data: bytes) -> str:
-    return base64.b64encode(data).decode("ascii")
+@functools.cache
+def _argon2() -> PasswordHasher:
+    """The hasher of new passwords (imported at first use: the CLI imports this module for :data:`ROLES`)."""
+    from argon2 import PasswordHasher, Type
+
+    return PasswordHasher(time_cost=ARGON2_TIME_COST, memory_cost=ARGON2_MEMORY_KIB, parallelism=ARGON2_PARALLELISM,
+                          hash_len=32, salt_len=16, type=Type.ID)
+
+
+def _scrypt(password: str, salt: bytes, n: int, r: int, p: int, dklen: int) -> bytes:
+    return hashlib.scrypt(password.encode("utf-8"), salt=salt, n=n, r=r, p=p, dklen=dklen, maxmem=64 << 20)
 
 
 def check_password_strength(password: str) -> None:
@@ -67,28 +100,58 @@ def check_password_strength(password: str) -> None:
 
 
 def hash_password(password: str) -> str:
-    """A salted scrypt hash of ``password`` (module docstring for the format)."""
-    salt = secrets.token_bytes(16)
-    digest = _scrypt(password, salt, _N, _R, _P, _LEN)
-    return f"scrypt${_N}${_R}${_P}${_b64(salt)}${_b64(digest)}"
+    """An argon2id hash of ``password`` in PHC format, salted (module docstring for the parameters).
+    Raises :class:`Busy` when no hashing slot frees up within :data:`HASH_WAIT_S`."""
+    return _in_slot(_argon2().hash, password)
+
+
+def _verify_scrypt(password: str, stored: str) -> bool:
+    try:
+        scheme, n, r, p, salt, digest = stored.split("$")
+        expected = base64.b64decode(digest, validate=True)
+        n_, r_, p_, salt_ = int(n), int(r), int(p), base64.b64decode(salt, validate=True)
+    except (ValueError, TypeError):
+        return False
+    if scheme != "scrypt" or not expected:
+        return False
+    try:
+        got = _in_slot(_scrypt, password, salt_, n_, r_, p_, len(expected))
+    except (ValueError, TypeError, OverflowError):  # parameters hashlib refuses: a damaged hash
+        return False
+    return hmac.compare_digest(got, expected)
+
+
+def _verify_argon2(password: str, stored: str) -> bool:
+    from argon2.exceptions import InvalidHashError, VerificationError
+
+    try:
+        return _in_slot(_argon2().verify, stored, password)
+    except (VerificationError, InvalidHashError):  # wrong password (VerifyMismatchError) or a damaged hash
+        return False
 
 
 def verify_password(password: str, stored: str) -> bool:
-    """True when ``password`` matches ``stored`` (constant-time comparison; False for a malformed hash).
-    Raises :class:`Busy` when no scrypt slot frees up within :data:`SCRYPT_WAIT_S`."""
+    """True when ``password`` matches ``stored`` — an argon2 hash, or a legacy ``scrypt$…`` one (constant-time;
+    False for a malformed or unknown hash).  Raises :class:`Busy` when no slot frees up within
+    :data:`HASH_WAIT_S`.  After a True, call :func:`needs_rehash` and store a new hash if it says so."""
+    if stored.startswith("$argon2"):
+        return _verify_argon2(password, stored)
+    if stored.startswith(_SCRYPT_PREFIX):
+        return _verify_scrypt(password, stored)
+    return False
+
+
+def needs_rehash(stored: str) -> bool:
+    """True when ``stored`` should be replaced by :func:`hash_password` at the next successful login: a
+    legacy scrypt hash, or an argon2 hash whose type or parameters differ from today's."""
+    from argon2.exceptions import InvalidHashError
+
+    if not stored.startswith("$argon2"):
+        return True
     try:
-        scheme, n, r, p, salt, digest = stored.split("$")
-        if scheme != "scrypt":
-            return False
-        expected = base64.b64decode(digest)
-        n_, r_, p_, salt_ = int(n), int(r), int(p), base64.b64decode(salt)
-    except (ValueError, TypeError):
-        return False
-    try:
-        got = _scrypt(password, salt_, n_, r_, p_, len(expected))
-    except (ValueError, TypeError):
-        return False
-    return hmac.compare_digest(got, expected)
+        return _argon2().check_needs_rehash(stored)
+    except (InvalidHashError, ValueError):
+        return True
 
 
 def new_token() -> str:
@@ -177,5 +240,7 @@ class LoginThrottle:
             self._failures.pop(f"email:{email}", None)
 
 
-__all__ = ["MIN_PASSWORD_LENGTH", "ROLES", "ROLE_RANK", "Busy", "LoginThrottle", "check_password_strength", "csrf_ok",
-           "csrf_token", "hash_password", "new_session_id", "new_token", "sha256_hex", "verify_password"]
+__all__ = ["ARGON2_MEMORY_KIB", "ARGON2_PARALLELISM", "ARGON2_TIME_COST", "HASH_CONCURRENCY", "HASH_WAIT_S",
+           "MIN_PASSWORD_LENGTH", "ROLES", "ROLE_RANK", "Busy", "LoginThrottle", "check_password_strength", "csrf_ok",
+           "csrf_token", "hash_password", "needs_rehash", "new_session_id", "new_token", "sha256_hex",
+           "verify_password"]

@@ -2,11 +2,16 @@
 
 The cookie ``chakamo_session`` is HttpOnly, SameSite=Strict, ``Secure`` outside development, and lives
 ``CHAKAMO_SESSION_HOURS``; only its sha256 is stored.  A wrong email and a wrong password get the same 401
-after the same scrypt work, so login does not reveal which emails exist; repeated failures for one email, or
+after the same argon2 work, so login does not reveal which emails exist; repeated failures for one email, or
 from one client address, are throttled (:class:`app.security.LoginThrottle`: 429); when too many password
 checks run at once the answer is 503 (:class:`app.security.Busy`), never an exhausted machine.  The client
 address is the connection's peer: behind a reverse proxy run uvicorn with ``--proxy-headers`` so that it is
 the browser's.
+
+A successful login whose stored hash is of an older scheme or weaker parameters
+(:func:`app.security.needs_rehash`: the scrypt hashes of earlier versions) stores a new argon2id hash of the
+password just checked, in the login's own transaction; when no hashing slot is free at that moment the
+login still succeeds and the upgrade waits for the next one.
 """
 
 from __future__ import annotations
@@ -20,14 +25,14 @@ from sqlalchemy import delete, select
 from app.api.deps import COOKIE, DbDep, PrincipalDep, SettingsDep
 from app.api.schemas import LoginIn, MeOut, user_out
 from app.db.models import BrowserSession, User, utcnow
-from app.security import Busy, csrf_token, hash_password, new_session_id, sha256_hex, verify_password
+from app.security import Busy, csrf_token, hash_password, needs_rehash, new_session_id, sha256_hex, verify_password
 
 router = APIRouter(prefix="/auth", tags=["auth"])
 
 
 @functools.cache
 def _dummy_hash() -> str:
-    """A hash to check unknown emails against (same scrypt work); made at the first login, not at import."""
+    """A hash to check unknown emails against (same argon2 work); made at the first login, not at import."""
     return hash_password("not-a-real-password-only-for-equal-timing")
 
 
@@ -50,6 +55,11 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
         throttle.fail(email, ip)
         raise HTTPException(401, "Wrong email or password; try again or ask your clinic admin to reset it.")
     throttle.reset(email)
+    if needs_rehash(user.password_hash):
+        try:
+            user.password_hash = hash_password(body.password)
+        except Busy:  # the old hash still works; it is upgraded at a later login
+            pass
     sid = new_session_id()
     now = utcnow()
     db.execute(delete(BrowserSession).where(BrowserSession.expires_at < now))  # housekeeping
