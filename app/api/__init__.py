@@ -4,7 +4,8 @@ Errors are ``{"detail": "<one sentence: what is wrong, what to do>"}`` with hone
 401 not logged in, 403 role too low or CSRF, 404 unknown id *or another clinic's id*, 409 conflict, 413 too
 large, 415 wrong type, 422 validation.  ``../shared/DESIGN.md`` §4 has the hospital minimum; ``/docs`` the
 whole API.
-Shared pieces: :mod:`.deps` (caller, roles, clinic scoping, CSRF), :mod:`.schemas` (shapes).
+Shared pieces: :mod:`.deps` (caller, roles, clinic scoping, CSRF), :mod:`.schemas` (shapes); reads and
+changes of patient data are recorded by :mod:`app.audit` and listed by :mod:`.audit` (admins).
 """
 
 from fastapi import APIRouter
@@ -12,10 +13,11 @@ from fastapi import APIRouter
 
 def api_router() -> APIRouter:
     """All routers of API v1 under ``/api/v1``."""
-    from app.api import artefacts, auth, clinics, fhir, jobs, patients, recordings, results, sessions, users
+    from app.api import (artefacts, audit, auth, clinics, fhir, jobs, patients, recordings, results, sessions,
+                         users)
 
     router = APIRouter(prefix="/api/v1")
-    for module in (auth, clinics, users, patients, sessions, recordings, jobs, results, artefacts, fhir):
+    for module in (auth, clinics, users, patients, sessions, recordings, jobs, results, artefacts, fhir, audit):
         router.include_router(module.router)
     return router
 

@@ -4,7 +4,8 @@ The document is built by :func:`app.fhir.diagnostic_report` (another module of t
 session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
 ``/api/v1`` address (the namespace of the session and patient identifiers).  ``?analysis_id=`` picks an
 earlier analysis.  Stored data the export cannot express (e.g. a patient's sex recorded before the API
-restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.
+restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.  Each
+export is audited (``export`` of the session's patient, :mod:`app.audit`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import json
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import Response
 
+from app import audit
 from app.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.api.results import artefact_row, pick_analysis
 from app.api.schemas import patient_out
@@ -43,4 +45,5 @@ def diagnostic_report_route(session_id: int, request: Request, principal: Reader
     except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
         raise HTTPException(409, f"Session {session_id} cannot be exported to FHIR: {exc}; correct the record and "
                                  "try again.") from None
+    audit.record(db, request, principal, "export", patient_id=session.patient_id, session_id=session.id)
     return Response(json.dumps(doc, ensure_ascii=False), media_type="application/fhir+json")

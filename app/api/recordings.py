@@ -26,6 +26,9 @@ ingestion check is stored with the version it was computed from and only if that
 check is stale is checked again when it is read or processed (:func:`refresh_ingestion`).  Two uploads
 racing for the same file name: one wins, the other gets 409 (the database's unique constraint decides).
 
+Audit: an upload and a deletion each record one event (``upload`` / ``delete``, :mod:`app.audit`) in the
+transaction that stores or removes the recordings, so the files and their event commit together.
+
 Optional form fields ``segment`` (thigh|shank) and ``role`` (mag_calibration|standing|lying|task) apply to
 every file of the request (they go into the generated ``session.json``).  A ``.json`` file must be the
 session's ``session.json`` manifest.
@@ -45,6 +48,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 from starlette.requests import ClientDisconnect
 
+from app import audit
 from app.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, refuse_while_processing, scoped_session
 from app.api.schemas import UploadOut, ingestion_fresh, recording_out
 from app.db import Database, ensure_blob
@@ -203,6 +207,7 @@ def _store(request: Request, principal, session_id: int, upload: _Upload, segmen
             raise HTTPException(409, f"{', '.join(names)}: another upload to this session stored a file of the "
                                      "same name at the same time; reload the session and check its files.") from None
         refuse_while_processing(db, session.id, "upload the files")  # a job queued meanwhile (SQLite) wins
+        audit.record(db, request, principal, "upload", patient_id=session.patient_id, session_id=session.id)
         out = [recording_out(r) for r in rows]
     ingestion = refresh_ingestion(db_, request.app.state.store, settings.tmp_dir, session_id)
     return {"recordings": out, "ingestion": ingestion}
@@ -328,6 +333,7 @@ def _delete(request: Request, principal, session_id: int, recording_id: int) -> 
         session.files_version = KneeSession.files_version + 1
         db.flush()
         refuse_while_processing(db, session.id, "delete files")
+        audit.record(db, request, principal, "delete", patient_id=session.patient_id, session_id=session.id)
 
 
 @router.delete("/{session_id}/recordings/{recording_id}", status_code=204,

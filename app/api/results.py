@@ -1,12 +1,14 @@
-"""``GET /sessions/{id}/results``: the results.json of an analysis (the latest finished one by default)."""
+"""``GET /sessions/{id}/results``: the results.json of an analysis (the latest finished one by default),
+audited as a ``view`` of the session's patient (:mod:`app.audit`)."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter, HTTPException
+from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import Response
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app import audit
 from app.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.db.models import Analysis, Artefact, KneeSession
 
@@ -37,8 +39,11 @@ def artefact_row(db: Session, analysis: Analysis, name: str, lang: str = "") -> 
 
 
 @router.get("/{session_id}/results", responses={200: {"content": {"application/json": {}}}})
-def get_results(session_id: int, principal: Reader, db: DbDep, store: StoreDep, analysis_id: int | None = None):
+def get_results(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                analysis_id: int | None = None):
     """The stored results.json, byte for byte (DESIGN §4)."""
-    analysis = pick_analysis(db, scoped_session(db, principal, session_id), analysis_id)
-    art = artefact_row(db, analysis, "results.json")
-    return Response(store.read(art.sha256), media_type="application/json")
+    session = scoped_session(db, principal, session_id)
+    analysis = pick_analysis(db, session, analysis_id)
+    data = store.read(artefact_row(db, analysis, "results.json").sha256)
+    audit.record(db, request, principal, "view", patient_id=session.patient_id, session_id=session.id)
+    return Response(data, media_type="application/json")

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Analysis, Job, KneeSession, Patient, Recording, User
+from app.db.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.security import ROLES
 from app.workspace import NO_RECORDINGS
 from reports.i18n import LANGUAGES
@@ -183,6 +183,23 @@ class TrendOut(BaseModel):
     points: list[TrendPoint]
 
 
+class AuditEventOut(BaseModel):
+    """One audit event (:mod:`app.audit`): ``actor_kind`` is ``user`` or ``token``; ``resource`` is the
+    request's method and path; ``client`` the caller's address."""
+
+    id: int
+    at: dt.datetime
+    actor_kind: Literal["user", "token"]
+    user_id: int | None
+    token_id: int | None
+    actor: str
+    action: str
+    patient_id: int | None
+    session_id: int | None
+    resource: str
+    client: str
+
+
 def user_out(u: User) -> dict[str, Any]:
     return {"id": u.id, "email": u.email, "name": u.name, "role": u.role,
             "clinic": {"id": u.clinic.id, "name": u.clinic.name}}
@@ -200,6 +217,11 @@ def recording_out(r: Recording) -> dict[str, Any]:
 def job_out(j: Job) -> dict[str, Any]:
     return {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "log",
                                        "analysis_id", "filter", "lang", "created_at", "started_at", "finished_at")}
+
+
+def audit_out(e: AuditEvent) -> dict[str, Any]:
+    return {k: getattr(e, k) for k in ("id", "at", "actor_kind", "user_id", "token_id", "actor", "action",
+                                       "patient_id", "session_id", "resource", "client")}
 
 
 def analysis_out(a: Analysis) -> dict[str, Any]:
