@@ -140,16 +140,25 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @app.middleware("http")
     async def security_headers(request: Request, call_next):
         """Security headers everywhere; a CSP on the UI and on viser's client, which may play only this
-        server's session scenes (``playbackPath`` under ``/api/v1/sessions/``, else 400)."""
+        server's session scenes (``playbackPath`` under ``/api/v1/sessions/``, else 400).
+
+        Every ``/api/`` answer is ``Cache-Control: no-store`` (ASVS 8.2.1): they carry patient data, reports
+        or CSRF tokens, and no browser cache or proxy may keep a copy (a shared ward computer).  Outside
+        development every answer carries ``Strict-Transport-Security`` (one year, subdomains): once a
+        browser has reached ChakaMo over HTTPS it never again sends a cookie over plain HTTP."""
         path = request.url.path
-        if path.startswith("/viser"):
-            playback = request.query_params.get("playbackPath")
-            if playback is not None and not (playback.startswith(PLAYBACK_PREFIX) and ".." not in playback):
-                return JSONResponse({"detail": f"The 3D view plays only this server's scenes ({PLAYBACK_PREFIX}"
+        playback = request.query_params.get("playbackPath") if path.startswith("/viser") else None
+        if playback is not None and not (playback.startswith(PLAYBACK_PREFIX) and ".." not in playback):
+            response = JSONResponse({"detail": f"The 3D view plays only this server's scenes ({PLAYBACK_PREFIX}"
                                                "…/scene.viser)."}, status_code=400)
-        response = await call_next(request)
+        else:
+            response = await call_next(request)
         response.headers.setdefault("X-Content-Type-Options", "nosniff")
         response.headers.setdefault("Referrer-Policy", "no-referrer")
+        if path.startswith("/api/"):
+            response.headers["Cache-Control"] = "no-store"
+        if not settings.development:
+            response.headers["Strict-Transport-Security"] = "max-age=31536000; includeSubDomains"
         if path.startswith("/viser"):
             response.headers["Content-Security-Policy"] = VISER_CSP
         elif path == "/" or path.startswith("/static"):
