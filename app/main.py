@@ -34,6 +34,7 @@ from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import func, select, text
+from sqlalchemy.exc import OperationalError
 
 import app as _app_pkg
 from app.api import api_router
@@ -175,6 +176,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
         detail = "; ".join(parts) + ". Correct the request and send it again."
         return JSONResponse({"detail": detail, "errors": jsonable_encoder(exc.errors())}, status_code=422)
+
+    @app.exception_handler(OperationalError)
+    async def database_unreachable(request: Request, exc: OperationalError):
+        """503 while the database is away (a restart, a fail-over): nothing was changed; the client retries."""
+        log.warning("database unreachable during %s %s: %s", request.method, request.url.path, exc.orig)
+        return JSONResponse({"detail": "The database is not reachable at the moment (nothing was changed); try "
+                                       "again in a minute."}, status_code=503, headers={"Retry-After": "30"})
 
     @app.exception_handler(CorruptBlob)
     async def corrupt_blob(request: Request, exc: CorruptBlob):
