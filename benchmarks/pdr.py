@@ -14,7 +14,10 @@ Data: 7 closed-loop walks of the 22.1 m rectangle, two foot-mounted MPU-6050 (RE
 Metrics: seed 001 eqs. 4.3–4.5 (:mod:`estimators.pdr.metrics`); ED stance-to-stance is ChakaMo's addition.
 Note that stance-to-stance distances of *foot placements* are expected to fall short of the 22.1 m centre
 line: every corner stride is a chord across the corner, and the inner foot walks a shorter rectangle than
-the outer one (±0.1 m lateral offset ≈ ∓0.8 m of perimeter).
+the outer one (±0.1 m lateral offset ≈ ∓0.6 m of perimeter, 2π·0.1).  The last table measures it on the
+simulator (:func:`estimators.simulation.footpath.lane_footprints`): the *true* stance-to-stance length of
+one foot walking the 22.1 m lane, against 22.1 m, for corner radii, foot offsets and stride phases, and the
+default method's estimate on one simulated walk of that kind.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import numpy as np
 from app.walk_ingestion import read_iez
 from estimators.pdr import DETECTORS, METHODS, reconstruct
 from estimators.pdr.metrics import stance_positions
+from estimators.simulation.footpath import lane_footprints
 
 DATA_ENV = "CHAKAMO_IEZ_DIR"
 TRUE_DISTANCE_M = 22.1
@@ -182,6 +186,43 @@ def print_tables(rows: list[dict]) -> None:
         print(f"  {det:6s} ours: {ours}\n         thesis: {thesis}")
 
 
+LANE_RADII_M = (0.0, 0.3, 0.5, 0.7)
+LANE_OFFSETS_M = (-0.1, -0.05, 0.0, 0.05, 0.1)
+LANE_PHASES = (0.5, 0.75, 1.0)
+
+
+def lane_stance_error(corner_radius_m: float, lateral_offset_m: float, first_stride_fraction: float,
+                      stride_length_m: float = 1.2) -> float:
+    """(true stance-to-stance length − 22.1 m) / 22.1 m of one foot walking the simulated 22.1 m lane."""
+    xy, _ = lane_footprints(stride_length_m=stride_length_m, corner_radius_m=corner_radius_m,
+                            lateral_offset_m=lateral_offset_m, first_stride_fraction=first_stride_fraction)
+    return float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)) / TRUE_DISTANCE_M - 1.0)
+
+
+def print_lane_reference() -> None:
+    """The ED stance-to-stance a perfect estimate has on the lane walk, and the default method's on one."""
+    from estimators.simulation.imu import simulate_on_grid
+    from estimators.simulation.motions import walking_foot
+    from estimators.simulation.spec import ImuSpec
+
+    print("\nReference of ED stance-to-stance (simulator, estimators.simulation.footpath): the TRUE stance-to-"
+          "stance length\nof one foot walking the 22.1 m lane (8.95 m × 2.1 m centre line, clockwise, 1.2 m strides), "
+          "against 22.1 m, %;\nmean [min, max] over the stride phase (first stride 0.5, 0.75, 1 × L)")
+    print(f"{'corner radius':>14s} | " + " | ".join(f"foot offset {o:+.2f} m" for o in LANE_OFFSETS_M))
+    for r in LANE_RADII_M:
+        cells = []
+        for o in LANE_OFFSETS_M:
+            v = [100 * lane_stance_error(r, o, f) for f in LANE_PHASES]
+            cells.append(f"{np.mean(v):5.1f} [{min(v):5.1f},{max(v):5.1f}]")
+        print(f"{r:12.1f} m | " + " | ".join(f"{c:>21s}" for c in cells))
+    walk = walking_foot(placements=lane_footprints(corner_radius_m=0.5, lateral_offset_m=-0.05), seed=4)
+    g = simulate_on_grid(walk.trajectory, ImuSpec.noise_only(), fs_hz=100.0, seed=4)
+    m = reconstruct(g.t_s, g.acc, g.gyr).metrics(TRUE_DISTANCE_M)
+    print(f"Simulated walk (r 0.5 m, inner foot −0.05 m, sensor noise only), default method: ED stance-to-stance "
+          f"{100 * m.ed_stance:.1f} % estimated, {100 * (walk.distance_m / TRUE_DISTANCE_M - 1):.1f} % true; "
+          f"EP {100 * m.ep:.2f} %")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.pdr", description=__doc__.split("\n")[0])
     parser.add_argument("--data", help=f"IEZ folder (default: ${DATA_ENV} or ../shared/data/iez)")
@@ -196,6 +237,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     rows = evaluate(folder, args.methods, args.detectors, args.repeats)
     print_tables(rows)
+    print_lane_reference()
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
     return 0

@@ -252,6 +252,7 @@ def walking_foot(
     variability: float = 0.05,
     seed: int | np.random.Generator | None = 0,
     fs_hz: float = DEFAULT_FS_HZ,
+    placements: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> WalkingMotion:
     """A foot-mounted sensor walking, with true stance phases (see module docstring).
 
@@ -265,6 +266,8 @@ def walking_foot(
     rest_s : standing still before the first and after the last stride, s (added to those stances).
     facing_rad : ENU yaw of the first walking direction.
     variability : relative random spread of the stance and swing durations (uniform ±).
+    placements : optional ``(xy (K, 2) m, headings (K,) rad)`` of the K ≥ 2 stances, used instead of
+        ``path`` (e.g. :func:`estimators.simulation.footpath.lane_footprints`: a lane walked as feet land).
     """
     if path == "straight" and (int(n_strides) != n_strides or n_strides < 1):
         raise ValueError(f"n_strides must be a positive integer, got {n_strides!r}")
@@ -274,7 +277,13 @@ def walking_foot(
     if not (0.0 <= variability < 0.5):
         raise ValueError(f"variability must be in [0, 0.5), got {variability!r}")
     rng = np.random.default_rng(seed)
-    xy, heads = _placements(int(n_strides), stride_length_m, path, rectangle_m, int(laps), facing_rad)
+    if placements is None:
+        xy, heads = _placements(int(n_strides), stride_length_m, path, rectangle_m, int(laps), facing_rad)
+    else:
+        xy = np.asarray(placements[0], dtype=np.float64)
+        heads = np.asarray(placements[1], dtype=np.float64)
+        if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 2 or heads.shape != (len(xy),):
+            raise ValueError(f"placements must be (xy (K, 2), headings (K,)) with K >= 2; got {xy.shape}, {heads.shape}")
     k = len(xy)
     stance_d = stance_s * rng.uniform(1 - variability, 1 + variability, k)
     swing_d = swing_s * rng.uniform(1 - variability, 1 + variability, k - 1)
