@@ -47,7 +47,7 @@ from pathlib import Path
 from app.db import Database
 from app.jobs import TransientJobError, mark_dispatched, run_job, sweep
 from app.settings import Settings
-from app.storage import BlobStore
+from app.storage import Storage, open_storage
 
 log = logging.getLogger("chakamo.celery")
 
@@ -191,7 +191,7 @@ class _Context:
     pid: int
     settings: Settings
     db: Database
-    store: BlobStore
+    store: Storage
     tmp_root: Path
 
 
@@ -211,7 +211,7 @@ def _context() -> _Context:
         settings = get_settings()
         tmp_root = settings.tmp_dir / _tmp_name(os.getpid())
         tmp_root.mkdir(parents=True, exist_ok=True)
-        _ctx = _Context(os.getpid(), settings, Database(settings.db_url), BlobStore(settings.blob_dir), tmp_root)
+        _ctx = _Context(os.getpid(), settings, Database(settings.db_url), open_storage(settings), tmp_root)
     return _ctx
 
 

@@ -34,7 +34,7 @@ from app.db import Database
 from app.db.models import Job, utcnow
 from app.jobs import LEASE_S, MAX_ATTEMPTS, REDISPATCH_S, mark_dispatched, run_job, sweep
 from app.render import RENDER_TIMEOUT_S, RenderPool, warm_up
-from app.storage import BlobStore
+from app.storage import Storage
 
 log = logging.getLogger("chakamo.jobs")
 
@@ -129,7 +129,7 @@ class ThreadJobRunner:
     #: seconds between two sweeps (requeue lost jobs, pick up jobs queued by another process)
     SWEEP_EVERY_S = 5.0
 
-    def __init__(self, db: Database, store: BlobStore, tmp_root: Path, workers: int = 2,
+    def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
                  render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
                  lease_s: float = LEASE_S, redispatch_s: float = REDISPATCH_S) -> None:
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers

@@ -52,7 +52,7 @@ from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 from app.db import Database, ensure_blob
 from app.db.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
 from app.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
-from app.storage import BlobStore
+from app.storage import Storage
 
 log = logging.getLogger("chakamo.jobs")
 
@@ -198,7 +198,7 @@ def _public_results(results: dict, session_id: int) -> dict:
 Outcome = Literal["done", "failed", "busy", "finished"]
 
 
-def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: RenderPool | None = None,
+def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None = None,
             render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S) -> Outcome:
     """Claim and run job ``job_id`` (module docstring).  Returns ``done`` or ``failed`` when this call ran it,
     ``busy`` when another worker holds it (running, lease not expired), ``finished`` when it had already ended
@@ -214,7 +214,7 @@ def run_job(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: R
         return _run_claimed(job_id, db, store, tmp_root, pool, render_timeout_s)
 
 
-def _run_claimed(job_id: int, db: Database, store: BlobStore, tmp_root: Path, pool: RenderPool | None,
+def _run_claimed(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
                  render_timeout_s: float) -> Outcome:
     from app.ingestion import IngestionError, load_session
     from app.pipeline import PIPELINE_VERSION, PipelineError, ProcessOptions, process_session

@@ -42,7 +42,7 @@ from app.db import Database
 from app.db.models import User
 from app.security import LoginThrottle
 from app.settings import Settings, get_settings
-from app.storage import BlobStore, CorruptBlob
+from app.storage import CorruptBlob, Storage, open_storage
 from estimators import __version__
 
 log = logging.getLogger("chakamo")
@@ -89,7 +89,7 @@ def _swagger_dir() -> Path:
     return Path(str(swagger_ui_path))
 
 
-def make_runner(settings: Settings, db: Database, store: BlobStore):
+def make_runner(settings: Settings, db: Database, store: Storage):
     """The job engine ``CHAKAMO_JOB_BACKEND`` names (an :class:`app.jobs.JobRunner`)."""
     if settings.job_backend == "celery":
         from app.celery_jobs import CeleryJobRunner
@@ -108,7 +108,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     settings.tmp_dir.mkdir(parents=True, exist_ok=True)
     db = Database(settings.db_url)
-    store = BlobStore(settings.blob_dir)
+    store = open_storage(settings)
     runner = make_runner(settings, db, store)
 
     @asynccontextmanager

@@ -58,13 +58,13 @@ def _queue_one(db: Database, settings: Settings, session_id: int, filter_name: s
     from app.api.recordings import refresh_ingestion
     from app.api.schemas import ingestion_fresh
     from app.pipeline import PIPELINE_VERSION
-    from app.storage import BlobStore
+    from app.storage import open_storage
 
     with db.session() as s:
         session = s.get(KneeSession, session_id)
         fresh = ingestion_fresh(session)
     if not fresh:  # files changed since the last check (or never checked): check them now, no transaction held
-        refresh_ingestion(db, BlobStore(settings.blob_dir), settings.tmp_dir, session_id)
+        refresh_ingestion(db, open_storage(settings), settings.tmp_dir, session_id)
     with db.session() as s:
         session = s.get(KneeSession, session_id, with_for_update=True)
         base = dict(session_id=session.id, patient=session.patient.external_id, date=session.date)

@@ -13,6 +13,11 @@ good copy (uploading the file again repairs the store).  Reading verifies the ch
 instead of being served or processed; its message names the blob, never the server's storage path.
 :meth:`BlobStore.clear_incoming` removes temporary files a crashed server left behind (called at start-up,
 before anything writes).
+
+The application sees the store through :class:`Storage` (what uploads, jobs and downloads need) and gets
+it from :func:`open_storage`; the local file system (:class:`BlobStore`, under ``CHAKAMO_DATA_DIR/blobs``,
+a volume shared by the API servers and the workers in a scaled-out deployment) is the default and for now
+the only implementation.  A write that fails (the disk is full: ``ENOSPC``) leaves no partial file behind.
 """
 
 from __future__ import annotations
@@ -23,6 +28,10 @@ import os
 import re
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from app.settings import Settings
 
 log = logging.getLogger("chakamo.storage")
 
@@ -78,7 +87,10 @@ class BlobWriter:
 
     def discard(self) -> None:
         if not self._file.closed:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:  # e.g. ENOSPC flushing the buffer: the file goes anyway
+                pass
         self._path.unlink(missing_ok=True)
 
 
@@ -136,10 +148,14 @@ class BlobStore:
         return BlobWriter(self, max_bytes)
 
     def put(self, data: bytes) -> tuple[str, int]:
-        """Store ``data``; returns ``(sha256, size_bytes)``."""
+        """Store ``data``; returns ``(sha256, size_bytes)``.  On failure (e.g. ``ENOSPC``) nothing is left behind."""
         w = self.writer()
-        w.write(data)
-        return w.commit(), w.size_bytes
+        try:
+            w.write(data)
+            return w.commit(), w.size_bytes
+        except BaseException:
+            w.discard()
+            raise
 
     def read(self, sha256: str) -> bytes:
         """The content of blob ``sha256``, verified; raises :class:`CorruptBlob` if missing or altered."""
@@ -166,4 +182,23 @@ class BlobStore:
             raise CorruptBlob(f"stored file {sha256[:12]}… does not match its checksum; restore it from a backup")
 
 
-__all__ = ["BlobStore", "BlobWriter", "CorruptBlob", "TooLarge"]
+class Storage(Protocol):
+    """What the application needs of a file store (module docstring)."""
+
+    def writer(self, max_bytes: int | None = None) -> BlobWriter: ...
+
+    def put(self, data: bytes) -> tuple[str, int]: ...
+
+    def read(self, sha256: str) -> bytes: ...
+
+    def copy_to(self, sha256: str, target: str | os.PathLike) -> None: ...
+
+    def clear_incoming(self) -> int: ...
+
+
+def open_storage(settings: "Settings") -> BlobStore:
+    """The file store of ``settings``: the local file system under ``settings.blob_dir``."""
+    return BlobStore(settings.blob_dir)
+
+
+__all__ = ["BlobStore", "BlobWriter", "CorruptBlob", "Storage", "TooLarge", "open_storage"]

@@ -1,0 +1,75 @@
+"""A full disk while a job stores its artefacts: the job fails cleanly with a sentence, nothing half-written
+is left or recorded, the uploads stay intact, and processing again works once there is space.
+
+The blob store lives on a real, small ``tmpfs`` (mounted by the test: root only; skipped elsewhere), sized to
+take the uploads but not the reports, so the kernel itself answers ``ENOSPC``; then it is grown in place
+(``mount -o remount,size=…``), as an administrator freeing space would.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+
+import pytest
+
+from web_helpers import clinic_token, demo_files, make_settings, new_session, wait_job
+
+
+def _mount(args: list[str]) -> None:
+    subprocess.run(["mount", *args], check=True, capture_output=True, timeout=30)
+
+
+@pytest.fixture
+def small_blob_disk(tmp_path):
+    """``data/blobs`` on a tmpfs of the uploads' size plus 1 MB; unmounted afterwards."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs needs root")
+    blobs = tmp_path / "data" / "blobs"
+    blobs.mkdir(parents=True)
+    try:
+        _mount(["-t", "tmpfs", "-o", "size=6m", "tmpfs", str(blobs)])
+    except (subprocess.CalledProcessError, FileNotFoundError) as exc:
+        pytest.skip(f"cannot mount a tmpfs here ({exc})")
+    try:
+        yield blobs
+    finally:
+        subprocess.run(["umount", "-l", str(blobs)], capture_output=True, timeout=30)
+
+
+def _used_bytes(folder) -> int:
+    st = os.statvfs(folder)
+    return (st.f_blocks - st.f_bfree) * st.f_frsize
+
+
+def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, small_blob_disk, demo_dir):
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+
+    upload_bytes = sum(len(f[1][1]) for f in demo_files(demo_dir))
+    assert upload_bytes < 5 * 2**20  # the tmpfs takes the uploads, not the reports as well
+    settings = make_settings(tmp_path / "data")
+    with TestClient(create_app(settings)) as client:
+        h = clinic_token(settings, "Clinica Llena")
+        _, session_id = new_session(client, h, "DISK-1")
+        r = client.post(f"/api/v1/sessions/{session_id}/recordings", files=demo_files(demo_dir), headers=h)
+        assert r.status_code == 201 and r.json()["ingestion"]["ok"], r.text
+        _mount(["-o", f"remount,size={upload_bytes + 2**20}", str(small_blob_disk)])  # ~1 MB left
+        used_before = _used_bytes(small_blob_disk)
+
+        job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={}, headers=h)
+                       .json()["job_id"], h)
+        assert job["status"] == "failed", job
+        assert "disk is full" in job["error"] and "process the session again" in job["error"], job["error"]
+        assert client.get(f"/api/v1/sessions/{session_id}/results", headers=h).status_code == 404
+        assert list((small_blob_disk / ".incoming").iterdir()) == []  # no partial file left behind
+        assert _used_bytes(small_blob_disk) - used_before < 2**20  # at most the few reports that fitted
+
+        _mount(["-o", "remount,size=64m", str(small_blob_disk)])  # the administrator frees space
+        job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={}, headers=h)
+                       .json()["job_id"], h)
+        assert job["status"] == "done", job
+        assert client.get(f"/api/v1/sessions/{session_id}/report.pdf?lang=en", headers=h).content.startswith(b"%PDF")
+        assert len(client.get(f"/api/v1/sessions/{session_id}", headers=h).json()["recordings"]) == \
+            len(demo_files(demo_dir))
