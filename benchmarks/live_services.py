@@ -8,8 +8,9 @@
 * :class:`ChakamoProcess` — a ``chakamo`` subcommand (``worker``, ``serve``…) as a real subprocess in its own
   process group, so a test can SIGKILL it with all its children, as a crash would.
 
-Each ``start`` waits (bounded) until the service answers; ``stop`` always cleans up.  Tests skip when the
-binaries are missing (:func:`require`).
+Each ``start`` waits (bounded) until the service answers; ``stop`` always cleans up.  A missing binary
+raises :class:`Missing` (tests turn it into a skip; benchmarks print it).  Used by the tests of the
+distributed engine and its faults and by ``benchmarks/load.py``.
 """
 
 from __future__ import annotations
@@ -22,8 +23,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-
-import pytest
 
 VENV_BIN = Path(sys.executable).parent
 
@@ -55,17 +54,21 @@ def _port_open(port: int) -> bool:
         return s.connect_ex(("127.0.0.1", port)) == 0
 
 
+class Missing(RuntimeError):
+    """A server binary is not installed; the message says which Debian package brings it."""
+
+
 def require(binary: str) -> str:
     path = shutil.which(binary)
     if path is None:
-        pytest.skip(f"{binary} not installed (apt-get install {binary})")
+        raise Missing(f"{binary} not installed (apt-get install {binary})")
     return path
 
 
 def pg_bin(name: str) -> str:
     found = sorted(Path("/usr/lib/postgresql").glob(f"*/bin/{name}"))
     if not found:
-        pytest.skip("PostgreSQL server binaries not installed (apt-get install postgresql)")
+        raise Missing("PostgreSQL server binaries not installed (apt-get install postgresql)")
     return str(found[-1])
 
 
@@ -183,5 +186,5 @@ def chakamo_env(data_dir: Path, **extra: str) -> dict[str, str]:
     return env
 
 
-__all__ = ["ChakamoProcess", "PostgresServer", "RedisServer", "chakamo_env", "free_port", "pg_bin", "require",
+__all__ = ["ChakamoProcess", "Missing", "PostgresServer", "RedisServer", "chakamo_env", "free_port", "pg_bin", "require",
            "wait_until"]
