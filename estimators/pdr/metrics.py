@@ -5,7 +5,10 @@ r"""Walk metrics (seed 001 §4.5, eqs. 4.3–4.5) and strides.
     ED = \frac{D_E - D_T}{D_T} \quad\text{(4.4)},\qquad
     EA = |p_z(t_{end})| \quad\text{(4.5)}
 
-:math:`D_T` the true distance walked (22.1 m for the IEZ circuit), :math:`D_E` the estimated one, computed
+:math:`D_T` the true distance walked (22.1 m for the IEZ circuit: §4.5 "DT é a distância total percorrida",
+the dashed centre line of Fig. 18 — so EP is over 22.1 m, not over the estimated path length),
+:math:`D_E` the estimated one ("distância total estimada"; the thesis' published code,
+github.com/pajaraca/IEZ ``IEZ-9states.py``, sums the horizontal step between consecutive samples), computed
 two ways:
 
 * sample-wise (the thesis): :math:`\sum_k \lVert p_{xy,k+1} - p_{xy,k}\rVert` — it also counts the
