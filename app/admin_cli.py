@@ -1,8 +1,11 @@
 """Set-up commands of the web application (``chakamo serve``, ``clinics``, ``users``, ``tokens``).
 
-``chakamo serve [--host 127.0.0.1] [--port 8000]``
+``chakamo serve [--host 127.0.0.1] [--port 8000] [--proxy-headers --forwarded-allow-ips IPS]``
     The web application on the embedded default (SQLite, local files, in-process jobs) under
-    ``CHAKAMO_DATA_DIR``; loopback unless ``--host`` says otherwise.
+    ``CHAKAMO_DATA_DIR``; loopback unless ``--host`` says otherwise.  Behind a reverse proxy (TLS),
+    ``--proxy-headers`` takes the client address and scheme from the proxy's ``X-Forwarded-*`` headers, trusted
+    only from ``--forwarded-allow-ips`` (default: loopback) — so the per-address login limit and the audit log
+    see the browser's address, not the proxy's.
 ``chakamo clinics create NAME``
     A new clinic (tenant).
 ``chakamo users create --clinic NAME --email E --role admin|clinician|read_only [--name N] [--password-stdin]``
@@ -138,7 +141,8 @@ def create_token(settings: Settings | None, *, clinic: str, label: str = "", rol
     return token
 
 
-def serve(host: str = "127.0.0.1", port: int = 8000) -> None:
+def serve(host: str = "127.0.0.1", port: int = 8000, proxy_headers: bool = False,
+          forwarded_allow_ips: str = "127.0.0.1") -> None:
     """Run the web application with uvicorn until interrupted."""
     import uvicorn
 
@@ -147,7 +151,8 @@ def serve(host: str = "127.0.0.1", port: int = 8000) -> None:
 
     settings = get_settings()  # errors (e.g. no secret key) before anything starts
     print(f"ChakaMo on http://{host}:{port}/ (data in {settings.data_dir}); Ctrl-C stops it", file=sys.stderr)
-    uvicorn.run(create_app(settings), host=host, port=port, log_level="info")
+    uvicorn.run(create_app(settings), host=host, port=port, log_level="info", proxy_headers=proxy_headers,
+                forwarded_allow_ips=forwarded_allow_ips if proxy_headers else None)
 
 
 def add_parsers(sub) -> None:
@@ -155,6 +160,10 @@ def add_parsers(sub) -> None:
     serve_p = sub.add_parser("serve", help="run the web application (embedded default: SQLite, local files)")
     serve_p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
     serve_p.add_argument("--port", type=int, default=8000, help="port (default: 8000)")
+    serve_p.add_argument("--proxy-headers", action="store_true",
+                         help="behind a reverse proxy: trust its X-Forwarded-For/-Proto headers")
+    serve_p.add_argument("--forwarded-allow-ips", default="127.0.0.1", metavar="IPS",
+                         help="addresses of the proxies whose headers are trusted (default: 127.0.0.1)")
 
     clinics = sub.add_parser("clinics", help="manage clinics (tenants)").add_subparsers(dest="action", required=True)
     c_create = clinics.add_parser("create", help="create a clinic")
@@ -188,7 +197,7 @@ def _read_password(from_stdin: bool) -> str:
 def run(args: argparse.Namespace) -> int:
     """Carry out a parsed ``serve`` / ``clinics`` / ``users`` / ``tokens`` command."""
     if args.command == "serve":
-        serve(args.host, args.port)
+        serve(args.host, args.port, args.proxy_headers, args.forwarded_allow_ips)
     elif args.command == "clinics":
         clinic_id = create_clinic(None, args.name)
         print(f"clinic {args.name!r} created (id {clinic_id})")

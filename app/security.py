@@ -60,8 +60,6 @@ ROLE_RANK: dict[str, int] = {role: len(ROLES) - 1 - i for i, role in enumerate(R
 HASH_CONCURRENCY = 2
 HASH_WAIT_S = 10.0
 _hash_slots = threading.BoundedSemaphore(HASH_CONCURRENCY)
-#: the names of the scrypt era, kept because tests/app/web/test_web_auth.py holds the slots through them
-SCRYPT_CONCURRENCY, SCRYPT_WAIT_S, _scrypt_slots = HASH_CONCURRENCY, HASH_WAIT_S, _hash_slots
 
 _T = TypeVar("_T")
 

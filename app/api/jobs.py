@@ -11,6 +11,7 @@ from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
+from app import audit
 from app.api.deps import Clinician, DbDep, Reader, RunnerDep, refuse_while_processing, scoped_job, scoped_session
 from app.api.recordings import ensure_fresh_ingestion
 from app.api.schemas import JobCreatedOut, JobOut, ProcessIn, ingestion_fresh, job_out
@@ -47,6 +48,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
     if other is not None:  # another request queued one at the same moment (SQLite has no row locks)
         raise HTTPException(409, f"Session {session.id} is being processed (job {other}); process it again when "
                                  "that job has finished.")
+    audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id)
     db.commit()  # committed before the runner can look for it
     runner.submit(job.id)
     return JSONResponse({"job_id": job.id}, status_code=202)

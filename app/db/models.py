@@ -223,7 +223,7 @@ class AuditEvent(Base):
     token_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
     #: a readable label of the actor at the time (user email or token label)
     actor: Mapped[str] = mapped_column(String(320), default="")
-    #: ``view``, ``download``, ``export``, ``create``, ``update``, ``delete``, ``process``
+    #: ``list``, ``search``, ``view``, ``create``, ``upload``, ``delete``, ``download``, ``export``, ``process``
     action: Mapped[str] = mapped_column(String(20))
     patient_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
     session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)

@@ -152,8 +152,6 @@ def test_refused_writes_leave_no_event(world):
     assert _new_events(w, before) == []
 
 
-@pytest.mark.xfail(strict=True, reason="needs the one audit.record call in app/api/jobs.py's process route "
-                                       "(owned elsewhere); remove this marker when it is there")
 def test_a_processing_request_leaves_its_event(world):
     w, c, a = world, world["c"], world["a"]
     before = _last_id(w)

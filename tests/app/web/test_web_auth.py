@@ -145,18 +145,18 @@ def test_the_throttle_forgets_expired_failures():
 
 
 def test_too_many_password_checks_at_once_answer_503(client, admin, monkeypatch):
-    """All scrypt slots busy (held here): a login waits a bounded time, then answers 503, not a pile-up."""
+    """All password-hashing slots busy (held here): a login waits a bounded time, then answers 503, not a pile-up."""
     from app import security
 
-    monkeypatch.setattr(security, "SCRYPT_WAIT_S", 0.05)
+    monkeypatch.setattr(security, "HASH_WAIT_S", 0.05)
     held = 0
     try:
-        while security._scrypt_slots.acquire(blocking=False):
+        while security._hash_slots.acquire(blocking=False):
             held += 1
-        assert held == security.SCRYPT_CONCURRENCY
+        assert held == security.HASH_CONCURRENCY
         r = login(client)
         assert r.status_code == 503 and "try again" in r.json()["detail"]
     finally:
         for _ in range(held):
-            security._scrypt_slots.release()
+            security._hash_slots.release()
     assert login(client).status_code == 200
