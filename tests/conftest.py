@@ -1,5 +1,8 @@
 """Fixtures shared across the test tree.
 
+``pg_url``: a new empty database on the PostgreSQL server named by ``CHAKAMO_TEST_POSTGRES_URL`` (which
+``.ci/run`` starts and sets), dropped after the test; skipped when the variable is unset.
+
 ``browser``: a real headless Chromium (Debian's ``/usr/bin/chromium``, installed by ``.ci/run``) driven by
 Playwright.  Playwright's own browser download cannot work on our machines (no network but the package
 registries), so it launches the system binary.  Tests that use it skip when either is missing.
@@ -31,3 +34,27 @@ def browser():
             yield browser
         finally:
             browser.close()
+
+
+@pytest.fixture
+def pg_url():
+    """URL of a new empty PostgreSQL database (``CHAKAMO_TEST_POSTGRES_URL``'s server; dropped after the test)."""
+    import os
+    import uuid
+
+    from sqlalchemy import create_engine
+    from sqlalchemy.engine import make_url
+
+    server = os.environ.get("CHAKAMO_TEST_POSTGRES_URL")
+    if not server:
+        pytest.skip("CHAKAMO_TEST_POSTGRES_URL not set (no PostgreSQL server)")
+    admin = create_engine(server, isolation_level="AUTOCOMMIT")
+    name = f"chakamo_test_{uuid.uuid4().hex[:12]}"
+    with admin.connect() as conn:
+        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
+    try:
+        yield make_url(server).set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as conn:
+            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        admin.dispose()

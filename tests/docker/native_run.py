@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -20,14 +19,8 @@ import urllib.request
 from pathlib import Path, PurePosixPath
 from urllib.parse import urlsplit, urlunsplit
 
+from benchmarks.live_services import free_port
 from deploy_files import interpolate
-
-
-def free_port() -> int:
-    """A TCP port nobody listens on at the moment (the kernel picks it; released before use)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def chakamo_argv(command: list[str]) -> list[str]:
