@@ -233,6 +233,7 @@ def simulate(
     mag_earth_ut: ArrayLike = MAG_EARTH_UT,
     gravity_m_s2: float = GRAVITY_M_S2,
     seed: int | np.random.Generator | None = 0,
+    mag_field_turn_rad_s: float = 0.0,
 ) -> SimulatedImu:
     """Simulate one sensor fixed to a segment moving along ``trajectory`` (equations S1–S8).
 
@@ -248,6 +249,12 @@ def simulate(
     seed : int, ``np.random.Generator`` or None; the same seed gives the same run.  Each error
         source draws from its own child generator, so switching one source on or off leaves the
         others' draws unchanged.
+    mag_field_turn_rad_s : the field at the sensor turns about the vertical at this rate, rad/s, from the
+        trajectory's start: m_e(t) = R_z(ω_f (t − t₀)) m_e (default 0, a
+        constant field).  A local disturbance that drifts slowly (furniture steel, a device moved nearby)
+        keeps the field's norm and dip, so no magnetometer check sees it, yet the sensor's 9D heading
+        follows it: the case the pipeline's heading-drift check on the task exists for.
+        ``SimulatedImu.mag_earth_ut`` stays the field at t₀.
     """
     spec = ImuSpec() if spec is None else spec
     q_ss = quat.identity() if q_segment_sensor is None else np.asarray(q_segment_sensor, dtype=np.float64)
@@ -286,7 +293,14 @@ def simulate(
     # magnetometer (S3, S6–S7)
     t_rep, t_true = _sample_times(r_t_mag, clock, clock.mag_fs_hz, clock.mag_start_s, trajectory)
     q = sensor.orientation(t_true)
-    clean = quat.rotate(quat.conjugate(q), m_e)
+    if mag_field_turn_rad_s == 0.0:
+        clean = quat.rotate(quat.conjugate(q), m_e)
+    else:
+        if not np.isfinite(mag_field_turn_rad_s):
+            raise ValueError(f"mag_field_turn_rad_s must be finite, got {mag_field_turn_rad_s!r}")
+        turn = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]),
+                                    float(mag_field_turn_rad_s) * (t_true - trajectory.t_s[0]))
+        clean = quat.rotate(quat.conjugate(q), quat.rotate(turn, m_e))
     em = spec.mag
     white = r_mag_n.normal(0.0, 1.0, clean.shape) * (em.noise_density_ut_rthz
                                                      * np.sqrt(clock.mag_fs_hz * clock.rate_factor))
