@@ -9,11 +9,14 @@ real exports (the ``epoc``/``timestamp`` header dialect, '.' in the time of day,
 stream running on after the others), processed by :func:`app.process.process_folder` — the code path
 of ``chakamo process`` — and compared with the truth: knee-angle RMSE, cycles found, phase boundaries.
 
-Output: ``OUT/session/`` (the files), ``OUT/results.json`` and ``OUT/demo_accuracy.json``.
+Output: ``OUT/session/`` (the files), the outputs of ``chakamo process`` (``OUT/results.json``, the
+reports), ``OUT/demo_accuracy.json`` and ``OUT/demo_truth.npz`` (the task's true knee angles, cycles and
+phase events: :func:`truth_npz`), the last two written all-or-nothing like the others.
 """
 
 from __future__ import annotations
 
+import io
 import json
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -29,6 +32,7 @@ from app.ingestion import (
 )
 from app.pipeline import ProcessOptions, SessionOutcome
 from app.process import process_folder
+from app.results import write_outputs
 
 EPOCH0_S = 1_795_341_600.0  # 2026-11-22 10:00 UTC: the phone clock of the simulated session
 STEP_HEIGHT_M = 0.17
@@ -52,7 +56,7 @@ class SimulatedSession:
 
 
 def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_errors: bool = True,
-                     supine_roll_out_deg: float = 0.0) -> SimulatedSession:
+                     supine_roll_out_deg: float = 0.0, shank_task_field_turn_rad_s: float = 0.0) -> SimulatedSession:
     """Simulate the four recordings of both sensors (module docstring).
 
     ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
@@ -61,6 +65,9 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
     dip turns into ~3° of heading and so of knee rotation: the figure-eight never holds still, so the
     protocol gives no way to measure that bias (it would need still pauses in varied orientations).
     ``supine_roll_out_deg`` lets the leg lie rolled outwards (toes out) in the supine recording.
+    ``shank_task_field_turn_rad_s`` turns the magnetic field at the shank sensor about the vertical at that
+    rate during the task only (a slowly drifting local disturbance, :func:`estimators.simulation.simulate`'s
+    ``mag_field_turn_rad_s``): the shank's heading drifts away from the thigh's while norm and dip stay right.
     """
     motion = sim.step_up(n_cycles, STEP_HEIGHT_M, side, seed=seed)
     postures = {"standing": sim.standing(30.0, side), "lying": sim.supine(30.0, side, roll_out_rad=np.deg2rad(supine_roll_out_deg))}
@@ -80,8 +87,9 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
             imu = sim.simulate(getattr(leg, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
                                seed=seed * 100 + 10 * (j + 1) + i)
             recordings[(seg, role)] = simulated_streams(imu, epochs[role])
+        turn_rad_s = shank_task_field_turn_rad_s if seg == "shank" else 0.0
         imu = sim.simulate(getattr(motion, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
-                           seed=seed * 100 + 50 + i)
+                           seed=seed * 100 + 50 + i, mag_field_turn_rad_s=turn_rad_s)
         recordings[(seg, "task")] = simulated_streams(imu, epochs["task"], run_on_s={"gyr": 1.5} if i == 0 else None)
     return SimulatedSession(recordings, motion, epochs, side, STEP_HEIGHT_M)
 
@@ -145,6 +153,28 @@ def accuracy(outcome: SessionOutcome, truth: SimulatedSession, task_epoch_s: flo
             "cycles_accepted": int(a.n_accepted), "phase_boundary_max_error_pct": worst_pct}
 
 
+#: names of the columns of ``demo_truth.npz`` ``phases_s`` (the simulator's ``LegMotion.phases_s``)
+TRUTH_PHASE_EVENTS = ("onset", "peak_flexion", "far_left", "rest_reached")
+
+
+def truth_npz(truth: SimulatedSession) -> bytes:
+    """The task's ground truth as ``demo_truth.npz``, so the demo's outputs can be scored by anyone.
+
+    Arrays: ``t_s`` (M,) true time from the task recording's start, s (the simulator's dense grid);
+    ``knee_angles_deg`` (M, 3) true Grood & Suntay angles (clinical signs), degrees, named by ``angle_names``;
+    ``cycles_s`` (K, 2) true cycle [start, end); ``phases_s`` (K, 4) true phase events, named by
+    ``phase_events`` (:data:`TRUTH_PHASE_EVENTS`); ``task_epoch_s`` the phone-clock time of ``t_s = 0`` (the
+    MetaBase files' epoch stamps minus it give the truth's time, up to the sensor's clock drift); ``side``.
+    """
+    m = truth.motion
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf, t_s=m.t_s, knee_angles_deg=np.rad2deg(m.knee_angles_rad), angle_names=np.array(ANGLES),
+        cycles_s=m.cycles_s, phases_s=m.phases_s, phase_events=np.array(TRUTH_PHASE_EVENTS),
+        task_epoch_s=np.float64(truth.role_epoch_s["task"]), side=np.array(truth.side))
+    return buf.getvalue()
+
+
 def run_demo(out_dir: Path, *, seed: int = 7, side: str = "right", n_cycles: int = 10,
              filter_name: str | None = None) -> dict:
     """Simulate, write, process and score one session; print the accuracy; return it."""
@@ -160,7 +190,8 @@ def run_demo(out_dir: Path, *, seed: int = 7, side: str = "right", n_cycles: int
     outcome, _ = process_folder(session_dir, out_dir, options)
     acc = accuracy(outcome, truth)
     acc["filter"] = options.filter_name
-    (out_dir / "demo_accuracy.json").write_text(json.dumps(acc, indent=2) + "\n", encoding="utf-8")
+    write_outputs(out_dir, {"demo_accuracy.json": json.dumps(acc, indent=2) + "\n",
+                            "demo_truth.npz": truth_npz(truth)})
 
     print(f"Simulated session ({side} leg, {n_cycles} step-up cycles of {100 * STEP_HEIGHT_M:.0f} cm, two sensors "
           f"mounted up to {MOUNTING_MAX_DEG:.0f}° off, MetaBase files) in {session_dir}")

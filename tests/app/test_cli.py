@@ -2,9 +2,11 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from app.cli import main
+from app.demo import simulate_session
 
 
 def test_demo_processes_a_simulated_session_and_reports_accuracy(tmp_path, capsys):
@@ -18,6 +20,18 @@ def test_demo_processes_a_simulated_session_and_reports_accuracy(tmp_path, capsy
         assert (tmp_path / name).stat().st_size > 1000, name
     assert any(p.name.endswith(".csv") and "MetaWear" in p.name for p in (tmp_path / "session").iterdir())
     assert "Knee angles against the simulated truth" in capsys.readouterr().out
+    # the ground truth it was scored against, re-simulated here from the same seed
+    truth = simulate_session(seed=7, side="right", n_cycles=5).motion
+    with np.load(tmp_path / "demo_truth.npz") as z:
+        assert list(z["angle_names"]) == ["flexion", "adduction", "internal_rotation"]
+        assert len(z["cycles_s"]) == accuracy["cycles_true"] == 5 and z["phases_s"].shape == (5, 4)
+        np.testing.assert_allclose(z["cycles_s"], truth.cycles_s)
+        np.testing.assert_allclose(z["phases_s"], truth.phases_s)
+        np.testing.assert_allclose(z["t_s"], truth.t_s)
+        np.testing.assert_allclose(z["knee_angles_deg"], np.rad2deg(truth.knee_angles_rad))
+        assert 40.0 < z["knee_angles_deg"][:, 0].max() < 100.0  # degrees
+        assert str(z["side"]) == "right"
+    assert not [p for p in tmp_path.parent.iterdir() if p.name.startswith(f".{tmp_path.name}.")]  # no staging left
 
 
 @pytest.mark.parametrize("argv, message", [
