@@ -64,6 +64,10 @@ def _build_parser() -> argparse.ArgumentParser:
                            "flexion axis on the task (functional: for a lying posture not held toes-up)")
     proc.add_argument("--any-rate", action="store_true",
                       help="accept recordings whose rate is not the protocol's 100 Hz")
+    from estimators.motor_task import TASKS  # the task names, next to the only option that needs them
+
+    proc.add_argument("--task", choices=tuple(TASKS), default="step_up",
+                      help="motor task recorded (default: step_up)")
 
     view = sub.add_parser("view", help="serve the live 3D femur-tibia animation of a processed session")
     view.add_argument("out", type=Path, metavar="OUT_DIR", help="a folder written by chakamo process or demo")
@@ -112,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
             from app.process import process_folder
 
             options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
-                                     calibration=args.calibration,
+                                     calibration=args.calibration, task=args.task,
                                      expected_fs_hz=None if args.any_rate else 100.0, language=args.lang)
             _, written = process_folder(args.session, args.out, options, progress=_progress)
             for path in written:

@@ -22,7 +22,8 @@ Stages (each reported to ``progress(stage, fraction)``):
 
 Quality checks gathered on the way (``results["quality"]["warnings"]``): magnetometer coverage and
 residual, postures not still or not distinct, a sensor mounted upside down, a large heading offset
-or drift between the two sensors, magnetic disturbance during the task, cycles rejected, and every
+between the two sensors while standing, their relative heading drifting between the task's straight-knee
+holds (``heading_drift``, variant ``task``), magnetic disturbance during the task, cycles rejected, and every
 note the ingestion made.  Each warning carries ``params`` (its values by the field names of
 ``reports/translations_warnings.json``); the magnetometer's, re-worded here with the sensor in front, get
 ``params["segment"]``, the ingestion notes the :class:`app.ingestion.Note` params.  Sensors swapped
@@ -44,7 +45,7 @@ from estimators import __version__, knee
 from estimators import quaternion as quat
 from estimators.disturbance import FieldCheck, field_disturbance
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
-from estimators.motor_task import TaskAnalysis, analyse_task
+from estimators.motor_task import EVENTS, TASKS, TaskAnalysis, analyse_task
 from estimators.orientation import DEFAULT_METHOD, make
 from estimators.quality import QualityWarning
 
@@ -62,6 +63,14 @@ CALIBRATIONS = ("static", "functional")
 FUNCTIONAL_AXIS_AGREE_RAD = float(np.deg2rad(8.0))
 #: a larger constant heading offset between the two sensors' earth frames (standing) deserves a warning
 HEADING_OFFSET_WARN_RAD = float(np.deg2rad(10.0))
+#: the two segments' relative heading changing by more than this between the task's straight-knee holds is
+#: drift (warned ``heading_drift``, variant ``task``): the rotation of the last cycles then reads that much off
+#: the first ones', over twice the 2° rotation-accuracy goal; normal simulated sessions change by 0.6–2.9°
+#: (10 seeds × 10 cycles, with and without accelerometer errors), a shank field turning 1°/s by 5.2°
+HEADING_DRIFT_TASK_WARN_RAD = float(np.deg2rad(5.0))
+#: straight-knee holds shorter than this are left out of the task's heading check: too few samples to
+#: average the sensors' noise (a turning point is one sample)
+HEADING_HOLD_MIN_S = 0.2
 
 
 class PipelineError(ValueError):
@@ -100,6 +109,9 @@ class ProcessOptions:
             raise PipelineError(f"calibration must be one of {', '.join(CALIBRATIONS)}, got {self.calibration!r}")
         if self.language not in ("es", "en", "pt"):
             raise PipelineError(f"language must be es, en or pt, got {self.language!r}")
+        if self.task not in TASKS:
+            raise PipelineError(f"task must be one of {', '.join(TASKS)}, got {self.task!r}; "
+                                "pick the motor task the session recorded")
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,6 +124,8 @@ class SessionOutcome:
     mag : ``{segment: MagCalibration}``.   segments : ``{segment: SegmentCalibration}``.
     field : ``{segment: FieldCheck}`` on the task.   heading : the standing heading check.
     analysis : the motor-task analysis.   warnings : every quality warning, in stage order.
+    filter_params : the parameter dataclass of the filter used (defaults and overrides).
+    heading_task : the heading check over the task's straight-knee holds (None when there was none).
     """
 
     session: Session
@@ -130,6 +144,26 @@ class SessionOutcome:
     field: dict[str, FieldCheck]
     heading: knee.HeadingOffset
     analysis: TaskAnalysis
+    warnings: tuple[QualityWarning, ...]
+    filter_params: Any = None
+    heading_task: TaskHeading | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class TaskHeading:
+    """Heading offset between the two segments over the task's straight-knee holds (:func:`_task_heading`).
+
+    spans_s : (H, 2) the holds used, s on the task grid.   offsets_rad : (H,) the offset δ of each hold
+        (:func:`estimators.knee.heading_offset`, ``"straight_knee"``).
+    change_rad : largest minus smallest δ (NaN with fewer than two holds): how far the relative heading
+        drifted during the task.   mean_offset_rad : δ over all holds together.
+    warnings : ``heading_drift`` (variant ``task``) when ``change_rad`` exceeds ``HEADING_DRIFT_TASK_WARN_RAD``.
+    """
+
+    spans_s: FloatArray
+    offsets_rad: FloatArray
+    change_rad: float
+    mean_offset_rad: float
     warnings: tuple[QualityWarning, ...]
 
 
@@ -215,11 +249,14 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             f"{len(analysis.rejected)} of {analysis.n_detected} cycles were left out of the statistics: "
             + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in analysis.rejected),
             {"rejected": len(analysis.rejected), "detected": analysis.n_detected}))
+    heading_task = _task_heading(q_seg, analysis, thigh.fs_hz)
+    if heading_task is not None:
+        warnings += list(heading_task.warnings)
     return SessionOutcome(
         session=session, options=options, side=side, step_height_m=session.metadata.value("step_height_m"),
         t_s=thigh.t_s, fs_hz=thigh.fs_hz, t0_s=thigh.t0_s, angles_rad=angles, q_earth_sensor=q_es,
         q_earth_segment=q_seg, q_femur_tibia=q_ft, mag=mag, segments=segments, field=field, heading=heading,
-        analysis=analysis, warnings=tuple(warnings))
+        analysis=analysis, warnings=tuple(warnings), filter_params=filt.params, heading_task=heading_task)
 
 
 def _standing_orientations(session: Session, filt, mag: dict[str, MagCalibration],
@@ -240,6 +277,60 @@ def _standing_heading(q_standing: dict[str, FloatArray], segments: dict[str, kne
     """Heading offset between the two segments' earth frames while standing (knee straight: should be ~0)."""
     q = {seg: knee.segment_orientation(q_standing[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
     return knee.heading_offset(q["thigh"], q["shank"], method="straight_knee", max_offset_rad=max_offset_rad)
+
+
+def _straight_knee_spans_s(analysis: TaskAnalysis) -> FloatArray:
+    """(H, 2) spans of the accepted cycles where the knee is straight: the full-extension holds
+    (``far_reached`` → ``far_left``) of tasks that extend (step-up, seated extension), the standing rest
+    between repetitions (``rest_reached`` → next ``onset``) of tasks that flex (squat)."""
+    ev = analysis.events_s
+    if analysis.task.excursion == "extension":
+        spans = ev[:, [EVENTS.index("far_reached"), EVENTS.index("far_left")]]
+    else:
+        spans = np.column_stack([ev[:, EVENTS.index("rest_reached")],
+                                 np.append(ev[1:, EVENTS.index("onset")], np.nan)])
+    spans = spans[analysis.accepted]
+    return spans[np.all(np.isfinite(spans), axis=1)] if len(spans) else np.zeros((0, 2))
+
+
+def _task_heading(q_seg: dict[str, FloatArray], analysis: TaskAnalysis, fs_hz: float) -> TaskHeading | None:
+    """The heading-offset check of the standing posture, repeated on each straight-knee hold of the task.
+
+    The standing check sees a constant offset but cannot see drift: the posture lasts seconds and is
+    recorded apart.  On the task the two filters run for minutes; a gyroscope bias one filter did not
+    learn, or a local field that turns slowly at one sensor (its norm and dip unchanged, so no
+    magnetometer check flags it), moves one segment's heading against the other's.  With the knee
+    straight the two headings should agree, so δ per hold (:func:`estimators.knee.heading_offset`,
+    H1) follows the drift; its range over the task is compared with ``HEADING_DRIFT_TASK_WARN_RAD``.
+    The true knee rotation at full extension is nearly the same in every cycle, so it cancels in the
+    range.  Holds shorter than ``HEADING_HOLD_MIN_S`` are skipped; None when no hold remains.
+    """
+    spans = _straight_knee_spans_s(analysis)
+    spans = spans[spans[:, 1] - spans[:, 0] >= HEADING_HOLD_MIN_S] if len(spans) else spans
+    if len(spans) == 0:
+        return None
+    n = len(q_seg["thigh"])
+    idx = [np.arange(max(0, int(round(a * fs_hz))), min(n, int(round(b * fs_hz)))) for a, b in spans]
+    keep = [i for i, ix in enumerate(idx) if len(ix)]
+    spans, idx = spans[keep], [idx[i] for i in keep]
+    if not idx:
+        return None
+    offsets = np.array([knee.heading_offset(q_seg["thigh"][ix], q_seg["shank"][ix]).offset_rad for ix in idx])
+    every = np.concatenate(idx)
+    mean = knee.heading_offset(q_seg["thigh"][every], q_seg["shank"][every]).offset_rad
+    rel = np.angle(np.exp(1j * (offsets - mean)))  # unwrapped about the mean: no jump at ±180°
+    change = float(rel.max() - rel.min()) if len(offsets) > 1 else float("nan")
+    warnings: tuple[QualityWarning, ...] = ()
+    if change > HEADING_DRIFT_TASK_WARN_RAD:
+        p = {"variant": "task", "change_deg": float(np.rad2deg(change)), "holds": len(offsets),
+             "first_deg": float(np.rad2deg(offsets[0])), "last_deg": float(np.rad2deg(offsets[-1])),
+             "max_deg": float(np.rad2deg(HEADING_DRIFT_TASK_WARN_RAD))}
+        warnings = (QualityWarning(
+            "heading_drift", f"the relative heading of the two sensors changed by {p['change_deg']:.1f}° across "
+            f"the task's {p['holds']:d} straight-knee holds (from {p['first_deg']:.1f}° to {p['last_deg']:.1f}°, "
+            f"more than {p['max_deg']:.0f}°); rotation and adduction drift with it: a gyroscope bias or a "
+            "magnetic disturbance near one sensor", p),)
+    return TaskHeading(spans, offsets, change, float(mean), warnings)
 
 
 def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, gyr_task: dict[str, FloatArray],
@@ -286,4 +377,5 @@ def _files(rec) -> str:
     return ", ".join(str(getattr(f, "name", f)) for f in rec.source.get("files", ())) or rec.segment
 
 
-__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "IngestionError", "PIPELINE_VERSION", "PipelineError", "ProcessOptions", "SessionOutcome", "process_session"]
+__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "HEADING_DRIFT_TASK_WARN_RAD", "IngestionError", "PIPELINE_VERSION", "PipelineError",
+           "ProcessOptions", "SessionOutcome", "TaskHeading", "process_session"]

@@ -7,6 +7,7 @@ destination and moves them in only when every file is complete, so a failure lea
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import math
@@ -48,7 +49,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
     results = {
         "side": outcome.side,
         "task": task["task"],
-        "filter": {"name": opts.filter_name, "params": dict(opts.filter_params)},
+        "filter": {"name": opts.filter_name, "params": filter_params(outcome),
+                   "overrides": dict(opts.filter_params)},
         "angles": list(ANGLES),
         "angle_method": opts.angle_method,
         "cycles": {
@@ -84,6 +86,7 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         "quality": {
             "warnings": [w.to_dict() for w in outcome.warnings],
             "magnetic_disturbance_fraction": {seg: f.fraction for seg, f in outcome.field.items()},
+            "heading_task": _heading_task(outcome),
         },
         "session": {
             "folder": str(session.folder),
@@ -98,6 +101,30 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         "software": {"version": __version__},
     }
     return json_ready(results)
+
+
+def filter_params(outcome: SessionOutcome) -> dict[str, Any]:
+    """Every parameter of the filter that ran, defaults included (``results.json`` ``filter.params``).
+
+    The filters' parameter dataclasses carry the unit in each field name (``tau_acc_s``, ``bias_clip_rad_s``,
+    ``mag_dip_th_rad``), so the values are written as they are, in SI units and radians; what the user
+    changed is also listed alone in ``filter.overrides``.  Without the full set a results file could not say
+    how it was computed once a default changes in a later version.
+    """
+    params = outcome.filter_params
+    if params is None or not dataclasses.is_dataclass(params):
+        raise TypeError(f"the outcome carries no filter parameter dataclass (got {type(params).__name__}); "
+                        "it must come from app.pipeline.process_session")
+    return json_ready(dataclasses.asdict(params))
+
+
+def _heading_task(outcome: SessionOutcome) -> dict[str, Any] | None:
+    """The heading check over the task's straight-knee holds (degrees), or None when there was no hold."""
+    h = outcome.heading_task
+    if h is None:
+        return None
+    return {"spans_s": h.spans_s, "offsets_deg": np.rad2deg(h.offsets_rad), "change_deg": np.rad2deg(h.change_rad),
+            "mean_offset_deg": np.rad2deg(h.mean_offset_rad)}
 
 
 def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:

@@ -4,11 +4,12 @@ import json
 import shutil
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from app.cli import main
 from app.demo import accuracy, simulate_session, write_session
-from app.pipeline import PipelineError, ProcessOptions
+from app.pipeline import HEADING_DRIFT_TASK_WARN_RAD, PipelineError, ProcessOptions
 from app.process import process_folder
 
 GOALS_DEG = {"flexion": 1.0, "adduction": 2.0, "internal_rotation": 2.0}
@@ -86,6 +87,17 @@ def test_results_json_follows_the_contract(right_session, tmp_path):
     assert all(set(w) == {"code", "message", "params"} for w in r["quality"]["warnings"])
     assert r["software"]["version"]
     assert r["session"]["language"] == "en"
+    # the filter's full parameter set, not only the (empty) overrides
+    assert r["filter"]["overrides"] == {}
+    assert r["filter"]["params"]["tau_acc_s"] == 3.0 and r["filter"]["params"]["offline"] is True
+    # standing and supine gravities about a right angle apart (the postures were distinct)
+    for seg in ("thigh", "shank"):
+        assert 80.0 < r["calibration"]["segment"][seg]["angle_between_postures_deg"] < 100.0, seg
+    # the heading check over the task's full-extension holds ran on every accepted cycle, and found no drift
+    heading = r["quality"]["heading_task"]
+    assert len(heading["offsets_deg"]) == len(heading["spans_s"]) == 6
+    assert heading["change_deg"] < np.rad2deg(HEADING_DRIFT_TASK_WARN_RAD)
+    assert "heading_drift" not in {w["code"] for w in r["quality"]["warnings"]}
 
 
 @pytest.mark.parametrize("seed, side", [(3, "right"), (4, "left")])
@@ -140,6 +152,78 @@ def test_warnings_carry_params_and_translate(right_session, tmp_path):
 def test_calibration_option_is_checked():
     with pytest.raises(PipelineError, match="calibration must be one of static, functional"):
         ProcessOptions(calibration="dynamic")
+
+
+def test_task_option_is_checked_before_computing():
+    with pytest.raises(PipelineError, match="task must be one of step_up, seated_knee_extension, squat.*'stepup'"):
+        ProcessOptions(task="stepup")
+
+
+def test_cli_passes_the_task(right_session, tmp_path, capsys):
+    """``--task`` reaches the analysis: a step-up read as a seated extension (also an extension to a hold)
+    reports that task's phases; a name not in estimators.motor_task.TASKS is refused by the parser."""
+    write_session(tmp_path / "session", right_session)
+    assert main(["process", str(tmp_path / "session"), "--out", str(tmp_path / "out"),
+                 "--task", "seated_knee_extension"]) == 0
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["task"] == "seated_knee_extension"
+    assert {"extension", "hold", "flexion"} <= set(r["phases"]) and "impulse" not in r["phases"]
+    with pytest.raises(SystemExit) as exc:
+        main(["process", str(tmp_path / "session"), "--out", str(tmp_path / "bad"), "--task", "jump"])
+    assert exc.value.code == 2 and "invalid choice: 'jump'" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
+def test_heading_drift_during_the_task_is_warned(tmp_path):
+    """The field at the shank turns slowly about the vertical during the task (1.5°/s: a drifting local
+    disturbance; norm and dip unchanged, so the magnetic checks stay silent): the relative heading of the
+    full-extension holds changes by ~9°, above the 5° limit, and ``heading_drift`` (variant ``task``) is
+    warned, translated with its numbers.  The normal session's absence is asserted in the contract test."""
+    from reports.warning_text import warning_text
+
+    truth = simulate_session(seed=3, side="right", n_cycles=6, accelerometer_errors=False,
+                             shank_task_field_turn_rad_s=float(np.deg2rad(1.5)))
+    write_session(tmp_path / "session", truth)
+    process_folder(tmp_path / "session", tmp_path / "out", reports=False)
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    drift = [w for w in r["quality"]["warnings"] if w["code"] == "heading_drift"]
+    assert len(drift) == 1 and drift[0]["params"]["variant"] == "task", r["quality"]["warnings"]
+    p = drift[0]["params"]
+    assert p["change_deg"] > 6.0 and p["holds"] == 6 and p["last_deg"] > p["first_deg"]  # turned one way
+    assert r["quality"]["heading_task"]["change_deg"] == pytest.approx(p["change_deg"])
+    assert "magnetic_disturbance" not in {w["code"] for w in r["quality"]["warnings"]}
+    for lang in ("es", "pt"):
+        text, translated = warning_text(drift[0], lang, r)
+        assert translated and f"{p['change_deg']:.1f}".replace(".", ",") in text, (lang, text)
+
+
+def test_task_recording_cut_inside_the_first_cycle(right_session, tmp_path):
+    """Both task recordings start halfway through the first cycle's extension: cycle 0 is detected,
+    rejected as incomplete (the reason recorded in results.json), the others kept, and warned."""
+    m = right_session.motion
+    cut_s = right_session.role_epoch_s["task"] + 0.5 * (m.phases_s[0, 1] + m.phases_s[0, 2])
+    recs = dict(right_session.recordings)
+    for seg in ("thigh", "shank"):
+        recs[(seg, "task")] = {k: (t[t >= cut_s], v[t >= cut_s]) for k, (t, v) in recs[(seg, "task")].items()}
+    write_session(tmp_path / "session", replace(right_session, recordings=recs))
+    process_folder(tmp_path / "session", tmp_path / "out", reports=False)
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["cycles"]["detected"] == 6 and r["cycles"]["accepted"] == 5
+    assert [(c["index"], c["reason"]) for c in r["cycles"]["rejected"]] == [(0, "incomplete_start")]
+    assert r["cycles"]["per_cycle"][0]["accepted"] is False
+    rejected = [w for w in r["quality"]["warnings"] if w["code"] == "cycles_rejected"]
+    assert len(rejected) == 1 and rejected[0]["params"] == {"rejected": 1, "detected": 6}
+
+
+def test_guo_filter_meets_the_goals_and_keeps_the_first_cycle(right_session, tmp_path):
+    """Guo's fast Kalman filter (the issue's named default) converges before the first cycle (the thesis lost it)."""
+    write_session(tmp_path / "session", right_session)
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out", ProcessOptions(filter_name="guo"),
+                                reports=False)
+    check_goals(outcome, right_session)
+    assert outcome.analysis.accepted[0] and outcome.analysis.n_accepted == 6
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["filter"]["name"] == "guo" and r["filter"]["params"]
 
 
 def test_thesis_angle_option(right_session, tmp_path):

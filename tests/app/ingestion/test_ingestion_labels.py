@@ -17,6 +17,7 @@ ROLE_CASES = [
     ("calibration thigh", "mag_calibration", "thigh"),
     ("Standing_Shank", "standing", "shank"),
     ("supine-thigh", "lying", "thigh"),
+    ("Lying_Shank", "lying", "shank"),
     ("step-up shank 2", "task", "shank"),
     ("Task_Thigh", "task", "thigh"),
     # Portuguese
