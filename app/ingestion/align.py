@@ -42,7 +42,7 @@ def common_span(streams: Sequence[Stream]) -> tuple[float, float]:
     for s in streams:
         ok = np.all(np.isfinite(s.values), axis=1)
         if not ok.any():
-            raise IngestionError(f"{s.file}: no valid {s.kind} sample.")
+            raise IngestionError(f"{s.file}: no valid {s.kind} sample; export the recording again.")
         firsts.append(s.t_s[ok][0])
         lasts.append(s.t_s[ok][-1])
     return float(max(firsts)), float(min(lasts))
@@ -124,7 +124,15 @@ def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role:
 
 
 def align_recording(rec: RawRecording, fs_hz: float, segment: str, role: str) -> AlignedRecording:
-    """Acc, gyr, mag of one recording on one grid at ``fs_hz`` over their common span."""
+    """Acc, gyr, mag of one recording on one grid at ``fs_hz`` over their common span.
+
+    The three streams must share a time base: a stream file without its ``epoch (ms)`` column counts from
+    its own start while the others count from 1970, so no span would be common (refused, naming it)."""
+    if len({s.time_base for s in rec.streams}) > 1:
+        odd = [s for s in rec.streams if s.time_base != "epoch"]
+        raise IngestionError(f"{odd[0].file}: has no epoch time stamps while the other streams of recording "
+                             f"{rec.label!r} have them, so they cannot be put on one time line; export it again "
+                             f"with its 'epoch (ms)' column.")
     t0, t1 = common_span(rec.streams)
     return _aligned(rec, _grid(t0, t1, fs_hz, f"recording {rec.label!r} ({rec.files[0].name})"), fs_hz,
                     segment, role)

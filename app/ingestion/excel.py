@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from app.ingestion.model import IngestionError, Stream
-from app.ingestion.tables import check_stamps
+from app.ingestion.tables import MAX_ABS_CELL, check_stamps
 from app.ingestion.units import check_magnitude, unit_factor
 
 HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/s)", "y-axis (deg/s)",
@@ -67,7 +67,8 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
         names = wb.sheetnames
         if sheet is not None:
             if sheet not in names:
-                raise IngestionError(f"{path}: no sheet named {sheet!r}; the sheets are {names}.")
+                raise IngestionError(f"{path}: no sheet named {sheet!r}; the sheets are {names} — correct "
+                                     f"\"sheet\" in session.json.")
             chosen = sheet
         else:
             good = []
@@ -93,7 +94,7 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
         raise IngestionError(f"{path}: sheet {chosen!r} has no data rows; export the recording again.")
     problem = _layout_problem(rows[0])
     if problem:
-        raise IngestionError(f"{path}: sheet {chosen!r} is not in the thesis layout: {problem}.")
+        raise IngestionError(f"{path}: sheet {chosen!r} is not in the thesis layout: {problem}; fix row 1 or export the recording again.")
     header = [("" if c is None else str(c)) for c in rows[0]]
     width = 11
     table = np.full((len(rows) - 1, width), np.nan)
@@ -103,10 +104,15 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
             if c is None or (isinstance(c, str) and not c.strip()):
                 continue
             try:
+                if isinstance(c, bool):         # Excel's TRUE/FALSE: float() would take them as 1/0
+                    raise TypeError
                 table[i, j] = float(c)
             except (TypeError, ValueError):
                 raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} holds {c!r}, which is not "
                                      f"a number; fix or delete that row.") from None
+            if not abs(table[i, j]) <= MAX_ABS_CELL:  # inf, nan typed as text, 1e300 (norms would overflow)
+                raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} holds {c!r}, beyond any "
+                                     f"time stamp or reading; fix or delete that row.")
     streams = []
     for kind, (t_col, axes) in _GROUPS.items():
         units = {_CELL.match(header[i]).group("unit").strip() for i in axes}
@@ -119,7 +125,7 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
         if f is None or ft is None:
             bad = unit if f is None else t_unit
             raise IngestionError(f"{path}: unit ({bad}) in row 1 is not one ChakaMo knows for this column "
-                                 f"(acc g/mg/m/s², gyro deg/s/rad/s, mag T/mT/µT, time s/ms).")
+                                 f"(acc g/mg/m/s², gyro deg/s/rad/s, mag T/mT/µT, time s/ms); correct row 1.")
         block = table[:, [t_col, *axes]]
         used = ~np.all(np.isnan(block), axis=1)
         last = int(np.nonzero(used)[0][-1]) + 1 if used.any() else 0

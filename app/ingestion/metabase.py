@@ -1,6 +1,7 @@
 """MetaBase CSV (MbientLab MetaWear / MetaMotion): reader and writer, one file per stream.
 
-File name: ``{label}_MetaWear_{YYYY-MM-DDTHH.MM.SS.mmm}_{MAC}_{Stream}_{rate}Hz_{firmware}.csv``.
+File name: ``{label}_MetaWear_{YYYY-MM-DDTHH.MM.SS.mmm}_{MAC}_{Stream}_{rate}Hz_{firmware}.csv`` (the
+extension in any case: a copy through a FAT-formatted stick may end in ``.CSV``).
 Header, two dialects (both read, both written)::
 
     epoch (ms),time (-13:00),elapsed (s),x-axis (g),y-axis (g),z-axis (g)
@@ -30,7 +31,7 @@ from app.ingestion.units import check_magnitude, unit_factor
 
 FILE_NAME = re.compile(
     r"^(?P<label>.*)_MetaWear_(?P<datetime>\d{4}-\d{2}-\d{2}T\d{2}[.:]\d{2}[.:]\d{2}(?:[.:]\d{1,6})?)_"
-    r"(?P<mac>[0-9A-Fa-f]{12})_(?P<stream>[A-Za-z ]+?)_(?P<rate>\d+(?:\.\d+)?)Hz(?:_(?P<firmware>[^_]*))?\.csv$")
+    r"(?P<mac>[0-9A-Fa-f]{12})_(?P<stream>[A-Za-z ]+?)_(?P<rate>\d+(?:\.\d+)?)Hz(?:_(?P<firmware>[^_]*))?\.[cC][sS][vV]$")
 STREAMS = {"Accelerometer": "acc", "Gyroscope": "gyr", "Magnetometer": "mag"}
 STREAM_NAMES = {v: k for k, v in STREAMS.items()}
 FILE_UNITS = {"acc": "g", "gyr": "deg/s", "mag": "T"}
@@ -66,7 +67,8 @@ def read_metabase_csv(path: str | os.PathLike, kind: str | None = None) -> Strea
     if None in axes or (i_epoch is None and i_elapsed is None):
         raise IngestionError(
             f"{path}: not a MetaBase stream file: the header {','.join(header)!r} lacks "
-            f"'epoch (ms)' or 'elapsed (s)' and 'x-axis/y-axis/z-axis (unit)' columns.")
+            f"'epoch (ms)' or 'elapsed (s)' and 'x-axis/y-axis/z-axis (unit)' columns; export the stream again "
+            f"from MetaBase (or rename the file if it is not a stream export).")
     units = {cols[i][1] for i in axes}
     if len(units) != 1:
         raise IngestionError(f"{path}: the three axes declare different units {sorted(units)}; fix the header.")
@@ -81,7 +83,7 @@ def read_metabase_csv(path: str | os.PathLike, kind: str | None = None) -> Strea
         stream = STREAM_NAMES.get(kind, "this stream") if kind else "this stream"
         raise IngestionError(
             f"{path}: unit ({unit}) is not one ChakaMo knows for {stream}; expected "
-            f"{_KNOWN.get(kind, 'g, deg/s or T')}.")
+            f"{_KNOWN.get(kind, 'g, deg/s or T')}; correct the unit in the column header.")
     time_col = i_epoch if i_epoch is not None else i_elapsed
     data = numeric_columns(path, header, rows, [time_col, *axes])
     t_s = data[:, 0] * (1e-3 if time_col == i_epoch else 1.0)

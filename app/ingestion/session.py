@@ -47,10 +47,21 @@ MANIFEST = "session.json"
 _MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings",
                   "name", "professional", "weight_kg", "height_m", "observations"}
 _ENTRY_KEYS = {"files", "segment", "role", "sheet"}
+#: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
+_MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
+                   "sensors": dict, "recordings": list, "name": str, "professional": str,
+                   "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
+_TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
+               type(None): "null"}
 
 
-def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None) -> RawRecording:
-    """Read one recording (3 MetaBase files, 1 thesis .xlsx, or 1 generic .csv), segment/role from its name."""
+def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None, hint: str = "") -> RawRecording:
+    """Read one recording (3 MetaBase files, 1 thesis .xlsx, or 1 generic .csv), segment/role from its name.
+
+    ``hint`` ends the message when a MetaBase stream file is missing (the files discovery left out: a stream
+    renamed out of the MetaBase pattern is one of them)."""
+    if not files:
+        raise IngestionError("a recording needs its files (none given); list them.")
     paths = [Path(f) for f in files]
     for p in paths:
         if not p.is_file():
@@ -67,7 +78,7 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
         if missing:
             names = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}
             raise IngestionError(f"{paths[0].parent}: recording {label!r} of sensor {sensor_id} has no "
-                                 f"{' / '.join(names[k] for k in missing)} file; export every stream from MetaBase.")
+                                 f"{' / '.join(names[k] for k in missing)} file; export every stream from MetaBase.{hint}")
         acc, gyr, mag = (read_metabase_csv(kinds[k], k) for k in ("acc", "gyr", "mag"))
         fmt = "metabase"
         method = "MetaBase label"
@@ -102,25 +113,50 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
 
 
 def _read_manifest(path: Path) -> dict[str, Any]:
+    """``session.json`` parsed and checked: keys, their types, and every listed file once, inside the folder."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError:
+        raise IngestionError(f"{path}: not UTF-8 text; save it again as UTF-8 (or remove the file).") from None
     except json.JSONDecodeError as exc:
         raise IngestionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}); "
                              f"fix it or remove the file.") from None
     if not isinstance(data, dict):
-        raise IngestionError(f"{path}: must be a JSON object with keys {sorted(_MANIFEST_KEYS)}.")
+        raise IngestionError(f"{path}: must be a JSON object with keys {sorted(_MANIFEST_KEYS)}; fix it or remove "
+                             f"the file.")
     unknown = set(data) - _MANIFEST_KEYS
     if unknown:
         raise IngestionError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(_MANIFEST_KEYS)}.")
+    for key, types in _MANIFEST_TYPES.items():
+        types = types if isinstance(types, tuple) else (types,)
+        if key in data and (not isinstance(data[key], types) or isinstance(data[key], bool)):
+            raise IngestionError(f"{path}: {key} = {data[key]!r} must be "
+                                 f"{' or '.join(_TYPE_NAMES[t] for t in types)}; correct it.")
+    for mac, segment in data.get("sensors", {}).items():
+        if not isinstance(segment, str):
+            raise IngestionError(f"{path}: sensors[{mac!r}] = {segment!r}; give the segment as a string "
+                                 f"(\"thigh\" or \"shank\").")
+    if "recordings" in data and not data["recordings"]:
+        raise IngestionError(f"{path}: 'recordings' lists no recording; list the session's files, or remove "
+                             f"the key to let ChakaMo find them.")
+    root = path.parent.resolve()
+    listed: dict[Path, int] = {}
     for i, e in enumerate(data.get("recordings", [])):
-        if not isinstance(e, dict) or not isinstance(e.get("files"), list) or set(e) - _ENTRY_KEYS:
-            raise IngestionError(f"{path}: recordings[{i}] must be an object with 'files' (a list) and optional "
-                                 f"'segment', 'role', 'sheet'.")
-        root = path.parent.resolve()
+        if not isinstance(e, dict) or not isinstance(e.get("files"), list) or not e["files"] or set(e) - _ENTRY_KEYS \
+                or not all(isinstance(e.get(k, ""), str) for k in ("segment", "role")) \
+                or not isinstance(e.get("sheet", ""), (str, type(None))):
+            raise IngestionError(f"{path}: recordings[{i}] must be an object with 'files' (a non-empty list of "
+                                 f"names) and optional 'segment', 'role', 'sheet' (strings); correct it.")
         for f in e["files"]:
-            if not isinstance(f, str) or not (root / f).resolve().is_relative_to(root):
+            if not isinstance(f, str) or not f or not (root / f).resolve().is_relative_to(root) \
+                    or (root / f).resolve() == root:
                 raise IngestionError(f"{path}: recordings[{i}] lists {f!r}, which is not a file inside the session "
                                      "folder; list the recordings by their names in this folder.")
+            where = (root / f).resolve()
+            if where in listed:
+                raise IngestionError(f"{path}: {f!r} is listed twice (recordings[{listed[where]}] and "
+                                     f"recordings[{i}]); list each file once.")
+            listed[where] = i
     return data
 
 
@@ -147,6 +183,10 @@ def _looks_generic(path: Path) -> bool:
         return False
 
 
+#: why _discover leaves a .csv out (shown in notes, and in the error when a recording or stream is then missing)
+_IGNORED_CSV = "neither a MetaBase export nor a generic CSV with acc_x..."
+
+
 def _discover(folder: Path, notes: list[str]) -> list[list[Path]]:
     files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(("~$", ".")))
     meta = [p for p in files if p.suffix.lower() == ".csv" and parse_file_name(p)]
@@ -156,7 +196,7 @@ def _discover(folder: Path, notes: list[str]) -> list[list[Path]]:
         if p.suffix.lower() == ".xlsx" or (p.suffix.lower() == ".csv" and p not in meta and _looks_generic(p)):
             singles.append([p])
         elif p.suffix.lower() == ".csv" and p not in meta:
-            notes.append(f"ignored {p.name} (neither a MetaBase export nor a generic CSV with acc_x...)")
+            notes.append(f"ignored {p.name} ({_IGNORED_CSV})")
     return groups + singles
 
 
@@ -208,13 +248,14 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     entries = manifest.get("recordings")
     if entries is None:  # discovered files are already paths inside folder: keep only their names
         entries = [{"files": [p.name for p in g]} for g in _discover(folder, notes)]
+    ignored = "".join(f" Ignored {n[len('ignored '):]}." for n in notes if n.startswith("ignored "))
     if not entries:
         raise IngestionError(f"{folder}: no recordings found (MetaBase .csv, thesis .xlsx or generic .csv); "
                              f"check the folder.")
     recs: dict[tuple[str, str], RawRecording] = {}
     unrecognised: list[str] = []
     for i, e in enumerate(entries):
-        rec = read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"))
+        rec = read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored)
         segment, role = rec.segment, rec.role
         if rec.sensor_id and rec.sensor_id in sensors:
             segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
@@ -235,7 +276,7 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
             raise IngestionError(f"{rec.files[0]} and {recs[key].files[0]} are both the {role.value} recording of "
                                  f"the {segment.value}; keep one (or list the one to use in {MANIFEST}).")
         recs[key] = rec
-    hint = (f" Files not recognised: {'; '.join(unrecognised)}." if unrecognised else "") + \
+    hint = ignored + (f" Files not recognised: {'; '.join(unrecognised)}." if unrecognised else "") + \
         (f" Name files like step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., or list them in {MANIFEST}"
          f" with segment and role.")
     segs = {s for s, _ in recs}

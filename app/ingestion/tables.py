@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 from typing import Sequence
 
@@ -13,17 +14,32 @@ from app.ingestion.model import FloatArray, IngestionError
 #: Fewest samples / shortest span a stream may have.
 MIN_SAMPLES = 10
 MIN_DURATION_S = 1.0
+#: Largest magnitude a cell may hold: beyond any epoch in ms (year 33658) and any sensor reading in any unit
+#: ChakaMo reads, and small enough that squaring it (vector norms) cannot overflow float64.
+MAX_ABS_CELL = 1e15
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[list[str]]]:
-    """Header and data rows of a comma-separated file; refuses empty, header-only and ragged (truncated) files."""
+    """Header and data rows of a comma-separated file; refuses empty, header-only and ragged (truncated) files.
+
+    NUL bytes are refused before decoding: they are what a UTF-16/UTF-32 export (Excel's "Unicode text") or a
+    damaged copy looks like, and read as UTF-8 they would give a header that merely "lacks columns"."""
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            rows = [r for r in csv.reader(fh)]
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise IngestionError(f"{path}: cannot be read ({exc.strerror}); check that the file exists and is "
+                             f"readable, or copy it again.") from None
+    if b"\x00" in raw:
+        raise IngestionError(f"{path}: the file contains NUL bytes (saved as UTF-16/UTF-32 'Unicode text', or "
+                             f"damaged); save it again as a UTF-8 (or plain) CSV, or export the recording again.")
+    try:
+        text = raw.decode("utf-8-sig")
+        rows = list(csv.reader(io.StringIO(text, newline="")))
     except UnicodeDecodeError as exc:
         raise IngestionError(f"{path}: not a text CSV file ({exc.reason}); export it again as CSV.") from None
-    except OSError as exc:
-        raise IngestionError(f"{path}: cannot be read ({exc.strerror}).") from None
+    except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
+        raise IngestionError(f"{path}: not a readable CSV file ({exc}); the file is damaged — export the "
+                             f"recording again.") from None
     while rows and not any(c.strip() for c in rows[-1]):
         rows.pop()
     if not rows:
@@ -69,21 +85,31 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
                     raise IngestionError(
                         f"{path}: row {i + first_row}, column '{header[c]}' holds {cell!r}, which is not a number; "
                         f"fix or delete that row (decimal point '.', no thousands separator).") from None
-    if np.isinf(out).any():
-        i, j = np.argwhere(np.isinf(out))[0]
-        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' is infinite; "
+    with np.errstate(invalid="ignore"):
+        huge = np.abs(out) > MAX_ABS_CELL        # inf included; NaN (empty cells) compares False
+    if huge.any():
+        i, j = np.argwhere(huge)[0]
+        what = "is infinite" if np.isinf(out[i, j]) else f"holds {out[i, j]:.3g}, beyond any time stamp or reading"
+        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' {what}; "
                              f"fix or delete that row.")
     return out
 
 
 def check_stamps(path: Path, t_s: FloatArray, what: str = "time stamps", first_row: int = 2) -> None:
-    """Time stamps present, strictly increasing, enough of them."""
+    """Time stamps present, strictly increasing, enough of them.
+
+    Order matters for the message: stamps that go back (a clock reset at midnight) are named as such before
+    the span is judged, which such stamps make negative."""
     if np.isnan(t_s).any():
         i = int(np.argmax(np.isnan(t_s)))
         raise IngestionError(f"{path}: row {i + first_row} has no {what}; fix or delete that row.")
+    _check_increasing(path, t_s, what, first_row)
     if len(t_s) < MIN_SAMPLES or t_s[-1] - t_s[0] < MIN_DURATION_S:
         raise IngestionError(f"{path}: only {len(t_s)} samples ({t_s[-1] - t_s[0]:.2f} s); the recording is too "
                              f"short (at least {MIN_DURATION_S:g} s) — record again.")
+
+
+def _check_increasing(path: Path, t_s: FloatArray, what: str, first_row: int) -> None:
     d = np.diff(t_s)
     if (d <= 0).any():
         i = int(np.argmax(d <= 0))
