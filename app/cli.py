@@ -5,8 +5,8 @@ Subcommands
 ``chakamo demo --out DIR``
     Simulate a realistic session with known truth, write it as MetaBase files, process it through the
     same code path as real data and print the accuracy against the truth.
-``chakamo process SESSION_DIR --out DIR [--filter NAME] [--lang es|en|pt] [--side right|left]``
-    Process one recorded session into ``results.json``.
+``chakamo process SESSION_DIR --out DIR [--filter NAME] [--lang es|en|pt] [--side right|left] [--task NAME]``
+    Process one recorded session into ``results.json`` and the reports (``--task``: the motor task recorded).
 ``chakamo view OUT_DIR [--host 127.0.0.1] [--port 8080] [--lang es|en|pt]``
     Serve the 3D femur-tibia animation of a processed session live (viser), until Ctrl-C.
 ``chakamo walk FILE [--format iez|npz] [--sensor 1|2] [--method NAME] [--json OUT] [--plot OUT.svg]``

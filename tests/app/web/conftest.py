@@ -1,5 +1,9 @@
 """Fixtures of the web application tests: a temporary data dir + database per test, and the demo session's
-real MetaBase files (simulated once per run).  Helpers live in ``web_helpers.py``."""
+real MetaBase files (simulated once per run).  Helpers live in ``web_helpers.py``.
+
+Every test built on the ``settings`` / ``client`` fixtures runs twice: on the embedded SQLite file and on a
+fresh database of a real PostgreSQL server (``CHAKAMO_TEST_POSTGRES_URL``, which ``.ci/run`` sets; the
+PostgreSQL run skips when it is unset), so the suite proves both databases the product supports."""
 
 from __future__ import annotations
 
@@ -10,11 +14,20 @@ import pytest
 pytest.importorskip("fastapi")
 
 
+@pytest.fixture(params=["sqlite", "postgresql"])
+def database_url(request):
+    """None (the embedded SQLite file of the data dir) or the URL of a new empty PostgreSQL database."""
+    if request.param == "sqlite":
+        return None
+    return request.getfixturevalue("pg_url")
+
+
 @pytest.fixture
-def settings(tmp_path):
+def settings(tmp_path, database_url):
     from web_helpers import make_settings
 
-    return make_settings(tmp_path / "data")
+    extra = {"DATABASE_URL": database_url} if database_url else {}
+    return make_settings(tmp_path / "data", **extra)
 
 
 @pytest.fixture
@@ -37,27 +50,3 @@ def demo_dir(tmp_path_factory) -> Path:
     write_session(folder, simulate_session(seed=7, side="right", n_cycles=6))
     (folder / "session.json").unlink()
     return folder
-
-
-@pytest.fixture
-def pg_url():
-    """URL of a new empty PostgreSQL database (``CHAKAMO_TEST_POSTGRES_URL``'s server; dropped after the test)."""
-    import os
-    import uuid
-
-    from sqlalchemy import create_engine
-    from sqlalchemy.engine import make_url
-
-    server = os.environ.get("CHAKAMO_TEST_POSTGRES_URL")
-    if not server:
-        pytest.skip("CHAKAMO_TEST_POSTGRES_URL not set (no PostgreSQL server)")
-    admin = create_engine(server, isolation_level="AUTOCOMMIT")
-    name = f"chakamo_test_{uuid.uuid4().hex[:12]}"
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    try:
-        yield make_url(server).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as conn:
-            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        admin.dispose()

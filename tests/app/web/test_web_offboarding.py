@@ -19,6 +19,8 @@ def cli_env(monkeypatch, settings):
 
     monkeypatch.setenv("CHAKAMO_ENV", "development")
     monkeypatch.setenv("CHAKAMO_DATA_DIR", str(settings.data_dir))
+    if settings.database_url:
+        monkeypatch.setenv("DATABASE_URL", settings.database_url)
     monkeypatch.setenv("CHAKAMO_WORKERS", "1")
     get_settings.cache_clear()
     yield

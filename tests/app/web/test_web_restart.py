@@ -40,6 +40,8 @@ def test_restart_in_the_middle_of_a_job_resumes_it(settings, demo_dir):
         assert c.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=demo_files(demo_dir)).status_code == 201
 
     env = dict(os.environ, CHAKAMO_ENV="development", CHAKAMO_DATA_DIR=str(settings.data_dir), CHAKAMO_WORKERS="1")
+    if settings.database_url:
+        env["DATABASE_URL"] = settings.database_url
     token = h["Authorization"].split()[1]
     child = subprocess.Popen([sys.executable, "-c", CHILD, str(sid), token], env=env, stdout=subprocess.PIPE,
                              stderr=subprocess.DEVNULL, text=True)
