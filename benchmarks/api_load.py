@@ -3,56 +3,24 @@
 ``python -m benchmarks.api_load [--rate 50] [--seconds 20]``
 
 A real uvicorn server in a child process on 127.0.0.1 (:func:`benchmarks.api_upload.running_server`, a
-temporary data dir) holds one processed demo session.  An open-loop generator (asyncio + httpx) then sends
-``rate`` requests per second for ``seconds`` seconds — each request leaves at its scheduled time whether or
-not earlier ones have answered, so a slow server cannot slow the load down — cycling over the endpoints a UI
-page or a hospital system polls: patient list and search, patient, session, job, results.json, the trend,
-``/auth/me`` and ``/healthz``.  Printed: per endpoint and overall, count, p50, p95, p99 and max latency (ms)
-and any non-200 answers.  Bounded in time; loopback only.
+temporary data dir) holds one processed demo session.  An open-loop generator
+(:func:`benchmarks.http_load.open_loop_get`: asyncio + httpx) then sends ``rate`` requests per second for
+``seconds`` seconds — each request leaves at its scheduled time whether or not earlier ones have answered, so
+a slow server cannot slow the load down — cycling over the endpoints a UI page or a hospital system polls:
+patient list and search, patient, session, job, results.json, the trend, ``/auth/me`` and ``/healthz``.
+Printed: per endpoint and overall, count, p50, p95, p99 and max latency (ms) and any non-200 answers.
+Bounded in time; loopback only.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import os
 import tempfile
-import time
 from pathlib import Path
 
-import numpy as np
-
-from benchmarks.api_upload import demo_session, one_run, running_server
-
-
-async def _load(base: str, headers: dict, paths: list[str], rate: float, seconds: float) -> list[tuple[str, float, int]]:
-    import httpx
-
-    out: list[tuple[str, float, int]] = []
-    limits = httpx.Limits(max_connections=200, max_keepalive_connections=50)
-    async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30, limits=limits) as client:
-        async def one(path: str) -> None:
-            t = time.perf_counter()
-            try:
-                status = (await client.get(path)).status_code
-            except httpx.HTTPError:
-                status = -1
-            out.append((path, (time.perf_counter() - t) * 1000, status))
-
-        tasks = []
-        t0 = time.perf_counter()
-        for i in range(int(rate * seconds)):
-            delay = t0 + i / rate - time.perf_counter()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            tasks.append(asyncio.create_task(one(paths[i % len(paths)])))
-        await asyncio.gather(*tasks)
-    return out
-
-
-def _row(name: str, ms: np.ndarray, bad: int) -> str:
-    p50, p95, p99 = np.percentile(ms, [50, 95, 99])
-    return f"| {name} | {len(ms)} | {p50:.1f} | {p95:.1f} | {p99:.1f} | {ms.max():.1f} | {bad} |"
+from benchmarks.api_upload import one_run, running_server
+from benchmarks.http_load import demo_session, latency_table, open_loop_get
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,16 +41,10 @@ def main(argv: list[str] | None = None) -> int:
             paths = ["/api/v1/patients", "/api/v1/patients?q=bench", "/api/v1/patients/1", f"/api/v1/sessions/{sid}",
                      f"/api/v1/jobs/{job_id}", f"/api/v1/sessions/{sid}/results", "/api/v1/patients/1/trend",
                      "/api/v1/auth/me", "/healthz"]
-            results = asyncio.run(_load(base, headers, paths, args.rate, args.seconds))
+            results = open_loop_get(base, headers, paths, args.rate, args.seconds)
     print(f"API latency at {args.rate:g} requests/s for {args.seconds:g} s (real uvicorn on loopback, open loop; "
           "goal p95 < 50 ms)\n")
-    print("| endpoint | n | p50 (ms) | p95 (ms) | p99 (ms) | max (ms) | non-200 |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
-    for path in paths:
-        rows = [(ms, st) for p, ms, st in results if p == path]
-        print(_row(path, np.array([ms for ms, _ in rows]), sum(st != 200 for _, st in rows)))
-    all_ms = np.array([ms for _, ms, _ in results])
-    print(_row("**all**", all_ms, sum(st != 200 for *_, st in results)))
+    print(latency_table(results, paths))
     load = os.getloadavg()[0]
     print(f"\n1-minute load average at the end: {load:.1f} on {os.cpu_count()} CPUs (client and server share them; "
           "the machine is shared: re-run when it is quiet to compare)")

@@ -23,6 +23,8 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from benchmarks.http_load import demo_session
+
 
 def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
@@ -66,14 +68,6 @@ def running_server(data_dir: Path, workers: int = 2):
             proc.wait(30)
         except subprocess.TimeoutExpired:
             proc.kill()
-
-
-def demo_session(folder: Path) -> list[Path]:
-    """The demo session's 24 MetaBase files, simulated as `chakamo demo` does (10 step-up cycles)."""
-    from app.demo import simulate_session, write_session
-
-    write_session(folder, simulate_session(seed=7, side="right", n_cycles=10))
-    return sorted(folder.glob("*.csv"))
 
 
 def one_run(client, headers: dict, files: list[Path], n: int) -> dict[str, float]:
