@@ -66,7 +66,8 @@ def _queue_one(db: Database, settings: Settings, session_id: int, filter_name: s
     if not fresh:  # files changed since the last check (or never checked): check them now, no transaction held
         refresh_ingestion(db, open_storage(settings), settings.tmp_dir, session_id)
     with db.session() as s:
-        session = s.get(KneeSession, session_id, with_for_update=True)
+        session = s.scalars(select(KneeSession).where(KneeSession.id == session_id)
+                            .with_for_update(of=KneeSession)).one()  # locks the session row, not its patient
         base = dict(session_id=session.id, patient=session.patient.external_id, date=session.date)
         active = s.scalar(select(Job.id).where(Job.session_id == session.id, Job.status.in_(("queued", "running"))))
         if active is not None:

@@ -112,6 +112,24 @@ def _process(dep, session_id: int, **body) -> int:
     return r.json()["job_id"]
 
 
+def _worker_log(dep) -> str:
+    return "".join(w.output() for w in dep.workers)
+
+
+def _analyses(dep, session_id: int) -> int:
+    from sqlalchemy import func, select
+
+    from app.db import Database
+    from app.db.models import Analysis
+
+    db = Database(dep.database)
+    try:
+        with db.session() as s:
+            return s.scalar(select(func.count()).select_from(Analysis).where(Analysis.session_id == session_id))
+    finally:
+        db.dispose()
+
+
 def _stored_files(dep, session_id: int) -> int:
     r = dep.client.get(f"/api/v1/sessions/{session_id}", headers=dep.headers)
     assert r.status_code == 200, r.text
@@ -158,6 +176,13 @@ def test_jobs_run_on_celery_workers_and_readyz_sees_the_broker(deployment, demo_
     assert results["cycles"]["detected"] >= 6
     row = _job_row(dep, job["id"])
     assert row.attempts == 1 and row.pipeline_version and row.dispatched_at is not None
+
+    runner = dep.client.app.state.runner  # the same job delivered twice more (a duplicate, a re-dispatch)
+    assert runner.publish(job["id"]) and runner.publish(job["id"])
+    wait_until(lambda: _worker_log(dep).count("succeeded") >= 3, 30, "the duplicates delivered", every_s=0.2)
+    assert _worker_log(dep).count(": 'finished'") == 2  # each found the job finished
+    assert _job_row(dep, job["id"]).attempts == 1  # not run again
+    assert _analyses(dep, session_id) == 1
 
     dep.redis.stop()
     r = dep.client.get("/readyz")

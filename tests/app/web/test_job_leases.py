@@ -1,0 +1,140 @@
+"""Leases, the sweeper and cohort reprocessing (``app.jobs``, ``app.reprocess``), on the embedded engine and
+both databases: a job whose worker stopped beating is queued again (failed after MAX_ATTEMPTS), a job left
+queued is handed over again, a cohort is queued once (idempotent) and the running server picks it up."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import pytest
+
+from web_helpers import clinic_token, demo_files, new_session, wait_job
+
+
+def _job(db, session_id: int, **values):
+    from app.db.models import Job
+
+    with db.session() as s:
+        job = Job(clinic_id=1, session_id=session_id, filter="guo", lang="es", log=[], **values)
+        s.add(job)
+        s.flush()
+        return job.id
+
+
+@pytest.fixture
+def world(client, settings, demo_dir):
+    h = clinic_token(settings, "Leases")
+    _, session_id = new_session(client, h, "LEASE-1")
+    r = client.post(f"/api/v1/sessions/{session_id}/recordings", files=demo_files(demo_dir), headers=h)
+    assert r.status_code == 201, r.text
+    return client, h, session_id
+
+
+def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches_stale_ones(settings, world):
+    from app.db import Database
+    from app.db.models import Job, utcnow
+    from app.jobs import MAX_ATTEMPTS, mark_dispatched, sweep
+
+    client, _, session_id = world
+    client.app.state.runner.shutdown()  # the sweeper under test is called by hand
+    db = Database(settings.db_url)
+    old = utcnow() - dt.timedelta(seconds=120)
+    lost = _job(db, session_id, status="running", attempts=1, started_at=old, heartbeat_at=old)
+    doomed = _job(db, session_id, status="running", attempts=MAX_ATTEMPTS, started_at=old, heartbeat_at=old)
+    alive = _job(db, session_id, status="running", attempts=1, started_at=old, heartbeat_at=utcnow())
+    stale = _job(db, session_id, status="queued", dispatched_at=old)
+    fresh = _job(db, session_id, status="queued", dispatched_at=utcnow())
+    never = _job(db, session_id, status="queued")
+
+    due = sweep(db, lease_s=60, redispatch_s=60)
+    assert due == sorted([lost, stale, never])  # the lost one is queued again and due at once
+    with db.session() as s:
+        rows = {j.id: j for j in s.query(Job)}
+        assert rows[lost].status == "queued" and "worker lost" in rows[lost].log[-1]
+        assert rows[doomed].status == "failed" and "interrupted 3 times" in rows[doomed].error
+        assert rows[alive].status == "running"
+        assert rows[fresh].status == "queued"
+    mark_dispatched(db, due)
+    assert sweep(db, lease_s=60, redispatch_s=60) == []  # handed over now: not due again before redispatch_s
+    db.dispose()
+
+
+def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, world):
+    from app.db import Database
+    from app.db.models import utcnow
+    from app.jobs import run_job
+    from app.storage import open_storage
+
+    client, _, session_id = world
+    client.app.state.runner.shutdown()
+    db = Database(settings.db_url)
+    running = _job(db, session_id, status="running", attempts=1, heartbeat_at=utcnow())
+    done = _job(db, session_id, status="done", attempts=1)
+    store = open_storage(settings)
+    assert run_job(running, db, store, settings.tmp_dir) == "busy"
+    assert run_job(done, db, store, settings.tmp_dir) == "finished"
+    assert run_job(10_000, db, store, settings.tmp_dir) == "finished"
+    db.dispose()
+
+
+def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings, world, monkeypatch):
+    from app.reprocess import reprocess
+
+    client, h, session_id = world
+    job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={"filter": "guo"},
+                                       headers=h).json()["job_id"], h)
+    assert job["status"] == "done"
+    since = dt.date.today() - dt.timedelta(days=1)
+
+    outcomes, summary = reprocess(settings, filter_name="guo", since=since)
+    assert [(o.session_id, o.status) for o in outcomes] == [(session_id, "current")], outcomes
+    assert summary == "no job queued"
+
+    outcomes, summary = reprocess(settings, filter_name="madgwick", since=since, clinic="Leases")
+    assert [o.status for o in outcomes] == ["queued"] and "chakamo serve" in summary
+    job = wait_job(client, outcomes[0].job_id, h, timeout_s=120)  # found by the server's sweeper
+    assert job["status"] == "done" and job["filter"] == "madgwick", job
+
+    again, _ = reprocess(settings, filter_name="madgwick", since=since)
+    assert [o.status for o in again] == ["current"]  # idempotent: nothing new the second time
+    forced, _ = reprocess(settings, filter_name="madgwick", since=since, force=True)
+    assert [o.status for o in forced] == ["queued"]
+    busy, _ = reprocess(settings, filter_name="valenti_cf", since=since, force=True)
+    assert [o.status for o in busy] == ["busy"]  # one job per session at a time
+    assert reprocess(settings, filter_name="guo", since=dt.date.today() + dt.timedelta(days=1))[0] == []
+    with pytest.raises(ValueError, match="no clinic named"):
+        reprocess(settings, filter_name="guo", since=since, clinic="Nowhere")
+    with pytest.raises(ValueError, match="unknown filter"):
+        reprocess(settings, filter_name="kalman9000", since=since)
+
+
+def test_cli_reprocess_and_worker_messages(settings, world, monkeypatch, capsys):
+    from app.cli import main
+    from app.settings import get_settings
+
+    monkeypatch.setenv("CHAKAMO_ENV", "development")
+    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(settings.data_dir))
+    if settings.database_url:
+        monkeypatch.setenv("DATABASE_URL", settings.database_url)
+    get_settings.cache_clear()
+    try:
+        assert main(["reprocess", "--filter", "guo", "--since", "2000-01-01"]) == 0
+        out = capsys.readouterr().out
+        assert "LEASE-1" in out and "queued" in out and out.strip().splitlines()[-1].startswith("1 sessions: 1 queued")
+        assert main(["worker"]) == 2  # the embedded engine needs no worker: one sentence says what to set
+        assert "CHAKAMO_JOB_BACKEND=celery" in capsys.readouterr().err
+        with pytest.raises(SystemExit):
+            main(["reprocess", "--filter", "guo", "--since", "1st of May"])
+        assert "YYYY-MM-DD" in capsys.readouterr().err
+        assert main(["migrate"]) == 0 and "schema up to date" in capsys.readouterr().out
+    finally:
+        get_settings.cache_clear()
+
+
+def test_readyz_on_the_embedded_engine(client):
+    r = client.get("/readyz")
+    assert r.status_code == 200 and r.json() == {"status": "ready", "backend": "inprocess", "database": "ok",
+                                                 "jobs": "ok"}
+    client.app.state.runner.shutdown()
+    r = client.get("/readyz")
+    assert r.status_code == 503 and r.json()["jobs"] == "the job workers are not running"
