@@ -46,9 +46,16 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
     An uploaded manifest may only name this session's stored files, by their bare names: anything else (a
     path, ``..``, a file that was not uploaded) raises :class:`IngestionError`, so a manifest can never make
     the ingestion read a file outside the session's own folder."""
+    if uploaded is not None and not isinstance(uploaded, dict):
+        raise IngestionError(f"{MANIFEST}: must be a JSON object ({{\"side\": ..., \"recordings\": [...]}}), not "
+                             f"{type(uploaded).__name__}; fix it or delete that recording")
     manifest: dict[str, Any] = dict(uploaded or {})
     stored = {r.file_name for r in recordings if r.file_name != MANIFEST}
-    for entry in manifest.get("recordings") or []:
+    listed = manifest.get("recordings") or []
+    if not isinstance(listed, list):
+        raise IngestionError(f"{MANIFEST}: \"recordings\" must be a list of {{\"files\": [...], \"segment\": ..., "
+                             "\"role\": ...}} entries; fix it or delete that recording")
+    for entry in listed:
         files = entry.get("files") if isinstance(entry, dict) else None
         for name in files if isinstance(files, list) else [files]:
             if not isinstance(name, str) or Path(name).name != name or name not in stored:
