@@ -53,7 +53,7 @@ import numpy as np
 
 from benchmarks.http_load import demo_session, latency_table, open_loop_get
 from benchmarks.live_services import Missing
-from benchmarks.load_stack import Stack, running_stack
+from benchmarks.load_stack import Stack, failure_excerpt, running_stack
 
 PHASES = ("create", "upload", "process request", "job wait", "download", "job poll (one GET)")
 #: seconds between two polls of a job by one clinician (a UI polls about this often)
@@ -332,6 +332,9 @@ def main(argv: list[str] | None = None) -> Summary:
         with running_stack(Path(tmp), args.backend, args.workers) as stack:
             summary = run(stack, files, args)
             print_tables(summary, stack, args)
+            if summary.exit_status:
+                print("\nWhat the processes logged last (the logs go with the temporary folder):\n")
+                print(failure_excerpt(stack))
     return summary
 
 

@@ -53,6 +53,27 @@ def _tail(proc: ChakamoProcess, lines: int = 15) -> str:
     return "\n".join(proc.output().splitlines()[-lines:])
 
 
+def failure_excerpt(stack: Stack, tail: int = 14) -> str:
+    """Per process log: how often each exception was logged and the end of the last traceback (the logs are
+    deleted with the temporary folder, so a failed run must show them)."""
+    from collections import Counter
+
+    out = []
+    for proc in [stack.api, *stack.workers]:
+        text = proc.output().splitlines()
+        errors: Counter[str] = Counter()
+        last: list[str] = []
+        for i, line in enumerate(text):
+            if line.startswith("Traceback"):
+                end = next((j for j in range(i + 1, len(text)) if text[j] and not text[j].startswith(" ")), i)
+                errors[text[end][:200]] += 1
+                last = text[max(i, end - tail):end + 1]
+        out.append(f"--- {proc.args[0]} ({proc.log.name}): "
+                   + ("; ".join(f"{n} × {e}" for e, n in errors.most_common(5)) or "no traceback"))
+        out.extend(last)
+    return "\n".join(out)
+
+
 def _api_ready(base_url: str) -> bool:
     import httpx
 
@@ -117,4 +138,4 @@ def running_stack(root: Path, backend: str, workers: int) -> Iterator[Stack]:
         yield Stack(backend, base_url, {"Authorization": f"Bearer {token}"}, api, procs, describe)
 
 
-__all__ = ["CLINIC", "Stack", "running_stack"]
+__all__ = ["CLINIC", "Stack", "failure_excerpt", "running_stack"]
