@@ -35,6 +35,7 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import func, select, text
 from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 
 import app as _app_pkg
 from app.api import api_router
@@ -183,6 +184,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         log.warning("database unreachable during %s %s: %s", request.method, request.url.path, exc.orig)
         return JSONResponse({"detail": "The database is not reachable at the moment (nothing was changed); try "
                                        "again in a minute."}, status_code=503, headers={"Retry-After": "30"})
+
+    @app.exception_handler(PoolTimeout)
+    async def database_busy(request: Request, exc: PoolTimeout):
+        """503 when every database connection stayed busy too long (an overload): nothing was changed."""
+        log.warning("no database connection free for %s %s", request.method, request.url.path)
+        return JSONResponse({"detail": "The server is too busy at the moment (nothing was changed); try again in "
+                                       "a minute."}, status_code=503, headers={"Retry-After": "10"})
 
     @app.exception_handler(CorruptBlob)
     async def corrupt_blob(request: Request, exc: CorruptBlob):

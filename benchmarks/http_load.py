@@ -63,8 +63,12 @@ def open_loop_get(base: str, headers: dict, paths: list[str], rate: float,
     ``status`` is -1 when the request failed without an answer (refused, reset, 30 s timeout).  Bounded: the
     last request leaves after ``seconds`` and every request gives up after 30 s.  Runs its own event loop, so
     it may be called from a thread or a child process (``benchmarks.load`` does the latter, so the clients'
-    threads there cannot delay it through the GIL)."""
-    return asyncio.run(_open_loop(base, headers, paths, rate, seconds))
+    threads there cannot delay it through the GIL).  The loop runs in a thread of its own, so a caller whose
+    thread already runs an event loop (e.g. a test session holding Playwright's) is no obstacle."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1, thread_name_prefix="open-loop") as pool:
+        return pool.submit(asyncio.run, _open_loop(base, headers, paths, rate, seconds)).result()
 
 
 def latency_row(name: str, ms: np.ndarray, bad: int) -> str:

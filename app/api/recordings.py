@@ -37,6 +37,7 @@ session's ``session.json`` manifest.
 from __future__ import annotations
 
 import logging
+import threading
 from pathlib import PurePosixPath, PureWindowsPath
 
 from fastapi import APIRouter, HTTPException, Request, Response
@@ -209,7 +210,12 @@ def _store(request: Request, principal, session_id: int, upload: _Upload, segmen
         refuse_while_processing(db, session.id, "upload the files")  # a job queued meanwhile (SQLite) wins
         audit.record(db, request, principal, "upload", patient_id=session.patient_id, session_id=session.id)
         out = [recording_out(r) for r in rows]
-    ingestion = refresh_ingestion(db_, request.app.state.store, settings.tmp_dir, session_id)
+    try:  # the files are committed: whatever happens to their check, the upload stands
+        ingestion = refresh_ingestion(db_, request.app.state.store, settings.tmp_dir, session_id)
+    except Exception:  # noqa: BLE001 — e.g. no database connection free: the stale check is redone later
+        log.warning("upload to session %s stored; its ingestion check failed and runs again later", session_id,
+                    exc_info=True)
+        ingestion = {"ok": False, "messages": [], "error": CHECK_DEFERRED}
     return {"recordings": out, "ingestion": ingestion}
 
 
@@ -222,15 +228,26 @@ def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict
         return res.rowcount == 1
 
 
+#: the upload's answer when its files are stored but their check could not run (it runs again later)
+CHECK_DEFERRED = ("The files are stored, but the server could not check them now; the check runs again when the "
+                  "session is opened or processed.")
+#: ingestion checks (CPU-bound, holding the GIL most of the time) running at once in one server process; the
+#: others wait their turn, holding no database connection, so that reads keep their share of the processor
+CHECK_CONCURRENCY = 1
+_check_slots = threading.BoundedSemaphore(CHECK_CONCURRENCY)
+
+
 def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir, session_id: int) -> dict:
-    """Run the ingestion over the session's stored files (no database connection held meanwhile), store the
-    result if the files did not change meanwhile (:func:`save_ingestion`) and return it."""
+    """Run the ingestion over the session's stored files (no database connection held meanwhile; at most
+    :data:`CHECK_CONCURRENCY` at once), store the result if the files did not change meanwhile
+    (:func:`save_ingestion`) and return it."""
     with db_.session() as db:
         session = db.get(KneeSession, session_id)
         version = session.files_version
         patient, recordings = session.patient, list(session.recordings)
         db.expunge_all()
-    ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
+    with _check_slots:
+        ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
     save_ingestion(db_, session_id, version, ingestion)
     return ingestion
 

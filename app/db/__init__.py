@@ -34,8 +34,15 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
     cursor.close()
 
 
+#: connections a server process keeps (and may add) per database, and how long a request waits for one:
+#: as many as FastAPI's request threads (40), so requests never queue for a connection behind each other
+POOL_SIZE, POOL_OVERFLOW, POOL_TIMEOUT_S = 20, 20, 10.0
+
+
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; for a SQLite file its folder is created and the pragmas above applied."""
+    """An engine for ``url``; for a SQLite file its folder is created and the pragmas above applied; for a
+    server database a pool of :data:`POOL_SIZE` (+ :data:`POOL_OVERFLOW`) connections, checked before use
+    (a restarted server's dead connections are replaced) and waited for at most :data:`POOL_TIMEOUT_S`."""
     if url.startswith("sqlite"):
         path = url.split("///", 1)[-1]
         if path and path != ":memory:":
@@ -43,7 +50,8 @@ def make_engine(url: str) -> Engine:
         engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15})
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
-    return create_engine(url, pool_pre_ping=True)
+    return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,
+                         pool_timeout=POOL_TIMEOUT_S)
 
 
 def alembic_config(engine: Engine):
