@@ -40,3 +40,13 @@ def simulate_session(seed: int = 0, drift_ppm=(0.0, 8000.0), duration_s: float =
 @pytest.fixture(scope="session")
 def sim_session():
     return simulate_session()
+
+
+@pytest.fixture
+def folder(session_dir, tmp_path):
+    """A private copy of the module's ``session_dir`` (a test may damage it)."""
+    import shutil
+
+    d = tmp_path / "s"
+    shutil.copytree(session_dir, d)
+    return d

@@ -19,13 +19,6 @@ def session_dir(tmp_path_factory, sim_session):
     return d
 
 
-@pytest.fixture
-def folder(session_dir, tmp_path):
-    d = tmp_path / "s"
-    shutil.copytree(session_dir, d)
-    return d
-
-
 def _file(folder, label_start, stream):
     (p,) = folder.glob(f"{label_start}*_{stream}_*.csv")
     return p

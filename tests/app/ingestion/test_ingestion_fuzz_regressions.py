@@ -6,7 +6,6 @@ that named another file or misled.  Every one now gives one IngestionError namin
 """
 
 import json
-import shutil
 import warnings
 
 import numpy as np
@@ -21,13 +20,6 @@ def session_dir(tmp_path_factory, sim_session):
     from app.ingestion import write_session_metabase
     d = tmp_path_factory.mktemp("session")
     write_session_metabase(d, sim_session[0], patient_id="ML1", manifest={"side": "right"})
-    return d
-
-
-@pytest.fixture
-def folder(session_dir, tmp_path):
-    d = tmp_path / "s"
-    shutil.copytree(session_dir, d)
     return d
 
 

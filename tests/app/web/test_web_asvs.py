@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from web_helpers import clinic_token, demo_files, make_settings, new_session, wait_job
+from web_helpers import clinic_token, demo_files, hash_slots_held, make_settings, new_session, wait_job
 
 APP_DIR = Path(__file__).resolve().parents[3] / "app"
 EMAIL, PASSWORD = "asvs@clinic.test", "a long enough password"
@@ -251,18 +251,12 @@ def test_hashing_is_bounded_in_concurrency(monkeypatch):
     from app import security
 
     monkeypatch.setattr(security, "HASH_WAIT_S", 0.05)
-    held = 0
-    try:
-        while security._hash_slots.acquire(blocking=False):
-            held += 1
+    with hash_slots_held() as held:
         assert held == security.HASH_CONCURRENCY
         with pytest.raises(security.Busy, match="try again"):
             security.hash_password(PASSWORD)
         with pytest.raises(security.Busy):
             security.verify_password(PASSWORD, _legacy_scrypt_hash(PASSWORD))
-    finally:
-        for _ in range(held):
-            security._hash_slots.release()
     assert security.hash_password(PASSWORD).startswith("$argon2id$")
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from web_helpers import hash_slots_held
+
 EMAIL, PASSWORD = "admin@clinic.test", "a long enough password"
 
 
@@ -149,14 +151,8 @@ def test_too_many_password_checks_at_once_answer_503(client, admin, monkeypatch)
     from app import security
 
     monkeypatch.setattr(security, "HASH_WAIT_S", 0.05)
-    held = 0
-    try:
-        while security._hash_slots.acquire(blocking=False):
-            held += 1
+    with hash_slots_held() as held:
         assert held == security.HASH_CONCURRENCY
         r = login(client)
         assert r.status_code == 503 and "try again" in r.json()["detail"]
-    finally:
-        for _ in range(held):
-            security._hash_slots.release()
     assert login(client).status_code == 200

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -13,6 +14,22 @@ def make_settings(data_dir: Path, **extra):
     values = {"CHAKAMO_ENV": "development", "CHAKAMO_DATA_DIR": data_dir, "CHAKAMO_WORKERS": 1,
               "CHAKAMO_RENDER_PROCESSES": 0} | extra
     return Settings(**values)
+
+
+@contextmanager
+def hash_slots_held():
+    """Every password-hashing slot of ``app.security`` taken for the block (as concurrent logins would);
+    yields how many were held."""
+    from app import security
+
+    held = 0
+    try:
+        while security._hash_slots.acquire(blocking=False):
+            held += 1
+        yield held
+    finally:
+        for _ in range(held):
+            security._hash_slots.release()
 
 
 def clinic_token(settings, name: str, role: str = "clinician") -> dict[str, str]:
