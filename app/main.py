@@ -123,9 +123,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         except Exception:
             db.dispose()
             raise
+        if settings.render_processes > 0:
+            from app.render import RenderPool
+
+            app.state.check_pool = RenderPool(1)
         try:
             yield
         finally:
+            if app.state.check_pool is not None:
+                app.state.check_pool.shutdown()
+                app.state.check_pool = None
             if runner.shutdown(wait=True):  # a job thread still running keeps its database
                 db.dispose()
 
@@ -134,6 +141,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                               "reports. Authenticate with `Authorization: Bearer <token>` (`chakamo tokens "
                               "create`) or the browser login.")
     app.state.settings, app.state.db, app.state.store, app.state.runner = settings, db, store, runner
+    #: the warm helper process running the uploads' ingestion checks off this process' GIL (started with the
+    #: app when CHAKAMO_RENDER_PROCESSES > 0; None: checks run in the request thread)
+    app.state.check_pool = None
     app.state.login_throttle = LoginThrottle()
     #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)

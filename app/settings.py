@@ -12,7 +12,7 @@
 | ``CHAKAMO_JOB_LEASE_S`` | 60 | a running job whose worker has not beaten its heartbeat for this long is taken as lost and queued again |
 | ``CHAKAMO_REDISPATCH_S`` | 120 | a job still queued this long after it was handed to the engine is handed again (a broker restarted empty) |
 | ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
-| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread (0: none) |
+| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in one warm helper process, off its GIL (0: none) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
 | ``CHAKAMO_MAX_UPLOADS`` | 8 | uploads streamed at the same time (more answer 503: try again) |

@@ -211,7 +211,8 @@ def _store(request: Request, principal, session_id: int, upload: _Upload, segmen
         audit.record(db, request, principal, "upload", patient_id=session.patient_id, session_id=session.id)
         out = [recording_out(r) for r in rows]
     try:  # the files are committed: whatever happens to their check, the upload stands
-        ingestion = refresh_ingestion(db_, request.app.state.store, settings.tmp_dir, session_id)
+        ingestion = refresh_ingestion(db_, request.app.state.store, settings.tmp_dir, session_id,
+                                      request.app.state.check_pool)
     except Exception:  # noqa: BLE001 — e.g. no database connection free: the stale check is redone later
         log.warning("upload to session %s stored; its ingestion check failed and runs again later", session_id,
                     exc_info=True)
@@ -235,19 +236,31 @@ CHECK_DEFERRED = ("The files are stored, but the server could not check them now
 #: others wait their turn, holding no database connection, so that reads keep their share of the processor
 CHECK_CONCURRENCY = 1
 _check_slots = threading.BoundedSemaphore(CHECK_CONCURRENCY)
+#: longest wait for the check in the helper process before it runs here instead
+CHECK_TIMEOUT_S = 120.0
 
 
-def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir, session_id: int) -> dict:
+def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir, session_id: int, pool=None) -> dict:
     """Run the ingestion over the session's stored files (no database connection held meanwhile; at most
     :data:`CHECK_CONCURRENCY` at once), store the result if the files did not change meanwhile
-    (:func:`save_ingestion`) and return it."""
+    (:func:`save_ingestion`) and return it.  With ``pool`` (the server's warm helper process,
+    :class:`app.render.RenderPool`) the check runs there, so its CPU time does not hold this process' GIL
+    and the server's other requests keep answering; without it, or while it is not warm, it runs here."""
     with db_.session() as db:
         session = db.get(KneeSession, session_id)
         version = session.files_version
         patient, recordings = session.patient, list(session.recordings)
         db.expunge_all()
     with _check_slots:
-        ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
+        future = pool.submit(check_ingestion, store, tmp_dir, session, patient, recordings) if pool else None
+        try:
+            ingestion = future.result(CHECK_TIMEOUT_S) if future is not None else None
+        except Exception:  # noqa: BLE001 — a hung or broken helper: check here instead
+            log.warning("ingestion check of session %s failed in the helper process; checking here", session_id,
+                        exc_info=True)
+            ingestion = None
+        if ingestion is None:
+            ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
     save_ingestion(db_, session_id, version, ingestion)
     return ingestion
 
@@ -259,7 +272,7 @@ def ensure_fresh_ingestion(db: Session, request: Request, session: KneeSession) 
         return
     state = request.app.state
     db.rollback()  # the check may take seconds: no open transaction (nor row lock) while it runs
-    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session.id)
+    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session.id, state.check_pool)
     db.refresh(session)
 
 
@@ -359,7 +372,7 @@ def delete_recording(session_id: int, recording_id: int, principal: Clinician, r
     """Remove one recording from the session (its stored content stays if other rows use it)."""
     _delete(request, principal, session_id, recording_id)
     state = request.app.state
-    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session_id)
+    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session_id, state.check_pool)
     return Response(status_code=204)
 
 

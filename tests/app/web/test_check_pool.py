@@ -1,0 +1,31 @@
+"""Uploads checked in the server's warm helper process (``app.state.check_pool``, CHAKAMO_RENDER_PROCESSES > 0):
+the same answer as a check in the request thread, and a helper that breaks falls back to the thread."""
+
+from __future__ import annotations
+
+from web_helpers import clinic_token, demo_files, make_settings, new_session
+
+
+def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path, demo_dir):
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+
+    answers = []
+    for processes in (1, 0):
+        settings = make_settings(tmp_path / f"data{processes}", CHAKAMO_RENDER_PROCESSES=processes)
+        with TestClient(create_app(settings)) as client:
+            pool = client.app.state.check_pool
+            assert (pool is not None) == bool(processes)
+            if pool is not None:
+                assert pool.wait_warm(120)
+            h = clinic_token(settings, "Pool")
+            _, sid = new_session(client, h, "POOL-1")
+            r = client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h)
+            assert r.status_code == 201, r.text
+            answers.append(r.json()["ingestion"])
+            if pool is not None:  # a broken helper: the next check runs in the request thread, same answer
+                pool.shutdown()
+                r = client.delete(f"/api/v1/sessions/{sid}/recordings/{r.json()['recordings'][0]['id']}", headers=h)
+                assert r.status_code == 204
+    assert answers[0]["ok"] and answers[0] == answers[1]
