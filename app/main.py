@@ -41,6 +41,7 @@ import app as _app_pkg
 from app.api import api_router
 from app.db import Database
 from app.db.models import User
+from app.headers import SecurityHeaders
 from app.security import LoginThrottle
 from app.settings import Settings, get_settings
 from app.storage import CorruptBlob, Storage, open_storage
@@ -54,22 +55,6 @@ FIRST_ADMIN_HINT = (
     "  chakamo clinics create \"My clinic\"\n"
     "  chakamo users create --clinic \"My clinic\" --email you@example.org --role admin --name \"Your Name\"\n"
     "(the second command asks for the password; use the same CHAKAMO_DATA_DIR / DATABASE_URL as the server)")
-
-
-#: Content-Security-Policy of the UI (``/``, ``/static``): scripts and data only from this origin; plotly
-#: sets inline styles; the 3D view is an iframe of ``/viser``; no other site may frame the app.
-UI_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; "
-          "font-src 'self' data:; connect-src 'self'; frame-src 'self'; frame-ancestors 'self'; base-uri 'none'; "
-          "form-action 'self'; object-src 'none'")
-#: viser's client runs scene messages that may carry JavaScript (``RunJavascriptMessage``): it may fetch only
-#: from this origin, so the only scenes it can play are the ones this server stored (never a crafted file
-#: from another site, which would run with the user's session).
-VISER_CSP = ("default-src 'self'; script-src 'self' 'unsafe-inline' 'unsafe-eval' blob:; "
-             "style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; font-src 'self' data:; "
-             "connect-src 'self' data: blob:; worker-src 'self' blob:; frame-ancestors 'self'; base-uri 'none'; "
-             "object-src 'none'")
-#: the one kind of recording the 3D view is allowed to play
-PLAYBACK_PREFIX = "/api/v1/sessions/"
 
 
 def _plotly_js() -> Path:
@@ -149,34 +134,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
 
-    @app.middleware("http")
-    async def security_headers(request: Request, call_next):
-        """Security headers everywhere; a CSP on the UI and on viser's client, which may play only this
-        server's session scenes (``playbackPath`` under ``/api/v1/sessions/``, else 400).
-
-        Every ``/api/`` answer is ``Cache-Control: no-store`` (ASVS 8.2.1): they carry patient data, reports
-        or CSRF tokens, and no browser cache or proxy may keep a copy (a shared ward computer).  Outside
-        development every answer carries ``Strict-Transport-Security`` (one year, subdomains): once a
-        browser has reached ChakaMo over HTTPS it never again sends a cookie over plain HTTP."""
-        path = request.url.path
-        playback = request.query_params.get("playbackPath") if path.startswith("/viser") else None
-        if playback is not None and not (playback.startswith(PLAYBACK_PREFIX) and ".." not in playback):
-            response = JSONResponse({"detail": f"The 3D view plays only this server's scenes ({PLAYBACK_PREFIX}"
-                                               "…/scene.viser)."}, status_code=400)
-        else:
-            response = await call_next(request)
-        response.headers.setdefault("X-Content-Type-Options", "nosniff")
-        response.headers.setdefault("Referrer-Policy", "no-referrer")
-        if path.startswith("/api/"):
-            response.headers["Cache-Control"] = "no-store"
-        if not settings.development:
-            response.headers["Strict-Transport-Security"] = "max-age=31536000; includeSubDomains"
-        if path.startswith("/viser"):
-            response.headers["Content-Security-Policy"] = VISER_CSP
-        elif path == "/" or path.startswith("/static"):
-            response.headers["Content-Security-Policy"] = UI_CSP
-            response.headers["X-Frame-Options"] = "SAMEORIGIN"
-        return response
+    app.add_middleware(SecurityHeaders, development=settings.development)  # app/headers.py
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError):

@@ -1,0 +1,87 @@
+"""Security headers on every answer, as a plain ASGI middleware (:class:`SecurityHeaders`).
+
+Plain ASGI rather than ``@app.middleware("http")``: Starlette's function middleware re-streams every request
+body through an extra task and memory stream, a cost every upload chunk paid on the event loop that all
+other requests share (``benchmarks/load.py``); this one only edits the response's start message.
+
+What it sets: ``X-Content-Type-Options: nosniff`` and ``Referrer-Policy: no-referrer`` everywhere (unless the
+route set them); every ``/api/`` answer is ``Cache-Control: no-store`` (ASVS 8.2.1): they carry patient data,
+reports or CSRF tokens, and no browser cache or proxy may keep a copy (a shared ward computer).  Outside
+development every answer carries ``Strict-Transport-Security`` (one year, subdomains): once a browser has
+reached ChakaMo over HTTPS it never again sends a cookie over plain HTTP.  A Content-Security-Policy on the
+UI (:data:`UI_CSP`, plus ``X-Frame-Options``) and on viser's client (:data:`VISER_CSP`), which may play only
+this server's session scenes: a ``playbackPath`` outside :data:`PLAYBACK_PREFIX` answers 400.
+"""
+
+from __future__ import annotations
+
+from urllib.parse import parse_qsl
+
+from starlette.datastructures import MutableHeaders
+from starlette.responses import JSONResponse
+
+#: Content-Security-Policy of the UI (``/``, ``/static``): scripts and data only from this origin; plotly
+#: sets inline styles; the 3D view is an iframe of ``/viser``; no other site may frame the app.
+UI_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; "
+          "font-src 'self' data:; connect-src 'self'; frame-src 'self'; frame-ancestors 'self'; base-uri 'none'; "
+          "form-action 'self'; object-src 'none'")
+#: viser's client runs scene messages that may carry JavaScript (``RunJavascriptMessage``): it may fetch only
+#: from this origin, so the only scenes it can play are the ones this server stored (never a crafted file
+#: from another site, which would run with the user's session).
+VISER_CSP = ("default-src 'self'; script-src 'self' 'unsafe-inline' 'unsafe-eval' blob:; "
+             "style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; font-src 'self' data:; "
+             "connect-src 'self' data: blob:; worker-src 'self' blob:; frame-ancestors 'self'; base-uri 'none'; "
+             "object-src 'none'")
+#: the one kind of recording the 3D view is allowed to play
+PLAYBACK_PREFIX = "/api/v1/sessions/"
+HSTS = "max-age=31536000; includeSubDomains"
+
+
+class SecurityHeaders:
+    """ASGI middleware adding the module docstring's headers; ``development`` drops HSTS (plain-http localhost)."""
+
+    def __init__(self, app, *, development: bool) -> None:
+        self.app, self.development = app, development
+
+    def _headers(self, path: str) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+        """(headers set only when absent, headers always set) for an answer to ``path``."""
+        defaults = [("X-Content-Type-Options", "nosniff"), ("Referrer-Policy", "no-referrer")]
+        forced: list[tuple[str, str]] = []
+        if path.startswith("/api/"):
+            forced.append(("Cache-Control", "no-store"))
+        if not self.development:
+            forced.append(("Strict-Transport-Security", HSTS))
+        if path.startswith("/viser"):
+            forced.append(("Content-Security-Policy", VISER_CSP))
+        elif path == "/" or path.startswith("/static"):
+            forced += [("Content-Security-Policy", UI_CSP), ("X-Frame-Options", "SAMEORIGIN")]
+        return defaults, forced
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        path = scope["path"]
+        defaults, forced = self._headers(path)
+
+        async def send_with_headers(message) -> None:
+            if message["type"] == "http.response.start":
+                headers = MutableHeaders(scope=message)
+                for name, value in defaults:
+                    headers.setdefault(name, value)
+                for name, value in forced:
+                    headers[name] = value
+            await send(message)
+
+        if path.startswith("/viser"):
+            query = dict(parse_qsl(scope.get("query_string", b"").decode("latin-1"), keep_blank_values=True))
+            playback = query.get("playbackPath")
+            if playback is not None and not (playback.startswith(PLAYBACK_PREFIX) and ".." not in playback):
+                refusal = JSONResponse({"detail": f"The 3D view plays only this server's scenes ({PLAYBACK_PREFIX}"
+                                                  "…/scene.viser)."}, status_code=400)
+                await refusal(scope, receive, send_with_headers)
+                return
+        await self.app(scope, receive, send_with_headers)
+
+
+__all__ = ["HSTS", "PLAYBACK_PREFIX", "SecurityHeaders", "UI_CSP", "VISER_CSP"]
