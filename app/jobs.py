@@ -15,7 +15,7 @@ to ``failed`` after :data:`MAX_ATTEMPTS`), and a ``queued`` job handed to the en
 ``CHAKAMO_REDISPATCH_S`` (or never) is handed again.  Handing a job twice is harmless: :func:`claim` is a
 conditional UPDATE, so only one worker runs it, and the analysis row is unique per job, so a job never
 yields two analyses (the work is idempotent, keyed by the job — a session, its files' version and the
-pipeline version).  :class:`ThreadJobRunner` sweeps every few seconds (so jobs queued by ``chakamo
+pipeline version).  :class:`app.inprocess.ThreadJobRunner` sweeps every few seconds (so jobs queued by ``chakamo
 reprocess`` from another process are found too); the Celery engine (:mod:`app.celery_jobs`) sweeps in the API
 server and in every worker.  A database outage during a job (``OperationalError``) is not the data's fault:
 :func:`run_job` re-raises it as :class:`TransientJobError` (the Celery task retries with back-off; the
@@ -56,7 +56,7 @@ from app.storage import Storage
 
 log = logging.getLogger("chakamo.jobs")
 
-#: a job interrupted by this many server stops is failed instead of resumed again
+#: a job interrupted this many times (a server stop, a lost worker, an expired lease) is failed instead of run again
 MAX_ATTEMPTS = 3
 #: default lease of a running job (``CHAKAMO_JOB_LEASE_S``) and re-dispatch delay (``CHAKAMO_REDISPATCH_S``)
 LEASE_S = 60.0
@@ -269,7 +269,7 @@ def _run_claimed(job_id: int, db: Database, store: Storage, tmp_root: Path, pool
             raise TransientJobError(f"job {job_id}: database unreachable") from exc
         if _is_disk_full(exc):
             log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)
-            _fail(db, job_id, "The server's disk is full, so the reports could not be stored; nothing was kept. "
+            _fail(db, job_id, "The server's disk is full, so the reports could not be stored and none was recorded. "
                               "Ask your ChakaMo administrator to free space, then process the session again.")
             return "failed"
         ref = secrets.token_hex(4)

@@ -172,7 +172,7 @@ class Job(Base):
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     started_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     finished_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
-    #: the pipeline version the job runs (:data:`app.PIPELINE_VERSION`); with the session it keys the work
+    #: the pipeline version the job runs (:data:`app.pipeline.PIPELINE_VERSION`); with the session it keys the work
     pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
     #: when the job was last handed to the engine (the sweeper hands it again when it stays queued too long)
     dispatched_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)

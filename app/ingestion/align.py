@@ -73,7 +73,7 @@ def check_rates(rec: RawRecording, expected_fs_hz: float | None) -> float:
                 raise IngestionError(
                     f"{s.file}: the {s.kind} stream runs at {fs:.1f} Hz, expected {expected_fs_hz:g} Hz (the protocol "
                     f"records accelerometer and gyroscope at 100 Hz, seed 004 §8.4). Record again at "
-                    f"{expected_fs_hz:g} Hz, or process it at the file's own rate (`chakamo process ... --any-rate`).")
+                    f"{expected_fs_hz:g} Hz, or process it at the file's own rate (on the command line: `chakamo process --any-rate`).")
         fs_grid = float(expected_fs_hz)
     else:
         if abs(fs_gyr / fs_acc - 1.0) > RATE_TOLERANCE:

@@ -166,7 +166,7 @@ def _job_row(dep, job_id: int):
 
 def test_jobs_run_on_celery_workers_and_readyz_sees_the_broker(deployment, demo_dir):
     dep = deployment
-    assert dep.client.get("/readyz").json() | {} == {"status": "ready", "backend": "celery", "database": "ok",
+    assert dep.client.get("/readyz").json() == {"status": "ready", "backend": "celery", "database": "ok",
                                                      "jobs": "ok"}
     dep.worker(concurrency=2)
     session_id = _upload_session(dep, demo_dir, "CEL-1")
@@ -216,17 +216,28 @@ def test_a_worker_killed_mid_job_is_retried_and_yields_identical_artefacts(deplo
 
 def test_redis_restarted_empty_loses_no_upload_and_the_jobs_resume(deployment, demo_dir):
     dep = deployment
-    dep.worker()
-    dep.redis.stop()  # the broker is down: uploads and process requests must still be taken
-    session_ids = [_upload_session(dep, demo_dir, f"CEL-R{i}") for i in range(2)]
-    job_ids = [_process(dep, sid) for sid in session_ids]
+    # 1. a job handed to Redis while no worker runs, then Redis restarted with no persistence: the message is gone
+    published = _process(dep, _upload_session(dep, demo_dir, "CEL-R0"))
+    wait_until(lambda: _job_row(dep, published).dispatched_at is not None, 30, "the job handed to the broker")
+    import redis as redis_client
+
+    assert redis_client.Redis.from_url(dep.redis.url).llen("chakamo") == 1  # its message waits in the queue
+    dep.redis.stop()
+    dep.redis.start()
+    assert redis_client.Redis.from_url(dep.redis.url).llen("chakamo") == 0  # and is gone
+
+    # 2. the broker down: uploads and process requests must still be taken
+    dep.redis.stop()
+    session_ids = [_upload_session(dep, demo_dir, f"CEL-R{i}") for i in (1, 2)]
+    job_ids = [published] + [_process(dep, sid) for sid in session_ids]
     assert dep.client.get("/readyz").status_code == 503
     time.sleep(1.0)
     assert all(dep.client.get(f"/api/v1/jobs/{j}", headers=dep.headers).json()["status"] == "queued" for j in job_ids)
 
-    dep.redis.start()  # back, with no persistence: every message published before is gone
+    dep.redis.start()  # back, empty again; now a worker: the sweeper sends every job again
+    dep.worker()
     jobs = [wait_job(dep.client, j, dep.headers, timeout_s=180) for j in job_ids]
-    assert [j["status"] for j in jobs] == ["done", "done"], jobs
+    assert [j["status"] for j in jobs] == ["done", "done", "done"], jobs
     for sid in session_ids:
         assert _stored_files(dep, sid) == len(demo_files(demo_dir))
 

@@ -6,12 +6,15 @@ from __future__ import annotations
 from web_helpers import clinic_token, demo_files, make_settings, new_session
 
 
-def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path, demo_dir):
+def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path, demo_dir, caplog):
+    import logging
+
     from fastapi.testclient import TestClient
 
     from app.main import create_app
 
-    answers = []
+    caplog.set_level(logging.WARNING, logger="chakamo.uploads")
+    answers, after_delete = [], []
     for processes in (1, 0):
         settings = make_settings(tmp_path / f"data{processes}", CHAKAMO_RENDER_PROCESSES=processes)
         with TestClient(create_app(settings)) as client:
@@ -24,8 +27,11 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             r = client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h)
             assert r.status_code == 201, r.text
             answers.append(r.json()["ingestion"])
-            if pool is not None:  # a broken helper: the next check runs in the request thread, same answer
-                pool.shutdown()
-                r = client.delete(f"/api/v1/sessions/{sid}/recordings/{r.json()['recordings'][0]['id']}", headers=h)
-                assert r.status_code == 204
+            if pool is not None:
+                assert "failed in the helper process" not in caplog.text  # it did run there
+                pool.shutdown()  # a broken helper: the next check runs in the request thread, same answer
+            first = r.json()["recordings"][0]["id"]
+            assert client.delete(f"/api/v1/sessions/{sid}/recordings/{first}", headers=h).status_code == 204
+            after_delete.append(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"])
     assert answers[0]["ok"] and answers[0] == answers[1]
+    assert not after_delete[0]["ok"] and after_delete[0] == after_delete[1]  # a recording missing, said alike

@@ -1,9 +1,11 @@
 """A full disk while a job stores its artefacts: the job fails cleanly with a sentence, nothing half-written
 is left or recorded, the uploads stay intact, and processing again works once there is space.
 
-The blob store lives on a real, small ``tmpfs`` (mounted by the test: root only; skipped elsewhere), sized to
-take the uploads but not the reports, so the kernel itself answers ``ENOSPC``; then it is grown in place
-(``mount -o remount,size=…``), as an administrator freeing space would.
+The blob store lives on a real, small ``tmpfs`` (mounted by the test: root only; skipped elsewhere, failed in
+CI), sized after the upload to the uploads plus 1 MB, so the kernel itself answers ``ENOSPC`` while the reports
+are stored; then it is grown in place (``mount -o remount,size=…``), as an administrator freeing space would.
+Reports stored before the disk filled stay as files no row names (content-addressed: deleting them could race
+with another job storing the same content); they are not recorded, and are reused by the next run.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ def small_blob_disk(tmp_path):
     try:
         _mount(["-t", "tmpfs", "-o", "size=6m", "tmpfs", str(blobs)])
     except (subprocess.CalledProcessError, FileNotFoundError) as exc:
+        if os.environ.get("CI"):  # CI runs as root on our machines: a skip there would hide the fault test
+            pytest.fail(f"cannot mount a tmpfs in CI ({exc})")
         pytest.skip(f"cannot mount a tmpfs here ({exc})")
     try:
         yield blobs
@@ -64,7 +68,7 @@ def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, 
         assert "disk is full" in job["error"] and "process the session again" in job["error"], job["error"]
         assert client.get(f"/api/v1/sessions/{session_id}/results", headers=h).status_code == 404
         assert list((small_blob_disk / ".incoming").iterdir()) == []  # no partial file left behind
-        assert _used_bytes(small_blob_disk) - used_before < 2**20  # at most the few reports that fitted
+        assert used_before <= _used_bytes(small_blob_disk)  # the uploads are all still there
 
         _mount(["-o", "remount,size=64m", str(small_blob_disk)])  # the administrator frees space
         job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={}, headers=h)

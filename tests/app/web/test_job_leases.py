@@ -77,7 +77,7 @@ def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, world
     db.dispose()
 
 
-def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings, world, monkeypatch):
+def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings, world):
     from app.reprocess import reprocess
 
     client, h, session_id = world
