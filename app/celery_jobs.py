@@ -83,7 +83,9 @@ def make_celery(settings: Settings):
         broker_connection_retry_on_startup=True,
         broker_connection_max_retries=None,  # a worker waits for a restarted broker instead of exiting
         broker_transport_options={"visibility_timeout": settings.broker_visibility_timeout_s,
-                                  "socket_connect_timeout": 5, "socket_timeout": 30},
+                                  "socket_connect_timeout": 2, "socket_timeout": 30},
+        broker_connection_timeout=2,
+        task_time_limit=settings.job_time_limit_s,  # a hung job: its pool process is killed, the lease takes over
         broker_pool_limit=4,
         worker_hijack_root_logger=False,
         worker_send_task_events=False,
@@ -165,12 +167,28 @@ class CeleryJobRunner:
                 now = time.monotonic()
                 if now >= next_sweep:
                     next_sweep = now + self.SWEEP_EVERY_S
-                    for jid in sweep(self.db, self.settings.job_lease_s, self.settings.redispatch_s):
+                    # re-send stale jobs only while the broker's queue is empty: a job still waiting its turn
+                    # behind a backlog is not lost, and re-sending it would only multiply messages
+                    backlog = self.queue_length()
+                    redispatch = self.settings.redispatch_s if backlog == 0 else None
+                    for jid in sweep(self.db, self.settings.job_lease_s, redispatch):
                         if not self.publish(jid):
                             break  # the broker is down: try again at the next sweep
             except Exception:  # noqa: BLE001 — e.g. the database is restarting: the next round tries again
                 log.warning("job dispatch round failed; trying again", exc_info=True)
                 self._stop.wait(1.0)
+
+    def queue_length(self) -> int | None:
+        """Messages waiting in the broker's queue (None when the broker does not answer)."""
+        import redis
+
+        client = redis.Redis.from_url(self.settings.broker_url, socket_connect_timeout=2, socket_timeout=2)
+        try:
+            return int(client.llen(QUEUE))
+        except (redis.RedisError, OSError):
+            return None
+        finally:
+            client.close()
 
     def problem(self) -> str | None:
         return broker_problem(self.settings)

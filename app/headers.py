@@ -10,12 +10,14 @@ reports or CSRF tokens, and no browser cache or proxy may keep a copy (a shared 
 development every answer carries ``Strict-Transport-Security`` (one year, subdomains): once a browser has
 reached ChakaMo over HTTPS it never again sends a cookie over plain HTTP.  A Content-Security-Policy on the
 UI (:data:`UI_CSP`, plus ``X-Frame-Options``) and on viser's client (:data:`VISER_CSP`), which may play only
-this server's session scenes: a ``playbackPath`` outside :data:`PLAYBACK_PREFIX` answers 400.
+this server's session scenes: a ``playbackPath`` outside :data:`PLAYBACK_PREFIX` (after decoding), or given
+twice (the server and viser's client could read different ones), answers 400.
 """
 
 from __future__ import annotations
 
-from urllib.parse import parse_qsl
+import posixpath
+from urllib.parse import parse_qsl, unquote
 
 from starlette.datastructures import MutableHeaders
 from starlette.responses import JSONResponse
@@ -35,6 +37,22 @@ VISER_CSP = ("default-src 'self'; script-src 'self' 'unsafe-inline' 'unsafe-eval
 #: the one kind of recording the 3D view is allowed to play
 PLAYBACK_PREFIX = "/api/v1/sessions/"
 HSTS = "max-age=31536000; includeSubDomains"
+
+
+def _own_scene(playback: str) -> bool:
+    """Whether ``playback`` names a path under :data:`PLAYBACK_PREFIX` however the client decodes it: every
+    level of percent-encoding undone (``%252e%252e`` is ``..`` to a browser's fetch) and the dots resolved."""
+    decoded = playback
+    for _ in range(5):
+        once = unquote(decoded)
+        if once == decoded:
+            break
+        decoded = once
+    else:
+        return False  # still encoded after five passes: nobody needs that for a file name
+    if "\\" in decoded or not decoded.startswith("/"):
+        return False
+    return posixpath.normpath(decoded).startswith(PLAYBACK_PREFIX) and ".." not in decoded
 
 
 class SecurityHeaders:
@@ -74,9 +92,9 @@ class SecurityHeaders:
             await send(message)
 
         if path.startswith("/viser"):
-            query = dict(parse_qsl(scope.get("query_string", b"").decode("latin-1"), keep_blank_values=True))
-            playback = query.get("playbackPath")
-            if playback is not None and not (playback.startswith(PLAYBACK_PREFIX) and ".." not in playback):
+            pairs = parse_qsl(scope.get("query_string", b"").decode("latin-1"), keep_blank_values=True)
+            playbacks = [v for k, v in pairs if k == "playbackPath"]
+            if playbacks and not (len(playbacks) == 1 and _own_scene(playbacks[0])):
                 refusal = JSONResponse({"detail": f"The 3D view plays only this server's scenes ({PLAYBACK_PREFIX}"
                                                   "…/scene.viser)."}, status_code=400)
                 await refusal(scope, receive, send_with_headers)

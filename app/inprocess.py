@@ -32,7 +32,7 @@ from sqlalchemy.pool import NullPool
 
 from app.db import Database
 from app.db.models import Job, utcnow
-from app.jobs import LEASE_S, MAX_ATTEMPTS, REDISPATCH_S, mark_dispatched, run_job, sweep
+from app.jobs import LEASE_S, MAX_ATTEMPTS, mark_dispatched, run_job, sweep
 from app.render import RENDER_TIMEOUT_S, RenderPool, warm_up
 from app.storage import Storage
 
@@ -131,10 +131,10 @@ class ThreadJobRunner:
 
     def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
                  render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
-                 lease_s: float = LEASE_S, redispatch_s: float = REDISPATCH_S) -> None:
+                 lease_s: float = LEASE_S) -> None:
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
         self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
-        self.lease_s, self.redispatch_s = lease_s, redispatch_s
+        self.lease_s = lease_s
         self.lock = RunnerLock(db)
         self.pool: RenderPool | None = None
         self._queue: queue.Queue[int | None] = queue.Queue()
@@ -182,7 +182,8 @@ class ThreadJobRunner:
     def _sweep_loop(self) -> None:
         while not self._stop.wait(self.SWEEP_EVERY_S):
             try:
-                for job_id in sweep(self.db, self.lease_s, self.redispatch_s):
+                # only never-handed jobs: a job handed to this runner's own queue cannot be lost while it lives
+                for job_id in sweep(self.db, self.lease_s, None):
                     self.submit(job_id)
             except Exception:  # noqa: BLE001 — e.g. the database is restarting: sweep again next time
                 log.warning("job sweep failed; trying again in %g s", self.SWEEP_EVERY_S, exc_info=True)
@@ -219,7 +220,8 @@ class ThreadJobRunner:
         if self.pool is not None:
             self.pool.shutdown()
             self.pool = None
-        self.lock.release()
+        if not alive:  # a thread still running its job keeps the lock: no other runner may take that job over
+            self.lock.release()
         return not alive
 
 

@@ -11,8 +11,10 @@ distributed one is :mod:`app.celery_jobs` (Celery workers fed through Redis).  B
 Leases and the sweeper (both engines).  While a worker runs a job a heartbeat thread refreshes
 ``heartbeat_at`` every quarter of the lease (``CHAKAMO_JOB_LEASE_S``).  :func:`sweep` finds what a lost worker
 or a lost message left: a ``running`` job whose heartbeat is older than the lease goes back to ``queued`` (or
-to ``failed`` after :data:`MAX_ATTEMPTS`), and a ``queued`` job handed to the engine longer ago than
-``CHAKAMO_REDISPATCH_S`` (or never) is handed again.  Handing a job twice is harmless: :func:`claim` is a
+to ``failed`` after :data:`MAX_ATTEMPTS`), and a ``queued`` job never handed to the engine — or, with Celery
+while the broker's queue is empty, handed longer ago than ``CHAKAMO_REDISPATCH_S`` — is handed again.  Every
+write of a run carries its attempt number (:func:`claim` returns it): a run the sweeper gave up on (a worker
+that only looked lost) can never overwrite the run that replaced it (:class:`Superseded`).  Handing a job twice is harmless: :func:`claim` is a
 conditional UPDATE, so only one worker runs it, and the analysis row is unique per job, so a job never
 yields two analyses (the work is idempotent, keyed by the job — a session, its files' version and the
 pipeline version).  :class:`app.inprocess.ThreadJobRunner` sweeps every few seconds (so jobs queued by ``chakamo
@@ -80,34 +82,55 @@ class JobRunner(Protocol):
         """None when the engine can take jobs, else one sentence saying what is wrong (``/readyz``)."""
 
 
+class Superseded(RuntimeError):
+    """This run no longer owns its job (the sweeper gave it to another run, or it ended): stop, write nothing."""
+
+
+def _owned(s, job_id: int, attempt: int) -> Job:
+    """The job row if run ``attempt`` still owns it (``running`` with that attempt number), locked on PostgreSQL;
+    else :class:`Superseded`.  Every write of a run goes through it, so a run the sweeper gave up on can never
+    overwrite the run that replaced it."""
+    job = s.get(Job, job_id, with_for_update=True)
+    if job is None or job.status != "running" or job.attempts != attempt:
+        raise Superseded(f"job {job_id}: attempt {attempt} no longer owns it")
+    return job
+
+
 class _Progress:
     """Writes ``stage`` / ``progress`` and a log line to the job row (one short transaction each)."""
 
-    def __init__(self, db: Database, job_id: int) -> None:
-        self.db, self.job_id = db, job_id
+    def __init__(self, db: Database, job_id: int, attempt: int) -> None:
+        self.db, self.job_id, self.attempt = db, job_id, attempt
 
     def __call__(self, stage: str, fraction: float, *, note: str | None = None) -> None:
         with self.db.session() as s:
-            job = s.get(Job, self.job_id)
+            job = _owned(s, self.job_id, self.attempt)
             job.stage, job.progress = stage[:40], float(min(max(fraction, 0.0), 1.0))
             job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} {note or stage}"]
 
 
-def _fail(db: Database, job_id: int, error: str) -> None:
-    with db.session() as s:
-        job = s.get(Job, job_id)
-        job.status, job.error, job.finished_at = "failed", error, utcnow()
-        job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} failed: {error}"]
+def _fail(db: Database, job_id: int, attempt: int, error: str) -> None:
+    try:
+        with db.session() as s:
+            job = _owned(s, job_id, attempt)
+            job.status, job.error, job.finished_at = "failed", error, utcnow()
+            job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} failed: {error}"]
+    except Superseded:
+        log.warning("job %s: attempt %s failed (%s) after another run took the job over; left to that run",
+                    job_id, attempt, error)
 
 
-def claim(db: Database, job_id: int) -> bool:
-    """Mark job ``job_id`` running if it is queued; False when another worker has it (or it is finished)."""
+def claim(db: Database, job_id: int) -> int | None:
+    """Mark job ``job_id`` running if it is queued and return this run's attempt number (the run's ownership
+    token, :func:`_owned`); None when another worker has it (or it is finished)."""
     now = utcnow()
     with db.session() as s:
         res = s.execute(update(Job).where(Job.id == job_id, Job.status == "queued")
                         .values(status="running", started_at=now, heartbeat_at=now, attempts=Job.attempts + 1,
                                 stage="start", progress=0.0, error=None))
-        return res.rowcount == 1
+        if res.rowcount != 1:
+            return None
+        return s.scalar(select(Job.attempts).where(Job.id == job_id))
 
 
 def job_state(db: Database, job_id: int) -> str | None:
@@ -117,16 +140,17 @@ def job_state(db: Database, job_id: int) -> str | None:
 
 
 @contextmanager
-def heartbeat(db: Database, job_id: int, lease_s: float = LEASE_S):
-    """Refresh the job's ``heartbeat_at`` every ``lease_s / 4`` seconds while the block runs (module docstring).
-    A failed beat (database briefly away) is logged and tried again at the next tick."""
+def heartbeat(db: Database, job_id: int, attempt: int, lease_s: float = LEASE_S):
+    """Refresh the job's ``heartbeat_at`` every ``lease_s / 4`` seconds while the block runs and run ``attempt``
+    owns the job (module docstring).  A failed beat (database briefly away) is logged and tried again at the
+    next tick."""
     stop = threading.Event()
 
     def beat() -> None:
         while not stop.wait(lease_s / 4):
             try:
                 with db.session() as s:
-                    s.execute(update(Job).where(Job.id == job_id, Job.status == "running")
+                    s.execute(update(Job).where(Job.id == job_id, Job.status == "running", Job.attempts == attempt)
                               .values(heartbeat_at=utcnow()))
             except Exception:  # noqa: BLE001 — the next beat tries again; the lease is 4 beats long
                 log.warning("heartbeat of job %s not written", job_id, exc_info=True)
@@ -140,33 +164,35 @@ def heartbeat(db: Database, job_id: int, lease_s: float = LEASE_S):
         t.join(5.0)
 
 
-def sweep(db: Database, lease_s: float = LEASE_S, redispatch_s: float = REDISPATCH_S) -> list[int]:
+def sweep(db: Database, lease_s: float = LEASE_S, redispatch_s: float | None = REDISPATCH_S) -> list[int]:
     """Requeue the ``running`` jobs whose heartbeat is older than ``lease_s`` (fail them after
     :data:`MAX_ATTEMPTS`), and return the ``queued`` jobs to hand to the engine: never handed, or handed
-    more than ``redispatch_s`` ago (module docstring).  The caller calls :func:`mark_dispatched` for each
-    one it could hand over."""
+    more than ``redispatch_s`` ago (``None``: only the never handed ones — an engine whose hand-over cannot be
+    lost, or a broker whose queue still holds messages).  Each change is a conditional UPDATE on the state
+    seen (status, attempt, heartbeat), so a job that finished or beat meanwhile is left alone.  The caller
+    calls :func:`mark_dispatched` for each job it could hand over."""
     now = utcnow()
     stale = now - dt.timedelta(seconds=lease_s)
+    stamp = now.isoformat(timespec="seconds")
     with db.session() as s:
-        lost = s.scalars(select(Job).where(Job.status == "running",
-                                           or_(Job.heartbeat_at < stale,
-                                               Job.heartbeat_at.is_(None) & (Job.started_at < stale)))
-                         .with_for_update(skip_locked=True))
-        for job in lost:
-            stamp = now.isoformat(timespec="seconds")
-            if job.attempts >= MAX_ATTEMPTS:
-                job.status, job.finished_at = "failed", now
-                job.error = (f"processing was interrupted {job.attempts} times (its worker stopped each time); "
-                             "check the workers' memory and logs, then process the session again")
-                job.log = [*job.log, f"{stamp} worker lost again; given up"]
+        lost = s.execute(select(Job.id, Job.attempts, Job.log).where(
+            Job.status == "running", or_(Job.heartbeat_at < stale, Job.heartbeat_at.is_(None) & (Job.started_at < stale))))
+        for job_id, attempts, job_log in list(lost):
+            still = (Job.id == job_id, Job.status == "running", Job.attempts == attempts,
+                     or_(Job.heartbeat_at < stale, Job.heartbeat_at.is_(None)))
+            if attempts >= MAX_ATTEMPTS:
+                values = dict(status="failed", finished_at=now, log=[*job_log, f"{stamp} worker lost again; given up"],
+                              error=f"processing was interrupted {attempts} times (its worker stopped each time); "
+                                    "check the workers' memory and logs, then process the session again")
             else:
-                job.status, job.stage, job.dispatched_at = "queued", "queued", None
-                job.log = [*job.log, f"{stamp} worker lost (no heartbeat for {lease_s:g} s); queued again"]
-                log.warning("job %s: worker lost, queued again", job.id)
-        due = now - dt.timedelta(seconds=redispatch_s)
-        return list(s.scalars(select(Job.id).where(Job.status == "queued",
-                                                   or_(Job.dispatched_at.is_(None), Job.dispatched_at < due))
-                              .order_by(Job.id)))
+                values = dict(status="queued", stage="queued", dispatched_at=None,
+                              log=[*job_log, f"{stamp} worker lost (no heartbeat for {lease_s:g} s); queued again"])
+            if s.execute(update(Job).where(*still).values(**values)).rowcount:
+                log.warning("job %s: worker lost, %s", job_id, values["status"])
+        due = Job.dispatched_at.is_(None)
+        if redispatch_s is not None:
+            due = or_(due, Job.dispatched_at < now - dt.timedelta(seconds=redispatch_s))
+        return list(s.scalars(select(Job.id).where(Job.status == "queued", due).order_by(Job.id)))
 
 
 def mark_dispatched(db: Database, job_ids: list[int]) -> None:
@@ -205,23 +231,23 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
     (or is unknown).  Never raises for bad data; raises :class:`TransientJobError` when the database went away
     (the job is then left to the sweeper or to the engine's retry)."""
     try:
-        claimed = claim(db, job_id)
+        attempt = claim(db, job_id)
+        if attempt is None:
+            return "busy" if job_state(db, job_id) in ("queued", "running") else "finished"
     except OperationalError as exc:
         raise TransientJobError(f"job {job_id}: database unreachable") from exc
-    if not claimed:
-        return "busy" if job_state(db, job_id) in ("queued", "running") else "finished"
-    with heartbeat(db, job_id, lease_s):
-        return _run_claimed(job_id, db, store, tmp_root, pool, render_timeout_s)
+    with heartbeat(db, job_id, attempt, lease_s):
+        return _run_claimed(job_id, attempt, db, store, tmp_root, pool, render_timeout_s)
 
 
-def _run_claimed(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
+def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
                  render_timeout_s: float) -> Outcome:
     from app.ingestion import IngestionError, load_session
     from app.pipeline import PIPELINE_VERSION, PipelineError, ProcessOptions, process_session
     from app.results import build_results
     from app.workspace import materialise, public_message
 
-    progress = _Progress(db, job_id)
+    progress = _Progress(db, job_id, attempt)
     folder = None
     try:
         with db.session() as s:
@@ -252,32 +278,36 @@ def _run_claimed(job_id: int, db: Database, store: Storage, tmp_root: Path, pool
                                   for (name, lang), (sha, size) in stored.items()]
             s.add(analysis)
             s.flush()
-            row = s.get(Job, job_id)
+            row = _owned(s, job_id, attempt)  # before the analysis row is flushed: nothing stored if superseded
             row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
             row.analysis_id = analysis.id
             row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
                                  f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
         return "done"
+    except Superseded:  # the sweeper gave the job to another run (this one looked lost): that run stands
+        log.warning("job %s: attempt %s was taken over by another run; its results are dropped", job_id, attempt)
+        return "finished"
     except IntegrityError:  # a second run of this job stored its analysis first: that one stands
         log.warning("job %s: another run stored its analysis first; this run's results are dropped", job_id)
         return "finished"
     except (IngestionError, PipelineError) as exc:
-        _fail(db, job_id, public_message(str(exc), folder))
+        _fail(db, job_id, attempt, public_message(str(exc), folder))
     except Exception as exc:  # noqa: BLE001 — a job must end failed, never stay running
         if _transient(exc):  # not the job's fault: leave it running; its lease expires and it is run again
             log.warning("job %s: database unreachable (%s); it will run again", job_id, type(exc).__name__)
             raise TransientJobError(f"job {job_id}: database unreachable") from exc
         if _is_disk_full(exc):
             log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)
-            _fail(db, job_id, "The server's disk is full, so the reports could not be stored and none was recorded. "
-                              "Ask your ChakaMo administrator to free space, then process the session again.")
+            _fail(db, job_id, attempt, "The server's disk is full, so the reports could not be stored and none was recorded. "
+                                       "Ask your ChakaMo administrator to free space, then process the session "
+                                       "again.")
             return "failed"
         ref = secrets.token_hex(4)
         log.exception("job %s failed: internal error, reference %s", job_id, ref)
-        _fail(db, job_id, f"An internal error stopped the processing (reference {ref}); try again, and if it "
-                          "happens again give the reference to your ChakaMo administrator.")
+        _fail(db, job_id, attempt, f"An internal error stopped the processing (reference {ref}); try again, and if "
+                                   "it happens again give the reference to your ChakaMo administrator.")
     return "failed"
 
 
-__all__ = ["LEASE_S", "MAX_ATTEMPTS", "REDISPATCH_S", "JobRunner", "TransientJobError", "claim", "heartbeat",
+__all__ = ["LEASE_S", "MAX_ATTEMPTS", "REDISPATCH_S", "JobRunner", "Superseded", "TransientJobError", "claim", "heartbeat",
            "job_state", "mark_dispatched", "run_job", "sweep"]

@@ -85,7 +85,7 @@ def make_runner(settings: Settings, db: Database, store: Storage):
 
     return ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
                            render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s,
-                           lease_s=settings.job_lease_s, redispatch_s=settings.redispatch_s)
+                           lease_s=settings.job_lease_s)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:

@@ -85,6 +85,11 @@ def _queue_one(db: Database, settings: Settings, session_id: int, filter_name: s
                   log=[f"{utcnow().isoformat(timespec='seconds')} queued by chakamo reprocess"])
         s.add(job)
         s.flush()
+        other = s.scalar(select(Job.id).where(Job.session_id == session.id, Job.id != job.id,
+                                              Job.status.in_(("queued", "running"))))
+        if other is not None:  # queued by the API at the same moment (SQLite has no row locks): that one stands
+            s.rollback()
+            return Outcome(**base, status="busy", job_id=other, note=f"job {other} is queued or running")
         return Outcome(**base, status="queued", job_id=job.id)
 
 
@@ -105,7 +110,12 @@ def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: s
         if settings.job_backend == "celery":
             from app.celery_jobs import CeleryJobRunner
 
-            sent = sum(CeleryJobRunner(db, settings).publish(j) for j in job_ids)
+            runner = CeleryJobRunner(db, settings)
+            sent = 0
+            for j in job_ids:  # stop at the first refusal: the broker is down, the sweepers send the rest later
+                if not runner.publish(j):
+                    break
+                sent += 1
             if sent < len(job_ids):
                 return outcomes, (f"{len(job_ids)} jobs queued, {sent} handed to the broker; the others are sent "
                                   "when it answers (the server's and the workers' sweepers)")

@@ -10,7 +10,8 @@
 | ``CHAKAMO_BROKER_URL`` | ``redis://127.0.0.1:6379/0`` | the Celery broker (Redis), with ``celery`` |
 | ``CHAKAMO_WORKERS`` | 2 | processing threads of the embedded pool; the default concurrency of ``chakamo worker`` |
 | ``CHAKAMO_JOB_LEASE_S`` | 60 | a running job whose worker has not beaten its heartbeat for this long is taken as lost and queued again |
-| ``CHAKAMO_REDISPATCH_S`` | 120 | a job still queued this long after it was handed to the engine is handed again (a broker restarted empty) |
+| ``CHAKAMO_REDISPATCH_S`` | 120 | celery: a job still queued this long after it was handed to the broker, while the broker's queue is empty, is handed again (a broker restarted empty) |
+| ``CHAKAMO_JOB_TIME_LIMIT_S`` | 1800 | celery: a job running longer is stopped (its worker process is replaced) and run again, then failed after 3 attempts |
 | ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
 | ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in one warm helper process, off its GIL (0: none) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
@@ -65,6 +66,7 @@ class Settings(BaseSettings):
     workers: int = Field(2, ge=1, le=64, validation_alias="CHAKAMO_WORKERS")
     job_lease_s: float = Field(60.0, ge=2.0, le=3600.0, validation_alias="CHAKAMO_JOB_LEASE_S")
     redispatch_s: float = Field(120.0, ge=1.0, le=86400.0, validation_alias="CHAKAMO_REDISPATCH_S")
+    job_time_limit_s: float = Field(1800.0, ge=10.0, validation_alias="CHAKAMO_JOB_TIME_LIMIT_S")
     broker_visibility_timeout_s: float = Field(3600.0, ge=5.0, validation_alias="CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S")
     render_processes: int = Field(1, ge=0, le=16, validation_alias="CHAKAMO_RENDER_PROCESSES")
     max_file_mb: float = Field(50.0, gt=0, validation_alias="CHAKAMO_MAX_FILE_MB")

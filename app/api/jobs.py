@@ -7,6 +7,8 @@ new request answers 409 (checked before and, for SQLite's concurrent writers, ag
 stale ingestion check (files changed since) is redone before deciding (409 when it is not ok).
 """
 
+import logging
+
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
@@ -20,6 +22,7 @@ from app.pipeline import PIPELINE_VERSION
 from estimators.orientation import DEFAULT_METHOD, METHODS
 
 router = APIRouter(tags=["jobs"])
+log = logging.getLogger("chakamo.jobs")
 
 
 @router.post("/sessions/{session_id}/process", response_model=JobCreatedOut, status_code=202,
@@ -50,7 +53,10 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
                                  "that job has finished.")
     audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id)
     db.commit()  # committed before the runner can look for it
-    runner.submit(job.id)
+    try:
+        runner.submit(job.id)
+    except Exception:  # noqa: BLE001 — the job is committed: the engine's sweeper hands it over later
+        log.warning("job %s queued but not handed to the engine now; the sweeper will", job.id, exc_info=True)
     return JSONResponse({"job_id": job.id}, status_code=202)
 
 

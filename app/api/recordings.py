@@ -255,9 +255,11 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir, session_id: int,
         future = pool.submit(check_ingestion, store, tmp_dir, session, patient, recordings) if pool else None
         try:
             ingestion = future.result(CHECK_TIMEOUT_S) if future is not None else None
-        except Exception:  # noqa: BLE001 — a hung or broken helper: check here instead
+        except Exception:  # noqa: BLE001 — a hung or broken helper: replace it, and check here instead
             log.warning("ingestion check of session %s failed in the helper process; checking here", session_id,
                         exc_info=True)
+            future.cancel()
+            pool.restart()
             ingestion = None
         if ingestion is None:
             ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
@@ -385,7 +387,11 @@ def delete_recording(session_id: int, recording_id: int, principal: Clinician, r
     """Remove one recording from the session (its stored content stays if other rows use it)."""
     _delete(request, principal, session_id, recording_id)
     state = request.app.state
-    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session_id, state.check_pool)
+    try:  # the deletion is committed: whatever happens to the new check, it stands (the stale check is redone)
+        refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session_id, state.check_pool)
+    except Exception:  # noqa: BLE001
+        log.warning("recording deleted from session %s; its ingestion check failed and runs again later",
+                    session_id, exc_info=True)
     return Response(status_code=204)
 
 

@@ -54,8 +54,35 @@ def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches
         assert rows[doomed].status == "failed" and "interrupted 3 times" in rows[doomed].error
         assert rows[alive].status == "running"
         assert rows[fresh].status == "queued"
+    assert sweep(db, lease_s=60, redispatch_s=None) == sorted([lost, never])  # a broker with a backlog: no re-send
     mark_dispatched(db, due)
     assert sweep(db, lease_s=60, redispatch_s=60) == []  # handed over now: not due again before redispatch_s
+    db.dispose()
+
+
+def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, world):
+    """A worker that only looked lost (its lease expired): the sweeper gives its job to a new run; the old run's
+    progress, failure and results are refused, so the new run's state stands."""
+    from app.db import Database
+    from app.db.models import Job
+    from app.jobs import Superseded, _fail, _Progress, claim
+
+    client, _, session_id = world
+    client.app.state.runner.shutdown()
+    db = Database(settings.db_url)
+    job_id = _job(db, session_id, status="queued")
+    first = claim(db, job_id)
+    with db.session() as s:  # what sweep() does to a stale run, then a second worker claims it
+        s.get(Job, job_id).status = "queued"
+    second = claim(db, job_id)
+    assert (first, second) == (1, 2)
+    with pytest.raises(Superseded):
+        _Progress(db, job_id, first)("orientation", 0.5)
+    _fail(db, job_id, first, "the old run's failure")
+    _Progress(db, job_id, second)("orientation", 0.4)
+    with db.session() as s:
+        job = s.get(Job, job_id)
+        assert (job.status, job.attempts, job.stage, job.error) == ("running", 2, "orientation", None)
     db.dispose()
 
 
