@@ -14,6 +14,11 @@ def test_viewer_plays_only_this_servers_scenes(client):
     for path in bad:
         r = client.get("/viser/index.html", params={"playbackPath": path})
         assert r.status_code == 400, path
+    for path in ("/api/v1/sessions/%2e%2e/%2e%2e/auth/me", "/api/v1/sessions/%252e%252e/%252e%252e/x"):
+        r = client.get("/viser/index.html", params={"playbackPath": path})  # a fetch decodes the dots
+        assert r.status_code == 400, path
+    r = client.get("/viser/index.html?playbackPath=/static/app.js&playbackPath=/api/v1/sessions/3/scene.viser")
+    assert r.status_code == 400  # given twice: viser's client reads the first, a check of the last would pass
     r = client.get("/viser/index.html", params={"playbackPath": "/api/v1/sessions/3/scene.viser"})
     assert r.status_code == 200
     csp = r.headers["content-security-policy"]
