@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -24,12 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from benchmarks.http_load import demo_session
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from benchmarks.live_services import free_port
 
 
 @contextmanager
