@@ -75,6 +75,10 @@ def _swagger_dir() -> Path:
     return Path(str(swagger_ui_path))
 
 
+#: an unfinished upload file untouched this long was left by a crashed server (scaled-out deployment)
+INCOMING_STALE_S = 24 * 3600.0
+
+
 def make_runner(settings: Settings, db: Database, store: Storage):
     """The job engine ``CHAKAMO_JOB_BACKEND`` names (an :class:`app.jobs.JobRunner`)."""
     if settings.job_backend == "celery":
@@ -108,6 +112,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         except Exception:
             db.dispose()
             raise
+        if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
+            store.clear_incoming(older_than_s=INCOMING_STALE_S)
         if settings.render_processes > 0:
             from app.render import RenderPool
 

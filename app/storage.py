@@ -11,8 +11,8 @@ address is kept only if its content still hashes to that address; a damaged one 
 good copy (uploading the file again repairs the store).  Reading verifies the checksum
 (:meth:`BlobStore.read`, :meth:`BlobStore.copy_to`): a file altered on disk raises :class:`CorruptBlob`
 instead of being served or processed; its message names the blob, never the server's storage path.
-:meth:`BlobStore.clear_incoming` removes temporary files a crashed server left behind (called at start-up,
-before anything writes).
+:meth:`BlobStore.clear_incoming` removes temporary files a crashed server left behind (the embedded server at
+start-up, before anything writes; a scaled-out API server those older than a day).
 
 The application sees the store through :class:`Storage` (what uploads, jobs and downloads need) and gets
 it from :func:`open_storage`; the local file system (:class:`BlobStore`, under ``CHAKAMO_DATA_DIR/blobs``,
@@ -132,12 +132,19 @@ class BlobStore:
             raise ValueError(f"not a sha256 hex digest: {sha256!r}")
         return self.root / sha256[:2] / sha256[2:]
 
-    def clear_incoming(self) -> int:
-        """Remove the temporary ``up-*`` files of uploads cut short by a crash; returns how many.  Call only
-        when no upload is running (at start-up)."""
+    def clear_incoming(self, older_than_s: float | None = None) -> int:
+        """Remove the temporary ``up-*`` files of uploads cut short by a crash; returns how many.  Without
+        ``older_than_s``, call only when no upload is running (the embedded server at start-up); with it, only
+        files untouched for that long go (the API servers of a scaled-out deployment share the store: another
+        server's upload in progress writes its file every few milliseconds)."""
+        import time
+
         n = 0
+        cutoff = None if older_than_s is None else time.time() - older_than_s
         for p in self.incoming.glob("up-*"):
             try:
+                if cutoff is not None and p.stat().st_mtime > cutoff:
+                    continue
                 p.unlink()
                 n += 1
             except OSError:
@@ -193,7 +200,7 @@ class Storage(Protocol):
 
     def copy_to(self, sha256: str, target: str | os.PathLike) -> None: ...
 
-    def clear_incoming(self) -> int: ...
+    def clear_incoming(self, older_than_s: float | None = None) -> int: ...
 
 
 def open_storage(settings: "Settings") -> BlobStore:

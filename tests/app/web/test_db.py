@@ -135,3 +135,21 @@ def test_a_stored_file_and_its_folder_are_fsynced_before_it_is_acknowledged(tmp_
     store = BlobStore(tmp_path)
     store.put(b"durable")
     assert synced == ["file", "dir"]
+
+
+def test_clearing_unfinished_uploads_can_spare_the_recent_ones(tmp_path):
+    """A scaled-out API server at start-up removes only old leftovers: another server's upload in progress stays."""
+    import os
+    import time
+
+    from app.storage import BlobStore
+
+    store = BlobStore(tmp_path / "blobs")
+    old, fresh = store.incoming / "up-old", store.incoming / "up-fresh"
+    old.write_bytes(b"x")
+    fresh.write_bytes(b"y")
+    past = time.time() - 2 * 86400
+    os.utime(old, (past, past))
+    assert store.clear_incoming(older_than_s=86400) == 1
+    assert not old.exists() and fresh.exists()
+    assert store.clear_incoming() == 1 and not fresh.exists()  # the embedded server: everything
