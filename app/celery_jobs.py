@@ -93,16 +93,18 @@ def make_celery(settings: Settings):
     )
 
     @celery.task(name=TASK, bind=True, acks_late=True, reject_on_worker_lost=True, max_retries=MAX_RETRIES)
-    def process_job(task, job_id: int) -> str:
+    def process_job(task, job_id: int, resume_attempt: int | None = None) -> str:
         ctx = _context()
         try:
             outcome = run_job(int(job_id), ctx.db, ctx.store, ctx.tmp_root, None, ctx.settings.render_timeout_s,
-                              ctx.settings.job_lease_s)
-        except TransientJobError as exc:
+                              ctx.settings.job_lease_s, resume_attempt=resume_attempt)
+        except TransientJobError as exc:  # the retry resumes the same run: an outage is not one of its attempts
             log.warning("%s; retrying", exc)
-            raise task.retry(exc=exc, countdown=backoff_s(task.request.retries))
+            raise task.retry(exc=exc, countdown=backoff_s(task.request.retries),
+                             args=[int(job_id)], kwargs={"resume_attempt": exc.attempt or resume_attempt})
         if outcome == "busy":  # another worker holds it; its lease decides (the sweeper requeues a lost one)
-            raise task.retry(countdown=max(1.0, ctx.settings.job_lease_s / 2))
+            raise task.retry(countdown=max(1.0, ctx.settings.job_lease_s / 2), args=[int(job_id)],
+                             kwargs={"resume_attempt": resume_attempt})
         return outcome
 
     return celery

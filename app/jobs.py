@@ -66,7 +66,13 @@ REDISPATCH_S = 120.0
 
 
 class TransientJobError(RuntimeError):
-    """The job could not run for a reason outside its data (the database went away); run it again later."""
+    """The job could not run for a reason outside its data (the database went away); run it again later.
+    ``attempt``: the run that was cut short (None if it never claimed the job), to resume with
+    :func:`run_job`'s ``resume_attempt`` — so an outage does not count as one of the job's attempts."""
+
+    def __init__(self, message: str, attempt: int | None = None) -> None:
+        super().__init__(message)
+        self.attempt = attempt
 
 
 class JobRunner(Protocol):
@@ -131,6 +137,15 @@ def claim(db: Database, job_id: int) -> int | None:
         if res.rowcount != 1:
             return None
         return s.scalar(select(Job.attempts).where(Job.id == job_id))
+
+
+def reclaim(db: Database, job_id: int, attempt: int) -> bool:
+    """Resume run ``attempt`` of job ``job_id`` after a database outage cut it short: True when the job is
+    still ``running`` under that attempt (its lease has not expired and the sweeper has not requeued it)."""
+    with db.session() as s:
+        res = s.execute(update(Job).where(Job.id == job_id, Job.status == "running", Job.attempts == attempt)
+                        .values(heartbeat_at=utcnow(), stage="start", progress=0.0))
+        return res.rowcount == 1
 
 
 def job_state(db: Database, job_id: int) -> str | None:
@@ -225,13 +240,16 @@ Outcome = Literal["done", "failed", "busy", "finished"]
 
 
 def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None = None,
-            render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S) -> Outcome:
+            render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S,
+            resume_attempt: int | None = None) -> Outcome:
     """Claim and run job ``job_id`` (module docstring).  Returns ``done`` or ``failed`` when this call ran it,
     ``busy`` when another worker holds it (running, lease not expired), ``finished`` when it had already ended
     (or is unknown).  Never raises for bad data; raises :class:`TransientJobError` when the database went away
-    (the job is then left to the sweeper or to the engine's retry)."""
+    (the job is then left to the sweeper or to the engine's retry, which passes the error's ``attempt`` back as
+    ``resume_attempt``: the same run goes on, not a new attempt)."""
     try:
-        attempt = claim(db, job_id)
+        attempt = resume_attempt if resume_attempt is not None and reclaim(db, job_id, resume_attempt) else None
+        attempt = attempt or claim(db, job_id)
         if attempt is None:
             return "busy" if job_state(db, job_id) in ("queued", "running") else "finished"
     except OperationalError as exc:
@@ -295,7 +313,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
     except Exception as exc:  # noqa: BLE001 — a job must end failed, never stay running
         if _transient(exc):  # not the job's fault: leave it running; its lease expires and it is run again
             log.warning("job %s: database unreachable (%s); it will run again", job_id, type(exc).__name__)
-            raise TransientJobError(f"job {job_id}: database unreachable") from exc
+            raise TransientJobError(f"job {job_id}: database unreachable", attempt) from exc
         if _is_disk_full(exc):
             log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)
             _fail(db, job_id, attempt, "The server's disk is full, so the reports could not be stored and none was recorded. "
@@ -309,5 +327,5 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
     return "failed"
 
 
-__all__ = ["LEASE_S", "MAX_ATTEMPTS", "REDISPATCH_S", "JobRunner", "Superseded", "TransientJobError", "claim", "heartbeat",
-           "job_state", "mark_dispatched", "run_job", "sweep"]
+__all__ = ["LEASE_S", "MAX_ATTEMPTS", "REDISPATCH_S", "JobRunner", "Superseded", "TransientJobError", "claim",
+           "heartbeat", "job_state", "mark_dispatched", "reclaim", "run_job", "sweep"]

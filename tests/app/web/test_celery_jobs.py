@@ -63,13 +63,14 @@ def redis(tmp_path):
 class Deployment:
     """The API in-process on the celery backend, plus real worker processes started on demand."""
 
-    def __init__(self, tmp_path, database: str, redis: RedisServer) -> None:
+    def __init__(self, tmp_path, database: str, redis: RedisServer, lease_s: float | None = None) -> None:
         self.tmp_path, self.database, self.redis = tmp_path, database, redis
         self.data = tmp_path / "data"
+        timing = FAST | ({"CHAKAMO_JOB_LEASE_S": str(lease_s)} if lease_s else {})
         self.env = chakamo_env(self.data, DATABASE_URL=database, CHAKAMO_JOB_BACKEND="celery",
-                               CHAKAMO_BROKER_URL=redis.url, **FAST)
+                               CHAKAMO_BROKER_URL=redis.url, **timing)
         self.settings = make_settings(self.data, DATABASE_URL=database, CHAKAMO_JOB_BACKEND="celery",
-                                      CHAKAMO_BROKER_URL=redis.url, **FAST)
+                                      CHAKAMO_BROKER_URL=redis.url, **timing)
         self.workers: list[ChakamoProcess] = []
 
     def worker(self, concurrency: int = 1) -> ChakamoProcess:
@@ -84,12 +85,14 @@ class Deployment:
 
 
 @pytest.fixture
-def deployment(tmp_path, database, redis):
+def deployment(request, tmp_path, database, redis):
+    """The deployment; ``@pytest.mark.lease(S)`` gives its jobs a lease of S seconds instead of FAST's 4 s."""
     from fastapi.testclient import TestClient
 
     from app.main import create_app
 
-    dep = Deployment(tmp_path, database, redis)
+    marker = request.node.get_closest_marker("lease")
+    dep = Deployment(tmp_path, database, redis, lease_s=marker.args[0] if marker else None)
     try:
         with TestClient(create_app(dep.settings)) as client:
             dep.client = client
@@ -242,6 +245,7 @@ def test_redis_restarted_empty_loses_no_upload_and_the_jobs_resume(deployment, d
         assert _stored_files(dep, sid) == len(demo_files(demo_dir))
 
 
+@pytest.mark.lease(60)  # the outage and the retries' back-off stay inside the lease: the same run resumes
 def test_postgresql_restarted_during_a_run_loses_nothing(deployment, demo_dir, postgres):
     dep = deployment
     dep.worker()
@@ -261,6 +265,8 @@ def test_postgresql_restarted_during_a_run_loses_nothing(deployment, demo_dir, p
 
     job = wait_job(dep.client, job_id, dep.headers, timeout_s=240)
     assert job["status"] == "done", job
+    assert "database unreachable; retrying" in _worker_log(dep)  # the outage reached the running job
+    assert _job_row(dep, job_id).attempts == 1  # and the retry resumed that run: an outage is not an attempt
     assert dep.client.get(f"/api/v1/sessions/{session_id}/results", headers=dep.headers).status_code == 200
     assert _stored_files(dep, session_id) == len(demo_files(demo_dir))
     # and a new upload after the restart is taken as usual

@@ -86,6 +86,26 @@ def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, world):
     db.dispose()
 
 
+def test_a_run_cut_short_by_a_database_outage_resumes_without_using_an_attempt(settings, world):
+    from app.db import Database
+    from app.db.models import Job
+    from app.jobs import claim, run_job
+    from app.storage import open_storage
+
+    client, _, session_id = world
+    client.app.state.runner.shutdown()
+    db = Database(settings.db_url)
+    job_id = _job(db, session_id, status="queued")
+    assert claim(db, job_id) == 1  # the run the outage cut short: still 'running' under attempt 1
+    assert run_job(job_id, db, open_storage(settings), settings.tmp_dir) == "busy"  # a new run may not take it
+    assert run_job(job_id, db, open_storage(settings), settings.tmp_dir, resume_attempt=1) == "done"
+    with db.session() as s:
+        job = s.get(Job, job_id)
+        assert (job.status, job.attempts) == ("done", 1) and job.analysis_id is not None
+    assert run_job(job_id, db, open_storage(settings), settings.tmp_dir, resume_attempt=1) == "finished"
+    db.dispose()
+
+
 def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, world):
     from app.db import Database
     from app.db.models import utcnow
