@@ -27,12 +27,11 @@ import shutil
 import threading
 from pathlib import Path
 
-from sqlalchemy import create_engine, select, text
+from sqlalchemy import create_engine, text
 from sqlalchemy.pool import NullPool
 
 from app.db import Database
-from app.db.models import Job, utcnow
-from app.jobs import LEASE_S, MAX_ATTEMPTS, mark_dispatched, run_job, sweep
+from app.jobs import LEASE_S, mark_dispatched, run_job, sweep
 from app.render import RENDER_TIMEOUT_S, RenderPool, warm_up
 from app.storage import Storage
 
@@ -152,27 +151,15 @@ class ThreadJobRunner:
         self._stop.clear()
         if self.render_processes > 0 and self.pool is None:
             self.pool = RenderPool(self.render_processes)
-        with self.db.session() as s:
-            for job in s.scalars(select(Job).where(Job.status == "running")):
-                stamp = utcnow().isoformat(timespec="seconds")
-                if job.attempts >= MAX_ATTEMPTS:  # it keeps taking the server down with it: stop trying
-                    job.status, job.finished_at = "failed", utcnow()
-                    job.error = (f"processing was interrupted {job.attempts} times (the server stopped each time); "
-                                 "check the server's memory and logs, then process the session again")
-                    job.log = [*job.log, f"{stamp} interrupted again; given up"]
-                    continue
-                job.status, job.stage = "queued", "queued"
-                job.log = [*job.log, f"{stamp} interrupted (server stopped); queued again"]
-            pending = list(s.scalars(select(Job.id).where(Job.status == "queued").order_by(Job.id)))
+        # holding the lock, every job left running was a dead server's: a zero lease requeues them all now
+        pending = sweep(self.db, lease_s=0.0, redispatch_s=0.0, why="server stopped")
         for i in range(self.workers):
             t = threading.Thread(target=self._work, name=f"chakamo-job-{i}", daemon=True)
             t.start()
             self._threads.append(t)
         for job_id in pending:
             self.submit(job_id)
-        sweeper = threading.Thread(target=self._sweep_loop, name="chakamo-sweeper", daemon=True)
-        sweeper.start()
-        self._sweeper = sweeper
+        threading.Thread(target=self._sweep_loop, name="chakamo-sweeper", daemon=True).start()
         threading.Thread(target=warm_up, name="chakamo-warm-up", daemon=True).start()
 
     def submit(self, job_id: int) -> None:

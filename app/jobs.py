@@ -14,12 +14,13 @@ or a lost message left: a ``running`` job whose heartbeat is older than the leas
 to ``failed`` after :data:`MAX_ATTEMPTS`), and a ``queued`` job never handed to the engine — or, with Celery
 while the broker's queue is empty, handed longer ago than ``CHAKAMO_REDISPATCH_S`` — is handed again.  Every
 write of a run carries its attempt number (:func:`claim` returns it): a run the sweeper gave up on (a worker
-that only looked lost) can never overwrite the run that replaced it (:class:`Superseded`).  Handing a job twice is harmless: :func:`claim` is a
-conditional UPDATE, so only one worker runs it, and the analysis row is unique per job, so a job never
-yields two analyses (the work is idempotent, keyed by the job — a session, its files' version and the
-pipeline version).  :class:`app.inprocess.ThreadJobRunner` sweeps every few seconds (so jobs queued by ``chakamo
-reprocess`` from another process are found too); the Celery engine (:mod:`app.celery_jobs`) sweeps in the API
-server and in every worker.  A database outage during a job (``OperationalError``) is not the data's fault:
+that only looked lost) can never overwrite the run that replaced it (:class:`Superseded`).  Handing a job
+twice is harmless: :func:`claim` is a conditional UPDATE, so only one worker runs it, and the analysis row is
+unique per job, so a job never yields two analyses (the work is idempotent, keyed by the job — a session, its
+files' version and the pipeline version).  :class:`app.inprocess.ThreadJobRunner` sweeps every few seconds
+(so jobs queued by ``chakamo reprocess`` from another process are found too), and at start-up with a zero
+lease (every job left running belonged to a dead server); the Celery engine (:mod:`app.celery_jobs`) sweeps
+in the API server and in every worker.  A database outage during a job (``OperationalError``) is not the data's fault:
 :func:`run_job` re-raises it as :class:`TransientJobError` (the Celery task retries with back-off; the
 embedded runner leaves it to the sweeper) instead of failing the job.
 
@@ -179,30 +180,35 @@ def heartbeat(db: Database, job_id: int, attempt: int, lease_s: float = LEASE_S)
         t.join(5.0)
 
 
-def sweep(db: Database, lease_s: float = LEASE_S, redispatch_s: float | None = REDISPATCH_S) -> list[int]:
+def sweep(db: Database, lease_s: float = LEASE_S, redispatch_s: float | None = REDISPATCH_S, *,
+          why: str | None = None) -> list[int]:
     """Requeue the ``running`` jobs whose heartbeat is older than ``lease_s`` (fail them after
     :data:`MAX_ATTEMPTS`), and return the ``queued`` jobs to hand to the engine: never handed, or handed
     more than ``redispatch_s`` ago (``None``: only the never handed ones — an engine whose hand-over cannot be
     lost, or a broker whose queue still holds messages).  Each change is a conditional UPDATE on the state
-    seen (status, attempt, heartbeat), so a job that finished or beat meanwhile is left alone.  The caller
-    calls :func:`mark_dispatched` for each job it could hand over."""
+    seen (status, attempt, heartbeat), so a job that finished or beat meanwhile is left alone.  ``why`` is
+    the job log's reason (default: the worker lost).  The caller calls :func:`mark_dispatched` for each job
+    it could hand over."""
     now = utcnow()
     stale = now - dt.timedelta(seconds=lease_s)
     stamp = now.isoformat(timespec="seconds")
+    why = why or f"worker lost: no heartbeat for {lease_s:g} s"
+    # no heartbeat yet (a row from before leases existed): judged by its start, or lost if it has none either
+    is_lost = (Job.status == "running",
+               or_(Job.heartbeat_at < stale,
+                   Job.heartbeat_at.is_(None) & or_(Job.started_at.is_(None), Job.started_at < stale)))
     with db.session() as s:
-        lost = s.execute(select(Job.id, Job.attempts, Job.log).where(
-            Job.status == "running", or_(Job.heartbeat_at < stale, Job.heartbeat_at.is_(None) & (Job.started_at < stale))))
-        for job_id, attempts, job_log in list(lost):
-            still = (Job.id == job_id, Job.status == "running", Job.attempts == attempts,
-                     or_(Job.heartbeat_at < stale, Job.heartbeat_at.is_(None)))
-            if attempts >= MAX_ATTEMPTS:
-                values = dict(status="failed", finished_at=now, log=[*job_log, f"{stamp} worker lost again; given up"],
-                              error=f"processing was interrupted {attempts} times (its worker stopped each time); "
-                                    "check the workers' memory and logs, then process the session again")
+        lost = list(s.execute(select(Job.id, Job.attempts, Job.log).where(*is_lost)))
+        for job_id, attempts, job_log in lost:
+            if attempts >= MAX_ATTEMPTS:  # it keeps taking its worker down with it: stop trying
+                values = dict(status="failed", finished_at=now, log=[*job_log, f"{stamp} interrupted ({why}); given up"],
+                              error=f"processing was interrupted {attempts} times; check the server's and the "
+                                    "workers' memory and logs, then process the session again")
             else:
                 values = dict(status="queued", stage="queued", dispatched_at=None,
-                              log=[*job_log, f"{stamp} worker lost (no heartbeat for {lease_s:g} s); queued again"])
-            if s.execute(update(Job).where(*still).values(**values)).rowcount:
+                              log=[*job_log, f"{stamp} interrupted ({why}); queued again"])
+            if s.execute(update(Job).where(Job.id == job_id, Job.attempts == attempts, *is_lost)
+                         .values(**values)).rowcount:
                 log.warning("job %s: worker lost, %s", job_id, values["status"])
         due = Job.dispatched_at.is_(None)
         if redispatch_s is not None:
@@ -248,8 +254,10 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
     (the job is then left to the sweeper or to the engine's retry, which passes the error's ``attempt`` back as
     ``resume_attempt``: the same run goes on, not a new attempt)."""
     try:
-        attempt = resume_attempt if resume_attempt is not None and reclaim(db, job_id, resume_attempt) else None
-        attempt = attempt or claim(db, job_id)
+        if resume_attempt is not None and reclaim(db, job_id, resume_attempt):
+            attempt = resume_attempt
+        else:
+            attempt = claim(db, job_id)
         if attempt is None:
             return "busy" if job_state(db, job_id) in ("queued", "running") else "finished"
     except OperationalError as exc:
@@ -286,6 +294,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         progress("store", 0.99)
         stored = {key: store.put(data) for key, data in files.items()}
         with db.session() as s:
+            row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
             for sha, size in sorted(set(stored.values())):
                 ensure_blob(s, sha, size)
             analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
@@ -296,7 +305,6 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                   for (name, lang), (sha, size) in stored.items()]
             s.add(analysis)
             s.flush()
-            row = _owned(s, job_id, attempt)  # before the analysis row is flushed: nothing stored if superseded
             row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
             row.analysis_id = analysis.id
             row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
@@ -316,9 +324,9 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             raise TransientJobError(f"job {job_id}: database unreachable", attempt) from exc
         if _is_disk_full(exc):
             log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)
-            _fail(db, job_id, attempt, "The server's disk is full, so the reports could not be stored and none was recorded. "
-                                       "Ask your ChakaMo administrator to free space, then process the session "
-                                       "again.")
+            _fail(db, job_id, attempt, "The server's disk is full, so the reports could not be stored and none was "
+                                       "recorded. Ask your ChakaMo administrator to free space, then process the "
+                                       "session again.")
             return "failed"
         ref = secrets.token_hex(4)
         log.exception("job %s failed: internal error, reference %s", job_id, ref)
