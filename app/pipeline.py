@@ -124,7 +124,10 @@ class SessionOutcome:
     mag : ``{segment: MagCalibration}``.   segments : ``{segment: SegmentCalibration}``.
     field : ``{segment: FieldCheck}`` on the task.   heading : the standing heading check.
     analysis : the motor-task analysis.   warnings : every quality warning, in stage order.
-    filter_params : the parameter dataclass of the filter used (defaults and overrides).
+    filter_params : the parameter dataclass of the filter used (defaults and overrides), written whole to
+        ``results.json`` ``filter.params`` (units in the field names: ``tau_acc_s``, ``bias_clip_rad_s``) so a
+        results file says how it was computed even after a default changes; ``filter.overrides`` lists what
+        the user changed.
     heading_task : the heading check over the task's straight-knee holds (None when there was none).
     """
 
@@ -145,7 +148,7 @@ class SessionOutcome:
     heading: knee.HeadingOffset
     analysis: TaskAnalysis
     warnings: tuple[QualityWarning, ...]
-    filter_params: Any = None
+    filter_params: Any
     heading_task: TaskHeading | None = None
 
 
@@ -306,7 +309,7 @@ def _task_heading(q_seg: dict[str, FloatArray], analysis: TaskAnalysis, fs_hz: f
     range.  Holds shorter than ``HEADING_HOLD_MIN_S`` are skipped; None when no hold remains.
     """
     spans = _straight_knee_spans_s(analysis)
-    spans = spans[spans[:, 1] - spans[:, 0] >= HEADING_HOLD_MIN_S] if len(spans) else spans
+    spans = spans[spans[:, 1] - spans[:, 0] >= HEADING_HOLD_MIN_S]
     if len(spans) == 0:
         return None
     n = len(q_seg["thigh"])
@@ -316,8 +319,8 @@ def _task_heading(q_seg: dict[str, FloatArray], analysis: TaskAnalysis, fs_hz: f
     if not idx:
         return None
     offsets = np.array([knee.heading_offset(q_seg["thigh"][ix], q_seg["shank"][ix]).offset_rad for ix in idx])
-    every = np.concatenate(idx)
-    mean = knee.heading_offset(q_seg["thigh"][every], q_seg["shank"][every]).offset_rad
+    weights = np.array([len(ix) for ix in idx], dtype=float)
+    mean = float(np.angle(np.sum(weights * np.exp(1j * offsets))))  # circular mean over the holds' samples
     rel = np.angle(np.exp(1j * (offsets - mean)))  # unwrapped about the mean: no jump at ±180°
     change = float(rel.max() - rel.min()) if len(offsets) > 1 else float("nan")
     warnings: tuple[QualityWarning, ...] = ()
@@ -330,7 +333,7 @@ def _task_heading(q_seg: dict[str, FloatArray], analysis: TaskAnalysis, fs_hz: f
             f"the task's {p['holds']:d} straight-knee holds (from {p['first_deg']:.1f}° to {p['last_deg']:.1f}°, "
             f"more than {p['max_deg']:.0f}°); rotation and adduction drift with it: a gyroscope bias or a "
             "magnetic disturbance near one sensor", p),)
-    return TaskHeading(spans, offsets, change, float(mean), warnings)
+    return TaskHeading(spans, offsets, change, mean, warnings)
 
 
 def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, gyr_task: dict[str, FloatArray],

@@ -49,7 +49,7 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
     results = {
         "side": outcome.side,
         "task": task["task"],
-        "filter": {"name": opts.filter_name, "params": filter_params(outcome),
+        "filter": {"name": opts.filter_name, "params": dataclasses.asdict(outcome.filter_params),
                    "overrides": dict(opts.filter_params)},
         "angles": list(ANGLES),
         "angle_method": opts.angle_method,
@@ -103,28 +103,13 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
     return json_ready(results)
 
 
-def filter_params(outcome: SessionOutcome) -> dict[str, Any]:
-    """Every parameter of the filter that ran, defaults included (``results.json`` ``filter.params``).
-
-    The filters' parameter dataclasses carry the unit in each field name (``tau_acc_s``, ``bias_clip_rad_s``,
-    ``mag_dip_th_rad``), so the values are written as they are, in SI units and radians; what the user
-    changed is also listed alone in ``filter.overrides``.  Without the full set a results file could not say
-    how it was computed once a default changes in a later version.
-    """
-    params = outcome.filter_params
-    if params is None or not dataclasses.is_dataclass(params):
-        raise TypeError(f"the outcome carries no filter parameter dataclass (got {type(params).__name__}); "
-                        "it must come from app.pipeline.process_session")
-    return json_ready(dataclasses.asdict(params))
-
-
 def _heading_task(outcome: SessionOutcome) -> dict[str, Any] | None:
     """The heading check over the task's straight-knee holds (degrees), or None when there was no hold."""
     h = outcome.heading_task
     if h is None:
         return None
-    return {"spans_s": h.spans_s, "offsets_deg": np.rad2deg(h.offsets_rad), "change_deg": np.rad2deg(h.change_rad),
-            "mean_offset_deg": np.rad2deg(h.mean_offset_rad)}
+    return {"spans_s": h.spans_s, "offsets_deg": _deg(h.offsets_rad), "change_deg": _deg(h.change_rad),
+            "mean_offset_deg": _deg(h.mean_offset_rad)}
 
 
 def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
