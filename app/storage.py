@@ -27,6 +27,7 @@ import logging
 import os
 import re
 import tempfile
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -137,8 +138,6 @@ class BlobStore:
         ``older_than_s``, call only when no upload is running (the embedded server at start-up); with it, only
         files untouched for that long go (the API servers of a scaled-out deployment share the store: another
         server's upload in progress writes its file every few milliseconds)."""
-        import time
-
         n = 0
         cutoff = None if older_than_s is None else time.time() - older_than_s
         for p in self.incoming.glob("up-*"):

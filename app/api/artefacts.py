@@ -32,8 +32,7 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
     stem, ext = name.rsplit(".", 1)
     filename = f"chakamo-session-{session.id}-{analysis.id}{'-' + lang if lang else ''}-{stem}.{ext}"
     disposition = "attachment" if attachment else "inline"
-    headers = {"Content-Disposition": f'{disposition}; filename="{filename}"', "Cache-Control": "no-store",
-               "X-Content-Type-Options": "nosniff"}
+    headers = {"Content-Disposition": f'{disposition}; filename="{filename}"'}  # no-store, nosniff: app/headers.py
     if name == "report.html":  # patient-typed text inside: scripts run, but in an opaque origin (no cookie, no API)
         headers["Content-Security-Policy"] = "sandbox allow-scripts allow-popups allow-downloads"
     data = store.read(art.sha256)
