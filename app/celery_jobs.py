@@ -110,17 +110,25 @@ def make_celery(settings: Settings):
     return celery
 
 
-def broker_problem(settings: Settings, timeout_s: float = 2.0) -> str | None:
-    """None when the Redis broker answers a PING within ``timeout_s``, else a sentence (``/readyz``)."""
+def _ask_broker(settings: Settings, command: str, *args, timeout_s: float = 2.0):
+    """Redis ``command`` on the broker, answered within ``timeout_s``; raises ``redis.RedisError``/``OSError``."""
     import redis
 
     client = redis.Redis.from_url(settings.broker_url, socket_connect_timeout=timeout_s, socket_timeout=timeout_s)
     try:
-        client.ping()
-    except (redis.RedisError, OSError) as exc:
-        return f"the job broker is unreachable ({type(exc).__name__})"
+        return client.execute_command(command, *args)
     finally:
         client.close()
+
+
+def broker_problem(settings: Settings) -> str | None:
+    """None when the Redis broker answers a PING, else a sentence (``/readyz``)."""
+    import redis
+
+    try:
+        _ask_broker(settings, "PING")
+    except (redis.RedisError, OSError) as exc:
+        return f"the job broker is unreachable ({type(exc).__name__})"
     return None
 
 
@@ -184,13 +192,10 @@ class CeleryJobRunner:
         """Messages waiting in the broker's queue (None when the broker does not answer)."""
         import redis
 
-        client = redis.Redis.from_url(self.settings.broker_url, socket_connect_timeout=2, socket_timeout=2)
         try:
-            return int(client.llen(QUEUE))
+            return int(_ask_broker(self.settings, "LLEN", QUEUE))
         except (redis.RedisError, OSError):
             return None
-        finally:
-            client.close()
 
     def problem(self) -> str | None:
         return broker_problem(self.settings)
