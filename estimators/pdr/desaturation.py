@@ -32,7 +32,18 @@ from estimators.windows import true_runs
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["clipped_attitude_variance", "rebuild_saturated"]
+__all__ = ["CLIPPED_FRACTION", "clipped_attitude_variance", "clipped_runs", "rebuild_saturated"]
+
+#: a flagged sample at or above this fraction of the full scale counts as clipped
+CLIPPED_FRACTION = 0.995
+
+
+def clipped_runs(gyr: FloatArray, saturated: ArrayLike, range_rad_s: float) -> list[tuple[int, int, int]]:
+    """``(axis, start, end)`` of every run of flagged samples at or above :data:`CLIPPED_FRACTION` of the
+    full scale on one axis of ``gyr`` (N, 3) rad/s; half-open sample ranges."""
+    flagged = np.asarray(saturated, dtype=bool)
+    near = CLIPPED_FRACTION * float(range_rad_s)
+    return [(j, a, b) for j in range(3) for a, b in true_runs(flagged & (np.abs(gyr[:, j]) >= near))]
 
 
 def rebuild_saturated(dt_s: ArrayLike, gyr: ArrayLike, saturated: ArrayLike, range_rad_s: float, *,
@@ -45,16 +56,9 @@ def rebuild_saturated(dt_s: ArrayLike, gyr: ArrayLike, saturated: ArrayLike, ran
     g = np.array(gyr, dtype=np.float64, copy=True)
     t = np.cumsum(np.asarray(dt_s, dtype=np.float64))
     n = len(g)
-    flagged = np.asarray(saturated, dtype=bool)
-    near = 0.995 * float(range_rad_s)
-    runs = []  # (axis, start, end) of the rebuildable clipped runs
-    for j in range(3):
-        clipped = flagged & (np.abs(g[:, j]) >= near)
-        if not clipped.any():
-            continue
-        for a, b in true_runs(clipped):
-            if b - a <= max_run and a - edge >= 0 and b + edge <= n:
-                runs.append((j, a, b))
+    near = CLIPPED_FRACTION * float(range_rad_s)
+    runs = [(j, a, b) for j, a, b in clipped_runs(g, saturated, range_rad_s)
+            if b - a <= max_run and a - edge >= 0 and b + edge <= n]  # the rebuildable ones
     if not runs:
         return g
     ax = np.array([r[0] for r in runs])
@@ -88,12 +92,9 @@ def clipped_attitude_variance(dt_s: ArrayLike, gyr_rebuilt: ArrayLike, saturated
     """
     g = np.asarray(gyr_rebuilt, dtype=np.float64)
     dt = np.asarray(dt_s, dtype=np.float64)
-    flagged = np.asarray(saturated, dtype=bool)
-    near = 0.995 * float(range_rad_s)
+    near = CLIPPED_FRACTION * float(range_rad_s)
     out = np.zeros_like(g)
-    for j in range(3):
-        clipped = flagged & (np.abs(g[:, j]) >= near)
-        for a, b in true_runs(clipped):
-            sigma = rel_std * (np.abs(g[a:b, j]) - near) + floor_rad_s
-            out[a:b, j] = (b - a) * (sigma * dt[a:b]) ** 2
+    for j, a, b in clipped_runs(g, saturated, range_rad_s):
+        sigma = rel_std * (np.abs(g[a:b, j]) - near) + floor_rad_s
+        out[a:b, j] = (b - a) * (sigma * dt[a:b]) ** 2
     return out
