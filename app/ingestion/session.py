@@ -187,17 +187,18 @@ def _looks_generic(path: Path) -> bool:
 _IGNORED_CSV = "neither a MetaBase export nor a generic CSV with acc_x..."
 
 
-def _discover(folder: Path, notes: list[str]) -> list[list[Path]]:
+def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
+    """The folder's recordings (file groups) and the ``.csv`` files left out (their names)."""
     files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(("~$", ".")))
     meta = [p for p in files if p.suffix.lower() == ".csv" and parse_file_name(p)]
     groups = [sorted(g.values()) for g in group_metabase_files(meta).values()]
-    singles = []
+    singles, ignored = [], []
     for p in files:
         if p.suffix.lower() == ".xlsx" or (p.suffix.lower() == ".csv" and p not in meta and _looks_generic(p)):
             singles.append([p])
         elif p.suffix.lower() == ".csv" and p not in meta:
-            notes.append(f"ignored {p.name} ({_IGNORED_CSV})")
-    return groups + singles
+            ignored.append(p.name)
+    return groups + singles, ignored
 
 
 def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str, str], RawRecording],
@@ -244,11 +245,13 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     mpath = folder / MANIFEST if (folder / MANIFEST).is_file() else None
     manifest = _read_manifest(mpath) if mpath else {}
     sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
-    notes: list[str] = []
     entries = manifest.get("recordings")
+    left_out: list[str] = []
     if entries is None:  # discovered files are already paths inside folder: keep only their names
-        entries = [{"files": [p.name for p in g]} for g in _discover(folder, notes)]
-    ignored = "".join(f" Ignored {n[len('ignored '):]}." for n in notes if n.startswith("ignored "))
+        groups, left_out = _discover(folder)
+        entries = [{"files": [p.name for p in g]} for g in groups]
+    notes = [f"ignored {name} ({_IGNORED_CSV})" for name in left_out]
+    ignored = "".join(f" Ignored {name} ({_IGNORED_CSV})." for name in left_out)
     if not entries:
         raise IngestionError(f"{folder}: no recordings found (MetaBase .csv, thesis .xlsx or generic .csv); "
                              f"check the folder.")
