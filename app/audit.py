@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING
 
 from sqlalchemy.orm import Session
 
-from app.db.models import ApiToken, AuditEvent, utcnow
+from app.db.models import ApiToken, AuditEvent
 
 if TYPE_CHECKING:  # types only: this module must not import the API package (a worker may call it)
     from fastapi import Request
@@ -78,7 +78,7 @@ def record(db: Session, request: "Request", principal: "Principal", action: str,
     if action not in ACTIONS:
         raise ValueError(f"unknown audit action {action!r}; use one of {', '.join(ACTIONS)}")
     kind, user_id, token_id, label = _actor(db, principal)
-    event = AuditEvent(clinic_id=principal.clinic_id, at=utcnow(), actor_kind=kind, user_id=user_id,
+    event = AuditEvent(clinic_id=principal.clinic_id, actor_kind=kind, user_id=user_id,
                        token_id=token_id, actor=label[:_ACTOR_CHARS], action=action, patient_id=patient_id,
                        session_id=session_id, resource=f"{request.method} {request.url.path}"[:_RESOURCE_CHARS],
                        client=(request.client.host if request.client else "")[:_CLIENT_CHARS])

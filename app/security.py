@@ -105,12 +105,12 @@ def hash_password(password: str) -> str:
 
 def _verify_scrypt(password: str, stored: str) -> bool:
     try:
-        scheme, n, r, p, salt, digest = stored.split("$")
+        _, n, r, p, salt, digest = stored.split("$")  # the caller matched the "scrypt$" prefix
         expected = base64.b64decode(digest, validate=True)
         n_, r_, p_, salt_ = int(n), int(r), int(p), base64.b64decode(salt, validate=True)
     except (ValueError, TypeError):
         return False
-    if scheme != "scrypt" or not expected:
+    if not expected:
         return False
     try:
         got = _in_slot(_scrypt, password, salt_, n_, r_, p_, len(expected))

@@ -42,5 +42,7 @@ def list_events(principal: Admin, db: DbDep, patient_id: int | None = None, user
         stmt = stmt.where(AuditEvent.at >= since)
     if before_id is not None:
         stmt = stmt.where(AuditEvent.id < before_id)
-    rows = db.scalars(stmt.order_by(AuditEvent.at.desc(), AuditEvent.id.desc()).limit(limit))
+    # newest first by id, the key ``before_id`` pages on (``at`` is taken before the insert, so two requests'
+    # events may interleave differently by time and by id: ordering by both could skip or repeat on a page)
+    rows = db.scalars(stmt.order_by(AuditEvent.id.desc()).limit(limit))
     return [audit_out(e) for e in rows]
