@@ -118,7 +118,10 @@ def _upload(client, c: Clinician, files: list[Path], deadline: float) -> None:
         time.sleep(wait_s)
     if r.status_code != 201 or not r.json()["ingestion"]["ok"]:
         raise PhaseError("upload", f"POST {path} answered {r.status_code}: {r.text[:300]}")
-    c.files_uploaded = len(r.json()["recordings"])
+    stored = len(r.json()["recordings"])
+    if stored != len(files):  # the answer must list every file sent, not just what the server chose to keep
+        raise PhaseError("upload", f"POST {path} stored {stored} of the {len(files)} files sent")
+    c.files_uploaded = stored
 
 
 def run_clinician(c: Clinician, base_url: str, headers: dict, files: list[Path], start: threading.Barrier | None,
@@ -269,11 +272,12 @@ def run(stack: Stack, files: list[Path], args: argparse.Namespace) -> Summary:
     return Summary(clinicians, jobs, lost, read_during, read_after, paths, t0, wall_s)
 
 
-def _phase_row(name: str, seconds: list[float], errors: int) -> str:
+def _phase_row(name: str, seconds: list[float], errors: int | None) -> str:
+    err = "–" if errors is None else errors
     if not seconds:
-        return f"| {name} | 0 | {errors} | – | – | – |"
+        return f"| {name} | 0 | {err} | – | – | – |"
     p50, p95 = np.percentile(seconds, [50, 95])
-    return f"| {name} | {len(seconds)} | {errors} | {p50:.3f} | {p95:.3f} | {max(seconds):.3f} |"
+    return f"| {name} | {len(seconds)} | {err} | {p50:.3f} | {p95:.3f} | {max(seconds):.3f} |"
 
 
 def print_tables(s: Summary, stack: Stack, args: argparse.Namespace) -> None:
@@ -284,8 +288,9 @@ def print_tables(s: Summary, stack: Stack, args: argparse.Namespace) -> None:
     for phase in PHASES:
         samples = ([t for c in s.clinicians for t in c.poll_s] if phase.startswith("job poll")
                    else [c.phase_s[phase] for c in s.clinicians if phase in c.phase_s])
-        errors = 0 if phase.startswith("job poll") else sum(c.error is not None and c.error.phase == phase
-                                                               for c in s.clinicians)
+        # a failed poll ends its clinician's "job wait": its error is counted there, not per poll
+        errors = None if phase.startswith("job poll") else sum(c.error is not None and c.error.phase == phase
+                                                                  for c in s.clinicians)
         print(_phase_row(phase, samples, errors))
     busy = sum(c.busy_retries for c in s.clinicians)
     overlap = sum(c.finished_at is not None and c.finished_at - s.t0 <= args.read_seconds for c in s.clinicians)

@@ -235,8 +235,8 @@ def test_final_stage_environment_writes_only_under_data(dockerfile, compose):
     for name in CHAKAMO_SERVICES:
         service = compose["services"][name]
         assert str(data) in volume_mounts(service), name
-        if service.get("read_only"):
-            assert "/tmp" in service.get("tmpfs", []), name
+        assert service.get("read_only") is True, name
+        assert "/tmp" in service.get("tmpfs", []), name
         assert service_environment(service)["CHAKAMO_DATA_DIR"] == str(data)
 
 

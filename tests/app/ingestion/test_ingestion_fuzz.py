@@ -116,7 +116,7 @@ def test_the_table_has_at_least_30_kinds_each_described():
 @pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx"])
 def test_the_unmutated_sessions_load(sessions, fmt):
     """Without this, a refusal could be the starting session's fault rather than the mutation's."""
-    _check_outcome("utf8_bom", sessions[fmt], ())
+    assert _check_outcome("utf8_bom", sessions[fmt], ()) == "loaded"
 
 
 @pytest.mark.parametrize("kind", sorted(KINDS))

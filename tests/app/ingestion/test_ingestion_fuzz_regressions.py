@@ -134,7 +134,9 @@ def test_stream_renamed_out_of_the_pattern_is_named(folder):
 
 def test_upper_case_extension_is_read(folder):
     """Was: ``.CSV`` files ignored, so "missing recording(s): task of the thigh"."""
-    for p in folder.glob("step-muslo*"):
+    renamed = list(folder.glob("step-muslo*"))
+    assert renamed
+    for p in renamed:
         p.rename(p.with_suffix(".CSV"))
     s = load_session(folder)
     assert all(f.endswith(".CSV") for f in s.recording("thigh", "task").source["files"])

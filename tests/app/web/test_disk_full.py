@@ -41,9 +41,9 @@ def small_blob_disk(tmp_path):
         subprocess.run(["umount", "-l", str(blobs)], capture_output=True, timeout=30)
 
 
-def _used_bytes(folder) -> int:
-    st = os.statvfs(folder)
-    return (st.f_blocks - st.f_bfree) * st.f_frsize
+def _blobs(folder) -> set[str]:
+    """The content addresses stored under ``folder`` (``aa/bbbb…`` → ``aabbbb…``), temporary files left out."""
+    return {p.parent.name + p.name for p in folder.glob("??/*") if p.is_file()}
 
 
 def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, small_blob_disk, demo_dir):
@@ -60,7 +60,8 @@ def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, 
         r = client.post(f"/api/v1/sessions/{session_id}/recordings", files=demo_files(demo_dir), headers=h)
         assert r.status_code == 201 and r.json()["ingestion"]["ok"], r.text
         _mount(["-o", f"remount,size={upload_bytes + 2**20}", str(small_blob_disk)])  # ~1 MB left
-        used_before = _used_bytes(small_blob_disk)
+        uploads = _blobs(small_blob_disk)
+        assert len(uploads) == len(demo_files(demo_dir))
 
         job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={}, headers=h)
                        .json()["job_id"], h)
@@ -68,7 +69,7 @@ def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, 
         assert "disk is full" in job["error"] and "process the session again" in job["error"], job["error"]
         assert client.get(f"/api/v1/sessions/{session_id}/results", headers=h).status_code == 404
         assert list((small_blob_disk / ".incoming").iterdir()) == []  # no partial file left behind
-        assert used_before <= _used_bytes(small_blob_disk)  # the uploads are all still there
+        assert uploads <= _blobs(small_blob_disk)  # every upload still stored
 
         _mount(["-o", "remount,size=64m", str(small_blob_disk)])  # the administrator frees space
         job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={}, headers=h)
