@@ -40,21 +40,11 @@ def browser():
 def pg_url():
     """URL of a new empty PostgreSQL database (``CHAKAMO_TEST_POSTGRES_URL``'s server; dropped after the test)."""
     import os
-    import uuid
 
-    from sqlalchemy import create_engine
-    from sqlalchemy.engine import make_url
+    from live_fixtures import fresh_database
 
     server = os.environ.get("CHAKAMO_TEST_POSTGRES_URL")
     if not server:
         pytest.skip("CHAKAMO_TEST_POSTGRES_URL not set (no PostgreSQL server)")
-    admin = create_engine(server, isolation_level="AUTOCOMMIT")
-    name = f"chakamo_test_{uuid.uuid4().hex[:12]}"
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    try:
-        yield make_url(server).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as conn:
-            conn.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
-        admin.dispose()
+    with fresh_database(server) as url:
+        yield url

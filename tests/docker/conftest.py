@@ -8,19 +8,12 @@ compose file's ``postgres`` and ``redis`` services.
 from __future__ import annotations
 
 import pytest
-
-from benchmarks.live_services import Missing, RedisServer
+from live_fixtures import running_redis
 
 
 @pytest.fixture
 def redis_url(tmp_path):
     """``redis://127.0.0.1:PORT/0`` of a redis-server started for this test (append-only file, as in compose),
     in a temporary directory; stopped after the test."""
-    try:
-        server = RedisServer(tmp_path / "redis", persistent=True).start()
-    except Missing as exc:
-        pytest.skip(str(exc))
-    try:
+    with running_redis(tmp_path / "redis", persistent=True) as server:
         yield server.url
-    finally:
-        server.stop()

@@ -14,6 +14,7 @@ import time
 import pytest
 
 from benchmarks.live_services import ChakamoProcess, Missing, PostgresServer, RedisServer, chakamo_env, wait_until
+from live_fixtures import fresh_database, running_redis
 from web_helpers import clinic_token, demo_files, make_settings, new_session, wait_job
 
 
@@ -35,29 +36,14 @@ def postgres():
 @pytest.fixture
 def database(postgres):
     """A fresh database on the private server, its URL."""
-    import uuid
-
-    from sqlalchemy import create_engine
-    from sqlalchemy.engine import make_url
-
-    admin = create_engine(postgres.url, isolation_level="AUTOCOMMIT")
-    name = f"chk_{uuid.uuid4().hex[:10]}"
-    with admin.connect() as conn:
-        conn.exec_driver_sql(f'CREATE DATABASE "{name}"')
-    admin.dispose()
-    return make_url(postgres.url).set(database=name).render_as_string(hide_password=False)
+    with fresh_database(postgres.url) as url:
+        yield url
 
 
 @pytest.fixture
 def redis(tmp_path):
-    try:
-        server = RedisServer(tmp_path / "redis").start()
-    except Missing as exc:
-        pytest.skip(str(exc))
-    try:
+    with running_redis(tmp_path / "redis") as server:
         yield server
-    finally:
-        server.stop()
 
 
 class Deployment:
@@ -122,15 +108,10 @@ def _worker_log(dep) -> str:
 def _analyses(dep, session_id: int) -> int:
     from sqlalchemy import func, select
 
-    from app.db import Database
     from app.db.models import Analysis
 
-    db = Database(dep.database)
-    try:
-        with db.session() as s:
-            return s.scalar(select(func.count()).select_from(Analysis).where(Analysis.session_id == session_id))
-    finally:
-        db.dispose()
+    with dep.client.app.state.db.session() as s:  # the API's own database (one engine, not one per look)
+        return s.scalar(select(func.count()).select_from(Analysis).where(Analysis.session_id == session_id))
 
 
 def _stored_files(dep, session_id: int) -> int:
@@ -142,35 +123,25 @@ def _stored_files(dep, session_id: int) -> int:
 def _artefacts(dep, analysis_id: int) -> dict[tuple[str, str], str]:
     from sqlalchemy import select
 
-    from app.db import Database
     from app.db.models import Artefact
 
-    db = Database(dep.database)
-    try:
-        with db.session() as s:
-            return {(a.name, a.lang): a.sha256 for a in s.scalars(select(Artefact).where(Artefact.analysis_id == analysis_id))}
-    finally:
-        db.dispose()
+    with dep.client.app.state.db.session() as s:
+        return {(a.name, a.lang): a.sha256 for a in s.scalars(select(Artefact).where(Artefact.analysis_id == analysis_id))}
 
 
 def _job_row(dep, job_id: int):
-    from app.db import Database
     from app.db.models import Job
 
-    db = Database(dep.database)
-    try:
-        with db.session() as s:
-            job = s.get(Job, job_id)
-            s.expunge(job)
-            return job
-    finally:
-        db.dispose()
+    with dep.client.app.state.db.session() as s:
+        job = s.get(Job, job_id)
+        s.expunge(job)
+        return job
 
 
 def test_jobs_run_on_celery_workers_and_readyz_sees_the_broker(deployment, demo_dir):
     dep = deployment
     assert dep.client.get("/readyz").json() == {"status": "ready", "backend": "celery", "database": "ok",
-                                                     "jobs": "ok"}
+                                                "jobs": "ok"}
     dep.worker(concurrency=2)
     session_id = _upload_session(dep, demo_dir, "CEL-1")
     job = wait_job(dep.client, _process(dep, session_id), dep.headers, timeout_s=180)
