@@ -164,19 +164,29 @@ class ChakamoProcess:
             self.proc.wait(10)
 
     def stop(self, timeout_s: float = 20.0) -> None:
-        """SIGTERM (warm shutdown), then SIGKILL after ``timeout_s``."""
+        """SIGTERM (warm shutdown), then SIGKILL after ``timeout_s``; children left in the group (a Celery
+        worker's pool processes) are killed either way."""
         if self.proc is not None and self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGTERM)
             try:
                 self.proc.wait(timeout_s)
             except subprocess.TimeoutExpired:
                 self.kill()
+        if self.proc is not None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
         if getattr(self, "_out", None):
             self._out.close()
             self._out = None
 
     def output(self) -> str:
         return self.log.read_text(errors="replace") if self.log.exists() else ""
+
+    def tail(self, lines: int = 40) -> str:
+        """The last ``lines`` lines of its output (for a failure message)."""
+        return "\n".join(self.output().splitlines()[-lines:]) or "(no output)"
 
 
 def chakamo_env(data_dir: Path, **extra: str) -> dict[str, str]:

@@ -49,10 +49,6 @@ class Stack:
     describe: str  # one line: what runs
 
 
-def _tail(proc: ChakamoProcess, lines: int = 15) -> str:
-    return "\n".join(proc.output().splitlines()[-lines:])
-
-
 def failure_excerpt(stack: Stack, tail: int = 14) -> str:
     """Per process log: how often each exception was logged and the end of the last traceback (the logs are
     deleted with the temporary folder, so a failed run must show them)."""
@@ -117,7 +113,7 @@ def running_stack(root: Path, backend: str, workers: int) -> Iterator[Stack]:
             wait_until(lambda: api.proc.poll() is None and _api_ready(base_url), START_TIMEOUT_S,
                        "chakamo serve answering /readyz with 200", every_s=0.25)
         except AssertionError as exc:
-            raise RuntimeError(f"{exc}; its log ends with:\n{_tail(api)}") from None
+            raise RuntimeError(f"{exc}; its log ends with:\n{api.tail(15)}") from None
 
         procs: list[ChakamoProcess] = []
         if backend == "celery":
@@ -130,7 +126,7 @@ def running_stack(root: Path, backend: str, workers: int) -> Iterator[Stack]:
                     wait_until(lambda w=w: w.proc.poll() is None and " ready." in w.output(), START_TIMEOUT_S,
                                f"chakamo worker {i} ready", every_s=0.25)
                 except AssertionError as exc:
-                    raise RuntimeError(f"{exc}; its log ends with:\n{_tail(w)}") from None
+                    raise RuntimeError(f"{exc}; its log ends with:\n{w.tail(15)}") from None
             describe = (f"API: chakamo serve (1 uvicorn process); jobs: {workers} chakamo worker processes "
                         f"(Celery prefork, --concurrency 1 each); PostgreSQL {pg.port}, Redis {redis.port}")
         else:

@@ -10,7 +10,6 @@ names become the test's own database and redis-server, the image's ``/data`` bec
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -19,7 +18,7 @@ import urllib.request
 from pathlib import Path, PurePosixPath
 from urllib.parse import urlsplit, urlunsplit
 
-from benchmarks.live_services import free_port
+from benchmarks.live_services import ChakamoProcess, free_port
 from deploy_files import interpolate
 
 
@@ -72,35 +71,11 @@ def loopback_environment(image_env: dict[str, str], compose_env: dict[str, str],
     return base | adapted
 
 
-def start(argv: list[str], env: dict[str, str], log_path: Path) -> subprocess.Popen:
-    """Start ``argv`` in a new process group (a Celery worker forks children), output into ``log_path``."""
-    log = open(log_path, "wb")  # noqa: SIM115 (closed by stop())
-    proc = subprocess.Popen(argv, env=env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                            start_new_session=True)
-    proc.log_file = log  # type: ignore[attr-defined]
-    return proc
-
-
-def stop(proc: subprocess.Popen, grace_s: float = 20.0) -> None:
-    """SIGTERM to the process group, SIGKILL after ``grace_s`` (only this process' own group)."""
-    if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=grace_s)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=grace_s)
-        except ProcessLookupError:
-            pass
-    try:    # children left behind in the group (a worker's pool)
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    proc.log_file.close()  # type: ignore[attr-defined]
-
-
-def log_tail(path: Path, n_chars: int = 3000) -> str:
-    return path.read_text(errors="replace")[-n_chars:] if path.exists() else "(no output)"
+def chakamo_process(command: list[str], env: dict[str, str], log_path: Path) -> ChakamoProcess:
+    """A compose service's ``command`` (``["chakamo", ...]``) started as a real process of this machine."""
+    if command[0] != "chakamo":
+        raise ValueError(f"not a chakamo command: {command}")
+    return ChakamoProcess(command[1:], env, log_path).start()
 
 
 def http_status(url: str) -> int | None:
@@ -114,14 +89,13 @@ def http_status(url: str) -> int | None:
         return None
 
 
-def wait_for_status(url: str, procs: dict[str, subprocess.Popen], logs: dict[str, Path], *,
-                    timeout_s: float = 180.0) -> int:
+def wait_for_status(url: str, procs: dict[str, ChakamoProcess], *, timeout_s: float = 180.0) -> int:
     """Poll ``url`` until it answers at all; fail early with its log when one of ``procs`` exits."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        for name, proc in procs.items():
-            if proc.poll() is not None:
-                raise AssertionError(f"{name} exited with status {proc.returncode}:\n{log_tail(logs[name])}")
+        for name, p in procs.items():
+            if p.proc.poll() is not None:
+                raise AssertionError(f"{name} exited with status {p.proc.returncode}:\n{p.tail()}")
         status = http_status(url)
         if status is not None:
             return status
@@ -139,5 +113,5 @@ def run_healthcheck(command: list[str], port: int) -> int:
     return subprocess.run([sys.executable, "-c", program], capture_output=True, timeout=60).returncode
 
 
-__all__ = ["chakamo_argv", "free_port", "http_status", "log_tail", "loopback_environment", "run_healthcheck",
-           "start", "stop", "wait_for_status", "with_option"]
+__all__ = ["chakamo_argv", "chakamo_process", "free_port", "http_status", "loopback_environment", "run_healthcheck",
+           "wait_for_status", "with_option"]

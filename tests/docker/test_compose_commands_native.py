@@ -17,8 +17,8 @@ import urllib.request
 
 import pytest
 from deploy_files import healthcheck_command, load_compose, load_dockerfile, service_environment
-from native_run import (chakamo_argv, free_port, http_status, log_tail, loopback_environment, run_healthcheck,
-                        start, stop, wait_for_status, with_option)
+from native_run import (chakamo_argv, chakamo_process, free_port, http_status, loopback_environment, run_healthcheck,
+                        wait_for_status, with_option)
 
 pytest.importorskip("yaml")
 
@@ -43,7 +43,7 @@ def _migrate(argv: list[str], env: dict[str, str], tmp_path, run: int) -> None:
     with open(log, "wb") as out:
         done = subprocess.run(argv, env=env, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                               timeout=300)
-    assert done.returncode == 0, f"`chakamo migrate` (run {run}) exited {done.returncode}:\n{log_tail(log)}"
+    assert done.returncode == 0, f"`chakamo migrate` (run {run}) exited {done.returncode}:\n{log.read_text()[-3000:]}"
 
 
 def _alembic_revision(pg_url: str) -> str | None:
@@ -59,7 +59,7 @@ def _alembic_revision(pg_url: str) -> str | None:
         engine.dispose()
 
 
-def _wait_for_worker(broker_url: str, worker: subprocess.Popen, log, timeout_s: float = 180.0) -> list[dict]:
+def _wait_for_worker(broker_url: str, worker, timeout_s: float = 180.0) -> list[dict]:
     """Celery's own remote-control ping over the broker until a worker answers (bounded)."""
     from celery import Celery
 
@@ -67,12 +67,12 @@ def _wait_for_worker(broker_url: str, worker: subprocess.Popen, log, timeout_s: 
     deadline = time.monotonic() + timeout_s
     try:
         while time.monotonic() < deadline:
-            if worker.poll() is not None:
-                raise AssertionError(f"the worker exited with status {worker.returncode}:\n{log_tail(log)}")
+            if worker.proc.poll() is not None:
+                raise AssertionError(f"the worker exited with status {worker.proc.returncode}:\n{worker.tail()}")
             replies = client.control.ping(timeout=2.0)
             if replies:
                 return replies
-        raise AssertionError(f"no Celery worker answered a ping within {timeout_s:.0f} s:\n{log_tail(log)}")
+        raise AssertionError(f"no Celery worker answered a ping within {timeout_s:.0f} s:\n{worker.tail()}")
     finally:
         client.close()
 
@@ -91,31 +91,28 @@ def test_compose_commands_run_natively(tmp_path, pg_url, redis_url):
     assert _alembic_revision(pg_url) == revision
 
     port = free_port()
-    serve = with_option(with_option(chakamo_argv(services["api"]["command"]), "--host", "127.0.0.1"),
-                        "--port", str(port))
-    worker = chakamo_argv(services["worker"]["command"])
-    logs = {"api": tmp_path / "api.log", "worker": tmp_path / "worker.log"}
-    procs: dict[str, subprocess.Popen] = {}
+    serve = with_option(with_option(services["api"]["command"], "--host", "127.0.0.1"), "--port", str(port))
+    procs = {}
     try:
-        procs["api"] = start(serve, env, logs["api"])
-        procs["worker"] = start(worker, env, logs["worker"])
+        procs["api"] = chakamo_process(serve, env, tmp_path / "api.log")
+        procs["worker"] = chakamo_process(services["worker"]["command"], env, tmp_path / "worker.log")
         base = f"http://127.0.0.1:{port}"
-        wait_for_status(f"{base}/healthz", procs, logs)
+        wait_for_status(f"{base}/healthz", procs)
         deadline = time.monotonic() + 120.0
         while (status := http_status(f"{base}/readyz")) != 200 and time.monotonic() < deadline:
             time.sleep(1.0)
-        assert status == 200, f"/readyz answered {status}:\n{log_tail(logs['api'])}"
+        assert status == 200, f"/readyz answered {status}:\n{procs['api'].tail()}"
         assert http_status(f"{base}/healthz") == 200
         # the image's HEALTHCHECK, run as the engine would, says healthy
         health = healthcheck_command(load_dockerfile().final.all("HEALTHCHECK")[-1])
         assert run_healthcheck(health, port) == 0
-        replies = _wait_for_worker(redis_url, procs["worker"], logs["worker"])
+        replies = _wait_for_worker(redis_url, procs["worker"])
         assert len(replies) == 1, replies       # one `chakamo worker` started, one answers
-        for name, proc in procs.items():
-            assert proc.poll() is None, f"{name} exited:\n{log_tail(logs[name])}"
+        for name, p in procs.items():
+            assert p.proc.poll() is None, f"{name} exited:\n{p.tail()}"
     finally:
-        for proc in procs.values():
-            stop(proc)
+        for p in procs.values():
+            p.stop()
     assert not any((tmp_path / "home").iterdir()), sorted(p.name for p in (tmp_path / "home").iterdir())
 
 
@@ -126,21 +123,19 @@ def test_readyz_answers_503_while_the_broker_is_unreachable(tmp_path, pg_url):
     env = _environment(tmp_path, pg_url, f"redis://127.0.0.1:{free_port()}/0")    # nothing listens there
     _migrate(chakamo_argv(services["migrate"]["command"]), env, tmp_path, run=1)
     port = free_port()
-    serve = with_option(with_option(chakamo_argv(services["api"]["command"]), "--host", "127.0.0.1"),
-                        "--port", str(port))
-    logs = {"api": tmp_path / "api.log"}
-    procs: dict[str, subprocess.Popen] = {}
+    serve = with_option(with_option(services["api"]["command"], "--host", "127.0.0.1"), "--port", str(port))
+    procs = {}
     try:
-        procs["api"] = start(serve, env, logs["api"])
-        wait_for_status(f"http://127.0.0.1:{port}/healthz", procs, logs)
-        assert http_status(f"http://127.0.0.1:{port}/readyz") == 503
+        procs["api"] = chakamo_process(serve, env, tmp_path / "api.log")
+        wait_for_status(f"http://127.0.0.1:{port}/healthz", procs)
         with pytest.raises(urllib.error.HTTPError) as answer:
             urllib.request.urlopen(f"http://127.0.0.1:{port}/readyz", timeout=10)
+        assert answer.value.code == 503
         checks = json.loads(answer.value.read())
         assert checks["database"] == "ok" and checks["jobs"] != "ok", checks   # it is the broker that is down
         assert http_status(f"http://127.0.0.1:{port}/healthz") == 200
         health = healthcheck_command(load_dockerfile().final.all("HEALTHCHECK")[-1])
         assert run_healthcheck(health, port) != 0
     finally:
-        for proc in procs.values():
-            stop(proc)
+        for p in procs.values():
+            p.stop()
