@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from estimators import simulation as sim
-from estimators.motor_task import ANGLES
+from estimators.motor_task import ANGLES, EVENTS
 from estimators.simulation.knee import LegMotion
 
 from app.ingestion import (
@@ -122,6 +122,12 @@ def write_session(folder: Path, session: SimulatedSession, fmt: str = "metabase"
     return [*written, path]
 
 
+#: the simulator's phase events (the columns of ``LegMotion.phases_s`` and of ``demo_truth.npz``
+#: ``phases_s``), named as the motor-task analysis names its events, and their columns in ``events_s``
+TRUTH_PHASE_EVENTS = ("onset", "countermovement_peak", "far_left", "rest_reached")
+TRUTH_EVENT_COLUMNS = [EVENTS.index(e) for e in TRUTH_PHASE_EVENTS]
+
+
 def accuracy(outcome: SessionOutcome, truth: SimulatedSession, task_epoch_s: float | None = None) -> dict:
     """Knee-angle RMSE (°) over the task, cycles found, and phase-boundary errors (% of the true cycle).
 
@@ -147,14 +153,12 @@ def accuracy(outcome: SessionOutcome, truth: SimulatedSession, task_epoch_s: flo
         if abs(onsets[j] - t_start) > 0.25 * duration:
             continue
         found += 1
-        detected = outcome.t0_s + a.events_s[j, [0, 1, 3, 4]] - task_epoch_s
+        detected = outcome.t0_s + a.events_s[j, TRUTH_EVENT_COLUMNS] - task_epoch_s
         worst_pct = max(worst_pct, float(np.nanmax(np.abs(detected - motion.phases_s[k])) / duration * 100))
     return {"rmse_deg": rmse, "cycles_true": int(len(true_cycles)), "cycles_found": found,
             "cycles_accepted": int(a.n_accepted), "phase_boundary_max_error_pct": worst_pct}
 
 
-#: names of the columns of ``demo_truth.npz`` ``phases_s`` (the simulator's ``LegMotion.phases_s``)
-TRUTH_PHASE_EVENTS = ("onset", "peak_flexion", "far_left", "rest_reached")
 
 
 def truth_npz(truth: SimulatedSession) -> bytes:

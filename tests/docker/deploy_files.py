@@ -24,6 +24,8 @@ DOCKERIGNORE = REPO / ".dockerignore"
 
 #: the services that run the chakamo image (their ``command`` is a chakamo command line)
 CHAKAMO_SERVICES = ("migrate", "api", "worker")
+#: test values for the compose file's required secrets (never real ones)
+TEST_SECRETS = {"POSTGRES_PASSWORD": "pw-for-tests-only", "CHAKAMO_SECRET_KEY": "k" * 48}
 
 _VAR = re.compile(r"\$\$|\$\{(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?:(?P<op>:?[-?])(?P<arg>[^}]*))?\}"
                   r"|\$(?P<bare>[A-Za-z_][A-Za-z0-9_]*)")
@@ -192,7 +194,7 @@ def dockerignore_patterns() -> list[str]:
             if line.strip() and not line.strip().startswith("#")]
 
 
-__all__ = ["CHAKAMO_SERVICES", "COMPOSE_FILE", "DOCKERFILE", "DOCKERIGNORE", "DOCKER_DIR", "REPO", "Dockerfile",
+__all__ = ["CHAKAMO_SERVICES", "TEST_SECRETS", "COMPOSE_FILE", "DOCKERFILE", "DOCKERIGNORE", "DOCKER_DIR", "REPO", "Dockerfile",
            "InterpolationError", "Stage", "dockerignore_patterns", "exec_form", "healthcheck_command",
            "interpolate", "load_compose", "load_dockerfile", "service_environment", "variables_used",
            "volume_mounts"]

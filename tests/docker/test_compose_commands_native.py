@@ -16,14 +16,11 @@ import urllib.error
 import urllib.request
 
 import pytest
-from deploy_files import healthcheck_command, load_compose, load_dockerfile, service_environment
+from deploy_files import TEST_SECRETS, healthcheck_command, load_compose, load_dockerfile, service_environment
 from native_run import (chakamo_argv, chakamo_process, free_port, http_status, loopback_environment, run_healthcheck,
                         wait_for_status, with_option)
 
 pytest.importorskip("yaml")
-
-#: test values for the compose file's required secrets (never real ones)
-TEST_SECRETS = {"POSTGRES_PASSWORD": "unused-the-test-database-url-replaces-it", "CHAKAMO_SECRET_KEY": "n" * 48}
 
 
 def _environment(tmp_path, pg_url: str, broker_url: str) -> dict[str, str]:

@@ -19,7 +19,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import PurePosixPath
 
 import pytest
-from deploy_files import (CHAKAMO_SERVICES, COMPOSE_FILE, DOCKER_DIR, REPO, InterpolationError,
+from deploy_files import (CHAKAMO_SERVICES, COMPOSE_FILE, TEST_SECRETS, DOCKER_DIR, REPO, InterpolationError,
                           dockerignore_patterns, exec_form, healthcheck_command, interpolate, load_compose,
                           load_dockerfile, service_environment, variables_used, volume_mounts)
 from native_run import free_port, run_healthcheck
@@ -29,7 +29,6 @@ pytest.importorskip("yaml")
 #: variables the image sets that are not :class:`Settings` fields, and the module that reads each
 NON_SETTINGS_VARIABLES = {"CHAKAMO_FONT_CACHE": REPO / "reports" / "fonts.py"}
 #: test values for the compose file's required variables (never real secrets)
-TEST_SECRETS = {"POSTGRES_PASSWORD": "pw-for-tests-only", "CHAKAMO_SECRET_KEY": "k" * 48}
 
 
 @pytest.fixture(scope="module")

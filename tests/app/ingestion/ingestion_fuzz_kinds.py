@@ -25,7 +25,7 @@ from typing import Callable
 
 from hypothesis import strategies as st
 
-from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _lines, _save, _set_cell, converted_unit,
+from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _lines, _save, _set_cell, converted_unit,
                                      day_boundary, decimal_comma, declared_unit, duplicated_stamp, empty,
                                      extra_columns, gap_seconds, header_only, huge_value, label_two_roles,
                                      label_without_role, label_without_segment, line_endings, missing_column,
@@ -257,12 +257,7 @@ def generic_header_unit(folder, draw):
 
 
 def generic_column_missing(folder, draw):
-    p = _generic_file(folder, draw)
-    header, rows = _lines(p)
-    j = draw(st.integers(0, len(header.split(",")) - 1))
-    drop = lambda line: ",".join(c for k, c in enumerate(line.split(",")) if k != j)  # noqa: E731
-    _save(p, drop(header), [drop(r) for r in rows])
-    return (p,)
+    return _drop_column(_generic_file(folder, draw), draw)
 
 
 def generic_stream_blank(folder, draw):

@@ -192,13 +192,17 @@ def stray_separator(folder, draw):
     return (p,)
 
 
-def missing_column(folder, draw):
-    p = _metabase_file(folder, draw)
+def _drop_column(p: Path, draw: Draw) -> tuple[Path]:
+    """One column of CSV ``p`` (any of its header's) removed from every line."""
     header, rows = _lines(p)
-    j = draw(st.integers(0, 5))
+    j = draw(st.integers(0, len(header.split(",")) - 1))
     drop = lambda line: ",".join(c for k, c in enumerate(line.split(",")) if k != j)  # noqa: E731
     _save(p, drop(header), [drop(r) for r in rows])
     return (p,)
+
+
+def missing_column(folder, draw):
+    return _drop_column(_metabase_file(folder, draw), draw)
 
 
 def swapped_columns(folder, draw):

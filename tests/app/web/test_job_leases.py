@@ -30,13 +30,19 @@ def world(client, settings, demo_dir):
     return client, h, session_id
 
 
-def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches_stale_ones(settings, world):
+@pytest.fixture
+def stopped(world):
+    """The world with its server's job runner stopped: the function under test is called by hand."""
+    world[0].app.state.runner.shutdown()
+    return world
+
+
+def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches_stale_ones(settings, stopped):
     from app.db import Database
     from app.db.models import Job, utcnow
     from app.jobs import MAX_ATTEMPTS, mark_dispatched, sweep
 
-    client, _, session_id = world
-    client.app.state.runner.shutdown()  # the sweeper under test is called by hand
+    client, _, session_id = stopped
     db = Database(settings.db_url)
     old = utcnow() - dt.timedelta(seconds=120)
     lost = _job(db, session_id, status="running", attempts=1, started_at=old, heartbeat_at=old)
@@ -60,15 +66,14 @@ def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches
     db.dispose()
 
 
-def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, world):
+def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, stopped):
     """A worker that only looked lost (its lease expired): the sweeper gives its job to a new run; the old run's
     progress, failure and results are refused, so the new run's state stands."""
     from app.db import Database
     from app.db.models import Job
     from app.jobs import Superseded, _fail, _Progress, claim
 
-    client, _, session_id = world
-    client.app.state.runner.shutdown()
+    client, _, session_id = stopped
     db = Database(settings.db_url)
     job_id = _job(db, session_id, status="queued")
     first = claim(db, job_id)
@@ -86,14 +91,13 @@ def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, world):
     db.dispose()
 
 
-def test_a_run_cut_short_by_a_database_outage_resumes_without_using_an_attempt(settings, world):
+def test_a_run_cut_short_by_a_database_outage_resumes_without_using_an_attempt(settings, stopped):
     from app.db import Database
     from app.db.models import Job
     from app.jobs import claim, run_job
     from app.storage import open_storage
 
-    client, _, session_id = world
-    client.app.state.runner.shutdown()
+    client, _, session_id = stopped
     db = Database(settings.db_url)
     job_id = _job(db, session_id, status="queued")
     assert claim(db, job_id) == 1  # the run the outage cut short: still 'running' under attempt 1
@@ -106,14 +110,13 @@ def test_a_run_cut_short_by_a_database_outage_resumes_without_using_an_attempt(s
     db.dispose()
 
 
-def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, world):
+def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, stopped):
     from app.db import Database
     from app.db.models import utcnow
     from app.jobs import run_job
     from app.storage import open_storage
 
-    client, _, session_id = world
-    client.app.state.runner.shutdown()
+    client, _, session_id = stopped
     db = Database(settings.db_url)
     running = _job(db, session_id, status="running", attempts=1, heartbeat_at=utcnow())
     done = _job(db, session_id, status="done", attempts=1)
