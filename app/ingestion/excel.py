@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from app.ingestion.model import IngestionError, Stream
-from app.ingestion.tables import MAX_ABS_CELL, check_stamps
+from app.ingestion.tables import check_stamps, first_huge_cell, huge_text
 from app.ingestion.units import check_magnitude, unit_factor
 
 HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/s)", "y-axis (deg/s)",
@@ -110,9 +110,11 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
             except (TypeError, ValueError):
                 raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} holds {c!r}, which is not "
                                      f"a number; fix or delete that row.") from None
-            if not abs(table[i, j]) <= MAX_ABS_CELL:  # inf, nan typed as text, 1e300 (norms would overflow)
-                raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} holds {c!r}, beyond any "
-                                     f"time stamp or reading; fix or delete that row.")
+    huge = first_huge_cell(table)  # the CSV readers' check: inf, 1e300 (norms would overflow); nan is empty
+    if huge is not None:
+        i, j = huge
+        raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} {huge_text(table[i, j])}; "
+                             f"fix or delete that row.")
     streams = []
     for kind, (t_col, axes) in _GROUPS.items():
         units = {_CELL.match(header[i]).group("unit").strip() for i in axes}

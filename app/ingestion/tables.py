@@ -85,14 +85,25 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
                     raise IngestionError(
                         f"{path}: row {i + first_row}, column '{header[c]}' holds {cell!r}, which is not a number; "
                         f"fix or delete that row (decimal point '.', no thousands separator).") from None
-    with np.errstate(invalid="ignore"):
-        huge = np.abs(out) > MAX_ABS_CELL        # inf included; NaN (empty cells) compares False
-    if huge.any():
-        i, j = np.argwhere(huge)[0]
-        what = "is infinite" if np.isinf(out[i, j]) else f"holds {out[i, j]:.3g}, beyond any time stamp or reading"
-        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' {what}; "
+    huge = first_huge_cell(out)
+    if huge is not None:
+        i, j = huge
+        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' {huge_text(out[i, j])}; "
                              f"fix or delete that row.")
     return out
+
+
+def first_huge_cell(table: np.ndarray) -> tuple[int, int] | None:
+    """``(row, column)`` of the first cell of ``table`` beyond :data:`MAX_ABS_CELL` (inf included; NaN, an
+    empty cell, is not), or None."""
+    with np.errstate(invalid="ignore"):
+        huge = np.abs(table) > MAX_ABS_CELL
+    return tuple(int(k) for k in np.argwhere(huge)[0]) if huge.any() else None
+
+
+def huge_text(value: float) -> str:
+    """What is wrong with a cell :func:`first_huge_cell` found, for the message."""
+    return "is infinite" if np.isinf(value) else f"holds {value:.3g}, beyond any time stamp or reading"
 
 
 def check_stamps(path: Path, t_s: FloatArray, what: str = "time stamps", first_row: int = 2) -> None:
