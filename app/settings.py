@@ -24,7 +24,7 @@ Decisions: the default environment is ``production`` so that a forgotten variabl
 missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
 key and drops the cookie's ``Secure`` flag so plain-http localhost works).  Settings are never created at
 import time: :func:`get_settings` builds them on first use and caches them; tests pass their own
-:class:`Settings` to :func:`app.main.create_app`.
+:class:`Settings` to :func:`app.web.main.create_app`.
 """
 
 from __future__ import annotations

@@ -2,10 +2,10 @@
 
 ``python -m benchmarks.api_upload [--runs 3] [--workers 2]``
 
-A real uvicorn server (``uvicorn --factory app.main:create_app``) runs in a child process on 127.0.0.1 with
+A real uvicorn server (``uvicorn --factory app.web.main:create_app``) runs in a child process on 127.0.0.1 with
 a temporary ``CHAKAMO_DATA_DIR``; a clinic and an API token are made with the ``chakamo`` set-up functions.
 Each run, as a hospital system would: POST patient → POST session → POST the 24 MetaBase files of the demo
-session (:func:`app.demo.write_session`) → POST process → poll the job every 20 ms → GET report.pdf.
+session (:func:`app.pipeline.demo.write_session`) → POST process → poll the job every 20 ms → GET report.pdf.
 Printed per run: upload (incl. the ingestion check), processing (POST process → job done: pipeline, reports
 in three languages, Excel, HTML, 3D scene, storage), and the total; the first run is the server's first job.
 Loopback only; nothing leaves the machine.
@@ -31,7 +31,7 @@ def running_server(data_dir: Path, workers: int = 2):
     """``(base_url, bearer_headers)`` of a real server in a child process (stopped on exit)."""
     import httpx
 
-    from app import admin_cli
+    from app.cli import admin as admin_cli
     from app.settings import Settings
 
     env = dict(os.environ, CHAKAMO_ENV="development", CHAKAMO_DATA_DIR=str(data_dir), CHAKAMO_WORKERS=str(workers))
@@ -39,7 +39,7 @@ def running_server(data_dir: Path, workers: int = 2):
     admin_cli.create_clinic(settings, "Benchmark clinic")
     token = admin_cli.create_token(settings, clinic="Benchmark clinic", label="benchmark")
     port = free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "uvicorn", "--factory", "app.main:create_app", "--host",
+    proc = subprocess.Popen([sys.executable, "-m", "uvicorn", "--factory", "app.web.main:create_app", "--host",
                              "127.0.0.1", "--port", str(port), "--log-level", "warning", "--no-access-log"],
                             env=env, stderr=subprocess.DEVNULL)
     base = f"http://127.0.0.1:{port}"

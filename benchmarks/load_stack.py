@@ -4,8 +4,8 @@
 
 * a private PostgreSQL cluster (:class:`benchmarks.live_services.PostgresServer`, its ``postgres`` database)
   and ``redis-server`` (:class:`~benchmarks.live_services.RedisServer`) on free loopback ports;
-* ``chakamo migrate`` once, then a clinic and a clinician API token (:func:`app.admin_cli.create_clinic`,
-  :func:`~app.admin_cli.create_token`, on the same ``DATABASE_URL``);
+* ``chakamo migrate`` once, then a clinic and a clinician API token (:func:`app.cli.admin.create_clinic`,
+  :func:`~app.cli.admin.create_token`, on the same ``DATABASE_URL``);
 * ``chakamo serve`` (the API, one uvicorn process) and ``workers`` separate ``chakamo worker --concurrency 1``
   processes — "2 workers" is two Celery worker processes running one job each, the shape of two worker
   containers; each is waited for until Celery logs that it is ready, so start-up is not measured as
@@ -79,7 +79,7 @@ def _api_ready(base_url: str) -> bool:
 @contextmanager
 def running_stack(root: Path, backend: str, workers: int) -> Iterator[Stack]:
     """Start the deployment of ``backend`` with ``workers`` workers under ``root`` (module docstring)."""
-    from app import admin_cli
+    from app.cli import admin as admin_cli
     from app.settings import Settings
 
     if not (VENV_BIN / "chakamo").exists():

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.walk_ingestion import read_iez
+from app.research.walk_ingestion import read_iez
 from estimators.pdr import DETECTORS, METHODS, reconstruct
 from estimators.pdr.metrics import stance_positions
 from estimators.simulation.footpath import lane_footprints

@@ -40,9 +40,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--outputs", choices=("results", "all"), default="all")
     args = parser.parse_args(argv)
 
-    from app.demo import simulate_session, write_session
-    from app.pipeline import ProcessOptions
-    from app.process import process_folder
+    from app.pipeline.demo import simulate_session, write_session
+    from app.pipeline.session import ProcessOptions
+    from app.pipeline.process import process_folder
 
     with_reports = args.outputs == "all"
 

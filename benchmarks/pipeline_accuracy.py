@@ -3,7 +3,7 @@ r"""Knee-angle accuracy of the whole pipeline on simulated sessions with known t
 Usage: ``python -m benchmarks.pipeline_accuracy [--seeds 10] [--cycles 6] [--filter NAME]
 [--accelerometer-errors] [--calibration static|functional] [--supine-roll-out DEG]``
 
-Each seed simulates a session (:func:`app.demo.simulate_session`; odd seeds the right leg, even seeds the
+Each seed simulates a session (:func:`app.pipeline.demo.simulate_session`; odd seeds the right leg, even seeds the
 left), writes it as MetaBase files, processes it with ``chakamo process``'s code path and compares with the
 truth.  By default the sensors carry the goal's error set — noise, gyroscope bias, hard and soft iron, up to
 15° mounting misalignment, clock drift; ``--accelerometer-errors`` adds accelerometer bias, scale and axis
@@ -44,9 +44,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--supine-roll-out", type=float, default=0.0, metavar="DEG")
     args = parser.parse_args(argv)
 
-    from app.demo import accuracy, simulate_session, write_session
-    from app.pipeline import ProcessOptions
-    from app.process import process_folder
+    from app.pipeline.demo import accuracy, simulate_session, write_session
+    from app.pipeline.session import ProcessOptions
+    from app.pipeline.process import process_folder
 
     print(f"pipeline accuracy: {args.seeds} simulated sessions, {args.cycles} step-up cycles, filter {args.filter}, "
           f"accelerometer errors {'on' if args.accelerometer_errors else 'off (the goal conditions)'}, "

@@ -7,14 +7,14 @@
 //   sent as the `segment` / `role` form fields of its upload.
 // - A MAC typed in step 1 is used to catch swapped sensors, in the browser only (no server change):
 //   MetaBase file names carry their sensor's MAC (`…_MetaWear_{date}_{MAC}_{Stream}_{rate}Hz….csv`, the
-//   pattern of app/ingestion/metabase.py).  A zone whose files (being dropped, or stored) carry the MAC
+//   pattern of app/pipeline/ingestion/metabase.py).  A zone whose files (being dropped, or stored) carry the MAC
 //   given to the OTHER segment's sensor shows "sensors swapped?"; with a MAC given to the zone's own
 //   segment, files carrying a third MAC show "not this segment's sensor".  A MAC that matches neither is
 //   not flagged when only the other segment's MAC is known (it is then presumably this sensor's).  Only a
 //   warning: the upload goes ahead (the MAC typed may be the wrong one), and it is recomputed whenever the
 //   zone is drawn, so it also appears for files stored before the MAC was typed.
 // - Each zone uploads as soon as files are dropped or picked (several files per zone: a MetaBase recording
-//   is three CSV files).  The answer's ingestion check (app.ingestion over every stored file of the session)
+//   is three CSV files).  The answer's ingestion check (app.pipeline.ingestion over every stored file of the session)
 //   is shown at once, before processing; "Process" stays disabled until it is ok.
 // - Files without a zone (e.g. session.json, or uploaded through the API without segment/role) are listed
 //   in an "other files" zone; the ingestion rules recognise them from their names.
@@ -48,7 +48,7 @@ function saveSensors(sessionId, sensors) {
   try { localStorage.setItem(sensorsKey(sessionId), JSON.stringify(sensors)); } catch (_) { /* storage off */ }
 }
 
-// A MetaBase file name (FILE_NAME of app/ingestion/metabase.py); group 1 is the MAC.
+// A MetaBase file name (FILE_NAME of app/pipeline/ingestion/metabase.py); group 1 is the MAC.
 const METABASE_NAME = /^.*_MetaWear_\d{4}-\d{2}-\d{2}T\d{2}[.:]\d{2}[.:]\d{2}(?:[.:]\d{1,6})?_([0-9A-Fa-f]{12})_[A-Za-z ]+?_\d+(?:\.\d+)?Hz(?:_[^_]*)?\.csv$/;
 // A MAC inside a typed label: six hex pairs joined by ":" or "-" ("D4:F1:A2:B3:C4:E5"), or 12 hex digits.
 const TYPED_MAC = /(?:^|[^0-9A-Fa-f])((?:[0-9A-Fa-f]{2}[:-]){5}[0-9A-Fa-f]{2}|[0-9A-Fa-f]{12})(?![0-9A-Fa-f])/;

@@ -27,7 +27,7 @@ def chakamo_argv(command: list[str]) -> list[str]:
     if command[0] != "chakamo":
         raise ValueError(f"not a chakamo command: {command}")
     script = Path(sys.executable).with_name("chakamo")
-    head = [str(script)] if script.is_file() else [sys.executable, "-m", "app.cli"]
+    head = [str(script)] if script.is_file() else [sys.executable, "-m", "app.cli.main"]
     return head + command[1:]
 
 

@@ -102,8 +102,8 @@ def test_workers_run_two_replicas(compose):
 
 @pytest.mark.parametrize("service", CHAKAMO_SERVICES)
 def test_every_chakamo_command_parses_with_the_real_cli(compose, service):
-    """Needs ``chakamo migrate`` and ``chakamo worker`` in app/cli.py (issue 8, item 1)."""
-    from app.cli import _build_parser
+    """Needs ``chakamo migrate`` and ``chakamo worker`` in app/cli/main.py (issue 8, item 1)."""
+    from app.cli.main import _build_parser
 
     command = compose["services"][service]["command"]
     assert isinstance(command, list) and command[0] == "chakamo", command
@@ -115,7 +115,7 @@ def test_every_chakamo_command_parses_with_the_real_cli(compose, service):
 
 
 def test_api_serves_on_all_interfaces_of_the_published_port_and_checks_readyz(compose):
-    from app.cli import _build_parser
+    from app.cli.main import _build_parser
 
     api = compose["services"]["api"]
     args = _build_parser().parse_args(api["command"][1:])
@@ -254,7 +254,7 @@ def test_default_command_is_the_api_command_of_compose(dockerfile, compose):
 
 
 def test_ui_stays_beside_the_app_package_in_the_image(dockerfile):
-    """app/main.py serves ``Path(app.__file__).parents[1] / "static"``: the builder puts app/ and static/ in
+    """app/web/main.py serves ``Path(app.__file__).parents[1] / "static"``: the builder puts app/ and static/ in
     one folder, installs it editable there, and the runtime stage copies that folder to the same path."""
     builder = dockerfile.stages[0]
     workdir = builder.all("WORKDIR")[-1]

@@ -1,7 +1,7 @@
 """The demo's report.html and scene.viser, looked at in a real (headless) browser.
 
 A loopback HTTP server (127.0.0.1, free port) serves a temp folder holding the outputs of
-:func:`app.process.process_folder` on a simulated 3-cycle session, plus viser's static client
+:func:`app.pipeline.process.process_folder` on a simulated 3-cycle session, plus viser's static client
 (:func:`reports.scene.static_client_path`) as ``index.html``.  Headless Chromium takes screenshots of
 
 (a) ``report.html``: the plotly charts must be drawn — pixels of each angle's line colour exist;
@@ -43,9 +43,9 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
     """Base URL of a loopback server over the demo outputs and viser's client."""
-    from app.demo import simulate_session, write_session
-    from app.process import process_folder
-    from app.results import build_results, report_input
+    from app.pipeline.demo import simulate_session, write_session
+    from app.pipeline.process import process_folder
+    from app.pipeline.results import build_results, report_input
     from reports.scene import scene_html, static_client_path
 
     root = tmp_path_factory.mktemp("browser")

@@ -73,9 +73,9 @@ def _page_count(pdf: bytes) -> int:
 @pytest.fixture(scope="module")
 def demo_ri() -> ReportInput:
     """The demo session (10 step-up cycles, right leg) through the real pipeline."""
-    from app.demo import simulate_session, write_session
-    from app.process import process_folder
-    from app.results import build_results, report_input
+    from app.pipeline.demo import simulate_session, write_session
+    from app.pipeline.process import process_folder
+    from app.pipeline.results import build_results, report_input
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "session"

@@ -211,7 +211,7 @@ def test_scene_input_is_validated():
         scene.SceneData.from_report_input(ri).frame_indices(0.0)
 
 
-# ---------------------------------------------------------------- app/view.py
+# ---------------------------------------------------------------- app/pipeline/view.py
 
 
 def _write_out_dir(path, ri, drop=None):
@@ -230,7 +230,7 @@ def _write_out_dir(path, ri, drop=None):
 
 
 def test_load_view_input_reads_what_process_writes(tmp_path):
-    from app.view import load_view_input
+    from app.pipeline.view import load_view_input
 
     ri = make_input(n_cycles=1)
     out = _write_out_dir(tmp_path / "out", ri)
@@ -245,7 +245,7 @@ def test_load_view_input_reads_what_process_writes(tmp_path):
 
 
 def test_load_view_input_errors_say_what_to_do(tmp_path):
-    from app.view import ViewInputError, load_view_input
+    from app.pipeline.view import ViewInputError, load_view_input
 
     with pytest.raises(ViewInputError, match="results.json not found.*chakamo process"):
         load_view_input(tmp_path)
@@ -258,7 +258,7 @@ def test_load_view_input_errors_say_what_to_do(tmp_path):
 
 
 def test_serve_view_runs_until_stopped(tmp_path):
-    from app.view import serve_view
+    from app.pipeline.view import serve_view
 
     out = _write_out_dir(tmp_path / "out", make_input(n_cycles=1))
     stop = threading.Event()

@@ -34,7 +34,7 @@ def _random_q(n: int) -> np.ndarray:
 
 
 def _as_pipeline(w, segment: str) -> dict:
-    """A magnetometer warning as app.pipeline re-words it: the sensor in front, ``params["segment"]``."""
+    """A magnetometer warning as app.pipeline.session re-words it: the sensor in front, ``params["segment"]``."""
     return {"code": w.code, "message": f"{segment.capitalize()} sensor: {w.message}",
             "params": {**w.params, "segment": segment}}
 
@@ -87,7 +87,7 @@ def _produced() -> list[dict]:
     out += [w.to_dict() for w in analyse_task(sim.step_up(1, 0.17, seed=1).knee_angles_rad, 100.0).warnings]
     out += [w.to_dict() for w in analyse_task(sim.step_up(4, 0.17, seed=1).knee_angles_rad, 100.0, params=
                                               MotorTaskParams(rejection_rmse_rad=(1e-4, None, None))).warnings]
-    # ingestion notes as app.ingestion words them (the real ones are checked in tests/app)
+    # ingestion notes as app.pipeline.ingestion words them (the real ones are checked in tests/app)
     out += [{"code": "ingestion_note", "message": "shank lying: mag started 0.75 s before the common span (cut)",
              "params": {"variant": "stream_cut_before", "stream": "mag", "seconds": 0.7512, "segment": "shank",
                         "role": "lying"}},

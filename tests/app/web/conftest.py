@@ -35,7 +35,7 @@ def client(settings):
     """A TestClient on a fresh app (lifespan run: migrations applied, job runner started)."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     with TestClient(create_app(settings)) as c:
         yield c
@@ -44,7 +44,7 @@ def client(settings):
 @pytest.fixture(scope="session")
 def demo_dir(tmp_path_factory) -> Path:
     """The demo session written as MetaBase CSV files (24 files; its session.json left out: the API builds one)."""
-    from app.demo import simulate_session, write_session
+    from app.pipeline.demo import simulate_session, write_session
 
     folder = tmp_path_factory.mktemp("demo") / "session"
     write_session(folder, simulate_session(seed=7, side="right", n_cycles=6))

@@ -1,12 +1,12 @@
 """The browser UI (``static/``) end to end: a real Chromium drives the real app on loopback.
 
-The app (:func:`app.main.create_app`) runs under uvicorn in a thread on 127.0.0.1 and a free port, with a
+The app (:func:`app.web.main.create_app`) runs under uvicorn in a thread on 127.0.0.1 and a free port, with a
 temporary ``CHAKAMO_DATA_DIR`` in development mode; a clinic and its admin are created through the functions
-the ``chakamo`` CLI uses (:mod:`app.admin_cli`).  Playwright (``browser`` fixture of tests/conftest.py: Debian's
+the ``chakamo`` CLI uses (:mod:`app.cli.admin`).  Playwright (``browser`` fixture of tests/conftest.py: Debian's
 ``chromium``, headless) then does what a physiotherapist does:
 
 log in → create a patient (its name holds markup: it must show as text) → new session → wizard step 1
-(sensor ↔ segment) → step 2: the demo session of :func:`app.demo.write_session` (real MetaBase CSV files)
+(sensor ↔ segment) → step 2: the demo session of :func:`app.pipeline.demo.write_session` (real MetaBase CSV files)
 uploaded zone by zone with ``set_input_files``; after the first zone the ingestion check names what is
 missing, after the last it is ok → step 3: process → the progress bar reaches its end → results page:
 plotly's SVG in the three curve charts, the ROM table, the 3D view (viser's client in an iframe: bone-
@@ -87,7 +87,7 @@ def _free_port() -> int:
 
 def _make_clinic_admin(settings) -> None:
     """A clinic and its admin through the functions behind ``chakamo clinics create`` / ``users create``."""
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.create_clinic(settings, "Clínica E2E")
     admin_cli.create_user(settings, clinic="Clínica E2E", email=EMAIL, role="admin", name="Dra. E2E",
@@ -98,7 +98,7 @@ def _make_clinic_admin(settings) -> None:
 def server(tmp_path_factory):
     """Base URL of the real app (uvicorn thread on loopback, temporary data dir, development env)."""
     uvicorn = pytest.importorskip("uvicorn")
-    from app.main import create_app
+    from app.web.main import create_app
     from app.settings import Settings
 
     data_dir = tmp_path_factory.mktemp("chakamo-data")
@@ -124,8 +124,8 @@ def server(tmp_path_factory):
 @pytest.fixture(scope="module")
 def demo_files(tmp_path_factory):
     """The demo session's MetaBase files by (segment, role): what the physiotherapist drags in."""
-    from app.demo import simulate_session, write_session
-    from app.ingestion import session_label
+    from app.pipeline.demo import simulate_session, write_session
+    from app.pipeline.ingestion import session_label
 
     folder = tmp_path_factory.mktemp("demo-session")
     paths = write_session(folder, simulate_session(seed=7, side="right", n_cycles=3))

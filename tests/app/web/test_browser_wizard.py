@@ -15,7 +15,7 @@ from pathlib import Path
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     EMAIL, PASSWORD, WAIT_MS, _api_session, _no_raw_values, demo_files, server, slow_expect)
 
-THIGH_MAC, SHANK_MAC = "D4:F1:A2:B3:C4:E5", "E8:C2:B1:A0:F9:D7"   # app.ingestion.writers.DEFAULT_MACS
+THIGH_MAC, SHANK_MAC = "D4:F1:A2:B3:C4:E5", "E8:C2:B1:A0:F9:D7"   # app.pipeline.ingestion.writers.DEFAULT_MACS
 
 
 def _drop(page, zone, paths: list[str]) -> None:

@@ -75,7 +75,7 @@ def deployment(request, tmp_path, database, redis):
     """The deployment; ``@pytest.mark.lease(S)`` gives its jobs a lease of S seconds instead of FAST's 4 s."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     marker = request.node.get_closest_marker("lease")
     dep = Deployment(tmp_path, database, redis, lease_s=marker.args[0] if marker else None)
@@ -108,7 +108,7 @@ def _worker_log(dep) -> str:
 def _analyses(dep, session_id: int) -> int:
     from sqlalchemy import func, select
 
-    from app.db.models import Analysis
+    from app.store.models import Analysis
 
     with dep.client.app.state.db.session() as s:  # the API's own database (one engine, not one per look)
         return s.scalar(select(func.count()).select_from(Analysis).where(Analysis.session_id == session_id))
@@ -123,14 +123,14 @@ def _stored_files(dep, session_id: int) -> int:
 def _artefacts(dep, analysis_id: int) -> dict[tuple[str, str], str]:
     from sqlalchemy import select
 
-    from app.db.models import Artefact
+    from app.store.models import Artefact
 
     with dep.client.app.state.db.session() as s:
         return {(a.name, a.lang): a.sha256 for a in s.scalars(select(Artefact).where(Artefact.analysis_id == analysis_id))}
 
 
 def _job_row(dep, job_id: int):
-    from app.db.models import Job
+    from app.store.models import Job
 
     with dep.client.app.state.db.session() as s:
         job = s.get(Job, job_id)

@@ -11,7 +11,7 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
 
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     caplog.set_level(logging.WARNING)
     answers, after_delete = [], []

@@ -49,7 +49,7 @@ def _blobs(folder) -> set[str]:
 def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, small_blob_disk, demo_dir):
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     upload_bytes = sum(len(f[1][1]) for f in demo_files(demo_dir))
     assert upload_bytes < 5 * 2**20  # the tmpfs takes the uploads, not the reports as well

@@ -1,4 +1,4 @@
-"""Leases, the sweeper and cohort reprocessing (``app.jobs``, ``app.reprocess``), on the embedded engine and
+"""Leases, the sweeper and cohort reprocessing (``app.jobs.work``, ``app.jobs.reprocess``), on the embedded engine and
 both databases: a job whose worker stopped beating is queued again (failed after MAX_ATTEMPTS), a job left
 queued is handed over again, a cohort is queued once (idempotent) and the running server picks it up."""
 
@@ -12,7 +12,7 @@ from web_helpers import clinic_token, demo_files, new_session, wait_job
 
 
 def _job(db, session_id: int, **values):
-    from app.db.models import Job
+    from app.store.models import Job
 
     with db.session() as s:
         job = Job(clinic_id=1, session_id=session_id, filter="guo", lang="es", log=[], **values)
@@ -38,9 +38,9 @@ def stopped(world):
 
 
 def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches_stale_ones(settings, stopped):
-    from app.db import Database
-    from app.db.models import Job, utcnow
-    from app.jobs import MAX_ATTEMPTS, mark_dispatched, sweep
+    from app.store.database import Database
+    from app.store.models import Job, utcnow
+    from app.jobs.work import MAX_ATTEMPTS, mark_dispatched, sweep
 
     client, _, session_id = stopped
     db = Database(settings.db_url)
@@ -69,9 +69,9 @@ def test_sweep_requeues_lost_jobs_fails_them_after_max_attempts_and_redispatches
 def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, stopped):
     """A worker that only looked lost (its lease expired): the sweeper gives its job to a new run; the old run's
     progress, failure and results are refused, so the new run's state stands."""
-    from app.db import Database
-    from app.db.models import Job
-    from app.jobs import Superseded, _fail, _Progress, claim
+    from app.store.database import Database
+    from app.store.models import Job
+    from app.jobs.work import Superseded, _fail, _Progress, claim
 
     client, _, session_id = stopped
     db = Database(settings.db_url)
@@ -92,10 +92,10 @@ def test_a_run_taken_over_by_the_sweeper_writes_nothing(settings, stopped):
 
 
 def test_a_run_cut_short_by_a_database_outage_resumes_without_using_an_attempt(settings, stopped):
-    from app.db import Database
-    from app.db.models import Job
-    from app.jobs import claim, run_job
-    from app.storage import open_storage
+    from app.store.database import Database
+    from app.store.models import Job
+    from app.jobs.work import claim, run_job
+    from app.store.blobs import open_storage
 
     client, _, session_id = stopped
     db = Database(settings.db_url)
@@ -111,10 +111,10 @@ def test_a_run_cut_short_by_a_database_outage_resumes_without_using_an_attempt(s
 
 
 def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, stopped):
-    from app.db import Database
-    from app.db.models import utcnow
-    from app.jobs import run_job
-    from app.storage import open_storage
+    from app.store.database import Database
+    from app.store.models import utcnow
+    from app.jobs.work import run_job
+    from app.store.blobs import open_storage
 
     client, _, session_id = stopped
     db = Database(settings.db_url)
@@ -128,7 +128,7 @@ def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, stopp
 
 
 def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings, world):
-    from app.reprocess import reprocess
+    from app.jobs.reprocess import reprocess
 
     client, h, session_id = world
     job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={"filter": "guo"},
@@ -159,7 +159,7 @@ def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings
 
 
 def test_cli_reprocess_and_worker_messages(settings, world, monkeypatch, capsys):
-    from app.cli import main
+    from app.cli.main import main
     from app.settings import get_settings
 
     monkeypatch.setenv("CHAKAMO_ENV", "development")

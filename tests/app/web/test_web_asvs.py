@@ -69,7 +69,7 @@ def world(tmp_path_factory):
     """An app with a clinic, a read-only token and a patient (ids for the paths)."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path_factory.mktemp("asvs") / "data")
     ro = clinic_token(settings, "ASVS", role="read_only")
@@ -147,8 +147,8 @@ def test_the_checks_catch_a_route_added_without_auth(world, settings):
     from fastapi import APIRouter, Depends
     from fastapi.testclient import TestClient
 
-    from app.api.deps import require
-    from app.main import create_app
+    from app.web.api.deps import require
+    from app.web.main import create_app
 
     app = create_app(settings)
     careless = APIRouter(prefix="/api/v1")
@@ -180,7 +180,7 @@ def _legacy_scrypt_hash(password: str) -> str:
 def _stored_hash(client) -> str:
     from sqlalchemy import select
 
-    from app.db.models import User
+    from app.store.models import User
 
     with client.app.state.db.session() as s:
         return s.scalar(select(User.password_hash).where(User.email == EMAIL))
@@ -189,14 +189,14 @@ def _stored_hash(client) -> str:
 def _set_hash(client, value: str) -> None:
     from sqlalchemy import update
 
-    from app.db.models import User
+    from app.store.models import User
 
     with client.app.state.db.session() as s:
         s.execute(update(User).where(User.email == EMAIL).values(password_hash=value))
 
 
 def test_new_hashes_are_argon2id_with_the_documented_cost():
-    from app import security
+    from app.web import security
 
     h = security.hash_password(PASSWORD)
     assert h.startswith("$argon2id$v=19$m=65536,t=2,p=1$") and PASSWORD not in h
@@ -210,7 +210,7 @@ def test_new_hashes_are_argon2id_with_the_documented_cost():
 def test_legacy_and_weaker_hashes_verify_and_ask_for_a_rehash():
     from argon2 import PasswordHasher
 
-    from app import security
+    from app.web import security
 
     legacy = _legacy_scrypt_hash(PASSWORD)
     assert security.verify_password(PASSWORD, legacy) and not security.verify_password("wrong password!", legacy)
@@ -220,7 +220,7 @@ def test_legacy_and_weaker_hashes_verify_and_ask_for_a_rehash():
 
 
 def test_login_upgrades_a_legacy_hash_once_the_password_is_right(settings, client):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.create_clinic(settings, "Legacy")
     admin_cli.create_user(settings, clinic="Legacy", email=EMAIL, role="clinician", password=PASSWORD)
@@ -238,7 +238,7 @@ def test_login_upgrades_a_legacy_hash_once_the_password_is_right(settings, clien
 def test_login_upgrades_an_argon2_hash_with_weaker_parameters(settings, client):
     from argon2 import PasswordHasher
 
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.create_clinic(settings, "Weak")
     admin_cli.create_user(settings, clinic="Weak", email=EMAIL, role="clinician", password=PASSWORD)
@@ -249,7 +249,7 @@ def test_login_upgrades_an_argon2_hash_with_weaker_parameters(settings, client):
 
 def test_hashing_is_bounded_in_concurrency(monkeypatch):
     """With every hashing slot taken, a new hash waits at most HASH_WAIT_S and then raises Busy."""
-    from app import security
+    from app.web import security
 
     monkeypatch.setattr(security, "HASH_WAIT_S", 0.05)
     with hash_slots_held() as held:
@@ -264,17 +264,17 @@ def test_hashing_is_bounded_in_concurrency(monkeypatch):
 # ------------------------------------------------------------------------------------ SQL via the ORM
 #: the places of app/ that run SQL text, each with its reason.  Key: (file under app/, the SQL).
 RAW_SQL_ALLOWED = {
-    ("db/__init__.py", "PRAGMA journal_mode=WAL"): "SQLite connection setting on connect; no ORM equivalent",
-    ("db/__init__.py", "PRAGMA foreign_keys=ON"): "SQLite connection setting on connect",
-    ("db/__init__.py", "PRAGMA busy_timeout=15000"): "SQLite connection setting on connect",
-    ("db/__init__.py", "PRAGMA synchronous=FULL"): "SQLite connection setting on connect",
-    ("main.py", "SELECT 1"): "/readyz: is the database reachable (no data, no input)",
-    ("inprocess.py", "SELECT pg_try_advisory_lock(:k)"): "PostgreSQL advisory lock: one in-process runner "
+    ("store/database.py", "PRAGMA journal_mode=WAL"): "SQLite connection setting on connect; no ORM equivalent",
+    ("store/database.py", "PRAGMA foreign_keys=ON"): "SQLite connection setting on connect",
+    ("store/database.py", "PRAGMA busy_timeout=15000"): "SQLite connection setting on connect",
+    ("store/database.py", "PRAGMA synchronous=FULL"): "SQLite connection setting on connect",
+    ("web/main.py", "SELECT 1"): "/readyz: is the database reachable (no data, no input)",
+    ("jobs/inprocess.py", "SELECT pg_try_advisory_lock(:k)"): "PostgreSQL advisory lock: one in-process runner "
                                                           "per database (a bound key, no ORM equivalent)",
-    ("inprocess.py", "SELECT pg_advisory_unlock(:k)"): "its release",
+    ("jobs/inprocess.py", "SELECT pg_advisory_unlock(:k)"): "its release",
 }
 #: migrations are written by developers and run before any request: constant SQL there is allowed
-MIGRATIONS = "migrations/"
+MIGRATIONS = "store/migrations/"
 _SQL_CALLS = {"execute", "exec_driver_sql", "executescript", "executemany", "scalar", "scalars"}
 
 
@@ -416,7 +416,7 @@ def test_api_answers_are_not_cached(world):
 def test_production_answers_carry_hsts(tmp_path):
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
     from app.settings import Settings
 
     settings = Settings(CHAKAMO_ENV="production", CHAKAMO_DATA_DIR=tmp_path, CHAKAMO_SECRET_KEY="k" * 40,

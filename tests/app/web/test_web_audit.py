@@ -1,4 +1,4 @@
-"""The audit log (app/audit.py, GET /api/v1/audit): every read, download, export and change of a patient's data
+"""The audit log (app/web/audit.py, GET /api/v1/audit): every read, download, export and change of a patient's data
 leaves exactly one event naming the actor, the action and the patient; admins of the clinic alone can list it,
 another clinic never sees it, no route changes it, and a read whose event cannot be written fails."""
 
@@ -23,10 +23,10 @@ def _token(settings, clinic: str, role: str, label: str) -> tuple[dict[str, str]
     """A bearer header of a new token and the token's id."""
     from sqlalchemy import select
 
-    from app import admin_cli
-    from app.db import Database
-    from app.db.models import ApiToken
-    from app.security import sha256_hex
+    from app.cli import admin as admin_cli
+    from app.store.database import Database
+    from app.store.models import ApiToken
+    from app.web.security import sha256_hex
 
     token = admin_cli.create_token(settings, clinic=clinic, role=role, label=label)
     db = Database(settings.db_url)
@@ -42,8 +42,8 @@ def world(tmp_path_factory, demo_dir):
     session; clinic B: an admin token and a patient of its own."""
     from fastapi.testclient import TestClient
 
-    from app import admin_cli
-    from app.main import create_app
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path_factory.mktemp("audit") / "data")
     admin_cli.create_clinic(settings, "Audit A")
@@ -224,7 +224,7 @@ def test_filters_order_and_limit(world):
 
 
 def test_the_log_is_append_only_from_the_api(world):
-    """No route but GET reaches the audit log, and no product code outside app/audit.py writes AuditEvent."""
+    """No route but GET reaches the audit log, and no product code outside app/web/audit.py writes AuditEvent."""
     c, h = world["c"], world["a_admin"]
     audit_routes = [(m, p) for m, p, _ in app_routes(c.app) if "audit" in p]
     assert audit_routes == [("GET", "/api/v1/audit")]
@@ -238,7 +238,7 @@ def test_the_log_is_append_only_from_the_api(world):
         rel = path.relative_to(APP_DIR).as_posix()
         if re.search(r"(update|delete)\(\s*AuditEvent|AuditEvent\.__table__\.(update|delete)", text):
             writers.append(rel)
-        if "AuditEvent(" in text and rel not in ("audit.py", "db/models.py"):
+        if "AuditEvent(" in text and rel not in ("web/audit.py", "store/models.py"):
             writers.append(rel)
     assert writers == []
 
@@ -248,8 +248,8 @@ def _fail_closed(settings, create_trigger: list[str]) -> None:
     from fastapi.testclient import TestClient
     from sqlalchemy import text
 
-    from app import admin_cli
-    from app.main import create_app
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
 
     with TestClient(create_app(settings), raise_server_exceptions=False) as c:
         admin_cli.create_clinic(settings, "Closed")
@@ -286,8 +286,8 @@ def test_a_read_whose_event_cannot_be_written_fails_on_postgresql(tmp_path, pg_u
 def test_events_and_their_listing_on_postgresql(tmp_path, pg_url):
     from fastapi.testclient import TestClient
 
-    from app import admin_cli
-    from app.main import create_app
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path / "data", DATABASE_URL=pg_url)
     with TestClient(create_app(settings)) as c:

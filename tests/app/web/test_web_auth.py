@@ -11,7 +11,7 @@ EMAIL, PASSWORD = "admin@clinic.test", "a long enough password"
 
 @pytest.fixture
 def admin(settings):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.create_clinic(settings, "Clínica Sur")
     admin_cli.create_user(settings, clinic="Clínica Sur", email=EMAIL, role="admin", password=PASSWORD, name="Ana")
@@ -37,8 +37,8 @@ def test_login_sets_a_strict_httponly_cookie_and_returns_csrf(client, admin):
 def test_secure_cookie_outside_development(tmp_path):
     from fastapi.testclient import TestClient
 
-    from app import admin_cli
-    from app.main import create_app
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
     from app.settings import Settings
 
     settings = Settings(CHAKAMO_ENV="production", CHAKAMO_DATA_DIR=tmp_path, CHAKAMO_SECRET_KEY="k" * 40,
@@ -135,7 +135,7 @@ def test_failures_from_one_address_are_throttled_across_emails(client, admin):
 def test_the_throttle_forgets_expired_failures():
     import time
 
-    from app.security import LoginThrottle
+    from app.web.security import LoginThrottle
 
     throttle = LoginThrottle(max_failures=2, window_s=0.05)
     for i in range(500):
@@ -148,7 +148,7 @@ def test_the_throttle_forgets_expired_failures():
 
 def test_too_many_password_checks_at_once_answer_503(client, admin, monkeypatch):
     """All password-hashing slots busy (held here): a login waits a bounded time, then answers 503, not a pile-up."""
-    from app import security
+    from app.web import security
 
     monkeypatch.setattr(security, "HASH_WAIT_S", 0.05)
     with hash_slots_held() as held:

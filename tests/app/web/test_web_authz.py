@@ -13,7 +13,7 @@ def world(tmp_path_factory, demo_dir):
     """Clinic A with a processed session; clinic B with a token (and a patient of its own)."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path_factory.mktemp("authz") / "data")
     a = clinic_token(settings, "Clinic A")
@@ -102,8 +102,8 @@ def test_another_clinics_analysis_id_with_ones_own_session_id(world, path):
 
 
 def _patient_sex(world, value):
-    from app.db import Database
-    from app.db.models import Patient
+    from app.store.database import Database
+    from app.store.models import Patient
 
     db = Database(world["settings"].db_url)
     with db.session() as s:
@@ -126,8 +126,8 @@ def test_fhir_export_of_data_it_cannot_express_is_409_with_a_sentence(world):
 def test_a_damaged_stored_file_answers_a_reference_not_a_path(world, caplog):
     import logging
 
-    from app.db import Database
-    from app.db.models import Artefact
+    from app.store.database import Database
+    from app.store.models import Artefact
 
     c, settings = world["client"], world["settings"]
     db = Database(settings.db_url)

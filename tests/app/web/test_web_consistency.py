@@ -12,13 +12,13 @@ F = [("files", ("a.csv", b"time,acc_x\n", "text/csv"))]
 
 
 def _db(settings):
-    from app.db import Database
+    from app.store.database import Database
 
     return Database(settings.db_url)
 
 
 def test_uploads_deletes_and_processing_wait_for_the_running_job(client, settings):
-    from app.db.models import Job, KneeSession
+    from app.store.models import Job, KneeSession
 
     h = clinic_token(settings, "Q")
     _, sid = new_session(client, h)
@@ -51,8 +51,8 @@ def test_uploads_deletes_and_processing_wait_for_the_running_job(client, setting
 def test_a_check_of_older_files_never_overwrites_a_newer_one(client, settings):
     """Delete one file and upload another (the count stays 1): a check computed for the first file, stored
     late, is refused; the session shows the check of its current file."""
-    from app.api.recordings import save_ingestion
-    from app.db.models import KneeSession
+    from app.web.api.recordings import save_ingestion
+    from app.store.models import KneeSession
 
     h = clinic_token(settings, "V")
     _, sid = new_session(client, h)
@@ -76,7 +76,7 @@ def test_a_lost_check_is_redone_not_reported_as_no_recordings(client, settings, 
     """The request that should have stored the check died: reading the session checks its files again."""
     from web_helpers import demo_files
 
-    from app.db.models import KneeSession
+    from app.store.models import KneeSession
 
     h = clinic_token(settings, "L")
     _, sid = new_session(client, h)
@@ -95,7 +95,7 @@ def test_a_lost_check_is_redone_not_reported_as_no_recordings(client, settings, 
 def test_processing_a_session_whose_check_was_lost_checks_it_again(client, settings):
     """POST /process on a stale check redoes it before deciding: the 409 gives the files' real problem, and
     the check is stored for the current files."""
-    from app.db.models import KneeSession
+    from app.store.models import KneeSession
 
     h = clinic_token(settings, "R")
     _, sid = new_session(client, h)

@@ -20,7 +20,7 @@ def pooled_client(tmp_path):
     """The production-like app: a warm render process beside the job thread."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1)
     app = create_app(settings)
@@ -30,7 +30,7 @@ def pooled_client(tmp_path):
 
 
 def test_minimal_hospital_contract(pooled_client, demo_dir):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     client, settings = pooled_client
     admin_cli.create_clinic(settings, "Hospital Norte")

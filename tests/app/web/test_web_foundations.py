@@ -52,8 +52,8 @@ def test_get_settings_reads_the_environment_once(monkeypatch, tmp_path):
 def test_foreign_keys_are_enforced(tmp_path):
     from sqlalchemy.exc import IntegrityError
 
-    from app.db import Database
-    from app.db.models import Patient
+    from app.store.database import Database
+    from app.store.models import Patient
 
     db = Database(f"sqlite:///{tmp_path}/f.db")
     db.migrate()
@@ -65,7 +65,7 @@ def test_foreign_keys_are_enforced(tmp_path):
 
 # -------------------------------------------------------------------------------------------- storage
 def test_blob_store_is_content_addressed_and_verified(tmp_path):
-    from app.storage import BlobStore, CorruptBlob, TooLarge
+    from app.store.blobs import BlobStore, CorruptBlob, TooLarge
 
     store = BlobStore(tmp_path)
     sha, size = store.put(b"hello")
@@ -89,7 +89,7 @@ def test_blob_store_is_content_addressed_and_verified(tmp_path):
 
 # -------------------------------------------------------------------------------------------- security
 def test_passwords_tokens_csrf():
-    from app import security
+    from app.web import security
 
     h = security.hash_password("correct horse battery")
     assert h.startswith("$argon2id$") and "correct" not in h
@@ -108,11 +108,11 @@ def test_passwords_tokens_csrf():
 
 # -------------------------------------------------------------------------------------------- CLI
 def test_cli_setup_commands(monkeypatch, tmp_path, capsys):
-    from app.admin_cli import ROLES as CLI_ROLES
-    from app.cli import main
-    from app.db import Database
-    from app.db.models import ROLES, ApiToken, User
-    from app.security import sha256_hex
+    from app.cli.admin import ROLES as CLI_ROLES
+    from app.cli.main import main
+    from app.store.database import Database
+    from app.store.models import ROLES, ApiToken, User
+    from app.web.security import sha256_hex
     from app.settings import get_settings
 
     assert CLI_ROLES == ROLES
@@ -162,10 +162,11 @@ def test_non_api_routes_work_offline(client):
 def test_roles_and_languages_are_defined_once():
     import typing
 
-    from app import admin_cli, security
-    from app.api import deps, schemas
-    from app.db import models
-    from app.render import LANGS
+    from app.cli import admin as admin_cli
+    from app.web import security
+    from app.web.api import deps, schemas
+    from app.store import models
+    from app.pipeline.render import LANGS
     from reports.i18n import LANGUAGES
 
     assert admin_cli.ROLES is models.ROLES is security.ROLES

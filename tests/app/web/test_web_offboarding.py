@@ -1,5 +1,5 @@
 """Offboarding: ``chakamo tokens list|revoke`` and ``users deactivate|set-password``, checked through the CLI
-functions, through ``app.cli.main`` and through the API (a revoked token, a deactivated user's open browser,
+functions, through ``app.cli.main.main`` and through the API (a revoked token, a deactivated user's open browser,
 an old password after a reset)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ NEW_PASSWORD = "another long password"
 
 @pytest.fixture
 def cli_env(monkeypatch, settings):
-    """``app.cli.main`` on the same data dir (hence database) as the ``client`` fixture's app."""
+    """``app.cli.main.main`` on the same data dir (hence database) as the ``client`` fixture's app."""
     from app.settings import get_settings
 
     monkeypatch.setenv("CHAKAMO_ENV", "development")
@@ -29,7 +29,7 @@ def cli_env(monkeypatch, settings):
 
 @pytest.fixture
 def user(settings):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.create_clinic(settings, CLINIC)
     admin_cli.create_user(settings, clinic=CLINIC, email=EMAIL, role="clinician", password=PASSWORD, name="Ana")
@@ -43,8 +43,8 @@ def _sessions_of(settings, email: str) -> tuple[bool, int]:
     """(active, number of browser sessions) of the user ``email``, read from the database."""
     from sqlalchemy import func, select
 
-    from app.db import Database
-    from app.db.models import BrowserSession, User
+    from app.store.database import Database
+    from app.store.models import BrowserSession, User
 
     db = Database(settings.db_url)
     try:
@@ -60,8 +60,8 @@ def _sessions_of(settings, email: str) -> tuple[bool, int]:
 def test_revoked_token_gets_401_and_the_others_still_work(client, settings, cli_env, capsys):
     from web_helpers import clinic_token
 
-    from app import admin_cli
-    from app.cli import main
+    from app.cli import admin as admin_cli
+    from app.cli.main import main
 
     his = clinic_token(settings, CLINIC)
     lab = clinic_token(settings, CLINIC, role="read_only")
@@ -104,8 +104,8 @@ def test_revoked_token_gets_401_and_the_others_still_work(client, settings, cli_
 
 
 def test_token_errors_are_one_clear_sentence(settings, cli_env, capsys):
-    from app import admin_cli
-    from app.cli import main
+    from app.cli import admin as admin_cli
+    from app.cli.main import main
 
     admin_cli.create_clinic(settings, CLINIC)
     assert main(["tokens", "list", "--clinic", CLINIC]) == 0
@@ -125,8 +125,8 @@ def test_token_errors_are_one_clear_sentence(settings, cli_env, capsys):
 
 # ------------------------------------------------------------------------------------------------- users
 def test_deactivated_user_is_logged_out_at_once_and_cannot_log_in(client, settings, user, cli_env, capsys):
-    from app import admin_cli
-    from app.cli import main
+    from app.cli import admin as admin_cli
+    from app.cli.main import main
 
     assert login(client).status_code == 200
     assert client.get("/api/v1/auth/me").status_code == 200
@@ -151,7 +151,7 @@ def test_deactivated_user_is_logged_out_at_once_and_cannot_log_in(client, settin
 def test_deactivation_closes_every_browser_of_that_user_only(client, settings, user):
     from fastapi.testclient import TestClient
 
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.create_user(settings, clinic=CLINIC, email="bea@clinic.test", role="clinician", password=PASSWORD)
     # more browsers on the same app: separate cookie jars (no `with`: the app's lifespan already runs)
@@ -166,7 +166,7 @@ def test_deactivation_closes_every_browser_of_that_user_only(client, settings, u
 
 
 def test_set_password_from_stdin(client, settings, user, cli_env, capsys, monkeypatch):
-    from app.cli import main
+    from app.cli.main import main
 
     assert login(client).status_code == 200
     monkeypatch.setattr("sys.stdin", io.StringIO(NEW_PASSWORD + "\n"))
@@ -192,8 +192,8 @@ def test_set_password_from_stdin(client, settings, user, cli_env, capsys, monkey
 def test_set_password_prompts_twice(client, settings, user, cli_env, capsys, monkeypatch):
     import getpass
 
-    from app import admin_cli
-    from app.cli import main
+    from app.cli import admin as admin_cli
+    from app.cli.main import main
 
     answers = iter([NEW_PASSWORD, NEW_PASSWORD + "x"])
     monkeypatch.setattr(getpass, "getpass", lambda prompt="": next(answers))
@@ -218,7 +218,7 @@ def test_set_password_prompts_twice(client, settings, user, cli_env, capsys, mon
 
 
 def test_set_password_keeps_a_deactivated_account_closed(client, settings, user):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     admin_cli.deactivate_user(settings, email=EMAIL)
     assert admin_cli.set_password(settings, email=EMAIL, password=NEW_PASSWORD) == 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from app.api.deps import Principal, get_principal
+from app.web.api.deps import Principal, get_principal
 
 
 @pytest.fixture
@@ -19,7 +19,7 @@ def as_caller(client):
 
 
 def test_roles_are_enforced_per_route(client, settings, as_caller):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     a = admin_cli.create_clinic(settings, "A")
     as_caller(a, "read_only", "A")
@@ -34,7 +34,7 @@ def test_roles_are_enforced_per_route(client, settings, as_caller):
 
 
 def test_every_query_is_scoped_to_the_callers_clinic(client, settings, as_caller):
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     a, b = admin_cli.create_clinic(settings, "A"), admin_cli.create_clinic(settings, "B")
     as_caller(a, "clinician", "A")

@@ -22,8 +22,8 @@ def test_migrations_match_the_models_on_postgresql(pg_url):
     from alembic.autogenerate import compare_metadata
     from alembic.migration import MigrationContext
 
-    from app.db import Database
-    from app.db.models import Base
+    from app.store.database import Database
+    from app.store.models import Base
 
     db = Database(pg_url)
     db.migrate()
@@ -39,8 +39,8 @@ def test_hospital_contract_and_clinic_isolation_on_postgresql(tmp_path, pg_url, 
     """DESIGN §4's minimum on PostgreSQL: upload, process, results, report; another clinic gets 404."""
     from fastapi.testclient import TestClient
 
-    from app import admin_cli
-    from app.main import create_app
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path / "data", DATABASE_URL=pg_url)
     with TestClient(create_app(settings)) as client:

@@ -18,7 +18,7 @@ from web_helpers import clinic_token, demo_files, new_session, wait_job
 CHILD = textwrap.dedent("""
     import sys, time
     from fastapi.testclient import TestClient
-    from app.main import create_app
+    from app.web.main import create_app
     sid, token = int(sys.argv[1]), sys.argv[2]
     with TestClient(create_app()) as c:
         r = c.post(f"/api/v1/sessions/{sid}/process", json={"lang": "en"}, headers={"Authorization": f"Bearer {token}"})
@@ -30,9 +30,9 @@ CHILD = textwrap.dedent("""
 def test_restart_in_the_middle_of_a_job_resumes_it(settings, demo_dir):
     from fastapi.testclient import TestClient
 
-    from app.db import Database
-    from app.db.models import Job
-    from app.main import create_app
+    from app.store.database import Database
+    from app.store.models import Job
+    from app.web.main import create_app
 
     h = clinic_token(settings, "R")
     with TestClient(create_app(settings)) as c:
@@ -79,11 +79,11 @@ def test_restart_in_the_middle_of_a_job_resumes_it(settings, demo_dir):
 def test_a_job_interrupted_too_often_is_failed_not_resumed(settings, tmp_path):
     import datetime as dt
 
-    from app.db import Database
-    from app.db.models import Clinic, Job, KneeSession, Patient
-    from app.inprocess import ThreadJobRunner
-    from app.jobs import MAX_ATTEMPTS
-    from app.storage import BlobStore
+    from app.store.database import Database
+    from app.store.models import Clinic, Job, KneeSession, Patient
+    from app.jobs.inprocess import ThreadJobRunner
+    from app.jobs.work import MAX_ATTEMPTS
+    from app.store.blobs import BlobStore
 
     db = Database(settings.db_url)
     db.migrate()

@@ -13,9 +13,9 @@ from web_helpers import clinic_token, demo_files, new_session, wait_job
 
 
 def _runner_pair(url, tmp_path):
-    from app.db import Database
-    from app.inprocess import ThreadJobRunner
-    from app.storage import BlobStore
+    from app.store.database import Database
+    from app.jobs.inprocess import ThreadJobRunner
+    from app.store.blobs import BlobStore
 
     db = Database(url)
     db.migrate()
@@ -24,7 +24,7 @@ def _runner_pair(url, tmp_path):
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_a_second_runner_on_the_same_database_is_refused(tmp_path, backend, request):
-    from app.inprocess import RunnerLocked
+    from app.jobs.inprocess import RunnerLocked
 
     url = f"sqlite:///{tmp_path}/r.db" if backend == "sqlite" else request.getfixturevalue("pg_url")
     db, (first, second) = _runner_pair(url, tmp_path)
@@ -42,8 +42,8 @@ def test_a_second_runner_on_the_same_database_is_refused(tmp_path, backend, requ
 def test_a_second_app_on_the_same_data_dir_does_not_start(settings):
     from fastapi.testclient import TestClient
 
-    from app.inprocess import RunnerLocked
-    from app.main import create_app
+    from app.jobs.inprocess import RunnerLocked
+    from app.web.main import create_app
 
     with TestClient(create_app(settings)) as c:
         assert c.get("/healthz").status_code == 200
@@ -55,7 +55,7 @@ def test_a_second_app_on_the_same_data_dir_does_not_start(settings):
 def test_start_up_clears_a_crashed_servers_temporary_files(settings):
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     leftover = settings.tmp_dir / "session-3-abcd"
     (leftover / "sub").mkdir(parents=True)
@@ -73,8 +73,8 @@ def test_start_up_clears_a_crashed_servers_temporary_files(settings):
 def test_an_internal_error_shows_a_reference_not_a_traceback(client, settings, demo_dir, caplog):
     """A stored file vanishes before processing: the job fails with a sentence and a reference id; the
     traceback and the server's paths are only in the server log."""
-    from app.db import Database
-    from app.db.models import Recording
+    from app.store.database import Database
+    from app.store.models import Recording
 
     h = clinic_token(settings, "E")
     ro = clinic_token(settings, "E", role="read_only")
@@ -100,9 +100,9 @@ def test_an_internal_error_shows_a_reference_not_a_traceback(client, settings, d
 def test_concurrent_jobs_storing_identical_artefacts_both_finish(client, settings, demo_dir):
     """Two jobs of one session run at the same time (the API allows one at a time; a second server or a
     distributed engine may not): their identical artefacts must not collide in the blobs table."""
-    from app.db import Database
-    from app.db.models import Job, KneeSession
-    from app.jobs import run_job
+    from app.store.database import Database
+    from app.store.models import Job, KneeSession
+    from app.jobs.work import run_job
 
     h = clinic_token(settings, "P")
     _, sid = new_session(client, h)
@@ -137,7 +137,7 @@ def test_a_hung_render_process_is_abandoned_and_replaced():
     fresh render process takes over for the next jobs."""
     import time
 
-    from app.render import RenderPool, collect
+    from app.pipeline.render import RenderPool, collect
 
     pool = RenderPool(1)
     try:

@@ -13,7 +13,7 @@ def small(tmp_path):
     """An app with tiny limits: 0.01 MB per file, 3 files."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path / "data", CHAKAMO_MAX_FILE_MB=0.01, CHAKAMO_MAX_FILES=3)
     h = clinic_token(settings, "S")

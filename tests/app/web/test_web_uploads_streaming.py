@@ -18,7 +18,7 @@ def _setup(tmp_path, **extra):
     """Settings, a clinician header and an empty session (made through a first app, then closed)."""
     from fastapi.testclient import TestClient
 
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings = make_settings(tmp_path / "data", **extra)
     h = clinic_token(settings, "U")
@@ -44,7 +44,7 @@ def _run(app, scenario):
 def test_slow_uploads_hold_no_database_connection_and_are_capped(tmp_path, backend, request):
     """Half-sent uploads: no pooled connection is held (on PostgreSQL that was an idle transaction each),
     other requests are served, and past CHAKAMO_MAX_UPLOADS an upload is refused with 503 at once."""
-    from app.main import create_app
+    from app.web.main import create_app
 
     db_url = {} if backend == "sqlite" else {"DATABASE_URL": request.getfixturevalue("pg_url")}
     settings, h, sid = _setup(tmp_path, CHAKAMO_MAX_UPLOADS=3, **db_url)
@@ -79,7 +79,7 @@ def test_slow_uploads_hold_no_database_connection_and_are_capped(tmp_path, backe
 def test_a_chunked_body_without_length_is_counted(tmp_path):
     """No Content-Length: a huge epilogue after the closing boundary (ignored by the multipart parser, so
     unbounded before the fix) is cut at the ceiling."""
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings, h, sid = _setup(tmp_path, CHAKAMO_MAX_FILE_MB=0.01, CHAKAMO_MAX_FILES=3)
     app = create_app(settings)
@@ -113,7 +113,7 @@ def test_only_the_known_form_fields_are_accepted(client, settings):
 
 def test_a_repeated_form_field_is_refused(tmp_path):
     """Ten segment fields in one body: refused at the second (the body may hold each field once)."""
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings, h, sid = _setup(tmp_path, CHAKAMO_MAX_FILES=3)
     app = create_app(settings)
@@ -128,7 +128,7 @@ def test_a_repeated_form_field_is_refused(tmp_path):
 
 
 def test_a_client_disconnecting_mid_upload_is_handled_quietly(tmp_path, caplog):
-    from app.main import create_app
+    from app.web.main import create_app
 
     settings, h, sid = _setup(tmp_path)
     app = create_app(settings)

@@ -1,4 +1,4 @@
-"""The session.json the server builds from an uploaded one (``app.workspace.build_manifest``): an uploaded
+"""The session.json the server builds from an uploaded one (``app.store.workspace.build_manifest``): an uploaded
 manifest of the wrong shape is refused with a sentence naming session.json, never a TypeError."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import pytest
 
 
 def _rows():
-    from app.db.models import KneeSession, Patient, Recording
+    from app.store.models import KneeSession, Patient, Recording
 
     patient = Patient(id=1, clinic_id=1, external_id="W-1", side="left")
     session = KneeSession(id=1, clinic_id=1, patient_id=1, date=dt.date(2026, 12, 1), task="step_up")
@@ -19,15 +19,15 @@ def _rows():
 
 @pytest.mark.parametrize("uploaded", [[1, 2], "text", 3, {"recordings": 3}, {"recordings": {"files": []}}])
 def test_a_manifest_of_the_wrong_shape_is_refused_naming_it(uploaded):
-    from app.ingestion import IngestionError
-    from app.workspace import build_manifest
+    from app.pipeline.ingestion import IngestionError
+    from app.store.workspace import build_manifest
 
     with pytest.raises(IngestionError, match=r"^session\.json: .*fix it or delete that recording"):
         build_manifest(*_rows(), uploaded=uploaded)
 
 
 def test_a_good_manifest_keeps_its_keys_and_gains_the_sessions_facts():
-    from app.workspace import build_manifest
+    from app.store.workspace import build_manifest
 
     out = build_manifest(*_rows(), uploaded={"recordings": [{"files": ["standing-muslo.xlsx"]}], "note": "x"})
     assert out["note"] == "x" and out["side"] == "left" and out["patient_id"] == "W-1" and out["date"] == "2026-12-01"

@@ -18,9 +18,9 @@ def make_settings(data_dir: Path, **extra):
 
 @contextmanager
 def hash_slots_held():
-    """Every password-hashing slot of ``app.security`` taken for the block (as concurrent logins would);
+    """Every password-hashing slot of ``app.web.security`` taken for the block (as concurrent logins would);
     yields how many were held."""
-    from app import security
+    from app.web import security
 
     held = 0
     try:
@@ -34,7 +34,7 @@ def hash_slots_held():
 
 def clinic_token(settings, name: str, role: str = "clinician") -> dict[str, str]:
     """Create clinic ``name`` (if new) and a token through the CLI functions; return the bearer header."""
-    from app import admin_cli
+    from app.cli import admin as admin_cli
 
     try:
         admin_cli.create_clinic(settings, name)

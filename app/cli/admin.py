@@ -1,0 +1,354 @@
+"""Set-up commands of the web application (``chakamo serve``, ``clinics``, ``users``, ``tokens``).
+
+``chakamo serve [--host 127.0.0.1] [--port 8000] [--proxy-headers --forwarded-allow-ips IPS]``
+    The web application on the embedded default (SQLite, local files, in-process jobs) under
+    ``CHAKAMO_DATA_DIR``; loopback unless ``--host`` says otherwise.  Behind a reverse proxy (TLS),
+    ``--proxy-headers`` takes the client address and scheme from the proxy's ``X-Forwarded-*`` headers, trusted
+    only from ``--forwarded-allow-ips`` (default: loopback) — so the per-address login limit and the audit log
+    see the browser's address, not the proxy's.
+``chakamo clinics create NAME``
+    A new clinic (tenant).
+``chakamo users create --clinic NAME --email E --role admin|clinician|read_only [--name N] [--password-stdin]``
+    A user; the password is asked twice without echo, or read from the first line of stdin with
+    ``--password-stdin`` (for scripts).  There is never a default password.
+``chakamo tokens create --clinic NAME [--label L] [--role clinician|read_only|admin]``
+    An API token for a hospital system; printed once, alone on the last line of the output (only its
+    sha256 is stored, so it cannot be shown again).
+``chakamo tokens list --clinic NAME`` / ``chakamo tokens revoke ID``
+    The clinic's API tokens (id, label, role, created, revoked; never the token), and revocation: the API
+    then answers 401 to it.  Revoking a revoked token changes nothing, so offboarding scripts can run twice.
+``chakamo users deactivate --email E``
+    Logins refused, and the user's browser sessions deleted, so an open browser is logged out at its next
+    request rather than when its cookie expires.
+``chakamo users set-password --email E [--password-stdin]``
+    A new password (same rules as ``users create``); the user's browser sessions are deleted too (a reset
+    after a suspected leak must close the sessions opened with the old password); ``active`` is unchanged.
+
+The commands use the same settings as the server (``CHAKAMO_DATA_DIR``, ``DATABASE_URL``...), apply the
+migrations first, and raise ``ValueError`` with one sentence for anything the user can fix (the CLI prints
+it and exits with status 2).  The functions are importable for tests and scripts: their first argument is a
+:class:`~app.settings.Settings` (``None``: the environment's).
+"""
+
+from __future__ import annotations
+
+import argparse
+import getpass
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING
+
+from app.web.security import ROLES  # the one definition of the roles (a stdlib-only module: cheap to import)
+
+if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does not pay for it
+    from sqlalchemy.orm import Session
+
+    from app.store.database import Database
+    from app.settings import Settings
+
+COMMANDS = ("serve", "clinics", "users", "tokens")
+
+
+def _database(settings: Settings | None) -> Database:
+    from app.store.database import Database
+    from app.settings import get_settings
+
+    settings = settings or get_settings()
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    db = Database(settings.db_url)
+    db.migrate()
+    return db
+
+
+@contextmanager
+def _session(settings: Settings | None) -> Iterator[Session]:
+    """A session of the migrated database of ``settings``, committed on success; the engine is disposed after."""
+    db = _database(settings)
+    try:
+        with db.session() as s:
+            yield s
+    finally:
+        db.dispose()
+
+
+def _clinic(s, name: str):
+    from sqlalchemy import select
+
+    from app.store.models import Clinic
+
+    clinic = s.scalar(select(Clinic).where(Clinic.name == name))
+    if clinic is None:
+        known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "none yet"
+        raise ValueError(f"no clinic named {name!r} (known: {known}); create it with `chakamo clinics create`")
+    return clinic
+
+
+def create_clinic(settings: Settings | None, name: str) -> int:
+    """Create clinic ``name``; returns its id.  ValueError if the name is empty or taken."""
+    name = name.strip()
+    if not name:
+        raise ValueError("the clinic name is empty; give a name, e.g. chakamo clinics create \"Clínica Norte\"")
+    from sqlalchemy import select
+
+    from app.store.models import Clinic
+
+    with _session(settings) as s:
+        if s.scalar(select(Clinic.id).where(Clinic.name == name)) is not None:
+            raise ValueError(f"a clinic named {name!r} already exists; choose another name")
+        clinic = Clinic(name=name)
+        s.add(clinic)
+        s.flush()
+        return clinic.id
+
+
+def create_user(settings: Settings | None, *, clinic: str, email: str, role: str, password: str,
+                name: str = "") -> int:
+    """Create a user of clinic ``clinic``; returns the id.  ValueError for a bad role, weak password or
+    an email already used."""
+    if role not in ROLES:
+        raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
+    email = email.strip().lower()
+    if "@" not in email or len(email) < 3:
+        raise ValueError(f"{email!r} is not an email address; give the user's email")
+    from sqlalchemy import select
+
+    from app.store.models import User
+    from app.web.security import check_password_strength, hash_password
+
+    check_password_strength(password)
+    with _session(settings) as s:
+        c = _clinic(s, clinic)
+        if s.scalar(select(User.id).where(User.email == email)) is not None:
+            raise ValueError(f"the email {email} already has an account; use another email")
+        user = User(clinic_id=c.id, email=email, name=name, role=role, password_hash=hash_password(password))
+        s.add(user)
+        s.flush()
+        return user.id
+
+
+def create_token(settings: Settings | None, *, clinic: str, label: str = "", role: str = "clinician") -> str:
+    """Create an API token of clinic ``clinic`` and return it (the only time it exists in clear)."""
+    if role not in ROLES:
+        raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
+    from app.store.models import ApiToken
+    from app.web.security import new_token, sha256_hex
+
+    token = new_token()
+    with _session(settings) as s:
+        c = _clinic(s, clinic)
+        s.add(ApiToken(clinic_id=c.id, label=label, role=role, token_sha256=sha256_hex(token)))
+    return token
+
+
+def serve(host: str = "127.0.0.1", port: int = 8000, proxy_headers: bool = False,
+          forwarded_allow_ips: str = "127.0.0.1") -> None:
+    """Run the web application with uvicorn until interrupted."""
+    import uvicorn
+
+    from app.web.main import create_app
+    from app.settings import get_settings
+
+    settings = get_settings()  # errors (e.g. no secret key) before anything starts
+    print(f"ChakaMo on http://{host}:{port}/ (data in {settings.data_dir}); Ctrl-C stops it", file=sys.stderr)
+    uvicorn.run(create_app(settings), host=host, port=port, log_level="info", proxy_headers=proxy_headers,
+                forwarded_allow_ips=forwarded_allow_ips if proxy_headers else None)
+
+
+def add_parsers(sub) -> None:
+    """Register ``serve``, ``clinics``, ``users`` and ``tokens`` on the ``chakamo`` subparsers."""
+    serve_p = sub.add_parser("serve", help="run the web application (embedded default: SQLite, local files)")
+    serve_p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
+    serve_p.add_argument("--port", type=int, default=8000, help="port (default: 8000)")
+    serve_p.add_argument("--proxy-headers", action="store_true",
+                         help="behind a reverse proxy: trust its X-Forwarded-For/-Proto headers")
+    serve_p.add_argument("--forwarded-allow-ips", default="127.0.0.1", metavar="IPS",
+                         help="addresses of the proxies whose headers are trusted (default: 127.0.0.1)")
+
+    clinics = sub.add_parser("clinics", help="manage clinics (tenants)").add_subparsers(dest="action", required=True)
+    c_create = clinics.add_parser("create", help="create a clinic")
+    c_create.add_argument("name", metavar="NAME")
+
+    users = sub.add_parser("users", help="manage user accounts").add_subparsers(dest="action", required=True)
+    u_create = users.add_parser("create", help="create a user (the password is asked for)")
+    u_create.add_argument("--clinic", required=True, metavar="NAME")
+    u_create.add_argument("--email", required=True)
+    u_create.add_argument("--role", required=True, choices=ROLES)
+    u_create.add_argument("--name", default="", help="full name shown in the UI")
+    u_create.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
+
+    tokens = sub.add_parser("tokens", help="manage API tokens").add_subparsers(dest="action", required=True)
+    t_create = tokens.add_parser("create", help="create an API token (printed once)")
+    t_create.add_argument("--clinic", required=True, metavar="NAME")
+    t_create.add_argument("--label", default="", help="what the token is for, e.g. the hospital system")
+    t_create.add_argument("--role", default="clinician", choices=ROLES, help="(default: clinician)")
+    _add_account_parsers(users, tokens)
+
+
+def _read_password(from_stdin: bool) -> str:
+    if from_stdin:
+        return sys.stdin.readline().rstrip("\r\n")
+    first = getpass.getpass("Password (at least 10 characters): ")
+    if getpass.getpass("Repeat the password: ") != first:
+        raise ValueError("the two passwords differ; run the command again")
+    return first
+
+
+def run(args: argparse.Namespace) -> int:
+    """Carry out a parsed ``serve`` / ``clinics`` / ``users`` / ``tokens`` command."""
+    if args.command == "serve":
+        serve(args.host, args.port, args.proxy_headers, args.forwarded_allow_ips)
+    elif args.command == "clinics":
+        clinic_id = create_clinic(None, args.name)
+        print(f"clinic {args.name!r} created (id {clinic_id})")
+    elif args.command == "users" and args.action == "create":
+        password = _read_password(args.password_stdin)
+        user_id = create_user(None, clinic=args.clinic, email=args.email, role=args.role, password=password,
+                              name=args.name)
+        print(f"user {args.email.strip().lower()} ({args.role}) created in {args.clinic!r} (id {user_id})")
+    elif args.command == "tokens" and args.action == "create":
+        token = create_token(None, clinic=args.clinic, label=args.label, role=args.role)
+        print(f"API token for {args.clinic!r} ({args.role}{', ' + args.label if args.label else ''}). It is shown "
+              "only now: store it in the hospital system; send it as 'Authorization: Bearer <token>'.")
+        print(token)
+    else:
+        return run_account(args)
+    return 0
+
+
+__all__ = ["COMMANDS", "add_parsers", "create_clinic", "create_token", "create_user", "run", "serve"]
+
+
+# ------------------------------------------------------------------------------------------ offboarding
+
+
+def _user(s, email: str):
+    from sqlalchemy import select
+
+    from app.store.models import User
+
+    email = email.strip().lower()
+    user = s.scalar(select(User).where(User.email == email))
+    if user is None:
+        raise ValueError(f"no user with the email {email!r}; check it (emails are the login names)")
+    return user
+
+
+def _close_browser_sessions(s, user_id: int) -> int:
+    from sqlalchemy import delete
+
+    from app.store.models import BrowserSession
+
+    return s.execute(delete(BrowserSession).where(BrowserSession.user_id == user_id)).rowcount or 0
+
+
+def list_tokens(settings: Settings | None, *, clinic: str) -> list[dict]:
+    """The API tokens of clinic ``clinic``, oldest first, as dicts ``id, label, role, created_at, revoked_at``
+    (datetimes in UTC; ``revoked_at`` None while the token works).  Never the token itself."""
+    from sqlalchemy import select
+
+    from app.store.models import ApiToken
+
+    with _session(settings) as s:
+        c = _clinic(s, clinic)
+        rows = s.scalars(select(ApiToken).where(ApiToken.clinic_id == c.id).order_by(ApiToken.id))
+        return [{"id": t.id, "label": t.label, "role": t.role, "created_at": t.created_at,
+                 "revoked_at": t.revoked_at} for t in rows]
+
+
+def revoke_token(settings: Settings | None, token_id: int) -> dict:
+    """Revoke API token ``token_id`` (any clinic); returns ``id, clinic, label, revoked_at, already`` where
+    ``already`` is True when it had been revoked before (its first date is kept).  ValueError for an
+    unknown id."""
+    from app.store.models import ApiToken, utcnow
+
+    with _session(settings) as s:
+        token = s.get(ApiToken, token_id)
+        if token is None:
+            raise ValueError(f"no API token with id {token_id}; see the ids with `chakamo tokens list "
+                             "--clinic NAME`")
+        already = token.revoked_at is not None
+        if not already:
+            token.revoked_at = utcnow()
+        return {"id": token.id, "clinic": token.clinic.name, "label": token.label,
+                "revoked_at": token.revoked_at, "already": already}
+
+
+def deactivate_user(settings: Settings | None, *, email: str) -> int:
+    """Deactivate the user with ``email`` (login refused) and delete their browser sessions; returns how many
+    sessions were closed.  ValueError for an unknown email."""
+    with _session(settings) as s:
+        user = _user(s, email)
+        user.active = False
+        return _close_browser_sessions(s, user.id)
+
+
+def set_password(settings: Settings | None, *, email: str, password: str) -> int:
+    """Give the user with ``email`` a new ``password`` (at least 10 characters, as for ``users create``) and
+    delete their browser sessions; returns how many were closed.  ValueError for an unknown email or a weak
+    password (checked first: nothing changes)."""
+    from app.web.security import check_password_strength, hash_password
+
+    check_password_strength(password)
+    with _session(settings) as s:
+        user = _user(s, email)
+        user.password_hash = hash_password(password)
+        return _close_browser_sessions(s, user.id)
+
+
+def _add_account_parsers(users, tokens) -> None:
+    """``tokens list|revoke`` and ``users deactivate|set-password`` on :func:`add_parsers`' sub-parsers."""
+    t_list = tokens.add_parser("list", help="list a clinic's API tokens (never the tokens themselves)")
+    t_list.add_argument("--clinic", required=True, metavar="NAME")
+    t_revoke = tokens.add_parser("revoke", help="revoke an API token: the API answers 401 to it")
+    t_revoke.add_argument("token_id", type=int, metavar="ID", help="the token's id (see `chakamo tokens list`)")
+
+    u_off = users.add_parser("deactivate", help="refuse a user's logins and log out their browsers")
+    u_off.add_argument("--email", required=True)
+    u_pw = users.add_parser("set-password", help="set a user's password and log out their browsers")
+    u_pw.add_argument("--email", required=True)
+    u_pw.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
+
+
+def _check_user_exists(email: str) -> None:
+    with _session(None) as s:
+        _user(s, email)
+
+
+def _when(value) -> str:
+    return "-" if value is None else value.strftime("%Y-%m-%d %H:%M UTC")
+
+
+def run_account(args: argparse.Namespace) -> int:
+    """Carry out a parsed ``tokens list|revoke`` or ``users deactivate|set-password`` command."""
+    if args.command == "tokens" and args.action == "list":
+        rows = list_tokens(None, clinic=args.clinic)
+        if not rows:
+            print(f"no API tokens in {args.clinic!r}; create one with `chakamo tokens create`")
+            return 0
+        print(f"{'id':>5}  {'role':<10} {'created':<20} {'revoked':<20} label")
+        for r in rows:
+            print(f"{r['id']:>5}  {r['role']:<10} {_when(r['created_at']):<20} {_when(r['revoked_at']):<20} "
+                  f"{r['label']}")
+    elif args.command == "tokens" and args.action == "revoke":
+        r = revoke_token(None, args.token_id)
+        what = f"API token {r['id']} of {r['clinic']!r}{' (' + r['label'] + ')' if r['label'] else ''}"
+        if r["already"]:
+            print(f"{what} was already revoked on {_when(r['revoked_at'])}; nothing changed")
+        else:
+            print(f"{what} revoked: the API now answers 401 to it")
+    elif args.command == "users" and args.action == "deactivate":
+        closed = deactivate_user(None, email=args.email)
+        print(f"user {args.email.strip().lower()} deactivated: logins refused, {closed} browser session(s) closed")
+    elif args.command == "users" and args.action == "set-password":
+        if not args.password_stdin:  # an unknown email is said before the prompts, not after
+            _check_user_exists(args.email)
+        password = _read_password(args.password_stdin)
+        closed = set_password(None, email=args.email, password=password)
+        print(f"password of {args.email.strip().lower()} changed; {closed} browser session(s) closed")
+    else:  # pragma: no cover - argparse only lets the registered actions through
+        raise ValueError(f"unknown action {args.command} {args.action}; see chakamo {args.command} --help")
+    return 0
+
+
+__all__ += ["deactivate_user", "list_tokens", "revoke_token", "run_account", "set_password"]

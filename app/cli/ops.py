@@ -1,0 +1,87 @@
+"""Operations commands of the scaled-out deployment (``chakamo migrate``, ``worker``, ``reprocess``).
+
+``chakamo migrate``
+    Upgrade the database (``DATABASE_URL``) to the newest schema and exit: run it once before starting the
+    API servers and workers of a new release (``docker/compose.yaml`` has it as a one-shot service), so that
+    several processes never race to migrate.
+``chakamo worker [--concurrency N] [--loglevel INFO]``
+    A Celery worker (``CHAKAMO_JOB_BACKEND=celery``, ``CHAKAMO_BROKER_URL``) running the processing jobs of
+    every API server on this database (:mod:`app.jobs.celery_engine`); ``N`` processes (default ``CHAKAMO_WORKERS``).
+    SIGTERM finishes the running jobs first; any number of workers on any number of machines sharing
+    ``CHAKAMO_DATA_DIR`` (the blob store) and the database.
+``chakamo reprocess --filter NAME --since YYYY-MM-DD [--clinic NAME] [--lang es|en|pt] [--force]``
+    Queue a cohort for processing with another filter or a new pipeline version (:mod:`app.jobs.reprocess`);
+    prints one line per session and what was done, idempotent (a second run queues nothing new).
+
+Errors the user can fix raise ``ValueError`` with one sentence (the CLI prints it and exits with status 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+
+COMMANDS = ("migrate", "worker", "reprocess")
+
+
+def _date(text: str) -> dt.date:
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a date; write it as YYYY-MM-DD") from None
+
+
+def add_parsers(sub) -> None:
+    """Register ``migrate``, ``worker`` and ``reprocess`` on the ``chakamo`` subparsers."""
+    from estimators.orientation import METHODS
+
+    sub.add_parser("migrate", help="upgrade the database schema to this release and exit")
+    worker = sub.add_parser("worker", help="run a Celery worker for the processing jobs (CHAKAMO_JOB_BACKEND=celery)")
+    worker.add_argument("--concurrency", type=int, default=None, metavar="N",
+                        help="worker processes (default: CHAKAMO_WORKERS)")
+    worker.add_argument("--loglevel", default="INFO", choices=("DEBUG", "INFO", "WARNING", "ERROR"))
+    rep = sub.add_parser("reprocess", help="queue every session since a date for processing with a filter")
+    rep.add_argument("--filter", required=True, choices=METHODS, help="orientation filter")
+    rep.add_argument("--since", required=True, type=_date, metavar="YYYY-MM-DD", help="first session date")
+    rep.add_argument("--clinic", default=None, metavar="NAME", help="only this clinic's sessions (default: all)")
+    rep.add_argument("--lang", choices=("es", "en", "pt"), default="es", help="report language (default: es)")
+    rep.add_argument("--force", action="store_true",
+                     help="queue sessions already analysed by this pipeline version with this filter too")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Carry out a parsed ``migrate`` / ``worker`` / ``reprocess`` command."""
+    from app.settings import get_settings
+
+    settings = get_settings()
+    if args.command == "migrate":
+        from app.store.database import Database
+
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        db = Database(settings.db_url)
+        try:
+            db.migrate()
+        finally:
+            db.dispose()
+        print(f"database schema up to date ({db.engine.url.render_as_string(hide_password=True)})")
+    elif args.command == "worker":
+        from app.jobs.celery_engine import run_worker
+
+        if args.concurrency is not None and args.concurrency < 1:
+            raise ValueError("--concurrency must be at least 1")
+        run_worker(settings, args.concurrency, args.loglevel)
+    elif args.command == "reprocess":
+        from app.jobs.reprocess import reprocess
+
+        outcomes, summary = reprocess(settings, filter_name=args.filter, since=args.since, clinic=args.clinic,
+                                      lang=args.lang, force=args.force)
+        for o in outcomes:
+            job = f"job {o.job_id}" if o.job_id is not None else ""
+            print(f"session {o.session_id:>6}  {o.patient:<20.20}  {o.date.isoformat()}  {o.status:<9}  {job:<10}  "
+                  f"{o.note}".rstrip())
+        counts = {s: sum(o.status == s for o in outcomes) for s in ("queued", "current", "busy", "not ready")}
+        print(f"{len(outcomes)} sessions: " + ", ".join(f"{n} {s}" for s, n in counts.items()) + f". {summary}.")
+    return 0
+
+
+__all__ = ["COMMANDS", "add_parsers", "run"]

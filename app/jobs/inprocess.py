@@ -1,0 +1,215 @@
+"""The embedded job engine: worker threads inside ``chakamo serve`` (``CHAKAMO_JOB_BACKEND=inprocess``).
+
+:class:`ThreadJobRunner` is N worker threads fed by a queue of job ids; each calls :func:`app.jobs.work.run_job`,
+which *claims* a job with a conditional UPDATE (``queued`` → ``running``), so two runners sharing one database
+never run the same job twice.  On ``start()`` jobs found ``running`` (their process died mid-way) go back to
+``queued`` with a log line, and every queued job is submitted again, oldest first: nothing is lost by a
+restart; a resumed job starts over from its stored files (processing is deterministic); one interrupted
+:data:`~app.jobs.work.MAX_ATTEMPTS` times is failed instead (it may be what brings the server down).  Every
+:attr:`ThreadJobRunner.SWEEP_EVERY_S` seconds :func:`app.jobs.work.sweep` requeues a job whose heartbeat stopped and
+hands over jobs queued by another process (``chakamo reprocess``).  The embedded runner allows one server
+process per database (``chakamo serve``), and enforces it: ``start()`` takes a :class:`RunnerLock` (an
+exclusive ``flock`` on ``<database file>.runner.lock`` for SQLite, a session-level ``pg_try_advisory_lock``
+for PostgreSQL; the operating system or the server frees both when the process dies) and a second server on
+the same database refuses to start with :class:`RunnerLocked`, instead of requeueing — and running a second
+time — the first one's jobs.  Several processes or machines need the distributed backend
+(``CHAKAMO_JOB_BACKEND=celery``, :mod:`app.jobs.celery_engine`).  Holding the lock, ``start()`` also removes what a
+crashed server left behind: its temporary ``session-*`` folders and unfinished uploads
+(``blobs/.incoming/up-*``).  ``shutdown()`` waits for the running jobs and says whether they all stopped; the
+application disposes the database only then.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import shutil
+import threading
+from pathlib import Path
+
+from sqlalchemy import create_engine, text
+from sqlalchemy.pool import NullPool
+
+from app.store.database import Database
+from app.jobs.work import LEASE_S, mark_dispatched, run_job, sweep
+from app.pipeline.render import RENDER_TIMEOUT_S, RenderPool, warm_up
+from app.store.blobs import Storage
+
+log = logging.getLogger("chakamo.jobs")
+
+
+class RunnerLocked(RuntimeError):
+    """Another server already runs the jobs of this database."""
+
+
+#: the PostgreSQL advisory-lock key of the job runner ("CHKMjobs")
+_PG_LOCK_KEY = 0x43484B4D6A6F6273
+
+
+class RunnerLock:
+    """At most one embedded job runner per database (module docstring): :meth:`acquire`, :meth:`release`."""
+
+    def __init__(self, db: Database) -> None:
+        self.db = db
+        self._file = None
+        self._conn = None
+        self._engine = None
+
+    def acquire(self) -> None:
+        """Take the lock or raise :class:`RunnerLocked` with a sentence saying what to do."""
+        url = self.db.engine.url
+        where = None
+        if url.get_backend_name() == "sqlite":
+            path = url.database
+            if not path or path == ":memory:":
+                return
+            where = f"{path}.runner.lock"
+            try:
+                import fcntl
+            except ImportError:  # no flock (Windows): one server per database is then up to the operator
+                log.warning("cannot lock %s on this system; run one ChakaMo server per database", where)
+                return
+            f = open(where, "a+")  # noqa: SIM115 — held open while the runner lives
+            try:
+                fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                f.close()
+                raise RunnerLocked(self._message(path)) from None
+            self._file = f
+        elif url.get_backend_name() == "postgresql":
+            # a connection of its own, outside the request pool, in autocommit (never "idle in transaction")
+            self._engine = create_engine(url, poolclass=NullPool, isolation_level="AUTOCOMMIT")
+            conn = self._engine.connect()
+            if not conn.scalar(text("SELECT pg_try_advisory_lock(:k)"), {"k": _PG_LOCK_KEY}):
+                conn.close()
+                self._engine.dispose()
+                self._engine = None
+                raise RunnerLocked(self._message(url.render_as_string(hide_password=True)))
+            self._conn = conn
+        else:
+            log.warning("no job-runner lock for %s; run one ChakaMo server per database", url.get_backend_name())
+
+    @staticmethod
+    def _message(where: str) -> str:
+        return (f"Another ChakaMo server is already running the jobs of this database ({where}); stop it first, or "
+                "give this server its own CHAKAMO_DATA_DIR / DATABASE_URL (several servers on one database need "
+                "the distributed job backend).")
+
+    def release(self) -> None:
+        if self._file is not None:
+            self._file.close()  # closing the file drops the flock
+            self._file = None
+        if self._conn is not None:
+            try:
+                self._conn.scalar(text("SELECT pg_advisory_unlock(:k)"), {"k": _PG_LOCK_KEY})
+            except Exception:  # noqa: BLE001 — closing the connection frees it anyway
+                log.exception("could not release the job-runner lock")
+            self._conn.close()
+            self._conn = None
+            self._engine.dispose()
+            self._engine = None
+
+
+def clear_tmp(tmp_root: Path) -> int:
+    """Remove the ``session-*`` folders a crashed server left in ``tmp_root``; returns how many.  Only while
+    no job or upload check runs (the runner calls it at start-up, holding the :class:`RunnerLock`)."""
+    n = 0
+    if tmp_root.is_dir():
+        for p in tmp_root.glob("session-*"):
+            if p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+                n += 1
+    return n
+
+
+class ThreadJobRunner:
+    """The embedded engine: ``workers`` threads taking job ids from a queue (module docstring)."""
+
+    #: seconds between two sweeps (requeue lost jobs, pick up jobs queued by another process)
+    SWEEP_EVERY_S = 5.0
+
+    def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
+                 render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
+                 lease_s: float = LEASE_S) -> None:
+        self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
+        self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
+        self.lease_s = lease_s
+        self.lock = RunnerLock(db)
+        self.pool: RenderPool | None = None
+        self._queue: queue.Queue[int | None] = queue.Queue()
+        self._threads: list[threading.Thread] = []
+        self._stop = threading.Event()
+
+    def start(self) -> None:
+        """Take the :class:`RunnerLock` (:class:`RunnerLocked` if another server has it), clear a crashed
+        server's leftovers, requeue jobs left ``running``, start the threads and submit every queued job,
+        oldest first; then sweep every :attr:`SWEEP_EVERY_S` seconds."""
+        self.lock.acquire()
+        n_tmp, n_up = clear_tmp(self.tmp_root), self.store.clear_incoming()
+        if n_tmp or n_up:
+            log.info("removed %d temporary session folders and %d unfinished uploads left by a crash", n_tmp, n_up)
+        self._stop.clear()
+        if self.render_processes > 0 and self.pool is None:
+            self.pool = RenderPool(self.render_processes)
+        # holding the lock, every job left running was a dead server's: a zero lease requeues them all now
+        pending = sweep(self.db, lease_s=0.0, redispatch_s=0.0, why="server stopped")
+        for i in range(self.workers):
+            t = threading.Thread(target=self._work, name=f"chakamo-job-{i}", daemon=True)
+            t.start()
+            self._threads.append(t)
+        for job_id in pending:
+            self.submit(job_id)
+        threading.Thread(target=self._sweep_loop, name="chakamo-sweeper", daemon=True).start()
+        threading.Thread(target=warm_up, name="chakamo-warm-up", daemon=True).start()
+
+    def submit(self, job_id: int) -> None:
+        mark_dispatched(self.db, [job_id])
+        self._queue.put(job_id)
+
+    def _sweep_loop(self) -> None:
+        while not self._stop.wait(self.SWEEP_EVERY_S):
+            try:
+                # only never-handed jobs: a job handed to this runner's own queue cannot be lost while it lives
+                for job_id in sweep(self.db, self.lease_s, None):
+                    self.submit(job_id)
+            except Exception:  # noqa: BLE001 — e.g. the database is restarting: sweep again next time
+                log.warning("job sweep failed; trying again in %g s", self.SWEEP_EVERY_S, exc_info=True)
+
+    def _work(self) -> None:
+        while True:
+            job_id = self._queue.get()
+            if job_id is None or self._stop.is_set():  # a queued job left here stays queued in the database
+                return
+            try:
+                run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s, self.lease_s)
+            except Exception:  # noqa: BLE001 — e.g. the database went away: keep the worker alive
+                log.exception("worker could not run job %s (the sweeper runs it again)", job_id)
+
+    def problem(self) -> str | None:
+        if not self._threads or not any(t.is_alive() for t in self._threads):
+            return "the job workers are not running"
+        return None
+
+    def shutdown(self, wait: bool = True, timeout_s: float = 60.0) -> bool:
+        """Stop the threads after their current job; queued jobs stay queued for the next start (a job cut
+        short by the process' exit is resumed then too).  True when every thread has stopped (only then may
+        the caller dispose the database: a job thread may still be writing to it)."""
+        self._stop.set()
+        for _ in self._threads:
+            self._queue.put(None)
+        if wait:
+            for t in self._threads:
+                t.join(timeout_s)
+        alive = [t for t in self._threads if t.is_alive()]
+        if alive:
+            log.warning("%d job threads still running at shutdown; their jobs resume at the next start", len(alive))
+        self._threads.clear()
+        if self.pool is not None:
+            self.pool.shutdown()
+            self.pool = None
+        if not alive:  # a thread still running its job keeps the lock: no other runner may take that job over
+            self.lock.release()
+        return not alive
+
+
+__all__ = ["RunnerLock", "RunnerLocked", "ThreadJobRunner", "clear_tmp"]

@@ -1,0 +1,129 @@
+"""Reprocessing a cohort: ``chakamo reprocess --filter NAME --since DATE`` queues one job per session.
+
+Which sessions: those whose clinical date is on or after ``since`` (of one clinic, or of all), that have
+recordings.  Each gets one of these outcomes (:class:`Outcome`), printed as a table by the CLI:
+
+* ``queued`` — a new job (``jobs`` row, ``queued``, carrying :data:`app.pipeline.session.PIPELINE_VERSION`), handed to
+  the engine;
+* ``current`` — an analysis with the same filter and language already exists for this pipeline version and
+  these files (``files_version``): nothing to do.  This is what makes a cohort run idempotent — running the
+  same command twice queues nothing the second time — the work being keyed by session, files and pipeline
+  version (``--force`` queues it anyway);
+* ``busy`` — a job of the session is queued or running (it is not queued twice);
+* ``not ready`` — the stored files do not pass the ingestion check (its sentence is shown).
+
+Handing the jobs over: with ``CHAKAMO_JOB_BACKEND=celery`` each job is published to the broker at once (a broker
+that does not answer leaves the jobs queued: the API server's and the workers' sweepers publish them when it
+answers again); with the embedded engine the running ``chakamo serve`` finds them at its next sweep (or at its
+next start).  Nothing is lost either way: the database holds every job.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+
+from sqlalchemy import select
+
+from app.store.database import Database
+from app.store.models import Analysis, Clinic, Job, KneeSession, utcnow
+from app.settings import Settings
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What happened to one session: ``status`` (module docstring), the job id when queued, a note."""
+
+    session_id: int
+    patient: str
+    date: dt.date
+    status: str
+    job_id: int | None = None
+    note: str = ""
+
+
+def _candidates(db: Database, since: dt.date, clinic: str | None) -> list[int]:
+    with db.session() as s:
+        query = select(KneeSession.id).where(KneeSession.date >= since, KneeSession.recordings.any())
+        if clinic is not None:
+            clinic_id = s.scalar(select(Clinic.id).where(Clinic.name == clinic))
+            if clinic_id is None:
+                raise ValueError(f"no clinic named {clinic!r}; `chakamo clinics create` makes one")
+            query = query.where(KneeSession.clinic_id == clinic_id)
+        return list(s.scalars(query.order_by(KneeSession.date, KneeSession.id)))
+
+
+def _queue_one(db: Database, settings: Settings, session_id: int, filter_name: str, lang: str,
+               force: bool) -> Outcome:
+    from app.web.api.recordings import refresh_ingestion
+    from app.web.api.schemas import ingestion_fresh
+    from app.pipeline.session import PIPELINE_VERSION
+    from app.store.blobs import open_storage
+
+    with db.session() as s:
+        session = s.get(KneeSession, session_id)
+        fresh = ingestion_fresh(session)
+    if not fresh:  # files changed since the last check (or never checked): check them now, no transaction held
+        refresh_ingestion(db, open_storage(settings), settings.tmp_dir, session_id)
+    with db.session() as s:
+        session = s.scalars(select(KneeSession).where(KneeSession.id == session_id)
+                            .with_for_update(of=KneeSession)).one()  # locks the session row, not its patient
+        base = dict(session_id=session.id, patient=session.patient.external_id, date=session.date)
+        active = s.scalar(select(Job.id).where(Job.session_id == session.id, Job.status.in_(("queued", "running"))))
+        if active is not None:
+            return Outcome(**base, status="busy", job_id=active, note=f"job {active} is queued or running")
+        ingestion = session.ingestion if ingestion_fresh(session) else {}
+        if not ingestion.get("ok"):
+            return Outcome(**base, status="not ready", note=str(ingestion.get("error") or "files not checked"))
+        done = s.scalar(select(Analysis.id).where(
+            Analysis.session_id == session.id, Analysis.filter == filter_name, Analysis.lang == lang,
+            Analysis.pipeline_version == PIPELINE_VERSION, Analysis.files_version == session.files_version))
+        if done is not None and not force:
+            return Outcome(**base, status="current", note=f"analysis {done} (pipeline {PIPELINE_VERSION})")
+        job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, stage="queued",
+                  pipeline_version=PIPELINE_VERSION,
+                  log=[f"{utcnow().isoformat(timespec='seconds')} queued by chakamo reprocess"])
+        s.add(job)
+        s.flush()
+        other = s.scalar(select(Job.id).where(Job.session_id == session.id, Job.id != job.id,
+                                              Job.status.in_(("queued", "running"))))
+        if other is not None:  # queued by the API at the same moment (SQLite has no row locks): that one stands
+            s.rollback()
+            return Outcome(**base, status="busy", job_id=other, note=f"job {other} is queued or running")
+        return Outcome(**base, status="queued", job_id=job.id)
+
+
+def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: str | None = None,
+              lang: str = "es", force: bool = False) -> tuple[list[Outcome], str]:
+    """Queue the cohort's jobs (module docstring); returns the outcomes and one sentence on the hand-over."""
+    from estimators.orientation import METHODS
+
+    if filter_name not in METHODS:
+        raise ValueError(f"unknown filter {filter_name!r}; use one of {', '.join(METHODS)}")
+    db = Database(settings.db_url)
+    try:
+        db.migrate()
+        outcomes = [_queue_one(db, settings, sid, filter_name, lang, force) for sid in _candidates(db, since, clinic)]
+        job_ids = [o.job_id for o in outcomes if o.status == "queued"]
+        if not job_ids:
+            return outcomes, "no job queued"
+        if settings.job_backend == "celery":
+            from app.jobs.celery_engine import CeleryJobRunner
+
+            runner = CeleryJobRunner(db, settings)
+            sent = 0
+            for j in job_ids:  # stop at the first refusal: the broker is down, the sweepers send the rest later
+                if not runner.publish(j):
+                    break
+                sent += 1
+            if sent < len(job_ids):
+                return outcomes, (f"{len(job_ids)} jobs queued, {sent} handed to the broker; the others are sent "
+                                  "when it answers (the server's and the workers' sweepers)")
+            return outcomes, f"{len(job_ids)} jobs queued and handed to the Celery workers"
+        return outcomes, (f"{len(job_ids)} jobs queued; the running `chakamo serve` takes them within seconds "
+                          "(or at its next start)")
+    finally:
+        db.dispose()
+
+
+__all__ = ["Outcome", "reprocess"]

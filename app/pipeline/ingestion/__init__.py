@@ -1,0 +1,68 @@
+"""Ingestion: session files → aligned recordings in project units (acc m/s², gyr rad/s, mag µT, t s).
+
+All unit conversion of the project happens here, once (:mod:`.units`).
+
+Public API
+----------
+``load_session(path, *, expected_fs_hz=100.0, roles=ROLES) -> Session``
+    Discover the files of one session folder (or use its ``session.json``), recognise each
+    recording's segment (thigh/shank) and role (``mag_calibration``, ``standing``, ``lying``, ``task``),
+    read and check them, and align them (:mod:`.align`).
+``Session.recording(segment, role) -> AlignedRecording``
+    acc, gyr, mag ``(N, 3)`` on one grid ``t_s`` (from 0) at ``fs_hz``; ``source`` (files, format, how
+    segment and role were recognised), ``flags`` (measured rates, trimmed seconds, NaN rows, notes).
+``Session.task_pair() -> (thigh, shank)``
+    The two task recordings on one common grid (same ``t_s``), aligned on their time stamps.
+``Session.metadata``: :class:`SessionMetadata` (patient_id, side, step_height_m, date, trial — each a
+    :class:`Recognition` saying whether the file name, the MetaBase label or ``session.json`` gave it).
+``Session.notes``: sentences worth showing the user (sheet chosen, stream cut, default step height...); those
+    the reports translate are :class:`Note` (a ``str`` with ``params``: variant, segment, role, values).
+``read_recording(files, sheet=None) -> RawRecording``: one recording as read (streams with own stamps).
+``read_metabase_csv``, ``read_thesis_xlsx``, ``read_generic_csv``: single-file readers → :class:`Stream`.
+``align_recording``, ``align_pair``: the alignment on its own.
+Writers (demo, tests): ``write_metabase_csv``, ``write_recording_metabase``, ``write_session_metabase``,
+``write_thesis_xlsx``, ``write_generic_csv``; ``simulated_streams(imu, epoch0_s, run_on_s=...)`` turns a simulated
+sensor into writer input with the phone's stamps.
+Every problem a user can cause raises :class:`IngestionError` (a ``ValueError``) whose one message names
+the file and says what to do.  Readers never write.
+
+Formats
+-------
+* MetaBase CSV, one file per stream (:mod:`.metabase`): ``{label}_MetaWear_{datetime}_{MAC}_{Stream}_{rate}Hz_
+  {firmware}.csv``, header ``epoch (ms),time (…),elapsed (s),x-axis (g),…`` or ``epoc (ms),timestamp (…),…``;
+  g, deg/s, T.  Time base: epoch ms (the phone's clock, shared by both sensors).
+* Thesis Excel (:mod:`.excel`, seed 004 Fig. 8.6): A–D elapsed + acc (g), E–G gyro (deg/s), H–K elapsed + mag
+  (T), L–M elapsed + temperature; names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-
+  {ddmmyyyy}-{n}[-H].xlsx`` (H = the 34 cm step, else 17 cm).  Time base: elapsed s (sensors assumed to start
+  together).
+* Generic CSV (:mod:`.generic`): ``time (s),acc_x (g),…,gyr_x (deg/s),…,mag_x (uT),…`` with units in the header.
+* ``session.json`` (:mod:`.session`): files → segment and role, MAC → segment, patient_id, side, step height.
+
+Decisions on bad input
+----------------------
+Missing recording, only one sensor, unknown or implausible units (mg, mT, rad/s declared deg/s: detected
+from magnitudes and from the gyroscope/accelerometer rotation consistency, :mod:`.units`), empty,
+header-only or truncated files, non-numeric cells, duplicated or out-of-order stamps, acc/gyr rates more
+than 3 % from ``expected_fs_hz`` (50 Hz data: refused with advice; ``expected_fs_hz=None`` accepts it),
+an Excel workbook with none or several sheets in the layout (one such sheet among others is used and noted):
+each raises :class:`IngestionError`.  Swapped segments cannot be told from the files; the pipeline checks
+them on the signals.  NaN rows in a stream are missing samples (NaN on the grid inside gaps), not errors.
+"""
+
+from app.pipeline.ingestion.align import align_pair, align_recording
+from app.pipeline.ingestion.excel import read_thesis_xlsx, write_thesis_xlsx
+from app.pipeline.ingestion.generic import read_generic_csv, write_generic_csv
+from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
+from app.pipeline.ingestion.model import (KINDS, ROLES, SEGMENTS, AlignedRecording, IngestionError, Note, RawRecording,
+                                 Recognition, Session, SessionMetadata, Stream)
+from app.pipeline.ingestion.session import MANIFEST, load_session, read_recording
+from app.pipeline.ingestion.writers import session_label, simulated_streams, write_session_metabase
+
+__all__ = [
+    "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
+    "Recognition",
+    "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_session", "read_generic_csv",
+    "read_metabase_csv", "read_recording", "read_thesis_xlsx", "session_label", "simulated_streams",
+    "write_generic_csv",
+    "write_metabase_csv", "write_recording_metabase", "write_session_metabase", "write_thesis_xlsx",
+]

@@ -1,0 +1,157 @@
+r"""Time alignment: three streams of one sensor, and two sensors of one task, onto one uniform grid.
+
+Assumptions about the stamps
+----------------------------
+* MetaBase's ``epoch (ms)`` stamps of every stream and every sensor of a session are on one clock (the
+  phone's), so they are directly comparable: a sensor whose crystal runs 1 % slow delivers 99 samples
+  per stamped second, and aligning *on the stamps* (never on sample counts) removes that drift.
+  Whatever error the phone makes when it stamps a sensor's samples is not corrected here.
+* Files with only elapsed seconds (thesis Excel, generic CSV without epoch) have no common clock: every
+  stream is taken to start at its file's time zero, i.e. streams and sensors started together.  The
+  result says so (``time_base="elapsed"``).
+
+Method
+------
+The grid runs over the span common to all streams, :math:`[t_0, t_1] = [\max_s t_s^{first}, \min_s
+t_s^{last}]`, at ``fs_hz``: :math:`t_k = t_0 + k/f_s`, :math:`k = 0..\lfloor (t_1-t_0) f_s\rfloor`.  Each
+stream is linearly interpolated on its own stamps (the 20 Hz magnetometer is interpolated, never
+repeated).  Rows with NaN are dropped from their stream before interpolation; a grid instant strictly
+inside an interval without valid samples longer than 2.5 periods of that stream (a gap) is NaN in that
+stream, which the orientation filters treat as a missing measurement.  Whatever a stream
+records outside the common span (started early, ran on after the others stopped) is cut and reported
+in ``flags["trimmed_s"]``.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from app.pipeline.ingestion.model import AlignedRecording, FloatArray, IngestionError, Note, RawRecording, Stream
+
+GAP_PERIODS = 2.5
+#: Relative tolerance between a stream's measured rate and the expected one.
+RATE_TOLERANCE = 0.03
+MAG_MIN_FS_HZ = 5.0
+
+
+def common_span(streams: Sequence[Stream]) -> tuple[float, float]:
+    """``(t0, t1)``: the latest first stamp and the earliest last stamp (valid rows only)."""
+    firsts, lasts = [], []
+    for s in streams:
+        ok = np.all(np.isfinite(s.values), axis=1)
+        if not ok.any():
+            raise IngestionError(f"{s.file}: no valid {s.kind} sample; export the recording again.")
+        firsts.append(s.t_s[ok][0])
+        lasts.append(s.t_s[ok][-1])
+    return float(max(firsts)), float(min(lasts))
+
+
+def resample(stream: Stream, t_grid: FloatArray) -> FloatArray:
+    """Linear interpolation of ``stream`` at ``t_grid`` (same time base), NaN inside gaps (module docstring)."""
+    ok = np.all(np.isfinite(stream.values), axis=1)
+    t, v = stream.t_s[ok], stream.values[ok]
+    out = np.stack([np.interp(t_grid, t, v[:, i]) for i in range(3)], axis=1)
+    period = float(np.median(np.diff(stream.t_s)))
+    j = np.clip(np.searchsorted(t, t_grid, side="right"), 1, len(t) - 1)
+    inside = (t_grid - t[j - 1] > 1e-9) & (t[j] - t_grid > 1e-9)
+    gap = ((t[j] - t[j - 1]) > GAP_PERIODS * period) & inside
+    gap |= (t_grid < t[0] - 1e-9) | (t_grid > t[-1] + 1e-9)
+    out[gap] = np.nan
+    return out
+
+
+def check_rates(rec: RawRecording, expected_fs_hz: float | None) -> float:
+    """Check the measured rates; return the grid rate (expected, or the acc stream's nominal rate)."""
+    acc, gyr, mag = rec.streams
+    label = f"recording {rec.label!r}"
+    fs_acc, fs_gyr, fs_mag = acc.fs_hz, gyr.fs_hz, mag.fs_hz
+    if expected_fs_hz is not None:
+        for s, fs in ((acc, fs_acc), (gyr, fs_gyr)):
+            if abs(fs / expected_fs_hz - 1.0) > RATE_TOLERANCE:
+                raise IngestionError(
+                    f"{s.file}: the {s.kind} stream runs at {fs:.1f} Hz, expected {expected_fs_hz:g} Hz (the protocol "
+                    f"records accelerometer and gyroscope at 100 Hz, seed 004 §8.4). Record again at "
+                    f"{expected_fs_hz:g} Hz, or process it at the file's own rate (on the command line: `chakamo process --any-rate`).")
+        fs_grid = float(expected_fs_hz)
+    else:
+        if abs(fs_gyr / fs_acc - 1.0) > RATE_TOLERANCE:
+            raise IngestionError(f"{gyr.file}: the gyroscope runs at {fs_gyr:.1f} Hz but the accelerometer of "
+                                 f"{label} at {fs_acc:.1f} Hz; record both at the same rate.")
+        nominal = acc.nominal_fs_hz
+        fs_grid = float(nominal if nominal and abs(fs_acc / nominal - 1.0) <= RATE_TOLERANCE else round(fs_acc))
+    if not MAG_MIN_FS_HZ <= fs_mag <= fs_grid * (1 + RATE_TOLERANCE):
+        raise IngestionError(f"{mag.file}: the magnetometer runs at {fs_mag:.1f} Hz; expected between "
+                             f"{MAG_MIN_FS_HZ:g} and {fs_grid:g} Hz (the protocol uses 20 Hz). Record again.")
+    return fs_grid
+
+
+def _grid(t0: float, t1: float, fs_hz: float, what: str) -> FloatArray:
+    if t1 - t0 < 1.0:
+        raise IngestionError(f"{what}: the streams overlap for {max(t1 - t0, 0.0):.2f} s only (they must share at "
+                             f"least 1 s of time stamps); were they recorded together? Record again.")
+    n = int(np.floor((t1 - t0) * fs_hz + 1e-6)) + 1
+    return t0 + np.arange(n) / fs_hz
+
+
+def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role: str) -> AlignedRecording:
+    arrays = {s.kind: resample(s, t) for s in rec.streams}
+    cut = {s.kind: (float(t[0] - s.t_s[0]), float(s.t_s[-1] - t[-1])) for s in rec.streams}
+    trimmed = {k: (round(before, 4), round(after, 4)) for k, (before, after) in cut.items()}
+    notes = [Note(f"{k} ran on {after:.2f} s after the common span (cut)",
+                  {"variant": "stream_cut_after", "stream": k, "seconds": after})
+             for k, (_, after) in cut.items() if after > 0.5]
+    notes += [Note(f"{k} started {before:.2f} s before the common span (cut)",
+                   {"variant": "stream_cut_before", "stream": k, "seconds": before})
+              for k, (before, _) in cut.items() if before > 0.5]
+    nan_rows = {k: int(np.isnan(v).any(axis=1).sum()) for k, v in arrays.items()}
+    notes += [Note(f"{k}: {n} grid rows missing (gaps in the stream)",
+                   {"variant": "rows_missing", "stream": k, "rows": n}) for k, n in nan_rows.items() if n]
+    if rec.acc.time_base != "epoch":
+        notes.append(Note("no epoch time stamps: streams assumed to start together", {"variant": "no_epoch"}))
+    source = {"files": [str(f) for f in rec.files], "format": rec.fmt, "label": rec.label,
+              "sensor_id": rec.sensor_id,
+              "segment": rec.segment.describe() if rec.segment else segment,
+              "role": rec.role.describe() if rec.role else role, "notes": list(rec.notes)}
+    flags = {"stream_fs_hz": {s.kind: round(s.fs_hz, 4) for s in rec.streams},
+             "declared_units": {s.kind: s.declared_unit for s in rec.streams},
+             "trimmed_s": trimmed, "nan_rows": nan_rows, "notes": notes}
+    return AlignedRecording(t_s=np.arange(len(t)) / fs_hz, acc=arrays["acc"], gyr=arrays["gyr"], mag=arrays["mag"],
+                            fs_hz=fs_hz,
+                            t0_s=float(t[0]), time_base=rec.acc.time_base, segment=segment, role=role,
+                            source=source, flags=flags)
+
+
+def align_recording(rec: RawRecording, fs_hz: float, segment: str, role: str) -> AlignedRecording:
+    """Acc, gyr, mag of one recording on one grid at ``fs_hz`` over their common span.
+
+    The three streams must share a time base: a stream file without its ``epoch (ms)`` column counts from
+    its own start while the others count from 1970, so no span would be common (refused, naming it)."""
+    if len({s.time_base for s in rec.streams}) > 1:
+        odd = [s for s in rec.streams if s.time_base != "epoch"]
+        raise IngestionError(f"{odd[0].file}: has no epoch time stamps while the other streams of recording "
+                             f"{rec.label!r} have them, so they cannot be put on one time line; export it again "
+                             f"with its 'epoch (ms)' column.")
+    t0, t1 = common_span(rec.streams)
+    return _aligned(rec, _grid(t0, t1, fs_hz, f"recording {rec.label!r} ({rec.files[0].name})"), fs_hz,
+                    segment, role)
+
+
+def align_pair(thigh: RawRecording, shank: RawRecording, fs_hz: float,
+               role: str = "task") -> tuple[AlignedRecording, AlignedRecording]:
+    """Both sensors' recordings on one grid over the span common to all six streams (clock-drift note above)."""
+    if thigh.acc.time_base != shank.acc.time_base:
+        raise IngestionError(f"{thigh.files[0]} and {shank.files[0]}: one has epoch time stamps and the other "
+                             f"not, so they cannot be put on one time line; export both the same way.")
+    t0, t1 = common_span(thigh.streams + shank.streams)
+    t = _grid(t0, t1, fs_hz, f"the two {role} recordings ({thigh.files[0].name}, {shank.files[0].name})")
+    a, b = _aligned(thigh, t, fs_hz, "thigh", role), _aligned(shank, t, fs_hz, "shank", role)
+    ratio = thigh.acc.fs_hz / shank.acc.fs_hz
+    for r in (a, b):
+        r.flags["pair_rate_ratio"] = round(ratio, 6)
+    if abs(ratio - 1.0) > 0.002:  # noted once, on the shank (a session's notes list every recording's)
+        pct = 100.0 * (ratio - 1.0)
+        b.flags["notes"].append(Note(f"the sensors' rates differ by {pct:+.2f} % (clock drift), aligned on the "
+                                     "time stamps", {"variant": "clock_drift", "pct": pct}))
+    return a, b

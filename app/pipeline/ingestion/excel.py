@@ -1,0 +1,174 @@
+"""The thesis' Excel layout (seed 004 §8.6, Fig. 8.6): one .xlsx per sensor × recording.
+
+Row 1 is the header, data from row 2; each column's unit is read from its header::
+
+    A elapsed (s) | B–D x/y/z-axis (g)       accelerometer (100 Hz)
+                  | E–G x/y/z-axis (deg/s)   gyroscope, on A's time
+    H elapsed (s) | I–K x/y/z-axis (T)       magnetometer (20 Hz: shorter columns, blank below)
+    L elapsed (s) | M temperature (C)        ignored
+
+File names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-{ddmmyyyy}-{n}[-H].xlsx``.
+The time base is elapsed seconds (no epoch): the two sensors' recordings are assumed to start together.
+A workbook with several sheets: the one sheet whose header has this layout is used (and the choice is
+noted); none or several such sheets is refused.  Needs ``openpyxl``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from app.pipeline.ingestion.model import IngestionError, Stream
+from app.pipeline.ingestion.tables import check_stamps, first_huge_cell, huge_text
+from app.pipeline.ingestion.units import check_magnitude, unit_factor
+
+HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/s)", "y-axis (deg/s)",
+          "z-axis (deg/s)", "elapsed (s)", "x-axis (T)", "y-axis (T)", "z-axis (T)", "elapsed (s)",
+          "temperature (C)"]
+_GROUPS = {"acc": (0, (1, 2, 3)), "gyr": (0, (4, 5, 6)), "mag": (7, (8, 9, 10))}
+_CELL = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
+
+
+def _openpyxl():
+    try:
+        import openpyxl
+    except ImportError:  # pragma: no cover - dependency declared in pyproject
+        raise IngestionError("reading .xlsx files needs the 'openpyxl' package: pip install openpyxl") from None
+    return openpyxl
+
+
+def _layout_problem(header: list) -> str | None:
+    """``None`` if ``header`` (row 1) has the Fig. 8.6 layout, else what is wrong."""
+    cells = [("" if c is None else str(c)) for c in header[:11]] + [""] * max(0, 11 - len(header))
+    for col, (t, axes) in zip("AEH", _GROUPS.values()):
+        m = _CELL.match(cells[t])
+        if not m or m.group("name").lower() not in ("elapsed", "time", "tiempo"):
+            return f"cell {chr(65 + t)}1 is {cells[t]!r}, expected 'elapsed (s)'"
+        for a, i in zip("xyz", axes):
+            m = _CELL.match(cells[i])
+            if not m or not m.group("name").lower().startswith(a):
+                return f"cell {chr(65 + i)}1 is {cells[i]!r}, expected '{a}-axis (unit)'"
+    return None
+
+
+def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple[Stream, Stream, Stream, str]:
+    """Read a thesis workbook → ``(acc, gyr, mag, note)`` in project units; ``note`` says which sheet was used."""
+    path = Path(path)
+    openpyxl = _openpyxl()
+    try:
+        wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+    except Exception as exc:  # zip/xml errors of a damaged file
+        raise IngestionError(f"{path}: cannot be opened as an Excel workbook ({type(exc).__name__}: {exc}); "
+                             f"save it again from Excel as .xlsx.") from None
+    try:
+        names = wb.sheetnames
+        if sheet is not None:
+            if sheet not in names:
+                raise IngestionError(f"{path}: no sheet named {sheet!r}; the sheets are {names} — correct "
+                                     f"\"sheet\" in session.json.")
+            chosen = sheet
+        else:
+            good = []
+            for n in names:
+                first = next(wb[n].iter_rows(min_row=1, max_row=1, values_only=True), ())
+                if _layout_problem(list(first)) is None:
+                    good.append(n)
+            if len(good) != 1:
+                what = "none of its sheets has" if not good else f"several sheets ({', '.join(good)}) have"
+                detail = ""
+                if not good:
+                    first = next(wb[names[0]].iter_rows(min_row=1, max_row=1, values_only=True), ())
+                    detail = f" (sheet {names[0]!r}: {_layout_problem(list(first)) or 'empty'})"
+                raise IngestionError(
+                    f"{path}: {what} the thesis layout (Fig. 8.6: A elapsed, B–D acc, E–G gyro, H elapsed, "
+                    f"I–K mag){detail}. Keep one such sheet, or name it in session.json (\"sheet\").")
+            chosen = good[0]
+        rows = [list(r) for r in wb[chosen].iter_rows(values_only=True)]
+    finally:
+        wb.close()
+    note = f"sheet {chosen!r}" + (f" of {names}" if len(names) > 1 else "")
+    if len(rows) < 2:
+        raise IngestionError(f"{path}: sheet {chosen!r} has no data rows; export the recording again.")
+    problem = _layout_problem(rows[0])
+    if problem:
+        raise IngestionError(f"{path}: sheet {chosen!r} is not in the thesis layout: {problem}; fix row 1 or export the recording again.")
+    header = [("" if c is None else str(c)) for c in rows[0]]
+    width = 11
+    table = np.full((len(rows) - 1, width), np.nan)
+    for i, r in enumerate(rows[1:]):
+        for j in range(min(width, len(r))):
+            c = r[j]
+            if c is None or (isinstance(c, str) and not c.strip()):
+                continue
+            try:
+                if isinstance(c, bool):         # Excel's TRUE/FALSE: float() would take them as 1/0
+                    raise TypeError
+                table[i, j] = float(c)
+            except (TypeError, ValueError):
+                raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} holds {c!r}, which is not "
+                                     f"a number; fix or delete that row.") from None
+    huge = first_huge_cell(table)  # the CSV readers' check: inf, 1e300 (norms would overflow); nan is empty
+    if huge is not None:
+        i, j = huge
+        raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} {huge_text(table[i, j])}; "
+                             f"fix or delete that row.")
+    streams = []
+    for kind, (t_col, axes) in _GROUPS.items():
+        units = {_CELL.match(header[i]).group("unit").strip() for i in axes}
+        t_unit = _CELL.match(header[t_col]).group("unit")
+        if len(units) != 1:
+            raise IngestionError(f"{path}: columns {', '.join(chr(65 + i) for i in axes)} declare different units "
+                                 f"{sorted(units)}; fix the header.")
+        unit = units.pop()
+        f, ft = unit_factor(kind, unit), unit_factor("time", t_unit)
+        if f is None or ft is None:
+            bad = unit if f is None else t_unit
+            raise IngestionError(f"{path}: unit ({bad}) in row 1 is not one ChakaMo knows for this column "
+                                 f"(acc g/mg/m/s², gyro deg/s/rad/s, mag T/mT/µT, time s/ms); correct row 1.")
+        block = table[:, [t_col, *axes]]
+        used = ~np.all(np.isnan(block), axis=1)
+        last = int(np.nonzero(used)[0][-1]) + 1 if used.any() else 0
+        block = block[:last]
+        if last == 0:
+            raise IngestionError(f"{path}: sheet {chosen!r} has no {kind} data; export the recording again.")
+        t_s = block[:, 0] * ft
+        check_stamps(path, t_s, f"'{header[t_col]}' (column {chr(65 + t_col)})")
+        values = block[:, 1:] * f
+        check_magnitude(kind, values, unit, path)
+        streams.append(Stream(kind=kind, t_s=t_s, values=values, declared_unit=unit, file=path,
+                              time_base="elapsed"))
+    return streams[0], streams[1], streams[2], note
+
+
+def write_thesis_xlsx(path: str | os.PathLike, acc: tuple, gyr_values: np.ndarray, mag: tuple,
+                      extra_sheets: tuple[str, ...] = ()) -> Path:
+    """Write a workbook in the thesis layout (for tests and the demo).
+
+    acc : ``(t_s, values m/s²)``; gyr_values : (n, 3) rad/s on acc's times; mag : ``(t_s, values µT)``.
+    Written in g, deg/s, T like Fig. 8.6; temperature constant 25 °C once per second.
+    """
+    openpyxl = _openpyxl()
+    path = Path(path)
+    wb = openpyxl.Workbook()
+    ws = wb.active
+    ws.title = "data"
+    ws.append(HEADER)
+    t_a, a = np.asarray(acc[0]), np.asarray(acc[1]) / unit_factor("acc", "g")
+    g = np.asarray(gyr_values) / unit_factor("gyr", "deg/s")
+    t_m, m = np.asarray(mag[0]), np.asarray(mag[1]) / unit_factor("mag", "T")
+    t_temp = np.arange(0.0, t_a[-1] - t_a[0], 1.0)
+    for k in range(max(len(t_a), len(t_m))):
+        row: list = []
+        row += [round(t_a[k] - t_a[0], 3), *np.round(a[k], 3), *np.round(g[k], 3)] if k < len(t_a) else [None] * 7
+        row += [round(t_m[k] - t_m[0], 3), *(float(f"{x:.5g}") for x in m[k])] if k < len(t_m) else [None] * 4
+        row += [float(t_temp[k]), 25.0] if k < len(t_temp) else []
+        ws.append(row)
+    for name in extra_sheets:
+        wb.create_sheet(name).append(["notes"])
+    tmp = path.with_name(path.name + ".part")
+    wb.save(tmp)
+    os.replace(tmp, path)
+    return path

@@ -1,0 +1,311 @@
+"""One session folder → :class:`Session`: discover files, recognise segment and role, read, check, align.
+
+Discovery (without ``session.json`` ``recordings``): MetaBase files are grouped by (label, MAC) into one
+recording of three streams; every other ``.xlsx`` is a thesis workbook and every other ``.csv`` a generic
+CSV, one recording each.  Role and segment come from the label / file stem (:mod:`.labels`), a MetaBase
+sensor's segment may also come from the manifest's ``sensors`` map (MAC → segment).
+
+``session.json`` (every key optional)::
+
+    {
+      "patient_id": "ML1", "side": "right", "step_height_m": 0.17, "date": "2023-03-13",
+      "sensors": {"EB942CED9472": "thigh", "C3A1B2D4E5F6": "shank"},
+      "recordings": [
+        {"files": ["step-muslo-ML1-13032023-1.xlsx"], "segment": "thigh", "role": "task", "sheet": "Hoja1"},
+        {"files": ["a_MetaWear_..._Accelerometer_100.000Hz_1.5.1.csv", "..._Gyroscope_...", "..._Magnetometer_..."],
+         "segment": "pierna", "role": "step"}
+      ]
+    }
+
+``recordings`` (when present) lists exactly the files to use; ``segment`` / ``role`` accept the same words as
+the file names in any of the three languages, and fall back to the names when absent.  The manifest wins
+over names; every :class:`Recognition` says which one decided.
+
+Swapped segments (thigh sensor labelled shank) cannot be seen from the files; the pipeline checks it on
+the signals.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+from app.pipeline.ingestion.align import align_pair, align_recording, check_rates
+from app.pipeline.ingestion.excel import read_thesis_xlsx
+from app.pipeline.ingestion.generic import read_generic_csv
+from app.pipeline.ingestion.labels import (LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
+                                  recognise_step_height)
+from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name, read_metabase_csv
+from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
+                                 SessionMetadata)
+from app.pipeline.ingestion.units import check_gyro_unit
+
+MANIFEST = "session.json"
+#: keys of session.json; the last five are only shown in the reports' patient block, as typed
+_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings",
+                  "name", "professional", "weight_kg", "height_m", "observations"}
+_ENTRY_KEYS = {"files", "segment", "role", "sheet"}
+#: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
+_MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
+                   "sensors": dict, "recordings": list, "name": str, "professional": str,
+                   "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
+_TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
+               type(None): "null"}
+
+
+def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None, hint: str = "") -> RawRecording:
+    """Read one recording (3 MetaBase files, 1 thesis .xlsx, or 1 generic .csv), segment/role from its name.
+
+    ``hint`` ends the message when a MetaBase stream file is missing (the files discovery left out: a stream
+    renamed out of the MetaBase pattern is one of them)."""
+    if not files:
+        raise IngestionError("a recording needs its files (none given); list them.")
+    paths = [Path(f) for f in files]
+    for p in paths:
+        if not p.is_file():
+            raise IngestionError(f"{p}: file not found; check the name (or the session.json entry).")
+    notes: tuple[str, ...] = ()
+    sensor_id = None
+    if all(parse_file_name(p) for p in paths):
+        groups = group_metabase_files(paths)
+        if len(groups) != 1:
+            raise IngestionError(f"{paths[0]}: these files belong to {len(groups)} different MetaBase recordings "
+                                 f"({', '.join(l for l, _ in groups)}); list one recording's three files together.")
+        (label, sensor_id), kinds = next(iter(groups.items()))
+        missing = [k for k in ("acc", "gyr", "mag") if k not in kinds]
+        if missing:
+            names = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}
+            raise IngestionError(f"{paths[0].parent}: recording {label!r} of sensor {sensor_id} has no "
+                                 f"{' / '.join(names[k] for k in missing)} file; export every stream from MetaBase.{hint}")
+        acc, gyr, mag = (read_metabase_csv(kinds[k], k) for k in ("acc", "gyr", "mag"))
+        fmt = "metabase"
+        method = "MetaBase label"
+    elif len(paths) == 1 and paths[0].suffix.lower() == ".xlsx":
+        acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
+        notes = (f"{paths[0].name}: {note}",)
+        label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() == ".csv":
+        acc, gyr, mag = read_generic_csv(paths[0])
+        label, fmt, method = paths[0].stem, "generic-csv", "file name"
+    else:
+        raise IngestionError(f"{paths[0]}: a recording is three MetaBase stream files, one .xlsx (thesis layout) "
+                             f"or one generic .csv; got {[p.name for p in paths]}: list each recording's own files.")
+    found = {}
+    for name, finder in (("role", recognise_role), ("segment", recognise_segment), ("side", recognise_side),
+                         ("step", recognise_step_height)):
+        try:
+            found[name] = finder(label, method)
+        except ValueError as exc:       # ambiguous: left to session.json, reported if nothing decides
+            found[name] = None
+            notes += (f"{paths[0].name}: {exc}",)
+    role, segment, side, step = found["role"], found["segment"], found["side"], found["step"]
+    extras = dict(parse_thesis_name(label) or {})
+    if side:
+        extras["side"] = side
+    if step:
+        extras["step_height_m"] = step
+    if "patient_id" in extras and extras["patient_id"].method != method:
+        extras["patient_id"] = Recognition(extras["patient_id"].value, method, "ID field")
+    return RawRecording(acc=acc, gyr=gyr, mag=mag, fmt=fmt, segment=segment, role=role, label=label,
+                        sensor_id=sensor_id, extras=extras, notes=notes)
+
+
+def _read_manifest(path: Path) -> dict[str, Any]:
+    """``session.json`` parsed and checked: keys, their types, and every listed file once, inside the folder."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError:
+        raise IngestionError(f"{path}: not UTF-8 text; save it again as UTF-8 (or remove the file).") from None
+    except json.JSONDecodeError as exc:
+        raise IngestionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}); "
+                             f"fix it or remove the file.") from None
+    if not isinstance(data, dict):
+        raise IngestionError(f"{path}: must be a JSON object with keys {sorted(_MANIFEST_KEYS)}; fix it or remove "
+                             f"the file.")
+    unknown = set(data) - _MANIFEST_KEYS
+    if unknown:
+        raise IngestionError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(_MANIFEST_KEYS)}.")
+    for key, types in _MANIFEST_TYPES.items():
+        types = types if isinstance(types, tuple) else (types,)
+        if key in data and (not isinstance(data[key], types) or isinstance(data[key], bool)):
+            raise IngestionError(f"{path}: {key} = {data[key]!r} must be "
+                                 f"{' or '.join(_TYPE_NAMES[t] for t in types)}; correct it.")
+    for mac, segment in data.get("sensors", {}).items():
+        if not isinstance(segment, str):
+            raise IngestionError(f"{path}: sensors[{mac!r}] = {segment!r}; give the segment as a string "
+                                 f"(\"thigh\" or \"shank\").")
+    if "recordings" in data and not data["recordings"]:
+        raise IngestionError(f"{path}: 'recordings' lists no recording; list the session's files, or remove "
+                             f"the key to let ChakaMo find them.")
+    root = path.parent.resolve()
+    listed: dict[Path, int] = {}
+    for i, e in enumerate(data.get("recordings", [])):
+        if not isinstance(e, dict) or not isinstance(e.get("files"), list) or not e["files"] or set(e) - _ENTRY_KEYS \
+                or not all(isinstance(e.get(k, ""), str) for k in ("segment", "role")) \
+                or not isinstance(e.get("sheet", ""), (str, type(None))):
+            raise IngestionError(f"{path}: recordings[{i}] must be an object with 'files' (a non-empty list of "
+                                 f"names) and optional 'segment', 'role', 'sheet' (strings); correct it.")
+        for f in e["files"]:
+            if not isinstance(f, str) or not f or not (root / f).resolve().is_relative_to(root) \
+                    or (root / f).resolve() == root:
+                raise IngestionError(f"{path}: recordings[{i}] lists {f!r}, which is not a file inside the session "
+                                     "folder; list the recordings by their names in this folder.")
+            where = (root / f).resolve()
+            if where in listed:
+                raise IngestionError(f"{path}: {f!r} is listed twice (recordings[{listed[where]}] and "
+                                     f"recordings[{i}]); list each file once.")
+            listed[where] = i
+    return data
+
+
+def _manifest_word(path: Path, where: str, text: str, kind: str) -> Recognition:
+    finder = recognise_segment if kind == "segment" else recognise_role
+    try:
+        r = finder(str(text), "session.json")
+    except ValueError as exc:
+        r, _ = None, exc
+    if r is None:
+        if text in (SEGMENTS if kind == "segment" else ROLES):
+            return Recognition(text, "session.json", where)
+        raise IngestionError(f"{path}: {where} = {text!r} is not a {kind} ChakaMo knows; use one of "
+                             f"{SEGMENTS if kind == 'segment' else ROLES}.")
+    return Recognition(r.value, "session.json", where)
+
+
+def _looks_generic(path: Path) -> bool:
+    """A non-MetaBase .csv is taken as a generic recording only if its header names acc_x."""
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
+            return "acc_x" in fh.readline().lower()
+    except OSError:
+        return False
+
+
+#: why _discover leaves a .csv out (shown in notes, and in the error when a recording or stream is then missing)
+_IGNORED_CSV = "neither a MetaBase export nor a generic CSV with acc_x..."
+
+
+def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
+    """The folder's recordings (file groups) and the ``.csv`` files left out (their names)."""
+    files = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(("~$", ".")))
+    meta = [p for p in files if p.suffix.lower() == ".csv" and parse_file_name(p)]
+    groups = [sorted(g.values()) for g in group_metabase_files(meta).values()]
+    singles, ignored = [], []
+    for p in files:
+        if p.suffix.lower() == ".xlsx" or (p.suffix.lower() == ".csv" and p not in meta and _looks_generic(p)):
+            singles.append([p])
+        elif p.suffix.lower() == ".csv" and p not in meta:
+            ignored.append(p.name)
+    return groups + singles, ignored
+
+
+def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str, str], RawRecording],
+              notes: list[str]) -> SessionMetadata:
+    found: dict[str, Recognition | None] = {}
+    task_first = sorted(recs.values(), key=lambda r: r.role is None or r.role.value != "task")
+    for key in ("patient_id", "side", "step_height_m", "date", "trial"):
+        if key in manifest:
+            value = manifest[key]
+            if key == "side":
+                side = recognise_side(str(value), "session.json")
+                if side is None:
+                    raise IngestionError(f"{mpath}: side = {value!r}; use 'right' or 'left'.")
+                value = side.value
+            if key == "step_height_m" and not (isinstance(value, (int, float)) and 0.0 < value < 1.0):
+                raise IngestionError(f"{mpath}: step_height_m = {value!r}; give the step height in metres, "
+                                     f"e.g. 0.17.")
+            found[key] = Recognition(value, "session.json", key)
+            continue
+        values = [r.extras[key] for r in task_first if key in r.extras]
+        if len({str(v.value) for v in values}) > 1:
+            notes.append(f"file names disagree on {key}: {sorted({str(v.value) for v in values})}; "
+                         f"used {values[0].value!r}")
+        found[key] = values[0] if values else None
+    if found["step_height_m"] is None and ("thigh", "task") in recs:
+        task = recs[("thigh", "task")]
+        if parse_thesis_name(task.label) is not None:
+            found["step_height_m"] = Recognition(LOW_STEP_M, task.role.method if task.role else "file name",
+                                                 "no -H suffix (thesis: the 17 cm step)")
+    return SessionMetadata(**found)
+
+
+def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
+                 roles: Sequence[str] = ROLES) -> Session:
+    """Read and align one session folder (or its ``session.json``); see the package docstring.
+
+    expected_fs_hz : accelerometer/gyroscope rate the protocol uses (refuse others beyond 3 %); ``None``
+        accepts the files' own rate.   roles : the recordings required of each sensor.
+    """
+    path = Path(path)
+    folder = path.parent if path.is_file() else path
+    if not folder.is_dir():
+        raise IngestionError(f"{path}: no such session folder.")
+    mpath = folder / MANIFEST if (folder / MANIFEST).is_file() else None
+    manifest = _read_manifest(mpath) if mpath else {}
+    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
+    entries = manifest.get("recordings")
+    left_out: list[str] = []
+    if entries is None:  # discovered files are already paths inside folder: keep only their names
+        groups, left_out = _discover(folder)
+        entries = [{"files": [p.name for p in g]} for g in groups]
+    notes = [f"ignored {name} ({_IGNORED_CSV})" for name in left_out]
+    ignored = "".join(f" Ignored {name} ({_IGNORED_CSV})." for name in left_out)
+    if not entries:
+        raise IngestionError(f"{folder}: no recordings found (MetaBase .csv, thesis .xlsx or generic .csv); "
+                             f"check the folder.")
+    recs: dict[tuple[str, str], RawRecording] = {}
+    unrecognised: list[str] = []
+    for i, e in enumerate(entries):
+        rec = read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored)
+        segment, role = rec.segment, rec.role
+        if rec.sensor_id and rec.sensor_id in sensors:
+            segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
+        if "segment" in e:
+            segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
+        if "role" in e:
+            role = _manifest_word(mpath, f"recordings[{i}].role", e["role"], "role")
+        if segment is None or role is None or role.value not in roles:
+            if role is None or segment is None:
+                what = " and ".join(w for w, r in (("role", role), ("segment", segment)) if r is None)
+                why = "; ".join(n.split(": ", 1)[1] for n in rec.notes if "names more than one" in n)
+                unrecognised.append(f"{rec.files[0].name} ({what} not recognised{': ' + why if why else ''})")
+            continue
+        rec = RawRecording(rec.acc, rec.gyr, rec.mag, rec.fmt, segment, role, rec.label, rec.sensor_id,
+                           rec.extras, rec.notes)
+        key = (segment.value, role.value)
+        if key in recs:
+            raise IngestionError(f"{rec.files[0]} and {recs[key].files[0]} are both the {role.value} recording of "
+                                 f"the {segment.value}; keep one (or list the one to use in {MANIFEST}).")
+        recs[key] = rec
+    hint = ignored + (f" Files not recognised: {'; '.join(unrecognised)}." if unrecognised else "") + \
+        (f" Name files like step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., or list them in {MANIFEST}"
+         f" with segment and role.")
+    segs = {s for s, _ in recs}
+    if len(segs) < 2:
+        only = f"only the {segs.pop()} sensor" if segs else "no sensor"
+        raise IngestionError(f"{folder}: {only} found; a session needs both the thigh and the shank sensor "
+                             f"(knee angles compare the two).{hint}")
+    missing = [f"{r} of the {s}" for s in SEGMENTS for r in roles if (s, r) not in recs]
+    if missing:
+        raise IngestionError(f"{folder}: missing recording(s): {', '.join(missing)}.{hint}")
+    notes += [f"ignored {u}" for u in unrecognised]
+    for rec in recs.values():
+        check_gyro_unit(rec.acc, rec.gyr)
+    fs = {key: check_rates(rec, expected_fs_hz) for key, rec in recs.items()}
+    aligned = {key: align_recording(rec, fs[key], *key) for key, rec in recs.items()}
+    task = None
+    processed = dict(aligned)  # what the pipeline uses: the task pair on its common grid, whose notes it gives
+    if "task" in roles:
+        task = align_pair(recs[("thigh", "task")], recs[("shank", "task")], fs[("thigh", "task")])
+        processed[("thigh", "task")], processed[("shank", "task")] = task
+    for key, rec in recs.items():
+        notes += [n.prefixed(*key) if isinstance(n, Note) else f"{key[0]} {key[1]}: {n}"
+                  for n in list(rec.notes) + processed[key].flags["notes"]]
+    metadata = _metadata(manifest, mpath, recs, notes)
+    return Session(folder=folder, recordings=aligned, raw=recs, task=task, metadata=metadata, manifest=mpath,
+                   notes=tuple(dict.fromkeys(notes)), manifest_data=manifest)
+
+
+__all__ = ["MANIFEST", "load_session", "read_recording"]

@@ -1,0 +1,220 @@
+"""``results.json`` of one knee session (``../shared/DESIGN.md`` §4), and writing outputs safely.
+
+The estimators work in radians; this is where clinical numbers become degrees.  Every NaN becomes
+``null`` (JSON has no NaN).  :func:`write_outputs` writes all files into a temporary folder next to the
+destination and moves them in only when every file is complete, so a failure leaves nothing half-written.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimators import __version__
+from estimators.jsonable import json_ready
+from estimators.motor_task import ANGLES
+from estimators.motor_task.analysis import ROM_STATS
+
+from reports.model import Patient, ReportInput
+
+from app.pipeline.session import SessionOutcome
+
+
+def _deg(x: Any) -> Any:
+    """Degrees of a number, an array or a nested mapping of them (None stays None)."""
+    if isinstance(x, Mapping):
+        return {k: _deg(v) for k, v in x.items()}
+    if x is None:
+        return None
+    return np.rad2deg(np.asarray(x, dtype=np.float64))
+
+
+def build_results(outcome: SessionOutcome) -> dict[str, Any]:
+    """The ``results.json`` dictionary (DESIGN §4 keys, plus session facts and per-cycle detail)."""
+    a = outcome.analysis
+    task = a.to_dict()
+    opts = outcome.options
+    session = outcome.session
+    meta = session.metadata
+    results = {
+        "side": outcome.side,
+        "task": task["task"],
+        "filter": {"name": opts.filter_name, "params": dataclasses.asdict(outcome.filter_params),
+                   "overrides": dict(opts.filter_params)},
+        "angles": list(ANGLES),
+        "angle_method": opts.angle_method,
+        "cycles": {
+            "detected": task["cycles"]["detected"],
+            "accepted": task["cycles"]["accepted"],
+            "rejected": task["cycles"]["rejected"],
+            "boundaries_s": task["cycles"]["boundaries_s"],
+            "accepted_indices": task["cycles"]["accepted_indices"],
+            "events": task["cycles"]["events"],
+            "events_s": task["cycles"]["events_s"],
+            "task_span_s": task["task_span_s"],
+            "per_cycle": _per_cycle(outcome),
+        },
+        "rom_deg": _deg(task["rom_rad"]),
+        "phases": task["phases"],
+        "curves": {name: _deg(c) for name, c in task["curves_rad"].items()},
+        "calibration": {
+            "magnetometer": {seg: cal.to_dict() for seg, cal in outcome.mag.items()},
+            "segment": {
+                seg: {
+                    "q_sensor_segment": cal.q_sensor_segment,
+                    "method": cal.method,
+                    "axis_change_deg": None if cal.axis_change_rad is None else np.rad2deg(cal.axis_change_rad),
+                    "angle_between_postures_deg": np.rad2deg(cal.angle_between_postures_rad),
+                    "gyr_bias_deg_s": np.rad2deg(cal.gyr_bias_rad_s),
+                    "standing_window_s": [cal.standing.start_s, cal.standing.start_s + cal.standing.duration_s],
+                    "supine_window_s": [cal.supine.start_s, cal.supine.start_s + cal.supine.duration_s],
+                }
+                for seg, cal in outcome.segments.items()
+            },
+            "heading_offset_standing_deg": np.rad2deg(outcome.heading.offset_rad),
+        },
+        "quality": {
+            "warnings": [w.to_dict() for w in outcome.warnings],
+            "magnetic_disturbance_fraction": {seg: f.fraction for seg, f in outcome.field.items()},
+            "heading_task": _heading_task(outcome),
+        },
+        "session": {
+            "folder": str(session.folder),
+            "patient_id": meta.value("patient_id"),
+            "date": meta.value("date"),
+            "step_height_m": outcome.step_height_m,
+            "language": opts.language,
+            "task_recording": {"fs_hz": outcome.fs_hz, "duration_s": len(outcome.t_s) / outcome.fs_hz,
+                               "t0_s": outcome.t0_s},
+            "recognised": {f"{seg}/{role}": rec.source for (seg, role), rec in session.recordings.items()},
+        },
+        "software": {"version": __version__},
+    }
+    return json_ready(results)
+
+
+def _heading_task(outcome: SessionOutcome) -> dict[str, Any] | None:
+    """The heading check over the task's straight-knee holds (degrees), or None when there was no hold."""
+    h = outcome.heading_task
+    if h is None:
+        return None
+    return {"spans_s": h.spans_s, "offsets_deg": _deg(h.offsets_rad), "change_deg": _deg(h.change_rad),
+            "mean_offset_deg": _deg(h.mean_offset_rad)}
+
+
+def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
+    """One entry per detected cycle: accepted or the rejection reason, ROM (deg) and phase durations."""
+    a = outcome.analysis
+    reasons = {r.index: r.code for r in a.rejected}
+    phases = a.task.phase_names
+    out = []
+    for k in range(a.n_detected):
+        out.append({
+            "index": k,
+            "accepted": bool(a.accepted[k]),
+            "reason": reasons.get(k),
+            "start_s": a.cycles_s[k, 0],
+            "end_s": a.cycles_s[k, 1],
+            "rom_deg": {angle: dict(zip(ROM_STATS, np.rad2deg(a.rom_rad[k, i]))) for i, angle in enumerate(ANGLES)},
+            "phases": {name: {"s": a.phase_s[k, j], "pct": a.phase_pct[k, j]} for j, name in enumerate(phases)},
+        })
+    return out
+
+
+def timeseries_npz(outcome: SessionOutcome) -> bytes:
+    """The task's series (``timeseries.npz``): t_s, angles_deg, and sensor and segment quaternions."""
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf, t_s=outcome.t_s, angles_deg=np.rad2deg(outcome.angles_rad),
+        q_earth_sensor_thigh=outcome.q_earth_sensor["thigh"], q_earth_sensor_shank=outcome.q_earth_sensor["shank"],
+        q_earth_segment_femur=outcome.q_earth_segment["thigh"], q_earth_segment_tibia=outcome.q_earth_segment["shank"],
+        q_sensor_segment_thigh=outcome.segments["thigh"].q_sensor_segment,
+        q_sensor_segment_shank=outcome.segments["shank"].q_sensor_segment,
+    )
+    return buf.getvalue()
+
+
+def write_outputs(out_dir: str | os.PathLike, files: Mapping[str, Any]) -> list[Path]:
+    """Write ``{name: content}`` into ``out_dir`` all-or-nothing; returns the paths written.
+
+    ``content`` is bytes, text, or a callable that writes the file at the path it is given (for writers
+    such as openpyxl's).  Everything is first written into a temporary folder beside ``out_dir`` (same
+    file system), then moved in with ``os.replace``; if anything fails before the moves, ``out_dir`` is
+    untouched.
+    """
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        for name, content in files.items():
+            target = staging / name
+            if callable(content):
+                content(target)
+                if not target.is_file():
+                    raise OSError(f"the writer of {name} produced no file")
+            else:
+                target.write_bytes(content.encode() if isinstance(content, str) else content)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+        for name in files:
+            os.replace(staging / name, out / name)
+            written.append(out / name)
+        return written
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def results_json(results: dict[str, Any]) -> str:
+    """``results.json`` text of :func:`build_results`' dictionary (UTF-8, indented, no NaN)."""
+    return json.dumps(results, indent=2, ensure_ascii=False, allow_nan=False)
+
+
+def session_patient(outcome: SessionOutcome) -> Patient:
+    """The patient block: what the names and ``session.json`` said (its optional keys ``name``, ``professional``,
+    ``weight_kg``, ``height_m``, ``observations`` are shown as typed)."""
+    meta = outcome.session.metadata
+    extra = outcome.session.manifest_data  # parsed and checked once by load_session
+
+    def number(key: str) -> float | None:
+        try:
+            value = float(extra[key])
+        except (KeyError, TypeError, ValueError):
+            return None
+        return value if math.isfinite(value) else None
+
+    return Patient(
+        name_or_id=str(extra.get("name") or meta.value("patient_id") or ""),
+        date=str(meta.value("date") or ""),
+        professional=str(extra.get("professional") or ""),
+        side=outcome.side,
+        step_height_m=outcome.step_height_m,
+        weight_kg=number("weight_kg"),
+        height_m=number("height_m"),
+        observations=str(extra.get("observations") or ""),
+    )
+
+
+def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None) -> ReportInput:
+    """What the reports read (``reports.model``): results.json, the task's series in degrees, orientations."""
+    if patient is None:
+        patient = session_patient(outcome)
+    return ReportInput(
+        results=results,
+        t_s=outcome.t_s,
+        angles_deg=np.rad2deg(outcome.angles_rad),
+        q_earth_sensor=dict(outcome.q_earth_sensor),
+        q_earth_segment={"femur": outcome.q_earth_segment["thigh"], "tibia": outcome.q_earth_segment["shank"]},
+        q_sensor_segment={seg: cal.q_sensor_segment for seg, cal in outcome.segments.items()},
+        patient=patient,
+        language=outcome.options.language,
+    )

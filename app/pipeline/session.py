@@ -1,0 +1,384 @@
+"""One knee session, from its recordings to the numbers a physiotherapist reads (seed 004 chapter 8).
+
+Stages (each reported to ``progress(stage, fraction)``):
+
+1. **read** — :func:`app.pipeline.ingestion.load_session`: files → streams in SI units on one grid per recording,
+   the two task recordings on one common grid;
+2. **magnetometer** — per sensor, ellipsoid fit on its figure-eight (:func:`estimators.magnetometer.fit_ellipsoid`),
+   applied to all its recordings;
+3. **segments** — per sensor, ``q_sensor_segment`` from standing and supine (:func:`estimators.knee.calibrate_segment`),
+   and the gyroscope bias measured while those postures are still, subtracted from every later recording
+   (a BMI160's bias reaches ±3 °/s, which the filters would otherwise have to learn during the motion);
+   with ``calibration="functional"`` the femur's z axis is then the knee's flexion axis estimated on the
+   task's gyroscopes (:func:`estimators.joint_axis.estimate_axis`, checked against the filters' relative
+   motion; :func:`estimators.knee.functional_calibration`) instead of the supine posture's, and the tibia is turned about its long axis so that the knee's rotation
+   is zero while standing (:func:`estimators.knee.turn_about_long_axis`; in 9D, so it trusts the magnetometer
+   while standing as much as the heading check does);
+4. **orientation** — both sensors through the task with the chosen filter (default: the estimator
+   core's default, whose offline smoother needs no convergence time, so the first cycle is not lost
+   as it was in the thesis);
+5. **knee** — ``q_femur_tibia`` and the clinical (Grood & Suntay) or thesis (ZYX) angles;
+6. **task** — cycles, phases, normalised curves, ROM (:func:`estimators.motor_task.analyse_task`).
+
+Quality checks gathered on the way (``results["quality"]["warnings"]``): magnetometer coverage and
+residual, postures not still or not distinct, a sensor mounted upside down, a large heading offset
+between the two sensors while standing, their relative heading drifting between the task's straight-knee
+holds (``heading_drift``, variant ``task``), magnetic disturbance during the task, cycles rejected, and every
+note the ingestion made.  Each warning carries ``params`` (its values by the field names of
+``reports/translations_warnings.json``); the magnetometer's, re-worded here with the sensor in front, get
+``params["segment"]``, the ingestion notes the :class:`app.pipeline.ingestion.Note` params.  Sensors swapped
+between thigh and shank (the task's flexion comes out negative) stop the processing with a message instead.
+:func:`process_session` computes everything before anything is written;
+:mod:`app.pipeline.results` turns the outcome into ``results.json``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators import __version__, knee
+from estimators import quaternion as quat
+from estimators.disturbance import FieldCheck, field_disturbance
+from estimators.magnetometer import MagCalibration, fit_ellipsoid
+from estimators.motor_task import EVENTS, TASKS, TaskAnalysis, analyse_task
+from estimators.orientation import DEFAULT_METHOD, make
+from estimators.quality import QualityWarning
+
+from app.pipeline.ingestion import SEGMENTS, IngestionError, Note, Session
+
+FloatArray = NDArray[np.float64]
+Progress = Callable[[str, float], None]
+
+#: what an analysis was computed with: with the session and its files' version it keys the processing
+#: (``chakamo reprocess`` skips sessions already analysed by this version with the same filter)
+PIPELINE_VERSION = __version__
+ANGLE_METHODS = ("grood_suntay", "thesis_zyx")
+CALIBRATIONS = ("static", "functional")
+#: Seel's and the relative-velocity flexion axes further apart than this (transverse plane) → the latter, warned
+FUNCTIONAL_AXIS_AGREE_RAD = float(np.deg2rad(8.0))
+#: a larger constant heading offset between the two sensors' earth frames (standing) deserves a warning
+HEADING_OFFSET_WARN_RAD = float(np.deg2rad(10.0))
+#: the two segments' relative heading changing by more than this between the task's straight-knee holds is
+#: drift (warned ``heading_drift``, variant ``task``): the rotation of the last cycles then reads that much off
+#: the first ones', over twice the 2° rotation-accuracy goal; normal simulated sessions change by 0.6–2.9°
+#: (10 seeds × 10 cycles, with and without accelerometer errors), a shank field turning 1°/s by 5.2°
+HEADING_DRIFT_TASK_WARN_RAD = float(np.deg2rad(5.0))
+#: straight-knee holds shorter than this are left out of the task's heading check: too few samples to
+#: average the sensors' noise (a turning point is one sample)
+HEADING_HOLD_MIN_S = 0.2
+
+
+class PipelineError(ValueError):
+    """The session cannot be processed as given; the message says what to do."""
+
+
+@dataclass(frozen=True)
+class ProcessOptions:
+    """What the user chose.
+
+    filter_name : orientation method (``estimators.orientation.METHODS``).   filter_params : its parameters.
+    side : ``"right"`` / ``"left"``, overriding what the files or ``session.json`` say.
+    angle_method : ``"grood_suntay"`` (clinical, default) or ``"thesis_zyx"`` (the thesis' extraction).
+    calibration : ``"static"`` (standing + supine, default) or ``"functional"`` (standing + the flexion axis
+        of the task, for a lying posture that was not held toes-up).
+    task : motor task analysed (``estimators.motor_task.TASKS``).
+    expected_fs_hz : rate the protocol uses; ``None`` accepts the files' own rate.
+    language : report language (``es``/``en``/``pt``), recorded for the reports.
+    """
+
+    filter_name: str = DEFAULT_METHOD
+    filter_params: Mapping[str, Any] = field(default_factory=dict)
+    side: str | None = None
+    angle_method: str = "grood_suntay"
+    calibration: str = "static"
+    task: str = "step_up"
+    expected_fs_hz: float | None = 100.0
+    language: str = "es"
+
+    def __post_init__(self) -> None:
+        if self.side not in (None, "right", "left"):
+            raise PipelineError(f"side must be 'right' or 'left', got {self.side!r}")
+        if self.angle_method not in ANGLE_METHODS:
+            raise PipelineError(f"angle method must be one of {', '.join(ANGLE_METHODS)}, got {self.angle_method!r}")
+        if self.calibration not in CALIBRATIONS:
+            raise PipelineError(f"calibration must be one of {', '.join(CALIBRATIONS)}, got {self.calibration!r}")
+        if self.language not in ("es", "en", "pt"):
+            raise PipelineError(f"language must be es, en or pt, got {self.language!r}")
+        if self.task not in TASKS:
+            raise PipelineError(f"task must be one of {', '.join(TASKS)}, got {self.task!r}; "
+                                "pick the motor task the session recorded")
+
+
+@dataclass(frozen=True, eq=False)
+class SessionOutcome:
+    """Everything computed for one session (radians, seconds from the task grid's start).
+
+    t_s : (N,) task grid.   fs_hz : its rate.   t0_s : the grid start on the files' clock.
+    angles_rad : (N, 3) flexion, adduction, internal rotation (clinical signs).
+    q_earth_sensor, q_earth_segment : ``{"thigh"|"shank": (N, 4)}``.   q_femur_tibia : (N, 4).
+    mag : ``{segment: MagCalibration}``.   segments : ``{segment: SegmentCalibration}``.
+    field : ``{segment: FieldCheck}`` on the task.   heading : the standing heading check.
+    analysis : the motor-task analysis.   warnings : every quality warning, in stage order.
+    filter_params : the parameter dataclass of the filter used (defaults and overrides), written whole to
+        ``results.json`` ``filter.params`` (units in the field names: ``tau_acc_s``, ``bias_clip_rad_s``) so a
+        results file says how it was computed even after a default changes; ``filter.overrides`` lists what
+        the user changed.
+    heading_task : the heading check over the task's straight-knee holds (None when there was none).
+    """
+
+    session: Session
+    options: ProcessOptions
+    side: str
+    step_height_m: float | None
+    t_s: FloatArray
+    fs_hz: float
+    t0_s: float
+    angles_rad: FloatArray
+    q_earth_sensor: dict[str, FloatArray]
+    q_earth_segment: dict[str, FloatArray]
+    q_femur_tibia: FloatArray
+    mag: dict[str, MagCalibration]
+    segments: dict[str, knee.SegmentCalibration]
+    field: dict[str, FieldCheck]
+    heading: knee.HeadingOffset
+    analysis: TaskAnalysis
+    warnings: tuple[QualityWarning, ...]
+    filter_params: Any
+    heading_task: TaskHeading | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class TaskHeading:
+    """Heading offset between the two segments over the task's straight-knee holds (:func:`_task_heading`).
+
+    spans_s : (H, 2) the holds used, s on the task grid.   offsets_rad : (H,) the offset δ of each hold
+        (:func:`estimators.knee.heading_offset`, ``"straight_knee"``).
+    change_rad : largest minus smallest δ (NaN with fewer than two holds): how far the relative heading
+        drifted during the task.   mean_offset_rad : δ over all holds together.
+    warnings : ``heading_drift`` (variant ``task``) when ``change_rad`` exceeds ``HEADING_DRIFT_TASK_WARN_RAD``.
+    """
+
+    spans_s: FloatArray
+    offsets_rad: FloatArray
+    change_rad: float
+    mean_offset_rad: float
+    warnings: tuple[QualityWarning, ...]
+
+
+def _no_progress(stage: str, fraction: float) -> None:
+    return None
+
+
+def process_session(session: Session, options: ProcessOptions | None = None, *,
+                    progress: Progress = _no_progress) -> SessionOutcome:
+    """Run stages 2–6 on a loaded session (see the module docstring)."""
+    options = options or ProcessOptions()
+    warnings: list[QualityWarning] = [QualityWarning("ingestion_note", n, n.params if isinstance(n, Note) else {})
+                                      for n in session.notes]
+    side = options.side or session.metadata.value("side")
+    if side is None:
+        raise PipelineError(
+            f"{session.folder}: the side under study is not known; pass --side right|left or add "
+            '"side" to session.json')
+    filt = make(options.filter_name, **dict(options.filter_params))
+
+    progress("magnetometer", 0.15)
+    mag: dict[str, MagCalibration] = {}
+    for seg in SEGMENTS:
+        rec = session.recording(seg, "mag_calibration")
+        try:
+            mag[seg] = fit_ellipsoid(rec.mag)
+        except ValueError as exc:
+            raise PipelineError(f"{seg} magnetometer calibration ({_files(rec)}): {exc}") from None
+        warnings += [QualityWarning(w.code, f"{seg.capitalize()} sensor: {w.message}", {**w.params, "segment": seg})
+                     for w in mag[seg].quality.warnings]
+
+    progress("segments", 0.3)
+    segments: dict[str, knee.SegmentCalibration] = {}
+    for seg in SEGMENTS:
+        standing, lying = session.recording(seg, "standing"), session.recording(seg, "lying")
+        try:
+            cal = knee.calibrate_segment(standing.acc, standing.gyr, lying.acc, lying.gyr,
+                                         fs_hz=standing.fs_hz, label=seg)
+        except ValueError as exc:
+            raise PipelineError(f"{seg} sensor-to-segment calibration ({_files(standing)}, {_files(lying)}): "
+                                f"{exc}") from None
+        segments[seg] = cal
+        warnings += list(cal.warnings) + knee.mounting_warnings(cal, label=seg)
+
+    thigh, shank = session.task_pair()
+    task = {"thigh": thigh, "shank": shank}
+    q_standing = _standing_orientations(session, filt, mag, segments)
+    q_es: dict[str, FloatArray] = {}
+    mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in task.items()}
+    gyr_task = {seg: rec.gyr - segments[seg].gyr_bias_rad_s for seg, rec in task.items()}
+    for i, (seg, rec) in enumerate(task.items()):
+        progress(f"orientation {seg}", 0.45 + 0.2 * i)
+        q_es[seg] = filt.estimate(rec.acc, gyr_task[seg], mag_task[seg], fs_hz=rec.fs_hz).orientation_
+    if options.calibration == "functional":
+        segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)
+        warnings += functional_warnings
+    q_seg = {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
+
+    progress("knee", 0.85)
+    heading = _standing_heading(q_standing, segments)
+    warnings += list(heading.warnings)
+    field: dict[str, FieldCheck] = {}
+    for seg in ("thigh", "shank"):
+        field[seg] = field_disturbance(mag_task[seg], q_es[seg], mag[seg].field_ut, label=seg)
+        warnings += list(field[seg].warnings)
+    q_ft = knee.q_femur_tibia(q_seg["thigh"], q_seg["shank"])
+    angles = knee.knee_angles(q_ft, side, method=options.angle_method)
+    implausible = knee.task_warnings(angles)
+    if implausible:  # a report of negative flexion helps nobody: refuse, naming the files to check
+        raise PipelineError(
+            f"{_files(thigh)} (thigh) and {_files(shank)} (shank): {implausible[0].message}. Check which "
+            "recordings belong to which segment (file names or session.json) and how the sensors were worn.")
+
+    progress("task", 0.95)
+    try:
+        analysis = analyse_task(angles, thigh.fs_hz, task=options.task)
+    except ValueError as exc:
+        raise PipelineError(f"motor-task analysis of {_files(thigh)}: {exc}") from None
+    warnings += list(analysis.warnings)
+    if analysis.rejected:
+        warnings.append(QualityWarning(
+            "cycles_rejected",
+            f"{len(analysis.rejected)} of {analysis.n_detected} cycles were left out of the statistics: "
+            + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in analysis.rejected),
+            {"rejected": len(analysis.rejected), "detected": analysis.n_detected}))
+    heading_task = _task_heading(q_seg, analysis, thigh.fs_hz)
+    if heading_task is not None:
+        warnings += list(heading_task.warnings)
+    return SessionOutcome(
+        session=session, options=options, side=side, step_height_m=session.metadata.value("step_height_m"),
+        t_s=thigh.t_s, fs_hz=thigh.fs_hz, t0_s=thigh.t0_s, angles_rad=angles, q_earth_sensor=q_es,
+        q_earth_segment=q_seg, q_femur_tibia=q_ft, mag=mag, segments=segments, field=field, heading=heading,
+        analysis=analysis, warnings=tuple(warnings), filter_params=filt.params, heading_task=heading_task)
+
+
+def _standing_orientations(session: Session, filt, mag: dict[str, MagCalibration],
+                           segments: dict[str, knee.SegmentCalibration]) -> dict[str, FloatArray]:
+    """``q_earth_sensor`` of both sensors over their standing recordings, paired by index (separate files of
+    one static posture)."""
+    q = {}
+    for seg in SEGMENTS:
+        rec = session.recording(seg, "standing")
+        gyr = rec.gyr - segments[seg].gyr_bias_rad_s
+        q[seg] = filt.estimate(rec.acc, gyr, mag[seg].apply(rec.mag), fs_hz=rec.fs_hz).orientation_
+    n = min(len(q["thigh"]), len(q["shank"]))
+    return {seg: q[seg][:n] for seg in SEGMENTS}
+
+
+def _standing_heading(q_standing: dict[str, FloatArray], segments: dict[str, knee.SegmentCalibration], *,
+                      max_offset_rad: float | None = HEADING_OFFSET_WARN_RAD) -> knee.HeadingOffset:
+    """Heading offset between the two segments' earth frames while standing (knee straight: should be ~0)."""
+    q = {seg: knee.segment_orientation(q_standing[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
+    return knee.heading_offset(q["thigh"], q["shank"], method="straight_knee", max_offset_rad=max_offset_rad)
+
+
+def _straight_knee_spans_s(analysis: TaskAnalysis) -> FloatArray:
+    """(H, 2) spans of the accepted cycles where the knee is straight: the full-extension holds
+    (``far_reached`` → ``far_left``) of tasks that extend (step-up, seated extension), the standing rest
+    between repetitions (``rest_reached`` → next ``onset``) of tasks that flex (squat)."""
+    ev = analysis.events_s
+    if analysis.task.excursion == "extension":
+        spans = ev[:, [EVENTS.index("far_reached"), EVENTS.index("far_left")]]
+    else:
+        spans = np.column_stack([ev[:, EVENTS.index("rest_reached")],
+                                 np.append(ev[1:, EVENTS.index("onset")], np.nan)])
+    spans = spans[analysis.accepted]
+    return spans[np.all(np.isfinite(spans), axis=1)] if len(spans) else np.zeros((0, 2))
+
+
+def _task_heading(q_seg: dict[str, FloatArray], analysis: TaskAnalysis, fs_hz: float) -> TaskHeading | None:
+    """The heading-offset check of the standing posture, repeated on each straight-knee hold of the task.
+
+    The standing check sees a constant offset but cannot see drift: the posture lasts seconds and is
+    recorded apart.  On the task the two filters run for minutes; a gyroscope bias one filter did not
+    learn, or a local field that turns slowly at one sensor (its norm and dip unchanged, so no
+    magnetometer check flags it), moves one segment's heading against the other's.  With the knee
+    straight the two headings should agree, so δ per hold (:func:`estimators.knee.heading_offset`,
+    H1) follows the drift; its range over the task is compared with ``HEADING_DRIFT_TASK_WARN_RAD``.
+    The true knee rotation at full extension is nearly the same in every cycle, so it cancels in the
+    range.  Holds shorter than ``HEADING_HOLD_MIN_S`` are skipped; None when no hold remains.
+    """
+    spans = _straight_knee_spans_s(analysis)
+    spans = spans[spans[:, 1] - spans[:, 0] >= HEADING_HOLD_MIN_S]
+    if len(spans) == 0:
+        return None
+    n = len(q_seg["thigh"])
+    idx = [np.arange(max(0, int(round(a * fs_hz))), min(n, int(round(b * fs_hz)))) for a, b in spans]
+    keep = [i for i, ix in enumerate(idx) if len(ix)]
+    spans, idx = spans[keep], [idx[i] for i in keep]
+    if not idx:
+        return None
+    offsets = np.array([knee.heading_offset(q_seg["thigh"][ix], q_seg["shank"][ix]).offset_rad for ix in idx])
+    weights = np.array([len(ix) for ix in idx], dtype=float)
+    mean = float(np.angle(np.sum(weights * np.exp(1j * offsets))))  # circular mean over the holds' samples
+    rel = np.angle(np.exp(1j * (offsets - mean)))  # unwrapped about the mean: no jump at ±180°
+    change = float(rel.max() - rel.min()) if len(offsets) > 1 else float("nan")
+    warnings: tuple[QualityWarning, ...] = ()
+    if change > HEADING_DRIFT_TASK_WARN_RAD:
+        p = {"variant": "task", "change_deg": float(np.rad2deg(change)), "holds": len(offsets),
+             "first_deg": float(np.rad2deg(offsets[0])), "last_deg": float(np.rad2deg(offsets[-1])),
+             "max_deg": float(np.rad2deg(HEADING_DRIFT_TASK_WARN_RAD))}
+        warnings = (QualityWarning(
+            "heading_drift", f"the relative heading of the two sensors changed by {p['change_deg']:.1f}° across "
+            f"the task's {p['holds']:d} straight-knee holds (from {p['first_deg']:.1f}° to {p['last_deg']:.1f}°, "
+            f"more than {p['max_deg']:.0f}°); rotation and adduction drift with it: a gyroscope bias or a "
+            "magnetic disturbance near one sensor", p),)
+    return TaskHeading(spans, offsets, change, mean, warnings)
+
+
+def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, gyr_task: dict[str, FloatArray],
+                q_es: dict[str, FloatArray], q_standing: dict[str, FloatArray],
+                ) -> tuple[dict[str, knee.SegmentCalibration], list[QualityWarning]]:
+    """Femur on the task's flexion axis, the tibia's rotation zeroed while standing.
+
+    The axis is Seel's gyroscope-only estimate (:func:`estimators.joint_axis.estimate_axis`, seed 000 eqs.
+    68–69), checked against the dominant axis of the filters' relative angular velocity
+    (:func:`estimators.knee.flexion_axis`): a sagittal-plane task can leave Seel's problem ill-posed (on
+    simulated step-ups its axis can land far off with the same residual); when the two differ by more than ``FUNCTIONAL_AXIS_AGREE_RAD`` in the
+    transverse plane the relative-velocity axis is used, with a warning (it absorbs the adduction that moves
+    with flexion: ~5° of adduction RMSE on simulated step-ups against 0.2–1.7° for a well-posed Seel estimate,
+    ``python -m benchmarks.pipeline_accuracy --supine-roll-out 15 --calibration functional``)."""
+    from estimators.joint_axis import estimate_axis
+
+    g_t, g_s = gyr_task["thigh"], gyr_task["shank"]  # bias removed
+    ok = np.all(np.isfinite(g_t), axis=1) & np.all(np.isfinite(g_s), axis=1)
+    warnings: list[QualityWarning] = []
+    try:
+        j_rel = knee.flexion_axis(q_es["thigh"], q_es["shank"], g_t, g_s)
+        j_seel, _, _ = estimate_axis(g_t[ok], g_s[ok])
+        y = quat.to_matrix(segments["thigh"].q_sensor_segment)[:, 1]
+        a, b = (j - np.dot(j, y) * y for j in (j_seel, j_rel))
+        gap = float(np.arccos(min(1.0, abs(np.dot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b)))))
+        j_t = j_seel
+        if gap > FUNCTIONAL_AXIS_AGREE_RAD:
+            j_t = j_rel
+            gap_deg = float(np.rad2deg(gap))
+            warnings.append(QualityWarning(
+                "functional_axis_uncertain", f"the task's gyroscopes alone place the flexion axis {gap_deg:.0f}° "
+                "from the sensors' relative motion; the latter was used, adduction may read a few degrees off",
+                {"angle_deg": gap_deg}))
+        femur = knee.functional_calibration(segments["thigh"], j_t, label="thigh")
+    except ValueError as exc:
+        raise PipelineError(f"functional calibration on {_files(thigh)} and {_files(shank)}: {exc}") from None
+    out = {"thigh": femur, "shank": segments["shank"]}
+    delta = _standing_heading(q_standing, out, max_offset_rad=None).offset_rad
+    out["shank"] = knee.turn_about_long_axis(segments["shank"], delta, label="shank")
+    return out, warnings + [w for seg in SEGMENTS for w in out[seg].warnings if w.code == "functional_axis_far"]
+
+
+def _files(rec) -> str:
+    return ", ".join(str(getattr(f, "name", f)) for f in rec.source.get("files", ())) or rec.segment
+
+
+__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "HEADING_DRIFT_TASK_WARN_RAD", "IngestionError", "PIPELINE_VERSION", "PipelineError",
+           "ProcessOptions", "SessionOutcome", "TaskHeading", "process_session"]

@@ -1,0 +1,117 @@
+"""Database access: engine and session factory for one URL, and the Alembic upgrade applied at start-up.
+
+``Database(url)`` owns one engine; SQLite gets WAL journaling (readers never wait for the job threads'
+writes), ``synchronous=FULL`` (a commit — an acknowledged upload — survives a power cut; NORMAL could
+roll the last commits back), foreign keys on and a busy timeout, on every connection.
+:func:`ensure_blob` records a stored file with the dialect's ``INSERT … ON CONFLICT DO NOTHING``
+(SQLite, PostgreSQL): two transactions storing equal content at the same time never collide.
+``Database.migrate()`` upgrades the schema to the newest revision of ``app/store/migrations`` programmatically
+(no ``alembic.ini`` needed).
+Nothing is created at import time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from sqlalchemy import create_engine, event
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import Session, sessionmaker
+
+from app.store.models import Base, Blob
+
+MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
+
+
+def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.execute("PRAGMA busy_timeout=15000")
+    cursor.execute("PRAGMA synchronous=FULL")
+    cursor.close()
+
+
+#: connections a server process keeps (and may add) per database, and how long a request waits for one:
+#: as many as FastAPI's request threads (40), so requests never queue for a connection behind each other
+POOL_SIZE, POOL_OVERFLOW, POOL_TIMEOUT_S = 20, 20, 10.0
+
+
+def make_engine(url: str) -> Engine:
+    """An engine for ``url``; for a SQLite file its folder is created and the pragmas above applied; for a
+    server database a pool of :data:`POOL_SIZE` (+ :data:`POOL_OVERFLOW`) connections, checked before use
+    (a restarted server's dead connections are replaced) and waited for at most :data:`POOL_TIMEOUT_S`."""
+    if url.startswith("sqlite"):
+        path = url.split("///", 1)[-1]
+        if path and path != ":memory:":
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15})
+        event.listen(engine, "connect", _sqlite_pragmas)
+        return engine
+    return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,
+                         pool_timeout=POOL_TIMEOUT_S)
+
+
+def alembic_config(engine: Engine):
+    """An Alembic ``Config`` pointing at ``app/store/migrations`` and at ``engine`` (used by :meth:`Database.migrate`)."""
+    from alembic.config import Config
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(MIGRATIONS_DIR))
+    cfg.set_main_option("sqlalchemy.url", engine.url.render_as_string(hide_password=False).replace("%", "%%"))
+    return cfg
+
+
+def ensure_blob(db: Session, sha256: str, size_bytes: int) -> None:
+    """Add the :class:`Blob` row of ``sha256`` unless it exists — atomic, safe against concurrent inserts."""
+    name = db.get_bind().dialect.name
+    if name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert
+    elif name == "sqlite":
+        from sqlalchemy.dialects.sqlite import insert
+    else:  # another database: check, then insert (no concurrent guarantee)
+        if db.get(Blob, sha256) is None:
+            db.add(Blob(sha256=sha256, size_bytes=size_bytes))
+            db.flush()
+        return
+    from app.store.models import utcnow
+
+    db.execute(insert(Blob).values(sha256=sha256, size_bytes=size_bytes, created_at=utcnow())
+               .on_conflict_do_nothing(index_elements=["sha256"]))
+
+
+class Database:
+    """One database: ``engine``, ``sessions()`` (a sessionmaker) and :meth:`session` as a context manager."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.engine = make_engine(url)
+        self.sessions = sessionmaker(self.engine, expire_on_commit=False)
+
+    @contextmanager
+    def session(self) -> Iterator[Session]:
+        """A session committed on success, rolled back on error, always closed."""
+        with self.sessions() as db:
+            try:
+                yield db
+                db.commit()
+            except BaseException:
+                db.rollback()
+                raise
+
+    def migrate(self) -> None:
+        """Upgrade the schema to the newest revision (idempotent)."""
+        from alembic import command
+
+        cfg = alembic_config(self.engine)
+        with self.engine.begin() as connection:
+            cfg.attributes["connection"] = connection
+            command.upgrade(cfg, "head")
+
+    def dispose(self) -> None:
+        self.engine.dispose()
+
+
+__all__ = ["Base", "Database", "MIGRATIONS_DIR", "alembic_config", "ensure_blob", "make_engine"]

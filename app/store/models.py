@@ -1,0 +1,236 @@
+"""The database tables (SQLAlchemy 2 typed declarative models).
+
+Tenancy: every row belongs to a clinic, directly (``clinic_id`` on users, tokens, patients, sessions,
+jobs) or through its parent (recordings, analyses, artefacts through their session); the API scopes every
+query by the caller's clinic.  Files are not in the database: :class:`Blob` rows name content-addressed
+files (``app.store.blobs``) by sha256, shared by recordings and artefacts with equal content.
+
+Times are stored as naive UTC and come back timezone-aware (:class:`UTCDateTime`), so the API prints
+ISO 8601 with ``+00:00``.  Job logs are JSON lists of lines.  Changing a model means adding an Alembic
+revision under ``app/store/migrations/versions`` (a test compares the two).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+
+from sqlalchemy import (JSON, Boolean, Date, DateTime, Float, ForeignKey, Integer, MetaData, String, Text,
+                        TypeDecorator, UniqueConstraint)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+from app.web.security import ROLES  # the one definition of the roles (re-exported here)
+
+JOB_STATES = ("queued", "running", "done", "failed")
+
+NAMING = {"ix": "ix_%(column_0_label)s", "uq": "uq_%(table_name)s_%(column_0_name)s",
+          "ck": "ck_%(table_name)s_%(constraint_name)s",
+          "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s", "pk": "pk_%(table_name)s"}
+
+
+def utcnow() -> dt.datetime:
+    return dt.datetime.now(dt.timezone.utc)
+
+
+class UTCDateTime(TypeDecorator):
+    """Timezone-aware UTC datetimes in and out, stored as naive UTC (SQLite has no time zones)."""
+
+    impl = DateTime
+    cache_ok = True
+
+    def process_bind_param(self, value, dialect):
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("naive datetime given to a UTC column; use datetime.now(timezone.utc)")
+        return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+
+    def process_result_value(self, value, dialect):
+        return None if value is None else value.replace(tzinfo=dt.timezone.utc)
+
+
+class Base(DeclarativeBase):
+    metadata = MetaData(naming_convention=NAMING)
+
+
+class Clinic(Base):
+    __tablename__ = "clinics"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class User(Base):
+    __tablename__ = "users"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    email: Mapped[str] = mapped_column(String(320), unique=True)  # login name: unique across clinics
+    name: Mapped[str] = mapped_column(String(200), default="")
+    role: Mapped[str] = mapped_column(String(20))
+    password_hash: Mapped[str] = mapped_column(String(300))
+    active: Mapped[bool] = mapped_column(Boolean, default=True)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    clinic: Mapped[Clinic] = relationship(lazy="joined")
+
+
+class ApiToken(Base):
+    __tablename__ = "api_tokens"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    label: Mapped[str] = mapped_column(String(200), default="")
+    role: Mapped[str] = mapped_column(String(20), default="clinician")
+    token_sha256: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    revoked_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    clinic: Mapped[Clinic] = relationship(lazy="joined")
+
+
+class BrowserSession(Base):
+    __tablename__ = "browser_sessions"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    session_sha256: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    expires_at: Mapped[dt.datetime] = mapped_column(UTCDateTime)
+    user: Mapped[User] = relationship(lazy="joined")
+
+
+class Blob(Base):
+    __tablename__ = "blobs"
+    sha256: Mapped[str] = mapped_column(String(64), primary_key=True)
+    size_bytes: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class Patient(Base):
+    __tablename__ = "patients"
+    __table_args__ = (UniqueConstraint("clinic_id", "external_id", name="uq_patients_clinic_external"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    external_id: Mapped[str] = mapped_column(String(100))
+    side: Mapped[str] = mapped_column(String(5))
+    name: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    birth_date: Mapped[dt.date | None] = mapped_column(Date, nullable=True)
+    sex: Mapped[str | None] = mapped_column(String(20), nullable=True)
+    height_cm: Mapped[float | None] = mapped_column(Float, nullable=True)
+    mass_kg: Mapped[float | None] = mapped_column(Float, nullable=True)
+    notes: Mapped[str | None] = mapped_column(Text, nullable=True)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+class KneeSession(Base):
+    """One clinical session of a patient (table ``sessions``; named so to not clash with ORM sessions)."""
+
+    __tablename__ = "sessions"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    patient_id: Mapped[int] = mapped_column(ForeignKey("patients.id", ondelete="CASCADE"), index=True)
+    date: Mapped[dt.date] = mapped_column(Date)
+    task: Mapped[str] = mapped_column(String(40), default="step_up")
+    step_height_m: Mapped[float | None] = mapped_column(Float, nullable=True)
+    professional: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    notes: Mapped[str | None] = mapped_column(Text, nullable=True)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    #: the last ingestion check over all stored files (``{"ok", "messages", "error"}``), refreshed on every change
+    ingestion: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    #: bumped (in the same transaction) by every upload or deletion of a recording
+    files_version: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    #: the ``files_version`` the stored ``ingestion`` was computed from (fresh when equal)
+    ingestion_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    patient: Mapped[Patient] = relationship(lazy="joined")
+    recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
+                                                          cascade="all, delete-orphan")
+
+
+class Recording(Base):
+    __tablename__ = "recordings"
+    __table_args__ = (UniqueConstraint("session_id", "file_name", name="uq_recordings_session_file"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id", ondelete="CASCADE"), index=True)
+    file_name: Mapped[str] = mapped_column(String(255))
+    size_bytes: Mapped[int] = mapped_column(Integer)
+    sha256: Mapped[str] = mapped_column(ForeignKey("blobs.sha256"), index=True)
+    segment: Mapped[str | None] = mapped_column(String(10), nullable=True)
+    role: Mapped[str | None] = mapped_column(String(20), nullable=True)
+    uploaded_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    session: Mapped[KneeSession] = relationship(back_populates="recordings")
+
+
+class Job(Base):
+    __tablename__ = "jobs"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id", ondelete="CASCADE"), index=True)
+    status: Mapped[str] = mapped_column(String(10), default="queued", index=True)
+    progress: Mapped[float] = mapped_column(Float, default=0.0)
+    stage: Mapped[str] = mapped_column(String(40), default="queued")
+    error: Mapped[str | None] = mapped_column(Text, nullable=True)
+    log: Mapped[list] = mapped_column(JSON, default=list)
+    filter: Mapped[str] = mapped_column(String(40))
+    lang: Mapped[str] = mapped_column(String(2), default="es")
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    analysis_id: Mapped[int | None] = mapped_column(Integer, nullable=True)  # no FK: analyses point back here
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    started_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    finished_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: the pipeline version the job runs (:data:`app.pipeline.session.PIPELINE_VERSION`); with the session it keys the work
+    pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
+    #: when the job was last handed to the engine (the sweeper hands it again when it stays queued too long)
+    dispatched_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: refreshed while a worker runs the job; a running job whose heartbeat is older than the lease is orphaned
+    heartbeat_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+
+
+class Analysis(Base):
+    __tablename__ = "analyses"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id", ondelete="CASCADE"), index=True)
+    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), unique=True)
+    filter: Mapped[str] = mapped_column(String(40))
+    lang: Mapped[str] = mapped_column(String(2), default="es")
+    accepted_cycles: Mapped[int] = mapped_column(Integer, default=0)
+    warnings: Mapped[int] = mapped_column(Integer, default=0)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    #: the pipeline version and the session's ``files_version`` this analysis was computed from
+    pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
+    files_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    artefacts: Mapped[list["Artefact"]] = relationship(order_by="Artefact.id", cascade="all, delete-orphan")
+
+
+class Artefact(Base):
+    """One output file of an analysis: ``name`` (results.json, report.pdf, ...) and ``lang`` for the PDFs."""
+
+    __tablename__ = "artefacts"
+    __table_args__ = (UniqueConstraint("analysis_id", "name", "lang", name="uq_artefacts_analysis_name_lang"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    analysis_id: Mapped[int] = mapped_column(ForeignKey("analyses.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(40))
+    lang: Mapped[str] = mapped_column(String(2), default="")
+    media_type: Mapped[str] = mapped_column(String(100))
+    sha256: Mapped[str] = mapped_column(ForeignKey("blobs.sha256"))
+    size_bytes: Mapped[int] = mapped_column(Integer)
+
+
+class AuditEvent(Base):
+    """Who viewed, downloaded, exported or changed which patient's data (append-only; ``app.web.audit``)."""
+
+    __tablename__ = "audit_events"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow, index=True)
+    #: ``user`` (browser) or ``token`` (hospital system); the ids stay even if the account is deleted later
+    actor_kind: Mapped[str] = mapped_column(String(10))
+    user_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
+    token_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: a readable label of the actor at the time (user email or token label)
+    actor: Mapped[str] = mapped_column(String(320), default="")
+    #: ``list``, ``search``, ``view``, ``create``, ``upload``, ``delete``, ``download``, ``export``, ``process``
+    action: Mapped[str] = mapped_column(String(20))
+    patient_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
+    session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: the method and path (e.g. ``GET /api/v1/sessions/3/report.pdf``)
+    resource: Mapped[str] = mapped_column(String(300))
+    client: Mapped[str] = mapped_column(String(64), default="")
+
+
+__all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BrowserSession", "Clinic",
+           "Job", "KneeSession", "Patient", "Recording", "User", "utcnow"]

@@ -1,0 +1,146 @@
+"""A stored session as a folder the ingestion can read: files, ``session.json`` manifest, ingestion check.
+
+The database holds the facts typed in the browser or sent by a hospital system (patient side, step height,
+the segment/role chosen for an upload); the ingestion (:func:`app.pipeline.ingestion.load_session`) reads a folder.
+:func:`materialise` bridges the two: it copies every recording of a session out of the blob store
+(checksums verified) under its original file name into a temporary folder and writes the ``session.json``
+that :mod:`app.pipeline.ingestion.session` documents:
+
+* ``side`` (the patient's), ``patient_id`` (external id), ``date``, ``step_height_m`` when known, and the
+  report-only keys ``name``, ``professional``, ``weight_kg``, ``height_m``, ``observations``;
+* ``recordings`` only when an upload declared a segment or role: every file is then listed (MetaBase streams
+  grouped into their recording), with the declared segment/role — the rest is still recognised from names;
+* a ``session.json`` uploaded with the recordings is the base; the database's facts win over its keys.
+
+:func:`check_ingestion` runs the ingestion on that folder and returns the contract's Ingestion object.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from app.store.models import KneeSession, Patient, Recording
+from app.pipeline.ingestion import MANIFEST, IngestionError, load_session
+from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name
+from app.store.blobs import BlobStore
+
+
+#: the Ingestion object of a session without recordings (the API answers it too before any check ran)
+NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
+
+
+def _number(x: Any) -> float | None:
+    return None if x is None else float(x)
+
+
+def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[Recording],
+                   uploaded: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The ``session.json`` of ``session`` (module docstring).
+
+    An uploaded manifest may only name this session's stored files, by their bare names: anything else (a
+    path, ``..``, a file that was not uploaded) raises :class:`IngestionError`, so a manifest can never make
+    the ingestion read a file outside the session's own folder."""
+    if uploaded is not None and not isinstance(uploaded, dict):
+        raise IngestionError(f"{MANIFEST}: must be a JSON object ({{\"side\": ..., \"recordings\": [...]}}), not "
+                             f"{type(uploaded).__name__}; fix it or delete that recording")
+    manifest: dict[str, Any] = dict(uploaded or {})
+    stored = {r.file_name for r in recordings if r.file_name != MANIFEST}
+    listed = manifest.get("recordings") or []
+    if not isinstance(listed, list):
+        raise IngestionError(f"{MANIFEST}: \"recordings\" must be a list of {{\"files\": [...], \"segment\": ..., "
+                             "\"role\": ...}} entries; fix it or delete that recording")
+    for entry in listed:
+        files = entry.get("files") if isinstance(entry, dict) else None
+        for name in files if isinstance(files, list) else [files]:
+            if not isinstance(name, str) or Path(name).name != name or name not in stored:
+                raise IngestionError(f"{MANIFEST}: the recording file {name!r} is not one of this session's "
+                                     "uploaded files; list only the uploaded files' names")
+    facts = {
+        "side": patient.side, "patient_id": patient.external_id, "date": session.date.isoformat(),
+        "step_height_m": _number(session.step_height_m), "name": patient.name,
+        "professional": session.professional, "weight_kg": _number(patient.mass_kg),
+        "height_m": None if patient.height_cm is None else patient.height_cm / 100.0,
+        "observations": session.notes,
+    }
+    manifest |= {k: v for k, v in facts.items() if v not in (None, "")}
+    data = [r for r in recordings if r.file_name != MANIFEST]
+    if any(r.segment or r.role for r in data):
+        by_name = {r.file_name: r for r in data}
+        meta = [Path(n) for n in by_name if n.lower().endswith(".csv") and parse_file_name(Path(n))]
+        groups = [sorted(p.name for p in g.values()) for g in group_metabase_files(meta).values()] if meta else []
+        grouped = {n for g in groups for n in g}
+        groups += [[n] for n in by_name if n not in grouped]
+        entries = []
+        for names in groups:
+            entry: dict[str, Any] = {"files": names}
+            for key in ("segment", "role"):
+                values = {getattr(by_name[n], key) for n in names}
+                if len(values) == 1 and None not in values:
+                    entry[key] = values.pop()
+            entries.append(entry)
+        manifest["recordings"] = entries
+    return manifest
+
+
+@contextmanager
+def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
+                recordings: Sequence[Recording]) -> Iterator[Path]:
+    """A temporary folder with the session's files and manifest (removed on exit)."""
+    tmp_root.mkdir(parents=True, exist_ok=True)
+    folder = Path(tempfile.mkdtemp(prefix=f"session-{session.id}-", dir=tmp_root))
+    try:
+        uploaded = None
+        for rec in recordings:
+            if rec.file_name == MANIFEST:
+                try:
+                    uploaded = json.loads(store.read(rec.sha256).decode("utf-8"))
+                except (UnicodeDecodeError, ValueError):
+                    raise IngestionError(f"{MANIFEST}: not valid UTF-8 JSON; fix it or delete that recording.") from None
+                if not isinstance(uploaded, dict):
+                    raise IngestionError(f"{MANIFEST}: must be a JSON object; fix it or delete that recording.")
+                continue
+            store.copy_to(rec.sha256, folder / rec.file_name)
+        manifest = build_manifest(session, patient, recordings, uploaded)
+        (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, ensure_ascii=False), encoding="utf-8")
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def public_message(text: str, folder: Path | None) -> str:
+    """``text`` without the server's temporary path ``folder``."""
+    if folder is None:
+        return text
+    return text.replace(str(folder) + "/", "").replace(str(folder), "the session")
+
+
+def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
+                    recordings: Sequence[Recording]) -> dict[str, Any]:
+    """The contract's Ingestion ``{"ok", "messages", "error"}`` of the session's stored files."""
+    if not [r for r in recordings if r.file_name != MANIFEST]:
+        return dict(NO_RECORDINGS)
+    folder = None
+    try:
+        with materialise(store, tmp_root, session, patient, recordings) as folder:
+            loaded = load_session(folder)
+            messages = []
+            for (seg, role), rec in sorted(loaded.recordings.items()):
+                src = rec.source
+                files = [Path(f).name for f in src.get("files", ())]
+                what = f"{src.get('label')} ({len(files)} {src.get('format')} files)" if len(files) > 1 else \
+                    ", ".join(files)
+                messages.append(f"{seg} {role}: {what} — segment {src.get('segment')}, role {src.get('role')}")
+            messages += [public_message(n, folder) for n in loaded.notes]
+            return {"ok": True, "messages": messages, "error": None}
+    except (IngestionError, ValueError, OSError) as exc:
+        text = str(exc)
+        return {"ok": False, "messages": [], "error": public_message(text, folder)}
+
+
+__all__ = ["NO_RECORDINGS", "build_manifest", "check_ingestion", "materialise", "public_message"]

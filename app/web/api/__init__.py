@@ -1,0 +1,25 @@
+"""API v1 (``/api/v1``): one router per resource; :func:`api_router` assembles them.
+
+Errors are ``{"detail": "<one sentence: what is wrong, what to do>"}`` with honest codes: 400 bad input,
+401 not logged in, 403 role too low or CSRF, 404 unknown id *or another clinic's id*, 409 conflict, 413 too
+large, 415 wrong type, 422 validation.  ``../shared/DESIGN.md`` §4 has the hospital minimum; ``/docs`` the
+whole API.
+Shared pieces: :mod:`.deps` (caller, roles, clinic scoping, CSRF), :mod:`.schemas` (shapes); reads and
+changes of patient data are recorded by :mod:`app.web.audit` and listed by :mod:`.audit` (admins).
+"""
+
+from fastapi import APIRouter
+
+
+def api_router() -> APIRouter:
+    """All routers of API v1 under ``/api/v1``."""
+    from app.web.api import (artefacts, audit, auth, clinics, fhir, jobs, patients, recordings, results, sessions,
+                         users)
+
+    router = APIRouter(prefix="/api/v1")
+    for module in (auth, clinics, users, patients, sessions, recordings, jobs, results, artefacts, fhir, audit):
+        router.include_router(module.router)
+    return router
+
+
+__all__ = ["api_router"]

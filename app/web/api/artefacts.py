@@ -1,0 +1,79 @@
+"""Downloads of an analysis' artefacts: report.pdf (es, en, pt), angles.xlsx, quaternions.xlsx, report.html,
+scene.viser, timeseries.npz (the task's angles and orientations, :func:`app.pipeline.results.timeseries_npz`).
+Checksums are verified on every read (:meth:`app.store.blobs.BlobStore.read`).
+
+Files to keep (PDF, Excel, npz) come as attachments named ``chakamo-session-<id>-<analysis>[-<lang>].<ext>``;
+report.html and scene.viser are served inline (the UI opens the first and viser's client plays the second);
+report.html carries ``Content-Security-Policy: sandbox allow-scripts``: it holds text typed by people (patient
+name, notes), so even if escaping failed its scripts could not act as the logged-in user.  Every download is
+audited (``download`` of the session's patient, :mod:`app.web.audit`), in the request's transaction.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request
+from fastapi.responses import Response
+
+from app.web import audit
+from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
+from app.web.api.results import artefact_row, pick_analysis
+from app.web.api.schemas import Lang
+
+router = APIRouter(prefix="/sessions", tags=["artefacts"])
+
+
+def _send(db, store, principal, request: Request, session_id: int, name: str, analysis_id: int | None,
+          lang: str = "", attachment: bool = True) -> Response:
+    session = scoped_session(db, principal, session_id)
+    analysis = pick_analysis(db, session, analysis_id)
+    if name == "report.pdf" and not lang:
+        lang = analysis.lang
+    art = artefact_row(db, analysis, name, lang)
+    stem, ext = name.rsplit(".", 1)
+    filename = f"chakamo-session-{session.id}-{analysis.id}{'-' + lang if lang else ''}-{stem}.{ext}"
+    disposition = "attachment" if attachment else "inline"
+    headers = {"Content-Disposition": f'{disposition}; filename="{filename}"'}  # no-store, nosniff: app/web/headers.py
+    if name == "report.html":  # patient-typed text inside: scripts run, but in an opaque origin (no cookie, no API)
+        headers["Content-Security-Policy"] = "sandbox allow-scripts allow-popups allow-downloads"
+    data = store.read(art.sha256)
+    audit.record(db, request, principal, "download", patient_id=session.patient_id, session_id=session.id)
+    return Response(data, media_type=art.media_type, headers=headers)
+
+
+@router.get("/{session_id}/report.pdf", response_class=Response,
+            responses={200: {"content": {"application/pdf": {}}}})
+def report_pdf(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+               lang: Lang | None = None, analysis_id: int | None = None):
+    """The clinical report (default: the language the job was started with)."""
+    return _send(db, store, principal, request, session_id, "report.pdf", analysis_id, lang or "")
+
+
+@router.get("/{session_id}/angles.xlsx", response_class=Response)
+def angles_xlsx(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                analysis_id: int | None = None):
+    return _send(db, store, principal, request, session_id, "angles.xlsx", analysis_id)
+
+
+@router.get("/{session_id}/quaternions.xlsx", response_class=Response)
+def quaternions_xlsx(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                     analysis_id: int | None = None):
+    return _send(db, store, principal, request, session_id, "quaternions.xlsx", analysis_id)
+
+
+@router.get("/{session_id}/report.html", response_class=Response)
+def report_html(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                analysis_id: int | None = None):
+    return _send(db, store, principal, request, session_id, "report.html", analysis_id, attachment=False)
+
+
+@router.get("/{session_id}/scene.viser", response_class=Response)
+def scene_viser(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                analysis_id: int | None = None):
+    return _send(db, store, principal, request, session_id, "scene.viser", analysis_id, attachment=False)
+
+
+@router.get("/{session_id}/timeseries.npz", response_class=Response)
+def timeseries_npz(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                   analysis_id: int | None = None):
+    """The task's time series (numpy ``.npz``: time, knee angles, orientations) for research use."""
+    return _send(db, store, principal, request, session_id, "timeseries.npz", analysis_id)

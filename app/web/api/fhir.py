@@ -1,0 +1,49 @@
+"""``GET /fhir/DiagnosticReport/{session_id}``: the session's latest analysis as a FHIR R4 DiagnosticReport.
+
+The document is built by :func:`app.web.fhir.diagnostic_report` (another module of the project) from the
+session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
+``/api/v1`` address (the namespace of the session and patient identifiers).  ``?analysis_id=`` picks an
+earlier analysis.  Stored data the export cannot express (e.g. a patient's sex recorded before the API
+restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.  Each
+export is audited (``export`` of the session's patient, :mod:`app.web.audit`).
+"""
+
+from __future__ import annotations
+
+import json
+
+from fastapi import APIRouter, HTTPException, Request
+from fastapi.responses import Response
+
+from app.web import audit
+from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
+from app.web.api.results import artefact_row, pick_analysis
+from app.web.api.schemas import patient_out
+from app.web.fhir import FhirExportError, diagnostic_report
+
+router = APIRouter(prefix="/fhir", tags=["fhir"])
+
+
+@router.get("/DiagnosticReport/{session_id}", response_class=Response,
+            responses={200: {"content": {"application/fhir+json": {}}},
+                       409: {"description": "the stored data cannot be expressed in FHIR (the sentence says why)"}})
+def diagnostic_report_route(session_id: int, request: Request, principal: Reader, db: DbDep, store: StoreDep,
+                            analysis_id: int | None = None):
+    session = scoped_session(db, principal, session_id)
+    analysis = pick_analysis(db, session, analysis_id)
+    results = json.loads(store.read(artefact_row(db, analysis, "results.json").sha256))
+    pdf = store.read(artefact_row(db, analysis, "report.pdf", analysis.lang).sha256)
+    sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
+            "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
+            "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,
+            "analysis_created_at": analysis.created_at.isoformat(), "filter": analysis.filter}
+    patient = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in patient_out(session.patient).items()}
+    base_url = str(request.base_url).rstrip("/") + "/api/v1"
+    try:
+        doc = diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
+                                base_url=base_url)
+    except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
+        raise HTTPException(409, f"Session {session_id} cannot be exported to FHIR: {exc}; correct the record and "
+                                 "try again.") from None
+    audit.record(db, request, principal, "export", patient_id=session.patient_id, session_id=session.id)
+    return Response(json.dumps(doc, ensure_ascii=False), media_type="application/fhir+json")

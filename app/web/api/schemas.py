@@ -1,0 +1,282 @@
+"""Request and response shapes of API v1 (they are the contract the browser UI is written against), and
+database rows → response dicts.
+
+Request bodies are pydantic models (422 on bad shapes, extra keys refused); responses are declared with
+models too so ``/docs`` shows them.  The ``*_out`` functions build the dicts from database rows; the
+session status is derived here (see :func:`session_status`).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
+from app.web.security import ROLES
+from app.store.workspace import NO_RECORDINGS
+from reports.i18n import LANGUAGES
+
+#: the report languages (one definition: :data:`reports.i18n.LANGUAGES`)
+Lang = Literal[LANGUAGES]  # type: ignore[valid-type]
+Side = Literal["right", "left"]
+#: the roles (one definition: :data:`app.web.security.ROLES`)
+RoleName = Literal[ROLES]  # type: ignore[valid-type]
+#: a patient's sex as FHIR's administrative gender takes it
+SEXES = ("male", "female", "other", "unknown")
+Sex = Literal[SEXES]  # type: ignore[valid-type]
+
+
+class _In(BaseModel):
+    model_config = ConfigDict(extra="forbid", str_strip_whitespace=True)
+
+
+class LoginIn(_In):
+    email: str = Field(min_length=3, max_length=320)
+    password: str = Field(min_length=1, max_length=1000)
+
+
+class UserIn(_In):
+    email: str = Field(min_length=3, max_length=320, pattern=r"^[^@\s]+@[^@\s]+$")
+    name: str = Field("", max_length=200)
+    role: RoleName
+    password: str = Field(min_length=10, max_length=1000)
+
+
+class PatientIn(_In):
+    external_id: str = Field(min_length=1, max_length=100)
+    side: Side
+    name: str | None = Field(None, max_length=200)
+    birth_date: dt.date | None = None
+    sex: Sex | None = None
+    height_cm: float | None = Field(None, gt=30, lt=260)
+    mass_kg: float | None = Field(None, gt=2, lt=400)
+    notes: str | None = Field(None, max_length=10000)
+
+
+class SessionIn(_In):
+    date: dt.date | None = None
+    task: Literal["step_up"] = "step_up"
+    step_height_m: float | None = Field(None, gt=0, lt=1)
+    professional: str | None = Field(None, max_length=200)
+    notes: str | None = Field(None, max_length=10000)
+
+
+class ProcessIn(_In):
+    filter: str | None = Field(None, max_length=40)
+    lang: Lang = "es"
+
+
+class ClinicOut(BaseModel):
+    id: int
+    name: str
+
+
+class UserOut(BaseModel):
+    id: int
+    email: str
+    name: str
+    role: str
+    clinic: ClinicOut
+
+
+class MeOut(BaseModel):
+    user: UserOut | None
+    csrf_token: str | None
+
+
+class PatientOut(BaseModel):
+    id: int
+    external_id: str
+    side: str
+    name: str | None
+    birth_date: dt.date | None
+    sex: str | None
+    height_cm: float | None
+    mass_kg: float | None
+    notes: str | None
+    created_at: dt.datetime
+
+
+class RecordingOut(BaseModel):
+    id: int
+    file_name: str
+    size_bytes: int
+    sha256: str
+    segment: str | None
+    role: str | None
+    uploaded_at: dt.datetime
+
+
+class IngestionOut(BaseModel):
+    ok: bool
+    messages: list[str]
+    error: str | None
+
+
+class JobOut(BaseModel):
+    id: int
+    session_id: int
+    status: Literal["queued", "running", "done", "failed"]
+    progress: float
+    stage: str
+    error: str | None
+    log: list[str]
+    analysis_id: int | None
+    filter: str
+    lang: str
+    created_at: dt.datetime
+    started_at: dt.datetime | None
+    finished_at: dt.datetime | None
+
+
+class AnalysisOut(BaseModel):
+    id: int
+    job_id: int
+    filter: str
+    created_at: dt.datetime
+    accepted_cycles: int
+    warnings: int
+
+
+class SessionSummaryOut(BaseModel):
+    id: int
+    patient_id: int
+    date: dt.date
+    task: str
+    created_at: dt.datetime
+    n_recordings: int
+    status: Literal["empty", "incomplete", "ready", "processing", "done", "failed"]
+
+
+class SessionOut(SessionSummaryOut):
+    step_height_m: float | None
+    professional: str | None
+    notes: str | None
+    recordings: list[RecordingOut]
+    ingestion: IngestionOut
+    analyses: list[AnalysisOut]
+    jobs: list[JobOut]
+
+
+class UploadOut(BaseModel):
+    recordings: list[RecordingOut]
+    ingestion: IngestionOut
+
+
+class JobCreatedOut(BaseModel):
+    job_id: int
+
+
+class TrendPoint(BaseModel):
+    session_id: int
+    date: dt.date
+    analysis_id: int
+    filter: str
+    rom_deg: dict[str, Any]
+
+
+class TrendOut(BaseModel):
+    points: list[TrendPoint]
+
+
+class AuditEventOut(BaseModel):
+    """One audit event (:mod:`app.web.audit`): ``actor_kind`` is ``user`` or ``token``; ``resource`` is the
+    request's method and path; ``client`` the caller's address."""
+
+    id: int
+    at: dt.datetime
+    actor_kind: Literal["user", "token"]
+    user_id: int | None
+    token_id: int | None
+    actor: str
+    action: str
+    patient_id: int | None
+    session_id: int | None
+    resource: str
+    client: str
+
+
+def user_out(u: User) -> dict[str, Any]:
+    return {"id": u.id, "email": u.email, "name": u.name, "role": u.role,
+            "clinic": {"id": u.clinic.id, "name": u.clinic.name}}
+
+
+def patient_out(p: Patient) -> dict[str, Any]:
+    return {k: getattr(p, k) for k in ("id", "external_id", "side", "name", "birth_date", "sex", "height_cm",
+                                       "mass_kg", "notes", "created_at")}
+
+
+def recording_out(r: Recording) -> dict[str, Any]:
+    return {k: getattr(r, k) for k in ("id", "file_name", "size_bytes", "sha256", "segment", "role", "uploaded_at")}
+
+
+def job_out(j: Job) -> dict[str, Any]:
+    return {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "log",
+                                       "analysis_id", "filter", "lang", "created_at", "started_at", "finished_at")}
+
+
+def audit_out(e: AuditEvent) -> dict[str, Any]:
+    return {k: getattr(e, k) for k in ("id", "at", "actor_kind", "user_id", "token_id", "actor", "action",
+                                       "patient_id", "session_id", "resource", "client")}
+
+
+def analysis_out(a: Analysis) -> dict[str, Any]:
+    return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings")}
+
+
+BEING_CHECKED = {"ok": False, "messages": [], "error": "The session's files are being checked; reload in a moment."}
+
+
+def ingestion_fresh(s: KneeSession) -> bool:
+    """True when the stored ingestion check was computed from the session's current files."""
+    return s.ingestion is not None and s.ingestion_version == s.files_version
+
+
+def ingestion_out(s: KneeSession, n_recordings: int | None = None) -> dict[str, Any]:
+    """The stored check when fresh; "no recordings" for an empty session; else "being checked"."""
+    if ingestion_fresh(s):
+        return s.ingestion
+    n = len(s.recordings) if n_recordings is None else n_recordings
+    return dict(NO_RECORDINGS if n == 0 else BEING_CHECKED)
+
+
+def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None) -> str:
+    """empty (no files) · incomplete (ingestion not ok) · processing / done / failed (the latest job) · ready."""
+    if n_recordings == 0:
+        return "empty"
+    if latest_job is not None:
+        return {"queued": "processing", "running": "processing"}.get(latest_job.status, latest_job.status)
+    return "ready" if ingestion_ok else "incomplete"
+
+
+def summaries(db: Session, sessions: list[KneeSession]) -> list[dict[str, Any]]:
+    """SessionSummary dicts of ``sessions`` with three queries whatever their number."""
+    ids = [s.id for s in sessions]
+    counts = dict(db.execute(select(Recording.session_id, func.count()).where(Recording.session_id.in_(ids))
+                             .group_by(Recording.session_id)).all()) if ids else {}
+    latest: dict[int, Job] = {}
+    if ids:
+        last_ids = select(func.max(Job.id)).where(Job.session_id.in_(ids)).group_by(Job.session_id)
+        latest = {j.session_id: j for j in db.scalars(select(Job).where(Job.id.in_(last_ids)))}
+    return [summary_out(s, counts.get(s.id, 0), latest.get(s.id)) for s in sessions]
+
+
+def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None) -> dict[str, Any]:
+    ok = ingestion_fresh(s) and bool(s.ingestion.get("ok"))
+    return {"id": s.id, "patient_id": s.patient_id, "date": s.date, "task": s.task, "created_at": s.created_at,
+            "n_recordings": n_recordings, "status": session_status(n_recordings, ok, latest_job)}
+
+
+def session_out(db: Session, s: KneeSession) -> dict[str, Any]:
+    jobs = list(db.scalars(select(Job).where(Job.session_id == s.id).order_by(Job.id.desc())))
+    analyses = list(db.scalars(select(Analysis).where(Analysis.session_id == s.id).order_by(Analysis.id.desc())))
+    recs = list(s.recordings)
+    out = summary_out(s, len(recs), jobs[0] if jobs else None)
+    out |= {"step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
+            "recordings": [recording_out(r) for r in recs], "ingestion": ingestion_out(s, len(recs)),
+            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
+    return out

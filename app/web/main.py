@@ -1,0 +1,230 @@
+"""The web application: :func:`create_app` assembles API v1, the UI's static files and the job runner.
+
+``create_app(settings)`` builds a fresh app (nothing global: tests make one per temporary data dir).
+Start-up (the lifespan): create the data folders, apply the Alembic migrations, start the job runner
+(``CHAKAMO_JOB_BACKEND``: the embedded :class:`app.jobs.inprocess.ThreadJobRunner`, which refuses to start when
+another server runs this database's jobs, clears a crashed run's temporary files and resumes the jobs a
+previous run left queued or running; or :class:`app.jobs.celery_engine.CeleryJobRunner`, which hands jobs to the
+Celery workers), and when the database has no user yet print how
+to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
+its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
+internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
+
+Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
+(the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
+``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI from the
+``swagger-ui-bundle`` package: no CDN, clinics are often offline), ``/healthz`` (the process answers: for
+a liveness probe) and ``/readyz`` (200 only when the database answers and the job engine can take jobs —
+the broker is reachable, or the embedded workers run; else 503 naming what is down: for a load balancer).
+"""
+
+from __future__ import annotations
+
+import logging
+import secrets
+import sys
+import threading
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
+from sqlalchemy import func, select, text
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
+
+import app as _app_pkg
+from app.web.api import api_router
+from app.store.database import Database
+from app.store.models import User
+from app.web.headers import SecurityHeaders
+from app.web.security import LoginThrottle
+from app.settings import Settings, get_settings
+from app.store.blobs import CorruptBlob, Storage, open_storage
+from estimators import __version__
+
+log = logging.getLogger("chakamo")
+
+STATIC_DIR = Path(_app_pkg.__file__).resolve().parents[1] / "static"
+FIRST_ADMIN_HINT = (
+    "ChakaMo has no user yet. Create a clinic and its first admin:\n"
+    "  chakamo clinics create \"My clinic\"\n"
+    "  chakamo users create --clinic \"My clinic\" --email you@example.org --role admin --name \"Your Name\"\n"
+    "(the second command asks for the password; use the same CHAKAMO_DATA_DIR / DATABASE_URL as the server)")
+
+
+def _plotly_js() -> Path:
+    import plotly
+
+    return Path(plotly.__file__).resolve().parent / "package_data" / "plotly.min.js"
+
+
+def _viser_client_dir() -> Path:
+    from reports.scene import static_client_path
+
+    return static_client_path().parent
+
+
+def _swagger_dir() -> Path:
+    from swagger_ui_bundle import swagger_ui_path
+
+    return Path(str(swagger_ui_path))
+
+
+#: an unfinished upload file untouched this long was left by a crashed server (scaled-out deployment)
+INCOMING_STALE_S = 24 * 3600.0
+
+
+def make_runner(settings: Settings, db: Database, store: Storage):
+    """The job engine ``CHAKAMO_JOB_BACKEND`` names (an :class:`app.jobs.work.JobRunner`)."""
+    if settings.job_backend == "celery":
+        from app.jobs.celery_engine import CeleryJobRunner
+
+        return CeleryJobRunner(db, settings)
+    from app.jobs.inprocess import ThreadJobRunner
+
+    return ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
+                           render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s,
+                           lease_s=settings.job_lease_s)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """A new ChakaMo application for ``settings`` (default: :func:`app.settings.get_settings`)."""
+    settings = settings or get_settings()
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    settings.tmp_dir.mkdir(parents=True, exist_ok=True)
+    db = Database(settings.db_url)
+    store = open_storage(settings)
+    runner = make_runner(settings, db, store)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI):
+        db.migrate()
+        with db.session() as s:
+            if not s.scalar(select(func.count()).select_from(User)):
+                print(FIRST_ADMIN_HINT, file=sys.stderr, flush=True)
+        try:
+            runner.start()  # refuses (RunnerLocked) when another server runs this database's jobs
+        except Exception:
+            db.dispose()
+            raise
+        if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
+            store.clear_incoming(older_than_s=INCOMING_STALE_S)
+        own_pool = None
+        if settings.render_processes > 0:  # the embedded runner's warm render pool checks uploads too
+            from app.pipeline.render import RenderPool
+
+            app.state.check_pool = getattr(runner, "pool", None) or (own_pool := RenderPool(1))
+        try:
+            yield
+        finally:
+            app.state.check_pool = None
+            if own_pool is not None:
+                own_pool.shutdown()
+            if runner.shutdown(wait=True):  # a job thread still running keeps its database
+                db.dispose()
+
+    app = FastAPI(title="ChakaMo", version=__version__, lifespan=lifespan, docs_url=None, redoc_url=None,
+                  description="Clinical 3D knee kinematics from two IMUs: patients, sessions, uploads, processing, "
+                              "reports. Authenticate with `Authorization: Bearer <token>` (`chakamo tokens "
+                              "create`) or the browser login.")
+    app.state.settings, app.state.db, app.state.store, app.state.runner = settings, db, store, runner
+    #: the warm helper process running the uploads' ingestion checks off this process' GIL when
+    #: CHAKAMO_RENDER_PROCESSES > 0 (the embedded runner's render pool, or one of its own with Celery; None:
+    #: checks run in the request thread)
+    app.state.check_pool = None
+    app.state.login_throttle = LoginThrottle()
+    #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
+    app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
+    app.include_router(api_router())
+
+    app.add_middleware(SecurityHeaders, development=settings.development)  # app/web/headers.py
+
+    @app.exception_handler(RequestValidationError)
+    async def validation_error(request: Request, exc: RequestValidationError):
+        """422 with one sentence (the contract's error shape), the pydantic details kept under ``errors``."""
+        parts = []
+        for err in exc.errors()[:3]:
+            where = ".".join(str(x) for x in err.get("loc", ()) if x not in ("body", "query", "path"))
+            parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
+        detail = "; ".join(parts) + ". Correct the request and send it again."
+        return JSONResponse({"detail": detail, "errors": jsonable_encoder(exc.errors())}, status_code=422)
+
+    @app.exception_handler(OperationalError)
+    async def database_unreachable(request: Request, exc: OperationalError):
+        """503 while the database is away (a restart, a fail-over): nothing was changed; the client retries."""
+        log.warning("database unreachable during %s %s: %s", request.method, request.url.path, exc.orig)
+        return JSONResponse({"detail": "The database is not reachable at the moment (nothing was changed); try "
+                                       "again in a minute."}, status_code=503, headers={"Retry-After": "30"})
+
+    @app.exception_handler(PoolTimeout)
+    async def database_busy(request: Request, exc: PoolTimeout):
+        """503 when every database connection stayed busy too long (an overload): nothing was changed."""
+        log.warning("no database connection free for %s %s", request.method, request.url.path)
+        return JSONResponse({"detail": "The server is too busy at the moment (nothing was changed); try again in "
+                                       "a minute."}, status_code=503, headers={"Retry-After": "10"})
+
+    @app.exception_handler(CorruptBlob)
+    async def corrupt_blob(request: Request, exc: CorruptBlob):
+        """500 with a sentence and a reference id; the details (which file, where) go to the server log only."""
+        ref = secrets.token_hex(4)
+        log.error("corrupt blob (reference %s) under %s: %s", ref, store.root, exc)
+        return JSONResponse({"detail": f"A stored file is damaged or missing (reference {ref}); give the reference "
+                                       "to your ChakaMo administrator, who can restore it from a backup."},
+                            status_code=500)
+
+    @app.get("/healthz", include_in_schema=False)
+    def healthz():
+        return {"status": "ok"}
+
+    @app.get("/readyz", include_in_schema=False)
+    def readyz():
+        """200 when the database answers and the job engine can take jobs, else 503 saying what is down."""
+        checks: dict[str, str] = {}
+        try:
+            with db.engine.connect() as conn:
+                conn.execute(text("SELECT 1"))
+            checks["database"] = "ok"
+        except Exception as exc:  # noqa: BLE001 — any failure means not ready; the reason is logged
+            log.warning("readiness: database unreachable: %s", exc)
+            checks["database"] = "unreachable"
+        engine_problem = runner.problem()
+        checks["jobs"] = engine_problem or "ok"
+        ready = all(v == "ok" for v in checks.values())
+        return JSONResponse({"status": "ready" if ready else "not ready", "backend": settings.job_backend, **checks},
+                            status_code=200 if ready else 503)
+
+    @app.get("/", include_in_schema=False)
+    def index():
+        page = STATIC_DIR / "index.html"
+        if page.is_file():
+            return FileResponse(page, media_type="text/html", headers={"Cache-Control": "no-cache"})
+        return HTMLResponse("<!doctype html><title>ChakaMo</title><p>The ChakaMo user interface is not installed "
+                            "(static/index.html is missing). The API is at <a href='/docs'>/docs</a>.</p>",
+                            status_code=503)
+
+    @app.get("/vendor/plotly.min.js", include_in_schema=False)
+    def plotly_js():
+        return FileResponse(_plotly_js(), media_type="text/javascript",
+                            headers={"Cache-Control": "public, max-age=86400"})
+
+    swagger = _swagger_dir()
+    app.mount("/docs-assets", StaticFiles(directory=swagger), name="docs-assets")
+
+    @app.get("/docs", include_in_schema=False)
+    def docs():
+        return get_swagger_ui_html(openapi_url=app.openapi_url, title="ChakaMo API",
+                                   swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+                                   swagger_css_url="/docs-assets/swagger-ui.css",
+                                   swagger_favicon_url="/docs-assets/favicon-32x32.png")
+
+    app.mount("/static", StaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+    app.mount("/viser", StaticFiles(directory=_viser_client_dir(), html=True), name="viser")
+    return app
+
+
+__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "create_app", "make_runner"]

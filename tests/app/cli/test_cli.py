@@ -1,0 +1,51 @@
+"""The ``chakamo`` command line, run in-process as a user would call it."""
+
+import json
+
+import numpy as np
+import pytest
+
+from app.cli.main import main
+from app.pipeline.demo import simulate_session
+
+
+def test_demo_processes_a_simulated_session_and_reports_accuracy(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path), "--cycles", "5"]) == 0
+    accuracy = json.loads((tmp_path / "demo_accuracy.json").read_text())
+    assert accuracy["cycles_found"] == accuracy["cycles_true"] == 5
+    assert accuracy["rmse_deg"]["flexion"] < 1.0
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["cycles"]["detected"] == 5
+    for name in ("report.pdf", "angles.xlsx", "quaternions.xlsx", "report.html", "scene.viser", "timeseries.npz"):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    assert any(p.name.endswith(".csv") and "MetaWear" in p.name for p in (tmp_path / "session").iterdir())
+    assert "Knee angles against the simulated truth" in capsys.readouterr().out
+    # the ground truth it was scored against, re-simulated here from the same seed
+    truth = simulate_session(seed=7, side="right", n_cycles=5).motion
+    with np.load(tmp_path / "demo_truth.npz") as z:
+        assert list(z["angle_names"]) == ["flexion", "adduction", "internal_rotation"]
+        assert len(z["cycles_s"]) == accuracy["cycles_true"] == 5 and z["phases_s"].shape == (5, 4)
+        np.testing.assert_allclose(z["cycles_s"], truth.cycles_s)
+        np.testing.assert_allclose(z["phases_s"], truth.phases_s)
+        np.testing.assert_allclose(z["t_s"], truth.t_s)
+        np.testing.assert_allclose(z["knee_angles_deg"], np.rad2deg(truth.knee_angles_rad))
+        assert 40.0 < z["knee_angles_deg"][:, 0].max() < 100.0  # degrees
+        assert str(z["side"]) == "right"
+    assert not [p for p in tmp_path.parent.iterdir() if p.name.startswith(f".{tmp_path.name}.")]  # no staging left
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["demo", "--cycles", "1"], "between 3 and 30"),
+    (["process", "/no/such/folder", "--out", "OUT"], "no such session folder"),
+    (["walk", "/no/such/walk.csv"], "no such file"),
+    (["markov", "/no/such/file.csv", "--out", "OUT"], "no such file"),
+    (["view", "/no/such/folder"], "chakamo process"),
+])
+def test_user_errors_exit_2_with_a_message(argv, message, tmp_path, capsys):
+    argv = [a if a != "OUT" else str(tmp_path / "out") for a in argv]
+    if argv[0] == "demo":
+        argv += ["--out", str(tmp_path / "demo")]
+    assert main(argv) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]  # progress lines may come first
+    assert last.startswith(f"chakamo {argv[0]}: error:") and message in last.lower()
+    assert not (tmp_path / "out").exists()
