@@ -39,7 +39,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
-from app.web.security import ROLES  # the one definition of the roles (a stdlib-only module: cheap to import)
+from app.choices import USER_ROLE_NAMES as ROLES  # the one definition of the roles (cheap to import)
 
 if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does not pay for it
     from sqlalchemy.orm import Session

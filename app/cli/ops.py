@@ -21,6 +21,8 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 
+from app import choices
+
 COMMANDS = ("migrate", "worker", "reprocess")
 
 
@@ -33,18 +35,17 @@ def _date(text: str) -> dt.date:
 
 def add_parsers(sub) -> None:
     """Register ``migrate``, ``worker`` and ``reprocess`` on the ``chakamo`` subparsers."""
-    from estimators.orientation import METHODS
-
     sub.add_parser("migrate", help="upgrade the database schema to this release and exit")
     worker = sub.add_parser("worker", help="run a Celery worker for the processing jobs (CHAKAMO_JOB_BACKEND=celery)")
     worker.add_argument("--concurrency", type=int, default=None, metavar="N",
                         help="worker processes (default: CHAKAMO_WORKERS)")
     worker.add_argument("--loglevel", default="INFO", choices=("DEBUG", "INFO", "WARNING", "ERROR"))
     rep = sub.add_parser("reprocess", help="queue every session since a date for processing with a filter")
-    rep.add_argument("--filter", required=True, choices=METHODS, help="orientation filter")
+    rep.add_argument("--filter", required=True, choices=choices.FILTER_NAMES, help="orientation filter")
     rep.add_argument("--since", required=True, type=_date, metavar="YYYY-MM-DD", help="first session date")
     rep.add_argument("--clinic", default=None, metavar="NAME", help="only this clinic's sessions (default: all)")
-    rep.add_argument("--lang", choices=("es", "en", "pt"), default="es", help="report language (default: es)")
+    rep.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=choices.DEFAULT_LANGUAGE,
+                     help=f"report language (default: {choices.DEFAULT_LANGUAGE})")
     rep.add_argument("--force", action="store_true",
                      help="queue sessions already analysed by this pipeline version with this filter too")
 

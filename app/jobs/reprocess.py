@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 from sqlalchemy import select
 
+from app.choices import FILTER_NAMES
 from app.store.database import Database
 from app.store.models import Analysis, Clinic, Job, KneeSession, utcnow
 from app.settings import Settings
@@ -96,10 +97,8 @@ def _queue_one(db: Database, settings: Settings, session_id: int, filter_name: s
 def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: str | None = None,
               lang: str = "es", force: bool = False) -> tuple[list[Outcome], str]:
     """Queue the cohort's jobs (module docstring); returns the outcomes and one sentence on the hand-over."""
-    from estimators.orientation import METHODS
-
-    if filter_name not in METHODS:
-        raise ValueError(f"unknown filter {filter_name!r}; use one of {', '.join(METHODS)}")
+    if filter_name not in FILTER_NAMES:
+        raise ValueError(f"unknown filter {filter_name!r}; use one of {', '.join(FILTER_NAMES)}")
     db = Database(settings.db_url)
     try:
         db.migrate()

@@ -27,6 +27,7 @@ from estimators import simulation as sim
 from estimators.motor_task import ANGLES, EVENTS
 from estimators.simulation.knee import LegMotion
 
+from app.choices import SIDE_NAMES
 from app.pipeline.ingestion import (
     session_label, simulated_streams, write_generic_csv, write_session_metabase, write_thesis_xlsx,
 )
@@ -182,7 +183,7 @@ def truth_npz(truth: SimulatedSession) -> bytes:
 def run_demo(out_dir: Path, *, seed: int = 7, side: str = "right", n_cycles: int = 10,
              filter_name: str | None = None) -> dict:
     """Simulate, write, process and score one session; print the accuracy; return it."""
-    if side not in ("right", "left"):
+    if side not in SIDE_NAMES:
         raise ValueError(f"--side must be right or left, got {side!r}")
     if not 3 <= n_cycles <= 30:
         raise ValueError(f"--cycles must be between 3 and 30, got {n_cycles}")

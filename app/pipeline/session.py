@@ -45,10 +45,12 @@ from estimators import __version__, knee
 from estimators import quaternion as quat
 from estimators.disturbance import FieldCheck, field_disturbance
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
-from estimators.motor_task import EVENTS, TASKS, TaskAnalysis, analyse_task
-from estimators.orientation import DEFAULT_METHOD, make
+from estimators.motor_task import EVENTS, TaskAnalysis, analyse_task
+from estimators.orientation import make
 from estimators.quality import QualityWarning
 
+from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
+                         DEFAULT_FILTER, DEFAULT_LANGUAGE, DEFAULT_TASK, LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES)
 from app.pipeline.ingestion import SEGMENTS, IngestionError, Note, Session
 
 FloatArray = NDArray[np.float64]
@@ -57,8 +59,6 @@ Progress = Callable[[str, float], None]
 #: what an analysis was computed with: with the session and its files' version it keys the processing
 #: (``chakamo reprocess`` skips sessions already analysed by this version with the same filter)
 PIPELINE_VERSION = __version__
-ANGLE_METHODS = ("grood_suntay", "thesis_zyx")
-CALIBRATIONS = ("static", "functional")
 #: Seel's and the relative-velocity flexion axes further apart than this (transverse plane) → the latter, warned
 FUNCTIONAL_AXIS_AGREE_RAD = float(np.deg2rad(8.0))
 #: a larger constant heading offset between the two sensors' earth frames (standing) deserves a warning
@@ -81,36 +81,38 @@ class PipelineError(ValueError):
 class ProcessOptions:
     """What the user chose.
 
-    filter_name : orientation method (``estimators.orientation.METHODS``).   filter_params : its parameters.
+    Every list of valid values is :mod:`app.choices`.
+    filter_name : orientation method (``app.choices.FILTERS``).   filter_params : its parameters.
     side : ``"right"`` / ``"left"``, overriding what the files or ``session.json`` say.
     angle_method : ``"grood_suntay"`` (clinical, default) or ``"thesis_zyx"`` (the thesis' extraction).
     calibration : ``"static"`` (standing + supine, default) or ``"functional"`` (standing + the flexion axis
         of the task, for a lying posture that was not held toes-up).
-    task : motor task analysed (``estimators.motor_task.TASKS``).
+    task : motor task analysed (``app.choices.TASKS``).
     expected_fs_hz : rate the protocol uses; ``None`` accepts the files' own rate.
     language : report language (``es``/``en``/``pt``), recorded for the reports.
     """
 
-    filter_name: str = DEFAULT_METHOD
+    filter_name: str = DEFAULT_FILTER
     filter_params: Mapping[str, Any] = field(default_factory=dict)
     side: str | None = None
-    angle_method: str = "grood_suntay"
-    calibration: str = "static"
-    task: str = "step_up"
+    angle_method: str = DEFAULT_ANGLE_CONVENTION
+    calibration: str = DEFAULT_CALIBRATION
+    task: str = DEFAULT_TASK
     expected_fs_hz: float | None = 100.0
-    language: str = "es"
+    language: str = DEFAULT_LANGUAGE
 
     def __post_init__(self) -> None:
-        if self.side not in (None, "right", "left"):
-            raise PipelineError(f"side must be 'right' or 'left', got {self.side!r}")
-        if self.angle_method not in ANGLE_METHODS:
-            raise PipelineError(f"angle method must be one of {', '.join(ANGLE_METHODS)}, got {self.angle_method!r}")
-        if self.calibration not in CALIBRATIONS:
-            raise PipelineError(f"calibration must be one of {', '.join(CALIBRATIONS)}, got {self.calibration!r}")
-        if self.language not in ("es", "en", "pt"):
-            raise PipelineError(f"language must be es, en or pt, got {self.language!r}")
-        if self.task not in TASKS:
-            raise PipelineError(f"task must be one of {', '.join(TASKS)}, got {self.task!r}; "
+        if self.side is not None and self.side not in SIDE_NAMES:
+            raise PipelineError(f"side must be one of {', '.join(SIDE_NAMES)}, got {self.side!r}")
+        if self.angle_method not in ANGLE_CONVENTION_NAMES:
+            raise PipelineError(f"angle method must be one of {', '.join(ANGLE_CONVENTION_NAMES)}, "
+                                f"got {self.angle_method!r}")
+        if self.calibration not in CALIBRATION_NAMES:
+            raise PipelineError(f"calibration must be one of {', '.join(CALIBRATION_NAMES)}, got {self.calibration!r}")
+        if self.language not in LANGUAGE_NAMES:
+            raise PipelineError(f"language must be one of {', '.join(LANGUAGE_NAMES)}, got {self.language!r}")
+        if self.task not in TASK_NAMES:
+            raise PipelineError(f"task must be one of {', '.join(TASK_NAMES)}, got {self.task!r}; "
                                 "pick the motor task the session recorded")
 
 
@@ -380,5 +382,5 @@ def _files(rec) -> str:
     return ", ".join(str(getattr(f, "name", f)) for f in rec.source.get("files", ())) or rec.segment
 
 
-__all__ = ["ANGLE_METHODS", "CALIBRATIONS", "HEADING_DRIFT_TASK_WARN_RAD", "IngestionError", "PIPELINE_VERSION", "PipelineError",
+__all__ = ["HEADING_DRIFT_TASK_WARN_RAD", "IngestionError", "PIPELINE_VERSION", "PipelineError",
            "ProcessOptions", "SessionOutcome", "TaskHeading", "process_session"]

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.choices import MARKOV_METHODS
 from estimators.markov.fkc import accelerometer_angles
 from estimators.markov.mjls import MjlsParams, mkf, standard_kf
 from estimators.markov.sme import SpatialParams, sme
@@ -46,7 +47,7 @@ __all__ = ["run_markov", "read_markov_csv", "SEGMENTS", "JOINTS", "METHODS"]
 
 SEGMENTS = ("trunk", "thigh", "shank", "foot")
 JOINTS = ("hip", "knee", "ankle")
-METHODS = ("auto", "mjls", "kf", "sme", "smea")
+METHODS = MARKOV_METHODS  # one definition: app.choices
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 

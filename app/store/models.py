@@ -18,7 +18,7 @@ from sqlalchemy import (JSON, Boolean, Date, DateTime, Float, ForeignKey, Intege
                         TypeDecorator, UniqueConstraint)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-from app.web.security import ROLES  # the one definition of the roles (re-exported here)
+from app.choices import USER_ROLE_NAMES as ROLES  # the one definition of the roles (re-exported here)
 
 JOB_STATES = ("queued", "running", "done", "failed")
 

@@ -42,6 +42,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
+from app.choices import USER_ROLE_NAMES
 
 if TYPE_CHECKING:
     from argon2 import PasswordHasher
@@ -53,7 +54,7 @@ ARGON2_MEMORY_KIB, ARGON2_TIME_COST, ARGON2_PARALLELISM = 64 * 1024, 2, 1
 #: the legacy scheme's prefix (hashes of earlier versions; verified, never made any more)
 _SCRYPT_PREFIX = "scrypt$"
 #: the roles of users and API tokens, highest first (admin > clinician > read_only)
-ROLES: tuple[str, ...] = ("admin", "clinician", "read_only")
+ROLES: tuple[str, ...] = USER_ROLE_NAMES  # the one definition: app.choices.USER_ROLES
 #: role → rank (higher may do more)
 ROLE_RANK: dict[str, int] = {role: len(ROLES) - 1 - i for i, role in enumerate(ROLES)}
 #: password hashes computed at the same time, at most; and how long a caller waits for a slot

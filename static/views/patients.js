@@ -4,6 +4,7 @@ import { api } from "../api.js";
 import { h, clear, field, alertBox, errorText, date, dateTime, num, label } from "../dom.js";
 import { t } from "../i18n.js";
 import { navigate, canEdit } from "../app.js";
+import { options, fillSelect } from "../options.js";
 import { ANGLES, drawTrend, purge } from "../charts.js";
 
 /** The name shown for a patient: the name when given, else the external id. */
@@ -206,6 +207,7 @@ function newSessionForm(patientId, onCancel) {
   const iso = new Date(today.getTime() - today.getTimezoneOffset() * 60000).toISOString().slice(0, 10);
   const f = {
     date: h("input", { type: "date", name: "date", value: iso, required: true }),
+    task: h("select", { name: "task" }),  // from GET /options (app/choices.py), the tasks the server analyses
     step: h("select", { name: "step_height_m" },
       h("option", { value: "0.17" }, t("session.step_low")), h("option", { value: "0.34" }, t("session.step_high"))),
     professional: h("input", { name: "professional", maxlength: 200, autocomplete: "name" }),
@@ -216,19 +218,26 @@ function newSessionForm(patientId, onCancel) {
   const form = h("form", { class: "card form-grid", "aria-label": t("sessions.new") },
     h("h2", {}, t("sessions.new")),
     field(t("session.date"), f.date)[0],
-    field(t("session.step_height"), f.step, t("session.task_step_up"))[0],
+    field(t("session.task"), f.task)[0],
+    field(t("session.step_height"), f.step, t("session.step_height_hint"))[0],
     field(t("session.professional"), f.professional)[0],
     h("div", { class: "wide" }, field(t("session.notes"), f.notes)[0]),
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, submit,
       h("button", { type: "button", class: "secondary", onclick: onCancel }, t("common.cancel"))));
+  const stepRow = f.step.closest(".field") || f.step.parentElement;
+  const showStep = () => { if (stepRow) stepRow.hidden = f.task.value !== "step_up"; };
+  f.task.addEventListener("change", showStep);
+  options().then((opts) => { fillSelect(f.task, "task", opts.tasks); showStep(); })
+    .catch((err) => message.append(alertBox(errorText(err))));
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
     clear(message);
     submit.disabled = true;
     try {
       const session = await api("POST", `/patients/${patientId}/sessions`, { json: {
-        date: f.date.value || null, task: "step_up", step_height_m: Number(f.step.value),
+        date: f.date.value || null, task: f.task.value,
+        step_height_m: f.task.value === "step_up" ? Number(f.step.value) : null,
         professional: textOrNull(f.professional), notes: textOrNull(f.notes) } });
       navigate(`#/sessions/${session.id}/wizard`);
     } catch (err) {

@@ -22,13 +22,13 @@
 
 import { api, upload } from "../api.js";
 import { h, append, clear, field, alertBox, errorText, date, bytes, label, num } from "../dom.js";
-import { t, lang, LANGUAGES } from "../i18n.js";
+import { t, lang } from "../i18n.js";
+import { options, fillSelect } from "../options.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { canEdit } from "../app.js";
 
 export const SEGMENTS = ["thigh", "shank"];
 export const ROLES = ["mag_calibration", "standing", "lying", "task"];
-export const FILTERS = ["chakamo", "guo", "madgwick", "valenti_cf", "valenti_kf"];
 const POLL_MS = 300;
 
 // ------------------------------------------------------------------------------ sensors (step 1 state)
@@ -349,10 +349,9 @@ function renderIngestion(ctx, ingestion) {
 // ---------------------------------------------------------------------------------------- step 3
 function processStep(ctx) {
   const ingestion = ctx.session.ingestion || { ok: false, messages: [], error: null };
-  const filter = h("select", { name: "filter" },
-    FILTERS.map((f) => h("option", { value: f, selected: f === "chakamo" }, label("filter", f))));
-  const language = h("select", { name: "lang" },
-    LANGUAGES.map((code) => h("option", { value: code, selected: code === lang() }, t(`lang.${code}`))));
+  // both menus come from GET /options (app/choices.py): the filters of the estimator registry, the reports' languages
+  const filter = h("select", { name: "filter" });
+  const language = h("select", { name: "lang" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
     t("wizard.process"));
@@ -366,6 +365,10 @@ function processStep(ctx) {
       ? t("wizard.cannot_process", { error: ingestion.error })
       : t("wizard.cannot_process_empty")));
   }
+  options().then((opts) => {
+    fillSelect(filter, "filter", opts.filters);
+    fillSelect(language, "lang", opts.languages, lang());
+  }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {
     e.preventDefault();

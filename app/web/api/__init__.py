@@ -13,11 +13,11 @@ from fastapi import APIRouter
 
 def api_router() -> APIRouter:
     """All routers of API v1 under ``/api/v1``."""
-    from app.web.api import (artefacts, audit, auth, clinics, fhir, jobs, patients, recordings, results, sessions,
-                         users)
+    from app.web.api import (artefacts, audit, auth, clinics, fhir, jobs, options, patients, recordings, results,
+                             sessions, users)
 
     router = APIRouter(prefix="/api/v1")
-    for module in (auth, clinics, users, patients, sessions, recordings, jobs, results, artefacts, fhir, audit):
+    for module in (auth, options, clinics, users, patients, sessions, recordings, jobs, results, artefacts, fhir, audit):
         router.include_router(module.router)
     return router
 

@@ -19,7 +19,7 @@ from app.web.api.recordings import ensure_fresh_ingestion
 from app.web.api.schemas import JobCreatedOut, JobOut, ProcessIn, ingestion_fresh, job_out
 from app.store.models import Job
 from app.pipeline.session import PIPELINE_VERSION
-from estimators.orientation import DEFAULT_METHOD, METHODS
+from app.choices import DEFAULT_FILTER
 
 router = APIRouter(tags=["jobs"])
 log = logging.getLogger("chakamo.jobs")
@@ -31,9 +31,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
             body: ProcessIn | None = None):
     body = body or ProcessIn()
     session = scoped_session(db, principal, session_id)
-    name = body.filter or DEFAULT_METHOD
-    if name not in METHODS:
-        raise HTTPException(400, f"Unknown filter {name!r}; use one of {', '.join(METHODS)}.")
+    name = body.filter or DEFAULT_FILTER  # the schema accepts only app.choices.FILTER_NAMES
     refuse_while_processing(db, session.id, "process it again")
     ensure_fresh_ingestion(db, request, session)
     session = scoped_session(db, principal, session_id, lock=True)

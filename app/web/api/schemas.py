@@ -16,15 +16,16 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
-from app.web.security import ROLES
+from app.choices import (DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES,
+                         USER_ROLE_NAMES)
 from app.store.workspace import NO_RECORDINGS
-from reports.i18n import LANGUAGES
 
-#: the report languages (one definition: :data:`reports.i18n.LANGUAGES`)
-Lang = Literal[LANGUAGES]  # type: ignore[valid-type]
-Side = Literal["right", "left"]
-#: the roles (one definition: :data:`app.web.security.ROLES`)
-RoleName = Literal[ROLES]  # type: ignore[valid-type]
+# every option list comes from app.choices (the one definition the CLI and GET /options use too)
+Lang = Literal[LANGUAGE_NAMES]  # type: ignore[valid-type]
+Side = Literal[SIDE_NAMES]  # type: ignore[valid-type]
+RoleName = Literal[USER_ROLE_NAMES]  # type: ignore[valid-type]
+TaskName = Literal[TASK_NAMES]  # type: ignore[valid-type]
+FilterName = Literal[FILTER_NAMES]  # type: ignore[valid-type]
 #: a patient's sex as FHIR's administrative gender takes it
 SEXES = ("male", "female", "other", "unknown")
 Sex = Literal[SEXES]  # type: ignore[valid-type]
@@ -59,15 +60,36 @@ class PatientIn(_In):
 
 class SessionIn(_In):
     date: dt.date | None = None
-    task: Literal["step_up"] = "step_up"
+    task: TaskName = DEFAULT_TASK
     step_height_m: float | None = Field(None, gt=0, lt=1)
     professional: str | None = Field(None, max_length=200)
     notes: str | None = Field(None, max_length=10000)
 
 
 class ProcessIn(_In):
-    filter: str | None = Field(None, max_length=40)
-    lang: Lang = "es"
+    filter: FilterName | None = None
+    lang: Lang = DEFAULT_LANGUAGE
+
+
+class OptionOut(BaseModel):
+    name: str
+    label: str
+    default: bool
+
+
+class TaskOptionOut(OptionOut):
+    phases: list[str]
+
+
+class OptionsOut(BaseModel):
+    """``GET /options``: every option list (:mod:`app.choices`)."""
+
+    filters: list[OptionOut]
+    tasks: list[TaskOptionOut]
+    languages: list[OptionOut]
+    calibrations: list[OptionOut]
+    angle_conventions: list[OptionOut]
+    sides: list[OptionOut]
 
 
 class ClinicOut(BaseModel):

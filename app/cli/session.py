@@ -1,0 +1,86 @@
+"""Session commands: ``chakamo demo``, ``process`` and ``view``.
+
+``chakamo demo --out DIR``
+    Simulate a realistic session with known truth, write it as MetaBase files, process it through the
+    same code path as real data and print the accuracy against the truth.
+``chakamo process SESSION_DIR --out DIR [--filter NAME] [--lang es|en|pt] [--side right|left] [--task NAME] ...``
+    Process one recorded session into ``results.json`` and the reports (``--task``: the motor task recorded).
+``chakamo view OUT_DIR [--host 127.0.0.1] [--port 8080] [--lang es|en|pt]``
+    Serve the 3D femur-tibia animation of a processed session live (viser), until Ctrl-C.
+
+Every list of choices is :mod:`app.choices`; the pipeline is imported only when a command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from app import choices
+
+COMMANDS = ("demo", "process", "view")
+
+
+def _progress(stage: str, fraction: float) -> None:
+    print(f"[{100 * fraction:3.0f} %] {stage}", file=sys.stderr, flush=True)
+
+
+def add_parsers(sub) -> None:
+    """Register ``demo``, ``process`` and ``view`` on the ``chakamo`` subparsers."""
+    demo = sub.add_parser("demo", help="simulate a session with known truth, process it, print the accuracy")
+    demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default: out/demo)")
+    demo.add_argument("--seed", type=int, default=7, help="random seed of the simulated session (default: 7)")
+    demo.add_argument("--side", choices=choices.SIDE_NAMES, default="right", help="leg under study (default: right)")
+    demo.add_argument("--cycles", type=int, default=10, help="number of step-up cycles (default: 10)")
+    demo.add_argument("--filter", choices=choices.FILTER_NAMES, default=None,
+                      help=f"orientation filter (default: {choices.DEFAULT_FILTER})")
+
+    proc = sub.add_parser("process", help="process one recorded session folder into results.json")
+    proc.add_argument("session", type=Path, metavar="SESSION_DIR", help="folder with the session's recordings")
+    proc.add_argument("--out", type=Path, required=True, help="output folder")
+    proc.add_argument("--filter", choices=choices.FILTER_NAMES, default=choices.DEFAULT_FILTER,
+                      help=f"orientation filter (default: {choices.DEFAULT_FILTER})")
+    proc.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=choices.DEFAULT_LANGUAGE,
+                      help=f"report language (default: {choices.DEFAULT_LANGUAGE})")
+    proc.add_argument("--side", choices=choices.SIDE_NAMES, default=None,
+                      help="leg under study (default: from the file names or session.json)")
+    proc.add_argument("--angles", choices=choices.ANGLE_CONVENTION_NAMES, default=choices.DEFAULT_ANGLE_CONVENTION,
+                      help=f"knee angle convention (default: {choices.DEFAULT_ANGLE_CONVENTION}, the clinical one)")
+    proc.add_argument("--calibration", choices=choices.CALIBRATION_NAMES, default=choices.DEFAULT_CALIBRATION,
+                      help="segment axes from standing + supine (static, default) or standing + the knee's "
+                           "flexion axis on the task (functional: for a lying posture not held toes-up)")
+    proc.add_argument("--any-rate", action="store_true",
+                      help="accept recordings whose rate is not the protocol's 100 Hz")
+    proc.add_argument("--task", choices=choices.TASK_NAMES, default=choices.DEFAULT_TASK,
+                      help=f"motor task recorded (default: {choices.DEFAULT_TASK})")
+
+    view = sub.add_parser("view", help="serve the live 3D femur-tibia animation of a processed session")
+    view.add_argument("out", type=Path, metavar="OUT_DIR", help="a folder written by chakamo process or demo")
+    view.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
+    view.add_argument("--port", type=int, default=8080, help="port (default: 8080)")
+    view.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=None,
+                      help="viewer language (default: the session's)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Carry out a parsed ``demo`` / ``process`` / ``view`` command."""
+    if args.command == "demo":
+        from app.pipeline.demo import run_demo
+
+        run_demo(args.out, seed=args.seed, side=args.side, n_cycles=args.cycles, filter_name=args.filter)
+    elif args.command == "process":
+        from app.pipeline.process import process_folder
+        from app.pipeline.session import ProcessOptions
+
+        options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
+                                 calibration=args.calibration, task=args.task,
+                                 expected_fs_hz=None if args.any_rate else 100.0, language=args.lang)
+        _, written = process_folder(args.session, args.out, options, progress=_progress)
+        for path in written:
+            print(path)
+    elif args.command == "view":
+        from app.pipeline.view import serve_view
+
+        serve_view(args.out, host=args.host, port=args.port, language=args.lang)
+    return 0

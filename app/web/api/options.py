@@ -1,0 +1,19 @@
+"""``/options``: every option list of the product (:func:`app.choices.options`), for any authenticated caller.
+
+The browser builds its menus (filters, tasks, languages, calibrations, angle conventions, sides) from this
+answer, and the CLI's choices and the API's schemas come from the same :mod:`app.choices`, so a filter or a
+task added to its estimator registry appears in every layer at once.
+"""
+
+from fastapi import APIRouter
+
+from app.choices import options as option_lists
+from app.web.api.deps import Reader
+from app.web.api.schemas import OptionsOut
+
+router = APIRouter(tags=["options"])
+
+
+@router.get("/options", response_model=OptionsOut)
+def options(principal: Reader):
+    return option_lists()

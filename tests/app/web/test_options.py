@@ -1,0 +1,86 @@
+"""``GET /api/v1/options``: every option list once (app.choices), the same lists in the CLI, the API's schemas
+and the estimator registries."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from app import choices
+
+
+def _subparser(name: str) -> argparse.ArgumentParser:
+    from app.cli.main import _build_parser
+
+    parser = _build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[name]
+
+
+def _choices_of(parser: argparse.ArgumentParser, flag: str) -> tuple:
+    return tuple(next(a for a in parser._actions if flag in a.option_strings).choices)
+
+
+def test_options_need_a_caller_and_list_every_option_once(client, settings):
+    from web_helpers import clinic_token
+
+    assert client.get("/api/v1/options").status_code == 401
+    r = client.get("/api/v1/options", headers=clinic_token(settings, "C", role="read_only"))
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "sides"}
+    for key, items in body.items():
+        assert [i["name"] for i in items] == list(choices.names(choices.OPTION_LISTS[key])), key
+        assert sum(i["default"] for i in items) == 1, f"{key}: exactly one default"
+        assert all(i["label"] for i in items), key
+    # the lists are the estimators' and the reports' registries, not copies typed again
+    from estimators.motor_task import TASK_NAMES
+    from estimators.orientation import DEFAULT_METHOD, METHODS
+    from reports.i18n import LANGUAGES
+
+    assert [f["name"] for f in body["filters"]] == list(METHODS)
+    assert next(f["name"] for f in body["filters"] if f["default"]) == DEFAULT_METHOD
+    assert [t["name"] for t in body["tasks"]] == list(TASK_NAMES)
+    assert all(t["phases"] for t in body["tasks"])
+    assert [lang["name"] for lang in body["languages"]] == list(LANGUAGES)
+
+
+def test_the_cli_offers_the_same_choices():
+    proc = _subparser("process")
+    assert _choices_of(proc, "--filter") == choices.FILTER_NAMES
+    assert _choices_of(proc, "--task") == choices.TASK_NAMES
+    assert _choices_of(proc, "--lang") == choices.LANGUAGE_NAMES
+    assert _choices_of(proc, "--calibration") == choices.CALIBRATION_NAMES
+    assert _choices_of(proc, "--angles") == choices.ANGLE_CONVENTION_NAMES
+    assert _choices_of(_subparser("reprocess"), "--filter") == choices.FILTER_NAMES
+
+
+@pytest.mark.parametrize("task", _choices_of(_subparser("process"), "--task"))
+def test_the_api_accepts_every_task_the_cli_accepts(client, settings, task):
+    from web_helpers import clinic_token
+
+    h = clinic_token(settings, "C")
+    pid = client.post("/api/v1/patients", json={"external_id": "P-1", "side": "left"}, headers=h).json()["id"]
+    r = client.post(f"/api/v1/patients/{pid}/sessions", json={"task": task}, headers=h)
+    assert r.status_code == 201, r.text
+    r = client.get(f"/api/v1/sessions/{r.json()['id']}", headers=h)
+    assert r.status_code == 200 and r.json()["task"] == task, r.text
+
+
+def test_the_api_refuses_a_task_it_does_not_know(client, settings):
+    from web_helpers import clinic_token
+
+    h = clinic_token(settings, "C")
+    pid = client.post("/api/v1/patients", json={"external_id": "P-1", "side": "left"}, headers=h).json()["id"]
+    r = client.post(f"/api/v1/patients/{pid}/sessions", json={"task": "moonwalk"}, headers=h)
+    assert r.status_code == 422 and "task" in r.json()["detail"], r.text
+    assert all(repr(t) in r.json()["detail"] for t in choices.TASK_NAMES), r.text
+
+
+def test_the_openapi_document_lists_the_filters_and_tasks(client):
+    schemas = client.get("/openapi.json").json()["components"]["schemas"]
+    filt = schemas["ProcessIn"]["properties"]["filter"]
+    enum = next(s["enum"] for s in filt["anyOf"] if "enum" in s)
+    assert tuple(enum) == choices.FILTER_NAMES
+    assert tuple(schemas["SessionIn"]["properties"]["task"]["enum"]) == choices.TASK_NAMES
