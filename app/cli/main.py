@@ -29,8 +29,12 @@ Errors a user can cause end with a one-line message on stderr and exit status 2;
 
 from __future__ import annotations
 
-import argparse
-import sys
+import time
+
+_T0 = time.perf_counter()  # noqa: E402 — the start of `total` in CHAKAMO_TIMINGS (app.pipeline.timings)
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
 
 from app.cli import admin, ops, research, session
 from estimators import __version__
@@ -56,6 +60,10 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as exc:
         print(f"chakamo {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        from app.pipeline import timings
+
+        timings.report("total", time.perf_counter() - _T0)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -70,8 +70,11 @@ def run(args: argparse.Namespace) -> int:
 
         run_demo(args.out, seed=args.seed, side=args.side, n_cycles=args.cycles, filter_name=args.filter)
     elif args.command == "process":
-        from app.pipeline.process import process_folder
-        from app.pipeline.session import ProcessOptions
+        from app.pipeline import timings
+
+        with timings.stage("imports"):
+            from app.pipeline.process import process_folder
+            from app.pipeline.session import ProcessOptions
 
         options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
                                  calibration=args.calibration, task=args.task,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from app.pipeline import timings
 from app.pipeline.ingestion import load_session
 from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
 from app.pipeline.results import build_results, report_input, results_json, timeseries_npz, write_outputs
@@ -30,26 +31,37 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     """
     options = options or ProcessOptions()
     progress("read", 0.0)
-    session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
-    outcome = process_session(session, options, progress=progress)
-    results = build_results(outcome)
-    files = {"results.json": results_json(results), "timeseries.npz": timeseries_npz(outcome)}
+    with timings.stage("read"):
+        session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
+    with timings.stage("pipeline"):
+        outcome = process_session(session, options, progress=progress)
+        results = build_results(outcome)
+        files = {"results.json": results_json(results), "timeseries.npz": timeseries_npz(outcome)}
     if reports:  # imported here: matplotlib, plotly and viser cost ~80 MB a process that needs no report
-        from reports.excel import write_angles_xlsx, write_quaternions_xlsx
-        from reports.html import render_html
-        from reports.pdf import render_pdf
-        from reports.scene import scene_bytes
+        with timings.stage("imports"):
+            from reports.excel import write_angles_xlsx, write_quaternions_xlsx
+            from reports.html import render_html
+            from reports.pdf import render_pdf
+            from reports.scene import scene_bytes
 
         progress("reports", 0.97)
-        ri = report_input(outcome, results)
+        with timings.stage("reports"):
+            ri = report_input(outcome, results)
+            with timings.stage("report.pdf"):
+                pdf = render_pdf(ri)
+            with timings.stage("report.html"):
+                html = render_html(ri)
+            with timings.stage("scene.viser"):
+                scene = scene_bytes(ri)
         files |= {
-            "report.pdf": render_pdf(ri),
+            "report.pdf": pdf,
             "angles.xlsx": lambda path: write_angles_xlsx(ri, path),
             "quaternions.xlsx": lambda path: write_quaternions_xlsx(ri, path),
-            "report.html": render_html(ri),
-            "scene.viser": scene_bytes(ri),
+            "report.html": html,
+            "scene.viser": scene,
         }
     progress("write", 0.99)
-    written = write_outputs(out_dir, files)
+    with timings.stage("write"):  # the workbooks are rendered as they are written
+        written = write_outputs(out_dir, files)
     progress("done", 1.0)
     return outcome, written

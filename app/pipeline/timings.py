@@ -1,0 +1,42 @@
+"""Stage times of one command, for ``benchmarks/cold.py``: with ``CHAKAMO_TIMINGS=1`` in the environment every
+finished stage writes one line on stderr, ::
+
+    chakamo-timing: <stage> <seconds>
+
+``<stage>`` is a word (``imports``, ``read``, ``pipeline``, ``reports``, ``write``, ``total``, or a finer one such
+as ``report.pdf``); a stage printed several times is summed by the reader.  Without the variable nothing is
+printed and :func:`stage` costs one check.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+ENV = "CHAKAMO_TIMINGS"
+
+
+def enabled() -> bool:
+    return os.environ.get(ENV) == "1"
+
+
+def report(name: str, seconds: float) -> None:
+    """Print one stage time (when enabled)."""
+    if enabled():
+        print(f"chakamo-timing: {name} {seconds:.6f}", file=sys.stderr, flush=True)
+
+
+@contextmanager
+def stage(name: str) -> Iterator[None]:
+    """Time the block as stage ``name``."""
+    if not enabled():
+        yield
+        return
+    t0 = time.perf_counter()
+    try:
+        yield
+    finally:
+        report(name, time.perf_counter() - t0)
