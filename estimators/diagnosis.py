@@ -17,7 +17,7 @@ task``                   more than 90° from the sensor axis the protocol
                          expects up (D2): the calibration did not undo it
 ``heading_lost``         the 9D relative heading is more than 90° off the      no           correct with the
                          knee's hinge constraint in ≥ 10 % of the task's       (a filter    constraint heading,
-                         excited windows (D3): a local field bends a heading   diverged)    warn
+                         samples (δ(t), D3): a local field bends a heading     diverged)    warn
                          by tens of degrees, a filter that lost its heading
                          sits anywhere (140–180° on the real clip of issue 13)
 ``magnetic_field_        the magnetometers stray from the constraint by more   no           correct with the
@@ -28,8 +28,9 @@ disturbed``              than the auto bound but nowhere by 90° (D4)           
 (D1) is :func:`estimators.knee.task_warnings`; (D2) :math:`\angle(\bar f_{task}, \hat u) > 90°` with
 :math:`\hat u` the expected-up sensor axis (seed 004 §8.2: +y): thigh and shank spend a step-up within
 ~70° of vertical, so their mean specific force points up their long axis unless the sensor is inverted;
-(D3, D4) use the windowed constraint offsets :math:`\hat\delta_W` of :func:`estimators.heading.constraint_heading`
-on the 9D run (the magnetometers' relative heading is 0 by definition).
+(D3, D4) use the constraint offset δ(t) of :func:`estimators.heading.constraint_heading` on the 9D run (the
+magnetometers' relative heading is 0 by definition): D3 the share of samples with |δ(t)| > 90°, D4 the
+choice's disagreement D and the share of samples with |δ(t)| above its bound.
 
 Order: the heading is judged first, on the 9D run, because a lost heading (180° about the vertical turns the
 flexion axis round) also makes flexion negative; the angles D1 is applied to are those computed with the
@@ -60,7 +61,7 @@ CAUSES = {"sensors_swapped": True, "sensor_upside_down_task": True, "heading_los
           "magnetic_field_disturbed": False}
 #: a relative heading further than this from the constraint is a lost heading, not a bent one (D3)
 LOST_HEADING_RAD = float(np.pi / 2)
-#: share of the excited windows beyond ``LOST_HEADING_RAD`` that makes the heading lost (D3)
+#: share of the task's samples beyond ``LOST_HEADING_RAD`` (the 9D run's δ(t)) that makes the heading lost (D3)
 LOST_HEADING_FRACTION = 0.1
 
 
@@ -116,8 +117,7 @@ def _heading_findings(choice: HeadingChoice) -> list[Finding]:
     c9 = choice.constraint_9d
     if c9 is None:
         return []
-    exc = c9.window_excited if c9.window_excited.any() else np.ones(len(c9.window_excited), dtype=bool)
-    offs = np.abs(wrap(c9.window_offset_rad[exc]))
+    offs = np.abs(wrap(c9.offset_rad))  # δ(t) on the 9D run: how far the magnetometers stray, per sample
     lost = offs > LOST_HEADING_RAD
     if np.mean(lost) >= LOST_HEADING_FRACTION:
         vals = {"angle_deg": float(np.rad2deg(np.median(offs[lost]))), "pct": 100.0 * float(np.mean(lost)),
