@@ -505,7 +505,9 @@ def heading_offset(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike, *, method
     the *same* run as the task: run the filters over the task, compute the segment orientations, then
     estimate δ with ``"hinge"`` over the task (or ``"straight_knee"`` over its detected full-extension
     holds) and pass it to :func:`q_femur_tibia`.  A large ``spread_rad`` means the relative heading
-    drifts (gyro bias): warn ``heading_drift``.
+    drifts (gyro bias): warn ``heading_drift``.  For the task itself prefer the slowly varying δ(t) of
+    :func:`estimators.heading.constraint_heading` and the magnetometer/constraint/auto choice of
+    :func:`estimators.heading.choose_heading`: one constant cannot follow drift or a local field.
     """
     qf = quat.as_quaternion(q_earth_femur).reshape(-1, 4)
     qt = quat.as_quaternion(q_earth_tibia).reshape(-1, 4)

@@ -163,3 +163,18 @@ def test_default_filter_on_a_disturbed_shank_field():
     e_mag = _rmse(knee.knee_angles(knee.q_femur_tibia(mag.q_earth_femur, mag.q_earth_tibia), side), truth)
     e_auto = _rmse(knee.knee_angles(knee.q_femur_tibia(auto.q_earth_femur, auto.q_earth_tibia), side), truth)
     assert auto.used == "constraint" and e_auto[2] < e_mag[2] - 3 * DEG and e_auto[0] < 0.5 * DEG
+
+
+def test_missing_rows_are_skipped_and_get_the_interpolated_offset():
+    _, qf, qt, truth = _truth(n_cycles=5)
+    qt6 = _turn(qt, 40 * DEG)
+    gaps = np.zeros(len(qf), dtype=bool)
+    gaps[::17] = True
+    gaps[1000:1150] = True  # a 1.5 s dropout of one sensor
+    qf_gap = np.where(gaps[:, None], np.nan, qf)
+    ch = heading.constraint_heading(qf_gap, qt6, fs_hz=FS_HZ)
+    ref = heading.constraint_heading(qf, qt6, fs_hz=FS_HZ)
+    assert np.all(np.isfinite(ch.offset_rad))
+    assert np.max(np.abs(heading.wrap(ch.offset_rad - ref.offset_rad))) < 0.5 * DEG
+    ang = knee.knee_angles(knee.q_femur_tibia(qf, qt6, ch.offset_rad), "right")
+    assert _rmse(ang, truth)[0] < 0.5 * DEG
