@@ -100,11 +100,15 @@ def main() -> None:
     ap.add_argument("--disturb-deg", type=float, default=30.0)
     ap.add_argument("--cycles", type=int, default=8)
     ap.add_argument("--sweep", action="store_true", help="window_s in 3, 6, 10 s")
+    ap.add_argument("--sweep-power", action="store_true", help="extension_weight_power in 0, 2, 8 (10 s windows)")
     ap.add_argument("--filter", default="chakamo")
     a = ap.parse_args()
     seeds = _seeds(a.seeds)
     tune = set(_seeds(a.tune)) if a.tune else set()
-    windows = (3.0, 6.0, 10.0) if a.sweep else (heading.ConstraintHeadingParams().window_s,)
+    default = heading.ConstraintHeadingParams()
+    configs = [(w, default.extension_weight_power) for w in ((3.0, 6.0, 10.0) if a.sweep else (default.window_s,))]
+    if a.sweep_power:
+        configs = [(default.window_s, k) for k in (0.0, 2.0, 8.0)]
     t0 = time.perf_counter()
     sessions = {}
     for seed in seeds:
@@ -113,10 +117,10 @@ def main() -> None:
             sessions[(seed, dist)] = session(seed, side, h, dist * DEG, a.cycles, a.filter)
     print(f"# {len(sessions)} sessions simulated and filtered in {time.perf_counter() - t0:.0f} s "
           f"(filter {a.filter}, {a.cycles} cycles, shank field turned {a.disturb_deg:.0f}° in the middle third)")
-    print("| window_s | split | field | heading | flexion | adduction | rotation | used constraint | D (deg) |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for w in windows:
-        params = heading.ConstraintHeadingParams(window_s=w)
+    print("| window_s | k | split | field | heading | flexion | adduction | rotation | used constraint | D (deg) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for w, power in configs:
+        params = heading.ConstraintHeadingParams(window_s=w, extension_weight_power=power)
         rows: dict[tuple, list] = {}
         for (seed, dist), s in sessions.items():
             split = "tune" if seed in tune else "held-out"
@@ -126,7 +130,7 @@ def main() -> None:
             err = np.array([x[0] for x in v])
             d = np.array([x[2] for x in v])
             dtxt = "" if np.all(np.isnan(d)) else f"{np.rad2deg(np.nanmin(d)):.1f}–{np.rad2deg(np.nanmax(d)):.1f}"
-            print(f"| {w:.0f} | {split} ({len(v)}) | {'disturbed' if dist else 'clean'} | {mode} | "
+            print(f"| {w:.0f} | {power:.0f} | {split} ({len(v)}) | {'disturbed' if dist else 'clean'} | {mode} | "
                   + " | ".join(f"{np.mean(err[:, i]):.2f} (max {np.max(err[:, i]):.2f})" for i in range(3))
                   + f" | {sum(x[1] for x in v)}/{len(v)} | {dtxt} |")
     # auto against magnetometer on the clean sessions: the change auto makes (should be nothing)
@@ -135,7 +139,7 @@ def main() -> None:
     for (seed, dist), s in sessions.items():
         if dist:
             continue
-        out, truth, side, fs = s
+        out, _, side, fs = s
         (f9, f6), (t9, t6) = out["thigh"], out["shank"]
         ch = heading.choose_heading(f9, t9, fs_hz=fs, q_earth_femur_6d=f6, q_earth_tibia_6d=t6)
         a9 = knee.knee_angles(knee.q_femur_tibia(f9, t9), side)

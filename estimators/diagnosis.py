@@ -54,7 +54,7 @@ from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["CAUSES", "LOST_HEADING_RAD", "LOST_HEADING_FRACTION", "Diagnosis", "Finding", "diagnose"]
+__all__ = ["CAUSES", "LOST_HEADING_FRACTION", "LOST_HEADING_RAD", "Diagnosis", "Finding", "diagnose"]
 
 #: code → can the clinician fix it (and so the session is refused with advice)?
 CAUSES = {"sensors_swapped": True, "sensor_upside_down_task": True, "heading_lost": False,

@@ -40,11 +40,12 @@ def test_follows_a_drifting_offset_on_6d_orientations():
     # the hinge bias: the window's mean true knee rotation (−2°..8°) and adduction, −6..+2° here
     assert np.max(np.abs(heading.wrap(ch.offset_rad - true_offset))) < 8 * DEG
     # the drift itself is followed: against the same recording without drift the bias cancels, and between the
-    # first and last window centres (outside them δ is held, C2) the difference is the drift
+    # first and last window centres (outside them δ is held, C2) the difference is the drift (to 0.5°: the
+    # straight-knee weights, C3, are uneven in time, so a window's estimate sits a little off its centre)
     ch0 = heading.constraint_heading(qf6, _turn(qt, -2.0), fs_hz=FS_HZ)
     c = ch.window_centre_s[ch.window_excited & ch0.window_excited]
     inner = (t >= c[0]) & (t <= c[-1])
-    np.testing.assert_allclose(heading.wrap(ch.offset_rad - ch0.offset_rad)[inner], -drift[inner], atol=0.1 * DEG)
+    np.testing.assert_allclose(heading.wrap(ch.offset_rad - ch0.offset_rad)[inner], -drift[inner], atol=0.5 * DEG)
     ang = knee.knee_angles(knee.q_femur_tibia(qf6, qt6, ch.offset_rad), "right")
     e = _rmse(ang, truth)
     assert e[0] < 0.5 * DEG and e[1] < 1.5 * DEG and e[2] < 4 * DEG
@@ -66,7 +67,7 @@ def test_both_legs_and_a_constant_offset(side, height):
 
 
 def test_still_windows_are_held_and_interpolated():
-    _, qf, qt, truth = _truth(n_cycles=8)
+    _, qf, qt, _ = _truth(n_cycles=8)
     n, k0, m = len(qf), len(qf) // 2, 3000  # 30 s with the knee (and both segments) held still at sample k0
     qf = np.concatenate([qf[:k0], np.repeat(qf[k0:k0 + 1], m, axis=0), qf[k0:]])
     qt = np.concatenate([qt[:k0], np.repeat(qt[k0:k0 + 1], m, axis=0), qt[k0:]])
@@ -123,7 +124,7 @@ def _disturbed(angle_rad: float):
 
 
 def test_auto_keeps_a_sound_magnetometer_heading():
-    _, qf, qt, truth = _truth()
+    _, qf, qt, _ = _truth()
     ch = heading.choose_heading(qf, qt, fs_hz=FS_HZ)
     assert (ch.mode, ch.used, ch.run) == ("auto", "magnetometer", "9d") and ch.warnings == ()
     assert np.all(ch.offset_rad == 0.0) and np.array_equal(ch.q_earth_tibia, qt)
