@@ -317,13 +317,15 @@ def disagreement_rad(ch: ConstraintHeading) -> float:
     return float(np.max(np.abs(wrap(offs))))
 
 
-def choose_heading(q_earth_femur_9d: ArrayLike, q_earth_tibia_9d: ArrayLike, *, fs_hz: float, mode: str = "auto",
-                   q_earth_femur_6d: ArrayLike | None = None, q_earth_tibia_6d: ArrayLike | None = None,
-                   params: ConstraintHeadingParams | None = None,
+def choose_heading(q_earth_femur_9d: ArrayLike | None, q_earth_tibia_9d: ArrayLike | None, *, fs_hz: float,
+                   mode: str = "auto", q_earth_femur_6d: ArrayLike | None = None,
+                   q_earth_tibia_6d: ArrayLike | None = None, params: ConstraintHeadingParams | None = None,
                    bound_rad: float = DISAGREEMENT_BOUND_RAD) -> HeadingChoice:
     """The thigh–shank heading for ``--heading magnetometer|constraint|auto`` (module docstring).
 
-    q_earth_femur_9d, q_earth_tibia_9d : (N, 4) segment orientations of the 9D run (magnetometer heading).
+    q_earth_femur_9d, q_earth_tibia_9d : (N, 4) segment orientations of the 9D run (magnetometer heading), or
+        both None for a session without magnetometers (a 6D run only: ``auto`` then means ``constraint``, and
+        ``magnetometer`` is refused).
     q_earth_femur_6d, q_earth_tibia_6d : the same samples from a 6D run, when the caller has it (both or none);
         the constraint heading is then computed on them.
     fs_hz : rate, Hz.   mode : ``"auto"`` (default), ``"magnetometer"`` or ``"constraint"``.
@@ -333,8 +335,20 @@ def choose_heading(q_earth_femur_9d: ArrayLike, q_earth_tibia_9d: ArrayLike, *, 
         raise ValueError(f"heading must be one of {', '.join(HEADING_MODES)}, got {mode!r}")
     if (q_earth_femur_6d is None) != (q_earth_tibia_6d is None):
         raise ValueError("pass both 6D segment orientations or neither")
+    if (q_earth_femur_9d is None) != (q_earth_tibia_9d is None):
+        raise ValueError("pass both 9D segment orientations or neither")
     if not (np.isfinite(bound_rad) and bound_rad > 0.0):
         raise ValueError(f"bound_rad must be a positive angle, got {bound_rad!r}")
+    if q_earth_femur_9d is None:
+        if q_earth_femur_6d is None:
+            raise ValueError("pass the 9D run's segment orientations, the 6D run's, or both")
+        if mode == "magnetometer":
+            raise ValueError("the magnetometer heading needs a 9D run; without magnetometers use the constraint "
+                             "heading (--heading constraint or auto)")
+        qf, qt = quat.as_quaternion(q_earth_femur_6d), quat.as_quaternion(q_earth_tibia_6d)
+        c6 = constraint_heading(qf, qt, fs_hz=fs_hz, params=params)
+        return HeadingChoice(mode, "constraint", "6d", c6.offset_rad, qf, knee.apply_heading_offset(qt, c6.offset_rad),
+                             float("nan"), float(bound_rad), None, c6, c6.warnings)
     qf9, qt9 = quat.as_quaternion(q_earth_femur_9d), quat.as_quaternion(q_earth_tibia_9d)
     c9 = constraint_heading(qf9, qt9, fs_hz=fs_hz, params=params)
     d = disagreement_rad(c9)

@@ -179,3 +179,18 @@ def test_missing_rows_are_skipped_and_get_the_interpolated_offset():
     assert np.max(np.abs(heading.wrap(ch.offset_rad - ref.offset_rad))) < 0.5 * DEG
     ang = knee.knee_angles(knee.q_femur_tibia(qf, qt6, ch.offset_rad), "right")
     assert _rmse(ang, truth)[0] < 0.5 * DEG
+
+
+def test_a_session_without_magnetometers_uses_the_constraint():
+    _, qf, qt, truth = _truth(n_cycles=5)
+    qf6, qt6 = _turn(qf, -0.4), _turn(qt, 2.2)
+    ch = heading.choose_heading(None, None, fs_hz=FS_HZ, q_earth_femur_6d=qf6, q_earth_tibia_6d=qt6)
+    assert (ch.used, ch.run, ch.constraint_9d) == ("constraint", "6d", None) and np.isnan(ch.disagreement_rad)
+    ang = knee.knee_angles(knee.q_femur_tibia(ch.q_earth_femur, ch.q_earth_tibia), "right")
+    e = _rmse(ang, truth)
+    assert e[0] < 0.5 * DEG and e[2] < 2 * DEG
+    with pytest.raises(ValueError, match="needs a 9D run"):
+        heading.choose_heading(None, None, fs_hz=FS_HZ, mode="magnetometer", q_earth_femur_6d=qf6,
+                               q_earth_tibia_6d=qt6)
+    with pytest.raises(ValueError, match="9D run's segment orientations, the 6D"):
+        heading.choose_heading(None, None, fs_hz=FS_HZ)
