@@ -309,6 +309,23 @@ class HeadingChoice:
     constraint_6d: ConstraintHeading | None
     warnings: tuple[QualityWarning, ...]
 
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready summary for ``results.json`` (degrees, as the report prints them; None for NaN):
+        ``{"mode", "used", "run", "disagreement_deg", "bound_deg", "offset_deg": {"min", "max"},
+        "excited_pct", "residual_deg"}`` (the last two of the constraint that was used, else of the 9D check)."""
+        c = self.constraint_6d if self.run == "6d" else self.constraint_9d
+
+        def deg(x: float) -> float | None:
+            return float(np.rad2deg(x)) if np.isfinite(x) else None
+
+        ref = float(np.angle(np.mean(np.exp(1j * self.offset_rad))))  # circular mean: no jump at ±180°
+        rel = wrap(self.offset_rad - ref)
+        return {"mode": self.mode, "used": self.used, "run": self.run,
+                "disagreement_deg": deg(self.disagreement_rad), "bound_deg": deg(self.bound_rad),
+                "offset_deg": {"min": deg(float(wrap(ref + rel.min()))), "max": deg(float(wrap(ref + rel.max())))},
+                "excited_pct": None if c is None else 100.0 * c.excited_fraction,
+                "residual_deg": None if c is None else deg(c.residual_rad)}
+
 
 def disagreement_rad(ch: ConstraintHeading) -> float:
     """D = the largest |δ̂_W| over the excited windows (all windows when none is excited): on the 9D run the

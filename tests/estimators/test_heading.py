@@ -194,3 +194,17 @@ def test_a_session_without_magnetometers_uses_the_constraint():
                                q_earth_tibia_6d=qt6)
     with pytest.raises(ValueError, match="9D run's segment orientations, the 6D"):
         heading.choose_heading(None, None, fs_hz=FS_HZ)
+
+
+def test_summary_for_the_results_file():
+    import json
+
+    qf, qt9, _, _ = _disturbed(30 * DEG)
+    d = heading.choose_heading(qf, qt9, fs_hz=FS_HZ).to_dict()
+    assert json.loads(json.dumps(d)) == d
+    assert (d["mode"], d["used"], d["run"], d["bound_deg"]) == ("auto", "constraint", "9d", pytest.approx(6.0))
+    assert d["disagreement_deg"] > 25.0 and d["offset_deg"]["min"] < -25.0 and abs(d["offset_deg"]["max"]) < 8.0
+    assert d["excited_pct"] == 100.0 and 0.0 < d["residual_deg"] < 10.0
+    _, qf, qt, _ = _truth(n_cycles=3)
+    clean = heading.choose_heading(qf, qt, fs_hz=FS_HZ).to_dict()
+    assert clean["used"] == "magnetometer" and clean["offset_deg"] == {"min": 0.0, "max": 0.0}
