@@ -135,10 +135,12 @@ def segment_orientation(q_earth_sensor: ArrayLike, q_sensor_segment: ArrayLike) 
     return quat.multiply(q_earth_sensor, q_sensor_segment)
 
 
-def q_femur_tibia(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike, heading_offset_rad: float = 0.0) -> FloatArray:
+def q_femur_tibia(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike,
+                  heading_offset_rad: float | ArrayLike = 0.0) -> FloatArray:
     """Knee quaternion ``q_earth_femur* ⊗ exp(δ ẑ) ⊗ q_earth_tibia`` (6.2'), w >= 0.
 
-    ``heading_offset_rad`` = δ from :func:`heading_offset` (0 when both filters share magnetic north).
+    ``heading_offset_rad`` = δ from :func:`heading_offset` (0 when both filters share magnetic north), or δ(t),
+    shape (N,), from :func:`estimators.heading.constraint_heading`.
     """
     q_t = apply_heading_offset(q_earth_tibia, heading_offset_rad)
     return quat.positive_scalar(quat.multiply(quat.conjugate(q_earth_femur), q_t))
@@ -475,9 +477,14 @@ class HeadingOffset:
     warnings: tuple[QualityWarning, ...]
 
 
-def apply_heading_offset(q_earth_tibia: ArrayLike, offset_rad: float) -> FloatArray:
-    """``exp(δ ẑ) ⊗ q_earth_tibia``: the tibia orientation expressed in the femur filter's earth frame."""
-    return quat.multiply(quat.from_axis_angle(_Z, float(offset_rad)), q_earth_tibia)
+def apply_heading_offset(q_earth_tibia: ArrayLike, offset_rad: float | ArrayLike) -> FloatArray:
+    """``exp(δ ẑ) ⊗ q_earth_tibia``: the tibia orientation expressed in the femur filter's earth frame.
+
+    ``offset_rad`` is one δ or one per sample, shape (N,) (:func:`estimators.heading.constraint_heading`)."""
+    d = np.asarray(offset_rad, dtype=np.float64)
+    if d.ndim > 1:
+        raise ValueError(f"offset_rad must be a scalar or have shape (N,), got {d.shape}")
+    return quat.multiply(quat.from_axis_angle(_Z, d), q_earth_tibia)
 
 
 def heading_offset(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike, *, method: str = "straight_knee",
@@ -498,7 +505,9 @@ def heading_offset(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike, *, method
     the *same* run as the task: run the filters over the task, compute the segment orientations, then
     estimate δ with ``"hinge"`` over the task (or ``"straight_knee"`` over its detected full-extension
     holds) and pass it to :func:`q_femur_tibia`.  A large ``spread_rad`` means the relative heading
-    drifts (gyro bias): warn ``heading_drift``.
+    drifts (gyro bias): warn ``heading_drift``.  For the task itself prefer the slowly varying δ(t) of
+    :func:`estimators.heading.constraint_heading` and the magnetometer/constraint/auto choice of
+    :func:`estimators.heading.choose_heading`: one constant cannot follow drift or a local field.
     """
     qf = quat.as_quaternion(q_earth_femur).reshape(-1, 4)
     qt = quat.as_quaternion(q_earth_tibia).reshape(-1, 4)
@@ -544,8 +553,12 @@ def heading_offset(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike, *, method
 def task_warnings(knee_angles_rad: ArrayLike, *, min_flexion_rad: float = float(np.deg2rad(-15.0)),
                   fraction: float = 0.2) -> list[QualityWarning]:
     """Sanity of a task's angles: flexion below ``min_flexion_rad`` (hyperextension beyond −15°) in more
-    than ``fraction`` of the finite samples means the sensors are swapped between thigh and shank,
-    mounted upside down, or the side is wrong (a swap turns q_femur_tibia into its inverse: flexion −)."""
+    than ``fraction`` of the finite samples: the angles are implausible (``flexion_negative``).
+
+    This names the symptom only.  Its causes — sensors swapped between thigh and shank (q_femur_tibia
+    becomes its inverse: flexion −), a sensor mounted upside down that the calibration did not undo, or a
+    heading lost by 90–180° (the flexion axis turned round) — need opposite actions and are told apart by
+    :func:`estimators.diagnosis.diagnose`."""
     a = np.asarray(knee_angles_rad, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != 3:
         raise ValueError(f"knee_angles_rad must have shape (N, 3), got {a.shape}")
@@ -558,5 +571,5 @@ def task_warnings(knee_angles_rad: ArrayLike, *, min_flexion_rad: float = float(
                   "median_deg": float(np.rad2deg(np.median(flex)))}
         return [QualityWarning("flexion_negative", f"knee flexion is below {values['min_deg']:.0f}° in "
                                f"{values['pct']:.0f}% of the task (median {values['median_deg']:.0f}°); "
-                               "the thigh and shank sensors are probably swapped or mounted upside down", values)]
+                               "the knee angles are implausible", values)]
     return []
