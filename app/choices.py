@@ -7,7 +7,7 @@ Where a list belongs to a lower layer it is taken from there, never typed again:
   :data:`estimators.orientation.DEFAULT_METHOD`);
 * tasks — :data:`estimators.motor_task.TASK_INFO` (the motor-task registry; default ``step_up``);
 * languages — :data:`reports.i18n.LANGUAGES` (the languages the reports are written in; default ``es``);
-* calibrations, angle conventions, sides, user roles — here.
+* calibrations, angle conventions, headings, sides, user roles — here.
 
 Each option is a :class:`Choice` (``name``, an English ``label`` the UI may translate by name, ``default``);
 ``*_NAMES`` are the bare names in the same order.  This module imports neither numpy nor numba: the CLI's
@@ -58,6 +58,11 @@ CALIBRATIONS = _choices((("static", "Standing + supine postures"),
                          ("functional", "Standing + the knee's flexion axis on the task")), "static")
 ANGLE_CONVENTIONS = _choices((("grood_suntay", "Grood & Suntay (clinical)"),
                               ("thesis_zyx", "Thesis ZYX Euler angles")), "grood_suntay")
+#: the thigh–shank heading (:mod:`estimators.heading`; ``auto`` takes the joint constraint's when the
+#: magnetometers disagree with it)
+HEADINGS = _choices((("auto", "Automatic (magnetometer, or the knee's hinge constraint when they disagree)"),
+                     ("magnetometer", "Magnetometers"),
+                     ("constraint", "The knee's hinge constraint (no magnetometer)")), "auto")
 SIDES = _choices((("right", "Right"), ("left", "Left")), "right")
 #: user roles, highest first (``app.web.security.ROLE_RANK`` ranks them; the database stores the names)
 USER_ROLES = _choices((("admin", "Administrator"), ("clinician", "Clinician"), ("read_only", "Read only")),
@@ -70,6 +75,7 @@ FILTER_NAMES = names(FILTERS)
 TASK_NAMES = names(TASKS)
 LANGUAGE_NAMES = names(LANGUAGES)
 CALIBRATION_NAMES = names(CALIBRATIONS)
+HEADING_NAMES = names(HEADINGS)
 ANGLE_CONVENTION_NAMES = names(ANGLE_CONVENTIONS)
 SIDE_NAMES = names(SIDES)
 USER_ROLE_NAMES = names(USER_ROLES)
@@ -78,12 +84,13 @@ DEFAULT_FILTER = default(FILTERS)
 DEFAULT_TASK = default(TASKS)
 DEFAULT_LANGUAGE = default(LANGUAGES)
 DEFAULT_CALIBRATION = default(CALIBRATIONS)
+DEFAULT_HEADING = default(HEADINGS)
 DEFAULT_ANGLE_CONVENTION = default(ANGLE_CONVENTIONS)
 
 #: the lists ``GET /api/v1/options`` answers with, by key
 OPTION_LISTS: dict[str, tuple[Choice, ...]] = {
     "filters": FILTERS, "tasks": TASKS, "languages": LANGUAGES, "calibrations": CALIBRATIONS,
-    "angle_conventions": ANGLE_CONVENTIONS, "sides": SIDES,
+    "angle_conventions": ANGLE_CONVENTIONS, "headings": HEADINGS, "sides": SIDES,
 }
 
 
@@ -98,6 +105,6 @@ def options() -> dict[str, list[dict[str, Any]]]:
 
 
 __all__ = ["ANGLE_CONVENTIONS", "ANGLE_CONVENTION_NAMES", "CALIBRATIONS", "CALIBRATION_NAMES", "Choice",
-           "DEFAULT_ANGLE_CONVENTION", "DEFAULT_CALIBRATION", "DEFAULT_FILTER", "DEFAULT_LANGUAGE", "DEFAULT_TASK",
-           "FILTERS", "FILTER_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "MARKOV_METHODS", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
+           "DEFAULT_ANGLE_CONVENTION", "DEFAULT_CALIBRATION", "DEFAULT_FILTER", "DEFAULT_HEADING", "DEFAULT_LANGUAGE", "DEFAULT_TASK",
+           "FILTERS", "FILTER_NAMES", "HEADINGS", "HEADING_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "MARKOV_METHODS", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
            "TASK_NAMES", "USER_ROLES", "USER_ROLE_NAMES", "default", "names", "options"]

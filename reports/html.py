@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from reports import i18n
-from reports.labels import (code_label, cycle_and_phase_per_sample, get_path, phase_names, phase_spans_pct,
+from reports.labels import (code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
+                            phase_spans_pct,
                             session_rows, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
@@ -292,6 +293,9 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
         if angle is not None:
             items.append(_e(tr("html.posture_angle", lang, segment=code_label("data.seg", seg, lang),
                                                                  angle=_num(angle, lang, 1))))
+    heading = heading_sentence(r, lang)
+    if heading:
+        items.append(_e(heading))
     for seg, frac in (get_path(r, "quality", "magnetic_disturbance_fraction") or {}).items():
         items.append(_e(tr("html.mag_disturbance", lang, 
             segment=code_label("data.seg", seg, lang), pct=_num(None if frac is None else 100.0 * frac, lang, 1))))

@@ -48,6 +48,17 @@ def code_label(prefix: str, code: Any, lang: str) -> str:
     return i18n.t(key, lang) if i18n.has(key) else str(code)
 
 
+def heading_sentence(results: dict[str, Any], lang: str) -> str | None:
+    """Which thigh–shank heading the angles use (``results["quality"]["heading"]``, ``--heading``), as one
+    sentence for the report's quality section; None for a results file without it."""
+    h = get_path(results, "quality", "heading")
+    if not isinstance(h, dict) or h.get("used") not in ("magnetometer", "constraint"):
+        return None
+    return tr(f"heading.used.{h['used']}", lang, mode=code_label("heading.mode", h.get("mode"), lang),
+              disagreement=i18n.fmt_number(h.get("disagreement_deg"), 0, lang),
+              bound=i18n.fmt_number(h.get("bound_deg"), 0, lang))
+
+
 def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:
     """``(phase, start event, end event)`` of the session's task (:data:`estimators.motor_task.tasks.TASKS`).
 

@@ -50,6 +50,9 @@ def add_parsers(sub) -> None:
     proc.add_argument("--calibration", choices=choices.CALIBRATION_NAMES, default=choices.DEFAULT_CALIBRATION,
                       help="segment axes from standing + supine (static, default) or standing + the knee's "
                            "flexion axis on the task (functional: for a lying posture not held toes-up)")
+    proc.add_argument("--heading", choices=choices.HEADING_NAMES, default=choices.DEFAULT_HEADING,
+                      help="thigh-shank heading: the magnetometers, the knee's hinge constraint, or auto (default: "
+                           "the magnetometers unless they disagree with the constraint, then the constraint)")
     proc.add_argument("--any-rate", action="store_true",
                       help="accept recordings whose rate is not the protocol's 100 Hz")
     proc.add_argument("--task", choices=choices.TASK_NAMES, default=choices.DEFAULT_TASK,
@@ -77,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
             from app.pipeline.session import ProcessOptions
 
         options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
-                                 calibration=args.calibration, task=args.task,
+                                 calibration=args.calibration, task=args.task, heading=args.heading,
                                  expected_fs_hz=None if args.any_rate else 100.0, language=args.lang)
         _, written = process_folder(args.session, args.out, options, progress=_progress)
         for path in written:

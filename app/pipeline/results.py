@@ -87,6 +87,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "warnings": [w.to_dict() for w in outcome.warnings],
             "magnetic_disturbance_fraction": {seg: f.fraction for seg, f in outcome.field.items()},
             "heading_task": _heading_task(outcome),
+            # which thigh–shank heading the knee angles use (--heading), and the figures it was chosen by
+            "heading": None if outcome.heading_choice is None else outcome.heading_choice.to_dict(),
         },
         "session": {
             "folder": str(session.folder),

@@ -43,14 +43,17 @@ from numpy.typing import NDArray
 
 from estimators import __version__, knee
 from estimators import quaternion as quat
+from estimators.diagnosis import diagnose
 from estimators.disturbance import FieldCheck, field_disturbance
+from estimators.heading import HeadingChoice, choose_heading
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
 from estimators.motor_task import EVENTS, TaskAnalysis, analyse_task
 from estimators.orientation import make
 from estimators.quality import QualityWarning
 
 from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
-                         DEFAULT_FILTER, DEFAULT_LANGUAGE, DEFAULT_TASK, LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES)
+                         DEFAULT_FILTER, DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, HEADING_NAMES,
+                         LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES)
 from app.pipeline.ingestion import SEGMENTS, IngestionError, Note, Session
 
 FloatArray = NDArray[np.float64]
@@ -88,6 +91,9 @@ class ProcessOptions:
     calibration : ``"static"`` (standing + supine, default) or ``"functional"`` (standing + the flexion axis
         of the task, for a lying posture that was not held toes-up).
     task : motor task analysed (``app.choices.TASKS``).
+    heading : the thigh–shank heading (``app.choices.HEADINGS``): ``auto`` (default) uses the magnetometers unless
+        they disagree with the knee's hinge constraint by more than its bound, then the constraint's (from a 6D
+        run of the same filter); ``magnetometer`` / ``constraint`` force one (:func:`estimators.heading.choose_heading`).
     expected_fs_hz : rate the protocol uses; ``None`` accepts the files' own rate.
     language : report language (``es``/``en``/``pt``), recorded for the reports.
     """
@@ -98,6 +104,7 @@ class ProcessOptions:
     angle_method: str = DEFAULT_ANGLE_CONVENTION
     calibration: str = DEFAULT_CALIBRATION
     task: str = DEFAULT_TASK
+    heading: str = DEFAULT_HEADING
     expected_fs_hz: float | None = 100.0
     language: str = DEFAULT_LANGUAGE
 
@@ -111,6 +118,8 @@ class ProcessOptions:
             raise PipelineError(f"calibration must be one of {', '.join(CALIBRATION_NAMES)}, got {self.calibration!r}")
         if self.language not in LANGUAGE_NAMES:
             raise PipelineError(f"language must be one of {', '.join(LANGUAGE_NAMES)}, got {self.language!r}")
+        if self.heading not in HEADING_NAMES:
+            raise PipelineError(f"heading must be one of {', '.join(HEADING_NAMES)}, got {self.heading!r}")
         if self.task not in TASK_NAMES:
             raise PipelineError(f"task must be one of {', '.join(TASK_NAMES)}, got {self.task!r}; "
                                 "pick the motor task the session recorded")
@@ -131,6 +140,7 @@ class SessionOutcome:
         results file says how it was computed even after a default changes; ``filter.overrides`` lists what
         the user changed.
     heading_task : the heading check over the task's straight-knee holds (None when there was none).
+    heading_choice : which thigh–shank heading the knee angles use and why (``--heading``), with its figures.
     """
 
     session: Session
@@ -152,6 +162,7 @@ class SessionOutcome:
     warnings: tuple[QualityWarning, ...]
     filter_params: Any
     heading_task: TaskHeading | None = None
+    heading_choice: HeadingChoice | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -225,7 +236,10 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     if options.calibration == "functional":
         segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)
         warnings += functional_warnings
-    q_seg = {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS}
+    choice = _heading_choice(options.heading, filt, task, gyr_task, segments,
+                             {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS})
+    warnings += list(choice.warnings)
+    q_seg = {"thigh": choice.q_earth_femur, "shank": choice.q_earth_tibia}
 
     progress("knee", 0.85)
     heading = _standing_heading(q_standing, segments)
@@ -236,11 +250,16 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         warnings += list(field[seg].warnings)
     q_ft = knee.q_femur_tibia(q_seg["thigh"], q_seg["shank"])
     angles = knee.knee_angles(q_ft, side, method=options.angle_method)
-    implausible = knee.task_warnings(angles)
-    if implausible:  # a report of negative flexion helps nobody: refuse, naming the files to check
-        raise PipelineError(
-            f"{_files(thigh)} (thigh) and {_files(shank)} (shank): {implausible[0].message}. Check which "
-            "recordings belong to which segment (file names or session.json) and how the sensors were worn.")
+    diagnosis = diagnose(q_seg["thigh"], q_seg["shank"], side, choice=choice,
+                         acc_sensor={"thigh": thigh.acc, "shank": shank.acc})
+    if diagnosis.refuse:  # implausible angles help nobody: refuse, naming the files and the cause's own advice
+        if diagnosis.cause is not None:
+            reason = diagnosis.cause.warning.message
+        else:
+            reason = (f"{diagnosis.unexplained.message}; check which recordings belong to which segment (file "
+                      "names or session.json) and how the sensors were worn")
+        raise PipelineError(f"{_files(thigh)} (thigh) and {_files(shank)} (shank): {reason}.")
+    warnings += list(diagnosis.warnings)  # the named cause of a heading problem (lost, or a disturbed field)
 
     progress("task", 0.95)
     try:
@@ -261,7 +280,31 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         session=session, options=options, side=side, step_height_m=session.metadata.value("step_height_m"),
         t_s=thigh.t_s, fs_hz=thigh.fs_hz, t0_s=thigh.t0_s, angles_rad=angles, q_earth_sensor=q_es,
         q_earth_segment=q_seg, q_femur_tibia=q_ft, mag=mag, segments=segments, field=field, heading=heading,
-        analysis=analysis, warnings=tuple(warnings), filter_params=filt.params, heading_task=heading_task)
+        analysis=analysis, warnings=tuple(warnings), filter_params=filt.params, heading_task=heading_task,
+        heading_choice=choice)
+
+
+def _heading_choice(mode: str, filt, task: dict, gyr_task: dict[str, FloatArray],
+                    segments: dict[str, knee.SegmentCalibration], q_seg_9d: dict[str, FloatArray]) -> HeadingChoice:
+    """The thigh–shank heading for ``--heading`` (:func:`estimators.heading.choose_heading`).  The constraint is
+    computed on a 6D run of the same filter (no magnetic influence at all) whenever it is used: run up front for
+    ``constraint``, and for ``auto`` only once the 9D check has decided to switch (a clean session pays nothing)."""
+    fs_hz = task["thigh"].fs_hz
+
+    def choose(q_seg_6d: dict[str, FloatArray] | None) -> HeadingChoice:
+        six = {} if q_seg_6d is None else {"q_earth_femur_6d": q_seg_6d["thigh"], "q_earth_tibia_6d": q_seg_6d["shank"]}
+        return choose_heading(q_seg_9d["thigh"], q_seg_9d["shank"], fs_hz=fs_hz, mode=mode, **six)
+
+    def six_d() -> dict[str, FloatArray]:
+        return {seg: knee.segment_orientation(filt.estimate(rec.acc, gyr_task[seg], None, fs_hz=rec.fs_hz).orientation_,
+                                              segments[seg].q_sensor_segment) for seg, rec in task.items()}
+
+    if mode == "magnetometer":
+        return choose(None)
+    if mode == "constraint":
+        return choose(six_d())
+    choice = choose(None)
+    return choose(six_d()) if choice.used == "constraint" else choice
 
 
 def _standing_orientations(session: Session, filt, mag: dict[str, MagCalibration],

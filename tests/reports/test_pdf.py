@@ -378,3 +378,27 @@ def test_phase_table_and_curves_follow_the_session_task():
                                    ("ascent", "2.22 ± 0.21", "55.0 ± 2.0")):
         assert f"{t('data.phase.' + name, 'en')} {mean_s} {mean_pct}" in text
     assert t("data.phase.impulse", "en") not in text
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", ["es", "en", "pt"])
+@pytest.mark.parametrize("used", ["magnetometer", "constraint"])
+def test_the_quality_section_says_which_heading_the_angles_use(lang, used):
+    """results.json's ``quality.heading`` (``--heading``) is printed in the quality section, in the report's
+    language, with the disagreement and the bound it was chosen by."""
+    from reports.labels import heading_sentence
+    from reports.html import render_html
+
+    ri = _synthetic_ri(lang)
+    ri.results["quality"]["heading"] = {"mode": "auto", "used": used, "run": "6d" if used == "constraint" else "9d",
+                                        "disagreement_deg": 26.2, "bound_deg": 6.0}
+    sentence = heading_sentence(ri.results, lang)
+    assert sentence and "26" in sentence and "6" in sentence
+    assert sentence != heading_sentence(ri.results, "en" if lang != "en" else "es")  # translated
+    other = "constraint" if used == "magnetometer" else "magnetometer"
+    assert sentence != heading_sentence({"quality": {"heading": {**ri.results["quality"]["heading"], "used": other}}},
+                                        lang)
+    assert _flat(sentence) in _flat(_text(render_pdf(ri)))
+    import html as _html
+
+    assert sentence in _html.unescape(render_html(ri))

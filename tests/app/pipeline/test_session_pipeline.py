@@ -155,8 +155,15 @@ def test_calibration_option_is_checked():
 
 
 def test_task_option_is_checked_before_computing():
-    with pytest.raises(PipelineError, match="task must be one of step_up, seated_knee_extension, squat.*'stepup'"):
+    from app.choices import TASK_NAMES
+
+    with pytest.raises(PipelineError, match=f"task must be one of {', '.join(TASK_NAMES)}.*'stepup'"):
         ProcessOptions(task="stepup")
+
+
+def test_heading_option_is_checked():
+    with pytest.raises(PipelineError, match="heading must be one of auto, magnetometer, constraint.*'compass'"):
+        ProcessOptions(heading="compass")
 
 
 def test_cli_passes_the_task(right_session, tmp_path, capsys):
@@ -176,16 +183,26 @@ def test_cli_passes_the_task(right_session, tmp_path, capsys):
 
 def test_heading_drift_during_the_task_is_warned(tmp_path):
     """The field at the shank turns slowly about the vertical during the task (1.5°/s: a drifting local
-    disturbance; norm and dip unchanged, so the magnetic checks stay silent): the relative heading of the
-    full-extension holds changes by ~9°, above the 5° limit, and ``heading_drift`` (variant ``task``) is
-    warned, translated with its numbers.  The normal session's absence is asserted in the contract test."""
+    disturbance; norm and dip unchanged, so the magnetic checks stay silent).  With the magnetometer heading
+    forced, the relative heading of the full-extension holds changes by ~9°, above the 5° limit, and
+    ``heading_drift`` (variant ``task``) is warned, translated with its numbers.  The default (``auto``) sees the
+    magnetometers disagree with the knee's hinge constraint, takes the constraint's heading and says so
+    (``magnetic_heading_unreliable``), and its rotation is then closer to the truth.  The normal session's
+    absence of both is asserted in the contract test."""
     from reports.warning_text import warning_text
 
     truth = simulate_session(seed=3, side="right", n_cycles=6, accelerometer_errors=False,
                              shank_task_field_turn_rad_s=float(np.deg2rad(1.5)))
     write_session(tmp_path / "session", truth)
-    process_folder(tmp_path / "session", tmp_path / "out", reports=False)
+    auto, _ = process_folder(tmp_path / "session", tmp_path / "auto", reports=False)
+    r_auto = json.loads((tmp_path / "auto" / "results.json").read_text())
+    assert r_auto["quality"]["heading"]["mode"] == "auto" and r_auto["quality"]["heading"]["used"] == "constraint"
+    assert "magnetic_heading_unreliable" in {w["code"] for w in r_auto["quality"]["warnings"]}
+    forced, _ = process_folder(tmp_path / "session", tmp_path / "out", ProcessOptions(heading="magnetometer"),
+                               reports=False)
+    assert accuracy(auto, truth)["rmse_deg"]["internal_rotation"] < accuracy(forced, truth)["rmse_deg"]["internal_rotation"]
     r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["quality"]["heading"]["used"] == "magnetometer"
     drift = [w for w in r["quality"]["warnings"] if w["code"] == "heading_drift"]
     assert len(drift) == 1 and drift[0]["params"]["variant"] == "task", r["quality"]["warnings"]
     p = drift[0]["params"]
