@@ -26,7 +26,8 @@ uses the true sensor orientations: its error is the wobble's floor, which no fil
 Metrics per clip and leg (flexion, degrees, against the bones' Grood & Suntay flexion): **ROM error** = mean
 over the complete true strides of (estimated − true) per-stride flexion range; RMSE raw and with the mean
 offset removed; Pearson r.  The table gives, per method, the mean and worst |ROM error| over all clips and
-legs, the mean RMSEs, the lowest r and the number of clips whose |ROM error| exceeds 2°.  Goal (issue 13 §5):
+legs, the mean RMSEs, the lowest r, the number of clips whose |ROM error| exceeds 2°, and for diagnosis the
+sensors' own RMS heading and inclination errors (thigh/shank, °; heading blank in 6D).  Goal (issue 13 §5):
 the default's ROM error ≤ 2° and no worse than Madgwick's.
 
 Held out: ``--params`` overrides are for diagnosis; choose them on one seed set and report them on another
@@ -155,6 +156,14 @@ def score(flex_rad: np.ndarray, c: LegClip) -> dict:
             "r": float(np.corrcoef(est, tru)[0, 1]), "strides": len(roms)}
 
 
+def orientation_errors(q: np.ndarray, q_true: np.ndarray) -> tuple[float, float]:
+    """RMS heading and inclination error (°) of one sensor (earth-frame error split about the vertical, as BROAD)."""
+    e = quat.multiply(q, quat.conjugate(q_true))
+    head = 2.0 * np.arctan2(np.abs(e[:, 3]), np.abs(e[:, 0]))
+    inc = 2.0 * np.arctan2(np.hypot(e[:, 1], e[:, 2]), np.hypot(e[:, 0], e[:, 3]))
+    return float(np.rad2deg(np.sqrt(np.mean(head**2)))), float(np.rad2deg(np.sqrt(np.mean(inc**2))))
+
+
 def parse_params(items: Sequence[str]) -> dict[str, dict]:
     """``["chakamo:offline=false,tau_acc_s=5"]`` → ``{"chakamo": {"offline": False, "tau_acc_s": 5.0}}``."""
     out: dict[str, dict] = {}
@@ -187,12 +196,17 @@ def evaluate(seeds: Sequence[int], methods: Sequence[str], modes: Sequence[str],
                                   **params.get(m, {})) for s in ("thigh", "shank")]
                     variants.append((m if mode == "9d" else f"{m} 6D", mode, q[0], q[1]))
             for name, mode, qt, qs in variants:
+                errs = [orientation_errors(q, c.q_true[seg]) for q, seg in ((qt, "thigh"), (qs, "shank"))]
+                oe = {"head_thigh_deg": errs[0][0], "inc_thigh_deg": errs[0][1],
+                      "head_shank_deg": errs[1][0], "inc_shank_deg": errs[1][1]}
+                if mode == "6d":  # heading is arbitrary in 6D
+                    oe["head_thigh_deg"] = oe["head_shank_deg"] = float("nan")
                 for cal_name in calibrations:
                     cal = cals[cal_name]
                     f = (flexion(qt, qs, cal, c.side, mode) if cal_name == "known"
                          else _signed_data_flexion(qt, qs, cal, c.side, mode))
                     rows.append({"seed": seed, "side": c.side, "variant": name, "calibration": cal_name,
-                                 **score(f, c), **c.info})
+                                 **score(f, c), **oe, **c.info})
     return rows
 
 
@@ -211,17 +225,20 @@ def summary(rows: list[dict]) -> list[dict]:
                     "rmse_deg": float(np.mean([r["rmse_deg"] for r in sel])),
                     "rmse_offset_deg": float(np.mean([r["rmse_offset_deg"] for r in sel])),
                     "r_min": float(np.min([r["r"] for r in sel])),
-                    "over_goal": int(np.sum(np.abs(e) > ROM_GOAL_DEG))})
+                    "over_goal": int(np.sum(np.abs(e) > ROM_GOAL_DEG)),
+                    **{k: float(np.mean([r[k] for r in sel])) for k in
+                       ("head_thigh_deg", "inc_thigh_deg", "head_shank_deg", "inc_shank_deg")}})
     return out
 
 
 def print_table(summ: list[dict]) -> None:
     print(f"{'variant':<16} {'calib':<6} {'n':>3} {'ROM |err| mean':>14} {'signed':>7} {'worst':>7} "
-          f"{'RMSE':>6} {'RMSE-off':>8} {'r min':>6} {'>2°':>4}")
+          f"{'RMSE':>6} {'RMSE-off':>8} {'r min':>6} {'>2°':>4} | {'head T/S':>11} {'incl T/S':>11}")
     for s in summ:
         print(f"{s['variant']:<16} {s['calibration']:<6} {s['n']:>3} {s['rom_mean_abs_deg']:14.2f} "
               f"{s['rom_mean_signed_deg']:7.2f} {s['rom_worst_deg']:7.2f} {s['rmse_deg']:6.2f} "
-              f"{s['rmse_offset_deg']:8.2f} {s['r_min']:6.3f} {s['over_goal']:>4}")
+              f"{s['rmse_offset_deg']:8.2f} {s['r_min']:6.3f} {s['over_goal']:>4} | "
+              f"{s['head_thigh_deg']:5.1f}/{s['head_shank_deg']:<5.1f} {s['inc_thigh_deg']:5.1f}/{s['inc_shank_deg']:<5.1f}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
