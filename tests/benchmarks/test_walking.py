@@ -57,3 +57,14 @@ def test_data_only_calibration_finds_the_flexion_and_long_axes(clips):
 def test_params_parse_flags_and_numbers():
     assert walking.parse_params(["chakamo:offline=false,tau_acc_s=5", "madgwick:beta_rad_s=0.1"]) == {
         "chakamo": {"offline": False, "tau_acc_s": 5.0}, "madgwick": {"beta_rad_s": 0.1}}
+
+
+def test_offline_padding_swap_is_undone_after_the_run():
+    import estimators.orientation.chakamo as ck
+
+    before = ck.zero_phase_lowpass
+    with walking.offline_padding("even"):
+        assert ck.zero_phase_lowpass is not before
+    assert ck.zero_phase_lowpass is before
+    with walking.offline_padding("odd"):
+        assert ck.zero_phase_lowpass is before
