@@ -65,6 +65,18 @@ error that no orientation filter can remove.
 Truth: :attr:`GaitLeg.motion` is a :class:`~estimators.simulation.knee.LegMotion` whose ``cycles_s`` are
 the complete strides inside the clip, ``[IC_k, IC_{k+1}]``, and ``phases_s`` the events per stride
 (IC, TO, mid-swing, next IC); all ICs, TOs and mid-swings inside the clip are in ``*_s`` arrays.
+
+Example
+-------
+>>> from estimators.simulation import gait
+>>> walk = gait.walking(10.0, turn_at_s=4.0, seed=1)            # both legs, in motion from t = 0
+>>> thigh, shank = gait.simulate_leg(walk.right, seed=1)         # SimulatedImu each (acc, gyr, mag)
+>>> g_t, g_s = thigh.on_grid(), shank.on_grid()                  # 100 Hz grids + sensor truth
+>>> flexion_rad = walk.right.knee_angles_at(g_t.t_true_s)[:, 0]  # bone truth on the grid
+>>> walk.right.motion.phases_s.shape[1]                          # IC, TO, mid-swing, next IC
+4
+
+``python -m benchmarks.walking`` scores the orientation methods on these clips.
 """
 
 from __future__ import annotations
