@@ -91,7 +91,10 @@ The causal filter runs forward, and backward in time (samples reversed, gyroscop
 2. The strapdown (1) is re-run with :math:`\hat b_s`; the acceleration in ``I`` is filtered with the
    same Butterworth filter *forward and backward* (zero phase, no delay), and :math:`q_{E'I}(k)` is
    the shortest rotation taking the filtered direction to ``z``.  Missing accelerometer rows are
-   interpolated in ``I``.
+   interpolated in ``I``.  At the ends the signal is extended by its mirror image (even padding over
+   3 τ_acc): the end value is then a one-sided mean of the last seconds.  (Odd padding, used before,
+   makes the filtered value pass through the raw end sample, so a clip that starts or ends in motion
+   had its limb acceleration read as tilt: 22° on the gait scenarios of the tests.)
 3. 9D: the heading target (9) is unwrapped and smoothed by a two-sided exponential kernel
    :math:`e^{-|t_k - t_j|/\tau}` (``offline_tau_mag_s``; the bias-corrected strapdown frame drifts
    so little that a longer window than the causal ``tau_mag_s`` pays off) — a positive kernel, so long
@@ -148,7 +151,7 @@ from estimators.orientation.chakamo_offline import (
     butterworth, field_weights, smooth_heading, zero_phase_inclination, zero_phase_lowpass,
 )
 from estimators.orientation.base import (
-    FloatArray, ImuInput, OrientationMethod, SampleFlags, check_flag, check_parameter,
+    Alignment, FloatArray, ImuInput, OrientationMethod, SampleFlags, check_flag, check_parameter,
 )
 
 _DEG = math.pi / 180.0
@@ -316,6 +319,31 @@ class Chakamo(OrientationMethod):
         s[kern.S_P], s[kern.S_P + 3], s[kern.S_P + 5] = var0, var0, var0
         first = int(np.flatnonzero(data.acc_ok)[0]) if data.acc_ok.any() else 0
         s[kern.S_AREST:kern.S_AREST + 3] = data.acc[first]
+        return s
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """Seed the running means with the alignment window's (orientation from the first sample).
+
+        The acceleration mean in ``I`` (2) starts as the window's motion-compensated mean with the weight
+        of its rows (capped below ``n_init`` so that the Butterworth states are still set to steady state),
+        the heading mean (10) with the weight of the window's field rows, and the field reference (11) with
+        the window's mean norm and the dip of its mean field: a reference learnt on the aligned window, not
+        on one sample seen with an unconverged inclination.
+        """
+        s = self._state_from_quaternion(alignment.q, data)
+        n_init = math.ceil(self.params.tau_acc_s * data.fs_hz)
+        s[kern.S_ALP:kern.S_ALP + 3] = quat.rotate(alignment.q, alignment.acc_mean)
+        s[kern.S_NACC] = float(max(0, min(alignment.n_acc, n_init - 1)))
+        if alignment.mag_mean is not None and alignment.n_mag > 0:
+            up = alignment.acc_mean / np.linalg.norm(alignment.acc_mean)
+            m_norm = float(np.linalg.norm(alignment.mag_mean))
+            if m_norm > 0.0 and alignment.mag_norm_mean > 0.0:
+                dip = math.asin(min(max(-float(alignment.mag_mean @ up) / m_norm, -1.0), 1.0))
+                s[kern.S_MREFN] = s[kern.S_MCANDN] = alignment.mag_norm_mean
+                s[kern.S_MREFD] = s[kern.S_MCANDD] = dip
+                s[kern.S_MREFOK] = 1.0
+                s[kern.S_TUND] = self.params.mag_min_undisturbed_s
+                s[kern.S_NMAG] = float(alignment.n_mag)
         return s
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

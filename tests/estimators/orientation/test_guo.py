@@ -3,6 +3,8 @@
 import math
 
 import numpy as np
+
+from estimators.orientation.base import alignment_samples
 import pytest
 
 from estimators import quaternion as quat
@@ -158,7 +160,8 @@ def test_two_half_batches_equal_one_batch():
     _, acc, gyr, mag = rotating_body(400, rest_s=1.5, noise=True, seed=2)
     method = Guo(GuoParams(rest_min_s=0.5))
     whole = method.estimate(acc, gyr, mag, fs_hz=FS_HZ)
-    state = method.initial_state(acc[:10], mag[:10])
+    w = alignment_samples(FS_HZ)  # the window estimate aligns on, motion-compensated
+    state = method.initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=FS_HZ)
     q1, state = method.update(state, acc[:170], gyr[:170], mag[:170], fs_hz=FS_HZ)
     q2, state = method.update(state, acc[170:], gyr[170:], mag[170:], fs_hz=FS_HZ)
     np.testing.assert_array_equal(np.vstack([q1, q2]), whole.orientation_)
