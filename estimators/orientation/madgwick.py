@@ -128,7 +128,8 @@ class MadgwickParams:
         Length (s, ≥ 0) of the initial convergence phase counted from the start of the state; 0 disables
         it (the published filter).  Default 1.0.
     beta_warmup_rad_s
-        β during the warm-up (the larger of this and ``beta_rad_s`` is used), ≥ 0.  Default 1.0.
+        β during the warm-up, in 1/s like ``beta_rad_s`` (up to 2β rad/s of rotation; the larger of this and
+        ``beta_rad_s`` is used), ≥ 0.  Default 1.0.
     """
 
     beta_rad_s: float = 0.1
