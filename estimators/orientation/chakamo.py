@@ -72,6 +72,21 @@ Causal filter (one sample, ``dt = 1/fs``)
    the current field while it stays within the same thresholds; after ``mag_max_rejection_s`` of
    rejection, a candidate that has held for ``mag_new_field_s`` becomes the new reference and
    the heading correction restarts (with the running-mean gain of (10)).                         (12)
+   *A young reference never locks*: the reference counts its *support*, the time accepted samples
+   have confirmed it (the alignment window's field rows count: see :meth:`Chakamo._state_from_alignment`).
+   While the support is below ``mag_new_field_s``, a field away from the reference that has held
+   longer than that support replaces it at once.  So a reference learnt next to a steel object at the
+   start of a recording gives way to the clean field as soon as the clean field has lasted longer
+   than the disturbed one had (tested: 3 s of disturbance at the start of a gait clip), while short
+   disturbances (a stance near the floor: under 0.5 s) never displace a reference confirmed for seconds.
+
+   *No rest and no undisturbed period* (the field wanders everywhere): samples within the thresholds
+   of the current reference correct the heading; the reference moves to whichever stable field has
+   held longest while young, and after ``mag_new_field_s`` of support only by the 60 s rule above.
+   Between accepted samples the heading follows the gyroscope.  The heading is then only as good as
+   the field the accepted samples saw: the filter does not (and cannot) tell a uniform, stable
+   disturbance from the earth's field.  The offline smoother (15) then weights the samples by their
+   distance from the recording's median norm and dip.
 
    *Optional* (``mag_bias``): a bias error also turns the heading, :math:`\dot\delta^* =
    -(R_{E'S} e)_z`, and the first-order heading filter (10) lags a ramp by :math:`\tau_{mag}` times
@@ -112,7 +127,7 @@ filter (two half batches through ``update`` equal one causal batch); ``estimate`
 smoother when ``params.offline`` is true and ``state_`` is then the forward filter's final state.
 :meth:`Chakamo.estimate_causal` and :meth:`Chakamo.estimate_offline` are explicit entry points.
 
-State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 91, first four = ``q``).
+State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 92, first four = ``q``).
 
 Accuracy and speed
 ------------------
@@ -344,6 +359,7 @@ class Chakamo(OrientationMethod):
                 s[kern.S_MREFOK] = 1.0
                 s[kern.S_TUND] = self.params.mag_min_undisturbed_s
                 s[kern.S_NMAG] = float(alignment.n_mag)
+                s[kern.S_TSUP] = alignment.n_mag / data.fs_hz  # the window's field rows confirm it
         return s
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

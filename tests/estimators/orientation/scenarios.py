@@ -86,6 +86,9 @@ def gait_clip(
     floor_disturbance: float = 0.0,
     heading_rad: float | None = None,
     rest_s: float = 0.0,
+    start_disturbance: float = 0.0,
+    start_disturbance_s: float = 3.0,
+    everywhere_disturbance: float = 0.0,
 ) -> Clip:
     """A walking shank clip that starts in motion (see module docstring).
 
@@ -93,6 +96,11 @@ def gait_clip(
     floor_disturbance : size of the field added during each stance (near the floor), as a fraction of
         the earth field; its direction is random per step (0 = undisturbed).
     rest_s : a rest in the swing's start posture before the motion (0 = in motion from sample 0).
+    start_disturbance : a constant extra field (fraction of the earth field, horizontal and down, turning the
+        apparent north by ≈ 20° at 0.4) during the first ``start_disturbance_s``, fading out over 0.5 s: the
+        recording starts next to a steel object.
+    everywhere_disturbance : a field of this size (fraction of the earth field) whose direction wanders smoothly
+        during the whole clip (≈ 0.3 Hz): no undisturbed period at all.
     """
     rng = np.random.default_rng(seed)
     if heading_rad is None:
@@ -126,6 +134,18 @@ def gait_clip(
         d_e = floor_disturbance * field * window[:, None] * dirs[step - step.min()]
         mag += quat.rotate(quat.conjugate(q), d_e)
         disturbed = window > 0.05
+    field = np.linalg.norm(MAG_EARTH_UT)
+    if start_disturbance > 0.0:
+        fade = np.clip((start_disturbance_s + 0.5 - t) / 0.5, 0.0, 1.0)
+        d_e = start_disturbance * field * np.array([0.8, 0.2, -0.55]) / np.linalg.norm([0.8, 0.2, -0.55])
+        mag += quat.rotate(quat.conjugate(q), fade[:, None] * d_e[None, :])
+        disturbed |= fade > 0.0
+    if everywhere_disturbance > 0.0:
+        phases = rng.uniform(0.0, 2 * np.pi, 3)
+        d = np.stack([np.sin(2 * np.pi * f * t + ph) for f, ph in zip((0.31, 0.23, 0.17), phases)], axis=1)
+        d_e = everywhere_disturbance * field * d / np.linalg.norm(d, axis=1, keepdims=True).clip(0.3)
+        mag += quat.rotate(quat.conjugate(q), d_e)
+        disturbed[:] = True
     return Clip(acc, grid.gyr.copy(), mag * mag_scale, FS_HZ, q, disturbed)
 
 

@@ -46,8 +46,10 @@ def test_chakamo_causal_keeps_heading_in_gait(seed):
     assert tilt_max_deg(q, clip) <= 5.0
 
 
-@pytest.mark.xfail(strict=True, reason="causal ChakaMo, gait seed 1: heading RMS 8.9° (tilt ≤ 4°): heading "
-                                       "running mean still slow to undo the aligned window's 5° heading error")
+@pytest.mark.xfail(strict=True, reason="causal ChakaMo, gait seed 1: heading RMS 8.9° (tilt ≤ 4°): the heading "
+                                       "low-pass (τ_mag 9 s) lags the ramp of the unestimated 0.7 °/s gyroscope "
+                                       "bias (≈ 6°) and a tilt error shows as heading × tan(dip); mag_bias or "
+                                       "τ_mag 4 s give 7–8.7°, not 5°")
 def test_chakamo_causal_keeps_heading_in_gait_seed_1():
     clip = gait_clip(seed=1)
     q = make("chakamo", offline=False).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
@@ -102,3 +104,35 @@ def test_fast_rotations_against_truth(name, mode, seed):
     assert tilt_max_deg(q, clip) <= tilt_bound
     if mode == "9d":
         assert heading_rms_deg(q, clip) <= 3.5
+
+
+@pytest.mark.parametrize("name, params", CHAKAMO)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_chakamo_reference_learnt_in_a_disturbance_does_not_lock(name, params, seed):
+    """The clip starts next to a steel object (3.5 s, apparent north off by ≈ 20–35°), then walks on in the
+    clean field: the young reference gives way once the clean field has held longer (module docstring (12)).
+    Before that rule the causal filter stayed 30–43° off for the whole 12 s clip."""
+    clip = gait_clip(seed=seed, duration_s=12.0, start_disturbance=0.4)
+    q = make(name, **params).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+    h = np.degrees(np.abs(heading_error_rad(q, clip.q_earth_sensor)))
+    late = slice(int(9.0 * clip.fs_hz), None)  # 3.5 s disturbed + 3.5 s clean to out-last it + 2 s
+    assert np.sqrt(np.mean(h[late] ** 2)) <= 3.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_chakamo_without_any_undisturbed_period_stays_bounded(seed):
+    """No rest and no undisturbed period: a 30 % field wandering in direction all through the clip.
+
+    Defined behaviour (chakamo module docstring, after (12)): samples near the current reference correct the
+    heading, the gyroscope bridges the others, and the reference never freezes on one wrong field.  The
+    causal heading then stays within the disturbance's own reach: never worse than 2× the filter with the
+    rejection switched off (which averages the wandering field), and never beyond 30°."""
+    clip = gait_clip(seed=seed, duration_s=12.0, everywhere_disturbance=0.3)
+    q = make("chakamo", offline=False).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+    q_off = make("chakamo", offline=False, mag_rejection=False).estimate(
+        clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+    h = np.degrees(np.abs(heading_error_rad(q, clip.q_earth_sensor)))[CONVERGED:]
+    h_off = np.degrees(np.abs(heading_error_rad(q_off, clip.q_earth_sensor)))[CONVERGED:]
+    assert np.isfinite(q).all()
+    assert h.max() <= 30.0
+    assert np.sqrt(np.mean(h ** 2)) <= 2.0 * np.sqrt(np.mean(h_off ** 2)) + 1.0
