@@ -74,7 +74,7 @@ def test_other_methods_keep_heading_in_gait(name):
     assert heading_rms_deg(q, clip) <= 5.0 and tilt_max_deg(q, clip) <= 5.0
 
 
-@pytest.mark.parametrize("name", [m for m in METHODS if m != "valenti_kf"])
+@pytest.mark.parametrize("name", METHODS)
 def test_output_does_not_depend_on_the_field_unit(name):
     """Only directions (and norms relative to a learnt reference) may matter: µT, gauss, normalised, nT."""
     clip = gait_clip(seed=0)
@@ -82,15 +82,6 @@ def test_output_does_not_depend_on_the_field_unit(name):
           for s in UNITS.values()]
     for q in qs[1:]:
         assert np.degrees(np.max(np.abs(heading_error_rad(q, qs[0])))) < 1e-3
-
-
-@pytest.mark.xfail(strict=True, reason="valenti_kf's magnetometer noise is in µT/√Hz, so its heading gain "
-                                       "depends on the unit (gait seed 0: 10° RMS in µT, 39° in nT)")
-def test_valenti_kf_output_does_not_depend_on_the_field_unit():
-    clip = gait_clip(seed=0)
-    q1 = make("valenti_kf").estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
-    q2 = make("valenti_kf").estimate(clip.acc, clip.gyr, clip.mag * 1000.0, fs_hz=clip.fs_hz).orientation_
-    assert np.degrees(np.max(np.abs(heading_error_rad(q1, q2)))) < 1e-3
 
 
 @pytest.mark.parametrize("name", METHODS)
