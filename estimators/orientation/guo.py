@@ -188,7 +188,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.orientation.base import ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import ALIGNED_STD_RAD, Alignment, ImuInput, OrientationMethod, check_parameter
 from estimators.orientation.guo_kernels import FREE_VAR_RAD2, G_M_S2, MIN_FIELD_COS, guo_batch
 
 FloatArray = np.ndarray
@@ -447,6 +447,13 @@ class Guo(OrientationMethod):
         state[4:20] = (0.25 * self.params.init_noise_rad**2 * np.eye(4)).ravel()
         state[38:47] = (self.params.bias_init_rad_s**2 * np.eye(3)).ravel()  # Σbb₀; Σqb₀ = 0
         # 20, 21: field norm and m_D references; ≤ 0 means "take the first valid sample"
+        return state
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): Σ₀ from ``ALIGNED_STD_RAD``, not ``init_noise_rad``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        std = min(self.params.init_noise_rad, ALIGNED_STD_RAD)
+        state[4:20] = (0.25 * std**2 * np.eye(4)).ravel()
         return state
 
     def _kernel_args(self, data: ImuInput) -> tuple:

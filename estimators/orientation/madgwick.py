@@ -111,7 +111,7 @@ import numpy as np
 from numba import njit
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import Alignment, FloatArray, ImuInput, OrientationMethod, check_parameter
 from estimators.orientation.quat_kernels import qrot
 
 _TINY = 1e-300
@@ -293,6 +293,12 @@ class Madgwick(OrientationMethod):
     name = "madgwick"
     params_type = MadgwickParams
     state_size = 5
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): the warm-up is for a start given as ``q0``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        state[4] = self.params.warmup_s
+        return state
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         state0 = np.asarray(state0, dtype=np.float64)

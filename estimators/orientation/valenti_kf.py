@@ -170,7 +170,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import ALIGNED_STD_RAD, Alignment, FloatArray, ImuInput, OrientationMethod, check_parameter
 from estimators.orientation.valenti_kf_kernels import GAMMA_MIN, VIRTUAL_HEADING_STD_RAD, valenti_kf_batch
 
 STATE_SIZE = 20
@@ -195,7 +195,7 @@ class ValentiKFParams:
     mag_noise_rel_sqrt_hz
         Magnetometer noise density :math:`n_m` of eq. 5.29 as a fraction of the field norm (1/√Hz: the
         noise of the unit field vector, so any field unit works), > 0; lumps magnetic disturbances in.
-        Default 0.0067 (0.3 µT/√Hz in a 44.7 µT field; heading time constant ≈ :math:`n_m/(\cos(dip) N_g)`
+        Default 0.0067 (0.3 µT/√Hz in a 44.7 µT field; heading time constant ≈ :math:`n_m/(\\cos(dip) N_g)`
         = 5 s at a 63° dip).
     initial_std_rad
         Standard deviation (rad) of the initial orientation error; :math:`P_0 = (\\sigma_0/2)^2 I_4`.
@@ -350,6 +350,13 @@ class ValentiKF(OrientationMethod):
         state = np.empty(STATE_SIZE)
         state[:4] = q
         state[4:] = ((0.5 * float(self.params.initial_std_rad)) ** 2 * np.eye(4)).ravel()
+        return state
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): P₀ from ``ALIGNED_STD_RAD``, not ``initial_std_rad``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        std = min(float(self.params.initial_std_rad), ALIGNED_STD_RAD)
+        state[4:] = ((0.5 * std) ** 2 * np.eye(4)).ravel()
         return state
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from estimators.orientation.base import alignment_samples
+from estimators.orientation.base import ALIGNED_STD_RAD, alignment_samples
 import pytest
 
 from estimators import quaternion as quat
@@ -250,6 +250,9 @@ def test_registry_and_state_layout():
     method = make("guo")
     state = method.initial_state(acc[:5], mag[:5])
     assert state.shape == (STATE_SIZE,)
+    # an aligned start is trusted (base module docstring); a start given as q0 has init_noise_rad
+    np.testing.assert_allclose(state[4:20].reshape(4, 4), 0.25 * ALIGNED_STD_RAD**2 * np.eye(4))
+    state = method.initial_state(acc[:5], mag[:5], q0=q_true[0])
     np.testing.assert_allclose(state[4:20].reshape(4, 4), 0.25 * 0.5**2 * np.eye(4))
 
 

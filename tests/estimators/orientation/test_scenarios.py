@@ -64,14 +64,28 @@ def test_chakamo_short_clip_and_floor_disturbance(name, params, seed):
         assert heading_rms_deg(q, clip) <= 5.0
 
 
+@pytest.mark.parametrize("name", METHODS)
+def test_every_method_converges_and_keeps_its_heading_in_gait(name):
+    """No method loses its heading on a clip that starts in motion (the failure of issue 13 §1: 140–170°).
+
+    Measured on seeds 0–9 after the aligned start was trusted (base module docstring): heading RMS ≤ 7.5°
+    (guo), 5.8° (madgwick), 9.7° (valenti_cf), 7.5° (valenti_kf), 1.7° (chakamo); before, up to 154°."""
+    for seed in range(6):
+        clip = gait_clip(seed=seed)
+        q = make(name).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+        assert heading_rms_deg(q, clip) <= 10.0, seed
+        assert tilt_max_deg(q, clip) <= 12.0, seed
+
+
 @pytest.mark.parametrize("name", [m for m in METHODS if m != "chakamo"])
-@pytest.mark.xfail(strict=True, reason="measured RMS heading / max tilt on gait seed 0: guo 15°/30°, madgwick "
-                                       "15°/12°, valenti_cf 11°/8°, valenti_kf 10°/16°: heel strikes pull the "
-                                       "inclination (issue 13 §1 open for these methods)")
-def test_other_methods_keep_heading_in_gait(name):
-    clip = gait_clip(seed=0)
-    q = make(name).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
-    assert heading_rms_deg(q, clip) <= 5.0 and tilt_max_deg(q, clip) <= 5.0
+@pytest.mark.xfail(strict=True, reason="the ≤ 5° goal of issue 13 §1 is met by chakamo only; worst heading RMS "
+                                       "on seeds 0–5: guo 7.5°, madgwick 5.8°, valenti_cf 9.7°, valenti_kf 7.5° "
+                                       "(heel strikes and swing accelerations pull their inclination, ≤ 12°)")
+def test_other_methods_meet_the_5_degree_goal_in_gait(name):
+    for seed in range(6):
+        clip = gait_clip(seed=seed)
+        q = make(name).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+        assert heading_rms_deg(q, clip) <= 5.0 and tilt_max_deg(q, clip) <= 5.0
 
 
 @pytest.mark.parametrize("name", METHODS)
