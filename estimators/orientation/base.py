@@ -302,13 +302,16 @@ def initial_orientation(data: ImuInput, use_mag: bool = True, window_s: float = 
 
 
 def _window_strapdown(gyr: FloatArray, dt_s: float) -> FloatArray:
-    """``q_0k`` (k, 4): the rotation from before sample 0 to sample ``k``, ``∏_{j≤k} exp(ω_j dt)``."""
-    steps = quat.exp(gyr * dt_s)
-    out = np.empty_like(steps)
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    for k in range(steps.shape[0]):  # at most init_window_s * fs_hz steps, once per recording
-        q = quat.multiply(q, steps[k])
-        out[k] = q
+    """``q_0k`` (k, 4): the rotation from before sample 0 to sample ``k``, ``∏_{j≤k} exp(ω_j dt)``.
+
+    The prefix products by a Hillis–Steele scan (``log2 k`` vectorised steps; the product is associative):
+    step ``j`` sets ``x_k ← x_{k−2^j} ⊗ x_k``, so ``x_k`` ends as the ordered product of steps ``0..k``.
+    """
+    out = quat.exp(gyr * dt_s)
+    shift = 1
+    while shift < out.shape[0]:
+        out[shift:] = quat.multiply(out[:-shift], out[shift:])  # the right side is evaluated first
+        shift *= 2
     return quat.normalize(out)
 
 
