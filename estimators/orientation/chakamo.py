@@ -26,8 +26,10 @@ Causal filter (one sample, ``dt = 1/fs``)
    (bilinear transform, coefficients from ``fs`` so that the filter is rate-independent).  In ``I``,
    gravity is (almost) constant while linear accelerations of a moving limb average out, so the
    filter removes them far better than a gain on the raw sample.  During the first ``tau_acc_s``
-   the filter output is the running mean (filter state set to its steady state), so a wrong start
-   is corrected after the first sample.
+   the filter output is the running mean (filter state set to its steady state).  From the initial
+   alignment (base module docstring) that mean starts as the alignment window's motion-compensated
+   mean, with the weight of its rows; from a ``q0`` it starts empty, so a wrong ``q0`` is corrected
+   after the first sample.
 3. *Inclination correction*: :math:`\hat a_{E'} = q_{E'I} \bar a_I / |\bar a_I|`;
    :math:`q_{E'I} \leftarrow c \otimes q_{E'I}` with :math:`c` the shortest rotation taking
    :math:`\hat a_{E'}` to ``z`` (axis :math:`(\hat a_y, -\hat a_x, 0)`).  The full correction is
@@ -61,7 +63,9 @@ Causal filter (one sample, ``dt = 1/fs``)
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
    target :math:`\delta^* = \operatorname{atan2}(m_x, m_y)` (the field's horizontal part on +y),  (9)
    :math:`\delta \leftarrow \delta + k\,\operatorname{wrap}(\delta^* - \delta)`,
-   :math:`k = \max(1 - e^{-dt/\tau_{mag}}, 1/(n+1))` (running mean for the first samples).   (10)
+   :math:`k = \max(1 - e^{-dt/\tau_{mag}}, 1/(n+1))` (running mean for the first samples; from the
+   initial alignment, ``n`` starts at the window's field rows and the reference norm and dip of (11)
+   are the window's).                                                                             (10)
 6. *Magnetic disturbance rejection* ([VQF] §3.4): the norm :math:`|m|` and dip
    :math:`\arcsin(-m_{E',z}/|m|)` are compared with reference values learned while undisturbed
    (first-order low-pass, ``mag_ref_tau_s``).  A sample is near the reference when
