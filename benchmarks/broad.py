@@ -57,6 +57,16 @@ compares the estimate with the stored reference directly.  So:
 * **6D**: heading is unobservable, so one constant heading offset per trial (the least-squares one above)
   is removed before scoring.
 
+Held out (``--held-out``, on by default; ``--no-held-out`` skips it)
+-------------------------------------------------------------------
+Beside the all-trials table (one parameter set, the defaults), each project method's main parameters
+are chosen on one half of the ten trials and scored on the other half, for both splits (``SPLITS``):
+half A = trials 02 10 18 24 30, half B = 07 15 27 32 35 (undisturbed 02–18 / disturbed 24–35 split
+3+2 and 2+3).  The grid (``GRIDS``, stated in the table) is small; the choice minimises the mean total
+RMSE over the tuning half, per mode.  The table prints, per mode and split, the chosen values, the
+tuned-half score and the held-out half's undisturbed / disturbed means, beside VQF offline and online
+on the same held-out trials.
+
 ``align="full"`` fits both rotations (body misalignment and heading offset) in both modes — for
 recordings whose reference is not pre-aligned; on BROAD it makes 9D scores optimistic.  Checks: VQF
 offline scores 1.66° / 3.00° (9D, undisturbed / disturbed means) and 1.08° / 2.56° (6D); the ``ahrs``
@@ -419,6 +429,79 @@ def format_tables(rows: Sequence[dict[str, Any]], mode: str) -> str:
     return "\n".join(lines)
 
 
+# ---------------------------------------------------------------------------------------- held out
+_DEG = float(np.pi / 180.0)
+#: two halves of the ten shared trials (undisturbed 02–18 / disturbed 24–35 split 3+2 and 2+3)
+SPLITS: dict[str, tuple[str, ...]] = {"A": ("02", "10", "18", "24", "30"), "B": ("07", "15", "27", "32", "35")}
+#: the main parameters of each method and the values tried (the defaults are among them)
+GRIDS: dict[str, dict[str, tuple[Any, ...]]] = {
+    "chakamo": {"offline_tau_mag_s": (10.0, 20.0, 40.0), "bias_sigma_motion_rad_s": (0.1 * _DEG, 0.2 * _DEG, 0.4 * _DEG)},
+    "guo": {"acc_noise_rad": (0.1, 0.2, 0.4), "mag_noise_rad": (0.075, 0.15, 0.3)},
+    "madgwick": {"beta_rad_s": (0.02, 0.05, 0.1, 0.2)},
+    "valenti_cf": {"tau_acc_s": (2.0, 5.0, 10.0), "tau_mag_s": (5.0, 10.0, 20.0)},
+    "valenti_kf": {"acc_noise_m_s2_sqrt_hz": (0.02, 0.045, 0.1), "mag_noise_rel_sqrt_hz": (0.0034, 0.0067, 0.0134)},
+}
+
+
+def _grid(name: str) -> list[dict[str, Any]]:
+    keys = list(GRIDS[name])
+    combos: list[dict[str, Any]] = [{}]
+    for key in keys:
+        combos = [{**c, key: v} for c in combos for v in GRIDS[name][key]]
+    return combos
+
+
+def held_out(names: Sequence[str], trial_list: Sequence[Trial], modes: Sequence[str]) -> list[dict[str, Any]]:
+    """For each method, mode and split: the grid point best on the tuning half, scored on the other half."""
+    by_number = {t.number: t for t in trial_list}
+    if not all(n in by_number for half in SPLITS.values() for n in half):
+        return []
+    out = []
+    for name in names:
+        if name not in GRIDS:
+            continue
+        for mode in modes:
+            scores = []  # (params, rows over all ten trials)
+            for params in _grid(name):
+                rows = evaluate(project_method(name, **params), trials=trial_list, mode=mode, name=name)
+                scores.append((params, {r["trial"][:2]: r for r in rows}))
+            for tune, test in (("A", "B"), ("B", "A")):
+                def mean_total(rows: dict[str, dict[str, Any]], half: str) -> float:
+                    return float(np.mean([rows[n]["total_deg"] for n in SPLITS[half]]))
+
+                params, rows = min(scores, key=lambda pr: mean_total(pr[1], tune))
+                out.append({"method": name, "mode": mode, "tuned_on": tune, "params": params,
+                            "tuned_deg": mean_total(rows, tune),
+                            **{g: group_means([rows[n] for n in SPLITS[test]]).get(g, {}).get("total_deg", np.nan)
+                               for g in (*GROUPS, "all")}})
+    for key in ("vqf_offline", "vqf_online"):
+        fn = COMPARISONS[key][0]
+        for mode in modes:
+            rows = {r["trial"][:2]: r for r in evaluate(fn, trials=trial_list, mode=mode, name=key)}
+            for tune, test in (("A", "B"), ("B", "A")):
+                out.append({"method": key, "mode": mode, "tuned_on": tune, "params": {}, "tuned_deg": np.nan,
+                            **{g: group_means([rows[n] for n in SPLITS[test]]).get(g, {}).get("total_deg", np.nan)
+                               for g in (*GROUPS, "all")}})
+    return out
+
+
+def format_held_out(rows: Sequence[dict[str, Any]]) -> str:
+    """One table per mode: chosen parameters, tuned-half score, held-out undisturbed / disturbed / all."""
+    lines = []
+    for mode in dict.fromkeys(r["mode"] for r in rows):
+        lines += ["", f"== BROAD {mode.upper()} held out: total RMSE (deg); parameters chosen on one half, scored "
+                      f"on the other (A = {' '.join(SPLITS['A'])}, B = {' '.join(SPLITS['B'])}) =="]
+        head = (f"{'method':<12} | {'tuned on':>8} | {'tuned':>6} | {'held-out undist':>15} {'dist':>6} {'all':>6} | "
+                "chosen (grid: benchmarks.broad.GRIDS)")
+        lines += [head, "-" * len(head)]
+        for r in (r for r in rows if r["mode"] == mode):
+            chosen = ", ".join(f"{k}={v:.4g}" for k, v in r["params"].items()) or "(defaults, not tuned)"
+            lines.append(f"{r['method']:<12} | {r['tuned_on'] + '->' + ('B' if r['tuned_on'] == 'A' else 'A'):>8} | "
+                         f"{_fmt(r['tuned_deg'])} | {_fmt(r['undisturbed']):>15} {_fmt(r['disturbed'])} "
+                         f"{_fmt(r['all'])} | {chosen}")
+    return "\n".join(lines)
+
+
 _WORKER_TRIALS: list[Trial] = []  # set before the worker pool forks, so trials are not pickled per task
 
 
@@ -443,6 +526,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data", help=f"BROAD folder (default: ${DATA_ENV} or ../shared/data/broad)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (one (method, mode) per task)")
     parser.add_argument("--json", metavar="OUT", help="also write every row to this JSON file")
+    parser.add_argument("--no-held-out", action="store_true", help="skip the held-out parameter choice (docstring)")
     args = parser.parse_args(argv)
 
     folder = data_dir(args.data)
@@ -474,11 +558,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     for mode in modes:
         if any(r["mode"] == mode for r in rows):
             print("\n" + format_tables(rows, mode))
+    held = []
+    if not args.no_held_out:
+        from estimators.orientation import METHODS
+
+        held = held_out([n for n in table if n in METHODS], trial_list, modes)
+        if held:
+            print(format_held_out(held))
+        else:
+            print("\nheld out: skipped (needs all ten shared trials; see --trials)")
     for note in notes:
         print(note)
     print(f"\ntotal wall time {time.perf_counter() - start:.0f} s")
     if args.json:
-        Path(args.json).write_text(json.dumps({"align": args.align, "rows": rows, "notes": notes}, indent=1))
+        Path(args.json).write_text(json.dumps({"align": args.align, "rows": rows, "notes": notes, "held_out": held},
+                                              indent=1, default=float))
     return 0
 
 

@@ -26,8 +26,10 @@ Causal filter (one sample, ``dt = 1/fs``)
    (bilinear transform, coefficients from ``fs`` so that the filter is rate-independent).  In ``I``,
    gravity is (almost) constant while linear accelerations of a moving limb average out, so the
    filter removes them far better than a gain on the raw sample.  During the first ``tau_acc_s``
-   the filter output is the running mean (filter state set to its steady state), so a wrong start
-   is corrected after the first sample.
+   the filter output is the running mean (filter state set to its steady state).  From the initial
+   alignment (base module docstring) that mean starts as the alignment window's motion-compensated
+   mean, with the weight of its rows; from a ``q0`` it starts empty, so a wrong ``q0`` is corrected
+   after the first sample.
 3. *Inclination correction*: :math:`\hat a_{E'} = q_{E'I} \bar a_I / |\bar a_I|`;
    :math:`q_{E'I} \leftarrow c \otimes q_{E'I}` with :math:`c` the shortest rotation taking
    :math:`\hat a_{E'}` to ``z`` (axis :math:`(\hat a_y, -\hat a_x, 0)`).  The full correction is
@@ -61,7 +63,9 @@ Causal filter (one sample, ``dt = 1/fs``)
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
    target :math:`\delta^* = \operatorname{atan2}(m_x, m_y)` (the field's horizontal part on +y),  (9)
    :math:`\delta \leftarrow \delta + k\,\operatorname{wrap}(\delta^* - \delta)`,
-   :math:`k = \max(1 - e^{-dt/\tau_{mag}}, 1/(n+1))` (running mean for the first samples).   (10)
+   :math:`k = \max(1 - e^{-dt/\tau_{mag}}, 1/(n+1))` (running mean for the first samples; from the
+   initial alignment, ``n`` starts at the window's field rows and the reference norm and dip of (11)
+   are the window's).                                                                             (10)
 6. *Magnetic disturbance rejection* ([VQF] §3.4): the norm :math:`|m|` and dip
    :math:`\arcsin(-m_{E',z}/|m|)` are compared with reference values learned while undisturbed
    (first-order low-pass, ``mag_ref_tau_s``).  A sample is near the reference when
@@ -72,6 +76,21 @@ Causal filter (one sample, ``dt = 1/fs``)
    the current field while it stays within the same thresholds; after ``mag_max_rejection_s`` of
    rejection, a candidate that has held for ``mag_new_field_s`` becomes the new reference and
    the heading correction restarts (with the running-mean gain of (10)).                         (12)
+   *A young reference never locks*: the reference counts its *support*, the time accepted samples
+   have confirmed it (the alignment window's field rows count: see :meth:`Chakamo._state_from_alignment`).
+   While the support is below ``mag_new_field_s``, a field away from the reference that has held
+   longer than that support replaces it at once.  So a reference learnt next to a steel object at the
+   start of a recording gives way to the clean field as soon as the clean field has lasted longer
+   than the disturbed one had (tested: 3 s of disturbance at the start of a gait clip), while short
+   disturbances (a stance near the floor: under 0.5 s) never displace a reference confirmed for seconds.
+
+   *No rest and no undisturbed period* (the field wanders everywhere): samples within the thresholds
+   of the current reference correct the heading; the reference moves to whichever stable field has
+   held longest while young, and after ``mag_new_field_s`` of support only by the 60 s rule above.
+   Between accepted samples the heading follows the gyroscope.  The heading is then only as good as
+   the field the accepted samples saw: the filter does not (and cannot) tell a uniform, stable
+   disturbance from the earth's field.  The offline smoother (15) then weights the samples by their
+   distance from the recording's median norm and dip.
 
    *Optional* (``mag_bias``): a bias error also turns the heading, :math:`\dot\delta^* =
    -(R_{E'S} e)_z`, and the first-order heading filter (10) lags a ramp by :math:`\tau_{mag}` times
@@ -91,7 +110,10 @@ The causal filter runs forward, and backward in time (samples reversed, gyroscop
 2. The strapdown (1) is re-run with :math:`\hat b_s`; the acceleration in ``I`` is filtered with the
    same Butterworth filter *forward and backward* (zero phase, no delay), and :math:`q_{E'I}(k)` is
    the shortest rotation taking the filtered direction to ``z``.  Missing accelerometer rows are
-   interpolated in ``I``.
+   interpolated in ``I``.  At the ends the signal is extended by its mirror image (even padding over
+   3 τ_acc): the end value is then a one-sided mean of the last seconds.  (Odd padding, used before,
+   makes the filtered value pass through the raw end sample, so a clip that starts or ends in motion
+   had its limb acceleration read as tilt: 22° on the gait scenarios of the tests.)
 3. 9D: the heading target (9) is unwrapped and smoothed by a two-sided exponential kernel
    :math:`e^{-|t_k - t_j|/\tau}` (``offline_tau_mag_s``; the bias-corrected strapdown frame drifts
    so little that a longer window than the causal ``tau_mag_s`` pays off) — a positive kernel, so long
@@ -109,7 +131,7 @@ filter (two half batches through ``update`` equal one causal batch); ``estimate`
 smoother when ``params.offline`` is true and ``state_`` is then the forward filter's final state.
 :meth:`Chakamo.estimate_causal` and :meth:`Chakamo.estimate_offline` are explicit entry points.
 
-State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 91, first four = ``q``).
+State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 92, first four = ``q``).
 
 Accuracy and speed
 ------------------
@@ -148,7 +170,7 @@ from estimators.orientation.chakamo_offline import (
     butterworth, field_weights, smooth_heading, zero_phase_inclination, zero_phase_lowpass,
 )
 from estimators.orientation.base import (
-    FloatArray, ImuInput, OrientationMethod, SampleFlags, check_flag, check_parameter,
+    Alignment, FloatArray, ImuInput, OrientationMethod, SampleFlags, check_flag, check_parameter,
 )
 
 _DEG = math.pi / 180.0
@@ -316,6 +338,32 @@ class Chakamo(OrientationMethod):
         s[kern.S_P], s[kern.S_P + 3], s[kern.S_P + 5] = var0, var0, var0
         first = int(np.flatnonzero(data.acc_ok)[0]) if data.acc_ok.any() else 0
         s[kern.S_AREST:kern.S_AREST + 3] = data.acc[first]
+        return s
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """Seed the running means with the alignment window's (orientation from the first sample).
+
+        The acceleration mean in ``I`` (2) starts as the window's motion-compensated mean with the weight
+        of its rows (capped below ``n_init`` so that the Butterworth states are still set to steady state),
+        the heading mean (10) with the weight of the window's field rows, and the field reference (11) with
+        the window's mean norm and the dip of its mean field: a reference learnt on the aligned window, not
+        on one sample seen with an unconverged inclination.
+        """
+        s = self._state_from_quaternion(alignment.q, data)
+        n_init = math.ceil(self.params.tau_acc_s * data.fs_hz)
+        s[kern.S_ALP:kern.S_ALP + 3] = quat.rotate(alignment.q, alignment.acc_mean)
+        s[kern.S_NACC] = float(max(0, min(alignment.n_acc, n_init - 1)))
+        if alignment.mag_mean is not None and alignment.n_mag > 0:
+            up = alignment.acc_mean / np.linalg.norm(alignment.acc_mean)
+            m_norm = float(np.linalg.norm(alignment.mag_mean))
+            if m_norm > 0.0 and alignment.mag_norm_mean > 0.0:
+                dip = math.asin(min(max(-float(alignment.mag_mean @ up) / m_norm, -1.0), 1.0))
+                s[kern.S_MREFN] = s[kern.S_MCANDN] = alignment.mag_norm_mean
+                s[kern.S_MREFD] = s[kern.S_MCANDD] = dip
+                s[kern.S_MREFOK] = 1.0
+                s[kern.S_TUND] = self.params.mag_min_undisturbed_s
+                s[kern.S_NMAG] = float(alignment.n_mag)
+                s[kern.S_TSUP] = alignment.n_mag / data.fs_hz  # the window's field rows confirm it
         return s
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -33,6 +33,7 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``86``    t_undist    time the field has stayed near the reference (s), for the hysteresis of (11)
 ``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
                       its product with b̂_used (1), for the heading bias measurement (12b)
+``91``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
 ====================  ==========================================================================
 
 Coefficient vector ``c`` (built by ``chakamo.coefficients``; indices are the ``C_*`` constants):
@@ -55,8 +56,8 @@ S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = 0, 4, 8, 12, 13, 19, 22
 S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = 23, 26, 32, 35, 38, 39
 S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = (
     40, 41, 42, 43, 44, 45, 46, 47, 48)
-S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP = 49, 67, 73, 85, 86, 87
-STATE_SIZE = 91
+S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = 49, 67, 73, 85, 86, 87, 91
+STATE_SIZE = 92
 
 # --- coefficient indices
 (C_DT, C_B0, C_B1, C_B2, C_A1, C_A2, C_NINIT, C_KREST, C_THG2, C_THA2, C_RESTMIN, C_RREST, C_RMOT,
@@ -249,6 +250,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 s[S_MREFN], s[S_MREFD], s[S_MREFOK] = norm, dip, 1.0
                 s[S_MCANDN], s[S_MCANDD], s[S_TCAND] = norm, dip, 0.0
                 s[S_TUND] = c[C_MINUND]
+                s[S_TSUP] = 0.0
             near = (abs(norm - s[S_MREFN]) < c[C_NORMTH] * s[S_MREFN]
                     and abs(dip - s[S_MREFD]) < c[C_DIPTH])
             s[S_TUND] = s[S_TUND] + dt if near else 0.0
@@ -265,14 +267,18 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 s[S_MCANDN], s[S_MCANDD], s[S_TCAND] = norm, dip, 0.0
             if not ok:
                 s[S_TREJ] += dt
-                if s[S_TREJ] >= c[C_MAXREJ] and s[S_TCAND] >= c[C_NEWS]:
-                    # a long, stable disturbance: the field there is the new reference
+                # a young reference (confirmed < mag_new_field_s) gives way to a field that has held longer
+                young = not near and s[S_TSUP] < c[C_NEWS] and s[S_TCAND] > s[S_TSUP]
+                if (s[S_TREJ] >= c[C_MAXREJ] and s[S_TCAND] >= c[C_NEWS]) or young:
+                    # a long, stable disturbance, or a reference learnt in one: the field there is the reference
                     s[S_MREFN], s[S_MREFD] = s[S_MCANDN], s[S_MCANDD]
                     s[S_NMAG] = 0.0
                     s[S_TUND] = c[C_MINUND]
+                    s[S_TSUP] = s[S_TCAND]
                     ok = True
             if ok:
                 s[S_TREJ] = 0.0
+                s[S_TSUP] += dt
                 s[S_MREFN] += c[C_KREF] * (norm - s[S_MREFN])
                 s[S_MREFD] += c[C_KREF] * (dip - s[S_MREFD])
                 k = max(c[C_KMAG], 1.0 / (s[S_NMAG] + 1.0))

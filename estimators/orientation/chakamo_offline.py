@@ -23,7 +23,7 @@ def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
 
 def zero_phase_lowpass(acc_i: FloatArray, acc_ok: FloatArray, tau_acc_s: float, fs_hz: float) -> FloatArray:
     """The acceleration in ``I`` low-passed forward and backward (zero phase; offline step 2); missing rows
-    are interpolated first."""
+    are interpolated first, the ends are mirror-extended (even padding: the end values are one-sided means)."""
     n = acc_i.shape[0]
     idx = np.flatnonzero(acc_ok)
     if idx.size < n:
@@ -32,7 +32,7 @@ def zero_phase_lowpass(acc_i: FloatArray, acc_ok: FloatArray, tau_acc_s: float, 
     b, a = butterworth(tau_acc_s, fs_hz)
     if n > 9:
         pad = min(n - 1, int(math.ceil(3.0 * tau_acc_s * fs_hz)))
-        return signal.filtfilt(b, a, acc_i, axis=0, padtype="odd", padlen=pad)
+        return signal.filtfilt(b, a, acc_i, axis=0, padtype="even", padlen=pad)
     return np.repeat(acc_i.mean(axis=0, keepdims=True), n, axis=0)
 
 

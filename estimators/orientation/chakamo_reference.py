@@ -16,7 +16,7 @@ from estimators.orientation.chakamo_kernels import (
     C_NORMTH, C_P0, C_QBIAS, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
     C_THA2, C_THG2, S_ALP, S_AREST, S_BIAS, S_DELTA, S_GREST, S_LP, S_MCANDD, S_MCANDN, S_MDIST, S_MLP,
     S_MREFD, S_MREFN, S_MREFOK, S_NACC, S_NMAG, S_P, S_Q, S_QEI, S_QIS, S_REST, S_RLP, S_RLPOUT, S_TCAND,
-    S_TREJ, S_TREST, S_TUND, S_ULP, S_W2,
+    S_TREJ, S_TREST, S_TSUP, S_TUND, S_ULP, S_W2,
 )
 
 
@@ -113,6 +113,7 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                 s[[S_MREFN, S_MREFD, S_MREFOK]] = norm, dip, 1.0
                 s[[S_MCANDN, S_MCANDD, S_TCAND]] = norm, dip, 0.0
                 s[S_TUND] = c[C_MINUND]
+                s[S_TSUP] = 0.0
             near_ref = near(s[S_MREFN], s[S_MREFD])
             s[S_TUND] = s[S_TUND] + dt if near_ref else 0.0
             ok = (near_ref and s[S_TUND] >= c[C_MINUND]) or c[C_REJON] < 0.5
@@ -123,13 +124,16 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                 s[[S_MCANDN, S_MCANDD, S_TCAND]] = norm, dip, 0.0
             if not ok:
                 s[S_TREJ] += dt
-                if s[S_TREJ] >= c[C_MAXREJ] and s[S_TCAND] >= c[C_NEWS]:
+                young = not near_ref and s[S_TSUP] < c[C_NEWS] and s[S_TCAND] > s[S_TSUP]  # (12), young reference
+                if (s[S_TREJ] >= c[C_MAXREJ] and s[S_TCAND] >= c[C_NEWS]) or young:
                     s[[S_MREFN, S_MREFD]] = s[[S_MCANDN, S_MCANDD]]
                     s[S_NMAG] = 0.0
                     s[S_TUND] = c[C_MINUND]
+                    s[S_TSUP] = s[S_TCAND]
                     ok = True
             if ok:
                 s[S_TREJ] = 0.0
+                s[S_TSUP] += dt
                 s[[S_MREFN, S_MREFD]] += c[C_KREF] * (np.array([norm, dip]) - s[[S_MREFN, S_MREFD]])
                 k = max(c[C_KMAG], 1.0 / (s[S_NMAG] + 1.0))
                 err = _wrap_reference(np.arctan2(mag_e[0], mag_e[1]) - s[S_DELTA])

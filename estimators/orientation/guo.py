@@ -188,7 +188,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.orientation.base import ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import ALIGNED_STD_RAD, Alignment, ImuInput, OrientationMethod, check_parameter
 from estimators.orientation.guo_kernels import FREE_VAR_RAD2, G_M_S2, MIN_FIELD_COS, guo_batch
 
 FloatArray = np.ndarray
@@ -206,14 +206,15 @@ class GuoParams:
         gyr_noise_rad_s)`` (≈ 20 s at a 68° dip), both before the robust weights.
     acc_noise_rad: standard deviation of each component of the normalised accelerometer vector,
         ≈ rad of tilt per sample, body acceleration included (5.41); default 0.2.
-    mag_noise_rad: the same for the normalised magnetometer vector (5.41); default 0.15.
+    mag_noise_rad: the same for the normalised magnetometer vector, ≈ rad of heading per sample (5.41);
+        default 0.15.
     init_noise_rad: standard deviation of the initial orientation, rad (Σ₀ = ¼σ₀² I); default 0.5.
     acc_norm_tol_m_s2: |‖a‖ − g| (m/s²) at which the accelerometer variance is doubled (factor
         1 + (|‖a‖−g|/tol)²); default 1.0.
     acc_innov_tol_rad: tilt innovation (rad) beyond which the accelerometer variance grows in
         proportion (Huber weight: bounded correction rate), never below the predicted tilt
         uncertainty (deviation 13); default 0.015.
-    mag_norm_tol: relative deviation of ‖m‖ from its tracked reference at which the magnetometer
+    mag_norm_tol: relative deviation (-) of ‖m‖ from its tracked reference at which the magnetometer
         variance is doubled; default ``inf`` (off: it did not help on BROAD, the dip test does).
     mag_dip_tol: deviation of the field's vertical component l_z = (R(q⁻) m̂)_z (sine of the dip)
         from its tracked reference at which the magnetometer variance is doubled; default 0.1.
@@ -446,6 +447,13 @@ class Guo(OrientationMethod):
         state[4:20] = (0.25 * self.params.init_noise_rad**2 * np.eye(4)).ravel()
         state[38:47] = (self.params.bias_init_rad_s**2 * np.eye(3)).ravel()  # Σbb₀; Σqb₀ = 0
         # 20, 21: field norm and m_D references; ≤ 0 means "take the first valid sample"
+        return state
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): Σ₀ from ``ALIGNED_STD_RAD``, not ``init_noise_rad``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        std = min(self.params.init_noise_rad, ALIGNED_STD_RAD)
+        state[4:20] = (0.25 * std**2 * np.eye(4)).ravel()
         return state
 
     def _kernel_args(self, data: ImuInput) -> tuple:

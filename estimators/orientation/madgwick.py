@@ -111,7 +111,7 @@ import numpy as np
 from numba import njit
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import Alignment, FloatArray, ImuInput, OrientationMethod, check_parameter
 from estimators.orientation.quat_kernels import qrot
 
 _TINY = 1e-300
@@ -128,7 +128,8 @@ class MadgwickParams:
         Length (s, ≥ 0) of the initial convergence phase counted from the start of the state; 0 disables
         it (the published filter).  Default 1.0.
     beta_warmup_rad_s
-        β during the warm-up (the larger of this and ``beta_rad_s`` is used), ≥ 0.  Default 1.0.
+        β during the warm-up, in 1/s like ``beta_rad_s`` (up to 2β rad/s of rotation; the larger of this and
+        ``beta_rad_s`` is used), ≥ 0.  Default 1.0.
     """
 
     beta_rad_s: float = 0.1
@@ -292,6 +293,12 @@ class Madgwick(OrientationMethod):
     name = "madgwick"
     params_type = MadgwickParams
     state_size = 5
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): the warm-up is for a start given as ``q0``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        state[4] = self.params.warmup_s
+        return state
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         state0 = np.asarray(state0, dtype=np.float64)

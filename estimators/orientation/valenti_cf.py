@@ -127,7 +127,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_flag, check_parameter
+from estimators.orientation.base import (
+    Alignment, FloatArray, ImuInput, OrientationMethod, check_flag, check_parameter,
+)
 from estimators.orientation.valenti_cf_kernels import valenti_cf_batch
 
 #: time constant giving exactly the per-sample gain 0.01 at 100 Hz (the authors' default gains)
@@ -272,6 +274,12 @@ class ValentiCF(OrientationMethod):
     name = "valenti_cf"
     params_type = ValentiCFParams
     state_size = STATE_SIZE
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): the warm-up is for a start given as ``q0``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        state[10] = self.params.warmup_s
+        return state
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         p = self.params

@@ -116,13 +116,17 @@ Each parameter is a white-noise density (unit/√Hz); per-sample variances are
 :math:`\sigma^2 = N^2 f_s` (the discrete equivalent of continuous white noise, as in Kalibr).  Then
 :math:`Q \propto N_g^2 \Delta t` and :math:`R \propto N_a^2 f_s`, and the steady-state correction time constants
 
-.. math:: \tau_{tilt} \approx \frac{N_a}{g\,N_g},\qquad \tau_{heading} \approx \frac{N_m}{B_h\,N_g}
+.. math:: \tau_{tilt} \approx \frac{N_a}{g\,N_g},\qquad \tau_{heading} \approx \frac{n_m}{\cos(\mathrm{dip})\,N_g}
 
 do not depend on the sampling rate.  The defaults (:math:`N_g = 0.003` rad/s/√Hz,
-:math:`N_a = 0.045` m/s²/√Hz, :math:`N_m = 0.3` µT/√Hz) give :math:`\tau_{tilt} \approx 1.5` s and, for a
-20 µT horizontal field, :math:`\tau_{heading} \approx 5` s: tuning values for body-worn sensors that lump
+:math:`N_a = 0.045` m/s²/√Hz, :math:`n_m = 0.0067`/√Hz) give :math:`\tau_{tilt} \approx 1.5` s and, at a
+63° dip, :math:`\tau_{heading} \approx 5` s: tuning values for body-worn sensors that lump
 linear acceleration, gyroscope bias and magnetic disturbances into the noise, not datasheet values
-(a MetaMotionR's BMI160 gyroscope has about 1.2e-4 rad/s/√Hz).  The magnetometer must be in µT.
+(a MetaMotionR's BMI160 gyroscope has about 1.2e-4 rad/s/√Hz).  The magnetometer noise :math:`n_m` is a
+fraction of the field norm (the field is used as a unit vector), so the magnetometer may be in any unit
+(µT, gauss, normalised): the paper's :math:`\Sigma_m = N_m^2 I` on the raw field is replaced by
+:math:`n_m^2 I` on the normalised one (before, 0.3 µT/√Hz on the raw field made the heading gain depend on
+the unit: 10° RMS heading error on a gait clip in µT, 39° in nT).
 
 Deviations from the paper (and why)
 -----------------------------------
@@ -166,7 +170,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import ALIGNED_STD_RAD, Alignment, FloatArray, ImuInput, OrientationMethod, check_parameter
 from estimators.orientation.valenti_kf_kernels import GAMMA_MIN, VIRTUAL_HEADING_STD_RAD, valenti_kf_batch
 
 STATE_SIZE = 20
@@ -188,9 +192,11 @@ class ValentiKFParams:
     acc_noise_m_s2_sqrt_hz
         Accelerometer noise density :math:`N_a` (m/s²/√Hz) of eq. 5.28, > 0; lumps linear
         acceleration in.  Default 0.045 (tilt time constant ≈ :math:`N_a/(g N_g)` = 1.5 s).
-    mag_noise_ut_sqrt_hz
-        Magnetometer noise density :math:`N_m` (µT/√Hz) of eq. 5.29, > 0; lumps magnetic disturbances
-        in.  Default 0.3 (heading time constant ≈ :math:`N_m/(B_h N_g)` = 5 s for :math:`B_h` = 20 µT).
+    mag_noise_rel_sqrt_hz
+        Magnetometer noise density :math:`n_m` of eq. 5.29 as a fraction of the field norm (1/√Hz: the
+        noise of the unit field vector, so any field unit works), > 0; lumps magnetic disturbances in.
+        Default 0.0067 (0.3 µT/√Hz in a 44.7 µT field; heading time constant ≈ :math:`n_m/(\\cos(dip) N_g)`
+        = 5 s at a 63° dip).
     initial_std_rad
         Standard deviation (rad) of the initial orientation error; :math:`P_0 = (\\sigma_0/2)^2 I_4`.
         > 0.  Default 0.5 (the first corrections then nearly replace a wrong start by the measurement).
@@ -202,7 +208,7 @@ class ValentiKFParams:
 
     gyr_noise_rad_s_sqrt_hz: float = 0.003
     acc_noise_m_s2_sqrt_hz: float = 0.045
-    mag_noise_ut_sqrt_hz: float = 0.3
+    mag_noise_rel_sqrt_hz: float = 0.0067
     initial_std_rad: float = 0.5
     innovation_gate: float = 3.0
 
@@ -212,7 +218,7 @@ class ValentiKFParams:
         for name, unit, typical in (
             ("gyr_noise_rad_s_sqrt_hz", "rad/s/√Hz", "1e-4–0.01"),
             ("acc_noise_m_s2_sqrt_hz", "m/s²/√Hz", "0.002–0.5"),
-            ("mag_noise_ut_sqrt_hz", "µT/√Hz", "0.05–2"),
+            ("mag_noise_rel_sqrt_hz", "1/√Hz (fraction of the field norm)", "0.001–0.05"),
             ("initial_std_rad", "rad", "0.01–3"),
         ):
             check_parameter(name, getattr(self, name), unit=unit, low_open=True, hint=f"typically {typical}")
@@ -300,7 +306,7 @@ def _reference_step(x: FloatArray, p_cov: FloatArray, gyr: FloatArray, acc: Floa
     z = None
     if mag is not None:
         z, jac_a, jac_m, gamma = aqua_reference(a, mag / np.linalg.norm(mag))
-        sm = mag_var / (mag @ mag)                                          # eq. 5.29
+        sm = mag_var                                      # eq. 5.29 on the unit field (module docstring)
     if z is None:  # 6D: heading of the prediction through the virtual field
         m_virtual = quat.rotate(quat.conjugate(x_pred), _NORTH_ENU)
         z, jac_a, jac_m, gamma = aqua_reference(a, m_virtual)
@@ -334,7 +340,7 @@ class ValentiKF(OrientationMethod):
     def _variances(self, fs_hz: float) -> tuple[float, float, float]:
         p = self.params
         return (float(p.gyr_noise_rad_s_sqrt_hz) ** 2 * fs_hz, float(p.acc_noise_m_s2_sqrt_hz) ** 2 * fs_hz,
-                float(p.mag_noise_ut_sqrt_hz) ** 2 * fs_hz)
+                float(p.mag_noise_rel_sqrt_hz) ** 2 * fs_hz)
 
     def _gate(self, fs_hz: float) -> float:
         """The kernel's threshold on the per-sample d²: ``innovation_gate · f_ref / f_s``."""
@@ -344,6 +350,13 @@ class ValentiKF(OrientationMethod):
         state = np.empty(STATE_SIZE)
         state[:4] = q
         state[4:] = ((0.5 * float(self.params.initial_std_rad)) ** 2 * np.eye(4)).ravel()
+        return state
+
+    def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
+        """An aligned start is trusted (base module docstring): P₀ from ``ALIGNED_STD_RAD``, not ``initial_std_rad``."""
+        state = self._state_from_quaternion(alignment.q, data)
+        std = min(float(self.params.initial_std_rad), ALIGNED_STD_RAD)
+        state[4:] = ((0.5 * std) ** 2 * np.eye(4)).ravel()
         return state
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

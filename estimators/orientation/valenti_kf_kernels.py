@@ -271,9 +271,8 @@ def _measure(ax, ay, az, mx, my, mz, mag_ok, acc_var, mag_var, xm, z, jt, r):
     h2 = 0.0
     h3 = 0.0
     if mag_ok:
-        nm2 = mx * mx + my * my + mz * mz
-        nm = math.sqrt(nm2)
-        sm = mag_var / nm2
+        nm = math.sqrt(mx * mx + my * my + mz * mz)
+        sm = mag_var  # the noise of the unit field vector: any field unit (valenti_kf module docstring)
         gamma, h0, h1, h2, h3 = _aqua(ax, ay, az, mx / nm, my / nm, mz / nm, False, xm, z, jt)
     if gamma < 0.0:
         sm = VIRTUAL_HEADING_STD_RAD * VIRTUAL_HEADING_STD_RAD

@@ -219,3 +219,52 @@ def test_vqf_offline_scores_as_published_on_one_trial():
     assert 0.7 < e9.total_deg < 1.4  # 1.01° measured; the 10-trial mean is 1.66° (VQF paper ~1.7°)
     assert 0.3 < e6.total_deg < 0.9  # 0.56° measured
     assert e9.heading_offset_deg == 0.0  # 9D: the published alignment is kept
+
+
+def test_held_out_splits_are_disjoint_halves_of_the_shared_trials():
+    a, b = broad.SPLITS["A"], broad.SPLITS["B"]
+    assert len(a) == len(b) == 5 and not set(a) & set(b)
+    assert sorted(a + b) == ["02", "07", "10", "15", "18", "24", "27", "30", "32", "35"]
+    for half in (a, b):  # both groups in each half (undisturbed 02-18, disturbed 24-35)
+        assert 2 <= sum(int(n) < 22 for n in half) <= 3
+
+
+def test_held_out_grids_contain_the_defaults_and_real_parameters():
+    from dataclasses import fields
+
+    from estimators.orientation import get_method
+
+    for name, grid in broad.GRIDS.items():
+        params_type = get_method(name).params_type
+        names = {f.name for f in fields(params_type)}
+        assert set(grid) <= names
+        for key, values in grid.items():
+            assert any(np.isclose(getattr(params_type(), key), v) for v in values), (name, key)
+        assert len(broad._grid(name)) == int(np.prod([len(v) for v in grid.values()]))
+
+
+def test_held_out_chooses_on_one_half_and_scores_the_other(monkeypatch):
+    """A fake method whose error on half A is |x - 1| + 1 and on half B |x - 3| + 2: each split must pick
+    the other half's worse value and report the held-out half's score, not the tuned one."""
+    trials = [broad.Trial(name=f"{n}_x", group="undisturbed" if int(n) < 22 else "disturbed",
+                          acc=np.zeros((2, 3)), gyr=np.zeros((2, 3)), mag=np.zeros((2, 3)),
+                          quat_ref=np.zeros((2, 4)), movement=np.ones(2, bool), fs_hz=100.0)
+              for half in broad.SPLITS.values() for n in half]
+
+    def fake_evaluate(fn, *, trials, mode, name="", align="broad"):
+        x = fn.get("x", 0.0) if isinstance(fn, dict) else 0.0
+        return [{"trial": t.name, "group": t.group, "mode": mode, "method": name, "heading_deg": 0.0,
+                 "inclination_deg": 0.0,
+                 "total_deg": abs(x - 1.0) + 1.0 if t.number in broad.SPLITS["A"] else abs(x - 3.0) + 2.0}
+                for t in trials]
+
+    monkeypatch.setattr(broad, "evaluate", fake_evaluate)
+    monkeypatch.setattr(broad, "project_method", lambda name, **params: params)
+    monkeypatch.setattr(broad, "GRIDS", {"fake": {"x": (1.0, 3.0)}})
+    rows = [r for r in broad.held_out(["fake"], trials, ["9d"]) if r["method"] == "fake"]
+    by_split = {r["tuned_on"]: r for r in rows}
+    assert by_split["A"]["params"] == {"x": 1.0} and by_split["A"]["tuned_deg"] == 1.0
+    assert by_split["A"]["all"] == 4.0  # scored on B with x = 1: |1 - 3| + 2
+    assert by_split["B"]["params"] == {"x": 3.0} and by_split["B"]["tuned_deg"] == 2.0
+    assert by_split["B"]["all"] == 3.0  # scored on A with x = 3: |3 - 1| + 1
+    assert "fake" in broad.format_held_out(rows)

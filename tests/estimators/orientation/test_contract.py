@@ -8,6 +8,8 @@ it converges, it tracks, it handles missing samples as documented, and it reject
 from dataclasses import fields
 
 import numpy as np
+
+from estimators.orientation.base import alignment_samples
 import pytest
 
 from estimators import quaternion as quat
@@ -74,7 +76,8 @@ def test_two_half_batches_equal_one_batch(name, mode, noisy_motion):
         method = make(name, offline=False)
     mag = g.mag if mode == "9d" else None
     whole = method.estimate(g.acc, g.gyr, mag, fs_hz=g.fs_hz)
-    state = method.initial_state(g.acc[:10], None if mag is None else mag[:10])
+    w = alignment_samples(g.fs_hz)  # the window estimate aligns on, motion-compensated
+    state = method.initial_state(g.acc[:w], None if mag is None else mag[:w], gyr=g.gyr[:w], fs_hz=g.fs_hz)
     half = len(g.acc) // 2
     q1, state = method.update(state, g.acc[:half], g.gyr[:half], None if mag is None else mag[:half], fs_hz=g.fs_hz)
     q2, state = method.update(state, g.acc[half:], g.gyr[half:], None if mag is None else mag[half:], fs_hz=g.fs_hz)

@@ -3,6 +3,8 @@
 import math
 
 import numpy as np
+
+from estimators.orientation.base import ALIGNED_STD_RAD, alignment_samples
 import pytest
 
 from estimators import quaternion as quat
@@ -158,7 +160,8 @@ def test_two_half_batches_equal_one_batch():
     _, acc, gyr, mag = rotating_body(400, rest_s=1.5, noise=True, seed=2)
     method = Guo(GuoParams(rest_min_s=0.5))
     whole = method.estimate(acc, gyr, mag, fs_hz=FS_HZ)
-    state = method.initial_state(acc[:10], mag[:10])
+    w = alignment_samples(FS_HZ)  # the window estimate aligns on, motion-compensated
+    state = method.initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=FS_HZ)
     q1, state = method.update(state, acc[:170], gyr[:170], mag[:170], fs_hz=FS_HZ)
     q2, state = method.update(state, acc[170:], gyr[170:], mag[170:], fs_hz=FS_HZ)
     np.testing.assert_array_equal(np.vstack([q1, q2]), whole.orientation_)
@@ -247,6 +250,9 @@ def test_registry_and_state_layout():
     method = make("guo")
     state = method.initial_state(acc[:5], mag[:5])
     assert state.shape == (STATE_SIZE,)
+    # an aligned start is trusted (base module docstring); a start given as q0 has init_noise_rad
+    np.testing.assert_allclose(state[4:20].reshape(4, 4), 0.25 * ALIGNED_STD_RAD**2 * np.eye(4))
+    state = method.initial_state(acc[:5], mag[:5], q0=q_true[0])
     np.testing.assert_allclose(state[4:20].reshape(4, 4), 0.25 * 0.5**2 * np.eye(4))
 
 

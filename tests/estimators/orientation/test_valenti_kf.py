@@ -274,7 +274,7 @@ def test_registry_and_keyword_parameters():
         estimate(acc, gyr, mag, fs_hz=FS, method="valenti_kf", beta=0.1)
 
 
-@pytest.mark.parametrize("name", ["gyr_noise_rad_s_sqrt_hz", "acc_noise_m_s2_sqrt_hz", "mag_noise_ut_sqrt_hz",
+@pytest.mark.parametrize("name", ["gyr_noise_rad_s_sqrt_hz", "acc_noise_m_s2_sqrt_hz", "mag_noise_rel_sqrt_hz",
                                   "initial_std_rad", "innovation_gate"])
 @pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf"), "0.1", True])
 def test_parameter_validation(name, bad):
