@@ -176,3 +176,39 @@ def test_import_costs_neither_scipy_nor_numba():
     code = "import sys, estimators.signal; print(sorted(m for m in ('scipy', 'numba') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+# quaternion.to_euler replaced scipy.spatial's Rotation.as_euler for the same reason (its import cost ~0.4 s);
+# scipy stays its oracle here, beside the other replaced functions (tests/estimators/test_quaternion.py keeps
+# the round-trip and meaning tests).
+_SEQUENCES = [a + b + c for a in "XYZ" for b in "XYZ" for c in "XYZ" if a != b and b != c]
+
+
+@pytest.mark.parametrize("seq", _SEQUENCES + [s.lower() for s in _SEQUENCES])
+def test_to_euler_matches_scipy_including_gimbal_lock(seq):
+    import warnings
+
+    from scipy.spatial.transform import Rotation
+
+    from estimators import quaternion as quat
+
+    rng = np.random.default_rng(8)
+    q = quat.normalize(rng.normal(size=(500, 4)))
+    ref = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_euler(seq)
+    np.testing.assert_allclose(quat.to_euler(q, seq), ref, rtol=0, atol=1e-12)
+    proper = seq[0] == seq[2]
+    for middle_rad in ((0.0, np.pi) if proper else (0.5 * np.pi, -0.5 * np.pi)):
+        ang = np.column_stack([rng.uniform(-3, 3, 20), np.full(20, middle_rad), rng.uniform(-3, 3, 20)])
+        rot = Rotation.from_euler(seq, ang)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # scipy warns of the gimbal lock
+            ref = rot.as_euler(seq)
+        got = quat.to_euler(rot.as_quat()[:, [3, 0, 1, 2]], seq)
+        wrapped = np.angle(np.exp(1j * (got - ref)))  # ±π are the same angle
+        np.testing.assert_allclose(wrapped, 0.0, atol=1e-9)
+
+
+def test_quaternion_import_costs_no_scipy():
+    code = "import sys, estimators.quaternion; print('scipy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
