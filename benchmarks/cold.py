@@ -2,7 +2,7 @@ r"""Cold start: the ``chakamo`` command line as a fresh process, as a clinician'
 
 Usage
 -----
-``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process] [--json OUT]``
+``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process] [--json OUT] [--imports N]``
 
 Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
 ``<entry>`` importing ``app.cli.main`` (the console script ``chakamo`` is ``app.cli:main``), so it measures the
@@ -33,6 +33,12 @@ each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--
     line of ``app.cli`` to the end of ``main``); optional finer ones are printed too (e.g. ``report.pdf``,
     ``report.html``, ``scene.viser``, ``angles.xlsx``).  A stage printed several times is summed.  Lines of the
     form ``chakamo-timing: <mark>`` (no number) are marks as above.
+
+``--imports N`` adds one more ``process`` run under ``python -X importtime`` and prints the N heaviest imports
+of third-party packages *by the project module that imports them* (``app.*``, ``estimators.*``, ``reports.*``;
+cumulative ms, as ``-X importtime`` measures them, inflated a little by the measurement itself): the list
+of what to import later or not at all.  A package counts once, under the first project module whose import
+loaded it.
 
 The goals of issue 12 §6 are printed beside the numbers: ``chakamo --help`` ≤ 0.3 s, ``chakamo process`` on the
 demo's 10-cycle session with every output ≤ 1.5 s wall and ≤ 300 MB peak RSS.
@@ -140,6 +146,66 @@ def ensure_session(session: Path | None) -> Path:
     return session
 
 
+PROJECT_PACKAGES = ("app", "estimators", "reports")
+_IMPORTTIME_LINE = re.compile(r"^import time:\s+(\d+)\s+\|\s+(\d+)\s+\|( *)(\S+)\s*$")
+
+
+def heavy_imports(importtime_stderr: str, top: int) -> list[tuple[str, str, float]]:
+    """``(project module, third-party package, cumulative ms)`` from ``-X importtime`` output, heaviest first.
+
+    The output lists each module after the modules its import loaded (post-order), indented two spaces per
+    level; a third-party module is attributed to its nearest project-module ancestor, and only the outermost
+    third-party module of a chain counts (its cumulative time holds the rest).  Imports made inside a function
+    call appear at the top level of the output: they are listed as deferred.  The standard library is left out.
+    """
+    entries = []  # (depth, name, cumulative_us)
+    for line in importtime_stderr.splitlines():
+        m = _IMPORTTIME_LINE.match(line)
+        if m:
+            entries.append((len(m.group(3)) // 2, m.group(4), int(m.group(2))))
+    parent: list[int | None] = [None] * len(entries)
+    waiting: dict[int, list[int]] = {}  # depth -> indices of modules waiting for their parent (depth - 1)
+    for i, (depth, _, _) in enumerate(entries):
+        for child in waiting.pop(depth + 1, []):
+            parent[child] = i
+        waiting.setdefault(depth, []).append(i)
+
+    def is_project(name: str) -> bool:
+        return name.split(".")[0] in PROJECT_PACKAGES
+
+    cli_done = next((i for i, e in enumerate(entries) if e[0] == 0 and e[1].split(".")[0] == "app"), len(entries))
+    rows = []
+    for i, (_, name, cum_us) in enumerate(entries):
+        top_name = name.split(".")[0]
+        if is_project(name) or top_name in sys.stdlib_module_names or top_name.startswith("_"):
+            continue
+        p = parent[i]
+        if p is not None and not is_project(entries[p][1]):
+            continue  # inside another third-party import: counted there
+        if p is not None:
+            owner = entries[p][1]
+        else:
+            owner = "(deferred: imported inside a call)" if i > cli_done else "(interpreter start-up)"
+        rows.append((owner, name, cum_us / 1000.0))
+    merged: dict[tuple[str, str], float] = {}
+    for owner, name, ms in rows:
+        key = (owner, name.split(".")[0])
+        merged[key] = merged.get(key, 0.0) + ms
+    out = sorted(((o, n, ms) for (o, n), ms in merged.items()), key=lambda r: -r[2])
+    return out[:top]
+
+
+def importtime_of(args: list[str]) -> str:
+    env = dict(os.environ)
+    env.pop(TIMING_ENV, None)
+    done = subprocess.run([sys.executable, "-X", "importtime", "-c", ENTRY, *args], capture_output=True, text=True,
+                          env=env)
+    if done.returncode != 0:
+        raise SystemExit(f"`chakamo {' '.join(args)}` under -X importtime failed ({done.returncode}):\n"
+                         f"{done.stderr[-2000:]}")
+    return done.stderr
+
+
 def _median(values: list[float]) -> float:
     return statistics.median(values) if values else float("nan")
 
@@ -201,6 +267,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--commands", default="help,version,process",
                         help="comma-separated subset of help,version,process (default: all)")
     parser.add_argument("--json", type=Path, default=None, help="also write the summaries as JSON")
+    parser.add_argument("--imports", type=int, default=0, metavar="N",
+                        help="also list the N heaviest third-party imports of a process run, by importing module")
     args = parser.parse_args(argv)
     commands = [c.strip() for c in args.commands.split(",") if c.strip()]
     unknown = set(commands) - set(GOALS)
@@ -217,7 +285,14 @@ def main(argv: list[str] | None = None) -> int:
                 raise SystemExit(f"`chakamo {' '.join(argv_of[name])}` failed ({warm.returncode}):\n{warm.stderr_tail}")
             runs = [run_cli(argv_of[name]) for _ in range(args.repeats)]
             summaries.append(summarise(name, runs))
+        heavy = heavy_imports(importtime_of(argv_of["process"]), args.imports) if args.imports and session else []
     print(format_tables(summaries, args.repeats))
+    if heavy:
+        print(f"\nprocess: the {len(heavy)} heaviest third-party imports, by the project module importing them "
+              "(-X importtime, cumulative ms, one run)")
+        print(f"  {'project module':<44} {'package':<22} {'ms':>7}")
+        for owner, package, ms in heavy:
+            print(f"  {owner:<44} {package:<22} {ms:7.0f}")
     if args.json:
         args.json.write_text(json.dumps(summaries, indent=2))
     return 0
