@@ -25,9 +25,11 @@ each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--
   - **the child's own stage times**, when the CLI prints them.  ``CHAKAMO_TIMINGS=1`` (set by this script)
     asks ``chakamo`` to write one stderr line per finished stage, ::
 
-        chakamo-timing: <stage> <seconds>
+        chakamo-timing: <stage> <seconds> [<cpu_seconds>]
 
-    ``<stage>`` a word without spaces, ``<seconds>`` a float (``time.perf_counter`` differences).  The stages this
+    ``<stage>`` a word without spaces, ``<seconds>`` a float (``time.perf_counter`` differences), optionally
+    followed by the stage's CPU time (``time.process_time`` differences; on a loaded machine the CPU column
+    is the one to compare between runs).  The stages this
     table expects: ``imports`` (every module import the command paid: top-level ones and those deferred into
     functions, summed), ``read``, ``pipeline``, ``reports`` (all renderers), ``write``, ``total`` (from the first
     line of ``app.cli`` to the end of ``main``); optional finer ones are printed too (e.g. ``report.pdf``,
@@ -68,7 +70,7 @@ ENTRY = ("import sys, time\n"
          "print('chakamo-timing: cli-imported', file=sys.stderr, flush=True)\n"
          "sys.exit(main())\n")
 TIMING_ENV = "CHAKAMO_TIMINGS"
-_TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+))?\s*$")
+_TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
 _PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")
 GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0)}
 MARK_SPANS = [("start", "cli-imported", "interpreter + app.cli imports"),
@@ -88,6 +90,7 @@ class Run:
     returncode: int
     marks_s: dict[str, float] = field(default_factory=dict)  # first arrival of each mark, s after Popen
     stages_s: dict[str, float] = field(default_factory=dict)  # the child's own stage times, summed per stage
+    stages_cpu_s: dict[str, float] = field(default_factory=dict)  # their CPU times, when the child prints them
     stderr_tail: str = ""
 
 
@@ -100,6 +103,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
                             text=True, env=env)
     marks: dict[str, float] = {"start": 0.0}
     stages: dict[str, float] = {}
+    stages_cpu: dict[str, float] = {}
     tail: list[str] = []
 
     def read_stderr() -> None:
@@ -112,6 +116,8 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
             m = _TIMING_LINE.match(line)
             if m and m.group(2) is not None:
                 stages[m.group(1)] = stages.get(m.group(1), 0.0) + float(m.group(2))
+                if m.group(3) is not None:
+                    stages_cpu[m.group(1)] = stages_cpu.get(m.group(1), 0.0) + float(m.group(3))
                 continue
             name = m.group(1) if m else (p.group(1) if (p := _PROGRESS_LINE.match(line)) else None)
             if name is not None:
@@ -126,7 +132,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
     marks["exit"] = wall
     rss_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
     cpu_s = usage.ru_utime + usage.ru_stime
-    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, "\n".join(tail))
+    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, stages_cpu, "\n".join(tail))
 
 
 def ensure_session(session: Path | None) -> Path:
@@ -224,6 +230,7 @@ def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
         "failed": sum(r.returncode != 0 for r in runs),
         "marks": {},
         "stages": {},
+        "stages_cpu": {},
     }
     for a, b, label in MARK_SPANS:
         spans = [r.marks_s[b] - r.marks_s[a] for r in runs if a in r.marks_s and b in r.marks_s]
@@ -234,6 +241,9 @@ def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
                                                                            else 0, s))
     for s in names:
         out["stages"][s] = _median([r.stages_s[s] for r in runs if s in r.stages_s])
+        cpu = [r.stages_cpu_s[s] for r in runs if s in r.stages_cpu_s]
+        if cpu:
+            out["stages_cpu"][s] = _median(cpu)
     return out
 
 
@@ -254,7 +264,9 @@ def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
             lines += [f"  {label:<40} {v:6.2f}" for label, v in s["marks"].items()]
         if s["stages"]:
             lines += ["", f"{s['command']}: the child's own stage times ({TIMING_ENV}=1; s, median)"]
-            lines += [f"  {name:<40} {v:6.2f}" for name, v in s["stages"].items()]
+            cpu = s.get("stages_cpu", {})
+            lines += [f"  {name:<40} {v:6.2f}" + (f"   CPU {cpu[name]:6.2f}" if name in cpu else "")
+                      for name, v in s["stages"].items()]
         elif s["command"] == "process":
             lines += ["", f"process: the CLI printed no `chakamo-timing: <stage> <s>` lines ({TIMING_ENV} hook absent)"]
     return "\n".join(lines)
