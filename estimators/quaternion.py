@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 FloatArray = NDArray[np.float64]
 
@@ -274,13 +273,63 @@ def _check_sequence(seq: str) -> str:
     return seq
 
 
+_GIMBAL_LOCK_RAD = 1e-7
+
+
 def to_euler(q: ArrayLike, seq: str = "ZYX") -> FloatArray:
-    """Euler angles ``(..., 3)`` in rad, first rotation first (see module docstring for the convention)."""
+    r"""Euler angles ``(..., 3)`` in rad, first rotation first (see module docstring for the convention).
+
+    Direct method of Bernardes & Viollet (PLoS ONE 17(11), 2022), valid for all 12 sequences.  Written for an
+    extrinsic sequence of axes :math:`(i, j, k)` (an intrinsic ``"ABC"`` is the extrinsic ``"cba"`` with the
+    angles reversed).  For a proper sequence (:math:`i = k`) *k* is replaced by the third axis; with
+    :math:`\epsilon = (i-j)(j-k)(k-i)/2` the sign of the permutation :math:`(i, j, k)`,
+
+    .. math::
+        (a, b, c, d) = egin{cases} (q_w,\ q_i,\ q_j,\ \epsilon q_k) & 	ext{proper} \
+                       (q_w - q_j,\ q_i + \epsilon q_k,\ q_j + q_w,\ \epsilon q_k - q_i) & 	ext{Tait–Bryan}
+                       \end{cases}
+
+    (the Tait–Bryan case rotates the quaternion by 90° about *j* so that it becomes a proper one).  Then
+    :math:`	heta_2 = 2\,\mathrm{atan2}(\sqrt{c^2+d^2}, \sqrt{a^2+b^2})` (minus :math:`\pi/2` for Tait–Bryan),
+    and with :math:`	heta_\pm = \mathrm{atan2}(b, a) \pm \mathrm{atan2}(d, c)` the outer angles are
+    :math:`	heta_1 = 	heta_-`, :math:`	heta_3 = 	heta_+` (times :math:`\epsilon` for Tait–Bryan).
+
+    In gimbal lock (:math:`	heta_2` within 1e-7 rad of 0 or π before the shift) only the sum or the difference
+    of the outer angles is defined: the first angle of ``seq`` takes it all and the third is 0, as
+    ``scipy.spatial.transform.Rotation.as_euler`` does (the numbers are scipy's to ~1e-15, without its import).
+    Angles are wrapped to :math:`[-\pi, \pi)`.
+    """
     q = as_quaternion(q)
     seq = _check_sequence(seq)
-    flat = q.reshape(-1, 4)
-    angles = Rotation.from_quat(flat[:, [1, 2, 3, 0]]).as_euler(seq)
-    return angles.reshape(q.shape[:-1] + (3,))
+    extrinsic = seq.islower()
+    i, j, k = ("xyz".index(c) for c in (seq if extrinsic else seq.lower()[::-1]))
+    proper = i == k
+    if proper:
+        k = 3 - i - j
+    eps = (i - j) * (j - k) * (k - i) // 2
+    w, qi, qj, qk = q[..., 0], q[..., 1 + i], q[..., 1 + j], eps * q[..., 1 + k]
+    if proper:
+        a, b, c, d = w, qi, qj, qk
+    else:
+        a, b, c, d = w - qj, qi + qk, qj + w, qk - qi
+    middle = 2.0 * np.arctan2(np.hypot(c, d), np.hypot(a, b))
+    half_sum, half_diff = np.arctan2(b, a), np.arctan2(d, c)
+    outer_sign = 1 if proper else eps
+    at_zero = np.abs(middle) <= _GIMBAL_LOCK_RAD
+    at_pi = np.abs(middle - np.pi) <= _GIMBAL_LOCK_RAD
+    if extrinsic:  # axes in time order i, j, k
+        first, third = half_sum - half_diff, outer_sign * (half_sum + half_diff)
+        locked = np.where(at_zero, 2.0 * half_sum, -2.0 * half_diff)
+    else:  # the intrinsic sequence's first axis is the extrinsic k
+        first, third = outer_sign * (half_sum + half_diff), half_sum - half_diff
+        locked = outer_sign * np.where(at_zero, 2.0 * half_sum, 2.0 * half_diff)
+    lock = at_zero | at_pi
+    first = np.where(lock, locked, first)
+    third = np.where(lock, 0.0, third)
+    if not proper:
+        middle = middle - 0.5 * np.pi
+    angles = np.stack([first, middle, third], axis=-1)
+    return (angles + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def from_intrinsic(angles_rad: ArrayLike, axes: str) -> FloatArray:

@@ -31,6 +31,7 @@ SpreadsheetML rows directly and spliced into their (header-only) sheets.  Floats
 from __future__ import annotations
 
 import io
+import itertools
 import math
 import os
 import re
@@ -121,21 +122,29 @@ class _Bulk:
         self.columns = columns
 
     def rows_xml(self, first_row: int = 2) -> str:
+        """The SpreadsheetML ``<row>`` elements of the columns, from spreadsheet row ``first_row``.
+
+        A column of finite numbers is formatted by one ``%``-operation over the whole table (``%r`` is the
+        float's shortest round-trip ``repr``, looped in C); other columns are cell strings made per value
+        (empty where a number is NaN/inf or a value is missing).  ~3× quicker than a Python-level loop per
+        cell, same text."""
         if not self.columns:
             return ""
         n = len(self.columns[0][1])
         rows = range(first_row, first_row + n)
-        cols: list[list[str]] = []
+        template = ['<row r="%d">']
+        per_column: list[list[Any]] = []  # per column: the values for its placeholders, per row
         for j, (kind, values) in enumerate(self.columns):
             col = get_column_letter(j + 1)
             if kind == "num":
                 arr = np.asarray(values, dtype=np.float64)
                 vals = arr.tolist()
                 if np.isfinite(arr).all():
-                    cells = [f'<c r="{col}{r}"><v>{v!r}</v></c>' for r, v in zip(rows, vals)]
-                else:
-                    cells = [f'<c r="{col}{r}"><v>{v!r}</v></c>' if math.isfinite(v) else ""
-                             for r, v in zip(rows, vals)]
+                    template.append(f'<c r="{col}%d"><v>%r</v></c>')
+                    per_column.append([rows, vals])
+                    continue
+                cells = [f'<c r="{col}{r}"><v>{v!r}</v></c>' if math.isfinite(v) else ""
+                         for r, v in zip(rows, vals)]
             elif kind == "int":
                 cells = [f'<c r="{col}{r}"><v>{int(v)}</v></c>' if v is not None else ""
                          for r, v in zip(rows, values)]
@@ -143,8 +152,12 @@ class _Bulk:
                 esc = {v: _xml_escape(neutralise_text(v)) for v in set(values) if v}
                 cells = [f'<c r="{col}{r}" t="inlineStr"><is><t>{esc[v]}</t></is></c>' if v else ""
                          for r, v in zip(rows, values)]
-            cols.append(cells)
-        return "".join([f'<row r="{r}">' + "".join(c) + "</row>" for r, *c in zip(rows, *cols)])
+            template.append("%s")
+            per_column.append([cells])
+        template.append("</row>")
+        streams = [rows] + [stream for column in per_column for stream in column]
+        args = tuple(itertools.chain.from_iterable(zip(*streams)))
+        return ("".join(template) * n) % args
 
 
 def _save(wb: Workbook, bulk: dict[int, _Bulk], path: str | os.PathLike) -> None:

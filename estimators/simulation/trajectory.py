@@ -30,13 +30,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import CubicSpline
 
 from estimators import quaternion as quat
+
+if TYPE_CHECKING:  # scipy.interpolate costs ~0.9 s to import: loaded when a trajectory is first evaluated
+    from scipy.interpolate import CubicSpline
 
 FloatArray = NDArray[np.float64]
 
@@ -210,10 +212,14 @@ class Trajectory:
 
     @cached_property
     def _q_spline(self) -> CubicSpline:
+        from scipy.interpolate import CubicSpline
+
         return CubicSpline(self.t_s, self.q_earth_body, axis=0)
 
     @cached_property
     def _p_spline(self) -> CubicSpline:
+        from scipy.interpolate import CubicSpline
+
         return CubicSpline(self.t_s, self.pos_m, axis=0)
 
 

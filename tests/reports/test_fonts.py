@@ -51,3 +51,14 @@ def test_typed_text_outside_the_cut_selects_the_full_font():
     assert fonts.needs_full_font(["Αθηνά Παπαδοπούλου"])        # Greek capitals: in DejaVu, not in the cut
     assert fonts.needs_full_font(["Иван Петров"])
     assert not fonts.needs_full_font(["患者 7"])                  # not in DejaVu at all: the cut is as good
+
+
+def test_font_files_come_from_matplotlib_without_importing_it():
+    import subprocess
+    import sys
+
+    code = ("import sys; from reports import fonts; print('matplotlib' in sys.modules); "
+            "import matplotlib; print(fonts.SOURCE_DIR == __import__('pathlib').Path(matplotlib.get_data_path()) "
+            "/ 'fonts' / 'ttf')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True"]

@@ -1,0 +1,314 @@
+r"""Cold start: the ``chakamo`` command line as a fresh process, as a clinician's shell or a job runner starts it.
+
+Usage
+-----
+``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process] [--json OUT] [--imports N]``
+
+Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
+``<entry>`` importing ``app.cli.main`` (the console script ``chakamo`` is ``app.cli:main``), so it measures the
+checkout the interpreter imports ``app`` from (run from the worktree or set ``PYTHONPATH``).  One warm-up run of
+each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--repeats`` runs give the median
+(and the spread, min–max) of
+
+* *wall* — from ``Popen`` to the child's exit, s;
+* *CPU* — the child's user + system time from the same rusage, s: on a shared, loaded machine wall time
+  swings with the other processes, CPU time much less, so read it beside wall;
+* *peak RSS* — the child's ``ru_maxrss`` from ``os.wait4`` (its own rusage, not the sum of all children), MB;
+* the split of a ``process`` run, from two sources:
+
+  - **progress marks**, always: ``chakamo process`` prints ``[ nn %] stage`` lines on stderr (flushed); this
+    script stamps each line on arrival.  The entry code adds one mark, ``chakamo-timing: cli-imported``, when
+    ``app.cli`` has been imported.  Spans: *start → cli-imported* (interpreter start and the CLI's top-level
+    imports), *cli-imported → read* (argument parsing and the imports of the process command), *read → reports*
+    (reading, the session pipeline, its deferred imports), *reports → write* (rendering every report, with the
+    report modules' imports), *write → done* (writing the files), *done → exit* (teardown);
+  - **the child's own stage times**, when the CLI prints them.  ``CHAKAMO_TIMINGS=1`` (set by this script)
+    asks ``chakamo`` to write one stderr line per finished stage, ::
+
+        chakamo-timing: <stage> <seconds> [<cpu_seconds>]
+
+    ``<stage>`` a word without spaces, ``<seconds>`` a float (``time.perf_counter`` differences), optionally
+    followed by the stage's CPU time (``time.process_time`` differences; on a loaded machine the CPU column
+    is the one to compare between runs).  The stages this
+    table expects: ``imports`` (every module import the command paid: top-level ones and those deferred into
+    functions, summed), ``read``, ``pipeline``, ``reports`` (all renderers), ``write``, ``total`` (from the first
+    line of ``app.cli`` to the end of ``main``); optional finer ones are printed too (e.g. ``report.pdf``,
+    ``report.html``, ``scene.viser``, ``angles.xlsx``).  A stage printed several times is summed.  Lines of the
+    form ``chakamo-timing: <mark>`` (no number) are marks as above.
+
+``--imports N`` adds one more ``process`` run under ``python -X importtime`` and prints the N heaviest imports
+of third-party packages *by the project module that imports them* (``app.*``, ``estimators.*``, ``reports.*``;
+cumulative ms, as ``-X importtime`` measures them, inflated a little by the measurement itself): the list
+of what to import later or not at all.  A package counts once, under the first project module whose import
+loaded it.
+
+The goals of issue 12 §6 are printed beside the numbers: ``chakamo --help`` ≤ 0.3 s, ``chakamo process`` on the
+demo's 10-cycle session with every output ≤ 1.5 s wall and ≤ 300 MB peak RSS.
+
+The session is ``--session`` or, by default, ``$TMPDIR/chakamo_cold/session``, created with ``chakamo demo`` (the
+demo's default 10 cycles, seed 7) when missing.  Timings on a shared machine are noisy: read the medians.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+ENTRY = ("import sys, time\n"
+         "from app.cli import main\n"
+         "print('chakamo-timing: cli-imported', file=sys.stderr, flush=True)\n"
+         "sys.exit(main())\n")
+TIMING_ENV = "CHAKAMO_TIMINGS"
+_TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
+_PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")
+GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0)}
+MARK_SPANS = [("start", "cli-imported", "interpreter + app.cli imports"),
+              ("cli-imported", "read", "parse + process-command imports"),
+              ("read", "reports", "read + pipeline (+ deferred imports)"),
+              ("reports", "write", "reports (+ their imports)"),
+              ("write", "done", "write"),
+              ("done", "exit", "teardown")]
+CHILD_STAGES = ["imports", "read", "pipeline", "reports", "write", "total"]
+
+
+@dataclass
+class Run:
+    wall_s: float
+    cpu_s: float
+    peak_rss_mb: float
+    returncode: int
+    marks_s: dict[str, float] = field(default_factory=dict)  # first arrival of each mark, s after Popen
+    stages_s: dict[str, float] = field(default_factory=dict)  # the child's own stage times, summed per stage
+    stages_cpu_s: dict[str, float] = field(default_factory=dict)  # their CPU times, when the child prints them
+    stderr_tail: str = ""
+
+
+def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
+    """One fresh ``chakamo`` process; wall, peak RSS (``os.wait4``) and the stamped stderr lines."""
+    env = dict(os.environ if env is None else env)
+    env[TIMING_ENV] = "1"
+    start = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-c", ENTRY, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, env=env)
+    marks: dict[str, float] = {"start": 0.0}
+    stages: dict[str, float] = {}
+    stages_cpu: dict[str, float] = {}
+    tail: list[str] = []
+
+    def read_stderr() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            now = time.perf_counter() - start
+            line = line.rstrip("\n")
+            tail.append(line)
+            del tail[:-20]
+            m = _TIMING_LINE.match(line)
+            if m and m.group(2) is not None:
+                stages[m.group(1)] = stages.get(m.group(1), 0.0) + float(m.group(2))
+                if m.group(3) is not None:
+                    stages_cpu[m.group(1)] = stages_cpu.get(m.group(1), 0.0) + float(m.group(3))
+                continue
+            name = m.group(1) if m else (p.group(1) if (p := _PROGRESS_LINE.match(line)) else None)
+            if name is not None:
+                marks.setdefault(name, now)
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
+    proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+    reader.join(timeout=10.0)
+    marks["exit"] = wall
+    rss_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
+    cpu_s = usage.ru_utime + usage.ru_stime
+    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, stages_cpu, "\n".join(tail))
+
+
+def ensure_session(session: Path | None) -> Path:
+    """The given session folder, or the demo's one under the temp folder (made with ``chakamo demo`` if missing)."""
+    if session is not None:
+        if not session.is_dir():
+            raise SystemExit(f"--session {session} is not a folder: give a session folder or leave it out")
+        return session
+    root = Path(tempfile.gettempdir()) / "chakamo_cold"
+    session = root / "session"
+    if not (session / "session.json").exists():
+        print(f"creating the demo session in {root} (chakamo demo, once) ...", file=sys.stderr)
+        done = subprocess.run([sys.executable, "-c", ENTRY, "demo", "--out", str(root)], capture_output=True,
+                              text=True)
+        if done.returncode != 0 or not session.is_dir():
+            raise SystemExit(f"chakamo demo failed ({done.returncode}):\n{done.stderr[-2000:]}")
+    return session
+
+
+PROJECT_PACKAGES = ("app", "estimators", "reports")
+_IMPORTTIME_LINE = re.compile(r"^import time:\s+(\d+)\s+\|\s+(\d+)\s+\|( *)(\S+)\s*$")
+
+
+def heavy_imports(importtime_stderr: str, top: int) -> list[tuple[str, str, float]]:
+    """``(project module, third-party package, cumulative ms)`` from ``-X importtime`` output, heaviest first.
+
+    The output lists each module after the modules its import loaded (post-order), indented two spaces per
+    level; a third-party module is attributed to its nearest project-module ancestor, and only the outermost
+    third-party module of a chain counts (its cumulative time holds the rest).  Imports made inside a function
+    call appear at the top level of the output: they are listed as deferred.  The standard library is left out.
+    """
+    entries = []  # (depth, name, cumulative_us)
+    for line in importtime_stderr.splitlines():
+        m = _IMPORTTIME_LINE.match(line)
+        if m:
+            entries.append((len(m.group(3)) // 2, m.group(4), int(m.group(2))))
+    parent: list[int | None] = [None] * len(entries)
+    waiting: dict[int, list[int]] = {}  # depth -> indices of modules waiting for their parent (depth - 1)
+    for i, (depth, _, _) in enumerate(entries):
+        for child in waiting.pop(depth + 1, []):
+            parent[child] = i
+        waiting.setdefault(depth, []).append(i)
+
+    def is_project(name: str) -> bool:
+        return name.split(".")[0] in PROJECT_PACKAGES
+
+    cli_done = next((i for i, e in enumerate(entries) if e[0] == 0 and e[1].split(".")[0] == "app"), len(entries))
+    rows = []
+    for i, (_, name, cum_us) in enumerate(entries):
+        top_name = name.split(".")[0]
+        if is_project(name) or top_name in sys.stdlib_module_names or top_name.startswith("_"):
+            continue
+        p = parent[i]
+        if p is not None and not is_project(entries[p][1]):
+            continue  # inside another third-party import: counted there
+        if p is not None:
+            owner = entries[p][1]
+        else:
+            owner = "(deferred: imported inside a call)" if i > cli_done else "(interpreter start-up)"
+        rows.append((owner, name, cum_us / 1000.0))
+    merged: dict[tuple[str, str], float] = {}
+    for owner, name, ms in rows:
+        key = (owner, name.split(".")[0])
+        merged[key] = merged.get(key, 0.0) + ms
+    out = sorted(((o, n, ms) for (o, n), ms in merged.items()), key=lambda r: -r[2])
+    return out[:top]
+
+
+def importtime_of(args: list[str]) -> str:
+    env = dict(os.environ)
+    env.pop(TIMING_ENV, None)
+    done = subprocess.run([sys.executable, "-X", "importtime", "-c", ENTRY, *args], capture_output=True, text=True,
+                          env=env)
+    if done.returncode != 0:
+        raise SystemExit(f"`chakamo {' '.join(args)}` under -X importtime failed ({done.returncode}):\n"
+                         f"{done.stderr[-2000:]}")
+    return done.stderr
+
+
+def _median(values: list[float]) -> float:
+    return statistics.median(values) if values else float("nan")
+
+
+def _spread(values: list[float]) -> str:
+    return f"{min(values):.2f}–{max(values):.2f}" if values else ""
+
+
+def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "command": name,
+        "wall_s": _median([r.wall_s for r in runs]),
+        "wall_range_s": [min(r.wall_s for r in runs), max(r.wall_s for r in runs)],
+        "cpu_s": _median([r.cpu_s for r in runs]),
+        "peak_rss_mb": _median([r.peak_rss_mb for r in runs]),
+        "failed": sum(r.returncode != 0 for r in runs),
+        "marks": {},
+        "stages": {},
+        "stages_cpu": {},
+    }
+    for a, b, label in MARK_SPANS:
+        spans = [r.marks_s[b] - r.marks_s[a] for r in runs if a in r.marks_s and b in r.marks_s]
+        if spans:
+            out["marks"][label] = _median(spans)
+    names = sorted({s for r in runs for s in r.stages_s}, key=lambda s: (s not in CHILD_STAGES,
+                                                                           CHILD_STAGES.index(s) if s in CHILD_STAGES
+                                                                           else 0, s))
+    for s in names:
+        out["stages"][s] = _median([r.stages_s[s] for r in runs if s in r.stages_s])
+        cpu = [r.stages_cpu_s[s] for r in runs if s in r.stages_cpu_s]
+        if cpu:
+            out["stages_cpu"][s] = _median(cpu)
+    return out
+
+
+def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
+    lines = [f"cold start: fresh `chakamo` processes, median of {repeats} after one warm-up run (numba cache warm)",
+             "", f"{'command':<10} {'wall s':>7} {'range s':>11} {'CPU s':>6} {'peak RSS MB':>12} {'goal':>20}  verdict"]
+    for s in summaries:
+        wall_goal, rss_goal = GOALS.get(s["command"], (None, None))
+        goal = " ".join(g for g in ((f"≤{wall_goal:g} s" if wall_goal else ""),
+                                    (f"≤{rss_goal:g} MB" if rss_goal else "")) if g) or "-"
+        ok = (wall_goal is None or s["wall_s"] <= wall_goal) and (rss_goal is None or s["peak_rss_mb"] <= rss_goal)
+        verdict = ("FAILED RUNS " if s["failed"] else "") + ("met" if ok else "not met") if goal != "-" else ""
+        lines.append(f"{s['command']:<10} {s['wall_s']:7.2f} {_spread(s['wall_range_s']):>11} {s['cpu_s']:6.2f} "
+                     f"{s['peak_rss_mb']:12.0f} {goal:>20}  {verdict}")
+    for s in summaries:
+        if s["marks"]:
+            lines += ["", f"{s['command']}: split from the progress marks (s, median)"]
+            lines += [f"  {label:<40} {v:6.2f}" for label, v in s["marks"].items()]
+        if s["stages"]:
+            lines += ["", f"{s['command']}: the child's own stage times ({TIMING_ENV}=1; s, median)"]
+            cpu = s.get("stages_cpu", {})
+            lines += [f"  {name:<40} {v:6.2f}" + (f"   CPU {cpu[name]:6.2f}" if name in cpu else "")
+                      for name, v in s["stages"].items()]
+        elif s["command"] == "process":
+            lines += ["", f"process: the CLI printed no `chakamo-timing: <stage> <s>` lines ({TIMING_ENV} hook absent)"]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--session", type=Path, default=None, help="session folder (default: the demo's, made once)")
+    parser.add_argument("--repeats", type=int, default=5, help="timed runs per command (default: 5)")
+    parser.add_argument("--commands", default="help,version,process",
+                        help="comma-separated subset of help,version,process (default: all)")
+    parser.add_argument("--json", type=Path, default=None, help="also write the summaries as JSON")
+    parser.add_argument("--imports", type=int, default=0, metavar="N",
+                        help="also list the N heaviest third-party imports of a process run, by importing module")
+    args = parser.parse_args(argv)
+    commands = [c.strip() for c in args.commands.split(",") if c.strip()]
+    unknown = set(commands) - set(GOALS)
+    if unknown:
+        parser.error(f"unknown command(s) {sorted(unknown)}: choose from help, version, process")
+    session = ensure_session(args.session) if "process" in commands else None
+    summaries = []
+    with tempfile.TemporaryDirectory(prefix="chakamo_cold_out_") as tmp:
+        argv_of = {"help": ["--help"], "version": ["--version"],
+                   "process": ["process", str(session), "--out", str(Path(tmp) / "out")]}
+        for name in commands:
+            warm = run_cli(argv_of[name])  # fills numba's cache and the .pyc files
+            if warm.returncode != 0:
+                raise SystemExit(f"`chakamo {' '.join(argv_of[name])}` failed ({warm.returncode}):\n{warm.stderr_tail}")
+            runs = [run_cli(argv_of[name]) for _ in range(args.repeats)]
+            summaries.append(summarise(name, runs))
+        heavy = heavy_imports(importtime_of(argv_of["process"]), args.imports) if args.imports and session else []
+    print(format_tables(summaries, args.repeats))
+    if heavy:
+        print(f"\nprocess: the {len(heavy)} heaviest third-party imports, by the project module importing them "
+              "(-X importtime, cumulative ms, one run)")
+        print(f"  {'project module':<44} {'package':<22} {'ms':>7}")
+        for owner, package, ms in heavy:
+            print(f"  {owner:<44} {package:<22} {ms:7.0f}")
+    if args.json:
+        args.json.write_text(json.dumps(summaries, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
