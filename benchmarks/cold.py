@@ -5,7 +5,7 @@ Usage
 ``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process] [--json OUT] [--imports N]``
 
 Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
-``<entry>`` importing ``app.cli.main`` (the console script ``chakamo`` is ``app.cli:main``), so it measures the
+``<entry>`` calling ``app.cli.console`` as the console script ``chakamo`` does, so it measures the
 checkout the interpreter imports ``app`` from (run from the worktree or set ``PYTHONPATH``).  One warm-up run of
 each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--repeats`` runs give the median
 (and the spread, min–max) of
@@ -66,9 +66,9 @@ from pathlib import Path
 from typing import Any
 
 ENTRY = ("import sys, time\n"
-         "from app.cli import main\n"
+         "from app.cli import console\n"
          "print('chakamo-timing: cli-imported', file=sys.stderr, flush=True)\n"
-         "sys.exit(main())\n")
+         "console()\n")
 TIMING_ENV = "CHAKAMO_TIMINGS"
 _TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
 _PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")

@@ -80,8 +80,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
-from scipy.signal import savgol_filter
+from estimators.signal import savgol_derivative
 
 from estimators.markov.fkc import FkcParams, fkc
 
@@ -145,6 +144,8 @@ def _axis_jac(p, ga, gb):
 
 def estimate_axis(gyr_a: ArrayLike, gyr_b: ArrayLike) -> tuple[FloatArray, FloatArray, float]:
     """Joint axes (eqs. 68–69) up to sign: ``(j_a, j_b, rms residual rad/s)``."""
+    from scipy.optimize import least_squares  # imported on use: ~1 s at a cold start
+
     ga = np.asarray(gyr_a, dtype=np.float64)
     gb = np.asarray(gyr_b, dtype=np.float64)
     starts = []
@@ -169,7 +170,7 @@ def angular_acceleration(gyr: ArrayLike, fs_hz: float) -> FloatArray:
     win = max(5, int(round(0.07 * fs_hz)) | 1)
     if len(g) < win:
         return np.gradient(g, 1.0 / fs_hz, axis=0)
-    return savgol_filter(g, win, 2, deriv=1, delta=1.0 / fs_hz, axis=0)
+    return savgol_derivative(g, win, 2, delta=1.0 / fs_hz, axis=0)
 
 
 def _gamma_matrices(gyr: FloatArray, dgyr: FloatArray) -> FloatArray:
@@ -203,6 +204,8 @@ def _gammas(gyr_a: FloatArray, gyr_b: FloatArray, fs_hz: float) -> tuple[FloatAr
 
 def _solve_position(aa: FloatArray, ma: FloatArray, ab: FloatArray,
                     mb: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+    from scipy.optimize import least_squares  # imported on use: ~1 s at a cold start
+
     def fun(p):
         return np.linalg.norm(aa + ma @ p[:3], axis=1) - np.linalg.norm(ab + mb @ p[3:], axis=1)
 

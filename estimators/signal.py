@@ -278,25 +278,29 @@ def sosfilt(sos: ArrayLike, x: ArrayLike, axis: int = 0, zi: ArrayLike | None = 
     return y, zf
 
 
-def _odd_extension(x2: FloatArray, padlen: int) -> FloatArray:
-    """``x2`` ``(N, C)`` extended by ``padlen`` samples of odd reflection about each end sample."""
+def _extension(x2: FloatArray, padlen: int, padtype: str) -> FloatArray:
+    """``x2`` ``(N, C)`` extended by ``padlen`` samples at each end: ``"odd"`` reflects about the end sample's value
+    (:math:`2x_0 - x_k`: keeps the end's slope), ``"even"`` mirrors the samples (:math:`x_k`: keeps their level, so an
+    end that falls in the middle of a motion is not extrapolated along it), as scipy's ``padtype``."""
     if padlen == 0:
         return x2
-    head = 2.0 * x2[0] - x2[padlen:0:-1]
-    tail = 2.0 * x2[-1] - x2[-2:-padlen - 2:-1]
+    head, tail = x2[padlen:0:-1], x2[-2:-padlen - 2:-1]
+    if padtype == "odd":
+        head, tail = 2.0 * x2[0] - head, 2.0 * x2[-1] - tail
     return np.concatenate([head, x2, tail])
 
 
 def _check_padding(padtype: str, padlen: int, n: int) -> None:
-    if padtype != "odd":
-        raise ValueError(f"padtype {padtype!r} is not supported: only 'odd' (the reflection ChakaMo uses)")
+    if padtype not in ("odd", "even"):
+        raise ValueError(f"padtype {padtype!r} is not supported: 'odd' or 'even'")
     if not 0 <= padlen < n:
         raise ValueError(f"padlen must be between 0 and the signal length - 1 = {n - 1}, got {padlen}")
 
 
 def filtfilt(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = 0, padtype: str = "odd",
              padlen: int | None = None) -> FloatArray:
-    """Zero-phase forward-backward :func:`lfilter` with odd padding and steady-state start, as ``scipy.signal.filtfilt``."""
+    """Zero-phase forward-backward :func:`lfilter` with odd or even padding and steady-state start, as
+    ``scipy.signal.filtfilt``."""
     b, a = _normalised_ba(b, a)
     x = _as_float(x)
     axis = axis % x.ndim
@@ -305,7 +309,7 @@ def filtfilt(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = 0, padtype: s
     _check_padding(padtype, padlen, x2.shape[0])
     kernel = _compiled(_lfilter_kernel)
     zi = lfilter_zi(b, a)[:, None]
-    ext = _odd_extension(x2, padlen)
+    ext = _extension(x2, padlen, padtype)
     y, _ = kernel(b, a, ext, zi * ext[0])
     y_rev = np.ascontiguousarray(y[::-1])
     y, _ = kernel(b, a, y_rev, zi * y_rev[0])
@@ -329,7 +333,7 @@ def sosfiltfilt(sos: ArrayLike, x: ArrayLike, axis: int = 0, padtype: str = "odd
     _check_padding(padtype, padlen, x2.shape[0])
     kernel = _compiled(_sosfilt_kernel)
     zi = sosfilt_zi(sos)[:, :, None]
-    ext = _odd_extension(x2, padlen)
+    ext = _extension(x2, padlen, padtype)
     y, _ = kernel(sos, ext, zi * ext[0])
     y_rev = np.ascontiguousarray(y[::-1])
     y, _ = kernel(sos, y_rev, zi * y_rev[0])

@@ -4,7 +4,8 @@ finished stage writes one line on stderr, ::
     chakamo-timing: <stage> <seconds>
 
 ``<stage>`` is a word (``imports``, ``read``, ``pipeline``, ``reports``, ``write``, ``total``, or a finer one such
-as ``report.pdf``); a stage printed several times is summed by the reader.  Without the variable nothing is
+as ``report.pdf``), followed by its wall and CPU seconds (``time.perf_counter``, ``time.process_time``); a stage
+printed several times is summed by the reader.  Without the variable nothing is
 printed and :func:`stage` costs one check.
 """
 
@@ -23,10 +24,11 @@ def enabled() -> bool:
     return os.environ.get(ENV) == "1"
 
 
-def report(name: str, seconds: float) -> None:
-    """Print one stage time (when enabled)."""
+def report(name: str, seconds: float, cpu_s: float | None = None) -> None:
+    """Print one stage time (when enabled): wall seconds, then CPU seconds when known."""
     if enabled():
-        print(f"chakamo-timing: {name} {seconds:.6f}", file=sys.stderr, flush=True)
+        cpu = "" if cpu_s is None else f" {cpu_s:.6f}"
+        print(f"chakamo-timing: {name} {seconds:.6f}{cpu}", file=sys.stderr, flush=True)
 
 
 @contextmanager
@@ -35,8 +37,8 @@ def stage(name: str) -> Iterator[None]:
     if not enabled():
         yield
         return
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         yield
     finally:
-        report(name, time.perf_counter() - t0)
+        report(name, time.perf_counter() - t0, time.process_time() - c0)

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import butter, sosfiltfilt
+from estimators.signal import butter_lowpass_sos, sosfiltfilt
 
 from estimators.motor_task.spec import MotorTaskParams, TaskSpec
 from estimators.windows import moving_variance, true_runs
@@ -35,7 +35,7 @@ def lowpass(x: FloatArray, fs_hz: float, cutoff_hz: float) -> FloatArray:
     """Zero-phase 2nd-order Butterworth low-pass along axis 0 (D1); returned unchanged when not applicable."""
     if cutoff_hz >= 0.45 * fs_hz or len(x) < 16:
         return np.array(x, dtype=np.float64, copy=True)
-    sos = butter(2, cutoff_hz / (0.5 * fs_hz), output="sos")
+    sos = butter_lowpass_sos(cutoff_hz, fs_hz)
     return sosfiltfilt(sos, x, axis=0, padlen=min(len(x) - 1, 3 * int(fs_hz / cutoff_hz)))
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal
+from estimators import signal
 
 from estimators import quaternion as quat
 from estimators.orientation.base import FloatArray
@@ -17,7 +17,7 @@ def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
     """Second-order Butterworth low-pass ``(b (3,), a (3,))`` with :math:`f_c = \\sqrt2/(2\\pi\\tau)` (2)."""
     fc_hz = math.sqrt(2.0) / (2.0 * math.pi * tau_s)
     fc_hz = min(fc_hz, 0.45 * fs_hz)
-    b, a = signal.butter(2, fc_hz, btype="low", fs=fs_hz)
+    b, a = signal.butter_lowpass(fc_hz, fs_hz)
     return b / a[0], a / a[0]
 
 

@@ -85,12 +85,13 @@ def test_lfilter_two_halves_equal_one_pass():
     _close(np.concatenate([y1, y2]), sig.lfilter(b, a, x), 1e-14)
 
 
+@pytest.mark.parametrize("padtype", ["odd", "even"])
 @pytest.mark.parametrize("fc_hz, padlen", [(2.25, 7), (0.6, 120), (10.0, None), (10.0, 0)])
-def test_filtfilt_matches_scipy(fc_hz, padlen):
+def test_filtfilt_matches_scipy(fc_hz, padlen, padtype):
     b, a = sp.butter(2, fc_hz, btype="low", fs=FS_HZ)
     x = _signal(900, seed=1)
-    ref = sp.filtfilt(b, a, x, axis=0, padtype="odd", padlen=padlen)
-    _close(sig.filtfilt(b, a, x, axis=0, padtype="odd", padlen=padlen), ref)
+    ref = sp.filtfilt(b, a, x, axis=0, padtype=padtype, padlen=padlen)
+    _close(sig.filtfilt(b, a, x, axis=0, padtype=padtype, padlen=padlen), ref)
     _close(sig.filtfilt(b, a, x[:, 2], padlen=padlen), sp.filtfilt(b, a, x[:, 2], padlen=padlen))
 
 
