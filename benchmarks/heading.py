@@ -154,7 +154,7 @@ def main() -> None:
     # auto against magnetometer on the clean sessions: the change auto makes (should be nothing)
     params = heading.ConstraintHeadingParams()
     worst = 0.0
-    for (seed, dist), s in sessions.items():
+    for (_seed, dist), s in sessions.items():
         if dist:
             continue
         out, _, side, fs = s

@@ -104,7 +104,8 @@ def bench_project(names: Sequence[str], data: tuple, repeats: int) -> tuple[list
                     notes.append(f"skipped {label} {mode}: {type(exc).__name__}: {exc}")
                     continue
                 per_call = _time_call(
-                    lambda: orientation.estimate(acc, gyr, m, fs_hz=FS_HZ, method=name, **params), repeats)
+                    lambda m=m, name=name, params=params: orientation.estimate(acc, gyr, m, fs_hz=FS_HZ, method=name,
+                                                                    **params), repeats)
                 note = f"import {import_s:.2f} s" if mode == "9d" and label == name else ""
                 rows.append(_row(label, mode, n, per_call, first_s, repeats, note))
     return rows, notes
@@ -119,10 +120,10 @@ def bench_vqf(data: tuple, repeats: int) -> tuple[list[dict], list[str]]:
     n = acc.shape[0]
     rows = []
     for mode, m in (("9d", mag), ("6d", None)):
-        rows.append(_row("vqf_offline", mode, n, _time_call(lambda: vqf.offlineVQF(gyr, acc, m, 1 / FS_HZ), repeats),
+        rows.append(_row("vqf_offline", mode, n, _time_call(lambda m=m: vqf.offlineVQF(gyr, acc, m, 1 / FS_HZ), repeats),
                          None, repeats, "C++"))
         rows.append(_row("vqf_online", mode, n,
-                         _time_call(lambda: vqf.VQF(1 / FS_HZ).updateBatch(gyr, acc, m), repeats), None, repeats, "C++"))
+                         _time_call(lambda m=m: vqf.VQF(1 / FS_HZ).updateBatch(gyr, acc, m), repeats), None, repeats, "C++"))
     return rows, []
 
 
@@ -136,7 +137,7 @@ def bench_ahrs(data: tuple, n_samples: int, repeats: int) -> tuple[list[dict], l
         for mode in modes:
             m = mag if mode == "9d" else None
             try:
-                per_call = _time_call(lambda: fn(acc, gyr, m, FS_HZ), repeats)
+                per_call = _time_call(lambda fn=fn, m=m: fn(acc, gyr, m, FS_HZ), repeats)
             except ImportError as exc:
                 return rows, [f"skipped ahrs: {exc}"]
             rows.append(_row(key, mode, n_samples, per_call, None, repeats, f"pure Python, {n_samples} samples"))

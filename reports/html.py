@@ -285,7 +285,7 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
         q = cal.get("quality", {}) if isinstance(cal, dict) else {}
         field_ut = q.get("field_ut", cal.get("field_ut") if isinstance(cal, dict) else None)
         cov = q.get("coverage_fraction")
-        items.append(_e(tr("html.mag_field", lang, 
+        items.append(_e(tr("html.mag_field", lang,
             segment=code_label("data.seg", seg, lang), field=_num(field_ut, lang, 1),
             coverage=_num(None if cov is None else 100.0 * cov, lang, 0))))
     for seg, cal in (get_path(r, "calibration", "segment") or {}).items():
@@ -297,7 +297,7 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
     if heading:
         items.append(_e(heading))
     for seg, frac in (get_path(r, "quality", "magnetic_disturbance_fraction") or {}).items():
-        items.append(_e(tr("html.mag_disturbance", lang, 
+        items.append(_e(tr("html.mag_disturbance", lang,
             segment=code_label("data.seg", seg, lang), pct=_num(None if frac is None else 100.0 * frac, lang, 1))))
     warnings = get_path(r, "quality", "warnings") or []
     for w in warnings:

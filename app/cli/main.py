@@ -31,13 +31,13 @@ from __future__ import annotations
 
 import time
 
-_T0 = time.perf_counter()  # noqa: E402 — the start of `total` in CHAKAMO_TIMINGS (app.pipeline.timings)
+_T0 = time.perf_counter()  # the start of `total` in CHAKAMO_TIMINGS (app.pipeline.timings)
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
 
-from app.cli import admin, ops, research, session
-from estimators import __version__
+from app.cli import admin, ops, research, session  # noqa: E402
+from estimators import __version__  # noqa: E402
 
 #: the command groups, in the order ``chakamo --help`` lists them
 GROUPS = (session, research, admin, ops)

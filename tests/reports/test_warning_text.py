@@ -220,6 +220,6 @@ def test_every_warning_text_is_well_formed():
         specs = {lang: {(name, spec) for _, name, spec, _ in FORMATTER.parse(i18n.table()[key][lang]) if name}
                  for lang in i18n.LANGUAGES}
         assert specs["es"] == specs["en"] == specs["pt"], key      # same fields with the same number formats
-        for name, spec in specs["en"]:
+        for _name, spec in specs["en"]:
             if spec:
                 format(1.5 if not spec.endswith("d") else 1, spec)    # a valid number format

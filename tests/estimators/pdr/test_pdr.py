@@ -136,7 +136,7 @@ def test_stride_lengths_and_cadence(rect_walk):
 
 
 def test_c123_detector_against_simulated_stance(noisy_walk, rect_walk):
-    for walk, g, truth in (noisy_walk, rect_walk):
+    for _walk, g, truth in (noisy_walk, rect_walk):
         det = stance_c123(g.acc, g.gyr)
         assert np.mean(det == truth) > 0.9
         assert np.mean(det[~truth]) < 0.02          # never "still" while the foot swings
