@@ -83,10 +83,31 @@ accepted, every boundary (onset, peak, leaving extension, back at rest) within 2
 (0.3 % without noise).
 """
 
-from estimators.motor_task.analysis import (
-    ANGLES, QualityWarning, RejectedCycle, TaskAnalysis, analyse_task, normalise_cycles, reject_cycles,
-)
-from estimators.motor_task.tasks import EVENTS, TASKS, MotorTaskParams, PhaseSpec, TaskSpec, get_task
+from estimators.motor_task.registry import TASK_INFO, TASK_NAMES, TaskInfo, task_info
+from estimators.motor_task.spec import EVENTS, MotorTaskParams, PhaseSpec, TaskSpec
+
+#: the three knee angles of every curve, in column order (kept here, stdlib, for the app's labels)
+ANGLES: tuple[str, ...] = ("flexion", "adduction", "internal_rotation")
+
+# Names loaded on first use (PEP 562), so that importing this package and reading TASK_INFO / TASK_NAMES
+# loads neither numpy nor scipy: the analysis (numpy, scipy.signal) only when it is called.
+_LAZY = {
+    "QualityWarning": "estimators.motor_task.analysis", "RejectedCycle": "estimators.motor_task.analysis",
+    "TaskAnalysis": "estimators.motor_task.analysis", "analyse_task": "estimators.motor_task.analysis",
+    "normalise_cycles": "estimators.motor_task.analysis", "reject_cycles": "estimators.motor_task.analysis",
+    "TASKS": "estimators.motor_task.tasks", "get_task": "estimators.motor_task.tasks",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        from importlib import import_module
+        value = getattr(import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["ANGLES", "EVENTS", "MotorTaskParams", "PhaseSpec", "QualityWarning", "RejectedCycle", "TASKS",
-           "TaskAnalysis", "TaskSpec", "analyse_task", "get_task", "normalise_cycles", "reject_cycles"]
+           "TASK_INFO", "TASK_NAMES", "TaskAnalysis", "TaskInfo", "TaskSpec", "analyse_task", "get_task",
+           "normalise_cycles", "reject_cycles", "task_info"]

@@ -9,13 +9,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimators.jsonable import json_ready
+from estimators.motor_task import ANGLES
 from estimators.quality import QualityWarning
 from estimators.motor_task.detection import detect_cycles, lowpass, task_span
-from estimators.motor_task.tasks import EVENTS, MotorTaskParams, TaskSpec, get_task
+from estimators.motor_task.spec import EVENTS, MotorTaskParams, TaskSpec
+from estimators.motor_task.registry import load_task_module
+from estimators.motor_task.tasks import get_task
 
 FloatArray = NDArray[np.float64]
 
-ANGLES: tuple[str, ...] = ("flexion", "adduction", "internal_rotation")
 ROM_STATS: tuple[str, ...] = ("max", "min", "range")
 
 
@@ -194,11 +196,21 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
 
     angles_rad : (N, 3) knee angles (flexion, adduction, internal rotation), rad, clinical signs, on a uniform
         grid; flexion drives the detection, all three are normalised.  A (N,) array is taken as flexion only.
-    fs_hz : sampling rate, Hz.   task : a name in :data:`TASKS` or a :class:`TaskSpec`.
+    fs_hz : sampling rate, Hz.   task : a registered name (:data:`~estimators.motor_task.TASK_NAMES`: the
+        task module's own ``analyse`` or ``PARAMS`` are used when it has them) or a :class:`TaskSpec`.
     params : :class:`MotorTaskParams` (defaults when None).   t0_s : time of sample 0, s.
     Returns a :class:`TaskAnalysis`.  Raises ValueError for a wrong shape, rate or non-finite angles.
     """
-    spec = get_task(task)
+    if isinstance(task, str):  # a registered task: its own analysis or default parameters, if it has them
+        spec = get_task(task)
+        mod = load_task_module(task)
+        own = getattr(mod, "analyse", None)
+        if own is not None:
+            return own(angles_rad, fs_hz, params=params, t0_s=t0_s)
+        if params is None:
+            params = getattr(mod, "PARAMS", None)
+    else:
+        spec = get_task(task)
     p = MotorTaskParams() if params is None else params
     if not isinstance(p, MotorTaskParams):
         raise TypeError(f"params must be a MotorTaskParams, got {type(p).__name__}")

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, sosfiltfilt
 
-from estimators.motor_task.tasks import MotorTaskParams, TaskSpec
+from estimators.motor_task.spec import MotorTaskParams, TaskSpec
 from estimators.windows import moving_variance, true_runs
 
 FloatArray = NDArray[np.float64]

@@ -1,11 +1,15 @@
-"""Task specifications (which way the knee moves, which phases a cycle has) and the analysis parameters."""
+"""Task specifications (which way the knee moves, which phases a cycle has) and the analysis parameters.
+
+Standard library only (no numpy, scipy or numba): the registry (:mod:`.registry`) and the task modules
+(:mod:`.tasks`) import it to describe tasks without loading the numerics.
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
 
-__all__ = ["EVENTS", "MotorTaskParams", "PhaseSpec", "TASKS", "TaskSpec", "get_task"]
+__all__ = ["EVENTS", "MotorTaskParams", "PhaseSpec", "TaskSpec"]
 
 #: The five events of every cycle, in time order (see the package docstring, "Events").
 EVENTS: tuple[str, ...] = ("onset", "countermovement_peak", "far_reached", "far_left", "rest_reached")
@@ -31,7 +35,7 @@ class PhaseSpec:
 class TaskSpec:
     """A repetitive knee task as the detector sees it.
 
-    name : key in :data:`TASKS` and the ``task`` of ``results.json``.
+    name : key in :data:`~estimators.motor_task.TASKS` and the ``task`` of ``results.json``.
     excursion : ``"extension"`` when each repetition moves from a flexed rest towards full extension
         (step-up, seated knee extension); ``"flexion"`` when it moves from an extended rest into
         flexion (squat).  The detector works on ``y = -flexion`` or ``y = +flexion`` so that the
@@ -71,42 +75,6 @@ class TaskSpec:
     @property
     def phase_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.phases)
-
-
-TASKS: dict[str, TaskSpec] = {
-    "step_up": TaskSpec(
-        name="step_up", excursion="extension", countermovement=True,
-        phases=(PhaseSpec("impulse", "onset", "countermovement_peak"),
-                PhaseSpec("extension", "countermovement_peak", "far_left"),
-                PhaseSpec("fall", "far_left", "rest_reached")),
-        far_label="full extension",
-        description="single-leg step-up (seed 004 §8.1; DESIGN.md §3): rest flexed on the step, impulse "
-                    "(flexion rises 5–10°), extension to ~0° held, fall back to the start posture"),
-    "seated_knee_extension": TaskSpec(
-        name="seated_knee_extension", excursion="extension", countermovement=False,
-        phases=(PhaseSpec("extension", "onset", "far_reached"),
-                PhaseSpec("hold", "far_reached", "far_left"),
-                PhaseSpec("flexion", "far_left", "rest_reached")),
-        far_label="full extension",
-        description="seated knee flexion-extension: rest at ~90° flexion, extend, (hold), flex back"),
-    "squat": TaskSpec(
-        name="squat", excursion="flexion", countermovement=False,
-        phases=(PhaseSpec("descent", "onset", "far_reached"),
-                PhaseSpec("hold", "far_reached", "far_left"),
-                PhaseSpec("ascent", "far_left", "rest_reached")),
-        far_label="deepest flexion",
-        description="squat: rest standing (~0°), flex down, (hold), extend back up"),
-}
-
-
-def get_task(task: str | TaskSpec) -> TaskSpec:
-    """The :class:`TaskSpec` for a name in :data:`TASKS` (or the spec itself)."""
-    if isinstance(task, TaskSpec):
-        return task
-    try:
-        return TASKS[task]
-    except (KeyError, TypeError):
-        raise ValueError(f"unknown task {task!r}; valid tasks are {sorted(TASKS)}") from None
 
 
 @dataclass(frozen=True)
