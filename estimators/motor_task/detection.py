@@ -201,8 +201,10 @@ def _mj(tau: FloatArray) -> FloatArray:
 
 def _split_residuals(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t1: FloatArray, t0: FloatArray,
                      chunk: int = 1024) -> FloatArray:
-    """Residual sum of squares of the fall–rest–impulse model (D5c) for candidate pairs (t1, t0)."""
+    """Residual sums of squares of the fall–rest–impulse model (D5c) for candidate pairs (t1, t0), and the
+    levels (F, L, P) of the last chunk's pairs."""
     out = np.empty(len(t1))
+    last = np.zeros((0, 3))
     for c in range(0, len(t1), chunk):
         a1, a0 = t1[c:c + chunk, None], t0[c:c + chunk, None]
         x_f = np.where(t_s < a1, 1.0 - _mj(np.clip((t_s - f0) / (a1 - f0), 0.0, 1.0)), 0.0)
@@ -213,10 +215,18 @@ def _split_residuals(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t
         b = np.einsum("cni,n->ci", x, yy)
         sol = np.linalg.solve(g, b[..., None])[..., 0]
         out[c:c + chunk] = yy @ yy - np.einsum("ci,ci->c", b, sol)
-    return out
+        last = sol
+    return out, last
 
 
-def fit_split(y: FloatArray, f0: float, t_end: float, fs_hz: float) -> tuple[float, float]:
+def split_levels(y: FloatArray, f0: float, t_end: float, t1: float, t0: float) -> FloatArray:
+    """(F, L, P): far, rest and peak levels of the D5c model fitted with the given ``t1``, ``t0``."""
+    i0, i1 = int(np.ceil(f0)), int(np.floor(t_end))
+    idx = np.arange(i0, i1 + 1, dtype=np.float64)
+    return _split_residuals(idx, y[i0:i1 + 1], f0, t_end, np.array([t1]), np.array([t0]))[1][0]
+
+
+def fit_split(y: FloatArray, f0: float, t_end: float, fs_hz: float, min_pause: float = 0.0) -> tuple[float, float]:
     r"""End of a fall and start of the next impulse (fractional samples) by least squares (D5c).
 
     Between leaving the far plateau at :math:`f_0` (D5) and the next peak at :math:`t_{end}` the knee falls
@@ -233,6 +243,9 @@ ight)\ (t\ge t_0)
     best is inside).  Every sample
     votes, so a slow 5–10° impulse right after the fall (no rest at all, the thesis' continuous cycles) or
     after a pause of any length is timed to a few samples, and the rest level needs no separate estimate.
+    A rest (:math:`t_0 > t_1`) is kept only when it is at least ``min_pause`` samples long and lowers the
+    residual by more than the Bayesian information criterion charges for one more parameter
+    (:math:`\ln N` residual variances); otherwise :math:`t_1 = t_0`, the best continuous split.
     """
     i0, i1 = int(np.ceil(f0)), int(np.floor(t_end))
     if i1 - i0 < 8:
@@ -246,26 +259,38 @@ ight)\ (t\ge t_0)
         keep = (t0g >= t1g) & (t1g > f0 + 1.0) & (t0g < t_end - 1.0)
         t1v, t0v = t1g[keep], t0g[keep]
         if len(t1v) == 0:
-            return float("nan"), float("nan")
-        res = _split_residuals(idx[::sub], y[i0:i1 + 1:sub], f0, t_end, t1v, t0v)
+            return float("nan"), float("nan"), float("nan")
+        res = _split_residuals(idx[::sub], y[i0:i1 + 1:sub], f0, t_end, t1v, t0v)[0]
         j = int(np.argmin(res))
-        return float(t1v[j]), float(t0v[j])
+        return float(t1v[j]), float(t0v[j]), float(res[j])
 
     cands = np.arange(f0 + lo_gap, t_end - lo_gap, step, dtype=np.float64)
-    t1, t0 = grid(cands, cands, step)
+    t1, t0, _ = grid(cands, cands, step)
     if not np.isfinite(t1):
         return t1, t0
     # every sample around the best pair, moved until the best lies inside the window (the slow impulse start
     # trades against the fall's end on the coarse grid)
     fine = np.arange(-2 * step, 2 * step + 1, dtype=np.float64)
+    res = float("nan")
     for _ in range(6):
-        b1, b0 = grid(t1 + fine, t0 + fine, 1)
+        b1, b0, res = grid(t1 + fine, t0 + fine, 1)
         if not np.isfinite(b1):
             break
         inside = abs(b1 - t1) < 2 * step and abs(b0 - t0) < 2 * step
         t1, t0 = b1, b0
         if inside:
             break
+    if t0 > t1 and np.isfinite(res):
+        # a rest between fall and impulse is one more parameter: kept only when it lowers the residual by more
+        # than the Bayesian information criterion charges for it (ln N residual variances)
+        c = np.arange(min(t1, t0) - 2 * step, max(t1, t0) + 2 * step + 1, dtype=np.float64)
+        c = c[(c > f0 + 1.0) & (c < t_end - 1.0)]
+        if len(c):
+            res_c = _split_residuals(idx, y[i0:i1 + 1], f0, t_end, c, c)[0]
+            j = int(np.argmin(res_c))
+            n_s = len(idx)
+            if t0 - t1 < min_pause or res_c[j] - res < np.log(n_s) * res / max(n_s - 5, 1):
+                return float(c[j]), float(c[j])
     return t1, t0
 
 
@@ -365,7 +390,8 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
         if before.rest is not None:
             rest = before.rest
             amplitude = far.level_in - rest.level_out
-            if before.cm_index is not None:
+            plain = before.cm_index is None
+            if not plain:
                 cm = before.cm_index
                 # impulse: from the split level to the peak, fitted over the whole gap before the peak (the fall
                 # before it lies below the 10 % crossing, so the outward crossing search never reaches it)
@@ -380,10 +406,14 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                 if p.boundary_model == "min_jerk":
                     prev_left = out[k - 1].events[3] if k > 0 else float("nan")
                     if np.isfinite(prev_left):  # D5c: the previous fall's end and this onset together
-                        t1, s0 = fit_split(y_fit, prev_left, peak, fs_hz)
+                        t1, s0 = fit_split(y_fit, prev_left, peak, fs_hz, p.min_pause_s * fs_hz)
                         if np.isfinite(t1) and np.isfinite(s0):
-                            out[k - 1].events[4] = t1
-                            lo = min(lo, int(np.floor(t1)))
+                            _, lev_l, lev_p = split_levels(y_fit, prev_left, peak, t1, s0)
+                            if lev_l - lev_p < p.min_countermovement_rad:  # the fit finds no impulse
+                                plain = True
+                            else:
+                                out[k - 1].events[4] = t1
+                                lo = min(lo, int(np.floor(t1)))
                     elif k == 0:  # D5b: a rest before, no fall
                         s0 = fit_onset(y_fit, 0, peak)
                         lo = 0
@@ -392,7 +422,13 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                 ev[0] = np.clip(s0, lo, cm)
                 ev[1] = np.clip(peak, ev[0], far.end)
                 ev[2] = np.clip(e1, ev[1], far.end)
-            else:
+            if plain:
+                if before.cm_index is not None:  # no impulse after all: the rest is the still run at the peak
+                    g0 = int(exc[k - 1, 1]) if k > 0 else 0
+                    r = _containing(still, before.cm_index, g0, a)
+                    rest = _region(y, r[0], r[1], w)
+                    gaps[k] = Gap(rest, None)
+                    amplitude = far.level_in - rest.level_out
                 e0, e1 = fit_transition(y, max(rest.start, rest.end - w), min(far.end, far.start + w),
                                         rest.level_out, far.level_in, p)
                 ev[0] = np.clip(e0, rest.start, far.start + 1)
