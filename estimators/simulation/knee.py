@@ -265,7 +265,8 @@ def step_up(
     tt = time_grid(duration, fs_hz)
     flex = _keyframes(tt, times_a, values_a)
     ankle = np.array([0.0, 0.0, step_height_m + ANKLE_HEIGHT_M])
-    coupling = (np.deg2rad([1.0, 4.0]), np.deg2rad([-3.0, 7.0])) if thesis else None
+    # Tables 8.2/8.4: internal rotation ROM 6.5–7.5°, ab/adduction ROM 4.3° at 17 cm
+    coupling = (np.deg2rad([2.0, 4.0]), np.deg2rad([-2.0, 7.0])) if thesis else None
     thigh, shank, angles = _leg(tt, flex, f0_ref, side, facing_rad, ankle, coupling)
     cycles = phases[:, [0, 3]].copy()  # onset → back at rest: a pause after it is in no cycle (DESIGN.md §3)
     la_t, la_s = _lever_arms(side)
