@@ -23,23 +23,37 @@ Flexion is a *negative* rotation about z because flexing the knee swings the tib
 posteriorly.  :func:`knee_quaternion` is (K1) and :func:`knee_angles` its inverse: both are defined once,
 in :mod:`estimators.knee`, and re-exported here so the truth uses the pipeline's own convention.
 
-Single-leg step-up (seed 004 §2.2, DESIGN.md §3)
-------------------------------------------------
+Single-leg step-up (seed 004 §2.2, §8.1, DESIGN.md §3)
+------------------------------------------------------
 The tested foot stands on the step (ankle fixed at ``step_height_m + 0.08`` m), the body rises by
-extending the knee and lowers back.  Flexion is a chain of minimum-jerk ramps between key frames:
-rest in the start posture :math:`\phi_0` (60° at 17 cm, 90° at 34 cm: :math:`30° + 176.5°/\mathrm{m}
-\cdot h`, ±3° per cycle) → *impulse*: rise by 5–10° to the peak → *extension* to ~0° (0–3°) and hold
-it → *fall* back to :math:`\phi_0` → rest.  Adduction and internal rotation follow the flexion
-(:math:`\alpha = 2° + 3°\,\phi/\phi_0`, :math:`\rho = -2° + 10°\,\phi/\phi_0`: screw-home).  The
-thigh is hip-flexed by :math:`0.6\,\phi` (plus a small ad/abduction and rotation), the shank is
+extending the knee and lowers back.  Flexion is a chain of minimum-jerk ramps between key frames.
+
+``shape="thesis"`` (default), re-derived from seed 004 §8.1: Fig. 8.2's sequence (0 % flexed on the
+step; ~30 % the other foot leaves the floor at the impulse's extra flexion; ~50 % full extension carrying
+the weight; 75 % the other foot lands, knee flexing; 100 % back near the start flexion) with the measured
+proportions of Tables 8.1/8.3 (cycle 3.38 s at 17 cm, 3.54 s at 34 cm; impulse 34.0/33.3 %, extension
+31.7/32.8 %, fall 34.0/33.9 %, SD 1–3 %).  Per cycle of duration :math:`T_k` (mean ``cycle_s``, ±2 %):
+*impulse* :math:`0.34\,T_k` (±1.5 %) from the start posture :math:`\phi_0` up 5.5–9.5° to the peak;
+*extension* :math:`0.32\,T_k` (±3 %): 60 % (±10 %) of it a ramp to 0–3°, the rest held; *fall* the
+remainder, back to the next start posture.  Cycles follow each other without rest (the fall ends at the
+instant the next impulse starts, both with zero rate) unless ``pauses_s`` puts a rest between them.
+:math:`\phi_0`: the thesis' peak flexion (ROM max, Tables 8.2/8.4: 83° at 17 cm, 111° at 34 cm, linear in
+the height) minus 7.5°, ±3° per cycle.  Adduction :math:`2° + 4°\,\phi/\phi_0` and internal rotation
+:math:`-2° + 7°\,\phi/\phi_0` (screw-home; rotation ROM 6.5–7.5° as in Tables 8.2/8.4).
+
+``shape="rest_between"`` (the project's first shape): rest :math:`\phi_0 = 30° + 176.5°/\mathrm{m}\cdot h`
+(60° / 90°) → impulse 0.45 s → extension 1.0 s → hold 0.8 s → fall 1.2 s (±``variability``) → ``rest_s``
+(1.5 s) in the start posture; adduction :math:`2° + 3°\,\phi/\phi_0`, rotation :math:`-2° + 10°\,\phi/\phi_0`.
+
+Both: the thigh is hip-flexed by :math:`0.6\,\phi` (plus a small ad/abduction and rotation), the shank is
 the thigh times (K1), so it tilts forward by about :math:`0.4\,\phi`; the knee is at
 :math:`A + R_{shank}[0, L_s, 0]` and the hip at :math:`K + R_{thigh}[0, L_t, 0]`
 (:math:`L_s = 0.40`, :math:`L_t = 0.42` m).
 
-True boundaries, per cycle k (columns of ``phases_s``): impulse onset (= cycle start), peak
-flexion (impulse → extension), leaving full extension (extension → fall), back at rest in the
-start posture (end of the fall).  ``cycles_s[k] = [onset_k, onset_{k+1}]``; the last cycle ends
-when it is back at rest.
+True boundaries, per cycle k (columns of ``phases_s``): impulse onset (= cycle start), peak flexion
+(impulse → extension), leaving full extension (extension → fall), back at rest in the start posture
+(end of the fall = cycle end).  ``cycles_s[k] = [onset_k, back at rest_k]`` (DESIGN.md §3): continuous
+cycles meet; a pause (``pauses_s``, ``rest_s``) lies between two cycles, in neither.
 """
 
 from __future__ import annotations
