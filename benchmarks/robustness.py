@@ -77,10 +77,9 @@ def draw(seed: int) -> Draw:
 
 def simulate(d: Draw):
     """The session of one draw, built as :func:`app.demo.simulate_session` builds the demo's."""
-    from estimators import simulation as sim
-
     from app.demo import EPOCH0_S, SimulatedSession
     from app.ingestion import simulated_streams
+    from estimators import simulation as sim
 
     motion = sim.step_up(d.n_cycles, d.step_height_m, d.side, shape=d.shape, cycle_s=d.cycle_s,
                          pauses_s=list(d.pauses_s) if d.n_cycles > 1 else None,
@@ -116,11 +115,10 @@ def _heading_rad(q) -> np.ndarray:
 
 
 def score(d: Draw, filter_name: str | None) -> dict:
-    from estimators import quaternion as quat
-
     from app.demo import accuracy, write_session
     from app.pipeline import ProcessOptions
     from app.process import process_folder
+    from estimators import quaternion as quat
 
     truth = simulate(d)
     with tempfile.TemporaryDirectory() as tmp:

@@ -134,6 +134,22 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ANGLES", "EVENTS", "MotorTaskParams", "PhaseSpec", "QualityWarning", "RejectedCycle", "TASKS",
-           "TASK_INFO", "TASK_NAMES", "TaskAnalysis", "TaskInfo", "TaskSpec", "analyse_task", "get_task",
-           "normalise_cycles", "reject_cycles", "task_info"]
+__all__ = [
+    "ANGLES",
+    "EVENTS",
+    "TASKS",
+    "TASK_INFO",
+    "TASK_NAMES",
+    "MotorTaskParams",
+    "PhaseSpec",
+    "QualityWarning",
+    "RejectedCycle",
+    "TaskAnalysis",
+    "TaskInfo",
+    "TaskSpec",
+    "analyse_task",
+    "get_task",
+    "normalise_cycles",
+    "reject_cycles",
+    "task_info",
+]

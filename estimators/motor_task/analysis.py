@@ -10,11 +10,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimators.jsonable import json_ready
 from estimators.motor_task import ANGLES
-from estimators.quality import QualityWarning
 from estimators.motor_task.detection import detect_cycles, lowpass, task_span
-from estimators.motor_task.spec import EVENTS, MotorTaskParams, TaskSpec
 from estimators.motor_task.registry import load_task_module
+from estimators.motor_task.spec import EVENTS, MotorTaskParams, TaskSpec
 from estimators.motor_task.tasks import get_task
+from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
 

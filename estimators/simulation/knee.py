@@ -65,12 +65,28 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimators import quaternion as quat
 from estimators.knee import knee_angles, knee_quaternion, side_sign
-from estimators.simulation.trajectory import DEFAULT_FS_HZ, Trajectory, intrinsic_rotation, min_jerk, time_grid
+from estimators.simulation.trajectory import (
+    DEFAULT_FS_HZ,
+    Trajectory,
+    intrinsic_rotation,
+    min_jerk,
+    time_grid,
+)
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["LegMotion", "STEP_UP_SHAPES", "THIGH_LENGTH_M", "SHANK_LENGTH_M", "knee_angles", "knee_quaternion",
-           "segment_frame", "standing", "step_up", "supine"]
+__all__ = [
+    "SHANK_LENGTH_M",
+    "STEP_UP_SHAPES",
+    "THIGH_LENGTH_M",
+    "LegMotion",
+    "knee_angles",
+    "knee_quaternion",
+    "segment_frame",
+    "standing",
+    "step_up",
+    "supine",
+]
 
 THIGH_LENGTH_M = 0.42
 SHANK_LENGTH_M = 0.40

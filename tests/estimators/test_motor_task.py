@@ -8,10 +8,17 @@ import numpy as np
 import pytest
 
 from estimators import simulation as sim
-from estimators.simulation.knee import STEP_UP_SHAPES, _thesis_defaults
 from estimators.motor_task import (
-    EVENTS, TASKS, MotorTaskParams, PhaseSpec, TaskSpec, analyse_task, normalise_cycles, reject_cycles,
+    EVENTS,
+    TASKS,
+    MotorTaskParams,
+    PhaseSpec,
+    TaskSpec,
+    analyse_task,
+    normalise_cycles,
+    reject_cycles,
 )
+from estimators.simulation.knee import STEP_UP_SHAPES, _thesis_defaults
 
 DEG = np.pi / 180.0
 FS_HZ = 100.0

@@ -14,7 +14,14 @@ import pytest
 
 from estimators import simulation as sim
 from estimators.motor_task import (
-    EVENTS, TASK_INFO, TASK_NAMES, TASKS, MotorTaskParams, TaskInfo, analyse_task, task_info,
+    EVENTS,
+    TASK_INFO,
+    TASK_NAMES,
+    TASKS,
+    MotorTaskParams,
+    TaskInfo,
+    analyse_task,
+    task_info,
 )
 from estimators.motor_task.registry import load_task_module
 
@@ -43,7 +50,7 @@ def _min_jerk_repetitions(rest_deg, far_deg, seed, n=6):
         events.append(e)
         t = e[3] + rest
     times, values = np.asarray(times), np.asarray(values)
-    tt = np.arange(int(round(times[-1] * FS_HZ)) + 1) / FS_HZ
+    tt = np.arange(round(times[-1] * FS_HZ) + 1) / FS_HZ
     i = np.clip(np.searchsorted(times, tt, side="right") - 1, 0, len(times) - 2)
     flex = values[i] + (values[i + 1] - values[i]) * sim.min_jerk((tt - times[i]) / (times[i + 1] - times[i]))
     a = np.column_stack([flex, 0.05 * flex, -0.1 * flex]) * DEG
