@@ -127,7 +127,8 @@ def score(d: Draw, filter_name: str | None) -> dict:
         try:
             outcome, _ = process_folder(Path(tmp) / "session", Path(tmp) / "out", options, reports=False)
         except ValueError as e:  # a refused session counts as a failure of every goal
-            return {"error": str(e).splitlines()[0][:80]}
+            msg = str(e).splitlines()[0]
+            return {"error": msg.split(": ", 1)[-1][:140] if ": " in msg else msg[:140]}
     acc = accuracy(outcome, truth)
     m = truth.motion
     t_true = np.clip(outcome.t0_s + outcome.t_s - truth.role_epoch_s["task"], m.t_s[0], m.t_s[-1])

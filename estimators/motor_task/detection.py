@@ -162,8 +162,10 @@ def fit_transition(y: FloatArray, i0: int, i1: int, level0: float, level1: float
 def fit_onset(y: FloatArray, lo: int, t_end: float) -> float:
     r"""Start (fractional sample) of a minimum-jerk movement ending at ``t_end``, least squares over ``y[lo:t_end]``.
 
-    D5b: for each candidate start :math:`c` the model :math:`y_i = L + A\,m(\mathrm{clip}((i-c)/(t_{end}-c),0,1))`
-    is linear in the rest level :math:`L` and the amplitude :math:`A`, solved in closed form; the start is the
+    D5b: for each candidate start :math:`c` the model
+    :math:`y_i = L + b\,(i - c)_{-} + A\,m(\mathrm{clip}((i-c)/(t_{end}-c),0,1))`, with
+    :math:`(i-c)_{-} = \min(i-c, 0)`, is linear in the rest level :math:`L`, a drift :math:`b` of the rest
+    (a converging orientation filter) and the amplitude :math:`A`, solved in closed form; the start is the
     candidate of least residual, refined by a parabola through its neighbours.  Every sample votes, so a
     small slow movement (the 5–10° impulse) is timed far better than by its crossing times.  NaN when the
     window holds fewer than 6 samples.
@@ -174,21 +176,15 @@ def fit_onset(y: FloatArray, lo: int, t_end: float) -> float:
     idx = np.arange(lo, i1 + 1, dtype=np.float64)
     yy = y[lo:i1 + 1]
     cand = np.arange(lo, i1 - 2, dtype=np.float64)
-    tau = np.clip((idx[None, :] - cand[:, None]) / (t_end - cand[:, None]), 0.0, 1.0)
-    m = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-    n = len(idx)
-    sm, smm = m.sum(axis=1), (m * m).sum(axis=1)
-    sy, smy = yy.sum(), m @ yy
-    det = n * smm - sm * sm
-    ok = det > 1e-12 * n * n
-    a = np.where(ok, (n * smy - sm * sy) / np.where(ok, det, 1.0), 0.0)
-    lvl = (sy - a * sm) / n
-    res = np.sum((yy[None, :] - lvl[:, None] - a[:, None] * m) ** 2, axis=1)
-    res[~ok] = np.inf
+    d = idx[None, :] - cand[:, None]
+    tau = np.clip(d / (t_end - cand[:, None]), 0.0, 1.0)
+    x = np.stack([np.ones_like(tau), np.minimum(d, 0.0), _mj(tau)], axis=2)  # (C, N, 3)
+    g = np.einsum("cni,cnj->cij", x, x) + 1e-9 * np.eye(3)
+    b = np.einsum("cni,n->ci", x, yy)
+    sol = np.linalg.solve(g, b[..., None])[..., 0]
+    res = yy @ yy - np.einsum("ci,ci->c", b, sol)
     j = int(np.argmin(res))
-    if not np.isfinite(res[j]):
-        return float("nan")
-    if 0 < j < len(res) - 1 and np.isfinite(res[j - 1]) and np.isfinite(res[j + 1]):
+    if 0 < j < len(res) - 1:
         den = res[j - 1] - 2.0 * res[j] + res[j + 1]
         if den > 0:
             return float(cand[j] + 0.5 * (res[j - 1] - res[j + 1]) / den)
@@ -414,9 +410,14 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                             else:
                                 out[k - 1].events[4] = t1
                                 lo = min(lo, int(np.floor(t1)))
-                    elif k == 0:  # D5b: a rest before, no fall
-                        s0 = fit_onset(y_fit, 0, peak)
-                        lo = 0
+                    elif k == 0:  # D5b: a rest before, no fall; the window starts half an impulse before
+                        # its onset (3 × peak − 50 % crossing), so a slow drift of the rest (a converging
+                        # filter) does not pass for the start of the impulse
+                        mid = 0.5 * (before.level + y[cm])
+                        above = np.flatnonzero(y[:cm] >= mid)
+                        half_imp = peak - above[-1] if len(above) else peak
+                        lo = max(0, int(np.floor(peak - 3.0 * half_imp)))
+                        s0 = fit_onset(y_fit, lo, peak)
                 if not np.isfinite(s0):
                     s0, _ = fit_transition(y, g0, cm, before.level, y[cm], p)
                 ev[0] = np.clip(s0, lo, cm)
