@@ -203,11 +203,14 @@ def _split_residuals(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t
     last = np.zeros((0, 3))
     for c in range(0, len(t1), chunk):
         a1, a0 = t1[c:c + chunk, None], t0[c:c + chunk, None]
-        x_f = np.where(t_s < a1, 1.0 - _mj(np.clip((t_s - f0) / (a1 - f0), 0.0, 1.0)), 0.0)
+        fall, rest = t_s < a1, (t_s >= a1) & (t_s < a0)
+        m1 = _mj(np.clip((t_s - f0) / (a1 - f0), 0.0, 1.0))
+        x_f = np.where(fall, 1.0 - m1, 0.0)
         x_p = np.where(t_s >= a0, _mj(np.clip((t_s - a0) / (t_end - a0), 0.0, 1.0)), 0.0)
         x_l = 1.0 - x_f - x_p
-        x = np.stack([x_f, x_l, x_p], axis=2)                      # (C, N, 3)
-        g = np.einsum("cni,cnj->cij", x, x) + 1e-9 * np.eye(3)
+        x_b = np.where(fall, (a1 - a0) * m1, np.where(rest, t_s - a0, 0.0))  # drift of the rest, ends at L
+        x = np.stack([x_f, x_l, x_p, x_b], axis=2)                 # (C, N, 4)
+        g = np.einsum("cni,cnj->cij", x, x) + 1e-9 * np.eye(4)
         b = np.einsum("cni,n->ci", x, yy)
         sol = np.linalg.solve(g, b[..., None])[..., 0]
         out[c:c + chunk] = yy @ yy - np.einsum("ci,ci->c", b, sol)
@@ -216,7 +219,8 @@ def _split_residuals(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t
 
 
 def split_levels(y: FloatArray, f0: float, t_end: float, t1: float, t0: float) -> FloatArray:
-    """(F, L, P): far, rest and peak levels of the D5c model fitted with the given ``t1``, ``t0``."""
+    """(F, L, P, b): far, rest (at the onset) and peak levels and the rest's drift (per sample) of the D5c model
+    fitted with the given ``t1``, ``t0``."""
     i0, i1 = int(np.ceil(f0)), int(np.floor(t_end))
     idx = np.arange(i0, i1 + 1, dtype=np.float64)
     return _split_residuals(idx, y[i0:i1 + 1], f0, t_end, np.array([t1]), np.array([t0]))[1][0]
@@ -227,21 +231,20 @@ def fit_split(y: FloatArray, f0: float, t_end: float, fs_hz: float, min_pause: f
 
     Between leaving the far plateau at :math:`f_0` (D5) and the next peak at :math:`t_{end}` the knee falls
     back to the rest level, may rest there, and starts the impulse.  Model, linear in the far level
-    :math:`F`, the rest level :math:`L` and the peak :math:`P`:
+    :math:`F`, the rest level :math:`L`, its drift :math:`b` and the peak :math:`P`:
 
-    .. math:: y = F + (L-F)\,m\!\left(	frac{t-f_0}{t_1-f_0}
-ight)\ (t<t_1),\quad L\ (t_1\le t<t_0),\quad
-              L + (P-L)\,m\!\left(	frac{t-t_0}{t_{end}-t_0}
-ight)\ (t\ge t_0)
+    .. math:: y = F + (L_1-F)\,m\!\left(\tfrac{t-f_0}{t_1-f_0}\right)\ (t<t_1),\quad
+              L + b\,(t-t_0)\ (t_1\le t<t_0),\quad L + (P-L)\,m\!\left(\tfrac{t-t_0}{t_{end}-t_0}\right)\ (t\ge t_0)
 
-    with the minimum-jerk :math:`m`.  :math:`(t_1, t_0)`, :math:`t_1 \le t_0`, minimise the residual: a grid
+    with the minimum-jerk :math:`m` and :math:`L_1 = L + b\,(t_1-t_0)` (a rest that drifts slowly, an orientation
+    filter settling during a pause, is not taken for the start of the impulse).  :math:`(t_1, t_0)`, :math:`t_1 \le t_0`, minimise the residual: a grid
     at ~25 Hz over a ~25 Hz decimation, then every sample ±2 coarse steps around the best pair (moved until the
     best is inside).  Every sample
     votes, so a slow 5–10° impulse right after the fall (no rest at all, the thesis' continuous cycles) or
     after a pause of any length is timed to a few samples, and the rest level needs no separate estimate.
     A rest (:math:`t_0 > t_1`) is kept only when it is at least ``min_pause`` samples long and lowers the
-    residual by more than the Bayesian information criterion charges for one more parameter
-    (:math:`\ln N` residual variances); otherwise :math:`t_1 = t_0`, the best continuous split.
+    residual by more than the Bayesian information criterion charges for its parameters
+    (:math:`2\ln N` residual variances: the rest's length and drift); otherwise :math:`t_1 = t_0`, the best continuous split.
     """
     i0, i1 = int(np.ceil(f0)), int(np.floor(t_end))
     if i1 - i0 < 8:
@@ -285,7 +288,7 @@ ight)\ (t\ge t_0)
             res_c = _split_residuals(idx, y[i0:i1 + 1], f0, t_end, c, c)[0]
             j = int(np.argmin(res_c))
             n_s = len(idx)
-            if t0 - t1 < min_pause or res_c[j] - res < np.log(n_s) * res / max(n_s - 5, 1):
+            if t0 - t1 < min_pause or res_c[j] - res < 2.0 * np.log(n_s) * res / max(n_s - 6, 1):
                 return float(c[j]), float(c[j])
     return t1, t0
 
@@ -404,7 +407,7 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                     if np.isfinite(prev_left):  # D5c: the previous fall's end and this onset together
                         t1, s0 = fit_split(y_fit, prev_left, peak, fs_hz, p.min_pause_s * fs_hz)
                         if np.isfinite(t1) and np.isfinite(s0):
-                            _, lev_l, lev_p = split_levels(y_fit, prev_left, peak, t1, s0)
+                            _, lev_l, lev_p, _ = split_levels(y_fit, prev_left, peak, t1, s0)
                             if lev_l - lev_p < p.min_countermovement_rad:  # the fit finds no impulse
                                 plain = True
                             else:

@@ -188,7 +188,7 @@ def test_step_up_segmentation_on_varied_motions(shape, h, side, pauses, rest0, r
     # the mean flexion curve and the phase proportions are those of the truth
     # (the truth with the same 2° drift as the input, but without its white noise)
     drifted = _noisy(leg.knee_angles_rad, leg.t_s, seed, noise_deg=0.0)[:, 0]
-    assert np.sqrt(np.mean((r.mean_rad[:, 0] - _true_mean_curve(leg, drifted)) ** 2)) < 0.5 * DEG
+    assert np.sqrt(np.mean((r.mean_rad[:, 0] - _true_mean_curve(leg, drifted)) ** 2)) < 0.75 * DEG  # goal 1°
     true_pct = 100 * np.mean(np.diff(leg.phases_s, axis=1) / dur[:, None], axis=0)
     got = r.phase_stats()
     np.testing.assert_allclose([got[p]["mean_pct"] for p in ("impulse", "extension", "fall")], true_pct, atol=1.0)
