@@ -159,33 +159,174 @@ def fit_transition(y: FloatArray, i0: int, i1: int, level0: float, level1: float
     return i0 + t0, i0 + t1
 
 
+def fit_onset(y: FloatArray, lo: int, t_end: float) -> float:
+    r"""Start (fractional sample) of a minimum-jerk movement ending at ``t_end``, least squares over ``y[lo:t_end]``.
+
+    D5b: for each candidate start :math:`c` the model
+    :math:`y_i = L + b\,(i - c)_{-} + A\,m(\mathrm{clip}((i-c)/(t_{end}-c),0,1))`, with
+    :math:`(i-c)_{-} = \min(i-c, 0)`, is linear in the rest level :math:`L`, a drift :math:`b` of the rest
+    (a converging orientation filter) and the amplitude :math:`A`, solved in closed form; the start is the
+    candidate of least residual, refined by a parabola through its neighbours.  Every sample votes, so a
+    small slow movement (the 5–10° impulse) is timed far better than by its crossing times.  NaN when the
+    window holds fewer than 6 samples.
+    """
+    i1 = int(np.floor(t_end))
+    if i1 - lo < 6:
+        return float("nan")
+    idx = np.arange(lo, i1 + 1, dtype=np.float64)
+    yy = y[lo:i1 + 1]
+    cand = np.arange(lo, i1 - 2, dtype=np.float64)
+    d = idx[None, :] - cand[:, None]
+    tau = np.clip(d / (t_end - cand[:, None]), 0.0, 1.0)
+    x = np.stack([np.ones_like(tau), np.minimum(d, 0.0), _mj(tau)], axis=2)  # (C, N, 3)
+    g = np.einsum("cni,cnj->cij", x, x) + 1e-9 * np.eye(3)
+    b = np.einsum("cni,n->ci", x, yy)
+    sol = np.linalg.solve(g, b[..., None])[..., 0]
+    res = yy @ yy - np.einsum("ci,ci->c", b, sol)
+    j = int(np.argmin(res))
+    if 0 < j < len(res) - 1:
+        den = res[j - 1] - 2.0 * res[j] + res[j + 1]
+        if den > 0:
+            return float(cand[j] + 0.5 * (res[j - 1] - res[j + 1]) / den)
+    return float(cand[j])
+
+
+def _mj(tau: FloatArray) -> FloatArray:
+    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+
+
+def _split_residuals(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t1: FloatArray, t0: FloatArray,
+                     chunk: int = 1024) -> FloatArray:
+    """Residual sums of squares of the fall–rest–impulse model (D5c) for candidate pairs (t1, t0), and the
+    levels (F, L, P) of the last chunk's pairs."""
+    out = np.empty(len(t1))
+    last = np.zeros((0, 3))
+    for c in range(0, len(t1), chunk):
+        a1, a0 = t1[c:c + chunk, None], t0[c:c + chunk, None]
+        fall, rest = t_s < a1, (t_s >= a1) & (t_s < a0)
+        m1 = _mj(np.clip((t_s - f0) / (a1 - f0), 0.0, 1.0))
+        x_f = np.where(fall, 1.0 - m1, 0.0)
+        x_p = np.where(t_s >= a0, _mj(np.clip((t_s - a0) / (t_end - a0), 0.0, 1.0)), 0.0)
+        x_l = 1.0 - x_f - x_p
+        x_b = np.where(fall, (a1 - a0) * m1, np.where(rest, t_s - a0, 0.0))  # drift of the rest, ends at L
+        x = np.stack([x_f, x_l, x_p, x_b], axis=2)                 # (C, N, 4)
+        g = np.einsum("cni,cnj->cij", x, x) + 1e-9 * np.eye(4)
+        b = np.einsum("cni,n->ci", x, yy)
+        sol = np.linalg.solve(g, b[..., None])[..., 0]
+        out[c:c + chunk] = yy @ yy - np.einsum("ci,ci->c", b, sol)
+        last = sol
+    return out, last
+
+
+def split_levels(y: FloatArray, f0: float, t_end: float, t1: float, t0: float) -> FloatArray:
+    """(F, L, P, b): far, rest (at the onset) and peak levels and the rest's drift (per sample) of the D5c model
+    fitted with the given ``t1``, ``t0``."""
+    i0, i1 = int(np.ceil(f0)), int(np.floor(t_end))
+    idx = np.arange(i0, i1 + 1, dtype=np.float64)
+    return _split_residuals(idx, y[i0:i1 + 1], f0, t_end, np.array([t1]), np.array([t0]))[1][0]
+
+
+def fit_split(y: FloatArray, f0: float, t_end: float, fs_hz: float, min_pause: float = 0.0) -> tuple[float, float]:
+    r"""End of a fall and start of the next impulse (fractional samples) by least squares (D5c).
+
+    Between leaving the far plateau at :math:`f_0` (D5) and the next peak at :math:`t_{end}` the knee falls
+    back to the rest level, may rest there, and starts the impulse.  Model, linear in the far level
+    :math:`F`, the rest level :math:`L`, its drift :math:`b` and the peak :math:`P`:
+
+    .. math:: y = F + (L_1-F)\,m\!\left(\tfrac{t-f_0}{t_1-f_0}\right)\ (t<t_1),\quad
+              L + b\,(t-t_0)\ (t_1\le t<t_0),\quad L + (P-L)\,m\!\left(\tfrac{t-t_0}{t_{end}-t_0}\right)\ (t\ge t_0)
+
+    with the minimum-jerk :math:`m` and :math:`L_1 = L + b\,(t_1-t_0)` (a rest that drifts slowly, an orientation
+    filter settling during a pause, is not taken for the start of the impulse).  :math:`(t_1, t_0)`, :math:`t_1 \le t_0`, minimise the residual: a grid
+    at ~25 Hz over a ~25 Hz decimation, then every sample ±2 coarse steps around the best pair (moved until the
+    best is inside).  Every sample
+    votes, so a slow 5–10° impulse right after the fall (no rest at all, the thesis' continuous cycles) or
+    after a pause of any length is timed to a few samples, and the rest level needs no separate estimate.
+    A rest (:math:`t_0 > t_1`) is kept only when it is at least ``min_pause`` samples long and lowers the
+    residual by more than the Bayesian information criterion charges for its parameters
+    (:math:`2\ln N` residual variances: the rest's length and drift); otherwise :math:`t_1 = t_0`, the best continuous split.
+    """
+    i0, i1 = int(np.ceil(f0)), int(np.floor(t_end))
+    if i1 - i0 < 8:
+        return float("nan"), float("nan")
+    step = max(1, int(round(fs_hz / 25.0)))
+    idx = np.arange(i0, i1 + 1, dtype=np.float64)
+    lo_gap = 2.0 * step
+
+    def grid(cands1: FloatArray, cands0: FloatArray, sub: int) -> tuple[float, float]:
+        t1g, t0g = np.meshgrid(cands1, cands0, indexing="ij")
+        keep = (t0g >= t1g) & (t1g > f0 + 1.0) & (t0g < t_end - 1.0)
+        t1v, t0v = t1g[keep], t0g[keep]
+        if len(t1v) == 0:
+            return float("nan"), float("nan"), float("nan")
+        res = _split_residuals(idx[::sub], y[i0:i1 + 1:sub], f0, t_end, t1v, t0v)[0]
+        j = int(np.argmin(res))
+        return float(t1v[j]), float(t0v[j]), float(res[j])
+
+    cands = np.arange(f0 + lo_gap, t_end - lo_gap, step, dtype=np.float64)
+    t1, t0, _ = grid(cands, cands, step)
+    if not np.isfinite(t1):
+        return t1, t0
+    # every sample around the best pair, moved until the best lies inside the window (the slow impulse start
+    # trades against the fall's end on the coarse grid)
+    fine = np.arange(-2 * step, 2 * step + 1, dtype=np.float64)
+    res = float("nan")
+    for _ in range(6):
+        b1, b0, res = grid(t1 + fine, t0 + fine, 1)
+        if not np.isfinite(b1):
+            break
+        inside = abs(b1 - t1) < 2 * step and abs(b0 - t0) < 2 * step
+        t1, t0 = b1, b0
+        if inside:
+            break
+    if t0 > t1 and np.isfinite(res):
+        # a rest between fall and impulse is one more parameter: kept only when it lowers the residual by more
+        # than the Bayesian information criterion charges for it (ln N residual variances)
+        c = np.arange(min(t1, t0) - 2 * step, max(t1, t0) + 2 * step + 1, dtype=np.float64)
+        c = c[(c > f0 + 1.0) & (c < t_end - 1.0)]
+        if len(c):
+            res_c = _split_residuals(idx, y[i0:i1 + 1], f0, t_end, c, c)[0]
+            j = int(np.argmin(res_c))
+            n_s = len(idx)
+            if t0 - t1 < min_pause or res_c[j] - res < 2.0 * np.log(n_s) * res / max(n_s - 6, 1):
+                return float(c[j]), float(c[j])
+    return t1, t0
+
+
 @dataclass
 class Gap:
-    """What lies between two excursions: the rest region and (countermovement tasks) the countermovement peak."""
+    """What lies between two excursions: the rest region and (countermovement tasks) the countermovement peak.
+
+    rest : the still region holding the split (``None``: no rest).   cm_index : sample of the countermovement
+    peak (None: none measurable).   level : the rest level at the split (countermovement gaps; the level both
+    the fall before and the impulse after are fitted to).   split : sample where the knee is stillest.
+    """
 
     rest: Region | None
-    cm_index: int | None  # sample of the countermovement peak (None: none measurable)
+    cm_index: int | None
+    level: float = float("nan")
+    split: int | None = None
 
 
-def analyse_gap(y: FloatArray, g0: int, g1: int, still: NDArray[np.int64], task: TaskSpec, p: MotorTaskParams,
-                w: int, expect_cm: bool) -> Gap:
-    """Rest and countermovement between two excursions (D4)."""
+def analyse_gap(y: FloatArray, v: tuple[FloatArray, ...], g0: int, g1: int, still: NDArray[np.int64], task: TaskSpec,
+                p: MotorTaskParams, w: int, expect_cm: bool) -> Gap:
+    """Rest, split and countermovement between two excursions (D4)."""
     if g1 <= g0:
         return Gap(None, None)
     if task.countermovement and expect_cm:
         cm = g0 + int(np.argmin(y[g0:g1]))
-        # the rest lies before the countermovement, at least half the minimum countermovement above it
+        # the split lies before the countermovement peak, at least half the minimum countermovement above it:
+        # the stillest sample there (a pause of any length, or the instant the fall turns into the impulse)
         ok = np.flatnonzero(y[g0:cm] >= y[cm] + 0.5 * p.min_countermovement_rad)
         if len(ok):
             hi = g0 + int(ok[-1]) + 1
-            r = _longest_still(still, g0, hi)
-            if r is None:  # no still sample: a degenerate rest at the slowest sample
-                v_abs = np.abs(np.gradient(y[g0:hi])) if hi - g0 > 1 else np.zeros(1)
-                i = g0 + int(np.argmin(v_abs))
-                r = (i, i + 1)
-            region = _region(y, r[0], r[1], w)
-            if region.level_out - y[cm] >= p.min_countermovement_rad:
-                return Gap(region, cm)
+            for rate in v:  # the averaged rate first (a slow impulse in noise), then the plain one (fast cycles)
+                split = g0 + int(np.argmin(np.abs(rate[g0:hi])))
+                half = max(1, w // 3)
+                level = float(np.median(y[max(g0, split - half):min(hi, split + half + 1)]))
+                if level - y[cm] >= p.min_countermovement_rad:
+                    r = _containing(still, split, g0, hi)
+                    return Gap(_region(y, r[0], r[1], w), cm, level, split)
         # no countermovement distinguishable from the rest: the rest is the still run at the lowest point
         r = _containing(still, cm, g0, g1)
         return Gap(_region(y, r[0], r[1], w), None)
@@ -206,13 +347,18 @@ class CycleEvents:
 
 
 def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: TaskSpec,
-                  p: MotorTaskParams) -> list[CycleEvents]:
-    """All cycles (one per excursion) with their events, from the sign-normalised smoothed flexion ``y``."""
+                  p: MotorTaskParams, y_raw: FloatArray | None = None) -> list[CycleEvents]:
+    """All cycles (one per excursion) with their events, from the sign-normalised smoothed flexion ``y``;
+    the least-squares fits (D5b, D5c) use ``y_raw``, the same before smoothing, when given (the low-pass
+    bends the slow start of the impulse that those fits time)."""
     n = len(y)
+    y_fit = y if y_raw is None else np.asarray(y_raw, dtype=np.float64)
     exc = excursions(y, span, p)
     if len(exc) == 0:
         return []
     v = np.gradient(y) * fs_hz
+    n_avg = max(1, int(round(0.2 * fs_hz)))  # D4 split: the rate averaged over 0.2 s (slow impulses vs noise)
+    v_split = np.convolve(v, np.ones(n_avg) / n_avg, mode="same") if len(v) >= n_avg else v
     still = merge_runs(true_runs(np.abs(v) < p.stationary_rad_s), int(round(p.merge_gap_s * fs_hz)))
     w = max(1, int(round(p.level_window_s * fs_hz)))
     edge_rest = int(round(p.min_edge_rest_s * fs_hz))
@@ -221,7 +367,7 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
     for k in range(k_n + 1):
         g0 = int(exc[k - 1, 1]) if k > 0 else 0
         g1 = int(exc[k, 0]) if k < k_n else n
-        gaps.append(analyse_gap(y, g0, g1, still, task, p, w, expect_cm=k < k_n))
+        gaps.append(analyse_gap(y, (v_split, v), g0, g1, still, task, p, w, expect_cm=k < k_n))
     out = []
     for k in range(k_n):
         a, b = int(exc[k, 0]), int(exc[k, 1])
@@ -243,14 +389,50 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
         if before.rest is not None:
             rest = before.rest
             amplitude = far.level_in - rest.level_out
-            if before.cm_index is not None:
+            plain = before.cm_index is None
+            if not plain:
                 cm = before.cm_index
-                s0, s1 = fit_transition(y, max(rest.start, rest.end - w), cm, rest.level_out, y[cm], p)
+                # impulse: from the split level to the peak, fitted over the whole gap before the peak (the fall
+                # before it lies below the 10 % crossing, so the outward crossing search never reaches it)
+                g0 = int(exc[k - 1, 1]) if k > 0 else 0
+                amplitude = far.level_in - before.level
                 e0, e1 = fit_transition(y, cm, min(far.end, far.start + w), y[cm], far.level_in, p)
-                ev[0] = np.clip(s0, rest.start, cm)
-                ev[1] = np.clip(np.nanmean([s1, e0]) if np.isfinite(s1) or np.isfinite(e0) else cm, ev[0], far.end)
+                peak = e0 if np.isfinite(e0) else float(cm)
+                # D5b: the impulse onset by least squares on every sample from the previous fall's end (or the
+                # rest's start) to the peak; the crossing fit (D5) only where that is impossible
+                s0 = float("nan")
+                lo = rest.start
+                if p.boundary_model == "min_jerk":
+                    prev_left = out[k - 1].events[3] if k > 0 else float("nan")
+                    if np.isfinite(prev_left):  # D5c: the previous fall's end and this onset together
+                        t1, s0 = fit_split(y_fit, prev_left, peak, fs_hz, p.min_pause_s * fs_hz)
+                        if np.isfinite(t1) and np.isfinite(s0):
+                            _, lev_l, lev_p, _ = split_levels(y_fit, prev_left, peak, t1, s0)
+                            if lev_l - lev_p < p.min_countermovement_rad:  # the fit finds no impulse
+                                plain = True
+                            else:
+                                out[k - 1].events[4] = t1
+                                lo = min(lo, int(np.floor(t1)))
+                    elif k == 0:  # D5b: a rest before, no fall; the window starts half an impulse before
+                        # its onset (3 × peak − 50 % crossing), so a slow drift of the rest (a converging
+                        # filter) does not pass for the start of the impulse
+                        mid = 0.5 * (before.level + y[cm])
+                        above = np.flatnonzero(y[:cm] >= mid)
+                        half_imp = peak - above[-1] if len(above) else peak
+                        lo = max(0, int(np.floor(peak - 3.0 * half_imp)))
+                        s0 = fit_onset(y_fit, lo, peak)
+                if not np.isfinite(s0):
+                    s0, _ = fit_transition(y, g0, cm, before.level, y[cm], p)
+                ev[0] = np.clip(s0, lo, cm)
+                ev[1] = np.clip(peak, ev[0], far.end)
                 ev[2] = np.clip(e1, ev[1], far.end)
-            else:
+            if plain:
+                if before.cm_index is not None:  # no impulse after all: the rest is the still run at the peak
+                    g0 = int(exc[k - 1, 1]) if k > 0 else 0
+                    r = _containing(still, before.cm_index, g0, a)
+                    rest = _region(y, r[0], r[1], w)
+                    gaps[k] = Gap(rest, None)
+                    amplitude = far.level_in - rest.level_out
                 e0, e1 = fit_transition(y, max(rest.start, rest.end - w), min(far.end, far.start + w),
                                         rest.level_out, far.level_in, p)
                 ev[0] = np.clip(e0, rest.start, far.start + 1)
@@ -258,8 +440,12 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                 ev[2] = np.clip(e1, ev[0], far.end)
         if after.rest is not None:
             rest = after.rest
-            f0, f1 = fit_transition(y, max(far.start, far.end - w), min(rest.end, rest.start + w),
-                                    far.level_out, rest.level_in, p)
+            if after.cm_index is not None:  # fall to the split level, fitted up to the next peak
+                f0, f1 = fit_transition(y, max(far.start, far.end - w), after.cm_index, far.level_out,
+                                        after.level, p)
+            else:
+                f0, f1 = fit_transition(y, max(far.start, far.end - w), min(rest.end, rest.start + w),
+                                        far.level_out, rest.level_in, p)
             ev[3] = np.clip(f0, far.start, rest.end)
             ev[4] = np.clip(f1, ev[3], rest.end)
         if reason == "incomplete_start":  # events before the excursion are not measurable

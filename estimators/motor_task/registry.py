@@ -48,9 +48,9 @@ class TaskInfo:
 TASK_INFO: tuple[TaskInfo, ...] = (
     TaskInfo("step_up", "Single-leg step-up", ("impulse", "extension", "fall"),
              "estimators.motor_task.tasks.step_up"),
-    TaskInfo("squat", "Squat", ("descent", "hold", "ascent"), "estimators.motor_task.tasks.squat"),
     TaskInfo("seated_knee_extension", "Seated knee extension", ("extension", "hold", "flexion"),
              "estimators.motor_task.tasks.seated_knee_extension"),
+    TaskInfo("squat", "Squat", ("descent", "hold", "ascent"), "estimators.motor_task.tasks.squat"),
 )
 
 #: The registered task names, in :data:`TASK_INFO` order.

@@ -96,6 +96,9 @@ class MotorTaskParams:
         impulse of zero duration.  Default 1.5°.
     min_edge_rest_s : rest needed before the first and after the last cycle, else it is incomplete.
         Default 0.2 s.
+    min_pause_s : shortest rest between the end of a fall and the next impulse that counts as a pause (which
+        ends the cycle before it); a shorter one, or one the fit cannot tell from noise, makes the two cycles
+        meet at one split.  Default 0.1 s.
     boundary_model : ``"min_jerk"`` (default): each transition's start and end are those of the
         minimum-jerk movement fitting its 10 %…90 % crossing times; ``"threshold"``: the instants the
         knee is ``boundary_threshold_rad`` away from the plateau it leaves / reaches.
@@ -119,6 +122,7 @@ class MotorTaskParams:
     min_excursion_rad: float = math.radians(20.0)
     min_countermovement_rad: float = math.radians(1.5)
     min_edge_rest_s: float = 0.2
+    min_pause_s: float = 0.1
     boundary_model: str = "min_jerk"
     boundary_threshold_rad: float = math.radians(2.0)
     normalise_span: str = "movement"
@@ -134,7 +138,7 @@ class MotorTaskParams:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"MotorTaskParams.{name} must be a positive finite number, got {v!r}")
-        for name in ("merge_gap_s", "min_countermovement_rad", "min_edge_rest_s"):
+        for name in ("merge_gap_s", "min_countermovement_rad", "min_edge_rest_s", "min_pause_s"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"MotorTaskParams.{name} must be a finite number >= 0, got {v!r}")

@@ -314,17 +314,24 @@ def test_walking_foot_stance_truth_is_still_and_loop_closes():
 
 
 # ---------------------------------------------------------------------------------------- knee
+@pytest.mark.parametrize("shape", ["thesis", "rest_between"])
 @pytest.mark.parametrize("step_height_m, start_deg", [(0.17, 60.0), (0.34, 90.0)])
-def test_step_up_cycles_match_the_flexion_curve(step_height_m, start_deg):
-    leg = sim.step_up(n_cycles=4, step_height_m=step_height_m, side="right", seed=1)
+def test_step_up_cycles_match_the_flexion_curve(step_height_m, start_deg, shape):
+    if shape == "thesis":  # seed 004 Tables 8.2/8.4: peak flexion 83° / 111°, start 7.5° below
+        start_deg = {0.17: 75.5, 0.34: 103.5}[step_height_m]
+    leg = sim.step_up(n_cycles=4, step_height_m=step_height_m, side="right", seed=1, shape=shape)
     flex = np.rad2deg(leg.knee_angles_rad[:, 0])
     t = leg.t_s
     assert leg.cycles_s.shape == (4, 2) and leg.phases_s.shape == (4, 4)
-    np.testing.assert_allclose(leg.cycles_s[1:, 0], leg.cycles_s[:-1, 1])
-    np.testing.assert_allclose(leg.cycles_s[:, 0], leg.phases_s[:, 0])
+    # DESIGN.md §3: a cycle runs onset → back at rest; continuous cycles meet, a rest between them is in none
+    np.testing.assert_allclose(leg.cycles_s, leg.phases_s[:, [0, 3]])
+    if shape == "thesis":
+        np.testing.assert_allclose(leg.cycles_s[1:, 0], leg.cycles_s[:-1, 1])
+    else:
+        assert np.all(leg.cycles_s[1:, 0] - leg.cycles_s[:-1, 1] > 1.0)
     dflex = np.gradient(flex, t)
     for (c0, c1), (on, peak, leave, rest) in zip(leg.cycles_s, leg.phases_s):
-        assert c0 < peak < leave < rest <= c1
+        assert c0 < peak < leave < rest == c1
         cyc = (t >= c0) & (t < c1)
         start = np.interp(on, t, flex)
         assert start == pytest.approx(start_deg, abs=3.5)
@@ -332,7 +339,7 @@ def test_step_up_cycles_match_the_flexion_curve(step_height_m, start_deg):
         assert 5.0 <= flex[cyc].max() - start <= 10.0  # impulse rise before the extension
         ext = (t >= peak) & (t < leave)
         assert np.min(flex[ext]) <= 3.0 + 1e-9  # full extension reached and held ...
-        hold = (t > leave - 0.3) & (t <= leave)
+        hold = (t > leave - 0.25) & (t <= leave)
         assert np.all(np.abs(dflex[hold]) < 1e-3)
         after = (t > leave) & (t < leave + 0.2)
         assert np.all(dflex[after] > 0)  # ... then left (the fall)
@@ -342,6 +349,45 @@ def test_step_up_cycles_match_the_flexion_curve(step_height_m, start_deg):
     np.testing.assert_allclose(ankle, np.tile([0, 0, step_height_m + 0.08], (len(t), 1)), atol=1e-12)
     # the true angles are those of the two segment orientations
     np.testing.assert_allclose(leg.knee_angles_at(t[::50]), leg.knee_angles_rad[::50], atol=1e-9)
+
+
+@pytest.mark.parametrize("h, cycle_s", [(0.17, 3.38), (0.34, 3.54)])
+def test_thesis_step_up_follows_the_measured_phase_proportions(h, cycle_s):
+    """seed 004 Tables 8.1/8.3: cycle 3.38 s / 3.54 s; impulse 34.0 / 33.3 %, extension 31.7 / 32.8 %,
+    fall 34.0 / 33.9 % of the cycle (SD 0.9–3 %); the three phases sum to the cycle."""
+    leg = sim.step_up(n_cycles=60, step_height_m=h, seed=3)
+    dur = leg.cycles_s[:, 1] - leg.cycles_s[:, 0]
+    pct = 100 * np.diff(leg.phases_s, axis=1) / dur[:, None]
+    np.testing.assert_allclose(pct.sum(axis=1), 100.0)
+    assert np.mean(dur) == pytest.approx(cycle_s, abs=0.03) and np.std(dur) < 0.07
+    np.testing.assert_allclose(pct.mean(axis=0), [34.0, 32.0, 34.0], atol=1.0)
+    assert np.all(pct.std(axis=0, ddof=1) < 3.0)
+    # Fig. 8.2: full extension reached about half-way through the cycle
+    flex = leg.knee_angles_rad[:, 0]
+    for k in range(5):
+        c = (leg.t_s >= leg.cycles_s[k, 0]) & (leg.t_s < leg.cycles_s[k, 1])
+        reached = leg.t_s[c][np.argmax(flex[c] < np.deg2rad(3.5))]
+        assert 0.4 < (reached - leg.cycles_s[k, 0]) / dur[k] < 0.6
+
+
+def test_step_up_pauses_rests_and_cycle_length():
+    pauses = [0.0, 4.0, 0.0, 6.0]
+    leg = sim.step_up(n_cycles=5, step_height_m=0.34, side="left", seed=2, pauses_s=pauses, initial_rest_s=0.0,
+                      final_rest_s=3.0, cycle_s=2.0)
+    t, flex = leg.t_s, leg.knee_angles_rad[:, 0]
+    np.testing.assert_allclose(leg.cycles_s[1:, 0] - leg.cycles_s[:-1, 1], pauses, atol=1e-9)
+    assert leg.cycles_s[0, 0] == 0.0 and t[-1] == pytest.approx(leg.cycles_s[-1, 1] + 3.0)
+    assert np.mean(leg.cycles_s[:, 1] - leg.cycles_s[:, 0]) == pytest.approx(2.0, abs=0.05)
+    for k in (1, 3):  # the knee holds the start posture through each pause, which no cycle contains
+        gap = (t > leg.cycles_s[k, 1]) & (t < leg.cycles_s[k + 1, 0])
+        assert np.ptp(flex[gap]) < 1e-9
+        assert not np.any((leg.cycles_s[:, 0] < t[gap].mean()) & (t[gap].mean() < leg.cycles_s[:, 1]))
+    with pytest.raises(ValueError, match="pauses_s"):
+        sim.step_up(n_cycles=3, pauses_s=[1.0, -1.0])
+    with pytest.raises(ValueError, match="cycle_s"):
+        sim.step_up(n_cycles=3, cycle_s=7.0)
+    with pytest.raises(ValueError, match="shape"):
+        sim.step_up(n_cycles=3, shape="square")
 
 
 def test_step_up_left_leg_keeps_clinical_signs():

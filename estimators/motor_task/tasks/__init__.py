@@ -10,7 +10,7 @@ from __future__ import annotations
 from estimators.motor_task.registry import TASK_INFO, load_task_module
 from estimators.motor_task.spec import EVENTS, MotorTaskParams, PhaseSpec, TaskSpec
 
-__all__ = ["EVENTS", "MotorTaskParams", "PhaseSpec", "TASKS", "TaskSpec", "get_task"]
+__all__ = ["EVENTS", "TASKS", "MotorTaskParams", "PhaseSpec", "TaskSpec", "get_task"]
 
 #: name → :class:`TaskSpec` of every registered task, in registry order.
 TASKS: dict[str, TaskSpec] = {t.name: load_task_module(t.name).SPEC for t in TASK_INFO}
