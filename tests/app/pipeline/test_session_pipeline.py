@@ -191,7 +191,7 @@ def test_heading_drift_during_the_task_is_warned(tmp_path):
     absence of both is asserted in the contract test."""
     from reports.warning_text import warning_text
 
-    truth = simulate_session(seed=3, side="right", n_cycles=6, accelerometer_errors=False,
+    truth = simulate_session(seed=3, side="right", n_cycles=9, accelerometer_errors=False,
                              shank_task_field_turn_rad_s=float(np.deg2rad(1.5)))
     write_session(tmp_path / "session", truth)
     auto, _ = process_folder(tmp_path / "session", tmp_path / "auto", reports=False)
@@ -206,7 +206,7 @@ def test_heading_drift_during_the_task_is_warned(tmp_path):
     drift = [w for w in r["quality"]["warnings"] if w["code"] == "heading_drift"]
     assert len(drift) == 1 and drift[0]["params"]["variant"] == "task", r["quality"]["warnings"]
     p = drift[0]["params"]
-    assert p["change_deg"] > 6.0 and p["holds"] == 6 and p["last_deg"] > p["first_deg"]  # turned one way
+    assert p["change_deg"] > 6.0 and p["holds"] == 9 and p["last_deg"] > p["first_deg"]  # turned one way
     assert r["quality"]["heading_task"]["change_deg"] == pytest.approx(p["change_deg"])
     assert "magnetic_disturbance" not in {w["code"] for w in r["quality"]["warnings"]}
     for lang in ("es", "pt"):
