@@ -29,7 +29,7 @@ import argparse
 import sys
 import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -76,36 +76,17 @@ def draw(seed: int) -> Draw:
 
 
 def simulate(d: Draw):
-    """The session of one draw, built as :func:`app.demo.simulate_session` builds the demo's."""
-    from app.demo import EPOCH0_S, SimulatedSession
-    from app.ingestion import simulated_streams
+    """The session of one draw: the demo's session (:func:`app.pipeline.demo.simulate_session`) around this draw's
+    step-up motion, sensor errors, mounting and field."""
+    from app.pipeline.demo import simulate_session
     from estimators import simulation as sim
 
     motion = sim.step_up(d.n_cycles, d.step_height_m, d.side, shape=d.shape, cycle_s=d.cycle_s,
                          pauses_s=list(d.pauses_s) if d.n_cycles > 1 else None,
                          initial_rest_s=d.initial_rest_s, final_rest_s=d.final_rest_s, seed=d.seed)
-    postures = {"standing": sim.standing(30.0, d.side), "lying": sim.supine(30.0, d.side)}
-    epochs = {"mag_calibration": EPOCH0_S, "standing": EPOCH0_S + 180.0, "lying": EPOCH0_S + 230.0,
-              "task": EPOCH0_S + 300.0}
-    recordings = {}
-    for i, seg in enumerate(("thigh", "shank")):
-        clock = replace(sim.ClockSpec.metamotion(), clock_drift_ppm=(40.0, 8000.0)[i])
-        spec = sim.ImuSpec.random(d.seed * 10 + i, clock=clock)
-        if not d.acc_errors:
-            spec = replace(spec, acc=sim.AccErrors.noise_only())
-        mount = sim.random_rotation(np.deg2rad(d.mount_max_deg), d.seed * 10 + i)
-        lever = motion.thigh_lever_arm_m if seg == "thigh" else motion.shank_lever_arm_m
-        fig8 = sim.simulate(sim.figure_eight(60.0, seed=d.seed + i), spec, seed=d.seed * 100 + i)
-        recordings[(seg, "mag_calibration")] = simulated_streams(fig8, epochs["mag_calibration"] + 80.0 * i)
-        for j, (role, leg) in enumerate(postures.items()):
-            imu = sim.simulate(getattr(leg, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
-                               seed=d.seed * 100 + 10 * (j + 1) + i)
-            recordings[(seg, role)] = simulated_streams(imu, epochs[role])
-        turn = float(np.deg2rad(d.field_turn_deg_s)) if seg == "shank" else 0.0
-        imu = sim.simulate(getattr(motion, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
-                           seed=d.seed * 100 + 50 + i, mag_field_turn_rad_s=turn)
-        recordings[(seg, "task")] = simulated_streams(imu, epochs["task"])
-    return SimulatedSession(recordings, motion, epochs, d.side, d.step_height_m)
+    return simulate_session(seed=d.seed, side=d.side, n_cycles=d.n_cycles, accelerometer_errors=d.acc_errors,
+                            shank_task_field_turn_rad_s=float(np.deg2rad(d.field_turn_deg_s)), motion=motion,
+                            step_height_m=d.step_height_m, mounting_max_deg=d.mount_max_deg)
 
 
 def _heading_rad(q) -> np.ndarray:
@@ -115,9 +96,9 @@ def _heading_rad(q) -> np.ndarray:
 
 
 def score(d: Draw, filter_name: str | None) -> dict:
-    from app.demo import accuracy, write_session
-    from app.pipeline import ProcessOptions
-    from app.process import process_folder
+    from app.pipeline.demo import accuracy, write_session
+    from app.pipeline.process import process_folder
+    from app.pipeline.session import ProcessOptions
     from estimators import quaternion as quat
 
     truth = simulate(d)

@@ -57,7 +57,9 @@ class SimulatedSession:
 
 
 def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_errors: bool = True,
-                     supine_roll_out_deg: float = 0.0, shank_task_field_turn_rad_s: float = 0.0) -> SimulatedSession:
+                     supine_roll_out_deg: float = 0.0, shank_task_field_turn_rad_s: float = 0.0,
+                     motion: LegMotion | None = None, step_height_m: float = STEP_HEIGHT_M,
+                     mounting_max_deg: float = MOUNTING_MAX_DEG) -> SimulatedSession:
     """Simulate the four recordings of both sensors (module docstring).
 
     ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
@@ -69,8 +71,12 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
     ``shank_task_field_turn_rad_s`` turns the magnetic field at the shank sensor about the vertical at that
     rate during the task only (a slowly drifting local disturbance, :func:`estimators.simulation.simulate`'s
     ``mag_field_turn_rad_s``): the shank's heading drifts away from the thigh's while norm and dip stay right.
+    ``motion`` replaces the default task (:func:`estimators.simulation.step_up` with ``n_cycles`` at
+    ``step_height_m``), e.g. another step-up shape with pauses (``benchmarks/robustness.py``);
+    ``mounting_max_deg`` bounds each sensor's random misalignment.
     """
-    motion = sim.step_up(n_cycles, STEP_HEIGHT_M, side, seed=seed)
+    if motion is None:
+        motion = sim.step_up(n_cycles, step_height_m, side, seed=seed)
     postures = {"standing": sim.standing(30.0, side), "lying": sim.supine(30.0, side, roll_out_rad=np.deg2rad(supine_roll_out_deg))}
     epochs = {"mag_calibration": EPOCH0_S, "standing": EPOCH0_S + 180.0, "lying": EPOCH0_S + 230.0,
               "task": EPOCH0_S + 300.0}
@@ -80,7 +86,7 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
         spec = sim.ImuSpec.random(seed * 10 + i, clock=clock)
         if not accelerometer_errors:
             spec = replace(spec, acc=sim.AccErrors.noise_only())
-        mount = sim.random_rotation(np.deg2rad(MOUNTING_MAX_DEG), seed * 10 + i)
+        mount = sim.random_rotation(np.deg2rad(mounting_max_deg), seed * 10 + i)
         lever = motion.thigh_lever_arm_m if seg == "thigh" else motion.shank_lever_arm_m
         fig8 = sim.simulate(sim.figure_eight(60.0, seed=seed + i), spec, seed=seed * 100 + i)
         recordings[(seg, "mag_calibration")] = simulated_streams(fig8, epochs["mag_calibration"] + 80.0 * i)
@@ -92,7 +98,7 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
         imu = sim.simulate(getattr(motion, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
                            seed=seed * 100 + 50 + i, mag_field_turn_rad_s=turn_rad_s)
         recordings[(seg, "task")] = simulated_streams(imu, epochs["task"], run_on_s={"gyr": 1.5} if i == 0 else None)
-    return SimulatedSession(recordings, motion, epochs, side, STEP_HEIGHT_M)
+    return SimulatedSession(recordings, motion, epochs, side, step_height_m)
 
 
 def write_session(folder: Path, session: SimulatedSession, fmt: str = "metabase") -> list[Path]:
