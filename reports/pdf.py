@@ -110,12 +110,14 @@ def _task_and_protocol(pdf: ReportPDF, ri: ReportInput) -> None:
     side_key = _side_key(side_raw)
     step_m = _step_height_m(ri)
     pdf.section("section_task")
-    pdf.paragraph(pdf.tr("task_step_up"), style="B")
-    leg = pdf.tr(f"leg_{side_key}") if side_key else (side_raw or MISSING)
-    height = _step_text(pdf, step_m)
-    pdf.paragraph(pdf.tr("task_description", leg=leg, height=height) if height
-                  else pdf.tr("task_description_no_height", leg=leg))
-    pdf.paragraph(pdf.tr("task_phases"))
+    task = str(r.get("task") or "step_up")
+    pdf.paragraph(pdf.tr(f"task_{task}") if has(f"task_{task}") else task, style="B")
+    if task == "step_up":  # the description and the cycle definition are the step-up's
+        leg = pdf.tr(f"leg_{side_key}") if side_key else (side_raw or MISSING)
+        height = _step_text(pdf, step_m)
+        pdf.paragraph(pdf.tr("task_description", leg=leg, height=height) if height
+                      else pdf.tr("task_description_no_height", leg=leg))
+        pdf.paragraph(pdf.tr("task_phases"))
     pdf.section("section_protocol")
     pdf.labelled(pdf.tr("protocol_sensors_label"), pdf.tr("protocol_sensors"))
     pdf.labelled(pdf.tr("protocol_mag_label"), pdf.tr("protocol_mag"))
