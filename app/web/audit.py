@@ -34,8 +34,8 @@ route                                                   action        patient / 
 Deliberately not recorded: ``GET /jobs/{id}`` (the UI polls it many times a second while a job runs; it
 shows the job's progress, not patient data) and the audit log itself.  The query string is not stored (a
 search term is itself patient data and the log should not copy it).  Rows are append-only from the API:
-``app.web.api.audit`` only lists them (:func:`app.store.audit.list_events`); nothing in the product updates or deletes them (a clinic's deletion
-cascades to its events).
+``app.web.api.audit`` only lists them (:func:`app.store.audit.list_events`); nothing in the product updates or
+deletes them (a clinic's deletion cascades to its events).
 """
 
 from __future__ import annotations

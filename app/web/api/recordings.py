@@ -12,7 +12,8 @@ name whose type is not allowed (``.csv``, ``.xlsx``, ``.json``) is refused (415)
 more than ``CHAKAMO_MAX_FILES`` files per request or per session answers 413.  Only when the whole request
 has been read are the blobs committed and the recordings inserted (all or none,
 :func:`app.store.recordings.store_upload`), then the session's files are checked by the ingestion
-(:meth:`app.store.checks.IngestionChecker.refresh`) and the result stored on the session and returned.  Uploads are thus stored and committed before any processing can start.
+(:meth:`app.store.checks.IngestionChecker.refresh`) and the result stored on the session and returned.
+Uploads are thus stored and committed before any processing can start.
 
 Resources: the caller is looked up in a short database session closed before the body is read
 (:data:`app.web.api.deps.UploadClinician`), so a slow upload holds no database connection; at most
