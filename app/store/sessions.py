@@ -38,10 +38,11 @@ class Busy(Conflict):
 def clinic_session(db: Session, clinic_id: int, session_id: int, lock: bool = False) -> KneeSession:
     """Session ``session_id`` of clinic ``clinic_id``, else :class:`NotFound`.  ``lock``: ``SELECT … FOR
     UPDATE`` of the row (PostgreSQL; SQLite serialises writers anyway), so that changes of one session's files
-    and jobs happen one at a time."""
+    and jobs happen one at a time; the row is then read afresh (what was committed before the lock)."""
     if lock:  # the row alone (the ORM's joined patient cannot be locked on PostgreSQL's outer join)
         db.execute(select(KneeSession.id).where(KneeSession.id == session_id).with_for_update())
-    row = db.get(KneeSession, session_id)
+    # once locked, read the row again even if this session loaded it before (a change committed meanwhile)
+    row = db.get(KneeSession, session_id, populate_existing=lock)
     if row is None or row.clinic_id != clinic_id:
         raise NotFound(f"No session {session_id} in your clinic; check the id.")
     return row
