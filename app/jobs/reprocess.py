@@ -12,6 +12,9 @@ recordings.  Each gets one of these outcomes (:class:`Outcome`), printed as a ta
 * ``busy`` — a job of the session is queued or running (it is not queued twice);
 * ``not ready`` — the stored files do not pass the ingestion check (its sentence is shown).
 
+The rules are those of the API's ``POST /sessions/{id}/process`` (:func:`app.jobs.queue.enqueue`, which both
+call), plus ``current``.
+
 Handing the jobs over: with ``CHAKAMO_JOB_BACKEND=celery`` each job is published to the broker at once (a broker
 that does not answer leaves the jobs queued: the API server's and the workers' sweepers publish them when it
 answers again); with the embedded engine the running ``chakamo serve`` finds them at its next sweep (or at its
@@ -26,9 +29,13 @@ from dataclasses import dataclass
 from sqlalchemy import select
 
 from app.choices import FILTER_NAMES
-from app.store.database import Database
-from app.store.models import Analysis, Clinic, Job, KneeSession, utcnow
+from app.jobs.queue import NotReady, UpToDate, enqueue
 from app.settings import Settings
+from app.store.blobs import open_storage
+from app.store.checks import IngestionChecker
+from app.store.database import Database
+from app.store.models import Clinic, KneeSession, utcnow
+from app.store.sessions import Busy
 
 
 @dataclass(frozen=True)
@@ -54,44 +61,26 @@ def _candidates(db: Database, since: dt.date, clinic: str | None) -> list[int]:
         return list(s.scalars(query.order_by(KneeSession.date, KneeSession.id)))
 
 
-def _queue_one(db: Database, settings: Settings, session_id: int, filter_name: str, lang: str,
+def _queue_one(db: Database, checker: IngestionChecker, session_id: int, filter_name: str, lang: str,
                force: bool) -> Outcome:
-    from app.web.api.recordings import refresh_ingestion
-    from app.web.api.schemas import ingestion_fresh
-    from app.pipeline.session import PIPELINE_VERSION
-    from app.store.blobs import open_storage
-
+    """One session's outcome: :func:`app.jobs.queue.enqueue`'s refusals become ``busy`` / ``not ready`` /
+    ``current`` (its transaction rolled back), a queued job ``queued``."""
     with db.session() as s:
         session = s.get(KneeSession, session_id)
-        fresh = ingestion_fresh(session)
-    if not fresh:  # files changed since the last check (or never checked): check them now, no transaction held
-        refresh_ingestion(db, open_storage(settings), settings.tmp_dir, session_id)
-    with db.session() as s:
-        session = s.scalars(select(KneeSession).where(KneeSession.id == session_id)
-                            .with_for_update(of=KneeSession)).one()  # locks the session row, not its patient
+        clinic_id = session.clinic_id
         base = dict(session_id=session.id, patient=session.patient.external_id, date=session.date)
-        active = s.scalar(select(Job.id).where(Job.session_id == session.id, Job.status.in_(("queued", "running"))))
-        if active is not None:
-            return Outcome(**base, status="busy", job_id=active, note=f"job {active} is queued or running")
-        ingestion = session.ingestion if ingestion_fresh(session) else {}
-        if not ingestion.get("ok"):
-            return Outcome(**base, status="not ready", note=str(ingestion.get("error") or "files not checked"))
-        done = s.scalar(select(Analysis.id).where(
-            Analysis.session_id == session.id, Analysis.filter == filter_name, Analysis.lang == lang,
-            Analysis.pipeline_version == PIPELINE_VERSION, Analysis.files_version == session.files_version))
-        if done is not None and not force:
-            return Outcome(**base, status="current", note=f"analysis {done} (pipeline {PIPELINE_VERSION})")
-        job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, stage="queued",
-                  pipeline_version=PIPELINE_VERSION,
-                  log=[f"{utcnow().isoformat(timespec='seconds')} queued by chakamo reprocess"])
-        s.add(job)
-        s.flush()
-        other = s.scalar(select(Job.id).where(Job.session_id == session.id, Job.id != job.id,
-                                              Job.status.in_(("queued", "running"))))
-        if other is not None:  # queued by the API at the same moment (SQLite has no row locks): that one stands
-            s.rollback()
-            return Outcome(**base, status="busy", job_id=other, note=f"job {other} is queued or running")
-        return Outcome(**base, status="queued", job_id=job.id)
+    try:
+        with db.session() as s:
+            job = enqueue(s, clinic_id, session_id, filter_name=filter_name, lang=lang, checker=checker,
+                          log_lines=[f"{utcnow().isoformat(timespec='seconds')} queued by chakamo reprocess"],
+                          unless_current=not force)
+            return Outcome(**base, status="queued", job_id=job.id)
+    except Busy as busy:  # also one queued by the API at the same moment: that one stands
+        return Outcome(**base, status="busy", job_id=busy.job_id, note=f"job {busy.job_id} is queued or running")
+    except NotReady as not_ready:
+        return Outcome(**base, status="not ready", note=str(not_ready.reason or "files not checked"))
+    except UpToDate as current:
+        return Outcome(**base, status="current", note=str(current))
 
 
 def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: str | None = None,
@@ -102,7 +91,8 @@ def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: s
     db = Database(settings.db_url)
     try:
         db.migrate()
-        outcomes = [_queue_one(db, settings, sid, filter_name, lang, force) for sid in _candidates(db, since, clinic)]
+        checker = IngestionChecker(db, open_storage(settings), settings.tmp_dir)
+        outcomes = [_queue_one(db, checker, sid, filter_name, lang, force) for sid in _candidates(db, since, clinic)]
         job_ids = [o.job_id for o in outcomes if o.status == "queued"]
         if not job_ids:
             return outcomes, "no job queued"

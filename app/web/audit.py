@@ -34,8 +34,8 @@ route                                                   action        patient / 
 Deliberately not recorded: ``GET /jobs/{id}`` (the UI polls it many times a second while a job runs; it
 shows the job's progress, not patient data) and the audit log itself.  The query string is not stored (a
 search term is itself patient data and the log should not copy it).  Rows are append-only from the API:
-``app.web.api.audit`` only lists them; nothing in the product updates or deletes them (a clinic's deletion
-cascades to its events).
+``app.web.api.audit`` only lists them (:func:`app.store.audit.list_events`); nothing in the product updates or
+deletes them (a clinic's deletion cascades to its events).
 """
 
 from __future__ import annotations
@@ -44,7 +44,9 @@ from typing import TYPE_CHECKING
 
 from sqlalchemy.orm import Session
 
-from app.store.models import ApiToken, AuditEvent
+from app.store.accounts import token_label
+from app.store.audit import add_event
+from app.store.models import AuditEvent
 
 if TYPE_CHECKING:  # types only: this module must not import the API package (a worker may call it)
     from fastapi import Request
@@ -62,8 +64,8 @@ def _actor(db: Session, principal: "Principal") -> tuple[str, int | None, int | 
     """``(actor_kind, user_id, token_id, label)`` of the caller."""
     if principal.user is not None:
         return "user", principal.user.id, None, principal.user.email
-    token = db.get(ApiToken, principal.token_id) if principal.token_id is not None else None
-    label = f"token {principal.token_id}" + (f" ({token.label})" if token is not None and token.label else "")
+    name = token_label(db, principal.token_id) if principal.token_id is not None else None
+    label = f"token {principal.token_id}" + (f" ({name})" if name else "")
     return "token", None, principal.token_id, label
 
 
@@ -73,18 +75,16 @@ def record(db: Session, request: "Request", principal: "Principal", action: str,
     transaction — the one that carries the request's work, so both commit together (module docstring).
 
     Call it once the data to be answered has been loaded (so a 404 leaves no event) and after anything
-    that rolls ``db`` back (:func:`app.web.api.recordings.ensure_fresh_ingestion` does).  Raises ``ValueError``
+    that rolls ``db`` back (:meth:`app.store.checks.IngestionChecker.ensure_fresh` does).  Raises ``ValueError``
     for an action outside :data:`ACTIONS` (a programming error, caught by the tests)."""
     if action not in ACTIONS:
         raise ValueError(f"unknown audit action {action!r}; use one of {', '.join(ACTIONS)}")
     kind, user_id, token_id, label = _actor(db, principal)
-    event = AuditEvent(clinic_id=principal.clinic_id, actor_kind=kind, user_id=user_id,
-                       token_id=token_id, actor=label[:_ACTOR_CHARS], action=action, patient_id=patient_id,
-                       session_id=session_id, resource=f"{request.method} {request.url.path}"[:_RESOURCE_CHARS],
-                       client=(request.client.host if request.client else "")[:_CLIENT_CHARS])
-    db.add(event)
-    db.flush()  # a failing insert fails the request here, before any data is answered
-    return event
+    # flushed at once: a failing insert fails the request here, before any data is answered
+    return add_event(db, clinic_id=principal.clinic_id, actor_kind=kind, user_id=user_id, token_id=token_id,
+                     actor=label[:_ACTOR_CHARS], action=action, patient_id=patient_id, session_id=session_id,
+                     resource=f"{request.method} {request.url.path}"[:_RESOURCE_CHARS],
+                     client=(request.client.host if request.client else "")[:_CLIENT_CHARS])
 
 
 __all__ = ["ACTIONS", "record"]

@@ -6,17 +6,22 @@ large, 415 wrong type, 422 validation.  ``../shared/DESIGN.md`` §4 has the hosp
 whole API.
 Shared pieces: :mod:`.deps` (caller, roles, clinic scoping, CSRF), :mod:`.schemas` (shapes); reads and
 changes of patient data are recorded by :mod:`app.web.audit` and listed by :mod:`.audit` (admins).
+
+Routers only parse, authorise, call :mod:`app.store` and :mod:`app.jobs` services, record audit events and
+answer; the services' refusals (:mod:`app.store.errors`) get their status codes in one place,
+:func:`app.web.api.deps.domain_errors`, a dependency of every route below.
 """
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Depends
 
 
 def api_router() -> APIRouter:
-    """All routers of API v1 under ``/api/v1``."""
+    """All routers of API v1 under ``/api/v1``, each route wrapped by :func:`.deps.domain_errors`."""
     from app.web.api import (artefacts, audit, auth, clinics, fhir, jobs, options, patients, recordings, results,
                              sessions, users)
+    from app.web.api.deps import domain_errors
 
-    router = APIRouter(prefix="/api/v1")
+    router = APIRouter(prefix="/api/v1", dependencies=[Depends(domain_errors, scope="function")])
     for module in (auth, options, clinics, users, patients, sessions, recordings, jobs, results, artefacts, fhir, audit):
         router.include_router(module.router)
     return router

@@ -14,9 +14,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import Response
 
+from app.store.analyses import artefact, pick_analysis
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
-from app.web.api.results import artefact_row, pick_analysis
 from app.web.api.schemas import Lang
 
 router = APIRouter(prefix="/sessions", tags=["artefacts"])
@@ -28,7 +28,7 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
     analysis = pick_analysis(db, session, analysis_id)
     if name == "report.pdf" and not lang:
         lang = analysis.lang
-    art = artefact_row(db, analysis, name, lang)
+    art = artefact(db, analysis, name, lang)
     stem, ext = name.rsplit(".", 1)
     filename = f"chakamo-session-{session.id}-{analysis.id}{'-' + lang if lang else ''}-{stem}.{ext}"
     disposition = "attachment" if attachment else "inline"

@@ -16,15 +16,13 @@ login still succeeds and the upgrade waits for the next one.
 
 from __future__ import annotations
 
-import datetime as dt
 import functools
 
 from fastapi import APIRouter, HTTPException, Request, Response
-from sqlalchemy import delete, select
 
+from app.store import accounts
 from app.web.api.deps import COOKIE, DbDep, PrincipalDep, SettingsDep
 from app.web.api.schemas import LoginIn, MeOut, user_out
-from app.store.models import BrowserSession, User, utcnow
 from app.web.security import Busy, csrf_token, hash_password, needs_rehash, new_session_id, sha256_hex, verify_password
 
 router = APIRouter(prefix="/auth", tags=["auth"])
@@ -45,7 +43,7 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
     if throttle.blocked(email, ip):
         raise HTTPException(429, "Too many failed logins for this email or from this computer; wait 15 minutes "
                                  "and try again, or ask your clinic admin.")
-    user = db.scalar(select(User).where(User.email == email))
+    user = accounts.user_by_email(db, email)
     try:
         ok = verify_password(body.password, user.password_hash if user else _dummy_hash())
     except Busy:
@@ -61,10 +59,7 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
         except Busy:  # the old hash still works; it is upgraded at a later login
             pass
     sid = new_session_id()
-    now = utcnow()
-    db.execute(delete(BrowserSession).where(BrowserSession.expires_at < now))  # housekeeping
-    db.add(BrowserSession(user_id=user.id, session_sha256=sha256_hex(sid), created_at=now,
-                          expires_at=now + dt.timedelta(hours=settings.session_hours)))
+    accounts.open_browser_session(db, user.id, sha256_hex(sid), settings.session_hours)
     response.set_cookie(COOKIE, sid, max_age=int(settings.session_hours * 3600), httponly=True, samesite="strict",
                         secure=not settings.development, path="/")
     return {"user": user_out(user), "csrf_token": csrf_token(settings.key, sid)}
@@ -74,7 +69,7 @@ def login(body: LoginIn, request: Request, response: Response, db: DbDep, settin
 def logout(principal: PrincipalDep, db: DbDep, settings: SettingsDep) -> Response:
     """Close the browser session (a bearer caller has none: nothing to do) and clear the cookie."""
     if principal.session_id:
-        db.execute(delete(BrowserSession).where(BrowserSession.session_sha256 == sha256_hex(principal.session_id)))
+        accounts.close_browser_session(db, sha256_hex(principal.session_id))
     response = Response(status_code=204)
     response.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict", secure=not settings.development)
     return response

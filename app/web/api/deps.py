@@ -15,8 +15,14 @@ session opened by a dependency stays open (a pooled connection, on PostgreSQL an
 the route returns.  :data:`UploadClinician` finds the caller in a short session of its own, closed before
 the body is read, and gives a detached :class:`Principal` (tests overriding the caller override
 :func:`get_upload_principal` too).  Clinic scoping: every router loads rows
-through :func:`scoped` helpers which answer 404 for another clinic's ids — the same answer as for an unknown
-id, so ids of other clinics cannot even be probed.
+through the ``scoped_*`` helpers (the caller's clinic given to :mod:`app.store`'s lookups) which answer 404
+for another clinic's ids — the same answer as for an unknown id, so ids of other clinics cannot even be probed.
+
+Domain errors: the store and jobs services raise :mod:`app.store.errors` classes (no HTTP there);
+:func:`domain_errors`, a dependency of every API route (:func:`app.web.api.api_router`), turns them into
+``HTTPException`` by :data:`STATUS_OF` — the one place where they get their status codes — with their
+sentence as ``detail``.  It wraps the route's other dependencies, so the request's database session has
+been rolled back by then, as for an ``HTTPException`` raised by the route itself.
 """
 
 from __future__ import annotations
@@ -27,14 +33,18 @@ from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request
 from fastapi.security import HTTPBearer
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.store.models import ApiToken, BrowserSession, Job, KneeSession, Patient, User, utcnow
 from app.jobs.work import JobRunner
-from app.web.security import ROLE_RANK, csrf_ok, csrf_token, sha256_hex
 from app.settings import Settings
+from app.store import accounts
 from app.store.blobs import BlobStore
+from app.store.checks import IngestionChecker
+from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotFound
+from app.store.models import Job, KneeSession, Patient, User, utcnow
+from app.store.patients import clinic_patient
+from app.store.sessions import clinic_job, clinic_session
+from app.web.security import ROLE_RANK, csrf_ok, csrf_token, sha256_hex
 
 COOKIE = "chakamo_session"
 CSRF_HEADER = "X-CSRF-Token"
@@ -59,11 +69,41 @@ async def get_runner(request: Request) -> JobRunner:
     return request.app.state.runner
 
 
+def checker_of(request: Request) -> IngestionChecker:
+    """The app's ingestion checker (database, blob store, temporary folder, warm helper process)."""
+    state = request.app.state
+    return IngestionChecker(state.db, state.store, state.settings.tmp_dir, state.check_pool)
+
+
+async def get_checker(request: Request) -> IngestionChecker:
+    return checker_of(request)
+
+
 SettingsDep = Annotated[Settings, Depends(get_settings_dep)]
 #: ``scope="function"``: the commit happens before the response is sent (the client's next request sees it)
 DbDep = Annotated[Session, Depends(get_db, scope="function")]
 StoreDep = Annotated[BlobStore, Depends(get_store)]
 RunnerDep = Annotated[JobRunner, Depends(get_runner)]
+CheckerDep = Annotated[IngestionChecker, Depends(get_checker)]
+
+#: the status code of each domain error (:mod:`app.store.errors`; subclasses such as
+#: :class:`app.store.sessions.Busy` or :class:`app.jobs.queue.NotReady` take their base's)
+STATUS_OF: dict[type[DomainError], int] = {NotFound: 404, Conflict: 409, Invalid: 400, LimitExceeded: 413}
+
+
+def http_error(error: DomainError) -> HTTPException:
+    """The ``HTTPException`` answering ``error`` (:data:`STATUS_OF`; 400 for a class not listed)."""
+    status = next((code for cls, code in STATUS_OF.items() if isinstance(error, cls)), 400)
+    return HTTPException(status, error.detail)
+
+
+async def domain_errors():
+    """A dependency of every API route: a domain error raised by the route (or by a dependency resolved after
+    this one) answers as :func:`http_error` says (module docstring)."""
+    try:
+        yield
+    except DomainError as error:
+        raise http_error(error) from None
 
 
 @dataclass(frozen=True)
@@ -97,8 +137,7 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
         if scheme.lower() != "bearer" or not token.strip():
             raise HTTPException(401, "The Authorization header must be 'Bearer <token>'; create a token with "
                                      "`chakamo tokens create`.", headers={"WWW-Authenticate": "Bearer"})
-        row = db.scalar(select(ApiToken).where(ApiToken.token_sha256 == sha256_hex(token.strip()),
-                                               ApiToken.revoked_at.is_(None)))
+        row = accounts.active_token(db, sha256_hex(token.strip()))
         if row is None:
             raise HTTPException(401, "Unknown or revoked API token; check it or create a new one with "
                                      "`chakamo tokens create`.", headers={"WWW-Authenticate": "Bearer"})
@@ -107,7 +146,7 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
     sid = request.cookies.get(COOKIE)
     if not sid:
         raise HTTPException(401, "Not logged in; log in, or send 'Authorization: Bearer <token>'.")
-    row = db.scalar(select(BrowserSession).where(BrowserSession.session_sha256 == sha256_hex(sid)))
+    row = accounts.browser_session(db, sha256_hex(sid))
     if row is None or row.expires_at <= utcnow() or not row.user.active:
         raise HTTPException(401, "Your session has expired or was closed; log in again.")
     if request.method in _UNSAFE and not csrf_ok(settings.key, sid, request.headers.get(CSRF_HEADER)):
@@ -153,40 +192,22 @@ Admin = Annotated[Principal, Depends(require("admin"))]
 
 
 def scoped_patient(db: Session, principal: Principal, patient_id: int) -> Patient:
-    row = db.get(Patient, patient_id)
-    if row is None or row.clinic_id != principal.clinic_id:
-        raise HTTPException(404, f"No patient {patient_id} in your clinic; check the id.")
-    return row
+    """Patient ``patient_id`` of the caller's clinic (else 404, via :class:`app.store.errors.NotFound`)."""
+    return clinic_patient(db, principal.clinic_id, patient_id)
 
 
 def scoped_session(db: Session, principal: Principal, session_id: int, lock: bool = False) -> KneeSession:
-    """Session ``session_id`` of the caller's clinic, or 404.  ``lock``: ``SELECT … FOR UPDATE`` (PostgreSQL;
-    SQLite serialises writers anyway), so that changes of one session's files and jobs happen one at a time."""
-    if lock:  # the row alone (the ORM's joined patient cannot be locked on PostgreSQL's outer join)
-        db.execute(select(KneeSession.id).where(KneeSession.id == session_id).with_for_update())
-    row = db.get(KneeSession, session_id)
-    if row is None or row.clinic_id != principal.clinic_id:
-        raise HTTPException(404, f"No session {session_id} in your clinic; check the id.")
-    return row
-
-
-def refuse_while_processing(db: Session, session_id: int, what: str) -> None:
-    """409 when a job of session ``session_id`` is queued or running (its files must not change under it)."""
-    job_id = db.scalar(select(Job.id).where(Job.session_id == session_id, Job.status.in_(("queued", "running")))
-                       .order_by(Job.id))
-    if job_id is not None:
-        raise HTTPException(409, f"Session {session_id} is being processed (job {job_id}); {what} when that job has "
-                                 "finished.")
+    """Session ``session_id`` of the caller's clinic, else 404; ``lock``: :func:`app.store.sessions.clinic_session`."""
+    return clinic_session(db, principal.clinic_id, session_id, lock=lock)
 
 
 def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
-    row = db.get(Job, job_id)
-    if row is None or row.clinic_id != principal.clinic_id:
-        raise HTTPException(404, f"No job {job_id} in your clinic; check the id.")
-    return row
+    """Job ``job_id`` of the caller's clinic, else 404."""
+    return clinic_job(db, principal.clinic_id, job_id)
 
 
-__all__ = ["COOKIE", "CSRF_HEADER", "Admin", "Clinician", "DbDep", "Principal", "PrincipalDep", "Reader", "RunnerDep",
-           "SettingsDep", "StoreDep", "UploadClinician", "get_db", "get_principal", "get_runner", "get_settings_dep",
-           "get_store", "get_upload_principal", "refuse_while_processing", "require", "resolve_principal",
-           "scoped_job", "scoped_patient", "scoped_session"]
+__all__ = ["COOKIE", "CSRF_HEADER", "STATUS_OF", "Admin", "CheckerDep", "Clinician", "DbDep", "Principal",
+           "PrincipalDep", "Reader", "RunnerDep", "SettingsDep", "StoreDep", "UploadClinician", "checker_of",
+           "domain_errors", "get_checker", "get_db", "get_principal", "get_runner", "get_settings_dep", "get_store",
+           "get_upload_principal", "http_error", "require", "resolve_principal", "scoped_job", "scoped_patient",
+           "scoped_session"]

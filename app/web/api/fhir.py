@@ -15,9 +15,9 @@ import json
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import Response
 
+from app.store.analyses import artefact, pick_analysis
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
-from app.web.api.results import artefact_row, pick_analysis
 from app.web.api.schemas import patient_out
 from app.web.fhir import FhirExportError, diagnostic_report
 
@@ -31,8 +31,8 @@ def diagnostic_report_route(session_id: int, request: Request, principal: Reader
                             analysis_id: int | None = None):
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, analysis_id)
-    results = json.loads(store.read(artefact_row(db, analysis, "results.json").sha256))
-    pdf = store.read(artefact_row(db, analysis, "report.pdf", analysis.lang).sha256)
+    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
+    pdf = store.read(artefact(db, analysis, "report.pdf", analysis.lang).sha256)
     sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
             "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
             "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,

@@ -10,9 +10,10 @@ Content-Length above that is refused before a byte is read.  A body may hold at 
 parts, and besides the files only the form fields ``segment`` and ``role`` (400 for any other).  A file
 name whose type is not allowed (``.csv``, ``.xlsx``, ``.json``) is refused (415) before its bytes are read;
 more than ``CHAKAMO_MAX_FILES`` files per request or per session answers 413.  Only when the whole request
-has been read are the blobs committed and the recordings inserted (all or none), then the session's files
-are checked by the ingestion (:func:`app.store.workspace.check_ingestion`) and the result stored on the session
-and returned.  Uploads are thus stored and committed before any processing can start.
+has been read are the blobs committed and the recordings inserted (all or none,
+:func:`app.store.recordings.store_upload`), then the session's files are checked by the ingestion
+(:meth:`app.store.checks.IngestionChecker.refresh`) and the result stored on the session and returned.
+Uploads are thus stored and committed before any processing can start.
 
 Resources: the caller is looked up in a short database session closed before the body is read
 (:data:`app.web.api.deps.UploadClinician`), so a slow upload holds no database connection; at most
@@ -22,9 +23,9 @@ disconnects mid-upload is logged in one line and its partial files removed.
 Consistency: uploads and deletions answer 409 while a job of the session is queued or running (its files
 must not change under it).  Every change bumps the session's ``files_version`` in the same transaction; the
 ingestion check is stored with the version it was computed from and only if that is still the current one
-(:func:`save_ingestion`), so a slower, older check can never overwrite a newer one; a session whose stored
-check is stale is checked again when it is read or processed (:func:`refresh_ingestion`).  Two uploads
-racing for the same file name: one wins, the other gets 409 (the database's unique constraint decides).
+(:func:`app.store.checks.save_ingestion`), so a slower, older check can never overwrite a newer one; a session
+whose stored check is stale is checked again when it is read or processed.  Two uploads racing for the same
+file name: one wins, the other gets 409 (the database's unique constraint decides).
 
 Audit: an upload and a deletion each record one event (``upload`` / ``delete``, :mod:`app.web.audit`) in the
 transaction that stores or removes the recordings, so the files and their event commit together.
@@ -37,26 +38,21 @@ session's ``session.json`` manifest.
 from __future__ import annotations
 
 import logging
-import threading
 from pathlib import PurePosixPath, PureWindowsPath
 
 from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from python_multipart.exceptions import MultipartParseError
 from python_multipart.multipart import MultipartParser, parse_options_header
-from sqlalchemy import select, update
-from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Session
 from starlette.requests import ClientDisconnect
 
-from app.web import audit
-from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, refuse_while_processing, scoped_session
-from app.web.api.schemas import UploadOut, ingestion_fresh, recording_out
-from app.store.database import Database, ensure_blob
-from app.store.models import KneeSession, Recording
-from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
+from app.store import recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
-from app.store.workspace import check_ingestion
+from app.store.recordings import MANIFEST
+from app.store.sessions import clinic_session, refuse_while_processing
+from app.web import audit
+from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
+from app.web.api.schemas import UploadOut, recording_out
 
 log = logging.getLogger("chakamo.uploads")
 router = APIRouter(prefix="/sessions", tags=["recordings"])
@@ -171,111 +167,21 @@ class _Upload:
 def _check_session(request: Request, principal, session_id: int) -> None:
     """404 for another clinic's or an unknown session, 409 while it is being processed (before any byte)."""
     with request.app.state.db.session() as db:
-        scoped_session(db, principal, session_id)
+        clinic_session(db, principal.clinic_id, session_id)
         refuse_while_processing(db, session_id, "upload the files")
 
 
 def _store(request: Request, principal, session_id: int, upload: _Upload, segment: str | None,
            role: str | None) -> dict:
-    db_, settings = request.app.state.db, request.app.state.settings
-    names = [n for n, _ in upload.files]
-    dupes = sorted({n for n in names if names.count(n) > 1})
-    if dupes:
-        raise HTTPException(400, f"{', '.join(dupes)} sent twice in one upload; send each file once.")
-    with db_.session() as db:
-        session = scoped_session(db, principal, session_id, lock=True)
-        refuse_while_processing(db, session.id, "upload the files")
-        have = set(db.scalars(select(Recording.file_name).where(Recording.session_id == session.id)))
-        clash = sorted(have & set(names))
-        if clash:
-            raise HTTPException(409, f"{', '.join(clash)} already uploaded to this session; delete the earlier "
-                                     "recording first to replace it.")
-        if len(have) + len(names) > settings.max_files:
-            raise HTTPException(413, f"A session holds at most {settings.max_files} files ({len(have)} already "
-                                     "stored); delete the ones not needed.")
-        rows = []
-        for name, writer in upload.files:
-            size = writer.size_bytes
-            sha = writer.commit()
-            ensure_blob(db, sha, size)
-            rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
-                                  segment=segment, role=role))
-        db.add_all(rows)
-        session.files_version = KneeSession.files_version + 1
-        try:
-            db.flush()
-        except IntegrityError:  # another upload stored the same file name meanwhile
-            raise HTTPException(409, f"{', '.join(names)}: another upload to this session stored a file of the "
-                                     "same name at the same time; reload the session and check its files.") from None
-        refuse_while_processing(db, session.id, "upload the files")  # a job queued meanwhile (SQLite) wins
+    """Store the upload's files and their event in one transaction, then check the session's files."""
+    with request.app.state.db.session() as db:
+        session, rows = recordings.store_upload(db, principal.clinic_id, session_id, upload.files, segment=segment,
+                                                role=role, max_files=request.app.state.settings.max_files)
         audit.record(db, request, principal, "upload", patient_id=session.patient_id, session_id=session.id)
         out = [recording_out(r) for r in rows]
-    try:  # the files are committed: whatever happens to their check, the upload stands
-        ingestion = refresh_ingestion(db_, request.app.state.store, settings.tmp_dir, session_id,
-                                      request.app.state.check_pool)
-    except Exception:  # noqa: BLE001 — e.g. no database connection free: the stale check is redone later
-        log.warning("upload to session %s stored; its ingestion check failed and runs again later", session_id,
-                    exc_info=True)
-        ingestion = {"ok": False, "messages": [], "error": CHECK_DEFERRED}
+    # the files are committed: whatever happens to their check, the upload stands
+    ingestion = checker_of(request).refresh_or_defer(session_id, f"upload to session {session_id} stored")
     return {"recordings": out, "ingestion": ingestion}
-
-
-def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict) -> bool:
-    """Store ``ingestion`` (computed from the files of ``version``) unless the files changed since; True if
-    stored.  One conditional UPDATE: a check of older files never overwrites a newer one."""
-    with db_.session() as db:
-        res = db.execute(update(KneeSession).where(KneeSession.id == session_id, KneeSession.files_version == version)
-                         .values(ingestion=ingestion, ingestion_version=version))
-        return res.rowcount == 1
-
-
-#: the upload's answer when its files are stored but their check could not run (it runs again later)
-CHECK_DEFERRED = ("The files are stored, but the server could not check them now; the check runs again when the "
-                  "session is opened or processed.")
-#: ingestion checks (CPU-bound, holding the GIL most of the time) running at once in one server process; the
-#: others wait their turn, holding no database connection, so that reads keep their share of the processor
-CHECK_CONCURRENCY = 1
-_check_slots = threading.BoundedSemaphore(CHECK_CONCURRENCY)
-#: longest wait for the check in the helper process before it runs here instead
-CHECK_TIMEOUT_S = 120.0
-
-
-def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir, session_id: int, pool=None) -> dict:
-    """Run the ingestion over the session's stored files (no database connection held meanwhile; at most
-    :data:`CHECK_CONCURRENCY` at once), store the result if the files did not change meanwhile
-    (:func:`save_ingestion`) and return it.  With ``pool`` (the server's warm helper process,
-    :class:`app.pipeline.render.RenderPool`) the check runs there, so its CPU time does not hold this process' GIL
-    and the server's other requests keep answering; without it, or while it is not warm, it runs here."""
-    with db_.session() as db:
-        session = db.get(KneeSession, session_id)
-        version = session.files_version
-        patient, recordings = session.patient, list(session.recordings)
-        db.expunge_all()
-    with _check_slots:
-        future = pool.submit(check_ingestion, store, tmp_dir, session, patient, recordings) if pool else None
-        try:
-            ingestion = future.result(CHECK_TIMEOUT_S) if future is not None else None
-        except Exception:  # noqa: BLE001 — a hung or broken helper: replace it, and check here instead
-            log.warning("ingestion check of session %s failed in the helper process; checking here", session_id,
-                        exc_info=True)
-            future.cancel()
-            pool.restart()
-            ingestion = None
-        if ingestion is None:
-            ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
-    save_ingestion(db_, session_id, version, ingestion)
-    return ingestion
-
-
-def ensure_fresh_ingestion(db: Session, request: Request, session: KneeSession) -> None:
-    """When the stored check of ``session`` (a row of the request's ``db``) is stale, check its files again
-    (:func:`refresh_ingestion`) with no transaction of ``db`` held meanwhile, then reload ``session``."""
-    if ingestion_fresh(session) or not session.recordings:
-        return
-    state = request.app.state
-    db.rollback()  # the check may take seconds: no open transaction (nor row lock) while it runs
-    refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session.id, state.check_pool)
-    db.refresh(session)
 
 
 def _too_large(settings) -> HTTPException:
@@ -358,10 +264,7 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
             raise HTTPException(400, "No file in the request; send the recordings in the multipart field 'files'.")
         segment = upload.fields.get("segment") or None
         role = upload.fields.get("role") or None
-        if segment is not None and segment not in SEGMENTS:
-            raise HTTPException(400, f"segment {segment!r} is unknown; use {' or '.join(SEGMENTS)}.")
-        if role is not None and role not in ROLES:
-            raise HTTPException(400, f"role {role!r} is unknown; use one of {', '.join(ROLES)}.")
+        recordings.check_labels(segment, role)
         return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role)
     finally:
         await run_in_threadpool(upload.discard)  # no-op for committed blobs (their temp file is gone)
@@ -369,15 +272,7 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
 
 def _delete(request: Request, principal, session_id: int, recording_id: int) -> None:
     with request.app.state.db.session() as db:
-        session = scoped_session(db, principal, session_id, lock=True)
-        rec = db.get(Recording, recording_id)
-        if rec is None or rec.session_id != session.id:
-            raise HTTPException(404, f"No recording {recording_id} in session {session_id}; check the ids.")
-        refuse_while_processing(db, session.id, "delete files")
-        db.delete(rec)
-        session.files_version = KneeSession.files_version + 1
-        db.flush()
-        refuse_while_processing(db, session.id, "delete files")
+        session = recordings.delete_recording(db, principal.clinic_id, session_id, recording_id)
         audit.record(db, request, principal, "delete", patient_id=session.patient_id, session_id=session.id)
 
 
@@ -386,13 +281,9 @@ def _delete(request: Request, principal, session_id: int, recording_id: int) -> 
 def delete_recording(session_id: int, recording_id: int, principal: Clinician, request: Request) -> Response:
     """Remove one recording from the session (its stored content stays if other rows use it)."""
     _delete(request, principal, session_id, recording_id)
-    state = request.app.state
-    try:  # the deletion is committed: whatever happens to the new check, it stands (the stale check is redone)
-        refresh_ingestion(state.db, state.store, state.settings.tmp_dir, session_id, state.check_pool)
-    except Exception:  # noqa: BLE001
-        log.warning("recording deleted from session %s; its ingestion check failed and runs again later",
-                    session_id, exc_info=True)
+    # the deletion is committed: whatever happens to the new check, it stands (the stale check is redone)
+    checker_of(request).refresh_or_defer(session_id, f"recording deleted from session {session_id}")
     return Response(status_code=204)
 
 
-__all__ = ["FORM_FIELDS", "ensure_fresh_ingestion", "refresh_ingestion", "router", "save_ingestion"]
+__all__ = ["FORM_FIELDS", "router"]

@@ -2,8 +2,9 @@
 database rows → response dicts.
 
 Request bodies are pydantic models (422 on bad shapes, extra keys refused); responses are declared with
-models too so ``/docs`` shows them.  The ``*_out`` functions build the dicts from database rows; the
-session status is derived here (see :func:`session_status`).
+models too so ``/docs`` shows them.  The ``*_out`` functions build the dicts from database rows they are
+given (they run no query); the session status and the shown ingestion check come from
+:mod:`app.store.sessions`.
 """
 
 from __future__ import annotations
@@ -12,13 +13,11 @@ import datetime as dt
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
-from sqlalchemy import func, select
-from sqlalchemy.orm import Session
 
-from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.choices import (DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES,
                          USER_ROLE_NAMES)
-from app.store.workspace import NO_RECORDINGS
+from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
+from app.store.sessions import ready, session_status, stored_ingestion
 
 # every option list comes from app.choices (the one definition the CLI and GET /options use too)
 Lang = Literal[LANGUAGE_NAMES]  # type: ignore[valid-type]
@@ -250,55 +249,22 @@ def analysis_out(a: Analysis) -> dict[str, Any]:
     return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings")}
 
 
-BEING_CHECKED = {"ok": False, "messages": [], "error": "The session's files are being checked; reload in a moment."}
-
-
-def ingestion_fresh(s: KneeSession) -> bool:
-    """True when the stored ingestion check was computed from the session's current files."""
-    return s.ingestion is not None and s.ingestion_version == s.files_version
-
-
-def ingestion_out(s: KneeSession, n_recordings: int | None = None) -> dict[str, Any]:
-    """The stored check when fresh; "no recordings" for an empty session; else "being checked"."""
-    if ingestion_fresh(s):
-        return s.ingestion
-    n = len(s.recordings) if n_recordings is None else n_recordings
-    return dict(NO_RECORDINGS if n == 0 else BEING_CHECKED)
-
-
-def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None) -> str:
-    """empty (no files) · incomplete (ingestion not ok) · processing / done / failed (the latest job) · ready."""
-    if n_recordings == 0:
-        return "empty"
-    if latest_job is not None:
-        return {"queued": "processing", "running": "processing"}.get(latest_job.status, latest_job.status)
-    return "ready" if ingestion_ok else "incomplete"
-
-
-def summaries(db: Session, sessions: list[KneeSession]) -> list[dict[str, Any]]:
-    """SessionSummary dicts of ``sessions`` with three queries whatever their number."""
-    ids = [s.id for s in sessions]
-    counts = dict(db.execute(select(Recording.session_id, func.count()).where(Recording.session_id.in_(ids))
-                             .group_by(Recording.session_id)).all()) if ids else {}
-    latest: dict[int, Job] = {}
-    if ids:
-        last_ids = select(func.max(Job.id)).where(Job.session_id.in_(ids)).group_by(Job.session_id)
-        latest = {j.session_id: j for j in db.scalars(select(Job).where(Job.id.in_(last_ids)))}
+def summaries(sessions: list[KneeSession], counts: dict[int, int], latest: dict[int, Job]) -> list[dict[str, Any]]:
+    """SessionSummary dicts of ``sessions`` from :func:`app.store.sessions.summary_facts`."""
     return [summary_out(s, counts.get(s.id, 0), latest.get(s.id)) for s in sessions]
 
 
 def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None) -> dict[str, Any]:
-    ok = ingestion_fresh(s) and bool(s.ingestion.get("ok"))
     return {"id": s.id, "patient_id": s.patient_id, "date": s.date, "task": s.task, "created_at": s.created_at,
-            "n_recordings": n_recordings, "status": session_status(n_recordings, ok, latest_job)}
+            "n_recordings": n_recordings, "status": session_status(n_recordings, ready(s), latest_job)}
 
 
-def session_out(db: Session, s: KneeSession) -> dict[str, Any]:
-    jobs = list(db.scalars(select(Job).where(Job.session_id == s.id).order_by(Job.id.desc())))
-    analyses = list(db.scalars(select(Analysis).where(Analysis.session_id == s.id).order_by(Analysis.id.desc())))
+def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:
+    """The Session dict of ``s`` with its jobs and analyses, newest first (:func:`app.store.sessions.session_jobs`,
+    :func:`app.store.sessions.session_analyses`)."""
     recs = list(s.recordings)
     out = summary_out(s, len(recs), jobs[0] if jobs else None)
     out |= {"step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
-            "recordings": [recording_out(r) for r in recs], "ingestion": ingestion_out(s, len(recs)),
+            "recordings": [recording_out(r) for r in recs], "ingestion": stored_ingestion(s, len(recs)),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out

@@ -51,7 +51,7 @@ def test_uploads_deletes_and_processing_wait_for_the_running_job(client, setting
 def test_a_check_of_older_files_never_overwrites_a_newer_one(client, settings):
     """Delete one file and upload another (the count stays 1): a check computed for the first file, stored
     late, is refused; the session shows the check of its current file."""
-    from app.web.api.recordings import save_ingestion
+    from app.store.checks import save_ingestion
     from app.store.models import KneeSession
 
     h = clinic_token(settings, "V")

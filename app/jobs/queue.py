@@ -1,0 +1,92 @@
+"""Asking for a session to be processed: :func:`enqueue` inserts a ``queued`` job after checking that the
+session may be processed now; :func:`hand_over` tells the engine.
+
+Used by ``POST /sessions/{id}/process`` and by ``chakamo reprocess`` (:mod:`app.jobs.reprocess`) alike.
+The rules, in order: a session with a queued or running job is refused (:class:`app.store.sessions.Busy`);
+a stale ingestion check (files changed since) is redone first, holding no transaction
+(:meth:`app.store.checks.IngestionChecker.ensure_fresh`); then, with the session's row locked, busy is
+checked again and files that do not pass the check are refused (:class:`NotReady`); optionally an analysis
+that already exists for this filter, language, pipeline version and files is refused (:class:`UpToDate`:
+what makes a cohort run idempotent).  After the insert a job queued by a concurrent request (SQLite has no
+row locks) is detected and refused too (``Busy``: the caller's transaction must be rolled back, which
+leaving the ``Database.session`` block by the exception does).
+
+The job row must be committed before the engine hears of it, so a crash between the two loses nothing (the
+engines' sweepers resubmit queued jobs): the caller commits, then calls :func:`hand_over`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.jobs.work import JobRunner
+from app.pipeline.session import PIPELINE_VERSION
+from app.store.checks import IngestionChecker
+from app.store.errors import Conflict
+from app.store.models import Analysis, Job, KneeSession
+from app.store.sessions import Busy, active_job_id, clinic_session, ingestion_fresh, ready, refuse_while_processing
+
+log = logging.getLogger("chakamo.jobs")
+
+
+class NotReady(Conflict):
+    """The session's files do not pass the ingestion check; ``reason`` is the check's sentence (or None)."""
+
+    def __init__(self, reason: str | None) -> None:
+        super().__init__(f"The session's recordings are not ready to process: {reason or 'no recordings yet'}")
+        self.reason = reason
+
+
+class UpToDate(Conflict):
+    """An analysis with the same filter and language exists for this pipeline version and these files."""
+
+    def __init__(self, analysis_id: int) -> None:
+        super().__init__(f"analysis {analysis_id} (pipeline {PIPELINE_VERSION})")
+        self.analysis_id = analysis_id
+
+
+def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: str) -> int | None:
+    """The id of an analysis of ``session``'s current files with this filter, language and pipeline version."""
+    return db.scalar(select(Analysis.id).where(
+        Analysis.session_id == session.id, Analysis.filter == filter_name, Analysis.lang == lang,
+        Analysis.pipeline_version == PIPELINE_VERSION, Analysis.files_version == session.files_version))
+
+
+def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, lang: str,
+            checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False) -> Job:
+    """Insert (and flush, not commit) a queued job of session ``session_id`` of clinic ``clinic_id`` (module
+    docstring for the rules); raises :class:`app.store.errors.NotFound`, :class:`Busy`, :class:`NotReady`
+    or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check)."""
+    what = "process it again"
+    session = clinic_session(db, clinic_id, session_id)
+    refuse_while_processing(db, session.id, what)
+    checker.ensure_fresh(db, session)
+    session = clinic_session(db, clinic_id, session_id, lock=True)
+    refuse_while_processing(db, session.id, what)
+    if not ready(session):
+        raise NotReady(session.ingestion.get("error") if ingestion_fresh(session) else None)
+    if unless_current and (done := current_analysis(db, session, filter_name, lang)) is not None:
+        raise UpToDate(done)
+    job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang,
+              log=list(log_lines), stage="queued", pipeline_version=PIPELINE_VERSION)
+    db.add(job)
+    db.flush()
+    other = active_job_id(db, session.id, other_than=job.id)
+    if other is not None:  # another request queued one at the same moment (SQLite has no row locks)
+        raise Busy(session.id, other, what)
+    return job
+
+
+def hand_over(runner: JobRunner, job_id: int) -> None:
+    """Tell the engine of committed job ``job_id``; if it cannot hear now, its sweeper hands it over later."""
+    try:
+        runner.submit(job_id)
+    except Exception:  # noqa: BLE001 — the job is committed: the engine's sweeper hands it over later
+        log.warning("job %s queued but not handed to the engine now; the sweeper will", job_id, exc_info=True)
+
+
+__all__ = ["NotReady", "UpToDate", "current_analysis", "enqueue", "hand_over"]

@@ -1,0 +1,36 @@
+"""The data layer's refusals: small exception classes whose message is the sentence the user reads.
+
+The store and jobs services raise them; they know nothing of HTTP.  The API maps each class to one status
+code in one place (:data:`app.web.api.deps.STATUS_OF`, applied to every route by :func:`app.web.api.api_router`):
+:class:`NotFound` 404 (also for another clinic's ids), :class:`Conflict` 409, :class:`Invalid` 400,
+:class:`LimitExceeded` 413.
+"""
+
+from __future__ import annotations
+
+
+class DomainError(Exception):
+    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do."""
+
+    def __init__(self, detail: str) -> None:
+        super().__init__(detail)
+        self.detail = detail
+
+
+class NotFound(DomainError):
+    """An unknown id, or another clinic's (the same answer, so ids of other clinics cannot be probed)."""
+
+
+class Conflict(DomainError):
+    """The data's current state forbids the change (a duplicate, a session being processed, files not ready)."""
+
+
+class Invalid(DomainError):
+    """Input the data layer refuses (e.g. the same file twice in one upload)."""
+
+
+class LimitExceeded(DomainError):
+    """More than a configured limit allows (e.g. files per session)."""
+
+
+__all__ = ["Conflict", "DomainError", "Invalid", "LimitExceeded", "NotFound"]

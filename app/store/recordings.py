@@ -1,0 +1,88 @@
+"""A session's recordings: storing an upload's files (all or none) and deleting one.
+
+Both refuse while a job of the session is queued or running (:class:`app.store.sessions.Busy`), checked
+before and, for SQLite's concurrent writers, again after the change; both bump the session's
+``files_version`` in the same transaction, which makes its stored ingestion check stale
+(:mod:`app.store.checks`).  Two uploads racing for the same file name: one wins, the other gets
+:class:`Conflict` (the database's unique constraint decides).
+
+The upload labels the ingestion understands are re-exported here for the API (:data:`SEGMENTS`,
+:data:`ROLES`, the manifest's name :data:`MANIFEST`), so that the routes need not import the pipeline.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
+from app.store.blobs import BlobWriter
+from app.store.database import ensure_blob
+from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
+from app.store.models import KneeSession, Recording
+from app.store.sessions import clinic_session, refuse_while_processing
+
+
+def check_labels(segment: str | None, role: str | None) -> None:
+    """:class:`Invalid` for an unknown segment or role (None: not given)."""
+    if segment is not None and segment not in SEGMENTS:
+        raise Invalid(f"segment {segment!r} is unknown; use {' or '.join(SEGMENTS)}.")
+    if role is not None and role not in ROLES:
+        raise Invalid(f"role {role!r} is unknown; use one of {', '.join(ROLES)}.")
+
+
+def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple[str, BlobWriter]], *,
+                 segment: str | None, role: str | None, max_files: int) -> tuple[KneeSession, list[Recording]]:
+    """Commit the blobs of ``files`` (name, written blob) and add their recordings to the session (locked),
+    all or none: :class:`Invalid` for a name sent twice, :class:`Conflict` for a name already stored (or
+    stored meanwhile by another upload) or while the session is being processed, :class:`LimitExceeded` past
+    ``max_files`` per session."""
+    names = [n for n, _ in files]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise Invalid(f"{', '.join(dupes)} sent twice in one upload; send each file once.")
+    session = clinic_session(db, clinic_id, session_id, lock=True)
+    refuse_while_processing(db, session.id, "upload the files")
+    have = set(db.scalars(select(Recording.file_name).where(Recording.session_id == session.id)))
+    clash = sorted(have & set(names))
+    if clash:
+        raise Conflict(f"{', '.join(clash)} already uploaded to this session; delete the earlier recording first "
+                       "to replace it.")
+    if len(have) + len(names) > max_files:
+        raise LimitExceeded(f"A session holds at most {max_files} files ({len(have)} already stored); delete the "
+                            "ones not needed.")
+    rows = []
+    for name, writer in files:
+        size = writer.size_bytes
+        sha = writer.commit()
+        ensure_blob(db, sha, size)
+        rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
+                              segment=segment, role=role))
+    db.add_all(rows)
+    session.files_version = KneeSession.files_version + 1
+    try:
+        db.flush()
+    except IntegrityError:  # another upload stored the same file name meanwhile
+        raise Conflict(f"{', '.join(names)}: another upload to this session stored a file of the same name at the "
+                       "same time; reload the session and check its files.") from None
+    refuse_while_processing(db, session.id, "upload the files")  # a job queued meanwhile (SQLite) wins
+    return session, rows
+
+
+def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id: int) -> KneeSession:
+    """Remove one recording from the session (its stored content stays if other rows use it); returns the
+    session.  :class:`NotFound` for an unknown id, :class:`Conflict` while the session is being processed."""
+    session = clinic_session(db, clinic_id, session_id, lock=True)
+    rec = db.get(Recording, recording_id)
+    if rec is None or rec.session_id != session.id:
+        raise NotFound(f"No recording {recording_id} in session {session_id}; check the ids.")
+    refuse_while_processing(db, session.id, "delete files")
+    db.delete(rec)
+    session.files_version = KneeSession.files_version + 1
+    db.flush()
+    refuse_while_processing(db, session.id, "delete files")
+    return session
+
+
+__all__ = ["MANIFEST", "ROLES", "SEGMENTS", "check_labels", "delete_recording", "store_upload"]
