@@ -220,8 +220,14 @@ class SegmentCalibration:
     q_sensor_segment : (4,) segment → sensor (use ``q_earth_segment = q_earth_sensor ⊗ q_sensor_segment``).
     angle_between_postures_rad : angle between the standing and supine gravity directions (ideal π/2).
     standing, supine : the :class:`PostureWindow` used.   warnings : tuple of :class:`QualityWarning`.
-    method : ``"static"`` (two postures) or ``"functional"`` (standing + the joint's flexion axis).
+    method : ``"static"`` (two postures), ``"functional"`` (static refined by the joint's flexion axis),
+        ``"standing_functional"`` (standing + the task's hinge axes) or ``"task_functional"`` (the task alone),
+        the last two from :mod:`estimators.functional`.
     axis_change_rad : functional only, the angle between the static and the functional segment axes.
+    quality : :class:`estimators.functional.FunctionalFit` for the two :mod:`estimators.functional` methods
+        (hinge axes, straight-knee window, sign evidence), else None.  For those methods ``standing`` and
+        ``supine`` are both the straight-knee window used, and ``angle_between_postures_rad`` is the angle
+        between its gravity direction and the hinge axis (ideal π/2).
     gyr_bias_rad_s : (3,) the gyroscope bias seen while still (property).
     """
 
@@ -232,6 +238,7 @@ class SegmentCalibration:
     warnings: tuple[QualityWarning, ...]
     method: str = "static"
     axis_change_rad: float | None = None
+    quality: object | None = None
 
     @property
     def gyr_bias_rad_s(self) -> FloatArray:
