@@ -8,7 +8,10 @@ Segment frames from a straight knee and the hinge axes (F1–F3)
 --------------------------------------------------------------
 *Hinge axes.*  Seel's joint-axis constraint on the two gyroscopes (Seel, Raisch & Schauer 2014; seed 000
 §2.4.2 eqs. 68–69, :func:`estimators.joint_axis.estimate_axis`) gives the knee's flexion axis ``j_a`` in
-thigh-sensor and ``j_b`` in shank-sensor coordinates, each up to sign.
+thigh-sensor and ``j_b`` in shank-sensor coordinates, each up to sign.  Sagittal tasks make eq. 68 nearly
+degenerate (the segments turn about one axis at nearly proportional rates, and a one-parameter family of axis
+pairs fits equally well), so a small pull towards each sensor's principal rotation axis picks the member of
+that family (``principal_weight``).
 
 *Long axes.*  With the knee straight and the leg upright (standing posture, the top of a step-up,
 standing before or after walking), gravity points along both long axes:
@@ -37,7 +40,7 @@ on its hinge plane, turns by the knee angle between the sensors:
 flexion plus a constant.  A knee flexes from full extension and hardly hyperextends, so with the right
 sign the straight knee is the lower end of :math:`\alpha` over the task; with the wrong one the task runs
 far below its straightest still moment.  The sign with the smaller *overshoot* (straight reference minus
-the 2nd percentile of the smoothed :math:`s\alpha`) wins; a margin below ``min_sign_margin_rad`` warns.
+the 0.5th percentile of the smoothed :math:`s\alpha`) wins; a margin below ``min_sign_margin_rad`` warns.
 
 *Rotation zero* (F3).  Only gravity and the hinge fix the tibia, so its z is the shank's hinge axis: the
 knee's internal rotation is zero at the pose where Seel's mean axis sits (on a step-up the tibial axis turns
@@ -60,8 +63,11 @@ accelerometer SD below the thresholds over ``window_s`` at the same time—with 
 :math:`s\alpha` within ``straight_tol_rad`` of the straightest still moment of the task; of those windows the
 straightest is used (the extension holds of a step-up vary by a few degrees).  The biases come from the
 stillest common window.  No common still window, or a task that extends the knee beyond every still moment by
-more than ``straight_tol_rad`` (the knee was never still while straight, e.g. walking without a standing
-start), raises :class:`estimators.knee.CalibrationError` saying what to record.
+more than ``max_overshoot_rad`` (the knee was never still while straight, e.g. walking without a standing
+start), raises :class:`estimators.knee.CalibrationError` saying what to record.  What gravity cannot tell:
+a task whose only still moments are *flexed* (a step-up without its extension holds) looks like a straight
+reference with the wrong sign and a small overshoot (the impulse, 5–10°): above ``straight_tol_rad`` it warns
+(``functional_overshoot``), above ``max_overshoot_rad`` it refuses.
 """
 
 from __future__ import annotations
@@ -82,6 +88,7 @@ __all__ = ["FunctionalCalibration", "FunctionalFit", "FunctionalParams", "HingeA
            "standing_task_calibration", "task_calibration"]
 
 SEGMENTS = ("thigh", "shank")
+SIGN_PERCENTILE = 0.5  # the percentile of the knee angle that measures the overshoot (F2)
 
 
 @dataclass(frozen=True)
@@ -99,6 +106,12 @@ class FunctionalParams:
     max_axis_residual_rad_s : Seel's RMS residual above which to warn (0.35; ~0.01 on simulated step-ups,
         ~0.23 on simulated gait with heel-strike wobble).
     same_mounting_min_cos : |j_a·j_b| (sensor coordinates) from which the sensors count as worn alike (0.5).
+    max_overshoot_rad : the task may extend the knee at most this far beyond the straight reference (F2, 0.5th
+        percentile) before the task-only method refuses: no still moment was straight (10°; simulated gait with a
+        standing start reaches ~3°, a step-up ~1°).
+    principal_weight : the pull of Seel's axes towards each sensor's principal rotation axis
+        (:func:`estimators.joint_axis.estimate_axis`; 1.0, chosen on simulated step-ups and gait, seeds 0–2: the
+        femur's in-plane axis error fell from 1–23° to 0–4°; 0 is Seel's problem exactly).
     max_samples : the hinge fit uses at most this many evenly spread samples of the task (6000).
     smooth_s : moving circular mean applied to the knee angle of F2 before its percentiles, s (0.2).
     """
@@ -111,22 +124,26 @@ class FunctionalParams:
     min_axis_angle_rad: float = float(np.deg2rad(60.0))
     max_axis_residual_rad_s: float = 0.35
     same_mounting_min_cos: float = 0.5
+    max_overshoot_rad: float = float(np.deg2rad(10.0))
+    principal_weight: float = 1.0
     max_samples: int = 6000
     smooth_s: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("window_s", "max_gyr_sd_rad_s", "max_acc_sd_m_s2", "straight_tol_rad", "min_sign_margin_rad",
-                     "min_axis_angle_rad", "max_axis_residual_rad_s", "same_mounting_min_cos", "smooth_s"):
+                     "min_axis_angle_rad", "max_axis_residual_rad_s", "same_mounting_min_cos", "smooth_s", "max_overshoot_rad"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        if not (np.isfinite(self.principal_weight) and self.principal_weight >= 0.0):
+            raise ValueError(f"principal_weight must be a finite number >= 0, got {self.principal_weight!r}")
         if self.max_samples < 100:
             raise ValueError(f"max_samples must be at least 100, got {self.max_samples!r}")
 
 
 @dataclass(frozen=True)
 class HingeAxes:
-    """Result of :func:`hinge_axes`.
+    r"""Result of :func:`hinge_axes`.
 
     j_thigh, j_shank : (3,) unit flexion axes in thigh / shank sensor coordinates, the same physical direction
         (the overall sign is fixed later, F2).
@@ -162,7 +179,7 @@ class FunctionalFit:
         planes ⟂ their hinge axes, measured from the task's straightest still moment: the same as ``bend_rad``
         in absolute value; kept under the name the report uses.
     n_straight_windows : still windows of the task within ``straight_tol_rad`` of straight.
-    overshoot_rad : how far the task's (2nd-percentile) knee angle goes below the straight reference (F2).
+    overshoot_rad : how far the task's (0.5th-percentile) knee angle goes below the straight reference (F2).
     sign_margin_rad : overshoot of the rejected sign minus that of the chosen one (F2).
     task_flexion_median_rad : median of the task's smoothed knee angle from gravity relative to straight.
     heading_offset_rad : the tibia's turn about its long axis (F3), or None without orientations.
@@ -293,7 +310,7 @@ def hinge_axes(acc_thigh: ArrayLike, gyr_thigh: ArrayLike, acc_shank: ArrayLike,
     idx = np.flatnonzero(ok)
     idx = idx[::max(1, int(np.ceil(len(idx) / p.max_samples)))]
     fs_fit = fs_hz * len(idx) / np.count_nonzero(ok)  # the rate of the thinned samples (angular accelerations)
-    fit = joint_axis.estimate(at[idx], gt[idx], as_[idx], gs[idx], fs_hz=fs_fit)
+    fit = joint_axis.estimate(at[idx], gt[idx], as_[idx], gs[idx], fs_hz=fs_fit, principal_weight=p.principal_weight)
     j_a, j_b = fit.j_a, fit.j_b
     seel = 1.0
     source = "seel"
@@ -342,7 +359,7 @@ def _sign_and_straight(alpha: FloatArray, still_alpha: FloatArray, ref: complex 
     out = []
     for s in (1.0, -1.0):
         straight = 0.0 if ref is not None else float(np.min(s * s_still))
-        out.append((straight - float(np.percentile(s * a, 2.0)), s, straight))
+        out.append((straight - float(np.percentile(s * a, SIGN_PERCENTILE)), s, straight))
     out.sort()
     (over, s, straight), (over_bad, _, _) = out
     return s, over, over_bad - over, s * a - straight, s * s_still - straight
@@ -360,7 +377,7 @@ def _frame(y: FloatArray, j: FloatArray, label: str, p: FunctionalParams) -> tup
     return quat.from_matrix(np.column_stack([np.cross(y, z), y, z])), float(np.arccos(np.clip(np.dot(j, y), -1, 1)))
 
 
-def _build(windows: dict, axes: HingeAxes, sign: float, method: str, warnings: list[QualityWarning],
+def _build(windows: dict, bias: dict, axes: HingeAxes, sign: float, method: str, warnings: list[QualityWarning],
            q_straight: dict | None, fit_kwargs: dict, p: FunctionalParams) -> FunctionalCalibration:
     signed = replace(axes, j_thigh=sign * axes.j_thigh, j_shank=sign * axes.j_shank,
                      principal_thigh=sign * axes.principal_thigh, principal_shank=sign * axes.principal_shank)
@@ -377,7 +394,8 @@ def _build(windows: dict, axes: HingeAxes, sign: float, method: str, warnings: l
                                   segment=seg, angle_deg=float(np.rad2deg(near))))
             j = j_pc
         q, angle = _frame(y, j, seg, p)
-        cals[seg] = SegmentCalibration(q, angle, windows[seg], windows[seg], (), method=method)
+        cals[seg] = SegmentCalibration(q, angle, windows[seg], windows[seg], (), method=method,
+                                       bias_rad_s=bias[seg].gyr_mean_rad_s.copy())
     delta = None
     if q_straight is not None:
         q_seg = {seg: knee.segment_orientation(q_straight[seg], cals[seg].q_sensor_segment) for seg in SEGMENTS}
@@ -457,7 +475,7 @@ def standing_task_calibration(standing_thigh, standing_shank, task_thigh, task_s
         q_st = {seg: quat.as_quaternion(q_standing[seg])[stand[seg].start:stand[seg].stop] for seg in SEGMENTS}
         n = min(len(q_st["thigh"]), len(q_st["shank"]))
         q_st = {seg: q[:n] for seg, q in q_st.items()}
-    return _build(stand, axes, sign, "standing_functional", warnings, q_st, fit_kwargs, p)
+    return _build(stand, stand, axes, sign, "standing_functional", warnings, q_st, fit_kwargs, p)
 
 
 # ------------------------------------------------------------------------------------------ (d) task only
@@ -500,11 +518,19 @@ def task_calibration(task_thigh, task_shank, *, fs_hz: float, q_task: dict | Non
     still_alpha = (c[starts + w] - c[starts]) / w
     ok = np.isfinite(alpha)
     sign, over, margin, flex, bend_all = _sign_and_straight(alpha[ok], still_alpha, None, int(p.smooth_s * fs_hz))
-    if over > p.straight_tol_rad:
+    if over > p.max_overshoot_rad:
         raise CalibrationError(
             f"the knee extended {np.rad2deg(over):.0f}° further during the task than in any moment both sensors were "
-            f"still (accepted {np.rad2deg(p.straight_tol_rad):.0f}°), so the knee was never still while straight; "
+            f"still (accepted {np.rad2deg(p.max_overshoot_rad):.0f}°), so the knee was never still while straight; "
             "record 2 s of standing still with the knee straight before or after the task, or a standing posture")
+    warnings = []
+    if over > p.straight_tol_rad:
+        warnings.append(_warn("functional_overshoot",
+                              f"the knee extended {np.rad2deg(over):.0f}° further during the task than in its straightest "
+                              f"still moment (expected less than {np.rad2deg(p.straight_tol_rad):.0f}°); if the knee was never "
+                              "still while straight the calibration is wrong: record 2 s of standing still with the knee "
+                              "straight before or after the task", overshoot_deg=float(np.rad2deg(over)),
+                              max_deg=float(np.rad2deg(p.straight_tol_rad))))
     cand = starts[bend_all <= p.straight_tol_rad]
     i = int(starts[np.argmin(bend_all)])
     win = {seg: _window(a, g, i, w, fs_hz, p) for seg, a, g in (("thigh", at, gt + bias["thigh"].gyr_mean_rad_s),
@@ -513,7 +539,7 @@ def task_calibration(task_thigh, task_shank, *, fs_hz: float, q_task: dict | Non
                       n_straight_windows=_count_disjoint(cand, w), overshoot_rad=over, sign_margin_rad=margin,
                       task_flexion_median_rad=float(np.median(flex)))
     q_st = None if q_task is None else {seg: quat.as_quaternion(q_task[seg])[i:i + w] for seg in SEGMENTS}
-    return _build(win, axes, sign, "task_functional", [], q_st, fit_kwargs, p)
+    return _build(win, bias, axes, sign, "task_functional", warnings, q_st, fit_kwargs, p)
 
 
 def _count_disjoint(starts: FloatArray, w: int) -> int:

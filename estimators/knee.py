@@ -228,6 +228,7 @@ class SegmentCalibration:
         (hinge axes, straight-knee window, sign evidence), else None.  For those methods ``standing`` and
         ``supine`` are both the straight-knee window used, and ``angle_between_postures_rad`` is the angle
         between its gravity direction and the hinge axis (ideal π/2).
+    bias_rad_s : (3,) the gyroscope bias when measured apart from ``standing``/``supine`` (else None).
     gyr_bias_rad_s : (3,) the gyroscope bias seen while still (property).
     """
 
@@ -239,15 +240,19 @@ class SegmentCalibration:
     method: str = "static"
     axis_change_rad: float | None = None
     quality: object | None = None
+    bias_rad_s: FloatArray | None = None
 
     @property
     def gyr_bias_rad_s(self) -> FloatArray:
-        """(3,) gyroscope bias measured while still: the mean of both postures' windows, weighted by their length.
+        """(3,) gyroscope bias measured while still: the mean of both postures' windows, weighted by their length
+        (or ``bias_rad_s`` when a method measured it elsewhere, e.g. the task's stillest common window).
 
         Subtracting it before orientation estimation removes the largest MEMS error (BMI160: up to ±3 °/s)
         that filters otherwise have to learn during the motion, where some of them (Guo's bounded
         robust corrections) cannot.
         """
+        if self.bias_rad_s is not None:
+            return self.bias_rad_s
         n_st = self.standing.stop - self.standing.start
         n_su = self.supine.stop - self.supine.start
         return (n_st * self.standing.gyr_mean_rad_s + n_su * self.supine.gyr_mean_rad_s) / (n_st + n_su)
