@@ -161,7 +161,9 @@ def estimate_axis(gyr_a: ArrayLike, gyr_b: ArrayLike, *,
         turns at about −2/3 of the thigh's rate) eq. 68 is satisfied along a whole family
         :math:`|g_a|\sin\theta_a = |g_b|\sin\theta_b` and the unregularised minimum lands anywhere on it (shank
         axis up to ~25° off on simulated step-ups); the pull picks the family member nearest to the segments' own
-        rotation axes and hardly moves a well-posed minimum.  Default 0: Seel's problem exactly."""
+        rotation axes.  It is a prior, not free: on a well-posed 3D hinge motion (the whole limb turning about
+        other axes too) it biases the axes towards the principal ones (~9° at w = 1 on the simulated exoskeleton
+        hinge), so use it for sagittal-plane tasks only.  Default 0: Seel's problem exactly."""
     ga = np.asarray(gyr_a, dtype=np.float64)
     gb = np.asarray(gyr_b, dtype=np.float64)
     starts = []
