@@ -68,6 +68,26 @@ start), raises :class:`estimators.knee.CalibrationError` saying what to record. 
 a task whose only still moments are *flexed* (a step-up without its extension holds) looks like a straight
 reference with the wrong sign and a small overshoot (the impulse, 5–10°): above ``straight_tol_rad`` it warns
 (``functional_overshoot``), above ``max_overshoot_rad`` it refuses.
+
+How the pipeline calls them
+---------------------------
+Both return :class:`FunctionalCalibration`; ``.segments`` is the ``{"thigh", "shank"}`` dict of
+:class:`~estimators.knee.SegmentCalibration` that ``process_session`` uses (``gyr_bias_rad_s``,
+``q_sensor_segment``, ``method``, ``warnings`` with codes and params).  Orientations are optional; with 9D
+orientations the relative sign is safer and the rotation zero is the standing knee's, so call twice: first
+without them (biases), run the filter on bias-free gyroscopes, then again with them::
+
+    # (c) standing + task
+    cal = functional.standing_task_calibration((st_t.acc, st_t.gyr), (st_s.acc, st_s.gyr),
+                                               (task_t.acc, task_t.gyr), (task_s.acc, task_s.gyr), fs_hz=fs)
+    # ... q_es = filter over the task, q_standing = filter over the standing, gyr - cal.segments[seg].gyr_bias_rad_s
+    cal = functional.standing_task_calibration(..., fs_hz=fs, q_standing=q_standing, q_task=q_es)
+    # (d) task only
+    cal = functional.task_calibration((task_t.acc, task_t.gyr), (task_s.acc, task_s.gyr), fs_hz=fs)
+    cal = functional.task_calibration(..., fs_hz=fs, q_task=q_es)        # 9D q_es
+    segments, warnings = cal.segments, list(cal.warnings)
+
+``CalibrationError`` (a ``ValueError``) carries what was missing and what to record.
 """
 
 from __future__ import annotations
@@ -295,8 +315,9 @@ def hinge_axes(acc_thigh: ArrayLike, gyr_thigh: ArrayLike, acc_shank: ArrayLike,
     """The knee's flexion axis in both sensors' coordinates, the same physical direction (F2 i).
 
     acc_*, gyr_* : (N, 3) task recordings on one grid, m/s² and *bias-free* rad/s (NaN rows are dropped).
-    q_earth_thigh, q_earth_shank : optional (N, 4) ``q_earth_sensor`` of any orientation filter over the task
-        (9D or 6D); when given they fix the relative sign (F2 i).
+    q_earth_thigh, q_earth_shank : optional (N, 4) ``q_earth_sensor`` of an orientation filter over the task, 9D
+        (both referenced to magnetic north; a 6D run's arbitrary relative heading can flip the sign when it
+        exceeds 90°); when given they fix the relative sign (F2 i).
     Seel's axes (seed 000 eqs. 68–69) via :func:`estimators.joint_axis.estimate` on at most
     ``params.max_samples`` evenly spread samples."""
     from estimators import joint_axis
