@@ -7,6 +7,8 @@ the TRUE sensor orientations composed with the calibration, so they measure the 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -21,7 +23,8 @@ FS_HZ = 100.0
 
 def _session(kind: str, seed: int, side: str, step_height_m: float = 0.17, standing_start_s: float = 2.0,
              misalignment_rad: float = 15 * DEG):
-    specs = [sim.ImuSpec.random(seed * 10 + k) for k in range(2)]
+    # full inertial error model; the magnetometer as after its ellipsoid fit (noise only)
+    specs = [replace(sim.ImuSpec.random(seed * 10 + k), mag=sim.ImuSpec.noise_only().mag) for k in range(2)]
     if kind == "step_up":
         motion = sim.step_up(10, step_height_m, side, seed=seed, facing_rad=0.4)
         mounts = [sim.random_rotation(misalignment_rad, seed=100 * seed + k) for k in range(2)]
@@ -47,7 +50,8 @@ def _session(kind: str, seed: int, side: str, step_height_m: float = 0.17, stand
             "q_true": [quat.conjugate(q) for q in mounts], "q_task": {"thigh": grids[0].q_earth_sensor[:n],
                                                                      "shank": grids[1].q_earth_sensor[:n]},
             "q_standing": {"thigh": g_st[0].q_earth_sensor[:m], "shank": g_st[1].q_earth_sensor[:m]},
-            "bias": [g.gyr_bias_rad_s[:n].mean(axis=0) for g in grids], "truth": truth, "side": side}
+            "bias": [g.gyr_bias_rad_s[:n].mean(axis=0) for g in grids], "truth": truth, "side": side,
+            "mag": [g.mag[:n] for g in grids], "mag_standing": [g.mag[:m] for g in g_st]}
 
 
 def _axis_errors(cal: knee.SegmentCalibration, q_true) -> np.ndarray:
@@ -151,6 +155,31 @@ def test_task_only_warns_or_refuses_when_only_flexed_moments_are_still():
     else:
         (w,) = [w for w in res.warnings if w.code == "functional_overshoot"]
         assert w.params["overshoot_deg"] > 5.0
+
+
+@pytest.mark.parametrize("side, height", [("right", 0.17), ("left", 0.34)])
+def test_the_pipeline_sequence_with_a_real_filter(side, height):
+    """As the pipeline would: calibrate, run the default 9D filter on bias-free gyroscopes, calibrate again with
+    the filter's orientations; the knee angles from the *estimated* orientations match the truth."""
+    from estimators import orientation
+
+    s = _session("step_up", 3, side, height)   # a seed not used to choose the thresholds
+    args = (*s["standing"], *s["task"])
+    first = functional.standing_task_calibration(*args, fs_hz=FS_HZ)
+
+    def run(recs, mags, cal):
+        return {seg: orientation.estimate(a, g - cal.segments[seg].gyr_bias_rad_s, m, fs_hz=FS_HZ)
+                for seg, (a, g), m in zip(("thigh", "shank"), recs, mags)}
+
+    q_task, q_standing = run(s["task"], s["mag"], first), run(s["standing"], s["mag_standing"], first)
+    cal = functional.standing_task_calibration(*args, fs_hz=FS_HZ, q_standing=q_standing, q_task=q_task)
+    only = functional.task_calibration(*s["task"], fs_hz=FS_HZ, q_task=q_task)
+    for res in (cal, only):
+        q_f = knee.segment_orientation(q_task["thigh"], res.thigh.q_sensor_segment)
+        q_t = knee.segment_orientation(q_task["shank"], res.shank.q_sensor_segment)
+        err = knee.knee_angles(knee.q_femur_tibia(q_f, q_t), side) - s["truth"]
+        rmse = np.sqrt(np.mean(err**2, axis=0))
+        assert rmse[0] < 1.5 * DEG and rmse[1] < 3.0 * DEG and rmse[2] < 4.0 * DEG, np.rad2deg(rmse)
 
 
 # ------------------------------------------------------------------------------------------ signs and input
