@@ -203,6 +203,10 @@ class FunctionalFit:
     sign_margin_rad : overshoot of the rejected sign minus that of the chosen one (F2).
     task_flexion_median_rad : median of the task's smoothed knee angle from gravity relative to straight.
     heading_offset_rad : the tibia's turn about its long axis (F3), or None without orientations.
+    hinge_tilt_gap_rad : |∠(ŷ_thigh, j_thigh) − ∠(ŷ_shank, j_shank)|: a turn about the hinge keeps the angle
+        between gravity and the axis, so at a straight (or any) knee both sensors should see the same; a gap
+        means an axis tilted out of its plane (Seel's shank axis on sagittal tasks) or a knee not straight
+        in the frontal plane.
     """
 
     axes: HingeAxes
@@ -215,6 +219,7 @@ class FunctionalFit:
     sign_margin_rad: float
     task_flexion_median_rad: float
     heading_offset_rad: float | None
+    hinge_tilt_gap_rad: float = float("nan")
 
     @property
     def straight_gravity_angle_rad(self) -> float:
@@ -423,7 +428,8 @@ def _build(windows: dict, bias: dict, axes: HingeAxes, sign: float, method: str,
         delta = knee.heading_offset(q_seg["thigh"], q_seg["shank"], method="straight_knee").offset_rad
         turned = knee.turn_about_long_axis(cals["shank"], delta, label="shank")
         cals["shank"] = replace(cals["shank"], q_sensor_segment=turned.q_sensor_segment)
-    fit = FunctionalFit(axes=signed, heading_offset_rad=delta, **fit_kwargs)
+    gap = abs(cals["thigh"].angle_between_postures_rad - cals["shank"].angle_between_postures_rad)
+    fit = FunctionalFit(axes=signed, heading_offset_rad=delta, hinge_tilt_gap_rad=gap, **fit_kwargs)
     if signed.residual_rad_s > p.max_axis_residual_rad_s:
         warnings.append(_warn("functional_axis_residual",
                               f"the knee's hinge axis fits the task's gyroscopes with {signed.residual_rad_s:.2f} rad/s "

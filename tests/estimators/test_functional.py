@@ -79,6 +79,8 @@ def test_standing_task_calibration_matches_the_static_accuracy(side, height, see
     # gravity vs the hinge axis (ideal 90°): the femur's is sharp, Seel's shank axis tilts on sagittal tasks
     assert abs(res.thigh.angle_between_postures_rad - np.pi / 2) < 10 * DEG
     assert abs(res.shank.angle_between_postures_rad - np.pi / 2) < 40 * DEG
+    assert res.fit.hinge_tilt_gap_rad == pytest.approx(abs(res.thigh.angle_between_postures_rad
+                                                           - res.shank.angle_between_postures_rad))
     e_t, e_s = _axis_errors(res.thigh, s["q_true"][0]), _axis_errors(res.shank, s["q_true"][1])
     assert e_t[1] < 1.5 * DEG and e_s[1] < 1.5 * DEG           # long axes: standing gravity
     assert max(e_t[0], e_t[2]) < 6.5 * DEG                       # femur z: Seel's thigh axis
