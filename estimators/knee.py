@@ -23,6 +23,8 @@ simulator's mounting ``q_segment_sensor`` is its inverse.  Nothing depends on th
 points to the right of the body on both legs.  Only gravity defines the segment frame; its heading
 comes from the sensor's orientation filter.  The postures are distinct when the angle between the
 two gravity directions is near 90°; at 0° or 180° the anterior axis is undefined.
+Sessions without the supine posture (standing + task) or without any posture (the task alone) are
+calibrated from the knee's hinge axes instead: :mod:`estimators.functional`.
 
 Knee kinematics (seed eqs. 6.1–6.3 generalised)
 -----------------------------------------------
