@@ -23,6 +23,8 @@ simulator's mounting ``q_segment_sensor`` is its inverse.  Nothing depends on th
 points to the right of the body on both legs.  Only gravity defines the segment frame; its heading
 comes from the sensor's orientation filter.  The postures are distinct when the angle between the
 two gravity directions is near 90°; at 0° or 180° the anterior axis is undefined.
+Sessions without the supine posture (standing + task) or without any posture (the task alone) are
+calibrated from the knee's hinge axes instead: :mod:`estimators.functional`.
 
 Knee kinematics (seed eqs. 6.1–6.3 generalised)
 -----------------------------------------------
@@ -220,8 +222,15 @@ class SegmentCalibration:
     q_sensor_segment : (4,) segment → sensor (use ``q_earth_segment = q_earth_sensor ⊗ q_sensor_segment``).
     angle_between_postures_rad : angle between the standing and supine gravity directions (ideal π/2).
     standing, supine : the :class:`PostureWindow` used.   warnings : tuple of :class:`QualityWarning`.
-    method : ``"static"`` (two postures) or ``"functional"`` (standing + the joint's flexion axis).
+    method : ``"static"`` (two postures), ``"functional"`` (static refined by the joint's flexion axis),
+        ``"standing_functional"`` (standing + the task's hinge axes) or ``"task_functional"`` (the task alone),
+        the last two from :mod:`estimators.functional`.
     axis_change_rad : functional only, the angle between the static and the functional segment axes.
+    quality : :class:`estimators.functional.FunctionalFit` for the two :mod:`estimators.functional` methods
+        (hinge axes, straight-knee window, sign evidence), else None.  For those methods ``standing`` and
+        ``supine`` are both the straight-knee window used, and ``angle_between_postures_rad`` is the angle
+        between its gravity direction and the hinge axis (ideal π/2).
+    bias_rad_s : (3,) the gyroscope bias when measured apart from ``standing``/``supine`` (else None).
     gyr_bias_rad_s : (3,) the gyroscope bias seen while still (property).
     """
 
@@ -232,15 +241,20 @@ class SegmentCalibration:
     warnings: tuple[QualityWarning, ...]
     method: str = "static"
     axis_change_rad: float | None = None
+    quality: object | None = None
+    bias_rad_s: FloatArray | None = None
 
     @property
     def gyr_bias_rad_s(self) -> FloatArray:
-        """(3,) gyroscope bias measured while still: the mean of both postures' windows, weighted by their length.
+        """(3,) gyroscope bias measured while still: the mean of both postures' windows, weighted by their length
+        (or ``bias_rad_s`` when a method measured it elsewhere, e.g. the task's stillest common window).
 
         Subtracting it before orientation estimation removes the largest MEMS error (BMI160: up to ±3 °/s)
         that filters otherwise have to learn during the motion, where some of them (Guo's bounded
         robust corrections) cannot.
         """
+        if self.bias_rad_s is not None:
+            return self.bias_rad_s
         n_st = self.standing.stop - self.standing.start
         n_su = self.supine.stop - self.supine.start
         return (n_st * self.standing.gyr_mean_rad_s + n_su * self.supine.gyr_mean_rad_s) / (n_st + n_su)
