@@ -101,7 +101,7 @@ def make_celery(settings: Settings):
         except TransientJobError as exc:  # the retry resumes the same run: an outage is not one of its attempts
             log.warning("%s; retrying", exc)
             raise task.retry(exc=exc, countdown=backoff_s(task.request.retries),
-                             args=[int(job_id)], kwargs={"resume_attempt": exc.attempt or resume_attempt})
+                             args=[int(job_id)], kwargs={"resume_attempt": exc.attempt or resume_attempt}) from exc
         if outcome == "busy":  # another worker holds it; its lease decides (the sweeper requeues a lost one)
             raise task.retry(countdown=max(1.0, ctx.settings.job_lease_s / 2), args=[int(job_id)],
                              kwargs={"resume_attempt": resume_attempt})

@@ -285,7 +285,7 @@ def test_gyroscope_bias_measured_on_the_still_postures():
 
     spec = sim.ImuSpec.random(11)
     mount = sim.random_rotation(np.deg2rad(15.0), 11)
-    grids = [sim.simulate_on_grid(getattr(sim.standing(30.0), "thigh") if k == 0 else sim.supine(30.0).thigh,
+    grids = [sim.simulate_on_grid(sim.standing(30.0).thigh if k == 0 else sim.supine(30.0).thigh,
                                   spec, fs_hz=100.0, q_segment_sensor=mount, seed=k) for k in range(2)]
     cal = knee.calibrate_segment(grids[0].acc, grids[0].gyr, grids[1].acc, grids[1].gyr, fs_hz=100.0)
     true_bias = grids[0].gyr_bias_rad_s.mean(axis=0)
@@ -300,8 +300,8 @@ def test_functional_calibration_uses_the_true_flexion_axis(side):
     coordinates, either sign) the functional frame is the true one again."""
     mount = sim.random_rotation(15 * DEG, seed=5)
     spec = sim.ImuSpec.noise_only()
-    st = getattr(sim.standing(8.0, side), "thigh")
-    su = getattr(sim.supine(8.0, side, roll_out_rad=12 * DEG), "thigh")
+    st = sim.standing(8.0, side).thigh
+    su = sim.supine(8.0, side, roll_out_rad=12 * DEG).thigh
     gs = sim.simulate_on_grid(st, spec, q_segment_sensor=mount, seed=1)
     gu = sim.simulate_on_grid(su, spec, q_segment_sensor=mount, seed=2)
     cal = knee.calibrate_segment(gs.acc, gs.gyr, gu.acc, gu.gyr, fs_hz=gs.fs_hz, label="thigh")

@@ -24,7 +24,8 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             if pool is not None:
                 assert pool.wait_warm(120)
                 submit = pool.submit
-                pool.submit = lambda fn, *a: handed.append(fn.__name__) or submit(fn, *a)  # count hand-overs
+                pool.submit = (lambda fn, *a, handed=handed, submit=submit:  # count hand-overs
+                               handed.append(fn.__name__) or submit(fn, *a))
             h = clinic_token(settings, "Pool")
             _, sid = new_session(client, h, "POOL-1")
             r = client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h)
