@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from reports import i18n
-from reports.labels import (code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
+from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
                             phase_spans_pct,
                             session_rows, tr)
 from reports.warning_text import warning_text
@@ -293,6 +293,9 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
         if angle is not None:
             items.append(_e(tr("html.posture_angle", lang, segment=code_label("data.seg", seg, lang),
                                                                  angle=_num(angle, lang, 1))))
+    calibration = calibration_sentence(r, lang)
+    if calibration:
+        items.append(_e(calibration))
     heading = heading_sentence(r, lang)
     if heading:
         items.append(_e(heading))

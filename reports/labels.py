@@ -59,6 +59,18 @@ def heading_sentence(results: dict[str, Any], lang: str) -> str | None:
               bound=i18n.fmt_number(h.get("bound_deg"), 0, lang))
 
 
+def calibration_sentence(results: dict[str, Any], lang: str) -> str | None:
+    """Which calibration the session had (``results["calibration"]["protocol"]``): the sensor-to-segment method and
+    the magnetometer's, one sentence; None for a results file without it."""
+    p = get_path(results, "calibration", "protocol")
+    if not isinstance(p, dict):
+        return None
+    segment = p.get("segment")
+    parts = [code_label("calibration.segment", s, lang) for s in ([segment] if isinstance(segment, str) else segment or [])]
+    parts += [code_label("calibration.magnetometer", m, lang) for m in p.get("magnetometer") or []]
+    return "; ".join(parts) + "." if parts else None
+
+
 def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:
     """``(phase, start event, end event)`` of the session's task (:data:`estimators.motor_task.tasks.TASKS`).
 

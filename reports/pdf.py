@@ -45,7 +45,7 @@ from fpdf.enums import XPos, YPos
 
 from reports import bones, figures, fonts
 from reports.i18n import MISSING, fmt_mean_sd, fmt_number, has, t
-from reports.labels import code_label, get_path, heading_sentence, phase_names
+from reports.labels import calibration_sentence, code_label, get_path, heading_sentence, phase_names
 from reports.model import ReportInput
 from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
 from reports.warning_text import warning_text
@@ -221,6 +221,13 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
                      _pct(pdf, d, "disturbance_pct"),
                      MISSING if reliable is None else pdf.tr("yes" if reliable else "no")])
     pdf.grid(rows, (1.2, 1, 1.3, 1.3, 1.3, 0.8), align=("LEFT",) + ("RIGHT",) * 5, bold_cols=(0,))
+
+    # which calibration the recordings allowed (the full protocol, no supine, the task alone; no figure-eight)
+    calibration = calibration_sentence(r, pdf.lang)
+    if calibration:
+        pdf.ensure_space(12)
+        pdf.paragraph(pdf.tr("quality_calibration"), style="B")
+        pdf.paragraph(calibration)
 
     # which thigh–shank heading the angles use (--heading)
     heading = heading_sentence(r, pdf.lang)

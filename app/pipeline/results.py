@@ -81,7 +81,9 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
                 }
                 for seg, cal in outcome.segments.items()
             },
-            "heading_offset_standing_deg": np.rad2deg(outcome.heading.offset_rad),
+            "heading_offset_standing_deg": None if outcome.heading is None else np.rad2deg(outcome.heading.offset_rad),
+            # which recordings the calibration had: postures (standing + supine), standing_task, or task alone
+            "protocol": _protocol_facts(outcome),
         },
         "quality": {
             "warnings": [w.to_dict() for w in outcome.warnings],
@@ -103,6 +105,15 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         "software": {"version": __version__},
     }
     return json_ready(results)
+
+
+def _protocol_facts(outcome: SessionOutcome) -> dict[str, Any]:
+    """What the calibration was made from: the segment method (static, functional, standing_functional,
+    task_functional) and the magnetometer's (ellipsoid, sphere, or factory: no figure-eight)."""
+    methods = {cal.method for cal in outcome.segments.values()}
+    return {"segment": methods.pop() if len(methods) == 1 else sorted(methods),
+            "magnetometer": sorted({m.model for m in outcome.mag.values()}),
+            "recordings": sorted({role for _, role in outcome.session.recordings})}
 
 
 def _heading_task(outcome: SessionOutcome) -> dict[str, Any] | None:

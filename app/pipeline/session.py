@@ -71,6 +71,10 @@ HEADING_OFFSET_WARN_RAD = float(np.deg2rad(10.0))
 #: the first ones', over twice the 2° rotation-accuracy goal; normal simulated sessions change by 0.6–2.9°
 #: (10 seeds × 10 cycles, with and without accelerometer errors), a shank field turning 1°/s by 5.2°
 HEADING_DRIFT_TASK_WARN_RAD = float(np.deg2rad(5.0))
+#: a task-only calibration's straight window must have each sensor's +y (the protocol's "up the segment") within
+#: this of gravity: the mounting tolerance (15°, the simulator's and the demo's) with margin; a still flexed
+#: posture (a step-up's start posture: the thigh 60–75° from vertical) is far beyond it
+TASK_ONLY_MAX_LONG_AXIS_RAD = float(np.deg2rad(30.0))
 #: straight-knee holds shorter than this are left out of the task's heading check: too few samples to
 #: average the sensors' noise (a turning point is one sample)
 HEADING_HOLD_MIN_S = 0.2
@@ -133,7 +137,7 @@ class SessionOutcome:
     angles_rad : (N, 3) flexion, adduction, internal rotation (clinical signs).
     q_earth_sensor, q_earth_segment : ``{"thigh"|"shank": (N, 4)}``.   q_femur_tibia : (N, 4).
     mag : ``{segment: MagCalibration}``.   segments : ``{segment: SegmentCalibration}``.
-    field : ``{segment: FieldCheck}`` on the task.   heading : the standing heading check.
+    field : ``{segment: FieldCheck}`` on the task.   heading : the standing heading check (None without standing).
     analysis : the motor-task analysis.   warnings : every quality warning, in stage order.
     filter_params : the parameter dataclass of the filter used (defaults and overrides), written whole to
         ``results.json`` ``filter.params`` (units in the field names: ``tau_acc_s``, ``bias_clip_rad_s``) so a
@@ -157,7 +161,7 @@ class SessionOutcome:
     mag: dict[str, MagCalibration]
     segments: dict[str, knee.SegmentCalibration]
     field: dict[str, FieldCheck]
-    heading: knee.HeadingOffset
+    heading: knee.HeadingOffset | None
     analysis: TaskAnalysis
     warnings: tuple[QualityWarning, ...]
     filter_params: Any
@@ -200,9 +204,16 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             '"side" to session.json')
     filt = make(options.filter_name, **dict(options.filter_params))
 
+    thigh, shank = session.task_pair()
+    task = {"thigh": thigh, "shank": shank}
+    roles = {role for _, role in session.recordings}
+
     progress("magnetometer", 0.15)
     mag: dict[str, MagCalibration] = {}
     for seg in SEGMENTS:
+        if "mag_calibration" not in roles:  # (b) factory-calibrated sensors: nothing to fit
+            mag[seg] = _factory_magnetometer(task[seg].mag)
+            continue
         rec = session.recording(seg, "mag_calibration")
         try:
             mag[seg] = fit_ellipsoid(rec.mag)
@@ -210,30 +221,30 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             raise PipelineError(f"{seg} magnetometer calibration ({_files(rec)}): {exc}") from None
         warnings += [QualityWarning(w.code, f"{seg.capitalize()} sensor: {w.message}", {**w.params, "segment": seg})
                      for w in mag[seg].quality.warnings]
+    if "mag_calibration" not in roles:
+        warnings.append(QualityWarning(
+            "magnetometer_not_calibrated", "no figure-eight recording: the magnetometers' own (factory) calibration "
+            "was used as recorded, without the ellipsoid fit", {}))
 
     progress("segments", 0.3)
-    segments: dict[str, knee.SegmentCalibration] = {}
-    for seg in SEGMENTS:
-        standing, lying = session.recording(seg, "standing"), session.recording(seg, "lying")
-        try:
-            cal = knee.calibrate_segment(standing.acc, standing.gyr, lying.acc, lying.gyr,
-                                         fs_hz=standing.fs_hz, label=seg)
-        except ValueError as exc:
-            raise PipelineError(f"{seg} sensor-to-segment calibration ({_files(standing)}, {_files(lying)}): "
-                                f"{exc}") from None
-        segments[seg] = cal
-        warnings += list(cal.warnings) + knee.mounting_warnings(cal, label=seg)
-
-    thigh, shank = session.task_pair()
-    task = {"thigh": thigh, "shank": shank}
-    q_standing = _standing_orientations(session, filt, mag, segments)
-    q_es: dict[str, FloatArray] = {}
+    protocol = _protocol(roles)
+    if protocol == "postures":
+        segments = _static_segments(session)
+        for seg, cal in segments.items():
+            warnings += list(cal.warnings) + knee.mounting_warnings(cal, label=seg)
+    else:  # (c) standing + task, or (d) the task alone: the bias comes from their still windows
+        segments, cal_warnings = _functional_segments(session, protocol, task)
+        warnings += cal_warnings
     mag_task = {seg: mag[seg].apply(rec.mag) for seg, rec in task.items()}
     gyr_task = {seg: rec.gyr - segments[seg].gyr_bias_rad_s for seg, rec in task.items()}
+    q_es: dict[str, FloatArray] = {}
     for i, (seg, rec) in enumerate(task.items()):
         progress(f"orientation {seg}", 0.45 + 0.2 * i)
         q_es[seg] = filt.estimate(rec.acc, gyr_task[seg], mag_task[seg], fs_hz=rec.fs_hz).orientation_
-    if options.calibration == "functional":
+    q_standing = _standing_orientations(session, filt, mag, segments) if "standing" in roles else None
+    if protocol != "postures":  # the second pass: the 9D orientations fix the axes' relative sign and rotation zero
+        segments, _ = _functional_segments(session, protocol, task, q_task=q_es, q_standing=q_standing)
+    elif options.calibration == "functional":
         segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)
         warnings += functional_warnings
     choice = _heading_choice(options.heading, filt, task, gyr_task, segments,
@@ -242,8 +253,9 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     q_seg = {"thigh": choice.q_earth_femur, "shank": choice.q_earth_tibia}
 
     progress("knee", 0.85)
-    heading = _standing_heading(q_standing, segments)
-    warnings += list(heading.warnings)
+    heading = _standing_heading(q_standing, segments) if q_standing is not None else None
+    if heading is not None:
+        warnings += list(heading.warnings)
     field: dict[str, FieldCheck] = {}
     for seg in ("thigh", "shank"):
         field[seg] = field_disturbance(mag_task[seg], q_es[seg], mag[seg].field_ut, label=seg)
@@ -305,6 +317,89 @@ def _heading_choice(mode: str, filt, task: dict, gyr_task: dict[str, FloatArray]
         return choose(six_d())
     choice = choose(None)
     return choose(six_d()) if choice.used == "constraint" else choice
+
+
+def _protocol(roles: set[str]) -> str:
+    """Which calibration the recordings allow: ``postures`` (standing + supine: the static calibration, or
+    ``--calibration functional``), ``standing_task`` (no supine: issue 14 §3 c) or ``task`` (no posture: d)."""
+    if {"standing", "lying"} <= roles:
+        return "postures"
+    return "standing_task" if "standing" in roles else "task"
+
+
+def _static_segments(session: Session) -> dict[str, knee.SegmentCalibration]:
+    """Per sensor, ``q_sensor_segment`` from its standing and supine recordings (:func:`estimators.knee.calibrate_segment`)."""
+    segments: dict[str, knee.SegmentCalibration] = {}
+    for seg in SEGMENTS:
+        standing, lying = session.recording(seg, "standing"), session.recording(seg, "lying")
+        try:
+            segments[seg] = knee.calibrate_segment(standing.acc, standing.gyr, lying.acc, lying.gyr,
+                                                   fs_hz=standing.fs_hz, label=seg)
+        except ValueError as exc:
+            raise PipelineError(f"{seg} sensor-to-segment calibration ({_files(standing)}, {_files(lying)}): "
+                                f"{exc}") from None
+    return segments
+
+
+def _functional_segments(session: Session, protocol: str, task: dict, *, q_task: dict | None = None,
+                         q_standing: dict | None = None) -> tuple[dict[str, knee.SegmentCalibration], list]:
+    """Segment axes without the supine posture (:mod:`estimators.functional`): ``standing_task`` takes y from
+    standing gravity and z from the knee's hinge axes on the task; ``task`` takes y from the task's stillest
+    straight-knee window.  Called twice: first for the gyroscope biases (no orientations), then with the 9D
+    orientations of the bias-free task (and standing) recordings, which fix the relative sign of the two hinge
+    axes and the knee's rotation zero."""
+    from estimators import functional
+
+    fs_hz = task["thigh"].fs_hz
+    pairs = [(task[seg].acc, task[seg].gyr) for seg in SEGMENTS]
+    try:
+        if protocol == "standing_task":
+            st = [session.recording(seg, "standing") for seg in SEGMENTS]
+            n = min(len(st[0].acc), len(st[1].acc))  # the two standing files, paired by index
+            q_st = None if q_standing is None else {seg: q[:n] for seg, q in q_standing.items()}
+            cal = functional.standing_task_calibration((st[0].acc[:n], st[0].gyr[:n]), (st[1].acc[:n], st[1].gyr[:n]),
+                                                       *pairs, fs_hz=fs_hz, q_standing=q_st, q_task=q_task)
+        else:
+            cal = functional.task_calibration(*pairs, fs_hz=fs_hz, q_task=q_task)
+    except ValueError as exc:
+        files = ", ".join(_files(task[seg]) for seg in SEGMENTS)
+        what = "standing + task" if protocol == "standing_task" else "task-only"
+        raise PipelineError(f"{what} sensor-to-segment calibration ({files}): {exc}") from None
+    if protocol == "task":
+        _check_straight_window(cal.segments, task)
+    return cal.segments, list(cal.warnings)
+
+
+def _check_straight_window(segments: dict[str, knee.SegmentCalibration], task: dict) -> None:
+    """The task-only calibration takes the knee's zero from the task's stillest straight-knee window, which
+    gravity and the hinge axes alone cannot tell from a still *flexed* posture (a step-up's start posture, foot on
+    the step: flexion then reads ~60–90° off).  The protocol wears each sensor with its +y axis up the segment
+    (seed 004 §8.2, within the mounting tolerance), so a window whose gravity is further than
+    ``TASK_ONLY_MAX_LONG_AXIS_RAD`` from a sensor's +y was no upright standing: refused, with what to record."""
+    for seg, cal in segments.items():
+        y = quat.to_matrix(cal.q_sensor_segment)[:, 1]
+        off = float(np.arccos(np.clip(y[1], -1.0, 1.0)))
+        if off > TASK_ONLY_MAX_LONG_AXIS_RAD:
+            raise PipelineError(
+                f"task-only sensor-to-segment calibration ({_files(task[seg])}): the stillest straight-knee moment "
+                f"of the task has the {seg} sensor {np.rad2deg(off):.0f}° from upright (more than "
+                f"{np.rad2deg(TASK_ONLY_MAX_LONG_AXIS_RAD):.0f}°), so the task never held the knee straight and "
+                "still; record 2 s standing still with the knee straight at the start of the task, or add the "
+                "standing (and lying) recordings")
+
+
+def _factory_magnetometer(mag_task: FloatArray) -> MagCalibration:
+    """The magnetometer as recorded (factory calibration, in whatever unit it came): no offset, no soft iron, the
+    local field strength the median norm over the task (quality figures that need a fit are NaN)."""
+    from estimators.magnetometer import MagQuality
+
+    norm = np.linalg.norm(mag_task, axis=1)
+    field = float(np.nanmedian(norm)) if np.isfinite(norm).any() else float("nan")
+    nan = float("nan")
+    quality = MagQuality(field_ut=field, residual_rms_ut=nan, residual_pct=nan, coverage_fraction=nan,
+                         coverage_cells=0, direction_spread=nan, offset_sd_ut=nan, n_samples=0, n_dropped_nan=0,
+                         n_outliers=0)
+    return MagCalibration(np.zeros(3), np.eye(3), field, "factory", quality)
 
 
 def _standing_orientations(session: Session, filt, mag: dict[str, MagCalibration],
