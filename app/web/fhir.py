@@ -65,6 +65,7 @@ from fhir.resources.R4B.diagnosticreport import DiagnosticReport as R4BDiagnosti
 from fhirclient.models.diagnosticreport import DiagnosticReport as R4DiagnosticReport
 from fhirclient.models.fhirabstractbase import FHIRValidationError
 
+from app.choices import TASKS
 from reports.i18n import LANGUAGES, t
 
 #: ChakaMo's own code system (report, observation, component and method codes).  Stable: never change.
@@ -87,7 +88,7 @@ _ANGLE_TEXT = {"flexion": "Knee flexion (+) / extension angle",
                "adduction": "Knee adduction (varus, +) / abduction angle",
                "internal_rotation": "Knee internal (+) / external rotation angle"}
 _STAT_TEXT = {"max": "maximum", "min": "minimum", "range": "range of motion (maximum - minimum)"}
-_TASK_TEXT = {"step_up": "single-leg step-up"}
+_TASK_TEXT = {t.name: t.label.lower() for t in TASKS}  # the motor-task registry's labels (app.choices)
 _CONVENTION_TEXT = {"grood_suntay": "Grood & Suntay joint coordinate system, left leg mirrored",
                     "thesis_zyx": "ZYX Euler angles of the calibrated knee quaternion (thesis-compatible)"}
 _GENDER = {"male": "male", "m": "male", "female": "female", "f": "female", "other": "other", "unknown": "unknown"}
