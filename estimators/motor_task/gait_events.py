@@ -26,7 +26,7 @@ E3  **Initial contact** (IC): after each MS the shank's forward rotation stops a
 E4  **Toe-off** (TO): the minimum of the low-passed rate before MS (Salarian's TC, Aminian's toe-off: the
     shank's fastest backward rotation in pre-swing), searched in ``[MS − to_search_s, MS]`` and after the
     previous IC, parabola-refined, plus ``to_latency_s``.
-E5  Latencies: ``ic_latency_s`` (+15 ms) and ``to_latency_s`` (+40 ms) are systematic corrections chosen on
+E5  Latencies: ``ic_latency_s`` (+15 ms) and ``to_latency_s`` (+45 ms) are systematic corrections chosen on
     the tuning seeds of ``benchmarks/gait.py`` against the simulator's truth (whose TO is the 60 % mark of its
     phase, where the shank rate is still rising from its minimum).  Set both to 0 for the published rules as
     they are; they are the first thing to re-tune on footswitch or force-plate data.
@@ -56,7 +56,7 @@ class GaitEventParams:
     mid_swing_min_rad_s : smallest mid-swing peak (E2).  Default 50°/s (0.873 rad/s), as Salarian et al.
     mid_swing_separation_s : a mid-swing peak is the largest within ± this (E2).  Default 0.4 s.
     to_search_s : toe-off is searched this long before mid-swing (E4).  Default 0.5 s.
-    ic_latency_s, to_latency_s : systematic corrections added to IC and TO (E5).  Defaults 0.015 s, 0.040 s.
+    ic_latency_s, to_latency_s : systematic corrections added to IC and TO (E5).  Defaults 0.015 s, 0.045 s.
     min_stride_s, max_stride_s : an IC → IC interval outside this is no stride (a bout starts or ends).
         Defaults 0.6 s and 2.5 s.
     turn_rate_rad_s : averaged yaw rate above which a sample is turning (T1).  Default 20°/s (0.349 rad/s).
@@ -68,7 +68,7 @@ class GaitEventParams:
     mid_swing_separation_s: float = 0.4
     to_search_s: float = 0.5
     ic_latency_s: float = 0.015
-    to_latency_s: float = 0.040
+    to_latency_s: float = 0.045
     min_stride_s: float = 0.6
     max_stride_s: float = 2.5
     turn_rate_rad_s: float = math.radians(20.0)
