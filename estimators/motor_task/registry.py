@@ -51,6 +51,7 @@ TASK_INFO: tuple[TaskInfo, ...] = (
     TaskInfo("seated_knee_extension", "Seated knee extension", ("extension", "hold", "flexion"),
              "estimators.motor_task.tasks.seated_knee_extension"),
     TaskInfo("squat", "Squat", ("descent", "hold", "ascent"), "estimators.motor_task.tasks.squat"),
+    TaskInfo("gait", "Gait", ("stance", "swing"), "estimators.motor_task.tasks.gait"),
 )
 
 #: The registered task names, in :data:`TASK_INFO` order.

@@ -70,9 +70,22 @@ def _gen(rest_deg, far_deg):
     return gen
 
 
+def _gen_gait(seed):
+    """Simulated walking (bone knee angles only: the knee-flexion fallback of the gait task); truth IC, TO, next IC."""
+    from estimators.simulation import gait
+
+    walk = gait.walking(12.0, seed=seed, fs_hz=FS_HZ)
+    leg = walk.leg(("right", "left")[seed % 2])
+    ph = leg.motion.phases_s
+    ph = ph[(ph[:, 0] >= 0.5) & (ph[:, 3] <= walk.t_s[-1] - 0.5)]
+    keep = (walk.t_s >= ph[0, 0] - 0.5) & (walk.t_s <= ph[-1, 3] + 0.5)  # half a stride either side
+    return leg.motion.knee_angles_rad[keep], ph[:, [0, 1, 3]] - walk.t_s[keep][0], [0, 2, 4], walk.t_s[keep]
+
+
 #: a synthetic-repetition generator per registered task: (angles, true events, their EVENTS columns, t_s).
 #: A new task adds one here; the contract fails for a registered task without one.
-GENERATORS = {"step_up": _gen_step_up, "squat": _gen(3.0, 95.0), "seated_knee_extension": _gen(90.0, 2.0)}
+GENERATORS = {"step_up": _gen_step_up, "squat": _gen(3.0, 95.0), "seated_knee_extension": _gen(90.0, 2.0),
+              "gait": _gen_gait}
 
 UNITLESS = {"boundary_model", "normalise_span", "n_points", "min_accepted_cycles"}
 UNIT_SUFFIXES = ("_hz", "_s", "_rad", "_rad_s", "_m", "_deg")
