@@ -107,7 +107,9 @@ def write_session(folder: Path, session: SimulatedSession, fmt: str = "metabase"
     Excel and generic CSV carry elapsed seconds only: each recording's times count from its role's start,
     which both sensors share (the assumption ingestion makes for those formats).
     """
-    manifest = {"side": session.side, "step_height_m": session.step_height_m, "patient_id": "DEMO-001"}
+    manifest = {"side": session.side, "patient_id": "DEMO-001"}
+    if session.step_height_m is not None:  # a step-up's; other tasks have none
+        manifest["step_height_m"] = session.step_height_m
     if fmt == "metabase":
         return write_session_metabase(folder, session.recordings, lang="es", dialect="epoc", time_sep=".",
                                       manifest=manifest, patient_id="DEMO-001", date_ddmmyyyy="22112026")

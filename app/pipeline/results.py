@@ -65,6 +65,7 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "per_cycle": _per_cycle(outcome),
         },
         "rom_deg": _deg(task["rom_rad"]),
+        **({"gait": _gait(task["gait"])} if "gait" in task else {}),
         "phases": task["phases"],
         "curves": {name: _deg(c) for name, c in task["curves_rad"].items()},
         "calibration": {
@@ -105,6 +106,18 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         "software": {"version": __version__},
     }
     return json_ready(results)
+
+
+def _gait(gait: dict[str, Any]) -> dict[str, Any]:
+    """The gait task's parameters for ``results.json``: each ``*_rad`` value in degrees as ``*_deg``, the rest as
+    analysed (stride time and cadence with their CV, stance/swing and peak-timing percentages, bouts, turns)."""
+    def deg_keys(d: Any) -> Any:
+        if isinstance(d, dict):
+            return {(k[:-4] + "_deg" if k.endswith("_rad") else k): (_deg(v) if k.endswith("_rad") else deg_keys(v))
+                    for k, v in d.items()}
+        return d
+
+    return deg_keys(gait)
 
 
 def _protocol_facts(outcome: SessionOutcome) -> dict[str, Any]:

@@ -275,7 +275,10 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
 
     progress("task", 0.95)
     try:
-        analysis = analyse_task(angles, thigh.fs_hz, task=options.task)
+        shank_axis = quat.rotate(segments["shank"].q_sensor_segment, np.array([0.0, 0.0, 1.0]))
+        analysis = analyse_task(angles, thigh.fs_hz, task=options.task, inputs={  # what a task's analysis may use
+            "gyr_shank_rad_s": gyr_task["shank"], "gyr_thigh_rad_s": gyr_task["thigh"], "shank_axis_sensor": shank_axis,
+            "q_earth_thigh": q_es["thigh"], "q_earth_shank": q_es["shank"]})
     except ValueError as exc:
         raise PipelineError(f"motor-task analysis of {_files(thigh)}: {exc}") from None
     warnings += list(analysis.warnings)
