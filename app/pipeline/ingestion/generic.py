@@ -59,31 +59,27 @@ def read_generic_csv(path: str | os.PathLike) -> tuple[Stream, Stream, Stream]:
         axes = [index.get(f"{kind}_{a}") for a in "xyz"]
         if None in axes:
             missing = [f"{kind}_{a}" for a, i in zip("xyz", axes) if i is None]
-            raise IngestionError(f"{path}: no column {', '.join(missing)} in the header; a generic CSV needs "
-                                 f"time, acc_x..z, gyr_x..z, mag_x..z, each with its unit, e.g. 'acc_x (g)': add "
-                                 f"the missing column(s) or export the file again.")
+            raise IngestionError("generic.column_missing", file=path, columns=", ".join(missing))
         t_i = index.get(f"{kind}_time", index.get(f"{kind}_t", index.get("time")))
         if t_i is None:
-            raise IngestionError(f"{path}: no time column; add 'time (s)' (or 'epoch (ms)') as the first column.")
+            raise IngestionError("generic.no_time", file=path)
         units = {cols[i][1] for i in axes}
         if len(units) != 1 or None in units:
-            raise IngestionError(f"{path}: columns {', '.join(header[i] for i in axes)} must declare one unit; "
-                                 f"give each the same unit in the header, e.g. "
-                                 f"'{kind}_x ({ {'acc': 'g', 'gyr': 'deg/s', 'mag': 'uT'}[kind]})'.")
+            raise IngestionError("generic.units_differ", file=path, columns=", ".join(header[i] for i in axes),
+                                 example=f"{kind}_x ({ {'acc': 'g', 'gyr': 'deg/s', 'mag': 'uT'}[kind]})")
         unit = units.pop()
         t_name, t_unit = cols[t_i]
         is_epoch = t_name == "epoch" or normalise_unit(t_unit or "") in ("epochms", "epoch_ms", "unixms")
         factor, t_factor = unit_factor(kind, unit), (1e-3 if is_epoch else unit_factor("time", t_unit or "s"))
         if factor is None or t_factor is None:
             bad = unit if factor is None else t_unit
-            raise IngestionError(f"{path}: unit ({bad}) is not one ChakaMo knows; correct the header to s/ms, g/mg/m_s2, "
-                                 f"deg/s/rad/s, T/mT/uT/nT.")
+            raise IngestionError("generic.unit_unknown", file=path, unit=bad)
         data = numeric_columns(path, header, rows, [t_i, *axes])
         keep = ~np.all(np.isnan(data[:, 1:]), axis=1)     # rows where this stream was not sampled
         rows_used = np.nonzero(keep)[0]
         t_s = data[keep, 0] * t_factor
         if rows_used.size == 0:
-            raise IngestionError(f"{path}: the {kind} columns are empty; export the recording again.")
+            raise IngestionError("generic.stream_empty", file=path, stream=kind)
         check_stamps(path, t_s, f"'{header[t_i]}' stamp", first_row=2 + int(rows_used[0]))
         values = data[keep, 1:] * factor
         check_magnitude(kind, values, unit, path)

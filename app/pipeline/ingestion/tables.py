@@ -9,7 +9,9 @@ from typing import Sequence
 
 import numpy as np
 
-from app.pipeline.ingestion.model import FloatArray, IngestionError
+import datetime as dt
+
+from app.pipeline.ingestion.model import FloatArray, IngestionError, Note
 
 #: Fewest samples / shortest span a stream may have.
 MIN_SAMPLES = 10
@@ -19,47 +21,81 @@ MIN_DURATION_S = 1.0
 MAX_ABS_CELL = 1e15
 
 
-def read_csv_rows(path: Path) -> tuple[list[str], list[list[str]]]:
-    """Header and data rows of a comma-separated file; refuses empty, header-only and ragged (truncated) files.
+def read_csv_rows(path: Path, notes: list | None = None) -> tuple[list[str], list[list[str]]]:
+    """Header and data rows of a comma- (or ``;``-) separated file; refuses empty, header-only and ragged files.
+
+    Repaired, each with a :class:`Note` appended to ``notes`` (when given):
+
+    * ``;`` between the header's fields (Excel in Spanish or Portuguese): read with ``;`` as separator and
+      ``,`` as the decimal point (``9,81`` → ``9.81``);
+    * a last row cut short (fewer cells than the header, or, when the file does not end with a line break, a
+      last cell that is not a number): dropped — a copy or an export interrupted;
+    * rows repeated exactly (every cell equal to an earlier row's): dropped, the first kept.
 
     NUL bytes are refused before decoding: they are what a UTF-16/UTF-32 export (Excel's "Unicode text") or a
     damaged copy looks like, and read as UTF-8 they would give a header that merely "lacks columns"."""
+    notes = [] if notes is None else notes
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise IngestionError(f"{path}: cannot be read ({exc.strerror}); check that the file exists and is "
-                             f"readable, or copy it again.") from None
+        raise IngestionError("file.unreadable", file=path, reason=exc.strerror or str(exc)) from None
     if b"\x00" in raw:
-        raise IngestionError(f"{path}: the file contains NUL bytes (saved as UTF-16/UTF-32 'Unicode text', or "
-                             f"damaged); save it again as a UTF-8 (or plain) CSV, or export the recording again.")
+        raise IngestionError("file.nul_bytes", file=path)
     try:
         text = raw.decode("utf-8-sig")
-        rows = list(csv.reader(io.StringIO(text, newline="")))
     except UnicodeDecodeError as exc:
-        raise IngestionError(f"{path}: not a text CSV file ({exc.reason}); export it again as CSV.") from None
+        raise IngestionError("file.not_text", file=path, reason=exc.reason) from None
+    first = text.split("\n", 1)[0]
+    semicolon = first.count(";") > 0 and first.count(";") >= first.count(",")
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=";" if semicolon else ","))
     except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
-        raise IngestionError(f"{path}: not a readable CSV file ({exc}); the file is damaged — export the "
-                             f"recording again.") from None
+        raise IngestionError("file.damaged_csv", file=path, reason=str(exc)) from None
     while rows and not any(c.strip() for c in rows[-1]):
         rows.pop()
     if not rows:
-        raise IngestionError(f"{path}: the file is empty; export the recording again.")
+        raise IngestionError("file.empty", file=path)
     header = [h.strip() for h in rows[0]]
-    if len(header) == 1 and ";" in header[0]:
-        raise IngestionError(f"{path}: the columns are separated by ';'; save the file as comma-separated CSV "
-                             f"with '.' as the decimal point.")
     data = rows[1:]
+    if semicolon:
+        data = [[c.replace(",", ".") for c in r] for r in data]
+        notes.append(Note.of("csv_semicolon", file=path.name))
     if not data:
-        raise IngestionError(f"{path}: the file has a header but no data rows; export the recording again.")
+        raise IngestionError("file.header_only", file=path)
     k = len(header)
+    last = data[-1]
+    cut = len(last) < k or (not text.rstrip(" \t").endswith(("\n", "\r")) and len(last) == k
+                            and not _number_or_empty(last[-1]))
+    if cut and len(data) > 1:
+        data.pop()
+        notes.append(Note.of("truncated_last_row", file=path.name, row=len(data) + 2))
     for i, r in enumerate(data):
         if len(r) != k:
-            where = "the last row" if i == len(data) - 1 else f"row {i + 2}"
-            raise IngestionError(
-                f"{path}: {where} has {len(r)} cells but the header has {k}"
-                + ("; the file looks truncated (copy or export it again)." if i == len(data) - 1
-                   else "; the file is damaged or has a stray separator — export it again."))
+            raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=len(r), header_cells=k)
+    seen: dict[tuple[str, ...], int] = {}
+    dropped: list[int] = []
+    for i, r in enumerate(data):
+        key = tuple(r)
+        if key in seen:
+            dropped.append(i)
+        else:
+            seen[key] = i
+    if dropped:
+        gone = set(dropped)
+        data = [r for i, r in enumerate(data) if i not in gone]
+        notes.append(Note.of("duplicate_rows", file=path.name, rows=len(dropped), first_row=dropped[0] + 2))
     return header, data
+
+
+def _number_or_empty(cell: str) -> bool:
+    cell = cell.strip().strip('"')
+    if not cell:
+        return True
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], columns: Sequence[int],
@@ -82,14 +118,13 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
                 try:
                     out[i, j] = float(cell)
                 except ValueError:
-                    raise IngestionError(
-                        f"{path}: row {i + first_row}, column '{header[c]}' holds {cell!r}, which is not a number; "
-                        f"fix or delete that row (decimal point '.', no thousands separator).") from None
+                    raise IngestionError("cell.not_number", file=path, row=i + first_row, column=header[c],
+                                         cell=cell[:40]) from None
     huge = first_huge_cell(out)
     if huge is not None:
         i, j = huge
-        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' {huge_text(out[i, j])}; "
-                             f"fix or delete that row.")
+        raise IngestionError("cell.infinite" if np.isinf(out[i, j]) else "cell.huge", file=path, row=i + first_row,
+                             column=header[columns[j]], value=f"{out[i, j]:.3g}")
     return out
 
 
@@ -106,26 +141,33 @@ def huge_text(value: float) -> str:
     return "is infinite" if np.isinf(value) else f"holds {value:.3g}, beyond any time stamp or reading"
 
 
-def check_stamps(path: Path, t_s: FloatArray, what: str = "time stamps", first_row: int = 2) -> None:
-    """Time stamps present, strictly increasing, enough of them.
+def when(t_s: float, t0_s: float) -> str:
+    """An instant for a message: seconds from the recording's start, plus the UTC wall-clock time when the
+    stamps are Unix epoch seconds (``"12.340 s (2021-10-29 14:18:52.356 UTC)"``), never ``1.63552e+09 s``."""
+    text = f"{t_s - t0_s:.3f} s"
+    if t0_s > 1e8:  # epoch seconds (after 1973): a real date
+        clock = dt.datetime.fromtimestamp(t_s, tz=dt.timezone.utc)
+        text += f" ({clock:%Y-%m-%d %H:%M:%S}.{clock.microsecond // 1000:03d} UTC)"
+    return text
+
+
+def check_stamps(path: Path, t_s: FloatArray, column: str = "time", first_row: int = 2) -> None:
+    """Time stamps present, strictly increasing, enough of them; ``column`` is the stamp column's header.
 
     Order matters for the message: stamps that go back (a clock reset at midnight) are named as such before
     the span is judged, which such stamps make negative."""
     if np.isnan(t_s).any():
         i = int(np.argmax(np.isnan(t_s)))
-        raise IngestionError(f"{path}: row {i + first_row} has no {what}; fix or delete that row.")
-    _check_increasing(path, t_s, what, first_row)
+        raise IngestionError("stamp.missing", file=path, row=i + first_row, column=column)
+    _check_increasing(path, t_s, column, first_row)
     if len(t_s) < MIN_SAMPLES or t_s[-1] - t_s[0] < MIN_DURATION_S:
-        raise IngestionError(f"{path}: only {len(t_s)} samples ({t_s[-1] - t_s[0]:.2f} s); the recording is too "
-                             f"short (at least {MIN_DURATION_S:g} s) — record again.")
+        raise IngestionError("stream.too_short", file=path, samples=len(t_s), seconds=float(t_s[-1] - t_s[0]),
+                             min_s=MIN_DURATION_S)
 
 
-def _check_increasing(path: Path, t_s: FloatArray, what: str, first_row: int) -> None:
+def _check_increasing(path: Path, t_s: FloatArray, column: str, first_row: int) -> None:
     d = np.diff(t_s)
     if (d <= 0).any():
         i = int(np.argmax(d <= 0))
-        kind = "repeats" if d[i] == 0 else "goes back in time at"
-        raise IngestionError(
-            f"{path}: rows {i + first_row} and {i + first_row + 1}: the {what} {kind} {float(t_s[i + 1]):.6g} s "
-            f"(duplicated or out-of-order rows). Export the recording again, or remove the "
-            f"{'duplicated' if d[i] == 0 else 'out-of-order'} rows.")
+        raise IngestionError("stamp.repeats" if d[i] == 0 else "stamp.goes_back", file=path, row=i + first_row,
+                             row2=i + first_row + 1, column=column, at=when(float(t_s[i + 1]), float(t_s[0])))
