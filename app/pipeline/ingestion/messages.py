@@ -532,7 +532,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "word.role": {"en": "role", "es": "papel", "pt": "papel"},
     "word.segment": {"en": "segment", "es": "segmento", "pt": "segmento"},
     "word.role_segment": {"en": "role and segment", "es": "papel y segmento", "pt": "papel e segmento"},
-    "word.role_of": {"en": "{role} of the {segment}", "es": "{role} del {segment}", "pt": "{role} da {segment}"},
+    "word.role_of": {"en": "{role} of the {segment}", "es": "{role} ({segment})", "pt": "{role} ({segment})"},
     # -------------------------------------------------------------------------------------------- notes
     "note.csv_semicolon": {
         "en": "{file}: read with ';' between fields and ',' as the decimal point (a spreadsheet in Spanish or "
@@ -597,6 +597,9 @@ WORDS = {
     "lying": {"en": "lying", "es": "tumbado", "pt": "deitado"},
     "task": {"en": "task", "es": "tarea", "pt": "tarefa"},
 }
+
+
+CATALOGUE.update({f"word.{k}": v for k, v in WORDS.items()})
 
 
 def placeholders(template: str) -> set[str]:

@@ -317,7 +317,7 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     if len(segs) < 2:
         raise IngestionError("session.one_sensor" if segs else "session.no_sensor", file=folder,
                              segment=next(iter(segs), ""), hint=hint)
-    missing = [{"code": "word.role_of", "params": {"role": r, "segment": s}}
+    missing = [{"code": "word.role_of", "params": {"role": {"code": f"word.{r}"}, "segment": {"code": f"word.{s}"}}}
                for s in SEGMENTS for r in roles if (s, r) not in recs]
     if missing:
         raise IngestionError("session.missing_recordings", file=folder, missing=missing, hint=hint)
