@@ -11,7 +11,9 @@ Format (comma-separated, one header row, ``.`` decimal point)::
 * Units in parentheses, or as a suffix after the last ``_`` of the name's unit part
   (``t_s``, ``acc_x_m_s2``, ``gyr_x_rad_s``, ``mag_x_ut``): time s/ms/us, or Unix time as a column
   ``epoch (ms)`` / ``epoch_ms`` or a unit ``(epoch ms)`` (e.g. ``mag_time (epoch ms)``); acc g, mg, m/s²;
-  gyr deg/s, rad/s; mag T, mT, µT (uT), nT, G.
+  gyr deg/s, rad/s; mag T, mT, µT (uT), nT, G, or ``normalised`` (norm ≈ 1, e.g. ``mag_x (normalised)``),
+  optionally with the local field strength: ``mag_x (normalised 48.5 uT)``; a normalised magnetometer stays
+  normalised (``Stream.mag_unit == "normalised"``, ``Stream.field_ut`` the declared strength or ``None``).
 * A stream sampled slower (magnetometer at 20 Hz) leaves its cells empty in the other rows; an empty
   cell is a missing sample, text is an error.
 """
@@ -27,7 +29,7 @@ import numpy as np
 from app.pipeline.files import write_text_atomic
 from app.pipeline.ingestion.model import IngestionError, Stream
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, read_csv_rows
-from app.pipeline.ingestion.units import check_magnitude, normalise_unit, unit_factor
+from app.pipeline.ingestion.units import check_magnitude, normalise_unit, normalised_field, unit_factor
 
 _PAREN = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
 _SUFFIX = re.compile(r"^(?P<name>(?:acc|gyr|mag)_[xyz]|(?:acc_|gyr_|mag_)?(?:time|t)|epoch)_(?P<unit>.+)$")
@@ -47,7 +49,8 @@ def _column(col: str) -> tuple[str, str | None]:
 def read_generic_csv(path: str | os.PathLike) -> tuple[Stream, Stream, Stream]:
     """Read a generic CSV → ``(acc, gyr, mag)`` streams in project units (see the module docstring)."""
     path = Path(path)
-    header, rows = read_csv_rows(path)
+    notes: list = []
+    header, rows = read_csv_rows(path, notes)
     cols = [_column(c) for c in header]
     index = {n: i for i, (n, _) in enumerate(cols)}
     if "t" in index and "time" not in index:
@@ -80,11 +83,13 @@ def read_generic_csv(path: str | os.PathLike) -> tuple[Stream, Stream, Stream]:
         t_s = data[keep, 0] * t_factor
         if rows_used.size == 0:
             raise IngestionError("generic.stream_empty", file=path, stream=kind)
-        check_stamps(path, t_s, f"'{header[t_i]}' stamp", first_row=2 + int(rows_used[0]))
+        check_stamps(path, t_s, header[t_i], first_row=2 + int(rows_used[0]))
         values = data[keep, 1:] * factor
         check_magnitude(kind, values, unit, path)
+        normalised, field_ut = normalised_field(unit) if kind == "mag" else (False, None)
         streams.append(Stream(kind=kind, t_s=t_s, values=values, declared_unit=unit, file=path,
-                              time_base="epoch" if is_epoch else "elapsed"))
+                              time_base="epoch" if is_epoch else "elapsed", notes=tuple(notes) if kind == "acc"
+                              else (), mag_unit="normalised" if normalised else "µT", field_ut=field_ut))
     return streams[0], streams[1], streams[2]
 
 

@@ -189,6 +189,42 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{file}: the {stream} columns are empty; export the recording again.",
         "es": "{file}: las columnas de {stream} están vacías; exporte de nuevo la grabación.",
         "pt": "{file}: as colunas de {stream} estão vazias; exporte a gravação de novo."},
+    # ---------------------------------------------------------------------------- Xsens, Shimmer, APDM
+    "xsens.columns_missing": {
+        "en": "{file}: an MT Manager export needs the columns {columns}; export it again from MT Manager with "
+              "calibrated acceleration (Acc, not FreeAcc), rate of turn and magnetic field.",
+        "es": "{file}: una exportación de MT Manager necesita las columnas {columns}; expórtela de nuevo desde MT "
+              "Manager con aceleración calibrada (Acc, no FreeAcc), velocidad angular y campo magnético.",
+        "pt": "{file}: uma exportação do MT Manager precisa das colunas {columns}; exporte-a de novo do MT "
+              "Manager com aceleração calibrada (Acc, não FreeAcc), velocidade angular e campo magnético."},
+    "xsens.no_time": {
+        "en": "{file}: no time in this MT Manager export (no valid UTC_*, SampleTimeFine, or PacketCounter with "
+              "an update rate); export it again with SampleTimeFine.",
+        "es": "{file}: esta exportación de MT Manager no tiene tiempo (ni UTC_* válido, ni SampleTimeFine, ni "
+              "PacketCounter con frecuencia); expórtela de nuevo con SampleTimeFine.",
+        "pt": "{file}: esta exportação do MT Manager não tem tempo (nem UTC_* válido, nem SampleTimeFine, nem "
+              "PacketCounter com frequência); exporte-a de novo com SampleTimeFine."},
+    "shimmer.no_units_row": {
+        "en": "{file}: a Consensys export needs its units row (ms, m/(s^2), deg/s, local_flux) under the column "
+              "names; export it again from Consensys with calibrated (CAL) data.",
+        "es": "{file}: una exportación de Consensys necesita su fila de unidades (ms, m/(s^2), deg/s, local_flux) "
+              "bajo los nombres de columna; expórtela de nuevo desde Consensys con datos calibrados (CAL).",
+        "pt": "{file}: uma exportação do Consensys precisa da sua linha de unidades (ms, m/(s^2), deg/s, "
+              "local_flux) sob os nomes das colunas; exporte-a de novo do Consensys com dados calibrados (CAL)."},
+    "shimmer.columns_missing": {
+        "en": "{file}: the Consensys export lacks {columns} (calibrated, _CAL); export it again with the "
+              "accelerometer, gyroscope, magnetometer and Unix time stamps enabled.",
+        "es": "{file}: a la exportación de Consensys le falta {columns} (calibrado, _CAL); expórtela de nuevo con "
+              "acelerómetro, giroscopio, magnetómetro y marcas de tiempo Unix activados.",
+        "pt": "{file}: à exportação do Consensys falta {columns} (calibrado, _CAL); exporte-a de novo com "
+              "acelerômetro, giroscópio, magnetômetro e marcas de tempo Unix ativados."},
+    "shimmer.unit_unknown": {
+        "en": "{file}: unit '{unit}' of column {column} is not one ChakaMo knows for a Consensys export; export "
+              "it again with calibrated (CAL) data.",
+        "es": "{file}: la unidad '{unit}' de la columna {column} no es una que ChakaMo conozca para una "
+              "exportación de Consensys; expórtela de nuevo con datos calibrados (CAL).",
+        "pt": "{file}: a unidade '{unit}' da coluna {column} não é uma que o ChakaMo conheça para uma exportação "
+              "do Consensys; exporte-a de novo com dados calibrados (CAL)."},
     # -------------------------------------------------------------------------------------------- Excel
     "xlsx.no_openpyxl": {
         "en": "reading .xlsx files needs the 'openpyxl' package: install ChakaMo again (pip install -e .), or "

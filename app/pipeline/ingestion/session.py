@@ -42,15 +42,18 @@ from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_na
                                             start_time)
 from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
+from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
+from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
 
 MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
-_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings",
+_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut",
                   "name", "professional", "weight_kg", "height_m", "observations"}
 _ENTRY_KEYS = {"files", "segment", "role", "sheet"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
+                   "mag_field_ut": (int, float),
                    "sensors": dict, "recordings": list, "name": str, "professional": str,
                    "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
@@ -102,9 +105,15 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
         acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
         notes = (f"{paths[0].name}: {note}",)
         label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
-    elif len(paths) == 1 and paths[0].suffix.lower() == ".csv":
-        acc, gyr, mag = read_generic_csv(paths[0])
-        label, fmt, method = paths[0].stem, "generic-csv", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() in (".csv", ".txt"):
+        fmt = sniff(paths[0]) or "generic-csv"
+        if fmt == "xsens":
+            acc, gyr, mag, sensor_id = read_xsens(paths[0])
+        elif fmt == "shimmer":
+            acc, gyr, mag, sensor_id = read_shimmer(paths[0])
+        else:
+            acc, gyr, mag = read_generic_csv(paths[0])
+        label, method = paths[0].stem, "file name"
     else:
         raise IngestionError("recording.bad_file_set", file=paths[0], files=", ".join(p.name for p in paths))
     found = {}
@@ -186,13 +195,20 @@ def _manifest_word(path: Path, where: str, text: str, kind: str) -> Recognition:
     return Recognition(r.value, "session.json", where)
 
 
-def _looks_generic(path: Path) -> bool:
-    """A non-MetaBase .csv is taken as a generic recording only if its header names acc_x."""
+def sniff(path: Path) -> str | None:
+    """The format of a non-MetaBase ``.csv`` / ``.txt`` from its first 8 kB: ``"xsens"`` (MT Manager export),
+    ``"shimmer"`` (Consensys), ``"generic-csv"`` (a header naming ``acc_x``), or ``None``."""
     try:
         with open(path, encoding="utf-8-sig", errors="replace") as fh:
-            return "acc_x" in fh.readline().lower()
+            head = fh.read(8192)
     except OSError:
-        return False
+        return None
+    if looks_like_xsens(head):
+        return "xsens"
+    if looks_like_shimmer(head):
+        return "shimmer"
+    first = head.split("\n", 1)[0].lower()
+    return "generic-csv" if path.suffix.lower() == ".csv" and "acc_x" in first else None
 
 
 #: why _discover leaves a .csv out (shown in notes, and in the error when a recording or stream is then missing)
@@ -206,9 +222,10 @@ def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
     groups = [sorted(g.values()) for g in group_metabase_files(meta).values()]
     singles, ignored = [], []
     for p in files:
-        if p.suffix.lower() == ".xlsx" or (p.suffix.lower() == ".csv" and p not in meta and _looks_generic(p)):
+        suffix = p.suffix.lower()
+        if suffix == ".xlsx" or (suffix in (".csv", ".txt") and p not in meta and sniff(p)):
             singles.append([p])
-        elif p.suffix.lower() == ".csv" and p not in meta:
+        elif suffix == ".csv" and p not in meta:
             ignored.append(p.name)
     return groups + singles, ignored
 
@@ -322,6 +339,12 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     if missing:
         raise IngestionError("session.missing_recordings", file=folder, missing=missing, hint=hint)
     notes += [Note.of("file_unrecognised", **u["params"]) for u in unrecognised]
+    field = manifest.get("mag_field_ut")
+    if field is not None:
+        if not 10.0 <= field <= 100.0:
+            raise IngestionError("manifest.bad_field", file=mpath, value=repr(field))
+        recs = {k: replace(r, mag=replace(r.mag, field_ut=float(field))) if r.mag.mag_unit == "normalised"
+                and r.mag.field_ut is None else r for k, r in recs.items()}
     for rec in recs.values():
         check_gyro_unit(rec.acc, rec.gyr)
     fs = {key: check_rates(rec, expected_fs_hz) for key, rec in recs.items()}

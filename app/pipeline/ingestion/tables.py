@@ -34,7 +34,11 @@ def read_csv_rows(path: Path, notes: list | None = None) -> tuple[list[str], lis
 
     NUL bytes are refused before decoding: they are what a UTF-16/UTF-32 export (Excel's "Unicode text") or a
     damaged copy looks like, and read as UTF-8 they would give a header that merely "lacks columns"."""
-    notes = [] if notes is None else notes
+    return parse_table(path, read_text(path), notes)
+
+
+def read_text(path: Path) -> str:
+    """The file as text (UTF-8, BOM dropped); NUL bytes, undecodable bytes and unreadable files refused."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -42,13 +46,25 @@ def read_csv_rows(path: Path, notes: list | None = None) -> tuple[list[str], lis
     if b"\x00" in raw:
         raise IngestionError("file.nul_bytes", file=path)
     try:
-        text = raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise IngestionError("file.not_text", file=path, reason=exc.reason) from None
+
+
+def parse_table(path: Path, text: str, notes: list | None = None,
+                delimiter: str | None = None) -> tuple[list[str], list[list[str]]]:
+    """:func:`read_csv_rows` on ``text`` (the table part of a file, its first line the header).
+
+    ``delimiter`` ``None``: ``;`` when the header has at least as many ``;`` as ``,`` (then ``,`` is the
+    decimal point), else ``,``; a tab-separated header (Xsens, Shimmer) gives ``"\t"``."""
+    notes = [] if notes is None else notes
     first = text.split("\n", 1)[0]
-    semicolon = first.count(";") > 0 and first.count(";") >= first.count(",")
+    if delimiter is None:
+        delimiter = "\t" if first.count("\t") > max(first.count(","), first.count(";")) else \
+            ";" if first.count(";") > 0 and first.count(";") >= first.count(",") else ","
+    semicolon = delimiter == ";"
     try:
-        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=";" if semicolon else ","))
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
     except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
         raise IngestionError("file.damaged_csv", file=path, reason=str(exc)) from None
     while rows and not any(c.strip() for c in rows[-1]):

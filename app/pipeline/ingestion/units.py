@@ -23,6 +23,7 @@ Plausibility (a file whose header declares one unit but whose numbers are in ano
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,23 @@ _ALIASES = {
 }
 
 
+#: spellings of a normalised magnetometer unit (Xsens "a.u."): the field divided by its local strength, norm ≈ 1
+NORMALISED = ("normalised", "normalized", "a.u.", "au", "arb", "norm")
+_NORMALISED = re.compile(r"^(?:normali[sz]ed|a\.u\.|au|arb|norm)(?:[,;:@x*]?(?P<field>\d+(?:\.\d+)?)"
+                         r"(?P<unit>ut|nt|mt|t|gauss|g|mg))?$")
+
+
+def normalised_field(unit: str) -> tuple[bool, float | None]:
+    """``(is_normalised, field_ut)`` of a magnetometer unit: ``"normalised"`` → ``(True, None)``,
+    ``"normalised 48.5 uT"`` → ``(True, 48.5)``, ``"uT"`` → ``(False, None)``."""
+    m = _NORMALISED.match(normalise_unit(unit))
+    if m is None:
+        return False, None
+    if m.group("field") is None:
+        return True, None
+    return True, float(m.group("field")) * UNITS["mag"][_key("mag", m.group("unit"))]
+
+
 def normalise_unit(text: str) -> str:
     """Lower-case, strip spaces, µ/μ → u, ² → 2, aliases → one spelling (``"m/s²"`` → ``"m/s2"``)."""
     u = text.strip().lower().replace(" ", "").replace("µ", "u").replace("μ", "u").replace("²", "2")
@@ -60,7 +78,11 @@ def _key(kind: str, unit: str) -> str:
 
 
 def unit_factor(kind: str, unit: str) -> float | None:
-    """Factor taking ``unit`` to the project unit of ``kind`` (acc/gyr/mag/time), ``None`` if unknown."""
+    """Factor taking ``unit`` to the project unit of ``kind`` (acc/gyr/mag/time), ``None`` if unknown.
+
+    A normalised magnetometer unit (:func:`normalised_field`) gives 1.0: its values stay normalised."""
+    if kind == "mag" and normalised_field(unit)[0]:
+        return 1.0
     return UNITS[kind].get(_key(kind, unit))
 
 
@@ -93,6 +115,11 @@ _PLAUSIBLE = {
 
 def check_magnitude(kind: str, values_si: FloatArray, declared: str, file: Path) -> None:
     """Refuse acc/mag whose median norm is implausible for the declared unit (see module docstring)."""
+    if kind == "mag" and normalised_field(declared)[0]:
+        m = _median_norm(values_si)
+        if not 0.3 <= m <= 3.0:
+            raise IngestionError("unit.implausible_normalised", file=file, value=f"{m:.4g}")
+        return
     if kind in _PLAUSIBLE:
         lo, hi, guess_lo, guess_hi, what, si, reference = _PLAUSIBLE[kind]
         m = _median_norm(values_si)
