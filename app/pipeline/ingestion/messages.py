@@ -225,6 +225,50 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "exportación de Consensys; expórtela de nuevo con datos calibrados (CAL).",
         "pt": "{file}: a unidade '{unit}' da coluna {column} não é uma que o ChakaMo conheça para uma exportação "
               "do Consensys; exporte-a de novo com dados calibrados (CAL)."},
+    "opal.no_h5py": {
+        "en": "reading APDM .h5 files needs the 'h5py' package: install ChakaMo again (pip install -e .).",
+        "es": "leer archivos .h5 de APDM necesita el paquete 'h5py': instale ChakaMo de nuevo (pip install -e .).",
+        "pt": "ler arquivos .h5 da APDM precisa do pacote 'h5py': instale o ChakaMo de novo (pip install -e .)."},
+    "opal.cannot_open": {
+        "en": "{file}: cannot be opened as an HDF5 file ({reason}); copy it again or export it again from "
+              "Mobility Lab / Motion Studio.",
+        "es": "{file}: no se puede abrir como archivo HDF5 ({reason}); cópielo de nuevo o expórtelo de nuevo "
+              "desde Mobility Lab / Motion Studio.",
+        "pt": "{file}: não pode ser aberto como arquivo HDF5 ({reason}); copie-o de novo ou exporte-o de novo do "
+              "Mobility Lab / Motion Studio."},
+    "opal.not_v5": {
+        "en": "{file}: not an APDM file of format version 5 (no /Sensors group); export it again from Mobility "
+              "Lab / Motion Studio in the current HDF5 format.",
+        "es": "{file}: no es un archivo APDM de la versión de formato 5 (sin grupo /Sensors); expórtelo de nuevo "
+              "desde Mobility Lab / Motion Studio en el formato HDF5 actual.",
+        "pt": "{file}: não é um arquivo APDM da versão de formato 5 (sem grupo /Sensors); exporte-o de novo do "
+              "Mobility Lab / Motion Studio no formato HDF5 atual."},
+    "opal.which_sensor": {
+        "en": "{file}: the file holds the sensors {sensors}; name the one of each recording in session.json "
+              "(\"sensor\" in its recordings entry).",
+        "es": "{file}: el archivo contiene los sensores {sensors}; indique el de cada grabación en session.json "
+              "(\"sensor\" en su entrada de recordings).",
+        "pt": "{file}: o arquivo contém os sensores {sensors}; indique o de cada gravação no session.json "
+              "(\"sensor\" na sua entrada de recordings)."},
+    "opal.no_such_sensor": {
+        "en": "{file}: no sensor '{sensor}' in the file (it holds {sensors}); correct \"sensor\" in session.json.",
+        "es": "{file}: no hay sensor '{sensor}' en el archivo (contiene {sensors}); corrija \"sensor\" en "
+              "session.json.",
+        "pt": "{file}: não há sensor '{sensor}' no arquivo (contém {sensors}); corrija \"sensor\" no "
+              "session.json."},
+    "opal.datasets_missing": {
+        "en": "{file}: sensor {sensor} has no {datasets} data; export the recording again with accelerometer, "
+              "gyroscope and magnetometer.",
+        "es": "{file}: el sensor {sensor} no tiene datos de {datasets}; exporte de nuevo la grabación con "
+              "acelerómetro, giroscopio y magnetómetro.",
+        "pt": "{file}: o sensor {sensor} não tem dados de {datasets}; exporte a gravação de novo com "
+              "acelerômetro, giroscópio e magnetômetro."},
+    "opal.bad_shape": {
+        "en": "{file}: {dataset} has shape {shape}, expected ({n}, 3); the file is damaged — export it again.",
+        "es": "{file}: {dataset} tiene forma {shape}, se esperaba ({n}, 3); el archivo está dañado: expórtelo de "
+              "nuevo.",
+        "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o arquivo está danificado: exporte-o de "
+              "novo."},
     # -------------------------------------------------------------------------------------------- Excel
     "xlsx.no_openpyxl": {
         "en": "reading .xlsx files needs the 'openpyxl' package: install ChakaMo again (pip install -e .), or "

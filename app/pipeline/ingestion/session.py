@@ -42,6 +42,7 @@ from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_na
                                             start_time)
 from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
+from app.pipeline.ingestion.opal import list_sensors, read_opal
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
 from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
@@ -50,7 +51,7 @@ MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
 _MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut",
                   "name", "professional", "weight_kg", "height_m", "observations"}
-_ENTRY_KEYS = {"files", "segment", "role", "sheet"}
+_ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
                    "mag_field_ut": (int, float),
@@ -60,13 +61,14 @@ _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an 
                type(None): "null"}
 
 
-def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None, hint: str = "",
-                   settle: bool = True) -> RawRecording:
+def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None, hint: Any = "",
+                   settle: bool = True, sensor: str | None = None) -> RawRecording:
     """Read one recording (3 MetaBase files, 1 thesis .xlsx, or 1 generic .csv), segment/role from its name.
 
     ``hint`` ends the message when a MetaBase stream file is missing (the files discovery left out: a stream
     renamed out of the MetaBase pattern is one of them).  ``settle=False`` leaves MetaBase stamps rebuilt
     on local time (:func:`.metabase.settle_local_time`) for the session to put on UTC with other recordings.
+    ``sensor`` picks one sensor of an APDM ``.h5`` file holding several (its segment from the sensor's label).
 
     ``extras`` gains, when the files say them: ``started`` (ISO local date-time of the recording's start,
     from the MetaBase name), ``device`` (the sensor's user-chosen name), ``firmware``."""
@@ -105,6 +107,9 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
         acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
         notes = (f"{paths[0].name}: {note}",)
         label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() in (".h5", ".hdf5"):
+        acc, gyr, mag, sensor_id, sensor_label = read_opal(paths[0], sensor)
+        label, fmt, method = f"{paths[0].stem} {sensor_label}".strip(), "apdm-opal", "file name"
     elif len(paths) == 1 and paths[0].suffix.lower() in (".csv", ".txt"):
         fmt = sniff(paths[0]) or "generic-csv"
         if fmt == "xsens":
@@ -167,7 +172,7 @@ def _read_manifest(path: Path) -> dict[str, Any]:
     for i, e in enumerate(data.get("recordings", [])):
         if not isinstance(e, dict) or not isinstance(e.get("files"), list) or not e["files"] or set(e) - _ENTRY_KEYS \
                 or not all(isinstance(e.get(k, ""), str) for k in ("segment", "role")) \
-                or not isinstance(e.get("sheet", ""), (str, type(None))):
+                or not isinstance(e.get("sheet", ""), (str, type(None))) or not isinstance(e.get("sensor", ""), str):
             raise IngestionError("manifest.bad_entry", file=path, index=i)
         for f in e["files"]:
             if not isinstance(f, str) or not f or not (root / f).resolve().is_relative_to(root) \
@@ -223,7 +228,7 @@ def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
     singles, ignored = [], []
     for p in files:
         suffix = p.suffix.lower()
-        if suffix == ".xlsx" or (suffix in (".csv", ".txt") and p not in meta and sniff(p)):
+        if suffix in (".xlsx", ".h5", ".hdf5") or (suffix in (".csv", ".txt") and p not in meta and sniff(p)):
             singles.append([p])
         elif suffix == ".csv" and p not in meta:
             ignored.append(p.name)
@@ -292,7 +297,12 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     left_out: list[str] = []
     if entries is None:  # discovered files are already paths inside folder: keep only their names
         groups, left_out = _discover(folder)
-        entries = [{"files": [p.name for p in g]} for g in groups]
+        entries = []
+        for g in groups:
+            if len(g) == 1 and g[0].suffix.lower() in (".h5", ".hdf5"):   # one recording per sensor of the file
+                entries += [{"files": [g[0].name], "sensor": sid} for sid in list_sensors(g[0])]
+            else:
+                entries.append({"files": [p.name for p in g]})
     notes: list[str] = [Note.of("csv_ignored", file=name) for name in left_out]
     ignored = [{"code": "hint.ignored_csv", "params": {"file": name}} for name in left_out]
     if not entries:
@@ -302,8 +312,8 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
                              hint=ignored)
     recs: dict[tuple[str, str], RawRecording] = {}
     unrecognised: list[dict] = []
-    raws = [read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored, settle=False)
-            for e in entries]
+    raws = [read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored, settle=False,
+                           sensor=e.get("sensor")) for e in entries]
     raws = _settle_session_clock(raws)
     for i, (e, rec) in enumerate(zip(entries, raws)):
         segment, role = rec.segment, rec.role

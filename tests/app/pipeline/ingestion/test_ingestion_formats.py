@@ -144,3 +144,46 @@ def test_generic_csv_normalised_magnetometer_with_field(tmp_path):
     rec = read_recording([p])
     assert rec.mag.mag_unit == "normalised" and rec.mag.field_ut == pytest.approx(48.5)
     np.testing.assert_allclose(rec.mag.values[0], [0.6, 0.0, -0.8])        # kept normalised, never × 48.5
+
+
+@pytest.fixture(scope="module")
+def opal_dir(tmp_path_factory, sim_session):
+    from app.pipeline.ingestion.opal import write_opal
+    d = tmp_path_factory.mktemp("opal")
+    names = {"mag_calibration": "calibration", "standing": "standing", "lying": "supine", "task": "step"}
+    for role, name in names.items():
+        sensors = {}
+        for segment, sid, label in (("thigh", "XI-001234", "Right Thigh"), ("shank", "XI-001235", "Right Shank")):
+            t, acc, gyr, mag = _on_acc_grid(sim_session[0][(segment, role)])
+            ok = np.isfinite(mag).all(axis=1)
+            mag = np.stack([np.interp(t, t[ok], mag[ok, i]) for i in range(3)], axis=1)
+            sensors[sid] = {"label": label, "rate_hz": 100.0, "t_s": t, "acc": acc, "gyr": gyr, "mag": mag}
+        write_opal(d / f"{name}.h5", sensors)
+    return d
+
+
+def test_apdm_opal_files_one_recording_per_sensor(opal_dir, sim_session):
+    session = load_session(opal_dir)
+    assert len(session.recordings) == 8
+    raw = session.raw[("shank", "task")]
+    assert raw.fmt == "apdm-opal" and raw.sensor_id == "XI-001235" and raw.segment.value == "shank"
+    assert raw.extras["side"].value == "right" and raw.acc.time_base == "epoch"
+    t, acc, gyr, _ = _on_acc_grid(sim_session[0][("shank", "task")])
+    np.testing.assert_allclose(raw.acc.t_s, t, atol=1e-6)                   # µs since 1970 → s
+    np.testing.assert_allclose(raw.gyr.values, gyr, atol=1e-12)
+
+
+def test_apdm_opal_file_with_two_sensors_needs_the_sensor_named(opal_dir):
+    with pytest.raises(IngestionError) as exc:
+        read_recording([opal_dir / "step.h5"])
+    assert exc.value.code == "opal.which_sensor" and "XI-001234 (Right Thigh)" in str(exc.value)
+    rec = read_recording([opal_dir / "step.h5"], sensor="XI-001234")
+    assert rec.segment.value == "thigh" and rec.role.value == "task"
+
+
+def test_apdm_file_not_hdf5_is_refused(tmp_path):
+    p = tmp_path / "step.h5"
+    p.write_text("not hdf5")
+    with pytest.raises(IngestionError) as exc:
+        read_recording([p])
+    assert exc.value.code == "opal.cannot_open" and p.name in exc.value.message("pt")
