@@ -589,6 +589,45 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{file}: mag_field_ut = {value}; give the local magnetic field strength in µT (25–65), e.g. 48.5.",
         "es": "{file}: mag_field_ut = {value}; dé la intensidad del campo magnético local en µT (25–65), p. ej. 48.5.",
         "pt": "{file}: mag_field_ut = {value}; dê a intensidade do campo magnético local em µT (25–65), p. ex. 48.5."},
+    # ------------------------------------------------------------------------------- provenance checks
+    "check.side_mismatch": {
+        "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "
+              "adduction and rotation would flip sign. Check the patient's side or the files; the clinician may "
+              "override this.",
+        "es": "{file}: la grabación dice pierna {found} ({method}) pero la rodilla del paciente es la "
+              "{patient_side}; la aducción y la rotación cambiarían de signo. Compruebe el lado del paciente o los "
+              "archivos; el clínico puede forzarlo.",
+        "pt": "{file}: a gravação diz perna {found} ({method}) mas o joelho do paciente é o {patient_side}; a "
+              "adução e a rotação mudariam de sinal. Verifique o lado do paciente ou os arquivos; o clínico pode "
+              "forçá-lo."},
+    "check.date_far": {
+        "en": "{file}: recorded on {date}, {days} days from the session date {session_date}; check that it "
+              "belongs to this session (or correct the session date).",
+        "es": "{file}: grabado el {date}, a {days} días de la fecha de la sesión {session_date}; compruebe que "
+              "pertenece a esta sesión (o corrija la fecha de la sesión).",
+        "pt": "{file}: gravado em {date}, a {days} dias da data da sessão {session_date}; verifique se pertence "
+              "a esta sessão (ou corrija a data da sessão)."},
+    "check.dates_spread": {
+        "en": "the recordings span {days} days ({first_file} on {first}, {last_file} on {last}); check that they "
+              "all belong to one session.",
+        "es": "las grabaciones abarcan {days} días ({first_file} el {first}, {last_file} el {last}); compruebe que "
+              "todas pertenecen a una misma sesión.",
+        "pt": "as gravações abrangem {days} dias ({first_file} em {first}, {last_file} em {last}); verifique se "
+              "todas pertencem a uma mesma sessão."},
+    "check.patient_mismatch": {
+        "en": "{file}: the patient id is {found} ({method}), not {patient_id}; check that the files are this "
+              "patient's.",
+        "es": "{file}: el identificador del paciente es {found} ({method}), no {patient_id}; compruebe que los "
+              "archivos son de este paciente.",
+        "pt": "{file}: o identificador do paciente é {found} ({method}), não {patient_id}; verifique se os "
+              "arquivos são deste paciente."},
+    "check.sensor_both_segments": {
+        "en": "sensor {sensor} recorded the thigh in {thigh_file} and the shank in {shank_file}; check that the "
+              "sensors were not swapped between recordings (or correct the names / session.json).",
+        "es": "el sensor {sensor} grabó el muslo en {thigh_file} y la pierna en {shank_file}; compruebe que los "
+              "sensores no se intercambiaron entre grabaciones (o corrija los nombres / session.json).",
+        "pt": "o sensor {sensor} gravou a coxa em {thigh_file} e a perna em {shank_file}; verifique se os "
+              "sensores não foram trocados entre gravações (ou corrija os nomes / session.json)."},
     # ---------------------------------------------------------------------------------------- fragments
     "hint.ignored_csv": {
         "en": "Ignored {file} (not a file of a format ChakaMo reads).",
@@ -676,6 +715,8 @@ WORDS = {
     "standing": {"en": "standing", "es": "de pie", "pt": "em pé"},
     "lying": {"en": "lying", "es": "tumbado", "pt": "deitado"},
     "task": {"en": "task", "es": "tarea", "pt": "tarefa"},
+    "right": {"en": "right", "es": "derecha", "pt": "direita"},
+    "left": {"en": "left", "es": "izquierda", "pt": "esquerda"},
 }
 
 

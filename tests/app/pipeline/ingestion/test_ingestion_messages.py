@@ -24,7 +24,7 @@ def test_every_code_has_three_languages_with_the_same_placeholders():
         assert all(entry[lang].strip() for lang in LANGUAGES), code
         assert placeholders(entry["es"]) == placeholders(entry["en"]) == placeholders(entry["pt"]), code
         if not code.startswith(("word.", "hint.", "note.")):
-            assert code.startswith("recording.") or code in ("xlsx.no_openpyxl", "opal.no_h5py") or "{file}" in entry["en"], code
+            assert code.startswith("recording.") or code in ("xlsx.no_openpyxl", "opal.no_h5py") or "file}" in entry["en"], code
 
 
 def test_every_code_raised_in_the_package_is_in_the_catalogue():
