@@ -88,19 +88,47 @@ def parse_table(path: Path, text: str, notes: list | None = None,
     for i, r in enumerate(data):
         if len(r) != k:
             raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=len(r), header_cells=k)
-    seen: dict[tuple[str, ...], int] = {}
-    dropped: list[int] = []
-    for i, r in enumerate(data):
-        key = tuple(r)
-        if key in seen:
-            dropped.append(i)
-        else:
-            seen[key] = i
+    dropped = _copies(data, keep_last=False)
     if dropped:
+        if not _in_time_order(header, data, dropped) and _in_time_order(header, data, _copies(data, keep_last=True)):
+            dropped = _copies(data, keep_last=True)     # the block pasted before its original: keep the original
         gone = set(dropped)
         data = [r for i, r in enumerate(data) if i not in gone]
-        notes.append(Note.of("duplicate_rows", file=path.name, rows=len(dropped), first_row=dropped[0] + 2))
+        notes.append(Note.of("duplicate_rows", file=path.name, rows=len(dropped), first_row=min(dropped) + 2))
     return header, data
+
+
+def _copies(data: list[list[str]], keep_last: bool) -> list[int]:
+    """Indices of rows equal to another row, all but the first (or the last) of each group."""
+    seen: set[tuple[str, ...]] = set()
+    order = range(len(data) - 1, -1, -1) if keep_last else range(len(data))
+    out = []
+    for i in order:
+        key = tuple(data[i])
+        if key in seen:
+            out.append(i)
+        else:
+            seen.add(key)
+    return sorted(out)
+
+
+_TIME_WORDS = ("epoc", "time", "elapsed", "stamp", "packetcounter")
+
+
+def _in_time_order(header: list[str], data: list[list[str]], dropped: list[int]) -> bool:
+    """Whether the first time-like column (by name) still increases once ``dropped`` rows are gone."""
+    j = next((i for i, h in enumerate(header) if any(w in h.lower() for w in _TIME_WORDS)), None)
+    if j is None:
+        return True
+    gone = set(dropped)
+    values = []
+    for i, r in enumerate(data):
+        if i not in gone:
+            try:
+                values.append(float(r[j]))
+            except ValueError:
+                continue
+    return bool(np.all(np.diff(values) > 0)) if len(values) > 1 else True
 
 
 def _number_or_empty(cell: str) -> bool:
