@@ -26,17 +26,41 @@ sensor into writer input with the phone's stamps.
 Every problem a user can cause raises :class:`IngestionError` (a ``ValueError``) whose one message names
 the file and says what to do.  Readers never write.
 
-Formats
+Formats (recognised by name and content; every reader converts to SI once, in :mod:`.units`)
 -------
-* MetaBase CSV, one file per stream (:mod:`.metabase`): ``{label}_MetaWear_{datetime}_{MAC}_{Stream}_{rate}Hz_
-  {firmware}.csv``, header ``epoch (ms),time (…),elapsed (s),x-axis (g),…`` or ``epoc (ms),timestamp (…),…``;
-  g, deg/s, T.  Time base: epoch ms (the phone's clock, shared by both sensors).
+* MetaBase CSV, one file per stream (:mod:`.metabase`): ``[{label}_]{device}_{datetime}_{MAC}_{Stream}_{rate}Hz
+  [_{firmware}].csv`` with any user-chosen device name (``MetaWear``, ``Werable1``...); header ``epoch (ms),time
+  (…),elapsed (s),x-axis (g),…`` or ``epoc (ms),timestamp (…),…``; g, deg/s, T.  Time base: epoch ms (the
+  phone's clock, shared by both sensors); rounded by a spreadsheet (``1.63552E+12``): rebuilt from the name's
+  start + ``elapsed (s)``, noted.
 * Thesis Excel (:mod:`.excel`, seed 004 Fig. 8.6): A–D elapsed + acc (g), E–G gyro (deg/s), H–K elapsed + mag
   (T), L–M elapsed + temperature; names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-
   {ddmmyyyy}-{n}[-H].xlsx`` (H = the 34 cm step, else 17 cm).  Time base: elapsed s (sensors assumed to start
   together).
-* Generic CSV (:mod:`.generic`): ``time (s),acc_x (g),…,gyr_x (deg/s),…,mag_x (uT),…`` with units in the header.
-* ``session.json`` (:mod:`.session`): files → segment and role, MAC → segment, patient_id, side, step height.
+* Generic CSV (:mod:`.generic`): ``time (s),acc_x (g),…,gyr_x (deg/s),…,mag_x (uT),…`` with units in the header;
+  ``mag_x (normalised [48.5 uT])`` for a normalised magnetometer.
+* Xsens MT Manager text/CSV export (:mod:`.xsens`): ``//`` preamble, ``PacketCounter SampleTimeFine Acc_X … Gyr_X …
+  Mag_X …``; m/s², rad/s, **normalised** magnetometer.
+* Shimmer Consensys CSV (:mod:`.shimmer`): ``sep=`` line, ``Shimmer_XXXX_<signal>_<axis>_CAL`` names, CAL and units
+  rows; m/(s^2), deg/s, local_flux (gauss-scaled), Unix ms.
+* APDM Opal HDF5 (:mod:`.opal`, ``.h5``, format 5): ``/Sensors/<id>/{Accelerometer,Gyroscope,Magnetometer,Time}``;
+  one recording per sensor of a file, its segment and side from the sensor's label.
+* Any CSV (MetaBase, generic, Shimmer; Xsens with ``;``): ``;`` between fields with decimal commas (Excel in
+  es/pt) is read; a cut last line and rows repeated exactly are dropped; each repair is a :class:`Note`.
+* ``session.json`` (:mod:`.session`): files → segment and role (``sensor`` for an APDM file), MAC → segment,
+  patient_id, side, step height, ``mag_field_ut`` (the local field for a normalised magnetometer).
+
+A **normalised magnetometer** (Xsens, the generic ``normalised`` unit) has no µT scale.  It stays as the file
+gives it (norm ≈ 1): ``Stream.mag_unit == "normalised"`` and ``Stream.field_ut`` (declared strength or ``None``);
+after alignment ``AlignedRecording.mag_normalised`` and ``flags["mag_unit"]``, ``flags["mag_field_ut"]``; a note
+``mag_normalised``.  The pipeline must not fit a µT ellipsoid to it (the vendor calibrated it).
+
+Messages and facts
+------------------
+Every :class:`IngestionError` carries ``code`` and ``params`` (``str(exc)`` is English; ``exc.message(lang)`` gives
+es/en/pt from :mod:`.messages`); every repair or remark is a :class:`Note` with ``params["variant"]`` and
+``note.message(lang)``.  :mod:`.provenance` exposes per-recording facts (side, start date-time, patient id,
+sensor id) and pure checks (side, dates, patient id, sensors) whose findings are codes + params too.
 
 Decisions on bad input
 ----------------------

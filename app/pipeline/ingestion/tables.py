@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from pathlib import Path
 from typing import Sequence
 
@@ -63,10 +64,14 @@ def parse_table(path: Path, text: str, notes: list | None = None,
         delimiter = "\t" if first.count("\t") > max(first.count(","), first.count(";")) else \
             ";" if first.count(";") > 0 and first.count(";") >= first.count(",") else ","
     semicolon = delimiter == ";"
-    try:
-        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
-    except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
-        raise IngestionError("file.damaged_csv", file=path, reason=str(exc)) from None
+    lines = text.splitlines() if '"' not in text and not _ODD_BREAKS.search(text) else None
+    if lines is not None and max(map(len, lines), default=0) < _CSV_FIELD_LIMIT:
+        rows = [ln.split(delimiter) for ln in lines]     # no quoting: the rows csv gives, 3× faster
+    else:
+        try:
+            rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
+        except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
+            raise IngestionError("file.damaged_csv", file=path, reason=str(exc)) from None
     while rows and not any(c.strip() for c in rows[-1]):
         rows.pop()
     if not rows:
@@ -85,10 +90,11 @@ def parse_table(path: Path, text: str, notes: list | None = None,
     if cut and len(data) > 1:
         data.pop()
         notes.append(Note.of("truncated_last_row", file=path.name, row=len(data) + 2))
-    for i, r in enumerate(data):
-        if len(r) != k:
-            raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=len(r), header_cells=k)
-    dropped = _copies(data, keep_last=False)
+    if set(map(len, data)) != {k}:
+        i = next(i for i, r in enumerate(data) if len(r) != k)
+        raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=len(data[i]), header_cells=k)
+    keys = [delimiter.join(r) for r in data]
+    dropped = _copies(data, keep_last=False) if len(set(keys)) != len(keys) else []
     if dropped:
         if not _in_time_order(header, data, dropped) and _in_time_order(header, data, _copies(data, keep_last=True)):
             dropped = _copies(data, keep_last=True)     # the block pasted before its original: keep the original
@@ -96,6 +102,12 @@ def parse_table(path: Path, text: str, notes: list | None = None,
         data = [r for i, r in enumerate(data) if i not in gone]
         notes.append(Note.of("duplicate_rows", file=path.name, rows=len(dropped), first_row=min(dropped) + 2))
     return header, data
+
+
+#: line breaks str.splitlines() knows and csv does not (\v, \f, \x1c-\x1e, NEL, LS, PS): such a file takes csv
+_ODD_BREAKS = re.compile("[\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029]")
+#: beyond csv's per-field limit a damaged file must still fail as csv fails it (one huge "cell")
+_CSV_FIELD_LIMIT = csv.field_size_limit()
 
 
 def _copies(data: list[list[str]], keep_last: bool) -> list[int]:
