@@ -79,10 +79,19 @@ from app.pipeline.ingestion.generic import read_generic_csv, write_generic_csv
 from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
 from app.pipeline.ingestion.model import (KINDS, ROLES, SEGMENTS, AlignedRecording, IngestionError, Note, RawRecording,
                                  Recognition, Session, SessionMetadata, Stream)
+from app.pipeline.ingestion.messages import LANGUAGES, message_dict, render
+from app.pipeline.ingestion.opal import read_opal, write_opal
+from app.pipeline.ingestion.provenance import (Finding, RecordingFacts, check_all, check_dates, check_patient,
+                                               check_sensors, check_side, recording_facts, session_facts)
 from app.pipeline.ingestion.session import MANIFEST, load_session, read_recording
+from app.pipeline.ingestion.shimmer import read_shimmer, write_shimmer
 from app.pipeline.ingestion.writers import session_label, simulated_streams, write_session_metabase
+from app.pipeline.ingestion.xsens import read_xsens, write_xsens
 
 __all__ = [
+    "LANGUAGES", "Finding", "RecordingFacts", "check_all", "check_dates", "check_patient", "check_sensors",
+    "check_side", "message_dict", "read_opal", "read_shimmer", "read_xsens", "recording_facts", "render",
+    "session_facts", "write_opal", "write_shimmer", "write_xsens",
     "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
     "Recognition",
     "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_session", "read_generic_csv",
