@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import csv
 import io
+import operator
 import re
 import warnings
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -67,21 +68,29 @@ def parse_table(path: Path, text: str, notes: list | None = None,
     semicolon = delimiter == ";"
     lines = text.splitlines() if '"' not in text and not _ODD_BREAKS.search(text) else None
     if lines is not None and max(map(len, lines), default=0) < _CSV_FIELD_LIMIT:
-        rows = [ln.split(delimiter) for ln in lines]     # no quoting: the rows csv gives, 3× faster
+        while lines and not lines[-1].replace(delimiter, "").strip():
+            lines.pop()
+        if not lines:
+            raise IngestionError("file.empty", file=path)
+        header = [h.strip() for h in lines[0].split(delimiter)]
+        body = lines[1:]
+        if semicolon:
+            body = [ln.replace(",", ".") for ln in body]
+        data: Sequence = Rows(body, delimiter)          # no quoting: split lazily, numbers parsed in C
     else:
-        lines = None
         try:
             rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
         except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
             raise IngestionError("file.damaged_csv", file=path, reason=str(exc)) from None
-    while rows and not any(c.strip() for c in rows[-1]):
-        rows.pop()
-    if not rows:
-        raise IngestionError("file.empty", file=path)
-    header = [h.strip() for h in rows[0]]
-    data = rows[1:]
+        while rows and not any(c.strip() for c in rows[-1]):
+            rows.pop()
+        if not rows:
+            raise IngestionError("file.empty", file=path)
+        header = [h.strip() for h in rows[0]]
+        data = rows[1:]
+        if semicolon:
+            data = [[c.replace(",", ".") for c in r] for r in data]
     if semicolon:
-        data = [[c.replace(",", ".") for c in r] for r in data]
         notes.append(Note.of("csv_semicolon", file=path.name))
     if not data:
         raise IngestionError("file.header_only", file=path)
@@ -92,31 +101,48 @@ def parse_table(path: Path, text: str, notes: list | None = None,
     if cut and len(data) > 1:
         data.pop()
         notes.append(Note.of("truncated_last_row", file=path.name, row=len(data) + 2))
-    if set(map(len, data)) != {k}:
-        i = next(i for i, r in enumerate(data) if len(r) != k)
-        raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=len(data[i]), header_cells=k)
-    body = lines[1:1 + len(data)] if lines is not None else [delimiter.join(r) for r in data]
-    dropped = _copies(data, keep_last=False) if len(set(body)) != len(body) else []
+    widths = data.widths() if isinstance(data, Rows) else list(map(len, data))
+    if set(widths) != {k}:
+        i = next(i for i, w in enumerate(widths) if w != k)
+        raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=widths[i], header_cells=k)
+    keys = data.lines if isinstance(data, Rows) else [tuple(r) for r in data]
+    dropped = _copies(keys, keep_last=False) if len(set(keys)) != len(keys) else []
     if dropped:
-        if not _in_time_order(header, data, dropped) and _in_time_order(header, data, _copies(data, keep_last=True)):
-            dropped = _copies(data, keep_last=True)     # the block pasted before its original: keep the original
+        if not _in_time_order(header, data, dropped) and _in_time_order(header, data, _copies(keys, keep_last=True)):
+            dropped = _copies(keys, keep_last=True)     # the block pasted before its original: keep the original
         gone = set(dropped)
-        data = [r for i, r in enumerate(data) if i not in gone]
-        body = [ln for i, ln in enumerate(body) if i not in gone]
+        data = Rows([ln for i, ln in enumerate(data.lines) if i not in gone], delimiter) if isinstance(data, Rows) \
+            else [r for i, r in enumerate(data) if i not in gone]
         notes.append(Note.of("duplicate_rows", file=path.name, rows=len(dropped), first_row=min(dropped) + 2))
-    if lines is None:
-        return header, data
-    rows = Rows(data)
-    rows.lines, rows.delimiter = (body if not semicolon else [ln.replace(",", ".") for ln in body]), delimiter
-    return header, rows
+    return header, data
 
 
-class Rows(list):
-    """Data rows (lists of cells) that also keep their text lines (``lines``, ``delimiter``) when the file
-    had no quoting: :func:`numeric_columns` then parses the numbers in C (``numpy.loadtxt``)."""
+class Rows(Sequence):
+    """The data rows of a quote-free file, kept as text ``lines`` and split into cells (``rows[i]`` → list
+    of str) only when asked; :func:`numeric_columns` parses their numbers in C (``numpy.loadtxt``)."""
 
-    lines: list[str]
-    delimiter: str
+    def __init__(self, lines: list[str], delimiter: str) -> None:
+        self.lines, self.delimiter = lines, delimiter
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return Rows(self.lines[i], self.delimiter)
+        return self.lines[i].split(self.delimiter)
+
+    def __iter__(self):
+        d = self.delimiter
+        return (ln.split(d) for ln in self.lines)
+
+    def pop(self) -> list[str]:
+        return self.lines.pop().split(self.delimiter)
+
+    def widths(self) -> list[int]:
+        """Cells per row (separators + 1), without splitting."""
+        counts = list(map(operator.methodcaller("count", self.delimiter), self.lines))
+        return [c + 1 for c in counts] if len(set(counts)) > 1 else [counts[0] + 1] * len(counts) if counts else []
 
 
 #: line breaks str.splitlines() knows and csv does not (\v, \f, \x1c-\x1e, NEL, LS, PS): such a file takes csv
@@ -125,13 +151,13 @@ _ODD_BREAKS = re.compile("[\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029]")
 _CSV_FIELD_LIMIT = csv.field_size_limit()
 
 
-def _copies(data: list[list[str]], keep_last: bool) -> list[int]:
-    """Indices of rows equal to another row, all but the first (or the last) of each group."""
-    seen: set[tuple[str, ...]] = set()
-    order = range(len(data) - 1, -1, -1) if keep_last else range(len(data))
+def _copies(keys: Sequence, keep_last: bool) -> list[int]:
+    """Indices of rows whose key (text line, or tuple of cells) repeats, all but the first (or last) of each."""
+    seen: set = set()
+    order = range(len(keys) - 1, -1, -1) if keep_last else range(len(keys))
     out = []
     for i in order:
-        key = tuple(data[i])
+        key = keys[i]
         if key in seen:
             out.append(i)
         else:
@@ -177,8 +203,8 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
     quote-free file are parsed by ``numpy.loadtxt``; any cell it refuses (empty, text) falls back to the
     cell-by-cell path below, whose message names the row and column.
     """
-    lines = getattr(rows, "lines", None)
-    if lines is not None and len(lines) == len(rows) and rows:
+    lines = rows.lines if isinstance(rows, Rows) else None
+    if lines:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
