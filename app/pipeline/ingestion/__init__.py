@@ -45,6 +45,9 @@ Formats (recognised by name and content; every reader converts to SI once, in :m
   rows; m/(s^2), deg/s, local_flux (gauss-scaled), Unix ms.
 * APDM Opal HDF5 (:mod:`.opal`, ``.h5``, format 5): ``/Sensors/<id>/{Accelerometer,Gyroscope,Magnetometer,Time}``;
   one recording per sensor of a file, its segment and side from the sensor's label.
+* Sensor Logger phone app zip export (:mod:`.sensorlogger`, ``.zip``): ``TotalAcceleration`` or ``Accelerometer``
+  + ``Gravity`` (specific force), ``Gyroscope`` rad/s, ``Magnetometer`` µT, ``time`` ns since 1970.
+* Not yet read: phyphox exports (their layout was not verified from a public description in time).
 * Any CSV (MetaBase, generic, Shimmer; Xsens with ``;``): ``;`` between fields with decimal commas (Excel in
   es/pt) is read; a cut last line and rows repeated exactly are dropped; each repair is a :class:`Note`.
 * ``session.json`` (:mod:`.session`): files → segment and role (``sensor`` for an APDM file), MAC → segment,
@@ -84,6 +87,7 @@ from app.pipeline.ingestion.opal import read_opal, write_opal
 from app.pipeline.ingestion.provenance import (Finding, RecordingFacts, check_all, check_dates, check_patient,
                                                check_sensors, check_side, recording_facts, session_facts)
 from app.pipeline.ingestion.session import MANIFEST, load_session, read_recording
+from app.pipeline.ingestion.sensorlogger import read_sensorlogger, write_sensorlogger
 from app.pipeline.ingestion.shimmer import read_shimmer, write_shimmer
 from app.pipeline.ingestion.writers import session_label, simulated_streams, write_session_metabase
 from app.pipeline.ingestion.xsens import read_xsens, write_xsens
@@ -91,7 +95,7 @@ from app.pipeline.ingestion.xsens import read_xsens, write_xsens
 __all__ = [
     "LANGUAGES", "Finding", "RecordingFacts", "check_all", "check_dates", "check_patient", "check_sensors",
     "check_side", "message_dict", "read_opal", "read_shimmer", "read_xsens", "recording_facts", "render",
-    "session_facts", "write_opal", "write_shimmer", "write_xsens",
+    "session_facts", "write_opal", "write_shimmer", "write_xsens", "read_sensorlogger", "write_sensorlogger",
     "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
     "Recognition",
     "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_session", "read_generic_csv",

@@ -269,6 +269,26 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "nuevo.",
         "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o arquivo está danificado: exporte-o de "
               "novo."},
+    "phone.not_a_zip": {
+        "en": "{file}: not a readable zip file ({reason}); export the recording again from Sensor Logger (zip).",
+        "es": "{file}: no es un archivo zip legible ({reason}); exporte de nuevo la grabación desde Sensor Logger "
+              "(zip).",
+        "pt": "{file}: não é um arquivo zip legível ({reason}); exporte a gravação de novo do Sensor Logger (zip)."},
+    "phone.member_unreadable": {
+        "en": "{file}: {member} cannot be read ({reason}); export the recording again from Sensor Logger.",
+        "es": "{file}: no se puede leer {member} ({reason}); exporte de nuevo la grabación desde Sensor Logger.",
+        "pt": "{file}: não é possível ler {member} ({reason}); exporte a gravação de novo do Sensor Logger."},
+    "phone.files_missing": {
+        "en": "{file}: the Sensor Logger export lacks {files}; record again with the accelerometer, gravity, "
+              "gyroscope and magnetometer enabled, and export as zip.",
+        "es": "{file}: a la exportación de Sensor Logger le falta {files}; grabe de nuevo con acelerómetro, "
+              "gravedad, giroscopio y magnetómetro activados, y exporte como zip.",
+        "pt": "{file}: à exportação do Sensor Logger falta {files}; grave de novo com acelerômetro, gravidade, "
+              "giroscópio e magnetômetro ativados, e exporte como zip."},
+    "phone.columns_missing": {
+        "en": "{file}: {member} has no column {columns}; export the recording again from Sensor Logger.",
+        "es": "{file}: {member} no tiene la columna {columns}; exporte de nuevo la grabación desde Sensor Logger.",
+        "pt": "{file}: {member} não tem a coluna {columns}; exporte a gravação de novo do Sensor Logger."},
     # -------------------------------------------------------------------------------------------- Excel
     "xlsx.no_openpyxl": {
         "en": "reading .xlsx files needs the 'openpyxl' package: install ChakaMo again (pip install -e .), or "
@@ -483,14 +503,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: essa pasta de sessão não existe; verifique o caminho."},
     "session.no_recordings": {
         "en": "{file}: no recordings found; the folder holds {count} file(s): {found}. ChakaMo reads MetaBase "
-              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer, Sensor Logger and phyphox files: "
+              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer and Sensor Logger (.zip) files: "
               "check the folder, or export the recordings again. {hint}",
         "es": "{file}: no se encontró ninguna grabación; la carpeta tiene {count} archivo(s): {found}. ChakaMo lee "
-              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
-              "y phyphox: compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
+              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer y Sensor Logger "
+              "(.zip): compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
         "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} arquivo(s): {found}. O ChakaMo lê "
-              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger e "
-              "phyphox: verifique a pasta, ou exporte as gravações de novo. {hint}"},
+              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer e Sensor Logger "
+              "(.zip): verifique a pasta, ou exporte as gravações de novo. {hint}"},
     "session.recording_twice": {
         "en": "{file} and {other} are both the {role} recording of the {segment}; keep one (or list the one to use "
               "in session.json).",
@@ -698,6 +718,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "ignored {file} ({what} not recognised{why})",
         "es": "se ignoró {file} ({what} no reconocido{why})",
         "pt": "ignorado {file} ({what} não reconhecido{why})"},
+    "note.phone_ios_frames": {
+        "en": "{file}: an iPhone recording: acceleration and gravity taken with Sensor Logger's default frames "
+              "(\"Standardise Units & Frames\" off) and turned to specific force",
+        "es": "{file}: grabación de iPhone: aceleración y gravedad tomadas con los ejes por defecto de Sensor "
+              "Logger (\"Standardise Units & Frames\" desactivado) y pasadas a fuerza específica",
+        "pt": "{file}: gravação de iPhone: aceleração e gravidade tomadas com os eixos padrão do Sensor Logger "
+              "(\"Standardise Units & Frames\" desligado) e passadas a força específica"},
     "note.mag_normalised": {
         "en": "{file}: magnetometer in normalised units (no µT scale; declared field strength: {field}); the "
               "vendor calibrated it, so no figure-eight fit in µT applies",

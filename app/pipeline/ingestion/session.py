@@ -43,6 +43,7 @@ from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_na
 from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
 from app.pipeline.ingestion.opal import list_sensors, read_opal
+from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
 from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
@@ -110,6 +111,9 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
     elif len(paths) == 1 and paths[0].suffix.lower() in (".h5", ".hdf5"):
         acc, gyr, mag, sensor_id, sensor_label = read_opal(paths[0], sensor)
         label, fmt, method = f"{paths[0].stem} {sensor_label}".strip(), "apdm-opal", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() == ".zip":
+        acc, gyr, mag, sensor_id = read_sensorlogger(paths[0])
+        label, fmt, method = paths[0].stem, "sensor-logger", "file name"
     elif len(paths) == 1 and paths[0].suffix.lower() in (".csv", ".txt"):
         fmt = sniff(paths[0]) or "generic-csv"
         if fmt == "xsens":
@@ -228,7 +232,8 @@ def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
     singles, ignored = [], []
     for p in files:
         suffix = p.suffix.lower()
-        if suffix in (".xlsx", ".h5", ".hdf5") or (suffix in (".csv", ".txt") and p not in meta and sniff(p)):
+        if suffix in (".xlsx", ".h5", ".hdf5") or (suffix in (".csv", ".txt") and p not in meta and sniff(p)) \
+                or (suffix == ".zip" and looks_like_sensorlogger(p)):
             singles.append([p])
         elif suffix == ".csv" and p not in meta:
             ignored.append(p.name)

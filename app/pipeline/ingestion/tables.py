@@ -196,7 +196,7 @@ def _number_or_empty(cell: str) -> bool:
 
 
 def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], columns: Sequence[int],
-                    first_row: int = 2) -> FloatArray:
+                    first_row: int = 2, max_abs: float | None = None) -> FloatArray:
     """Columns ``columns`` of ``rows`` as float64 (n, len(columns)); empty cells → NaN, text → error.
 
     ``first_row`` is the 1-based file row of ``rows[0]`` (for messages).  Rows from :func:`parse_table` of a
@@ -212,7 +212,7 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
                                  comments=None, ndmin=2)
         except ValueError:
             out = None
-        if out is not None and out.shape == (len(rows), len(columns)) and first_huge_cell(out) is None:
+        if out is not None and out.shape == (len(rows), len(columns)) and first_huge_cell(out, max_abs) is None:
             return out
     out = np.empty((len(rows), len(columns)))
     for j, c in enumerate(columns):
@@ -230,7 +230,7 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
                 except ValueError:
                     raise IngestionError("cell.not_number", file=path, row=i + first_row, column=header[c],
                                          cell=cell[:40]) from None
-    huge = first_huge_cell(out)
+    huge = first_huge_cell(out, max_abs)
     if huge is not None:
         i, j = huge
         raise IngestionError("cell.infinite" if np.isinf(out[i, j]) else "cell.huge", file=path, row=i + first_row,
@@ -238,11 +238,11 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
     return out
 
 
-def first_huge_cell(table: np.ndarray) -> tuple[int, int] | None:
+def first_huge_cell(table: np.ndarray, max_abs: float | None = None) -> tuple[int, int] | None:
     """``(row, column)`` of the first cell of ``table`` beyond :data:`MAX_ABS_CELL` (inf included; NaN, an
     empty cell, is not), or None."""
     with np.errstate(invalid="ignore"):
-        huge = np.abs(table) > MAX_ABS_CELL
+        huge = np.abs(table) > (MAX_ABS_CELL if max_abs is None else max_abs)
     return tuple(int(k) for k in np.argwhere(huge)[0]) if huge.any() else None
 
 

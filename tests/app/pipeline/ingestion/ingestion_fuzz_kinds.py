@@ -26,7 +26,7 @@ from typing import Callable
 from hypothesis import strategies as st
 
 from ingestion_fuzz_vendors import (excel_epoch, excel_epoch_semicolon, opal_dataset_dropped, opal_truncated,
-                                    rows_copied_exactly, shimmer_sep_variants, shimmer_units_row, truncated_last_line,
+                                    rows_copied_exactly, sensorlogger_cell_garbage, sensorlogger_member_dropped, shimmer_sep_variants, shimmer_units_row, truncated_last_line,
                                     xsens_column_missing, xsens_layout_variants, xsens_mag_in_micro_tesla,
                                     xsens_text_cell)
 
@@ -44,7 +44,7 @@ from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _li
 
 @dataclass(frozen=True)
 class Kind:
-    fmt: str                      # "metabase", "generic", "xlsx", "xsens", "shimmer" or "opal": the session it mutates
+    fmt: str                      # "metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger"
     what: str                     # one line for the table
     mutate: Callable[[Path, Draw], tuple[Path, ...]]
     must_load: bool = False       # a harmless variation: the session has to load, and sanely
@@ -343,6 +343,10 @@ KINDS: dict[str, Kind] = {
                                  must_load=True),
     "opal_dataset_dropped": Kind("opal", "a sensor's dataset deleted from an APDM .h5", opal_dataset_dropped),
     "opal_truncated": Kind("opal", "an APDM .h5 cut at a random byte", opal_truncated),
+    "sensorlogger_cell_garbage": Kind("sensorlogger", "text in a cell of a Sensor Logger zip's sensor file",
+                                      sensorlogger_cell_garbage),
+    "sensorlogger_member_dropped": Kind("sensorlogger", "a sensor file missing from a Sensor Logger zip",
+                                        sensorlogger_member_dropped),
     "decimal_comma": Kind("metabase", "',' decimal with ',' still the separator, from a random row on",
                           decimal_comma),
     "quoted_cells": Kind("metabase", "every cell in double quotes", quoted_cells, must_load=True),

@@ -41,6 +41,9 @@ def write_vendor_session(folder: Path, recordings, fmt: str) -> Path:
             field = np.nanmedian(np.linalg.norm(mag, axis=1))
             write_xsens(folder / f"{name}.txt", t - t[0], acc, gyr, mag / field,
                         device_id={"thigh": "00B42D4F", "shank": "00B42D50"}[segment])
+        elif fmt == "sensorlogger":
+            from app.pipeline.ingestion.sensorlogger import write_sensorlogger
+            write_sensorlogger(folder / f"{name}.zip", streams, platform="android", total=segment == "thigh")
         elif fmt == "shimmer":
             write_shimmer(folder / f"{name}.csv", t * 1e3, acc, gyr, filled,
                           device={"thigh": "Shimmer_8A21", "shank": "Shimmer_8A22"}[segment])
@@ -196,4 +199,36 @@ def opal_truncated(folder, draw):
     p = _one(folder, draw, "*.h5")
     data = p.read_bytes()
     p.write_bytes(data[: draw(st.integers(0, len(data) - 1))])
+    return (p,)
+
+
+def sensorlogger_cell_garbage(folder, draw):
+    """Text in a cell of one sensor file inside a Sensor Logger zip."""
+    import zipfile
+    p = _one(folder, draw, "*.zip")
+    with zipfile.ZipFile(p) as z:
+        files = {n: z.read(n).decode() for n in z.namelist()}
+    member = draw(st.sampled_from(sorted(n for n in files if n != "Metadata.csv")))
+    lines = files[member].splitlines()
+    i = draw(st.integers(1, len(lines) - 1))
+    cells = lines[i].split(",")
+    cells[draw(st.integers(0, len(cells) - 1))] = draw(GARBAGE)
+    lines[i] = ",".join(cells)
+    files[member] = "\n".join(lines) + "\n"
+    with zipfile.ZipFile(p, "w") as z:
+        for n, text in files.items():
+            z.writestr(n, text)
+    return (p,)
+
+
+def sensorlogger_member_dropped(folder, draw):
+    import zipfile
+    p = _one(folder, draw, "*.zip")
+    with zipfile.ZipFile(p) as z:
+        files = {n: z.read(n) for n in z.namelist()}
+    gone = draw(st.sampled_from(sorted(n for n in files if n != "Metadata.csv")))
+    with zipfile.ZipFile(p, "w") as z:
+        for n, data in files.items():
+            if n != gone:
+                z.writestr(n, data)
     return (p,)

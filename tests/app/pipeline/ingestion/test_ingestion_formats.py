@@ -187,3 +187,36 @@ def test_apdm_file_not_hdf5_is_refused(tmp_path):
     with pytest.raises(IngestionError) as exc:
         read_recording([p])
     assert exc.value.code == "opal.cannot_open" and p.name in exc.value.message("pt")
+
+
+@pytest.mark.parametrize("platform,total", [("android", True), ("android", False), ("ios", False)])
+def test_sensor_logger_zips_give_specific_force(tmp_path, sim_session, platform, total):
+    """TotalAcceleration, or Accelerometer (no gravity) + Gravity; iPhone's default frames negated back."""
+    from app.pipeline.ingestion.sensorlogger import write_sensorlogger
+    for (segment, role), streams in sim_session[0].items():
+        write_sensorlogger(tmp_path / f"{session_label(segment, role, 'ML1', '13032023', lang='en')}.zip", streams,
+                           platform=platform, total=total)
+    session = load_session(tmp_path)
+    raw = session.raw[("thigh", "standing")]
+    t, f = sim_session[0][("thigh", "standing")]["acc"]
+    assert raw.fmt == "sensor-logger" and raw.sensor_id == "Pixel 7" and raw.acc.time_base == "epoch"
+    np.testing.assert_allclose(raw.acc.t_s, t, atol=1e-6)                   # ns since 1970 → s
+    np.testing.assert_allclose(raw.acc.values, f, atol=2e-6)               # specific force, gravity up
+    np.testing.assert_allclose(raw.gyr.values, sim_session[0][("thigh", "standing")]["gyr"][1], atol=1e-6)
+    ios_noted = any(getattr(n, "params", {}).get("variant") == "phone_ios_frames" for n in session.notes)
+    assert ios_noted == (platform == "ios")
+
+
+def test_sensor_logger_zip_without_gyroscope_is_refused(tmp_path, sim_session):
+    import zipfile
+    from app.pipeline.ingestion.sensorlogger import write_sensorlogger
+    p = write_sensorlogger(tmp_path / "step-thigh.zip", sim_session[0][("thigh", "task")])
+    q = tmp_path / "step-thigh-2.zip"
+    with zipfile.ZipFile(p) as zin, zipfile.ZipFile(q, "w") as zout:
+        for name in zin.namelist():
+            if name not in ("Gyroscope.csv", "Accelerometer.csv"):
+                zout.writestr(name, zin.read(name))
+    with pytest.raises(IngestionError) as exc:
+        read_recording([q])
+    assert exc.value.code == "phone.files_missing" and "Gyroscope.csv" in str(exc.value)
+    assert "grabe de nuevo" in exc.value.message("es")

@@ -61,7 +61,7 @@ def sessions(tmp_path_factory) -> dict[str, Path]:
     for fmt in ("metabase", "generic", "xlsx"):
         write_session(root / fmt, sim, fmt)
         out[fmt] = root / fmt
-    for fmt in ("xsens", "shimmer", "opal"):
+    for fmt in ("xsens", "shimmer", "opal", "sensorlogger"):
         out[fmt] = write_vendor_session(root / fmt, sim.recordings, fmt)
     return out
 
@@ -114,11 +114,12 @@ def _check_outcome(kind: str, folder: Path, touched: tuple[Path, ...]) -> str:
 
 def test_the_table_has_at_least_30_kinds_each_described():
     assert len(KINDS) >= 30
-    assert all(k.what and k.fmt in ("metabase", "generic", "xlsx", "xsens", "shimmer", "opal") for k in KINDS.values())
-    assert len(KINDS) >= 70           # 58 before issue 14, plus its spreadsheet mangling and the new formats
+    assert all(k.what and k.fmt in ("metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger")
+               for k in KINDS.values())
+    assert len(KINDS) >= 72           # 58 before issue 14, plus its spreadsheet mangling and the new formats
 
 
-@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx", "xsens", "shimmer", "opal"])
+@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger"])
 def test_the_unmutated_sessions_load(sessions, fmt):
     """Without this, a refusal could be the starting session's fault rather than the mutation's."""
     assert _check_outcome("utf8_bom", sessions[fmt], ()) == "loaded"
