@@ -42,7 +42,7 @@ def common_span(streams: Sequence[Stream]) -> tuple[float, float]:
     for s in streams:
         ok = np.all(np.isfinite(s.values), axis=1)
         if not ok.any():
-            raise IngestionError(f"{s.file}: no valid {s.kind} sample; export the recording again.")
+            raise IngestionError("stream.no_valid_sample", file=s.file, stream=s.kind)
         firsts.append(s.t_s[ok][0])
         lasts.append(s.t_s[ok][-1])
     return float(max(firsts)), float(min(lasts))
@@ -65,32 +65,31 @@ def resample(stream: Stream, t_grid: FloatArray) -> FloatArray:
 def check_rates(rec: RawRecording, expected_fs_hz: float | None) -> float:
     """Check the measured rates; return the grid rate (expected, or the acc stream's nominal rate)."""
     acc, gyr, mag = rec.streams
-    label = f"recording {rec.label!r}"
     fs_acc, fs_gyr, fs_mag = acc.fs_hz, gyr.fs_hz, mag.fs_hz
+    same = abs(fs_gyr / fs_acc - 1.0) <= RATE_TOLERANCE
     if expected_fs_hz is not None:
         for s, fs in ((acc, fs_acc), (gyr, fs_gyr)):
             if abs(fs / expected_fs_hz - 1.0) > RATE_TOLERANCE:
-                raise IngestionError(
-                    f"{s.file}: the {s.kind} stream runs at {fs:.1f} Hz, expected {expected_fs_hz:g} Hz (the protocol "
-                    f"records accelerometer and gyroscope at 100 Hz, seed 004 §8.4). Record again at "
-                    f"{expected_fs_hz:g} Hz, or process it at the file's own rate (on the command line: `chakamo process --any-rate`).")
+                # --any-rate helps only when it would then load: acc and gyr at one rate, mag within range
+                helps = same and MAG_MIN_FS_HZ <= fs_mag <= fs_acc * (1 + RATE_TOLERANCE)
+                raise IngestionError("rate.unexpected_any_rate" if helps else "rate.unexpected", file=s.file,
+                                     stream=s.kind, fs_hz=fs, expected_hz=expected_fs_hz)
         fs_grid = float(expected_fs_hz)
     else:
-        if abs(fs_gyr / fs_acc - 1.0) > RATE_TOLERANCE:
-            raise IngestionError(f"{gyr.file}: the gyroscope runs at {fs_gyr:.1f} Hz but the accelerometer of "
-                                 f"{label} at {fs_acc:.1f} Hz; record both at the same rate.")
+        if not same:
+            raise IngestionError("rate.acc_gyr_differ", file=gyr.file, gyr_hz=fs_gyr, acc_hz=fs_acc,
+                                 label=rec.label)
         nominal = acc.nominal_fs_hz
         fs_grid = float(nominal if nominal and abs(fs_acc / nominal - 1.0) <= RATE_TOLERANCE else round(fs_acc))
     if not MAG_MIN_FS_HZ <= fs_mag <= fs_grid * (1 + RATE_TOLERANCE):
-        raise IngestionError(f"{mag.file}: the magnetometer runs at {fs_mag:.1f} Hz; expected between "
-                             f"{MAG_MIN_FS_HZ:g} and {fs_grid:g} Hz (the protocol uses 20 Hz). Record again.")
+        raise IngestionError("rate.mag", file=mag.file, fs_hz=fs_mag, min_hz=MAG_MIN_FS_HZ, max_hz=fs_grid)
     return fs_grid
 
 
-def _grid(t0: float, t1: float, fs_hz: float, what: str) -> FloatArray:
+def _grid(t0: float, t1: float, fs_hz: float, what: str, files: str) -> FloatArray:
     if t1 - t0 < 1.0:
-        raise IngestionError(f"{what}: the streams overlap for {max(t1 - t0, 0.0):.2f} s only (they must share at "
-                             f"least 1 s of time stamps); were they recorded together? Record again.")
+        raise IngestionError("align.no_overlap_pair" if what == "pair" else "align.no_overlap", file=files,
+                             seconds=max(t1 - t0, 0.0))
     n = int(np.floor((t1 - t0) * fs_hz + 1e-6)) + 1
     return t0 + np.arange(n) / fs_hz
 
@@ -110,13 +109,17 @@ def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role:
                    {"variant": "rows_missing", "stream": k, "rows": n}) for k, n in nan_rows.items() if n]
     if rec.acc.time_base != "epoch":
         notes.append(Note("no epoch time stamps: streams assumed to start together", {"variant": "no_epoch"}))
+    if rec.mag.mag_unit == "normalised":
+        notes.append(Note.of("mag_normalised", file=rec.mag.file.name,
+                             field=f"{rec.mag.field_ut:g} µT" if rec.mag.field_ut else "-"))
     source = {"files": [str(f) for f in rec.files], "format": rec.fmt, "label": rec.label,
               "sensor_id": rec.sensor_id,
               "segment": rec.segment.describe() if rec.segment else segment,
               "role": rec.role.describe() if rec.role else role, "notes": list(rec.notes)}
     flags = {"stream_fs_hz": {s.kind: round(s.fs_hz, 4) for s in rec.streams},
              "declared_units": {s.kind: s.declared_unit for s in rec.streams},
-             "trimmed_s": trimmed, "nan_rows": nan_rows, "notes": notes}
+             "trimmed_s": trimmed, "nan_rows": nan_rows, "notes": notes,
+             "mag_unit": rec.mag.mag_unit, "mag_field_ut": rec.mag.field_ut}
     return AlignedRecording(t_s=np.arange(len(t)) / fs_hz, acc=arrays["acc"], gyr=arrays["gyr"], mag=arrays["mag"],
                             fs_hz=fs_hz,
                             t0_s=float(t[0]), time_base=rec.acc.time_base, segment=segment, role=role,
@@ -130,22 +133,18 @@ def align_recording(rec: RawRecording, fs_hz: float, segment: str, role: str) ->
     its own start while the others count from 1970, so no span would be common (refused, naming it)."""
     if len({s.time_base for s in rec.streams}) > 1:
         odd = [s for s in rec.streams if s.time_base != "epoch"]
-        raise IngestionError(f"{odd[0].file}: has no epoch time stamps while the other streams of recording "
-                             f"{rec.label!r} have them, so they cannot be put on one time line; export it again "
-                             f"with its 'epoch (ms)' column.")
+        raise IngestionError("align.time_base_mixed", file=odd[0].file, label=rec.label)
     t0, t1 = common_span(rec.streams)
-    return _aligned(rec, _grid(t0, t1, fs_hz, f"recording {rec.label!r} ({rec.files[0].name})"), fs_hz,
-                    segment, role)
+    return _aligned(rec, _grid(t0, t1, fs_hz, "recording", rec.files[0].name), fs_hz, segment, role)
 
 
 def align_pair(thigh: RawRecording, shank: RawRecording, fs_hz: float,
                role: str = "task") -> tuple[AlignedRecording, AlignedRecording]:
     """Both sensors' recordings on one grid over the span common to all six streams (clock-drift note above)."""
     if thigh.acc.time_base != shank.acc.time_base:
-        raise IngestionError(f"{thigh.files[0]} and {shank.files[0]}: one has epoch time stamps and the other "
-                             f"not, so they cannot be put on one time line; export both the same way.")
+        raise IngestionError("align.pair_time_base", file=thigh.files[0], other=shank.files[0])
     t0, t1 = common_span(thigh.streams + shank.streams)
-    t = _grid(t0, t1, fs_hz, f"the two {role} recordings ({thigh.files[0].name}, {shank.files[0].name})")
+    t = _grid(t0, t1, fs_hz, "pair", f"{thigh.files[0].name}, {shank.files[0].name}")
     a, b = _aligned(thigh, t, fs_hz, "thigh", role), _aligned(shank, t, fs_hz, "shank", role)
     ratio = thigh.acc.fs_hz / shank.acc.fs_hz
     for r in (a, b):

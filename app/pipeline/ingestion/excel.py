@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from app.pipeline.ingestion.model import IngestionError, Stream
-from app.pipeline.ingestion.tables import check_stamps, first_huge_cell, huge_text
+from app.pipeline.ingestion.tables import check_stamps, first_huge_cell
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
 
 HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/s)", "y-axis (deg/s)",
@@ -36,7 +36,7 @@ def _openpyxl():
     try:
         import openpyxl
     except ImportError:  # pragma: no cover - dependency declared in pyproject
-        raise IngestionError("reading .xlsx files needs the 'openpyxl' package: pip install openpyxl") from None
+        raise IngestionError("xlsx.no_openpyxl") from None
     return openpyxl
 
 
@@ -61,14 +61,12 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
     try:
         wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except Exception as exc:  # zip/xml errors of a damaged file
-        raise IngestionError(f"{path}: cannot be opened as an Excel workbook ({type(exc).__name__}: {exc}); "
-                             f"save it again from Excel as .xlsx.") from None
+        raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
     try:
         names = wb.sheetnames
         if sheet is not None:
             if sheet not in names:
-                raise IngestionError(f"{path}: no sheet named {sheet!r}; the sheets are {names} — correct "
-                                     f"\"sheet\" in session.json.")
+                raise IngestionError("xlsx.no_such_sheet", file=path, sheet=sheet, sheets=", ".join(names))
             chosen = sheet
         else:
             good = []
@@ -82,19 +80,18 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
                 if not good:
                     first = next(wb[names[0]].iter_rows(min_row=1, max_row=1, values_only=True), ())
                     detail = f" (sheet {names[0]!r}: {_layout_problem(list(first)) or 'empty'})"
-                raise IngestionError(
-                    f"{path}: {what} the thesis layout (Fig. 8.6: A elapsed, B–D acc, E–G gyro, H elapsed, "
-                    f"I–K mag){detail}. Keep one such sheet, or name it in session.json (\"sheet\").")
+                raise IngestionError("xlsx.no_layout_sheet" if not good else "xlsx.several_layout_sheets",
+                                     file=path, sheets=", ".join(good), detail=detail)
             chosen = good[0]
         rows = [list(r) for r in wb[chosen].iter_rows(values_only=True)]
     finally:
         wb.close()
     note = f"sheet {chosen!r}" + (f" of {names}" if len(names) > 1 else "")
     if len(rows) < 2:
-        raise IngestionError(f"{path}: sheet {chosen!r} has no data rows; export the recording again.")
+        raise IngestionError("xlsx.no_rows", file=path, sheet=chosen)
     problem = _layout_problem(rows[0])
     if problem:
-        raise IngestionError(f"{path}: sheet {chosen!r} is not in the thesis layout: {problem}; fix row 1 or export the recording again.")
+        raise IngestionError("xlsx.not_layout", file=path, sheet=chosen, problem=problem)
     header = [("" if c is None else str(c)) for c in rows[0]]
     width = 11
     table = np.full((len(rows) - 1, width), np.nan)
@@ -108,34 +105,32 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
                     raise TypeError
                 table[i, j] = float(c)
             except (TypeError, ValueError):
-                raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} holds {c!r}, which is not "
-                                     f"a number; fix or delete that row.") from None
+                raise IngestionError("xlsx.cell_not_number", file=path, sheet=chosen, cell=f"{chr(65 + j)}{i + 2}",
+                                     value=repr(c)[:40]) from None
     huge = first_huge_cell(table)  # the CSV readers' check: inf, 1e300 (norms would overflow); nan is empty
     if huge is not None:
         i, j = huge
-        raise IngestionError(f"{path}: sheet {chosen!r}, cell {chr(65 + j)}{i + 2} {huge_text(table[i, j])}; "
-                             f"fix or delete that row.")
+        raise IngestionError("xlsx.cell_infinite" if np.isinf(table[i, j]) else "xlsx.cell_huge", file=path,
+                             sheet=chosen, cell=f"{chr(65 + j)}{i + 2}", value=f"{table[i, j]:.3g}")
     streams = []
     for kind, (t_col, axes) in _GROUPS.items():
         units = {_CELL.match(header[i]).group("unit").strip() for i in axes}
         t_unit = _CELL.match(header[t_col]).group("unit")
         if len(units) != 1:
-            raise IngestionError(f"{path}: columns {', '.join(chr(65 + i) for i in axes)} declare different units "
-                                 f"{sorted(units)}; fix the header.")
+            raise IngestionError("file.axes_units_differ", file=path, units=", ".join(sorted(units)))
         unit = units.pop()
         f, ft = unit_factor(kind, unit), unit_factor("time", t_unit)
         if f is None or ft is None:
             bad = unit if f is None else t_unit
-            raise IngestionError(f"{path}: unit ({bad}) in row 1 is not one ChakaMo knows for this column "
-                                 f"(acc g/mg/m/s², gyro deg/s/rad/s, mag T/mT/µT, time s/ms); correct row 1.")
+            raise IngestionError("xlsx.unit_unknown", file=path, unit=bad)
         block = table[:, [t_col, *axes]]
         used = ~np.all(np.isnan(block), axis=1)
         last = int(np.nonzero(used)[0][-1]) + 1 if used.any() else 0
         block = block[:last]
         if last == 0:
-            raise IngestionError(f"{path}: sheet {chosen!r} has no {kind} data; export the recording again.")
+            raise IngestionError("xlsx.stream_empty", file=path, sheet=chosen, stream=kind)
         t_s = block[:, 0] * ft
-        check_stamps(path, t_s, f"'{header[t_col]}' (column {chr(65 + t_col)})")
+        check_stamps(path, t_s, f"{header[t_col]} ({chr(65 + t_col)})")
         values = block[:, 1:] * f
         check_magnitude(kind, values, unit, path)
         streams.append(Stream(kind=kind, t_s=t_s, values=values, declared_unit=unit, file=path,

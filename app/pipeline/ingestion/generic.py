@@ -11,7 +11,9 @@ Format (comma-separated, one header row, ``.`` decimal point)::
 * Units in parentheses, or as a suffix after the last ``_`` of the name's unit part
   (``t_s``, ``acc_x_m_s2``, ``gyr_x_rad_s``, ``mag_x_ut``): time s/ms/us, or Unix time as a column
   ``epoch (ms)`` / ``epoch_ms`` or a unit ``(epoch ms)`` (e.g. ``mag_time (epoch ms)``); acc g, mg, m/s²;
-  gyr deg/s, rad/s; mag T, mT, µT (uT), nT, G.
+  gyr deg/s, rad/s; mag T, mT, µT (uT), nT, G, or ``normalised`` (norm ≈ 1, e.g. ``mag_x (normalised)``),
+  optionally with the local field strength: ``mag_x (normalised 48.5 uT)``; a normalised magnetometer stays
+  normalised (``Stream.mag_unit == "normalised"``, ``Stream.field_ut`` the declared strength or ``None``).
 * A stream sampled slower (magnetometer at 20 Hz) leaves its cells empty in the other rows; an empty
   cell is a missing sample, text is an error.
 """
@@ -27,7 +29,7 @@ import numpy as np
 from app.pipeline.files import write_text_atomic
 from app.pipeline.ingestion.model import IngestionError, Stream
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, read_csv_rows
-from app.pipeline.ingestion.units import check_magnitude, normalise_unit, unit_factor
+from app.pipeline.ingestion.units import check_magnitude, normalise_unit, normalised_field, unit_factor
 
 _PAREN = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
 _SUFFIX = re.compile(r"^(?P<name>(?:acc|gyr|mag)_[xyz]|(?:acc_|gyr_|mag_)?(?:time|t)|epoch)_(?P<unit>.+)$")
@@ -47,7 +49,8 @@ def _column(col: str) -> tuple[str, str | None]:
 def read_generic_csv(path: str | os.PathLike) -> tuple[Stream, Stream, Stream]:
     """Read a generic CSV → ``(acc, gyr, mag)`` streams in project units (see the module docstring)."""
     path = Path(path)
-    header, rows = read_csv_rows(path)
+    notes: list = []
+    header, rows = read_csv_rows(path, notes)
     cols = [_column(c) for c in header]
     index = {n: i for i, (n, _) in enumerate(cols)}
     if "t" in index and "time" not in index:
@@ -59,36 +62,34 @@ def read_generic_csv(path: str | os.PathLike) -> tuple[Stream, Stream, Stream]:
         axes = [index.get(f"{kind}_{a}") for a in "xyz"]
         if None in axes:
             missing = [f"{kind}_{a}" for a, i in zip("xyz", axes) if i is None]
-            raise IngestionError(f"{path}: no column {', '.join(missing)} in the header; a generic CSV needs "
-                                 f"time, acc_x..z, gyr_x..z, mag_x..z, each with its unit, e.g. 'acc_x (g)': add "
-                                 f"the missing column(s) or export the file again.")
+            raise IngestionError("generic.column_missing", file=path, columns=", ".join(missing))
         t_i = index.get(f"{kind}_time", index.get(f"{kind}_t", index.get("time")))
         if t_i is None:
-            raise IngestionError(f"{path}: no time column; add 'time (s)' (or 'epoch (ms)') as the first column.")
+            raise IngestionError("generic.no_time", file=path)
         units = {cols[i][1] for i in axes}
         if len(units) != 1 or None in units:
-            raise IngestionError(f"{path}: columns {', '.join(header[i] for i in axes)} must declare one unit; "
-                                 f"give each the same unit in the header, e.g. "
-                                 f"'{kind}_x ({ {'acc': 'g', 'gyr': 'deg/s', 'mag': 'uT'}[kind]})'.")
+            raise IngestionError("generic.units_differ", file=path, columns=", ".join(header[i] for i in axes),
+                                 example=f"{kind}_x ({ {'acc': 'g', 'gyr': 'deg/s', 'mag': 'uT'}[kind]})")
         unit = units.pop()
         t_name, t_unit = cols[t_i]
         is_epoch = t_name == "epoch" or normalise_unit(t_unit or "") in ("epochms", "epoch_ms", "unixms")
         factor, t_factor = unit_factor(kind, unit), (1e-3 if is_epoch else unit_factor("time", t_unit or "s"))
         if factor is None or t_factor is None:
             bad = unit if factor is None else t_unit
-            raise IngestionError(f"{path}: unit ({bad}) is not one ChakaMo knows; correct the header to s/ms, g/mg/m_s2, "
-                                 f"deg/s/rad/s, T/mT/uT/nT.")
+            raise IngestionError("generic.unit_unknown", file=path, unit=bad)
         data = numeric_columns(path, header, rows, [t_i, *axes])
         keep = ~np.all(np.isnan(data[:, 1:]), axis=1)     # rows where this stream was not sampled
         rows_used = np.nonzero(keep)[0]
         t_s = data[keep, 0] * t_factor
         if rows_used.size == 0:
-            raise IngestionError(f"{path}: the {kind} columns are empty; export the recording again.")
-        check_stamps(path, t_s, f"'{header[t_i]}' stamp", first_row=2 + int(rows_used[0]))
+            raise IngestionError("generic.stream_empty", file=path, stream=kind)
+        check_stamps(path, t_s, header[t_i], first_row=2 + int(rows_used[0]))
         values = data[keep, 1:] * factor
         check_magnitude(kind, values, unit, path)
+        normalised, field_ut = normalised_field(unit) if kind == "mag" else (False, None)
         streams.append(Stream(kind=kind, t_s=t_s, values=values, declared_unit=unit, file=path,
-                              time_base="epoch" if is_epoch else "elapsed"))
+                              time_base="epoch" if is_epoch else "elapsed", notes=tuple(notes) if kind == "acc"
+                              else (), mag_unit="normalised" if normalised else "µT", field_ut=field_ut))
     return streams[0], streams[1], streams[2]
 
 

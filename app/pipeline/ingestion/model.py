@@ -26,7 +26,45 @@ KINDS = {"acc": "m/s²", "gyr": "rad/s", "mag": "µT"}
 
 
 class IngestionError(ValueError):
-    """A file or folder cannot be ingested.  The message names the file and says what to do."""
+    """A file or folder cannot be ingested.  The message names the file and says what to do.
+
+    ``IngestionError(code, **params)`` with ``code`` a key of :data:`.messages.CATALOGUE`: ``str(exc)`` is the
+    English text, :meth:`message` renders it in ``"es"``, ``"en"`` or ``"pt"``; ``code`` and ``params`` stay on
+    the exception for the API (``{"code": exc.code, "params": exc.params}``).  ``IngestionError(text)`` with
+    any other string (callers outside this package) keeps that text in every language, ``code == "text"``.
+    """
+
+    def __init__(self, code: str, /, **params: Any) -> None:
+        from app.pipeline.ingestion.messages import CATALOGUE, render
+
+        if code in CATALOGUE:
+            self.code, self.params = code, {k: _plain(v) for k, v in params.items()}
+            text = render(code, self.params, "en")
+        else:
+            self.code, self.params, text = "text", {"text": code}, code
+        super().__init__(text)
+
+    def message(self, lang: str = "en") -> str:
+        """The message in ``lang`` (es/en/pt; an unknown language gives English)."""
+        from app.pipeline.ingestion.messages import render
+
+        return str(self) if self.code == "text" else render(self.code, self.params, lang)
+
+    def __reduce__(self):  # pickle (job engines): rebuilt from code and params, not from the English text
+        return (_rebuild_error, (self.code, dict(self.params), str(self)))
+
+
+def _plain(value: Any) -> Any:
+    """A message parameter as JSON can carry it: paths as text, numpy scalars as Python numbers."""
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _rebuild_error(code: str, params: dict, text: str) -> "IngestionError":
+    return IngestionError(code, **params) if code != "text" else IngestionError(text)
 
 
 class Note(str):
@@ -43,8 +81,35 @@ class Note(str):
 
     def __new__(cls, text: str, params: Mapping[str, Any] | None = None) -> "Note":
         note = super().__new__(cls, text)
-        note.params = MappingProxyType(dict(params or {}))
+        note.params = MappingProxyType({k: _plain(v) for k, v in (params or {}).items()})
         return note
+
+    @classmethod
+    def of(cls, variant: str, **params: Any) -> "Note":
+        """The note ``note.<variant>`` of :data:`.messages.CATALOGUE`, its English text from the catalogue."""
+        from app.pipeline.ingestion.messages import render
+
+        params = {k: _plain(v) for k, v in params.items()}
+        return cls(render(f"note.{variant}", params, "en"), {"variant": variant, **params})
+
+    @property
+    def code(self) -> str | None:
+        """``note.<variant>`` when the catalogue has it (see :meth:`message`), else ``None``."""
+        from app.pipeline.ingestion.messages import CATALOGUE
+
+        code = f"note.{self.params.get('variant')}"
+        return code if code in CATALOGUE else None
+
+    def message(self, lang: str = "en") -> str:
+        """The note in ``lang`` (es/en/pt), prefixed with its segment and role when it has them."""
+        from app.pipeline.ingestion.messages import render, render_prefix
+
+        if self.code is None:
+            return str(self)
+        text = render(self.code, self.params, lang)
+        if "segment" in self.params and "role" in self.params:
+            text = f"{render_prefix(self.params['segment'], self.params['role'], lang)}: {text}"
+        return text
 
     def __reduce__(self):  # pickle/deepcopy: a mappingproxy cannot be pickled, its dict can
         return (type(self), (str(self), dict(self.params)))
@@ -82,6 +147,13 @@ class Stream:
     declared_unit : the unit the file declared (``"g"``, ``"deg/s"``, ``"T"``...).
     file : the source file.   nominal_fs_hz : the rate the file name declares, if any.
     time_base : ``"epoch"`` or ``"elapsed"``.
+    notes : :class:`Note` s from the reader (rows dropped, time base rebuilt, ``;`` separator...).
+    mag_unit : for ``kind="mag"``: ``"µT"`` (every format with a field unit) or ``"normalised"`` (Xsens, a
+        generic ``(normalised)`` column: the vendor's calibrated field divided by its local strength, norm ≈ 1,
+        no µT scale).  Normalised values are kept as the file gives them (norm ≈ 1), never scaled to µT, so
+        the figure-eight fit must not assume µT (nor be needed: the vendor calibrated them).
+    field_ut : the local field strength the file (or ``session.json``) declares for a normalised
+        magnetometer, µT, else ``None``; ``values * field_ut`` would be µT.
     """
 
     kind: str
@@ -91,6 +163,9 @@ class Stream:
     file: Path
     nominal_fs_hz: float | None = None
     time_base: str = "epoch"
+    notes: tuple = ()
+    mag_unit: str = "µT"
+    field_ut: float | None = None
 
     @property
     def fs_hz(self) -> float:
@@ -172,6 +247,12 @@ class AlignedRecording:
     @property
     def duration_s(self) -> float:
         return float(len(self.t_s) / self.fs_hz)
+
+    @property
+    def mag_normalised(self) -> bool:
+        """True when ``mag`` is in normalised units (norm ≈ 1, no µT scale; ``flags["mag_field_ut"]`` the
+        declared field strength or ``None``): the figure-eight fit must not assume µT."""
+        return self.flags.get("mag_unit") == "normalised"
 
 
 @dataclass(frozen=True)

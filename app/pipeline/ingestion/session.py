@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -37,61 +38,93 @@ from app.pipeline.ingestion.excel import read_thesis_xlsx
 from app.pipeline.ingestion.generic import read_generic_csv
 from app.pipeline.ingestion.labels import (LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
                                   recognise_step_height)
-from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name, read_metabase_csv
+from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_name, read_metabase_csv, settle_local_time,
+                                            start_time)
 from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
+from app.pipeline.ingestion.opal import list_sensors, read_opal
+from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
+from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
+from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
 
 MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
-_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings",
+_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut",
                   "name", "professional", "weight_kg", "height_m", "observations"}
-_ENTRY_KEYS = {"files", "segment", "role", "sheet"}
+_ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
+                   "mag_field_ut": (int, float),
                    "sensors": dict, "recordings": list, "name": str, "professional": str,
                    "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
                type(None): "null"}
 
 
-def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None, hint: str = "") -> RawRecording:
+def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = None, hint: Any = "",
+                   settle: bool = True, sensor: str | None = None) -> RawRecording:
     """Read one recording (3 MetaBase files, 1 thesis .xlsx, or 1 generic .csv), segment/role from its name.
 
     ``hint`` ends the message when a MetaBase stream file is missing (the files discovery left out: a stream
-    renamed out of the MetaBase pattern is one of them)."""
+    renamed out of the MetaBase pattern is one of them).  ``settle=False`` leaves MetaBase stamps rebuilt
+    on local time (:func:`.metabase.settle_local_time`) for the session to put on UTC with other recordings.
+    ``sensor`` picks one sensor of an APDM ``.h5`` file holding several (its segment from the sensor's label).
+
+    ``extras`` gains, when the files say them: ``started`` (ISO local date-time of the recording's start,
+    from the MetaBase name), ``device`` (the sensor's user-chosen name), ``firmware``."""
+    facts: dict[str, Recognition] = {}
     if not files:
-        raise IngestionError("a recording needs its files (none given); list them.")
+        raise IngestionError("recording.no_files")
     paths = [Path(f) for f in files]
     for p in paths:
         if not p.is_file():
-            raise IngestionError(f"{p}: file not found; check the name (or the session.json entry).")
+            raise IngestionError("file.not_found", file=p)
     notes: tuple[str, ...] = ()
     sensor_id = None
     if all(parse_file_name(p) for p in paths):
         groups = group_metabase_files(paths)
         if len(groups) != 1:
-            raise IngestionError(f"{paths[0]}: these files belong to {len(groups)} different MetaBase recordings "
-                                 f"({', '.join(l for l, _ in groups)}); list one recording's three files together.")
-        (label, sensor_id), kinds = next(iter(groups.items()))
+            raise IngestionError("metabase.several_recordings", file=paths[0], count=len(groups),
+                                 labels=", ".join(f"{l} ({t})" for l, _, t in groups) or "-")
+        (label, sensor_id, started), kinds = next(iter(groups.items()))
         missing = [k for k in ("acc", "gyr", "mag") if k not in kinds]
         if missing:
             names = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}
-            raise IngestionError(f"{paths[0].parent}: recording {label!r} of sensor {sensor_id} has no "
-                                 f"{' / '.join(names[k] for k in missing)} file; export every stream from MetaBase.{hint}")
-        acc, gyr, mag = (read_metabase_csv(kinds[k], k) for k in ("acc", "gyr", "mag"))
+            raise IngestionError("metabase.stream_missing", file=paths[0].parent, label=label, sensor=sensor_id,
+                                 streams=" / ".join(names[k] for k in missing), hint=hint)
+        streams = [read_metabase_csv(kinds[k], k) for k in ("acc", "gyr", "mag")]
+        acc, gyr, mag = settle_local_time(streams, final=settle)
         fmt = "metabase"
         method = "MetaBase label"
+        name = parse_file_name(kinds["acc"])
+        start = start_time(name)
+        facts["started"] = Recognition(start.isoformat(timespec="seconds"), "MetaBase file name",
+                                       name["datetime"])
+        facts["device"] = Recognition(name["device"], "MetaBase file name", name["device"])
+        if name["firmware"]:
+            facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
     elif len(paths) == 1 and paths[0].suffix.lower() == ".xlsx":
         acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
         notes = (f"{paths[0].name}: {note}",)
         label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
-    elif len(paths) == 1 and paths[0].suffix.lower() == ".csv":
-        acc, gyr, mag = read_generic_csv(paths[0])
-        label, fmt, method = paths[0].stem, "generic-csv", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() in (".h5", ".hdf5"):
+        acc, gyr, mag, sensor_id, sensor_label = read_opal(paths[0], sensor)
+        label, fmt, method = f"{paths[0].stem} {sensor_label}".strip(), "apdm-opal", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() == ".zip":
+        acc, gyr, mag, sensor_id = read_sensorlogger(paths[0])
+        label, fmt, method = paths[0].stem, "sensor-logger", "file name"
+    elif len(paths) == 1 and paths[0].suffix.lower() in (".csv", ".txt"):
+        fmt = sniff(paths[0]) or "generic-csv"
+        if fmt == "xsens":
+            acc, gyr, mag, sensor_id = read_xsens(paths[0])
+        elif fmt == "shimmer":
+            acc, gyr, mag, sensor_id = read_shimmer(paths[0])
+        else:
+            acc, gyr, mag = read_generic_csv(paths[0])
+        label, method = paths[0].stem, "file name"
     else:
-        raise IngestionError(f"{paths[0]}: a recording is three MetaBase stream files, one .xlsx (thesis layout) "
-                             f"or one generic .csv; got {[p.name for p in paths]}: list each recording's own files.")
+        raise IngestionError("recording.bad_file_set", file=paths[0], files=", ".join(p.name for p in paths))
     found = {}
     for name, finder in (("role", recognise_role), ("segment", recognise_segment), ("side", recognise_side),
                          ("step", recognise_step_height)):
@@ -101,15 +134,16 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
             found[name] = None
             notes += (f"{paths[0].name}: {exc}",)
     role, segment, side, step = found["role"], found["segment"], found["side"], found["step"]
-    extras = dict(parse_thesis_name(label) or {})
+    extras = {**facts, **(parse_thesis_name(label) or {})}
     if side:
         extras["side"] = side
     if step:
         extras["step_height_m"] = step
     if "patient_id" in extras and extras["patient_id"].method != method:
         extras["patient_id"] = Recognition(extras["patient_id"].value, method, "ID field")
+    notes += tuple(n for st in (acc, gyr, mag) for n in st.notes)
     return RawRecording(acc=acc, gyr=gyr, mag=mag, fmt=fmt, segment=segment, role=role, label=label,
-                        sensor_id=sensor_id, extras=extras, notes=notes)
+                        sensor_id=sensor_id, extras=extras, notes=tuple(dict.fromkeys(notes)))
 
 
 def _read_manifest(path: Path) -> dict[str, Any]:
@@ -117,45 +151,40 @@ def _read_manifest(path: Path) -> dict[str, Any]:
     try:
         data = json.loads(path.read_text(encoding="utf-8-sig"))
     except UnicodeDecodeError:
-        raise IngestionError(f"{path}: not UTF-8 text; save it again as UTF-8 (or remove the file).") from None
+        raise IngestionError("manifest.not_utf8", file=path) from None
     except json.JSONDecodeError as exc:
-        raise IngestionError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}); "
-                             f"fix it or remove the file.") from None
+        raise IngestionError("manifest.invalid_json", file=path, line=exc.lineno, col=exc.colno,
+                             reason=exc.msg) from None
     if not isinstance(data, dict):
-        raise IngestionError(f"{path}: must be a JSON object with keys {sorted(_MANIFEST_KEYS)}; fix it or remove "
-                             f"the file.")
+        raise IngestionError("manifest.not_object", file=path, keys=", ".join(sorted(_MANIFEST_KEYS)))
     unknown = set(data) - _MANIFEST_KEYS
     if unknown:
-        raise IngestionError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(_MANIFEST_KEYS)}.")
+        raise IngestionError("manifest.unknown_keys", file=path, unknown=str(sorted(unknown)),
+                             keys=", ".join(sorted(_MANIFEST_KEYS)))
     for key, types in _MANIFEST_TYPES.items():
         types = types if isinstance(types, tuple) else (types,)
         if key in data and (not isinstance(data[key], types) or isinstance(data[key], bool)):
-            raise IngestionError(f"{path}: {key} = {data[key]!r} must be "
-                                 f"{' or '.join(_TYPE_NAMES[t] for t in types)}; correct it.")
+            raise IngestionError("manifest.wrong_type", file=path, key=key, value=repr(data[key])[:60],
+                                 expected=" | ".join(_TYPE_NAMES[t] for t in types))
     for mac, segment in data.get("sensors", {}).items():
         if not isinstance(segment, str):
-            raise IngestionError(f"{path}: sensors[{mac!r}] = {segment!r}; give the segment as a string "
-                                 f"(\"thigh\" or \"shank\").")
+            raise IngestionError("manifest.sensor_segment_type", file=path, mac=str(mac), value=repr(segment)[:60])
     if "recordings" in data and not data["recordings"]:
-        raise IngestionError(f"{path}: 'recordings' lists no recording; list the session's files, or remove "
-                             f"the key to let ChakaMo find them.")
+        raise IngestionError("manifest.recordings_empty", file=path)
     root = path.parent.resolve()
     listed: dict[Path, int] = {}
     for i, e in enumerate(data.get("recordings", [])):
         if not isinstance(e, dict) or not isinstance(e.get("files"), list) or not e["files"] or set(e) - _ENTRY_KEYS \
                 or not all(isinstance(e.get(k, ""), str) for k in ("segment", "role")) \
-                or not isinstance(e.get("sheet", ""), (str, type(None))):
-            raise IngestionError(f"{path}: recordings[{i}] must be an object with 'files' (a non-empty list of "
-                                 f"names) and optional 'segment', 'role', 'sheet' (strings); correct it.")
+                or not isinstance(e.get("sheet", ""), (str, type(None))) or not isinstance(e.get("sensor", ""), str):
+            raise IngestionError("manifest.bad_entry", file=path, index=i)
         for f in e["files"]:
             if not isinstance(f, str) or not f or not (root / f).resolve().is_relative_to(root) \
                     or (root / f).resolve() == root:
-                raise IngestionError(f"{path}: recordings[{i}] lists {f!r}, which is not a file inside the session "
-                                     "folder; list the recordings by their names in this folder.")
+                raise IngestionError("manifest.file_outside", file=path, index=i, name=repr(f)[:80])
             where = (root / f).resolve()
             if where in listed:
-                raise IngestionError(f"{path}: {f!r} is listed twice (recordings[{listed[where]}] and "
-                                     f"recordings[{i}]); list each file once.")
+                raise IngestionError("manifest.file_twice", file=path, name=f, first=listed[where], second=i)
             listed[where] = i
     return data
 
@@ -169,18 +198,26 @@ def _manifest_word(path: Path, where: str, text: str, kind: str) -> Recognition:
     if r is None:
         if text in (SEGMENTS if kind == "segment" else ROLES):
             return Recognition(text, "session.json", where)
-        raise IngestionError(f"{path}: {where} = {text!r} is not a {kind} ChakaMo knows; use one of "
-                             f"{SEGMENTS if kind == 'segment' else ROLES}.")
+        raise IngestionError("manifest.unknown_segment" if kind == "segment" else "manifest.unknown_role",
+                             file=path, where=where, value=str(text)[:60],
+                             allowed=", ".join(SEGMENTS if kind == "segment" else ROLES))
     return Recognition(r.value, "session.json", where)
 
 
-def _looks_generic(path: Path) -> bool:
-    """A non-MetaBase .csv is taken as a generic recording only if its header names acc_x."""
+def sniff(path: Path) -> str | None:
+    """The format of a non-MetaBase ``.csv`` / ``.txt`` from its first 8 kB: ``"xsens"`` (MT Manager export),
+    ``"shimmer"`` (Consensys), ``"generic-csv"`` (a header naming ``acc_x``), or ``None``."""
     try:
         with open(path, encoding="utf-8-sig", errors="replace") as fh:
-            return "acc_x" in fh.readline().lower()
+            head = fh.read(8192)
     except OSError:
-        return False
+        return None
+    if looks_like_xsens(head):
+        return "xsens"
+    if looks_like_shimmer(head):
+        return "shimmer"
+    first = head.split("\n", 1)[0].lower()
+    return "generic-csv" if path.suffix.lower() == ".csv" and "acc_x" in first else None
 
 
 #: why _discover leaves a .csv out (shown in notes, and in the error when a recording or stream is then missing)
@@ -194,11 +231,28 @@ def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
     groups = [sorted(g.values()) for g in group_metabase_files(meta).values()]
     singles, ignored = [], []
     for p in files:
-        if p.suffix.lower() == ".xlsx" or (p.suffix.lower() == ".csv" and p not in meta and _looks_generic(p)):
+        suffix = p.suffix.lower()
+        if suffix in (".xlsx", ".h5", ".hdf5") or (suffix in (".csv", ".txt") and p not in meta and sniff(p)) \
+                or (suffix == ".zip" and looks_like_sensorlogger(p)):
             singles.append([p])
-        elif p.suffix.lower() == ".csv" and p not in meta:
+        elif suffix == ".csv" and p not in meta:
             ignored.append(p.name)
     return groups + singles, ignored
+
+
+def _settle_session_clock(raws: list[RawRecording]) -> list[RawRecording]:
+    """MetaBase streams whose epoch a spreadsheet mangled, put on the UTC epoch of the session's other
+    MetaBase files (:func:`.metabase.settle_local_time`; the phone is the same clock)."""
+    streams = [s for r in raws for s in r.streams]
+    if not any(s.time_base == "epoch-local" for s in streams):
+        return raws
+    settled = iter(settle_local_time(streams, final=True))
+    out = []
+    for r in raws:
+        acc, gyr, mag = next(settled), next(settled), next(settled)
+        extra = tuple(n for st in (acc, gyr, mag) for n in st.notes if n not in r.notes)
+        out.append(replace(r, acc=acc, gyr=gyr, mag=mag, notes=r.notes + extra))
+    return out
 
 
 def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str, str], RawRecording],
@@ -211,11 +265,10 @@ def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str
             if key == "side":
                 side = recognise_side(str(value), "session.json")
                 if side is None:
-                    raise IngestionError(f"{mpath}: side = {value!r}; use 'right' or 'left'.")
+                    raise IngestionError("manifest.bad_side", file=mpath, value=str(value)[:60])
                 value = side.value
             if key == "step_height_m" and not (isinstance(value, (int, float)) and 0.0 < value < 1.0):
-                raise IngestionError(f"{mpath}: step_height_m = {value!r}; give the step height in metres, "
-                                     f"e.g. 0.17.")
+                raise IngestionError("manifest.bad_step_height", file=mpath, value=repr(value)[:60])
             found[key] = Recognition(value, "session.json", key)
             continue
         values = [r.extras[key] for r in task_first if key in r.extras]
@@ -241,7 +294,7 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     path = Path(path)
     folder = path.parent if path.is_file() else path
     if not folder.is_dir():
-        raise IngestionError(f"{path}: no such session folder.")
+        raise IngestionError("session.no_folder", file=path)
     mpath = folder / MANIFEST if (folder / MANIFEST).is_file() else None
     manifest = _read_manifest(mpath) if mpath else {}
     sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
@@ -249,16 +302,25 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     left_out: list[str] = []
     if entries is None:  # discovered files are already paths inside folder: keep only their names
         groups, left_out = _discover(folder)
-        entries = [{"files": [p.name for p in g]} for g in groups]
-    notes = [f"ignored {name} ({_IGNORED_CSV})" for name in left_out]
-    ignored = "".join(f" Ignored {name} ({_IGNORED_CSV})." for name in left_out)
+        entries = []
+        for g in groups:
+            if len(g) == 1 and g[0].suffix.lower() in (".h5", ".hdf5"):   # one recording per sensor of the file
+                entries += [{"files": [g[0].name], "sensor": sid} for sid in list_sensors(g[0])]
+            else:
+                entries.append({"files": [p.name for p in g]})
+    notes: list[str] = [Note.of("csv_ignored", file=name) for name in left_out]
+    ignored = [{"code": "hint.ignored_csv", "params": {"file": name}} for name in left_out]
     if not entries:
-        raise IngestionError(f"{folder}: no recordings found (MetaBase .csv, thesis .xlsx or generic .csv); "
-                             f"check the folder.")
+        names = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+        raise IngestionError("session.no_recordings", file=folder, count=len(names),
+                             found=", ".join(names[:8]) + (", ..." if len(names) > 8 else "") if names else "-",
+                             hint=ignored)
     recs: dict[tuple[str, str], RawRecording] = {}
-    unrecognised: list[str] = []
-    for i, e in enumerate(entries):
-        rec = read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored)
+    unrecognised: list[dict] = []
+    raws = [read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored, settle=False,
+                           sensor=e.get("sensor")) for e in entries]
+    raws = _settle_session_clock(raws)
+    for i, (e, rec) in enumerate(zip(entries, raws)):
         segment, role = rec.segment, rec.role
         if rec.sensor_id and rec.sensor_id in sensors:
             segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
@@ -268,29 +330,36 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
             role = _manifest_word(mpath, f"recordings[{i}].role", e["role"], "role")
         if segment is None or role is None or role.value not in roles:
             if role is None or segment is None:
-                what = " and ".join(w for w, r in (("role", role), ("segment", segment)) if r is None)
+                what = {"code": "word.role_segment" if role is None and segment is None else
+                        "word.role" if role is None else "word.segment"}
                 why = "; ".join(n.split(": ", 1)[1] for n in rec.notes if "names more than one" in n)
-                unrecognised.append(f"{rec.files[0].name} ({what} not recognised{': ' + why if why else ''})")
+                unrecognised.append({"code": "hint.unrecognised",
+                                     "params": {"file": rec.files[0].name, "what": what,
+                                                "why": f": {why}" if why else ""}})
             continue
         rec = RawRecording(rec.acc, rec.gyr, rec.mag, rec.fmt, segment, role, rec.label, rec.sensor_id,
                            rec.extras, rec.notes)
         key = (segment.value, role.value)
         if key in recs:
-            raise IngestionError(f"{rec.files[0]} and {recs[key].files[0]} are both the {role.value} recording of "
-                                 f"the {segment.value}; keep one (or list the one to use in {MANIFEST}).")
+            raise IngestionError("session.recording_twice", file=rec.files[0], other=recs[key].files[0],
+                                 role=role.value, segment=segment.value)
         recs[key] = rec
-    hint = ignored + (f" Files not recognised: {'; '.join(unrecognised)}." if unrecognised else "") + \
-        (f" Name files like step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., or list them in {MANIFEST}"
-         f" with segment and role.")
+    hint = ignored + unrecognised + [{"code": "hint.naming", "params": {"manifest": MANIFEST}}]
     segs = {s for s, _ in recs}
     if len(segs) < 2:
-        only = f"only the {segs.pop()} sensor" if segs else "no sensor"
-        raise IngestionError(f"{folder}: {only} found; a session needs both the thigh and the shank sensor "
-                             f"(knee angles compare the two).{hint}")
-    missing = [f"{r} of the {s}" for s in SEGMENTS for r in roles if (s, r) not in recs]
+        raise IngestionError("session.one_sensor" if segs else "session.no_sensor", file=folder,
+                             segment=next(iter(segs), ""), hint=hint)
+    missing = [{"code": "word.role_of", "params": {"role": {"code": f"word.{r}"}, "segment": {"code": f"word.{s}"}}}
+               for s in SEGMENTS for r in roles if (s, r) not in recs]
     if missing:
-        raise IngestionError(f"{folder}: missing recording(s): {', '.join(missing)}.{hint}")
-    notes += [f"ignored {u}" for u in unrecognised]
+        raise IngestionError("session.missing_recordings", file=folder, missing=missing, hint=hint)
+    notes += [Note.of("file_unrecognised", **u["params"]) for u in unrecognised]
+    field = manifest.get("mag_field_ut")
+    if field is not None:
+        if not 10.0 <= field <= 100.0:
+            raise IngestionError("manifest.bad_field", file=mpath, value=repr(field))
+        recs = {k: replace(r, mag=replace(r.mag, field_ut=float(field))) if r.mag.mag_unit == "normalised"
+                and r.mag.field_ut is None else r for k, r in recs.items()}
     for rec in recs.values():
         check_gyro_unit(rec.acc, rec.gyr)
     fs = {key: check_rates(rec, expected_fs_hz) for key, rec in recs.items()}

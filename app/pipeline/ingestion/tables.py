@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import csv
 import io
+import operator
+import re
+import warnings
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
-from app.pipeline.ingestion.model import FloatArray, IngestionError
+import datetime as dt
+
+from app.pipeline.ingestion.model import FloatArray, IngestionError, Note
 
 #: Fewest samples / shortest span a stream may have.
 MIN_SAMPLES = 10
@@ -19,55 +24,196 @@ MIN_DURATION_S = 1.0
 MAX_ABS_CELL = 1e15
 
 
-def read_csv_rows(path: Path) -> tuple[list[str], list[list[str]]]:
-    """Header and data rows of a comma-separated file; refuses empty, header-only and ragged (truncated) files.
+def read_csv_rows(path: Path, notes: list | None = None) -> tuple[list[str], list[list[str]]]:
+    """Header and data rows of a comma- (or ``;``-) separated file; refuses empty, header-only and ragged files.
+
+    Repaired, each with a :class:`Note` appended to ``notes`` (when given):
+
+    * ``;`` between the header's fields (Excel in Spanish or Portuguese): read with ``;`` as separator and
+      ``,`` as the decimal point (``9,81`` → ``9.81``);
+    * a last row cut short (fewer cells than the header, or, when the file does not end with a line break, a
+      last cell that is not a number): dropped — a copy or an export interrupted;
+    * rows repeated exactly (every cell equal to an earlier row's): dropped, the first kept.
 
     NUL bytes are refused before decoding: they are what a UTF-16/UTF-32 export (Excel's "Unicode text") or a
     damaged copy looks like, and read as UTF-8 they would give a header that merely "lacks columns"."""
+    return parse_table(path, read_text(path), notes)
+
+
+def read_text(path: Path) -> str:
+    """The file as text (UTF-8, BOM dropped); NUL bytes, undecodable bytes and unreadable files refused."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise IngestionError(f"{path}: cannot be read ({exc.strerror}); check that the file exists and is "
-                             f"readable, or copy it again.") from None
+        raise IngestionError("file.unreadable", file=path, reason=exc.strerror or str(exc)) from None
     if b"\x00" in raw:
-        raise IngestionError(f"{path}: the file contains NUL bytes (saved as UTF-16/UTF-32 'Unicode text', or "
-                             f"damaged); save it again as a UTF-8 (or plain) CSV, or export the recording again.")
+        raise IngestionError("file.nul_bytes", file=path)
     try:
-        text = raw.decode("utf-8-sig")
-        rows = list(csv.reader(io.StringIO(text, newline="")))
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise IngestionError(f"{path}: not a text CSV file ({exc.reason}); export it again as CSV.") from None
-    except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
-        raise IngestionError(f"{path}: not a readable CSV file ({exc}); the file is damaged — export the "
-                             f"recording again.") from None
-    while rows and not any(c.strip() for c in rows[-1]):
-        rows.pop()
-    if not rows:
-        raise IngestionError(f"{path}: the file is empty; export the recording again.")
-    header = [h.strip() for h in rows[0]]
-    if len(header) == 1 and ";" in header[0]:
-        raise IngestionError(f"{path}: the columns are separated by ';'; save the file as comma-separated CSV "
-                             f"with '.' as the decimal point.")
-    data = rows[1:]
+        raise IngestionError("file.not_text", file=path, reason=exc.reason) from None
+
+
+def parse_table(path: Path, text: str, notes: list | None = None,
+                delimiter: str | None = None) -> tuple[list[str], list[list[str]]]:
+    """:func:`read_csv_rows` on ``text`` (the table part of a file, its first line the header).
+
+    ``delimiter`` ``None``: ``;`` when the header has at least as many ``;`` as ``,`` (then ``,`` is the
+    decimal point), else ``,``; a tab-separated header (Xsens, Shimmer) gives ``"\t"``."""
+    notes = [] if notes is None else notes
+    first = text.split("\n", 1)[0]
+    if delimiter is None:
+        delimiter = "\t" if first.count("\t") > max(first.count(","), first.count(";")) else \
+            ";" if first.count(";") > 0 and first.count(";") >= first.count(",") else ","
+    semicolon = delimiter == ";"
+    lines = text.splitlines() if '"' not in text and not _ODD_BREAKS.search(text) else None
+    if lines is not None and max(map(len, lines), default=0) < _CSV_FIELD_LIMIT:
+        while lines and not lines[-1].replace(delimiter, "").strip():
+            lines.pop()
+        if not lines:
+            raise IngestionError("file.empty", file=path)
+        header = [h.strip() for h in lines[0].split(delimiter)]
+        body = lines[1:]
+        if semicolon:
+            body = [ln.replace(",", ".") for ln in body]
+        data: Sequence = Rows(body, delimiter)          # no quoting: split lazily, numbers parsed in C
+    else:
+        try:
+            rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
+        except csv.Error as exc:  # a cell beyond csv's field limit, a quote left open at the end...
+            raise IngestionError("file.damaged_csv", file=path, reason=str(exc)) from None
+        while rows and not any(c.strip() for c in rows[-1]):
+            rows.pop()
+        if not rows:
+            raise IngestionError("file.empty", file=path)
+        header = [h.strip() for h in rows[0]]
+        data = rows[1:]
+        if semicolon:
+            data = [[c.replace(",", ".") for c in r] for r in data]
+    if semicolon:
+        notes.append(Note.of("csv_semicolon", file=path.name))
     if not data:
-        raise IngestionError(f"{path}: the file has a header but no data rows; export the recording again.")
+        raise IngestionError("file.header_only", file=path)
     k = len(header)
-    for i, r in enumerate(data):
-        if len(r) != k:
-            where = "the last row" if i == len(data) - 1 else f"row {i + 2}"
-            raise IngestionError(
-                f"{path}: {where} has {len(r)} cells but the header has {k}"
-                + ("; the file looks truncated (copy or export it again)." if i == len(data) - 1
-                   else "; the file is damaged or has a stray separator — export it again."))
+    last = data[-1]
+    cut = len(last) < k or (not text.rstrip(" \t").endswith(("\n", "\r")) and len(last) == k
+                            and not _number_or_empty(last[-1]))
+    if cut and len(data) > 1:
+        data.pop()
+        notes.append(Note.of("truncated_last_row", file=path.name, row=len(data) + 2))
+    widths = data.widths() if isinstance(data, Rows) else list(map(len, data))
+    if set(widths) != {k}:
+        i = next(i for i, w in enumerate(widths) if w != k)
+        raise IngestionError("file.ragged_row", file=path, row=i + 2, cells=widths[i], header_cells=k)
+    keys = data.lines if isinstance(data, Rows) else [tuple(r) for r in data]
+    dropped = _copies(keys, keep_last=False) if len(set(keys)) != len(keys) else []
+    if dropped:
+        if not _in_time_order(header, data, dropped) and _in_time_order(header, data, _copies(keys, keep_last=True)):
+            dropped = _copies(keys, keep_last=True)     # the block pasted before its original: keep the original
+        gone = set(dropped)
+        data = Rows([ln for i, ln in enumerate(data.lines) if i not in gone], delimiter) if isinstance(data, Rows) \
+            else [r for i, r in enumerate(data) if i not in gone]
+        notes.append(Note.of("duplicate_rows", file=path.name, rows=len(dropped), first_row=min(dropped) + 2))
     return header, data
 
 
+class Rows(Sequence):
+    """The data rows of a quote-free file, kept as text ``lines`` and split into cells (``rows[i]`` → list
+    of str) only when asked; :func:`numeric_columns` parses their numbers in C (``numpy.loadtxt``)."""
+
+    def __init__(self, lines: list[str], delimiter: str) -> None:
+        self.lines, self.delimiter = lines, delimiter
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return Rows(self.lines[i], self.delimiter)
+        return self.lines[i].split(self.delimiter)
+
+    def __iter__(self):
+        d = self.delimiter
+        return (ln.split(d) for ln in self.lines)
+
+    def pop(self) -> list[str]:
+        return self.lines.pop().split(self.delimiter)
+
+    def widths(self) -> list[int]:
+        """Cells per row (separators + 1), without splitting."""
+        counts = list(map(operator.methodcaller("count", self.delimiter), self.lines))
+        return [c + 1 for c in counts] if len(set(counts)) > 1 else [counts[0] + 1] * len(counts) if counts else []
+
+
+#: line breaks str.splitlines() knows and csv does not (\v, \f, \x1c-\x1e, NEL, LS, PS): such a file takes csv
+_ODD_BREAKS = re.compile("[\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029]")
+#: beyond csv's per-field limit a damaged file must still fail as csv fails it (one huge "cell")
+_CSV_FIELD_LIMIT = csv.field_size_limit()
+
+
+def _copies(keys: Sequence, keep_last: bool) -> list[int]:
+    """Indices of rows whose key (text line, or tuple of cells) repeats, all but the first (or last) of each."""
+    seen: set = set()
+    order = range(len(keys) - 1, -1, -1) if keep_last else range(len(keys))
+    out = []
+    for i in order:
+        key = keys[i]
+        if key in seen:
+            out.append(i)
+        else:
+            seen.add(key)
+    return sorted(out)
+
+
+_TIME_WORDS = ("epoc", "time", "elapsed", "stamp", "packetcounter")
+
+
+def _in_time_order(header: list[str], data: list[list[str]], dropped: list[int]) -> bool:
+    """Whether the first time-like column (by name) still increases once ``dropped`` rows are gone."""
+    j = next((i for i, h in enumerate(header) if any(w in h.lower() for w in _TIME_WORDS)), None)
+    if j is None:
+        return True
+    gone = set(dropped)
+    values = []
+    for i, r in enumerate(data):
+        if i not in gone:
+            try:
+                values.append(float(r[j]))
+            except ValueError:
+                continue
+    return bool(np.all(np.diff(values) > 0)) if len(values) > 1 else True
+
+
+def _number_or_empty(cell: str) -> bool:
+    cell = cell.strip().strip('"')
+    if not cell:
+        return True
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
 def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], columns: Sequence[int],
-                    first_row: int = 2) -> FloatArray:
+                    first_row: int = 2, max_abs: float | None = None) -> FloatArray:
     """Columns ``columns`` of ``rows`` as float64 (n, len(columns)); empty cells → NaN, text → error.
 
-    ``first_row`` is the 1-based file row of ``rows[0]`` (for messages).
+    ``first_row`` is the 1-based file row of ``rows[0]`` (for messages).  Rows from :func:`parse_table` of a
+    quote-free file are parsed by ``numpy.loadtxt``; any cell it refuses (empty, text) falls back to the
+    cell-by-cell path below, whose message names the row and column.
     """
+    lines = rows.lines if isinstance(rows, Rows) else None
+    if lines:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out = np.loadtxt(lines, delimiter=rows.delimiter, usecols=tuple(columns), dtype=np.float64,
+                                 comments=None, ndmin=2)
+        except ValueError:
+            out = None
+        if out is not None and out.shape == (len(rows), len(columns)) and first_huge_cell(out, max_abs) is None:
+            return out
     out = np.empty((len(rows), len(columns)))
     for j, c in enumerate(columns):
         col = [r[c] for r in rows]
@@ -82,22 +228,21 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
                 try:
                     out[i, j] = float(cell)
                 except ValueError:
-                    raise IngestionError(
-                        f"{path}: row {i + first_row}, column '{header[c]}' holds {cell!r}, which is not a number; "
-                        f"fix or delete that row (decimal point '.', no thousands separator).") from None
-    huge = first_huge_cell(out)
+                    raise IngestionError("cell.not_number", file=path, row=i + first_row, column=header[c],
+                                         cell=cell[:40]) from None
+    huge = first_huge_cell(out, max_abs)
     if huge is not None:
         i, j = huge
-        raise IngestionError(f"{path}: row {i + first_row}, column '{header[columns[j]]}' {huge_text(out[i, j])}; "
-                             f"fix or delete that row.")
+        raise IngestionError("cell.infinite" if np.isinf(out[i, j]) else "cell.huge", file=path, row=i + first_row,
+                             column=header[columns[j]], value=f"{out[i, j]:.3g}")
     return out
 
 
-def first_huge_cell(table: np.ndarray) -> tuple[int, int] | None:
+def first_huge_cell(table: np.ndarray, max_abs: float | None = None) -> tuple[int, int] | None:
     """``(row, column)`` of the first cell of ``table`` beyond :data:`MAX_ABS_CELL` (inf included; NaN, an
     empty cell, is not), or None."""
     with np.errstate(invalid="ignore"):
-        huge = np.abs(table) > MAX_ABS_CELL
+        huge = np.abs(table) > (MAX_ABS_CELL if max_abs is None else max_abs)
     return tuple(int(k) for k in np.argwhere(huge)[0]) if huge.any() else None
 
 
@@ -106,26 +251,33 @@ def huge_text(value: float) -> str:
     return "is infinite" if np.isinf(value) else f"holds {value:.3g}, beyond any time stamp or reading"
 
 
-def check_stamps(path: Path, t_s: FloatArray, what: str = "time stamps", first_row: int = 2) -> None:
-    """Time stamps present, strictly increasing, enough of them.
+def when(t_s: float, t0_s: float) -> str:
+    """An instant for a message: seconds from the recording's start, plus the UTC wall-clock time when the
+    stamps are Unix epoch seconds (``"12.340 s (2021-10-29 14:18:52.356 UTC)"``), never ``1.63552e+09 s``."""
+    text = f"{t_s - t0_s:.3f} s"
+    if t0_s > 1e8:  # epoch seconds (after 1973): a real date
+        clock = dt.datetime.fromtimestamp(t_s, tz=dt.timezone.utc)
+        text += f" ({clock:%Y-%m-%d %H:%M:%S}.{clock.microsecond // 1000:03d} UTC)"
+    return text
+
+
+def check_stamps(path: Path, t_s: FloatArray, column: str = "time", first_row: int = 2) -> None:
+    """Time stamps present, strictly increasing, enough of them; ``column`` is the stamp column's header.
 
     Order matters for the message: stamps that go back (a clock reset at midnight) are named as such before
     the span is judged, which such stamps make negative."""
     if np.isnan(t_s).any():
         i = int(np.argmax(np.isnan(t_s)))
-        raise IngestionError(f"{path}: row {i + first_row} has no {what}; fix or delete that row.")
-    _check_increasing(path, t_s, what, first_row)
+        raise IngestionError("stamp.missing", file=path, row=i + first_row, column=column)
+    _check_increasing(path, t_s, column, first_row)
     if len(t_s) < MIN_SAMPLES or t_s[-1] - t_s[0] < MIN_DURATION_S:
-        raise IngestionError(f"{path}: only {len(t_s)} samples ({t_s[-1] - t_s[0]:.2f} s); the recording is too "
-                             f"short (at least {MIN_DURATION_S:g} s) — record again.")
+        raise IngestionError("stream.too_short", file=path, samples=len(t_s), seconds=float(t_s[-1] - t_s[0]),
+                             min_s=MIN_DURATION_S)
 
 
-def _check_increasing(path: Path, t_s: FloatArray, what: str, first_row: int) -> None:
+def _check_increasing(path: Path, t_s: FloatArray, column: str, first_row: int) -> None:
     d = np.diff(t_s)
     if (d <= 0).any():
         i = int(np.argmax(d <= 0))
-        kind = "repeats" if d[i] == 0 else "goes back in time at"
-        raise IngestionError(
-            f"{path}: rows {i + first_row} and {i + first_row + 1}: the {what} {kind} {float(t_s[i + 1]):.6g} s "
-            f"(duplicated or out-of-order rows). Export the recording again, or remove the "
-            f"{'duplicated' if d[i] == 0 else 'out-of-order'} rows.")
+        raise IngestionError("stamp.repeats" if d[i] == 0 else "stamp.goes_back", file=path, row=i + first_row,
+                             row2=i + first_row + 1, column=column, at=when(float(t_s[i + 1]), float(t_s[0])))

@@ -23,6 +23,7 @@ Plausibility (a file whose header declares one unit but whose numbers are in ano
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,23 @@ _ALIASES = {
 }
 
 
+#: spellings of a normalised magnetometer unit (Xsens "a.u."): the field divided by its local strength, norm ≈ 1
+NORMALISED = ("normalised", "normalized", "a.u.", "au", "arb", "norm")
+_NORMALISED = re.compile(r"^(?:normali[sz]ed|a\.u\.|au|arb|norm)(?:[,;:@x*]?(?P<field>\d+(?:\.\d+)?)"
+                         r"(?P<unit>ut|nt|mt|t|gauss|g|mg))?$")
+
+
+def normalised_field(unit: str) -> tuple[bool, float | None]:
+    """``(is_normalised, field_ut)`` of a magnetometer unit: ``"normalised"`` → ``(True, None)``,
+    ``"normalised 48.5 uT"`` → ``(True, 48.5)``, ``"uT"`` → ``(False, None)``."""
+    m = _NORMALISED.match(normalise_unit(unit))
+    if m is None:
+        return False, None
+    if m.group("field") is None:
+        return True, None
+    return True, float(m.group("field")) * UNITS["mag"][_key("mag", m.group("unit"))]
+
+
 def normalise_unit(text: str) -> str:
     """Lower-case, strip spaces, µ/μ → u, ² → 2, aliases → one spelling (``"m/s²"`` → ``"m/s2"``)."""
     u = text.strip().lower().replace(" ", "").replace("µ", "u").replace("μ", "u").replace("²", "2")
@@ -60,7 +78,11 @@ def _key(kind: str, unit: str) -> str:
 
 
 def unit_factor(kind: str, unit: str) -> float | None:
-    """Factor taking ``unit`` to the project unit of ``kind`` (acc/gyr/mag/time), ``None`` if unknown."""
+    """Factor taking ``unit`` to the project unit of ``kind`` (acc/gyr/mag/time), ``None`` if unknown.
+
+    A normalised magnetometer unit (:func:`normalised_field`) gives 1.0: its values stay normalised."""
+    if kind == "mag" and normalised_field(unit)[0]:
+        return 1.0
     return UNITS[kind].get(_key(kind, unit))
 
 
@@ -76,12 +98,12 @@ def _median_norm(values: FloatArray) -> float:
 
 
 def _guess(kind: str, declared: str, norm_si: float, lo: float, hi: float) -> str:
-    """Name the unit that would make ``norm_si`` fall in [lo, hi], as advice."""
+    """The unit that would make ``norm_si`` fall in [lo, hi] (advice), ``""`` if none does."""
     raw = norm_si / unit_factor(kind, declared)
     for u, f in UNITS[kind].items():
         if lo <= raw * f <= hi and u != _key(kind, declared):
-            return f"The numbers look like {pretty(kind, u)}, not {declared}"
-    return "No common unit explains them"
+            return pretty(kind, u)
+    return ""
 
 
 #: kind → (plausible median norm lo, hi; range a correct unit would give, for the hint; what, SI unit, reference)
@@ -93,24 +115,28 @@ _PLAUSIBLE = {
 
 def check_magnitude(kind: str, values_si: FloatArray, declared: str, file: Path) -> None:
     """Refuse acc/mag whose median norm is implausible for the declared unit (see module docstring)."""
+    if kind == "mag" and normalised_field(declared)[0]:
+        m = _median_norm(values_si)
+        if not 0.3 <= m <= 3.0:
+            raise IngestionError("unit.implausible_normalised", file=file, value=f"{m:.4g}")
+        return
     if kind in _PLAUSIBLE:
         lo, hi, guess_lo, guess_hi, what, si, reference = _PLAUSIBLE[kind]
         m = _median_norm(values_si)
         if not lo <= m <= hi:
-            hint = _guess(kind, declared, m, guess_lo, guess_hi)
-            shown = pretty(kind, declared)
-            raise IngestionError(
-                f"{file}: the {what} is {m:.4g} {si} when read as ({shown}); {reference}. {hint}: correct the "
-                f"unit in the column header (or re-export the file in {shown}).")
+            guess = _guess(kind, declared, m, guess_lo, guess_hi)
+            raise IngestionError("unit.implausible_acc" if kind == "acc" else "unit.implausible_mag", file=file,
+                                 value=f"{m:.4g}", declared=pretty(kind, declared),
+                                 hint=[{"code": "hint.looks_like", "params": {"unit": guess, "declared":
+                                        pretty(kind, declared)}}] if guess else [])
     elif kind == "gyr":
         n = np.linalg.norm(values_si, axis=1)
         n = n[np.isfinite(n)]
         if n.size and float(np.max(n)) > 40.0:
-            hint = ("The numbers look like deg/s: correct" if normalise_unit(declared) == "rad/s"
-                    and np.max(n) * math.pi / 180.0 <= 40.0 else "Check")
-            raise IngestionError(
-                f"{file}: the gyroscope reaches {np.max(n):.4g} rad/s when read as ({declared}), beyond any IMU's "
-                f"range (35 rad/s = 2000 deg/s). {hint} the unit in the column header.")
+            looks = normalise_unit(declared) == "rad/s" and np.max(n) * math.pi / 180.0 <= 40.0
+            raise IngestionError("unit.gyr_beyond_range", file=file, value=f"{np.max(n):.4g}", declared=declared,
+                                 hint=[{"code": "hint.looks_like", "params": {"unit": "deg/s",
+                                                                              "declared": declared}}] if looks else [])
 
 
 def _smooth(x: FloatArray, n: int) -> FloatArray:
@@ -154,12 +180,6 @@ def check_gyro_unit(acc: Stream, gyr: Stream) -> None:
     if r is None:
         return
     if r > 5.0:
-        raise IngestionError(
-            f"{gyr.file}: the gyroscope turns about {r:.0f}× less than the accelerometer shows the sensor turning; "
-            f"the numbers look like rad/s although the header declares ({gyr.declared_unit}). Correct the unit in "
-            f"the column header to rad/s.")
+        raise IngestionError("unit.gyr_looks_rad", file=gyr.file, ratio=f"{r:.0f}", declared=gyr.declared_unit)
     if r < 0.05:
-        raise IngestionError(
-            f"{gyr.file}: the gyroscope turns about {1 / r:.0f}× more than the accelerometer shows the sensor "
-            f"turning; the numbers look like deg/s although the header declares ({gyr.declared_unit}). Correct "
-            f"the unit in the column header to deg/s.")
+        raise IngestionError("unit.gyr_looks_deg", file=gyr.file, ratio=f"{1 / r:.0f}", declared=gyr.declared_unit)

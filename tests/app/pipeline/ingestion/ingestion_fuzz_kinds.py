@@ -25,6 +25,11 @@ from typing import Callable
 
 from hypothesis import strategies as st
 
+from ingestion_fuzz_vendors import (excel_epoch, excel_epoch_semicolon, opal_dataset_dropped, opal_truncated,
+                                    rows_copied_exactly, sensorlogger_cell_garbage, sensorlogger_member_dropped, shimmer_sep_variants, shimmer_units_row, truncated_last_line,
+                                    xsens_column_missing, xsens_layout_variants, xsens_mag_in_micro_tesla,
+                                    xsens_text_cell)
+
 from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _lines, _save, _set_cell, converted_unit,
                                      day_boundary, decimal_comma, declared_unit, duplicated_stamp, empty,
                                      extra_columns, gap_seconds, header_only, huge_value, label_two_roles,
@@ -39,7 +44,7 @@ from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _li
 
 @dataclass(frozen=True)
 class Kind:
-    fmt: str                      # "metabase", "generic" or "xlsx": the session it mutates
+    fmt: str                      # "metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger"
     what: str                     # one line for the table
     mutate: Callable[[Path, Draw], tuple[Path, ...]]
     must_load: bool = False       # a harmless variation: the session has to load, and sanely
@@ -318,7 +323,30 @@ KINDS: dict[str, Kind] = {
     "single_row": Kind("metabase", "1 to 12 data rows only", single_row),
     "gap_seconds": Kind("metabase", "0.1–4 s of rows missing somewhere", gap_seconds),
     "semicolon_decimal_comma": Kind("metabase", "';' separator and ',' decimal (European Excel export)",
-                                    semicolon_decimal_comma),
+                                    semicolon_decimal_comma, must_load=True),
+    "excel_epoch": Kind("metabase", "epoch (ms) rounded by Excel (1.63552E+12) in some files of a recording",
+                        excel_epoch, must_load=True),
+    "excel_epoch_semicolon": Kind("metabase", "a recording saved by Excel in es/pt: ';', decimal commas, rounded "
+                                  "epochs", excel_epoch_semicolon, must_load=True),
+    "truncated_last_line": Kind("metabase", "the copy stopped inside the last line", truncated_last_line,
+                                must_load=True),
+    "rows_copied_exactly": Kind("metabase", "a block of rows pasted again anywhere", rows_copied_exactly,
+                                must_load=True),
+    "xsens_text_cell": Kind("xsens", "text in a cell of an MT Manager export", xsens_text_cell),
+    "xsens_layout_variants": Kind("xsens", "',' or ';' for tabs, preamble dropped, CRLF", xsens_layout_variants,
+                                  must_load=True),
+    "xsens_column_missing": Kind("xsens", "an Acc/Gyr/Mag column removed", xsens_column_missing),
+    "xsens_mag_in_micro_tesla": Kind("xsens", "µT numbers under the normalised magnetometer columns",
+                                     xsens_mag_in_micro_tesla),
+    "shimmer_units_row": Kind("shimmer", "a unit of the Consensys units row emptied or changed", shimmer_units_row),
+    "shimmer_sep_variants": Kind("shimmer", "no 'sep=' line, or commas with 'sep=,'", shimmer_sep_variants,
+                                 must_load=True),
+    "opal_dataset_dropped": Kind("opal", "a sensor's dataset deleted from an APDM .h5", opal_dataset_dropped),
+    "opal_truncated": Kind("opal", "an APDM .h5 cut at a random byte", opal_truncated),
+    "sensorlogger_cell_garbage": Kind("sensorlogger", "text in a cell of a Sensor Logger zip's sensor file",
+                                      sensorlogger_cell_garbage),
+    "sensorlogger_member_dropped": Kind("sensorlogger", "a sensor file missing from a Sensor Logger zip",
+                                        sensorlogger_member_dropped),
     "decimal_comma": Kind("metabase", "',' decimal with ',' still the separator, from a random row on",
                           decimal_comma),
     "quoted_cells": Kind("metabase", "every cell in double quotes", quoted_cells, must_load=True),

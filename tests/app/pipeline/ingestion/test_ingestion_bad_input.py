@@ -1,6 +1,7 @@
 """Every bad input of issue 3 gives one IngestionError naming the file and saying what to do."""
 
 import json
+import re
 import shutil
 
 import numpy as np
@@ -98,12 +99,11 @@ def test_unknown_unit(folder):
 @pytest.mark.parametrize("damage,expect", [
     ("empty", "the file is empty"),
     ("header_only", "header but no data rows"),
-    ("truncated", "looks truncated"),
+    ("cut_mid_file", "cells but the header has"),
     ("text_cell", "is not a number"),
-    ("duplicate", "repeats"),
+    ("stamp_repeats", "repeats at"),
     ("backwards", "goes back in time"),
     ("short", "too short"),
-    ("semicolons", "separated by ';'"),
 ])
 def test_damaged_files(folder, damage, expect):
     p = _file(folder, "step-pierna", "Gyroscope")
@@ -112,25 +112,60 @@ def test_damaged_files(folder, damage, expect):
         lines = []
     elif damage == "header_only":
         lines = lines[:1]
-    elif damage == "truncated":
-        lines[-1] = lines[-1][: lines[-1].index(",", 30)]
+    elif damage == "cut_mid_file":
+        lines[70] = lines[70][: lines[70].index(",", 30)]
     elif damage == "text_cell":
         cells = lines[40].split(",")
         cells[4] = "0,12".replace(",", ";")
         lines[40] = ",".join(cells)
-    elif damage == "duplicate":
-        lines.insert(50, lines[50])
+    elif damage == "stamp_repeats":        # one stamp twice with other values: not a copy, cannot be dropped
+        cells = lines[50].split(",")
+        cells[4] = "12.345"
+        lines.insert(51, ",".join(cells))
     elif damage == "backwards":
         lines[60], lines[61] = lines[61], lines[60]
     elif damage == "short":
         lines = lines[:6]
-    elif damage == "semicolons":
-        lines = [ln.replace(",", ";") for ln in lines]
     p.write_text("\n".join(lines) + ("\n" if lines else ""))
     msg = _error(folder)
     assert p.name in msg and expect in msg
-    if damage in ("text_cell", "duplicate", "backwards"):
+    if damage in ("text_cell", "stamp_repeats", "backwards"):
         assert " row" in msg                                  # says where
+    if damage in ("stamp_repeats", "backwards"):              # seconds from the start and the wall clock, no 1.6e+09
+        assert re.search(r"at \d+\.\d{3} s \(20\d\d-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3} UTC\)", msg), msg
+        assert "e+09" not in msg
+
+
+@pytest.mark.parametrize("damage,variant", [
+    ("truncated", "truncated_last_row"),
+    ("duplicate", "duplicate_rows"),
+    ("semicolons", "csv_semicolon"),
+    ("semicolons_decimal_comma", "csv_semicolon"),
+])
+def test_repairable_damage_loads_with_a_note(folder, damage, variant):
+    """A cut last line, rows copied exactly, Excel's es/pt CSV (';' and decimal commas): dropped or read, noted."""
+    p = _file(folder, "step-pierna", "Gyroscope")
+    lines = p.read_text().splitlines()
+    n_rows = len(lines) - 1
+    before = read_metabase_csv(p)
+    if damage == "truncated":
+        lines[-1] = lines[-1][: lines[-1].index(",", 30)]
+    elif damage == "duplicate":
+        lines[50:50] = lines[50:53]
+    elif damage == "semicolons":
+        lines = [ln.replace(",", ";") for ln in lines]
+    else:
+        lines = [ln.replace(",", ";").replace(".", ",") for ln in lines]
+    p.write_text("\n".join(lines) + ("" if damage == "truncated" else "\n"))
+    session = load_session(folder)
+    notes = [n for n in session.notes if getattr(n, "params", {}).get("variant") == variant]
+    assert len(notes) == 1 and p.name in notes[0] and notes[0].params["segment"] == "shank", session.notes
+    gyr = session.raw[("shank", "task")].gyr
+    assert len(gyr.t_s) == {"truncated": n_rows - 1}.get(damage, n_rows)
+    assert np.all(np.diff(gyr.t_s) > 0) and np.isfinite(gyr.values).all()
+    k = len(gyr.t_s)                               # the numbers are those before the damage
+    np.testing.assert_array_equal(gyr.values, before.values[:k])
+    np.testing.assert_array_equal(gyr.t_s, before.t_s[:k])
 
 
 def test_50_hz_data_refused_with_advice_and_accepted_on_request(folder):
@@ -197,6 +232,7 @@ def test_swapped_segments_are_not_judged_here(folder):
 
 def test_gyro_unit_check_ratio(sim_session):
     """θ_acc/θ_gyr ≈ 0.2–1.5 with the right unit, ×57 or ÷57 with the wrong one (units module docstring)."""
+    import re
     from pathlib import Path
 
     from app.pipeline.ingestion import Stream

@@ -32,6 +32,7 @@ from hypothesis import strategies as st
 
 from app.pipeline.ingestion import IngestionError, load_session
 from ingestion_fuzz_kinds import KINDS
+from ingestion_fuzz_vendors import write_vendor_session
 
 #: seconds of each simulated recording kept (the figure-eight still turns enough for the gyro-unit check)
 KEEP_S = 8.0
@@ -60,6 +61,8 @@ def sessions(tmp_path_factory) -> dict[str, Path]:
     for fmt in ("metabase", "generic", "xlsx"):
         write_session(root / fmt, sim, fmt)
         out[fmt] = root / fmt
+    for fmt in ("xsens", "shimmer", "opal", "sensorlogger"):
+        out[fmt] = write_vendor_session(root / fmt, sim.recordings, fmt)
     return out
 
 
@@ -80,7 +83,8 @@ def _assert_sane(session) -> None:
             assert np.isfinite(x).all(axis=1).any(), f"{name} has no valid row"
         norm = {k: np.linalg.norm(getattr(rec, k)[np.isfinite(getattr(rec, k)).all(axis=1)], axis=1)
                 for k in ("acc", "gyr", "mag")}
-        assert 4.0 <= np.median(norm["acc"]) <= 25.0 and 5.0 <= np.median(norm["mag"]) <= 1000.0
+        mag_lo, mag_hi = (0.3, 3.0) if rec.mag_normalised else (5.0, 1000.0)
+        assert 4.0 <= np.median(norm["acc"]) <= 25.0 and mag_lo <= np.median(norm["mag"]) <= mag_hi
         assert norm["gyr"].max() <= 40.0
         for f in rec.source["files"]:
             assert Path(f).parent == session.folder
@@ -110,10 +114,12 @@ def _check_outcome(kind: str, folder: Path, touched: tuple[Path, ...]) -> str:
 
 def test_the_table_has_at_least_30_kinds_each_described():
     assert len(KINDS) >= 30
-    assert all(k.what and k.fmt in ("metabase", "generic", "xlsx") for k in KINDS.values())
+    assert all(k.what and k.fmt in ("metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger")
+               for k in KINDS.values())
+    assert len(KINDS) >= 72           # 58 before issue 14, plus its spreadsheet mangling and the new formats
 
 
-@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx"])
+@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger"])
 def test_the_unmutated_sessions_load(sessions, fmt):
     """Without this, a refusal could be the starting session's fault rather than the mutation's."""
     assert _check_outcome("utf8_bom", sessions[fmt], ()) == "loaded"

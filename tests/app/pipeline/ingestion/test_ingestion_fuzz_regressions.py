@@ -11,6 +11,8 @@ import warnings
 import numpy as np
 import pytest
 
+from app.pipeline.ingestion.metabase import parse_file_name
+
 from app.pipeline.ingestion import IngestionError, load_session, read_metabase_csv, read_thesis_xlsx, write_metabase_csv
 from app.pipeline.ingestion.excel import HEADER, _openpyxl
 
@@ -126,10 +128,18 @@ def test_stream_without_epoch_column_named(folder):
 def test_stream_renamed_out_of_the_pattern_is_named(folder):
     """Was "recording ... has no Gyroscope file" without the file that was left out."""
     p = _file(folder, "laydown-muslo", "Gyroscope")
-    q = p.with_name(p.name.replace("_MetaWear_", "_"))
+    mac = parse_file_name(p)["mac"]
+    q = p.with_name(p.name.replace(f"_{mac}_", "_"))
     p.rename(q)
     msg = _error(load_session, folder)
-    assert "has no Gyroscope file" in msg and f"Ignored {q.name} (neither a MetaBase export" in msg
+    assert "has no Gyroscope file" in msg and f"Ignored {q.name} (not a file of a format ChakaMo reads" in msg
+
+
+def test_device_name_left_out_still_joins_its_recording(folder):
+    """A name without the device part (``label_date_MAC_...``) still carries label, start and MAC: it loads."""
+    p = _file(folder, "laydown-muslo", "Gyroscope")
+    p.rename(p.with_name(p.name.replace("_MetaWear_", "_")))
+    assert len(load_session(folder).recordings) == 8
 
 
 def test_upper_case_extension_is_read(folder):

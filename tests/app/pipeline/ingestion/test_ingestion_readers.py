@@ -45,9 +45,21 @@ def test_metabase_round_trip_within_printed_precision(tmp_path, dialect, sep, tz
 
 def test_metabase_file_name_parts():
     n = parse_file_name(Path("1_MetaWear_2021-10-29T10.18.39.911_EB942CED9472_Magnetometer_20.000Hz_1.5.1.csv"))
-    assert n == {"label": "1", "datetime": "2021-10-29T10.18.39.911", "mac": "EB942CED9472",
+    assert n == {"label": "1", "device": "MetaWear", "datetime": "2021-10-29T10.18.39.911", "mac": "EB942CED9472",
                  "stream": "Magnetometer", "rate": "20.000", "firmware": "1.5.1"}
     assert parse_file_name(Path("notes.csv")) is None
+
+
+@pytest.mark.parametrize("name,label,device,mac", [
+    ("260_Werable1_2020-10-31T15.11.37.108_F1E55E2FE95F_Gyroscope_100.000Hz_1.5.0.csv", "260", "Werable1",
+     "F1E55E2FE95F"),                                                   # renamed by its user (real export)
+    ("step_muslo_ML1_MetaWearA0_2023-03-13T10.00.00.000_D4F1A2B3C4E5_Accelerometer_100.000Hz_1.7.3.csv",
+     "step_muslo_ML1", "MetaWearA0", "D4F1A2B3C4E5"),                   # a label with '_'
+    ("MetaWear_2023-03-13T10.00.00_D4:F1:A2:B3:C4:E5_Magnetometer_25Hz.csv", "", "MetaWear", "D4F1A2B3C4E5"),
+])
+def test_metabase_file_names_any_device_and_newer_layouts(name, label, device, mac):
+    n = parse_file_name(Path(name))
+    assert (n["label"], n["device"], n["mac"]) == (label, device, mac)
 
 
 def test_metabase_nan_rows_are_missing_samples(tmp_path):
@@ -107,7 +119,7 @@ def test_generic_csv_units_from_header(tmp_path, header_style):
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/data/metabase not present")
 def test_real_metabase_export_units_and_rates():
-    files = {k: next(SHARED.glob(f"*_{k}_*.csv")) for k in ("Accelerometer", "Gyroscope", "Magnetometer")}
+    files = {k: next(SHARED.glob(f"1_MetaWear_2021-*_{k}_*.csv")) for k in ("Accelerometer", "Gyroscope", "Magnetometer")}
     acc, gyr, mag = (read_metabase_csv(files[k]) for k in ("Accelerometer", "Gyroscope", "Magnetometer"))
     assert (acc.kind, gyr.kind, mag.kind) == ("acc", "gyr", "mag")
     assert acc.fs_hz == pytest.approx(100.0, rel=1e-3) and gyr.fs_hz == pytest.approx(100.0, rel=1e-3)
@@ -129,13 +141,31 @@ def test_real_metabase_export_units_and_rates():
 @pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/data/metabase not present")
 def test_real_metabase_export_aligns_and_is_not_a_session():
     from app.pipeline.ingestion import IngestionError, align_recording, load_session, read_recording
-    rec = read_recording(sorted(SHARED.glob("*.csv")))
+    rec = read_recording(sorted(SHARED.glob("1_MetaWear_2021-*.csv")))
     assert rec.fmt == "metabase" and rec.sensor_id == "EB942CED9472" and rec.role is None and rec.segment is None
     a = align_recording(rec, 100.0, "thigh", "task")
     assert a.fs_hz == 100.0 and 130.0 < a.duration_s < 131.0          # mag stops 0.84 s before acc/gyr
     assert any("acc ran on 0.8" in n for n in a.flags["notes"]) and not any(a.flags["nan_rows"].values())
-    with pytest.raises(IngestionError, match="role and segment not recognised"):
-        load_session(SHARED)                                           # label '1': one sensor, no role
+    with pytest.raises(IngestionError, match="role and segment not recognised") as exc:
+        load_session(SHARED)                                           # labels '1', '260': no role, no segment
+    assert all(f"{label}_{device}_" in str(exc.value) for label, device in (("1", "MetaWear"), ("260", "Werable1")))
+    assert exc.value.code == "session.no_sensor"
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/data/metabase not present")
+@pytest.mark.parametrize("pattern,mac,firmware,first_acc_g", [
+    ("260_Werable1_*", "F1E55E2FE95F", "1.5.0", 0.685),       # the device renamed by its user
+    ("1_MetaWear_2019-*", "F1E55E2FE95F", "1.4.5", 0.715),    # firmware 1.4.5, with a Pressure stream
+])
+def test_real_metabase_exports_of_any_device_name_are_read(pattern, mac, firmware, first_acc_g):
+    from app.pipeline.ingestion import align_recording, read_recording
+    rec = read_recording(sorted(SHARED.glob(pattern)))        # the Pressure file is ignored
+    assert rec.fmt == "metabase" and rec.sensor_id == mac and rec.extras["firmware"].value == firmware
+    assert rec.acc.values[0, 0] == pytest.approx(first_acc_g * G) and rec.acc.nominal_fs_hz == 100.0
+    assert rec.mag.nominal_fs_hz == 20.0 and rec.mag.fs_hz == pytest.approx(20.0, rel=0.02)
+    assert rec.extras["started"].value == {"1.5.0": "2020-10-31T15:11:37", "1.4.5": "2019-09-14T13:41:43"}[firmware]
+    a = align_recording(rec, 100.0, "thigh", "task")
+    assert 70.0 < a.duration_s < 145.0 and 9.0 < np.nanmedian(np.linalg.norm(a.acc, axis=1)) < 10.6
 
 
 def test_generic_csv_with_epoch_ms(tmp_path):

@@ -1,0 +1,813 @@
+"""Every message of the ingestion layer a user can cause, in Spanish, English and Portuguese, from one table.
+
+``CATALOGUE[code][lang]`` is a :meth:`str.format` template; :func:`render` fills it from the message's
+``params`` (``{file}`` names the file or folder, a message always ends saying what to do).  A parameter may
+itself be a fragment ``{"code": ..., "params": {...}}`` or a list of fragments (hints, words): it is rendered
+in the same language, a list joined by spaces.  Codes are stable identifiers: the API and the job records
+carry ``{"code", "params"}`` and render them in the reader's language.
+
+Families: ``file.*``, ``cell.*``, ``stamp.*``, ``stream.*`` (any table), ``metabase.*``, ``generic.*``,
+``xlsx.*``, ``xsens.*``, ``opal.*``, ``shimmer.*``, ``phone.*`` (one format), ``unit.*``, ``rate.*``,
+``align.*``, ``recording.*``, ``session.*``, ``manifest.*``; ``note.*`` the notes (``Note.of(variant)``),
+``check.*`` the provenance checks (:mod:`.provenance`), ``hint.*`` / ``word.*`` fragments.
+
+Suggestions are things a user can do both from the CLI and from the web app (export again, rename, edit
+``session.json``, record again); ``chakamo process --any-rate`` is named only where it would make the file
+load (acc and gyro at one rate, magnetometer within range), and only as the command line's option.
+"""
+
+from __future__ import annotations
+
+import string
+from typing import Any, Mapping
+
+LANGUAGES = ("es", "en", "pt")
+
+CATALOGUE: dict[str, dict[str, str]] = {
+    # ------------------------------------------------------------------------------------------- files
+    "file.unreadable": {
+        "en": "{file}: cannot be read ({reason}); check that the file exists and is readable, or copy it again.",
+        "es": "{file}: no se puede leer ({reason}); compruebe que el archivo existe y se puede leer, o cópielo de nuevo.",
+        "pt": "{file}: não pode ser lido ({reason}); verifique se o arquivo existe e pode ser lido, ou copie-o de novo."},
+    "file.nul_bytes": {
+        "en": "{file}: the file contains NUL bytes (saved as UTF-16/UTF-32 'Unicode text', or damaged); save it "
+              "again as a UTF-8 (or plain) CSV, or export the recording again.",
+        "es": "{file}: el archivo contiene bytes NUL (guardado como 'texto Unicode' UTF-16/UTF-32, o dañado); "
+              "guárdelo de nuevo como CSV UTF-8 (o simple), o exporte de nuevo la grabación.",
+        "pt": "{file}: o arquivo contém bytes NUL (salvo como 'texto Unicode' UTF-16/UTF-32, ou danificado); "
+              "salve-o de novo como CSV UTF-8 (ou simples), ou exporte a gravação de novo."},
+    "file.not_text": {
+        "en": "{file}: not a text CSV file ({reason}); export it again as CSV.",
+        "es": "{file}: no es un archivo CSV de texto ({reason}); expórtelo de nuevo como CSV.",
+        "pt": "{file}: não é um arquivo CSV de texto ({reason}); exporte-o de novo como CSV."},
+    "file.damaged_csv": {
+        "en": "{file}: not a readable CSV file ({reason}); the file is damaged — export the recording again.",
+        "es": "{file}: no es un archivo CSV legible ({reason}); el archivo está dañado: exporte de nuevo la grabación.",
+        "pt": "{file}: não é um arquivo CSV legível ({reason}); o arquivo está danificado: exporte a gravação de novo."},
+    "file.empty": {
+        "en": "{file}: the file is empty; export the recording again.",
+        "es": "{file}: el archivo está vacío; exporte de nuevo la grabación.",
+        "pt": "{file}: o arquivo está vazio; exporte a gravação de novo."},
+    "file.header_only": {
+        "en": "{file}: the file has a header but no data rows; export the recording again.",
+        "es": "{file}: el archivo tiene encabezado pero ninguna fila de datos; exporte de nuevo la grabación.",
+        "pt": "{file}: o arquivo tem cabeçalho mas nenhuma linha de dados; exporte a gravação de novo."},
+    "file.ragged_row": {
+        "en": "{file}: row {row} has {cells} cells but the header has {header_cells}; the file is damaged or has a "
+              "stray separator — export it again.",
+        "es": "{file}: la fila {row} tiene {cells} celdas pero el encabezado tiene {header_cells}; el archivo está "
+              "dañado o tiene un separador de más: expórtelo de nuevo.",
+        "pt": "{file}: a linha {row} tem {cells} células mas o cabeçalho tem {header_cells}; o arquivo está "
+              "danificado ou tem um separador a mais: exporte-o de novo."},
+    "file.not_found": {
+        "en": "{file}: file not found; check the name (or the session.json entry).",
+        "es": "{file}: archivo no encontrado; compruebe el nombre (o la entrada de session.json).",
+        "pt": "{file}: arquivo não encontrado; verifique o nome (ou a entrada do session.json)."},
+    "file.axes_units_differ": {
+        "en": "{file}: the three axes declare different units ({units}); fix the header so they declare one.",
+        "es": "{file}: los tres ejes declaran unidades distintas ({units}); corrija el encabezado para que declaren una.",
+        "pt": "{file}: os três eixos declaram unidades diferentes ({units}); corrija o cabeçalho para que declarem uma."},
+    "cell.not_number": {
+        "en": "{file}: row {row}, column '{column}' holds '{cell}', which is not a number; fix or delete that row.",
+        "es": "{file}: la fila {row}, columna '{column}', contiene '{cell}', que no es un número; corrija o borre esa fila.",
+        "pt": "{file}: a linha {row}, coluna '{column}', contém '{cell}', que não é um número; corrija ou apague essa linha."},
+    "cell.infinite": {
+        "en": "{file}: row {row}, column '{column}' is infinite; fix or delete that row.",
+        "es": "{file}: la fila {row}, columna '{column}', es infinita; corrija o borre esa fila.",
+        "pt": "{file}: a linha {row}, coluna '{column}', é infinita; corrija ou apague essa linha."},
+    "cell.huge": {
+        "en": "{file}: row {row}, column '{column}' holds {value}, beyond any time stamp or reading; fix or delete "
+              "that row.",
+        "es": "{file}: la fila {row}, columna '{column}', contiene {value}, más que cualquier marca de tiempo o "
+              "lectura; corrija o borre esa fila.",
+        "pt": "{file}: a linha {row}, coluna '{column}', contém {value}, além de qualquer marca de tempo ou "
+              "leitura; corrija ou apague essa linha."},
+    "stamp.missing": {
+        "en": "{file}: row {row} has no time stamp in '{column}'; fix or delete that row.",
+        "es": "{file}: la fila {row} no tiene marca de tiempo en '{column}'; corrija o borre esa fila.",
+        "pt": "{file}: a linha {row} não tem marca de tempo em '{column}'; corrija ou apague essa linha."},
+    "stamp.repeats": {
+        "en": "{file}: rows {row} and {row2}: the time stamp in '{column}' repeats at {at} with other values (two "
+              "samples at one instant). Export the recording again, or delete one of the two rows.",
+        "es": "{file}: filas {row} y {row2}: la marca de tiempo de '{column}' se repite en {at} con otros valores "
+              "(dos muestras en un instante). Exporte de nuevo la grabación, o borre una de las dos filas.",
+        "pt": "{file}: linhas {row} e {row2}: a marca de tempo de '{column}' se repete em {at} com outros valores "
+              "(duas amostras num instante). Exporte a gravação de novo, ou apague uma das duas linhas."},
+    "stamp.goes_back": {
+        "en": "{file}: rows {row} and {row2}: the time stamp in '{column}' goes back in time at {at} (out-of-order "
+              "rows or a clock reset). Export the recording again, or put the rows back in time order.",
+        "es": "{file}: filas {row} y {row2}: la marca de tiempo de '{column}' retrocede en {at} (filas "
+              "desordenadas o un reinicio del reloj). Exporte de nuevo la grabación, u ordene las filas por tiempo.",
+        "pt": "{file}: linhas {row} e {row2}: a marca de tempo de '{column}' volta atrás em {at} (linhas fora de "
+              "ordem ou um reinício do relógio). Exporte a gravação de novo, ou ordene as linhas por tempo."},
+    "stream.too_short": {
+        "en": "{file}: only {samples} samples ({seconds:.2f} s); the recording is too short (at least {min_s:g} s) "
+              "— record again.",
+        "es": "{file}: solo {samples} muestras ({seconds:.2f} s); la grabación es demasiado corta (al menos "
+              "{min_s:g} s): grabe de nuevo.",
+        "pt": "{file}: apenas {samples} amostras ({seconds:.2f} s); a gravação é curta demais (pelo menos "
+              "{min_s:g} s): grave de novo."},
+    "stream.all_empty": {
+        "en": "{file}: every sample is empty; export the recording again.",
+        "es": "{file}: todas las muestras están vacías; exporte de nuevo la grabación.",
+        "pt": "{file}: todas as amostras estão vazias; exporte a gravação de novo."},
+    "stream.no_valid_sample": {
+        "en": "{file}: no valid {stream} sample; export the recording again.",
+        "es": "{file}: ninguna muestra válida de {stream}; exporte de nuevo la grabación.",
+        "pt": "{file}: nenhuma amostra válida de {stream}; exporte a gravação de novo."},
+    # ---------------------------------------------------------------------------------------- MetaBase
+    "metabase.not_a_stream": {
+        "en": "{file}: not a MetaBase stream file: the header '{header}' lacks 'epoch (ms)' or 'elapsed (s)' and "
+              "'x-axis/y-axis/z-axis (unit)' columns; export the stream again from MetaBase (or rename the file "
+              "if it is not a stream export).",
+        "es": "{file}: no es un archivo de flujo de MetaBase: al encabezado '{header}' le faltan las columnas "
+              "'epoch (ms)' o 'elapsed (s)' y 'x-axis/y-axis/z-axis (unidad)'; exporte de nuevo el flujo desde "
+              "MetaBase (o renombre el archivo si no es una exportación de flujo).",
+        "pt": "{file}: não é um arquivo de fluxo do MetaBase: ao cabeçalho '{header}' faltam as colunas "
+              "'epoch (ms)' ou 'elapsed (s)' e 'x-axis/y-axis/z-axis (unidade)'; exporte o fluxo de novo do "
+              "MetaBase (ou renomeie o arquivo se não for uma exportação de fluxo)."},
+    "metabase.excel_epoch_no_name": {
+        "en": "{file}: the '{column}' stamps were rounded by a spreadsheet (e.g. 1.63552E+12) and the file name "
+              "no longer carries MetaBase's start time to rebuild them; give the file its MetaBase name again, or "
+              "export the recording again.",
+        "es": "{file}: las marcas '{column}' fueron redondeadas por una hoja de cálculo (p. ej. 1,63552E+12) y el "
+              "nombre del archivo ya no lleva la hora de inicio de MetaBase para reconstruirlas; devuelva al "
+              "archivo su nombre de MetaBase, o exporte de nuevo la grabación.",
+        "pt": "{file}: as marcas '{column}' foram arredondadas por uma planilha (p. ex. 1,63552E+12) e o nome do "
+              "arquivo já não traz a hora de início do MetaBase para reconstruí-las; devolva ao arquivo o seu nome "
+              "do MetaBase, ou exporte a gravação de novo."},
+    "metabase.several_recordings": {
+        "en": "{file}: these files belong to {count} different MetaBase recordings ({labels}); list one "
+              "recording's three files together.",
+        "es": "{file}: estos archivos pertenecen a {count} grabaciones distintas de MetaBase ({labels}); liste "
+              "juntos los tres archivos de una grabación.",
+        "pt": "{file}: estes arquivos pertencem a {count} gravações diferentes do MetaBase ({labels}); liste "
+              "juntos os três arquivos de uma gravação."},
+    "metabase.stream_missing": {
+        "en": "{file}: recording '{label}' of sensor {sensor} has no {streams} file; export every stream from "
+              "MetaBase. {hint}",
+        "es": "{file}: la grabación '{label}' del sensor {sensor} no tiene archivo {streams}; exporte todos los "
+              "flujos desde MetaBase. {hint}",
+        "pt": "{file}: a gravação '{label}' do sensor {sensor} não tem arquivo {streams}; exporte todos os "
+              "fluxos do MetaBase. {hint}"},
+    "metabase.stream_twice": {
+        "en": "{file} and {other} are both the {stream} of recording '{label}' on sensor {sensor}; keep only one "
+              "of them (or rename the label).",
+        "es": "{file} y {other} son ambos el {stream} de la grabación '{label}' del sensor {sensor}; conserve "
+              "solo uno (o cambie la etiqueta).",
+        "pt": "{file} e {other} são ambos o {stream} da gravação '{label}' do sensor {sensor}; mantenha apenas "
+              "um (ou mude o rótulo)."},
+    # ------------------------------------------------------------------------------------------ generic
+    "generic.column_missing": {
+        "en": "{file}: no column {columns} in the header; a generic CSV needs time, acc_x..z, gyr_x..z, mag_x..z, "
+              "each with its unit, e.g. 'acc_x (g)': add the missing column(s) or export the file again.",
+        "es": "{file}: no hay columna {columns} en el encabezado; un CSV genérico necesita time, acc_x..z, "
+              "gyr_x..z, mag_x..z, cada una con su unidad, p. ej. 'acc_x (g)': añada la(s) columna(s) que faltan "
+              "o exporte de nuevo el archivo.",
+        "pt": "{file}: não há coluna {columns} no cabeçalho; um CSV genérico precisa de time, acc_x..z, gyr_x..z, "
+              "mag_x..z, cada uma com a sua unidade, p. ex. 'acc_x (g)': adicione a(s) coluna(s) que faltam ou "
+              "exporte o arquivo de novo."},
+    "generic.no_time": {
+        "en": "{file}: no time column; add 'time (s)' (or 'epoch (ms)') as the first column.",
+        "es": "{file}: no hay columna de tiempo; añada 'time (s)' (o 'epoch (ms)') como primera columna.",
+        "pt": "{file}: não há coluna de tempo; adicione 'time (s)' (ou 'epoch (ms)') como primeira coluna."},
+    "generic.units_differ": {
+        "en": "{file}: columns {columns} must declare one unit; give each the same unit in the header, e.g. "
+              "'{example}'.",
+        "es": "{file}: las columnas {columns} deben declarar una sola unidad; dé a cada una la misma unidad en el "
+              "encabezado, p. ej. '{example}'.",
+        "pt": "{file}: as colunas {columns} devem declarar uma só unidade; dê a cada uma a mesma unidade no "
+              "cabeçalho, p. ex. '{example}'."},
+    "generic.unit_unknown": {
+        "en": "{file}: unit ({unit}) is not one ChakaMo knows; correct the header to s/ms, g/mg/m_s2, "
+              "deg/s/rad/s, T/mT/uT/nT or normalised.",
+        "es": "{file}: la unidad ({unit}) no es una que ChakaMo conozca; corrija el encabezado a s/ms, g/mg/m_s2, "
+              "deg/s/rad/s, T/mT/uT/nT o normalised.",
+        "pt": "{file}: a unidade ({unit}) não é uma que o ChakaMo conheça; corrija o cabeçalho para s/ms, "
+              "g/mg/m_s2, deg/s/rad/s, T/mT/uT/nT ou normalised."},
+    "generic.stream_empty": {
+        "en": "{file}: the {stream} columns are empty; export the recording again.",
+        "es": "{file}: las columnas de {stream} están vacías; exporte de nuevo la grabación.",
+        "pt": "{file}: as colunas de {stream} estão vazias; exporte a gravação de novo."},
+    # ---------------------------------------------------------------------------- Xsens, Shimmer, APDM
+    "xsens.columns_missing": {
+        "en": "{file}: an MT Manager export needs the columns {columns}; export it again from MT Manager with "
+              "calibrated acceleration (Acc, not FreeAcc), rate of turn and magnetic field.",
+        "es": "{file}: una exportación de MT Manager necesita las columnas {columns}; expórtela de nuevo desde MT "
+              "Manager con aceleración calibrada (Acc, no FreeAcc), velocidad angular y campo magnético.",
+        "pt": "{file}: uma exportação do MT Manager precisa das colunas {columns}; exporte-a de novo do MT "
+              "Manager com aceleração calibrada (Acc, não FreeAcc), velocidade angular e campo magnético."},
+    "xsens.no_time": {
+        "en": "{file}: no time in this MT Manager export (no valid UTC_*, SampleTimeFine, or PacketCounter with "
+              "an update rate); export it again with SampleTimeFine.",
+        "es": "{file}: esta exportación de MT Manager no tiene tiempo (ni UTC_* válido, ni SampleTimeFine, ni "
+              "PacketCounter con frecuencia); expórtela de nuevo con SampleTimeFine.",
+        "pt": "{file}: esta exportação do MT Manager não tem tempo (nem UTC_* válido, nem SampleTimeFine, nem "
+              "PacketCounter com frequência); exporte-a de novo com SampleTimeFine."},
+    "shimmer.no_units_row": {
+        "en": "{file}: a Consensys export needs its units row (ms, m/(s^2), deg/s, local_flux) under the column "
+              "names; export it again from Consensys with calibrated (CAL) data.",
+        "es": "{file}: una exportación de Consensys necesita su fila de unidades (ms, m/(s^2), deg/s, local_flux) "
+              "bajo los nombres de columna; expórtela de nuevo desde Consensys con datos calibrados (CAL).",
+        "pt": "{file}: uma exportação do Consensys precisa da sua linha de unidades (ms, m/(s^2), deg/s, "
+              "local_flux) sob os nomes das colunas; exporte-a de novo do Consensys com dados calibrados (CAL)."},
+    "shimmer.columns_missing": {
+        "en": "{file}: the Consensys export lacks {columns} (calibrated, _CAL); export it again with the "
+              "accelerometer, gyroscope, magnetometer and Unix time stamps enabled.",
+        "es": "{file}: a la exportación de Consensys le falta {columns} (calibrado, _CAL); expórtela de nuevo con "
+              "acelerómetro, giroscopio, magnetómetro y marcas de tiempo Unix activados.",
+        "pt": "{file}: à exportação do Consensys falta {columns} (calibrado, _CAL); exporte-a de novo com "
+              "acelerômetro, giroscópio, magnetômetro e marcas de tempo Unix ativados."},
+    "shimmer.unit_unknown": {
+        "en": "{file}: unit '{unit}' of column {column} is not one ChakaMo knows for a Consensys export; export "
+              "it again with calibrated (CAL) data.",
+        "es": "{file}: la unidad '{unit}' de la columna {column} no es una que ChakaMo conozca para una "
+              "exportación de Consensys; expórtela de nuevo con datos calibrados (CAL).",
+        "pt": "{file}: a unidade '{unit}' da coluna {column} não é uma que o ChakaMo conheça para uma exportação "
+              "do Consensys; exporte-a de novo com dados calibrados (CAL)."},
+    "opal.no_h5py": {
+        "en": "reading APDM .h5 files needs the 'h5py' package: install ChakaMo again (pip install -e .).",
+        "es": "leer archivos .h5 de APDM necesita el paquete 'h5py': instale ChakaMo de nuevo (pip install -e .).",
+        "pt": "ler arquivos .h5 da APDM precisa do pacote 'h5py': instale o ChakaMo de novo (pip install -e .)."},
+    "opal.cannot_open": {
+        "en": "{file}: cannot be opened as an HDF5 file ({reason}); copy it again or export it again from "
+              "Mobility Lab / Motion Studio.",
+        "es": "{file}: no se puede abrir como archivo HDF5 ({reason}); cópielo de nuevo o expórtelo de nuevo "
+              "desde Mobility Lab / Motion Studio.",
+        "pt": "{file}: não pode ser aberto como arquivo HDF5 ({reason}); copie-o de novo ou exporte-o de novo do "
+              "Mobility Lab / Motion Studio."},
+    "opal.not_v5": {
+        "en": "{file}: not an APDM file of format version 5 (no /Sensors group); export it again from Mobility "
+              "Lab / Motion Studio in the current HDF5 format.",
+        "es": "{file}: no es un archivo APDM de la versión de formato 5 (sin grupo /Sensors); expórtelo de nuevo "
+              "desde Mobility Lab / Motion Studio en el formato HDF5 actual.",
+        "pt": "{file}: não é um arquivo APDM da versão de formato 5 (sem grupo /Sensors); exporte-o de novo do "
+              "Mobility Lab / Motion Studio no formato HDF5 atual."},
+    "opal.which_sensor": {
+        "en": "{file}: the file holds the sensors {sensors}; name the one of each recording in session.json "
+              "(\"sensor\" in its recordings entry).",
+        "es": "{file}: el archivo contiene los sensores {sensors}; indique el de cada grabación en session.json "
+              "(\"sensor\" en su entrada de recordings).",
+        "pt": "{file}: o arquivo contém os sensores {sensors}; indique o de cada gravação no session.json "
+              "(\"sensor\" na sua entrada de recordings)."},
+    "opal.no_such_sensor": {
+        "en": "{file}: no sensor '{sensor}' in the file (it holds {sensors}); correct \"sensor\" in session.json.",
+        "es": "{file}: no hay sensor '{sensor}' en el archivo (contiene {sensors}); corrija \"sensor\" en "
+              "session.json.",
+        "pt": "{file}: não há sensor '{sensor}' no arquivo (contém {sensors}); corrija \"sensor\" no "
+              "session.json."},
+    "opal.datasets_missing": {
+        "en": "{file}: sensor {sensor} has no {datasets} data; export the recording again with accelerometer, "
+              "gyroscope and magnetometer.",
+        "es": "{file}: el sensor {sensor} no tiene datos de {datasets}; exporte de nuevo la grabación con "
+              "acelerómetro, giroscopio y magnetómetro.",
+        "pt": "{file}: o sensor {sensor} não tem dados de {datasets}; exporte a gravação de novo com "
+              "acelerômetro, giroscópio e magnetômetro."},
+    "opal.bad_shape": {
+        "en": "{file}: {dataset} has shape {shape}, expected ({n}, 3); the file is damaged — export it again.",
+        "es": "{file}: {dataset} tiene forma {shape}, se esperaba ({n}, 3); el archivo está dañado: expórtelo de "
+              "nuevo.",
+        "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o arquivo está danificado: exporte-o de "
+              "novo."},
+    "phone.not_a_zip": {
+        "en": "{file}: not a readable zip file ({reason}); export the recording again from Sensor Logger (zip).",
+        "es": "{file}: no es un archivo zip legible ({reason}); exporte de nuevo la grabación desde Sensor Logger "
+              "(zip).",
+        "pt": "{file}: não é um arquivo zip legível ({reason}); exporte a gravação de novo do Sensor Logger (zip)."},
+    "phone.member_unreadable": {
+        "en": "{file}: {member} cannot be read ({reason}); export the recording again from Sensor Logger.",
+        "es": "{file}: no se puede leer {member} ({reason}); exporte de nuevo la grabación desde Sensor Logger.",
+        "pt": "{file}: não é possível ler {member} ({reason}); exporte a gravação de novo do Sensor Logger."},
+    "phone.files_missing": {
+        "en": "{file}: the Sensor Logger export lacks {files}; record again with the accelerometer, gravity, "
+              "gyroscope and magnetometer enabled, and export as zip.",
+        "es": "{file}: a la exportación de Sensor Logger le falta {files}; grabe de nuevo con acelerómetro, "
+              "gravedad, giroscopio y magnetómetro activados, y exporte como zip.",
+        "pt": "{file}: à exportação do Sensor Logger falta {files}; grave de novo com acelerômetro, gravidade, "
+              "giroscópio e magnetômetro ativados, e exporte como zip."},
+    "phone.columns_missing": {
+        "en": "{file}: {member} has no column {columns}; export the recording again from Sensor Logger.",
+        "es": "{file}: {member} no tiene la columna {columns}; exporte de nuevo la grabación desde Sensor Logger.",
+        "pt": "{file}: {member} não tem a coluna {columns}; exporte a gravação de novo do Sensor Logger."},
+    # -------------------------------------------------------------------------------------------- Excel
+    "xlsx.no_openpyxl": {
+        "en": "reading .xlsx files needs the 'openpyxl' package: install ChakaMo again (pip install -e .), or "
+              "save the workbook as CSV.",
+        "es": "leer archivos .xlsx necesita el paquete 'openpyxl': instale ChakaMo de nuevo (pip install -e .), "
+              "o guarde el libro como CSV.",
+        "pt": "ler arquivos .xlsx precisa do pacote 'openpyxl': instale o ChakaMo de novo (pip install -e .), ou "
+              "salve a pasta de trabalho como CSV."},
+    "xlsx.cannot_open": {
+        "en": "{file}: cannot be opened as an Excel workbook ({reason}); save it again from Excel as .xlsx.",
+        "es": "{file}: no se puede abrir como libro de Excel ({reason}); guárdelo de nuevo desde Excel como .xlsx.",
+        "pt": "{file}: não pode ser aberto como pasta de trabalho do Excel ({reason}); salve-o de novo no Excel "
+              "como .xlsx."},
+    "xlsx.no_such_sheet": {
+        "en": "{file}: no sheet named '{sheet}'; the sheets are {sheets} — correct \"sheet\" in session.json.",
+        "es": "{file}: no hay ninguna hoja llamada '{sheet}'; las hojas son {sheets}: corrija \"sheet\" en "
+              "session.json.",
+        "pt": "{file}: não há planilha chamada '{sheet}'; as planilhas são {sheets}: corrija \"sheet\" no "
+              "session.json."},
+    "xlsx.no_layout_sheet": {
+        "en": "{file}: none of its sheets has the thesis layout (Fig. 8.6: A elapsed, B–D acc, E–G gyro, H "
+              "elapsed, I–K mag){detail}. Keep one such sheet, or name it in session.json (\"sheet\").",
+        "es": "{file}: ninguna de sus hojas tiene el formato de la tesis (Fig. 8.6: A elapsed, B–D acc, E–G gyro, "
+              "H elapsed, I–K mag){detail}. Conserve una hoja así, o nómbrela en session.json (\"sheet\").",
+        "pt": "{file}: nenhuma das suas planilhas tem o formato da tese (Fig. 8.6: A elapsed, B–D acc, E–G gyro, "
+              "H elapsed, I–K mag){detail}. Mantenha uma planilha assim, ou nomeie-a no session.json (\"sheet\")."},
+    "xlsx.several_layout_sheets": {
+        "en": "{file}: several sheets ({sheets}) have the thesis layout (Fig. 8.6){detail}. Keep one such sheet, "
+              "or name it in session.json (\"sheet\").",
+        "es": "{file}: varias hojas ({sheets}) tienen el formato de la tesis (Fig. 8.6){detail}. Conserve una "
+              "sola, o nómbrela en session.json (\"sheet\").",
+        "pt": "{file}: várias planilhas ({sheets}) têm o formato da tese (Fig. 8.6){detail}. Mantenha só uma, "
+              "ou nomeie-a no session.json (\"sheet\")."},
+    "xlsx.no_rows": {
+        "en": "{file}: sheet '{sheet}' has no data rows; export the recording again.",
+        "es": "{file}: la hoja '{sheet}' no tiene filas de datos; exporte de nuevo la grabación.",
+        "pt": "{file}: a planilha '{sheet}' não tem linhas de dados; exporte a gravação de novo."},
+    "xlsx.not_layout": {
+        "en": "{file}: sheet '{sheet}' is not in the thesis layout: {problem}; fix row 1 or export the recording "
+              "again.",
+        "es": "{file}: la hoja '{sheet}' no tiene el formato de la tesis: {problem}; corrija la fila 1 o exporte "
+              "de nuevo la grabación.",
+        "pt": "{file}: a planilha '{sheet}' não tem o formato da tese: {problem}; corrija a linha 1 ou exporte a "
+              "gravação de novo."},
+    "xlsx.cell_not_number": {
+        "en": "{file}: sheet '{sheet}', cell {cell} holds {value}, which is not a number; fix or delete that row.",
+        "es": "{file}: hoja '{sheet}', la celda {cell} contiene {value}, que no es un número; corrija o borre esa "
+              "fila.",
+        "pt": "{file}: planilha '{sheet}', a célula {cell} contém {value}, que não é um número; corrija ou apague "
+              "essa linha."},
+    "xlsx.cell_infinite": {
+        "en": "{file}: sheet '{sheet}', cell {cell} is infinite; fix or delete that row.",
+        "es": "{file}: hoja '{sheet}', la celda {cell} es infinita; corrija o borre esa fila.",
+        "pt": "{file}: planilha '{sheet}', a célula {cell} é infinita; corrija ou apague essa linha."},
+    "xlsx.cell_huge": {
+        "en": "{file}: sheet '{sheet}', cell {cell} holds {value}, beyond any time stamp or reading; fix or delete "
+              "that row.",
+        "es": "{file}: hoja '{sheet}', la celda {cell} contiene {value}, más que cualquier marca de tiempo o "
+              "lectura; corrija o borre esa fila.",
+        "pt": "{file}: planilha '{sheet}', a célula {cell} contém {value}, além de qualquer marca de tempo ou "
+              "leitura; corrija ou apague essa linha."},
+    "xlsx.unit_unknown": {
+        "en": "{file}: unit ({unit}) in row 1 is not one ChakaMo knows for this column (acc g/mg/m/s², gyro "
+              "deg/s/rad/s, mag T/mT/µT, time s/ms); correct row 1.",
+        "es": "{file}: la unidad ({unit}) de la fila 1 no es una que ChakaMo conozca para esta columna (acc "
+              "g/mg/m/s², giro deg/s/rad/s, mag T/mT/µT, tiempo s/ms); corrija la fila 1.",
+        "pt": "{file}: a unidade ({unit}) da linha 1 não é uma que o ChakaMo conheça para esta coluna (acc "
+              "g/mg/m/s², giro deg/s/rad/s, mag T/mT/µT, tempo s/ms); corrija a linha 1."},
+    "xlsx.stream_empty": {
+        "en": "{file}: sheet '{sheet}' has no {stream} data; export the recording again.",
+        "es": "{file}: la hoja '{sheet}' no tiene datos de {stream}; exporte de nuevo la grabación.",
+        "pt": "{file}: a planilha '{sheet}' não tem dados de {stream}; exporte a gravação de novo."},
+    # -------------------------------------------------------------------------------------------- units
+    "unit.unknown_for_stream": {
+        "en": "{file}: unit ({unit}) is not one ChakaMo knows for the {stream} stream; expected {expected}; "
+              "correct the unit in the column header.",
+        "es": "{file}: la unidad ({unit}) no es una que ChakaMo conozca para el flujo {stream}; se esperaba "
+              "{expected}; corrija la unidad en el encabezado de la columna.",
+        "pt": "{file}: a unidade ({unit}) não é uma que o ChakaMo conheça para o fluxo {stream}; esperava-se "
+              "{expected}; corrija a unidade no cabeçalho da coluna."},
+    "unit.implausible_acc": {
+        "en": "{file}: the accelerometer's typical magnitude is {value} m/s² when read as ({declared}); gravity is "
+              "9.81 m/s². {hint} Correct the unit in the column header (or re-export the file in {declared}).",
+        "es": "{file}: la magnitud típica del acelerómetro es {value} m/s² leída como ({declared}); la gravedad "
+              "es 9,81 m/s². {hint} Corrija la unidad en el encabezado de la columna (o exporte de nuevo el "
+              "archivo en {declared}).",
+        "pt": "{file}: a magnitude típica do acelerômetro é {value} m/s² lida como ({declared}); a gravidade é "
+              "9,81 m/s². {hint} Corrija a unidade no cabeçalho da coluna (ou exporte o arquivo de novo em "
+              "{declared})."},
+    "unit.implausible_mag": {
+        "en": "{file}: the magnetometer's typical field is {value} µT when read as ({declared}); the earth's "
+              "field is 25–65 µT. {hint} Correct the unit in the column header (or re-export the file in "
+              "{declared}).",
+        "es": "{file}: el campo típico del magnetómetro es {value} µT leído como ({declared}); el campo "
+              "terrestre es de 25–65 µT. {hint} Corrija la unidad en el encabezado de la columna (o exporte de "
+              "nuevo el archivo en {declared}).",
+        "pt": "{file}: o campo típico do magnetômetro é {value} µT lido como ({declared}); o campo da Terra é "
+              "de 25–65 µT. {hint} Corrija a unidade no cabeçalho da coluna (ou exporte o arquivo de novo em "
+              "{declared})."},
+    "unit.implausible_normalised": {
+        "en": "{file}: the normalised magnetometer's typical norm is {value}, not about 1; check that the "
+              "magnetometer columns are the normalised ones, or correct their unit in the header.",
+        "es": "{file}: la norma típica del magnetómetro normalizado es {value}, no cerca de 1; compruebe que las "
+              "columnas del magnetómetro son las normalizadas, o corrija su unidad en el encabezado.",
+        "pt": "{file}: a norma típica do magnetômetro normalizado é {value}, não perto de 1; verifique se as "
+              "colunas do magnetômetro são as normalizadas, ou corrija a sua unidade no cabeçalho."},
+    "unit.gyr_beyond_range": {
+        "en": "{file}: the gyroscope reaches {value} rad/s when read as ({declared}), beyond any IMU's range "
+              "(35 rad/s = 2000 deg/s). {hint} Check the unit in the column header.",
+        "es": "{file}: el giroscopio llega a {value} rad/s leído como ({declared}), más que el rango de cualquier "
+              "IMU (35 rad/s = 2000 deg/s). {hint} Compruebe la unidad en el encabezado de la columna.",
+        "pt": "{file}: o giroscópio chega a {value} rad/s lido como ({declared}), além do alcance de qualquer "
+              "IMU (35 rad/s = 2000 deg/s). {hint} Verifique a unidade no cabeçalho da coluna."},
+    "unit.gyr_looks_rad": {
+        "en": "{file}: the gyroscope turns about {ratio}× less than the accelerometer shows the sensor turning; "
+              "the numbers look like rad/s although the header declares ({declared}). Correct the unit in the "
+              "column header to rad/s.",
+        "es": "{file}: el giroscopio gira unas {ratio} veces menos de lo que el acelerómetro muestra que gira el "
+              "sensor; los números parecen rad/s aunque el encabezado declara ({declared}). Corrija la unidad "
+              "del encabezado a rad/s.",
+        "pt": "{file}: o giroscópio gira cerca de {ratio} vezes menos do que o acelerômetro mostra o sensor "
+              "girar; os números parecem rad/s embora o cabeçalho declare ({declared}). Corrija a unidade do "
+              "cabeçalho para rad/s."},
+    "unit.gyr_looks_deg": {
+        "en": "{file}: the gyroscope turns about {ratio}× more than the accelerometer shows the sensor turning; "
+              "the numbers look like deg/s although the header declares ({declared}). Correct the unit in the "
+              "column header to deg/s.",
+        "es": "{file}: el giroscopio gira unas {ratio} veces más de lo que el acelerómetro muestra que gira el "
+              "sensor; los números parecen deg/s aunque el encabezado declara ({declared}). Corrija la unidad "
+              "del encabezado a deg/s.",
+        "pt": "{file}: o giroscópio gira cerca de {ratio} vezes mais do que o acelerômetro mostra o sensor "
+              "girar; os números parecem deg/s embora o cabeçalho declare ({declared}). Corrija a unidade do "
+              "cabeçalho para deg/s."},
+    # -------------------------------------------------------------------------------------------- rates
+    "rate.unexpected": {
+        "en": "{file}: the {stream} stream runs at {fs_hz:.1f} Hz, expected {expected_hz:g} Hz (the protocol "
+              "records accelerometer and gyroscope at 100 Hz, seed 004 §8.4). Record again at {expected_hz:g} Hz.",
+        "es": "{file}: el flujo {stream} va a {fs_hz:.1f} Hz, se esperaban {expected_hz:g} Hz (el protocolo "
+              "graba acelerómetro y giroscopio a 100 Hz). Grabe de nuevo a {expected_hz:g} Hz.",
+        "pt": "{file}: o fluxo {stream} está a {fs_hz:.1f} Hz, esperavam-se {expected_hz:g} Hz (o protocolo "
+              "grava acelerômetro e giroscópio a 100 Hz). Grave de novo a {expected_hz:g} Hz."},
+    "rate.unexpected_any_rate": {
+        "en": "{file}: the {stream} stream runs at {fs_hz:.1f} Hz, expected {expected_hz:g} Hz (the protocol "
+              "records accelerometer and gyroscope at 100 Hz, seed 004 §8.4). Record again at {expected_hz:g} Hz, "
+              "or process it at the file's own rate (on the command line: `chakamo process --any-rate`).",
+        "es": "{file}: el flujo {stream} va a {fs_hz:.1f} Hz, se esperaban {expected_hz:g} Hz (el protocolo "
+              "graba acelerómetro y giroscopio a 100 Hz). Grabe de nuevo a {expected_hz:g} Hz, o procéselo a la "
+              "frecuencia del archivo (en la línea de órdenes: `chakamo process --any-rate`).",
+        "pt": "{file}: o fluxo {stream} está a {fs_hz:.1f} Hz, esperavam-se {expected_hz:g} Hz (o protocolo "
+              "grava acelerômetro e giroscópio a 100 Hz). Grave de novo a {expected_hz:g} Hz, ou processe-o na "
+              "frequência do arquivo (na linha de comando: `chakamo process --any-rate`)."},
+    "rate.acc_gyr_differ": {
+        "en": "{file}: the gyroscope runs at {gyr_hz:.1f} Hz but the accelerometer of recording '{label}' at "
+              "{acc_hz:.1f} Hz; record both at the same rate.",
+        "es": "{file}: el giroscopio va a {gyr_hz:.1f} Hz pero el acelerómetro de la grabación '{label}' a "
+              "{acc_hz:.1f} Hz; grabe ambos a la misma frecuencia.",
+        "pt": "{file}: o giroscópio está a {gyr_hz:.1f} Hz mas o acelerômetro da gravação '{label}' a "
+              "{acc_hz:.1f} Hz; grave ambos na mesma frequência."},
+    "rate.mag": {
+        "en": "{file}: the magnetometer runs at {fs_hz:.1f} Hz; expected between {min_hz:g} and {max_hz:g} Hz (the "
+              "protocol uses 20 Hz). Record again.",
+        "es": "{file}: el magnetómetro va a {fs_hz:.1f} Hz; se esperaba entre {min_hz:g} y {max_hz:g} Hz (el "
+              "protocolo usa 20 Hz). Grabe de nuevo.",
+        "pt": "{file}: o magnetômetro está a {fs_hz:.1f} Hz; esperava-se entre {min_hz:g} e {max_hz:g} Hz (o "
+              "protocolo usa 20 Hz). Grave de novo."},
+    # ---------------------------------------------------------------------------------------- alignment
+    "align.no_overlap": {
+        "en": "{file}: the streams of this recording overlap for {seconds:.2f} s only (they must share at least "
+              "1 s of time stamps); were they recorded together? Record again.",
+        "es": "{file}: los flujos de esta grabación se solapan solo {seconds:.2f} s (deben compartir al menos "
+              "1 s de marcas de tiempo); ¿se grabaron juntos? Grabe de nuevo.",
+        "pt": "{file}: os fluxos desta gravação se sobrepõem só {seconds:.2f} s (devem partilhar pelo menos 1 s "
+              "de marcas de tempo); foram gravados juntos? Grave de novo."},
+    "align.no_overlap_pair": {
+        "en": "{file}: the two sensors' task recordings overlap for {seconds:.2f} s only (they must share at least "
+              "1 s of time stamps); were they recorded together? Record again.",
+        "es": "{file}: las grabaciones de la tarea de los dos sensores se solapan solo {seconds:.2f} s (deben "
+              "compartir al menos 1 s de marcas de tiempo); ¿se grabaron juntas? Grabe de nuevo.",
+        "pt": "{file}: as gravações da tarefa dos dois sensores se sobrepõem só {seconds:.2f} s (devem partilhar "
+              "pelo menos 1 s de marcas de tempo); foram gravadas juntas? Grave de novo."},
+    "align.time_base_mixed": {
+        "en": "{file}: has no epoch time stamps while the other streams of recording '{label}' have them, so they "
+              "cannot be put on one time line; export it again with its 'epoch (ms)' column.",
+        "es": "{file}: no tiene marcas de tiempo epoch mientras que los demás flujos de la grabación '{label}' sí, "
+              "así que no se pueden poner en una línea de tiempo; expórtelo de nuevo con su columna 'epoch (ms)'.",
+        "pt": "{file}: não tem marcas de tempo epoch enquanto os outros fluxos da gravação '{label}' têm, então "
+              "não podem ser postos numa linha do tempo; exporte-o de novo com a sua coluna 'epoch (ms)'."},
+    "align.pair_time_base": {
+        "en": "{file} and {other}: one has epoch time stamps and the other not, so they cannot be put on one time "
+              "line; export both the same way.",
+        "es": "{file} y {other}: uno tiene marcas de tiempo epoch y el otro no, así que no se pueden poner en una "
+              "línea de tiempo; exporte ambos de la misma manera.",
+        "pt": "{file} e {other}: um tem marcas de tempo epoch e o outro não, então não podem ser postos numa "
+              "linha do tempo; exporte ambos da mesma maneira."},
+    # ------------------------------------------------------------------------------ recordings, session
+    "recording.no_files": {
+        "en": "a recording needs its files (none given); list them.",
+        "es": "una grabación necesita sus archivos (no se dio ninguno); lístelos.",
+        "pt": "uma gravação precisa dos seus arquivos (nenhum foi dado); liste-os."},
+    "recording.bad_file_set": {
+        "en": "{file}: a recording is three MetaBase stream files, one .xlsx (thesis layout), one .h5 (APDM) or "
+              "one .csv/.txt of a supported format; got {files}: list each recording's own files.",
+        "es": "{file}: una grabación son tres archivos de flujo de MetaBase, un .xlsx (formato de la tesis), un "
+              ".h5 (APDM) o un .csv/.txt de un formato admitido; se recibió {files}: liste los archivos propios de "
+              "cada grabación.",
+        "pt": "{file}: uma gravação são três arquivos de fluxo do MetaBase, um .xlsx (formato da tese), um .h5 "
+              "(APDM) ou um .csv/.txt de um formato suportado; recebeu-se {files}: liste os arquivos próprios de "
+              "cada gravação."},
+    "session.no_folder": {
+        "en": "{file}: no such session folder; check the path.",
+        "es": "{file}: no existe esa carpeta de sesión; compruebe la ruta.",
+        "pt": "{file}: essa pasta de sessão não existe; verifique o caminho."},
+    "session.no_recordings": {
+        "en": "{file}: no recordings found; the folder holds {count} file(s): {found}. ChakaMo reads MetaBase "
+              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer and Sensor Logger (.zip) files: "
+              "check the folder, or export the recordings again. {hint}",
+        "es": "{file}: no se encontró ninguna grabación; la carpeta tiene {count} archivo(s): {found}. ChakaMo lee "
+              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer y Sensor Logger "
+              "(.zip): compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
+        "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} arquivo(s): {found}. O ChakaMo lê "
+              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer e Sensor Logger "
+              "(.zip): verifique a pasta, ou exporte as gravações de novo. {hint}"},
+    "session.recording_twice": {
+        "en": "{file} and {other} are both the {role} recording of the {segment}; keep one (or list the one to use "
+              "in session.json).",
+        "es": "{file} y {other} son ambos la grabación {role} del {segment}; conserve una (o liste en "
+              "session.json la que se debe usar).",
+        "pt": "{file} e {other} são ambos a gravação {role} da {segment}; mantenha uma (ou liste no session.json "
+              "a que deve ser usada)."},
+    "session.one_sensor": {
+        "en": "{file}: only the {segment} sensor found; a session needs both the thigh and the shank sensor (knee "
+              "angles compare the two). {hint}",
+        "es": "{file}: solo se encontró el sensor del {segment}; una sesión necesita el sensor del muslo y el de "
+              "la pierna (los ángulos de rodilla comparan ambos). {hint}",
+        "pt": "{file}: só foi encontrado o sensor da {segment}; uma sessão precisa do sensor da coxa e do da "
+              "perna (os ângulos do joelho comparam os dois). {hint}"},
+    "session.no_sensor": {
+        "en": "{file}: no sensor found; a session needs both the thigh and the shank sensor (knee angles compare "
+              "the two). {hint}",
+        "es": "{file}: no se encontró ningún sensor; una sesión necesita el sensor del muslo y el de la pierna "
+              "(los ángulos de rodilla comparan ambos). {hint}",
+        "pt": "{file}: nenhum sensor encontrado; uma sessão precisa do sensor da coxa e do da perna (os ângulos "
+              "do joelho comparam os dois). {hint}"},
+    "session.missing_recordings": {
+        "en": "{file}: missing recording(s): {missing}. {hint}",
+        "es": "{file}: falta(n) grabación(es): {missing}. {hint}",
+        "pt": "{file}: falta(m) gravação(ões): {missing}. {hint}"},
+    # ------------------------------------------------------------------------------------ session.json
+    "manifest.not_utf8": {
+        "en": "{file}: not UTF-8 text; save it again as UTF-8 (or remove the file).",
+        "es": "{file}: no es texto UTF-8; guárdelo de nuevo como UTF-8 (o elimine el archivo).",
+        "pt": "{file}: não é texto UTF-8; salve-o de novo como UTF-8 (ou remova o arquivo)."},
+    "manifest.invalid_json": {
+        "en": "{file}: not valid JSON (line {line}, column {col}: {reason}); fix it or remove the file.",
+        "es": "{file}: no es JSON válido (línea {line}, columna {col}: {reason}); corríjalo o elimine el archivo.",
+        "pt": "{file}: não é JSON válido (linha {line}, coluna {col}: {reason}); corrija-o ou remova o arquivo."},
+    "manifest.not_object": {
+        "en": "{file}: must be a JSON object with keys {keys}; fix it or remove the file.",
+        "es": "{file}: debe ser un objeto JSON con las claves {keys}; corríjalo o elimine el archivo.",
+        "pt": "{file}: deve ser um objeto JSON com as chaves {keys}; corrija-o ou remova o arquivo."},
+    "manifest.unknown_keys": {
+        "en": "{file}: unknown keys {unknown}; use only {keys} (remove or rename the others).",
+        "es": "{file}: claves desconocidas {unknown}; use solo {keys} (elimine o renombre las demás).",
+        "pt": "{file}: chaves desconhecidas {unknown}; use só {keys} (remova ou renomeie as outras)."},
+    "manifest.wrong_type": {
+        "en": "{file}: {key} = {value} must be {expected}; correct it.",
+        "es": "{file}: {key} = {value} debe ser {expected}; corríjalo.",
+        "pt": "{file}: {key} = {value} deve ser {expected}; corrija-o."},
+    "manifest.sensor_segment_type": {
+        "en": "{file}: sensors['{mac}'] = {value}; give the segment as a string (\"thigh\" or \"shank\").",
+        "es": "{file}: sensors['{mac}'] = {value}; dé el segmento como texto (\"thigh\" o \"shank\").",
+        "pt": "{file}: sensors['{mac}'] = {value}; dê o segmento como texto (\"thigh\" ou \"shank\")."},
+    "manifest.recordings_empty": {
+        "en": "{file}: 'recordings' lists no recording; list the session's files, or remove the key to let "
+              "ChakaMo find them.",
+        "es": "{file}: 'recordings' no lista ninguna grabación; liste los archivos de la sesión, o elimine la "
+              "clave para que ChakaMo los encuentre.",
+        "pt": "{file}: 'recordings' não lista nenhuma gravação; liste os arquivos da sessão, ou remova a chave "
+              "para o ChakaMo encontrá-los."},
+    "manifest.bad_entry": {
+        "en": "{file}: recordings[{index}] must be an object with 'files' (a non-empty list of names) and optional "
+              "'segment', 'role', 'sheet' (strings); correct it.",
+        "es": "{file}: recordings[{index}] debe ser un objeto con 'files' (una lista no vacía de nombres) y "
+              "opcionalmente 'segment', 'role', 'sheet' (textos); corríjalo.",
+        "pt": "{file}: recordings[{index}] deve ser um objeto com 'files' (uma lista não vazia de nomes) e "
+              "opcionalmente 'segment', 'role', 'sheet' (textos); corrija-o."},
+    "manifest.file_outside": {
+        "en": "{file}: recordings[{index}] lists {name}, which is not a file inside the session folder; list the "
+              "recordings by their names in this folder.",
+        "es": "{file}: recordings[{index}] lista {name}, que no es un archivo dentro de la carpeta de la sesión; "
+              "liste las grabaciones por sus nombres en esta carpeta.",
+        "pt": "{file}: recordings[{index}] lista {name}, que não é um arquivo dentro da pasta da sessão; liste as "
+              "gravações pelos seus nomes nesta pasta."},
+    "manifest.file_twice": {
+        "en": "{file}: '{name}' is listed twice (recordings[{first}] and recordings[{second}]); list each file "
+              "once.",
+        "es": "{file}: '{name}' aparece dos veces (recordings[{first}] y recordings[{second}]); liste cada "
+              "archivo una vez.",
+        "pt": "{file}: '{name}' aparece duas vezes (recordings[{first}] e recordings[{second}]); liste cada "
+              "arquivo uma vez."},
+    "manifest.unknown_segment": {
+        "en": "{file}: {where} = '{value}' is not a segment ChakaMo knows; use one of {allowed}.",
+        "es": "{file}: {where} = '{value}' no es un segmento que ChakaMo conozca; use uno de {allowed}.",
+        "pt": "{file}: {where} = '{value}' não é um segmento que o ChakaMo conheça; use um de {allowed}."},
+    "manifest.unknown_role": {
+        "en": "{file}: {where} = '{value}' is not a role ChakaMo knows; use one of {allowed}.",
+        "es": "{file}: {where} = '{value}' no es un papel que ChakaMo conozca; use uno de {allowed}.",
+        "pt": "{file}: {where} = '{value}' não é um papel que o ChakaMo conheça; use um de {allowed}."},
+    "manifest.bad_side": {
+        "en": "{file}: side = '{value}'; use 'right' or 'left'.",
+        "es": "{file}: side = '{value}'; use 'right' o 'left'.",
+        "pt": "{file}: side = '{value}'; use 'right' ou 'left'."},
+    "manifest.bad_step_height": {
+        "en": "{file}: step_height_m = {value}; give the step height in metres, e.g. 0.17.",
+        "es": "{file}: step_height_m = {value}; dé la altura del escalón en metros, p. ej. 0.17.",
+        "pt": "{file}: step_height_m = {value}; dê a altura do degrau em metros, p. ex. 0.17."},
+    "manifest.bad_field": {
+        "en": "{file}: mag_field_ut = {value}; give the local magnetic field strength in µT (25–65), e.g. 48.5.",
+        "es": "{file}: mag_field_ut = {value}; dé la intensidad del campo magnético local en µT (25–65), p. ej. 48.5.",
+        "pt": "{file}: mag_field_ut = {value}; dê a intensidade do campo magnético local em µT (25–65), p. ex. 48.5."},
+    # ------------------------------------------------------------------------------- provenance checks
+    "check.side_mismatch": {
+        "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "
+              "adduction and rotation would flip sign. Check the patient's side or the files; the clinician may "
+              "override this.",
+        "es": "{file}: la grabación dice pierna {found} ({method}) pero la rodilla del paciente es la "
+              "{patient_side}; la aducción y la rotación cambiarían de signo. Compruebe el lado del paciente o los "
+              "archivos; el clínico puede forzarlo.",
+        "pt": "{file}: a gravação diz perna {found} ({method}) mas o joelho do paciente é o {patient_side}; a "
+              "adução e a rotação mudariam de sinal. Verifique o lado do paciente ou os arquivos; o clínico pode "
+              "forçá-lo."},
+    "check.date_far": {
+        "en": "{file}: recorded on {date}, {days} days from the session date {session_date}; check that it "
+              "belongs to this session (or correct the session date).",
+        "es": "{file}: grabado el {date}, a {days} días de la fecha de la sesión {session_date}; compruebe que "
+              "pertenece a esta sesión (o corrija la fecha de la sesión).",
+        "pt": "{file}: gravado em {date}, a {days} dias da data da sessão {session_date}; verifique se pertence "
+              "a esta sessão (ou corrija a data da sessão)."},
+    "check.dates_spread": {
+        "en": "the recordings span {days} days ({first_file} on {first}, {last_file} on {last}); check that they "
+              "all belong to one session.",
+        "es": "las grabaciones abarcan {days} días ({first_file} el {first}, {last_file} el {last}); compruebe que "
+              "todas pertenecen a una misma sesión.",
+        "pt": "as gravações abrangem {days} dias ({first_file} em {first}, {last_file} em {last}); verifique se "
+              "todas pertencem a uma mesma sessão."},
+    "check.patient_mismatch": {
+        "en": "{file}: the patient id is {found} ({method}), not {patient_id}; check that the files are this "
+              "patient's.",
+        "es": "{file}: el identificador del paciente es {found} ({method}), no {patient_id}; compruebe que los "
+              "archivos son de este paciente.",
+        "pt": "{file}: o identificador do paciente é {found} ({method}), não {patient_id}; verifique se os "
+              "arquivos são deste paciente."},
+    "check.sensor_both_segments": {
+        "en": "sensor {sensor} recorded the thigh in {thigh_file} and the shank in {shank_file}; check that the "
+              "sensors were not swapped between recordings (or correct the names / session.json).",
+        "es": "el sensor {sensor} grabó el muslo en {thigh_file} y la pierna en {shank_file}; compruebe que los "
+              "sensores no se intercambiaron entre grabaciones (o corrija los nombres / session.json).",
+        "pt": "o sensor {sensor} gravou a coxa em {thigh_file} e a perna em {shank_file}; verifique se os "
+              "sensores não foram trocados entre gravações (ou corrija os nomes / session.json)."},
+    # ---------------------------------------------------------------------------------------- fragments
+    "hint.ignored_csv": {
+        "en": "Ignored {file} (not a file of a format ChakaMo reads).",
+        "es": "Se ignoró {file} (no es un archivo de un formato que ChakaMo lea).",
+        "pt": "Ignorado {file} (não é um arquivo de um formato que o ChakaMo leia)."},
+    "hint.unrecognised": {
+        "en": "Files not recognised: {file} ({what} not recognised{why}).",
+        "es": "Archivos no reconocidos: {file} ({what} no reconocido{why}).",
+        "pt": "Arquivos não reconhecidos: {file} ({what} não reconhecido{why})."},
+    "hint.naming": {
+        "en": "Name files like step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., or list them in {manifest} "
+              "with segment and role.",
+        "es": "Nombre los archivos como step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., o lístelos en "
+              "{manifest} con segmento y papel.",
+        "pt": "Nomeie os arquivos como step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., ou liste-os no "
+              "{manifest} com segmento e papel."},
+    "hint.looks_like": {
+        "en": "The numbers look like {unit}, not {declared}.",
+        "es": "Los números parecen {unit}, no {declared}.",
+        "pt": "Os números parecem {unit}, não {declared}."},
+    "word.role": {"en": "role", "es": "papel", "pt": "papel"},
+    "word.segment": {"en": "segment", "es": "segmento", "pt": "segmento"},
+    "word.role_segment": {"en": "role and segment", "es": "papel y segmento", "pt": "papel e segmento"},
+    "word.role_of": {"en": "{role} of the {segment}", "es": "{role} ({segment})", "pt": "{role} ({segment})"},
+    # -------------------------------------------------------------------------------------------- notes
+    "note.csv_semicolon": {
+        "en": "{file}: read with ';' between fields and ',' as the decimal point (a spreadsheet in Spanish or "
+              "Portuguese saved it)",
+        "es": "{file}: leído con ';' entre campos y ',' como separador decimal (lo guardó una hoja de cálculo en "
+              "español o portugués)",
+        "pt": "{file}: lido com ';' entre campos e ',' como separador decimal (salvo por uma planilha em "
+              "espanhol ou português)"},
+    "note.truncated_last_row": {
+        "en": "{file}: the last row ({row}) was cut short (an interrupted copy or export) and was dropped",
+        "es": "{file}: la última fila ({row}) estaba cortada (una copia o exportación interrumpida) y se descartó",
+        "pt": "{file}: a última linha ({row}) estava cortada (uma cópia ou exportação interrompida) e foi "
+              "descartada"},
+    "note.duplicate_rows": {
+        "en": "{file}: {rows} row(s) repeated exactly (first at row {first_row}) were dropped",
+        "es": "{file}: se descartaron {rows} fila(s) repetida(s) exactamente (la primera en la fila {first_row})",
+        "pt": "{file}: foram descartadas {rows} linha(s) repetida(s) exatamente (a primeira na linha {first_row})"},
+    "note.excel_epoch_rebuilt": {
+        "en": "{file}: '{column}' was rounded by a spreadsheet; time rebuilt from 'elapsed (s)' and the start "
+              "time in the file name ({start}, phone's local time)",
+        "es": "{file}: '{column}' fue redondeado por una hoja de cálculo; el tiempo se reconstruyó con "
+              "'elapsed (s)' y la hora de inicio del nombre del archivo ({start}, hora local del teléfono)",
+        "pt": "{file}: '{column}' foi arredondado por uma planilha; o tempo foi reconstruído com 'elapsed (s)' "
+              "e a hora de início do nome do arquivo ({start}, hora local do telefone)"},
+    "note.excel_epoch_offset": {
+        "en": "{file}: rebuilt time put on UTC with the phone's offset seen in the session's other files "
+              "({offset_h:+.2f} h)",
+        "es": "{file}: el tiempo reconstruido se pasó a UTC con el desfase del teléfono visto en los demás "
+              "archivos de la sesión ({offset_h:+.2f} h)",
+        "pt": "{file}: o tempo reconstruído foi passado a UTC com o desvio do telefone visto nos outros arquivos "
+              "da sessão ({offset_h:+.2f} h)"},
+    "note.excel_epoch_local": {
+        "en": "{file}: rebuilt time stays on the phone's local time (no file of the session kept its epoch); "
+              "wall-clock times in messages are local",
+        "es": "{file}: el tiempo reconstruido queda en la hora local del teléfono (ningún archivo de la sesión "
+              "conservó su epoch); las horas de los mensajes son locales",
+        "pt": "{file}: o tempo reconstruído fica na hora local do telefone (nenhum arquivo da sessão manteve o "
+              "seu epoch); as horas nas mensagens são locais"},
+    "note.csv_ignored": {
+        "en": "ignored {file} (not a file of a format ChakaMo reads)",
+        "es": "se ignoró {file} (no es un archivo de un formato que ChakaMo lea)",
+        "pt": "ignorado {file} (não é um arquivo de um formato que o ChakaMo leia)"},
+    "note.file_unrecognised": {
+        "en": "ignored {file} ({what} not recognised{why})",
+        "es": "se ignoró {file} ({what} no reconocido{why})",
+        "pt": "ignorado {file} ({what} não reconhecido{why})"},
+    "note.phone_ios_frames": {
+        "en": "{file}: an iPhone recording: acceleration and gravity taken with Sensor Logger's default frames "
+              "(\"Standardise Units & Frames\" off) and turned to specific force",
+        "es": "{file}: grabación de iPhone: aceleración y gravedad tomadas con los ejes por defecto de Sensor "
+              "Logger (\"Standardise Units & Frames\" desactivado) y pasadas a fuerza específica",
+        "pt": "{file}: gravação de iPhone: aceleração e gravidade tomadas com os eixos padrão do Sensor Logger "
+              "(\"Standardise Units & Frames\" desligado) e passadas a força específica"},
+    "note.mag_normalised": {
+        "en": "{file}: magnetometer in normalised units (no µT scale; declared field strength: {field}); the "
+              "vendor calibrated it, so no figure-eight fit in µT applies",
+        "es": "{file}: magnetómetro en unidades normalizadas (sin escala en µT; intensidad de campo declarada: "
+              "{field}); lo calibró el fabricante, así que no se aplica un ajuste de ocho en µT",
+        "pt": "{file}: magnetômetro em unidades normalizadas (sem escala em µT; intensidade de campo declarada: "
+              "{field}); o fabricante o calibrou, então não se aplica um ajuste em oito em µT"},
+}
+
+#: Segment and role words for the "<segment> <role>:" prefix of a session's notes.
+WORDS = {
+    "thigh": {"en": "thigh", "es": "muslo", "pt": "coxa"},
+    "shank": {"en": "shank", "es": "pierna", "pt": "perna"},
+    "mag_calibration": {"en": "mag_calibration", "es": "calibración magnética", "pt": "calibração magnética"},
+    "standing": {"en": "standing", "es": "de pie", "pt": "em pé"},
+    "lying": {"en": "lying", "es": "tumbado", "pt": "deitado"},
+    "task": {"en": "task", "es": "tarea", "pt": "tarefa"},
+    "right": {"en": "right", "es": "derecha", "pt": "direita"},
+    "left": {"en": "left", "es": "izquierda", "pt": "esquerda"},
+}
+
+
+CATALOGUE.update({f"word.{k}": v for k, v in WORDS.items()})
+
+
+def placeholders(template: str) -> set[str]:
+    """The parameter names a template uses (``{seconds:.2f}`` → ``seconds``)."""
+    return {f for _, f, _, _ in string.Formatter().parse(template) if f}
+
+
+def _fill(value: Any, lang: str) -> Any:
+    if isinstance(value, Mapping) and "code" in value:
+        return render(value["code"], value.get("params", {}), lang)
+    if isinstance(value, (list, tuple)) and value and all(isinstance(v, Mapping) and "code" in v for v in value):
+        sep = ", " if all(str(v["code"]).startswith("word.") for v in value) else " "
+        return sep.join(render(v["code"], v.get("params", {}), lang) for v in value)
+    if isinstance(value, (list, tuple)) and not value:
+        return ""
+    return value
+
+
+def render(code: str, params: Mapping[str, Any], lang: str = "en") -> str:
+    """The message ``code`` in ``lang`` (``es``/``en``/``pt``; others give English), filled from ``params``.
+
+    A missing parameter shows as ``{name}`` rather than failing: a message must never hide the error."""
+    entry = CATALOGUE[code]
+    template = entry.get(lang) or entry["en"]
+    values = {k: _fill(v, lang) for k, v in params.items()}
+    try:
+        text = template.format_map(values)
+    except (KeyError, ValueError, TypeError, IndexError):
+        text = template.format_map(_Lenient(values))
+    return " ".join(text.split())  # an empty hint leaves no double space
+
+
+class _Lenient(dict):
+    def __missing__(self, key):
+        return "{" + key + "}"
+
+    def __getitem__(self, key):
+        value = super().get(key, None)
+        return _Raw(value if key in self else "{" + key + "}")
+
+
+class _Raw:
+    """A value that ignores format specs it cannot take (a string where ``:.2f`` was expected)."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def __format__(self, spec):
+        try:
+            return format(self.value, spec)
+        except (ValueError, TypeError):
+            return str(self.value)
+
+
+def render_prefix(segment: str, role: str, lang: str = "en") -> str:
+    """``"<segment> <role>"`` in ``lang`` (the prefix of a session's notes)."""
+    w = lambda x: WORDS.get(x, {}).get(lang, x)  # noqa: E731
+    return f"{w(segment)} {w(role)}"
+
+
+def message_dict(code: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"code", "params", "message": {lang: text}}`` for JSON (API answers, job records)."""
+    return {"code": code, "params": dict(params), "message": {lang: render(code, params, lang) for lang in LANGUAGES}}
