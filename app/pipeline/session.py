@@ -221,10 +221,6 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             raise PipelineError(f"{seg} magnetometer calibration ({_files(rec)}): {exc}") from None
         warnings += [QualityWarning(w.code, f"{seg.capitalize()} sensor: {w.message}", {**w.params, "segment": seg})
                      for w in mag[seg].quality.warnings]
-    if "mag_calibration" not in roles:
-        warnings.append(QualityWarning(
-            "magnetometer_not_calibrated", "no figure-eight recording: the magnetometers' own (factory) calibration "
-            "was used as recorded, without the ellipsoid fit", {}))
 
     progress("segments", 0.3)
     protocol = _protocol(roles)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import inspect
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -213,7 +216,8 @@ def reject_cycles(curves: FloatArray, candidates: NDArray[np.bool_], p: MotorTas
 
 
 def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = "step_up",
-                 params: MotorTaskParams | None = None, t0_s: float = 0.0) -> TaskAnalysis:
+                 params: MotorTaskParams | None = None, t0_s: float = 0.0,
+                 inputs: Mapping[str, Any] | None = None) -> TaskAnalysis:
     """Cycles, phases, normalised mean ± SD curves and ranges of motion of a repetitive knee task.
 
     angles_rad : (N, 3) knee angles (flexion, adduction, internal rotation), rad, clinical signs, on a uniform
@@ -221,6 +225,9 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
     fs_hz : sampling rate, Hz.   task : a registered name (:data:`~estimators.motor_task.TASK_NAMES`: the
         task module's own ``analyse`` or ``PARAMS`` are used when it has them) or a :class:`TaskSpec`.
     params : :class:`MotorTaskParams` (defaults when None).   t0_s : time of sample 0, s.
+    inputs : what else the caller has on the same grid (e.g. ``gyr_shank_rad_s``, ``shank_axis_sensor``,
+        ``q_earth_thigh``...): a task module's own ``analyse`` receives those of them it names as keyword
+        parameters (gait takes the shank gyroscope for its events); the shared detector uses none.
     Returns a :class:`TaskAnalysis`.  Raises ValueError for a wrong shape, rate or non-finite angles.
     """
     if isinstance(task, str):  # a registered task: its own analysis or default parameters, if it has them
@@ -228,7 +235,9 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
         mod = load_task_module(task)
         own = getattr(mod, "analyse", None)
         if own is not None:
-            return own(angles_rad, fs_hz, params=params, t0_s=t0_s)
+            wanted = inspect.signature(own).parameters
+            extra = {k: v for k, v in (inputs or {}).items() if k in wanted and k not in ("params", "t0_s")}
+            return own(angles_rad, fs_hz, params=params, t0_s=t0_s, **extra)
         if params is None:
             params = getattr(mod, "PARAMS", None)
     else:

@@ -725,6 +725,26 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "Logger (\"Standardise Units & Frames\" desactivado) y pasadas a fuerza específica",
         "pt": "{file}: gravação de iPhone: aceleração e gravidade tomadas com os eixos padrão do Sensor Logger "
               "(\"Standardise Units & Frames\" desligado) e passadas a força específica"},
+    "note.no_mag_calibration": {
+        "en": "{file}: no figure-eight (magnetometer calibration) recording: the magnetometers' own factory "
+              "calibration is used, without the ellipsoid fit",
+        "es": "{file}: no hay grabación en ocho (calibración del magnetómetro): se usa la calibración de fábrica de "
+              "los magnetómetros, sin el ajuste del elipsoide",
+        "pt": "{file}: não há gravação em oito (calibração do magnetômetro): usa-se a calibração de fábrica dos "
+              "magnetômetros, sem o ajuste do elipsoide"},
+    "note.no_lying": {
+        "en": "{file}: no supine recording: the segment axes come from standing and the knee's hinge axes on the task",
+        "es": "{file}: no hay grabación en decúbito supino: los ejes de los segmentos se toman de la postura de pie y "
+              "de los ejes de bisagra de la rodilla en la tarea",
+        "pt": "{file}: não há gravação em decúbito dorsal: os eixos dos segmentos vêm da postura em pé e dos eixos de "
+              "dobradiça do joelho na tarefa"},
+    "note.no_standing": {
+        "en": "{file}: no standing recording: the segment axes come from the task alone, which must hold the knee "
+              "straight and still for 2 s (standing before it starts)",
+        "es": "{file}: no hay grabación de pie: los ejes de los segmentos se toman solo de la tarea, que debe mantener "
+              "la rodilla extendida y quieta 2 s (de pie antes de empezar)",
+        "pt": "{file}: não há gravação em pé: os eixos dos segmentos vêm só da tarefa, que deve manter o joelho "
+              "estendido e parado 2 s (em pé antes de começar)"},
     "note.mag_normalised": {
         "en": "{file}: magnetometer in normalised units (no µT scale; declared field strength: {field}); the "
               "vendor calibrated it, so no figure-eight fit in µT applies",

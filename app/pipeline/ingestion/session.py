@@ -285,11 +285,15 @@ def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str
 
 
 def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
-                 roles: Sequence[str] = ROLES) -> Session:
+                 roles: Sequence[str] = ROLES, required: Sequence[str] | None = None) -> Session:
     """Read and align one session folder (or its ``session.json``); see the package docstring.
 
     expected_fs_hz : accelerometer/gyroscope rate the protocol uses (refuse others beyond 3 %); ``None``
-        accepts the files' own rate.   roles : the recordings required of each sensor.
+        accepts the files' own rate.   roles : the recordings read (others found are ignored).
+    required : the recordings every sensor must have (default ``("task",)`` when ``roles`` holds the task, else all
+        of ``roles``).  The others of ``roles`` are optional — the pipeline then calibrates without them (issue 14
+        §3: no figure-eight, no supine, the task alone), and a note says so — but one that a sensor has, the other
+        sensor must have too (a forgotten file is named, not silently worked around).
     """
     path = Path(path)
     folder = path.parent if path.is_file() else path
@@ -349,10 +353,14 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
     if len(segs) < 2:
         raise IngestionError("session.one_sensor" if segs else "session.no_sensor", file=folder,
                              segment=next(iter(segs), ""), hint=hint)
+    if required is None:
+        required = ("task",) if "task" in roles else tuple(roles)
+    present = {r for _, r in recs}
     missing = [{"code": "word.role_of", "params": {"role": {"code": f"word.{r}"}, "segment": {"code": f"word.{s}"}}}
-               for s in SEGMENTS for r in roles if (s, r) not in recs]
+               for s in SEGMENTS for r in roles if (s, r) not in recs and (r in required or r in present)]
     if missing:
         raise IngestionError("session.missing_recordings", file=folder, missing=missing, hint=hint)
+    notes += [Note.of(f"no_{r}", file=folder) for r in roles if r not in present and r not in required]
     notes += [Note.of("file_unrecognised", **u["params"]) for u in unrecognised]
     field = manifest.get("mag_field_ut")
     if field is not None:

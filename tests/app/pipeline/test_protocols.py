@@ -28,7 +28,7 @@ def truth():
 def _process(truth, tmp_path, keep):
     t = replace(truth, recordings={k: v for k, v in truth.recordings.items() if k[1] in keep})
     write_session(tmp_path / "session", t)
-    return process_session(load_session(tmp_path / "session", roles=keep), ProcessOptions())
+    return process_session(load_session(tmp_path / "session"), ProcessOptions())  # as process_folder loads it
 
 
 def test_without_the_figure_eight_the_factory_calibration_is_used_and_said(truth, tmp_path):
@@ -36,7 +36,8 @@ def test_without_the_figure_eight_the_factory_calibration_is_used_and_said(truth
     r = json.loads(json.dumps(build_results(outcome)))
     assert r["calibration"]["protocol"] == {"segment": "static", "magnetometer": ["factory"],
                                             "recordings": ["lying", "standing", "task"]}
-    assert "magnetometer_not_calibrated" in {w["code"] for w in r["quality"]["warnings"]}
+    notes = {w["params"].get("variant") for w in r["quality"]["warnings"] if w["code"] == "ingestion_note"}
+    assert "no_mag_calibration" in notes, r["quality"]["warnings"]
     # the simulated sensors carry hard and soft iron, so the raw fields disagree: the hinge heading takes over
     assert r["quality"]["heading"]["used"] == "constraint"
     acc = accuracy(outcome, truth)
@@ -47,6 +48,7 @@ def test_without_the_figure_eight_the_factory_calibration_is_used_and_said(truth
 def test_without_the_supine_posture_the_hinge_axes_calibrate(truth, tmp_path):
     outcome = _process(truth, tmp_path, ("mag_calibration", "standing", "task"))
     assert {cal.method for cal in outcome.segments.values()} == {"standing_functional"}
+    assert "no_lying" in {w.params.get("variant") for w in outcome.warnings if w.code == "ingestion_note"}
     assert build_results(outcome)["calibration"]["protocol"]["segment"] == "standing_functional"
     acc = accuracy(outcome, truth)
     assert acc["rmse_deg"]["flexion"] <= 1.0 and acc["rmse_deg"]["adduction"] <= 2.0, acc
@@ -57,6 +59,15 @@ def test_without_the_supine_posture_the_hinge_axes_calibrate(truth, tmp_path):
 def test_a_task_that_never_holds_the_knee_straight_is_refused_with_what_to_record(truth, tmp_path, keep):
     with pytest.raises(PipelineError, match="never held the knee straight and still; record 2 s standing still"):
         _process(truth, tmp_path, keep)
+
+
+def test_a_posture_recorded_on_one_sensor_only_is_named_not_worked_around(truth, tmp_path):
+    from app.pipeline.ingestion import IngestionError
+
+    t = replace(truth, recordings={k: v for k, v in truth.recordings.items() if k != ("shank", "lying")})
+    write_session(tmp_path / "session", t)
+    with pytest.raises(IngestionError, match="missing recording"):
+        load_session(tmp_path / "session")
 
 
 def test_the_full_protocol_keeps_the_static_calibration(truth, tmp_path):
