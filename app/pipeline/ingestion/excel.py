@@ -43,7 +43,7 @@ def _openpyxl():
 def _layout_problem(header: list) -> str | None:
     """``None`` if ``header`` (row 1) has the Fig. 8.6 layout, else what is wrong."""
     cells = [("" if c is None else str(c)) for c in header[:11]] + [""] * max(0, 11 - len(header))
-    for col, (t, axes) in zip("AEH", _GROUPS.values()):
+    for t, axes in _GROUPS.values():
         m = _CELL.match(cells[t])
         if not m or m.group("name").lower() not in ("elapsed", "time", "tiempo"):
             return f"cell {chr(65 + t)}1 is {cells[t]!r}, expected 'elapsed (s)'"
@@ -75,7 +75,6 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
                 if _layout_problem(list(first)) is None:
                     good.append(n)
             if len(good) != 1:
-                what = "none of its sheets has" if not good else f"several sheets ({', '.join(good)}) have"
                 detail = ""
                 if not good:
                     first = next(wb[names[0]].iter_rows(min_row=1, max_row=1, values_only=True), ())

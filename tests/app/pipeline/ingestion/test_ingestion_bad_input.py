@@ -232,7 +232,6 @@ def test_swapped_segments_are_not_judged_here(folder):
 
 def test_gyro_unit_check_ratio(sim_session):
     """θ_acc/θ_gyr ≈ 0.2–1.5 with the right unit, ×57 or ÷57 with the wrong one (units module docstring)."""
-    import re
     from pathlib import Path
 
     from app.pipeline.ingestion import Stream
