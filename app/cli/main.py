@@ -57,8 +57,10 @@ def main(argv: list[str] | None = None) -> int:
     group = next(g for g in GROUPS if args.command in g.COMMANDS)
     try:
         return group.run(args)
-    except (ValueError, OSError) as exc:
-        print(f"chakamo {args.command}: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError) as exc:  # a file problem names the file and says what to do, in --lang if given
+        lang = getattr(args, "lang", None) or "en"
+        text = exc.message(lang) if callable(getattr(exc, "message", None)) else str(exc)
+        print(f"chakamo {args.command}: error: {text}", file=sys.stderr)
         return 2
     finally:
         from app.pipeline import timings

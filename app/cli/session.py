@@ -41,8 +41,9 @@ def add_parsers(sub) -> None:
     proc.add_argument("--out", type=Path, required=True, help="output folder")
     proc.add_argument("--filter", choices=choices.FILTER_NAMES, default=choices.DEFAULT_FILTER,
                       help=f"orientation filter (default: {choices.DEFAULT_FILTER})")
-    proc.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=choices.DEFAULT_LANGUAGE,
-                      help=f"report language (default: {choices.DEFAULT_LANGUAGE})")
+    proc.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=None,
+                      help=f"language of the report and of the messages (default: report in "
+                           f"{choices.DEFAULT_LANGUAGE}, messages in English)")
     proc.add_argument("--side", choices=choices.SIDE_NAMES, default=None,
                       help="leg under study (default: from the file names or session.json)")
     proc.add_argument("--angles", choices=choices.ANGLE_CONVENTION_NAMES, default=choices.DEFAULT_ANGLE_CONVENTION,
@@ -81,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
 
         options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
                                  calibration=args.calibration, task=args.task, heading=args.heading,
-                                 expected_fs_hz=None if args.any_rate else 100.0, language=args.lang)
+                                 expected_fs_hz=None if args.any_rate else 100.0,
+                                 language=args.lang or choices.DEFAULT_LANGUAGE)
         _, written = process_folder(args.session, args.out, options, progress=_progress)
         for path in written:
             print(path)

@@ -49,3 +49,14 @@ def test_user_errors_exit_2_with_a_message(argv, message, tmp_path, capsys):
     last = capsys.readouterr().err.strip().splitlines()[-1]  # progress lines may come first
     assert last.startswith(f"chakamo {argv[0]}: error:") and message in last.lower()
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("lang, expected", [("en", "no such session folder"), ("es", "no existe esa carpeta"),
+                                            ("pt", "essa pasta de sessão não existe")])
+def test_a_file_problem_is_told_in_the_language_asked_for(lang, expected, tmp_path, capsys):
+    """``--lang`` gives the report's language and the messages' (issue 14 §5)."""
+    from app.pipeline.ingestion.messages import render
+
+    assert main(["process", str(tmp_path / "nope"), "--out", str(tmp_path / "out"), "--lang", lang]) == 2
+    err = capsys.readouterr().err
+    assert render("session.no_folder", {"file": tmp_path / "nope"}, lang) in err and expected in err, err
