@@ -86,7 +86,8 @@ def simulate(d: Draw):
                          initial_rest_s=d.initial_rest_s, final_rest_s=d.final_rest_s, seed=d.seed)
     return simulate_session(seed=d.seed, side=d.side, n_cycles=d.n_cycles, accelerometer_errors=d.acc_errors,
                             shank_task_field_turn_rad_s=float(np.deg2rad(d.field_turn_deg_s)), motion=motion,
-                            step_height_m=d.step_height_m, mounting_max_deg=d.mount_max_deg)
+                            step_height_m=d.step_height_m, mounting_max_deg=d.mount_max_deg,
+                            gyr_run_on_s=0.0)  # the draw's final rest is the recording's end
 
 
 def _heading_rad(q) -> np.ndarray:

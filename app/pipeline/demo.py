@@ -59,7 +59,7 @@ class SimulatedSession:
 def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_errors: bool = True,
                      supine_roll_out_deg: float = 0.0, shank_task_field_turn_rad_s: float = 0.0,
                      motion: LegMotion | None = None, step_height_m: float = STEP_HEIGHT_M,
-                     mounting_max_deg: float = MOUNTING_MAX_DEG) -> SimulatedSession:
+                     mounting_max_deg: float = MOUNTING_MAX_DEG, gyr_run_on_s: float = 1.5) -> SimulatedSession:
     """Simulate the four recordings of both sensors (module docstring).
 
     ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
@@ -73,7 +73,8 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
     ``mag_field_turn_rad_s``): the shank's heading drifts away from the thigh's while norm and dip stay right.
     ``motion`` replaces the default task (:func:`estimators.simulation.step_up` with ``n_cycles`` at
     ``step_height_m``), e.g. another step-up shape with pauses (``benchmarks/robustness.py``);
-    ``mounting_max_deg`` bounds each sensor's random misalignment.
+    ``mounting_max_deg`` bounds each sensor's random misalignment.  ``gyr_run_on_s``: the thigh's gyroscope runs on
+    this long after its other streams stopped (a real export's quirk; the task's last seconds are then cut).
     """
     if motion is None:
         motion = sim.step_up(n_cycles, step_height_m, side, seed=seed)
@@ -97,7 +98,7 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
         turn_rad_s = shank_task_field_turn_rad_s if seg == "shank" else 0.0
         imu = sim.simulate(getattr(motion, seg), spec, q_segment_sensor=mount, lever_arm_m=lever,
                            seed=seed * 100 + 50 + i, mag_field_turn_rad_s=turn_rad_s)
-        recordings[(seg, "task")] = simulated_streams(imu, epochs["task"], run_on_s={"gyr": 1.5} if i == 0 else None)
+        recordings[(seg, "task")] = simulated_streams(imu, epochs["task"], run_on_s={"gyr": gyr_run_on_s} if i == 0 and gyr_run_on_s else None)
     return SimulatedSession(recordings, motion, epochs, side, step_height_m)
 
 
