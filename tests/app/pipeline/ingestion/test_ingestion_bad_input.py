@@ -75,6 +75,21 @@ def test_wrong_units_by_magnitude(folder, stream, scale, unit):
     assert p.name in msg and f"look like {unit}" in msg and "column header" in msg
 
 
+def test_a_weak_static_field_loads_and_a_unit_mistake_is_still_refused(folder):
+    """A posture held where the hard iron nearly cancels the earth's field reads a few µT (simulated MetaMotion
+    errors: 4.1 and 4.3 µT): it loads; a factor-100 unit mistake (~0.5 µT) is still refused."""
+    from app.pipeline.ingestion import load_session
+
+    p = _file(folder, "standing-muslo", "Magnetometer")
+    original = p.read_text()
+    _rewrite(p, 0.08)  # ~4 µT
+    load_session(folder)
+    p.write_text(original)
+    _rewrite(p, 0.01)  # ~0.5 µT: gauss read as µT
+    msg = _error(folder)
+    assert p.name in msg and "magnetometer's typical field" in msg
+
+
 def test_rad_per_s_declared_as_deg_per_s(folder):
     p = _file(folder, "calibracion-sensor-muslo", "Gyroscope")   # figure-eight: plenty of rotation
     _rewrite(p, np.pi / 180.0)                                    # file now holds rad/s numbers under (deg/s)
