@@ -118,26 +118,30 @@ def _heading_findings(choice: HeadingChoice) -> list[Finding]:
     if c9 is None:
         return []
     offs = np.abs(wrap(c9.offset_rad))  # δ(t) on the 9D run: how far the magnetometers stray, per sample
+    # with --heading magnetometer the angles keep the magnetometers' heading: the message then says how to correct it
+    kept = {} if choice.used == "constraint" else {"variant": "kept"}
     lost = offs > LOST_HEADING_RAD
     if np.mean(lost) >= LOST_HEADING_FRACTION:
         vals = {"angle_deg": float(np.rad2deg(np.median(offs[lost]))), "pct": 100.0 * float(np.mean(lost)),
-                "min_deg": float(np.rad2deg(LOST_HEADING_RAD))}
+                "min_deg": float(np.rad2deg(LOST_HEADING_RAD)), **kept}
         return [Finding("heading_lost", False, QualityWarning(
             "heading_lost",
             f"the thigh and shank headings from the magnetometers are more than {vals['min_deg']:.0f}° off the "
             f"knee's hinge constraint in {vals['pct']:.0f} % of the task (median {vals['angle_deg']:.0f}°): an "
-            "orientation filter lost its heading. This is not a sensor placement problem; the joint-constraint "
-            "heading corrects it", vals))]
+            "orientation filter lost its heading. This is not a sensor placement problem; "
+            + ("the joint-constraint heading corrects it" if choice.used == "constraint" else
+               "process again with --heading auto (or constraint) to correct it"), vals))]
     if choice.disagreement_rad > choice.bound_rad:
         vals = {"angle_deg": float(np.rad2deg(choice.disagreement_rad)),
                 "bound_deg": float(np.rad2deg(choice.bound_rad)),
-                "pct": 100.0 * float(np.mean(offs > choice.bound_rad))}
+                "pct": 100.0 * float(np.mean(offs > choice.bound_rad)), **kept}
         return [Finding("magnetic_field_disturbed", False, QualityWarning(
             "magnetic_field_disturbed",
             f"the magnetometer heading strays up to {vals['angle_deg']:.0f}° from the knee's hinge constraint "
             f"(more than {vals['bound_deg']:.0f}°) in {vals['pct']:.0f} % of the task: the magnetic field differs "
             "between the thigh and shank sensors (metal or electronics nearby). Nothing needs fixing on the "
-            "sensors; the joint-constraint heading corrects it", vals))]
+            "sensors; " + ("the joint-constraint heading corrects it" if choice.used == "constraint" else
+                           "process again with --heading auto (or constraint) to correct it"), vals))]
     return []
 
 

@@ -21,7 +21,7 @@ def _turn(q, angle_rad):
 def sensors():
     """Thigh and shank sensors (noise-free, 100 Hz) on a 6-cycle step-up, mounted as the protocol says (+y up the
     segment) or, for the thigh, upside down (turned 180° about its z)."""
-    leg = sim.step_up(6, 0.17, SIDE, seed=4, facing_rad=1.3)
+    leg = sim.step_up(6, 0.17, SIDE, shape="rest_between", seed=4, facing_rad=1.3)  # the shape it was tuned on
     out = {}
     for name, mount in (("thigh", quat.identity()), ("shank", quat.identity()),
                         ("thigh_flipped", quat.from_axis_angle([0, 0, 1], np.pi))):
@@ -113,6 +113,23 @@ def test_disturbed_field_is_corrected_and_named(sensors):
     p = d.findings[0].warning.params
     assert not d.findings[0].fixable and 25.0 < p["angle_deg"] < 40.0 and p["bound_deg"] == pytest.approx(6.0)
     assert 25.0 < p["pct"] < 65.0  # the bend lasts a third of the task; 10 s windows widen it
+
+
+def test_with_the_magnetometer_heading_kept_the_cause_says_how_to_correct_it(sensors):
+    """--heading magnetometer keeps the bent field: the finding must not claim the constraint corrected it."""
+    from reports.warning_text import warning_text
+
+    g_t, g_s = sensors["thigh"], sensors["shank"]
+    t = g_s.t_s - g_s.t_s[0]
+    bend = 30 * DEG * np.clip(np.minimum(t - t[-1] / 3, 2 * t[-1] / 3 - t), 0.0, 1.0)
+    ch, d = _diagnose(g_t.q_earth_sensor, _turn(g_s.q_earth_sensor, bend), {"thigh": g_t.acc, "shank": g_s.acc},
+                      mode="magnetometer")
+    assert ch.used == "magnetometer" and _codes(d) == ["magnetic_field_disturbed"]
+    w = d.findings[0].warning
+    assert w.params["variant"] == "kept" and "--heading auto" in w.message and "corrects it" not in w.message
+    for lang in ("es", "pt"):
+        text, translated = warning_text(w.to_dict(), lang, {})
+        assert translated and "--heading auto" in text, (lang, text)
 
 
 def test_task_warnings_name_the_symptom_only(sensors):

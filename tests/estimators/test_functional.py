@@ -26,7 +26,8 @@ def _session(kind: str, seed: int, side: str, step_height_m: float = 0.17, stand
     # full inertial error model; the magnetometer as after its ellipsoid fit (noise only)
     specs = [replace(sim.ImuSpec.random(seed * 10 + k), mag=sim.ImuSpec.noise_only().mag) for k in range(2)]
     if kind == "step_up":
-        motion = sim.step_up(10, step_height_m, side, seed=seed, facing_rad=0.4)
+        # the step-up these checks were stated on: a still full-extension hold in each cycle (the straight window)
+        motion = sim.step_up(10, step_height_m, side, shape="rest_between", seed=seed, facing_rad=0.4)
         mounts = [sim.random_rotation(misalignment_rad, seed=100 * seed + k) for k in range(2)]
         imus = [sim.simulate(getattr(motion, n), specs[k], q_segment_sensor=mounts[k],
                              lever_arm_m=getattr(motion, f"{n}_lever_arm_m"), seed=7 * seed + k)

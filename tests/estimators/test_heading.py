@@ -15,7 +15,7 @@ FS_HZ = 100.0
 
 def _truth(side: str = "right", height: float = 0.17, n_cycles: int = 8, seed: int = 0, facing_rad: float = 0.4):
     """True femur and tibia orientations (the segment frames, ENU) and the generator's knee angles."""
-    leg = sim.step_up(n_cycles, height, side, seed=seed, facing_rad=facing_rad)
+    leg = sim.step_up(n_cycles, height, side, shape="rest_between", seed=seed, facing_rad=facing_rad)  # tuned on it
     t = np.arange(leg.t_s[0], leg.t_s[-1], 1.0 / FS_HZ)  # the motion is defined on a 1 kHz grid
     return t, leg.thigh.orientation(t), leg.shank.orientation(t), leg.knee_angles_at(t)
 

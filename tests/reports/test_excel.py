@@ -55,7 +55,7 @@ def make_report_input(language: str = "es", patient: Patient | None = None, *, p
                                                                                  "coverage_fraction": 0.9}}}},
         "quality": {"warnings": [{"code": "note", "message": "a <warning> & more"}],
                     "magnetic_disturbance_fraction": {"thigh": 0.0, "shank": 0.012}},
-        "software": {"version": "0.1.0"},
+        "software": {"version": "0.2.0"},
     }
     return ReportInput(results=results, t_s=t, angles_deg=angles,
                        q_earth_sensor={"thigh": q[0], "shank": q[1]}, q_earth_segment={"femur": q[2], "tibia": q[3]},
