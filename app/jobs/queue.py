@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.choices import DEFAULT_HEADING
 from app.jobs.work import JobRunner
 from app.pipeline.session import PIPELINE_VERSION
 from app.store.checks import IngestionChecker
@@ -57,7 +58,8 @@ def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: 
 
 
 def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, lang: str,
-            checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False) -> Job:
+            checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False,
+            heading: str = DEFAULT_HEADING) -> Job:
     """Insert (and flush, not commit) a queued job of session ``session_id`` of clinic ``clinic_id`` (module
     docstring for the rules); raises :class:`app.store.errors.NotFound`, :class:`Busy`, :class:`NotReady`
     or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check)."""
@@ -71,7 +73,7 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
         raise NotReady(session.ingestion.get("error") if ingestion_fresh(session) else None)
     if unless_current and (done := current_analysis(db, session, filter_name, lang)) is not None:
         raise UpToDate(done)
-    job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang,
+    job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, heading=heading,
               log=list(log_lines), stage="queued", pipeline_version=PIPELINE_VERSION)
     db.add(job)
     db.flush()

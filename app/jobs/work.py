@@ -284,7 +284,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                         .order_by(Recording.id)))
             s.expunge_all()
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
-        options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task)
+        options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading)
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             loaded = load_session(folder)
             outcome = process_session(loaded, options,

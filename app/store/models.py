@@ -167,6 +167,8 @@ class Job(Base):
     log: Mapped[list] = mapped_column(JSON, default=list)
     filter: Mapped[str] = mapped_column(String(40))
     lang: Mapped[str] = mapped_column(String(2), default="es")
+    #: the thigh–shank heading asked for (app.choices.HEADINGS), handed to the pipeline as ProcessOptions.heading
+    heading: Mapped[str] = mapped_column(String(20), default="auto", server_default="auto")
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     analysis_id: Mapped[int | None] = mapped_column(Integer, nullable=True)  # no FK: analyses point back here
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)

@@ -352,12 +352,14 @@ function processStep(ctx) {
   // both menus come from GET /options (app/choices.py): the filters of the estimator registry, the reports' languages
   const filter = h("select", { name: "filter" });
   const language = h("select", { name: "lang" });
+  const headingSelect = h("select", { name: "heading" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
     t("wizard.process"));
   const form = h("form", { class: "card form-grid process-form" },
     field(t("wizard.filter"), filter, t("wizard.filter_hint"))[0],
     field(t("wizard.report_language"), language, t("wizard.report_language_hint"))[0],
+    field(t("wizard.heading"), headingSelect, t("wizard.heading_hint"))[0],
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, processButton));
   if (!ingestion.ok) {
@@ -368,6 +370,7 @@ function processStep(ctx) {
   options().then((opts) => {
     fillSelect(filter, "filter", opts.filters);
     fillSelect(language, "lang", opts.languages, lang());
+    fillSelect(headingSelect, "heading", opts.headings);
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {
@@ -375,7 +378,7 @@ function processStep(ctx) {
     clear(message);
     processButton.disabled = true;
     try {
-      const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value } });
+      const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value } });
       showProgress(ctx, answer.job_id);
     } catch (err) {
       message.append(alertBox(errorText(err)));

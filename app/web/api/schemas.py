@@ -14,8 +14,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.choices import (DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES,
-                         USER_ROLE_NAMES)
+from app.choices import (DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
+                         SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
 
@@ -25,6 +25,7 @@ Side = Literal[SIDE_NAMES]  # type: ignore[valid-type]
 RoleName = Literal[USER_ROLE_NAMES]  # type: ignore[valid-type]
 TaskName = Literal[TASK_NAMES]  # type: ignore[valid-type]
 FilterName = Literal[FILTER_NAMES]  # type: ignore[valid-type]
+HeadingName = Literal[HEADING_NAMES]  # type: ignore[valid-type]
 #: a patient's sex as FHIR's administrative gender takes it
 SEXES = ("male", "female", "other", "unknown")
 Sex = Literal[SEXES]  # type: ignore[valid-type]
@@ -68,6 +69,7 @@ class SessionIn(_In):
 class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
+    heading: HeadingName = DEFAULT_HEADING
 
 
 class OptionOut(BaseModel):
@@ -88,6 +90,7 @@ class OptionsOut(BaseModel):
     languages: list[OptionOut]
     calibrations: list[OptionOut]
     angle_conventions: list[OptionOut]
+    headings: list[OptionOut]
     sides: list[OptionOut]
 
 

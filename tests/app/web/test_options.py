@@ -29,7 +29,7 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     r = client.get("/api/v1/options", headers=clinic_token(settings, "C", role="read_only"))
     assert r.status_code == 200, r.text
     body = r.json()
-    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "sides"}
+    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides"}
     for key, items in body.items():
         assert [i["name"] for i in items] == list(choices.names(choices.OPTION_LISTS[key])), key
         assert sum(i["default"] for i in items) == 1, f"{key}: exactly one default"
@@ -84,3 +84,20 @@ def test_the_openapi_document_lists_the_filters_and_tasks(client):
     enum = next(s["enum"] for s in filt["anyOf"] if "enum" in s)
     assert tuple(enum) == choices.FILTER_NAMES
     assert tuple(schemas["SessionIn"]["properties"]["task"]["enum"]) == choices.TASK_NAMES
+
+
+def test_the_heading_chosen_in_a_processing_request_reaches_the_results(client, settings, demo_dir):
+    """``POST /process {"heading": ...}`` (issue 13 §2: selectable in the API and the UI as on the CLI): the job runs
+    with it and results.json says so; a heading the server does not know is refused with the valid ones."""
+    from web_helpers import clinic_token, demo_files, new_session, wait_job
+
+    h = clinic_token(settings, "C")
+    _, sid = new_session(client, h)
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h).status_code == 201
+    r = client.post(f"/api/v1/sessions/{sid}/process", json={"heading": "compass"}, headers=h)
+    assert r.status_code == 422 and all(repr(x) in r.json()["detail"] for x in choices.HEADING_NAMES), r.text
+    r = client.post(f"/api/v1/sessions/{sid}/process", json={"heading": "constraint", "lang": "en"}, headers=h)
+    assert r.status_code == 202, r.text
+    assert wait_job(client, r.json()["job_id"], h)["status"] == "done"
+    results = client.get(f"/api/v1/sessions/{sid}/results", headers=h).json()
+    assert results["quality"]["heading"]["mode"] == "constraint" and results["quality"]["heading"]["used"] == "constraint"
