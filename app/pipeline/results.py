@@ -30,6 +30,10 @@ from reports.model import Patient, ReportInput
 from app.pipeline.session import SessionOutcome
 
 
+#: segment calibrations made without the supine posture (estimators.functional)
+NO_SUPINE_METHODS = ("standing_functional", "task_functional")
+
+
 def _deg(x: Any) -> Any:
     """Degrees of a number, an array or a nested mapping of them (None stays None)."""
     if isinstance(x, Mapping):
@@ -78,7 +82,10 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
                     "angle_between_postures_deg": np.rad2deg(cal.angle_between_postures_rad),
                     "gyr_bias_deg_s": np.rad2deg(cal.gyr_bias_rad_s),
                     "standing_window_s": [cal.standing.start_s, cal.standing.start_s + cal.standing.duration_s],
-                    "supine_window_s": [cal.supine.start_s, cal.supine.start_s + cal.supine.duration_s],
+                    # without a supine recording (standing/task functional) there is no supine window: the
+                    # standing field then holds the straight window used (of the standing or the task recording)
+                    "supine_window_s": None if cal.method in NO_SUPINE_METHODS else
+                    [cal.supine.start_s, cal.supine.start_s + cal.supine.duration_s],
                 }
                 for seg, cal in outcome.segments.items()
             },

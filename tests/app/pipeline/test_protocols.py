@@ -49,7 +49,9 @@ def test_without_the_supine_posture_the_hinge_axes_calibrate(truth, tmp_path):
     outcome = _process(truth, tmp_path, ("mag_calibration", "standing", "task"))
     assert {cal.method for cal in outcome.segments.values()} == {"standing_functional"}
     assert "no_lying" in {w.params.get("variant") for w in outcome.warnings if w.code == "ingestion_note"}
-    assert build_results(outcome)["calibration"]["protocol"]["segment"] == "standing_functional"
+    r = build_results(outcome)
+    assert r["calibration"]["protocol"]["segment"] == "standing_functional"
+    assert all(s["supine_window_s"] is None for s in r["calibration"]["segment"].values())  # none was recorded
     acc = accuracy(outcome, truth)
     assert acc["rmse_deg"]["flexion"] <= 1.0 and acc["rmse_deg"]["adduction"] <= 2.0, acc
     assert acc["rmse_deg"]["internal_rotation"] <= 2.0 and acc["cycles_found"] == acc["cycles_true"], acc
