@@ -18,7 +18,8 @@ def test_swapped_sensors_fail_the_job_with_a_sentence(client, settings, demo_dir
     assert any("session.json" in m for m in r.json()["ingestion"]["messages"])
     job = wait_job(client, client.post(f"/api/v1/sessions/{sid}/process", json={}, headers=h).json()["job_id"], h)
     assert job["status"] == "failed" and job["analysis_id"] is None
-    assert "Check which recordings belong to which segment" in job["error"]
+    # the diagnosis names the cause a clinician can fix (estimators.diagnosis: sensors_swapped), not a guess
+    assert "are swapped. Check which recording belongs to which segment" in job["error"], job["error"]
     assert "Traceback" not in " ".join(job["log"])  # a data problem, not a crash
     s = client.get(f"/api/v1/sessions/{sid}", headers=h).json()
     assert s["status"] == "failed" and s["analyses"] == []
