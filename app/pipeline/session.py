@@ -202,6 +202,7 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         raise PipelineError(
             f"{session.folder}: the side under study is not known; pass --side right|left or add "
             '"side" to session.json')
+    warnings += _provenance(session, side, overridden=options.side is not None)
     filt = make(options.filter_name, **dict(options.filter_params))
 
     thigh, shank = session.task_pair()
@@ -316,6 +317,25 @@ def _heading_choice(mode: str, filt, task: dict, gyr_task: dict[str, FloatArray]
         return choose(six_d())
     choice = choose(None)
     return choose(six_d()) if choice.used == "constraint" else choice
+
+
+def _provenance(session: Session, side: str, *, overridden: bool) -> list[QualityWarning]:
+    """What the files say of themselves against the session (:mod:`app.pipeline.ingestion.provenance`): a recording
+    of the other leg is refused — adduction and rotation would flip sign — unless the side was given explicitly
+    (``--side``: the clinician's override); recordings made on other days than the session, another patient's id
+    in the files, or one sensor on both segments are warned."""
+    from app.pipeline.ingestion.provenance import check_all
+
+    meta = session.metadata
+    warnings = []
+    for f in check_all(session, patient_side=side, patient_id=meta.value("patient_id"), session_date=meta.value("date")):
+        if f.severity == "refuse" and not overridden:
+            raise PipelineError(f.message("en"))
+        # a translatable word ({"code": "word.left"}) becomes the word, which the reports translate (warning.term.*)
+        params = {k: v["code"].removeprefix("word.") if isinstance(v, dict) and "code" in v else v
+                  for k, v in f.as_dict()["params"].items()}
+        warnings.append(QualityWarning(f.code, f.message("en"), params))
+    return warnings
 
 
 def _protocol(roles: set[str]) -> str:
