@@ -218,6 +218,80 @@ def _split_residuals(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t
     return out, last
 
 
+def _split_rss_kernel(t_s, yy, f0, t_end, t1, t0):  # pragma: no cover - compiled by numba (tested against numpy)
+    """The residual of :func:`_split_residuals` per candidate pair, one pair at a time: the 4×4 normal equations
+    accumulated over the samples and solved by Gaussian elimination (the same ridge), no (C, N, 4) arrays."""
+    n_c, n = t1.shape[0], t_s.shape[0]
+    out = np.empty(n_c)
+    yy2 = 0.0
+    for k in range(n):
+        yy2 += yy[k] * yy[k]
+    x = np.empty(4)
+    for c in range(n_c):
+        a1, a0 = t1[c], t0[c]
+        g = np.zeros((4, 4))
+        b = np.zeros(4)
+        for k in range(n):
+            t = t_s[k]
+            tau = min(max((t - f0) / (a1 - f0), 0.0), 1.0)
+            m1 = tau * tau * tau * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+            fall = t < a1
+            x_f = 1.0 - m1 if fall else 0.0
+            if t >= a0:
+                tp = min(max((t - a0) / (t_end - a0), 0.0), 1.0)
+                x_p = tp * tp * tp * (10.0 - 15.0 * tp + 6.0 * tp * tp)
+            else:
+                x_p = 0.0
+            x[0], x[1], x[2] = x_f, 1.0 - x_f - x_p, x_p
+            x[3] = (a1 - a0) * m1 if fall else (t - a0 if t < a0 else 0.0)
+            for i in range(4):
+                b[i] += x[i] * yy[k]
+                for j in range(4):
+                    g[i, j] += x[i] * x[j]
+        for i in range(4):
+            g[i, i] += 1e-9
+        sol = b.copy()
+        a = g.copy()
+        for i in range(4):  # Gaussian elimination with partial pivoting (4×4, symmetric positive definite)
+            p = i
+            for r in range(i + 1, 4):
+                if abs(a[r, i]) > abs(a[p, i]):
+                    p = r
+            if p != i:
+                for j in range(4):
+                    a[i, j], a[p, j] = a[p, j], a[i, j]
+                sol[i], sol[p] = sol[p], sol[i]
+            for r in range(i + 1, 4):
+                f = a[r, i] / a[i, i]
+                for j in range(i, 4):
+                    a[r, j] -= f * a[i, j]
+                sol[r] -= f * sol[i]
+        for i in range(3, -1, -1):
+            s = sol[i]
+            for j in range(i + 1, 4):
+                s -= a[i, j] * sol[j]
+            sol[i] = s / a[i, i]
+        out[c] = yy2 - (b[0] * sol[0] + b[1] * sol[1] + b[2] * sol[2] + b[3] * sol[3])
+    return out
+
+
+_RSS = None
+
+
+def split_rss(t_s: FloatArray, yy: FloatArray, f0: float, t_end: float, t1: FloatArray, t0: FloatArray) -> FloatArray:
+    """Residual sums of squares of the D5c model for candidate pairs: :func:`_split_rss_kernel` compiled with numba
+    (cached on disk; imported on first use), equal to :func:`_split_residuals`' first result (the readable
+    reference, which the tests compare it with)."""
+    global _RSS
+    if _RSS is None:
+        import numba
+
+        _RSS = numba.njit(cache=True, nogil=True)(_split_rss_kernel)
+    f = np.ascontiguousarray
+    return _RSS(f(t_s, dtype=np.float64), f(yy, dtype=np.float64), float(f0), float(t_end),
+                f(t1, dtype=np.float64), f(t0, dtype=np.float64))
+
+
 def split_levels(y: FloatArray, f0: float, t_end: float, t1: float, t0: float) -> FloatArray:
     """(F, L, P, b): far, rest (at the onset) and peak levels and the rest's drift (per sample) of the D5c model
     fitted with the given ``t1``, ``t0``."""
@@ -259,7 +333,7 @@ def fit_split(y: FloatArray, f0: float, t_end: float, fs_hz: float, min_pause: f
         t1v, t0v = t1g[keep], t0g[keep]
         if len(t1v) == 0:
             return float("nan"), float("nan"), float("nan")
-        res = _split_residuals(idx[::sub], y[i0:i1 + 1:sub], f0, t_end, t1v, t0v)[0]
+        res = split_rss(idx[::sub], y[i0:i1 + 1:sub], f0, t_end, t1v, t0v)
         j = int(np.argmin(res))
         return float(t1v[j]), float(t0v[j]), float(res[j])
 
@@ -285,7 +359,7 @@ def fit_split(y: FloatArray, f0: float, t_end: float, fs_hz: float, min_pause: f
         c = np.arange(min(t1, t0) - 2 * step, max(t1, t0) + 2 * step + 1, dtype=np.float64)
         c = c[(c > f0 + 1.0) & (c < t_end - 1.0)]
         if len(c):
-            res_c = _split_residuals(idx, y[i0:i1 + 1], f0, t_end, c, c)[0]
+            res_c = split_rss(idx, y[i0:i1 + 1], f0, t_end, c, c)
             j = int(np.argmin(res_c))
             n_s = len(idx)
             if t0 - t1 < min_pause or res_c[j] - res < 2.0 * np.log(n_s) * res / max(n_s - 6, 1):

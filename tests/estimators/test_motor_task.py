@@ -371,3 +371,16 @@ def test_bad_input():
     with pytest.raises(ValueError, match="consecutive"):
         TaskSpec("x", "flexion", False, (PhaseSpec("a", "onset", "far_reached"),
                                          PhaseSpec("b", "far_left", "rest_reached")), "top")
+
+
+def test_the_compiled_split_residuals_equal_the_numpy_reference():
+    """detection.split_rss (numba) against detection._split_residuals (numpy) on a noisy fall–rest–impulse."""
+    from estimators.motor_task import detection
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 240.0)
+    y = np.interp(t, [0, 60, 110, 240], [1.0, 0.1, 0.12, 1.3]) + rng.normal(scale=0.01, size=t.size)
+    t1 = rng.uniform(20, 120, 300)
+    t0 = t1 + rng.uniform(0, 80, 300)
+    ref = detection._split_residuals(t, y, 5.0, 235.0, t1, t0)[0]
+    np.testing.assert_allclose(detection.split_rss(t, y, 5.0, 235.0, t1, t0), ref, rtol=1e-9, atol=1e-9)
