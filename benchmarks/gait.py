@@ -54,16 +54,16 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
+from benchmarks.walking import leg_sensors
 from estimators import knee
 from estimators import quaternion as quat
 from estimators.motor_task.gait_events import GaitEventParams
 from estimators.motor_task.tasks import gait as gait_task
 from estimators.orientation import DEFAULT_METHOD, estimate
-from estimators.simulation import ImuSpec, MagErrors, gait
+from estimators.simulation import gait
 
 FS_HZ = 100.0
 EVENT_GOAL_MS, CURVE_GOAL_DEG, PARAM_GOAL_DEG = 20.0, 1.5, 2.0
@@ -87,12 +87,7 @@ def legs(seed: int, n_strides: int = 20) -> list[dict]:
     out = []
     for side in ("right", "left"):
         leg = walk.leg(side)
-        mounts = gait.lateral_mounting(side, np.deg2rad(15.0), seed=rng)
-        specs = [replace(ImuSpec.random(rng), mag=MagErrors.noise_only()) for _ in range(2)]
-        imus = gait.simulate_leg(leg, specs[0], specs[1], q_thigh_sensor=mounts[0], q_shank_sensor=mounts[1],
-                                 seed=int(rng.integers(2**31)))
-        grids = [imu.on_grid() for imu in imus]
-        n = min(len(g.t_s) for g in grids)
+        grids, mounts, n = leg_sensors(leg, side, rng)
         out.append({"seed": seed, "side": side, "leg": leg, "walk": walk, "t_true_s": grids[0].t_true_s[:n],
                     "acc": [g.acc[:n] for g in grids], "gyr": [g.gyr[:n] for g in grids],
                     "mag": [g.mag[:n] for g in grids], "q_true": [g.q_earth_sensor[:n] for g in grids],

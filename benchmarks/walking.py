@@ -79,6 +79,18 @@ class LegClip:
     info: dict
 
 
+def leg_sensors(leg, side: str, rng: np.random.Generator):
+    """Thigh and shank sensors of one leg as the walking benchmarks strap them: lateral mounts with up to 15°
+    misalignment, MetaMotion-like errors with a factory-calibrated magnetometer; ``(grids, mounts, n)`` with both
+    grids cut to their common length ``n``."""
+    mounts = gait.lateral_mounting(side, np.deg2rad(15.0), seed=rng)
+    specs = [replace(ImuSpec.random(rng), mag=MagErrors.noise_only()) for _ in range(2)]
+    imus = gait.simulate_leg(leg, specs[0], specs[1], q_thigh_sensor=mounts[0], q_shank_sensor=mounts[1],
+                             seed=int(rng.integers(2**31)))
+    grids = [imu.on_grid() for imu in imus]
+    return grids, mounts, min(len(g.t_s) for g in grids)
+
+
 def clip(seed: int) -> list[LegClip]:
     """Both legs of the walk drawn by ``seed`` (module docstring)."""
     rng = np.random.default_rng([20261201, seed])
@@ -93,12 +105,7 @@ def clip(seed: int) -> list[LegClip]:
     out = []
     for side in ("right", "left"):
         leg = walk.leg(side)
-        mounts = gait.lateral_mounting(side, np.deg2rad(15.0), seed=rng)
-        specs = [replace(ImuSpec.random(rng), mag=MagErrors.noise_only()) for _ in range(2)]
-        imus = gait.simulate_leg(leg, specs[0], specs[1], q_thigh_sensor=mounts[0], q_shank_sensor=mounts[1],
-                                 seed=int(rng.integers(2**31)))
-        grids = [imu.on_grid() for imu in imus]
-        n = min(len(g.t_s) for g in grids)
+        grids, mounts, n = leg_sensors(leg, side, rng)
         t_true = grids[0].t_true_s[:n]
         segs = ("thigh", "shank")
         out.append(LegClip(

@@ -215,6 +215,25 @@ def reject_cycles(curves: FloatArray, candidates: NDArray[np.bool_], p: MotorTas
         acc[idx[worst]] = False
 
 
+def checked_inputs(angles_rad: ArrayLike, fs_hz: float, params: MotorTaskParams
+                   ) -> tuple[FloatArray, float, MotorTaskParams]:
+    """Every task analysis' inputs, validated: ``(angles (N, 3) float64, fs_hz float, params)``; a (N,) array is
+    taken as flexion only.  TypeError for params of another type, ValueError for a wrong shape, non-finite
+    angles or a rate that is not a positive number."""
+    if not isinstance(params, MotorTaskParams):
+        raise TypeError(f"params must be a MotorTaskParams, got {type(params).__name__}")
+    a = np.asarray(angles_rad, dtype=np.float64)
+    if a.ndim == 1:
+        a = np.column_stack([a, np.zeros_like(a), np.zeros_like(a)])
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"angles_rad must have shape (N, 3) (flexion, adduction, internal rotation), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("angles_rad contains NaN or infinite values; interpolate or trim them before the analysis")
+    if not (isinstance(fs_hz, (int, float, np.integer, np.floating)) and math.isfinite(fs_hz) and fs_hz > 0):
+        raise ValueError(f"fs_hz must be a positive sampling rate in Hz, got {fs_hz!r}")
+    return a, float(fs_hz), params
+
+
 def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = "step_up",
                  params: MotorTaskParams | None = None, t0_s: float = 0.0,
                  inputs: Mapping[str, Any] | None = None) -> TaskAnalysis:
@@ -242,19 +261,7 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
             params = getattr(mod, "PARAMS", None)
     else:
         spec = get_task(task)
-    p = MotorTaskParams() if params is None else params
-    if not isinstance(p, MotorTaskParams):
-        raise TypeError(f"params must be a MotorTaskParams, got {type(p).__name__}")
-    a = np.asarray(angles_rad, dtype=np.float64)
-    if a.ndim == 1:
-        a = np.column_stack([a, np.zeros_like(a), np.zeros_like(a)])
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"angles_rad must have shape (N, 3) (flexion, adduction, internal rotation), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError("angles_rad contains NaN or infinite values; interpolate or trim them before the analysis")
-    if not (isinstance(fs_hz, (int, float, np.integer, np.floating)) and math.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"fs_hz must be a positive sampling rate in Hz, got {fs_hz!r}")
-    fs_hz = float(fs_hz)
+    a, fs_hz, p = checked_inputs(angles_rad, fs_hz, MotorTaskParams() if params is None else params)
     n_pts, n_ph = int(p.n_points), len(spec.phases)
     flex = lowpass(a[:, 0], fs_hz, p.lowpass_hz) if len(a) else a[:, 0]
     span = task_span(flex, fs_hz, p) if len(a) > 1 else None

@@ -189,24 +189,14 @@ def analyse(angles_rad, fs_hz: float, *, params: MotorTaskParams | None = None, 
     import numpy as np
 
     from estimators.motor_task import ANGLES
-    from estimators.motor_task.analysis import RejectedCycle, normalise_cycles, register_cycles, reject_cycles
+    from estimators.motor_task.analysis import (RejectedCycle, checked_inputs, normalise_cycles, register_cycles,
+                                                 reject_cycles)
     from estimators.motor_task.gait_events import detect_gait_events, sagittal_rate, turning_mask, yaw_rate
     from estimators.quality import QualityWarning
 
-    p = PARAMS if params is None else params
-    if not isinstance(p, MotorTaskParams):
-        raise TypeError(f"params must be a MotorTaskParams, got {type(p).__name__}")
+    a, fs_hz, p = checked_inputs(angles_rad, fs_hz, PARAMS if params is None else params)
     ep = GaitEventParams() if event_params is None else event_params
-    a = np.asarray(angles_rad, dtype=np.float64)
-    if a.ndim == 1:
-        a = np.column_stack([a, np.zeros_like(a), np.zeros_like(a)])
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"angles_rad must have shape (N, 3) (flexion, adduction, internal rotation), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError("angles_rad contains NaN or infinite values; interpolate or trim them before the analysis")
-    if not (isinstance(fs_hz, (int, float, np.integer, np.floating)) and math.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"fs_hz must be a positive sampling rate in Hz, got {fs_hz!r}")
-    fs_hz, n = float(fs_hz), len(a)
+    n = len(a)
 
     def same_length(x, name, width):
         x = np.asarray(x, dtype=np.float64)
