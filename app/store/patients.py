@@ -19,6 +19,7 @@ from sqlalchemy import delete, func, or_, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from app.choices import SEX_NAMES, SIDE_NAMES
 from app.store.analyses import find_artefact, latest_analysis, supersede
 from app.store.blobs import BlobStore
 from app.store.erasure import session_blobs
@@ -30,6 +31,22 @@ from app.store.sessions import check_version, delete_sessions, patient_sessions,
 CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg", "notes")
 #: those the processing reads or the reports print (a change supersedes the patient's analyses)
 PROCESSED_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg")
+#: open ranges a corrected number must fall in (the API's schema enforces the same at the edge; the operator's
+#: CLI reaches the store directly)
+RANGES = {"height_cm": (30.0, 260.0), "mass_kg": (2.0, 400.0)}
+
+
+def check_values(values: dict[str, Any], ranges: dict[str, tuple[float, float]],
+                 choices: dict[str, tuple[str, ...]]) -> None:
+    """:class:`Invalid` for a number outside its open range or a value outside its choices (None passes)."""
+    for key, (lo, hi) in ranges.items():
+        v = values.get(key)
+        if v is not None and not lo < float(v) < hi:
+            raise Invalid(f"{key} {v} is out of range; give a value between {lo:g} and {hi:g}.")
+    for key, allowed in choices.items():
+        v = values.get(key)
+        if v is not None and v not in allowed:
+            raise Invalid(f"{key} {v!r} is unknown; use one of {', '.join(allowed)}.")
 
 
 def clinic_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
@@ -99,6 +116,7 @@ def correct_patient(db: Session, clinic_id: int, patient_id: int, values: dict[s
     for required in ("external_id", "side"):
         if required in values and values[required] is None:
             raise Invalid(f"{required} cannot be empty; give a value.")
+    check_values(values, RANGES, {"side": SIDE_NAMES, "sex": SEX_NAMES})
     patient = _lock_patient(db, clinic_id, patient_id)
     check_version("Patient", patient.id, patient.version, expected_version)
     changed = [k for k, v in values.items() if getattr(patient, k) != v]
@@ -157,5 +175,5 @@ def rom_trend(db: Session, store: BlobStore, patient_id: int) -> list[dict[str, 
     return points
 
 
-__all__ = ["CORRECTABLE_FIELDS", "PROCESSED_FIELDS", "add_patient", "clinic_patient", "correct_patient",
+__all__ = ["CORRECTABLE_FIELDS", "PROCESSED_FIELDS", "RANGES", "check_values", "add_patient", "clinic_patient", "correct_patient",
            "delete_patient", "rom_trend", "search_patients"]

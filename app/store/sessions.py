@@ -26,6 +26,7 @@ from typing import Any
 from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
+from app.choices import TASK_NAMES
 from app.store.analyses import supersede
 from app.store.erasure import session_blobs
 from app.store.errors import Conflict, Invalid, NotFound, PreconditionFailed
@@ -179,6 +180,11 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
     for required in ("date", "task"):
         if required in values and values[required] is None:
             raise Invalid(f"{required} cannot be empty; give a value.")
+    step = values.get("step_height_m")
+    if step is not None and not 0 < float(step) < 1:
+        raise Invalid(f"step_height_m {step} is out of range; give the step's height in metres (e.g. 0.17).")
+    if values.get("task") is not None and values["task"] not in TASK_NAMES:
+        raise Invalid(f"task {values['task']!r} is unknown; use one of {', '.join(TASK_NAMES)}.")
     session = clinic_session(db, clinic_id, session_id, lock=True)
     check_version("Session", session.id, session.version, expected_version)
     refuse_while_processing(db, session.id, "correct it")

@@ -15,7 +15,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.choices import (DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
-                         SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
+                         SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
 
@@ -26,8 +26,7 @@ RoleName = Literal[USER_ROLE_NAMES]  # type: ignore[valid-type]
 TaskName = Literal[TASK_NAMES]  # type: ignore[valid-type]
 FilterName = Literal[FILTER_NAMES]  # type: ignore[valid-type]
 HeadingName = Literal[HEADING_NAMES]  # type: ignore[valid-type]
-#: a patient's sex as FHIR's administrative gender takes it
-SEXES = ("male", "female", "other", "unknown")
+SEXES = SEX_NAMES  # a patient's sex as FHIR's administrative gender takes it (app.choices)
 Sex = Literal[SEXES]  # type: ignore[valid-type]
 
 
