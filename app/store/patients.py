@@ -99,7 +99,10 @@ def _lock_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
 
 
 def _refuse_while_any_processing(db: Session, patient_id: int, what: str) -> list[int]:
-    ids = list(db.scalars(select(KneeSession.id).where(KneeSession.patient_id == patient_id)))
+    """The patient's session ids, their rows locked (PostgreSQL: an upload or a processing request to one of them
+    waits, as for :func:`app.store.sessions.clinic_session`); :class:`app.store.sessions.Busy` if a job of one is active."""
+    ids = list(db.scalars(select(KneeSession.id).where(KneeSession.patient_id == patient_id)
+                          .order_by(KneeSession.id).with_for_update()))
     for sid in ids:
         refuse_while_processing(db, sid, what)
     return ids
