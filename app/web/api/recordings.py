@@ -280,7 +280,8 @@ def _delete(request: Request, principal, session_id: int, recording_id: int) -> 
                             patient_id=session.patient_id, session_id=session.id, audit_event_id=event.id)
 
 
-@router.delete("/{session_id}/recordings/{recording_id}", status_code=204, responses=ERRORS)
+@router.delete("/{session_id}/recordings/{recording_id}", status_code=204,
+               responses={k: v for k, v in ERRORS.items() if k != 412})
 def delete_recording(session_id: int, recording_id: int, principal: Clinician, request: Request) -> Response:
     """Remove one recording from the session: its stored file is erased unless another recording or report
     has the same content, and the session's analyses become superseded (no longer its final report; process
