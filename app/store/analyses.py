@@ -23,11 +23,11 @@ from app.store.models import Analysis, Artefact, KneeSession, utcnow
 class SupersededResults(Conflict):
     """The session's latest analysis was computed from recordings or facts that have changed since."""
 
-    def __init__(self, session_id: int, analysis: Analysis) -> None:
+    def __init__(self, session_id: int, analysis: Analysis, readable_by_id: bool = True) -> None:
+        tail = (f", or ask for analysis_id={analysis.id} to see the superseded report" if readable_by_id else "")
         super().__init__(f"The results of session {session_id} were computed from recordings or details that have "
                          f"changed since (analysis {analysis.id}, superseded "
-                         f"{analysis.superseded_at:%Y-%m-%d %H:%M} UTC); process the session again, or ask for "
-                         f"analysis_id={analysis.id} to see the superseded report.")
+                         f"{analysis.superseded_at:%Y-%m-%d %H:%M} UTC); process the session again{tail}.")
         self.code = "superseded"
         self.analysis_id = analysis.id
 

@@ -107,6 +107,8 @@ def test_deleting_a_recording_of_a_processed_session_supersedes_its_reports(worl
     assert r.status_code == 200 and r.headers["X-Analysis-Status"] == "superseded"
     assert "-superseded.pdf" in r.headers["content-disposition"]
     assert c.get(f"/api/v1/fhir/DiagnosticReport/{sid}", headers=a).status_code == 409
+    r = c.get(f"/api/v1/fhir/DiagnosticReport/{sid}", params={"analysis_id": aid}, headers=a)
+    assert r.status_code == 409 and "analysis_id" not in r.json()["detail"]  # not exportable by id either
     assert c.get(f"/api/v1/patients/{pid}/trend", headers=a).json()["points"] == []  # not in the trend either
 
 
