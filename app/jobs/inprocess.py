@@ -16,7 +16,7 @@ time — the first one's jobs.  Several processes or machines need the distribut
 (``CHAKAMO_JOB_BACKEND=celery``, :mod:`app.jobs.celery_engine`).  Holding the lock, ``start()`` also removes what a
 crashed server left behind: its temporary ``session-*`` folders and unfinished uploads
 (``blobs/.incoming/up-*``).  Periodic housekeeping the application hands in (``housekeeping``: the erasure
-sweep and the retention policy, :func:`app.web.api.erase.housekeeping`) runs once after start-up and then
+sweep and the retention policy, :func:`app.web.housekeeping.housekeeping`) runs once after start-up and then
 every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the running jobs and says whether they all stopped; the
 application disposes the database only then.
 """

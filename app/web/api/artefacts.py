@@ -20,8 +20,8 @@ from fastapi.responses import Response
 from app.store.analyses import artefact, pick_analysis
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
-from app.web.api.results import STATUS_HEADER, analysis_status
 from app.web.api.schemas import Lang
+from app.web.records import STATUS_HEADER, analysis_status
 
 router = APIRouter(prefix="/sessions", tags=["artefacts"])
 

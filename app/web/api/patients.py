@@ -9,7 +9,7 @@ database's unique constraint decides; the loser gets the same 409, never a 500).
 Correction and erasure: ``PATCH /patients/{id}`` (clinician: the people who type a patient's details correct
 their typos) changes the fields sent and supersedes the patient's analyses when a field the reports print
 changed (:mod:`app.store.patients`); ``DELETE /patients/{id}`` (admin only: it cascades to every session,
-recording, analysis and stored file of the patient) needs ``If-Match`` (:mod:`.erase`).  Both are audited
+recording, analysis and stored file of the patient) needs ``If-Match`` (:mod:`app.web.records`).  Both are audited
 (``update`` / ``delete``) in the transaction that makes the change; the deletion's event and the
 ``blob_erasures`` rows it links to outlive the patient.
 """
@@ -21,7 +21,7 @@ from fastapi import APIRouter, Query, Request, Response
 from app.store import erasure, patients, sessions
 from app.web import audit
 from app.web.api.deps import Admin, Clinician, DbDep, Reader, StoreDep, scoped_patient
-from app.web.api.erase import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
+from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
 from app.web.api.schemas import (PatientIn, PatientOut, PatientPatch, SessionIn, SessionOut, SessionSummaryOut,
                                  TrendOut, patient_out, session_out, summaries)
 

@@ -52,7 +52,7 @@ from app.store.recordings import MANIFEST
 from app.store.sessions import clinic_session, refuse_while_processing
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
-from app.web.api.erase import ERRORS, erase_now
+from app.web.records import ERRORS, erase_now
 from app.web.api.schemas import UploadOut, recording_out
 
 log = logging.getLogger("chakamo.uploads")

@@ -14,15 +14,9 @@ from fastapi.responses import Response
 from app.store.analyses import artefact, pick_analysis
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
-from app.web.api.erase import ERRORS
+from app.web.records import ERRORS, STATUS_HEADER, analysis_status
 
 router = APIRouter(prefix="/sessions", tags=["results"])
-#: the header naming an answered analysis ``current`` or ``superseded``
-STATUS_HEADER = "X-Analysis-Status"
-
-
-def analysis_status(analysis) -> str:
-    return "current" if analysis.superseded_at is None else "superseded"
 
 
 @router.get("/{session_id}/results", responses={200: {"content": {"application/json": {}}},

@@ -6,7 +6,7 @@ should have stored it died) is checked again here before it is answered
 Each read is audited (``view``, :mod:`app.web.audit`): the answer lists the session's recordings, so this is
 also the audit of the recordings list.
 
-Correction and erasure, as for patients (:mod:`.patients`, :mod:`.erase`): ``PATCH /sessions/{id}``
+Correction and erasure, as for patients (:mod:`.patients`, :mod:`app.web.records`): ``PATCH /sessions/{id}``
 (clinician) corrects the session's facts — every one goes into its manifest, so a change supersedes its
 analyses and redoes its ingestion check; ``DELETE /sessions/{id}`` (admin; ``If-Match`` required) erases the
 session with its recordings, jobs, analyses, reports and the stored files no other row names.  Both answer 409
@@ -19,7 +19,7 @@ from app.store import erasure
 from app.store.sessions import correct_session, delete_session, session_analyses, session_jobs
 from app.web import audit
 from app.web.api.deps import Admin, CheckerDep, Clinician, DbDep, Reader, scoped_session
-from app.web.api.erase import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
+from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
 from app.web.api.schemas import SessionOut, SessionPatch, session_out
 
 router = APIRouter(prefix="/sessions", tags=["sessions"])

@@ -1,5 +1,6 @@
-"""What the correcting and erasing routes share: ``If-Match`` versions, their OpenAPI error answers, and the
-erasure of the blobs a deletion left unreferenced.
+"""What the correcting and erasing routes of :mod:`app.web.api` share (kept out of the routers, which stay
+leaves): ``If-Match`` versions, their OpenAPI error answers, the erasure of the blobs a deletion left
+unreferenced, and the header naming an answered analysis current or superseded.
 
 Versions: a patient's and a session's answers carry ``ETag: "<version>"`` (the row's ``version``, bumped by
 every correction).  ``PATCH`` takes an optional ``If-Match`` (a stale one answers 412: someone corrected the row
@@ -66,4 +67,12 @@ def erase_now(request: Request, ids: list[int]) -> None:
         log.exception("erasure of %d stored files deferred to the sweep", len(ids))
 
 
-__all__ = ["DELETE_ERRORS", "ERRORS", "erase_now", "etag", "if_match"]
+#: the header naming an answered analysis ``current`` or ``superseded`` (results and downloads)
+STATUS_HEADER = "X-Analysis-Status"
+
+
+def analysis_status(analysis) -> str:
+    return "current" if analysis.superseded_at is None else "superseded"
+
+
+__all__ = ["DELETE_ERRORS", "ERRORS", "STATUS_HEADER", "analysis_status", "erase_now", "etag", "if_match"]
