@@ -78,6 +78,8 @@ CALIBRATION_NAMES = names(CALIBRATIONS)
 HEADING_NAMES = names(HEADINGS)
 ANGLE_CONVENTION_NAMES = names(ANGLE_CONVENTIONS)
 SIDE_NAMES = names(SIDES)
+#: a patient's sex as FHIR's administrative gender takes it
+SEX_NAMES = ("male", "female", "other", "unknown")
 USER_ROLE_NAMES = names(USER_ROLES)
 
 DEFAULT_FILTER = default(FILTERS)

@@ -19,6 +19,7 @@
 | ``CHAKAMO_MAX_UPLOADS`` | 8 | uploads streamed at the same time (more answer 503: try again) |
 | ``CHAKAMO_RENDER_TIMEOUT_S`` | 300 | longest wait for the render process; then the job thread renders itself |
 | ``CHAKAMO_SESSION_HOURS`` | 12 | browser login lifetime |
+| ``CHAKAMO_RETENTION_DAYS`` | 0 (off) | sessions with no activity for this many days are erased with their files (``chakamo retention``, :mod:`app.store.retention`) |
 
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
 missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
@@ -74,6 +75,7 @@ class Settings(BaseSettings):
     max_uploads: int = Field(8, ge=1, le=256, validation_alias="CHAKAMO_MAX_UPLOADS")
     render_timeout_s: float = Field(300.0, gt=0, validation_alias="CHAKAMO_RENDER_TIMEOUT_S")
     session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
+    retention_days: int = Field(0, ge=0, le=36500, validation_alias="CHAKAMO_RETENTION_DAYS")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")

@@ -52,9 +52,11 @@ function fail(status, body, statusText) {
   throw err;
 }
 
-/** Call the API: `await api("POST", "/patients", {json: {...}})`; returns the parsed JSON (null for 204). */
-export async function api(method, path, { json, query } = {}) {
+/** Call the API: `await api("POST", "/patients", {json: {...}})`; returns the parsed JSON (null for 204).
+ *  `ifMatch`: the version a correction or erasure was based on (sent as `If-Match: "<version>"`). */
+export async function api(method, path, { json, query, ifMatch } = {}) {
   const headers = { Accept: "application/json" };
+  if (ifMatch !== undefined && ifMatch !== null) headers["If-Match"] = `"${ifMatch}"`;
   const init = { method, headers, credentials: "same-origin" };
   if (json !== undefined) {
     headers["Content-Type"] = "application/json";

@@ -30,6 +30,11 @@ export function canEdit() {
   return Boolean(state.user) && state.user.role !== "read_only";
 }
 
+/** Whether the logged-in user is a clinic admin (who may erase patients and sessions). */
+export function isAdmin() {
+  return Boolean(state.user) && state.user.role === "admin";
+}
+
 /** Go to `hash` (re-renders even when it is the current one). */
 export function navigate(hash) {
   if (location.hash === hash) render();

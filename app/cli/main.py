@@ -17,6 +17,8 @@ Subcommands
     The web application and its set-up (``app/cli/admin.py``).
 ``chakamo tokens list|revoke`` / ``users deactivate|set-password``
     Offboarding: list and revoke API tokens, deactivate users, reset passwords (``app/cli/admin.py``).
+``chakamo patients|sessions correct|erase`` / ``retention [--days N] [--apply]``
+    Operator corrections and erasures of patient data, and the retention policy (``app/cli/records.py``).
 ``chakamo migrate`` / ``worker`` / ``reprocess --filter NAME --since DATE``
     The scaled-out deployment: schema upgrade, a Celery worker, a cohort queued again (``app/cli/ops.py``).
 
@@ -36,11 +38,11 @@ _T0 = time.perf_counter()  # the start of `total` in CHAKAMO_TIMINGS (app.pipeli
 import argparse  # noqa: E402
 import sys  # noqa: E402
 
-from app.cli import admin, ops, research, session  # noqa: E402
+from app.cli import admin, ops, records, research, session  # noqa: E402
 from estimators import __version__  # noqa: E402
 
 #: the command groups, in the order ``chakamo --help`` lists them
-GROUPS = (session, research, admin, ops)
+GROUPS = (session, research, admin, records, ops)
 
 
 def _build_parser() -> argparse.ArgumentParser:

@@ -15,7 +15,9 @@ the same database refuses to start with :class:`RunnerLocked`, instead of requeu
 time — the first one's jobs.  Several processes or machines need the distributed backend
 (``CHAKAMO_JOB_BACKEND=celery``, :mod:`app.jobs.celery_engine`).  Holding the lock, ``start()`` also removes what a
 crashed server left behind: its temporary ``session-*`` folders and unfinished uploads
-(``blobs/.incoming/up-*``).  ``shutdown()`` waits for the running jobs and says whether they all stopped; the
+(``blobs/.incoming/up-*``).  Periodic housekeeping the application hands in (``housekeeping``: the erasure
+sweep and the retention policy, :func:`app.web.housekeeping.housekeeping`) runs once after start-up and then
+every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the running jobs and says whether they all stopped; the
 application disposes the database only then.
 """
 
@@ -25,6 +27,8 @@ import logging
 import queue
 import shutil
 import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from sqlalchemy import create_engine, text
@@ -127,10 +131,13 @@ class ThreadJobRunner:
 
     #: seconds between two sweeps (requeue lost jobs, pick up jobs queued by another process)
     SWEEP_EVERY_S = 5.0
+    #: seconds between two housekeeping runs (erasure sweep, retention policy)
+    HOUSEKEEPING_EVERY_S = 3600.0
 
     def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
                  render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
-                 lease_s: float = LEASE_S) -> None:
+                 lease_s: float = LEASE_S, housekeeping: Callable[[], None] | None = None) -> None:
+        self.housekeeping = housekeeping
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
         self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
         self.lease_s = lease_s
@@ -166,8 +173,21 @@ class ThreadJobRunner:
         mark_dispatched(self.db, [job_id])
         self._queue.put(job_id)
 
+    def _housekeep(self) -> None:
+        if self.housekeeping is None:
+            return
+        try:
+            self.housekeeping()
+        except Exception:  # noqa: BLE001 — e.g. the database is restarting: next time
+            log.warning("housekeeping (erasure sweep, retention) failed; trying again later", exc_info=True)
+
     def _sweep_loop(self) -> None:
+        self._housekeep()
+        last = time.monotonic()
         while not self._stop.wait(self.SWEEP_EVERY_S):
+            if time.monotonic() - last >= self.HOUSEKEEPING_EVERY_S:
+                self._housekeep()
+                last = time.monotonic()
             try:
                 # only never-handed jobs: a job handed to this runner's own queue cannot be lost while it lives
                 for job_id in sweep(self.db, self.lease_s, None):

@@ -1,12 +1,44 @@
-"""Analyses and their artefacts (results.json, report.pdf per language, workbooks, scene, time series)."""
+"""Analyses and their artefacts (results.json, report.pdf per language, workbooks, scene, time series).
+
+Superseded analyses: an analysis is computed from a session's recordings and the facts its reports print
+(patient side, name, session date, step height...).  When a recording is deleted or those facts are corrected,
+:func:`supersede` stamps every analysis of the session not yet superseded with ``superseded_at``.  They stay,
+for the record, and can be read by id; but :func:`pick_analysis` no longer gives one as the session's current
+result: asked for the latest, it raises :class:`SupersededResults` (409, "process the session again") when the
+latest is superseded, so no route serves it as the final report by default.  A newer analysis (the session
+processed again) is current again.
+"""
 
 from __future__ import annotations
 
-from sqlalchemy import select
+from collections.abc import Iterable
+
+from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from app.store.errors import NotFound
-from app.store.models import Analysis, Artefact, KneeSession
+from app.store.errors import Conflict, NotFound
+from app.store.models import Analysis, Artefact, KneeSession, utcnow
+
+
+class SupersededResults(Conflict):
+    """The session's latest analysis was computed from recordings or facts that have changed since."""
+
+    def __init__(self, session_id: int, analysis: Analysis, readable_by_id: bool = True) -> None:
+        tail = (f", or ask for analysis_id={analysis.id} to see the superseded report" if readable_by_id else "")
+        super().__init__(f"The results of session {session_id} were computed from recordings or details that have "
+                         f"changed since (analysis {analysis.id}, superseded "
+                         f"{analysis.superseded_at:%Y-%m-%d %H:%M} UTC); process the session again{tail}.")
+        self.code = "superseded"
+        self.analysis_id = analysis.id
+
+
+def supersede(db: Session, session_ids: Iterable[int]) -> int:
+    """Mark every analysis of ``session_ids`` not yet superseded as superseded now; returns how many."""
+    ids = list(session_ids)
+    if not ids:
+        return 0
+    return db.execute(update(Analysis).where(Analysis.session_id.in_(ids), Analysis.superseded_at.is_(None))
+                      .values(superseded_at=utcnow())).rowcount or 0
 
 
 def latest_analysis(db: Session, session_id: int) -> Analysis | None:
@@ -14,8 +46,9 @@ def latest_analysis(db: Session, session_id: int) -> Analysis | None:
 
 
 def pick_analysis(db: Session, session: KneeSession, analysis_id: int | None) -> Analysis:
-    """Analysis ``analysis_id`` of ``session`` (:class:`NotFound` if it is another session's), or its latest
-    one (:class:`NotFound` when it has none yet)."""
+    """Analysis ``analysis_id`` of ``session`` (:class:`NotFound` if it is another session's; a superseded one
+    too: the caller says it is superseded), or its latest one (:class:`NotFound` when it has none yet,
+    :class:`SupersededResults` when the latest is superseded: module docstring)."""
     if analysis_id is not None:
         analysis = db.get(Analysis, analysis_id)
         if analysis is None or analysis.session_id != session.id:
@@ -25,6 +58,8 @@ def pick_analysis(db: Session, session: KneeSession, analysis_id: int | None) ->
     if analysis is None:
         raise NotFound(f"Session {session.id} has no results yet; process it first "
                        f"(POST /api/v1/sessions/{session.id}/process).")
+    if analysis.superseded_at is not None:
+        raise SupersededResults(session.id, analysis)
     return analysis
 
 
@@ -42,4 +77,4 @@ def artefact(db: Session, analysis: Analysis, name: str, lang: str = "") -> Arte
     return row
 
 
-__all__ = ["artefact", "find_artefact", "latest_analysis", "pick_analysis"]
+__all__ = ["SupersededResults", "artefact", "find_artefact", "latest_analysis", "pick_analysis", "supersede"]

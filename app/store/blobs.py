@@ -14,6 +14,13 @@ instead of being served or processed; its message names the blob, never the serv
 :meth:`BlobStore.clear_incoming` removes temporary files a crashed server left behind (the embedded server at
 start-up, before anything writes; a scaled-out API server those older than a day).
 
+Erasure: :meth:`BlobStore.remove` unlinks one blob's file and makes the unlink durable (the folder is fsynced);
+it is called only by :mod:`app.store.erasure`, which decides — under a database lock, from the rows that still
+name the blob — that no reference is left (reference counting, crash-safety and the audit record are there).
+:meth:`BlobStore.stored` lists what is on disk, for the sweep that finds files no row names (left by a crash
+between writing a file and committing its row).  A blob's file is the only copy of its bytes this store keeps:
+once removed, only a backup may still hold them (a retention policy must cover the backups too).
+
 The application sees the store through :class:`Storage` (what uploads, jobs and downloads need) and gets
 it from :func:`open_storage`; the local file system (:class:`BlobStore`, under ``CHAKAMO_DATA_DIR/blobs``,
 a volume shared by the API servers and the workers in a scaled-out deployment) is the default and for now
@@ -28,6 +35,7 @@ import os
 import re
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -69,8 +77,15 @@ class BlobWriter:
         self._hash.update(chunk)
         self._file.write(chunk)
 
+    @property
+    def sha256(self) -> str:
+        """The hex digest of the bytes written so far (the address :meth:`commit` will use)."""
+        return self._hash.hexdigest()
+
     def commit(self) -> str:
-        """Move the file to its content address, durably (module docstring); returns the sha256 hex digest."""
+        """Move the file to its content address, durably (module docstring); returns the sha256 hex digest.  A
+        file already stored there is kept and its modification time refreshed (the eraser reads it:
+        :mod:`app.store.erasure`)."""
         self._file.flush()
         os.fsync(self._file.fileno())
         self._file.close()
@@ -78,8 +93,13 @@ class BlobWriter:
         target = self._store.path(digest)
         target.parent.mkdir(parents=True, exist_ok=True)
         if target.is_file() and _file_sha256(target) == digest:
-            self._path.unlink(missing_ok=True)  # already stored, intact
-            return digest
+            try:
+                os.utime(target)
+            except FileNotFoundError:  # erased meanwhile by a sweep that saw no row: store this copy
+                pass
+            else:
+                self._path.unlink(missing_ok=True)  # already stored, intact
+                return digest
         if target.exists():
             log.warning("stored file %s… was damaged; replaced by a good copy", digest[:12])
         os.replace(self._path, target)
@@ -153,6 +173,34 @@ class BlobStore:
     def writer(self, max_bytes: int | None = None) -> BlobWriter:
         return BlobWriter(self, max_bytes)
 
+    def remove(self, sha256: str) -> bool:
+        """Unlink blob ``sha256``'s file, durably; True if there was one (an absent file is not an error: a crash
+        may have come between this unlink and the commit that records it, and the erasure is then redone)."""
+        target = self.path(sha256)
+        try:
+            target.unlink()
+        except FileNotFoundError:
+            return False
+        _fsync_dir(target.parent)
+        try:
+            target.parent.rmdir()  # the two-hex-digit folder, when it held only this blob
+        except OSError:
+            pass
+        return True
+
+    def stored(self) -> Iterator[tuple[str, float]]:
+        """``(sha256, mtime)`` of every blob file on disk (temporary upload files are not blobs)."""
+        for folder in self.root.iterdir():
+            if len(folder.name) != 2 or not folder.is_dir():
+                continue
+            for f in folder.iterdir():
+                digest = folder.name + f.name
+                if _HEX.match(digest):
+                    try:
+                        yield digest, f.stat().st_mtime
+                    except FileNotFoundError:  # removed meanwhile
+                        continue
+
     def put(self, data: bytes) -> tuple[str, int]:
         """Store ``data``; returns ``(sha256, size_bytes)``.  On failure (e.g. ``ENOSPC``) nothing is left behind."""
         w = self.writer()
@@ -200,6 +248,10 @@ class Storage(Protocol):
     def copy_to(self, sha256: str, target: str | os.PathLike) -> None: ...
 
     def clear_incoming(self, older_than_s: float | None = None) -> int: ...
+
+    def remove(self, sha256: str) -> bool: ...
+
+    def stored(self) -> Iterator[tuple[str, float]]: ...
 
 
 def open_storage(settings: "Settings") -> BlobStore:

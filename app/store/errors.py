@@ -3,7 +3,7 @@
 The store and jobs services raise them; they know nothing of HTTP.  The API maps each class to one status
 code in one place (:data:`app.web.api.deps.STATUS_OF`, applied to every route by :func:`app.web.api.api_router`):
 :class:`NotFound` 404 (also for another clinic's ids), :class:`Conflict` 409, :class:`Invalid` 400,
-:class:`LimitExceeded` 413.
+:class:`LimitExceeded` 413, :class:`PreconditionFailed` 412.
 """
 
 from __future__ import annotations
@@ -33,4 +33,8 @@ class LimitExceeded(DomainError):
     """More than a configured limit allows (e.g. files per session)."""
 
 
-__all__ = ["Conflict", "DomainError", "Invalid", "LimitExceeded", "NotFound"]
+class PreconditionFailed(DomainError):
+    """The caller's ``If-Match`` names a version the row no longer has (someone changed it meanwhile)."""
+
+
+__all__ = ["Conflict", "DomainError", "Invalid", "LimitExceeded", "NotFound", "PreconditionFailed"]

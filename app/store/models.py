@@ -115,6 +115,9 @@ class Patient(Base):
     mass_kg: Mapped[float | None] = mapped_column(Float, nullable=True)
     notes: Mapped[str | None] = mapped_column(Text, nullable=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    #: bumped by every correction (PATCH): the ``ETag`` a ``DELETE`` / ``PATCH`` names in ``If-Match``
+    version: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
 
 
 class KneeSession(Base):
@@ -136,6 +139,9 @@ class KneeSession(Base):
     files_version: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
     #: the ``files_version`` the stored ``ingestion`` was computed from (fresh when equal)
     ingestion_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: bumped by every correction (PATCH): the ``ETag`` a ``DELETE`` / ``PATCH`` names in ``If-Match``
+    version: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     patient: Mapped[Patient] = relationship(lazy="joined")
     recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
                                                           cascade="all, delete-orphan")
@@ -195,6 +201,9 @@ class Analysis(Base):
     #: the pipeline version and the session's ``files_version`` this analysis was computed from
     pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
     files_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: set when a recording it was computed from was deleted or the facts it printed were corrected
+    #: (:func:`app.store.analyses.supersede`): no longer served as the session's final report
+    superseded_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     artefacts: Mapped[list["Artefact"]] = relationship(order_by="Artefact.id", cascade="all, delete-orphan")
 
 
@@ -208,8 +217,32 @@ class Artefact(Base):
     name: Mapped[str] = mapped_column(String(40))
     lang: Mapped[str] = mapped_column(String(2), default="")
     media_type: Mapped[str] = mapped_column(String(100))
-    sha256: Mapped[str] = mapped_column(ForeignKey("blobs.sha256"))
+    sha256: Mapped[str] = mapped_column(ForeignKey("blobs.sha256"), index=True)  # indexed: blob reference counts
     size_bytes: Mapped[int] = mapped_column(Integer)
+
+
+class BlobErasure(Base):
+    """One stored file whose last reference went (:mod:`app.store.erasure`): the work item while ``pending``
+    and, once ``erased`` or ``kept`` (referenced again, or still by another row), the record that survives the
+    erasure — what (sha256, size), why, by whom, when; never the content.  No foreign keys: the rows it names
+    are gone."""
+
+    __tablename__ = "blob_erasures"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    sha256: Mapped[str] = mapped_column(String(64), index=True)
+    size_bytes: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: ``pending`` (marked, file still there), ``erased`` (row and bytes gone), ``kept`` (still referenced)
+    state: Mapped[str] = mapped_column(String(10), default="pending", index=True)
+    #: ``recording``, ``session``, ``patient``, ``retention``, ``orphan`` (a row or file no reference names)
+    reason: Mapped[str] = mapped_column(String(20))
+    clinic_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
+    patient_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: the audit event of the request or command that erased (its ``actor`` says who)
+    audit_event_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    actor: Mapped[str] = mapped_column(String(320), default="")
+    requested_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    done_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
 
 
 class AuditEvent(Base):
@@ -234,5 +267,5 @@ class AuditEvent(Base):
     client: Mapped[str] = mapped_column(String(64), default="")
 
 
-__all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BrowserSession", "Clinic",
+__all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BlobErasure", "BrowserSession", "Clinic",
            "Job", "KneeSession", "Patient", "Recording", "User", "utcnow"]

@@ -1,19 +1,52 @@
-"""Patients: clinic-scoped lookup and search, creation (external ids unique per clinic), the ROM trend."""
+"""Patients: clinic-scoped lookup and search, creation (external ids unique per clinic), correction, erasure,
+the ROM trend.
+
+A correction (:func:`correct_patient`) bumps the patient's ``version``; one that changes what the processing
+reads or the reports print (:data:`PROCESSED_FIELDS`) supersedes the analyses of every session of the patient
+and makes their ingestion checks stale (``files_version``), as a session's own correction does
+(:mod:`app.store.sessions`).  Erasing a patient (:func:`delete_patient`) cascades: patient → sessions →
+recordings, jobs, analyses, artefacts; it returns the blobs they named for :func:`app.store.erasure.mark`.  Both
+refuse while a job of one of the patient's sessions is queued or running, and check the caller's ``If-Match``
+version when one is given.
+"""
 
 from __future__ import annotations
 
 import json
 from typing import Any
 
-from sqlalchemy import func, or_, select
+from sqlalchemy import delete, func, or_, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.store.analyses import find_artefact, latest_analysis
+from app.choices import SEX_NAMES, SIDE_NAMES
+from app.store.analyses import find_artefact, latest_analysis, supersede
 from app.store.blobs import BlobStore
-from app.store.errors import Conflict, NotFound
-from app.store.models import Patient
-from app.store.sessions import patient_sessions
+from app.store.erasure import session_blobs
+from app.store.errors import Conflict, Invalid, NotFound
+from app.store.models import KneeSession, Patient, utcnow
+from app.store.sessions import check_version, delete_sessions, patient_sessions, refuse_while_processing
+
+#: the patient's columns a correction may change
+CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg", "notes")
+#: those the processing reads or the reports print (a change supersedes the patient's analyses)
+PROCESSED_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg")
+#: open ranges a corrected number must fall in (the API's schema enforces the same at the edge; the operator's
+#: CLI reaches the store directly)
+RANGES = {"height_cm": (30.0, 260.0), "mass_kg": (2.0, 400.0)}
+
+
+def check_values(values: dict[str, Any], ranges: dict[str, tuple[float, float]],
+                 choices: dict[str, tuple[str, ...]]) -> None:
+    """:class:`Invalid` for a number outside its open range or a value outside its choices (None passes)."""
+    for key, (lo, hi) in ranges.items():
+        v = values.get(key)
+        if v is not None and not lo < float(v) < hi:
+            raise Invalid(f"{key} {v} is out of range; give a value between {lo:g} and {hi:g}.")
+    for key, allowed in choices.items():
+        v = values.get(key)
+        if v is not None and v not in allowed:
+            raise Invalid(f"{key} {v!r} is unknown; use one of {', '.join(allowed)}.")
 
 
 def clinic_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
@@ -56,12 +89,88 @@ def add_patient(db: Session, clinic_id: int, values: dict[str, Any]) -> Patient:
     return patient
 
 
+def _lock_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
+    """The patient's row, locked (PostgreSQL ``FOR UPDATE``) and read afresh, else :class:`NotFound`."""
+    db.execute(select(Patient.id).where(Patient.id == patient_id).with_for_update())
+    row = db.get(Patient, patient_id, populate_existing=True)
+    if row is None or row.clinic_id != clinic_id:
+        raise NotFound(f"No patient {patient_id} in your clinic; check the id.")
+    return row
+
+
+def _refuse_while_any_processing(db: Session, patient_id: int, what: str) -> list[int]:
+    """The patient's session ids, their rows locked (PostgreSQL: an upload or a processing request to one of them
+    waits, as for :func:`app.store.sessions.clinic_session`); :class:`app.store.sessions.Busy` if a job of one is active."""
+    ids = list(db.scalars(select(KneeSession.id).where(KneeSession.patient_id == patient_id)
+                          .order_by(KneeSession.id).with_for_update()))
+    for sid in ids:
+        refuse_while_processing(db, sid, what)
+    return ids
+
+
+def correct_patient(db: Session, clinic_id: int, patient_id: int, values: dict[str, Any],
+                    expected_version: int | None = None) -> tuple[Patient, list[str], int]:
+    """Correct the patient's ``values`` (columns of :data:`CORRECTABLE_FIELDS`); returns ``(patient, the fields
+    that changed, analyses superseded)`` (module docstring).  :class:`Invalid` for another column or an empty
+    external id or side; :class:`Conflict` for an external id another patient of the clinic has."""
+    unknown = sorted(set(values) - set(CORRECTABLE_FIELDS))
+    if unknown:
+        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct {', '.join(CORRECTABLE_FIELDS)}.")
+    for required in ("external_id", "side"):
+        if required in values and values[required] is None:
+            raise Invalid(f"{required} cannot be empty; give a value.")
+    check_values(values, RANGES, {"side": SIDE_NAMES, "sex": SEX_NAMES})
+    patient = _lock_patient(db, clinic_id, patient_id)
+    check_version("Patient", patient.id, patient.version, expected_version)
+    changed = [k for k, v in values.items() if getattr(patient, k) != v]
+    if not changed:
+        return patient, [], 0
+    session_ids = _refuse_while_any_processing(db, patient.id, "correct the patient")
+    if "external_id" in changed:
+        other = db.scalar(select(Patient.id).where(Patient.clinic_id == clinic_id,
+                                                   Patient.external_id == values["external_id"],
+                                                   Patient.id != patient.id))
+        if other is not None:
+            raise Conflict(f"Patient {values['external_id']!r} already exists in your clinic (id {other}); "
+                           "choose another identifier.")
+    for k in changed:
+        setattr(patient, k, values[k])
+    patient.version = patient.version + 1
+    patient.updated_at = utcnow()
+    n_superseded = 0
+    if set(changed) & set(PROCESSED_FIELDS):
+        n_superseded = supersede(db, session_ids)
+        for s in db.scalars(select(KneeSession).where(KneeSession.id.in_(session_ids))):
+            s.files_version = s.files_version + 1  # the manifest changed: the checks are redone
+    try:
+        db.flush()
+    except IntegrityError:  # the same identifier taken by a concurrent request
+        raise Conflict(f"Patient {values['external_id']!r} already exists in your clinic; choose another "
+                       "identifier.") from None
+    return patient, changed, n_superseded
+
+
+def delete_patient(db: Session, clinic_id: int, patient_id: int,
+                   expected_version: int | None = None) -> tuple[list[int], set[str]]:
+    """Delete the patient and everything under it (module docstring); returns ``(the deleted sessions' ids, the
+    blobs they named)``."""
+    patient = _lock_patient(db, clinic_id, patient_id)
+    check_version("Patient", patient.id, patient.version, expected_version)
+    session_ids = _refuse_while_any_processing(db, patient.id, "delete the patient")
+    shas = session_blobs(db, session_ids)
+    delete_sessions(db, session_ids)
+    db.execute(delete(Patient).where(Patient.id == patient.id))
+    db.expire_all()
+    return session_ids, shas
+
+
 def rom_trend(db: Session, store: BlobStore, patient_id: int) -> list[dict[str, Any]]:
-    """ROM per session, oldest first, from each session's latest analysis (sessions without one left out)."""
+    """ROM per session, oldest first, from each session's latest analysis (sessions without one, or whose latest
+    is superseded, left out)."""
     points = []
     for s in patient_sessions(db, patient_id, newest_first=False):
         analysis = latest_analysis(db, s.id)
-        if analysis is None:
+        if analysis is None or analysis.superseded_at is not None:
             continue
         results = json.loads(store.read(find_artefact(db, analysis.id, "results.json").sha256))
         points.append({"session_id": s.id, "date": s.date, "analysis_id": analysis.id, "filter": analysis.filter,
@@ -69,4 +178,5 @@ def rom_trend(db: Session, store: BlobStore, patient_id: int) -> list[dict[str, 
     return points
 
 
-__all__ = ["add_patient", "clinic_patient", "rom_trend", "search_patients"]
+__all__ = ["CORRECTABLE_FIELDS", "PROCESSED_FIELDS", "RANGES", "check_values", "add_patient", "clinic_patient", "correct_patient",
+           "delete_patient", "rom_trend", "search_patients"]

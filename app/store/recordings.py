@@ -1,5 +1,16 @@
 """A session's recordings: storing an upload's files (all or none) and deleting one.
 
+Deleting a recording of a processed session marks the session's analyses superseded
+(:func:`app.store.analyses.supersede`) rather than refusing: a clinician who uploaded a wrong file must be able
+to correct the session without erasing it and its history, and the reports computed from the removed file are
+then kept for the record but no longer served as the session's final report (the results and download routes
+answer 409 for the default, and name the analysis superseded when it is asked for by id).  The deleted
+recording's blob is erased when no other row names it (:mod:`app.store.erasure`: the caller marks the blob
+:func:`delete_recording` returns, in the same transaction).
+
+Storing an upload reserves (and on PostgreSQL locks) each blob's row *before* its file is moved into place, so
+the eraser, which takes the same lock, never unlinks a file an upload is about to name.
+
 Both refuse while a job of the session is queued or running (:class:`app.store.sessions.Busy`), checked
 before and, for SQLite's concurrent writers, again after the change; both bump the session's
 ``files_version`` in the same transaction, which makes its stored ingestion check stale
@@ -18,7 +29,9 @@ from sqlalchemy.orm import Session
 
 from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
 from app.store.blobs import BlobWriter
+from app.store.analyses import supersede
 from app.store.database import ensure_blob
+from app.store.erasure import lock_blob
 from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
 from app.store.models import KneeSession, Recording
 from app.store.sessions import clinic_session, refuse_while_processing
@@ -54,9 +67,10 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
                             "ones not needed.")
     rows = []
     for name, writer in files:
-        size = writer.size_bytes
-        sha = writer.commit()
+        size, sha = writer.size_bytes, writer.sha256
         ensure_blob(db, sha, size)
+        lock_blob(db, sha)  # before the file is placed (module docstring)
+        writer.commit()
         rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
                               segment=segment, role=role))
     db.add_all(rows)
@@ -70,19 +84,22 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
     return session, rows
 
 
-def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id: int) -> KneeSession:
-    """Remove one recording from the session (its stored content stays if other rows use it); returns the
-    session.  :class:`NotFound` for an unknown id, :class:`Conflict` while the session is being processed."""
+def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id: int) -> tuple[KneeSession, str, int]:
+    """Remove one recording from the session; returns ``(session, the blob it named, analyses superseded)``
+    (the caller marks the blob for erasure: its content stays while other rows name it).  :class:`NotFound`
+    for an unknown id, :class:`Conflict` while the session is being processed."""
     session = clinic_session(db, clinic_id, session_id, lock=True)
     rec = db.get(Recording, recording_id)
     if rec is None or rec.session_id != session.id:
         raise NotFound(f"No recording {recording_id} in session {session_id}; check the ids.")
     refuse_while_processing(db, session.id, "delete files")
+    sha = rec.sha256
     db.delete(rec)
     session.files_version = KneeSession.files_version + 1
+    n_superseded = supersede(db, [session.id])
     db.flush()
     refuse_while_processing(db, session.id, "delete files")
-    return session
+    return session, sha, n_superseded
 
 
 __all__ = ["MANIFEST", "ROLES", "SEGMENTS", "check_labels", "delete_recording", "store_upload"]

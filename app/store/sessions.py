@@ -5,7 +5,17 @@ Status and freshness (the answer of ``GET /sessions/{id}`` and of the session li
 ingestion check is *fresh* when it was computed from the current files (``ingestion_version ==
 files_version``, :func:`ingestion_fresh`); a stale one is shown as "being checked" (:func:`stored_ingestion`)
 until :mod:`app.store.checks` has run it again.  The status (:func:`session_status`) is ``empty`` (no files),
-``processing`` / ``done`` / ``failed`` (its latest job), else ``ready`` or ``incomplete`` (the check).
+``processing`` / ``done`` / ``failed`` (its latest job), else ``ready`` or ``incomplete`` (the check); a
+session whose latest job's analysis was superseded (:mod:`app.store.analyses`) is ``superseded``.
+
+Correction and erasure (:func:`correct_session`, :func:`delete_session`): both refuse while a job of the
+session is queued or running, and both check the caller's ``If-Match`` version when one is given (a stale one
+is :class:`~app.store.errors.PreconditionFailed`).  A correction bumps ``version``; one that changes a fact the
+processing reads or the reports print (:data:`PROCESSED_FIELDS`: all of them go into the session's manifest)
+also bumps ``files_version`` (the ingestion check is redone, ``chakamo reprocess`` no longer skips the session)
+and supersedes the session's analyses.  Erasing a session deletes it with its recordings, jobs, analyses and
+artefacts (the database's cascades) and returns the blobs they named, which the caller marks for erasure
+(:mod:`app.store.erasure`) in the same transaction.
 """
 
 from __future__ import annotations
@@ -13,11 +23,14 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
-from app.store.errors import Conflict, NotFound
-from app.store.models import Analysis, Job, KneeSession, Recording
+from app.choices import TASK_NAMES
+from app.store.analyses import supersede
+from app.store.erasure import session_blobs
+from app.store.errors import Conflict, Invalid, NotFound, PreconditionFailed
+from app.store.models import Analysis, Artefact, Job, KneeSession, Recording, utcnow
 from app.store.workspace import NO_RECORDINGS
 
 #: the job states during which a session's files must not change
@@ -88,17 +101,21 @@ def add_session(db: Session, clinic_id: int, patient_id: int, values: dict[str, 
     return session
 
 
-def summary_facts(db: Session, sessions: list[KneeSession]) -> tuple[dict[int, int], dict[int, Job]]:
-    """``(recordings per session id, latest job per session id)`` of ``sessions``, in two queries whatever
-    their number."""
+def summary_facts(db: Session, sessions: list[KneeSession]) -> tuple[dict[int, int], dict[int, Job], set[int]]:
+    """``(recordings per session id, latest job per session id, ids of the sessions whose latest job's analysis
+    is superseded)`` of ``sessions``, in three queries whatever their number."""
     ids = [s.id for s in sessions]
     if not ids:
-        return {}, {}
+        return {}, {}, set()
     counts = dict(db.execute(select(Recording.session_id, func.count()).where(Recording.session_id.in_(ids))
                              .group_by(Recording.session_id)).all())
     last_ids = select(func.max(Job.id)).where(Job.session_id.in_(ids)).group_by(Job.session_id)
     latest = {j.session_id: j for j in db.scalars(select(Job).where(Job.id.in_(last_ids)))}
-    return counts, latest
+    analysis_ids = [j.analysis_id for j in latest.values() if j.analysis_id is not None]
+    superseded = set(db.scalars(select(Analysis.session_id).where(Analysis.id.in_(analysis_ids),
+                                                                  Analysis.superseded_at.is_not(None)))) \
+        if analysis_ids else set()
+    return counts, latest, superseded
 
 
 def session_jobs(db: Session, session_id: int) -> list[Job]:
@@ -129,15 +146,88 @@ def ready(s: KneeSession) -> bool:
     return ingestion_fresh(s) and bool(s.ingestion.get("ok"))
 
 
-def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None) -> str:
-    """empty (no files) · incomplete (ingestion not ok) · processing / done / failed (the latest job) · ready."""
+def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None, superseded: bool = False) -> str:
+    """empty (no files) · incomplete (ingestion not ok) · processing / done / failed (the latest job) ·
+    superseded (the latest job's analysis is) · ready."""
     if n_recordings == 0:
         return "empty"
+    if superseded and latest_job is not None and latest_job.status == "done":
+        return "superseded"
     if latest_job is not None:
         return {"queued": "processing", "running": "processing"}.get(latest_job.status, latest_job.status)
     return "ready" if ingestion_ok else "incomplete"
 
 
-__all__ = ["ACTIVE", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
+#: the session's columns a correction may change; every one goes into its manifest (the processing and the reports)
+PROCESSED_FIELDS = ("date", "task", "step_height_m", "professional", "notes")
+
+
+def check_version(kind: str, row_id: int, version: int, expected: int | None) -> None:
+    """:class:`PreconditionFailed` when the caller's ``If-Match`` version ``expected`` is not ``version``."""
+    if expected is not None and expected != version:
+        raise PreconditionFailed(f"{kind} {row_id} was changed by someone else meanwhile (it is now version "
+                                 f"{version}, you sent {expected}); reload it and try again.")
+
+
+def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[str, Any],
+                    expected_version: int | None = None) -> tuple[KneeSession, list[str], int]:
+    """Correct the session's ``values`` (columns of :data:`PROCESSED_FIELDS`); returns ``(session, the fields
+    that changed, analyses superseded)`` (module docstring).  :class:`Invalid` for another column or a null
+    date or task."""
+    unknown = sorted(set(values) - set(PROCESSED_FIELDS))
+    if unknown:
+        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct {', '.join(PROCESSED_FIELDS)}.")
+    for required in ("date", "task"):
+        if required in values and values[required] is None:
+            raise Invalid(f"{required} cannot be empty; give a value.")
+    step = values.get("step_height_m")
+    if step is not None and not 0 < float(step) < 1:
+        raise Invalid(f"step_height_m {step} is out of range; give the step's height in metres (e.g. 0.17).")
+    if values.get("task") is not None and values["task"] not in TASK_NAMES:
+        raise Invalid(f"task {values['task']!r} is unknown; use one of {', '.join(TASK_NAMES)}.")
+    session = clinic_session(db, clinic_id, session_id, lock=True)
+    check_version("Session", session.id, session.version, expected_version)
+    refuse_while_processing(db, session.id, "correct it")
+    changed = [k for k, v in values.items() if getattr(session, k) != v]
+    n_superseded = 0
+    if changed:
+        for k in changed:
+            setattr(session, k, values[k])
+        session.version = session.version + 1
+        session.updated_at = utcnow()
+        session.files_version = session.files_version + 1  # the manifest changed: the check is redone
+        n_superseded = supersede(db, [session.id])
+        db.flush()
+    return session, changed, n_superseded
+
+
+def delete_session(db: Session, clinic_id: int, session_id: int,
+                   expected_version: int | None = None) -> tuple[int, set[str]]:
+    """Delete the session with its recordings, jobs, analyses and artefacts; returns ``(its patient's id, the
+    blobs they named)`` for :func:`app.store.erasure.mark` (module docstring)."""
+    session = clinic_session(db, clinic_id, session_id, lock=True)
+    check_version("Session", session.id, session.version, expected_version)
+    refuse_while_processing(db, session.id, "delete it")
+    patient_id = session.patient_id
+    shas = session_blobs(db, [session.id])
+    delete_sessions(db, [session.id])
+    return patient_id, shas
+
+
+def delete_sessions(db: Session, session_ids: list[int]) -> None:
+    """Delete ``session_ids`` and everything under them (the caller has checked them and read their blobs)."""
+    if not session_ids:
+        return
+    # jobs first (analyses point at them), then the sessions: the cascades take recordings, analyses, artefacts
+    db.execute(delete(Job).where(Job.session_id.in_(session_ids)))
+    db.execute(delete(Recording).where(Recording.session_id.in_(session_ids)))
+    analysis_ids = select(Analysis.id).where(Analysis.session_id.in_(session_ids))
+    db.execute(delete(Artefact).where(Artefact.analysis_id.in_(analysis_ids)))
+    db.execute(delete(Analysis).where(Analysis.session_id.in_(session_ids)))
+    db.execute(delete(KneeSession).where(KneeSession.id.in_(session_ids)))
+    db.expire_all()
+
+
+__all__ = ["ACTIVE", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
            "ingestion_fresh", "patient_sessions", "ready", "refuse_while_processing", "session_analyses",
            "session_jobs", "session_status", "stored_ingestion", "summary_facts"]

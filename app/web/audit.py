@@ -25,6 +25,8 @@ route                                                   action        patient / 
 ``GET /sessions/{id}`` (its recordings, the list)       ``view``      the session's patient / session
 ``POST /sessions/{id}/recordings``                      ``upload``    patient / session
 ``DELETE /sessions/{id}/recordings/{rid}``              ``delete``    patient / session
+``PATCH /patients/{id}``, ``PATCH /sessions/{id}``      ``update``    patient / (session)
+``DELETE /patients/{id}``, ``DELETE /sessions/{id}``    ``delete``    patient / (session)
 ``GET /sessions/{id}/results``                          ``view``      patient / session
 ``GET /sessions/{id}/report.pdf`` … ``scene.viser``     ``download``  patient / session
 ``GET /fhir/DiagnosticReport/{id}``                     ``export``    patient / session
@@ -55,7 +57,7 @@ if TYPE_CHECKING:  # types only: this module must not import the API package (a 
 
 #: the actions an event may have (the table above)
 ACTIONS: tuple[str, ...] = ("list", "search", "view", "create", "upload", "delete", "download", "export",
-                            "process")
+                            "process", "update")
 #: column widths of :class:`AuditEvent` (longer values are cut, never refused: the read must not fail on them)
 _RESOURCE_CHARS, _CLIENT_CHARS, _ACTOR_CHARS = 300, 64, 320
 
@@ -88,3 +90,18 @@ def record(db: Session, request: "Request", principal: "Principal", action: str,
 
 
 __all__ = ["ACTIONS", "record"]
+
+
+def record_operator(db: Session, *, clinic_id: int, action: str, actor: str, resource: str,
+                    patient_id: int | None = None, session_id: int | None = None) -> AuditEvent:
+    """Add (and flush) the event of an operator's command (``chakamo patients erase …``) or of the retention
+    policy: actor kind ``operator``, ``actor`` what ran it, ``resource`` the command; no client address.
+    Same rules as :func:`record` (``db``'s transaction, fail closed, :data:`ACTIONS`)."""
+    if action not in ACTIONS:
+        raise ValueError(f"unknown audit action {action!r}; use one of {', '.join(ACTIONS)}")
+    return add_event(db, clinic_id=clinic_id, actor_kind="operator", user_id=None, token_id=None,
+                     actor=actor[:_ACTOR_CHARS], action=action, patient_id=patient_id, session_id=session_id,
+                     resource=resource[:_RESOURCE_CHARS], client="")
+
+
+__all__ += ["record_operator"]

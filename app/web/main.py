@@ -86,10 +86,11 @@ def make_runner(settings: Settings, db: Database, store: Storage):
 
         return CeleryJobRunner(db, settings)
     from app.jobs.inprocess import ThreadJobRunner
+    from app.web.housekeeping import housekeeping
 
     return ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
                            render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s,
-                           lease_s=settings.job_lease_s)
+                           lease_s=settings.job_lease_s, housekeeping=lambda: housekeeping(settings, db, store))
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:

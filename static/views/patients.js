@@ -3,7 +3,8 @@
 import { api } from "../api.js";
 import { h, clear, field, alertBox, errorText, date, dateTime, num, label } from "../dom.js";
 import { t } from "../i18n.js";
-import { navigate, canEdit } from "../app.js";
+import { navigate, canEdit, isAdmin } from "../app.js";
+import { confirmErase, editPatientForm, editSessionForm, changeError } from "./records.js";
 import { options, fillSelect } from "../options.js";
 import { ANGLES, drawTrend, purge } from "../charts.js";
 
@@ -158,15 +159,27 @@ export function patientView(id) {
       return;
     }
     const formArea = h("div");
+    const reload = () => navigate(`#/patients/${id}`);
     const newSession = disclosure(t("sessions.new"), formArea, (close) => newSessionForm(id, close));
+    const edit = disclosure(t("patient.edit"), formArea, (close) => editPatientForm(patient, close, reload));
+    const erase = h("button", { type: "button", class: "danger", id: "delete-patient", onclick: () => confirmErase({
+      title: t("patient.delete_title"), text: t("patient.delete_text", { id: patient.external_id }),
+      expect: patient.external_id,
+      onConfirm: async () => {
+        await api("DELETE", `/patients/${id}`, { ifMatch: patient.version });
+        navigate("#/patients");
+      } }) }, t("patient.delete"));
     const trendArea = h("div", { class: "card" }, h("h2", {}, t("patient.trend")));
+    const rowActions = { edit: (s) => editSession(s, formArea, reload), erase: (s) => eraseSession(s, reload) };
     clear(section).append(
       h("nav", { class: "crumbs", "aria-label": t("common.breadcrumbs") }, h("a", { href: "#/patients" }, t("nav.patients"))),
-      h("div", { class: "title-row" }, h("h1", {}, patientTitle(patient)), canEdit() ? newSession : null),
+      h("div", { class: "title-row" }, h("h1", {}, patientTitle(patient)),
+        h("div", { class: "actions wrap" }, canEdit() ? newSession : null, canEdit() ? edit : null,
+          isAdmin() ? erase : null)),
       formArea,
       h("div", { class: "columns" },
         h("div", { class: "card" }, h("h2", {}, t("patient.details")), patientDetails(patient)),
-        h("div", { class: "card grow" }, h("h2", {}, t("sessions.title")), sessionsTable(sessions))),
+        h("div", { class: "card grow" }, h("h2", {}, t("sessions.title")), sessionsTable(sessions, rowActions))),
       trendArea);
     loadTrend(id, trendArea, section);
   })();
@@ -183,10 +196,32 @@ function patientDetails(p) {
   return h("dl", { class: "details" }, rows.map(([k, v]) => [h("dt", {}, k), h("dd", {}, v)]));
 }
 
-function sessionsTable(sessions) {
+// The session's edit form in `formArea` (the full session, with its version, is read first).
+async function editSession(summary, formArea, onSaved) {
+  clear(formArea);
+  try {
+    const session = await api("GET", `/sessions/${summary.id}`);
+    formArea.append(editSessionForm(session, date(session.date), () => clear(formArea), onSaved));
+  } catch (err) {
+    formArea.append(alertBox(changeError(err)));
+  }
+}
+
+// The confirmation, then DELETE with the version just read.
+function eraseSession(summary, onDone) {
+  confirmErase({
+    title: t("sessions.delete_title", { date: date(summary.date) }), text: t("sessions.delete_text"),
+    onConfirm: async () => {
+      const session = await api("GET", `/sessions/${summary.id}`);
+      await api("DELETE", `/sessions/${summary.id}`, { ifMatch: session.version });
+      onDone();
+    } });
+}
+
+function sessionsTable(sessions, rowActions) {
   if (!sessions.length) return h("p", { class: "empty" }, t("sessions.none"));
   const rows = sessions.map((s) => {
-    const done = s.status === "done";
+    const done = s.status === "done" || s.status === "superseded";
     return h("tr", {},
       h("td", { class: "nowrap" }, h("a", { href: done ? `#/sessions/${s.id}` : `#/sessions/${s.id}/wizard` }, date(s.date))),
       h("td", {}, label("task", s.task)),
@@ -194,7 +229,11 @@ function sessionsTable(sessions) {
       h("td", {}, statusBadge(s.status)),
       h("td", { class: "actions" },
         h("a", { href: `#/sessions/${s.id}/wizard`, class: "button-link secondary small" }, t("sessions.open_wizard")),
-        done ? h("a", { href: `#/sessions/${s.id}`, class: "button-link small" }, t("sessions.open_results")) : null));
+        done ? h("a", { href: `#/sessions/${s.id}`, class: "button-link small" }, t("sessions.open_results")) : null,
+        canEdit() ? h("button", { type: "button", class: "secondary small", "data-action": "edit-session",
+          onclick: () => rowActions.edit(s) }, t("sessions.edit")) : null,
+        isAdmin() ? h("button", { type: "button", class: "danger small", "data-action": "delete-session",
+          onclick: () => rowActions.erase(s) }, t("sessions.delete")) : null));
   });
   return h("table", { class: "data", id: "sessions-table" },
     h("thead", {}, h("tr", {}, [t("session.date"), t("session.task"), t("session.recordings"), t("session.status"), ""]

@@ -43,7 +43,9 @@ export function resultsView(sessionId, query) {
     const wanted = Number(query.get("analysis_id"));
     const analysis = analyses.find((a) => a.id === wanted) || analyses[0];
     const body = h("div", { class: "results-body" }, h("p", { class: "loading" }, t("common.loading")));
-    clear(section).append(...head, analysisSelector(sessionId, analyses, analysis), body);
+    const superseded = analysis.superseded_at   // Node.append would print a null: only the notice, when due
+      ? [h("div", { class: "notice warning", role: "status", id: "superseded" }, t("results.superseded"))] : [];
+    clear(section).append(...head, ...superseded, analysisSelector(sessionId, analyses, analysis), body);
     let results;
     try {
       results = await api("GET", `/sessions/${sessionId}/results`, { query: { analysis_id: analysis.id } });

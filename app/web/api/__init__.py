@@ -1,8 +1,8 @@
 """API v1 (``/api/v1``): one router per resource; :func:`api_router` assembles them.
 
 Errors are ``{"detail": "<one sentence: what is wrong, what to do>"}`` with honest codes: 400 bad input,
-401 not logged in, 403 role too low or CSRF, 404 unknown id *or another clinic's id*, 409 conflict, 413 too
-large, 415 wrong type, 422 validation.  ``../shared/DESIGN.md`` §4 has the hospital minimum; ``/docs`` the
+401 not logged in, 403 role too low or CSRF, 404 unknown id *or another clinic's id*, 409 conflict, 412 a stale
+``If-Match``, 413 too large, 415 wrong type, 422 validation, 428 ``If-Match`` required (erasures, :mod:`app.web.records`).  ``../shared/DESIGN.md`` §4 has the hospital minimum; ``/docs`` the
 whole API.
 Shared pieces: :mod:`.deps` (caller, roles, clinic scoping, CSRF), :mod:`.schemas` (shapes); reads and
 changes of patient data are recorded by :mod:`app.web.audit` and listed by :mod:`.audit` (admins).

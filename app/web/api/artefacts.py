@@ -7,6 +7,9 @@ report.html and scene.viser are served inline (the UI opens the first and viser'
 report.html carries ``Content-Security-Policy: sandbox allow-scripts``: it holds text typed by people (patient
 name, notes), so even if escaping failed its scripts could not act as the logged-in user.  Every download is
 audited (``download`` of the session's patient, :mod:`app.web.audit`), in the request's transaction.
+A superseded analysis (:mod:`app.store.analyses`) is never the default: without ``analysis_id`` the downloads
+answer 409 "process the session again"; asked for by id it is served with ``X-Analysis-Status: superseded``
+and a file name ending in ``-superseded`` (:mod:`.results`).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from app.store.analyses import artefact, pick_analysis
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.web.api.schemas import Lang
+from app.web.records import STATUS_HEADER, analysis_status
 
 router = APIRouter(prefix="/sessions", tags=["artefacts"])
 
@@ -30,9 +34,11 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
         lang = analysis.lang
     art = artefact(db, analysis, name, lang)
     stem, ext = name.rsplit(".", 1)
-    filename = f"chakamo-session-{session.id}-{analysis.id}{'-' + lang if lang else ''}-{stem}.{ext}"
+    status = analysis_status(analysis)
+    tail = "-superseded" if status == "superseded" else ""
+    filename = f"chakamo-session-{session.id}-{analysis.id}{'-' + lang if lang else ''}-{stem}{tail}.{ext}"
     disposition = "attachment" if attachment else "inline"
-    headers = {"Content-Disposition": f'{disposition}; filename="{filename}"'}  # no-store, nosniff: app/web/headers.py
+    headers = {"Content-Disposition": f'{disposition}; filename="{filename}"', STATUS_HEADER: status}  # no-store, nosniff: app/web/headers.py
     if name == "report.html":  # patient-typed text inside: scripts run, but in an opaque origin (no cookie, no API)
         headers["Content-Security-Policy"] = "sandbox allow-scripts allow-popups allow-downloads"
     data = store.read(art.sha256)

@@ -40,7 +40,7 @@ from app.settings import Settings
 from app.store import accounts
 from app.store.blobs import BlobStore
 from app.store.checks import IngestionChecker
-from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotFound
+from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotFound, PreconditionFailed
 from app.store.models import Job, KneeSession, Patient, User, utcnow
 from app.store.patients import clinic_patient
 from app.store.sessions import clinic_job, clinic_session
@@ -88,7 +88,8 @@ CheckerDep = Annotated[IngestionChecker, Depends(get_checker)]
 
 #: the status code of each domain error (:mod:`app.store.errors`; subclasses such as
 #: :class:`app.store.sessions.Busy` or :class:`app.jobs.queue.NotReady` take their base's)
-STATUS_OF: dict[type[DomainError], int] = {NotFound: 404, Conflict: 409, Invalid: 400, LimitExceeded: 413}
+STATUS_OF: dict[type[DomainError], int] = {NotFound: 404, Conflict: 409, Invalid: 400, LimitExceeded: 413,
+                                           PreconditionFailed: 412}
 
 
 def http_error(error: DomainError) -> HTTPException:

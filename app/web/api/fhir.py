@@ -4,7 +4,9 @@ The document is built by :func:`app.web.fhir.diagnostic_report` (another module 
 session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
 ``/api/v1`` address (the namespace of the session and patient identifiers).  ``?analysis_id=`` picks an
 earlier analysis.  Stored data the export cannot express (e.g. a patient's sex recorded before the API
-restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.  Each
+restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.  A superseded
+analysis (:mod:`app.store.analyses`: a recording deleted or a printed detail corrected since) is never
+exported — a DiagnosticReport says ``final`` — so it answers 409 too, also when asked for by id.  Each
 export is audited (``export`` of the session's patient, :mod:`app.web.audit`).
 """
 
@@ -15,7 +17,7 @@ import json
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import Response
 
-from app.store.analyses import artefact, pick_analysis
+from app.store.analyses import SupersededResults, artefact, latest_analysis, pick_analysis
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.web.api.schemas import patient_out
@@ -30,7 +32,13 @@ router = APIRouter(prefix="/fhir", tags=["fhir"])
 def diagnostic_report_route(session_id: int, request: Request, principal: Reader, db: DbDep, store: StoreDep,
                             analysis_id: int | None = None):
     session = scoped_session(db, principal, session_id)
+    if analysis_id is None:  # the latest: superseded, it may not be exported either
+        latest = latest_analysis(db, session.id)
+        if latest is not None and latest.superseded_at is not None:
+            raise SupersededResults(session.id, latest, readable_by_id=False)
     analysis = pick_analysis(db, session, analysis_id)
+    if analysis.superseded_at is not None:  # asked for by id
+        raise SupersededResults(session.id, analysis, readable_by_id=False)
     results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
     pdf = store.read(artefact(db, analysis, "report.pdf", analysis.lang).sha256)
     sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),

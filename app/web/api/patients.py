@@ -5,17 +5,25 @@ event per request, with the patient only when a search found exactly one).
 
 Creating a patient whose external id exists in the clinic answers 409 — also when two requests race (the
 database's unique constraint decides; the loser gets the same 409, never a 500).
+
+Correction and erasure: ``PATCH /patients/{id}`` (clinician: the people who type a patient's details correct
+their typos) changes the fields sent and supersedes the patient's analyses when a field the reports print
+changed (:mod:`app.store.patients`); ``DELETE /patients/{id}`` (admin only: it cascades to every session,
+recording, analysis and stored file of the patient) needs ``If-Match`` (:mod:`app.web.records`).  Both are audited
+(``update`` / ``delete``) in the transaction that makes the change; the deletion's event and the
+``blob_erasures`` rows it links to outlive the patient.
 """
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Query, Request, Response
 
-from app.store import patients, sessions
+from app.store import erasure, patients, sessions
 from app.web import audit
-from app.web.api.deps import Clinician, DbDep, Reader, StoreDep, scoped_patient
-from app.web.api.schemas import (PatientIn, PatientOut, SessionIn, SessionOut, SessionSummaryOut, TrendOut, patient_out,
-                                 session_out, summaries)
+from app.web.api.deps import Admin, Clinician, DbDep, Reader, StoreDep, scoped_patient
+from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
+from app.web.api.schemas import (PatientIn, PatientOut, PatientPatch, SessionIn, SessionOut, SessionSummaryOut,
+                                 TrendOut, patient_out, session_out, summaries)
 
 router = APIRouter(prefix="/patients", tags=["patients"])
 
@@ -38,10 +46,41 @@ def create_patient(body: PatientIn, principal: Clinician, db: DbDep, request: Re
 
 
 @router.get("/{patient_id}", response_model=PatientOut)
-def get_patient(patient_id: int, principal: Reader, db: DbDep, request: Request):
+def get_patient(patient_id: int, principal: Reader, db: DbDep, request: Request, response: Response):
+    """The patient; ``ETag`` is its version (for ``If-Match`` on ``PATCH`` and ``DELETE``)."""
     patient = scoped_patient(db, principal, patient_id)
     audit.record(db, request, principal, "view", patient_id=patient.id)
+    response.headers["ETag"] = etag(patient.version)
     return patient_out(patient)
+
+
+@router.patch("/{patient_id}", response_model=PatientOut, responses=ERRORS)
+def correct_patient(patient_id: int, body: PatientPatch, principal: Clinician, db: DbDep, request: Request,
+                    response: Response):
+    """Correct the fields sent (absent ones stay); ``If-Match`` optional.  A change of what the reports print
+    supersedes the patient's analyses (process its sessions again for final reports)."""
+    values = body.model_dump(exclude_unset=True)
+    patient, changed, _ = patients.correct_patient(db, principal.clinic_id, patient_id, values,
+                                                   if_match(request, required=False))
+    if changed:
+        audit.record(db, request, principal, "update", patient_id=patient.id)
+    response.headers["ETag"] = etag(patient.version)
+    return patient_out(patient)
+
+
+@router.delete("/{patient_id}", status_code=204, responses=DELETE_ERRORS)
+def erase_patient(patient_id: int, principal: Admin, request: Request) -> Response:
+    """Erase the patient with every session, recording, analysis and report (admin; ``If-Match`` required).
+    Stored files no other row names are removed from disk before the answer."""
+    expected = if_match(request, required=True)
+    with request.app.state.db.session() as db:
+        scoped_patient(db, principal, patient_id)  # 404 before anything is recorded
+        session_ids, shas = patients.delete_patient(db, principal.clinic_id, patient_id, expected)
+        event = audit.record(db, request, principal, "delete", patient_id=patient_id)
+        ids = erasure.mark(db, shas, reason="patient", actor=event.actor, clinic_id=principal.clinic_id,
+                           patient_id=patient_id, audit_event_id=event.id)
+    erase_now(request, ids)
+    return Response(status_code=204)
 
 
 @router.get("/{patient_id}/sessions", response_model=list[SessionSummaryOut])

@@ -46,12 +46,13 @@ from python_multipart.exceptions import MultipartParseError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
-from app.store import recordings
+from app.store import erasure, recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
 from app.store.recordings import MANIFEST
 from app.store.sessions import clinic_session, refuse_while_processing
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
+from app.web.records import ERRORS, erase_now
 from app.web.api.schemas import UploadOut, recording_out
 
 log = logging.getLogger("chakamo.uploads")
@@ -270,17 +271,22 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
         await run_in_threadpool(upload.discard)  # no-op for committed blobs (their temp file is gone)
 
 
-def _delete(request: Request, principal, session_id: int, recording_id: int) -> None:
+def _delete(request: Request, principal, session_id: int, recording_id: int) -> list[int]:
+    """Delete the recording, supersede the session's analyses, mark its blob, record the event: one transaction."""
     with request.app.state.db.session() as db:
-        session = recordings.delete_recording(db, principal.clinic_id, session_id, recording_id)
-        audit.record(db, request, principal, "delete", patient_id=session.patient_id, session_id=session.id)
+        session, sha, _ = recordings.delete_recording(db, principal.clinic_id, session_id, recording_id)
+        event = audit.record(db, request, principal, "delete", patient_id=session.patient_id, session_id=session.id)
+        return erasure.mark(db, [sha], reason="recording", actor=event.actor, clinic_id=principal.clinic_id,
+                            patient_id=session.patient_id, session_id=session.id, audit_event_id=event.id)
 
 
 @router.delete("/{session_id}/recordings/{recording_id}", status_code=204,
-               responses={409: {"description": "the session is being processed"}})
+               responses={k: v for k, v in ERRORS.items() if k != 412})
 def delete_recording(session_id: int, recording_id: int, principal: Clinician, request: Request) -> Response:
-    """Remove one recording from the session (its stored content stays if other rows use it)."""
-    _delete(request, principal, session_id, recording_id)
+    """Remove one recording from the session: its stored file is erased unless another recording or report
+    has the same content, and the session's analyses become superseded (no longer its final report; process
+    it again), as :mod:`app.store.recordings` argues."""
+    erase_now(request, _delete(request, principal, session_id, recording_id))
     # the deletion is committed: whatever happens to the new check, it stands (the stale check is redone)
     checker_of(request).refresh_or_defer(session_id, f"recording deleted from session {session_id}")
     return Response(status_code=204)

@@ -15,7 +15,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.choices import (DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
-                         SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
+                         SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
 
@@ -26,8 +26,7 @@ RoleName = Literal[USER_ROLE_NAMES]  # type: ignore[valid-type]
 TaskName = Literal[TASK_NAMES]  # type: ignore[valid-type]
 FilterName = Literal[FILTER_NAMES]  # type: ignore[valid-type]
 HeadingName = Literal[HEADING_NAMES]  # type: ignore[valid-type]
-#: a patient's sex as FHIR's administrative gender takes it
-SEXES = ("male", "female", "other", "unknown")
+SEXES = SEX_NAMES  # a patient's sex as FHIR's administrative gender takes it (app.choices)
 Sex = Literal[SEXES]  # type: ignore[valid-type]
 
 
@@ -55,6 +54,30 @@ class PatientIn(_In):
     sex: Sex | None = None
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
+    notes: str | None = Field(None, max_length=10000)
+
+
+class PatientPatch(_In):
+    """``PATCH /patients/{id}``: the fields to correct (absent: unchanged; ``external_id`` and ``side`` cannot be
+    null)."""
+
+    external_id: str | None = Field(None, min_length=1, max_length=100)
+    side: Side | None = None
+    name: str | None = Field(None, max_length=200)
+    birth_date: dt.date | None = None
+    sex: Sex | None = None
+    height_cm: float | None = Field(None, gt=30, lt=260)
+    mass_kg: float | None = Field(None, gt=2, lt=400)
+    notes: str | None = Field(None, max_length=10000)
+
+
+class SessionPatch(_In):
+    """``PATCH /sessions/{id}``: the fields to correct (absent: unchanged; ``date`` and ``task`` cannot be null)."""
+
+    date: dt.date | None = None
+    task: TaskName | None = None
+    step_height_m: float | None = Field(None, gt=0, lt=1)
+    professional: str | None = Field(None, max_length=200)
     notes: str | None = Field(None, max_length=10000)
 
 
@@ -123,6 +146,8 @@ class PatientOut(BaseModel):
     mass_kg: float | None
     notes: str | None
     created_at: dt.datetime
+    version: int
+    updated_at: dt.datetime | None
 
 
 class RecordingOut(BaseModel):
@@ -164,6 +189,7 @@ class AnalysisOut(BaseModel):
     created_at: dt.datetime
     accepted_cycles: int
     warnings: int
+    superseded_at: dt.datetime | None
 
 
 class SessionSummaryOut(BaseModel):
@@ -173,10 +199,12 @@ class SessionSummaryOut(BaseModel):
     task: str
     created_at: dt.datetime
     n_recordings: int
-    status: Literal["empty", "incomplete", "ready", "processing", "done", "failed"]
+    status: Literal["empty", "incomplete", "ready", "processing", "done", "failed", "superseded"]
 
 
 class SessionOut(SessionSummaryOut):
+    version: int
+    updated_at: dt.datetime | None
     step_height_m: float | None
     professional: str | None
     notes: str | None
@@ -208,12 +236,13 @@ class TrendOut(BaseModel):
 
 
 class AuditEventOut(BaseModel):
-    """One audit event (:mod:`app.web.audit`): ``actor_kind`` is ``user`` or ``token``; ``resource`` is the
+    """One audit event (:mod:`app.web.audit`): ``actor_kind`` is ``user``, ``token`` or ``operator`` (a
+    ``chakamo`` command or the retention policy, :mod:`app.store.erasure`); ``resource`` is the
     request's method and path; ``client`` the caller's address."""
 
     id: int
     at: dt.datetime
-    actor_kind: Literal["user", "token"]
+    actor_kind: Literal["user", "token", "operator"]
     user_id: int | None
     token_id: int | None
     actor: str
@@ -231,7 +260,7 @@ def user_out(u: User) -> dict[str, Any]:
 
 def patient_out(p: Patient) -> dict[str, Any]:
     return {k: getattr(p, k) for k in ("id", "external_id", "side", "name", "birth_date", "sex", "height_cm",
-                                       "mass_kg", "notes", "created_at")}
+                                       "mass_kg", "notes", "created_at", "version", "updated_at")}
 
 
 def recording_out(r: Recording) -> dict[str, Any]:
@@ -249,25 +278,31 @@ def audit_out(e: AuditEvent) -> dict[str, Any]:
 
 
 def analysis_out(a: Analysis) -> dict[str, Any]:
-    return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings")}
+    return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings",
+                                       "superseded_at")}
 
 
-def summaries(sessions: list[KneeSession], counts: dict[int, int], latest: dict[int, Job]) -> list[dict[str, Any]]:
+def summaries(sessions: list[KneeSession], counts: dict[int, int], latest: dict[int, Job],
+              superseded: set[int] | None = None) -> list[dict[str, Any]]:
     """SessionSummary dicts of ``sessions`` from :func:`app.store.sessions.summary_facts`."""
-    return [summary_out(s, counts.get(s.id, 0), latest.get(s.id)) for s in sessions]
+    superseded = superseded or set()
+    return [summary_out(s, counts.get(s.id, 0), latest.get(s.id), s.id in superseded) for s in sessions]
 
 
-def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None) -> dict[str, Any]:
+def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None, superseded: bool = False) -> dict[str, Any]:
     return {"id": s.id, "patient_id": s.patient_id, "date": s.date, "task": s.task, "created_at": s.created_at,
-            "n_recordings": n_recordings, "status": session_status(n_recordings, ready(s), latest_job)}
+            "n_recordings": n_recordings, "status": session_status(n_recordings, ready(s), latest_job, superseded)}
 
 
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:
     """The Session dict of ``s`` with its jobs and analyses, newest first (:func:`app.store.sessions.session_jobs`,
     :func:`app.store.sessions.session_analyses`)."""
     recs = list(s.recordings)
-    out = summary_out(s, len(recs), jobs[0] if jobs else None)
-    out |= {"step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
+    latest = jobs[0] if jobs else None
+    superseded = latest is not None and any(a.id == latest.analysis_id and a.superseded_at is not None
+                                            for a in analyses)
+    out = summary_out(s, len(recs), latest, superseded)
+    out |= {"version": s.version, "updated_at": s.updated_at, "step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
             "recordings": [recording_out(r) for r in recs], "ingestion": stored_ingestion(s, len(recs)),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out

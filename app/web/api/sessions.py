@@ -5,21 +5,59 @@ should have stored it died) is checked again here before it is answered
 (:meth:`app.store.checks.IngestionChecker.ensure_fresh`), so the check shown always belongs to the files shown.
 Each read is audited (``view``, :mod:`app.web.audit`): the answer lists the session's recordings, so this is
 also the audit of the recordings list.
+
+Correction and erasure, as for patients (:mod:`.patients`, :mod:`app.web.records`): ``PATCH /sessions/{id}``
+(clinician) corrects the session's facts — every one goes into its manifest, so a change supersedes its
+analyses and redoes its ingestion check; ``DELETE /sessions/{id}`` (admin; ``If-Match`` required) erases the
+session with its recordings, jobs, analyses, reports and the stored files no other row names.  Both answer 409
+while a job of the session is queued or running, and are audited (``update`` / ``delete``).
 """
 
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, Request, Response
 
-from app.store.sessions import session_analyses, session_jobs
+from app.store import erasure
+from app.store.sessions import correct_session, delete_session, session_analyses, session_jobs
 from app.web import audit
-from app.web.api.deps import CheckerDep, DbDep, Reader, scoped_session
-from app.web.api.schemas import SessionOut, session_out
+from app.web.api.deps import Admin, CheckerDep, Clinician, DbDep, Reader, scoped_session
+from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
+from app.web.api.schemas import SessionOut, SessionPatch, session_out
 
 router = APIRouter(prefix="/sessions", tags=["sessions"])
 
 
 @router.get("/{session_id}", response_model=SessionOut)
-def get_session(session_id: int, principal: Reader, db: DbDep, checker: CheckerDep, request: Request):
+def get_session(session_id: int, principal: Reader, db: DbDep, checker: CheckerDep, request: Request,
+                response: Response):
+    """The session; ``ETag`` is its version (for ``If-Match`` on ``PATCH`` and ``DELETE``)."""
     session = scoped_session(db, principal, session_id)
     checker.ensure_fresh(db, session)  # may roll db back: the event is recorded after it
     audit.record(db, request, principal, "view", patient_id=session.patient_id, session_id=session.id)
+    response.headers["ETag"] = etag(session.version)
     return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
+
+
+@router.patch("/{session_id}", response_model=SessionOut, responses=ERRORS)
+def correct(session_id: int, body: SessionPatch, principal: Clinician, db: DbDep, request: Request,
+            response: Response):
+    """Correct the fields sent (absent ones stay); ``If-Match`` optional.  Any change supersedes the session's
+    analyses (process it again for a final report)."""
+    session, changed, _ = correct_session(db, principal.clinic_id, session_id, body.model_dump(exclude_unset=True),
+                                          if_match(request, required=False))
+    if changed:
+        audit.record(db, request, principal, "update", patient_id=session.patient_id, session_id=session.id)
+    response.headers["ETag"] = etag(session.version)
+    return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
+
+
+@router.delete("/{session_id}", status_code=204, responses=DELETE_ERRORS)
+def erase(session_id: int, principal: Admin, request: Request) -> Response:
+    """Erase the session with its recordings, jobs, analyses and reports (admin; ``If-Match`` required).  Stored
+    files no other row names are removed from disk before the answer."""
+    expected = if_match(request, required=True)
+    with request.app.state.db.session() as db:
+        patient_id, shas = delete_session(db, principal.clinic_id, session_id, expected)
+        event = audit.record(db, request, principal, "delete", patient_id=patient_id, session_id=session_id)
+        ids = erasure.mark(db, shas, reason="session", actor=event.actor, clinic_id=principal.clinic_id,
+                           patient_id=patient_id, session_id=session_id, audit_event_id=event.id)
+    erase_now(request, ids)
+    return Response(status_code=204)

@@ -1,0 +1,129 @@
+"""``chakamo patients|sessions correct|erase`` and ``chakamo retention`` (app/cli/records.py), and the retention
+policy on a fixed clock (app/store/retention.py): a session is due exactly when its last activity is the
+configured number of days old, a dry run changes nothing, and applying it erases the session's files and leaves
+the operator's audit event."""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+
+import pytest
+
+pytest.importorskip("fastapi")
+
+DATA = b"acc_x (g),acc_y (g),acc_z (g)\n0.0,0.0,1.0\n# retention\n"
+
+
+@pytest.fixture
+def world(tmp_path):
+    """A clinic with a patient and a session holding one recording (made through the API, then closed)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "web"))
+    from fastapi.testclient import TestClient
+    from web_helpers import clinic_token, make_settings
+
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data")
+    h = clinic_token(settings, "Ret")
+    with TestClient(create_app(settings)) as c:
+        pid = c.post("/api/v1/patients", json={"external_id": "RET-1", "side": "right"}, headers=h).json()["id"]
+        sid = c.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=h).json()["id"]
+        files = [("files", ("thigh_task.csv", DATA, "text/csv"))]
+        assert c.post(f"/api/v1/sessions/{sid}/recordings", files=files, headers=h).status_code == 201
+        created = dt.datetime.fromisoformat(c.get(f"/api/v1/sessions/{sid}", headers=h).json()["recordings"][0]
+                                            ["uploaded_at"])
+    return {"settings": settings, "pid": pid, "sid": sid, "last": created,
+            "path": settings.blob_dir / (h := hashlib.sha256(DATA).hexdigest())[:2] / h[2:]}
+
+
+def _events(settings, action: str) -> list:
+    from sqlalchemy import select
+
+    from app.store.database import Database
+    from app.store.models import AuditEvent
+
+    db = Database(settings.db_url)
+    with db.session() as s:
+        out = [(e.actor_kind, e.actor, e.patient_id, e.session_id, e.resource) for e in
+               s.scalars(select(AuditEvent).where(AuditEvent.action == action).order_by(AuditEvent.id))]
+    db.dispose()
+    return out
+
+
+def test_retention_is_due_exactly_after_the_days_and_a_dry_run_changes_nothing(world):
+    from app.cli.records import retention
+
+    days = 30
+    before = world["last"] + dt.timedelta(days=days) - dt.timedelta(seconds=1)
+    after = world["last"] + dt.timedelta(days=days) + dt.timedelta(seconds=1)
+    assert retention(world["settings"], days=days, now=before).due == []
+    due = retention(world["settings"], days=days, now=after).due
+    assert [d.session_id for d in due] == [world["sid"]] and due[0].last_activity == world["last"]
+    assert world["path"].is_file() and _events(world["settings"], "delete") == []  # a dry run
+    report = retention(world["settings"], days=days, now=after, apply=True)
+    assert (report.erased_sessions, report.erased_files) == (1, 1)
+    assert not world["path"].exists()
+    [(kind, actor, pid, sid, resource)] = _events(world["settings"], "delete")
+    assert (kind, pid, sid) == ("operator", world["pid"], world["sid"]) and "retention 30 days" in actor
+    assert retention(world["settings"], days=days, now=after).due == []
+
+
+def test_retention_is_off_by_default(world):
+    from app.cli.records import retention
+
+    with pytest.raises(ValueError, match="off"):
+        retention(world["settings"])
+
+
+def test_the_embedded_runner_applies_the_configured_policy(world):
+    """The housekeeping the server runs (at start and hourly) with CHAKAMO_RETENTION_DAYS set: on a clock a year
+    on, the session is erased."""
+    from app.store.blobs import open_storage
+    from app.store.database import Database
+    from app.web.housekeeping import housekeeping
+
+    settings = world["settings"].model_copy(update={"retention_days": 365})
+    db = Database(settings.db_url)
+    housekeeping(settings, db, open_storage(settings), now=world["last"] + dt.timedelta(days=364))
+    assert world["path"].is_file()
+    housekeeping(settings, db, open_storage(settings), now=world["last"] + dt.timedelta(days=366))
+    db.dispose()
+    assert not world["path"].exists()
+    assert [e[0] for e in _events(settings, "delete")] == ["operator"]
+
+
+def test_cli_corrects_and_erases_with_confirmation(world, capsys):
+    from app.cli.main import main
+
+    env_settings = world["settings"]
+    import os
+
+    os.environ["CHAKAMO_DATA_DIR"] = str(env_settings.data_dir)
+    os.environ["CHAKAMO_ENV"] = "development"
+    from app.settings import get_settings
+
+    get_settings.cache_clear()
+    try:
+        pid, sid = world["pid"], world["sid"]
+        assert main(["patients", "correct", "--clinic", "Ret", str(pid), "--set", "name=Ana Pérez",
+                     "--set", "height_cm=165.5"]) == 0
+        assert "corrected name, height_cm" in capsys.readouterr().out
+        assert main(["patients", "correct", "--clinic", "Ret", str(pid), "--set", "side=up"]) == 2
+        assert "side" in capsys.readouterr().err
+        assert main(["sessions", "correct", "--clinic", "Ret", str(sid), "--set", "notes=left knee pain"]) == 0
+        assert main(["sessions", "erase", "--clinic", "Ret", str(sid), "--confirm", "RET-2"]) == 2
+        assert "not the patient's external id" in capsys.readouterr().err and world["path"].is_file()
+        assert main(["patients", "erase", "--clinic", "Other", str(pid), "--confirm", "RET-1"]) == 2
+        assert main(["patients", "erase", "--clinic", "Ret", str(pid), "--confirm", "RET-1"]) == 0
+        assert "1 session(s), 1 stored file(s) erased" in capsys.readouterr().out
+        assert not world["path"].exists()
+        assert [e[0] for e in _events(env_settings, "update")] == ["operator", "operator"]
+        assert [(e[0], e[2]) for e in _events(env_settings, "delete")] == [("operator", pid)]
+    finally:
+        get_settings.cache_clear()
+        os.environ.pop("CHAKAMO_DATA_DIR")
+        os.environ.pop("CHAKAMO_ENV")

@@ -1,0 +1,79 @@
+"""Correcting and erasing in the browser (static/views/records.js), in real Chromium, in Spanish: an admin edits a
+patient, cancels and then confirms a session's deletion in the modal dialog, and erases the patient only after
+typing its identifier.  The texts expected are read from static/i18n/es.json; what the API holds afterwards is
+read back through the API, and the stored recording's file is checked gone from disk."""
+
+from __future__ import annotations
+
+import hashlib
+
+from test_browser_e2e import EMAIL, PASSWORD, WAIT_MS, _tables, server, slow_expect  # noqa: F401 — fixtures
+
+DATA = b"acc_x (g),acc_y (g),acc_z (g)\n0.0,0.0,1.0\n# browser erasure\n"
+
+
+def test_edit_patient_and_delete_session_and_patient_with_confirmation(browser, server, slow_expect,  # noqa: F811
+                                                                        tmp_path_factory):
+    es = _tables()["es"]
+    context = browser.new_context(locale="es-ES", viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        page.goto(f"{server}/#/patients")
+        page.locator("input[name=email]").fill(EMAIL)
+        page.locator("input[name=password]").fill(PASSWORD)
+        page.locator("form.login button[type=submit]").click()
+        slow_expect(page.locator("h1")).to_have_text(es["patients.title"])
+        api = f"{server}/api/v1"
+        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        pid = context.request.post(f"{api}/patients", data={"external_id": "BR-ERASE", "side": "left"},
+                                   headers=csrf).json()["id"]
+        sid = context.request.post(f"{api}/patients/{pid}/sessions", data={}, headers=csrf).json()["id"]
+        r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf,
+                                 multipart={"files": {"name": "thigh_task.csv", "mimeType": "text/csv", "buffer": DATA}})
+        assert r.status == 201, r.text()
+        sha = hashlib.sha256(DATA).hexdigest()  # the server's data dir: the `server` fixture's temporary folder
+        blobs = list(tmp_path_factory.getbasetemp().glob("chakamo-data*/blobs"))
+        assert any((b / sha[:2] / sha[2:]).is_file() for b in blobs)
+
+        page.goto(f"{server}/#/patients/{pid}")
+        page.get_by_role("button", name=es["patient.edit"]).click()
+        form = page.locator("#edit-patient")
+        form.locator("input[name=name]").fill("Ana <b>Edit</b>")
+        form.get_by_role("button", name=es["common.save"]).click()
+        slow_expect(page.locator("h1")).to_have_text("Ana <b>Edit</b> (BR-ERASE)")  # text, never markup
+        assert context.request.get(f"{api}/patients/{pid}").json()["version"] == 2
+
+        # the session: the dialog says what is lost; Cancel keeps it
+        page.locator("[data-action=delete-session]").click()
+        dialog = page.locator("dialog.confirm")
+        slow_expect(dialog).to_be_visible()
+        slow_expect(dialog).to_contain_text(es["sessions.delete_text"])
+        box = dialog.bounding_box()
+        assert box and box["width"] > 200 and box["height"] > 80  # shown, not a zero-size element
+        dialog.get_by_role("button", name=es["common.cancel"]).click()
+        slow_expect(dialog).to_have_count(0)
+        assert context.request.get(f"{api}/sessions/{sid}").status == 200
+        page.locator("[data-action=delete-session]").click()
+        page.locator("dialog.confirm").get_by_role("button", name=es["common.delete_for_good"]).click()
+        slow_expect(page.locator("#sessions-table")).to_have_count(0)
+        assert context.request.get(f"{api}/sessions/{sid}").status == 404
+        assert not any((b / sha[:2] / sha[2:]).exists() for b in blobs)
+
+        # the patient: a wrong identifier is refused in the dialog, the right one erases it
+        page.locator("#delete-patient").click()
+        dialog = page.locator("dialog.confirm")
+        slow_expect(dialog).to_contain_text(es["patient.delete_text"].replace("{id}", "BR-ERASE"))
+        dialog.locator("input[name=confirm]").fill("BR-ERAS")
+        dialog.get_by_role("button", name=es["common.delete_for_good"]).click()
+        slow_expect(dialog).to_contain_text(es["patient.delete_mismatch"])
+        assert context.request.get(f"{api}/patients/{pid}").status == 200
+        dialog.locator("input[name=confirm]").fill("BR-ERASE")
+        dialog.get_by_role("button", name=es["common.delete_for_good"]).click()
+        slow_expect(page.locator("h1")).to_have_text(es["patients.title"])
+        assert context.request.get(f"{api}/patients/{pid}").status == 404
+        assert errors == []
+    finally:
+        context.close()
