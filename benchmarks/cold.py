@@ -71,6 +71,7 @@ ENTRY = ("import sys, time\n"
          "console()\n")
 TIMING_ENV = "CHAKAMO_TIMINGS"
 _TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
+_PROCESS_LINE = re.compile(r"^chakamo-process:\s+(\S+)\s+([-+0-9.eE]+)\s+([-+0-9.eE]+)\s*$")
 _PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")
 GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0)}
 MARK_SPANS = [("start", "cli-imported", "interpreter + app.cli imports"),
@@ -91,6 +92,7 @@ class Run:
     marks_s: dict[str, float] = field(default_factory=dict)  # first arrival of each mark, s after Popen
     stages_s: dict[str, float] = field(default_factory=dict)  # the child's own stage times, summed per stage
     stages_cpu_s: dict[str, float] = field(default_factory=dict)  # their CPU times, when the child prints them
+    processes: dict[str, tuple[float, float]] = field(default_factory=dict)  # name -> (peak RSS MB, CPU s)
     stderr_tail: str = ""
 
 
@@ -104,6 +106,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
     marks: dict[str, float] = {"start": 0.0}
     stages: dict[str, float] = {}
     stages_cpu: dict[str, float] = {}
+    processes: dict[str, tuple[float, float]] = {}
     tail: list[str] = []
 
     def read_stderr() -> None:
@@ -113,13 +116,17 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
             line = line.rstrip("\n")
             tail.append(line)
             del tail[:-20]
+            p = _PROCESS_LINE.match(line)
+            if p:
+                processes[p.group(1)] = (float(p.group(2)), float(p.group(3)))
+                continue
             m = _TIMING_LINE.match(line)
             if m and m.group(2) is not None:
                 stages[m.group(1)] = stages.get(m.group(1), 0.0) + float(m.group(2))
                 if m.group(3) is not None:
                     stages_cpu[m.group(1)] = stages_cpu.get(m.group(1), 0.0) + float(m.group(3))
                 continue
-            name = m.group(1) if m else (p.group(1) if (p := _PROGRESS_LINE.match(line)) else None)
+            name = m.group(1) if m else (g.group(1) if (g := _PROGRESS_LINE.match(line)) else None)
             if name is not None:
                 marks.setdefault(name, now)
 
@@ -132,7 +139,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
     marks["exit"] = wall
     rss_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
     cpu_s = usage.ru_utime + usage.ru_stime
-    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, stages_cpu, "\n".join(tail))
+    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, stages_cpu, processes, "\n".join(tail))
 
 
 def ensure_session(session: Path | None) -> Path:
@@ -212,6 +219,27 @@ def importtime_of(args: list[str]) -> str:
     return done.stderr
 
 
+def critical_path_cpu(run: Run) -> float | None:
+    """What the run's wall time would be on two otherwise idle cores, from CPU times, s (None without the lines).
+
+    ``chakamo process`` runs in three processes (``app.pipeline.render.ForkedRenderers``): the parent reads and
+    computes while a helper imports the report libraries; then two helpers render while the parent waits; then
+    the parent writes.  On a shared machine wall time measures the other processes too, CPU time does not, so
+    the critical path is estimated as ``max(parent CPU before the reports, helper imports CPU) + max(render
+    CPU of a helper) + the parent's CPU in the reports stage (pickling) and in the write``, each a CPU time (what it takes alone on one core; page faults and
+    the pipes' copies are in them, the scheduler's switches are not)."""
+    procs, cpu = run.processes, run.stages_cpu_s
+    if "main" not in procs:
+        return None
+    main_cpu = procs["main"][1]
+    write = cpu.get("write", 0.0)
+    helpers = [v[1] for k, v in procs.items() if k != "main"]
+    if not helpers:
+        return main_cpu
+    reports = cpu.get("reports", 0.0)  # the parent's part: the report input, pickling it and the answers
+    return max(main_cpu - write - reports, cpu.get("render.imports", 0.0)) + reports + max(helpers) + write
+
+
 def _median(values: list[float]) -> float:
     return statistics.median(values) if values else float("nan")
 
@@ -239,6 +267,14 @@ def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
     names = sorted({s for r in runs for s in r.stages_s}, key=lambda s: (s not in CHILD_STAGES,
                                                                            CHILD_STAGES.index(s) if s in CHILD_STAGES
                                                                            else 0, s))
+    procs = sorted({p for r in runs for p in r.processes}, key=lambda p: (p != "main", p))
+    out["processes"] = {p: {"peak_rss_mb": _median([r.processes[p][0] for r in runs if p in r.processes]),
+                            "cpu_s": _median([r.processes[p][1] for r in runs if p in r.processes])} for p in procs}
+    if procs:
+        out["peak_rss_sum_mb"] = _median([sum(v[0] for v in r.processes.values()) for r in runs if r.processes])
+        paths = [critical_path_cpu(r) for r in runs]
+        if all(x is not None for x in paths):
+            out["critical_path_cpu_s"] = _median(paths)
     for s in names:
         out["stages"][s] = _median([r.stages_s[s] for r in runs if s in r.stages_s])
         cpu = [r.stages_cpu_s[s] for r in runs if s in r.stages_cpu_s]
@@ -259,6 +295,14 @@ def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
         lines.append(f"{s['command']:<10} {s['wall_s']:7.2f} {_spread(s['wall_range_s']):>11} {s['cpu_s']:6.2f} "
                      f"{s['peak_rss_mb']:12.0f} {goal:>20}  {verdict}")
     for s in summaries:
+        if s.get("processes"):
+            lines += ["", f"{s['command']}: per process (chakamo-process lines; median)",
+                      f"  {'process':<12} {'CPU s':>7} {'peak RSS MB':>12}"]
+            lines += [f"  {p:<12} {v['cpu_s']:7.2f} {v['peak_rss_mb']:12.0f}" for p, v in s["processes"].items()]
+            lines.append(f"  {'sum of peaks':<12} {'':>7} {s['peak_rss_sum_mb']:12.0f}   (shared pages counted in each)")
+            if "critical_path_cpu_s" in s:
+                lines.append(f"  critical path from CPU times (two idle cores): {s['critical_path_cpu_s']:.2f} s "
+                             f"(goal ≤{GOALS['process'][0]:g} s)")
         if s["marks"]:
             lines += ["", f"{s['command']}: split from the progress marks (s, median)"]
             lines += [f"  {label:<40} {v:6.2f}" for label, v in s["marks"].items()]

@@ -17,14 +17,22 @@ from pathlib import Path
 from app.pipeline import timings
 from app.pipeline.ingestion import load_session
 from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
+from app.pipeline.render import ForkedRenderers, render_named
 from app.pipeline.results import build_results, report_input, results_json, timeseries_npz, write_outputs
+
+#: the rendered outputs, in the order they are written (after results.json and timeseries.npz); the same as
+#: :data:`app.pipeline.render.FORK_GROUPS` together
+REPORT_FILES = ("report.pdf", "angles.xlsx", "quaternions.xlsx", "report.html", "scene.viser")
 
 
 def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, options: ProcessOptions | None = None,
-                   *, progress: Progress = _no_progress, reports: bool = True) -> tuple[SessionOutcome, list[Path]]:
+                   *, progress: Progress = _no_progress, reports: bool = True,
+                   renderer: ForkedRenderers | None = None) -> tuple[SessionOutcome, list[Path]]:
     """Read ``session_dir``, compute everything, render every output, then write them all into ``out_dir``.
 
     ``reports=False`` writes only ``results.json`` and ``timeseries.npz`` (no PDF, Excel, HTML or scene).
+    ``renderer``: render processes forked at the command's start (:class:`app.pipeline.render.ForkedRenderers`,
+    the CLI's cold start); without one every output is rendered here.  The bytes are the same either way.
 
     Raises :class:`app.pipeline.ingestion.IngestionError` or :class:`app.pipeline.session.PipelineError` (both
     ``ValueError``) with a message for the user; nothing is written then.
@@ -37,31 +45,14 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
         outcome = process_session(session, options, progress=progress)
         results = build_results(outcome)
         files = {"results.json": results_json(results), "timeseries.npz": timeseries_npz(outcome)}
-    if reports:  # imported here: matplotlib, plotly and viser cost ~80 MB a process that needs no report
-        with timings.stage("imports"):
-            from reports.excel import write_angles_xlsx, write_quaternions_xlsx
-            from reports.html import render_html
-            from reports.pdf import render_pdf
-            from reports.scene import scene_bytes
-
+    if reports:  # rendered with deferred imports: matplotlib, plotly and viser cost ~80 MB a process that needs no report
         progress("reports", 0.97)
         with timings.stage("reports"):
             ri = report_input(outcome, results)
-            with timings.stage("report.pdf"):
-                pdf = render_pdf(ri)
-            with timings.stage("report.html"):
-                html = render_html(ri)
-            with timings.stage("scene.viser"):
-                scene = scene_bytes(ri)
-        files |= {
-            "report.pdf": pdf,
-            "angles.xlsx": lambda path: write_angles_xlsx(ri, path),
-            "quaternions.xlsx": lambda path: write_quaternions_xlsx(ri, path),
-            "report.html": html,
-            "scene.viser": scene,
-        }
+            rendered = renderer.render(ri) if renderer is not None else render_named(ri, REPORT_FILES)
+        files |= {name: rendered[name] for name in REPORT_FILES}
     progress("write", 0.99)
-    with timings.stage("write"):  # the workbooks are rendered as they are written
+    with timings.stage("write"):
         written = write_outputs(out_dir, files)
     progress("done", 1.0)
     return outcome, written

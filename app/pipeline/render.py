@@ -12,9 +12,11 @@ The job runner (:mod:`app.jobs.work`) calls :func:`render_all`; nothing here tou
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import os
+import signal
 import tempfile
 import threading
 import time
@@ -119,6 +121,235 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
         return fallback()
 
 
+#: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
+#: (CPU on the 10-cycle demo session: PDF ~0.19 s, angles.xlsx ~0.05 s, HTML ~0.03 s | scene ~0.18 s,
+#: quaternions.xlsx ~0.09 s; ``python -m benchmarks.cold`` prints the finer stages)
+FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx", "report.html"),
+                                             ("scene.viser", "quaternions.xlsx"))
+
+
+def render_named(ri, names) -> dict[str, bytes]:
+    """``{name: bytes}`` of :func:`render_artefact` for ``names``, the PDF in the report input's language; each
+    one timed as its own stage (``CHAKAMO_TIMINGS``)."""
+    from app.pipeline import timings
+
+    out = {}
+    for name in names:
+        with timings.stage(name):
+            out[name] = render_artefact(ri, name, ri.language if name == "report.pdf" else "")
+    return out
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    with os.fdopen(fd, "wb") as f:
+        f.write(len(data).to_bytes(8, "little"))
+        f.write(data)
+
+
+def _read_all(fd: int) -> bytes | None:
+    """A length-prefixed message from ``fd`` (then closed), None when the writer closed it without one."""
+    with os.fdopen(fd, "rb") as f:
+        head = f.read(8)
+        if len(head) < 8:
+            return None
+        size = int.from_bytes(head, "little")
+        data = f.read(size)
+    return data if len(data) == size else None
+
+
+class ForkedRenderers:
+    """Render processes forked at the start of a one-shot command (``chakamo process``), for a cold start.
+
+    A fresh ``chakamo process`` spends most of its time on imports and on loading numba's cached kernels, one
+    core busy; the report libraries (fpdf2, openpyxl, viser, plotly) cost ~0.5 s more of imports that do not
+    depend on the session.  So, before numpy is even imported, the command forks one helper that imports the
+    report modules (and makes the PDF's font cut) on the second core while the parent computes; given
+    ``read=(session folder, expected rate)`` it first reads the session there (:meth:`session` hands it over,
+    pickled), while the parent loads numba's kernels.  When the
+    parent hands it the report input (:meth:`render`, pickled through a pipe), the helper forks once more and
+    the two render the groups of :data:`FORK_GROUPS` side by side, sending the bytes back; the parent writes
+    every file itself (all or nothing, :func:`app.pipeline.results.write_outputs`).  The bytes are those of
+    :func:`render_artefact`, as rendered in the parent.  A helper that fails or dies is not fatal: what it
+    did not deliver is rendered in the parent.
+
+    Only for a process with a single thread and no event loop (fork copies none of them): the CLI creates it
+    first thing; servers use :class:`RenderPool` (spawned).  Use as a context manager, or call :meth:`close`:
+    an unused helper then reads the end of its pipe and exits.  Without ``os.fork`` (Windows) nothing is
+    forked and :meth:`render` renders in the caller.
+    """
+
+    def __init__(self, groups: tuple[tuple[str, ...], ...] = FORK_GROUPS, *,
+                 read: tuple[str | os.PathLike, float | None] | None = None) -> None:
+        self.groups = groups
+        self.pid: int | None = None
+        self._session_reader = None
+        if not hasattr(os, "fork"):  # pragma: no cover - Windows
+            return
+        task_r, task_w = os.pipe()
+        results = [os.pipe() for _ in groups]
+        session_r, session_w = os.pipe() if read is not None else (None, None)
+        pid = os.fork()
+        if pid == 0:  # the helper: never returns into the caller's code
+            code = 0
+            try:
+                os.close(task_w)
+                for r, _ in results:
+                    os.close(r)
+                if session_r is not None:
+                    os.close(session_r)
+                self._helper(task_r, [w for _, w in results], read, session_w)
+            except BaseException:  # noqa: BLE001 — the parent renders what it does not receive
+                code = 1
+            finally:
+                os._exit(code)
+        os.close(task_r)
+        for _, w in results:
+            os.close(w)
+        self._session_reader: threading.Thread | None = None
+        self._session_message: list[bytes | None] = [None]
+        if session_w is not None:  # drained by a thread: the helper goes on to its imports at once
+            os.close(session_w)
+            self._session_reader = threading.Thread(target=self._drain_session, args=(session_r,),
+                                                    name="chakamo-session-reader", daemon=True)
+            self._session_reader.start()
+        self.pid, self._task_w, self._results = pid, task_w, [r for r, _ in results]
+
+    # ----------------------------------------------------------------------------------- the helper's side
+    def _helper(self, task_r: int, result_ws: list[int], read, session_w: int | None) -> None:
+        import pickle
+
+        from app.pipeline import timings
+
+        if read is not None:  # the session first: the parent needs it soonest
+            try:
+                with timings.stage("read"):
+                    from app.pipeline.ingestion import load_session
+
+                    session = load_session(read[0], expected_fs_hz=read[1])
+                payload = pickle.dumps(session, protocol=pickle.HIGHEST_PROTOCOL)
+            except BaseException:  # noqa: BLE001 — the parent reads it again and reports the error itself
+                payload = b""
+            _write_all(session_w, payload)
+        with timings.stage("render.imports"):
+            warm_up(processing=False)
+            import plotly.offline  # noqa: F401 — what reports.html and reports.scene import when they run
+            import viser  # noqa: F401
+            import viser._messages  # noqa: F401
+        task = _read_all(task_r)
+        if task is None:  # the parent ended (an error, or nothing to render)
+            return
+        ri = pickle.loads(task)
+        children = []
+        for g in range(1, len(self.groups)):
+            pid = os.fork()
+            if pid == 0:
+                code = 0
+                try:
+                    for w in result_ws[:g] + result_ws[g + 1:]:
+                        os.close(w)
+                    self._render_group(ri, g, result_ws[g])
+                except BaseException:  # noqa: BLE001
+                    code = 1
+                finally:
+                    os._exit(code)
+            children.append(pid)
+        for w in result_ws[1:]:
+            os.close(w)
+        self._render_group(ri, 0, result_ws[0])
+        for pid in children:
+            os.waitpid(pid, 0)
+
+    def _render_group(self, ri, g: int, result_w: int) -> None:
+        import pickle
+        import resource
+        import traceback
+
+        from app.pipeline import timings
+
+        cpu0 = time.process_time()
+        try:
+            out = render_named(ri, self.groups[g])
+            payload = pickle.dumps(("ok", out), protocol=pickle.HIGHEST_PROTOCOL)
+        except BaseException:  # noqa: BLE001 — reported to the parent, which renders the group itself
+            payload = pickle.dumps(("error", traceback.format_exc()))
+        timings.report_process(f"render{g + 1}", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                               time.process_time() - cpu0)
+        _write_all(result_w, payload)
+
+    # ----------------------------------------------------------------------------------- the parent's side
+    def _drain_session(self, fd: int) -> None:
+        self._session_message[0] = _read_all(fd)
+
+    def session(self):
+        """The session the helper read (``read=(folder, expected_fs_hz)``: :func:`app.pipeline.ingestion.load_session`),
+        or None when it was not asked to or could not (an error: the caller reads it again and reports it)."""
+        reader, self._session_reader = self._session_reader, None
+        if reader is None:
+            return None
+        reader.join()
+        message, self._session_message[0] = self._session_message[0], None
+        if not message:
+            return None
+        import pickle
+
+        return pickle.loads(message)
+
+    def render(self, ri) -> dict[str, bytes]:
+        """Every artefact of the groups for report input ``ri``: ``{name: bytes}`` (:func:`render_named`)."""
+        names = [name for group in self.groups for name in group]
+        if self.pid is None:
+            return render_named(ri, names)
+        import pickle
+
+        try:
+            _write_all(self._task_w, pickle.dumps(ri, protocol=pickle.HIGHEST_PROTOCOL))
+        except OSError:  # the helper is gone: nothing was delivered
+            log.exception("the render helper did not take the report input; rendering here")
+        finally:
+            self._task_w = None
+        out: dict[str, bytes] = {}
+        for g, fd in enumerate(self._results):
+            message = _read_all(fd)
+            status, payload = pickle.loads(message) if message is not None else ("error", "no answer")
+            if status == "ok":
+                out |= payload
+            else:
+                log.error("render helper %d failed (%s); rendering its artefacts here", g + 1, payload)
+        self._results = []
+        self._reap()
+        return out | render_named(ri, [name for name in names if name not in out])
+
+    def close(self) -> None:
+        """End an unused helper (the command failed before its reports) at once and reap it: a user's error
+        message must not wait for the report libraries' imports.  (Killed while it makes the PDF's font cut,
+        once per machine, it can leave a temporary file in the font cache; the next run makes the cut again.)"""
+        if self.pid is None:
+            return
+        if self._task_w is not None:
+            os.close(self._task_w)
+            self._task_w = None
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)
+        for fd in self._results:
+            os.close(fd)
+        self._results = []
+        self._reap()
+        if self._session_reader is not None:  # the helper is gone: its pipe has ended
+            self._session_reader.join()
+            self._session_reader = None
+
+    def _reap(self) -> None:
+        if self.pid is not None:
+            os.waitpid(self.pid, 0)
+            self.pid = None
+
+    def __enter__(self) -> "ForkedRenderers":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def _exit_with_parent(parent_pid: int) -> None:
     """In a render process: exit as soon as the server process is gone (even killed with SIGKILL)."""
     def watch() -> None:
@@ -181,13 +412,14 @@ class RenderPool:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-def warm_up() -> None:
+def warm_up(processing: bool = True) -> None:
     """Before the first job needs them: import the processing and report modules (≈1 s), make the PDF's font
     cut (once per machine, ≈0.3 s) and run the default orientation filter once on one second of still data
-    (loads its compiled numba kernels, ≈0.3 s)."""
+    (loads its compiled numba kernels, ≈0.3 s).  ``processing=False``: the report side only (no numba)."""
     import importlib
 
-    for name in ("app.pipeline.session", "app.pipeline.results", "reports.excel", "reports.html", "reports.pdf", "reports.scene"):
+    names = ("app.pipeline.session", "app.pipeline.results") if processing else ()
+    for name in names + ("reports.excel", "reports.html", "reports.pdf", "reports.scene"):
         try:
             importlib.import_module(name)
         except Exception:  # noqa: BLE001 — the job importing it will report the problem
@@ -198,6 +430,8 @@ def warm_up() -> None:
         font_files()
     except Exception:  # noqa: BLE001 — only a warm-up
         log.exception("warm-up of the PDF font failed")
+    if not processing:
+        return
     try:
         import numpy as np
 
@@ -211,5 +445,5 @@ def warm_up() -> None:
         log.exception("warm-up run of the orientation filter failed")
 
 
-__all__ = ["LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIMEOUT_S", "RenderPool", "collect", "render_all",
-           "render_artefact", "render_many", "warm_up"]
+__all__ = ["FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIMEOUT_S", "ForkedRenderers", "RenderPool",
+           "collect", "render_all", "render_artefact", "render_many", "render_named", "warm_up"]

@@ -31,6 +31,17 @@ def report(name: str, seconds: float, cpu_s: float | None = None) -> None:
         print(f"chakamo-timing: {name} {seconds:.6f}{cpu}", file=sys.stderr, flush=True)
 
 
+def report_process(process: str, peak_rss_mb: float, cpu_s: float) -> None:
+    """Print one helper process's peak resident memory and CPU time (when enabled), ::
+
+        chakamo-process: <process> <peak_rss_mb> <cpu_s>
+
+    (the parent's rusage shows only the largest of its processes' peaks, not what they held together, and
+    their CPU summed, not how it overlapped)."""
+    if enabled():
+        print(f"chakamo-process: {process} {peak_rss_mb:.1f} {cpu_s:.6f}", file=sys.stderr, flush=True)
+
+
 @contextmanager
 def stage(name: str) -> Iterator[None]:
     """Time the block as stage ``name``."""

@@ -1,0 +1,69 @@
+"""The CLI's forked render helpers (``app.pipeline.render.ForkedRenderers``) give the bytes of rendering in the
+process itself, and a helper that dies or is not used costs nothing but time."""
+
+import os
+import signal
+import sys
+
+import pytest
+
+from app.pipeline.demo import simulate_session, write_session
+from app.pipeline.process import REPORT_FILES, process_folder
+from app.pipeline.render import FORK_GROUPS, ForkedRenderers, render_named
+from app.pipeline.results import build_results, report_input
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork") or sys.platform == "darwin", reason="needs os.fork")
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    """The report input of a simulated 3-cycle session, processed in this process (no reports written)."""
+    root = tmp_path_factory.mktemp("forked")
+    write_session(root / "session", simulate_session(seed=5, side="right", n_cycles=3))
+    outcome, _ = process_folder(root / "session", root / "out", reports=False)
+    return report_input(outcome, build_results(outcome))
+
+
+def _gone(pid: int) -> bool:
+    try:
+        os.waitpid(pid, os.WNOHANG)
+    except ChildProcessError:
+        return True
+    return False
+
+
+def test_the_groups_cover_every_report_file_once():
+    names = [name for group in FORK_GROUPS for name in group]
+    assert sorted(names) == sorted(REPORT_FILES) and len(names) == len(set(names))
+
+
+def test_forked_helpers_render_the_same_bytes_as_this_process(report):
+    expected = render_named(report, REPORT_FILES)
+    with ForkedRenderers() as renderer:
+        pid = renderer.pid
+        got = renderer.render(report)
+    assert set(got) == set(REPORT_FILES)
+    for name in REPORT_FILES:
+        assert got[name] == expected[name], name
+    assert _gone(pid)  # reaped: no zombie left behind
+
+
+def test_a_killed_helper_is_replaced_by_rendering_here(report):
+    expected = render_named(report, ("report.html", "angles.xlsx"))
+    renderer = ForkedRenderers(groups=(("report.html",), ("angles.xlsx",)))
+    os.kill(renderer.pid, signal.SIGKILL)
+    got = renderer.render(report)
+    assert got == expected
+
+
+def test_an_unused_helper_exits_when_closed():
+    renderer = ForkedRenderers()
+    pid = renderer.pid
+    renderer.close()
+    assert renderer.pid is None and _gone(pid)
+
+
+def test_a_failing_artefact_fails_here_as_it_would_without_helpers(report):
+    with ForkedRenderers(groups=(("report.html",), ("no-such-artefact",))) as renderer:
+        with pytest.raises(ValueError, match="unknown artefact"):
+            renderer.render(report)
