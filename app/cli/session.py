@@ -91,15 +91,17 @@ def run(args: argparse.Namespace) -> int:
         from app.pipeline import timings
         from app.pipeline.render import ForkedRenderers
 
-        with ForkedRenderers() as renderer:  # forked before numpy is imported: the reports' imports run meanwhile
+        expected_fs_hz = None if args.any_rate else 100.0
+        # forked before numpy is imported: the helper reads the session, then imports the report libraries,
+        # while this process loads numba and the pipeline
+        with ForkedRenderers(read=(args.session, expected_fs_hz)) as renderer:
             with timings.stage("imports"):
                 from app.pipeline.process import process_folder
                 from app.pipeline.session import ProcessOptions
 
             options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
                                      calibration=args.calibration, task=args.task, heading=args.heading,
-                                     expected_fs_hz=None if args.any_rate else 100.0,
-                                     language=args.lang or choices.DEFAULT_LANGUAGE)
+                                     expected_fs_hz=expected_fs_hz, language=args.lang or choices.DEFAULT_LANGUAGE)
             _, written = process_folder(args.session, args.out, options, progress=_progress, renderer=renderer)
         for path in written:
             print(path)

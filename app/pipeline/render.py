@@ -122,10 +122,10 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
 
 
 #: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
-#: (CPU on the 10-cycle demo session: PDF ~0.19 s, angles.xlsx ~0.05 s, HTML ~0.03 s | scene ~0.18 s,
-#: quaternions.xlsx ~0.09 s; ``python -m benchmarks.cold`` prints the finer stages)
-FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx", "report.html"),
-                                             ("scene.viser", "quaternions.xlsx"))
+#: (CPU on the 10-cycle demo session, lightly loaded: PDF ~0.19 s, angles.xlsx ~0.05 s | scene ~0.18 s,
+#: quaternions.xlsx ~0.09 s, HTML ~0.03 s; ``python -m benchmarks.cold`` prints them per run)
+FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx"),
+                                             ("scene.viser", "quaternions.xlsx", "report.html"))
 
 
 def render_named(ri, names) -> dict[str, bytes]:
@@ -141,6 +141,7 @@ def render_named(ri, names) -> dict[str, bytes]:
 
 
 def _write_all(fd: int, data: bytes) -> None:
+    """One length-prefixed message on ``fd``, then closed."""
     with os.fdopen(fd, "wb") as f:
         f.write(len(data).to_bytes(8, "little"))
         f.write(data)
@@ -158,64 +159,61 @@ def _read_all(fd: int) -> bytes | None:
 
 
 class ForkedRenderers:
-    """Render processes forked at the start of a one-shot command (``chakamo process``), for a cold start.
+    """Helper processes forked at the start of a one-shot command (``chakamo process``), for a cold start.
 
-    A fresh ``chakamo process`` spends most of its time on imports and on loading numba's cached kernels, one
-    core busy; the report libraries (fpdf2, openpyxl, viser, plotly) cost ~0.5 s more of imports that do not
-    depend on the session.  So, before numpy is even imported, the command forks one helper that imports the
-    report modules (and makes the PDF's font cut) on the second core while the parent computes; given
-    ``read=(session folder, expected rate)`` it first reads the session there (:meth:`session` hands it over,
-    pickled), while the parent loads numba's kernels.  When the
-    parent hands it the report input (:meth:`render`, pickled through a pipe), the helper forks once more and
-    the two render the groups of :data:`FORK_GROUPS` side by side, sending the bytes back; the parent writes
-    every file itself (all or nothing, :func:`app.pipeline.results.write_outputs`).  The bytes are those of
-    :func:`render_artefact`, as rendered in the parent.  A helper that fails or dies is not fatal: what it
-    did not deliver is rendered in the parent.
+    A fresh ``chakamo process`` spends most of its time importing libraries and loading numba's cached
+    kernels, on one core; the report libraries (fpdf2, openpyxl, viser, plotly) cost ~0.5 s more of imports
+    that do not depend on the session, and reading the files ~0.15 s that needs no numba.  So, before numpy
+    is even imported, the command forks one helper.  Given ``read=(session folder, expected rate)`` it first
+    reads the session (:func:`app.pipeline.ingestion.load_session`; :meth:`session` hands it over, pickled)
+    while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), and
+    forks once per further group of :data:`FORK_GROUPS`.  When the parent has the report input
+    (:meth:`render`, pickled through one pipe per helper), the helpers render their groups side by side and
+    send the bytes back; the parent writes every file itself (all or nothing,
+    :func:`app.pipeline.results.write_outputs`).  The bytes are those of :func:`render_artefact` in the parent
+    (``tests/app/pipeline/test_forked_render.py``; ``python -m benchmarks.same_outputs``).  A helper that
+    fails or dies is not fatal: what it did not deliver is rendered (or read) in the parent.
 
-    Only for a process with a single thread and no event loop (fork copies none of them): the CLI creates it
-    first thing; servers use :class:`RenderPool` (spawned).  Use as a context manager, or call :meth:`close`:
-    an unused helper then reads the end of its pipe and exits.  Without ``os.fork`` (Windows) nothing is
-    forked and :meth:`render` renders in the caller.
+    Only for a process with a single thread and no event loop (fork copies none of them, nor the locks they
+    hold): the CLI creates it first thing; servers use :class:`RenderPool` (spawned).  Use as a context
+    manager, or call :meth:`close`.  Without ``os.fork`` (Windows), or with other threads running, nothing is
+    forked: :meth:`render` renders in the caller and :meth:`session` is None.
     """
 
     def __init__(self, groups: tuple[tuple[str, ...], ...] = FORK_GROUPS, *,
                  read: tuple[str | os.PathLike, float | None] | None = None) -> None:
         self.groups = groups
         self.pid: int | None = None
-        self._session_reader = None
-        if not hasattr(os, "fork"):  # pragma: no cover - Windows
+        self._session_reader: threading.Thread | None = None
+        self._tasks: list[int] = []
+        self._results: list[int] = []
+        if not hasattr(os, "fork") or threading.active_count() > 1:  # Windows; or threads fork would not copy
             return
-        task_r, task_w = os.pipe()
-        results = [os.pipe() for _ in groups]
+        tasks = [os.pipe() for _ in groups]  # parent -> helper g: the report input
+        results = [os.pipe() for _ in groups]  # helper g -> parent: its artefacts
         session_r, session_w = os.pipe() if read is not None else (None, None)
         pid = os.fork()
         if pid == 0:  # the helper: never returns into the caller's code
             code = 0
             try:
-                os.close(task_w)
-                for r, _ in results:
-                    os.close(r)
-                if session_r is not None:
-                    os.close(session_r)
-                self._helper(task_r, [w for _, w in results], read, session_w)
+                for fd in [w for _, w in tasks] + [r for r, _ in results] + ([session_r] if read else []):
+                    os.close(fd)
+                self._helper([r for r, _ in tasks], [w for _, w in results], read, session_w)
             except BaseException:  # noqa: BLE001 — the parent renders what it does not receive
                 code = 1
             finally:
                 os._exit(code)
-        os.close(task_r)
-        for _, w in results:
-            os.close(w)
-        self._session_reader: threading.Thread | None = None
+        for fd in [r for r, _ in tasks] + [w for _, w in results] + ([session_w] if read else []):
+            os.close(fd)
+        self.pid, self._tasks, self._results = pid, [w for _, w in tasks], [r for r, _ in results]
         self._session_message: list[bytes | None] = [None]
-        if session_w is not None:  # drained by a thread: the helper goes on to its imports at once
-            os.close(session_w)
+        if session_r is not None:  # drained by a thread: the helper goes on to its imports at once
             self._session_reader = threading.Thread(target=self._drain_session, args=(session_r,),
                                                     name="chakamo-session-reader", daemon=True)
             self._session_reader.start()
-        self.pid, self._task_w, self._results = pid, task_w, [r for r, _ in results]
 
-    # ----------------------------------------------------------------------------------- the helper's side
-    def _helper(self, task_r: int, result_ws: list[int], read, session_w: int | None) -> None:
+    # ----------------------------------------------------------------------------------- the helpers' side
+    def _helper(self, task_rs: list[int], result_ws: list[int], read, session_w: int | None) -> None:
         import pickle
 
         from app.pipeline import timings
@@ -235,40 +233,44 @@ class ForkedRenderers:
             import plotly.offline  # noqa: F401 — what reports.html and reports.scene import when they run
             import viser  # noqa: F401
             import viser._messages  # noqa: F401
-        task = _read_all(task_r)
-        if task is None:  # the parent ended (an error, or nothing to render)
-            return
-        ri = pickle.loads(task)
         children = []
-        for g in range(1, len(self.groups)):
+        for g in range(1, len(self.groups)):  # forked now, before the report input arrives
             pid = os.fork()
             if pid == 0:
                 code = 0
                 try:
-                    for w in result_ws[:g] + result_ws[g + 1:]:
-                        os.close(w)
-                    self._render_group(ri, g, result_ws[g])
+                    for fd in task_rs[:g] + task_rs[g + 1:] + result_ws[:g] + result_ws[g + 1:]:
+                        os.close(fd)
+                    self._render_group(g, task_rs[g], result_ws[g])
                 except BaseException:  # noqa: BLE001
                     code = 1
                 finally:
                     os._exit(code)
             children.append(pid)
-        for w in result_ws[1:]:
-            os.close(w)
-        self._render_group(ri, 0, result_ws[0])
-        for pid in children:
-            os.waitpid(pid, 0)
+        for fd in task_rs[1:] + result_ws[1:]:
+            os.close(fd)
+        try:
+            self._render_group(0, task_rs[0], result_ws[0])
+        finally:
+            for pid in children:
+                os.waitpid(pid, 0)
 
-    def _render_group(self, ri, g: int, result_w: int) -> None:
+    def _render_group(self, g: int, task_r: int, result_w: int) -> None:
+        """Helper ``g``: wait for the report input, render its group, send ``("ok", {name: bytes})`` (or the
+        traceback); nothing when the parent ended without sending one (an error: nothing to render)."""
         import pickle
         import resource
         import traceback
 
         from app.pipeline import timings
 
+        task = _read_all(task_r)
+        if task is None:
+            os.close(result_w)
+            return
         cpu0 = time.process_time()
         try:
-            out = render_named(ri, self.groups[g])
+            out = render_named(pickle.loads(task), self.groups[g])
             payload = pickle.dumps(("ok", out), protocol=pickle.HIGHEST_PROTOCOL)
         except BaseException:  # noqa: BLE001 — reported to the parent, which renders the group itself
             payload = pickle.dumps(("error", traceback.format_exc()))
@@ -277,12 +279,17 @@ class ForkedRenderers:
         _write_all(result_w, payload)
 
     # ----------------------------------------------------------------------------------- the parent's side
+    @property
+    def reading(self) -> bool:
+        """True while the helper's session (``read=``) has not been collected by :meth:`session`."""
+        return self._session_reader is not None
+
     def _drain_session(self, fd: int) -> None:
         self._session_message[0] = _read_all(fd)
 
     def session(self):
-        """The session the helper read (``read=(folder, expected_fs_hz)``: :func:`app.pipeline.ingestion.load_session`),
-        or None when it was not asked to or could not (an error: the caller reads it again and reports it)."""
+        """The session the helper read (``read=(folder, expected_fs_hz)``), or None when it was not asked to
+        or could not (an error: the caller reads it again and so reports the error itself)."""
         reader, self._session_reader = self._session_reader, None
         if reader is None:
             return None
@@ -301,38 +308,37 @@ class ForkedRenderers:
             return render_named(ri, names)
         import pickle
 
-        try:
-            _write_all(self._task_w, pickle.dumps(ri, protocol=pickle.HIGHEST_PROTOCOL))
-        except OSError:  # the helper is gone: nothing was delivered
-            log.exception("the render helper did not take the report input; rendering here")
-        finally:
-            self._task_w = None
+        task = pickle.dumps(ri, protocol=pickle.HIGHEST_PROTOCOL)
+        tasks, self._tasks = self._tasks, []
+        for fd in tasks:
+            try:
+                _write_all(fd, task)
+            except OSError:  # that helper is gone: its group is rendered here
+                log.exception("a render helper did not take the report input; rendering its part here")
         out: dict[str, bytes] = {}
-        for g, fd in enumerate(self._results):
+        results, self._results = self._results, []
+        for g, fd in enumerate(results):
             message = _read_all(fd)
             status, payload = pickle.loads(message) if message is not None else ("error", "no answer")
             if status == "ok":
                 out |= payload
             else:
                 log.error("render helper %d failed (%s); rendering its artefacts here", g + 1, payload)
-        self._results = []
         self._reap()
         return out | render_named(ri, [name for name in names if name not in out])
 
     def close(self) -> None:
-        """End an unused helper (the command failed before its reports) at once and reap it: a user's error
+        """End unused helpers (the command failed before its reports) at once and reap them: a user's error
         message must not wait for the report libraries' imports.  (Killed while it makes the PDF's font cut,
-        once per machine, it can leave a temporary file in the font cache; the next run makes the cut again.)"""
+        once per machine, the helper can leave a temporary file in the font cache; the next run cuts again.)"""
         if self.pid is None:
             return
-        if self._task_w is not None:
-            os.close(self._task_w)
-            self._task_w = None
+        if self._tasks:
             with contextlib.suppress(ProcessLookupError):
-                os.kill(self.pid, signal.SIGKILL)
-        for fd in self._results:
+                os.kill(self.pid, signal.SIGKILL)  # its forked render helpers see their pipes end and exit
+        for fd in self._tasks + self._results:
             os.close(fd)
-        self._results = []
+        self._tasks, self._results = [], []
         self._reap()
         if self._session_reader is not None:  # the helper is gone: its pipe has ended
             self._session_reader.join()

@@ -7,7 +7,10 @@ import sys
 
 import pytest
 
+import numpy as np
+
 from app.pipeline.demo import simulate_session, write_session
+from app.pipeline.ingestion import load_session
 from app.pipeline.process import REPORT_FILES, process_folder
 from app.pipeline.render import FORK_GROUPS, ForkedRenderers, render_named
 from app.pipeline.results import build_results, report_input
@@ -16,11 +19,16 @@ pytestmark = pytest.mark.skipif(not hasattr(os, "fork") or sys.platform == "darw
 
 
 @pytest.fixture(scope="module")
-def report(tmp_path_factory):
-    """The report input of a simulated 3-cycle session, processed in this process (no reports written)."""
+def session_dir(tmp_path_factory):
     root = tmp_path_factory.mktemp("forked")
     write_session(root / "session", simulate_session(seed=5, side="right", n_cycles=3))
-    outcome, _ = process_folder(root / "session", root / "out", reports=False)
+    return root / "session"
+
+
+@pytest.fixture(scope="module")
+def report(session_dir):
+    """The report input of a simulated 3-cycle session, processed in this process (no reports written)."""
+    outcome, _ = process_folder(session_dir, session_dir.parent / "out", reports=False)
     return report_input(outcome, build_results(outcome))
 
 
@@ -67,3 +75,38 @@ def test_a_failing_artefact_fails_here_as_it_would_without_helpers(report):
     with ForkedRenderers(groups=(("report.html",), ("no-such-artefact",))) as renderer:
         with pytest.raises(ValueError, match="unknown artefact"):
             renderer.render(report)
+
+
+def test_the_helper_reads_the_session_as_this_process_does(session_dir):
+    here = load_session(session_dir, expected_fs_hz=100.0)
+    with ForkedRenderers(read=(session_dir, 100.0)) as renderer:
+        assert renderer.reading
+        there = renderer.session()
+        assert not renderer.reading
+    assert there.recordings.keys() == here.recordings.keys()
+    pairs = [(there.recordings[k], r) for k, r in here.recordings.items()] + list(zip(there.task, here.task))
+    for a, b in pairs:
+        assert (a.fs_hz, a.t0_s) == (b.fs_hz, b.t0_s)
+        for field in ("t_s", "acc", "gyr", "mag"):
+            assert np.array_equal(getattr(a, field), getattr(b, field), equal_nan=True), field
+    assert [str(n) for n in there.notes] == [str(n) for n in here.notes]
+
+
+def test_a_session_the_helper_cannot_read_is_read_here(tmp_path):
+    with ForkedRenderers(read=(tmp_path / "missing", 100.0)) as renderer:
+        assert renderer.session() is None  # process_folder then reads it itself and raises the user's error
+
+
+def test_nothing_is_forked_while_other_threads_run(report):
+    import threading
+
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        renderer = ForkedRenderers(read=(".", 100.0))
+        assert renderer.pid is None and renderer.session() is None
+        assert renderer.render(report) == render_named(report, REPORT_FILES)
+    finally:
+        stop.set()
+        other.join()
