@@ -36,6 +36,17 @@ each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--
     ``report.html``, ``scene.viser``, ``angles.xlsx``).  A stage printed several times is summed.  Lines of the
     form ``chakamo-timing: <mark>`` (no number) are marks as above.
 
+``chakamo process`` runs in three processes (:class:`app.pipeline.render.ForkedRenderers`): forked before numpy
+is imported, a helper reads the session (its ``read`` stage) and imports the report libraries
+(``render.imports``) while the parent imports the pipeline (``imports``) and loads numba's kernels
+(``kernels``: numba's set-up and the chosen filter's cached kernels), then waits for the session
+(``read.wait``) and computes (``pipeline``); the helper and a second one forked from it render the reports side
+by side (``report.pdf`` ...; the parent's ``reports`` stage is mostly waiting for them), and the parent writes.
+Each process prints ``chakamo-process: <name> <peak RSS MB> <CPU s>`` (the renderers: their rendering CPU), so
+the table shows every process's peak (the parent's rusage gives only the largest) and their sum, and a
+*critical path from CPU times*: what the wall time would be on two otherwise idle cores (:func:`critical_path_cpu`),
+the number to read on a machine shared with other work, beside the wall time.
+
 ``--imports N`` adds one more ``process`` run under ``python -X importtime`` and prints the N heaviest imports
 of third-party packages *by the project module that imports them* (``app.*``, ``estimators.*``, ``reports.*``;
 cumulative ms, as ``-X importtime`` measures them, inflated a little by the measurement itself): the list
@@ -71,7 +82,7 @@ ENTRY = ("import sys, time\n"
          "console()\n")
 TIMING_ENV = "CHAKAMO_TIMINGS"
 _TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
-_PROCESS_LINE = re.compile(r"^chakamo-process:\s+(\S+)\s+([-+0-9.eE]+)\s+([-+0-9.eE]+)\s*$")
+_PROCESS_LINE = re.compile(r"^chakamo-process:\s+(\S+)\s+([-+0-9.eE]+)\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?\s*$")
 _PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")
 GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0)}
 MARK_SPANS = [("start", "cli-imported", "interpreter + app.cli imports"),
@@ -92,7 +103,7 @@ class Run:
     marks_s: dict[str, float] = field(default_factory=dict)  # first arrival of each mark, s after Popen
     stages_s: dict[str, float] = field(default_factory=dict)  # the child's own stage times, summed per stage
     stages_cpu_s: dict[str, float] = field(default_factory=dict)  # their CPU times, when the child prints them
-    processes: dict[str, tuple[float, float]] = field(default_factory=dict)  # name -> (peak RSS MB, CPU s)
+    processes: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # name -> (peak RSS MB, CPU s, PSS MB)
     stderr_tail: str = ""
 
 
@@ -106,7 +117,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
     marks: dict[str, float] = {"start": 0.0}
     stages: dict[str, float] = {}
     stages_cpu: dict[str, float] = {}
-    processes: dict[str, tuple[float, float]] = {}
+    processes: dict[str, tuple[float, float, float]] = {}
     tail: list[str] = []
 
     def read_stderr() -> None:
@@ -118,7 +129,8 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
             del tail[:-20]
             p = _PROCESS_LINE.match(line)
             if p:
-                processes[p.group(1)] = (float(p.group(2)), float(p.group(3)))
+                processes[p.group(1)] = (float(p.group(2)), float(p.group(3)),
+                                         float(p.group(4)) if p.group(4) else float("nan"))
                 continue
             m = _TIMING_LINE.match(line)
             if m and m.group(2) is not None:
@@ -269,9 +281,11 @@ def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
                                                                            else 0, s))
     procs = sorted({p for r in runs for p in r.processes}, key=lambda p: (p != "main", p))
     out["processes"] = {p: {"peak_rss_mb": _median([r.processes[p][0] for r in runs if p in r.processes]),
-                            "cpu_s": _median([r.processes[p][1] for r in runs if p in r.processes])} for p in procs}
+                            "cpu_s": _median([r.processes[p][1] for r in runs if p in r.processes]),
+                            "pss_mb": _median([r.processes[p][2] for r in runs if p in r.processes])} for p in procs}
     if procs:
         out["peak_rss_sum_mb"] = _median([sum(v[0] for v in r.processes.values()) for r in runs if r.processes])
+        out["pss_sum_mb"] = _median([sum(v[2] for v in r.processes.values()) for r in runs if r.processes])
         paths = [critical_path_cpu(r) for r in runs]
         if all(x is not None for x in paths):
             out["critical_path_cpu_s"] = _median(paths)
@@ -296,10 +310,12 @@ def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
                      f"{s['peak_rss_mb']:12.0f} {goal:>20}  {verdict}")
     for s in summaries:
         if s.get("processes"):
-            lines += ["", f"{s['command']}: per process (chakamo-process lines; median)",
-                      f"  {'process':<12} {'CPU s':>7} {'peak RSS MB':>12}"]
-            lines += [f"  {p:<12} {v['cpu_s']:7.2f} {v['peak_rss_mb']:12.0f}" for p, v in s["processes"].items()]
-            lines.append(f"  {'sum of peaks':<12} {'':>7} {s['peak_rss_sum_mb']:12.0f}   (shared pages counted in each)")
+            lines += ["", f"{s['command']}: per process (chakamo-process lines; median; PSS at the process's end)",
+                      f"  {'process':<12} {'CPU s':>7} {'peak RSS MB':>12} {'PSS MB':>8}"]
+            lines += [f"  {p:<12} {v['cpu_s']:7.2f} {v['peak_rss_mb']:12.0f} {v['pss_mb']:8.0f}"
+                      for p, v in s["processes"].items()]
+            lines.append(f"  {'sum':<12} {'':>7} {s['peak_rss_sum_mb']:12.0f} {s['pss_sum_mb']:8.0f}   "
+                         "(RSS: shared pages counted in each process; PSS: shared among them)")
             if "critical_path_cpu_s" in s:
                 lines.append(f"  critical path from CPU times (two idle cores): {s['critical_path_cpu_s']:.2f} s "
                              f"(goal ≤{GOALS['process'][0]:g} s)")
