@@ -2,7 +2,7 @@ r"""Cold start: the ``chakamo`` command line as a fresh process, as a clinician'
 
 Usage
 -----
-``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process] [--json OUT] [--imports N]``
+``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process,floor] [--json OUT] [--imports N]``
 
 Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
 ``<entry>`` calling ``app.cli.console`` as the console script ``chakamo`` does, so it measures the
@@ -53,6 +53,11 @@ cumulative ms, as ``-X importtime`` measures them, inflated a little by the meas
 of what to import later or not at all.  A package counts once, under the first project module whose import
 loaded it.
 
+``floor`` is not a command but the part of every ``chakamo process`` no change of ours can remove: a fresh
+interpreter importing numpy and numba and loading one cached kernel of the default filter (numba's set-up:
+its typing and lowering registries, LLVM, and the ``scipy.linalg`` import numba makes to find BLAS).  Measured
+in the same run as ``process``, it tells how loaded the machine was and how far above the floor the command is.
+
 The goals of issue 12 §6 are printed beside the numbers: ``chakamo --help`` ≤ 0.3 s, ``chakamo process`` on the
 demo's 10-cycle session with every output ≤ 1.5 s wall and ≤ 300 MB peak RSS.
 
@@ -80,11 +85,16 @@ ENTRY = ("import sys, time\n"
          "from app.cli import console\n"
          "print('chakamo-timing: cli-imported', file=sys.stderr, flush=True)\n"
          "console()\n")
+#: the floor of any ``chakamo process``: the interpreter, numpy, numba, and numba's set-up on loading one cached
+#: kernel (of the default filter: the process command's own first load), nothing of the session
+FLOOR_ENTRY = ("import numpy as np\n"
+               "from estimators.orientation import chakamo_kernels as k\n"
+               "k.rotate_batch(np.ones((10, 4)), np.zeros((10, 3)))\n")
 TIMING_ENV = "CHAKAMO_TIMINGS"
 _TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
 _PROCESS_LINE = re.compile(r"^chakamo-process:\s+(\S+)\s+([-+0-9.eE]+)\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?\s*$")
 _PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")
-GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0)}
+GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0), "floor": (None, None)}
 MARK_SPANS = [("start", "cli-imported", "interpreter + app.cli imports"),
               ("cli-imported", "read", "parse + process-command imports"),
               ("read", "reports", "read + pipeline (+ deferred imports)"),
@@ -107,12 +117,14 @@ class Run:
     stderr_tail: str = ""
 
 
-def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
+def run_cli(args: list[str], env: dict[str, str] | None = None, entry: str = ENTRY) -> Run:
     """One fresh ``chakamo`` process; wall, peak RSS (``os.wait4``) and the stamped stderr lines."""
     env = dict(os.environ if env is None else env)
     env[TIMING_ENV] = "1"
+    if entry is FLOOR_ENTRY:
+        env.setdefault("OPENBLAS_NUM_THREADS", "1")  # as chakamo process sets it
     start = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-c", ENTRY, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-c", entry, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, env=env)
     marks: dict[str, float] = {"start": 0.0}
     stages: dict[str, float] = {}
@@ -308,6 +320,11 @@ def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
         verdict = ("FAILED RUNS " if s["failed"] else "") + ("met" if ok else "not met") if goal != "-" else ""
         lines.append(f"{s['command']:<10} {s['wall_s']:7.2f} {_spread(s['wall_range_s']):>11} {s['cpu_s']:6.2f} "
                      f"{s['peak_rss_mb']:12.0f} {goal:>20}  {verdict}")
+    by_name = {s["command"]: s for s in summaries}
+    if "floor" in by_name and "critical_path_cpu_s" in by_name.get("process", {}):
+        floor, crit = by_name["floor"]["cpu_s"], by_name["process"]["critical_path_cpu_s"]
+        lines += ["", f"process above the floor (CPU, same run): critical path {crit:.2f} s = floor {floor:.2f} s "
+                      f"+ {crit - floor:.2f} s; on a quiet machine the floor is what `floor` measures there"]
     for s in summaries:
         if s.get("processes"):
             lines += ["", f"{s['command']}: per process (chakamo-process lines; median; PSS at the process's end)",
@@ -336,8 +353,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--session", type=Path, default=None, help="session folder (default: the demo's, made once)")
     parser.add_argument("--repeats", type=int, default=5, help="timed runs per command (default: 5)")
-    parser.add_argument("--commands", default="help,version,process",
-                        help="comma-separated subset of help,version,process (default: all)")
+    parser.add_argument("--commands", default="help,version,process,floor",
+                        help="comma-separated subset of help,version,process,floor (default: all; floor: python, "
+                             "numpy, numba and its first cached kernel, what every process command pays)")
     parser.add_argument("--json", type=Path, default=None, help="also write the summaries as JSON")
     parser.add_argument("--imports", type=int, default=0, metavar="N",
                         help="also list the N heaviest third-party imports of a process run, by importing module")
@@ -345,17 +363,18 @@ def main(argv: list[str] | None = None) -> int:
     commands = [c.strip() for c in args.commands.split(",") if c.strip()]
     unknown = set(commands) - set(GOALS)
     if unknown:
-        parser.error(f"unknown command(s) {sorted(unknown)}: choose from help, version, process")
+        parser.error(f"unknown command(s) {sorted(unknown)}: choose from help, version, process, floor")
     session = ensure_session(args.session) if "process" in commands else None
     summaries = []
     with tempfile.TemporaryDirectory(prefix="chakamo_cold_out_") as tmp:
         argv_of = {"help": ["--help"], "version": ["--version"],
-                   "process": ["process", str(session), "--out", str(Path(tmp) / "out")]}
+                   "process": ["process", str(session), "--out", str(Path(tmp) / "out")], "floor": []}
         for name in commands:
-            warm = run_cli(argv_of[name])  # fills numba's cache and the .pyc files
+            entry = FLOOR_ENTRY if name == "floor" else ENTRY
+            warm = run_cli(argv_of[name], entry=entry)  # fills numba's cache and the .pyc files
             if warm.returncode != 0:
                 raise SystemExit(f"`chakamo {' '.join(argv_of[name])}` failed ({warm.returncode}):\n{warm.stderr_tail}")
-            runs = [run_cli(argv_of[name]) for _ in range(args.repeats)]
+            runs = [run_cli(argv_of[name], entry=entry) for _ in range(args.repeats)]
             summaries.append(summarise(name, runs))
         heavy = heavy_imports(importtime_of(argv_of["process"]), args.imports) if args.imports and session else []
     print(format_tables(summaries, args.repeats))
