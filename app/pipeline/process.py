@@ -20,9 +20,9 @@ from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_p
 from app.pipeline.render import ForkedRenderers, render_named
 from app.pipeline.results import build_results, report_input, results_json, timeseries_npz, write_outputs
 
-#: the rendered outputs, in the order they are written (after results.json and timeseries.npz); the same as
-#: :data:`app.pipeline.render.FORK_GROUPS` together
-REPORT_FILES = ("report.pdf", "angles.xlsx", "quaternions.xlsx", "report.html", "scene.viser")
+#: the rendered outputs, in the order they are written (after results.json); the same as
+#: :data:`app.pipeline.render.FORK_GROUPS` together (the series too: its compression is off the parent's path)
+REPORT_FILES = ("timeseries.npz", "report.pdf", "angles.xlsx", "quaternions.xlsx", "report.html", "scene.viser")
 
 
 def load_kernels(filter_name: str) -> None:
@@ -67,7 +67,9 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     with timings.stage("pipeline"):
         outcome = process_session(session, options, progress=progress)
         results = build_results(outcome)
-        files = {"results.json": results_json(results), "timeseries.npz": timeseries_npz(outcome)}
+        files = {"results.json": results_json(results)}
+        if not reports:
+            files["timeseries.npz"] = timeseries_npz(outcome)
     if reports:  # rendered with deferred imports: matplotlib, plotly and viser cost ~80 MB a process that needs no report
         progress("reports", 0.97)
         with timings.stage("reports"):

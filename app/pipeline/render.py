@@ -66,6 +66,10 @@ def render_artefact(ri, name: str, lang: str = "") -> bytes:
         from reports.scene import scene_bytes
 
         return scene_bytes(ri)
+    if name == "timeseries.npz":  # also from the outcome: app.pipeline.results.timeseries_npz
+        from app.pipeline.results import timeseries_npz_of
+
+        return timeseries_npz_of(ri)
     raise ValueError(f"unknown artefact {name!r}")
 
 
@@ -123,9 +127,10 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
 
 #: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
 #: (CPU on the 10-cycle demo session, lightly loaded: PDF ~0.19 s, angles.xlsx ~0.05 s | scene ~0.18 s,
-#: quaternions.xlsx ~0.09 s, HTML ~0.03 s; ``python -m benchmarks.cold`` prints them per run)
+#: quaternions.xlsx ~0.09 s, HTML ~0.03 s, timeseries.npz ~0.02 s (its compression); ``python -m benchmarks.cold``
+#: prints them per run)
 FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx"),
-                                             ("scene.viser", "quaternions.xlsx", "report.html"))
+                                             ("scene.viser", "quaternions.xlsx", "report.html", "timeseries.npz"))
 
 
 def render_named(ri, names) -> dict[str, bytes]:

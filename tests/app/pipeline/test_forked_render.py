@@ -13,7 +13,7 @@ from app.pipeline.demo import simulate_session, write_session
 from app.pipeline.ingestion import load_session
 from app.pipeline.process import REPORT_FILES, process_folder
 from app.pipeline.render import FORK_GROUPS, ForkedRenderers, render_named
-from app.pipeline.results import build_results, report_input
+from app.pipeline.results import build_results, report_input, timeseries_npz, timeseries_npz_of
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork") or sys.platform == "darwin", reason="needs os.fork")
 
@@ -26,10 +26,20 @@ def session_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def report(session_dir):
-    """The report input of a simulated 3-cycle session, processed in this process (no reports written)."""
+def processed(session_dir):
+    """A simulated 3-cycle session processed in this process (no reports written): outcome and report input."""
     outcome, _ = process_folder(session_dir, session_dir.parent / "out", reports=False)
-    return report_input(outcome, build_results(outcome))
+    return outcome, report_input(outcome, build_results(outcome))
+
+
+@pytest.fixture(scope="module")
+def report(processed):
+    return processed[1]
+
+
+def test_the_series_from_the_report_input_are_the_outcomes(processed):
+    outcome, ri = processed
+    assert timeseries_npz_of(ri) == timeseries_npz(outcome)
 
 
 def _gone(pid: int) -> bool:
