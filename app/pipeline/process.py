@@ -56,7 +56,7 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     options = options or ProcessOptions()
     progress("read", 0.0)
     session = None
-    if renderer is not None and renderer.reading:  # the helper reads: meanwhile, numba's kernels load here
+    if renderer is not None and renderer.reading and not renderer.read_failed:  # meanwhile numba's kernels load
         with timings.stage("kernels"):
             load_kernels(options.filter_name)
         with timings.stage("read.wait"):

@@ -126,11 +126,10 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
 
 
 #: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
-#: (CPU on the 10-cycle demo session, lightly loaded: PDF ~0.19 s, angles.xlsx ~0.05 s | scene ~0.18 s,
-#: quaternions.xlsx ~0.09 s, HTML ~0.03 s, timeseries.npz ~0.02 s (its compression); ``python -m benchmarks.cold``
-#: prints them per run)
-FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx"),
-                                             ("scene.viser", "quaternions.xlsx", "report.html", "timeseries.npz"))
+#: (CPU on the 10-cycle demo session at load average ~16: PDF 0.29 s, angles.xlsx 0.06, HTML 0.06 | scene 0.11,
+#: quaternions.xlsx 0.14, timeseries.npz 0.04–0.11 (its compression); ``python -m benchmarks.cold`` prints them)
+FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx", "report.html"),
+                                             ("scene.viser", "quaternions.xlsx", "timeseries.npz"))
 
 
 def render_named(ri, names) -> dict[str, bytes]:
@@ -288,6 +287,13 @@ class ForkedRenderers:
     def reading(self) -> bool:
         """True while the helper's session (``read=``) has not been collected by :meth:`session`."""
         return self._session_reader is not None
+
+    @property
+    def read_failed(self) -> bool:
+        """True when the helper has already answered that it could not read the session (a missing folder,
+        files it refused): the caller then reads it at once and reports the error without loading numba."""
+        reader = self._session_reader
+        return reader is not None and not reader.is_alive() and not self._session_message[0]
 
     def _drain_session(self, fd: int) -> None:
         self._session_message[0] = _read_all(fd)

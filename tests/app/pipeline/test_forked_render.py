@@ -103,8 +103,14 @@ def test_the_helper_reads_the_session_as_this_process_does(session_dir):
 
 
 def test_a_session_the_helper_cannot_read_is_read_here(tmp_path):
+    import time
+
     with ForkedRenderers(read=(tmp_path / "missing", 100.0)) as renderer:
-        assert renderer.session() is None  # process_folder then reads it itself and raises the user's error
+        deadline = time.monotonic() + 60.0
+        while not renderer.read_failed and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert renderer.read_failed  # so process_folder reads it at once, without loading numba first
+        assert renderer.session() is None  # and raises the user's error itself
 
 
 def test_nothing_is_forked_while_other_threads_run(report):
