@@ -2,7 +2,7 @@ r"""Cold start: the ``chakamo`` command line as a fresh process, as a clinician'
 
 Usage
 -----
-``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process] [--json OUT] [--imports N]``
+``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process,floor] [--json OUT] [--imports N]``
 
 Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
 ``<entry>`` calling ``app.cli.console`` as the console script ``chakamo`` does, so it measures the
@@ -36,11 +36,27 @@ each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--
     ``report.html``, ``scene.viser``, ``angles.xlsx``).  A stage printed several times is summed.  Lines of the
     form ``chakamo-timing: <mark>`` (no number) are marks as above.
 
+``chakamo process`` runs in three processes (:class:`app.pipeline.render.ForkedRenderers`): forked before numpy
+is imported, a helper reads the session (its ``read`` stage) and imports the report libraries
+(``render.imports``) while the parent imports the pipeline (``imports``) and loads numba's kernels
+(``kernels``: numba's set-up and the chosen filter's cached kernels), then waits for the session
+(``read.wait``) and computes (``pipeline``); the helper and a second one forked from it render the reports side
+by side (``report.pdf`` ...; the parent's ``reports`` stage is mostly waiting for them), and the parent writes.
+Each process prints ``chakamo-process: <name> <peak RSS MB> <CPU s>`` (the renderers: their rendering CPU), so
+the table shows every process's peak (the parent's rusage gives only the largest) and their sum, and a
+*critical path from CPU times*: what the wall time would be on two otherwise idle cores (:func:`critical_path_cpu`),
+the number to read on a machine shared with other work, beside the wall time.
+
 ``--imports N`` adds one more ``process`` run under ``python -X importtime`` and prints the N heaviest imports
 of third-party packages *by the project module that imports them* (``app.*``, ``estimators.*``, ``reports.*``;
 cumulative ms, as ``-X importtime`` measures them, inflated a little by the measurement itself): the list
 of what to import later or not at all.  A package counts once, under the first project module whose import
 loaded it.
+
+``floor`` is not a command but the part of every ``chakamo process`` no change of ours can remove: a fresh
+interpreter importing numpy and numba and loading one cached kernel of the default filter (numba's set-up:
+its typing and lowering registries, LLVM, and the ``scipy.linalg`` import numba makes to find BLAS).  Measured
+in the same run as ``process``, it tells how loaded the machine was and how far above the floor the command is.
 
 The goals of issue 12 §6 are printed beside the numbers: ``chakamo --help`` ≤ 0.3 s, ``chakamo process`` on the
 demo's 10-cycle session with every output ≤ 1.5 s wall and ≤ 300 MB peak RSS.
@@ -69,10 +85,16 @@ ENTRY = ("import sys, time\n"
          "from app.cli import console\n"
          "print('chakamo-timing: cli-imported', file=sys.stderr, flush=True)\n"
          "console()\n")
+#: the floor of any ``chakamo process``: the interpreter, numpy, numba, and numba's set-up on loading one cached
+#: kernel (of the default filter: the process command's own first load), nothing of the session
+FLOOR_ENTRY = ("import numpy as np\n"
+               "from estimators.orientation import chakamo_kernels as k\n"
+               "k.rotate_batch(np.ones((10, 4)), np.zeros((10, 3)))\n")
 TIMING_ENV = "CHAKAMO_TIMINGS"
 _TIMING_LINE = re.compile(r"^chakamo-timing:\s+(\S+)(?:\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?)?\s*$")
+_PROCESS_LINE = re.compile(r"^chakamo-process:\s+(\S+)\s+([-+0-9.eE]+)\s+([-+0-9.eE]+)(?:\s+([-+0-9.eE]+))?\s*$")
 _PROGRESS_LINE = re.compile(r"^\[\s*\d+\s*%\]\s+(\S.*?)\s*$")
-GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0)}
+GOALS = {"help": (0.3, None), "version": (None, None), "process": (1.5, 300.0), "floor": (None, None)}
 MARK_SPANS = [("start", "cli-imported", "interpreter + app.cli imports"),
               ("cli-imported", "read", "parse + process-command imports"),
               ("read", "reports", "read + pipeline (+ deferred imports)"),
@@ -91,19 +113,23 @@ class Run:
     marks_s: dict[str, float] = field(default_factory=dict)  # first arrival of each mark, s after Popen
     stages_s: dict[str, float] = field(default_factory=dict)  # the child's own stage times, summed per stage
     stages_cpu_s: dict[str, float] = field(default_factory=dict)  # their CPU times, when the child prints them
+    processes: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # name -> (peak RSS MB, CPU s, PSS MB)
     stderr_tail: str = ""
 
 
-def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
+def run_cli(args: list[str], env: dict[str, str] | None = None, entry: str = ENTRY) -> Run:
     """One fresh ``chakamo`` process; wall, peak RSS (``os.wait4``) and the stamped stderr lines."""
     env = dict(os.environ if env is None else env)
     env[TIMING_ENV] = "1"
+    if entry is FLOOR_ENTRY:
+        env.setdefault("OPENBLAS_NUM_THREADS", "1")  # as chakamo process sets it
     start = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-c", ENTRY, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-c", entry, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, env=env)
     marks: dict[str, float] = {"start": 0.0}
     stages: dict[str, float] = {}
     stages_cpu: dict[str, float] = {}
+    processes: dict[str, tuple[float, float, float]] = {}
     tail: list[str] = []
 
     def read_stderr() -> None:
@@ -113,13 +139,18 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
             line = line.rstrip("\n")
             tail.append(line)
             del tail[:-20]
+            p = _PROCESS_LINE.match(line)
+            if p:
+                processes[p.group(1)] = (float(p.group(2)), float(p.group(3)),
+                                         float(p.group(4)) if p.group(4) else float("nan"))
+                continue
             m = _TIMING_LINE.match(line)
             if m and m.group(2) is not None:
                 stages[m.group(1)] = stages.get(m.group(1), 0.0) + float(m.group(2))
                 if m.group(3) is not None:
                     stages_cpu[m.group(1)] = stages_cpu.get(m.group(1), 0.0) + float(m.group(3))
                 continue
-            name = m.group(1) if m else (p.group(1) if (p := _PROGRESS_LINE.match(line)) else None)
+            name = m.group(1) if m else (g.group(1) if (g := _PROGRESS_LINE.match(line)) else None)
             if name is not None:
                 marks.setdefault(name, now)
 
@@ -132,7 +163,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> Run:
     marks["exit"] = wall
     rss_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
     cpu_s = usage.ru_utime + usage.ru_stime
-    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, stages_cpu, "\n".join(tail))
+    return Run(wall, cpu_s, rss_mb, proc.returncode, marks, stages, stages_cpu, processes, "\n".join(tail))
 
 
 def ensure_session(session: Path | None) -> Path:
@@ -212,6 +243,27 @@ def importtime_of(args: list[str]) -> str:
     return done.stderr
 
 
+def critical_path_cpu(run: Run) -> float | None:
+    """What the run's wall time would be on two otherwise idle cores, from CPU times, s (None without the lines).
+
+    ``chakamo process`` runs in three processes (``app.pipeline.render.ForkedRenderers``): the parent reads and
+    computes while a helper imports the report libraries; then two helpers render while the parent waits; then
+    the parent writes.  On a shared machine wall time measures the other processes too, CPU time does not, so
+    the critical path is estimated as ``max(parent CPU before the reports, helper imports CPU) + max(render
+    CPU of a helper) + the parent's CPU in the reports stage (pickling) and in the write``, each a CPU time (what it takes alone on one core; page faults and
+    the pipes' copies are in them, the scheduler's switches are not)."""
+    procs, cpu = run.processes, run.stages_cpu_s
+    if "main" not in procs:
+        return None
+    main_cpu = procs["main"][1]
+    write = cpu.get("write", 0.0)
+    helpers = [v[1] for k, v in procs.items() if k != "main"]
+    if not helpers:
+        return main_cpu
+    reports = cpu.get("reports", 0.0)  # the parent's part: the report input, pickling it and the answers
+    return max(main_cpu - write - reports, cpu.get("render.imports", 0.0)) + reports + max(helpers) + write
+
+
 def _median(values: list[float]) -> float:
     return statistics.median(values) if values else float("nan")
 
@@ -239,6 +291,16 @@ def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
     names = sorted({s for r in runs for s in r.stages_s}, key=lambda s: (s not in CHILD_STAGES,
                                                                            CHILD_STAGES.index(s) if s in CHILD_STAGES
                                                                            else 0, s))
+    procs = sorted({p for r in runs for p in r.processes}, key=lambda p: (p != "main", p))
+    out["processes"] = {p: {"peak_rss_mb": _median([r.processes[p][0] for r in runs if p in r.processes]),
+                            "cpu_s": _median([r.processes[p][1] for r in runs if p in r.processes]),
+                            "pss_mb": _median([r.processes[p][2] for r in runs if p in r.processes])} for p in procs}
+    if procs:
+        out["peak_rss_sum_mb"] = _median([sum(v[0] for v in r.processes.values()) for r in runs if r.processes])
+        out["pss_sum_mb"] = _median([sum(v[2] for v in r.processes.values()) for r in runs if r.processes])
+        paths = [critical_path_cpu(r) for r in runs]
+        if all(x is not None for x in paths):
+            out["critical_path_cpu_s"] = _median(paths)
     for s in names:
         out["stages"][s] = _median([r.stages_s[s] for r in runs if s in r.stages_s])
         cpu = [r.stages_cpu_s[s] for r in runs if s in r.stages_cpu_s]
@@ -258,7 +320,22 @@ def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
         verdict = ("FAILED RUNS " if s["failed"] else "") + ("met" if ok else "not met") if goal != "-" else ""
         lines.append(f"{s['command']:<10} {s['wall_s']:7.2f} {_spread(s['wall_range_s']):>11} {s['cpu_s']:6.2f} "
                      f"{s['peak_rss_mb']:12.0f} {goal:>20}  {verdict}")
+    by_name = {s["command"]: s for s in summaries}
+    if "floor" in by_name and "critical_path_cpu_s" in by_name.get("process", {}):
+        floor, crit = by_name["floor"]["cpu_s"], by_name["process"]["critical_path_cpu_s"]
+        lines += ["", f"process above the floor (CPU, same run): critical path {crit:.2f} s = floor {floor:.2f} s "
+                      f"+ {crit - floor:.2f} s; on a quiet machine the floor is what `floor` measures there"]
     for s in summaries:
+        if s.get("processes"):
+            lines += ["", f"{s['command']}: per process (chakamo-process lines; median; PSS at the process's end)",
+                      f"  {'process':<12} {'CPU s':>7} {'peak RSS MB':>12} {'PSS MB':>8}"]
+            lines += [f"  {p:<12} {v['cpu_s']:7.2f} {v['peak_rss_mb']:12.0f} {v['pss_mb']:8.0f}"
+                      for p, v in s["processes"].items()]
+            lines.append(f"  {'sum':<12} {'':>7} {s['peak_rss_sum_mb']:12.0f} {s['pss_sum_mb']:8.0f}   "
+                         "(RSS: shared pages counted in each process; PSS: shared among them)")
+            if "critical_path_cpu_s" in s:
+                lines.append(f"  critical path from CPU times (two idle cores): {s['critical_path_cpu_s']:.2f} s "
+                             f"(goal ≤{GOALS['process'][0]:g} s)")
         if s["marks"]:
             lines += ["", f"{s['command']}: split from the progress marks (s, median)"]
             lines += [f"  {label:<40} {v:6.2f}" for label, v in s["marks"].items()]
@@ -276,8 +353,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--session", type=Path, default=None, help="session folder (default: the demo's, made once)")
     parser.add_argument("--repeats", type=int, default=5, help="timed runs per command (default: 5)")
-    parser.add_argument("--commands", default="help,version,process",
-                        help="comma-separated subset of help,version,process (default: all)")
+    parser.add_argument("--commands", default="help,version,process,floor",
+                        help="comma-separated subset of help,version,process,floor (default: all; floor: python, "
+                             "numpy, numba and its first cached kernel, what every process command pays)")
     parser.add_argument("--json", type=Path, default=None, help="also write the summaries as JSON")
     parser.add_argument("--imports", type=int, default=0, metavar="N",
                         help="also list the N heaviest third-party imports of a process run, by importing module")
@@ -285,17 +363,18 @@ def main(argv: list[str] | None = None) -> int:
     commands = [c.strip() for c in args.commands.split(",") if c.strip()]
     unknown = set(commands) - set(GOALS)
     if unknown:
-        parser.error(f"unknown command(s) {sorted(unknown)}: choose from help, version, process")
+        parser.error(f"unknown command(s) {sorted(unknown)}: choose from help, version, process, floor")
     session = ensure_session(args.session) if "process" in commands else None
     summaries = []
     with tempfile.TemporaryDirectory(prefix="chakamo_cold_out_") as tmp:
         argv_of = {"help": ["--help"], "version": ["--version"],
-                   "process": ["process", str(session), "--out", str(Path(tmp) / "out")]}
+                   "process": ["process", str(session), "--out", str(Path(tmp) / "out")], "floor": []}
         for name in commands:
-            warm = run_cli(argv_of[name])  # fills numba's cache and the .pyc files
+            entry = FLOOR_ENTRY if name == "floor" else ENTRY
+            warm = run_cli(argv_of[name], entry=entry)  # fills numba's cache and the .pyc files
             if warm.returncode != 0:
                 raise SystemExit(f"`chakamo {' '.join(argv_of[name])}` failed ({warm.returncode}):\n{warm.stderr_tail}")
-            runs = [run_cli(argv_of[name]) for _ in range(args.repeats)]
+            runs = [run_cli(argv_of[name], entry=entry) for _ in range(args.repeats)]
             summaries.append(summarise(name, runs))
         heavy = heavy_imports(importtime_of(argv_of["process"]), args.imports) if args.imports and session else []
     print(format_tables(summaries, args.repeats))

@@ -68,6 +68,11 @@ def main(argv: list[str] | None = None) -> int:
         from app.pipeline import timings
 
         timings.report("total", time.perf_counter() - _T0, time.process_time())
+        if timings.enabled():
+            import resource
+
+            timings.report_process("main", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                                   time.process_time())
 
 
 #: commands that end the process when done: nothing of theirs needs the interpreter's teardown

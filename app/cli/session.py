@@ -67,6 +67,19 @@ def add_parsers(sub) -> None:
                       help="viewer language (default: the session's)")
 
 
+def _single_threaded_blas() -> None:
+    """One BLAS thread for this process unless the user set a number (read when numpy is first imported).
+
+    The pipeline's linear algebra is small (the figure-eight fit's least squares: ~6000 × 9) and OpenBLAS's
+    threads only cost there: each ``lstsq`` took 14 ms instead of 0.3 ms on this 2-core machine under load,
+    0.45 s of a cold ``chakamo process``; the second core renders the reports instead.  The results are
+    byte-identical (``python -m benchmarks.same_outputs``)."""
+    import os
+
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
+
+
 def run(args: argparse.Namespace) -> int:
     """Carry out a parsed ``demo`` / ``process`` / ``view`` command."""
     if args.command == "demo":
@@ -74,17 +87,22 @@ def run(args: argparse.Namespace) -> int:
 
         run_demo(args.out, seed=args.seed, side=args.side, n_cycles=args.cycles, filter_name=args.filter)
     elif args.command == "process":
+        _single_threaded_blas()
         from app.pipeline import timings
+        from app.pipeline.render import ForkedRenderers
 
-        with timings.stage("imports"):
-            from app.pipeline.process import process_folder
-            from app.pipeline.session import ProcessOptions
+        expected_fs_hz = None if args.any_rate else 100.0
+        # forked before numpy is imported: the helper reads the session, then imports the report libraries,
+        # while this process loads numba and the pipeline
+        with ForkedRenderers(read=(args.session, expected_fs_hz)) as renderer:
+            with timings.stage("imports"):
+                from app.pipeline.process import process_folder
+                from app.pipeline.session import ProcessOptions
 
-        options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
-                                 calibration=args.calibration, task=args.task, heading=args.heading,
-                                 expected_fs_hz=None if args.any_rate else 100.0,
-                                 language=args.lang or choices.DEFAULT_LANGUAGE)
-        _, written = process_folder(args.session, args.out, options, progress=_progress)
+            options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
+                                     calibration=args.calibration, task=args.task, heading=args.heading,
+                                     expected_fs_hz=expected_fs_hz, language=args.lang or choices.DEFAULT_LANGUAGE)
+            _, written = process_folder(args.session, args.out, options, progress=_progress, renderer=renderer)
         for path in written:
             print(path)
     elif args.command == "view":

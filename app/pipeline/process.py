@@ -17,51 +17,67 @@ from pathlib import Path
 from app.pipeline import timings
 from app.pipeline.ingestion import load_session
 from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
+from app.pipeline.render import ForkedRenderers, render_named
 from app.pipeline.results import build_results, report_input, results_json, timeseries_npz, write_outputs
+
+#: the rendered outputs, in the order they are written (after results.json); the same as
+#: :data:`app.pipeline.render.FORK_GROUPS` together (the series too: its compression is off the parent's path)
+REPORT_FILES = ("timeseries.npz", "report.pdf", "angles.xlsx", "quaternions.xlsx", "report.html", "scene.viser")
+
+
+def load_kernels(filter_name: str) -> None:
+    """Load the compiled kernels of filter ``filter_name`` (numba's on-disk cache) by running it once on one
+    second of still 9D data; the first kernel a process loads also sets up numba itself (~0.4 s CPU, a third of
+    it ``scipy.linalg``'s import, which numba makes to find BLAS).  The same calls as a session's (float64,
+    C-contiguous, the same code path), so nothing is compiled anew and the session's run finds them loaded.
+    The result is thrown away: no state is kept between runs."""
+    import numpy as np
+
+    from estimators.orientation import make
+
+    n = 100
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1))
+    mag = np.tile([0.0, 20.0, -40.0], (n, 1))
+    make(filter_name).estimate(acc, np.zeros((n, 3)), mag, fs_hz=100.0)
 
 
 def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, options: ProcessOptions | None = None,
-                   *, progress: Progress = _no_progress, reports: bool = True) -> tuple[SessionOutcome, list[Path]]:
+                   *, progress: Progress = _no_progress, reports: bool = True,
+                   renderer: ForkedRenderers | None = None) -> tuple[SessionOutcome, list[Path]]:
     """Read ``session_dir``, compute everything, render every output, then write them all into ``out_dir``.
 
     ``reports=False`` writes only ``results.json`` and ``timeseries.npz`` (no PDF, Excel, HTML or scene).
+    ``renderer``: render processes forked at the command's start (:class:`app.pipeline.render.ForkedRenderers`,
+    the CLI's cold start); without one every output is rendered here.  The bytes are the same either way.
 
     Raises :class:`app.pipeline.ingestion.IngestionError` or :class:`app.pipeline.session.PipelineError` (both
     ``ValueError``) with a message for the user; nothing is written then.
     """
     options = options or ProcessOptions()
     progress("read", 0.0)
-    with timings.stage("read"):
-        session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
+    session = None
+    if renderer is not None and renderer.reading and not renderer.read_failed:  # meanwhile numba's kernels load
+        with timings.stage("kernels"):
+            load_kernels(options.filter_name)
+        with timings.stage("read.wait"):
+            session = renderer.session()
+    if session is None:  # no helper, or it could not read: read here (and raise the error, if any)
+        with timings.stage("read"):
+            session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
     with timings.stage("pipeline"):
         outcome = process_session(session, options, progress=progress)
         results = build_results(outcome)
-        files = {"results.json": results_json(results), "timeseries.npz": timeseries_npz(outcome)}
-    if reports:  # imported here: matplotlib, plotly and viser cost ~80 MB a process that needs no report
-        with timings.stage("imports"):
-            from reports.excel import write_angles_xlsx, write_quaternions_xlsx
-            from reports.html import render_html
-            from reports.pdf import render_pdf
-            from reports.scene import scene_bytes
-
+        files = {"results.json": results_json(results)}
+        if not reports:
+            files["timeseries.npz"] = timeseries_npz(outcome)
+    if reports:  # rendered with deferred imports: matplotlib, plotly and viser cost ~80 MB a process that needs no report
         progress("reports", 0.97)
         with timings.stage("reports"):
             ri = report_input(outcome, results)
-            with timings.stage("report.pdf"):
-                pdf = render_pdf(ri)
-            with timings.stage("report.html"):
-                html = render_html(ri)
-            with timings.stage("scene.viser"):
-                scene = scene_bytes(ri)
-        files |= {
-            "report.pdf": pdf,
-            "angles.xlsx": lambda path: write_angles_xlsx(ri, path),
-            "quaternions.xlsx": lambda path: write_quaternions_xlsx(ri, path),
-            "report.html": html,
-            "scene.viser": scene,
-        }
+            rendered = renderer.render(ri) if renderer is not None else render_named(ri, REPORT_FILES)
+        files |= {name: rendered[name] for name in REPORT_FILES}
     progress("write", 0.99)
-    with timings.stage("write"):  # the workbooks are rendered as they are written
+    with timings.stage("write"):
         written = write_outputs(out_dir, files)
     progress("done", 1.0)
     return outcome, written

@@ -12,9 +12,11 @@ The job runner (:mod:`app.jobs.work`) calls :func:`render_all`; nothing here tou
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import os
+import signal
 import tempfile
 import threading
 import time
@@ -64,6 +66,10 @@ def render_artefact(ri, name: str, lang: str = "") -> bytes:
         from reports.scene import scene_bytes
 
         return scene_bytes(ri)
+    if name == "timeseries.npz":  # also from the outcome: app.pipeline.results.timeseries_npz
+        from app.pipeline.results import timeseries_npz_of
+
+        return timeseries_npz_of(ri)
     raise ValueError(f"unknown artefact {name!r}")
 
 
@@ -117,6 +123,248 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
     except Exception:  # noqa: BLE001 — e.g. the render process died: render here instead
         log.exception("render process failed; rendering in the job thread")
         return fallback()
+
+
+#: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
+#: (CPU on the 10-cycle demo session at load average ~16: PDF 0.29 s, angles.xlsx 0.06, HTML 0.06 | scene 0.11,
+#: quaternions.xlsx 0.14, timeseries.npz 0.04–0.11 (its compression); ``python -m benchmarks.cold`` prints them)
+FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx", "report.html"),
+                                             ("scene.viser", "quaternions.xlsx", "timeseries.npz"))
+
+
+def render_named(ri, names) -> dict[str, bytes]:
+    """``{name: bytes}`` of :func:`render_artefact` for ``names``, the PDF in the report input's language; each
+    one timed as its own stage (``CHAKAMO_TIMINGS``)."""
+    from app.pipeline import timings
+
+    out = {}
+    for name in names:
+        with timings.stage(name):
+            out[name] = render_artefact(ri, name, ri.language if name == "report.pdf" else "")
+    return out
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    """One length-prefixed message on ``fd``, then closed."""
+    with os.fdopen(fd, "wb") as f:
+        f.write(len(data).to_bytes(8, "little"))
+        f.write(data)
+
+
+def _read_all(fd: int) -> bytes | None:
+    """A length-prefixed message from ``fd`` (then closed), None when the writer closed it without one."""
+    with os.fdopen(fd, "rb") as f:
+        head = f.read(8)
+        if len(head) < 8:
+            return None
+        size = int.from_bytes(head, "little")
+        data = f.read(size)
+    return data if len(data) == size else None
+
+
+class ForkedRenderers:
+    """Helper processes forked at the start of a one-shot command (``chakamo process``), for a cold start.
+
+    A fresh ``chakamo process`` spends most of its time importing libraries and loading numba's cached
+    kernels, on one core; the report libraries (fpdf2, openpyxl, viser, plotly) cost ~0.5 s more of imports
+    that do not depend on the session, and reading the files ~0.15 s that needs no numba.  So, before numpy
+    is even imported, the command forks one helper.  Given ``read=(session folder, expected rate)`` it first
+    reads the session (:func:`app.pipeline.ingestion.load_session`; :meth:`session` hands it over, pickled)
+    while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), and
+    forks once per further group of :data:`FORK_GROUPS`.  When the parent has the report input
+    (:meth:`render`, pickled through one pipe per helper), the helpers render their groups side by side and
+    send the bytes back; the parent writes every file itself (all or nothing,
+    :func:`app.pipeline.results.write_outputs`).  The bytes are those of :func:`render_artefact` in the parent
+    (``tests/app/pipeline/test_forked_render.py``; ``python -m benchmarks.same_outputs``).  A helper that
+    fails or dies is not fatal: what it did not deliver is rendered (or read) in the parent.
+
+    Only for a process with a single thread and no event loop (fork copies none of them, nor the locks they
+    hold): the CLI creates it first thing; servers use :class:`RenderPool` (spawned).  Use as a context
+    manager, or call :meth:`close`.  Without ``os.fork`` (Windows), or with other threads running, nothing is
+    forked: :meth:`render` renders in the caller and :meth:`session` is None.
+    """
+
+    def __init__(self, groups: tuple[tuple[str, ...], ...] = FORK_GROUPS, *,
+                 read: tuple[str | os.PathLike, float | None] | None = None) -> None:
+        self.groups = groups
+        self.pid: int | None = None
+        self._session_reader: threading.Thread | None = None
+        self._tasks: list[int] = []
+        self._results: list[int] = []
+        if not hasattr(os, "fork") or threading.active_count() > 1:  # Windows; or threads fork would not copy
+            return
+        tasks = [os.pipe() for _ in groups]  # parent -> helper g: the report input
+        results = [os.pipe() for _ in groups]  # helper g -> parent: its artefacts
+        session_r, session_w = os.pipe() if read is not None else (None, None)
+        pid = os.fork()
+        if pid == 0:  # the helper: never returns into the caller's code
+            code = 0
+            try:
+                for fd in [w for _, w in tasks] + [r for r, _ in results] + ([session_r] if read else []):
+                    os.close(fd)
+                self._helper([r for r, _ in tasks], [w for _, w in results], read, session_w)
+            except BaseException:  # noqa: BLE001 — the parent renders what it does not receive
+                code = 1
+            finally:
+                os._exit(code)
+        for fd in [r for r, _ in tasks] + [w for _, w in results] + ([session_w] if read else []):
+            os.close(fd)
+        self.pid, self._tasks, self._results = pid, [w for _, w in tasks], [r for r, _ in results]
+        self._session_message: list[bytes | None] = [None]
+        if session_r is not None:  # drained by a thread: the helper goes on to its imports at once
+            self._session_reader = threading.Thread(target=self._drain_session, args=(session_r,),
+                                                    name="chakamo-session-reader", daemon=True)
+            self._session_reader.start()
+
+    # ----------------------------------------------------------------------------------- the helpers' side
+    def _helper(self, task_rs: list[int], result_ws: list[int], read, session_w: int | None) -> None:
+        import pickle
+
+        from app.pipeline import timings
+
+        if read is not None:  # the session first: the parent needs it soonest
+            try:
+                with timings.stage("read"):
+                    from app.pipeline.ingestion import load_session
+
+                    session = load_session(read[0], expected_fs_hz=read[1])
+                payload = pickle.dumps(session, protocol=pickle.HIGHEST_PROTOCOL)
+            except BaseException:  # noqa: BLE001 — the parent reads it again and reports the error itself
+                payload = b""
+            _write_all(session_w, payload)
+        with timings.stage("render.imports"):
+            warm_up(processing=False)
+            import plotly.offline  # noqa: F401 — what reports.html and reports.scene import when they run
+            import viser  # noqa: F401
+            import viser._messages  # noqa: F401
+        children = []
+        for g in range(1, len(self.groups)):  # forked now, before the report input arrives
+            pid = os.fork()
+            if pid == 0:
+                code = 0
+                try:
+                    for fd in task_rs[:g] + task_rs[g + 1:] + result_ws[:g] + result_ws[g + 1:]:
+                        os.close(fd)
+                    self._render_group(g, task_rs[g], result_ws[g])
+                except BaseException:  # noqa: BLE001
+                    code = 1
+                finally:
+                    os._exit(code)
+            children.append(pid)
+        for fd in task_rs[1:] + result_ws[1:]:
+            os.close(fd)
+        try:
+            self._render_group(0, task_rs[0], result_ws[0])
+        finally:
+            for pid in children:
+                os.waitpid(pid, 0)
+
+    def _render_group(self, g: int, task_r: int, result_w: int) -> None:
+        """Helper ``g``: wait for the report input, render its group, send ``("ok", {name: bytes})`` (or the
+        traceback); nothing when the parent ended without sending one (an error: nothing to render)."""
+        import pickle
+        import resource
+        import traceback
+
+        from app.pipeline import timings
+
+        task = _read_all(task_r)
+        if task is None:
+            os.close(result_w)
+            return
+        cpu0 = time.process_time()
+        try:
+            out = render_named(pickle.loads(task), self.groups[g])
+            payload = pickle.dumps(("ok", out), protocol=pickle.HIGHEST_PROTOCOL)
+        except BaseException:  # noqa: BLE001 — reported to the parent, which renders the group itself
+            payload = pickle.dumps(("error", traceback.format_exc()))
+        timings.report_process(f"render{g + 1}", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                               time.process_time() - cpu0)
+        _write_all(result_w, payload)
+
+    # ----------------------------------------------------------------------------------- the parent's side
+    @property
+    def reading(self) -> bool:
+        """True while the helper's session (``read=``) has not been collected by :meth:`session`."""
+        return self._session_reader is not None
+
+    @property
+    def read_failed(self) -> bool:
+        """True when the helper has already answered that it could not read the session (a missing folder,
+        files it refused): the caller then reads it at once and reports the error without loading numba."""
+        reader = self._session_reader
+        return reader is not None and not reader.is_alive() and not self._session_message[0]
+
+    def _drain_session(self, fd: int) -> None:
+        self._session_message[0] = _read_all(fd)
+
+    def session(self):
+        """The session the helper read (``read=(folder, expected_fs_hz)``), or None when it was not asked to
+        or could not (an error: the caller reads it again and so reports the error itself)."""
+        reader, self._session_reader = self._session_reader, None
+        if reader is None:
+            return None
+        reader.join()
+        message, self._session_message[0] = self._session_message[0], None
+        if not message:
+            return None
+        import pickle
+
+        return pickle.loads(message)
+
+    def render(self, ri) -> dict[str, bytes]:
+        """Every artefact of the groups for report input ``ri``: ``{name: bytes}`` (:func:`render_named`)."""
+        names = [name for group in self.groups for name in group]
+        if self.pid is None:
+            return render_named(ri, names)
+        import pickle
+
+        task = pickle.dumps(ri, protocol=pickle.HIGHEST_PROTOCOL)
+        tasks, self._tasks = self._tasks, []
+        for fd in tasks:
+            try:
+                _write_all(fd, task)
+            except OSError:  # that helper is gone: its group is rendered here
+                log.exception("a render helper did not take the report input; rendering its part here")
+        out: dict[str, bytes] = {}
+        results, self._results = self._results, []
+        for g, fd in enumerate(results):
+            message = _read_all(fd)
+            status, payload = pickle.loads(message) if message is not None else ("error", "no answer")
+            if status == "ok":
+                out |= payload
+            else:
+                log.error("render helper %d failed (%s); rendering its artefacts here", g + 1, payload)
+        self._reap()
+        return out | render_named(ri, [name for name in names if name not in out])
+
+    def close(self) -> None:
+        """End unused helpers (the command failed before its reports) at once and reap them: a user's error
+        message must not wait for the report libraries' imports.  (Killed while it makes the PDF's font cut,
+        once per machine, the helper can leave a temporary file in the font cache; the next run cuts again.)"""
+        if self.pid is None:
+            return
+        if self._tasks:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)  # its forked render helpers see their pipes end and exit
+        for fd in self._tasks + self._results:
+            os.close(fd)
+        self._tasks, self._results = [], []
+        self._reap()
+        if self._session_reader is not None:  # the helper is gone: its pipe has ended
+            self._session_reader.join()
+            self._session_reader = None
+
+    def _reap(self) -> None:
+        if self.pid is not None:
+            os.waitpid(self.pid, 0)
+            self.pid = None
+
+    def __enter__(self) -> "ForkedRenderers":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def _exit_with_parent(parent_pid: int) -> None:
@@ -181,13 +429,14 @@ class RenderPool:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-def warm_up() -> None:
+def warm_up(processing: bool = True) -> None:
     """Before the first job needs them: import the processing and report modules (≈1 s), make the PDF's font
     cut (once per machine, ≈0.3 s) and run the default orientation filter once on one second of still data
-    (loads its compiled numba kernels, ≈0.3 s)."""
+    (loads its compiled numba kernels, ≈0.3 s).  ``processing=False``: the report side only (no numba)."""
     import importlib
 
-    for name in ("app.pipeline.session", "app.pipeline.results", "reports.excel", "reports.html", "reports.pdf", "reports.scene"):
+    names = ("app.pipeline.session", "app.pipeline.results") if processing else ()
+    for name in names + ("reports.excel", "reports.html", "reports.pdf", "reports.scene"):
         try:
             importlib.import_module(name)
         except Exception:  # noqa: BLE001 — the job importing it will report the problem
@@ -198,6 +447,8 @@ def warm_up() -> None:
         font_files()
     except Exception:  # noqa: BLE001 — only a warm-up
         log.exception("warm-up of the PDF font failed")
+    if not processing:
+        return
     try:
         import numpy as np
 
@@ -211,5 +462,5 @@ def warm_up() -> None:
         log.exception("warm-up run of the orientation filter failed")
 
 
-__all__ = ["LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIMEOUT_S", "RenderPool", "collect", "render_all",
-           "render_artefact", "render_many", "warm_up"]
+__all__ = ["FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIMEOUT_S", "ForkedRenderers", "RenderPool",
+           "collect", "render_all", "render_artefact", "render_many", "render_named", "warm_up"]

@@ -166,13 +166,24 @@ def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
 
 def timeseries_npz(outcome: SessionOutcome) -> bytes:
     """The task's series (``timeseries.npz``): t_s, angles_deg, and sensor and segment quaternions."""
+    return _series_npz(outcome.t_s, np.rad2deg(outcome.angles_rad), outcome.q_earth_sensor,
+                       {"femur": outcome.q_earth_segment["thigh"], "tibia": outcome.q_earth_segment["shank"]},
+                       {seg: cal.q_sensor_segment for seg, cal in outcome.segments.items()})
+
+
+def timeseries_npz_of(ri: ReportInput) -> bytes:
+    """:func:`timeseries_npz` from the report input :func:`report_input` made of the outcome (the same arrays:
+    its angles are the outcome's in degrees, as here), for a render process that has only the report input."""
+    return _series_npz(ri.t_s, ri.angles_deg, ri.q_earth_sensor, ri.q_earth_segment, ri.q_sensor_segment)
+
+
+def _series_npz(t_s, angles_deg, q_earth_sensor, q_earth_segment, q_sensor_segment) -> bytes:
     buf = io.BytesIO()
     np.savez_compressed(
-        buf, t_s=outcome.t_s, angles_deg=np.rad2deg(outcome.angles_rad),
-        q_earth_sensor_thigh=outcome.q_earth_sensor["thigh"], q_earth_sensor_shank=outcome.q_earth_sensor["shank"],
-        q_earth_segment_femur=outcome.q_earth_segment["thigh"], q_earth_segment_tibia=outcome.q_earth_segment["shank"],
-        q_sensor_segment_thigh=outcome.segments["thigh"].q_sensor_segment,
-        q_sensor_segment_shank=outcome.segments["shank"].q_sensor_segment,
+        buf, t_s=t_s, angles_deg=angles_deg,
+        q_earth_sensor_thigh=q_earth_sensor["thigh"], q_earth_sensor_shank=q_earth_sensor["shank"],
+        q_earth_segment_femur=q_earth_segment["femur"], q_earth_segment_tibia=q_earth_segment["tibia"],
+        q_sensor_segment_thigh=q_sensor_segment["thigh"], q_sensor_segment_shank=q_sensor_segment["shank"],
     )
     return buf.getvalue()
 

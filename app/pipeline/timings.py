@@ -31,6 +31,33 @@ def report(name: str, seconds: float, cpu_s: float | None = None) -> None:
         print(f"chakamo-timing: {name} {seconds:.6f}{cpu}", file=sys.stderr, flush=True)
 
 
+def pss_mb() -> float | None:
+    """This process's proportional set size now, MB (Linux ``/proc/self/smaps_rollup``; None elsewhere): its
+    resident memory with each page shared with other processes (a fork's, a library's) divided among them,
+    so that the PSS of several processes adds up to the memory they hold together."""
+    try:
+        with open("/proc/self/smaps_rollup") as f:
+            for line in f:
+                if line.startswith("Pss:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        return None
+    return None
+
+
+def report_process(process: str, peak_rss_mb: float, cpu_s: float) -> None:
+    """Print one process's peak resident memory, CPU time and current PSS (when enabled), ::
+
+        chakamo-process: <process> <peak_rss_mb> <cpu_s> [<pss_mb>]
+
+    (the parent's rusage shows only the largest of its processes' peaks, not what they held together, and
+    their CPU summed, not how it overlapped)."""
+    if enabled():
+        pss = pss_mb()
+        tail = "" if pss is None else f" {pss:.1f}"
+        print(f"chakamo-process: {process} {peak_rss_mb:.1f} {cpu_s:.6f}{tail}", file=sys.stderr, flush=True)
+
+
 @contextmanager
 def stage(name: str) -> Iterator[None]:
     """Time the block as stage ``name``."""
