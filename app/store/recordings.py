@@ -17,6 +17,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
+from app.pipeline.ingestion.provenance import sensor_of_file_name
 from app.store.blobs import BlobWriter
 from app.store.database import ensure_blob
 from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
@@ -34,10 +35,10 @@ def check_labels(segment: str | None, role: str | None) -> None:
 
 def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple[str, BlobWriter]], *,
                  segment: str | None, role: str | None, max_files: int) -> tuple[KneeSession, list[Recording]]:
-    """Commit the blobs of ``files`` (name, written blob) and add their recordings to the session (locked),
-    all or none: :class:`Invalid` for a name sent twice, :class:`Conflict` for a name already stored (or
-    stored meanwhile by another upload) or while the session is being processed, :class:`LimitExceeded` past
-    ``max_files`` per session."""
+    """Commit the blobs of ``files`` (name, written blob) and add their recordings to the session (locked), each
+    with the sensor serial its name carries (``device``), all or none: :class:`Invalid` for a name sent twice,
+    :class:`Conflict` for a name already stored (or stored meanwhile by another upload) or while the session is
+    being processed, :class:`LimitExceeded` past ``max_files`` per session."""
     names = [n for n, _ in files]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -58,7 +59,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
         sha = writer.commit()
         ensure_blob(db, sha, size)
         rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
-                              segment=segment, role=role))
+                              segment=segment, role=role, device=sensor_of_file_name(name)))
     db.add_all(rows)
     session.files_version = KneeSession.files_version + 1
     try:

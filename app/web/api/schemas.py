@@ -132,6 +132,8 @@ class RecordingOut(BaseModel):
     sha256: str
     segment: str | None
     role: str | None
+    #: the sensor's serial from the file (a MetaBase MAC), stored at upload; null when the file names none
+    device: str | None = None
     uploaded_at: dt.datetime
 
 
@@ -235,7 +237,8 @@ def patient_out(p: Patient) -> dict[str, Any]:
 
 
 def recording_out(r: Recording) -> dict[str, Any]:
-    return {k: getattr(r, k) for k in ("id", "file_name", "size_bytes", "sha256", "segment", "role", "uploaded_at")}
+    return {k: getattr(r, k) for k in ("id", "file_name", "size_bytes", "sha256", "segment", "role", "device",
+                                       "uploaded_at")}
 
 
 def job_out(j: Job) -> dict[str, Any]:
