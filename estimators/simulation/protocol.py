@@ -31,7 +31,7 @@ from estimators.simulation.trajectory import Trajectory, min_jerk
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["join"]
+__all__ = ["join", "leg_protocol"]
 
 
 def join(parts: Sequence[Trajectory], transition_s: float | Sequence[float] = 6.0) -> tuple[Trajectory, FloatArray]:
@@ -68,3 +68,33 @@ def join(parts: Sequence[Trajectory], transition_s: float | Sequence[float] = 6.
             t0 += gaps[k]
     joined = Trajectory(np.concatenate(ts), np.concatenate(qs), np.concatenate(ps))
     return joined, np.array(spans, dtype=np.float64)
+
+
+def leg_protocol(motion, segment: str, q_segment_sensor, *, figure_eight_seed: int | None = 0,
+                 posture_s: float = 30.0, figure_eight_s: float = 60.0, transition_s: float = 6.0,
+                 ) -> tuple[Trajectory, dict[str, tuple[float, float]]]:
+    """One sensor's whole protocol (seed 004 §8.4) as one trajectory: figure-eight in the hand, then strapped to
+    ``segment`` (``"thigh"``/``"shank"``) of ``motion``'s leg (a :class:`~estimators.simulation.knee.LegMotion`
+    task) with ``q_segment_sensor``: standing, supine, the task; :func:`join`'s transitions between them.
+
+    ``figure_eight_seed=None`` leaves the figure-eight out (factory-calibrated sensors).  Returns the sensor's
+    trajectory and the truth ``{role: (start_s, end_s)}``; the figure-eight's span is its motion, without the
+    1 s rests at each end of :func:`~estimators.simulation.motions.figure_eight` (the sensor lies still in the hand
+    there, as at the start of a transition)."""
+    from estimators.simulation.knee import standing, supine
+    from estimators.simulation.motions import figure_eight
+
+    lever = motion.thigh_lever_arm_m if segment == "thigh" else motion.shank_lever_arm_m
+    parts = [getattr(standing(posture_s, motion.side), segment).mounted(q_segment_sensor, lever),
+             getattr(supine(posture_s, motion.side), segment).mounted(q_segment_sensor, lever),
+             getattr(motion, segment).mounted(q_segment_sensor, lever)]
+    names = ["standing", "lying", "task"]
+    if figure_eight_seed is not None:
+        parts.insert(0, figure_eight(figure_eight_s, seed=figure_eight_seed))
+        names.insert(0, "mag_calibration")
+    traj, spans = join(parts, transition_s)
+    truth = {n: (float(a), float(b)) for n, (a, b) in zip(names, spans)}
+    if figure_eight_seed is not None:
+        a, b = truth["mag_calibration"]
+        truth["mag_calibration"] = (a + 1.0, b - 1.0)
+    return traj, truth

@@ -12,26 +12,14 @@ import pytest
 from estimators import quaternion as quat
 from estimators import simulation as sim
 from estimators.protocol_split import PARTS, SplitError, split_protocol
-from estimators.simulation.protocol import join
+from estimators.simulation.protocol import leg_protocol
 
 
-def continuous_sensor(seed: int, segment: str = "thigh", *, figure_eight: bool = True, transition_s: float = 6.0,
-                      n_cycles: int = 4):
+def continuous_sensor(seed: int, segment: str = "thigh", *, figure_eight: bool = True, n_cycles: int = 4):
     """One sensor's continuous protocol on a 100 Hz grid and its truth ``{part: (start_s, end_s)}``."""
     motion = sim.step_up(n_cycles, 0.17, "right", seed=seed)
     mount = sim.random_rotation(np.deg2rad(15.0), seed * 10 + 1)
-    lever = motion.thigh_lever_arm_m if segment == "thigh" else motion.shank_lever_arm_m
-    parts = [getattr(sim.standing(30.0, "right"), segment).mounted(mount, lever),
-             getattr(sim.supine(30.0, "right"), segment).mounted(mount, lever),
-             getattr(motion, segment).mounted(mount, lever)]
-    names = list(PARTS[1:])
-    if figure_eight:
-        parts.insert(0, sim.figure_eight(60.0, seed=seed))
-        names.insert(0, "mag_calibration")
-    traj, spans = join(parts, transition_s)
-    truth = {n: tuple(s) for n, s in zip(names, spans)}
-    if figure_eight:
-        truth["mag_calibration"] = (truth["mag_calibration"][0] + 1.0, truth["mag_calibration"][1] - 1.0)
+    traj, truth = leg_protocol(motion, segment, mount, figure_eight_seed=seed if figure_eight else None)
     grid = sim.simulate(traj, sim.ImuSpec.random(seed * 10 + 1), seed=seed).on_grid()
     return grid, truth
 

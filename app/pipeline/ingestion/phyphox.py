@@ -102,6 +102,9 @@ def _csv_table(path: Path, text: str, where: str, notes: list) -> tuple[list[str
     if "\t" in lines[0] and len(lines) > 1 and "," in lines[1]:  # "Tabulator, decimal comma"
         text = text.replace(",", ".")
         notes.append(Note.of("csv_decimal_comma", file=where))
+    head, sep, body = text.partition("\n")
+    if '"' in head and '"' not in body:  # phyphox quotes the header's names only: unquoted, the fast parser reads it
+        text = head.replace('"', "") + sep + body
     header, rows = parse_table(path, text, notes)
     header = [h.strip().strip('"') for h in header]
     table = numeric_columns(path, header, rows, list(range(len(header))))
