@@ -18,19 +18,23 @@ from sqlalchemy.orm import Session
 
 from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
 from app.pipeline.ingestion.provenance import sensor_of_file_name
+from app.pipeline.ingestion.split import CONTINUOUS
 from app.store.blobs import BlobWriter
 from app.store.database import ensure_blob
 from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
 from app.store.models import KneeSession, Recording
 from app.store.sessions import clinic_session, refuse_while_processing
 
+#: the roles an upload may declare: the protocol's four, or one recording of the whole protocol (split on reading)
+UPLOAD_ROLES = (*ROLES, CONTINUOUS)
+
 
 def check_labels(segment: str | None, role: str | None) -> None:
     """:class:`Invalid` for an unknown segment or role (None: not given)."""
     if segment is not None and segment not in SEGMENTS:
         raise Invalid(f"segment {segment!r} is unknown; use {' or '.join(SEGMENTS)}.")
-    if role is not None and role not in ROLES:
-        raise Invalid(f"role {role!r} is unknown; use one of {', '.join(ROLES)}.")
+    if role is not None and role not in UPLOAD_ROLES:
+        raise Invalid(f"role {role!r} is unknown; use one of {', '.join(UPLOAD_ROLES)}.")
 
 
 def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple[str, BlobWriter]], *,
@@ -86,4 +90,4 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
     return session
 
 
-__all__ = ["MANIFEST", "ROLES", "SEGMENTS", "check_labels", "delete_recording", "store_upload"]
+__all__ = ["MANIFEST", "ROLES", "SEGMENTS", "UPLOAD_ROLES", "check_labels", "delete_recording", "store_upload"]

@@ -348,6 +348,8 @@ function processStep(ctx) {
   const filter = h("select", { name: "filter" });
   const language = h("select", { name: "lang" });
   const headingSelect = h("select", { name: "heading" });
+  // the side override (as `chakamo process --side`): empty = the patient's side, checked against the files'
+  const sideSelect = h("select", { name: "side" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
     t("wizard.process"));
@@ -355,6 +357,7 @@ function processStep(ctx) {
     field(t("wizard.filter"), filter, t("wizard.filter_hint"))[0],
     field(t("wizard.report_language"), language, t("wizard.report_language_hint"))[0],
     field(t("wizard.heading"), headingSelect, t("wizard.heading_hint"))[0],
+    field(t("wizard.side"), sideSelect, t("wizard.side_hint"))[0],
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, processButton));
   if (!ingestion.ok) {
@@ -366,6 +369,9 @@ function processStep(ctx) {
     fillSelect(filter, "filter", opts.filters);
     fillSelect(language, "lang", opts.languages, lang());
     fillSelect(headingSelect, "heading", opts.headings);
+    fillSelect(sideSelect, "side", opts.sides);
+    sideSelect.prepend(h("option", { value: "", selected: true }, t("wizard.side_patient")));
+    sideSelect.value = "";
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {
@@ -373,7 +379,8 @@ function processStep(ctx) {
     clear(message);
     processButton.disabled = true;
     try {
-      const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value } });
+      const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value,
+        side: sideSelect.value || null } });
       showProgress(ctx, answer.job_id);
     } catch (err) {
       message.append(alertBox(errorText(err)));
@@ -452,7 +459,8 @@ function showProgress(ctx, jobId) {
     }
     if (job.status === "failed") {
       append(clear(outcome), [
-        h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.failed")), " ", job.error || t("error.unknown")),
+        h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.failed")), " ",
+          (job.error_message && job.error_message[lang()]) || job.error || t("error.unknown")),
         (job.log || []).length ? h("details", {}, h("summary", {}, t("wizard.job_log")),
           h("pre", { class: "log" }, (job.log || []).join("\n"))) : null]);
       return;

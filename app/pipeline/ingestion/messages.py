@@ -864,11 +864,14 @@ def _fill(value: Any, lang: str) -> Any:
     return value
 
 
-def render(code: str, params: Mapping[str, Any], lang: str = "en") -> str:
+def render(code: str, params: Mapping[str, Any], lang: str = "en",
+           catalogue: Mapping[str, Mapping[str, str]] | None = None) -> str:
     """The message ``code`` in ``lang`` (``es``/``en``/``pt``; others give English), filled from ``params``.
 
-    A missing parameter shows as ``{name}`` rather than failing: a message must never hide the error."""
-    entry = CATALOGUE[code]
+    ``catalogue``: another table of the same shape (the pipeline's, :mod:`app.pipeline.messages`); fragments
+    inside the params are still looked up here.  A missing parameter shows as ``{name}`` rather than failing: a
+    message must never hide the error."""
+    entry = (CATALOGUE if catalogue is None else catalogue)[code]
     template = entry.get(lang) or entry["en"]
     values = {k: _fill(v, lang) for k, v in params.items()}
     try:

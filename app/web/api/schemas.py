@@ -70,6 +70,9 @@ class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
     heading: HeadingName = DEFAULT_HEADING
+    #: the side analysed over the one the files say (as ``chakamo process --side``): a recording of the other leg
+    #: is then processed, with a warning, instead of refused; None: the patient's side, checked against the files
+    side: Side | None = None
 
 
 class OptionOut(BaseModel):
@@ -150,10 +153,16 @@ class JobOut(BaseModel):
     progress: float
     stage: str
     error: str | None
+    #: a failed job's message as a catalogue code and values (app.pipeline.messages), and rendered per language
+    error_code: str | None = None
+    error_params: dict[str, Any] | None = None
+    error_message: dict[str, str] | None = None
     log: list[str]
     analysis_id: int | None
     filter: str
     lang: str
+    #: the side chosen over the files' (the process request's ``side``), or null
+    side: str | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -242,8 +251,14 @@ def recording_out(r: Recording) -> dict[str, Any]:
 
 
 def job_out(j: Job) -> dict[str, Any]:
-    return {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "log",
-                                       "analysis_id", "filter", "lang", "created_at", "started_at", "finished_at")}
+    out = {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "error_code",
+                                      "error_params", "log", "analysis_id", "filter", "lang", "side", "created_at",
+                                      "started_at", "finished_at")}
+    if j.error_code:
+        from app.pipeline.messages import message_dict
+
+        out["error_message"] = message_dict(j.error_code, j.error_params or {})["message"]
+    return out
 
 
 def audit_out(e: AuditEvent) -> dict[str, Any]:

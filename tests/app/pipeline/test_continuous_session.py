@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from estimators import simulation as sim
-from estimators.simulation.protocol import join
+from estimators.simulation.protocol import leg_protocol
 
 from app.pipeline.ingestion import IngestionError, load_session, read_recording, simulated_streams
 from app.pipeline.ingestion.metabase import write_recording_metabase
@@ -26,21 +26,14 @@ REAL = Path(__file__).resolve().parents[4] / "shared" / "data" / "metabase"
 
 def _continuous(seed: int = 0, n_cycles: int = 6):
     """Both sensors' continuous protocol (streams on the phone clock), the task motion and the truth spans (s
-    from EPOCH0_S); the shank's figure-eight is made after the thigh's, while the thigh sensor lies still."""
+    from EPOCH0_S)."""
     motion = sim.step_up(n_cycles, 0.17, "right", seed=seed)
     streams, truth = {}, {}
     for i, seg in enumerate(("thigh", "shank")):
         mount = sim.random_rotation(np.deg2rad(15.0), seed * 10 + i)
-        lever = motion.thigh_lever_arm_m if seg == "thigh" else motion.shank_lever_arm_m
-        parts = [sim.figure_eight(60.0, seed=seed + i),
-                 getattr(sim.standing(30.0, "right"), seg).mounted(mount, lever),
-                 getattr(sim.supine(30.0, "right"), seg).mounted(mount, lever),
-                 getattr(motion, seg).mounted(mount, lever)]
-        traj, spans = join(parts, 6.0)
+        traj, truth[seg] = leg_protocol(motion, seg, mount, figure_eight_seed=seed + i)
         imu = sim.simulate(traj, sim.ImuSpec.random(seed * 10 + i), seed=seed * 100 + i)
         streams[seg] = simulated_streams(imu, EPOCH0_S)
-        truth[seg] = dict(zip(("mag_calibration", "standing", "lying", "task"), map(tuple, spans)))
-        truth[seg]["mag_calibration"] = (spans[0, 0] + 1.0, spans[0, 1] - 1.0)  # without its rests
     return streams, motion, truth
 
 
@@ -130,3 +123,32 @@ def test_a_real_metabase_export_that_is_no_protocol_is_refused_for_that_reason()
         assert exc.code == "split.no_posture" and files[0].name in str(exc)
     else:  # if it does split, each part is where the data say: postures still, the task after them
         assert split.spans_s["standing"][1] <= split.spans_s["lying"][0] <= split.spans_s["task"][0]
+
+
+def test_the_web_upload_takes_the_continuous_role_and_its_check_shows_the_split(tmp_path, continuous):
+    """Uploaded with ``role=continuous`` (the API's form field), the session's ingestion check splits it."""
+    pytest.importorskip("fastapi")
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "web"))
+    from fastapi.testclient import TestClient
+    from web_helpers import clinic_token, make_settings, new_session
+
+    from app.web.main import create_app
+
+    streams, _, _ = continuous
+    folder = _write(tmp_path / "files", streams, word="")   # no role word in the names: the form field says it
+    settings = make_settings(tmp_path / "data")
+    h = clinic_token(settings, "C")
+    with TestClient(create_app(settings)) as c:
+        _, sid = new_session(c, h)
+        for seg in ("thigh", "shank"):
+            word = "muslo" if seg == "thigh" else "pierna"
+            files = [("files", (p.name, p.read_bytes(), "text/csv")) for p in sorted(folder.glob(f"{word}-*.csv"))]
+            r = c.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=files,
+                       data={"segment": seg, "role": "continuous"})
+            assert r.status_code == 201, r.text
+        ingestion = r.json()["ingestion"]
+    assert ingestion["ok"] is True, ingestion
+    assert sum("one continuous recording, split into" in m for m in ingestion["messages"]) == 2
+    assert any(m.startswith("thigh lying:") for m in ingestion["messages"])
