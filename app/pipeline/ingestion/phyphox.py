@@ -82,8 +82,10 @@ def looks_like_phyphox(path: Path) -> bool:
                 return _header_kinds(_first_line(fh.read(4096)))
         if suffix == ".zip":
             with zipfile.ZipFile(path) as z:
-                return any(_header_kinds(_first_line(z.read(n)[:4096].decode("utf-8-sig", "replace")))
-                           for n in _tables_zip(z)[:8])
+                def head(member: str) -> str:  # the first 4 kB only, not the whole member decompressed
+                    with z.open(member) as fh:
+                        return fh.read(4096).decode("utf-8-sig", "replace")
+                return any(_header_kinds(_first_line(head(n))) for n in _tables_zip(z)[:8])
         if suffix == ".xlsx":
             import openpyxl
             wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
@@ -107,7 +109,10 @@ def _csv_table(path: Path, text: str, where: str, notes: list) -> tuple[list[str
         text = head.replace('"', "") + sep + body
     header, rows = parse_table(path, text, notes)
     header = [h.strip().strip('"') for h in header]
-    table = numeric_columns(path, header, rows, list(range(len(header))))
+    names = [_name(h) for h in header]  # only the columns read: time and the sensor axes (NaN elsewhere)
+    used = [j for j, n in enumerate(names) if n == "time" or any(p.match(n) for p in (*_AXIS.values(), _LINEAR))]
+    table = np.full((len(rows), len(header)), np.nan)
+    table[:, used] = numeric_columns(path, header, rows, used)
     return header, table
 
 
