@@ -8,7 +8,7 @@
 // - Swapped sensors are caught from the sensor serials the SERVER stored with each recording (`device` of
 //   GET /sessions/{id}: the MAC a MetaBase file's name carries, read by app/pipeline/ingestion/provenance.py
 //   sensor_of_file_name, any device name), so the browser keeps no copy of the naming rule.  A zone whose stored
-//   files carry a MAC that the OTHER segment's stored files also carry shows "one sensor on both segments"; with
+//   files the server's `sensor_warnings` name (one sensor on both segments) shows that sentence; with
 //   a MAC typed in step 1, files carrying the MAC given to the OTHER segment show "sensors swapped?", and files
 //   carrying a third MAC "not this segment's sensor".  A MAC that matches neither is not flagged when only the
 //   other segment's MAC is known (it is then presumably this sensor's).  Only a warning: the upload goes ahead,
@@ -68,10 +68,10 @@ function macWarning(ctx, segment, recs) {
   if (!segment) return null;
   const otherSegment = SEGMENTS.find((s) => s !== segment);
   const macs = [...new Set(recs.map((r) => r.device).filter(Boolean))];
-  const onOther = new Set((ctx.session.recordings || []).filter((r) => r.segment === otherSegment)
-    .map((r) => r.device).filter(Boolean));
-  const both = macs.filter((m) => onOther.has(m));
-  if (both.length) return t("wizard.mac_both_segments", { mac: both.map(showMac).join(", ") });
+  const names = new Set(recs.map((r) => r.file_name));
+  // the server's check of its stored serials (one sensor on both segments), already in every language
+  const both = (ctx.session.sensor_warnings || []).find((w) => names.has((w.params || {})[`${segment}_file`]));
+  if (both) return (both.message || {})[lang()] || t("wizard.mac_both_segments", { mac: showMac(both.params.sensor) });
   const macOn = (seg) => typedMac((ctx.sensors.find((s) => s.segment === seg) || {}).label);
   const own = macOn(segment);
   const other = macOn(otherSegment);

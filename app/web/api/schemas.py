@@ -192,6 +192,9 @@ class SessionOut(SessionSummaryOut):
     professional: str | None
     notes: str | None
     recordings: list[RecordingOut]
+    #: the stored sensor serials' provenance check (one sensor on both segments): ``{"code", "params", "message":
+    #: {lang: text}}`` each (app.pipeline.ingestion.provenance.check_stored_sensors)
+    sensor_warnings: list[dict[str, Any]] = []
     ingestion: IngestionOut
     analyses: list[AnalysisOut]
     jobs: list[JobOut]
@@ -280,12 +283,23 @@ def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None) -> di
             "n_recordings": n_recordings, "status": session_status(n_recordings, ready(s), latest_job)}
 
 
+def sensor_warnings(recs: list[Recording]) -> list[dict[str, Any]]:
+    """The provenance check of the serials stored with ``recs`` (upload segment + device), each finding in
+    es/en/pt."""
+    from app.pipeline.ingestion.messages import message_dict
+    from app.pipeline.ingestion.provenance import check_stored_sensors
+
+    found = check_stored_sensors((r.file_name, r.segment, r.device) for r in recs)
+    return [message_dict(f.code, f.params) for f in found]
+
+
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:
     """The Session dict of ``s`` with its jobs and analyses, newest first (:func:`app.store.sessions.session_jobs`,
     :func:`app.store.sessions.session_analyses`)."""
     recs = list(s.recordings)
     out = summary_out(s, len(recs), jobs[0] if jobs else None)
     out |= {"step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
-            "recordings": [recording_out(r) for r in recs], "ingestion": stored_ingestion(s, len(recs)),
+            "recordings": [recording_out(r) for r in recs], "sensor_warnings": sensor_warnings(recs),
+            "ingestion": stored_ingestion(s, len(recs)),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out

@@ -90,3 +90,18 @@ def test_the_wizard_keeps_no_copy_of_the_metabase_name_rule():
     wizard = (Path(__file__).resolve().parents[3] / "static" / "views" / "wizard.js").read_text(encoding="utf-8")
     assert "_MetaWear_" not in wizard and "Hz(?:" not in wizard
     assert ".device" in wizard
+
+
+def test_the_session_answers_one_sensor_on_both_segments_in_every_language(client, tmp_path):
+    c, h = client
+    _, sid = new_session(c, h)
+    (tmp_path / "f").mkdir()
+    for seg, role in (("thigh", "standing"), ("shank", "task")):   # the thigh's sensor recorded both
+        files = write_recording_metabase(tmp_path / "f", f"{role}-{seg}", MACS["thigh"], _streams())
+        r = c.post(f"/api/v1/sessions/{sid}/recordings", headers=h, data={"segment": seg, "role": role},
+                   files=[("files", (p.name, p.read_bytes(), "text/csv")) for p in files])
+        assert r.status_code == 201, r.text
+    (w,) = c.get(f"/api/v1/sessions/{sid}", headers=h).json()["sensor_warnings"]
+    assert w["code"] == "check.sensor_both_segments" and w["params"]["sensor"] == MACS["thigh"]
+    assert w["params"]["thigh_file"].startswith("standing-thigh") and w["params"]["shank_file"].startswith("task-shank")
+    assert set(w["message"]) == {"es", "en", "pt"} and len(set(w["message"].values())) == 3
