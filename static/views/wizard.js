@@ -8,8 +8,9 @@
 // - Swapped sensors are caught from the sensor serials the SERVER stored with each recording (`device` of
 //   GET /sessions/{id}: the MAC a MetaBase file's name carries, read by app/pipeline/ingestion/provenance.py
 //   sensor_of_file_name, any device name), so the browser keeps no copy of the naming rule.  A zone whose stored
-//   files the server's `sensor_warnings` name (one sensor on both segments) shows that sentence; with
-//   a MAC typed in step 1, files carrying the MAC given to the OTHER segment show "sensors swapped?", and files
+//   files the server's `sensor_warnings` name (one sensor on both segments) shows that sentence while no MAC is
+//   typed in step 1; with a MAC typed (the more specific case), files carrying the MAC given to the OTHER
+//   segment show "sensors swapped?", and files
 //   carrying a third MAC "not this segment's sensor".  A MAC that matches neither is not flagged when only the
 //   other segment's MAC is known (it is then presumably this sensor's).  Only a warning: the upload goes ahead,
 //   and it is recomputed whenever the zone is drawn (after each upload), so it also appears for files stored
@@ -68,14 +69,15 @@ function macWarning(ctx, segment, recs) {
   if (!segment) return null;
   const otherSegment = SEGMENTS.find((s) => s !== segment);
   const macs = [...new Set(recs.map((r) => r.device).filter(Boolean))];
-  const names = new Set(recs.map((r) => r.file_name));
-  // the server's check of its stored serials (one sensor on both segments), already in every language
-  const both = (ctx.session.sensor_warnings || []).find((w) => names.has((w.params || {})[`${segment}_file`]));
-  if (both) return (both.message || {})[lang()] || t("wizard.mac_both_segments", { mac: showMac(both.params.sensor) });
   const macOn = (seg) => typedMac((ctx.sensors.find((s) => s.segment === seg) || {}).label);
   const own = macOn(segment);
   const other = macOn(otherSegment);
-  if (!own && !other) return null;
+  if (!own && !other) {   // no MAC typed: the server's check of its stored serials, already in every language
+    const names = new Set(recs.map((r) => r.file_name));
+    const both = (ctx.session.sensor_warnings || []).find((w) => names.has((w.params || {})[`${segment}_file`]));
+    return both ? ((both.message || {})[lang()] || t("wizard.mac_both_segments", { mac: showMac(both.params.sensor) }))
+      : null;
+  }
   if (other && other !== own && macs.includes(other)) {
     return t(`wizard.mac_swapped.${segment}`, { mac: showMac(other) });
   }
