@@ -657,6 +657,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{file}: mag_field_ut = {value}; give the local magnetic field strength in µT (25–65), e.g. 48.5.",
         "es": "{file}: mag_field_ut = {value}; dé la intensidad del campo magnético local en µT (25–65), p. ej. 48.5.",
         "pt": "{file}: mag_field_ut = {value}; dê a intensidade do campo magnético local em µT (25–65), p. ex. 48.5."},
+    "manifest.bad_split": {
+        "en": "{file}: split of the {segment} = {value}; give each cut as \"role\": [start_s, end_s] (seconds from the "
+              "recording's start, start before end) with roles among {roles}, as results.json session.split shows.",
+        "es": "{file}: split del {segment} = {value}; dé cada corte como \"papel\": [inicio_s, fin_s] (segundos desde "
+              "el inicio de la grabación, inicio antes que fin) con papeles entre {roles}, como los muestra "
+              "session.split de results.json.",
+        "pt": "{file}: split da {segment} = {value}; dê cada corte como \"papel\": [início_s, fim_s] (segundos desde o "
+              "início da gravação, início antes do fim) com papéis entre {roles}, como os mostra session.split do "
+              "results.json."},
     # ------------------------------------------------------------------------------- provenance checks
     "check.side_mismatch": {
         "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "
@@ -791,30 +800,34 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: leído con tabuladores entre campos y ',' como separador decimal",
         "pt": "{file}: lido com tabulações entre campos e ',' como separador decimal"},
     "note.recording_split": {
-        "en": "{file}: one continuous recording, split into figure-eight {mag_calibration_from_s:.1f}–"
-              "{mag_calibration_to_s:.1f} s, standing {standing_from_s:.1f}–{standing_to_s:.1f} s, supine "
-              "{lying_from_s:.1f}–{lying_to_s:.1f} s and task from {task_from_s:.1f} s (seconds from its start); "
-              "if a part is misplaced, export the parts as separate recordings",
-        "es": "{file}: una grabación continua, dividida en ocho {mag_calibration_from_s:.1f}–"
-              "{mag_calibration_to_s:.1f} s, de pie {standing_from_s:.1f}–{standing_to_s:.1f} s, supino "
-              "{lying_from_s:.1f}–{lying_to_s:.1f} s y tarea desde {task_from_s:.1f} s (segundos desde su inicio); "
-              "si una parte está mal situada, exporte las partes como grabaciones separadas",
-        "pt": "{file}: uma gravação contínua, dividida em oito {mag_calibration_from_s:.1f}–"
-              "{mag_calibration_to_s:.1f} s, em pé {standing_from_s:.1f}–{standing_to_s:.1f} s, decúbito dorsal "
-              "{lying_from_s:.1f}–{lying_to_s:.1f} s e tarefa a partir de {task_from_s:.1f} s (segundos desde o "
-              "início); se uma parte estiver mal situada, exporte as partes como gravações separadas"},
+        "en": "{file}: one continuous recording, split into figure-eight "
+              "{mag_calibration_from_s:.1f}–{mag_calibration_to_s:.1f} s, standing "
+              "{standing_from_s:.1f}–{standing_to_s:.1f} s, supine {lying_from_s:.1f}–{lying_to_s:.1f} s and task "
+              "from {task_from_s:.1f} s (seconds from its start); if a part is misplaced, set its cut in "
+              "session.json \"split\" or export the parts as separate recordings",
+        "es": "{file}: una grabación continua, dividida en ocho "
+              "{mag_calibration_from_s:.1f}–{mag_calibration_to_s:.1f} s, de pie "
+              "{standing_from_s:.1f}–{standing_to_s:.1f} s, supino {lying_from_s:.1f}–{lying_to_s:.1f} s y tarea "
+              "desde {task_from_s:.1f} s (segundos desde su inicio); si una parte está mal situada, fije su corte "
+              "en \"split\" de session.json o exporte las partes como grabaciones separadas",
+        "pt": "{file}: uma gravação contínua, dividida em oito "
+              "{mag_calibration_from_s:.1f}–{mag_calibration_to_s:.1f} s, em pé "
+              "{standing_from_s:.1f}–{standing_to_s:.1f} s, decúbito dorsal {lying_from_s:.1f}–{lying_to_s:.1f} s e "
+              "tarefa a partir de {task_from_s:.1f} s (segundos desde o início); se uma parte estiver mal situada, "
+              "fixe o seu corte em \"split\" do session.json ou exporte as partes como gravações separadas"},
     "note.recording_split_no_fig8": {
         "en": "{file}: one continuous recording, split into standing {standing_from_s:.1f}–{standing_to_s:.1f} s, "
               "supine {lying_from_s:.1f}–{lying_to_s:.1f} s and task from {task_from_s:.1f} s (seconds from its "
-              "start); no figure-eight found in it; if a part is misplaced, export the parts as separate recordings",
+              "start); no figure-eight found in it; if a part is misplaced, set its cut in session.json \"split\" or "
+              "export the parts as separate recordings",
         "es": "{file}: una grabación continua, dividida en de pie {standing_from_s:.1f}–{standing_to_s:.1f} s, "
               "supino {lying_from_s:.1f}–{lying_to_s:.1f} s y tarea desde {task_from_s:.1f} s (segundos desde su "
-              "inicio); no se encontró un ocho en ella; si una parte está mal situada, exporte las partes como "
-              "grabaciones separadas",
+              "inicio); no se encontró un ocho en ella; si una parte está mal situada, fije su corte en \"split\" de "
+              "session.json o exporte las partes como grabaciones separadas",
         "pt": "{file}: uma gravação contínua, dividida em em pé {standing_from_s:.1f}–{standing_to_s:.1f} s, "
               "decúbito dorsal {lying_from_s:.1f}–{lying_to_s:.1f} s e tarefa a partir de {task_from_s:.1f} s "
-              "(segundos desde o início); não foi encontrado um oito nela; se uma parte estiver mal situada, "
-              "exporte as partes como gravações separadas"},
+              "(segundos desde o início); não foi encontrado um oito nela; se uma parte estiver mal situada, fixe o "
+              "seu corte em \"split\" do session.json ou exporte as partes como gravações separadas"},
     "note.no_standing": {
         "en": "{file}: no standing recording: the segment axes come from the task alone, which must hold the knee "
               "straight and still for 2 s (standing before it starts)",

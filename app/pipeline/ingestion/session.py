@@ -55,12 +55,12 @@ from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
 
 MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
-_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut",
+_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut", "split",
                   "name", "professional", "weight_kg", "height_m", "observations"}
 _ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
-                   "mag_field_ut": (int, float),
+                   "mag_field_ut": (int, float), "split": dict,
                    "sensors": dict, "recordings": list, "name": str, "professional": str,
                    "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
@@ -365,7 +365,7 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
             raise IngestionError("session.recording_twice", file=rec.files[0], other=recs[key].files[0],
                                  role=role.value, segment=segment.value)
         recs[key] = rec
-    recs, splits, split_notes = split_session(continuous, recs, expected_fs_hz)
+    recs, splits, split_notes = split_session(continuous, recs, expected_fs_hz, manifest.get("split"), mpath)
     notes += split_notes
     for r in left_unsplit(continuous, splits):
         why = "; ".join(n.split(": ", 1)[1] for n in r.notes if "names more than one" in n)

@@ -152,3 +152,31 @@ def test_the_web_upload_takes_the_continuous_role_and_its_check_shows_the_split(
     assert ingestion["ok"] is True, ingestion
     assert sum("one continuous recording, split into" in m for m in ingestion["messages"]) == 2
     assert any(m.startswith("thigh lying:") for m in ingestion["messages"])
+
+
+def test_session_json_moves_a_cut(tmp_path, continuous):
+    """The clinician's correction: ``split`` in session.json replaces the automatic span of the roles it names."""
+    streams, _, truth = continuous
+    folder = _write(tmp_path / "s", streams)
+    a, b = truth["thigh"]["standing"]
+    moved = [round(a + 5.0, 1), round(b - 5.0, 1)]
+    (folder / "session.json").write_text(json.dumps({"side": "right", "split": {"thigh": {"standing": moved}}}))
+    session = load_session(folder)
+    thigh = next(s for s in session.splits if s.segment == "thigh")
+    shank = next(s for s in session.splits if s.segment == "shank")
+    assert thigh.how == "session.json" and shank.how == "role"
+    assert list(thigh.spans_s["standing"]) == moved
+    assert abs(thigh.spans_s["lying"][0] - truth["thigh"]["lying"][0]) < 1.0     # the others stay automatic
+    assert abs(session.recording("thigh", "standing").duration_s - (moved[1] - moved[0])) < 0.05
+
+
+@pytest.mark.parametrize("split", [{"thigh": {"standing": [30, 10]}}, {"thigh": {"sitting": [1, 2]}},
+                                   {"knee": {"standing": [1, 2]}}, {"thigh": {"standing": "65-95"}}])
+def test_a_malformed_split_in_session_json_is_refused(tmp_path, continuous, split):
+    streams, _, _ = continuous
+    folder = _write(tmp_path / "s", streams)
+    (folder / "session.json").write_text(json.dumps({"side": "right", "split": split}))
+    with pytest.raises(IngestionError) as err:
+        load_session(folder)
+    assert err.value.code == "manifest.bad_split" and "session.json" in str(err.value)
+    assert "segundos desde" in err.value.message("es")
