@@ -54,6 +54,7 @@ from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from app.store.database import Database, ensure_blob
 from app.store.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
+from app.pipeline.messages import render_message
 from app.pipeline.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
 from app.store.blobs import Storage
 
@@ -116,15 +117,30 @@ class _Progress:
             job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} {note or stage}"]
 
 
-def _fail(db: Database, job_id: int, attempt: int, error: str) -> None:
+def _fail(db: Database, job_id: int, attempt: int, error: str, code: str | None = None,
+          params: dict | None = None) -> None:
+    """End the run failed with ``error`` (English) and, when it has one, its catalogue ``code`` and ``params``
+    (:mod:`app.pipeline.messages`), from which the API renders it in the reader's language."""
     try:
         with db.session() as s:
             job = _owned(s, job_id, attempt)
             job.status, job.error, job.finished_at = "failed", error, utcnow()
+            job.error_code, job.error_params = code, params
             job.log = [*job.log, f"{utcnow().isoformat(timespec='seconds')} failed: {error}"]
     except Superseded:
         log.warning("job %s: attempt %s failed (%s) after another run took the job over; left to that run",
                     job_id, attempt, error)
+
+
+def _public_params(params, folder):
+    """A failed job's message parameters without the server's temporary folder (the texts' public form)."""
+    from app.store.workspace import public_message
+
+    if isinstance(params, dict):
+        return {k: _public_params(v, folder) for k, v in params.items()}
+    if isinstance(params, list):
+        return [_public_params(v, folder) for v in params]
+    return public_message(params, folder) if isinstance(params, str) else params
 
 
 def claim(db: Database, job_id: int) -> int | None:
@@ -134,7 +150,7 @@ def claim(db: Database, job_id: int) -> int | None:
     with db.session() as s:
         res = s.execute(update(Job).where(Job.id == job_id, Job.status == "queued")
                         .values(status="running", started_at=now, heartbeat_at=now, attempts=Job.attempts + 1,
-                                stage="start", progress=0.0, error=None))
+                                stage="start", progress=0.0, error=None, error_code=None, error_params=None))
         if res.rowcount != 1:
             return None
         return s.scalar(select(Job.attempts).where(Job.id == job_id))
@@ -202,8 +218,8 @@ def sweep(db: Database, lease_s: float = LEASE_S, redispatch_s: float | None = R
         for job_id, attempts, job_log in lost:
             if attempts >= MAX_ATTEMPTS:  # it keeps taking its worker down with it: stop trying
                 values = dict(status="failed", finished_at=now, log=[*job_log, f"{stamp} interrupted ({why}); given up"],
-                              error=f"processing was interrupted {attempts} times; check the server's and the "
-                                    "workers' memory and logs, then process the session again")
+                              error=render_message("job.interrupted", {"attempts": attempts}),
+                              error_code="job.interrupted", error_params={"attempts": attempts})
             else:
                 values = dict(status="queued", stage="queued", dispatched_at=None,
                               log=[*job_log, f"{stamp} interrupted ({why}); queued again"])
@@ -284,7 +300,8 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                         .order_by(Recording.id)))
             s.expunge_all()
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
-        options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading)
+        options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
+                                 side=job.side)
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             loaded = load_session(folder)
             outcome = process_session(loaded, options,
@@ -317,21 +334,20 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         log.warning("job %s: another run stored its analysis first; this run's results are dropped", job_id)
         return "finished"
     except (IngestionError, PipelineError) as exc:
-        _fail(db, job_id, attempt, public_message(str(exc), folder))
+        coded = exc.code != "text"
+        _fail(db, job_id, attempt, public_message(str(exc), folder), exc.code if coded else None,
+              _public_params(exc.params, folder) if coded else None)
     except Exception as exc:  # noqa: BLE001 — a job must end failed, never stay running
         if _transient(exc):  # not the job's fault: leave it running; its lease expires and it is run again
             log.warning("job %s: database unreachable (%s); it will run again", job_id, type(exc).__name__)
             raise TransientJobError(f"job {job_id}: database unreachable", attempt) from exc
         if _is_disk_full(exc):
             log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)
-            _fail(db, job_id, attempt, "The server's disk is full, so the reports could not be stored and none was "
-                                       "recorded. Ask your ChakaMo administrator to free space, then process the "
-                                       "session again.")
+            _fail(db, job_id, attempt, render_message("job.disk_full", {}), "job.disk_full", {})
             return "failed"
         ref = secrets.token_hex(4)
         log.exception("job %s failed: internal error, reference %s", job_id, ref)
-        _fail(db, job_id, attempt, f"An internal error stopped the processing (reference {ref}); try again, and if "
-                                   "it happens again give the reference to your ChakaMo administrator.")
+        _fail(db, job_id, attempt, render_message("job.internal", {"ref": ref}), "job.internal", {"ref": ref})
     return "failed"
 
 

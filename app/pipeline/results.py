@@ -109,6 +109,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "task_recording": {"fs_hz": outcome.fs_hz, "duration_s": len(outcome.t_s) / outcome.fs_hz,
                                "t0_s": outcome.t0_s},
             "recognised": {f"{seg}/{role}": rec.source for (seg, role), rec in session.recordings.items()},
+            # one continuous recording per sensor split into the protocol's parts: where (s from its start)
+            "split": {s.segment: s.to_dict() for s in session.splits} or None,
         },
         "software": {"version": __version__},
     }

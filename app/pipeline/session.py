@@ -81,7 +81,50 @@ HEADING_HOLD_MIN_S = 0.2
 
 
 class PipelineError(ValueError):
-    """The session cannot be processed as given; the message says what to do."""
+    """The session cannot be processed as given; the message says what to do.
+
+    ``PipelineError(code, **params)`` with ``code`` a key of :data:`app.pipeline.messages.PIPELINE_CATALOGUE` (or
+    of the ingestion's, e.g. a provenance ``check.*``): ``str(exc)`` is English, :meth:`message` renders es/en/pt,
+    ``code`` and ``params`` stay on the exception for the job record and the API.  Any other string is kept as
+    the text in every language (``code == "text"``)."""
+
+    def __init__(self, code: str, /, **params: Any) -> None:
+        from app.pipeline.messages import known, render_message
+
+        if known(code):
+            self.code, self.params = code, {k: _plain(v) for k, v in params.items()}
+            text = render_message(code, self.params, "en")
+        else:
+            self.code, self.params, text = "text", {"text": code}, code
+        super().__init__(text)
+
+    def message(self, lang: str = "en") -> str:
+        """The message in ``lang`` (es/en/pt; an unknown language gives English)."""
+        from app.pipeline.messages import render_message
+
+        return str(self) if self.code == "text" else render_message(self.code, self.params, lang)
+
+    def __reduce__(self):  # pickle (job engines, the render pool): rebuilt from code and params
+        return (_rebuild_pipeline_error, (self.code, dict(self.params), str(self)))
+
+
+def _plain(value: Any) -> Any:
+    """A parameter as JSON carries it: numpy scalars as numbers, paths as text, fragments recursively."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value if isinstance(value, (str, int, float, bool, type(None))) else str(value)
+
+
+def _rebuild_pipeline_error(code: str, params: dict, text: str) -> "PipelineError":
+    return PipelineError(code, **params) if code != "text" else PipelineError(text)
+
+
+def _option_error(option: str, allowed, value) -> PipelineError:
+    return PipelineError("pipeline.bad_option", option=option, allowed=", ".join(allowed), value=repr(value))
 
 
 @dataclass(frozen=True)
@@ -114,19 +157,17 @@ class ProcessOptions:
 
     def __post_init__(self) -> None:
         if self.side is not None and self.side not in SIDE_NAMES:
-            raise PipelineError(f"side must be one of {', '.join(SIDE_NAMES)}, got {self.side!r}")
+            raise _option_error("side", SIDE_NAMES, self.side)
         if self.angle_method not in ANGLE_CONVENTION_NAMES:
-            raise PipelineError(f"angle method must be one of {', '.join(ANGLE_CONVENTION_NAMES)}, "
-                                f"got {self.angle_method!r}")
+            raise _option_error("angle method", ANGLE_CONVENTION_NAMES, self.angle_method)
         if self.calibration not in CALIBRATION_NAMES:
-            raise PipelineError(f"calibration must be one of {', '.join(CALIBRATION_NAMES)}, got {self.calibration!r}")
+            raise _option_error("calibration", CALIBRATION_NAMES, self.calibration)
         if self.language not in LANGUAGE_NAMES:
-            raise PipelineError(f"language must be one of {', '.join(LANGUAGE_NAMES)}, got {self.language!r}")
+            raise _option_error("language", LANGUAGE_NAMES, self.language)
         if self.heading not in HEADING_NAMES:
-            raise PipelineError(f"heading must be one of {', '.join(HEADING_NAMES)}, got {self.heading!r}")
+            raise _option_error("heading", HEADING_NAMES, self.heading)
         if self.task not in TASK_NAMES:
-            raise PipelineError(f"task must be one of {', '.join(TASK_NAMES)}, got {self.task!r}; "
-                                "pick the motor task the session recorded")
+            raise _option_error("task", TASK_NAMES, self.task)
 
 
 @dataclass(frozen=True, eq=False)
@@ -199,9 +240,7 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
                                       for n in session.notes]
     side = options.side or session.metadata.value("side")
     if side is None:
-        raise PipelineError(
-            f"{session.folder}: the side under study is not known; pass --side right|left or add "
-            '"side" to session.json')
+        raise PipelineError("pipeline.no_side", file=str(session.folder))
     warnings += _provenance(session, side, overridden=options.side is not None)
     filt = make(options.filter_name, **dict(options.filter_params))
 
@@ -219,7 +258,8 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         try:
             mag[seg] = fit_ellipsoid(rec.mag)
         except ValueError as exc:
-            raise PipelineError(f"{seg} magnetometer calibration ({_files(rec)}): {exc}") from None
+            raise PipelineError("pipeline.magnetometer_calibration", segment={"code": f"word.{seg}"},
+                                files=_files(rec), reason=str(exc)) from None
         warnings += [QualityWarning(w.code, f"{seg.capitalize()} sensor: {w.message}", {**w.params, "segment": seg})
                      for w in mag[seg].quality.warnings]
 
@@ -262,12 +302,11 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     diagnosis = diagnose(q_seg["thigh"], q_seg["shank"], side, choice=choice,
                          acc_sensor={"thigh": thigh.acc, "shank": shank.acc})
     if diagnosis.refuse:  # implausible angles help nobody: refuse, naming the files and the cause's own advice
-        if diagnosis.cause is not None:
-            reason = diagnosis.cause.warning.message
-        else:
-            reason = (f"{diagnosis.unexplained.message}; check which recordings belong to which segment (file "
-                      "names or session.json) and how the sensors were worn")
-        raise PipelineError(f"{_files(thigh)} (thigh) and {_files(shank)} (shank): {reason}.")
+        w = diagnosis.cause.warning if diagnosis.cause is not None else diagnosis.unexplained
+        cause = {"code": f"warning.{w.code}", "params": dict(w.params), "message": w.message}
+        raise PipelineError("pipeline.implausible_angles" if diagnosis.cause is not None else
+                            "pipeline.implausible_unexplained", thigh_files=_files(thigh), shank_files=_files(shank),
+                            cause=cause)
     warnings += list(diagnosis.warnings)  # the named cause of a heading problem (lost, or a disturbed field)
 
     progress("task", 0.95)
@@ -277,7 +316,7 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
             "gyr_shank_rad_s": gyr_task["shank"], "gyr_thigh_rad_s": gyr_task["thigh"], "shank_axis_sensor": shank_axis,
             "q_earth_thigh": q_es["thigh"], "q_earth_shank": q_es["shank"]})
     except ValueError as exc:
-        raise PipelineError(f"motor-task analysis of {_files(thigh)}: {exc}") from None
+        raise PipelineError("pipeline.task_analysis", files=_files(thigh), reason=str(exc)) from None
     warnings += list(analysis.warnings)
     if analysis.rejected:
         warnings.append(QualityWarning(
@@ -330,7 +369,7 @@ def _provenance(session: Session, side: str, *, overridden: bool) -> list[Qualit
     warnings = []
     for f in check_all(session, patient_side=side, patient_id=meta.value("patient_id"), session_date=meta.value("date")):
         if f.severity == "refuse" and not overridden:
-            raise PipelineError(f.message("en"))
+            raise PipelineError(f.code, **f.params)
         # a translatable word ({"code": "word.left"}) becomes the word, which the reports translate (warning.term.*)
         params = {k: v["code"].removeprefix("word.") if isinstance(v, dict) and "code" in v else v
                   for k, v in f.as_dict()["params"].items()}
@@ -355,8 +394,8 @@ def _static_segments(session: Session) -> dict[str, knee.SegmentCalibration]:
             segments[seg] = knee.calibrate_segment(standing.acc, standing.gyr, lying.acc, lying.gyr,
                                                    fs_hz=standing.fs_hz, label=seg)
         except ValueError as exc:
-            raise PipelineError(f"{seg} sensor-to-segment calibration ({_files(standing)}, {_files(lying)}): "
-                                f"{exc}") from None
+            raise PipelineError("pipeline.segment_calibration", segment={"code": f"word.{seg}"},
+                                files=f"{_files(standing)}, {_files(lying)}", reason=str(exc)) from None
     return segments
 
 
@@ -382,8 +421,7 @@ def _functional_segments(session: Session, protocol: str, task: dict, *, q_task:
             cal = functional.task_calibration(*pairs, fs_hz=fs_hz, q_task=q_task)
     except ValueError as exc:
         files = ", ".join(_files(task[seg]) for seg in SEGMENTS)
-        what = "standing + task" if protocol == "standing_task" else "task-only"
-        raise PipelineError(f"{what} sensor-to-segment calibration ({files}): {exc}") from None
+        raise PipelineError("pipeline.functional_segment_calibration", files=files, reason=str(exc)) from None
     if protocol == "task":
         _check_straight_window(cal.segments, task)
     return cal.segments, list(cal.warnings)
@@ -399,12 +437,8 @@ def _check_straight_window(segments: dict[str, knee.SegmentCalibration], task: d
         y = quat.to_matrix(cal.q_sensor_segment)[:, 1]
         off = float(np.arccos(np.clip(y[1], -1.0, 1.0)))
         if off > TASK_ONLY_MAX_LONG_AXIS_RAD:
-            raise PipelineError(
-                f"task-only sensor-to-segment calibration ({_files(task[seg])}): the stillest straight-knee moment "
-                f"of the task has the {seg} sensor {np.rad2deg(off):.0f}° from upright (more than "
-                f"{np.rad2deg(TASK_ONLY_MAX_LONG_AXIS_RAD):.0f}°), so the task never held the knee straight and "
-                "still; record 2 s standing still with the knee straight at the start of the task, or add the "
-                "standing (and lying) recordings")
+            raise PipelineError("pipeline.task_never_straight", files=_files(task[seg]), segment={"code": f"word.{seg}"},
+                                angle_deg=float(np.rad2deg(off)), max_deg=float(np.rad2deg(TASK_ONLY_MAX_LONG_AXIS_RAD)))
 
 
 def _factory_magnetometer(mag_task: FloatArray) -> MagCalibration:
@@ -528,7 +562,8 @@ def _functional(segments: dict[str, knee.SegmentCalibration], thigh, shank, gyr_
                 {"angle_deg": gap_deg}))
         femur = knee.functional_calibration(segments["thigh"], j_t, label="thigh")
     except ValueError as exc:
-        raise PipelineError(f"functional calibration on {_files(thigh)} and {_files(shank)}: {exc}") from None
+        raise PipelineError("pipeline.functional_calibration", thigh_files=_files(thigh), shank_files=_files(shank),
+                            reason=str(exc)) from None
     out = {"thigh": femur, "shank": segments["shank"]}
     delta = _standing_heading(q_standing, out, max_offset_rad=None).offset_rad
     out["shank"] = knee.turn_about_long_axis(segments["shank"], delta, label="shank")

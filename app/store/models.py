@@ -157,6 +157,8 @@ class Recording(Base):
     sha256: Mapped[str] = mapped_column(ForeignKey("blobs.sha256"), index=True)
     segment: Mapped[str | None] = mapped_column(String(10), nullable=True)
     role: Mapped[str | None] = mapped_column(String(20), nullable=True)
+    #: the sensor's serial the file carries (a MetaBase MAC from its name), stored at upload; None when it has none
+    device: Mapped[str | None] = mapped_column(String(64), nullable=True)
     uploaded_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     session: Mapped[KneeSession] = relationship(back_populates="recordings")
 
@@ -175,6 +177,11 @@ class Job(Base):
     lang: Mapped[str] = mapped_column(String(2), default="es")
     #: the thigh–shank heading asked for (app.choices.HEADINGS), handed to the pipeline as ProcessOptions.heading
     heading: Mapped[str] = mapped_column(String(20), default="auto", server_default="auto")
+    #: the side the clinician chose over the files' (ProcessOptions.side, kept as a warning); None: the files'
+    side: Mapped[str | None] = mapped_column(String(5), nullable=True)
+    #: a failed job's message as a catalogue code and its values (app.pipeline.ingestion.messages), for any language
+    error_code: Mapped[str | None] = mapped_column(String(60), nullable=True)
+    error_params: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     analysis_id: Mapped[int | None] = mapped_column(Integer, nullable=True)  # no FK: analyses point back here
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)

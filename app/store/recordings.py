@@ -28,6 +28,8 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
+from app.pipeline.ingestion.provenance import sensor_of_file_name
+from app.pipeline.ingestion.split import CONTINUOUS
 from app.store.blobs import BlobWriter
 from app.store.analyses import supersede
 from app.store.database import ensure_blob
@@ -36,21 +38,24 @@ from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
 from app.store.models import KneeSession, Recording
 from app.store.sessions import clinic_session, refuse_while_processing
 
+#: the roles an upload may declare: the protocol's four, or one recording of the whole protocol (split on reading)
+UPLOAD_ROLES = (*ROLES, CONTINUOUS)
+
 
 def check_labels(segment: str | None, role: str | None) -> None:
     """:class:`Invalid` for an unknown segment or role (None: not given)."""
     if segment is not None and segment not in SEGMENTS:
         raise Invalid(f"segment {segment!r} is unknown; use {' or '.join(SEGMENTS)}.")
-    if role is not None and role not in ROLES:
-        raise Invalid(f"role {role!r} is unknown; use one of {', '.join(ROLES)}.")
+    if role is not None and role not in UPLOAD_ROLES:
+        raise Invalid(f"role {role!r} is unknown; use one of {', '.join(UPLOAD_ROLES)}.")
 
 
 def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple[str, BlobWriter]], *,
                  segment: str | None, role: str | None, max_files: int) -> tuple[KneeSession, list[Recording]]:
-    """Commit the blobs of ``files`` (name, written blob) and add their recordings to the session (locked),
-    all or none: :class:`Invalid` for a name sent twice, :class:`Conflict` for a name already stored (or
-    stored meanwhile by another upload) or while the session is being processed, :class:`LimitExceeded` past
-    ``max_files`` per session."""
+    """Commit the blobs of ``files`` (name, written blob) and add their recordings to the session (locked), each
+    with the sensor serial its name carries (``device``), all or none: :class:`Invalid` for a name sent twice,
+    :class:`Conflict` for a name already stored (or stored meanwhile by another upload) or while the session is
+    being processed, :class:`LimitExceeded` past ``max_files`` per session."""
     names = [n for n, _ in files]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -72,7 +77,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
         lock_blob(db, sha)  # before the file is placed (module docstring)
         writer.commit()
         rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
-                              segment=segment, role=role))
+                              segment=segment, role=role, device=sensor_of_file_name(name)))
     db.add_all(rows)
     session.files_version = KneeSession.files_version + 1
     try:
@@ -102,4 +107,4 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
     return session, sha, n_superseded
 
 
-__all__ = ["MANIFEST", "ROLES", "SEGMENTS", "check_labels", "delete_recording", "store_upload"]
+__all__ = ["MANIFEST", "ROLES", "SEGMENTS", "UPLOAD_ROLES", "check_labels", "delete_recording", "store_upload"]

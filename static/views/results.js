@@ -138,7 +138,24 @@ function qualitySection(r) {
     h("h2", { id: "h-quality" }, t("results.quality")),
     items.length ? h("ul", { class: "warnings", id: "warnings" }, items)
       : h("p", { class: "ok-line" }, t("results.no_warnings")),
-    calibrationFacts(r));
+    calibrationFacts(r), splitFacts(r));
+}
+
+/** Where one continuous recording per sensor was cut into the protocol's parts (results.json session.split). */
+function splitFacts(r) {
+  const split = (r.session || {}).split;
+  if (!split) return null;
+  const parts = ["mag_calibration", "standing", "lying", "task"];
+  const span = (p) => (p ? t("results.split_span", { from: num(p[0], 1), to: num(p[1], 1) }) : "—");
+  const rows = ["thigh", "shank"].filter((s) => split[s]).map((s) => h("tr", {},
+    h("th", { scope: "row" }, label("segment", s), h("div", { class: "hint" }, split[s].file || "")),
+    ...parts.map((p) => h("td", { class: "num" }, span((split[s].spans_s || {})[p])))));
+  return h("details", { class: "split", open: true }, h("summary", {}, t("results.split")),
+    h("table", { class: "data", id: "split-table" },
+      h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("results.segment")),
+        ...parts.map((p) => h("th", { scope: "col", class: "num" }, t(`recording.${p}`))))),
+      h("tbody", {}, rows)),
+    h("p", { class: "hint" }, t("results.split_hint")));
 }
 
 /** The calibration figures worth a glance: magnetometer field and coverage, posture angle, disturbance. */

@@ -5,14 +5,16 @@
 // - The sensor labels / MAC typed in step 1 stay in this browser (localStorage per session): what the
 //   server needs is the segment of each file, and each drop zone of step 2 is tied to a segment and a role,
 //   sent as the `segment` / `role` form fields of its upload.
-// - A MAC typed in step 1 is used to catch swapped sensors, in the browser only (no server change):
-//   MetaBase file names carry their sensor's MAC (`…_MetaWear_{date}_{MAC}_{Stream}_{rate}Hz….csv`, the
-//   pattern of app/pipeline/ingestion/metabase.py).  A zone whose files (being dropped, or stored) carry the MAC
-//   given to the OTHER segment's sensor shows "sensors swapped?"; with a MAC given to the zone's own
-//   segment, files carrying a third MAC show "not this segment's sensor".  A MAC that matches neither is
-//   not flagged when only the other segment's MAC is known (it is then presumably this sensor's).  Only a
-//   warning: the upload goes ahead (the MAC typed may be the wrong one), and it is recomputed whenever the
-//   zone is drawn, so it also appears for files stored before the MAC was typed.
+// - Swapped sensors are caught from the sensor serials the SERVER stored with each recording (`device` of
+//   GET /sessions/{id}: the MAC a MetaBase file's name carries, read by app/pipeline/ingestion/provenance.py
+//   sensor_of_file_name, any device name), so the browser keeps no copy of the naming rule.  A zone whose stored
+//   files the server's `sensor_warnings` name (one sensor on both segments) shows that sentence while no MAC is
+//   typed in step 1; with a MAC typed (the more specific case), files carrying the MAC given to the OTHER
+//   segment show "sensors swapped?", and files
+//   carrying a third MAC "not this segment's sensor".  A MAC that matches neither is not flagged when only the
+//   other segment's MAC is known (it is then presumably this sensor's).  Only a warning: the upload goes ahead,
+//   and it is recomputed whenever the zone is drawn (after each upload), so it also appears for files stored
+//   before the MAC was typed.
 // - Each zone uploads as soon as files are dropped or picked (several files per zone: a MetaBase recording
 //   is three CSV files).  The answer's ingestion check (app.pipeline.ingestion over every stored file of the session)
 //   is shown at once, before processing; "Process" stays disabled until it is ok.
@@ -48,16 +50,8 @@ function saveSensors(sessionId, sensors) {
   try { localStorage.setItem(sensorsKey(sessionId), JSON.stringify(sensors)); } catch (_) { /* storage off */ }
 }
 
-// A MetaBase file name (FILE_NAME of app/pipeline/ingestion/metabase.py); group 1 is the MAC.
-const METABASE_NAME = /^.*_MetaWear_\d{4}-\d{2}-\d{2}T\d{2}[.:]\d{2}[.:]\d{2}(?:[.:]\d{1,6})?_([0-9A-Fa-f]{12})_[A-Za-z ]+?_\d+(?:\.\d+)?Hz(?:_[^_]*)?\.csv$/;
 // A MAC inside a typed label: six hex pairs joined by ":" or "-" ("D4:F1:A2:B3:C4:E5"), or 12 hex digits.
 const TYPED_MAC = /(?:^|[^0-9A-Fa-f])((?:[0-9A-Fa-f]{2}[:-]){5}[0-9A-Fa-f]{2}|[0-9A-Fa-f]{12})(?![0-9A-Fa-f])/;
-
-/** The MAC (12 upper-case hex digits) in a MetaBase file name, or null. */
-export function macOfFile(name) {
-  const m = METABASE_NAME.exec(name || "");
-  return m ? m[1].toUpperCase() : null;
-}
 
 /** The MAC (12 upper-case hex digits) typed in a step-1 label, or null. */
 export function typedMac(text) {
@@ -69,15 +63,21 @@ function showMac(mac) {
   return mac.match(/../g).join(":");
 }
 
-/** The sentence warning that the files `names` dropped on / stored in a zone of `segment` come from the
- * wrong sensor (module decisions), or null. */
-function macWarning(sensors, segment, names) {
+/** The sentence warning that the recordings `recs` stored in a zone of `segment` come from the wrong sensor
+ * (module decisions: the server's `device` of each recording), or null. */
+function macWarning(ctx, segment, recs) {
   if (!segment) return null;
-  const macOn = (seg) => typedMac((sensors.find((s) => s.segment === seg) || {}).label);
+  const otherSegment = SEGMENTS.find((s) => s !== segment);
+  const macs = [...new Set(recs.map((r) => r.device).filter(Boolean))];
+  const macOn = (seg) => typedMac((ctx.sensors.find((s) => s.segment === seg) || {}).label);
   const own = macOn(segment);
-  const other = macOn(SEGMENTS.find((s) => s !== segment));
-  if (!own && !other) return null;
-  const macs = [...new Set(names.map(macOfFile).filter(Boolean))];
+  const other = macOn(otherSegment);
+  if (!own && !other) {   // no MAC typed: the server's check of its stored serials, already in every language
+    const names = new Set(recs.map((r) => r.file_name));
+    const both = (ctx.session.sensor_warnings || []).find((w) => names.has((w.params || {})[`${segment}_file`]));
+    return both ? ((both.message || {})[lang()] || t("wizard.mac_both_segments", { mac: showMac(both.params.sensor) }))
+      : null;
+  }
   if (other && other !== own && macs.includes(other)) {
     return t(`wizard.mac_swapped.${segment}`, { mac: showMac(other) });
   }
@@ -233,8 +233,8 @@ function dropZone(ctx, segment, role) {
   const list = h("ul", { class: "files" });
   const status = h("div", { class: "zone-status", role: "status" });
   const macNote = h("div", { class: "zone-mac" });
-  const showMacWarning = (names) => {
-    const text = macWarning(ctx.sensors, segment, names);
+  const showMacWarning = (recs) => {
+    const text = macWarning(ctx, segment, recs);
     const shown = macNote.firstChild ? macNote.firstChild.textContent : null;
     if (text === shown) return;          // unchanged: not announced again
     clear(macNote);
@@ -268,7 +268,7 @@ function dropZone(ctx, segment, role) {
         stream ? h("span", { class: "tag" }, t(`stream.${stream[1]}`)) : null,
         h("span", { class: "file-size" }, bytes(rec.size_bytes)), remove));
     }
-    showMacWarning(recs.map((rec) => rec.file_name || ""));
+    showMacWarning(recs);
   };
   if (!canEdit()) {   // read-only: the zone lists its files, nothing more
     zone.querySelector(".zone-actions").remove();
@@ -285,9 +285,6 @@ function dropZone(ctx, segment, role) {
       form.append("segment", segment);
       form.append("role", role);
     }
-    // warned before the upload (dropped + stored files); redrawn from the stored files once it is done
-    const stored = zoneRecordings(ctx, segment, role).map((rec) => rec.file_name || "");
-    showMacWarning([...stored, ...files.map((f) => f.name)]);
     const bar = h("progress", { max: "1", value: "0", "aria-label": t("wizard.uploading") });
     clear(status).append(h("span", {}, t("wizard.uploading_n", { n: files.length })), bar);
     zone.classList.add("busy");
@@ -353,6 +350,8 @@ function processStep(ctx) {
   const filter = h("select", { name: "filter" });
   const language = h("select", { name: "lang" });
   const headingSelect = h("select", { name: "heading" });
+  // the side override (as `chakamo process --side`): empty = the patient's side, checked against the files'
+  const sideSelect = h("select", { name: "side" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
     t("wizard.process"));
@@ -360,6 +359,7 @@ function processStep(ctx) {
     field(t("wizard.filter"), filter, t("wizard.filter_hint"))[0],
     field(t("wizard.report_language"), language, t("wizard.report_language_hint"))[0],
     field(t("wizard.heading"), headingSelect, t("wizard.heading_hint"))[0],
+    field(t("wizard.side"), sideSelect, t("wizard.side_hint"))[0],
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, processButton));
   if (!ingestion.ok) {
@@ -371,6 +371,9 @@ function processStep(ctx) {
     fillSelect(filter, "filter", opts.filters);
     fillSelect(language, "lang", opts.languages, lang());
     fillSelect(headingSelect, "heading", opts.headings);
+    fillSelect(sideSelect, "side", opts.sides);
+    sideSelect.prepend(h("option", { value: "", selected: true }, t("wizard.side_patient")));
+    sideSelect.value = "";
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {
@@ -378,7 +381,8 @@ function processStep(ctx) {
     clear(message);
     processButton.disabled = true;
     try {
-      const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value } });
+      const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value,
+        side: sideSelect.value || null } });
       showProgress(ctx, answer.job_id);
     } catch (err) {
       message.append(alertBox(errorText(err)));
@@ -457,7 +461,8 @@ function showProgress(ctx, jobId) {
     }
     if (job.status === "failed") {
       append(clear(outcome), [
-        h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.failed")), " ", job.error || t("error.unknown")),
+        h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.failed")), " ",
+          (job.error_message && job.error_message[lang()]) || job.error || t("error.unknown")),
         (job.log || []).length ? h("details", {}, h("summary", {}, t("wizard.job_log")),
           h("pre", { class: "log" }, (job.log || []).join("\n"))) : null]);
       return;

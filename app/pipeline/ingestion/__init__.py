@@ -47,7 +47,10 @@ Formats (recognised by name and content; every reader converts to SI once, in :m
   one recording per sensor of a file, its segment and side from the sensor's label.
 * Sensor Logger phone app zip export (:mod:`.sensorlogger`, ``.zip``): ``TotalAcceleration`` or ``Accelerometer``
   + ``Gravity`` (specific force), ``Gyroscope`` rad/s, ``Magnetometer`` µT, ``time`` ns since 1970.
-* Not yet read: phyphox exports (their layout was not verified from a public description in time).
+* phyphox exports (:mod:`.phyphox`): the ``.zip`` of set CSVs (+ ``meta/time.csv``: the phone's clock), the single
+  ``.csv``, ``.xlsx``; ``Time (s)``, ``Acceleration x (m/s^2)``, ``Gyroscope x (rad/s)``, ``Magnetic field x (µT)``.
+* One continuous recording per sensor of the whole protocol (:mod:`.split`): split into the four roles,
+  ``Session.splits``.
 * Any CSV (MetaBase, generic, Shimmer; Xsens with ``;``): ``;`` between fields with decimal commas (Excel in
   es/pt) is read; a cut last line and rows repeated exactly are dropped; each repair is a :class:`Note`.
 * ``session.json`` (:mod:`.session`): files → segment and role (``sensor`` for an APDM file), MAC → segment,
@@ -84,6 +87,7 @@ from app.pipeline.ingestion.model import (KINDS, ROLES, SEGMENTS, AlignedRecordi
                                  Recognition, Session, SessionMetadata, Stream)
 from app.pipeline.ingestion.messages import LANGUAGES, message_dict, render
 from app.pipeline.ingestion.opal import read_opal, write_opal
+from app.pipeline.ingestion.phyphox import read_phyphox, write_phyphox
 from app.pipeline.ingestion.provenance import (Finding, RecordingFacts, check_all, check_dates, check_patient,
                                                check_sensors, check_side, recording_facts, session_facts)
 from app.pipeline.ingestion.session import MANIFEST, load_session, read_recording
@@ -94,7 +98,7 @@ from app.pipeline.ingestion.xsens import read_xsens, write_xsens
 
 __all__ = [
     "LANGUAGES", "Finding", "RecordingFacts", "check_all", "check_dates", "check_patient", "check_sensors",
-    "check_side", "message_dict", "read_opal", "read_shimmer", "read_xsens", "recording_facts", "render",
+    "check_side", "message_dict", "read_opal", "read_phyphox", "write_phyphox", "read_shimmer", "read_xsens", "recording_facts", "render",
     "session_facts", "write_opal", "write_shimmer", "write_xsens", "read_sensorlogger", "write_sensorlogger",
     "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
     "Recognition",

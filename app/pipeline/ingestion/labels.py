@@ -11,6 +11,8 @@ Vocabulary (canonical value ← words):
   ``standing`` ← standing, stand, depie, parado, bipedestacion, empe, empé, upright;
   ``lying`` ← laydown, lying, lie, supine, supino, recostado, acostado, tumbado, deitado, decubito;
   ``task`` ← step, stepup, escalon, grada, degrau, task, tarea, tarefa, subida;
+  ``continuous`` (the whole protocol in one recording, :mod:`.split`) ← continuous, continuo, continua,
+  protocol, protocolo;
 * segments: ``thigh`` ← muslo, thigh, coxa, femur;  ``shank`` ← pierna, shank, canela, perna, tibia, shin;
 * side: ``right`` ← right, derecha, derecho, direita, direito;  ``left`` ← left, izquierda, izquierdo, esquerda,
   esquerdo;
@@ -31,6 +33,8 @@ ROLE_WORDS = {
     "lying": ("laydown", "lying", "lie", "supine", "supino", "recostado", "acostado", "tumbado", "deitado",
               "decubito", "layingdown", "laying"),
     "task": ("step", "stepup", "escalon", "grada", "degrau", "task", "tarea", "tarefa", "subida"),
+    # the whole protocol in one recording, split by .split
+    "continuous": ("continuous", "continuo", "continua", "protocol", "protocolo", "fullprotocol"),
 }
 SEGMENT_WORDS = {
     "thigh": ("muslo", "thigh", "coxa", "femur"),

@@ -7,7 +7,7 @@ in the same language, a list joined by spaces.  Codes are stable identifiers: th
 carry ``{"code", "params"}`` and render them in the reader's language.
 
 Families: ``file.*``, ``cell.*``, ``stamp.*``, ``stream.*`` (any table), ``metabase.*``, ``generic.*``,
-``xlsx.*``, ``xsens.*``, ``opal.*``, ``shimmer.*``, ``phone.*`` (one format), ``unit.*``, ``rate.*``,
+``xlsx.*``, ``xsens.*``, ``opal.*``, ``shimmer.*``, ``phone.*``, ``phyphox.*`` (one format), ``split.*``, ``unit.*``, ``rate.*``,
 ``align.*``, ``recording.*``, ``session.*``, ``manifest.*``; ``note.*`` the notes (``Note.of(variant)``),
 ``check.*`` the provenance checks (:mod:`.provenance`), ``hint.*`` / ``word.*`` fragments.
 
@@ -269,6 +269,44 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "nuevo.",
         "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o arquivo está danificado: exporte-o de "
               "novo."},
+    "phyphox.linear_acceleration": {
+        "en": "{file}: {member} holds '{column}', phyphox's acceleration without gravity, which the sensor "
+              "calibration needs; record with the \"Acceleration with g\" experiment and export it again.",
+        "es": "{file}: {member} contiene '{column}', la aceleración sin gravedad de phyphox, que la calibración "
+              "de los sensores necesita; grabe con el experimento \"Aceleración con g\" y expórtelo de nuevo.",
+        "pt": "{file}: {member} contém '{column}', a aceleração sem gravidade do phyphox, de que a calibração "
+              "dos sensores precisa; grave com a experiência \"Aceleração com g\" e exporte-a de novo."},
+    "phyphox.axes_missing": {
+        "en": "{file}: {member} has {sensor} without its {axes} column(s); export the experiment again with all "
+              "three axes.",
+        "es": "{file}: {member} tiene {sensor} sin su(s) columna(s) {axes}; exporte de nuevo el experimento con "
+              "los tres ejes.",
+        "pt": "{file}: {member} tem {sensor} sem a(s) coluna(s) {axes}; exporte de novo a experiência com os "
+              "três eixos."},
+    "phyphox.unit_unknown": {
+        "en": "{file}: {member}: column '{column}' is in '{unit}', a unit ChakaMo does not know; export it again "
+              "from phyphox without editing its header.",
+        "es": "{file}: {member}: la columna '{column}' está en '{unit}', una unidad que ChakaMo no conoce; "
+              "expórtela de nuevo desde phyphox sin editar su cabecera.",
+        "pt": "{file}: {member}: a coluna '{column}' está em '{unit}', uma unidade que o ChakaMo não conhece; "
+              "exporte-a de novo do phyphox sem editar o cabeçalho."},
+    "phyphox.sensor_twice": {
+        "en": "{file}: {sensor} appears twice in this recording's phyphox exports; list one export per sensor "
+              "for the recording (session.json files).",
+        "es": "{file}: {sensor} aparece dos veces en las exportaciones phyphox de esta grabación; liste una "
+              "exportación por sensor para la grabación (files de session.json).",
+        "pt": "{file}: {sensor} aparece duas vezes nas exportações phyphox desta gravação; liste uma exportação "
+              "por sensor para a gravação (files do session.json)."},
+    "phyphox.sensors_missing": {
+        "en": "{file}: the phyphox export lacks {sensors}; a recording needs acceleration with g, gyroscope and "
+              "magnetometer: record them in one experiment, or list the three exports together in session.json "
+              "(one recording's files).",
+        "es": "{file}: a la exportación phyphox le falta {sensors}; una grabación necesita aceleración con g, "
+              "giroscopio y magnetómetro: grábelos en un mismo experimento, o liste las tres exportaciones juntas "
+              "en session.json (los files de una grabación).",
+        "pt": "{file}: à exportação phyphox falta {sensors}; uma gravação precisa de aceleração com g, giroscópio "
+              "e magnetômetro: grave-os numa mesma experiência, ou liste as três exportações juntas no "
+              "session.json (os files de uma gravação)."},
     "phone.not_a_zip": {
         "en": "{file}: not a readable zip file ({reason}); export the recording again from Sensor Logger (zip).",
         "es": "{file}: no es un archivo zip legible ({reason}); exporte de nuevo la grabación desde Sensor Logger "
@@ -511,6 +549,16 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} arquivo(s): {found}. O ChakaMo lê "
               "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer e Sensor Logger "
               "(.zip): verifique a pasta, ou exporte as gravações de novo. {hint}"},
+    "split.no_posture": {
+        "en": "{file}: this continuous recording of the whole protocol has no {posture} posture held still for 5 s "
+              "or more (still postures found, duration @ start (angle from the sensor's +y): {found}); record the protocol again holding standing and supine "
+              "still for 30 s each, or export its parts as separate recordings.",
+        "es": "{file}: esta grabación continua de todo el protocolo no tiene una postura {posture} mantenida "
+              "quieta 5 s o más (posturas quietas encontradas, duración @ inicio (ángulo con el +y del sensor): {found}); grabe de nuevo el protocolo manteniendo "
+              "quietas las posturas de pie y supina 30 s cada una, o exporte sus partes como grabaciones separadas.",
+        "pt": "{file}: esta gravação contínua de todo o protocolo não tem uma postura {posture} mantida parada "
+              "5 s ou mais (posturas paradas encontradas, duração @ início (ângulo com o +y do sensor): {found}); grave de novo o protocolo mantendo paradas as "
+              "posturas em pé e dorsal 30 s cada, ou exporte as suas partes como gravações separadas."},
     "session.recording_twice": {
         "en": "{file} and {other} are both the {role} recording of the {segment}; keep one (or list the one to use "
               "in session.json).",
@@ -609,6 +657,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{file}: mag_field_ut = {value}; give the local magnetic field strength in µT (25–65), e.g. 48.5.",
         "es": "{file}: mag_field_ut = {value}; dé la intensidad del campo magnético local en µT (25–65), p. ej. 48.5.",
         "pt": "{file}: mag_field_ut = {value}; dê a intensidade do campo magnético local em µT (25–65), p. ex. 48.5."},
+    "manifest.bad_split": {
+        "en": "{file}: split of the {segment} = {value}; give each cut as \"role\": [start_s, end_s] (seconds from the "
+              "recording's start, start before end) with roles among {roles}, as results.json session.split shows.",
+        "es": "{file}: split del {segment} = {value}; dé cada corte como \"papel\": [inicio_s, fin_s] (segundos desde "
+              "el inicio de la grabación, inicio antes que fin) con papeles entre {roles}, como los muestra "
+              "session.split de results.json.",
+        "pt": "{file}: split da {segment} = {value}; dê cada corte como \"papel\": [início_s, fim_s] (segundos desde o "
+              "início da gravação, início antes do fim) com papéis entre {roles}, como os mostra session.split do "
+              "results.json."},
     # ------------------------------------------------------------------------------- provenance checks
     "check.side_mismatch": {
         "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "
@@ -738,6 +795,39 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "de los ejes de bisagra de la rodilla en la tarea",
         "pt": "{file}: não há gravação em decúbito dorsal: os eixos dos segmentos vêm da postura em pé e dos eixos de "
               "dobradiça do joelho na tarefa"},
+    "note.csv_decimal_comma": {
+        "en": "{file}: read with tabs between fields and ',' as the decimal point",
+        "es": "{file}: leído con tabuladores entre campos y ',' como separador decimal",
+        "pt": "{file}: lido com tabulações entre campos e ',' como separador decimal"},
+    "note.recording_split": {
+        "en": "{file}: one continuous recording, split into figure-eight "
+              "{mag_calibration_from_s:.1f}–{mag_calibration_to_s:.1f} s, standing "
+              "{standing_from_s:.1f}–{standing_to_s:.1f} s, supine {lying_from_s:.1f}–{lying_to_s:.1f} s and task "
+              "from {task_from_s:.1f} s (seconds from its start); if a part is misplaced, set its cut in "
+              "session.json \"split\" or export the parts as separate recordings",
+        "es": "{file}: una grabación continua, dividida en ocho "
+              "{mag_calibration_from_s:.1f}–{mag_calibration_to_s:.1f} s, de pie "
+              "{standing_from_s:.1f}–{standing_to_s:.1f} s, supino {lying_from_s:.1f}–{lying_to_s:.1f} s y tarea "
+              "desde {task_from_s:.1f} s (segundos desde su inicio); si una parte está mal situada, fije su corte "
+              "en \"split\" de session.json o exporte las partes como grabaciones separadas",
+        "pt": "{file}: uma gravação contínua, dividida em oito "
+              "{mag_calibration_from_s:.1f}–{mag_calibration_to_s:.1f} s, em pé "
+              "{standing_from_s:.1f}–{standing_to_s:.1f} s, decúbito dorsal {lying_from_s:.1f}–{lying_to_s:.1f} s e "
+              "tarefa a partir de {task_from_s:.1f} s (segundos desde o início); se uma parte estiver mal situada, "
+              "fixe o seu corte em \"split\" do session.json ou exporte as partes como gravações separadas"},
+    "note.recording_split_no_fig8": {
+        "en": "{file}: one continuous recording, split into standing {standing_from_s:.1f}–{standing_to_s:.1f} s, "
+              "supine {lying_from_s:.1f}–{lying_to_s:.1f} s and task from {task_from_s:.1f} s (seconds from its "
+              "start); no figure-eight found in it; if a part is misplaced, set its cut in session.json \"split\" or "
+              "export the parts as separate recordings",
+        "es": "{file}: una grabación continua, dividida en de pie {standing_from_s:.1f}–{standing_to_s:.1f} s, "
+              "supino {lying_from_s:.1f}–{lying_to_s:.1f} s y tarea desde {task_from_s:.1f} s (segundos desde su "
+              "inicio); no se encontró un ocho en ella; si una parte está mal situada, fije su corte en \"split\" de "
+              "session.json o exporte las partes como grabaciones separadas",
+        "pt": "{file}: uma gravação contínua, dividida em em pé {standing_from_s:.1f}–{standing_to_s:.1f} s, "
+              "decúbito dorsal {lying_from_s:.1f}–{lying_to_s:.1f} s e tarefa a partir de {task_from_s:.1f} s "
+              "(segundos desde o início); não foi encontrado um oito nela; se uma parte estiver mal situada, fixe o "
+              "seu corte em \"split\" do session.json ou exporte as partes como gravações separadas"},
     "note.no_standing": {
         "en": "{file}: no standing recording: the segment axes come from the task alone, which must hold the knee "
               "straight and still for 2 s (standing before it starts)",
@@ -762,6 +852,7 @@ WORDS = {
     "standing": {"en": "standing", "es": "de pie", "pt": "em pé"},
     "lying": {"en": "lying", "es": "tumbado", "pt": "deitado"},
     "task": {"en": "task", "es": "tarea", "pt": "tarefa"},
+    "continuous": {"en": "continuous", "es": "continua", "pt": "contínua"},
     "right": {"en": "right", "es": "derecha", "pt": "direita"},
     "left": {"en": "left", "es": "izquierda", "pt": "esquerda"},
 }
@@ -786,11 +877,14 @@ def _fill(value: Any, lang: str) -> Any:
     return value
 
 
-def render(code: str, params: Mapping[str, Any], lang: str = "en") -> str:
+def render(code: str, params: Mapping[str, Any], lang: str = "en",
+           catalogue: Mapping[str, Mapping[str, str]] | None = None) -> str:
     """The message ``code`` in ``lang`` (``es``/``en``/``pt``; others give English), filled from ``params``.
 
-    A missing parameter shows as ``{name}`` rather than failing: a message must never hide the error."""
-    entry = CATALOGUE[code]
+    ``catalogue``: another table of the same shape (the pipeline's, :mod:`app.pipeline.messages`); fragments
+    inside the params are still looked up here.  A missing parameter shows as ``{name}`` rather than failing: a
+    message must never hide the error."""
+    entry = (CATALOGUE if catalogue is None else catalogue)[code]
     template = entry.get(lang) or entry["en"]
     values = {k: _fill(v, lang) for k, v in params.items()}
     try:

@@ -286,6 +286,7 @@ class Session:
     manifest_data : its parsed, checked content (``{}`` without one), read once here.
     notes : sentences worth showing a user (sheet chosen, streams trimmed, default step height...); for
         the task, those of ``task`` (trimmed to the pair's span, clock drift between the sensors).
+    splits : :class:`.split.Split` per sensor whose one continuous recording was split into the protocol's parts.
     """
 
     folder: Path
@@ -296,6 +297,7 @@ class Session:
     manifest: Path | None = None
     notes: tuple[str, ...] = ()
     manifest_data: Mapping[str, Any] = field(default_factory=dict)
+    splits: tuple = ()
 
     def recording(self, segment: str, role: str) -> AlignedRecording:
         """The aligned recording of ``segment`` (thigh/shank) in ``role`` (see :data:`ROLES`)."""

@@ -18,7 +18,8 @@ Checks (pure: data in, :class:`Finding` list out; the app decides what refuses):
   spread over more than that among themselves (``"warning"``);
 * :func:`check_patient` — a patient id in the files other than the patient's (``"warning"``);
 * :func:`check_sensors` — one sensor id recorded as the thigh in one recording and the shank in another
-  (swapped straps, ``"warning"``).
+  (swapped straps, ``"warning"``); :func:`check_stored_sensors` the same on the server's stored devices, whose
+  serial :func:`sensor_of_file_name` reads from a file's name at upload.
 
 Each :class:`Finding` has a stable ``code`` (``check.*`` of :data:`.messages.CATALOGUE`) and ``params``,
 rendered in es/en/pt by :meth:`Finding.message`.
@@ -179,6 +180,26 @@ def check_patient(facts: Iterable[RecordingFacts], patient_id: Any) -> list[Find
     return [Finding("check.patient_mismatch", {"file": _name(f), "found": str(f.patient_id.value),
                                                "method": f.patient_id.method, "patient_id": str(patient_id)})
             for f in facts if f.patient_id is not None and not _same_id(f.patient_id.value, patient_id)]
+
+
+def sensor_of_file_name(name: str) -> str | None:
+    """The sensor serial a file's *name* carries, without reading it: a MetaBase stream file's MAC (12 upper-case
+    hex digits, any device name, :func:`.metabase.parse_file_name`), else ``None``.  What the server stores with an
+    upload (``Recording.device``) and tells the browser, so the wizard keeps no copy of the naming rule."""
+    from pathlib import Path
+
+    from app.pipeline.ingestion.metabase import parse_file_name
+
+    parsed = parse_file_name(Path(name)) if str(name).lower().endswith(".csv") else None
+    return parsed["mac"] if parsed else None
+
+
+def check_stored_sensors(rows: Iterable[tuple[str, str | None, str | None]]) -> list[Finding]:
+    """:func:`check_sensors` on what the server stored: ``(file name, segment declared at upload, device)`` rows;
+    a device declared on both segments is one sensor recording both (swapped straps or files)."""
+    facts = [RecordingFacts(segment=seg, role="", files=(name,), fmt="", sensor_id=dev)
+             for name, seg, dev in rows if seg and dev]
+    return check_sensors(facts)
 
 
 def check_sensors(facts: Iterable[RecordingFacts]) -> list[Finding]:

@@ -17,6 +17,9 @@ sensor's segment may also come from the manifest's ``sensors`` map (MAC → segm
       ]
     }
 
+A recording of the whole protocol per sensor (role ``continuous``, or no role and one recording per sensor) is
+split into figure-eight, standing, supine and task (:mod:`.split`); ``Session.splits`` says where.
+
 ``recordings`` (when present) lists exactly the files to use; ``segment`` / ``role`` accept the same words as
 the file names in any of the three languages, and fall back to the names when absent.  The manifest wins
 over names; every :class:`Recognition` says which one decided.
@@ -43,6 +46,8 @@ from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_na
 from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
 from app.pipeline.ingestion.opal import list_sensors, read_opal
+from app.pipeline.ingestion.split import CONTINUOUS, left_unsplit, split_session
+from app.pipeline.ingestion.phyphox import looks_like_phyphox, read_phyphox
 from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
@@ -50,12 +55,12 @@ from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
 
 MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
-_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut",
+_MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut", "split",
                   "name", "professional", "weight_kg", "height_m", "observations"}
 _ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
-                   "mag_field_ut": (int, float),
+                   "mag_field_ut": (int, float), "split": dict,
                    "sensors": dict, "recordings": list, "name": str, "professional": str,
                    "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
@@ -104,6 +109,11 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
         facts["device"] = Recognition(name["device"], "MetaBase file name", name["device"])
         if name["firmware"]:
             facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
+    elif all(p.suffix.lower() in (".csv", ".txt", ".zip", ".xlsx") for p in paths) and all(map(looks_like_phyphox, paths)):
+        acc, gyr, mag = read_phyphox(paths)
+        stems = [p.stem for p in paths]
+        label = os.path.commonprefix(stems).strip(" _-") if len(stems) > 1 else stems[0]
+        label, fmt, method = label or stems[0], "phyphox", "file name"
     elif len(paths) == 1 and paths[0].suffix.lower() == ".xlsx":
         acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
         notes = (f"{paths[0].name}: {note}",)
@@ -196,17 +206,17 @@ def _manifest_word(path: Path, where: str, text: str, kind: str) -> Recognition:
     except ValueError as exc:
         r, _ = None, exc
     if r is None:
-        if text in (SEGMENTS if kind == "segment" else ROLES):
+        if text in (SEGMENTS if kind == "segment" else ROLES + (CONTINUOUS,)):
             return Recognition(text, "session.json", where)
         raise IngestionError("manifest.unknown_segment" if kind == "segment" else "manifest.unknown_role",
                              file=path, where=where, value=str(text)[:60],
-                             allowed=", ".join(SEGMENTS if kind == "segment" else ROLES))
+                             allowed=", ".join(SEGMENTS if kind == "segment" else ROLES + (CONTINUOUS,)))
     return Recognition(r.value, "session.json", where)
 
 
 def sniff(path: Path) -> str | None:
     """The format of a non-MetaBase ``.csv`` / ``.txt`` from its first 8 kB: ``"xsens"`` (MT Manager export),
-    ``"shimmer"`` (Consensys), ``"generic-csv"`` (a header naming ``acc_x``), or ``None``."""
+    ``"shimmer"`` (Consensys), ``"phyphox"``, ``"generic-csv"`` (a header naming ``acc_x``), or ``None``."""
     try:
         with open(path, encoding="utf-8-sig", errors="replace") as fh:
             head = fh.read(8192)
@@ -216,6 +226,8 @@ def sniff(path: Path) -> str | None:
         return "xsens"
     if looks_like_shimmer(head):
         return "shimmer"
+    if looks_like_phyphox(path):
+        return "phyphox"
     first = head.split("\n", 1)[0].lower()
     return "generic-csv" if path.suffix.lower() == ".csv" and "acc_x" in first else None
 
@@ -233,7 +245,7 @@ def _discover(folder: Path) -> tuple[list[list[Path]], list[str]]:
     for p in files:
         suffix = p.suffix.lower()
         if suffix in (".xlsx", ".h5", ".hdf5") or (suffix in (".csv", ".txt") and p not in meta and sniff(p)) \
-                or (suffix == ".zip" and looks_like_sensorlogger(p)):
+                or (suffix == ".zip" and (looks_like_sensorlogger(p) or looks_like_phyphox(p))):
             singles.append([p])
         elif suffix == ".csv" and p not in meta:
             ignored.append(p.name)
@@ -320,6 +332,7 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
                              found=", ".join(names[:8]) + (", ..." if len(names) > 8 else "") if names else "-",
                              hint=ignored)
     recs: dict[tuple[str, str], RawRecording] = {}
+    continuous: dict[str, list[tuple[RawRecording, str]]] = {}
     unrecognised: list[dict] = []
     raws = [read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored, settle=False,
                            sensor=e.get("sensor")) for e in entries]
@@ -332,6 +345,10 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
             segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
         if "role" in e:
             role = _manifest_word(mpath, f"recordings[{i}].role", e["role"], "role")
+        if segment is not None and (role is None or role.value == CONTINUOUS):  # split below (.split)
+            continuous.setdefault(segment.value, []).append(
+                (replace(rec, segment=segment, role=role), "role" if role else "only recording"))
+            continue
         if segment is None or role is None or role.value not in roles:
             if role is None or segment is None:
                 what = {"code": "word.role_segment" if role is None and segment is None else
@@ -348,6 +365,13 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
             raise IngestionError("session.recording_twice", file=rec.files[0], other=recs[key].files[0],
                                  role=role.value, segment=segment.value)
         recs[key] = rec
+    recs, splits, split_notes = split_session(continuous, recs, expected_fs_hz, manifest.get("split"), mpath)
+    notes += split_notes
+    for r in left_unsplit(continuous, splits):
+        why = "; ".join(n.split(": ", 1)[1] for n in r.notes if "names more than one" in n)
+        unrecognised.append({"code": "hint.unrecognised", "params": {"file": r.files[0].name,
+                                                                     "what": {"code": "word.role"},
+                                                                     "why": f": {why}" if why else ""}})
     hint = ignored + unrecognised + [{"code": "hint.naming", "params": {"manifest": MANIFEST}}]
     segs = {s for s, _ in recs}
     if len(segs) < 2:
@@ -382,7 +406,7 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
                   for n in list(rec.notes) + processed[key].flags["notes"]]
     metadata = _metadata(manifest, mpath, recs, notes)
     return Session(folder=folder, recordings=aligned, raw=recs, task=task, metadata=metadata, manifest=mpath,
-                   notes=tuple(dict.fromkeys(notes)), manifest_data=manifest)
+                   notes=tuple(dict.fromkeys(notes)), manifest_data=manifest, splits=tuple(splits))
 
 
 __all__ = ["MANIFEST", "load_session", "read_recording"]

@@ -30,8 +30,9 @@ file name: one wins, the other gets 409 (the database's unique constraint decide
 Audit: an upload and a deletion each record one event (``upload`` / ``delete``, :mod:`app.web.audit`) in the
 transaction that stores or removes the recordings, so the files and their event commit together.
 
-Optional form fields ``segment`` (thigh|shank) and ``role`` (mag_calibration|standing|lying|task) apply to
-every file of the request (they go into the generated ``session.json``).  A ``.json`` file must be the
+Optional form fields ``segment`` (thigh|shank) and ``role`` (mag_calibration|standing|lying|task, or continuous:
+one recording of the whole protocol, split when read) apply to every file of the request (they go into the
+generated ``session.json``).  Each stored recording keeps the sensor serial its file name carries (``device``).  A ``.json`` file must be the
 session's ``session.json`` manifest.
 """
 

@@ -93,6 +93,9 @@ class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
     heading: HeadingName = DEFAULT_HEADING
+    #: the side analysed over the one the files say (as ``chakamo process --side``): a recording of the other leg
+    #: is then processed, with a warning, instead of refused; None: the patient's side, checked against the files
+    side: Side | None = None
 
 
 class OptionOut(BaseModel):
@@ -157,6 +160,8 @@ class RecordingOut(BaseModel):
     sha256: str
     segment: str | None
     role: str | None
+    #: the sensor's serial from the file (a MetaBase MAC), stored at upload; null when the file names none
+    device: str | None = None
     uploaded_at: dt.datetime
 
 
@@ -173,10 +178,16 @@ class JobOut(BaseModel):
     progress: float
     stage: str
     error: str | None
+    #: a failed job's message as a catalogue code and values (app.pipeline.messages), and rendered per language
+    error_code: str | None = None
+    error_params: dict[str, Any] | None = None
+    error_message: dict[str, str] | None = None
     log: list[str]
     analysis_id: int | None
     filter: str
     lang: str
+    #: the side chosen over the files' (the process request's ``side``), or null
+    side: str | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -209,6 +220,9 @@ class SessionOut(SessionSummaryOut):
     professional: str | None
     notes: str | None
     recordings: list[RecordingOut]
+    #: the stored sensor serials' provenance check (one sensor on both segments): ``{"code", "params", "message":
+    #: {lang: text}}`` each (app.pipeline.ingestion.provenance.check_stored_sensors)
+    sensor_warnings: list[dict[str, Any]] = []
     ingestion: IngestionOut
     analyses: list[AnalysisOut]
     jobs: list[JobOut]
@@ -264,12 +278,19 @@ def patient_out(p: Patient) -> dict[str, Any]:
 
 
 def recording_out(r: Recording) -> dict[str, Any]:
-    return {k: getattr(r, k) for k in ("id", "file_name", "size_bytes", "sha256", "segment", "role", "uploaded_at")}
+    return {k: getattr(r, k) for k in ("id", "file_name", "size_bytes", "sha256", "segment", "role", "device",
+                                       "uploaded_at")}
 
 
 def job_out(j: Job) -> dict[str, Any]:
-    return {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "log",
-                                       "analysis_id", "filter", "lang", "created_at", "started_at", "finished_at")}
+    out = {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "error_code",
+                                      "error_params", "log", "analysis_id", "filter", "lang", "side", "created_at",
+                                      "started_at", "finished_at")}
+    if j.error_code:
+        from app.pipeline.messages import message_dict
+
+        out["error_message"] = message_dict(j.error_code, j.error_params or {})["message"]
+    return out
 
 
 def audit_out(e: AuditEvent) -> dict[str, Any]:
@@ -294,6 +315,16 @@ def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None, super
             "n_recordings": n_recordings, "status": session_status(n_recordings, ready(s), latest_job, superseded)}
 
 
+def sensor_warnings(recs: list[Recording]) -> list[dict[str, Any]]:
+    """The provenance check of the serials stored with ``recs`` (upload segment + device), each finding in
+    es/en/pt."""
+    from app.pipeline.ingestion.messages import message_dict
+    from app.pipeline.ingestion.provenance import check_stored_sensors
+
+    found = check_stored_sensors((r.file_name, r.segment, r.device) for r in recs)
+    return [message_dict(f.code, f.params) for f in found]
+
+
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:
     """The Session dict of ``s`` with its jobs and analyses, newest first (:func:`app.store.sessions.session_jobs`,
     :func:`app.store.sessions.session_analyses`)."""
@@ -302,7 +333,9 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
     superseded = latest is not None and any(a.id == latest.analysis_id and a.superseded_at is not None
                                             for a in analyses)
     out = summary_out(s, len(recs), latest, superseded)
-    out |= {"version": s.version, "updated_at": s.updated_at, "step_height_m": s.step_height_m, "professional": s.professional, "notes": s.notes,
-            "recordings": [recording_out(r) for r in recs], "ingestion": stored_ingestion(s, len(recs)),
+    out |= {"version": s.version, "updated_at": s.updated_at, "step_height_m": s.step_height_m,
+            "professional": s.professional, "notes": s.notes,
+            "recordings": [recording_out(r) for r in recs], "sensor_warnings": sensor_warnings(recs),
+            "ingestion": stored_ingestion(s, len(recs)),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out

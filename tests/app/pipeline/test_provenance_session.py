@@ -47,3 +47,16 @@ def test_a_left_leg_recording_on_a_right_knee_is_refused_unless_the_side_is_give
         process_folder(tmp_path / "s", tmp_path / "out", reports=False)
     outcome, _ = process_folder(tmp_path / "s", tmp_path / "out", ProcessOptions(side="right"), reports=False)
     assert outcome.side == "right"
+
+
+@pytest.mark.parametrize("lang,words", [("es", "pierna izquierda"), ("pt", "perna esquerda")])
+def test_the_cli_refuses_the_other_leg_in_its_language(truth, tmp_path, capsys, lang, words):
+    """A PipelineError carries its code (issue 14 §5): ``--lang`` renders it from the one catalogue."""
+    from app.cli.main import main
+
+    write_session(tmp_path / "s", truth)
+    for p in list((tmp_path / "s").glob("step-muslo-*")):
+        p.rename(p.with_name(p.name.replace("step-muslo-", "step-muslo-izquierda-")))
+    assert main(["process", str(tmp_path / "s"), "--out", str(tmp_path / "out"), "--lang", lang]) == 2
+    err = capsys.readouterr().err
+    assert words in err and "leg" not in err, err

@@ -5,7 +5,8 @@ Same set-up as ``test_browser_e2e.py`` (its ``server``, ``demo_files`` and ``slo
 app under uvicorn on loopback, the demo session's real MetaBase files, Debian's Chromium): the thigh sensor's
 MAC is typed, the shank's task recording is dropped (a real ``drop`` event) on the thigh's task zone → the
 zone warns, naming the files' MAC; the shank's own zone stays quiet; once the shank's MAC is typed too, the
-stored files are flagged as swapped sensors.
+stored files are flagged as swapped sensors.  Without any typed MAC, the serials the server stored with the
+uploads flag one sensor recorded on both segments.
 """
 
 from __future__ import annotations
@@ -87,6 +88,42 @@ def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow
         page.get_by_label("Language").select_option("es")
         expect(page.locator(".zone[data-segment=thigh][data-role=task] .zone-mac [role=alert]")).to_contain_text(
             "¿Sensores intercambiados?")
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_one_sensor_on_both_segments_is_flagged_from_the_server(browser, server, demo_files, slow_expect):  # noqa: F811
+    """No MAC typed: the serials the server stored with the uploads (``sensor_warnings``) still catch the shank's
+    sensor recorded on both segments, in the UI's language."""
+    expect = slow_expect
+    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        page.goto(f"{server}/#/patients")
+        page.get_by_label("Email").fill(EMAIL)
+        page.get_by_label("Password").fill(PASSWORD)
+        page.get_by_role("button", name="Log in").click()
+        expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        sid = _api_session(context, server, "E2E-MAC2", "right")
+        page.goto(f"{server}/#/sessions/{sid}/wizard")
+        page.get_by_role("button", name="Next").click()
+        expect(page.get_by_role("heading", name="2. The four recordings of each sensor")).to_be_visible()
+        thigh_task = page.locator(".zone[data-segment=thigh][data-role=task]")
+        _drop(page, thigh_task, demo_files[("shank", "task")])
+        expect(thigh_task.locator("ul.files li")).to_have_count(3)
+        assert thigh_task.locator(".zone-mac [role=alert]").count() == 0     # one segment only so far
+        shank_standing = page.locator(".zone[data-segment=shank][data-role=standing]")
+        _drop(page, shank_standing, demo_files[("shank", "standing")])
+        expect(shank_standing.locator("ul.files li")).to_have_count(3)
+        for zone in (thigh_task, shank_standing):
+            expect(zone.locator(".zone-mac [role=alert]")).to_contain_text(SHANK_MAC.replace(":", ""))
+        page.get_by_label("Language").select_option("pt")
+        expect(page.locator(".zone[data-segment=thigh][data-role=task] .zone-mac [role=alert]")).to_contain_text(
+            "coxa")
     finally:
         context.close()
     assert not errors, f"JavaScript errors: {errors}"

@@ -30,6 +30,8 @@ from ingestion_fuzz_vendors import (excel_epoch, excel_epoch_semicolon, opal_dat
                                     xsens_column_missing, xsens_layout_variants, xsens_mag_in_micro_tesla,
                                     xsens_text_cell)
 
+from ingestion_fuzz_phyphox import (phyphox_cell_garbage, phyphox_flavour, phyphox_linear_acceleration,
+                                    phyphox_sensor_dropped)
 from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _lines, _save, _set_cell, converted_unit,
                                      day_boundary, decimal_comma, declared_unit, duplicated_stamp, empty,
                                      extra_columns, gap_seconds, header_only, huge_value, label_two_roles,
@@ -44,7 +46,7 @@ from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _li
 
 @dataclass(frozen=True)
 class Kind:
-    fmt: str                      # "metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger"
+    fmt: str                      # "metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger", "phyphox"
     what: str                     # one line for the table
     mutate: Callable[[Path, Draw], tuple[Path, ...]]
     must_load: bool = False       # a harmless variation: the session has to load, and sanely
@@ -347,6 +349,13 @@ KINDS: dict[str, Kind] = {
                                       sensorlogger_cell_garbage),
     "sensorlogger_member_dropped": Kind("sensorlogger", "a sensor file missing from a Sensor Logger zip",
                                         sensorlogger_member_dropped),
+    "phyphox_cell_garbage": Kind("phyphox", "text in a data cell of a phyphox export's table", phyphox_cell_garbage),
+    "phyphox_linear_acceleration": Kind("phyphox", "acceleration exported without gravity (Linear Acceleration)",
+                                        phyphox_linear_acceleration),
+    "phyphox_sensor_dropped": Kind("phyphox", "a sensor's set or columns missing from a phyphox zip",
+                                   phyphox_sensor_dropped),
+    "phyphox_flavour": Kind("phyphox", "another of phyphox's CSV flavours (',', tab, ';'; '.' or ',' decimals)",
+                            phyphox_flavour, must_load=True),
     "decimal_comma": Kind("metabase", "',' decimal with ',' still the separator, from a random row on",
                           decimal_comma),
     "quoted_cells": Kind("metabase", "every cell in double quotes", quoted_cells, must_load=True),

@@ -32,6 +32,7 @@ from hypothesis import strategies as st
 
 from app.pipeline.ingestion import IngestionError, load_session
 from ingestion_fuzz_kinds import KINDS
+from ingestion_fuzz_phyphox import write_phyphox_session
 from ingestion_fuzz_vendors import write_vendor_session
 
 #: seconds of each simulated recording kept (the figure-eight still turns enough for the gyro-unit check)
@@ -63,6 +64,7 @@ def sessions(tmp_path_factory) -> dict[str, Path]:
         out[fmt] = root / fmt
     for fmt in ("xsens", "shimmer", "opal", "sensorlogger"):
         out[fmt] = write_vendor_session(root / fmt, sim.recordings, fmt)
+    out["phyphox"] = write_phyphox_session(root / "phyphox", sim.recordings)
     return out
 
 
@@ -114,12 +116,13 @@ def _check_outcome(kind: str, folder: Path, touched: tuple[Path, ...]) -> str:
 
 def test_the_table_has_at_least_30_kinds_each_described():
     assert len(KINDS) >= 30
-    assert all(k.what and k.fmt in ("metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger")
-               for k in KINDS.values())
-    assert len(KINDS) >= 72           # 58 before issue 14, plus its spreadsheet mangling and the new formats
+    assert all(k.what and k.fmt in ("metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger",
+                                    "phyphox") for k in KINDS.values())
+    assert len(KINDS) >= 76           # 58 before issue 14, its spreadsheet mangling, the new formats, phyphox
 
 
-@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger"])
+@pytest.mark.parametrize("fmt", ["metabase", "generic", "xlsx", "xsens", "shimmer", "opal", "sensorlogger",
+                                 "phyphox"])
 def test_the_unmutated_sessions_load(sessions, fmt):
     """Without this, a refusal could be the starting session's fault rather than the mutation's."""
     assert _check_outcome("utf8_bom", sessions[fmt], ()) == "loaded"

@@ -1,0 +1,341 @@
+"""phyphox (RWTH Aachen phone app) exports: CSV, the zip of CSVs, and Excel.
+
+Layout, from the app's public export code and experiment definitions (``DataExport``; the "Raw Sensors"
+experiments' ``<export>`` sets):
+
+* **CSV** ("Comma, decimal point", "Tabulator, decimal point", "Semicolon, decimal comma", "Tabulator, decimal
+  comma"): a header of quoted column names, then one row per sample, numbers as ``0.000000000E0`` (``9.806650000E0``,
+  ``-1.2E-3``) with the chosen decimal mark; a column shorter than the others is padded with ``NaN``.  The full
+  export is a ``.zip`` with one ``<set name>.csv`` per export set (``Raw Data.csv``) and ``meta/device.csv``,
+  ``meta/time.csv`` (``"event","experiment time","system time","system time text"``: the ``START`` row maps the
+  experiment's time 0 to Unix seconds); the "minimal" export is the single ``.csv``.
+* **Excel** (``.xlsx``): one sheet per export set, the header in row 1, numbers below.
+
+Columns, by name (case-insensitive; each set restarts with its own ``Time (s)``)::
+
+    Time (s)                                     seconds from the experiment's start
+    Acceleration x/y/z (m/s^2)                   "Acceleration with g": specific force, m/s²
+    Gyroscope x/y/z (rad/s)                      rad/s
+    Magnetic field x/y/z (µT)                    µT ("Magnetic Field x" in older versions)
+    Absolute ... / anything else                 ignored
+
+A recording is one file holding the three sensors (a custom experiment with all three, in one set or three), or
+the exports of the three experiments listed together (``session.json`` ``files``).  ``Linear Acceleration``
+("Acceleration without g") lacks gravity, which the calibration needs: refused, saying to export "Acceleration
+with g".  Time base: Unix seconds when every file is a zip with ``meta/time.csv`` (one phone's clock), else
+seconds from each export's start (``elapsed``: the sensors taken to start together).  Units are converted once,
+here (:mod:`.units`); Android's and iOS's phyphox both give the specific force with +9.81 on the up axis.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import zipfile
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from app.pipeline.ingestion.model import IngestionError, Note, Stream
+from app.pipeline.ingestion.tables import check_stamps, numeric_columns, parse_table
+from app.pipeline.ingestion.units import check_magnitude, unit_factor
+
+_COLUMN = re.compile(r"^\s*(?P<name>.*?)\s*\((?P<unit>[^()]*)\)\s*$")
+_AXIS = {"acc": re.compile(r"^acceleration ([xyz])$"), "gyr": re.compile(r"^gyroscope ([xyz])$"),
+         "mag": re.compile(r"^magnetic field ([xyz])$")}
+_LINEAR = re.compile(r"^linear acceleration [xyz]$")
+_NAMES = {"acc": "Acceleration with g", "gyr": "Gyroscope", "mag": "Magnetometer"}
+
+__all__ = ["looks_like_phyphox", "read_phyphox", "write_phyphox"]
+
+
+def _header_kinds(header: Sequence) -> bool:
+    names = [_name(h) for h in header]
+    return "time" in names and any(p.match(n) for n in names for p in (*_AXIS.values(), _LINEAR))
+
+
+def _name(cell) -> str:
+    m = _COLUMN.match("" if cell is None else str(cell).strip().strip('"'))
+    return "" if m is None else " ".join(m.group("name").lower().split())
+
+
+def _first_line(text: str) -> list[str]:
+    first = text.split("\n", 1)[0]
+    sep = "\t" if "\t" in first else ";" if first.count(";") > first.count(",") else ","
+    return [c.strip().strip('"') for c in first.split(sep)]
+
+
+def _tables_zip(z: zipfile.ZipFile) -> list[str]:
+    return [n for n in z.namelist() if n.lower().endswith(".csv") and not n.startswith("meta/")
+            and not n.endswith("/")]
+
+
+def looks_like_phyphox(path: Path) -> bool:
+    """A phyphox export by content: a CSV (or a zip's CSV, or an .xlsx sheet) whose header has ``Time (s)`` and
+    phyphox's sensor column names."""
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".csv", ".txt"):
+            with open(path, encoding="utf-8-sig", errors="replace") as fh:
+                return _header_kinds(_first_line(fh.read(4096)))
+        if suffix == ".zip":
+            with zipfile.ZipFile(path) as z:
+                def head(member: str) -> str:  # the first 4 kB only, not the whole member decompressed
+                    with z.open(member) as fh:
+                        return fh.read(4096).decode("utf-8-sig", "replace")
+                return any(_header_kinds(_first_line(head(n))) for n in _tables_zip(z)[:8])
+        if suffix == ".xlsx":
+            import openpyxl
+            wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+            try:
+                return any(_header_kinds(next(ws.iter_rows(max_row=1, values_only=True), ())) for ws in wb.worksheets)
+            finally:
+                wb.close()
+    except Exception:  # noqa: BLE001 - sniffing: anything unreadable is simply not phyphox
+        return False
+    return False
+
+
+def _csv_table(path: Path, text: str, where: str, notes: list) -> tuple[list[str], np.ndarray]:
+    """Header and float table of one phyphox CSV (any of its separators and decimal marks)."""
+    lines = text.split("\n", 2)
+    if "\t" in lines[0] and len(lines) > 1 and "," in lines[1]:  # "Tabulator, decimal comma"
+        text = text.replace(",", ".")
+        notes.append(Note.of("csv_decimal_comma", file=where))
+    head, sep, body = text.partition("\n")
+    if '"' in head and '"' not in body:  # phyphox quotes the header's names only: unquoted, the fast parser reads it
+        text = head.replace('"', "") + sep + body
+    header, rows = parse_table(path, text, notes)
+    header = [h.strip().strip('"') for h in header]
+    names = [_name(h) for h in header]  # only the columns read: time and the sensor axes (NaN elsewhere)
+    used = [j for j, n in enumerate(names) if n == "time" or any(p.match(n) for p in (*_AXIS.values(), _LINEAR))]
+    table = np.full((len(rows), len(header)), np.nan)
+    table[:, used] = numeric_columns(path, header, rows, used)
+    return header, table
+
+
+def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
+    try:
+        import openpyxl
+    except ImportError:  # pragma: no cover - dependency declared in pyproject
+        raise IngestionError("xlsx.no_openpyxl") from None
+    try:
+        wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+    except Exception as exc:  # noqa: BLE001 - any damage of the workbook
+        raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
+    out = []
+    try:
+        for ws in wb.worksheets:
+            rows = list(ws.iter_rows(values_only=True))
+            if not rows or not _header_kinds(rows[0]):
+                continue
+            header = ["" if c is None else str(c) for c in rows[0]]
+            table = np.full((len(rows) - 1, len(header)), np.nan)
+            for i, r in enumerate(rows[1:]):
+                for j, v in enumerate(r[:len(header)]):
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        table[i, j] = float(v)
+                    elif v not in (None, "", "NaN"):
+                        raise IngestionError("cell.not_number", file=path, row=i + 2, column=header[j],
+                                             cell=str(v)[:40])
+            out.append((ws.title, header, table))
+    finally:
+        wb.close()
+    return out
+
+
+def _epoch_offset(z: zipfile.ZipFile) -> float | None:
+    """Unix seconds of experiment time 0 from ``meta/time.csv``'s first ``START`` row, or None."""
+    try:
+        text = z.read("meta/time.csv").decode("utf-8-sig", "replace")
+    except KeyError:
+        return None
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if len(lines) < 2:
+        return None
+    sep = "\t" if "\t" in lines[0] else ";" if ";" in lines[0] else ","
+    for ln in lines[1:]:
+        cells = [c.strip().strip('"') for c in ln.split(sep)]
+        if len(cells) >= 3 and cells[0].upper() == "START":
+            try:
+                exp_t, sys_t = (float(c.replace(",", ".")) for c in cells[1:3])
+            except ValueError:
+                return None
+            return sys_t - exp_t if np.isfinite(sys_t - exp_t) and sys_t > 1e8 else None
+    return None
+
+
+def _tables(path: Path, notes: list) -> tuple[list[tuple[str, list[str], np.ndarray]], float | None]:
+    """``([(where, header, table)], epoch offset or None)`` of one export file."""
+    suffix = path.suffix.lower()
+    if suffix == ".xlsx":
+        return _xlsx_tables(path), None
+    if suffix == ".zip":
+        try:
+            z = zipfile.ZipFile(path)
+        except (zipfile.BadZipFile, OSError) as exc:
+            raise IngestionError("phone.not_a_zip", file=path, reason=str(exc)[:120]) from None
+        with z:
+            out = []
+            for member in _tables_zip(z):
+                try:
+                    text = z.read(member).decode("utf-8-sig")
+                except (UnicodeDecodeError, zipfile.BadZipFile, OSError) as exc:
+                    raise IngestionError("phone.member_unreadable", file=path, member=member,
+                                         reason=str(exc)[:120]) from None
+                if _header_kinds(_first_line(text)):
+                    out.append((f"{path.name}/{member}", *_csv_table(path, text, f"{path.name}/{member}", notes)))
+            return out, _epoch_offset(z)
+    from app.pipeline.ingestion.tables import read_text
+    return [(path.name, *_csv_table(path, read_text(path), path.name, notes))], None
+
+
+def _streams_of(path: Path, where: str, header: list[str], table: np.ndarray) -> dict[str, tuple]:
+    """``{kind: (t_s, values (n, 3) in SI, unit)}`` of one table; each ``Time (s)`` column starts a group."""
+    out: dict[str, tuple] = {}
+    names = [_name(h) for h in header]
+    t_col = None
+    found: dict[str, dict[str, int]] = {}
+    groups: list[tuple[int, dict[str, dict[str, int]]]] = []
+    for j, n in enumerate(names):
+        if n == "time":
+            if t_col is not None:
+                groups.append((t_col, found))
+            t_col, found = j, {}
+            continue
+        if _LINEAR.match(n):
+            raise IngestionError("phyphox.linear_acceleration", file=path, member=where, column=header[j])
+        for kind, pat in _AXIS.items():
+            m = pat.match(n)
+            if m and t_col is not None:
+                found.setdefault(kind, {})[m.group(1)] = j
+    if t_col is not None:
+        groups.append((t_col, found))
+    for t_col, kinds in groups:
+        unit_t = _COLUMN.match(header[t_col]).group("unit")
+        f_t = unit_factor("time", unit_t)
+        for kind, axes in kinds.items():
+            if set(axes) != {"x", "y", "z"}:
+                raise IngestionError("phyphox.axes_missing", file=path, member=where, sensor=_NAMES[kind],
+                                     axes=", ".join(a for a in "xyz" if a not in axes))
+            unit = _COLUMN.match(header[axes["x"]]).group("unit")
+            factor = unit_factor(kind, unit)
+            if factor is None or f_t is None:
+                raise IngestionError("phyphox.unit_unknown", file=path, member=where,
+                                     column=header[axes["x"]] if factor is None else header[t_col],
+                                     unit=unit if factor is None else unit_t)
+            if kind in out:
+                raise IngestionError("phyphox.sensor_twice", file=path, sensor=_NAMES[kind])
+            t = table[:, t_col] * f_t
+            v = table[:, [axes[a] for a in "xyz"]] * factor
+            keep = np.isfinite(t)  # a shorter column is padded with NaN rows (time NaN too)
+            out[kind] = (t[keep], v[keep], unit)
+    return out
+
+
+def read_phyphox(paths: Sequence[str | os.PathLike]) -> tuple[Stream, Stream, Stream]:
+    """Read one recording from phyphox exports (one file with the three sensors, or one file per sensor)
+    → ``(acc m/s², gyr rad/s, mag µT)`` (module docstring)."""
+    paths = [Path(p) for p in paths]
+    notes: list = []
+    found: dict[str, tuple] = {}
+    offsets = []
+    for p in paths:
+        tables, offset = _tables(p, notes)
+        offsets.append(offset)
+        for where, header, table in tables:
+            for kind, s in _streams_of(p, where, header, table).items():
+                if kind in found:
+                    raise IngestionError("phyphox.sensor_twice", file=p, sensor=_NAMES[kind])
+                found[kind] = (p, offset, *s)
+    missing = [_NAMES[k] for k in ("acc", "gyr", "mag") if k not in found]
+    if missing:
+        raise IngestionError("phyphox.sensors_missing", file=paths[0], sensors=", ".join(missing))
+    epoch = all(o is not None for o in offsets)
+    streams = []
+    for kind in ("acc", "gyr", "mag"):
+        p, offset, t, v, unit = found[kind]
+        check_stamps(p, t, f"{kind}: Time (s)")
+        if epoch:
+            t = t + offset
+        check_magnitude(kind, v, unit, p)
+        streams.append(Stream(kind=kind, t_s=t, values=v, declared_unit=unit, file=p,
+                              time_base="epoch" if epoch else "elapsed",
+                              notes=tuple(dict.fromkeys(notes)) if kind == "acc" else ()))
+    return streams[0], streams[1], streams[2]
+
+
+def _java_sci(x: float, decimal: str) -> str:
+    """A number as phyphox's CSV writes it (Java ``DecimalFormat("0.000000000E0")``): ``-1.234000000E-3``."""
+    if not np.isfinite(x):
+        return "NaN"
+    mant, exp = f"{x:.9E}".split("E")
+    return f"{mant}E{int(exp)}".replace(".", decimal)
+
+
+def write_phyphox(path: str | os.PathLike, streams: dict, *, layout: str = "zip", separator: str = ",",
+                  decimal: str = ".", epoch0_s: float | None = None, old_names: bool = False) -> Path:
+    """Write a phyphox-style export (tests, fuzzing) of ``{"acc": (t_s, m/s²), "gyr": (t_s, rad/s), "mag": (t_s,
+    µT)}`` with ``t_s`` from the experiment's start.
+
+    layout : ``"zip"`` (three sets ``Accelerometer.csv``, ``Gyroscope.csv``, ``Magnetometer.csv`` + ``meta/``),
+        ``"zip-one-set"`` (one ``Raw Data.csv`` with three time columns, NaN-padded), ``"csv"`` (that one set as
+        the minimal export), ``"xlsx"`` (one sheet per set).   separator / decimal : the CSV flavour.
+    epoch0_s : Unix seconds of experiment time 0, written to ``meta/time.csv`` (zip layouts).
+    old_names : ``Magnetic Field x`` as older app versions spell it.
+    """
+    path = Path(path)
+    mag = "Magnetic Field" if old_names else "Magnetic field"
+    cols = {"acc": ("Acceleration {} (m/s^2)", "Absolute acceleration (m/s^2)"),
+            "gyr": ("Gyroscope {} (rad/s)", "Absolute (rad/s)"),
+            "mag": (mag + " {} (µT)", "Absolute field (µT)")}
+    sets = {}
+    for kind, title in (("acc", "Accelerometer"), ("gyr", "Gyroscope"), ("mag", "Magnetometer")):
+        t, v = (np.asarray(a, dtype=np.float64) for a in streams[kind])
+        header = ["Time (s)"] + [cols[kind][0].format(a) for a in "xyz"] + [cols[kind][1]]
+        sets[title] = (header, np.column_stack([t, v, np.linalg.norm(v, axis=1)]))
+    if layout in ("zip-one-set", "csv"):
+        n = max(len(tab) for _, tab in sets.values())
+        header = [h for hh, _ in sets.values() for h in hh]
+        table = np.column_stack([np.vstack([tab, np.full((n - len(tab), tab.shape[1]), np.nan)])
+                                 for _, tab in sets.values()])
+        sets = {"Raw Data": (header, table)}
+    if layout == "xlsx":
+        import openpyxl
+        wb = openpyxl.Workbook()
+        wb.remove(wb.active)
+        for title, (header, table) in sets.items():
+            ws = wb.create_sheet(title)
+            ws.append(header)
+            for row in table:
+                ws.append([None if not np.isfinite(x) else float(x) for x in row])
+        wb.save(path)
+        return path
+
+    def csv_text(header, table) -> str:
+        lines = [separator.join(f'"{h}"' for h in header)]
+        lines += [separator.join(_java_sci(x, decimal) for x in row) for row in table]
+        return "\n".join(lines) + "\n"
+
+    if layout == "csv":
+        (header, table), = sets.values()
+        path.write_text(csv_text(header, table), encoding="utf-8")
+        return path
+    if layout not in ("zip", "zip-one-set"):
+        raise ValueError(f"layout must be zip, zip-one-set, csv or xlsx, got {layout!r}")
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for title, (header, table) in sets.items():
+            z.writestr(f"{title}.csv", csv_text(header, table))
+        q = '"'
+        z.writestr("meta/device.csv", separator.join([q + "property" + q, q + "value" + q]) + "\n"
+                   + separator.join([q + "deviceModel" + q, q + "Pixel 7" + q]) + "\n")
+        if epoch0_s is not None:
+            buf = io.StringIO()
+            buf.write(separator.join(f'"{h}"' for h in ("event", "experiment time", "system time",
+                                                       "system time text")) + "\n")
+            buf.write(separator.join(['"START"', _java_sci(0.0, decimal), f"{epoch0_s:.3f}".replace(".", decimal),
+                                      '"2023-03-13 10:00:00.000 UTC+00:00"']) + "\n")
+            z.writestr("meta/time.csv", buf.getvalue())
+    return path

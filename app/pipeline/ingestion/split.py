@@ -1,0 +1,148 @@
+"""One continuous recording per sensor → the protocol's four recordings (issue 14 §3a).
+
+A session may hold, per sensor, one recording of the whole protocol instead of four: its role is
+``continuous`` (the word ``continuous`` / ``continuo`` / ``contínuo`` / ``protocol`` in its name or
+``"role": "continuous"`` in ``session.json``), or it has no role at all and each sensor has exactly one
+recording.  :func:`split_session` aligns each such recording on its own grid, finds where the figure-eight,
+standing, supine and task lie (:func:`estimators.protocol_split.split_protocol`, per sensor), and cuts the
+streams *as read* (their own stamps) at those instants, so what follows — rate checks, alignment, the task
+pair on the phones' clock — runs exactly as for four separate recordings.  Each part's role is a
+:class:`Recognition` with method ``"split"`` and the span as evidence; a :class:`Note` per sensor
+(``recording_split``) says where it was cut, in the reports' languages; :class:`Split` keeps the spans for
+``results.json`` ``split``.
+
+A continuous recording without a figure-eight (factory-calibrated sensors) splits into standing, supine and
+task; the pipeline then uses the factory calibration.  No standing or no supine posture: refused
+(``split.no_posture``), saying what was found.  A clinician moves a cut with ``session.json``
+``"split": {"thigh": {"standing": [65.0, 95.0], ...}}`` (seconds from the recording's start, as
+``results.json`` ``session.split`` shows them); given spans replace the automatic ones of their roles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from estimators.protocol_split import PARTS, ProtocolSplit, SplitError, split_protocol
+
+from app.pipeline.ingestion.align import align_recording, check_rates
+from app.pipeline.ingestion.model import IngestionError, Note, RawRecording, Recognition, Stream
+
+#: the role of a recording that holds the whole protocol
+CONTINUOUS = "continuous"
+
+__all__ = ["CONTINUOUS", "Split", "left_unsplit", "split_recording", "split_session"]
+
+
+@dataclass(frozen=True)
+class Split:
+    """Where one sensor's continuous recording was cut.
+
+    segment : ``"thigh"`` / ``"shank"``.   file : the recording's first file.
+    spans_s : ``{role: (start_s, end_s)}``, seconds from the recording's first common sample.
+    t0_s : that sample on the file's time base.   how : ``"role"`` (named continuous) or ``"only recording"``.
+    octants : octants of magnetometer directions the figure-eight reached (0 without one).
+    """
+
+    segment: str
+    file: str
+    spans_s: dict[str, tuple[float, float]]
+    t0_s: float
+    how: str
+    octants: int
+
+    def to_dict(self) -> dict:
+        return {"file": self.file, "how": self.how, "octants": self.octants,
+                "spans_s": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.spans_s.items()}}
+
+
+def _cut(stream: Stream, t0: float, t1: float) -> Stream:
+    keep = (stream.t_s >= t0) & (stream.t_s < t1)
+    return replace(stream, t_s=stream.t_s[keep], values=stream.values[keep])
+
+
+def given_spans(value, manifest: Path | None, segment: str) -> dict[str, tuple[float, float]]:
+    """``session.json`` ``split[segment]`` checked: ``{role: [start_s, end_s]}`` with roles of the protocol and
+    ``0 <= start_s < end_s`` (seconds from the recording's start); :class:`IngestionError` otherwise."""
+    ok = isinstance(value, dict) and value and all(
+        k in PARTS and isinstance(v, list) and len(v) == 2
+        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v) and 0 <= v[0] < v[1]
+        for k, v in value.items())
+    if not ok:
+        raise IngestionError("manifest.bad_split", file=manifest, segment=segment, value=repr(value)[:80],
+                             roles=", ".join(PARTS))
+    return {k: (float(v[0]), float(v[1])) for k, v in value.items()}
+
+
+def split_recording(rec: RawRecording, segment: str, expected_fs_hz: float | None, how: str,
+                    given: dict[str, tuple[float, float]] | None = None
+                    ) -> tuple[dict[str, RawRecording], Split, Note]:
+    """``rec`` cut into its protocol parts: ``({role: RawRecording}, Split, note)`` (module docstring).
+
+    ``given`` (``session.json`` ``split``): spans the clinician set, s from the recording's start; they replace the
+    automatic ones of those roles (``how`` becomes ``"session.json"``); with standing, supine and task all given
+    the automatic split is not needed."""
+    fs = check_rates(rec, expected_fs_hz)
+    grid = align_recording(rec, fs, segment, CONTINUOUS)
+    given = given or {}
+    try:
+        found: ProtocolSplit | None = split_protocol(grid.acc, grid.gyr, grid.mag, fs_hz=grid.fs_hz)
+    except SplitError as exc:
+        if not {"standing", "lying", "task"} <= set(given):
+            raise IngestionError("split.no_posture", file=rec.files[0],
+                                 posture={"code": "word.lying" if exc.what == "lying" else "word.standing"},
+                                 found=str(exc).split("; still postures found: ")[-1]) from None
+        found = None
+    spans = found.spans_s() if found is not None else {}
+    if given:
+        spans = {k: given.get(k, spans.get(k)) for k in PARTS if k in given or k in spans}
+        how = "session.json"
+    parts: dict[str, RawRecording] = {}
+    for i, (role, (a, b)) in enumerate(spans.items()):
+        t0, t1 = grid.t0_s + a, grid.t0_s + b
+        streams = [_cut(s, t0, t1) for s in rec.streams]
+        parts[role] = replace(rec, acc=streams[0], gyr=streams[1], mag=streams[2],
+                              role=Recognition(role, "split", f"{a:.1f}–{b:.1f} s of {rec.files[0].name}"),
+                              notes=rec.notes if i == 0 else ())
+    split = Split(segment, rec.files[0].name, spans, grid.t0_s, how, found.octants if found is not None else 0)
+    span = {f"{k}_from_s": spans[k][0] for k in spans} | {f"{k}_to_s": spans[k][1] for k in spans}
+    variant = "recording_split" if "mag_calibration" in spans else "recording_split_no_fig8"
+    return parts, split, Note.of(variant, file=rec.files[0].name, segment=segment, **span)
+
+
+def split_session(continuous: dict[str, list[tuple[RawRecording, str]]], recs: dict, expected_fs_hz: float | None,
+                  given: dict | None = None, manifest: Path | None = None) -> tuple[dict, list[Split], list[Note]]:
+    """Split the continuous recordings of a session (``{segment: [(rec, how)]}``) into ``recs``.
+
+    A recording named continuous is always split; one without a role only when each of the two sensors has
+    exactly one such recording and nothing else was recognised (``how == "only recording"``).  ``given``:
+    ``session.json`` ``split`` (``{segment: {role: [start_s, end_s]}}``, :func:`given_spans`).  Returns the
+    recordings with the parts added, the splits and their notes."""
+    given = given or {}
+    if not isinstance(given, dict) or set(given) - {"thigh", "shank"}:
+        raise IngestionError("manifest.bad_split", file=manifest, segment="thigh | shank", value=repr(given)[:80],
+                             roles=", ".join(PARTS))
+    named = {seg: [r for r, how in items if how == "role"] for seg, items in continuous.items()}
+    unnamed = {seg: [r for r, how in items if how != "role"] for seg, items in continuous.items()}
+    chosen = {seg: [(r, "role") for r in rs] for seg, rs in named.items() if rs}
+    if not recs and not chosen and len(unnamed) == 2 and all(len(rs) == 1 for rs in unnamed.values()):
+        chosen = {seg: [(rs[0], "only recording")] for seg, rs in unnamed.items()}
+    out, splits, notes = dict(recs), [], []
+    for seg in sorted(chosen):
+        for rec, how in chosen[seg]:
+            spans = given_spans(given[seg], manifest, seg) if seg in given else None
+            parts, split, note = split_recording(rec, seg, expected_fs_hz, how, spans)
+            for role, part in parts.items():
+                if (seg, role) in out:
+                    raise IngestionError("session.recording_twice", file=part.files[0], other=out[seg, role].files[0],
+                                         role=role, segment=seg)
+                out[seg, role] = part
+            splits.append(split)
+            notes.append(note)
+    return out, splits, notes
+
+
+def left_unsplit(continuous: dict[str, list[tuple[RawRecording, str]]], splits: list[Split]) -> list[RawRecording]:
+    """The recordings without a role that were not split (they stay unrecognised)."""
+    done = {s.file for s in splits}
+    return [r for items in continuous.values() for r, how in items if how != "role" and r.files[0].name not in done]

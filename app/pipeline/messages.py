@@ -1,0 +1,132 @@
+"""Why a session could not be processed, in Spanish, English and Portuguese: the :class:`PipelineError` catalogue.
+
+``PIPELINE_CATALOGUE[code][lang]`` is a :meth:`str.format` template like the ingestion's
+(:mod:`app.pipeline.ingestion.messages`, whose :func:`~app.pipeline.ingestion.messages.render` fills both); a
+``PipelineError`` may also carry an ingestion code (the provenance checks' ``check.*``).  Parameters may be
+fragments ``{"code", "params"}`` rendered in the same language: ``word.*`` (segment, side), and ``warning.*`` — a
+quality warning of the estimators (the diagnosis' cause of implausible angles), rendered by
+:func:`reports.warning_text.warning_text` from ``reports/translations_warnings.json``.  ``reason`` parameters are an
+estimator's English sentence (a ``ValueError`` of the magnetometer fit or a calibration): those few words stay
+English inside the translated message.  ``job.*`` are the job runner's own failures (interrupted, disk full,
+internal error).  :func:`message_dict` gives the API's ``{"code", "params", "message"}``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from app.pipeline.ingestion.messages import CATALOGUE as INGESTION_CATALOGUE
+from app.pipeline.ingestion.messages import LANGUAGES, render
+
+PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
+    "pipeline.no_side": {
+        "en": "{file}: the side under study is not known; choose the side (chakamo process --side right|left, or the "
+              "patient's side in the web) or add \"side\" to session.json.",
+        "es": "{file}: no se conoce el lado estudiado; elija el lado (chakamo process --side right|left, o el lado "
+              "del paciente en la web) o añada \"side\" a session.json.",
+        "pt": "{file}: não se conhece o lado estudado; escolha o lado (chakamo process --side right|left, ou o lado "
+              "do paciente na web) ou acrescente \"side\" ao session.json."},
+    "pipeline.bad_option": {
+        "en": "{option} must be one of {allowed}, got {value}; pick one of those.",
+        "es": "{option} debe ser uno de {allowed}, no {value}; elija uno de ellos.",
+        "pt": "{option} deve ser um de {allowed}, não {value}; escolha um deles."},
+    "pipeline.magnetometer_calibration": {
+        "en": "{segment} magnetometer calibration ({files}): {reason}",
+        "es": "calibración del magnetómetro del {segment} ({files}): {reason}",
+        "pt": "calibração do magnetômetro da {segment} ({files}): {reason}"},
+    "pipeline.segment_calibration": {
+        "en": "{segment} sensor-to-segment calibration ({files}): {reason}",
+        "es": "calibración sensor-segmento del {segment} ({files}): {reason}",
+        "pt": "calibração sensor-segmento da {segment} ({files}): {reason}"},
+    "pipeline.functional_segment_calibration": {
+        "en": "sensor-to-segment calibration without the supine posture ({files}): {reason}",
+        "es": "calibración sensor-segmento sin la postura supina ({files}): {reason}",
+        "pt": "calibração sensor-segmento sem a postura em decúbito dorsal ({files}): {reason}"},
+    "pipeline.task_never_straight": {
+        "en": "task-only sensor-to-segment calibration ({files}): the stillest straight-knee moment of the task has "
+              "the {segment} sensor {angle_deg:.0f}° from upright (more than {max_deg:.0f}°), so the task never held "
+              "the knee straight and still; record 2 s standing still with the knee straight at the start of the "
+              "task, or add the standing (and lying) recordings",
+        "es": "calibración sensor-segmento solo con la tarea ({files}): el momento más quieto con la rodilla "
+              "extendida deja el sensor del {segment} a {angle_deg:.0f}° de la vertical (más de {max_deg:.0f}°), así "
+              "que la tarea nunca mantuvo la rodilla extendida y quieta; grabe 2 s de pie y quieto con la rodilla "
+              "extendida al empezar la tarea, o añada las grabaciones de pie (y tumbado)",
+        "pt": "calibração sensor-segmento só com a tarefa ({files}): o momento mais parado com o joelho estendido "
+              "deixa o sensor da {segment} a {angle_deg:.0f}° da vertical (mais de {max_deg:.0f}°), portanto a tarefa "
+              "nunca manteve o joelho estendido e parado; grave 2 s em pé e parado com o joelho estendido no início "
+              "da tarefa, ou acrescente as gravações em pé (e deitado)"},
+    "pipeline.functional_calibration": {
+        "en": "functional calibration on {thigh_files} and {shank_files}: {reason}",
+        "es": "calibración funcional con {thigh_files} y {shank_files}: {reason}",
+        "pt": "calibração funcional com {thigh_files} e {shank_files}: {reason}"},
+    "pipeline.implausible_angles": {
+        "en": "{thigh_files} (thigh) and {shank_files} (shank): {cause}.",
+        "es": "{thigh_files} (muslo) y {shank_files} (pierna): {cause}.",
+        "pt": "{thigh_files} (coxa) e {shank_files} (perna): {cause}."},
+    "pipeline.implausible_unexplained": {
+        "en": "{thigh_files} (thigh) and {shank_files} (shank): {cause}; check which recordings belong to which "
+              "segment (file names or session.json) and how the sensors were worn.",
+        "es": "{thigh_files} (muslo) y {shank_files} (pierna): {cause}; compruebe qué grabaciones pertenecen a cada "
+              "segmento (nombres de archivo o session.json) y cómo se llevaban los sensores.",
+        "pt": "{thigh_files} (coxa) e {shank_files} (perna): {cause}; verifique que gravações pertencem a cada "
+              "segmento (nomes dos arquivos ou session.json) e como os sensores foram usados."},
+    "pipeline.task_analysis": {
+        "en": "motor-task analysis of {files}: {reason}",
+        "es": "análisis de la tarea motora de {files}: {reason}",
+        "pt": "análise da tarefa motora de {files}: {reason}"},
+    # ------------------------------------------------------------------ the job runner's own failures
+    "job.interrupted": {
+        "en": "processing was interrupted {attempts} times; check the server's and the workers' memory and logs, "
+              "then process the session again",
+        "es": "el procesamiento se interrumpió {attempts} veces; revise la memoria y los registros del servidor y "
+              "de los trabajadores, y procese de nuevo la sesión",
+        "pt": "o processamento foi interrompido {attempts} vezes; verifique a memória e os registos do servidor e "
+              "dos trabalhadores, e processe de novo a sessão"},
+    "job.disk_full": {
+        "en": "The server's disk is full, so the reports could not be stored and none was recorded. Ask your ChakaMo "
+              "administrator to free space, then process the session again.",
+        "es": "El disco del servidor está lleno, así que no se pudieron guardar los informes y no se registró "
+              "ninguno. Pida al administrador de ChakaMo que libere espacio y procese de nuevo la sesión.",
+        "pt": "O disco do servidor está cheio, por isso os relatórios não puderam ser guardados e nenhum foi "
+              "registado. Peça ao administrador do ChakaMo que liberte espaço e processe de novo a sessão."},
+    "job.internal": {
+        "en": "An internal error stopped the processing (reference {ref}); try again, and if it happens again give "
+              "the reference to your ChakaMo administrator.",
+        "es": "Un error interno detuvo el procesamiento (referencia {ref}); inténtelo de nuevo y, si vuelve a pasar, "
+              "dé la referencia al administrador de ChakaMo.",
+        "pt": "Um erro interno parou o processamento (referência {ref}); tente de novo e, se voltar a acontecer, dê "
+              "a referência ao administrador do ChakaMo."},
+}
+
+__all__ = ["LANGUAGES", "PIPELINE_CATALOGUE", "known", "message_dict", "render_message"]
+
+
+def known(code: str) -> bool:
+    """True when ``code`` has a text in this catalogue or the ingestion's."""
+    return code in PIPELINE_CATALOGUE or code in INGESTION_CATALOGUE
+
+
+def _fragments(value: Any, lang: str) -> Any:
+    """``warning.*`` fragments rendered by the reports' warning catalogue; everything else as it is."""
+    if isinstance(value, Mapping) and str(value.get("code", "")).startswith("warning."):
+        from reports.warning_text import warning_text
+
+        w = {"code": value["code"].removeprefix("warning."), "params": value.get("params", {}),
+             "message": value.get("message", "")}
+        return warning_text(w, lang)[0]
+    return value
+
+
+def render_message(code: str, params: Mapping[str, Any], lang: str = "en") -> str:
+    """The message ``code`` (this catalogue or the ingestion's) in ``lang``, filled from ``params``."""
+    values = {k: _fragments(v, lang) for k, v in params.items()}
+    if code in PIPELINE_CATALOGUE:
+        return render(code, values, lang, catalogue=PIPELINE_CATALOGUE)
+    return render(code, values, lang)
+
+
+def message_dict(code: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"code", "params", "message": {lang: text}}`` (API answers, job records)."""
+    return {"code": code, "params": dict(params),
+            "message": {lang: render_message(code, params, lang) for lang in LANGUAGES}}
