@@ -32,7 +32,8 @@ def test_equals_ahrs_madgwick_after_frame_change(use_mag):
     q, acc, gyr, mag, q_start = rotating_body(400, seed=2)
     beta = 0.15
     q0 = quat.normalize(quat.multiply(quat.from_axis_angle([0.3, -1.0, 0.2], 0.25), q_start))
-    ours = Madgwick(MadgwickParams(beta_rad_s=beta, warmup_s=0.0)).estimate(
+    # the published configuration: no warm-up, the raw accelerometer (acc_lowpass_s=0)
+    ours = Madgwick(MadgwickParams(beta_rad_s=beta, warmup_s=0.0, acc_lowpass_s=0.0)).estimate(
         acc, gyr, mag if use_mag else None, fs_hz=FS_HZ, q0=q0).orientation_
 
     oracle = ahrs_filters.Madgwick(gain=beta, Dt=1.0 / FS_HZ)
