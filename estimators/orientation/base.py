@@ -48,7 +48,8 @@ rotated specific force :math:`\sum_{j\le k} R(q_{0j})\,a_j\,\Delta t` over time 
 least-squares velocity regression, equal to the mean at rest).  A recording that starts in motion (a swinging
 shank) is then aligned on gravity, not on gravity plus the limb's acceleration: linear accelerations average
 out over the window as in VQF's quasi-inertial frame (Laidig & Seel 2023, §3.2), and the regression also
-removes what a plain mean keeps of a window that ends mid-swing (ours).  Every valid row counts, impacts included: heel strikes act mostly along
+removes what a plain mean keeps of a window that ends mid-swing (ours; ChakaMo's own filter keeps the plain
+mean, ``align_by_regression``).  Every valid row counts, impacts included: heel strikes act mostly along
 gravity, and leaving out the rows of large norm biases the mean (a swinging limb's centripetal and
 tangential accelerations also reach ±40 % of g; measured on the gait scenarios of the tests).  A gyroscope bias
 ``b`` costs at most ``|b| * init_window_s`` (0.7°/s → < 1.5°).  Gravity fixes roll and pitch; with a
@@ -283,8 +284,13 @@ class Alignment:
     velocity_start: FloatArray | None = None
 
 
-def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = INIT_WINDOW_S) -> Alignment:
+def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = INIT_WINDOW_S,
+                      regression: bool = True) -> Alignment:
     """Align on the first ``window_s`` of data, motion-compensated (module docstring).
+
+    ``regression=False`` takes gravity as the plain motion-compensated mean (ChakaMo's own filter, whose
+    quasi-inertial low-pass follows the alignment and whose numbers were measured with it); the start velocity
+    is then zero.
 
     The window starts at the first valid accelerometer row and holds at least that row.  The heading comes
     from the field samples marked ``mag_ok`` in the window (none in 6D; if none there, the first valid one)
@@ -295,7 +301,11 @@ def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = IN
     stop = min(data.n, first + n_window)
     q_rel = _window_strapdown(data.gyr[:stop], data.dt_s)  # missing gyroscope rows are zeros: held
     sel = np.flatnonzero(data.acc_ok[first:stop]) + first
-    acc_mean, velocity_start = velocity_regression(quat.rotate(q_rel[sel], data.acc[sel]), data.dt_s)
+    acc_rot = quat.rotate(q_rel[sel], data.acc[sel])
+    if regression:
+        acc_mean, velocity_start = velocity_regression(acc_rot, data.dt_s)
+    else:
+        acc_mean, velocity_start = acc_rot.mean(axis=0), np.zeros(3)
     mag_mean, n_mag, mag_norm = None, 0, 0.0
     if use_mag:  # 6D: no mag_ok, so no field and heading zero
         sel_m = np.flatnonzero(data.mag_ok[first:stop]) + first
@@ -418,6 +428,8 @@ class OrientationMethod(ABC):
     uses_acc_lowpass: ClassVar[bool] = False
     #: the method's own kernel runs that stage per sample (Guo: its strapdown subtracts the bias estimate)
     lowpass_in_kernel: ClassVar[bool] = False
+    #: gravity of the initial alignment by the velocity regression (else the plain window mean)
+    align_by_regression: ClassVar[bool] = True
 
     def __init__(self, params: Any | None = None) -> None:
         if params is None:
@@ -506,7 +518,7 @@ class OrientationMethod(ABC):
 
     def _initial_state_for(self, data: ImuInput, q0: ArrayLike | None, window_s: float = INIT_WINDOW_S) -> FloatArray:
         if q0 is None:
-            alignment = initial_alignment(data, window_s=window_s)
+            alignment = initial_alignment(data, window_s=window_s, regression=self.align_by_regression)
             state = self._state_from_alignment(alignment, data)
             gravity, velocity = alignment.acc_mean, alignment.velocity_start
         else:
