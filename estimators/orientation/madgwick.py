@@ -88,7 +88,13 @@ a calibrated, slowly moving sensor).  BROAD's single best value over its 39 tria
 same units (their C implementation, with the bug above).  With the bug fixed, on the 10 BROAD trials in
 ``../shared/data/broad`` (9D, mean total RMSE; ``benchmarks/broad.py``): β = 0.041 → 6.90°,
 0.07 → 6.19°, **0.1 → 6.04°**, 0.12 → 6.12°, 0.15 → 6.40°, 0.2 → 7.14° (6D: 0.041 → 6.60°, 0.1 → 6.80°).
-The default is 0.1.
+That choice was made on the raw accelerometer, where a large β let the step pull the estimate through the
+limb's accelerations.  On the motion-compensated accelerometer (below) the gradient points along the motion
+almost always, and the full-length step then adds up to 2β rad/s to every rotation: flexion ROM on the
+walking benchmark (``python -m benchmarks.walking``, seeds 0–5, known mounting, mean / worst ROM error) reads
+3.5° / 4.6° at β = 0.1, 1.57° / 2.93° at 0.05, 1.24° / 2.45° at 0.041 (the paper's MARG value), **0.93° /
+1.89° at 0.03**; BROAD 9D (undisturbed / disturbed) 2.23° / 6.35°, 1.85° / 5.25°, 1.78° / 5.07°, 1.79° / 4.88°.
+The default is 0.03.
 
 Motion-compensated accelerometer (ours, not in the paper)
 ---------------------------------------------------------
@@ -96,8 +102,8 @@ The update above reads, in place of the raw accelerometer sample, the specific f
 quasi-inertial frame (``acc_lowpass_s``, default 1.5 s; :mod:`~estimators.orientation.acc_lowpass`, base
 module docstring); ``acc_lowpass_s=0`` is the published filter, as the ``ahrs`` comparison runs it.  On the
 gait scenarios of the tests (clips in motion from the first sample, 3–6 g heel strikes) the worst heading RMS
-/ tilt on seeds 0–5 went from 5.8° / 11.0° to 3.1° / 4.3°; on the 10 shared BROAD trials (9D, undisturbed / disturbed
-total RMSE) from 4.92° / 7.15° to 2.23° / 6.35°.
+/ tilt on seeds 0–5 went from 5.8° / 11.0° to 4.2° / 3.4° (with β = 0.03); on the 10 shared BROAD trials (9D, undisturbed / disturbed
+total RMSE) from 4.92° / 7.15° to 1.79° / 4.88° (β = 0.1 → 0.03, see *Gain*).
 
 Warm-up (initial convergence)
 -----------------------------
@@ -133,7 +139,7 @@ class MadgwickParams:
 
     beta_rad_s
         Gain β of eq. (50), in 1/s (quaternion-derivative magnitude; up to 2β rad/s of rotation),
-        ≥ 0.  0 integrates the gyroscope only.  Default 0.1 (see the module docstring).
+        ≥ 0.  0 integrates the gyroscope only.  Default 0.03 (see the module docstring).
     warmup_s
         Length (s, ≥ 0) of the initial convergence phase counted from the start of the state; 0 disables
         it (the published filter).  Default 1.5.
@@ -145,7 +151,7 @@ class MadgwickParams:
         docstring; ours, not in the paper); 0 feeds the raw samples (the published filter).  Default 1.5.
     """
 
-    beta_rad_s: float = 0.1
+    beta_rad_s: float = 0.03
     warmup_s: float = 1.0
     beta_warmup_rad_s: float = 1.0
     acc_lowpass_s: float = 1.5

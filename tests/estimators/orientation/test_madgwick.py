@@ -53,7 +53,7 @@ def test_published_filter_converges_at_its_rate_limit():
     """Without warm-up (the paper's filter) the estimate turns at most 2β rad/s: 10° takes about 1 s."""
     q, acc, gyr, mag, q_start = rotating_body(int(3.0 * FS_HZ), seed=3, still=True)
     wrong = quat.multiply(quat.from_axis_angle([1.0, -0.5, 0.3], np.radians(10.0)), q_start)
-    est = Madgwick(MadgwickParams(warmup_s=0.0)).estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=wrong).orientation_
+    est = Madgwick(MadgwickParams(beta_rad_s=0.1, warmup_s=0.0)).estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=wrong).orientation_
     err = angle_deg(est, q)
     rate_deg_s = np.degrees(2.0 * 0.1)
     assert err[int(0.5 * FS_HZ)] > 10.0 - rate_deg_s * 0.5 - 0.5  # no faster than the rate limit
