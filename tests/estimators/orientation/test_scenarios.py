@@ -64,6 +64,17 @@ def test_chakamo_short_clip_and_floor_disturbance(name, params, seed):
         assert heading_rms_deg(q, clip) <= 5.0
 
 
+@pytest.mark.xfail(strict=True, reason="offline ChakaMo, floor disturbance 0.3: heading RMS 1.3, 6.2, 0.5, 4.4, 12.8, "
+                                       "3.5° on seeds 0–5 (seeds 1 and 4 over 5°): stance-phase fields within the "
+                                       "rejection thresholds pass as the earth's")
+def test_chakamo_floor_disturbance_every_seed():
+    """Issue 13 §1 (indoor disturbances near the floor) on every seed 0–5, not only the two asserted above."""
+    for seed in range(6):
+        clip = gait_clip(seed=seed, floor_disturbance=0.3)
+        q = make("chakamo").estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+        assert heading_rms_deg(q, clip) <= 5.0, seed
+
+
 @pytest.mark.parametrize("name", METHODS)
 def test_every_method_meets_the_5_degree_goal_in_gait(name):
     """The ≤ 5° goal of issue 13 §1 on clips that start in motion (before, the worst heading RMS on seeds 0–5
