@@ -89,8 +89,8 @@ constants :math:`\tau` (s) and converts them at the actual rate,
 
 .. math:: \alpha = 1 - e^{-\Delta t/\tau},\qquad \tau = -\Delta t / \ln(1 - \alpha),
 
-(first-order low pass of cut-off :math:`1/(2\pi\tau)` Hz on the correction).  The defaults,
-:math:`\tau = -0.01/\ln 0.99 \approx 0.995` s, give exactly :math:`\alpha = \beta = \alpha_b = 0.01` at
+(first-order low pass of cut-off :math:`1/(2\pi\tau)` Hz on the correction).  The paper's gains,
+:math:`\tau = -0.01/\ln 0.99 \approx 0.995` s (``TAU_DEFAULT_S``; ChakaMo's default for the tilt), give exactly :math:`\alpha = \beta = \alpha_b = 0.01` at
 100 Hz, the values of the authors' implementation and of ``ahrs`` (``ValentiCFParams.from_per_sample``
 converts published per-sample gains).  The source thesis (seed 004 §7.4) used
 :math:`G_{acc} = 0.01`, :math:`G_{mag} = 0.001` at 100 Hz and thresholds 0.05 / 0.15:
@@ -149,7 +149,9 @@ TAU_DEFAULT_S = -0.01 / math.log1p(-0.01)
 #: 15.1° / 27.7°; 5 s / 10 s 7.4° / 8.5°), but then a 0.7 °/s gyroscope bias costs τ × bias (gait scenarios of the
 #: tests: heading 9.7°).  On the motion-compensated accelerometer (``acc_lowpass_s``) the paper's own tilt gain
 #: (τ_acc = TAU_DEFAULT_S ≈ 1 s) is best; τ_mag 8 s keeps the walking heading within 5° (seeds 0–5: 4.9° at
-#: 8 s, 5.5° at 10 s; BROAD 2.1° / 6.6° at 8 s, 2.4° / 5.5° at 10 s, 1.9° / 7.9° at 5 s: the magnet trial 32).
+#: 8 s, 5.5° at 10 s, measured with a one-stage low-pass of 1 s; BROAD then 2.1° / 6.6° at 8 s, 2.4° / 5.5° at
+#: 10 s, 1.9° / 7.9° at 5 s: the magnet trial 32).  As shipped (acc_lowpass_s 1.5 s): walking 4.7°, BROAD
+#: 1.97° / 6.71°.
 #: ``from_per_sample`` gives the paper's gains.
 TAU_ACC_S = TAU_DEFAULT_S
 TAU_MAG_S = 8.0
