@@ -86,7 +86,7 @@ def _ahrs(kind: str, gain: float = 0.12) -> EstimateFn:
 #: comparison rows: name -> (estimate_fn, modes it supports, is it a slow pure-Python ahrs filter)
 COMPARISONS: dict[str, tuple[EstimateFn, tuple[str, ...], bool]] = {
     # our Madgwick as BROAD ran theirs (β = 0.12, no warm-up): the row to hold against the published table
-    "madgwick_broad": (project_method("madgwick", beta_rad_s=0.12, warmup_s=0.0), MODES, False),
+    "madgwick_broad": (project_method("madgwick", beta_rad_s=0.12, warmup_s=0.0, acc_lowpass_s=0.0), MODES, False),
     "vqf_offline": (_vqf(True), MODES, False),
     "vqf_online": (_vqf(False), MODES, False),
     "ahrs_madgwick": (_ahrs("madgwick"), MODES, True),  # β = 0.12 rad/s as BROAD's run (same units as ahrs' gain)

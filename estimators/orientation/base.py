@@ -43,10 +43,13 @@ Unless ``q0`` is given, the state starts from the first ``init_window_s`` (2 s) 
 *motion-compensated*: the gyroscope is integrated over the window, :math:`q_{0k} = \prod_{j \le k}
 \exp(\omega_j\,dt)` (the rotation from "before sample 0" to sample ``k``), and every accelerometer and
 magnetometer sample is rotated back into the sensor frame before sample 0,
-:math:`\bar a = \operatorname{mean}_k R(q_{0k})\,a_k`, :math:`\bar m = \operatorname{mean}_k R(q_{0k})\,m_k`.
-A recording that starts in motion (a swinging shank) is then aligned on gravity, not on gravity plus the
-limb's acceleration: linear accelerations average out over the window as in VQF's quasi-inertial frame
-(Laidig & Seel 2023, §3.2).  Every valid row counts, impacts included: heel strikes act mostly along
+:math:`\bar m = \operatorname{mean}_k R(q_{0k})\,m_k`; gravity :math:`\bar a` is the slope of the integrated
+rotated specific force :math:`\sum_{j\le k} R(q_{0j})\,a_j\,\Delta t` over time (:func:`velocity_regression`: the
+least-squares velocity regression, equal to the mean at rest).  A recording that starts in motion (a swinging
+shank) is then aligned on gravity, not on gravity plus the limb's acceleration: linear accelerations average
+out over the window as in VQF's quasi-inertial frame (Laidig & Seel 2023, §3.2), and the regression also
+removes what a plain mean keeps of a window that ends mid-swing (ours; ChakaMo's own filter keeps the plain
+mean, ``align_by_regression``).  Every valid row counts, impacts included: heel strikes act mostly along
 gravity, and leaving out the rows of large norm biases the mean (a swinging limb's centripetal and
 tangential accelerations also reach ±40 % of g; measured on the gait scenarios of the tests).  A gyroscope bias
 ``b`` costs at most ``|b| * init_window_s`` (0.7°/s → < 1.5°).  Gravity fixes roll and pitch; with a
@@ -62,18 +65,27 @@ Kalman filter start with the covariance of ``ALIGNED_STD_RAD`` (0.05 rad) and Ma
 complementary filter skip their warm-up: on a clip that starts in motion those measures replaced the
 aligned start by the first raw, acceleration-laden samples (gait scenarios, heading RMS: guo 15–150° →
 4–7°, madgwick 0.4–14.5° → 2.5–5.8°).
+
+Motion-compensated accelerometer (the published filters)
+--------------------------------------------------------
+A method with ``uses_acc_lowpass`` (Guo, Madgwick, both Valenti filters) does not feed its published update
+the raw accelerometer but the specific force low-passed in a quasi-inertial frame
+(:mod:`~estimators.orientation.acc_lowpass`; time constant ``acc_lowpass_s``, 0 = the published filter).  Its
+state is the method's own state followed by that stage's block (``acc_lowpass.SIZE`` entries), so online
+blocks still equal one batch; the block starts from the alignment's gravity.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimators import quaternion as quat
+from estimators.orientation import acc_lowpass
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -259,6 +271,8 @@ class Alignment:
     q: ``q_earth_sensor`` before sample 0.   acc_mean, mag_mean: the motion-compensated mean specific force
     (m/s²) and field (input unit; ``None`` without one) in the sensor frame before sample 0.
     n_acc, n_mag: how many rows each mean holds.   mag_norm_mean: mean norm of those field rows (input unit).
+    velocity_start: the sensor's velocity at sample 0 relative to its window mean (m/s, same frame;
+    :func:`velocity_regression`).
     """
 
     q: FloatArray
@@ -267,10 +281,16 @@ class Alignment:
     n_acc: int
     n_mag: int
     mag_norm_mean: float
+    velocity_start: FloatArray | None = None
 
 
-def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = INIT_WINDOW_S) -> Alignment:
+def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = INIT_WINDOW_S,
+                      regression: bool = True) -> Alignment:
     """Align on the first ``window_s`` of data, motion-compensated (module docstring).
+
+    ``regression=False`` takes gravity as the plain motion-compensated mean (ChakaMo's own filter, whose
+    quasi-inertial low-pass follows the alignment and whose numbers were measured with it); the start velocity
+    is then zero.
 
     The window starts at the first valid accelerometer row and holds at least that row.  The heading comes
     from the field samples marked ``mag_ok`` in the window (none in 6D; if none there, the first valid one)
@@ -281,7 +301,11 @@ def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = IN
     stop = min(data.n, first + n_window)
     q_rel = _window_strapdown(data.gyr[:stop], data.dt_s)  # missing gyroscope rows are zeros: held
     sel = np.flatnonzero(data.acc_ok[first:stop]) + first
-    acc_mean = quat.rotate(q_rel[sel], data.acc[sel]).mean(axis=0)
+    acc_rot = quat.rotate(q_rel[sel], data.acc[sel])
+    if regression:
+        acc_mean, velocity_start = velocity_regression(acc_rot, data.dt_s)
+    else:
+        acc_mean, velocity_start = acc_rot.mean(axis=0), np.zeros(3)
     mag_mean, n_mag, mag_norm = None, 0, 0.0
     if use_mag:  # 6D: no mag_ok, so no field and heading zero
         sel_m = np.flatnonzero(data.mag_ok[first:stop]) + first
@@ -293,7 +317,33 @@ def initial_alignment(data: ImuInput, use_mag: bool = True, window_s: float = IN
             q_k = _window_strapdown(data.gyr[:k + 1], data.dt_s)[k]
             mag_mean = quat.rotate(q_k, data.mag[k])
             n_mag, mag_norm = 1, float(np.linalg.norm(data.mag[k]))
-    return Alignment(align(acc_mean, mag_mean), acc_mean, mag_mean, int(sel.size), n_mag, mag_norm)
+    return Alignment(align(acc_mean, mag_mean), acc_mean, mag_mean, int(sel.size), n_mag, mag_norm, velocity_start)
+
+
+def velocity_regression(acc_rot: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
+    r"""Gravity (specific force, m/s²) from motion-compensated rows ``(n, 3)``, and the start velocity (m/s).
+
+    With :math:`V_k = \Delta t\sum_{j\le k} a_j` (the integrated specific force, in the frame before sample 0)
+    and the model :math:`V_k = v_0 + g\,t_k + u_k` (the limb's velocity :math:`u` about its mean), ``g`` is the
+    least-squares slope :math:`\sum (t_k-\bar t)(V_k-\bar V) / \sum (t_k-\bar t)^2`, :math:`t_k = (k+1)\Delta t`.
+    The plain mean is :math:`(V_n - V_0)/t_n`: it reads the velocity change between the window's two *ends*,
+    so a window that holds 1.8 gait cycles keeps a residual of the swing (on the gait scenarios of the tests:
+    tilt 1.2–3.6°, heading 2–7°); the slope reads the whole velocity curve (tilt 0.5–2.1°, heading 0–3.7°).
+    At rest (and for fewer than 3 rows) both are the mean.
+
+    The second result is the residual of the first row, :math:`u_0 = V_0 - v_0 - g\,t_0`: the limb's velocity
+    at sample 0 relative to its mean over the window (zero at rest), which the accelerometer stage of the
+    published filters uses to start its low-pass without a transient (:func:`acc_lowpass.initial_block`).
+    """
+    n = acc_rot.shape[0]
+    if n < 3:
+        return acc_rot.mean(axis=0), np.zeros(3)
+    v = np.cumsum(acc_rot, axis=0) * dt_s
+    t = (np.arange(n) + 1.0) * dt_s
+    tc = t - t.mean()
+    v_mean = v.mean(axis=0)
+    gravity = (tc @ (v - v_mean)) / (tc @ tc)
+    return gravity, v[0] - (v_mean - gravity * t.mean()) - gravity * t[0]
 
 
 def initial_orientation(data: ImuInput, use_mag: bool = True, window_s: float = INIT_WINDOW_S) -> FloatArray:
@@ -373,6 +423,13 @@ class OrientationMethod(ABC):
     state_size: ClassVar[int]
     supports_6d: ClassVar[bool] = True
     supports_9d: ClassVar[bool] = True
+    #: the published update reads the motion-compensated accelerometer (module docstring); the params then
+    #: have ``acc_lowpass_s`` and the last ``acc_lowpass.SIZE`` state entries are that stage's block
+    uses_acc_lowpass: ClassVar[bool] = False
+    #: the method's own kernel runs that stage per sample (Guo: its strapdown subtracts the bias estimate)
+    lowpass_in_kernel: ClassVar[bool] = False
+    #: gravity of the initial alignment by the velocity regression (else the plain window mean)
+    align_by_regression: ClassVar[bool] = True
 
     def __init__(self, params: Any | None = None) -> None:
         if params is None:
@@ -398,7 +455,7 @@ class OrientationMethod(ABC):
                             gyr_range_rad_s=gyr_range_rad_s)
         self._check_dimension(data.mag is not None)
         state0 = self._initial_state_for(data, q0)
-        self.orientation_, self.state_ = self._run(data, state0)
+        self.orientation_, self.state_ = self._filter(data, state0, reference=False)
         self.flags_ = data.flags
         return self
 
@@ -409,7 +466,7 @@ class OrientationMethod(ABC):
         """The readable numpy implementation on the same inputs (slow; for tests and study)."""
         data = validate_imu(acc, gyr, mag, fs_hz=fs_hz)
         self._check_dimension(data.mag is not None)
-        q, _ = self._run_reference(data, self._initial_state_for(data, q0))
+        q, _ = self._filter(data, self._initial_state_for(data, q0), reference=True)
         return q
 
     # ----------------------------------------------------------------- online
@@ -461,11 +518,39 @@ class OrientationMethod(ABC):
 
     def _initial_state_for(self, data: ImuInput, q0: ArrayLike | None, window_s: float = INIT_WINDOW_S) -> FloatArray:
         if q0 is None:
-            return self._state_from_alignment(initial_alignment(data, window_s=window_s), data)
-        q = quat.normalize(quat.as_quaternion(q0))
-        if q.shape != (4,):
-            raise ValueError(f"q0 must be one quaternion of shape (4,), got {q.shape}")
-        return self._state_from_quaternion(q, data)
+            alignment = initial_alignment(data, window_s=window_s, regression=self.align_by_regression)
+            state = self._state_from_alignment(alignment, data)
+            gravity, velocity = alignment.acc_mean, alignment.velocity_start
+        else:
+            q = quat.normalize(quat.as_quaternion(q0))
+            if q.shape != (4,):
+                raise ValueError(f"q0 must be one quaternion of shape (4,), got {q.shape}")
+            state, gravity, velocity = self._state_from_quaternion(q, data), None, None
+        if self._lowpass_on:  # the stage starts where the alignment left it (or empty from a q0)
+            state[-acc_lowpass.SIZE:] = acc_lowpass.initial_block(gravity, self._lowpass_coefficients(data.fs_hz),
+                                                                   velocity, data.dt_s)
+        return state
+
+    @property
+    def _lowpass_on(self) -> bool:
+        return self.uses_acc_lowpass and self.params.acc_lowpass_s > 0.0
+
+    def _lowpass_coefficients(self, fs_hz: float) -> FloatArray:
+        return acc_lowpass.coefficients(float(self.params.acc_lowpass_s), fs_hz)
+
+    def _filter(self, data: ImuInput, state0: FloatArray, *, reference: bool) -> tuple[FloatArray, FloatArray]:
+        """The method's kernel (or its numpy reference) on the motion-compensated accelerometer when it uses one."""
+        run = self._run_reference if reference else self._run
+        if not self._lowpass_on or self.lowpass_in_kernel:
+            return run(data, state0)
+        state0 = np.asarray(state0, dtype=np.float64)
+        lowpass = acc_lowpass.lowpass_reference if reference else acc_lowpass.lowpass_batch
+        acc_f, block = lowpass(data.acc, data.gyr, data.acc_ok, data.dt_s, self._lowpass_coefficients(data.fs_hz),
+                               np.ascontiguousarray(state0[-acc_lowpass.SIZE:]))
+        q, state = run(replace(data, acc=acc_f), state0)
+        state = np.array(state, dtype=np.float64)
+        state[-acc_lowpass.SIZE:] = block
+        return q, state
 
     def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
         """A fresh state from the initial alignment; here :meth:`_state_from_quaternion` of its ``q``.
@@ -486,7 +571,7 @@ class OrientationMethod(ABC):
 
     def _run_online(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
         """What :meth:`update` runs: the causal kernel.  A method whose batch is non-causal overrides this."""
-        return self._run(data, state0)
+        return self._filter(data, state0, reference=False)
 
     @abstractmethod
     def _run_reference(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -34,6 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
+from estimators.orientation.acc_lowpass import lowpass_step
 from estimators.physics import GRAVITY_M_S2 as G_M_S2
 
 FREE_VAR_RAD2 = 1.0           # variance of unobserved directions (6D heading, quaternion norm)
@@ -367,16 +368,25 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
 @njit(cache=True, fastmath={"contract"})
 def guo_batch(acc, gyr, mag, acc_ok, gyr_ok, mag_ok, dt_s, var_gyr, var_acc, var_mag,
               inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
-              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, state0):
+              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, state0, lp_coeffs, lp_offset):
     """Run :func:`guo_step` over ``(N, 3)`` inputs (6D: ``mag_ok`` all false, ``mag`` zeros).
 
+    With ``lp_offset`` ≥ 0 each accelerometer row first passes the motion-compensated stage
+    (:func:`acc_lowpass.lowpass_step`, block at ``state[lp_offset:]``), whose strapdown uses the rate minus
+    the bias estimate before the sample (zero rate on a missing gyroscope row), as the filter's prediction does.
     Returns ``q (N, 4)`` and the final state (a copy; ``state0`` is not modified).
     """
     n = acc.shape[0]
     state = state0.copy()
     out = np.empty((n, 4))
     for k in range(n):
-        guo_step(state, acc[k, 0], acc[k, 1], acc[k, 2], gyr[k, 0], gyr[k, 1], gyr[k, 2],
+        ax, ay, az = acc[k, 0], acc[k, 1], acc[k, 2]
+        if lp_offset >= 0:
+            rx, ry, rz = 0.0, 0.0, 0.0
+            if gyr_ok[k]:
+                rx, ry, rz = gyr[k, 0] - state[22], gyr[k, 1] - state[23], gyr[k, 2] - state[24]
+            ax, ay, az = lowpass_step(state, lp_offset, ax, ay, az, rx, ry, rz, acc_ok[k], dt_s, lp_coeffs)
+        guo_step(state, ax, ay, az, gyr[k, 0], gyr[k, 1], gyr[k, 2],
                  mag[k, 0], mag[k, 1], mag[k, 2], acc_ok[k], gyr_ok[k], mag_ok[k], dt_s, var_gyr, var_acc,
                  var_mag, inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
                  bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk)

@@ -128,6 +128,15 @@ fraction of the field norm (the field is used as a unit vector), so the magnetom
 :math:`n_m^2 I` on the normalised one (before, 0.3 µT/√Hz on the raw field made the heading gain depend on
 the unit: 10° RMS heading error on a gait clip in µT, 39° in nT).
 
+Motion-compensated accelerometer (ours, not in the paper)
+---------------------------------------------------------
+The update above reads, in place of the raw accelerometer sample, the specific force low-passed in a
+quasi-inertial frame (``acc_lowpass_s``, default 1.5 s; :mod:`~estimators.orientation.acc_lowpass`, base
+module docstring); ``acc_lowpass_s=0`` is the published filter, as the ``ahrs`` comparison runs it.  On the
+gait scenarios of the tests (clips in motion from the first sample, 3–6 g heel strikes) the worst heading RMS
+/ tilt on seeds 0–5 went from 7.5° / 6.8° to 3.2° / 3.0°; on the 10 shared BROAD trials (9D, undisturbed / disturbed
+total RMSE) from 5.27° / 9.46° to 1.91° / 6.80°.
+
 Deviations from the paper (and why)
 -----------------------------------
 1. Frames: ENU instead of NWU and :math:`q_{ES}` instead of :math:`q_{SG}` as the state (project
@@ -171,10 +180,12 @@ import numpy as np
 
 from estimators import quaternion as quat
 from estimators.orientation.base import ALIGNED_STD_RAD, Alignment, FloatArray, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation import acc_lowpass
 from estimators.orientation.valenti_kf_kernels import GAMMA_MIN, VIRTUAL_HEADING_STD_RAD, valenti_kf_batch
 
-STATE_SIZE = 20
-"""State layout: ``0:4`` q_earth_sensor; ``4:20`` the covariance P (4×4, row-major)."""
+STATE_SIZE = 20 + acc_lowpass.SIZE
+"""State layout: ``0:4`` q_earth_sensor; ``4:20`` the covariance P (4×4, row-major); then the accelerometer
+stage's block (``acc_lowpass.SIZE``)."""
 
 GATE_REFERENCE_HZ = 100.0
 """Rate at which ``innovation_gate`` is the plain χ² threshold (see the module docstring)."""
@@ -204,6 +215,9 @@ class ValentiKFParams:
         Threshold :math:`g` on the normalised innovation squared at 100 Hz (dimensionless, ≥ 0); above
         it :math:`R` is inflated (deviation 5 in the module docstring).  0 gives the paper's plain
         update.  Default 3.
+    acc_lowpass_s
+        Time constant (s, ≥ 0) of the motion-compensated accelerometer the update reads (base module
+        docstring; ours, not in the paper); 0 feeds the raw samples (the paper).  Default 1.5.
     """
 
     gyr_noise_rad_s_sqrt_hz: float = 0.003
@@ -211,8 +225,10 @@ class ValentiKFParams:
     mag_noise_rel_sqrt_hz: float = 0.0067
     initial_std_rad: float = 0.5
     innovation_gate: float = 3.0
+    acc_lowpass_s: float = 1.5
 
     def __post_init__(self) -> None:
+        check_parameter("acc_lowpass_s", self.acc_lowpass_s, unit="s", hint="0 = the raw samples (the paper)")
         check_parameter("innovation_gate", self.innovation_gate,
                         hint="0 = the paper's plain update; typically 1–20")
         for name, unit, typical in (
@@ -336,6 +352,7 @@ class ValentiKF(OrientationMethod):
     name = "valenti_kf"
     params_type = ValentiKFParams
     state_size = STATE_SIZE
+    uses_acc_lowpass = True
 
     def _variances(self, fs_hz: float) -> tuple[float, float, float]:
         p = self.params
@@ -347,16 +364,16 @@ class ValentiKF(OrientationMethod):
         return float(self.params.innovation_gate) * GATE_REFERENCE_HZ / fs_hz
 
     def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
-        state = np.empty(STATE_SIZE)
+        state = np.zeros(STATE_SIZE)
         state[:4] = q
-        state[4:] = ((0.5 * float(self.params.initial_std_rad)) ** 2 * np.eye(4)).ravel()
+        state[4:20] = ((0.5 * float(self.params.initial_std_rad)) ** 2 * np.eye(4)).ravel()
         return state
 
     def _state_from_alignment(self, alignment: Alignment, data: ImuInput) -> FloatArray:
         """An aligned start is trusted (base module docstring): P₀ from ``ALIGNED_STD_RAD``, not ``initial_std_rad``."""
         state = self._state_from_quaternion(alignment.q, data)
         std = min(float(self.params.initial_std_rad), ALIGNED_STD_RAD)
-        state[4:] = ((0.5 * std) ** 2 * np.eye(4)).ravel()
+        state[4:20] = ((0.5 * std) ** 2 * np.eye(4)).ravel()
         return state
 
     def _run(self, data: ImuInput, state0: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -368,7 +385,7 @@ class ValentiKF(OrientationMethod):
         gyr_var, acc_var, mag_var = self._variances(data.fs_hz)
         gate = self._gate(data.fs_hz)
         x = np.array(state0[:4], dtype=np.float64)
-        p_cov = np.array(state0[4:], dtype=np.float64).reshape(4, 4)
+        p_cov = np.array(state0[4:20], dtype=np.float64).reshape(4, 4)
         out = np.empty((data.n, 4))
         for k in range(data.n):
             acc = data.acc[k] if data.acc_ok[k] else None
@@ -376,5 +393,6 @@ class ValentiKF(OrientationMethod):
             x, p_cov = _reference_step(x, p_cov, data.gyr[k], acc, mag, data.dt_s, gyr_var, acc_var, mag_var,
                                        gate)
             out[k] = x
-        state = np.concatenate([x, p_cov.ravel()])
+        state = np.array(state0, dtype=np.float64)
+        state[:20] = np.concatenate([x, p_cov.ravel()])
         return out, state

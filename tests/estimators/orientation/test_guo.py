@@ -63,7 +63,7 @@ def test_kernel_matches_reference(measurement, with_mag, bias_init):
     slow = method.reference(acc, gyr, m, fs_hz=FS_HZ)
     assert np.abs(fast.orientation_ - slow).max() <= 1e-9
     data = validate_imu(acc, gyr, m, fs_hz=FS_HZ)
-    _, slow_state = method._run_reference(data, method._initial_state_for(data, None))
+    _, slow_state = method._filter(data, method._initial_state_for(data, None), reference=True)
     assert np.abs(fast.state_ - slow_state).max() <= 1e-9  # bias and the joint covariance too
     assert np.all(np.isfinite(fast.orientation_))
     np.testing.assert_allclose(np.linalg.norm(fast.orientation_, axis=1), 1.0, atol=1e-12)
@@ -85,7 +85,7 @@ def test_kernel_matches_reference_on_every_fast_path(fs_hz, params):
         method = Guo(GuoParams(rest_min_s=0.3, **params))
         fast = method.estimate(acc, gyr, m, fs_hz=fs_hz)
         data = validate_imu(acc, gyr, m, fs_hz=fs_hz)
-        slow, slow_state = method._run_reference(data, method._initial_state_for(data, None))
+        slow, slow_state = method._filter(data, method._initial_state_for(data, None), reference=True)
         assert np.abs(fast.orientation_ - slow).max() <= 1e-9
         assert np.abs(fast.state_ - slow_state).max() <= 1e-9
 
@@ -185,22 +185,31 @@ def test_covariance_stays_symmetric_positive_definite():
 
 
 def test_gyroscope_bias_is_learned_at_rest():
+    """Deviation 8 on the raw accelerometer (``acc_lowpass_s=0``: pure rotation, nothing for the stage to remove).
+
+    With the default stage both runs are better and closer (mean error after the rest 0.14° against 0.21°
+    without the rest update, whose in-motion bias state then catches up)."""
     bias = np.array([0.01, -0.02, 0.015])
     q_true, acc, gyr, mag = rotating_body(1800, rest_s=12.0, bias_rad_s=bias)
-    method = Guo().estimate(acc, gyr, mag, fs_hz=FS_HZ)
+    method = Guo(GuoParams(acc_lowpass_s=0.0)).estimate(acc, gyr, mag, fs_hz=FS_HZ)
     np.testing.assert_allclose(method.state_[22:25], bias, atol=1e-3)  # 11 s of rest, τ = 3 s
+    np.testing.assert_allclose(Guo().estimate(acc, gyr, mag, fs_hz=FS_HZ).state_[22:25], bias, atol=1e-3)
     err = np.degrees(quat.angle_between(method.orientation_[1200:], q_true[1200:]))
-    blind = Guo(GuoParams(bias_tau_s=math.inf)).estimate(acc, gyr, mag, fs_hz=FS_HZ).orientation_
+    blind = Guo(GuoParams(bias_tau_s=math.inf, acc_lowpass_s=0.0)).estimate(acc, gyr, mag, fs_hz=FS_HZ).orientation_
     err_blind = np.degrees(quat.angle_between(blind[1200:], q_true[1200:]))
     assert err.max() < 3.0
     assert np.mean(err) < 0.5 * np.mean(err_blind)
 
 
 def test_gyroscope_bias_is_learned_in_motion_as_a_kalman_state():
-    """Deviation 12: a constant bias with no rest at all is estimated from the innovations."""
+    """Deviation 12: a constant bias with no rest at all is estimated from the innovations.
+
+    On the raw accelerometer (``acc_lowpass_s=0``).  With the default stage the vertical component reaches
+    only 0.0195 of 0.025 rad/s in these 30 s of pure rotation: the stage's low-pass delays the attitude
+    information the bias learns from (measured; the stage is for limbs that accelerate)."""
     bias = np.array([0.03, -0.02, 0.025])
     q_true, acc, gyr, mag = rotating_body(3000, bias_rad_s=bias, noise=True, seed=5)
-    params = dict(bias_tau_s=math.inf, rest_min_s=1.0)
+    params = dict(bias_tau_s=math.inf, rest_min_s=1.0, acc_lowpass_s=0.0)
     on = Guo(GuoParams(bias_init_rad_s=0.03, **params)).estimate(acc, gyr, mag, fs_hz=FS_HZ)
     off = Guo(GuoParams(bias_init_rad_s=0.0, **params)).estimate(acc, gyr, mag, fs_hz=FS_HZ)
     np.testing.assert_allclose(on.state_[22:25], bias, atol=3e-3)

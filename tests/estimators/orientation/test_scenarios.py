@@ -64,28 +64,50 @@ def test_chakamo_short_clip_and_floor_disturbance(name, params, seed):
         assert heading_rms_deg(q, clip) <= 5.0
 
 
+@pytest.mark.xfail(strict=True, reason="offline ChakaMo, floor disturbance 0.3: heading RMS 1.3, 6.2, 0.5, 4.4, 12.8, "
+                                       "3.5° on seeds 0–5 (seeds 1 and 4 over 5°): stance-phase fields within the "
+                                       "rejection thresholds pass as the earth's")
+def test_chakamo_floor_disturbance_every_seed():
+    """Issue 13 §1 (indoor disturbances near the floor) on every seed 0–5, not only the two asserted above."""
+    for seed in range(6):
+        clip = gait_clip(seed=seed, floor_disturbance=0.3)
+        q = make("chakamo").estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
+        assert heading_rms_deg(q, clip) <= 5.0, seed
+
+
 @pytest.mark.parametrize("name", METHODS)
-def test_every_method_converges_and_keeps_its_heading_in_gait(name):
-    """No method loses its heading on a clip that starts in motion (the failure of issue 13 §1: 140–170°).
+def test_every_method_meets_the_5_degree_goal_in_gait(name):
+    """The ≤ 5° goal of issue 13 §1 on clips that start in motion (before, the worst heading RMS on seeds 0–5
+    was guo 7.5°, madgwick 5.8°, valenti_cf 9.7°, valenti_kf 7.5°, and up to 154° before the aligned start).
 
-    Measured on seeds 0–9 after the aligned start was trusted (base module docstring): heading RMS ≤ 7.5°
-    (guo), 5.8° (madgwick), 9.7° (valenti_cf), 7.5° (valenti_kf), 1.7° (chakamo); before, up to 154°."""
+    The published filters now read the motion-compensated accelerometer (``acc_lowpass_s``, base module
+    docstring) from a velocity-regression alignment.  Measured on seeds 0–5, worst heading RMS / tilt max:
+    guo 3.5° / 2.7°, madgwick 4.2° / 3.4°, valenti_cf 4.7° / 3.0°, valenti_kf 3.2° / 3.0°, chakamo 1.7° / 3.8°.
+    ``acc_lowpass_s`` (1.0–2.0 s all pass) and valenti_cf's time constants were chosen on these seeds; the
+    held-out seeds are the next test."""
     for seed in range(6):
         clip = gait_clip(seed=seed)
         q = make(name).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
-        assert heading_rms_deg(q, clip) <= 10.0, seed
-        assert tilt_max_deg(q, clip) <= 12.0, seed
+        assert heading_rms_deg(q, clip) <= 5.0, seed
+        assert tilt_max_deg(q, clip) <= 5.0, seed
 
 
-@pytest.mark.parametrize("name", [m for m in METHODS if m != "chakamo"])
-@pytest.mark.xfail(strict=True, reason="the ≤ 5° goal of issue 13 §1 is met by chakamo only; worst heading RMS "
-                                       "on seeds 0–5: guo 7.5°, madgwick 5.8°, valenti_cf 9.7°, valenti_kf 7.5° "
-                                       "(heel strikes and swing accelerations pull their inclination, ≤ 12°)")
-def test_other_methods_meet_the_5_degree_goal_in_gait(name):
-    for seed in range(6):
+HELD_OUT = [pytest.param(m, marks=pytest.mark.xfail(
+    strict=True, reason="guo, held-out seeds 7 and 8: heading RMS 4.7° and 6.4° (tilt ≤ 4.3°): its in-motion "
+                        "bias state (deviation 12) learns a wrong vertical bias from heading innovations that "
+                        "carry the tilt error × tan(dip); without that state the tilt drifts instead"))
+            if m == "guo" else m for m in METHODS]
+
+
+@pytest.mark.parametrize("name", HELD_OUT)
+def test_every_method_meets_the_5_degree_goal_on_held_out_gait_seeds(name):
+    """Seeds 6–11, not used for any choice: worst heading RMS / tilt max madgwick 1.9° / 2.8°, valenti_cf
+    2.5° / 3.1°, valenti_kf 2.1° / 3.2°, chakamo 1.9° / 2.8°."""
+    for seed in range(6, 12):
         clip = gait_clip(seed=seed)
         q = make(name).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
-        assert heading_rms_deg(q, clip) <= 5.0 and tilt_max_deg(q, clip) <= 5.0
+        assert heading_rms_deg(q, clip) <= 5.0, seed
+        assert tilt_max_deg(q, clip) <= 5.0, seed
 
 
 @pytest.mark.parametrize("name", METHODS)
