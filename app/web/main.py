@@ -9,6 +9,9 @@ Celery workers), and when the database has no user yet print how
 to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
+Middleware (plain ASGI): :class:`app.web.limits.BodyLimit` (no request body above ``CHAKAMO_MAX_BODY_KB`` but
+the recordings upload's) inside :class:`app.web.headers.SecurityHeaders`; a :class:`app.web.refusals.Refusal`
+answers its sentence in es/en/pt.
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
@@ -42,6 +45,8 @@ from app.web.api import api_router
 from app.store.database import Database
 from app.store.models import User
 from app.web.headers import SecurityHeaders
+from app.web.limits import BodyLimit
+from app.web.refusals import Refusal
 from app.web.security import LoginThrottle
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
@@ -74,6 +79,10 @@ def _swagger_dir() -> Path:
 
     return Path(str(swagger_ui_path))
 
+
+#: uvicorn options of ``chakamo serve``: no ``server: uvicorn`` banner (issue 16, finding 10e: it names the
+#: server software to a scanner, and nobody needs it)
+UVICORN_OPTIONS = {"server_header": False}
 
 #: an unfinished upload file untouched this long was left by a crashed server (scaled-out deployment)
 INCOMING_STALE_S = 24 * 3600.0
@@ -142,7 +151,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
 
+    # inner first: the body limit's 413 gets the security headers too
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_kb * 1024)  # app/web/limits.py
     app.add_middleware(SecurityHeaders, development=settings.development)  # app/web/headers.py
+
+    @app.exception_handler(Refusal)
+    async def refusal(request: Request, exc: Refusal):
+        """A refusal the user caused: its sentence in English and in es/en/pt (:mod:`app.web.refusals`)."""
+        return exc.response()
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError):
@@ -227,4 +243,4 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
-__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "create_app", "make_runner"]
+__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "UVICORN_OPTIONS", "create_app", "make_runner"]

@@ -18,7 +18,14 @@ Uploads are thus stored and committed before any processing can start.
 Resources: the caller is looked up in a short database session closed before the body is read
 (:data:`app.web.api.deps.UploadClinician`), so a slow upload holds no database connection; at most
 ``CHAKAMO_MAX_UPLOADS`` uploads stream at once (more answer 503 with ``Retry-After``).  A client that
-disconnects mid-upload is logged in one line and its partial files removed.
+disconnects mid-upload is logged in one line and its partial files removed.  A full blob disk (``ENOSPC``
+while a part is written or the files are committed) answers 507 with the job path's sentence, and nothing of
+the upload is stored.
+
+Multipart headers are parsed from their raw bytes (file names in any script: UTF-8, as browsers send them);
+a boundary longer than RFC 2046's 70 characters, a malformed body, or a name holding Unicode bidirectional
+controls (which reorder how it is shown) answers 400, each with its sentence in es/en/pt
+(:class:`app.web.refusals.Refusal`).
 
 Consistency: uploads and deletions answer 409 while a job of the session is queued or running (its files
 must not change under it).  Every change bumps the session's ``files_version`` in the same transaction; the
@@ -37,12 +44,13 @@ session's ``session.json`` manifest.
 
 from __future__ import annotations
 
+import errno
 import logging
 from pathlib import PurePosixPath, PureWindowsPath
 
 from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from python_multipart.exceptions import MultipartParseError
+from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
@@ -53,6 +61,7 @@ from app.store.sessions import clinic_session, refuse_while_processing
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
 from app.web.api.schemas import UploadOut, recording_out
+from app.web.refusals import Refusal
 
 log = logging.getLogger("chakamo.uploads")
 router = APIRouter(prefix="/sessions", tags=["recordings"])
@@ -61,13 +70,34 @@ _FIELD_LIMIT = 200
 FORM_FIELDS = ("segment", "role")
 #: multipart framing allowed per file on top of its bytes (boundaries, part headers)
 _PART_ROOM = 64 * 1024
+#: the longest multipart boundary (RFC 2046 §5.1.1: 1 to 70 characters)
+MAX_BOUNDARY = 70
+#: Unicode bidirectional embeddings, overrides and isolates (UAX #9): they reorder how a name is shown
+#: ("gpj.csv" shown as "vsc.jpg"), so a name holding one is refused; other letters of any script are welcome
+_BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 
 
 def _clean_name(raw: str) -> str:
     name = PureWindowsPath(PurePosixPath(raw).name).name.strip()
-    if not name or name.startswith(".") or any(ord(c) < 32 for c in name) or len(name) > 255:
+    if not name or name.startswith(".") or any(ord(c) < 32 or ord(c) == 127 for c in name) or len(name) > 255:
         raise HTTPException(400, f"File name {raw!r} is not usable; rename the file (letters, digits, - _ .).")
+    if _BIDI_CONTROLS.intersection(name):
+        raise Refusal(400, "request.file_name_controls", name=ascii(name)[:80])
     return name
+
+
+def _text(raw: bytes) -> str:
+    """A multipart header parameter as text: UTF-8, as browsers send any file name (RFC 7578 §4.2), or
+    Latin-1 from an older client (every byte string is Latin-1 text)."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` says the blob disk is full (the job path's test, :mod:`app.jobs.work`)."""
+    return isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 class _Upload:
@@ -78,7 +108,7 @@ class _Upload:
         self.files: list[tuple[str, BlobWriter]] = []
         self.fields: dict[str, str] = {}
         self.parts = 0
-        self._headers: dict[str, str] = {}
+        self._headers: dict[bytes, bytes] = {}
         self._field = self._value = b""
         self._writer: BlobWriter | None = None
         self._form_name: str | None = None
@@ -111,12 +141,14 @@ class _Upload:
     def _header_end(self) -> None:
         if len(self._headers) >= 16:
             raise HTTPException(400, "Too many headers in one multipart part; send a standard form upload.")
-        self._headers[self._field.decode("latin-1").lower()] = self._value.decode("utf-8", "replace")
+        self._headers[self._field.lower()] = self._value  # raw bytes: decoded once, below
         self._field = self._value = b""
 
     def _headers_finished(self) -> None:
-        _, params = parse_options_header(self._headers.get("content-disposition", ""))
-        name = params.get(b"name", b"").decode("utf-8", "replace")
+        # the raw bytes: python-multipart takes bytes as Latin-1, which every byte is, and gives them back
+        # unchanged (a decoded str outside Latin-1 made it raise: issue 16, finding 6)
+        _, params = parse_options_header(self._headers.get(b"content-disposition", b""))
+        name = _text(params.get(b"name", b""))
         filename = params.get(b"filename")
         if filename is None:
             if name not in FORM_FIELDS:
@@ -128,7 +160,7 @@ class _Upload:
             return
         if name != "files":
             raise HTTPException(400, f"File sent in form field {name[:40]!r}; send every file in the field 'files'.")
-        clean = _clean_name(filename.decode("utf-8", "replace"))
+        clean = _clean_name(_text(filename))
         suffix = PurePosixPath(clean).suffix.lower()
         if suffix not in self.settings.allowed_suffixes:
             raise HTTPException(415, f"{clean}: files of type {suffix or '(none)'} are not accepted; upload "
@@ -218,6 +250,7 @@ async def _read_body(request: Request, parser: MultipartParser, ceiling: int, se
 @router.post("/{session_id}/recordings", response_model=UploadOut, status_code=201,
              responses={409: {"description": "file name already stored, or the session is being processed"},
                         413: {"description": "too large or too many files"}, 415: {"description": "wrong type"},
+                        507: {"description": "the server's disk is full: nothing was stored"},
                         503: {"description": "too many uploads at once; try again"}})
 async def upload_recordings(session_id: int, request: Request, principal: UploadClinician, settings: SettingsDep,
                             store: StoreDep):
@@ -241,8 +274,14 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
     ceiling = settings.max_files * (settings.max_file_bytes + _PART_ROOM)
     if declared and declared.isdigit() and int(declared) > ceiling:  # refused before reading a byte
         raise _too_large(settings)
+    boundary = params[b"boundary"]
+    if len(boundary) > MAX_BOUNDARY:
+        raise Refusal(400, "request.boundary_too_long", length=len(boundary))
     upload = _Upload(store, settings)
-    parser = MultipartParser(params[b"boundary"], upload.callbacks())
+    try:
+        parser = MultipartParser(boundary, upload.callbacks())
+    except FormParserError:
+        raise Refusal(400, "request.multipart_malformed") from None
     try:
         await _read_body(request, parser, ceiling, settings)
     except ClientDisconnect:
@@ -252,10 +291,15 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
     except HTTPException:
         await run_in_threadpool(upload.discard)
         raise
-    except MultipartParseError:
+    except FormParserError:  # python-multipart's parse errors (MultipartParseError and the rest)
         await run_in_threadpool(upload.discard)
-        raise HTTPException(400, "The multipart body is malformed; send the files with a standard form upload.") \
-            from None
+        raise Refusal(400, "request.multipart_malformed") from None
+    except OSError as exc:
+        await run_in_threadpool(upload.discard)
+        if _disk_full(exc):  # writing a part: 507 with the job path's sentence, nothing half-stored
+            log.error("upload to session %s refused: no space left on the blob disk (%s)", session_id, exc)
+            raise Refusal(507, "request.disk_full") from None
+        raise
     except BaseException:
         upload.discard()
         raise
@@ -265,7 +309,13 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
         segment = upload.fields.get("segment") or None
         role = upload.fields.get("role") or None
         recordings.check_labels(segment, role)
-        return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role)
+        try:
+            return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role)
+        except OSError as exc:
+            if not _disk_full(exc):
+                raise
+            log.error("upload to session %s refused: no space left on the blob disk (%s)", session_id, exc)
+            raise Refusal(507, "request.disk_full") from None
     finally:
         await run_in_threadpool(upload.discard)  # no-op for committed blobs (their temp file is gone)
 
