@@ -14,6 +14,7 @@
 | ``CHAKAMO_JOB_TIME_LIMIT_S`` | 1800 | celery: a job running longer is stopped (its worker process is replaced) and run again, then failed after 3 attempts |
 | ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
 | ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in one warm helper process, off its GIL (0: none) |
+| ``CHAKAMO_CHECK_PROCESSES`` | 2 | with render processes: helper processes checking uploads, one clinic's check at a time each (:mod:`app.store.checks`) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
 | ``CHAKAMO_MAX_BODY_KB`` | 1024 | largest request body of any route but the recordings upload (413 above it, :mod:`app.web.limits`) |
@@ -70,6 +71,7 @@ class Settings(BaseSettings):
     job_time_limit_s: float = Field(1800.0, ge=10.0, validation_alias="CHAKAMO_JOB_TIME_LIMIT_S")
     broker_visibility_timeout_s: float = Field(3600.0, ge=5.0, validation_alias="CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S")
     render_processes: int = Field(1, ge=0, le=16, validation_alias="CHAKAMO_RENDER_PROCESSES")
+    check_processes: int = Field(2, ge=0, le=16, validation_alias="CHAKAMO_CHECK_PROCESSES")
     max_file_mb: float = Field(50.0, gt=0, validation_alias="CHAKAMO_MAX_FILE_MB")
     max_files: int = Field(40, ge=1, validation_alias="CHAKAMO_MAX_FILES")
     max_body_kb: int = Field(1024, ge=16, validation_alias="CHAKAMO_MAX_BODY_KB")

@@ -25,6 +25,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Os arquivos não puderam ser verificados em {seconds} s e a verificação foi interrompida; verifique "
               "se cada arquivo é uma gravação desta sessão (um arquivo feito para ser lento de ler é recusado), "
               "apague o errado e envie-o de novo."},
+    "session.check_stopped": {
+        "en": "The files could not be checked: the check stopped unexpectedly; delete the file you added last and "
+              "upload it again, and if it happens again tell your ChakaMo administrator.",
+        "es": "Los archivos no se pudieron comprobar: la comprobación se detuvo inesperadamente; borre el último "
+              "archivo que añadió y súbalo de nuevo, y si vuelve a ocurrir avise a su administrador de ChakaMo.",
+        "pt": "Os arquivos não puderam ser verificados: a verificação parou inesperadamente; apague o último "
+              "arquivo que adicionou e envie-o de novo, e se voltar a acontecer avise o seu administrador do "
+              "ChakaMo."},
     "request.body_too_large": {
         "en": "The request body is larger than {limit_kb} kB; requests other than uploads of recordings take "
               "small JSON bodies — send less.",

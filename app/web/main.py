@@ -123,17 +123,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             raise
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)
-        own_pool = None
-        if settings.render_processes > 0:  # the embedded runner's warm render pool checks uploads too
-            from app.pipeline.render import RenderPool
+        check_pool = None
+        if settings.render_processes > 0 and settings.check_processes > 0:  # uploads checked off this GIL
+            from app.store.checks import CheckPool
 
-            app.state.check_pool = getattr(runner, "pool", None) or (own_pool := RenderPool(1))
+            app.state.check_pool = check_pool = CheckPool(settings.check_processes)
         try:
             yield
         finally:
             app.state.check_pool = None
-            if own_pool is not None:
-                own_pool.shutdown()
+            if check_pool is not None:
+                check_pool.shutdown()
             if runner.shutdown(wait=True):  # a job thread still running keeps its database
                 db.dispose()
 
@@ -142,9 +142,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                               "reports. Authenticate with `Authorization: Bearer <token>` (`chakamo tokens "
                               "create`) or the browser login.")
     app.state.settings, app.state.db, app.state.store, app.state.runner = settings, db, store, runner
-    #: the warm helper process running the uploads' ingestion checks off this process' GIL when
-    #: CHAKAMO_RENDER_PROCESSES > 0 (the embedded runner's render pool, or one of its own with Celery; None:
-    #: checks run in the request thread)
+    #: the helper processes running the uploads' ingestion checks off this process' GIL when
+    #: CHAKAMO_RENDER_PROCESSES > 0 (CHAKAMO_CHECK_PROCESSES of them, :class:`app.store.checks.CheckPool`;
+    #: None: checks run in the request thread)
     app.state.check_pool = None
     app.state.login_throttle = LoginThrottle()
     #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)

@@ -647,12 +647,12 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: {size_kb} kB, mais que os {limit_kb} kB que um session.json pode ocupar; deixe só as "
               "chaves que ele documenta."},
     "manifest.too_deep": {
-        "en": "{file}: nested more than {limit} levels deep; a session.json needs at most 4 (recordings → "
-              "entry → files → name); fix it or remove the file.",
-        "es": "{file}: anidado a más de {limit} niveles; un session.json necesita como mucho 4 (recordings → "
-              "entrada → files → nombre); corríjalo o elimine el archivo.",
-        "pt": "{file}: aninhado a mais de {limit} níveis; um session.json precisa no máximo de 4 (recordings → "
-              "entrada → files → nome); corrija-o ou remova o arquivo."},
+        "en": "{file}: nested more than {limit} levels deep; a session.json needs 4 (the object → recordings → "
+              "an entry → files); fix it or remove the file.",
+        "es": "{file}: anidado a más de {limit} niveles; un session.json necesita 4 (el objeto → recordings → "
+              "una entrada → files); corríjalo o elimine el archivo.",
+        "pt": "{file}: aninhado a mais de {limit} níveis; um session.json precisa de 4 (o objeto → recordings → "
+              "uma entrada → files); corrija-o ou remova o arquivo."},
     # ------------------------------------------------------------------------------- provenance checks
     "check.side_mismatch": {
         "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "

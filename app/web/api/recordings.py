@@ -39,7 +39,8 @@ transaction that stores or removes the recordings, so the files and their event 
 
 Optional form fields ``segment`` (thigh|shank) and ``role`` (mag_calibration|standing|lying|task) apply to
 every file of the request (they go into the generated ``session.json``).  A ``.json`` file must be the
-session's ``session.json`` manifest.
+session's ``session.json`` manifest; one larger than ``MAX_MANIFEST_KB`` (413) or nested deeper than
+``MAX_MANIFEST_DEPTH`` (400, :mod:`app.pipeline.ingestion.session`) is refused before it is stored.
 """
 
 from __future__ import annotations
@@ -54,6 +55,8 @@ from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
+from app.pipeline.ingestion import IngestionError
+from app.pipeline.ingestion.session import MAX_MANIFEST_KB, check_manifest_size
 from app.store import recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
 from app.store.recordings import MANIFEST
@@ -113,6 +116,7 @@ class _Upload:
         self._writer: BlobWriter | None = None
         self._form_name: str | None = None
         self._form_value = bytearray()
+        self._manifest: bytearray | None = None  # the session.json's bytes, checked at its part's end
 
     def callbacks(self) -> dict:
         return {"on_part_begin": self._part_begin, "on_header_field": self._header_field,
@@ -127,6 +131,7 @@ class _Upload:
                                      "and the fields segment and role.")
         self._headers, self._writer, self._form_name = {}, None, None
         self._form_value = bytearray()
+        self._manifest = None
 
     def _header_field(self, data: bytes, start: int, end: int) -> None:
         self._field += data[start:end]
@@ -173,9 +178,16 @@ class _Upload:
                                      f"{self.settings.max_files} at a time.")
         self._writer = self.store.writer(self.settings.max_file_bytes)
         self.files.append((clean, self._writer))
+        if clean == MANIFEST:
+            self._manifest = bytearray()
 
     def _data(self, data: bytes, start: int, end: int) -> None:
         if self._writer is not None:
+            if self._manifest is not None:
+                self._manifest += data[start:end]
+                if len(self._manifest) > MAX_MANIFEST_KB * 1024:
+                    raise Refusal(413, "manifest.too_large", file=MANIFEST, size_kb=f"> {MAX_MANIFEST_KB}",
+                                  limit_kb=MAX_MANIFEST_KB)
             try:
                 self._writer.write(data[start:end])
             except TooLarge:
@@ -188,6 +200,12 @@ class _Upload:
                 raise HTTPException(400, f"Form field {self._form_name!r} is too long; it takes a short word.")
 
     def _part_end(self) -> None:
+        if self._manifest is not None:  # too deep or too large: refused now, never stored (issue 16, finding 5)
+            try:
+                check_manifest_size(bytes(self._manifest).decode("utf-8", "replace"), MANIFEST, len(self._manifest))
+            except IngestionError as exc:
+                raise Refusal(413 if exc.code == "manifest.too_large" else 400, exc.code, **exc.params) from None
+            self._manifest = None
         if self._form_name is not None:
             self.fields[self._form_name] = self._form_value.decode("utf-8", "replace").strip()
 
