@@ -21,6 +21,8 @@
 | ``CHAKAMO_MAX_UPLOADS`` | 8 | uploads streamed at the same time (more answer 503: try again) |
 | ``CHAKAMO_RENDER_TIMEOUT_S`` | 300 | longest wait for the render process; then the job thread renders itself |
 | ``CHAKAMO_SESSION_HOURS`` | 12 | browser login lifetime |
+| ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
+| ``CHAKAMO_ALLOWED_HOSTS`` | ``*`` | comma-separated host names a request's ``Host`` may name (``*.example.org`` for subdomains); others answer 400 (``/healthz``, ``/readyz`` excepted); ``*`` any |
 
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
 missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
@@ -31,6 +33,7 @@ import time: :func:`get_settings` builds them on first use and caches them; test
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
@@ -78,12 +81,30 @@ class Settings(BaseSettings):
     max_uploads: int = Field(8, ge=1, le=256, validation_alias="CHAKAMO_MAX_UPLOADS")
     render_timeout_s: float = Field(300.0, gt=0, validation_alias="CHAKAMO_RENDER_TIMEOUT_S")
     session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
+    public_url: str | None = Field(None, validation_alias="CHAKAMO_PUBLIC_URL")
+    allowed_hosts: str = Field("*", validation_alias="CHAKAMO_ALLOWED_HOSTS")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")
     @classmethod
     def _lower(cls, value: object) -> object:
         return value.strip().lower() if isinstance(value, str) else value
+
+    @field_validator("public_url", mode="after")
+    @classmethod
+    def _public_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        value = value.strip().rstrip("/")
+        if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]+(/[\w.\-~/]*)?", value):
+            raise SettingsError(f"CHAKAMO_PUBLIC_URL={value!r} is not an http(s) address; set it to the address "
+                                "users reach this server at, e.g. https://chakamo.hospital.example")
+        return value
+
+    @property
+    def host_patterns(self) -> tuple[str, ...]:
+        """:data:`allowed_hosts` as lower-case names (``("*",)``: any)."""
+        return tuple(h.strip().lower() for h in self.allowed_hosts.split(",") if h.strip()) or ("*",)
 
     @model_validator(mode="after")
     def _refuse_insecure(self) -> "Settings":

@@ -33,6 +33,20 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Os arquivos não puderam ser verificados: a verificação parou inesperadamente; apague o último "
               "arquivo que adicionou e envie-o de novo, e se voltar a acontecer avise o seu administrador do "
               "ChakaMo."},
+    "request.host_not_allowed": {
+        "en": "This server does not answer to the address {host}; use the address your ChakaMo administrator "
+              "gave you (CHAKAMO_ALLOWED_HOSTS).",
+        "es": "Este servidor no responde a la dirección {host}; use la dirección que le dio su administrador de "
+              "ChakaMo (CHAKAMO_ALLOWED_HOSTS).",
+        "pt": "Este servidor não responde ao endereço {host}; use o endereço que o seu administrador do ChakaMo "
+              "lhe deu (CHAKAMO_ALLOWED_HOSTS)."},
+    "request.public_url_missing": {
+        "en": "The FHIR export needs this server's public address, which is not set; ask your ChakaMo "
+              "administrator to set CHAKAMO_PUBLIC_URL (or CHAKAMO_ALLOWED_HOSTS).",
+        "es": "La exportación FHIR necesita la dirección pública de este servidor, que no está configurada; pida "
+              "a su administrador de ChakaMo que configure CHAKAMO_PUBLIC_URL (o CHAKAMO_ALLOWED_HOSTS).",
+        "pt": "A exportação FHIR precisa do endereço público deste servidor, que não está configurado; peça ao "
+              "seu administrador do ChakaMo que configure CHAKAMO_PUBLIC_URL (ou CHAKAMO_ALLOWED_HOSTS)."},
     "request.body_too_large": {
         "en": "The request body is larger than {limit_kb} kB; requests other than uploads of recordings take "
               "small JSON bodies — send less.",

@@ -9,8 +9,9 @@ Celery workers), and when the database has no user yet print how
 to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
-Middleware (plain ASGI): :class:`app.web.limits.BodyLimit` (no request body above ``CHAKAMO_MAX_BODY_KB`` but
-the recordings upload's) inside :class:`app.web.headers.SecurityHeaders`; a :class:`app.web.refusals.Refusal`
+Middleware (plain ASGI), outermost first: :class:`app.web.headers.SecurityHeaders`,
+:class:`app.web.headers.AllowedHosts` (``CHAKAMO_ALLOWED_HOSTS``), :class:`app.web.limits.BodyLimit` (no request body above
+``CHAKAMO_MAX_BODY_KB`` but the recordings upload's); a :class:`app.web.refusals.Refusal`
 answers its sentence in es/en/pt.
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
@@ -44,7 +45,7 @@ import app as _app_pkg
 from app.web.api import api_router
 from app.store.database import Database
 from app.store.models import User
-from app.web.headers import SecurityHeaders
+from app.web.headers import AllowedHosts, SecurityHeaders
 from app.web.limits import BodyLimit
 from app.web.refusals import Refusal
 from app.web.security import LoginThrottle
@@ -153,6 +154,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     # inner first: the body limit's 413 gets the security headers too
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_kb * 1024)  # app/web/limits.py
+    if settings.host_patterns != ("*",):  # a foreign Host is answered before anything but the headers
+        app.add_middleware(AllowedHosts, patterns=settings.host_patterns)
     app.add_middleware(SecurityHeaders, development=settings.development)  # app/web/headers.py
 
     @app.exception_handler(Refusal)
