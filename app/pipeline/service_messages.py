@@ -79,6 +79,80 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "ninguno. Pida a su administrador de ChakaMo que libere espacio y súbalos de nuevo.",
         "pt": "O disco do servidor está cheio, por isso os arquivos não puderam ser guardados e nenhum foi "
               "registrado. Peça ao seu administrador do ChakaMo que libere espaço e envie-os de novo."},
+    # ------------------------------------------------------------------------ uploads (app/web/api/recordings.py)
+    "request.file_name_unusable": {
+        "en": "File name {name} is not usable; rename the file (letters, digits, - _ .).",
+        "es": "El nombre de archivo {name} no se puede usar; cambie el nombre del archivo (letras, dígitos, - _ .).",
+        "pt": "O nome de arquivo {name} não pode ser usado; renomeie o arquivo (letras, dígitos, - _ .)."},
+    "request.too_many_parts": {
+        "en": "Too many parts in one upload; send at most {max_files} files and the fields segment and role.",
+        "es": "Demasiadas partes en una subida; envíe como mucho {max_files} archivos y los campos segment y role.",
+        "pt": "Partes demais num envio; envie no máximo {max_files} arquivos e os campos segment e role."},
+    "request.part_header_too_long": {
+        "en": "A multipart header is too long; send the files with a standard form upload.",
+        "es": "Un encabezado multipart es demasiado largo; envíe los archivos con un formulario estándar.",
+        "pt": "Um cabeçalho multipart é longo demais; envie os arquivos com um formulário padrão."},
+    "request.too_many_part_headers": {
+        "en": "Too many headers in one multipart part; send a standard form upload.",
+        "es": "Demasiados encabezados en una parte multipart; envíe un formulario estándar.",
+        "pt": "Cabeçalhos demais numa parte multipart; envie um formulário padrão."},
+    "request.field_not_accepted": {
+        "en": "Form field {field} is not accepted; send the files in the field 'files' and, optionally, the "
+              "fields 'segment' and 'role'.",
+        "es": "El campo de formulario {field} no se acepta; envíe los archivos en el campo 'files' y, si quiere, "
+              "los campos 'segment' y 'role'.",
+        "pt": "O campo de formulário {field} não é aceito; envie os arquivos no campo 'files' e, se quiser, os "
+              "campos 'segment' e 'role'."},
+    "request.field_twice": {
+        "en": "Form field {field} sent twice; send it once per upload.",
+        "es": "El campo de formulario {field} se envió dos veces; envíelo una vez por subida.",
+        "pt": "O campo de formulário {field} foi enviado duas vezes; envie-o uma vez por envio."},
+    "request.file_in_other_field": {
+        "en": "File sent in form field {field}; send every file in the field 'files'.",
+        "es": "Archivo enviado en el campo de formulario {field}; envíe cada archivo en el campo 'files'.",
+        "pt": "Arquivo enviado no campo de formulário {field}; envie cada arquivo no campo 'files'."},
+    "request.file_type": {
+        "en": "{file}: files of type {suffix} are not accepted; upload {allowed} files (MetaBase or generic CSV, "
+              "thesis Excel, session.json).",
+        "es": "{file}: no se aceptan archivos del tipo {suffix}; suba archivos {allowed} (CSV de MetaBase o "
+              "genérico, Excel de la tesis, session.json).",
+        "pt": "{file}: arquivos do tipo {suffix} não são aceitos; envie arquivos {allowed} (CSV do MetaBase ou "
+              "genérico, Excel da tese, session.json)."},
+    "request.json_not_manifest": {
+        "en": "{file}: the only JSON file a session takes is its {manifest}; rename it.",
+        "es": "{file}: el único archivo JSON que admite una sesión es su {manifest}; cámbiele el nombre.",
+        "pt": "{file}: o único arquivo JSON que uma sessão aceita é o seu {manifest}; renomeie-o."},
+    "request.too_many_files": {
+        "en": "More than {max_files} files in one upload; send at most {max_files} at a time.",
+        "es": "Más de {max_files} archivos en una subida; envíe como mucho {max_files} cada vez.",
+        "pt": "Mais de {max_files} arquivos num envio; envie no máximo {max_files} de cada vez."},
+    "request.file_too_large": {
+        "en": "{file} is larger than the {limit_mb} MB limit; check that it is a recording of this session (or "
+              "ask the administrator to raise CHAKAMO_MAX_FILE_MB).",
+        "es": "{file} supera el límite de {limit_mb} MB; compruebe que es una grabación de esta sesión (o pida al "
+              "administrador que aumente CHAKAMO_MAX_FILE_MB).",
+        "pt": "{file} excede o limite de {limit_mb} MB; verifique se é uma gravação desta sessão (ou peça ao "
+              "administrador que aumente CHAKAMO_MAX_FILE_MB)."},
+    "request.field_too_long": {
+        "en": "Form field {field} is too long; it takes a short word.",
+        "es": "El campo de formulario {field} es demasiado largo; admite una palabra corta.",
+        "pt": "O campo de formulário {field} é longo demais; aceita uma palavra curta."},
+    "request.upload_too_large": {
+        "en": "The upload is larger than {max_files} files of {limit_mb} MB; send fewer or smaller files.",
+        "es": "La subida ocupa más que {max_files} archivos de {limit_mb} MB; envíe menos archivos o más pequeños.",
+        "pt": "O envio é maior que {max_files} arquivos de {limit_mb} MB; envie menos arquivos ou menores."},
+    "request.uploads_busy": {
+        "en": "Too many uploads are in progress on this server; try again in a minute.",
+        "es": "Hay demasiadas subidas en curso en este servidor; inténtelo de nuevo en un minuto.",
+        "pt": "Há envios demais em andamento neste servidor; tente de novo em um minuto."},
+    "request.not_multipart": {
+        "en": "Send the files as multipart/form-data in the field 'files'.",
+        "es": "Envíe los archivos como multipart/form-data en el campo 'files'.",
+        "pt": "Envie os arquivos como multipart/form-data no campo 'files'."},
+    "request.no_file": {
+        "en": "No file in the request; send the recordings in the multipart field 'files'.",
+        "es": "No hay ningún archivo en la petición; envíe las grabaciones en el campo multipart 'files'.",
+        "pt": "Não há nenhum arquivo na requisição; envie as gravações no campo multipart 'files'."},
 }
 
 

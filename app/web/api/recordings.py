@@ -83,7 +83,7 @@ _BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u20
 def _clean_name(raw: str) -> str:
     name = PureWindowsPath(PurePosixPath(raw).name).name.strip()
     if not name or name.startswith(".") or any(ord(c) < 32 or ord(c) == 127 for c in name) or len(name) > 255:
-        raise HTTPException(400, f"File name {raw!r} is not usable; rename the file (letters, digits, - _ .).")
+        raise Refusal(400, "request.file_name_unusable", name=repr(raw)[:120])
     if _BIDI_CONTROLS.intersection(name):
         raise Refusal(400, "request.file_name_controls", name=ascii(name)[:80])
     return name
@@ -127,8 +127,7 @@ class _Upload:
     def _part_begin(self) -> None:
         self.parts += 1
         if self.parts > self.settings.max_files + len(FORM_FIELDS) + 2:
-            raise HTTPException(413, f"Too many parts in one upload; send at most {self.settings.max_files} files "
-                                     "and the fields segment and role.")
+            raise Refusal(413, "request.too_many_parts", max_files=self.settings.max_files)
         self._headers, self._writer, self._form_name = {}, None, None
         self._form_value = bytearray()
         self._manifest = None
@@ -136,16 +135,16 @@ class _Upload:
     def _header_field(self, data: bytes, start: int, end: int) -> None:
         self._field += data[start:end]
         if len(self._field) > 1024:
-            raise HTTPException(400, "A multipart header is too long; send the files with a standard form upload.")
+            raise Refusal(400, "request.part_header_too_long")
 
     def _header_value(self, data: bytes, start: int, end: int) -> None:
         self._value += data[start:end]
         if len(self._value) > 8192:
-            raise HTTPException(400, "A multipart header is too long; send the files with a standard form upload.")
+            raise Refusal(400, "request.part_header_too_long")
 
     def _header_end(self) -> None:
         if len(self._headers) >= 16:
-            raise HTTPException(400, "Too many headers in one multipart part; send a standard form upload.")
+            raise Refusal(400, "request.too_many_part_headers")
         self._headers[self._field.lower()] = self._value  # raw bytes: decoded once, below
         self._field = self._value = b""
 
@@ -157,25 +156,22 @@ class _Upload:
         filename = params.get(b"filename")
         if filename is None:
             if name not in FORM_FIELDS:
-                raise HTTPException(400, f"Form field {name[:40]!r} is not accepted; send the files in the field "
-                                         "'files' and, optionally, the fields 'segment' and 'role'.")
+                raise Refusal(400, "request.field_not_accepted", field=repr(name[:40]))
             if name in self.fields:
-                raise HTTPException(400, f"Form field {name!r} sent twice; send it once per upload.")
+                raise Refusal(400, "request.field_twice", field=repr(name))
             self._form_name = name
             return
         if name != "files":
-            raise HTTPException(400, f"File sent in form field {name[:40]!r}; send every file in the field 'files'.")
+            raise Refusal(400, "request.file_in_other_field", field=repr(name[:40]))
         clean = _clean_name(_text(filename))
         suffix = PurePosixPath(clean).suffix.lower()
         if suffix not in self.settings.allowed_suffixes:
-            raise HTTPException(415, f"{clean}: files of type {suffix or '(none)'} are not accepted; upload "
-                                     f"{', '.join(self.settings.allowed_suffixes)} files (MetaBase or generic CSV, "
-                                     "thesis Excel, session.json).")
+            raise Refusal(415, "request.file_type", file=clean, suffix=suffix or "(none)",
+                          allowed=", ".join(self.settings.allowed_suffixes))
         if suffix == ".json" and clean != MANIFEST:
-            raise HTTPException(415, f"{clean}: the only JSON file a session takes is its {MANIFEST}; rename it.")
+            raise Refusal(415, "request.json_not_manifest", file=clean, manifest=MANIFEST)
         if len(self.files) >= self.settings.max_files:
-            raise HTTPException(413, f"More than {self.settings.max_files} files in one upload; send at most "
-                                     f"{self.settings.max_files} at a time.")
+            raise Refusal(413, "request.too_many_files", max_files=self.settings.max_files)
         self._writer = self.store.writer(self.settings.max_file_bytes)
         self.files.append((clean, self._writer))
         if clean == MANIFEST:
@@ -191,13 +187,12 @@ class _Upload:
             try:
                 self._writer.write(data[start:end])
             except TooLarge:
-                raise HTTPException(413, f"{self.files[-1][0]} is larger than the {self.settings.max_file_mb:g} MB "
-                                         "limit; check that it is a recording of this session (or ask the "
-                                         "administrator to raise CHAKAMO_MAX_FILE_MB).") from None
+                raise Refusal(413, "request.file_too_large", file=self.files[-1][0],
+                              limit_mb=f"{self.settings.max_file_mb:g}") from None
         elif self._form_name is not None:
             self._form_value += data[start:end]
             if len(self._form_value) > _FIELD_LIMIT:
-                raise HTTPException(400, f"Form field {self._form_name!r} is too long; it takes a short word.")
+                raise Refusal(400, "request.field_too_long", field=repr(self._form_name))
 
     def _part_end(self) -> None:
         if self._manifest is not None:  # too deep or too large: refused now, never stored (issue 16, finding 5)
@@ -234,9 +229,9 @@ def _store(request: Request, principal, session_id: int, upload: _Upload, segmen
     return {"recordings": out, "ingestion": ingestion}
 
 
-def _too_large(settings) -> HTTPException:
-    return HTTPException(413, f"The upload is larger than {settings.max_files} files of {settings.max_file_mb:g} MB; "
-                              "send fewer or smaller files.")
+def _too_large(settings) -> Refusal:
+    return Refusal(413, "request.upload_too_large", max_files=settings.max_files,
+                   limit_mb=f"{settings.max_file_mb:g}")
 
 
 #: body bytes gathered before one hand-over to the parser thread (one thread hop per ~64 KB socket read cost
@@ -275,8 +270,7 @@ async def upload_recordings(session_id: int, request: Request, principal: Upload
     """Store the files of field ``files`` (module docstring), then answer the recordings and the ingestion."""
     slots = request.app.state.upload_slots
     if not slots.acquire(blocking=False):
-        raise HTTPException(503, "Too many uploads are in progress on this server; try again in a minute.",
-                            headers={"Retry-After": "30"})
+        raise Refusal(503, "request.uploads_busy", headers={"Retry-After": "30"})
     try:
         return await _upload(session_id, request, principal, settings, store)
     finally:
@@ -287,7 +281,7 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
     await run_in_threadpool(_check_session, request, principal, session_id)
     ctype, params = parse_options_header(request.headers.get("content-type"))
     if ctype != b"multipart/form-data" or not params.get(b"boundary"):
-        raise HTTPException(415, "Send the files as multipart/form-data in the field 'files'.")
+        raise Refusal(415, "request.not_multipart")
     declared = request.headers.get("content-length")
     ceiling = settings.max_files * (settings.max_file_bytes + _PART_ROOM)
     if declared and declared.isdigit() and int(declared) > ceiling:  # refused before reading a byte
@@ -323,7 +317,7 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
         raise
     try:
         if not upload.files:
-            raise HTTPException(400, "No file in the request; send the recordings in the multipart field 'files'.")
+            raise Refusal(400, "request.no_file")
         segment = upload.fields.get("segment") or None
         role = upload.fields.get("role") or None
         recordings.check_labels(segment, role)
