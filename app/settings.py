@@ -13,13 +13,17 @@
 | ``CHAKAMO_REDISPATCH_S`` | 120 | celery: a job still queued this long after it was handed to the broker, while the broker's queue is empty, is handed again (a broker restarted empty) |
 | ``CHAKAMO_JOB_TIME_LIMIT_S`` | 1800 | celery: a job running longer is stopped (its worker process is replaced) and run again, then failed after 3 attempts |
 | ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
-| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in one warm helper process, off its GIL (0: none) |
+| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in ``CHAKAMO_CHECK_PROCESSES`` warm helper processes, off its GIL (0: none) |
+| ``CHAKAMO_CHECK_PROCESSES`` | 2 | with render processes: helper processes checking uploads, one clinic's check at a time each (:mod:`app.store.checks`) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
+| ``CHAKAMO_MAX_BODY_KB`` | 1024 | largest request body of any route but the recordings upload (413 above it, :mod:`app.web.limits`) |
 | ``CHAKAMO_MAX_UPLOADS`` | 8 | uploads streamed at the same time (more answer 503: try again) |
 | ``CHAKAMO_RENDER_TIMEOUT_S`` | 300 | longest wait for the render process; then the job thread renders itself |
 | ``CHAKAMO_SESSION_HOURS`` | 12 | browser login lifetime |
 | ``CHAKAMO_RETENTION_DAYS`` | 0 (off) | sessions with no activity for this many days are erased with their files (``chakamo retention``, :mod:`app.store.retention`) |
+| ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
+| ``CHAKAMO_ALLOWED_HOSTS`` | ``*`` | comma-separated host names a request's ``Host`` may name (``*.example.org`` for subdomains); others answer 400 (``/healthz``, ``/readyz`` excepted); ``*`` any |
 
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
 missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
@@ -30,6 +34,7 @@ import time: :func:`get_settings` builds them on first use and caches them; test
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
@@ -70,18 +75,38 @@ class Settings(BaseSettings):
     job_time_limit_s: float = Field(1800.0, ge=10.0, validation_alias="CHAKAMO_JOB_TIME_LIMIT_S")
     broker_visibility_timeout_s: float = Field(3600.0, ge=5.0, validation_alias="CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S")
     render_processes: int = Field(1, ge=0, le=16, validation_alias="CHAKAMO_RENDER_PROCESSES")
+    check_processes: int = Field(2, ge=0, le=16, validation_alias="CHAKAMO_CHECK_PROCESSES")
     max_file_mb: float = Field(50.0, gt=0, validation_alias="CHAKAMO_MAX_FILE_MB")
     max_files: int = Field(40, ge=1, validation_alias="CHAKAMO_MAX_FILES")
+    max_body_kb: int = Field(1024, ge=16, validation_alias="CHAKAMO_MAX_BODY_KB")
     max_uploads: int = Field(8, ge=1, le=256, validation_alias="CHAKAMO_MAX_UPLOADS")
     render_timeout_s: float = Field(300.0, gt=0, validation_alias="CHAKAMO_RENDER_TIMEOUT_S")
     session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
     retention_days: int = Field(0, ge=0, le=36500, validation_alias="CHAKAMO_RETENTION_DAYS")
+    public_url: str | None = Field(None, validation_alias="CHAKAMO_PUBLIC_URL")
+    allowed_hosts: str = Field("*", validation_alias="CHAKAMO_ALLOWED_HOSTS")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")
     @classmethod
     def _lower(cls, value: object) -> object:
         return value.strip().lower() if isinstance(value, str) else value
+
+    @field_validator("public_url", mode="after")
+    @classmethod
+    def _public_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        value = value.strip().rstrip("/")
+        if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]+(/[\w.\-~/]*)?", value):
+            raise SettingsError(f"CHAKAMO_PUBLIC_URL={value!r} is not an http(s) address; set it to the address "
+                                "users reach this server at, e.g. https://chakamo.hospital.example")
+        return value
+
+    @property
+    def host_patterns(self) -> tuple[str, ...]:
+        """:data:`allowed_hosts` as lower-case names (``("*",)``: any)."""
+        return tuple(h.strip().lower() for h in self.allowed_hosts.split(",") if h.strip()) or ("*",)
 
     @model_validator(mode="after")
     def _refuse_insecure(self) -> "Settings":

@@ -2,9 +2,12 @@
 //
 // Decisions: the browser authenticates with the HttpOnly session cookie set by POST /auth/login; every
 // state-changing request carries the X-CSRF-Token header with the token returned by login and /auth/me
-// (kept in memory only, never in storage).  Errors become ApiError with the server's `detail` sentence so
-// views can show it as is; a 401 also calls the handler registered with onUnauthorized (back to login).
+// (kept in memory only, never in storage).  Errors become ApiError with the server's `detail` sentence (or,
+// when the answer carries it, its `message` in the UI's language) so views can show it as is; a 401 also
+// calls the handler registered with onUnauthorized (back to login).
 // Uploads use XMLHttpRequest instead of fetch, which cannot report upload progress.
+
+import { lang } from "./i18n.js";
 
 const BASE = "/api/v1";
 let csrfToken = null;
@@ -37,6 +40,10 @@ export function apiUrl(path, query = {}) {
 }
 
 function detailText(body, status, statusText) {
+  // a refusal the server has in es/en/pt (app/web/refusals.py) is shown in the UI's language
+  const translated = body && typeof body === "object" && body.message && typeof body.message === "object"
+    ? body.message[lang()] : null;
+  if (typeof translated === "string" && translated) return translated;
   const detail = body && typeof body === "object" ? body.detail : null;
   if (typeof detail === "string") return detail;
   if (Array.isArray(detail)) {   // FastAPI 422: [{loc, msg, ...}]

@@ -146,13 +146,13 @@ def serve(host: str = "127.0.0.1", port: int = 8000, proxy_headers: bool = False
     """Run the web application with uvicorn until interrupted."""
     import uvicorn
 
-    from app.web.main import create_app
+    from app.web.main import UVICORN_OPTIONS, create_app
     from app.settings import get_settings
 
     settings = get_settings()  # errors (e.g. no secret key) before anything starts
     print(f"ChakaMo on http://{host}:{port}/ (data in {settings.data_dir}); Ctrl-C stops it", file=sys.stderr)
     uvicorn.run(create_app(settings), host=host, port=port, log_level="info", proxy_headers=proxy_headers,
-                forwarded_allow_ips=forwarded_allow_ips if proxy_headers else None)
+                forwarded_allow_ips=forwarded_allow_ips if proxy_headers else None, **UVICORN_OPTIONS)
 
 
 def add_parsers(sub) -> None:

@@ -381,12 +381,15 @@ class RenderPool:
     """One warm helper process for report rendering (``CHAKAMO_RENDER_PROCESSES``; 0 = none).
 
     Started with ``spawn`` (forking a threaded server is unsafe), exits when the server process does (even
-    one killed with SIGKILL), and is warmed up by importing the report modules; :meth:`submit` returns None
-    until it is warm, so a job never waits for its start-up.  :meth:`restart` replaces a hung process.
+    one killed with SIGKILL), and is warmed up by ``warm`` (default :func:`warm_up`: the report modules);
+    :meth:`submit` returns None until it is warm, so a job never waits for its start-up.  :meth:`restart`
+    replaces a hung or dead process — only then: work that raised leaves the process as it is (the upload
+    checks' helpers are pools of one, :class:`app.store.checks.CheckPool`).
     """
 
-    def __init__(self, processes: int) -> None:
+    def __init__(self, processes: int, warm=None) -> None:
         self.processes = processes
+        self._warm_fn = warm or warm_up
         self._lock = threading.Lock()
         self._start()
 
@@ -396,7 +399,7 @@ class RenderPool:
 
         self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_exit_with_parent, initargs=(os.getpid(),))
-        self._warm = self._pool.submit(warm_up)
+        self._warm = self._pool.submit(self._warm_fn)
 
     def restart(self) -> None:
         """Replace a hung process by a fresh one (its work is abandoned; the caller renders it itself)."""

@@ -6,22 +6,37 @@ the version it was computed from and only if that is still the current one (:fun
 conditional UPDATE), so a slower, older check can never overwrite a newer one.  A session whose stored check
 is stale (:func:`app.store.sessions.ingestion_fresh`) is checked again when it is read or processed
 (:meth:`IngestionChecker.ensure_fresh`).  The check itself (:func:`app.store.workspace.check_ingestion`)
-runs the pipeline's ingestion over the stored files; it is CPU-bound, so at most :data:`CHECK_CONCURRENCY`
-run at once per process, holding no database connection, and with a warm helper process (the server's
-:class:`app.pipeline.render.RenderPool`) they run there, off this process' GIL.
+runs the pipeline's ingestion over the stored files; it is CPU-bound and holds no database connection.
+
+Fairness (issue 16, finding 4: one clinic's crafted files delayed every clinic's checks, which ran one at a
+time server-wide): :data:`CHECK_GATE` lets one clinic run at most :data:`CHECKS_PER_CLINIC` check at a time
+and the server :data:`CHECK_CONCURRENCY`; a clinic's further checks wait for its own slot, never holding one
+of the others'.  With helper processes (:class:`CheckPool`, ``CHAKAMO_CHECK_PROCESSES`` of them when
+``CHAKAMO_RENDER_PROCESSES`` > 0) each check runs in a free one, off this process' GIL, so two clinics'
+checks run side by side.  A check that takes longer than :data:`CHECK_TIMEOUT_S` has its helper replaced
+(the only case a helper is restarted: a check that raises leaves its helper as it is) and is answered
+:data:`CHECK_TOO_SLOW`, stored for those files: it is never run again in this process (which is what it
+would stall) nor again for the same files.  A helper that died under a check is replaced the same way and
+that check answered :data:`CHECK_STOPPED`.  Only when no helper is configured, or while one is still
+starting, does a check run in the request thread.
 """
 
 from __future__ import annotations
 
 import logging
+import queue
 import threading
+from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from sqlalchemy import update
 from sqlalchemy.orm import Session
 
+from app.pipeline.service_messages import render
 from app.store.blobs import BlobStore
 from app.store.database import Database
 from app.store.models import KneeSession
@@ -33,12 +48,91 @@ log = logging.getLogger("chakamo.uploads")
 #: the upload's answer when its files are stored but their check could not run (it runs again later)
 CHECK_DEFERRED = ("The files are stored, but the server could not check them now; the check runs again when the "
                   "session is opened or processed.")
-#: ingestion checks (CPU-bound, holding the GIL most of the time) running at once in one server process; the
-#: others wait their turn, holding no database connection, so that reads keep their share of the processor
-CHECK_CONCURRENCY = 1
-_check_slots = threading.BoundedSemaphore(CHECK_CONCURRENCY)
-#: longest wait for the check in the helper process before it runs here instead
-CHECK_TIMEOUT_S = 120.0
+#: ingestion checks running at once in one server process, over all clinics (the helper processes, by default)
+CHECK_CONCURRENCY = 2
+#: of which one clinic may run at most this many: its other checks wait for it, not for the others
+CHECKS_PER_CLINIC = 1
+#: longest a check may take in a helper process; then it is stopped and answered CHECK_TOO_SLOW
+CHECK_TIMEOUT_S = 60.0
+
+
+def _failed(code: str, **params: Any) -> dict[str, Any]:
+    return {"ok": False, "messages": [], "error": render(code, params, "en")}
+
+
+class CheckGate:
+    """At most ``per_clinic`` checks of one clinic and ``total`` of all clinics at once (module docstring)."""
+
+    def __init__(self, total: int, per_clinic: int) -> None:
+        self.total, self.per_clinic = total, per_clinic
+        self._all = threading.BoundedSemaphore(total)
+        self._clinics: dict[Any, threading.BoundedSemaphore] = {}
+        self._lock = threading.Lock()
+
+    @contextmanager
+    def slot(self, clinic_id: Any) -> Iterator[None]:
+        """Hold one of ``clinic_id``'s slots, then one of the server's, for the block."""
+        with self._lock:
+            own = self._clinics.setdefault(clinic_id, threading.BoundedSemaphore(self.per_clinic))
+        with own, self._all:
+            yield
+
+
+#: the process' gate (one per server process: the request threads share it)
+CHECK_GATE = CheckGate(CHECK_CONCURRENCY, CHECKS_PER_CLINIC)
+
+
+def warm_checks() -> None:
+    """In a helper process: import the ingestion and its readers before the first check needs them."""
+    import app.store.workspace  # noqa: F401 — the import is the warm-up
+
+
+class CheckTimedOut(Exception):
+    """The check took longer than its limit; its helper process was replaced."""
+
+
+class CheckPool:
+    """``processes`` single-process helpers (:class:`app.pipeline.render.RenderPool` ``(1)`` each), so that one
+    hung check is stopped without stopping another clinic's, which runs in another helper."""
+
+    def __init__(self, processes: int) -> None:
+        from app.pipeline.render import RenderPool
+
+        self.processes = processes
+        self.helpers = [RenderPool(1, warm=warm_checks) for _ in range(processes)]
+        self._free: queue.Queue = queue.Queue()
+        for helper in self.helpers:
+            self._free.put(helper)
+
+    def wait_warm(self, timeout_s: float = 120.0) -> bool:
+        """Block until every helper is warm (benchmarks, tests); True if all are usable."""
+        return all(h.wait_warm(timeout_s) for h in self.helpers)
+
+    def run(self, fn, *args, timeout_s: float = CHECK_TIMEOUT_S):
+        """``(True, fn(*args))`` from a free helper, or ``(False, None)`` when none is usable yet (still
+        starting: the caller runs it itself).  :class:`CheckTimedOut` past ``timeout_s``, and
+        :class:`BrokenProcessPool` when the helper died under it: either way that helper is replaced.  An
+        exception ``fn`` raised is raised here, its helper kept."""
+        helper = self._free.get()  # the gate admits at most as many checks as there are helpers
+        try:
+            future = helper.submit(fn, *args)
+            if future is None:
+                return False, None
+            try:
+                return True, future.result(timeout_s)
+            except FutureTimeout:
+                future.cancel()
+                helper.restart()
+                raise CheckTimedOut from None
+            except BrokenProcessPool:
+                helper.restart()
+                raise
+        finally:
+            self._free.put(helper)
+
+    def shutdown(self) -> None:
+        for helper in self.helpers:
+            helper.shutdown()
 
 
 def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict) -> bool:
@@ -50,28 +144,32 @@ def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict
         return res.rowcount == 1
 
 
-def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id: int, pool=None) -> dict[str, Any]:
-    """Run the ingestion over the session's stored files (no database connection held meanwhile; at most
-    :data:`CHECK_CONCURRENCY` at once), store the result if the files did not change meanwhile
-    (:func:`save_ingestion`) and return it.  With ``pool`` (a warm helper process,
-    :class:`app.pipeline.render.RenderPool`) the check runs there, so its CPU time does not hold this process'
-    GIL; without it, or while it is not warm, it runs here."""
+def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id: int, pool=None,
+                      gate: CheckGate = CHECK_GATE, timeout_s: float = CHECK_TIMEOUT_S) -> dict[str, Any]:
+    """Run the ingestion over the session's stored files (no database connection held meanwhile; within the
+    clinic's and the server's slots of ``gate``), store the result if the files did not change meanwhile
+    (:func:`save_ingestion`) and return it.  With ``pool`` (a :class:`CheckPool`) the check runs in a helper
+    process, off this process' GIL, for at most ``timeout_s`` (module docstring); without it, or while no
+    helper is warm yet, it runs here."""
     with db_.session() as db:
         session = db.get(KneeSession, session_id)
         version = session.files_version
         patient, recordings = session.patient, list(session.recordings)
         db.expunge_all()
-    with _check_slots:
-        future = pool.submit(check_ingestion, store, tmp_dir, session, patient, recordings) if pool else None
-        try:
-            ingestion = future.result(CHECK_TIMEOUT_S) if future is not None else None
-        except Exception:  # noqa: BLE001 — a hung or broken helper: replace it, and check here instead
-            log.warning("ingestion check of session %s failed in the helper process; checking here", session_id,
-                        exc_info=True)
-            future.cancel()
-            pool.restart()
-            ingestion = None
-        if ingestion is None:
+    with gate.slot(session.clinic_id):
+        ran, ingestion = False, None
+        if pool is not None:
+            try:
+                ran, ingestion = pool.run(check_ingestion, store, tmp_dir, session, patient, recordings,
+                                          timeout_s=timeout_s)
+            except CheckTimedOut:
+                log.warning("ingestion check of session %s stopped after %.0f s; its helper process was replaced",
+                            session_id, timeout_s)
+                ran, ingestion = True, _failed("session.check_too_slow", seconds=round(timeout_s))
+            except BrokenProcessPool:
+                log.error("the helper process died checking session %s; it was replaced", session_id)
+                ran, ingestion = True, _failed("session.check_stopped")
+        if not ran:
             ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
     save_ingestion(db_, session_id, version, ingestion)
     return ingestion
@@ -111,5 +209,5 @@ class IngestionChecker:
         db.refresh(session)
 
 
-__all__ = ["CHECK_CONCURRENCY", "CHECK_DEFERRED", "CHECK_TIMEOUT_S", "IngestionChecker", "refresh_ingestion",
-           "save_ingestion"]
+__all__ = ["CHECK_CONCURRENCY", "CHECK_DEFERRED", "CHECK_GATE", "CHECK_TIMEOUT_S", "CHECKS_PER_CLINIC", "CheckGate",
+           "CheckPool", "CheckTimedOut", "IngestionChecker", "refresh_ingestion", "save_ingestion", "warm_checks"]

@@ -28,6 +28,7 @@ from typing import Any
 from app.store.models import KneeSession, Patient, Recording
 from app.pipeline.ingestion import MANIFEST, IngestionError, load_session
 from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name
+from app.pipeline.ingestion.session import parse_manifest
 from app.store.blobs import BlobStore
 
 
@@ -98,9 +99,9 @@ def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient:
         uploaded = None
         for rec in recordings:
             if rec.file_name == MANIFEST:
-                try:
-                    uploaded = json.loads(store.read(rec.sha256).decode("utf-8"))
-                except (UnicodeDecodeError, ValueError):
+                try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
+                    uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
+                except (UnicodeDecodeError, json.JSONDecodeError):
                     raise IngestionError(f"{MANIFEST}: not valid UTF-8 JSON; fix it or delete that recording.") from None
                 if not isinstance(uploaded, dict):
                     raise IngestionError(f"{MANIFEST}: must be a JSON object; fix it or delete that recording.")

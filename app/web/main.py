@@ -9,6 +9,10 @@ Celery workers), and when the database has no user yet print how
 to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
+Middleware (plain ASGI), outermost first: :class:`app.web.headers.SecurityHeaders`,
+:class:`app.web.headers.AllowedHosts` (``CHAKAMO_ALLOWED_HOSTS``), :class:`app.web.limits.BodyLimit` (no request body above
+``CHAKAMO_MAX_BODY_KB`` but the recordings upload's); a :class:`app.web.refusals.Refusal`
+answers its sentence in es/en/pt.
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
@@ -41,7 +45,9 @@ import app as _app_pkg
 from app.web.api import api_router
 from app.store.database import Database
 from app.store.models import User
-from app.web.headers import SecurityHeaders
+from app.web.headers import AllowedHosts, SecurityHeaders
+from app.web.limits import BodyLimit
+from app.web.refusals import Refusal
 from app.web.security import LoginThrottle
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
@@ -74,6 +80,10 @@ def _swagger_dir() -> Path:
 
     return Path(str(swagger_ui_path))
 
+
+#: uvicorn options of ``chakamo serve``: no ``server: uvicorn`` banner (issue 16, finding 10e: it names the
+#: server software to a scanner, and nobody needs it)
+UVICORN_OPTIONS = {"server_header": False}
 
 #: an unfinished upload file untouched this long was left by a crashed server (scaled-out deployment)
 INCOMING_STALE_S = 24 * 3600.0
@@ -115,17 +125,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             raise
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)
-        own_pool = None
-        if settings.render_processes > 0:  # the embedded runner's warm render pool checks uploads too
-            from app.pipeline.render import RenderPool
+        check_pool = None
+        if settings.render_processes > 0 and settings.check_processes > 0:  # uploads checked off this GIL
+            from app.store.checks import CheckPool
 
-            app.state.check_pool = getattr(runner, "pool", None) or (own_pool := RenderPool(1))
+            app.state.check_pool = check_pool = CheckPool(settings.check_processes)
         try:
             yield
         finally:
             app.state.check_pool = None
-            if own_pool is not None:
-                own_pool.shutdown()
+            if check_pool is not None:
+                check_pool.shutdown()
             if runner.shutdown(wait=True):  # a job thread still running keeps its database
                 db.dispose()
 
@@ -134,16 +144,25 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                               "reports. Authenticate with `Authorization: Bearer <token>` (`chakamo tokens "
                               "create`) or the browser login.")
     app.state.settings, app.state.db, app.state.store, app.state.runner = settings, db, store, runner
-    #: the warm helper process running the uploads' ingestion checks off this process' GIL when
-    #: CHAKAMO_RENDER_PROCESSES > 0 (the embedded runner's render pool, or one of its own with Celery; None:
-    #: checks run in the request thread)
+    #: the helper processes running the uploads' ingestion checks off this process' GIL when
+    #: CHAKAMO_RENDER_PROCESSES > 0 (CHAKAMO_CHECK_PROCESSES of them, :class:`app.store.checks.CheckPool`;
+    #: None: checks run in the request thread)
     app.state.check_pool = None
     app.state.login_throttle = LoginThrottle()
     #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
 
+    # inner first: the body limit's 413 gets the security headers too
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_kb * 1024)  # app/web/limits.py
+    if settings.host_patterns != ("*",):  # a foreign Host is answered before anything but the headers
+        app.add_middleware(AllowedHosts, patterns=settings.host_patterns)
     app.add_middleware(SecurityHeaders, development=settings.development)  # app/web/headers.py
+
+    @app.exception_handler(Refusal)
+    async def refusal(request: Request, exc: Refusal):
+        """A refusal the user caused: its sentence in English and in es/en/pt (:mod:`app.web.refusals`)."""
+        return exc.response()
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError):
@@ -228,4 +247,4 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
-__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "create_app", "make_runner"]
+__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "UVICORN_OPTIONS", "create_app", "make_runner"]

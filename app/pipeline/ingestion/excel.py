@@ -11,12 +11,28 @@ File names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-{ddm
 The time base is elapsed seconds (no epoch): the two sensors' recordings are assumed to start together.
 A workbook with several sheets: the one sheet whose header has this layout is used (and the choice is
 noted); none or several such sheets is refused.  Needs ``openpyxl``.
+
+Size caps (issue 16, finding 4: a 70 kB crafted workbook unpacked to 18 MB of identical rows and cost
+10–30 s of CPU; the cost of reading grows with rows and cells, about 0.1 ms a row measured here).  An .xlsx
+is a zip archive: before openpyxl opens it, the archive's directory is read (:func:`check_archive`) and a
+part that would unpack beyond :data:`MAX_SHEET_MB` (a worksheet) or :data:`MAX_PART_MB` (anything else:
+shared strings and styles are parsed whole when the workbook opens), more than :data:`MAX_PARTS` parts or
+more than :data:`MAX_UNPACKED_MB` in all is refused.  ``ZipInfo.file_size`` is a declaration, but Python's
+reader never returns more bytes than it (and checks the CRC at the end), so a lying archive is bounded too.
+Then each worksheet's XML is streamed once through a tag count (:func:`check_sheets`, ~0.03 s a MB:
+decompression and a regular expression, no XML tree, stopped at the caps), and more than :data:`MAX_ROWS`
+rows or :data:`MAX_CELLS` cells is refused before openpyxl opens the workbook (which parses a sheet whole
+when it declares no dimension); the parse itself is bounded by the same numbers
+(``max_row``, and the 13 columns of the layout), so a row number far away (``r="1048576"``, which openpyxl
+fills with empty rows) or a cell in column XFD (a row padded to 16 384 cells) cannot blow it up either.  The worst accepted workbook
+costs ~6 s of CPU; the checks of the web application run in a helper process with a time limit.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +46,20 @@ HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/
           "temperature (C)"]
 _GROUPS = {"acc": (0, (1, 2, 3)), "gyr": (0, (4, 5, 6)), "mag": (7, (8, 9, 10))}
 _CELL = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
+#: most data rows of a sheet: 10 minutes at 100 Hz (the protocol's recordings last 0.5–1.5 min, seed 004 §8)
+MAX_ROWS = 60_000
+#: most cells of a sheet (the layout's 13 columns fill about 8 a row: acc/gyro every row, mag 1 row in 5)
+MAX_CELLS = 16 * MAX_ROWS
+#: largest unpacked worksheet (60 000 rows of 13 full-precision numbers take ~40 MB)
+MAX_SHEET_MB = 64
+#: largest other unpacked part (shared strings, styles, theme: a few kB in a real workbook)
+MAX_PART_MB = 8
+#: largest unpacked workbook, and most parts in its archive
+MAX_UNPACKED_MB = 128
+MAX_PARTS = 256
+#: a row and a cell start tag, with or without a namespace prefix (``<row ...>``, ``<x:c/>``)
+_ROW_TAG = re.compile(rb"<(?:[A-Za-z_][\w.-]*:)?row[\s/>]")
+_CELL_TAG = re.compile(rb"<(?:[A-Za-z_][\w.-]*:)?c[\s/>]")
 
 
 def _openpyxl():
@@ -54,10 +84,69 @@ def _layout_problem(header: list) -> str | None:
     return None
 
 
+def check_archive(path: Path) -> None:
+    """Refuse an archive whose parts would unpack beyond the caps (module docstring), from its directory alone."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            infos = z.infolist()
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
+    if len(infos) > MAX_PARTS:
+        raise IngestionError("xlsx.too_many_parts", file=path, count=len(infos), limit=MAX_PARTS)
+    mb = 1024 * 1024
+    for info in infos:
+        limit = MAX_SHEET_MB if info.filename.startswith("xl/worksheets/") else MAX_PART_MB
+        if info.file_size > limit * mb:
+            raise IngestionError("xlsx.too_big", file=path, member=info.filename, size_mb=info.file_size // mb,
+                                 limit_mb=limit)
+    total = sum(i.file_size for i in infos)
+    if total > MAX_UNPACKED_MB * mb:
+        raise IngestionError("xlsx.too_big", file=path, member="(all)", size_mb=total // mb, limit_mb=MAX_UNPACKED_MB)
+
+
+def count_rows_cells(path: Path, member: str, stop_rows: int | None = None, stop_cells: int | None = None,
+                     chunk_bytes: int = 1 << 20) -> tuple[int, int]:
+    """(row tags, cell tags) in the archive's ``member``, streamed in pieces of ``chunk_bytes``; the count stops
+    early once past ``stop_rows`` rows or ``stop_cells`` cells.  Each piece is counted up to its last ``>``
+    and the rest carried over: a start tag cannot hold a ``>`` before its end, so none is cut or counted twice."""
+    rows = cells = 0
+    carry = b""
+    with zipfile.ZipFile(path) as z, z.open(member) as fh:
+        while True:
+            piece = fh.read(chunk_bytes)
+            data = carry + piece
+            cut = data.rfind(b">") + 1 if piece else len(data)
+            rows += len(_ROW_TAG.findall(data, 0, cut))
+            cells += len(_CELL_TAG.findall(data, 0, cut))
+            carry = data[cut:]
+            if not piece or (stop_rows is not None and rows > stop_rows) or \
+                    (stop_cells is not None and cells > stop_cells):
+                return rows, cells
+
+
+def check_sheets(path: Path) -> None:
+    """Refuse a workbook one of whose worksheets holds too many rows or cells (module docstring), counted in
+    its XML before openpyxl opens it (opening parses a sheet whole when it declares no dimension)."""
+    with zipfile.ZipFile(path) as z:
+        members = [i.filename for i in z.infolist() if i.filename.startswith("xl/worksheets/")
+                   and i.filename.endswith(".xml")]
+    for member in members:
+        rows, cells = count_rows_cells(path, member, stop_rows=MAX_ROWS + 1, stop_cells=MAX_CELLS)
+        if rows > MAX_ROWS + 1:
+            raise IngestionError("xlsx.too_many_rows", file=path, sheet=member, limit=MAX_ROWS,
+                                 minutes=MAX_ROWS // 6000)
+        if cells > MAX_CELLS:
+            raise IngestionError("xlsx.too_many_cells", file=path, sheet=member, cells=cells, limit=MAX_CELLS)
+
+
 def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple[Stream, Stream, Stream, str]:
-    """Read a thesis workbook → ``(acc, gyr, mag, note)`` in project units; ``note`` says which sheet was used."""
+    """Read a thesis workbook → ``(acc, gyr, mag, note)`` in project units; ``note`` says which sheet was used.
+
+    Refused before parsing when beyond the size caps (module docstring)."""
     path = Path(path)
     openpyxl = _openpyxl()
+    check_archive(path)
+    check_sheets(path)
     try:
         wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except Exception as exc:  # zip/xml errors of a damaged file
@@ -82,7 +171,7 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
                 raise IngestionError("xlsx.no_layout_sheet" if not good else "xlsx.several_layout_sheets",
                                      file=path, sheets=", ".join(good), detail=detail)
             chosen = good[0]
-        rows = [list(r) for r in wb[chosen].iter_rows(values_only=True)]
+        rows = [list(r) for r in wb[chosen].iter_rows(max_row=MAX_ROWS + 1, max_col=len(HEADER), values_only=True)]
     finally:
         wb.close()
     note = f"sheet {chosen!r}" + (f" of {names}" if len(names) > 1 else "")

@@ -666,6 +666,50 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: split da {segment} = {value}; dê cada corte como \"papel\": [início_s, fim_s] (segundos desde o "
               "início da gravação, início antes do fim) com papéis entre {roles}, como os mostra session.split do "
               "results.json."},
+    # ------------------------------------------------------------------- size caps (issue 16, findings 4, 5)
+    "xlsx.too_big": {
+        "en": "{file}: its part {member} would take {size_mb} MB once unpacked, more than the {limit_mb} MB a "
+              "recording's workbook may take; check that it is a recording of this session, or save it as CSV.",
+        "es": "{file}: su parte {member} ocuparía {size_mb} MB al descomprimirse, más de los {limit_mb} MB que "
+              "puede ocupar el libro de una grabación; compruebe que es una grabación de esta sesión, o guárdelo "
+              "como CSV.",
+        "pt": "{file}: a sua parte {member} ocuparia {size_mb} MB ao ser descompactada, mais que os {limit_mb} MB "
+              "que a pasta de trabalho de uma gravação pode ocupar; verifique se é uma gravação desta sessão, ou "
+              "salve-a como CSV."},
+    "xlsx.too_many_parts": {
+        "en": "{file}: the workbook holds {count} parts (at most {limit}); save it again from Excel as .xlsx.",
+        "es": "{file}: el libro contiene {count} partes (como mucho {limit}); guárdelo de nuevo desde Excel "
+              "como .xlsx.",
+        "pt": "{file}: a pasta de trabalho contém {count} partes (no máximo {limit}); salve-a de novo no Excel "
+              "como .xlsx."},
+    "xlsx.too_many_rows": {
+        "en": "{file}: sheet '{sheet}' has more than {limit} rows (more than {minutes} minutes at 100 Hz); "
+              "split the recording into shorter ones, or export it as CSV.",
+        "es": "{file}: la hoja '{sheet}' tiene más de {limit} filas (más de {minutes} minutos a 100 Hz); divida "
+              "la grabación en otras más cortas, o expórtela como CSV.",
+        "pt": "{file}: a planilha '{sheet}' tem mais de {limit} linhas (mais de {minutes} minutos a 100 Hz); "
+              "divida a gravação em outras mais curtas, ou exporte-a como CSV."},
+    "xlsx.too_many_cells": {
+        "en": "{file}: sheet '{sheet}' holds {cells} cells (at most {limit}); delete what lies outside the "
+              "columns A–M of the thesis layout, or export the recording again.",
+        "es": "{file}: la hoja '{sheet}' contiene {cells} celdas (como mucho {limit}); borre lo que está fuera "
+              "de las columnas A–M del formato de la tesis, o exporte de nuevo la grabación.",
+        "pt": "{file}: a planilha '{sheet}' contém {cells} células (no máximo {limit}); apague o que está fora "
+              "das colunas A–M do formato da tese, ou exporte a gravação de novo."},
+    "manifest.too_large": {
+        "en": "{file}: {size_kb} kB, more than the {limit_kb} kB a session.json may take; keep only the keys "
+              "it documents.",
+        "es": "{file}: {size_kb} kB, más de los {limit_kb} kB que puede ocupar un session.json; deje solo las "
+              "claves que documenta.",
+        "pt": "{file}: {size_kb} kB, mais que os {limit_kb} kB que um session.json pode ocupar; deixe só as "
+              "chaves que ele documenta."},
+    "manifest.too_deep": {
+        "en": "{file}: nested more than {limit} levels deep; a session.json needs 4 (the object → recordings → "
+              "an entry → files); fix it or remove the file.",
+        "es": "{file}: anidado a más de {limit} niveles; un session.json necesita 4 (el objeto → recordings → "
+              "una entrada → files); corríjalo o elimine el archivo.",
+        "pt": "{file}: aninhado a mais de {limit} níveis; um session.json precisa de 4 (o objeto → recordings → "
+              "uma entrada → files); corrija-o ou remova o arquivo."},
     # ------------------------------------------------------------------------------- provenance checks
     "check.side_mismatch": {
         "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "
@@ -922,6 +966,8 @@ def render_prefix(segment: str, role: str, lang: str = "en") -> str:
     return f"{w(segment)} {w(role)}"
 
 
-def message_dict(code: str, params: Mapping[str, Any]) -> dict[str, Any]:
+def message_dict(code: str, params: Mapping[str, Any],
+                 catalogue: Mapping[str, Mapping[str, str]] | None = None) -> dict[str, Any]:
     """``{"code", "params", "message": {lang: text}}`` for JSON (API answers, job records)."""
-    return {"code": code, "params": dict(params), "message": {lang: render(code, params, lang) for lang in LANGUAGES}}
+    return {"code": code, "params": dict(params),
+            "message": {lang: render(code, params, lang, catalogue) for lang in LANGUAGES}}

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -156,10 +157,56 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
                         sensor_id=sensor_id, extras=extras, notes=tuple(dict.fromkeys(notes)))
 
 
-def _read_manifest(path: Path) -> dict[str, Any]:
-    """``session.json`` parsed and checked: keys, their types, and every listed file once, inside the folder."""
+#: the largest ``session.json`` (kB) and its deepest nesting: a real one nests 4 deep (object → recordings →
+#: entry → files) and takes a few kB, observations included; more is refused before it is parsed (issue 16,
+#: finding 5: a deeply nested one made ``json`` raise RecursionError, a 500 on every read of its session)
+MAX_MANIFEST_KB = 256
+MAX_MANIFEST_DEPTH = 8
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_JSON_BRACKET = re.compile(r"[\[\]{}]")
+
+
+def json_depth(text: str) -> int:
+    """The deepest nesting of arrays and objects in JSON ``text`` (strings skipped; no recursion, so any depth
+    is measured): ``{"a": [1]}`` → 2."""
+    depth = deepest = 0
+    for m in _JSON_BRACKET.finditer(_JSON_STRING.sub("", text)):
+        if m.group() in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        else:
+            depth -= 1
+    return deepest
+
+
+def check_manifest_size(text: str, file: Any, size_bytes: int | None = None) -> None:
+    """Refuse (:class:`IngestionError`) a manifest larger than :data:`MAX_MANIFEST_KB` or nested deeper than
+    :data:`MAX_MANIFEST_DEPTH` (the upload route calls it on the uploaded bytes too)."""
+    size = len(text.encode("utf-8")) if size_bytes is None else size_bytes
+    if size > MAX_MANIFEST_KB * 1024:
+        raise IngestionError("manifest.too_large", file=file, size_kb=-(-size // 1024), limit_kb=MAX_MANIFEST_KB)
+    if json_depth(text) > MAX_MANIFEST_DEPTH:
+        raise IngestionError("manifest.too_deep", file=file, limit=MAX_MANIFEST_DEPTH)
+
+
+def parse_manifest(text: str, file: Any) -> Any:
+    """``json.loads(text)`` of a ``session.json`` within the caps of :func:`check_manifest_size`; json's own
+    RecursionError (a depth the count missed) is the same refusal.  ``json.JSONDecodeError`` passes through."""
+    check_manifest_size(text, file)
     try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
+        return json.loads(text)
+    except RecursionError:
+        raise IngestionError("manifest.too_deep", file=file, limit=MAX_MANIFEST_DEPTH) from None
+
+
+def _read_manifest(path: Path) -> dict[str, Any]:
+    """``session.json`` parsed and checked: size and depth, keys, their types, and every listed file once,
+    inside the folder."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_MANIFEST_KB * 1024:  # refused before it is read
+            raise IngestionError("manifest.too_large", file=path, size_kb=-(-size // 1024), limit_kb=MAX_MANIFEST_KB)
+        data = parse_manifest(path.read_text(encoding="utf-8-sig"), path)
     except UnicodeDecodeError:
         raise IngestionError("manifest.not_utf8", file=path) from None
     except json.JSONDecodeError as exc:

@@ -4,8 +4,9 @@ Checksums are verified on every read (:meth:`app.store.blobs.BlobStore.read`).
 
 Files to keep (PDF, Excel, npz) come as attachments named ``chakamo-session-<id>-<analysis>[-<lang>].<ext>``;
 report.html and scene.viser are served inline (the UI opens the first and viser's client plays the second);
-report.html carries ``Content-Security-Policy: sandbox allow-scripts``: it holds text typed by people (patient
-name, notes), so even if escaping failed its scripts could not act as the logged-in user.  Every download is
+report.html carries ``Content-Security-Policy: sandbox allow-scripts; default-src 'none'; …``
+(:data:`app.web.headers.REPORT_HTML_CSP`): it holds text typed by people (patient name, notes), so even if
+escaping failed its scripts could not act as the logged-in user, nor reach the network.  Every download is
 audited (``download`` of the session's patient, :mod:`app.web.audit`), in the request's transaction.
 A superseded analysis (:mod:`app.store.analyses`) is never the default: without ``analysis_id`` the downloads
 answer 409 "process the session again"; asked for by id it is served with ``X-Analysis-Status: superseded``
@@ -22,6 +23,7 @@ from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.web.api.schemas import Lang
 from app.web.records import STATUS_HEADER, analysis_status
+from app.web.headers import REPORT_HTML_CSP
 
 router = APIRouter(prefix="/sessions", tags=["artefacts"])
 
@@ -40,7 +42,7 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
     disposition = "attachment" if attachment else "inline"
     headers = {"Content-Disposition": f'{disposition}; filename="{filename}"', STATUS_HEADER: status}  # no-store, nosniff: app/web/headers.py
     if name == "report.html":  # patient-typed text inside: scripts run, but in an opaque origin (no cookie, no API)
-        headers["Content-Security-Policy"] = "sandbox allow-scripts allow-popups allow-downloads"
+        headers["Content-Security-Policy"] = REPORT_HTML_CSP  # app/web/headers.py: sandboxed, no network
     data = store.read(art.sha256)
     audit.record(db, request, principal, "download", patient_id=session.patient_id, session_id=session.id)
     return Response(data, media_type=art.media_type, headers=headers)

@@ -2,7 +2,8 @@
 
 The document is built by :func:`app.web.fhir.diagnostic_report` (another module of the project) from the
 session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
-``/api/v1`` address (the namespace of the session and patient identifiers).  ``?analysis_id=`` picks an
+``/api/v1`` address (the namespace of the session and patient identifiers), from ``CHAKAMO_PUBLIC_URL``
+(:func:`fhir_base_url`).  ``?analysis_id=`` picks an
 earlier analysis.  Stored data the export cannot express (e.g. a patient's sex recorded before the API
 restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.  A superseded
 analysis (:mod:`app.store.analyses`: a recording deleted or a printed detail corrected since) is never
@@ -22,8 +23,21 @@ from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.web.api.schemas import patient_out
 from app.web.fhir import FhirExportError, diagnostic_report
+from app.web.refusals import Refusal
 
 router = APIRouter(prefix="/fhir", tags=["fhir"])
+
+
+def fhir_base_url(request: Request) -> str:
+    """The namespace of the exported identifiers: ``CHAKAMO_PUBLIC_URL``/api/v1; else this request's address,
+    only when its ``Host`` was checked against ``CHAKAMO_ALLOWED_HOSTS`` or in development; else 503 (a
+    spoofed Host must never be written into a clinical document: issue 16, finding 10d)."""
+    settings = request.app.state.settings
+    if settings.public_url:
+        return settings.public_url + "/api/v1"
+    if settings.host_patterns == ("*",) and not settings.development:
+        raise Refusal(503, "request.public_url_missing")
+    return str(request.base_url).rstrip("/") + "/api/v1"
 
 
 @router.get("/DiagnosticReport/{session_id}", response_class=Response,
@@ -46,7 +60,7 @@ def diagnostic_report_route(session_id: int, request: Request, principal: Reader
             "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,
             "analysis_created_at": analysis.created_at.isoformat(), "filter": analysis.filter}
     patient = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in patient_out(session.patient).items()}
-    base_url = str(request.base_url).rstrip("/") + "/api/v1"
+    base_url = fhir_base_url(request)
     try:
         doc = diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
                                 base_url=base_url)

@@ -18,7 +18,14 @@ Uploads are thus stored and committed before any processing can start.
 Resources: the caller is looked up in a short database session closed before the body is read
 (:data:`app.web.api.deps.UploadClinician`), so a slow upload holds no database connection; at most
 ``CHAKAMO_MAX_UPLOADS`` uploads stream at once (more answer 503 with ``Retry-After``).  A client that
-disconnects mid-upload is logged in one line and its partial files removed.
+disconnects mid-upload is logged in one line and its partial files removed.  A full blob disk (``ENOSPC``
+while a part is written or the files are committed) answers 507 with the job path's sentence, and nothing of
+the upload is stored.
+
+Multipart headers are parsed from their raw bytes (file names in any script: UTF-8, as browsers send them);
+a boundary longer than RFC 2046's 70 characters, a malformed body, or a name holding Unicode bidirectional
+controls (which reorder how it is shown) answers 400, each with its sentence in es/en/pt
+(:class:`app.web.refusals.Refusal`).
 
 Consistency: uploads and deletions answer 409 while a job of the session is queued or running (its files
 must not change under it).  Every change bumps the session's ``files_version`` in the same transaction; the
@@ -32,21 +39,26 @@ transaction that stores or removes the recordings, so the files and their event 
 
 Optional form fields ``segment`` (thigh|shank) and ``role`` (mag_calibration|standing|lying|task, or continuous:
 one recording of the whole protocol, split when read) apply to every file of the request (they go into the
-generated ``session.json``).  Each stored recording keeps the sensor serial its file name carries (``device``).  A ``.json`` file must be the
-session's ``session.json`` manifest.
+generated ``session.json``).  Each stored recording keeps the sensor serial its file name carries (``device``).
+A ``.json`` file must be the session's ``session.json`` manifest; one larger than ``MAX_MANIFEST_KB`` (413) or
+nested deeper than ``MAX_MANIFEST_DEPTH`` (400, :mod:`app.pipeline.ingestion.session`) is refused before it is
+stored.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
 from pathlib import PurePosixPath, PureWindowsPath
 
 from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from python_multipart.exceptions import MultipartParseError
+from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
+from app.pipeline.ingestion import IngestionError
+from app.pipeline.ingestion.session import MAX_MANIFEST_KB, check_manifest_size
 from app.store import erasure, recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
 from app.store.recordings import MANIFEST
@@ -55,6 +67,7 @@ from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
 from app.web.records import ERRORS, erase_now
 from app.web.api.schemas import UploadOut, recording_out
+from app.web.refusals import Refusal
 
 log = logging.getLogger("chakamo.uploads")
 router = APIRouter(prefix="/sessions", tags=["recordings"])
@@ -63,13 +76,34 @@ _FIELD_LIMIT = 200
 FORM_FIELDS = ("segment", "role")
 #: multipart framing allowed per file on top of its bytes (boundaries, part headers)
 _PART_ROOM = 64 * 1024
+#: the longest multipart boundary (RFC 2046 §5.1.1: 1 to 70 characters)
+MAX_BOUNDARY = 70
+#: Unicode bidirectional embeddings, overrides and isolates (UAX #9): they reorder how a name is shown
+#: ("gpj.csv" shown as "vsc.jpg"), so a name holding one is refused; other letters of any script are welcome
+_BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 
 
 def _clean_name(raw: str) -> str:
     name = PureWindowsPath(PurePosixPath(raw).name).name.strip()
-    if not name or name.startswith(".") or any(ord(c) < 32 for c in name) or len(name) > 255:
-        raise HTTPException(400, f"File name {raw!r} is not usable; rename the file (letters, digits, - _ .).")
+    if not name or name.startswith(".") or any(ord(c) < 32 or ord(c) == 127 for c in name) or len(name) > 255:
+        raise Refusal(400, "request.file_name_unusable", name=repr(raw)[:120])
+    if _BIDI_CONTROLS.intersection(name):
+        raise Refusal(400, "request.file_name_controls", name=ascii(name)[:80])
     return name
+
+
+def _text(raw: bytes) -> str:
+    """A multipart header parameter as text: UTF-8, as browsers send any file name (RFC 7578 §4.2), or
+    Latin-1 from an older client (every byte string is Latin-1 text)."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` says the blob disk is full (the job path's test, :mod:`app.jobs.work`)."""
+    return isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 class _Upload:
@@ -80,11 +114,12 @@ class _Upload:
         self.files: list[tuple[str, BlobWriter]] = []
         self.fields: dict[str, str] = {}
         self.parts = 0
-        self._headers: dict[str, str] = {}
+        self._headers: dict[bytes, bytes] = {}
         self._field = self._value = b""
         self._writer: BlobWriter | None = None
         self._form_name: str | None = None
         self._form_value = bytearray()
+        self._manifest: bytearray | None = None  # the session.json's bytes, checked at its part's end
 
     def callbacks(self) -> dict:
         return {"on_part_begin": self._part_begin, "on_header_field": self._header_field,
@@ -95,69 +130,80 @@ class _Upload:
     def _part_begin(self) -> None:
         self.parts += 1
         if self.parts > self.settings.max_files + len(FORM_FIELDS) + 2:
-            raise HTTPException(413, f"Too many parts in one upload; send at most {self.settings.max_files} files "
-                                     "and the fields segment and role.")
+            raise Refusal(413, "request.too_many_parts", max_files=self.settings.max_files)
         self._headers, self._writer, self._form_name = {}, None, None
         self._form_value = bytearray()
+        self._manifest = None
 
     def _header_field(self, data: bytes, start: int, end: int) -> None:
         self._field += data[start:end]
         if len(self._field) > 1024:
-            raise HTTPException(400, "A multipart header is too long; send the files with a standard form upload.")
+            raise Refusal(400, "request.part_header_too_long")
 
     def _header_value(self, data: bytes, start: int, end: int) -> None:
         self._value += data[start:end]
         if len(self._value) > 8192:
-            raise HTTPException(400, "A multipart header is too long; send the files with a standard form upload.")
+            raise Refusal(400, "request.part_header_too_long")
 
     def _header_end(self) -> None:
         if len(self._headers) >= 16:
-            raise HTTPException(400, "Too many headers in one multipart part; send a standard form upload.")
-        self._headers[self._field.decode("latin-1").lower()] = self._value.decode("utf-8", "replace")
+            raise Refusal(400, "request.too_many_part_headers")
+        self._headers[self._field.lower()] = self._value  # raw bytes: decoded once, below
         self._field = self._value = b""
 
     def _headers_finished(self) -> None:
-        _, params = parse_options_header(self._headers.get("content-disposition", ""))
-        name = params.get(b"name", b"").decode("utf-8", "replace")
+        # the raw bytes: python-multipart takes bytes as Latin-1, which every byte is, and gives them back
+        # unchanged (a decoded str outside Latin-1 made it raise: issue 16, finding 6)
+        _, params = parse_options_header(self._headers.get(b"content-disposition", b""))
+        name = _text(params.get(b"name", b""))
         filename = params.get(b"filename")
         if filename is None:
             if name not in FORM_FIELDS:
-                raise HTTPException(400, f"Form field {name[:40]!r} is not accepted; send the files in the field "
-                                         "'files' and, optionally, the fields 'segment' and 'role'.")
+                raise Refusal(400, "request.field_not_accepted", field=repr(name[:40]))
             if name in self.fields:
-                raise HTTPException(400, f"Form field {name!r} sent twice; send it once per upload.")
+                raise Refusal(400, "request.field_twice", field=repr(name))
             self._form_name = name
             return
         if name != "files":
-            raise HTTPException(400, f"File sent in form field {name[:40]!r}; send every file in the field 'files'.")
-        clean = _clean_name(filename.decode("utf-8", "replace"))
+            raise Refusal(400, "request.file_in_other_field", field=repr(name[:40]))
+        clean = _clean_name(_text(filename))
         suffix = PurePosixPath(clean).suffix.lower()
         if suffix not in self.settings.allowed_suffixes:
-            raise HTTPException(415, f"{clean}: files of type {suffix or '(none)'} are not accepted; upload "
-                                     f"{', '.join(self.settings.allowed_suffixes)} files (MetaBase or generic CSV, "
-                                     "thesis Excel, session.json).")
+            raise Refusal(415, "request.file_type", file=clean, suffix=suffix or "(none)",
+                          allowed=", ".join(self.settings.allowed_suffixes))
         if suffix == ".json" and clean != MANIFEST:
-            raise HTTPException(415, f"{clean}: the only JSON file a session takes is its {MANIFEST}; rename it.")
+            raise Refusal(415, "request.json_not_manifest", file=clean, manifest=MANIFEST)
         if len(self.files) >= self.settings.max_files:
-            raise HTTPException(413, f"More than {self.settings.max_files} files in one upload; send at most "
-                                     f"{self.settings.max_files} at a time.")
+            raise Refusal(413, "request.too_many_files", max_files=self.settings.max_files)
         self._writer = self.store.writer(self.settings.max_file_bytes)
         self.files.append((clean, self._writer))
+        if clean == MANIFEST:
+            self._manifest = bytearray()
 
     def _data(self, data: bytes, start: int, end: int) -> None:
         if self._writer is not None:
+            if self._manifest is not None:
+                self._manifest += data[start:end]
+                if len(self._manifest) > MAX_MANIFEST_KB * 1024:
+                    raise Refusal(413, "manifest.too_large", file=MANIFEST, size_kb=f"> {MAX_MANIFEST_KB}",
+                                  limit_kb=MAX_MANIFEST_KB)
             try:
                 self._writer.write(data[start:end])
             except TooLarge:
-                raise HTTPException(413, f"{self.files[-1][0]} is larger than the {self.settings.max_file_mb:g} MB "
-                                         "limit; check that it is a recording of this session (or ask the "
-                                         "administrator to raise CHAKAMO_MAX_FILE_MB).") from None
+                raise Refusal(413, "request.file_too_large", file=self.files[-1][0],
+                              limit_mb=f"{self.settings.max_file_mb:g}") from None
         elif self._form_name is not None:
             self._form_value += data[start:end]
             if len(self._form_value) > _FIELD_LIMIT:
-                raise HTTPException(400, f"Form field {self._form_name!r} is too long; it takes a short word.")
+                raise Refusal(400, "request.field_too_long", field=repr(self._form_name))
 
     def _part_end(self) -> None:
+        if self._manifest is not None:  # too deep or too large: refused now, never stored (issue 16, finding 5)
+            try:
+                check_manifest_size(bytes(self._manifest).decode("utf-8", "replace"), MANIFEST, len(self._manifest))
+            except IngestionError as exc:
+                raise Refusal(413 if exc.code == "manifest.too_large" else 400, exc.code, **exc.params) from None
+            self._manifest = None
         if self._form_name is not None:
             self.fields[self._form_name] = self._form_value.decode("utf-8", "replace").strip()
 
@@ -186,9 +232,9 @@ def _store(request: Request, principal, session_id: int, upload: _Upload, segmen
     return {"recordings": out, "ingestion": ingestion}
 
 
-def _too_large(settings) -> HTTPException:
-    return HTTPException(413, f"The upload is larger than {settings.max_files} files of {settings.max_file_mb:g} MB; "
-                              "send fewer or smaller files.")
+def _too_large(settings) -> Refusal:
+    return Refusal(413, "request.upload_too_large", max_files=settings.max_files,
+                   limit_mb=f"{settings.max_file_mb:g}")
 
 
 #: body bytes gathered before one hand-over to the parser thread (one thread hop per ~64 KB socket read cost
@@ -220,14 +266,14 @@ async def _read_body(request: Request, parser: MultipartParser, ceiling: int, se
 @router.post("/{session_id}/recordings", response_model=UploadOut, status_code=201,
              responses={409: {"description": "file name already stored, or the session is being processed"},
                         413: {"description": "too large or too many files"}, 415: {"description": "wrong type"},
+                        507: {"description": "the server's disk is full: nothing was stored"},
                         503: {"description": "too many uploads at once; try again"}})
 async def upload_recordings(session_id: int, request: Request, principal: UploadClinician, settings: SettingsDep,
                             store: StoreDep):
     """Store the files of field ``files`` (module docstring), then answer the recordings and the ingestion."""
     slots = request.app.state.upload_slots
     if not slots.acquire(blocking=False):
-        raise HTTPException(503, "Too many uploads are in progress on this server; try again in a minute.",
-                            headers={"Retry-After": "30"})
+        raise Refusal(503, "request.uploads_busy", headers={"Retry-After": "30"})
     try:
         return await _upload(session_id, request, principal, settings, store)
     finally:
@@ -238,13 +284,19 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
     await run_in_threadpool(_check_session, request, principal, session_id)
     ctype, params = parse_options_header(request.headers.get("content-type"))
     if ctype != b"multipart/form-data" or not params.get(b"boundary"):
-        raise HTTPException(415, "Send the files as multipart/form-data in the field 'files'.")
+        raise Refusal(415, "request.not_multipart")
     declared = request.headers.get("content-length")
     ceiling = settings.max_files * (settings.max_file_bytes + _PART_ROOM)
     if declared and declared.isdigit() and int(declared) > ceiling:  # refused before reading a byte
         raise _too_large(settings)
+    boundary = params[b"boundary"]
+    if len(boundary) > MAX_BOUNDARY:
+        raise Refusal(400, "request.boundary_too_long", length=len(boundary))
     upload = _Upload(store, settings)
-    parser = MultipartParser(params[b"boundary"], upload.callbacks())
+    try:
+        parser = MultipartParser(boundary, upload.callbacks())
+    except FormParserError:
+        raise Refusal(400, "request.multipart_malformed") from None
     try:
         await _read_body(request, parser, ceiling, settings)
     except ClientDisconnect:
@@ -254,20 +306,31 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
     except HTTPException:
         await run_in_threadpool(upload.discard)
         raise
-    except MultipartParseError:
+    except FormParserError:  # python-multipart's parse errors (MultipartParseError and the rest)
         await run_in_threadpool(upload.discard)
-        raise HTTPException(400, "The multipart body is malformed; send the files with a standard form upload.") \
-            from None
+        raise Refusal(400, "request.multipart_malformed") from None
+    except OSError as exc:
+        await run_in_threadpool(upload.discard)
+        if _disk_full(exc):  # writing a part: 507 with the job path's sentence, nothing half-stored
+            log.error("upload to session %s refused: no space left on the blob disk (%s)", session_id, exc)
+            raise Refusal(507, "request.disk_full") from None
+        raise
     except BaseException:
         upload.discard()
         raise
     try:
         if not upload.files:
-            raise HTTPException(400, "No file in the request; send the recordings in the multipart field 'files'.")
+            raise Refusal(400, "request.no_file")
         segment = upload.fields.get("segment") or None
         role = upload.fields.get("role") or None
         recordings.check_labels(segment, role)
-        return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role)
+        try:
+            return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role)
+        except OSError as exc:
+            if not _disk_full(exc):
+                raise
+            log.error("upload to session %s refused: no space left on the blob disk (%s)", session_id, exc)
+            raise Refusal(507, "request.disk_full") from None
     finally:
         await run_in_threadpool(upload.discard)  # no-op for committed blobs (their temp file is gone)
 

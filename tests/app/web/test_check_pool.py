@@ -1,5 +1,7 @@
-"""Uploads checked in the server's warm helper process (``app.state.check_pool``, CHAKAMO_RENDER_PROCESSES > 0):
-the same answer as a check in the request thread, and a helper that breaks falls back to the thread."""
+"""Uploads checked in the server's warm helper processes (``app.state.check_pool``, CHAKAMO_RENDER_PROCESSES > 0):
+the same answer as a check in the request thread, a helper that is shut down falls back to the thread; one
+clinic's long check does not hold another clinic's, and a check past its time limit is stopped, answered and
+never run again in the server process (issue 16, finding 4)."""
 
 from __future__ import annotations
 
@@ -23,9 +25,9 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             handed = []
             if pool is not None:
                 assert pool.wait_warm(120)
-                submit = pool.submit
-                pool.submit = (lambda fn, *a, handed=handed, submit=submit:  # count hand-overs
-                               handed.append(fn.__name__) or submit(fn, *a))
+                run = pool.run
+                pool.run = (lambda fn, *a, handed=handed, run=run, **kw:  # count hand-overs
+                            handed.append(fn.__name__) or run(fn, *a, **kw))
             h = clinic_token(settings, "Pool")
             _, sid = new_session(client, h, "POOL-1")
             r = client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h)
@@ -41,3 +43,101 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
                 assert handed == ["check_ingestion"] * 2 and "render pool unavailable" in caplog.text  # fell back
     assert answers[0]["ok"] and answers[0] == answers[1]
     assert not after_delete[0]["ok"] and after_delete[0] == after_delete[1]  # a recording missing, said alike
+
+
+def _thesis_xlsx(path, n: int):
+    """A real thesis-layout workbook of ``n`` rows (the shape of seed 004 Fig. 8.6) written by the product."""
+    import numpy as np
+
+    from app.pipeline.ingestion.excel import write_thesis_xlsx
+
+    rng = np.random.default_rng(n)
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1)) + 0.01 * rng.standard_normal((n, 3))
+    tm = np.arange(n // 5) / 20.0
+    mag = np.tile([0.0, 20.0, -40.0], (n // 5, 1)) + rng.standard_normal((n // 5, 3))
+    return write_thesis_xlsx(path, (t, acc), 0.01 * rng.standard_normal((n, 3)), (tm, mag)).read_bytes()
+
+
+def _stored_session(client, settings, clinic: str, files: list[tuple[str, bytes]]) -> int:
+    """A session of ``clinic`` with ``files`` stored through the data layer (no check run yet)."""
+    from app.store import recordings
+    from app.store.models import KneeSession
+
+    h = clinic_token(settings, clinic)
+    _, sid = new_session(client, h, f"{clinic}-1")
+    writers = []
+    for name, data in files:
+        w = client.app.state.store.writer()
+        w.write(data)
+        writers.append((name, w))
+    with client.app.state.db.session() as db:
+        clinic_id = db.get(KneeSession, sid).clinic_id
+        recordings.store_upload(db, clinic_id, sid, writers, segment=None, role=None, max_files=40)
+    return sid
+
+
+def test_another_clinics_check_completes_while_a_long_one_runs(tmp_path):
+    """Clinic A's check of two long workbooks (10 min of recording, seconds of CPU) runs in one helper;
+    clinic B's check, started after it, finishes first in the other helper.  Before the fix every check of
+    the server waited for the one before it."""
+    import threading
+
+    from fastapi.testclient import TestClient
+
+    from app.store.checks import CHECK_GATE, IngestionChecker
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1, CHAKAMO_CHECK_PROCESSES=2)
+    with TestClient(create_app(settings)) as client:
+        pool = client.app.state.check_pool
+        assert pool.wait_warm(120)
+        long = _thesis_xlsx(tmp_path / "a.xlsx", 30_000)
+        sid_a = _stored_session(client, settings, "A", [("task-muslo-A-01012024-1.xlsx", long),
+                                                        ("task-pierna-A-01012024-1.xlsx", long)])
+        sid_b = _stored_session(client, settings, "B", [("task-muslo-B-01012024-1.xlsx",
+                                                        _thesis_xlsx(tmp_path / "b.xlsx", 500))])
+        checker = IngestionChecker(client.app.state.db, client.app.state.store, settings.tmp_dir, pool)
+        a_done, results = threading.Event(), {}
+
+        def check_a():
+            results["a"] = checker.refresh(sid_a)
+            a_done.set()
+
+        thread = threading.Thread(target=check_a)
+        thread.start()
+        while not any(sem._value == 0 for sem in CHECK_GATE._clinics.values()):  # A holds its clinic's slot
+            assert thread.is_alive()
+            threading.Event().wait(0.01)
+        results["b"] = checker.refresh(sid_b)
+        b_first = not a_done.is_set()
+        thread.join(300)
+    assert b_first, "clinic B's check waited for clinic A's"
+    assert a_done.is_set() and {"ok", "messages", "error"} <= set(results["a"]) and "ok" in results["b"]
+
+
+def test_a_check_past_its_time_limit_is_stopped_answered_and_not_run_again_here(tmp_path):
+    """A check that takes longer than its limit: its helper process is replaced, the session's answer says the
+    check was stopped, and the check is not run again in the server process (its result would otherwise be
+    the workbook's own)."""
+    import os
+
+    from fastapi.testclient import TestClient
+
+    from app.store.checks import refresh_ingestion
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1, CHAKAMO_CHECK_PROCESSES=1)
+    with TestClient(create_app(settings)) as client:
+        pool = client.app.state.check_pool
+        assert pool.wait_warm(120)
+        before = pool.run(os.getpid)[1]
+        sid = _stored_session(client, settings, "Slow", [("task-muslo-S-01012024-1.xlsx",
+                                                         _thesis_xlsx(tmp_path / "s.xlsx", 10_000))])
+        state = client.app.state
+        answer = refresh_ingestion(state.db, state.store, settings.tmp_dir, sid, pool, timeout_s=0.05)
+        assert not answer["ok"] and "could not be checked within" in answer["error"], answer
+        assert pool.wait_warm(120) and pool.run(os.getpid)[1] != before  # the helper was replaced
+        h = clinic_token(settings, "Slow")
+        stored = client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
+        assert stored == answer  # stored for these files: reading the session does not check them again

@@ -78,3 +78,29 @@ def test_a_full_disk_fails_the_job_cleanly_and_processing_again_works(tmp_path, 
         assert client.get(f"/api/v1/sessions/{session_id}/report.pdf?lang=en", headers=h).content.startswith(b"%PDF")
         assert len(client.get(f"/api/v1/sessions/{session_id}", headers=h).json()["recordings"]) == \
             len(demo_files(demo_dir))
+
+
+def test_an_upload_onto_a_full_disk_answers_507_with_the_jobs_sentence(tmp_path, small_blob_disk):
+    """Issue 16, finding 10g: the kernel's ENOSPC while an upload is written is a 507 saying the disk is full
+    (the job path's sentence, in es/en/pt), not a bare 500; nothing of it is stored, and once space is freed
+    the same upload is taken."""
+    from fastapi.testclient import TestClient
+
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data")
+    big = b"time,acc_x\n" + b"0.000,1.000\n" * (8 * 2**20 // 12)  # 8 MB on a 6 MB disk
+    with TestClient(create_app(settings)) as client:
+        h = clinic_token(settings, "Clinica Llena")
+        _, session_id = new_session(client, h, "DISK-2")
+        url = f"/api/v1/sessions/{session_id}/recordings"
+        r = client.post(url, files=[("files", ("big.csv", big, "text/csv"))], headers=h)
+        assert r.status_code == 507, r.text
+        body = r.json()
+        assert body["code"] == "request.disk_full" and "disk is full" in body["detail"]
+        assert "upload them again" in body["detail"] and set(body["message"]) == {"es", "en", "pt"}
+        assert list((small_blob_disk / ".incoming").iterdir()) == []  # no partial file left behind
+        assert client.get(f"/api/v1/sessions/{session_id}", headers=h).json()["n_recordings"] == 0
+
+        _mount(["-o", "remount,size=64m", str(small_blob_disk)])  # the administrator frees space
+        assert client.post(url, files=[("files", ("big.csv", big, "text/csv"))], headers=h).status_code == 201

@@ -1,0 +1,169 @@
+"""The server's own refusals and answers a user can cause, in Spanish, English and Portuguese (one table).
+
+The ingestion's messages name a file (:mod:`app.pipeline.ingestion.messages`); these are about a request or a
+session as a whole: ``request.*`` the web API's refusals of a request (:mod:`app.web.limits`,
+:mod:`app.web.api.recordings`), ``session.*`` what the upload checks answer (:mod:`app.store.checks`).
+Same templates and rules as the ingestion's catalogue (``{name}`` placeholders, a sentence that ends saying
+what to do); :func:`render` and :func:`message_dict` are that module's, on this table.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from app.pipeline.ingestion.messages import message_dict as _message_dict
+from app.pipeline.ingestion.messages import render as _render
+
+CATALOGUE: dict[str, dict[str, str]] = {
+    "session.check_too_slow": {
+        "en": "The files could not be checked within {seconds} s and the check was stopped; check that each "
+              "file is a recording of this session (a file made to be slow to read is refused), delete the "
+              "wrong one and upload it again.",
+        "es": "Los archivos no se pudieron comprobar en {seconds} s y la comprobación se detuvo; compruebe que "
+              "cada archivo es una grabación de esta sesión (se rechaza un archivo hecho para ser lento de leer), "
+              "borre el equivocado y súbalo de nuevo.",
+        "pt": "Os arquivos não puderam ser verificados em {seconds} s e a verificação foi interrompida; verifique "
+              "se cada arquivo é uma gravação desta sessão (um arquivo feito para ser lento de ler é recusado), "
+              "apague o errado e envie-o de novo."},
+    "session.check_stopped": {
+        "en": "The files could not be checked: the check stopped unexpectedly; delete the file you added last and "
+              "upload it again, and if it happens again tell your ChakaMo administrator.",
+        "es": "Los archivos no se pudieron comprobar: la comprobación se detuvo inesperadamente; borre el último "
+              "archivo que añadió y súbalo de nuevo, y si vuelve a ocurrir avise a su administrador de ChakaMo.",
+        "pt": "Os arquivos não puderam ser verificados: a verificação parou inesperadamente; apague o último "
+              "arquivo que adicionou e envie-o de novo, e se voltar a acontecer avise o seu administrador do "
+              "ChakaMo."},
+    "request.host_not_allowed": {
+        "en": "This server does not answer to the address {host}; use the address your ChakaMo administrator "
+              "gave you (CHAKAMO_ALLOWED_HOSTS).",
+        "es": "Este servidor no responde a la dirección {host}; use la dirección que le dio su administrador de "
+              "ChakaMo (CHAKAMO_ALLOWED_HOSTS).",
+        "pt": "Este servidor não responde ao endereço {host}; use o endereço que o seu administrador do ChakaMo "
+              "lhe deu (CHAKAMO_ALLOWED_HOSTS)."},
+    "request.public_url_missing": {
+        "en": "The FHIR export needs this server's public address, which is not set; ask your ChakaMo "
+              "administrator to set CHAKAMO_PUBLIC_URL (or CHAKAMO_ALLOWED_HOSTS).",
+        "es": "La exportación FHIR necesita la dirección pública de este servidor, que no está configurada; pida "
+              "a su administrador de ChakaMo que configure CHAKAMO_PUBLIC_URL (o CHAKAMO_ALLOWED_HOSTS).",
+        "pt": "A exportação FHIR precisa do endereço público deste servidor, que não está configurado; peça ao "
+              "seu administrador do ChakaMo que configure CHAKAMO_PUBLIC_URL (ou CHAKAMO_ALLOWED_HOSTS)."},
+    "request.body_too_large": {
+        "en": "The request body is larger than {limit_kb} kB; requests other than uploads of recordings take "
+              "small JSON bodies — send less.",
+        "es": "El cuerpo de la petición ocupa más de {limit_kb} kB; las peticiones que no son subidas de "
+              "grabaciones llevan cuerpos JSON pequeños: envíe menos.",
+        "pt": "O corpo da requisição ocupa mais de {limit_kb} kB; as requisições que não são envios de gravações "
+              "levam corpos JSON pequenos: envie menos."},
+    "request.multipart_malformed": {
+        "en": "The multipart body is malformed; send the files with a standard form upload.",
+        "es": "El cuerpo multipart está mal formado; envíe los archivos con un formulario estándar.",
+        "pt": "O corpo multipart está malformado; envie os arquivos com um formulário padrão."},
+    "request.boundary_too_long": {
+        "en": "The multipart boundary has {length} characters; a boundary has 1 to 70 (RFC 2046) — send the "
+              "files with a standard form upload.",
+        "es": "El delimitador multipart tiene {length} caracteres; un delimitador tiene de 1 a 70 (RFC 2046): "
+              "envíe los archivos con un formulario estándar.",
+        "pt": "O delimitador multipart tem {length} caracteres; um delimitador tem de 1 a 70 (RFC 2046): envie "
+              "os arquivos com um formulário padrão."},
+    "request.file_name_controls": {
+        "en": "File name {name} holds invisible characters that reorder how it is shown (Unicode bidirectional "
+              "controls); rename the file (letters, digits, - _ .).",
+        "es": "El nombre de archivo {name} contiene caracteres invisibles que cambian el orden en que se muestra "
+              "(controles bidireccionales de Unicode); cambie el nombre del archivo (letras, dígitos, - _ .).",
+        "pt": "O nome de arquivo {name} contém caracteres invisíveis que mudam a ordem em que é mostrado "
+              "(controles bidirecionais do Unicode); renomeie o arquivo (letras, dígitos, - _ .)."},
+    "request.disk_full": {
+        "en": "The server's disk is full, so the files could not be stored and none was recorded. Ask your "
+              "ChakaMo administrator to free space, then upload them again.",
+        "es": "El disco del servidor está lleno, así que los archivos no se pudieron guardar y no se registró "
+              "ninguno. Pida a su administrador de ChakaMo que libere espacio y súbalos de nuevo.",
+        "pt": "O disco do servidor está cheio, por isso os arquivos não puderam ser guardados e nenhum foi "
+              "registrado. Peça ao seu administrador do ChakaMo que libere espaço e envie-os de novo."},
+    # ------------------------------------------------------------------------ uploads (app/web/api/recordings.py)
+    "request.file_name_unusable": {
+        "en": "File name {name} is not usable; rename the file (letters, digits, - _ .).",
+        "es": "El nombre de archivo {name} no se puede usar; cambie el nombre del archivo (letras, dígitos, - _ .).",
+        "pt": "O nome de arquivo {name} não pode ser usado; renomeie o arquivo (letras, dígitos, - _ .)."},
+    "request.too_many_parts": {
+        "en": "Too many parts in one upload; send at most {max_files} files and the fields segment and role.",
+        "es": "Demasiadas partes en una subida; envíe como mucho {max_files} archivos y los campos segment y role.",
+        "pt": "Partes demais num envio; envie no máximo {max_files} arquivos e os campos segment e role."},
+    "request.part_header_too_long": {
+        "en": "A multipart header is too long; send the files with a standard form upload.",
+        "es": "Un encabezado multipart es demasiado largo; envíe los archivos con un formulario estándar.",
+        "pt": "Um cabeçalho multipart é longo demais; envie os arquivos com um formulário padrão."},
+    "request.too_many_part_headers": {
+        "en": "Too many headers in one multipart part; send a standard form upload.",
+        "es": "Demasiados encabezados en una parte multipart; envíe un formulario estándar.",
+        "pt": "Cabeçalhos demais numa parte multipart; envie um formulário padrão."},
+    "request.field_not_accepted": {
+        "en": "Form field {field} is not accepted; send the files in the field 'files' and, optionally, the "
+              "fields 'segment' and 'role'.",
+        "es": "El campo de formulario {field} no se acepta; envíe los archivos en el campo 'files' y, si quiere, "
+              "los campos 'segment' y 'role'.",
+        "pt": "O campo de formulário {field} não é aceito; envie os arquivos no campo 'files' e, se quiser, os "
+              "campos 'segment' e 'role'."},
+    "request.field_twice": {
+        "en": "Form field {field} sent twice; send it once per upload.",
+        "es": "El campo de formulario {field} se envió dos veces; envíelo una vez por subida.",
+        "pt": "O campo de formulário {field} foi enviado duas vezes; envie-o uma vez por envio."},
+    "request.file_in_other_field": {
+        "en": "File sent in form field {field}; send every file in the field 'files'.",
+        "es": "Archivo enviado en el campo de formulario {field}; envíe cada archivo en el campo 'files'.",
+        "pt": "Arquivo enviado no campo de formulário {field}; envie cada arquivo no campo 'files'."},
+    "request.file_type": {
+        "en": "{file}: files of type {suffix} are not accepted; upload {allowed} files (MetaBase or generic CSV, "
+              "thesis Excel, session.json).",
+        "es": "{file}: no se aceptan archivos del tipo {suffix}; suba archivos {allowed} (CSV de MetaBase o "
+              "genérico, Excel de la tesis, session.json).",
+        "pt": "{file}: arquivos do tipo {suffix} não são aceitos; envie arquivos {allowed} (CSV do MetaBase ou "
+              "genérico, Excel da tese, session.json)."},
+    "request.json_not_manifest": {
+        "en": "{file}: the only JSON file a session takes is its {manifest}; rename it.",
+        "es": "{file}: el único archivo JSON que admite una sesión es su {manifest}; cámbiele el nombre.",
+        "pt": "{file}: o único arquivo JSON que uma sessão aceita é o seu {manifest}; renomeie-o."},
+    "request.too_many_files": {
+        "en": "More than {max_files} files in one upload; send at most {max_files} at a time.",
+        "es": "Más de {max_files} archivos en una subida; envíe como mucho {max_files} cada vez.",
+        "pt": "Mais de {max_files} arquivos num envio; envie no máximo {max_files} de cada vez."},
+    "request.file_too_large": {
+        "en": "{file} is larger than the {limit_mb} MB limit; check that it is a recording of this session (or "
+              "ask the administrator to raise CHAKAMO_MAX_FILE_MB).",
+        "es": "{file} supera el límite de {limit_mb} MB; compruebe que es una grabación de esta sesión (o pida al "
+              "administrador que aumente CHAKAMO_MAX_FILE_MB).",
+        "pt": "{file} excede o limite de {limit_mb} MB; verifique se é uma gravação desta sessão (ou peça ao "
+              "administrador que aumente CHAKAMO_MAX_FILE_MB)."},
+    "request.field_too_long": {
+        "en": "Form field {field} is too long; it takes a short word.",
+        "es": "El campo de formulario {field} es demasiado largo; admite una palabra corta.",
+        "pt": "O campo de formulário {field} é longo demais; aceita uma palavra curta."},
+    "request.upload_too_large": {
+        "en": "The upload is larger than {max_files} files of {limit_mb} MB; send fewer or smaller files.",
+        "es": "La subida ocupa más que {max_files} archivos de {limit_mb} MB; envíe menos archivos o más pequeños.",
+        "pt": "O envio é maior que {max_files} arquivos de {limit_mb} MB; envie menos arquivos ou menores."},
+    "request.uploads_busy": {
+        "en": "Too many uploads are in progress on this server; try again in a minute.",
+        "es": "Hay demasiadas subidas en curso en este servidor; inténtelo de nuevo en un minuto.",
+        "pt": "Há envios demais em andamento neste servidor; tente de novo em um minuto."},
+    "request.not_multipart": {
+        "en": "Send the files as multipart/form-data in the field 'files'.",
+        "es": "Envíe los archivos como multipart/form-data en el campo 'files'.",
+        "pt": "Envie os arquivos como multipart/form-data no campo 'files'."},
+    "request.no_file": {
+        "en": "No file in the request; send the recordings in the multipart field 'files'.",
+        "es": "No hay ningún archivo en la petición; envíe las grabaciones en el campo multipart 'files'.",
+        "pt": "Não há nenhum arquivo na requisição; envie as gravações no campo multipart 'files'."},
+}
+
+
+def render(code: str, params: Mapping[str, Any], lang: str = "en") -> str:
+    """Message ``code`` of :data:`CATALOGUE` in ``lang`` (es/en/pt), filled from ``params``."""
+    return _render(code, params, lang, CATALOGUE)
+
+
+def message_dict(code: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"code", "params", "message": {lang: text}}`` of :data:`CATALOGUE` for JSON answers."""
+    return _message_dict(code, params, CATALOGUE)
+
+
+__all__ = ["CATALOGUE", "message_dict", "render"]
