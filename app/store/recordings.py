@@ -27,7 +27,8 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS
+from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS, IngestionError
+from app.pipeline.ingestion.session import MAX_MANIFEST_KB, check_manifest_size
 from app.pipeline.ingestion.provenance import sensor_of_file_name
 from app.pipeline.ingestion.split import CONTINUOUS
 from app.store.blobs import BlobWriter
@@ -107,4 +108,15 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
     return session, sha, n_superseded
 
 
-__all__ = ["MANIFEST", "ROLES", "SEGMENTS", "UPLOAD_ROLES", "check_labels", "delete_recording", "store_upload"]
+
+def manifest_problem(data: bytes) -> IngestionError | None:
+    """Why an uploaded ``session.json`` must be refused before it is stored (larger than ``MAX_MANIFEST_KB`` or
+    nested too deep, :func:`app.pipeline.ingestion.session.check_manifest_size`; issue 16 finding 5), or None."""
+    try:
+        check_manifest_size(data.decode("utf-8", "replace"), MANIFEST, len(data))
+    except IngestionError as exc:
+        return exc
+    return None
+
+__all__ = ["MANIFEST", "MAX_MANIFEST_KB", "ROLES", "SEGMENTS", "UPLOAD_ROLES", "check_labels", "delete_recording",
+           "manifest_problem", "store_upload"]

@@ -57,11 +57,9 @@ from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
-from app.pipeline.ingestion import IngestionError
-from app.pipeline.ingestion.session import MAX_MANIFEST_KB, check_manifest_size
 from app.store import erasure, recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
-from app.store.recordings import MANIFEST
+from app.store.recordings import MANIFEST, MAX_MANIFEST_KB, manifest_problem
 from app.store.sessions import clinic_session, refuse_while_processing
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
@@ -199,10 +197,9 @@ class _Upload:
 
     def _part_end(self) -> None:
         if self._manifest is not None:  # too deep or too large: refused now, never stored (issue 16, finding 5)
-            try:
-                check_manifest_size(bytes(self._manifest).decode("utf-8", "replace"), MANIFEST, len(self._manifest))
-            except IngestionError as exc:
-                raise Refusal(413 if exc.code == "manifest.too_large" else 400, exc.code, **exc.params) from None
+            exc = manifest_problem(bytes(self._manifest))
+            if exc is not None:
+                raise Refusal(413 if exc.code == "manifest.too_large" else 400, exc.code, **exc.params)
             self._manifest = None
         if self._form_name is not None:
             self.fields[self._form_name] = self._form_value.decode("utf-8", "replace").strip()
