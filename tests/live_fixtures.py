@@ -33,13 +33,37 @@ def fresh_database(server_url: str, prefix: str = "chakamo_test") -> Iterator[st
         admin.dispose()
 
 
+def _answers_as(server: RedisServer) -> bool:
+    """Whether the server listening on ``server.port`` is ``server``'s own process (its pid in ``INFO``)."""
+    import redis
+
+    if server.proc is None or server.proc.poll() is not None:
+        return False
+    client = redis.Redis.from_url(server.url, socket_timeout=5)
+    try:
+        return int(client.info("server")["process_id"]) == server.proc.pid
+    except redis.RedisError:
+        return False
+    finally:
+        client.close()
+
+
 @contextmanager
 def running_redis(folder: Path, persistent: bool = False) -> Iterator[RedisServer]:
-    """A ``redis-server`` of its own in ``folder`` (skips the test when it is not installed); stopped after."""
-    try:
-        server = RedisServer(folder, persistent=persistent).start()
-    except Missing as exc:
-        pytest.skip(str(exc))
+    """A ``redis-server`` of its own in ``folder`` (skips the test when it is not installed); stopped after.
+
+    The port is free when chosen but bound only when the server starts; the server that answers there must be
+    this one (another worker's could have taken the port meanwhile), else it starts again on another port."""
+    for _ in range(5):
+        try:
+            server = RedisServer(folder, persistent=persistent).start()
+        except Missing as exc:
+            pytest.skip(str(exc))
+        if _answers_as(server):
+            break
+        server.stop()       # lost the free port to another process (a parallel test worker) before binding it
+    else:
+        raise AssertionError(f"no redis-server of this test came up in {folder}")
     try:
         yield server
     finally:

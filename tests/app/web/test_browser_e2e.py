@@ -79,10 +79,13 @@ def test_no_inner_html_in_the_ui():
 
 
 # ------------------------------------------------------------------------------------------- server
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def _loopback_socket() -> socket.socket:
+    """A listening socket on a loopback port the kernel chose, kept bound until uvicorn serves on it (a port
+    probed and released first could be taken meanwhile by a parallel test worker)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind(("127.0.0.1", 0))
+    return sock
 
 
 def _make_clinic_admin(settings) -> None:
@@ -103,10 +106,11 @@ def server(tmp_path_factory):
 
     data_dir = tmp_path_factory.mktemp("chakamo-data")
     settings = Settings(CHAKAMO_ENV="development", CHAKAMO_DATA_DIR=data_dir, CHAKAMO_WORKERS=1)
-    port = _free_port()
+    sock = _loopback_socket()
+    port = sock.getsockname()[1]
     srv = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning",
                                        access_log=False))
-    thread = threading.Thread(target=srv.run, daemon=True)
+    thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
     deadline = time.monotonic() + 120
     while not srv.started:
@@ -119,6 +123,7 @@ def server(tmp_path_factory):
     finally:
         srv.should_exit = True
         thread.join(timeout=30)
+        sock.close()
 
 
 @pytest.fixture(scope="module")
