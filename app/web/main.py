@@ -42,7 +42,7 @@ from app.web.api import api_router
 from app.store.database import Database
 from app.store.models import User
 from app.web.headers import SecurityHeaders
-from app.web.security import LoginThrottle
+from app.web.throttle import InFlight, LoginThrottle
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
 from estimators import __version__
@@ -137,7 +137,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     #: CHAKAMO_RENDER_PROCESSES > 0 (the embedded runner's render pool, or one of its own with Celery; None:
     #: checks run in the request thread)
     app.state.check_pool = None
-    app.state.login_throttle = LoginThrottle()
+    #: login counters in the database (every server shares them) and this server's logins per address (app.web.throttle)
+    app.state.login_throttle = LoginThrottle(db)
+    app.state.login_in_flight = InFlight(app.state.login_throttle)
     #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
