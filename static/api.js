@@ -4,7 +4,10 @@
 // state-changing request carries the X-CSRF-Token header with the token returned by login and /auth/me
 // (kept in memory only, never in storage).  Errors become ApiError with the server's `detail` sentence so
 // views can show it as is; a 401 also calls the handler registered with onUnauthorized (back to login).
-// Uploads use XMLHttpRequest instead of fetch, which cannot report upload progress.
+// Uploads use XMLHttpRequest instead of fetch, which cannot report upload progress.  Every request says the UI's
+// language (Accept-Language), so the server's refusals of logins, passwords and accounts come back in it.
+
+import { lang } from "./i18n.js";
 
 const BASE = "/api/v1";
 let csrfToken = null;
@@ -54,7 +57,7 @@ function fail(status, body, statusText) {
 
 /** Call the API: `await api("POST", "/patients", {json: {...}})`; returns the parsed JSON (null for 204). */
 export async function api(method, path, { json, query } = {}) {
-  const headers = { Accept: "application/json" };
+  const headers = { Accept: "application/json", "Accept-Language": lang() };
   const init = { method, headers, credentials: "same-origin" };
   if (json !== undefined) {
     headers["Content-Type"] = "application/json";
@@ -80,6 +83,7 @@ export function upload(path, formData, onProgress = () => {}) {
     const xhr = new XMLHttpRequest();
     xhr.open("POST", apiUrl(path));
     xhr.setRequestHeader("Accept", "application/json");
+    xhr.setRequestHeader("Accept-Language", lang());
     if (csrfToken) xhr.setRequestHeader("X-CSRF-Token", csrfToken);
     xhr.upload.addEventListener("progress", (e) => { if (e.lengthComputable) onProgress(e.loaded / e.total); });
     xhr.addEventListener("load", () => {

@@ -26,7 +26,7 @@ Account (cookie callers only; an API token has neither password nor sessions: 40
   throttled like a login), the new one must pass :mod:`app.web.passwords`; every *other* session of the user
   ends (ASVS 3.3.3), this one stays.
 * ``GET /auth/sessions`` — the user's open sessions (opened, expires, address, browser, ``current``);
-  ``DELETE /auth/sessions/{id}`` ends one of the others, ``POST /auth/sessions/end-others`` all of them.
+  ``DELETE /auth/sessions/{id}`` ends one of the others, ``POST /auth/end-other-sessions`` all of them.
 
 Refusals speak the request's language (:mod:`app.web.messages`).
 """
@@ -248,7 +248,7 @@ def end_session(session_id: int, request: Request, principal: BrowserUser, db: D
     return Response(status_code=204)
 
 
-@router.post("/sessions/end-others")
+@router.post("/end-other-sessions")
 def end_other_sessions(request: Request, principal: BrowserUser, db: DbDep):
     """End every session of the caller but this one; returns how many ended."""
     ended = accounts.close_user_browser_sessions(db, principal.user.id, keep_sha256=sha256_hex(principal.session_id))

@@ -121,7 +121,7 @@ def test_users_list_and_end_their_other_sessions(client, world):
     other = _browser(client, ADMIN, address="192.0.2.77")
     other_id = next(r["id"] for r in other.get("/api/v1/auth/sessions").json() if r["current"])
     assert a.delete(f"/api/v1/auth/sessions/{other_id}").status_code == 404
-    assert a.post("/api/v1/auth/sessions/end-others").json() == {"ended_sessions": 1}
+    assert a.post("/api/v1/auth/end-other-sessions").json() == {"ended_sessions": 1}
     assert c.get("/api/v1/auth/me").status_code == 401 and a.get("/api/v1/auth/me").status_code == 200
     assert other.get("/api/v1/auth/me").status_code == 200
     assert len(_events(client, "session_end")) == 2

@@ -39,6 +39,9 @@ PUBLIC_MOUNTS = {"/docs-assets", "/static", "/viser"}
 READ_ONLY_MAY = {
     ("POST", "/api/v1/auth/login"): "anyone may log in",
     ("POST", "/api/v1/auth/logout"): "everyone may close their own session",
+    ("POST", "/api/v1/auth/password"): "everyone may change their own password",
+    ("DELETE", "/api/v1/auth/sessions/{session_id}"): "everyone may end their own other sessions",
+    ("POST", "/api/v1/auth/end-other-sessions"): "everyone may end their own other sessions",
 }
 UNSAFE = {"POST", "PUT", "PATCH", "DELETE"}
 
