@@ -70,7 +70,7 @@ def test_repeated_failures_are_delayed_even_for_the_right_password(client, admin
     for _ in range(policy.free_per_pair):
         assert login(client, password="wrong password!").status_code == 401
     r = login(client)  # even the right password, until the delay passes
-    assert r.status_code == 429 and "wait" in r.json()["detail"] and int(r.headers["retry-after"]) >= 59
+    assert r.status_code == 429 and "wait" in r.json()["detail"] and int(r.headers["retry-after"]) >= 30
     assert r.headers["x-chakamo-code"] == "login.throttled"
     assert login(client, email="other@clinic.test").status_code == 401  # other emails unaffected
 
