@@ -10,7 +10,8 @@ seconds:
 * a clinician (a clinician API token) reads the patient list and the patient at ``rate`` requests per second,
   open loop (:func:`benchmarks.http_load.open_loop_get`: each read leaves at its scheduled time whether or not
   the earlier ones answered, so a slow server cannot hide its latency);
-* ``logins`` anonymous clients each send ``POST /auth/login`` with a wrong password for an email of their own
+* ``logins`` anonymous clients (in a child process, so that their event loop cannot delay the reads' through
+  the GIL) each send ``POST /auth/login`` with a wrong password for an email of their own
   and send the next one as soon as the answer arrives (a sustained flood of ``logins`` parallel logins).  With
   ``--addresses N`` the clients are spread over N loopback source addresses (127.0.0.2 …), so the per-address
   cap does not refuse them all and the server-wide queue bound is what is measured.
@@ -25,10 +26,10 @@ import argparse
 import asyncio
 import os
 import tempfile
-import threading
+import multiprocessing
 import time
 from collections import Counter
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +74,15 @@ async def _flood(base: str, n: int, seconds: float, addresses: int) -> list[tupl
     return out
 
 
+def _noop() -> None:
+    return None
+
+
+def flood_process(base: str, n: int, seconds: float, addresses: int) -> list[tuple[int, float]]:
+    """:func:`_flood` on an event loop of its own (the child process' entry point)."""
+    return asyncio.run(_flood(base, n, seconds, addresses))
+
+
 def run(logins: int, seconds: float, rate: float, addresses: int) -> tuple[list, list, list[str]]:
     """The reads ``(path, ms, status)``, the logins ``(status, ms)`` and the read paths of one flood."""
     import httpx
@@ -82,16 +92,10 @@ def run(logins: int, seconds: float, rate: float, addresses: int) -> tuple[list,
         r.raise_for_status()
         paths = ["/api/v1/patients", f"/api/v1/patients/{r.json()['id']}"]
         open_loop_get(base, headers, paths, 5, 1.0)  # warm the connection pool and the routes
-        flood: list = []
-        with ThreadPoolExecutor(1) as pool:
-            started = threading.Event()
-
-            def go():
-                started.set()
-                return asyncio.run(_flood(base, logins, seconds + 1.0, addresses))
-
-            fut = pool.submit(go)
-            started.wait()
+        # the flood runs in a child process: its event loop must not delay the reads' one through the GIL
+        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            pool.submit(_noop).result()  # the child is up before the clock starts
+            fut = pool.submit(flood_process, base, logins, seconds + 1.0, addresses)
             time.sleep(0.5)  # the flood is on before the first read
             reads = open_loop_get(base, headers, paths, rate, seconds)
             flood = fut.result()

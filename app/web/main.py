@@ -42,7 +42,7 @@ from app.web.api import api_router
 from app.store.database import Database
 from app.store.models import User
 from app.web.headers import SecurityHeaders
-from app.web.throttle import InFlight, LoginThrottle
+from app.web.throttle import InFlight, LoginGate, LoginThrottle
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
 from estimators import __version__
@@ -144,6 +144,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
 
+    app.add_middleware(LoginGate, in_flight=app.state.login_in_flight)  # app/web/throttle.py: flood refusals
     app.add_middleware(SecurityHeaders, development=settings.development)  # app/web/headers.py
 
     @app.exception_handler(RequestValidationError)

@@ -28,10 +28,14 @@ moving/fixed windows count hits but do not express "the next attempt waits ``d(n
 **Concurrent logins per address** (:class:`InFlight`): at most ``max_in_flight`` logins of one client address
 are inside the server at once (in memory, per server process); one more is answered 429 at once, before any
 database work — one machine cannot fill the hashing queue (:mod:`app.web.security`) that everybody shares.
+:class:`LoginGate`, an ASGI middleware, gives these refusals (and the 503 of a full hashing queue) before the
+request reaches the framework — no routing, no body parsing, no dependency: a flood of them costs the event
+loop that also answers everybody's reads as little as an answer can.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -139,4 +143,47 @@ class InFlight:
                 self._counts.pop(ip, None)
 
 
-__all__ = ["InFlight", "LoginThrottle", "ThrottlePolicy"]
+
+
+class LoginGate:
+    """ASGI middleware in front of ``POST /api/v1/auth/login`` (module docstring): counts the request in ``InFlight``
+    for as long as it is inside the app, and answers 429 (too many at once from this address) or 503 (hashing
+    queue full) itself, in the request's language, with ``Retry-After`` and the code header."""
+
+    PATH = "/api/v1/auth/login"
+
+    def __init__(self, app, *, in_flight: InFlight) -> None:
+        self.app, self.in_flight = app, in_flight
+
+    @staticmethod
+    async def _refuse(scope, send, status: int, code: str, retry_s: int) -> None:
+        from starlette.requests import Request
+
+        from app.web.messages import CODE_HEADER, language, render
+
+        body = json.dumps({"detail": render(code, language(Request(scope)))}).encode()
+        await send({"type": "http.response.start", "status": status,
+                    "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
+                                (b"retry-after", str(retry_s).encode()), (CODE_HEADER.lower().encode(), code.encode())]})
+        await send({"type": "http.response.body", "body": body})
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] != "http" or scope["path"] != self.PATH or scope["method"] != "POST":
+            await self.app(scope, receive, send)
+            return
+        from app.web.security import hash_queue_full
+
+        ip = (scope.get("client") or ("-",))[0] or "-"
+        if not self.in_flight.enter(ip):
+            await self._refuse(scope, send, 429, "login.too_many_at_once", 1)
+            return
+        try:
+            if hash_queue_full():
+                await self._refuse(scope, send, 503, "login.busy", 2)
+                return
+            await self.app(scope, receive, send)
+        finally:
+            self.in_flight.leave(ip)
+
+
+__all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy"]

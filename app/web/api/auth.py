@@ -9,7 +9,8 @@ connection's peer: behind a reverse proxy run uvicorn with ``--proxy-headers`` s
 Login, in order (issue 16 findings 1, 2, 10a; :mod:`app.web.throttle`, :mod:`app.web.security`):
 
 1. more than :attr:`~app.web.throttle.ThrottlePolicy.max_in_flight` logins of this address inside the server →
-   429 at once; the hashing queue full → 503 at once (both with ``Retry-After``, no database work);
+   429 at once; the hashing queue full → 503 at once (both with ``Retry-After``, no database work; answered by
+   the ASGI middleware :class:`app.web.throttle.LoginGate` before the request reaches this route);
 2. an attempt is reserved on the email's and the address's counters, atomically in the database, *before*
    the password is checked; a counter still in its progressive delay → 429 with ``Retry-After``, no check;
 3. the password is checked on the bounded hashing pool, awaited: this ``async`` route holds no request thread
@@ -50,7 +51,7 @@ from app.web.audit import record, record_login
 from app.web.messages import refusal
 from app.web.passwords import WeakPassword, check_password_strength
 from app.web.security import (ARGON2_MEMORY_KIB, ARGON2_PARALLELISM, ARGON2_TIME_COST, Busy, csrf_token,
-                              hash_password_async, hash_queue_full, needs_rehash, new_session_id, sha256_hex,
+                              hash_password_async, needs_rehash, new_session_id, sha256_hex,
                               verify_password_async)
 
 router = APIRouter(prefix="/auth", tags=["auth"])
@@ -113,35 +114,28 @@ def _finish(request: Request, response: Response, email: str, ip: str | None, us
 async def login(body: LoginIn, request: Request, response: Response):
     """Check email and password; set the session cookie; return the user and the CSRF token (module docstring)."""
     email, ip = body.email.lower(), _address(request)
-    gate = request.app.state.login_in_flight
-    if not gate.enter(ip or "-"):
-        raise refusal(request, 429, "login.too_many_at_once", headers={"Retry-After": "1"})
+    # step 1 (the per-address cap, a full hashing queue) is app.web.throttle.LoginGate, before this route
+    wait_s, found = await run_in_threadpool(_begin, request, email, ip)
+    if wait_s:
+        raise refusal(request, 429, "login.throttled", headers={"Retry-After": f"{wait_s:.0f}"},
+                      seconds=f"{wait_s:.0f}")
+    user_id, stored, _active = found if found else (None, None, False)
     try:
-        if hash_queue_full():
-            raise refusal(request, 503, "login.busy", headers={"Retry-After": "2"})
-        wait_s, found = await run_in_threadpool(_begin, request, email, ip)
-        if wait_s:
-            raise refusal(request, 429, "login.throttled", headers={"Retry-After": f"{wait_s:.0f}"},
-                          seconds=f"{wait_s:.0f}")
-        user_id, stored, _active = found if found else (None, None, False)
+        stored = stored or _dummy_hash()
+        ok = await verify_password_async(body.password, stored)
+    except Busy:  # the queue filled between the check above and now: the attempt stays counted
+        raise refusal(request, 503, "login.busy", headers={"Retry-After": "2"}) from None
+    new_hash = None
+    if ok and found and needs_rehash(stored):
         try:
-            stored = stored or _dummy_hash()
-            ok = await verify_password_async(body.password, stored)
-        except Busy:  # the queue filled between the check above and now: the attempt stays counted
-            raise refusal(request, 503, "login.busy", headers={"Retry-After": "2"}) from None
-        new_hash = None
-        if ok and found and needs_rehash(stored):
-            try:
-                new_hash = await hash_password_async(body.password)
-            except Busy:  # the old hash still works; it is upgraded at a later login
-                pass
-        out = await run_in_threadpool(_finish, request, response, email, ip, user_id, ok and found is not None,
-                                      new_hash)
-        if not out:
-            raise refusal(request, 401, "login.wrong")
-        return out
-    finally:
-        gate.leave(ip or "-")
+            new_hash = await hash_password_async(body.password)
+        except Busy:  # the old hash still works; it is upgraded at a later login
+            pass
+    out = await run_in_threadpool(_finish, request, response, email, ip, user_id, ok and found is not None,
+                                  new_hash)
+    if not out:
+        raise refusal(request, 401, "login.wrong")
+    return out
 
 
 @router.post("/logout", status_code=204)
