@@ -41,7 +41,7 @@ a successful login                                        ``login``          the
 a wrong password (or an unknown or deactivated account)   ``login_failed``   the account's clinic, or null when the
                                                                              email has none; actor ``anonymous`` with
                                                                              the email typed
-a login refused by the throttle (429)                     ``login_refused``  as ``login_failed``
+a login refused by the throttle (429), known emails only  ``login_refused``  the account's clinic
 a logout                                                  ``logout``         the user's
 401 (no, unknown, revoked or expired credentials)         ``denied``         the token's or session's clinic when known
 403 (role too low, missing CSRF header)                   ``denied``         the caller's

@@ -88,12 +88,17 @@ class LoginThrottle:
         """Reserve one attempt of ``email`` from ``ip`` on every counter, committed at once; returns 0.0 when
         reserved, else the seconds to wait (nothing reserved).  Blocking (database): call it from a thread."""
         p, now = self.policy, time.time()
-        with self.db.sessions() as s:
+        keys = [k for k, _, _ in _keys(email, ip)]
+        with self.db.sessions() as s:  # a plain read first: a key still waiting refuses without a write lock
+            wait = accounts.attempt_wait_s(s, keys, now)
+        if wait > 0:
+            return max(1.0, math.ceil(wait))
+        with self.db.sessions() as s:  # the atomic reservation (the authority; the read above only saves writes)
             for key, key_email, kind in _keys(email, ip):
                 if not accounts.reserve_attempt(s, key, key_email, now, free=self._free(kind), base_s=p.base_s,
                                                 cap_s=p.cap_s, forget_s=p.forget_s):
                     s.rollback()
-                    return max(1.0, math.ceil(accounts.attempt_wait_s(s, [k for k, _, _ in _keys(email, ip)], now)))
+                    return max(1.0, math.ceil(accounts.attempt_wait_s(s, keys, now)))
             s.commit()
         self._count += 1
         if self._count % self.PRUNE_EVERY == 0:

@@ -12,7 +12,9 @@ Login, in order (issue 16 findings 1, 2, 10a; :mod:`app.web.throttle`, :mod:`app
    429 at once; the hashing queue full → 503 at once (both with ``Retry-After``, no database work; answered by
    the ASGI middleware :class:`app.web.throttle.LoginGate` before the request reaches this route);
 2. an attempt is reserved on the email's and the address's counters, atomically in the database, *before*
-   the password is checked; a counter still in its progressive delay → 429 with ``Retry-After``, no check;
+   the password is checked; a counter still in its progressive delay → 429 with ``Retry-After``, no check
+   (recorded as ``login_refused`` when the email has an account; a refused guess at an unknown email is not
+   written, so that an address spraying made-up emails cannot turn each refusal into a database write);
 3. the password is checked on the bounded hashing pool, awaited: this ``async`` route holds no request thread
    while it waits (the database steps run on the thread pool, a few milliseconds each);
 4. success resets the counters, opens the session and records ``login``; failure records ``login_failed``.
@@ -80,7 +82,7 @@ def _begin(request: Request, email: str, ip: str | None) -> tuple[float, tuple |
     wait_s = state.login_throttle.reserve(email, ip)
     with state.db.session() as s:
         user = accounts.user_by_email(s, email)
-        if wait_s:
+        if wait_s and user is not None:  # (an unknown email's refusal is not written: module docstring)
             record_login(s, request, "login_refused", email=email, user=user, status=429,
                          detail=f"throttled: wait {wait_s:g} s")
         return wait_s, (user.id, user.password_hash, user.active) if user else None
