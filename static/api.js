@@ -5,7 +5,8 @@
 // (kept in memory only, never in storage).  Errors become ApiError with the server's `detail` sentence (or,
 // when the answer carries it, its `message` in the UI's language) so views can show it as is; a 401 also
 // calls the handler registered with onUnauthorized (back to login).
-// Uploads use XMLHttpRequest instead of fetch, which cannot report upload progress.
+// Uploads use XMLHttpRequest instead of fetch, which cannot report upload progress.  Every request says the UI's
+// language (Accept-Language), so the server's refusals of logins, passwords and accounts come back in it.
 
 import { lang } from "./i18n.js";
 
@@ -62,7 +63,7 @@ function fail(status, body, statusText) {
 /** Call the API: `await api("POST", "/patients", {json: {...}})`; returns the parsed JSON (null for 204).
  *  `ifMatch`: the version a correction or erasure was based on (sent as `If-Match: "<version>"`). */
 export async function api(method, path, { json, query, ifMatch } = {}) {
-  const headers = { Accept: "application/json" };
+  const headers = { Accept: "application/json", "Accept-Language": lang() };
   if (ifMatch !== undefined && ifMatch !== null) headers["If-Match"] = `"${ifMatch}"`;
   const init = { method, headers, credentials: "same-origin" };
   if (json !== undefined) {
@@ -89,6 +90,7 @@ export function upload(path, formData, onProgress = () => {}) {
     const xhr = new XMLHttpRequest();
     xhr.open("POST", apiUrl(path));
     xhr.setRequestHeader("Accept", "application/json");
+    xhr.setRequestHeader("Accept-Language", lang());
     if (csrfToken) xhr.setRequestHeader("X-CSRF-Token", csrfToken);
     xhr.upload.addEventListener("progress", (e) => { if (e.lengthComputable) onProgress(e.loaded / e.total); });
     xhr.addEventListener("load", () => {

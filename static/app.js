@@ -1,7 +1,8 @@
 // ChakaMo browser UI: start-up, login, header and hash routing.
 //
 // Single page, no build step: plain ES modules served from /static.  Routes (hash, so the server only has
-// to serve index.html): #/login, #/patients, #/patients/7, #/sessions/3/wizard, #/sessions/3[?analysis_id=5].
+// to serve index.html): #/login, #/patients, #/patients/7, #/sessions/3/wizard, #/sessions/3[?analysis_id=5],
+// #/account (password change, open sessions).
 // Each route renders into a fresh <section> put in <main>; a view's timers and async answers check that its
 // section is still in the page (isConnected) before touching it, so leaving a page stops its polling.
 // Start: GET /auth/me tells whether the browser session cookie is still valid (then the CSRF token comes
@@ -13,6 +14,7 @@ import { t, LANGUAGES, initialLanguage, setLanguage, lang, translateStatic } fro
 import { patientsView, patientView } from "./views/patients.js";
 import { wizardView } from "./views/wizard.js";
 import { resultsView } from "./views/results.js";
+import { accountView } from "./views/account.js";
 
 const state = { user: null, wanted: null };
 const main = document.getElementById("main");
@@ -23,6 +25,7 @@ const ROUTES = [
   [/^#\/patients\/(\d+)$/, (m) => patientView(Number(m[1]))],
   [/^#\/sessions\/(\d+)\/wizard$/, (m) => wizardView(Number(m[1]))],
   [/^#\/sessions\/(\d+)$/, (m, query) => resultsView(Number(m[1]), query)],
+  [/^#\/account$/, () => accountView()],
 ];
 
 /** Whether the logged-in user may change data (read_only users only look). */
@@ -93,6 +96,7 @@ function updateNav() {
   const u = state.user;
   who.append(h("span", { class: "clinic" }, (u.clinic && u.clinic.name) || ""),
     h("span", { class: "user" }, `${u.name || u.email} · ${t(`role.${u.role}`)}`),
+    h("a", { href: "#/account", class: "account-link" }, t("nav.account")),
     h("button", { type: "button", class: "secondary small", onclick: logout }, t("nav.logout")));
 }
 

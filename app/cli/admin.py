@@ -114,9 +114,10 @@ def create_user(settings: Settings | None, *, clinic: str, email: str, role: str
     from sqlalchemy import select
 
     from app.store.models import User
+    from app.web.audit import record_operator
     from app.web.security import check_password_strength, hash_password
 
-    check_password_strength(password)
+    check_password_strength(password, email=email, name=name)
     with _session(settings) as s:
         c = _clinic(s, clinic)
         if s.scalar(select(User.id).where(User.email == email)) is not None:
@@ -124,6 +125,8 @@ def create_user(settings: Settings | None, *, clinic: str, email: str, role: str
         user = User(clinic_id=c.id, email=email, name=name, role=role, password_hash=hash_password(password))
         s.add(user)
         s.flush()
+        record_operator(s, clinic_id=c.id, action="user_create", user_id=user.id,
+                        detail=f"user {user.id} role {role}")
         return user.id
 
 
@@ -132,12 +135,17 @@ def create_token(settings: Settings | None, *, clinic: str, label: str = "", rol
     if role not in ROLES:
         raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
     from app.store.models import ApiToken
+    from app.web.audit import record_operator
     from app.web.security import new_token, sha256_hex
 
     token = new_token()
     with _session(settings) as s:
         c = _clinic(s, clinic)
-        s.add(ApiToken(clinic_id=c.id, label=label, role=role, token_sha256=sha256_hex(token)))
+        row = ApiToken(clinic_id=c.id, label=label, role=role, token_sha256=sha256_hex(token))
+        s.add(row)
+        s.flush()
+        record_operator(s, clinic_id=c.id, action="token_create", token_id=row.id,
+                        detail=f"token {row.id} role {role}" + (f" ({label})" if label else ""))
     return token
 
 
@@ -261,6 +269,7 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
     ``already`` is True when it had been revoked before (its first date is kept).  ValueError for an
     unknown id."""
     from app.store.models import ApiToken, utcnow
+    from app.web.audit import record_operator
 
     with _session(settings) as s:
         token = s.get(ApiToken, token_id)
@@ -270,6 +279,8 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
         already = token.revoked_at is not None
         if not already:
             token.revoked_at = utcnow()
+            record_operator(s, clinic_id=token.clinic_id, action="token_revoke", token_id=token.id,
+                            detail=f"token {token.id} revoked")
         return {"id": token.id, "clinic": token.clinic.name, "label": token.label,
                 "revoked_at": token.revoked_at, "already": already}
 
@@ -277,23 +288,32 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
 def deactivate_user(settings: Settings | None, *, email: str) -> int:
     """Deactivate the user with ``email`` (login refused) and delete their browser sessions; returns how many
     sessions were closed.  ValueError for an unknown email."""
+    from app.web.audit import record_operator
+
     with _session(settings) as s:
         user = _user(s, email)
         user.active = False
-        return _close_browser_sessions(s, user.id)
+        closed = _close_browser_sessions(s, user.id)
+        record_operator(s, clinic_id=user.clinic_id, action="user_change", user_id=user.id,
+                        detail=f"user {user.id}: deactivated, {closed} session(s) ended")
+        return closed
 
 
 def set_password(settings: Settings | None, *, email: str, password: str) -> int:
-    """Give the user with ``email`` a new ``password`` (at least 10 characters, as for ``users create``) and
+    """Give the user with ``email`` a new ``password`` (the rules of ``users create``: app.web.passwords) and
     delete their browser sessions; returns how many were closed.  ValueError for an unknown email or a weak
-    password (checked first: nothing changes)."""
+    password (nothing changes)."""
+    from app.web.audit import record_operator
     from app.web.security import check_password_strength, hash_password
 
-    check_password_strength(password)
     with _session(settings) as s:
         user = _user(s, email)
+        check_password_strength(password, email=user.email, name=user.name)
         user.password_hash = hash_password(password)
-        return _close_browser_sessions(s, user.id)
+        closed = _close_browser_sessions(s, user.id)
+        record_operator(s, clinic_id=user.clinic_id, action="password_change", user_id=user.id,
+                        detail=f"set by the operator; {closed} session(s) ended")
+        return closed
 
 
 def _add_account_parsers(users, tokens) -> None:

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import datetime as dt
 
-from sqlalchemy import delete, select
+from sqlalchemy import case, delete, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.store.errors import Conflict
-from app.store.models import ApiToken, BrowserSession, User, utcnow
+from app.store.models import ApiToken, BrowserSession, LoginAttempts, User, utcnow
 
 
 def active_token(db: Session, token_sha256: str) -> ApiToken | None:
@@ -31,18 +31,111 @@ def browser_session(db: Session, session_sha256: str) -> BrowserSession | None:
     return db.scalar(select(BrowserSession).where(BrowserSession.session_sha256 == session_sha256))
 
 
-def open_browser_session(db: Session, user_id: int, session_sha256: str, hours: float) -> BrowserSession:
-    """A new browser session of ``hours``; expired sessions of every user are removed on the way."""
+def open_browser_session(db: Session, user_id: int, session_sha256: str, hours: float, *, client: str = "",
+                         user_agent: str = "") -> BrowserSession:
+    """A new browser session of ``hours`` opened from ``client`` with ``user_agent`` (both cut to their columns);
+    expired sessions of every user are removed on the way."""
     now = utcnow()
     db.execute(delete(BrowserSession).where(BrowserSession.expires_at < now))  # housekeeping
     row = BrowserSession(user_id=user_id, session_sha256=session_sha256, created_at=now,
-                         expires_at=now + dt.timedelta(hours=hours))
+                         expires_at=now + dt.timedelta(hours=hours), client=client[:64], user_agent=user_agent[:200])
     db.add(row)
     return row
 
 
 def close_browser_session(db: Session, session_sha256: str) -> None:
     db.execute(delete(BrowserSession).where(BrowserSession.session_sha256 == session_sha256))
+
+
+def user_browser_sessions(db: Session, user_id: int) -> list[BrowserSession]:
+    """The user's unexpired browser sessions, newest first."""
+    return list(db.scalars(select(BrowserSession).where(BrowserSession.user_id == user_id,
+                                                        BrowserSession.expires_at > utcnow())
+                           .order_by(BrowserSession.id.desc())))
+
+
+def close_user_browser_sessions(db: Session, user_id: int, *, keep_sha256: str | None = None,
+                                only_id: int | None = None) -> int:
+    """Delete the user's browser sessions (all, all but ``keep_sha256``, or only the one of id ``only_id``);
+    returns how many were deleted."""
+    stmt = delete(BrowserSession).where(BrowserSession.user_id == user_id)
+    if keep_sha256 is not None:
+        stmt = stmt.where(BrowserSession.session_sha256 != keep_sha256)
+    if only_id is not None:
+        stmt = stmt.where(BrowserSession.id == only_id)
+    return db.execute(stmt).rowcount or 0
+
+
+def clinic_user(db: Session, clinic_id: int, user_id: int) -> User | None:
+    """User ``user_id`` if it belongs to clinic ``clinic_id`` (else None: the caller answers 404)."""
+    user = db.get(User, user_id)
+    return user if user is not None and user.clinic_id == clinic_id else None
+
+
+# ------------------------------------------------------------------------------------ login attempt counters
+def _ensure_attempt_row(db: Session, key: str, email: str | None) -> None:
+    """The counter row of ``key`` (made if missing; atomic against a concurrent insert)."""
+    name = db.get_bind().dialect.name
+    if name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert
+    else:
+        from sqlalchemy.dialects.sqlite import insert
+    db.execute(insert(LoginAttempts).values(key=key, email=email, attempts=0, delay_s=0.0, next_s=0.0, last_s=0.0)
+               .on_conflict_do_nothing(index_elements=["key"]))
+
+
+def reserve_attempt(db: Session, key: str, email: str | None, now_s: float, *, free: int, base_s: float,
+                    cap_s: float, forget_s: float) -> bool:
+    """Reserve one login attempt of ``key`` at ``now_s`` (Unix seconds) in one atomic ``UPDATE``; False when the
+    key must wait (the caller answers 429 and checks no password).
+
+    With ``n`` the key's attempts after this one (back to 1 when the key was idle ``forget_s``), the next attempt
+    may come no earlier than ``now_s + d(n)``, ``d(n) = 0`` for ``n < free`` and ``min(cap_s, base_s·2^(n−free))``
+    after: the delay doubles per attempt (``delay_s`` holds the last ``d``).  The ``WHERE`` admits the attempt only
+    if ``next_s <= now_s``; on PostgreSQL a concurrent reservation of the same row waits for this one's commit and
+    re-evaluates the ``WHERE`` on the new row (READ COMMITTED), on SQLite writers are serialised — so a burst can
+    never reserve more attempts than the rule allows, whichever server each request reaches.  A free attempt
+    leaves ``next_s`` at 0 (not ``now_s``): a request that read the clock earlier but reached the row later is
+    not refused by its predecessor's clock."""
+    _ensure_attempt_row(db, key, email)
+    stale = LoginAttempts.last_s < now_s - forget_s
+    n_new = case((stale, 1), else_=LoginAttempts.attempts + 1)
+    old = case((stale, 0.0), else_=LoginAttempts.delay_s)
+    delay = case((n_new < free, 0.0), (old <= 0.0, base_s), (old * 2.0 >= cap_s, cap_s), else_=old * 2.0)
+    result = db.execute(update(LoginAttempts)
+                        .where(LoginAttempts.key == key, (LoginAttempts.next_s <= now_s) | stale)
+                        .values(attempts=n_new, delay_s=delay, next_s=case((delay > 0.0, now_s + delay), else_=0.0),
+                                last_s=now_s)
+                        .execution_options(synchronize_session=False))
+    return result.rowcount == 1
+
+
+def attempt_wait_s(db: Session, keys: list[str], now_s: float) -> float:
+    """Seconds until every key of ``keys`` admits an attempt again (0 when they all do)."""
+    nexts = db.scalars(select(LoginAttempts.next_s).where(LoginAttempts.key.in_(keys))).all()
+    return max([0.0, *(n - now_s for n in nexts)])
+
+
+def reset_attempts(db: Session, keys: list[str]) -> None:
+    """Counters of ``keys`` back to zero (a successful login resets its email's keys)."""
+    db.execute(update(LoginAttempts).where(LoginAttempts.key.in_(keys))
+               .values(attempts=0, delay_s=0.0, next_s=0.0).execution_options(synchronize_session=False))
+
+
+def refund_attempt(db: Session, key: str) -> None:
+    """One reserved attempt of ``key`` given back (a successful login from a shared address)."""
+    db.execute(update(LoginAttempts).where(LoginAttempts.key == key, LoginAttempts.attempts > 0)
+               .values(attempts=LoginAttempts.attempts - 1).execution_options(synchronize_session=False))
+
+
+def delete_attempts_of_email(db: Session, email: str) -> int:
+    """Forget every counter of ``email`` (an admin's unlock); returns how many rows went."""
+    return db.execute(delete(LoginAttempts).where(LoginAttempts.email == email)).rowcount or 0
+
+
+def prune_attempts(db: Session, before_s: float) -> None:
+    """Delete counters idle since before ``before_s`` (they would start from zero anyway)."""
+    db.execute(delete(LoginAttempts).where(LoginAttempts.last_s < before_s, LoginAttempts.next_s < before_s))
 
 
 def user_by_email(db: Session, email: str) -> User | None:
@@ -77,5 +170,7 @@ def add_user(db: Session, clinic_id: int, *, email: str, name: str, role: str, p
     return user
 
 
-__all__ = ["active_token", "add_user", "browser_session", "clinic_users", "close_browser_session",
-           "open_browser_session", "refuse_taken_email", "token_label", "user_by_email"]
+__all__ = ["active_token", "add_user", "attempt_wait_s", "browser_session", "clinic_user", "clinic_users",
+           "close_browser_session", "close_user_browser_sessions", "delete_attempts_of_email", "open_browser_session",
+           "prune_attempts", "refund_attempt", "refuse_taken_email", "reserve_attempt", "reset_attempts",
+           "token_label", "user_browser_sessions", "user_by_email"]

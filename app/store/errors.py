@@ -18,7 +18,12 @@ class DomainError(Exception):
 
 
 class NotFound(DomainError):
-    """An unknown id, or another clinic's (the same answer, so ids of other clinics cannot be probed)."""
+    """An unknown id, or another clinic's (the same answer, so ids of other clinics cannot be probed).
+    ``owner_clinic_id`` is the clinic that does own the id, when another one does (for its audit log only)."""
+
+    def __init__(self, detail: str, owner_clinic_id: int | None = None) -> None:
+        super().__init__(detail)
+        self.owner_clinic_id = owner_clinic_id
 
 
 class Conflict(DomainError):

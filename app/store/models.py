@@ -91,6 +91,9 @@ class BrowserSession(Base):
     session_sha256: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     expires_at: Mapped[dt.datetime] = mapped_column(UTCDateTime)
+    #: where and with what it was opened (shown in the user's list of their sessions)
+    client: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    user_agent: Mapped[str] = mapped_column(String(200), default="", server_default="")
     user: Mapped[User] = relationship(lazy="joined")
 
 
@@ -253,13 +256,17 @@ class BlobErasure(Base):
 
 
 class AuditEvent(Base):
-    """Who viewed, downloaded, exported or changed which patient's data (append-only; ``app.web.audit``)."""
+    """Who viewed, downloaded, exported or changed which patient's data, and the security events (logins, refused
+    access, account changes) — append-only; ``app.web.audit``."""
 
     __tablename__ = "audit_events"
     id: Mapped[int] = mapped_column(primary_key=True)
-    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    #: null for a security event no clinic can be named for (a login with an unknown email, a 401 without a token)
+    clinic_id: Mapped[int | None] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True,
+                                                  nullable=True)
     at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow, index=True)
-    #: ``user`` (browser) or ``token`` (hospital system); the ids stay even if the account is deleted later
+    #: ``user`` (browser), ``token`` (hospital system) or ``anonymous`` (no valid credentials); the ids stay even
+    #: if the account is deleted later
     actor_kind: Mapped[str] = mapped_column(String(10))
     user_id: Mapped[int | None] = mapped_column(Integer, nullable=True, index=True)
     token_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
@@ -272,7 +279,30 @@ class AuditEvent(Base):
     #: the method and path (e.g. ``GET /api/v1/sessions/3/report.pdf``)
     resource: Mapped[str] = mapped_column(String(300))
     client: Mapped[str] = mapped_column(String(64), default="")
+    #: the answer's status code of a refusal (401, 403, 404, 429) or of the request; null for older events
+    status: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: what changed or why it was refused, e.g. ``role clinician -> admin`` or ``wrong password`` (no secrets)
+    detail: Mapped[str] = mapped_column(String(300), default="", server_default="")
 
 
-__all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BlobErasure", "BrowserSession", "Clinic",
-           "Job", "KneeSession", "Patient", "Recording", "User", "utcnow"]
+class LoginAttempts(Base):
+    """The login throttle's counters, one row per key (``app.web.throttle.LoginThrottle``): ``pair:<email> <address>``,
+    ``email:<email>`` or ``ip:<address>``.  Times are Unix seconds (floats), so that the one atomic ``UPDATE`` that
+    reserves an attempt does its arithmetic in SQL alike on SQLite and PostgreSQL."""
+
+    __tablename__ = "login_attempts"
+    key: Mapped[str] = mapped_column(String(420), primary_key=True)
+    #: the email of ``pair:`` and ``email:`` keys (an admin's unlock deletes them by it), null for ``ip:`` keys
+    email: Mapped[str | None] = mapped_column(String(320), nullable=True, index=True)
+    #: attempts reserved since the key was last reset (a success resets ``pair:`` and ``email:`` keys)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    #: the delay the last reservation imposed on the next attempt (doubles per attempt past the free ones)
+    delay_s: Mapped[float] = mapped_column(Float, default=0.0)
+    #: no attempt of this key before this time
+    next_s: Mapped[float] = mapped_column(Float, default=0.0)
+    #: the last reservation (a key idle for the policy's ``forget_s`` starts again from zero)
+    last_s: Mapped[float] = mapped_column(Float, default=0.0)
+
+
+__all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BlobErasure",
+           "BrowserSession", "Clinic", "Job", "KneeSession", "LoginAttempts", "Patient", "Recording", "User", "utcnow"]

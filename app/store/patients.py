@@ -53,7 +53,7 @@ def clinic_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
     """Patient ``patient_id`` of clinic ``clinic_id``, else :class:`NotFound`."""
     row = db.get(Patient, patient_id)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No patient {patient_id} in your clinic; check the id.")
+        raise NotFound(f"No patient {patient_id} in your clinic; check the id.", row.clinic_id if row else None)
     return row
 
 

@@ -57,7 +57,7 @@ def clinic_session(db: Session, clinic_id: int, session_id: int, lock: bool = Fa
     # once locked, read the row again even if this session loaded it before (a change committed meanwhile)
     row = db.get(KneeSession, session_id, populate_existing=lock)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No session {session_id} in your clinic; check the id.")
+        raise NotFound(f"No session {session_id} in your clinic; check the id.", row.clinic_id if row else None)
     return row
 
 
@@ -80,7 +80,7 @@ def refuse_while_processing(db: Session, session_id: int, what: str) -> None:
 def clinic_job(db: Session, clinic_id: int, job_id: int) -> Job:
     row = db.get(Job, job_id)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No job {job_id} in your clinic; check the id.")
+        raise NotFound(f"No job {job_id} in your clinic; check the id.", row.clinic_id if row else None)
     return row
 
 

@@ -48,7 +48,7 @@ from app.store.models import User
 from app.web.headers import AllowedHosts, SecurityHeaders
 from app.web.limits import BodyLimit
 from app.web.refusals import Refusal
-from app.web.security import LoginThrottle
+from app.web.throttle import InFlight, LoginGate, LoginThrottle
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
 from estimators import __version__
@@ -148,13 +148,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     #: CHAKAMO_RENDER_PROCESSES > 0 (CHAKAMO_CHECK_PROCESSES of them, :class:`app.store.checks.CheckPool`;
     #: None: checks run in the request thread)
     app.state.check_pool = None
-    app.state.login_throttle = LoginThrottle()
+    #: login counters in the database (every server shares them) and this server's logins per address (app.web.throttle)
+    app.state.login_throttle = LoginThrottle(db)
+    app.state.login_in_flight = InFlight(app.state.login_throttle)
     #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
     app.include_router(api_router())
 
     # inner first: the body limit's 413 gets the security headers too
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_kb * 1024)  # app/web/limits.py
+    app.add_middleware(LoginGate, in_flight=app.state.login_in_flight)  # app/web/throttle.py: flood refusals
     if settings.host_patterns != ("*",):  # a foreign Host is answered before anything but the headers
         app.add_middleware(AllowedHosts, patterns=settings.host_patterns)
     app.add_middleware(SecurityHeaders, development=settings.development)  # app/web/headers.py

@@ -12,18 +12,20 @@
   today's, and the login stores a fresh hash after the next successful password check, so the parameters
   can rise later without a migration.  (Until an old account logs in once, a wrong password for it costs
   scrypt's ≈ 30 ms instead of argon2's ≈ 90 ms: that timing tells only that the account is old.)
-  Minimum length 10 characters; no default passwords anywhere.
+  No default passwords anywhere; the strength rules (at least 12 characters, no common or patterned
+  password) are :mod:`app.web.passwords`.
 * API tokens: ``chk_`` + ``secrets.token_urlsafe(32)`` (256 bits), shown once; only their sha256 is stored
   (a fast hash is right for 256-bit random secrets: there is nothing to brute-force).
 * Browser sessions: a random id in the ``chakamo_session`` cookie, stored as its sha256.
-* Login throttling (:class:`LoginThrottle`): after 10 failed logins for one email within 15 minutes, that
-  email's logins are refused (429) until the window passes — online password guessing stays slow; the
-  price is that someone who knows an email can delay its owner's login by 15 minutes.  The same counter
-  runs per client address (30 failures in 15 minutes), so one machine cannot guess across many emails;
-  keys whose failures have all expired are pruned, so the table cannot grow without bound.
-* CPU and memory of password hashing: at most :data:`HASH_CONCURRENCY` hashes (argon2 or legacy scrypt) run
-  at once (each takes 64 MiB and ≈ 90 ms of one core); a request that waits longer than :data:`HASH_WAIT_S`
-  for a slot gets :class:`Busy` (the API answers 503), so a flood of logins cannot exhaust the machine.
+* Login throttling: :mod:`app.web.throttle` (attempts reserved in the database before the password is checked).
+* CPU and memory of password hashing (issue 16 finding 2): every hash (argon2 or legacy scrypt) runs on one of
+  :data:`HASH_CONCURRENCY` dedicated threads (half the machine's cores, at least one: each hash takes 64 MiB
+  and ≈ 90 ms of one core, and the other half stays for everybody else's requests).  At most
+  :data:`HASH_QUEUE` more wait for a thread; one more gets :class:`Busy` *at once* (the API answers 503 with
+  ``Retry-After``) — a flood of logins neither exhausts the machine nor piles up.  :func:`verify_password_async`
+  and :func:`hash_password_async` await the hash without holding a request thread (the login route is
+  ``async``); the plain functions (CLI, user creation) block their caller's thread on the same bounded pool.
+  argon2-cffi releases the GIL while it hashes, so the other requests' Python code keeps running.
 * Roles: :data:`ROLES` (highest first) and :data:`ROLE_RANK` are the one definition the database, the API
   and the CLI use.
 * CSRF: ``HMAC-SHA256(secret key, session id)`` — tied to the session, nothing extra to store, checked
@@ -32,22 +34,24 @@
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import functools
 import hashlib
 import hmac
+import os
 import secrets
 import threading
-import time
-from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, TypeVar
+
 from app.choices import USER_ROLE_NAMES
+from app.web.passwords import MIN_PASSWORD_LENGTH, check_password_strength
 
 if TYPE_CHECKING:
     from argon2 import PasswordHasher
 
-MIN_PASSWORD_LENGTH = 10
 TOKEN_PREFIX = "chk_"
 #: argon2id cost of new hashes (module docstring): memory in KiB, passes, lanes
 ARGON2_MEMORY_KIB, ARGON2_TIME_COST, ARGON2_PARALLELISM = 64 * 1024, 2, 1
@@ -57,10 +61,12 @@ _SCRYPT_PREFIX = "scrypt$"
 ROLES: tuple[str, ...] = USER_ROLE_NAMES  # the one definition: app.choices.USER_ROLES
 #: role → rank (higher may do more)
 ROLE_RANK: dict[str, int] = {role: len(ROLES) - 1 - i for i, role in enumerate(ROLES)}
-#: password hashes computed at the same time, at most; and how long a caller waits for a slot
-HASH_CONCURRENCY = 2
-HASH_WAIT_S = 10.0
-_hash_slots = threading.BoundedSemaphore(HASH_CONCURRENCY)
+#: password hashes computed at the same time (threads of :data:`_hash_pool`), and how many more may wait
+HASH_CONCURRENCY = max(1, (os.cpu_count() or 2) // 2)
+HASH_QUEUE = 4 * HASH_CONCURRENCY
+_hash_pool = ThreadPoolExecutor(HASH_CONCURRENCY, thread_name_prefix="password-hash")
+_admitted = 0  # hashes running or waiting in _hash_pool
+_admitted_lock = threading.Lock()
 
 _T = TypeVar("_T")
 
@@ -69,14 +75,38 @@ class Busy(RuntimeError):
     """Too many password checks at once; the caller should try again shortly."""
 
 
+def hashes_admitted() -> int:
+    """How many password hashes run or wait right now (at most ``HASH_CONCURRENCY + HASH_QUEUE``)."""
+    return _admitted
+
+
+def hash_queue_full() -> bool:
+    """True when a new hash would get :class:`Busy` (every thread and queue place taken)."""
+    return _admitted >= HASH_CONCURRENCY + HASH_QUEUE
+
+
+def _submit(work: Callable[..., _T], *args) -> Future:
+    """``work(*args)`` on :data:`_hash_pool`, or :class:`Busy` at once when the pool and its queue are full."""
+    global _admitted
+    with _admitted_lock:
+        if _admitted >= HASH_CONCURRENCY + HASH_QUEUE:
+            raise Busy("the server is busy checking passwords; try again in a moment")
+        _admitted += 1
+
+    def run():
+        global _admitted
+        try:
+            return work(*args)
+        finally:
+            with _admitted_lock:
+                _admitted -= 1
+
+    return _hash_pool.submit(run)
+
+
 def _in_slot(work: Callable[..., _T], *args) -> _T:
-    """Run one password hash in a slot of :data:`_hash_slots` (:class:`Busy` after :data:`HASH_WAIT_S`)."""
-    if not _hash_slots.acquire(timeout=HASH_WAIT_S):
-        raise Busy("the server is busy checking passwords; try again in a moment")
-    try:
-        return work(*args)
-    finally:
-        _hash_slots.release()
+    """Run one password hash on the bounded pool, blocking this thread until it is done."""
+    return _submit(work, *args).result()
 
 
 @functools.cache
@@ -92,52 +122,69 @@ def _scrypt(password: str, salt: bytes, n: int, r: int, p: int, dklen: int) -> b
     return hashlib.scrypt(password.encode("utf-8"), salt=salt, n=n, r=r, p=p, dklen=dklen, maxmem=64 << 20)
 
 
-def check_password_strength(password: str) -> None:
-    """Raise ``ValueError`` when ``password`` is shorter than :data:`MIN_PASSWORD_LENGTH`."""
-    if len(password) < MIN_PASSWORD_LENGTH:
-        raise ValueError(f"the password must have at least {MIN_PASSWORD_LENGTH} characters; choose a longer one")
-
-
 def hash_password(password: str) -> str:
     """An argon2id hash of ``password`` in PHC format, salted (module docstring for the parameters).
-    Raises :class:`Busy` when no hashing slot frees up within :data:`HASH_WAIT_S`."""
+    Raises :class:`Busy` at once when every hashing thread and queue place is taken."""
     return _in_slot(_argon2().hash, password)
 
 
-def _verify_scrypt(password: str, stored: str) -> bool:
+async def hash_password_async(password: str) -> str:
+    """:func:`hash_password` awaited: the caller's thread (an event loop) is free while the hash runs."""
+    return await asyncio.wrap_future(_submit(_argon2().hash, password))
+
+
+def _scrypt_params(stored: str) -> tuple[bytes, int, int, int, bytes] | None:
+    """``(salt, n, r, p, digest)`` of a legacy ``scrypt$n$r$p$salt$hash`` string, or None when it is damaged."""
     try:
         _, n, r, p, salt, digest = stored.split("$")  # the caller matched the "scrypt$" prefix
         expected = base64.b64decode(digest, validate=True)
         n_, r_, p_, salt_ = int(n), int(r), int(p), base64.b64decode(salt, validate=True)
     except (ValueError, TypeError):
-        return False
-    if not expected:
-        return False
+        return None
+    return (salt_, n_, r_, p_, expected) if expected else None
+
+
+def _check_scrypt(password: str, salt: bytes, n: int, r: int, p: int, expected: bytes) -> bool:
     try:
-        got = _in_slot(_scrypt, password, salt_, n_, r_, p_, len(expected))
+        got = _scrypt(password, salt, n, r, p, len(expected))
     except (ValueError, TypeError, OverflowError):  # parameters hashlib refuses: a damaged hash
         return False
     return hmac.compare_digest(got, expected)
 
 
-def _verify_argon2(password: str, stored: str) -> bool:
+def _check_argon2(password: str, stored: str) -> bool:
     from argon2.exceptions import InvalidHashError, VerificationError
 
     try:
-        return _in_slot(_argon2().verify, stored, password)
+        return _argon2().verify(stored, password)
     except (VerificationError, InvalidHashError):  # wrong password (VerifyMismatchError) or a damaged hash
         return False
 
 
+def _verification(password: str, stored: str) -> tuple[Callable[..., bool], tuple] | None:
+    """The work that checks ``password`` against ``stored`` (None: a malformed or unknown hash, False at once)."""
+    if stored.startswith("$argon2"):
+        return _check_argon2, (password, stored)
+    if stored.startswith(_SCRYPT_PREFIX):
+        params = _scrypt_params(stored)
+        return (_check_scrypt, (password, *params)) if params else None
+    return None
+
+
 def verify_password(password: str, stored: str) -> bool:
     """True when ``password`` matches ``stored`` — an argon2 hash, or a legacy ``scrypt$…`` one (constant-time;
-    False for a malformed or unknown hash).  Raises :class:`Busy` when no slot frees up within
-    :data:`HASH_WAIT_S`.  After a True, call :func:`needs_rehash` and store a new hash if it says so."""
-    if stored.startswith("$argon2"):
-        return _verify_argon2(password, stored)
-    if stored.startswith(_SCRYPT_PREFIX):
-        return _verify_scrypt(password, stored)
-    return False
+    False for a malformed or unknown hash).  Raises :class:`Busy` at once when the hashing pool is full.
+    After a True, call :func:`needs_rehash` and store a new hash if it says so."""
+    work = _verification(password, stored)
+    return _in_slot(work[0], *work[1]) if work else False
+
+
+async def verify_password_async(password: str, stored: str) -> bool:
+    """:func:`verify_password` awaited without holding the caller's thread (module docstring)."""
+    work = _verification(password, stored)
+    if work is None:
+        return False
+    return await asyncio.wrap_future(_submit(work[0], *work[1]))
 
 
 def needs_rehash(stored: str) -> bool:
@@ -177,69 +224,7 @@ def csrf_ok(key: bytes, session_id: str, header_value: str | None) -> bool:
     return bool(header_value) and hmac.compare_digest(csrf_token(key, session_id), header_value)
 
 
-class LoginThrottle:
-    """Failed-login counters per key (``email:<address>`` and ``ip:<address>``), in memory, thread-safe.
-
-    ``max_failures`` within ``window_s`` blocks a key; :meth:`blocked` / :meth:`fail` / :meth:`reset` take the
-    email and the client address together (per-IP limit ``max_ip_failures``).  Expired entries are pruned
-    at most once per ``window_s / 10`` (and whenever the table passes ``max_keys``)."""
-
-    def __init__(self, max_failures: int = 10, window_s: float = 900.0, max_ip_failures: int = 30,
-                 max_keys: int = 10_000) -> None:
-        self.max_failures, self.window_s, self.max_ip_failures = max_failures, window_s, max_ip_failures
-        self.max_keys = max_keys
-        self._failures: dict[str, deque[float]] = {}
-        self._lock = threading.Lock()
-        self._pruned = time.monotonic()
-
-    def __len__(self) -> int:
-        return len(self._failures)
-
-    def _recent(self, key: str, now: float) -> deque[float]:
-        q = self._failures.setdefault(key, deque())
-        while q and q[0] < now - self.window_s:
-            q.popleft()
-        return q
-
-    def _count(self, key: str, now: float) -> int:
-        q = self._failures.get(key)
-        if q is None:
-            return 0
-        while q and q[0] < now - self.window_s:
-            q.popleft()
-        return len(q)
-
-    def _prune(self, now: float) -> None:
-        if now - self._pruned < self.window_s / 10 and len(self._failures) <= self.max_keys:
-            return
-        self._pruned = now
-        for key in [k for k, q in self._failures.items() if not q or q[-1] < now - self.window_s]:
-            del self._failures[key]
-
-    def blocked(self, email: str, ip: str | None = None) -> bool:
-        """True when ``email`` (or the client address ``ip``) has too many recent failures."""
-        with self._lock:
-            now = time.monotonic()
-            if self._count(f"email:{email}", now) >= self.max_failures:
-                return True
-            return ip is not None and self._count(f"ip:{ip}", now) >= self.max_ip_failures
-
-    def fail(self, email: str, ip: str | None = None) -> None:
-        """Count one failed login of ``email`` from ``ip``."""
-        with self._lock:
-            now = time.monotonic()
-            self._prune(now)
-            self._recent(f"email:{email}", now).append(now)
-            if ip is not None:
-                self._recent(f"ip:{ip}", now).append(now)
-
-    def reset(self, email: str) -> None:
-        """Forget ``email``'s failures (after a successful login; the address keeps its count)."""
-        with self._lock:
-            self._failures.pop(f"email:{email}", None)
-
-
-__all__ = ["ARGON2_MEMORY_KIB", "ARGON2_PARALLELISM", "ARGON2_TIME_COST", "HASH_CONCURRENCY", "HASH_WAIT_S",
-           "MIN_PASSWORD_LENGTH", "ROLES", "ROLE_RANK", "Busy", "LoginThrottle", "check_password_strength", "csrf_ok",
-           "csrf_token", "hash_password", "needs_rehash", "new_session_id", "new_token", "sha256_hex",
-           "verify_password"]
+__all__ = ["ARGON2_MEMORY_KIB", "ARGON2_PARALLELISM", "ARGON2_TIME_COST", "HASH_CONCURRENCY", "HASH_QUEUE",
+           "MIN_PASSWORD_LENGTH", "ROLES", "ROLE_RANK", "Busy", "check_password_strength", "csrf_ok", "csrf_token",
+           "hash_password", "hash_password_async", "hash_queue_full", "hashes_admitted", "needs_rehash", "new_session_id", "new_token",
+           "sha256_hex", "verify_password", "verify_password_async"]

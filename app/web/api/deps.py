@@ -18,6 +18,10 @@ the body is read, and gives a detached :class:`Principal` (tests overriding the 
 through the ``scoped_*`` helpers (the caller's clinic given to :mod:`app.store`'s lookups) which answer 404
 for another clinic's ids — the same answer as for an unknown id, so ids of other clinics cannot even be probed.
 
+Refusals of authentication and authorisation (401 for credentials presented but wrong, 403, and 404 for
+another clinic's id) are recorded as ``denied`` audit events (:func:`app.web.audit.record_refusal`, in a
+transaction of their own).
+
 Domain errors: the store and jobs services raise :mod:`app.store.errors` classes (no HTTP there);
 :func:`domain_errors`, a dependency of every API route (:func:`app.web.api.api_router`), turns them into
 ``HTTPException`` by :data:`STATUS_OF` — the one place where they get their status codes — with their
@@ -34,6 +38,7 @@ from typing import Annotated
 from fastapi import Depends, HTTPException, Request
 from fastapi.security import HTTPBearer
 from sqlalchemy.orm import Session
+from starlette.concurrency import run_in_threadpool
 
 from app.jobs.work import JobRunner
 from app.settings import Settings
@@ -44,6 +49,7 @@ from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotF
 from app.store.models import Job, KneeSession, Patient, User, utcnow
 from app.store.patients import clinic_patient
 from app.store.sessions import clinic_job, clinic_session
+from app.web.audit import record_refusal
 from app.web.security import ROLE_RANK, csrf_ok, csrf_token, sha256_hex
 
 COOKIE = "chakamo_session"
@@ -98,12 +104,20 @@ def http_error(error: DomainError) -> HTTPException:
     return HTTPException(status, error.detail)
 
 
-async def domain_errors():
+async def domain_errors(request: Request):
     """A dependency of every API route: a domain error raised by the route (or by a dependency resolved after
-    this one) answers as :func:`http_error` says (module docstring)."""
+    this one) answers as :func:`http_error` says (module docstring).  A 404 for an id another clinic owns is
+    recorded in *that* clinic's audit log (:func:`app.web.audit.record_refusal`)."""
     try:
         yield
     except DomainError as error:
+        principal = getattr(request.state, "principal", None)
+        owner = getattr(error, "owner_clinic_id", None)
+        if isinstance(error, NotFound) and owner is not None and principal is not None \
+                and owner != principal.clinic_id:
+            await run_in_threadpool(record_refusal, request.app.state.db, request, 404,
+                                    f"another clinic's id (caller's clinic {principal.clinic_id})",
+                                    principal=principal, clinic_id=owner)
         raise http_error(error) from None
 
 
@@ -130,41 +144,67 @@ def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depen
     return resolve_principal(request, db, settings)
 
 
+def _refuse(request: Request, status: int, detail: str, why: str, *, clinic_id: int | None = None,
+            user_id: int | None = None, actor: str = "", headers: dict | None = None) -> HTTPException:
+    """The ``HTTPException`` of a refused authentication, recorded first (``denied``, :mod:`app.web.audit`)."""
+    record_refusal(request.app.state.db, request, status, why, clinic_id=clinic_id, user_id=user_id, actor=actor)
+    return HTTPException(status, detail, headers=headers)
+
+
 def resolve_principal(request: Request, db: Session, settings: Settings) -> Principal:
-    """:func:`get_principal`'s work on a given database session."""
+    """:func:`get_principal`'s work on a given database session.  Credentials that are presented but wrong (a
+    malformed header, an unknown or revoked token, an expired or closed session, a missing CSRF header) are
+    recorded as ``denied``; a request with no credentials at all is not (a browser opening the login page)."""
     auth = request.headers.get("authorization", "")
     if auth:
         scheme, _, token = auth.partition(" ")
         if scheme.lower() != "bearer" or not token.strip():
-            raise HTTPException(401, "The Authorization header must be 'Bearer <token>'; create a token with "
-                                     "`chakamo tokens create`.", headers={"WWW-Authenticate": "Bearer"})
+            raise _refuse(request, 401, "The Authorization header must be 'Bearer <token>'; create a token with "
+                                        "`chakamo tokens create`.", "malformed Authorization header",
+                          headers={"WWW-Authenticate": "Bearer"})
         row = accounts.active_token(db, sha256_hex(token.strip()))
         if row is None:
-            raise HTTPException(401, "Unknown or revoked API token; check it or create a new one with "
-                                     "`chakamo tokens create`.", headers={"WWW-Authenticate": "Bearer"})
-        return Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
-                         token_id=row.id)
+            raise _refuse(request, 401, "Unknown or revoked API token; check it or create a new one with "
+                                        "`chakamo tokens create`.", "unknown or revoked API token",
+                          headers={"WWW-Authenticate": "Bearer"})
+        principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
+                              token_id=row.id)
+        request.state.principal = principal
+        return principal
     sid = request.cookies.get(COOKIE)
     if not sid:
         raise HTTPException(401, "Not logged in; log in, or send 'Authorization: Bearer <token>'.")
     row = accounts.browser_session(db, sha256_hex(sid))
     if row is None or row.expires_at <= utcnow() or not row.user.active:
-        raise HTTPException(401, "Your session has expired or was closed; log in again.")
+        why = "unknown or closed session" if row is None else \
+            "expired session" if row.expires_at <= utcnow() else "deactivated account"
+        raise _refuse(request, 401, "Your session has expired or was closed; log in again.", why,
+                      clinic_id=row.user.clinic_id if row else None, user_id=row.user_id if row else None,
+                      actor=row.user.email if row else "")
     if request.method in _UNSAFE and not csrf_ok(settings.key, sid, request.headers.get(CSRF_HEADER)):
-        raise HTTPException(403, f"Missing or wrong {CSRF_HEADER} header; send the csrf_token that login and "
-                                 "/auth/me return.")
+        raise _refuse(request, 403, f"Missing or wrong {CSRF_HEADER} header; send the csrf_token that login and "
+                                    "/auth/me return.", "missing or wrong CSRF header",
+                      clinic_id=row.user.clinic_id, user_id=row.user_id, actor=row.user.email)
     user = row.user
-    return Principal(clinic_id=user.clinic_id, clinic_name=user.clinic.name, role=user.role, via="cookie",
-                     user=user, session_id=sid, csrf_token=csrf_token(settings.key, sid))
+    principal = Principal(clinic_id=user.clinic_id, clinic_name=user.clinic.name, role=user.role, via="cookie",
+                          user=user, session_id=sid, csrf_token=csrf_token(settings.key, sid))
+    request.state.principal = principal
+    return principal
 
 
 PrincipalDep = Annotated[Principal, Depends(get_principal)]
 
 
-def _check_role(principal: Principal, role: str) -> Principal:
-    if ROLE_RANK.get(principal.role, -1) < ROLE_RANK[role]:
-        raise HTTPException(403, f"This needs the {role} role (yours is {principal.role}); ask a clinic admin.")
-    return principal
+def _role_ok(principal: Principal, role: str) -> bool:
+    return ROLE_RANK.get(principal.role, -1) >= ROLE_RANK[role]
+
+
+def _role_refusal(principal: Principal, role: str) -> HTTPException:
+    return HTTPException(403, f"This needs the {role} role (yours is {principal.role}); ask a clinic admin.")
+
+
+def _role_why(principal: Principal, role: str) -> str:
+    return f"role {principal.role} below {role}"
 
 
 def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Principal:
@@ -172,7 +212,10 @@ def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Princip
     read (module docstring)."""
     with request.app.state.db.session() as db:
         principal = resolve_principal(request, db, request.app.state.settings)
-    return _check_role(principal, "clinician")
+    if not _role_ok(principal, "clinician"):
+        record_refusal(request.app.state.db, request, 403, _role_why(principal, "clinician"), principal=principal)
+        raise _role_refusal(principal, "clinician")
+    return principal
 
 
 UploadClinician = Annotated[Principal, Depends(get_upload_principal)]
@@ -181,8 +224,12 @@ UploadClinician = Annotated[Principal, Depends(get_upload_principal)]
 def require(role: str):
     """A dependency giving the caller if their role is at least ``role``, else 403."""
 
-    async def dependency(principal: PrincipalDep) -> Principal:  # async: no thread hop for a comparison
-        return _check_role(principal, role)
+    async def dependency(request: Request, principal: PrincipalDep) -> Principal:  # async: no thread hop
+        if not _role_ok(principal, role):  # recorded (a thread hop only for a refusal)
+            await run_in_threadpool(record_refusal, request.app.state.db, request, 403, _role_why(principal, role),
+                                    principal=principal)
+            raise _role_refusal(principal, role)
+        return principal
 
     return dependency
 

@@ -394,3 +394,36 @@ def test_errors_are_shown_plainly(browser, server, slow_expect, tmp_path):
     finally:
         context.close()
     assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_account_page_changes_the_password_in_the_users_language(browser, server, slow_expect):
+    """The account page (issue 16 finding 9, 10c), in Spanish: a common password is refused with the server's
+    Spanish sentence, a good one is accepted, the open sessions are listed with this one marked; the password is
+    set back at the end (the module's other tests log in with it)."""
+    from playwright.sync_api import expect
+
+    context = browser.new_context(locale="es-ES", viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    other = "siete búhos pardos al alba"
+    try:
+        page.goto(f"{server}/#/account")
+        page.get_by_label("Correo electrónico").fill(EMAIL)
+        page.get_by_label("Contraseña", exact=True).fill(PASSWORD)
+        page.get_by_role("button", name="Entrar").click()
+        expect(page.get_by_role("heading", level=1)).to_have_text("Mi cuenta")
+        expect(page.locator("#session-list")).to_contain_text("esta sesión")
+        for old, new in ((PASSWORD, "password1234"), (PASSWORD, other), (other, PASSWORD)):
+            page.get_by_label("Contraseña actual").fill(old)
+            page.get_by_label("Contraseña nueva", exact=True).fill(new)
+            page.get_by_label("Repita la contraseña nueva").fill(new)
+            page.get_by_role("button", name="Cambiar contraseña").click()
+            if new == "password1234":
+                expect(page.get_by_role("alert")).to_contain_text("una de las más comunes")
+            else:
+                expect(page.get_by_role("status").first).to_contain_text("Contraseña cambiada")
+        assert errors == []
+    finally:
+        context.close()

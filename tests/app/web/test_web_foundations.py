@@ -97,7 +97,7 @@ def test_passwords_tokens_csrf():
     assert security.verify_password("correct horse battery", h)
     assert not security.verify_password("correct horse batterY", h)
     assert not security.verify_password("x", "garbage")
-    with pytest.raises(ValueError, match="at least 10"):
+    with pytest.raises(ValueError, match="at least 12"):
         security.check_password_strength("short")
     t = security.new_token()
     assert t.startswith("chk_") and len(t) > 40 and security.sha256_hex(t) != t

@@ -183,7 +183,7 @@ def test_set_password_from_stdin(client, settings, user, cli_env, capsys, monkey
     # too short: refused with the users-create rule, nothing changes (the new session stays open)
     monkeypatch.setattr("sys.stdin", io.StringIO("short\n"))
     assert main(["users", "set-password", "--email", EMAIL, "--password-stdin"]) == 2
-    assert "at least 10 characters" in capsys.readouterr().err
+    assert "at least 12 characters" in capsys.readouterr().err
     assert client.get("/api/v1/auth/me").status_code == 200
     client.cookies.clear()
     assert login(client, password=NEW_PASSWORD).status_code == 200

@@ -18,18 +18,25 @@ def make_settings(data_dir: Path, **extra):
 
 @contextmanager
 def hash_slots_held():
-    """Every password-hashing slot of ``app.web.security`` taken for the block (as concurrent logins would);
-    yields how many were held."""
+    """Every password-hashing thread and queue place of ``app.web.security`` taken for the block (by work that
+    waits, as a flood of logins would); yields how many were taken."""
+    import threading
+
     from app.web import security
 
-    held = 0
+    release = threading.Event()
+    futures = []
     try:
-        while security._hash_slots.acquire(blocking=False):
-            held += 1
-        yield held
+        while True:
+            try:
+                futures.append(security._submit(release.wait, 60))
+            except security.Busy:
+                break
+        yield len(futures)
     finally:
-        for _ in range(held):
-            security._hash_slots.release()
+        release.set()
+        for f in futures:
+            f.result()
 
 
 def clinic_token(settings, name: str, role: str = "clinician") -> dict[str, str]:

@@ -1,0 +1,146 @@
+"""Every message of login, passwords and accounts a user can cause, in Spanish, English and Portuguese.
+
+``CATALOGUE[code][lang]`` is a :meth:`str.format` template filled from the refusal's ``params``; a message says
+what was wrong and what to do.  :func:`refusal` builds the ``HTTPException`` of a code in the language the
+request asks for (``Accept-Language``; the browser UI sends its own choice, see ``static/api.js``; English when
+none of es/en/pt is asked) and names the code in the ``X-ChakaMo-Code`` header, so a program can tell refusals
+apart without parsing sentences.  The CLI, which speaks English, uses the exceptions' own English text.
+"""
+
+from __future__ import annotations
+
+import string
+from typing import TYPE_CHECKING
+
+from fastapi import HTTPException
+
+if TYPE_CHECKING:
+    from fastapi import Request
+
+LANGUAGES = ("es", "en", "pt")
+DEFAULT = "en"
+CODE_HEADER = "X-ChakaMo-Code"
+
+CATALOGUE: dict[str, dict[str, str]] = {
+    "login.wrong": {
+        "en": "Wrong email or password; try again or ask your clinic admin to reset it.",
+        "es": "Correo o contraseña incorrectos; inténtelo de nuevo o pida al administrador de su clínica que la restablezca.",
+        "pt": "E-mail ou senha incorretos; tente de novo ou peça ao administrador da sua clínica que a redefina."},
+    "login.throttled": {
+        "en": "Too many failed logins for this email or from this computer; wait {seconds} s and try again, or ask "
+              "your clinic admin to unlock the account.",
+        "es": "Demasiados intentos fallidos para este correo o desde este equipo; espere {seconds} s y vuelva a "
+              "intentarlo, o pida al administrador de su clínica que desbloquee la cuenta.",
+        "pt": "Demasiadas tentativas falhadas para este e-mail ou a partir deste computador; aguarde {seconds} s e "
+              "tente de novo, ou peça ao administrador da sua clínica que desbloqueie a conta."},
+    "login.too_many_at_once": {
+        "en": "Too many logins at once from this computer; wait a second and try again.",
+        "es": "Demasiados inicios de sesión a la vez desde este equipo; espere un segundo y vuelva a intentarlo.",
+        "pt": "Demasiados inícios de sessão ao mesmo tempo a partir deste computador; aguarde um segundo e tente de novo."},
+    "login.busy": {
+        "en": "The server is busy checking other logins; try again in a moment.",
+        "es": "El servidor está ocupado comprobando otros inicios de sesión; vuelva a intentarlo en un momento.",
+        "pt": "O servidor está ocupado a verificar outros inícios de sessão; tente de novo dentro de momentos."},
+    "password.too_short": {
+        "en": "The password must have at least {min} characters; choose a longer one (a phrase of several words is "
+              "easy to remember).",
+        "es": "La contraseña debe tener al menos {min} caracteres; elija una más larga (una frase de varias palabras "
+              "es fácil de recordar).",
+        "pt": "A senha deve ter pelo menos {min} caracteres; escolha uma mais longa (uma frase de várias palavras é "
+              "fácil de lembrar)."},
+    "password.pattern": {
+        "en": "The password is a simple pattern (a repeated character or group, or a run of the keyboard, the "
+              "alphabet or the digits); choose one that is hard to guess.",
+        "es": "La contraseña es un patrón simple (un carácter o grupo repetido, o una serie del teclado, del alfabeto "
+              "o de los dígitos); elija una difícil de adivinar.",
+        "pt": "A senha é um padrão simples (um carácter ou grupo repetido, ou uma sequência do teclado, do alfabeto "
+              "ou dos dígitos); escolha uma difícil de adivinhar."},
+    "password.common": {
+        "en": "The password is one of the most common passwords (or one with a few digits or symbols added); choose "
+              "one that is hard to guess.",
+        "es": "La contraseña es una de las más comunes (o una con algunos dígitos o símbolos añadidos); elija una "
+              "difícil de adivinar.",
+        "pt": "A senha é uma das mais comuns (ou uma com alguns dígitos ou símbolos acrescentados); escolha uma "
+              "difícil de adivinhar."},
+    "password.personal": {
+        "en": "The password contains your email or your name; choose one that does not.",
+        "es": "La contraseña contiene su correo o su nombre; elija una que no los contenga.",
+        "pt": "A senha contém o seu e-mail ou o seu nome; escolha uma que não os contenha."},
+    "password.wrong_current": {
+        "en": "The current password is wrong; type it again (nothing was changed).",
+        "es": "La contraseña actual no es correcta; escríbala de nuevo (no se ha cambiado nada).",
+        "pt": "A senha atual não está correta; escreva-a de novo (nada foi alterado)."},
+    "password.busy": {
+        "en": "The server is busy checking passwords; try again in a moment (nothing was changed).",
+        "es": "El servidor está ocupado comprobando contraseñas; vuelva a intentarlo en un momento (no se ha cambiado "
+              "nada).",
+        "pt": "O servidor está ocupado a verificar senhas; tente de novo dentro de momentos (nada foi alterado)."},
+    "account.browser_only": {
+        "en": "This needs a browser login (an API token has no password or sessions); log in with your email.",
+        "es": "Esto requiere iniciar sesión en el navegador (un token de API no tiene contraseña ni sesiones); inicie "
+              "sesión con su correo.",
+        "pt": "Isto requer um início de sessão no navegador (um token de API não tem senha nem sessões); inicie "
+              "sessão com o seu e-mail."},
+    "account.no_user": {
+        "en": "No user {id} in your clinic; check the id.",
+        "es": "No hay ningún usuario {id} en su clínica; compruebe el identificador.",
+        "pt": "Não há nenhum utilizador {id} na sua clínica; verifique o identificador."},
+    "account.no_session": {
+        "en": "No open session {id} of yours; reload the list.",
+        "es": "No tiene ninguna sesión abierta {id}; vuelva a cargar la lista.",
+        "pt": "Não tem nenhuma sessão aberta {id}; recarregue a lista."},
+    "account.this_session": {
+        "en": "This is the session you are using; log out to end it.",
+        "es": "Es la sesión que está usando; cierre sesión para terminarla.",
+        "pt": "É a sessão que está a usar; termine a sessão para a fechar."},
+    "account.not_yourself": {
+        "en": "You cannot change your own role or deactivate yourself; ask another admin of your clinic.",
+        "es": "No puede cambiar su propio rol ni desactivarse; pídaselo a otro administrador de su clínica.",
+        "pt": "Não pode alterar o seu próprio papel nem desativar-se; peça a outro administrador da sua clínica."},
+    "account.email_unavailable": {
+        "en": "The email {email} cannot be used for a new account of your clinic; use another email, or ask the "
+              "ChakaMo operator.",
+        "es": "El correo {email} no puede usarse para una cuenta nueva de su clínica; use otro correo o consulte al "
+              "operador de ChakaMo.",
+        "pt": "O e-mail {email} não pode ser usado para uma conta nova da sua clínica; use outro e-mail ou consulte o "
+              "operador do ChakaMo."},
+}
+
+
+def language(request: "Request | None") -> str:
+    """The first of es/en/pt that the request's ``Accept-Language`` asks for (by its q values), else English."""
+    header = request.headers.get("accept-language", "") if request is not None else ""
+    ranked: list[tuple[float, int, str]] = []
+    for i, item in enumerate(header.split(",")):
+        tag, _, params = item.strip().partition(";")
+        q = 1.0
+        if params.strip().startswith("q="):
+            try:
+                q = float(params.strip()[2:])
+            except ValueError:
+                q = 0.0
+        primary = tag.strip().lower().split("-")[0]
+        if primary in LANGUAGES and q > 0:
+            ranked.append((-q, i, primary))
+    return min(ranked)[2] if ranked else DEFAULT
+
+
+def render(code: str, lang: str = DEFAULT, **params) -> str:
+    """The sentence of ``code`` in ``lang`` (English for a language not in the catalogue)."""
+    texts = CATALOGUE[code]
+    return texts.get(lang, texts[DEFAULT]).format(**params)
+
+
+def refusal(request: "Request | None", status: int, code: str, headers: dict[str, str] | None = None,
+            **params) -> HTTPException:
+    """The ``HTTPException`` answering ``code`` in the request's language, its code in :data:`CODE_HEADER`."""
+    return HTTPException(status, render(code, language(request), **params), headers={CODE_HEADER: code,
+                                                                                     **(headers or {})})
+
+
+def placeholders(template: str) -> set[str]:
+    """The ``{name}`` fields of a template (the tests check each language has the same)."""
+    return {f for _, f, _, _ in string.Formatter().parse(template) if f}
+
+
+__all__ = ["CATALOGUE", "CODE_HEADER", "LANGUAGES", "language", "placeholders", "refusal", "render"]

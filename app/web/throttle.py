@@ -1,0 +1,194 @@
+"""Login throttling (OWASP ASVS 2.2.1; issue 16 findings 1, 2 and 10a): progressive delays, reserved before the
+password is checked, counted in the database so that every API server sees the same counts.
+
+**Reserve, then verify.**  A login first reserves an attempt on three counters — ``pair:<email> <address>``,
+``email:<email>`` and ``ip:<address>`` — in one transaction (:func:`app.store.accounts.reserve_attempt`: one
+atomic conditional ``UPDATE`` per counter), and only a login whose reservation succeeded reaches the slow argon2
+check.  The reservation counts the attempt as failed until the check says otherwise, so a burst of parallel
+logins cannot run more password checks than the rule allows, and the right password sent inside a burst that
+has used up the allowance is refused (429) like the wrong ones.  A successful login resets its pair and email
+counters and gives its reservation on the address counter back (a clinic behind one NAT address logs in all
+morning without being slowed).
+
+**Progressive delay, not lock-out** (:class:`ThrottlePolicy`).  Per counter, the first ``free`` attempts are
+immediate; after that each attempt makes the next wait ``d(n) = min(cap_s, base_s · 2^(n − free))`` seconds
+(``n`` the attempts so far: 1 s, 2 s, 4 s … 15 min).  The counters differ only in ``free``: 5 for one email
+from one address (a person mistyping is never slowed; one guesser gets 5 + ~10 guesses in the first 20 minutes,
+then 4 an hour), 20 for one email from anywhere (a guesser using many addresses), 30 for one address across
+emails (one machine guessing many accounts).  Someone who knows an email therefore delays only their own
+address — the owner, elsewhere, is slowed only after 20 failures on the email and only for as long as the
+delay — and a clinic admin can clear an account's counters at once (``POST /users/{id}/unlock``).  A counter
+idle for ``forget_s`` (1 h) starts again from zero; idle rows are pruned now and then.
+
+Why not the ``limits`` library: its storages are memory, Redis, Memcached, MongoDB and etcd — none is the SQL
+database the embedded default (SQLite) and the scaled-out deployment (PostgreSQL) already share, and its
+moving/fixed windows count hits but do not express "the next attempt waits ``d(n)``".  The counter is one
+``UPDATE … WHERE next_s <= now`` per key, which both databases run atomically.
+
+**Concurrent logins per address** (:class:`InFlight`): at most ``max_in_flight`` logins of one client address
+are inside the server at once (in memory, per server process); one more is answered 429 at once, before any
+database work — one machine cannot fill the hashing queue (:mod:`app.web.security`) that everybody shares.
+:class:`LoginGate`, an ASGI middleware, gives these refusals (and the 503 of a full hashing queue) before the
+request reaches the framework — no routing, no body parsing, no dependency: a flood of them costs the event
+loop that also answers everybody's reads as little as an answer can.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+from sqlalchemy.orm import Session
+
+from app.store import accounts
+from app.store.database import Database
+
+
+@dataclass(frozen=True)
+class ThrottlePolicy:
+    """The numbers of the module docstring: free attempts per counter, the delay's base and cap, the idle time
+    after which a counter starts from zero, and the concurrent logins allowed per address."""
+
+    free_per_pair: int = 5
+    free_per_email: int = 20
+    free_per_address: int = 30
+    base_s: float = 1.0
+    cap_s: float = 900.0
+    forget_s: float = 3600.0
+    max_in_flight: int = 4
+
+
+def _keys(email: str, ip: str | None) -> list[tuple[str, str | None, str]]:
+    """``(key, email, kind)`` of the counters of one login, in the order they are locked (always the same order,
+    so two transactions never wait on each other's rows crosswise)."""
+    out = [(f"pair:{email} {ip or '-'}", email, "pair"), (f"email:{email}", email, "email")]
+    if ip:
+        out.append((f"ip:{ip}", None, "ip"))
+    return out
+
+
+class LoginThrottle:
+    """The database-backed counters of the module docstring (one per app; the state is in ``db``)."""
+
+    #: prune idle counters about once per this many reservations
+    PRUNE_EVERY = 500
+
+    def __init__(self, db: Database, policy: ThrottlePolicy | None = None) -> None:
+        self.db, self.policy = db, policy or ThrottlePolicy()
+        self._count = 0
+
+    def _free(self, kind: str) -> int:
+        p = self.policy
+        return {"pair": p.free_per_pair, "email": p.free_per_email, "ip": p.free_per_address}[kind]
+
+    def reserve(self, email: str, ip: str | None) -> float:
+        """Reserve one attempt of ``email`` from ``ip`` on every counter, committed at once; returns 0.0 when
+        reserved, else the seconds to wait (nothing reserved).  Blocking (database): call it from a thread."""
+        p, now = self.policy, time.time()
+        keys = [k for k, _, _ in _keys(email, ip)]
+        with self.db.sessions() as s:  # a plain read first: a key still waiting refuses without a write lock
+            wait = accounts.attempt_wait_s(s, keys, now)
+        if wait > 0:
+            return max(1.0, math.ceil(wait))
+        with self.db.sessions() as s:  # the atomic reservation (the authority; the read above only saves writes)
+            for key, key_email, kind in _keys(email, ip):
+                if not accounts.reserve_attempt(s, key, key_email, now, free=self._free(kind), base_s=p.base_s,
+                                                cap_s=p.cap_s, forget_s=p.forget_s):
+                    s.rollback()
+                    return max(1.0, math.ceil(accounts.attempt_wait_s(s, keys, now)))
+            s.commit()
+        self._count += 1
+        if self._count % self.PRUNE_EVERY == 0:
+            with self.db.session() as s:
+                accounts.prune_attempts(s, now - p.forget_s)
+        return 0.0
+
+    def succeeded(self, db: Session, email: str, ip: str | None) -> None:
+        """After a right password: reset the pair and email counters, give the address its attempt back (in the
+        login's transaction ``db``)."""
+        keys = _keys(email, ip)
+        accounts.reset_attempts(db, [k for k, _, kind in keys if kind != "ip"])
+        for key, _, kind in keys:
+            if kind == "ip":
+                accounts.refund_attempt(db, key)
+
+    @staticmethod
+    def unlock(db: Session, email: str) -> int:
+        """Clear every counter of ``email`` (an admin's unlock); returns how many were cleared."""
+        return accounts.delete_attempts_of_email(db, email)
+
+
+class InFlight:
+    """Logins of each client address inside this server right now, at most ``throttle.policy.max_in_flight``
+    (read at each login, so a changed policy applies at once; thread-safe)."""
+
+    def __init__(self, throttle: LoginThrottle) -> None:
+        self.throttle = throttle
+        self._counts: dict[str, int] = {}
+        self._lock = threading.Lock()
+
+    def enter(self, ip: str) -> bool:
+        """Count one more login of ``ip``; False (nothing counted) when it already has the most allowed."""
+        with self._lock:
+            n = self._counts.get(ip, 0)
+            if n >= self.throttle.policy.max_in_flight:
+                return False
+            self._counts[ip] = n + 1
+            return True
+
+    def leave(self, ip: str) -> None:
+        with self._lock:
+            n = self._counts.get(ip, 0) - 1
+            if n > 0:
+                self._counts[ip] = n
+            else:
+                self._counts.pop(ip, None)
+
+
+
+
+class LoginGate:
+    """ASGI middleware in front of ``POST /api/v1/auth/login`` (module docstring): counts the request in ``InFlight``
+    for as long as it is inside the app, and answers 429 (too many at once from this address) or 503 (hashing
+    queue full) itself, in the request's language, with ``Retry-After`` and the code header."""
+
+    PATH = "/api/v1/auth/login"
+
+    def __init__(self, app, *, in_flight: InFlight) -> None:
+        self.app, self.in_flight = app, in_flight
+
+    @staticmethod
+    async def _refuse(scope, send, status: int, code: str, retry_s: int) -> None:
+        from starlette.requests import Request
+
+        from app.web.messages import CODE_HEADER, language, render
+
+        body = json.dumps({"detail": render(code, language(Request(scope)))}).encode()
+        await send({"type": "http.response.start", "status": status,
+                    "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
+                                (b"retry-after", str(retry_s).encode()), (CODE_HEADER.lower().encode(), code.encode())]})
+        await send({"type": "http.response.body", "body": body})
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] != "http" or scope["path"] != self.PATH or scope["method"] != "POST":
+            await self.app(scope, receive, send)
+            return
+        from app.web.security import hash_queue_full
+
+        ip = (scope.get("client") or ("-",))[0] or "-"
+        if not self.in_flight.enter(ip):
+            await self._refuse(scope, send, 429, "login.too_many_at_once", 1)
+            return
+        try:
+            if hash_queue_full():
+                await self._refuse(scope, send, 503, "login.busy", 2)
+                return
+            await self.app(scope, receive, send)
+        finally:
+            self.in_flight.leave(ip)
+
+
+__all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy"]
