@@ -1,6 +1,7 @@
 r"""Robustness of the whole knee pipeline on seeded random sessions it was not designed around (issue 13 §7).
 
-Usage: ``python -m benchmarks.robustness [--n 200] [--seed0 0] [--filter NAME] [--heading MODE] [--worst 5]``
+Usage: ``python -m benchmarks.robustness [--n 200] [--seed0 0 | --seeds S ...] [--filter NAME] [--heading MODE]
+[--worst 5]``
 (the per-metric table is printed for the seeds run, then for the tuning half 0–99 and the held-out half 100–199
 separately when both are among them: the detection and heading parameters were chosen on 0–99)
 
@@ -183,12 +184,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.robustness", description=__doc__.split("\n")[0])
     parser.add_argument("--n", type=int, default=200, help="sessions (seeds seed0 … seed0+n-1; default 200)")
     parser.add_argument("--seed0", type=int, default=0)
+    parser.add_argument("--seeds", type=int, nargs="+", default=None, help="these seeds instead of seed0 … seed0+n-1")
     parser.add_argument("--filter", default=None, help="orientation filter (default: the pipeline's)")
     parser.add_argument("--heading", default=None, help="thigh–shank heading (default: the pipeline's, auto)")
     parser.add_argument("--worst", type=int, default=5)
     args = parser.parse_args(argv)
     rows = []
-    for seed in range(args.seed0, args.seed0 + args.n):
+    for seed in args.seeds if args.seeds else range(args.seed0, args.seed0 + args.n):
         d = draw(seed)
         r = score(d, args.filter, args.heading)
         rows.append((d, r))
