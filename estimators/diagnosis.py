@@ -21,7 +21,7 @@ task``                   more than 90° from the sensor axis the protocol
                          by tens of degrees, a filter that lost its heading
                          sits anywhere (140–180° on the real clip of issue 13)
 ``magnetic_field_        the magnetometers stray from the constraint by more   no           correct with the
-disturbed``              than the auto bound but nowhere by 90° (D4)           (the room)   constraint heading,
+disturbed``              than 6° (more than a tilt makes), nowhere 90° (D4)    (the room)   constraint heading,
                                                                                             warn
 ======================== ===================================================== ============ =====================
 
@@ -30,7 +30,7 @@ disturbed``              than the auto bound but nowhere by 90° (D4)           
 ~70° of vertical, so their mean specific force points up their long axis unless the sensor is inverted;
 (D3, D4) use the constraint offset δ(t) of :func:`estimators.heading.constraint_heading` on the 9D run (the
 magnetometers' relative heading is 0 by definition): D3 the share of samples with |δ(t)| > 90°, D4 the
-choice's disagreement D and the share of samples with |δ(t)| above its bound.
+choice's disagreement D and the share of samples with |δ(t)| above ``estimators.heading.DISTURBED_BOUND_RAD`` (6°).
 
 Order: the heading is judged first, on the 9D run, because a lost heading (180° about the vertical turns the
 flexion axis round) also makes flexion negative; the angles D1 is applied to are those computed with the
@@ -49,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimators import knee
 from estimators import quaternion as quat
-from estimators.heading import HeadingChoice, wrap
+from estimators.heading import DISTURBED_BOUND_RAD, HeadingChoice, wrap
 from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
@@ -131,10 +131,10 @@ def _heading_findings(choice: HeadingChoice) -> list[Finding]:
             "orientation filter lost its heading. This is not a sensor placement problem; "
             + ("the joint-constraint heading corrects it" if choice.used == "constraint" else
                "process again with --heading auto (or constraint) to correct it"), vals))]
-    if choice.disagreement_rad > choice.bound_rad:
+    if choice.disagreement_rad > DISTURBED_BOUND_RAD:  # beyond what an accelerometer's tilt makes of the dip
         vals = {"angle_deg": float(np.rad2deg(choice.disagreement_rad)),
-                "bound_deg": float(np.rad2deg(choice.bound_rad)),
-                "pct": 100.0 * float(np.mean(offs > choice.bound_rad)), **kept}
+                "bound_deg": float(np.rad2deg(DISTURBED_BOUND_RAD)),
+                "pct": 100.0 * float(np.mean(offs > DISTURBED_BOUND_RAD)), **kept}
         return [Finding("magnetic_field_disturbed", False, QualityWarning(
             "magnetic_field_disturbed",
             f"the magnetometer heading strays up to {vals['angle_deg']:.0f}° from the knee's hinge constraint "

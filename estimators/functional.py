@@ -116,8 +116,9 @@ class FunctionalParams:
     """Settings of :func:`standing_task_calibration` and :func:`task_calibration`.
 
     window_s : still window searched on the task, s (default 0.5: the extension holds of a step-up last ~0.8 s).
-    max_gyr_sd_rad_s, max_acc_sd_m_s2 : per-sensor total SD over the window below which it is still (0.05, 0.3
-        as :class:`estimators.knee.CalibrationParams`).
+    max_gyr_sd_rad_s, max_acc_sd_m_s2 : per-sensor total SD over the window below which it is still, rad/s and
+        m/s² (default :data:`estimators.knee.STILL_MAX_GYR_SD_RAD_S`, :data:`~estimators.knee.STILL_MAX_ACC_SD_M_S2`:
+        the postures' definition, 0.05 and 0.3).
     straight_tol_rad : a still window is "straight" when its knee angle (F2) is within this of the task's
         straightest still moment; the task may extend beyond its straight reference by at most this much (5°).
     min_sign_margin_rad : below this difference of overshoots between the two signs (F2) warn (3°; ~6° on
@@ -137,8 +138,8 @@ class FunctionalParams:
     """
 
     window_s: float = 0.5
-    max_gyr_sd_rad_s: float = 0.05
-    max_acc_sd_m_s2: float = 0.3
+    max_gyr_sd_rad_s: float = knee.STILL_MAX_GYR_SD_RAD_S
+    max_acc_sd_m_s2: float = knee.STILL_MAX_ACC_SD_M_S2
     straight_tol_rad: float = float(np.deg2rad(5.0))
     min_sign_margin_rad: float = float(np.deg2rad(3.0))
     min_axis_angle_rad: float = float(np.deg2rad(60.0))
@@ -476,9 +477,13 @@ def standing_task_calibration(standing_thigh, standing_shank, task_thigh, task_s
     gt, gs = gt - stand["thigh"].gyr_mean_rad_s, gs - stand["shank"].gyr_mean_rad_s
     qt = None if q_task is None else q_task["thigh"]
     qs = None if q_task is None else q_task["shank"]
-    axes = hinge_axes(at, gt, as_, gs, fs_hz=fs_hz, q_earth_thigh=qt, q_earth_shank=qs, params=p)
     w = max(2, int(round(p.window_s * fs_hz)))
-    still, _ = _still_windows(at, gt, as_, gs, min(w, len(at)), p)
+    if len(at) < w:  # the straight-knee check compares the task's still windows of window_s
+        raise CalibrationError(f"the task recording lasts {len(at) / fs_hz:.2f} s, shorter than the {p.window_s:.1f} s "
+                               "still window the calibration compares with the standing posture; record the whole "
+                               "motor task (10 cycles, or 10 s of walking)")
+    axes = hinge_axes(at, gt, as_, gs, fs_hz=fs_hz, q_earth_thigh=qt, q_earth_shank=qs, params=p)
+    still, _ = _still_windows(at, gt, as_, gs, w, p)
     starts = np.flatnonzero(still)
     alpha = _knee_from_gravity(at, as_, axes.j_thigh, axes.j_shank)
     ref = complex(_knee_from_gravity(stand["thigh"].acc_mean_m_s2[None], stand["shank"].acc_mean_m_s2[None],

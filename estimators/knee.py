@@ -77,7 +77,8 @@ from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["CalibrationError", "CalibrationParams", "HeadingOffset", "PostureWindow", "QualityWarning",
+__all__ = ["STILL_MAX_ACC_SD_M_S2", "STILL_MAX_GYR_SD_RAD_S",
+           "CalibrationError", "CalibrationParams", "HeadingOffset", "PostureWindow", "QualityWarning",
            "SegmentCalibration", "apply_heading_offset", "calibrate_segment", "flexion_axis", "functional_calibration",
            "heading_offset", "knee_angles", "turn_about_long_axis",
            "knee_quaternion", "mounting_warnings", "q_femur_tibia", "segment_orientation", "side_sign",
@@ -149,14 +150,21 @@ def q_femur_tibia(q_earth_femur: ArrayLike, q_earth_tibia: ArrayLike,
 
 
 # ------------------------------------------------------------------------------------------ calibration
+#: When a window counts as still (the one definition: the postures' :class:`CalibrationParams` and the task's
+#: :class:`estimators.functional.FunctionalParams` default to these): the total gyroscope SD over the window below
+#: this, rad/s (0.05 ≈ 3°/s; sensor noise ≈ 0.01, quiet standing sway ≈ 0.01–0.02) ...
+STILL_MAX_GYR_SD_RAD_S = 0.05
+#: ... and the total accelerometer SD below this, m/s².
+STILL_MAX_ACC_SD_M_S2 = 0.3
+
+
 @dataclass(frozen=True)
 class CalibrationParams:
     """Settings of :func:`calibrate_segment`.
 
     window_s : length of the still window used per posture, s (default 5; the postures last ~30 s).
-    max_gyr_sd_rad_s : total gyro SD over the window above which a posture is "not still" (0.05 ≈ 3°/s;
-        sensor noise ≈ 0.01, quiet standing sway ≈ 0.01–0.02).
-    max_acc_sd_m_s2 : total accelerometer SD above which a posture is "not still", m/s² (default 0.3).
+    max_gyr_sd_rad_s, max_acc_sd_m_s2 : total gyro (rad/s) and accelerometer (m/s²) SD over the window above which
+        a posture is "not still" (default :data:`STILL_MAX_GYR_SD_RAD_S`, :data:`STILL_MAX_ACC_SD_M_S2`: 0.05, 0.3).
     min_angle_rad, max_angle_rad : angle between the two gravity directions outside which the postures
         are "not distinct" (default 60°–120°; ideal 90°).
     min_defined_angle_rad : below this angle (or above π minus it) no anterior axis can be defined:
@@ -166,8 +174,8 @@ class CalibrationParams:
     """
 
     window_s: float = 5.0
-    max_gyr_sd_rad_s: float = 0.05
-    max_acc_sd_m_s2: float = 0.3
+    max_gyr_sd_rad_s: float = STILL_MAX_GYR_SD_RAD_S
+    max_acc_sd_m_s2: float = STILL_MAX_ACC_SD_M_S2
     min_angle_rad: float = float(np.deg2rad(60.0))
     max_angle_rad: float = float(np.deg2rad(120.0))
     min_defined_angle_rad: float = float(np.deg2rad(10.0))

@@ -84,9 +84,14 @@ D5c Fall → (rest) → impulse: :func:`.detection.fit_split`, one least-squares
     ``min_countermovement_rad`` is none.
 D6  ``boundary_model="threshold"``: instead, the instants the knee is ``boundary_threshold_rad`` away from the
     level it leaves / reaches (a clinical convention, later than D5 by construction).
+D7  Step-up with both gyroscopes (the pipeline passes them): the fits D5b/D5c run on a flexion whose variations
+    faster than ``gyro_crossover_hz`` (0.05 Hz) come from the integrated gyroscopes and slower ones from the
+    angles (:func:`.detection.gyroscope_flexion`): an accelerometer bias makes the smoothed orientations' flexion
+    ramp ~1° before an impulse while the knee is still.
 Completeness: a cycle whose excursion touches the recording's start/end, that has no rest before/after it
-(``min_edge_rest_s`` for the first/last), a transition that cannot be measured, or an amplitude below
-``min_excursion_rad`` is rejected with the reason codes of :class:`RejectedCycle`.
+(``min_edge_rest_s`` for the first/last when the rest touches the edge, twice that inside), whose first onset or
+last return to rest is not fitted inside the recording, with a transition that cannot be measured, or with an
+amplitude below ``min_excursion_rad`` is rejected with the reason codes of :class:`RejectedCycle`.
 
 Cycles (thesis ``ciclos_tarea_motora``, ``normalizacion_ciclos``, ``media_ciclos``; :mod:`.analysis`)
 ----------------------------------------------------------------------------------------------------

@@ -236,7 +236,7 @@ def checked_inputs(angles_rad: ArrayLike, fs_hz: float, params: MotorTaskParams
 
 def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = "step_up",
                  params: MotorTaskParams | None = None, t0_s: float = 0.0,
-                 inputs: Mapping[str, Any] | None = None) -> TaskAnalysis:
+                 inputs: Mapping[str, Any] | None = None, fit_flexion_rad: ArrayLike | None = None) -> TaskAnalysis:
     """Cycles, phases, normalised mean ± SD curves and ranges of motion of a repetitive knee task.
 
     angles_rad : (N, 3) knee angles (flexion, adduction, internal rotation), rad, clinical signs, on a uniform
@@ -246,7 +246,11 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
     params : :class:`MotorTaskParams` (defaults when None).   t0_s : time of sample 0, s.
     inputs : what else the caller has on the same grid (e.g. ``gyr_shank_rad_s``, ``shank_axis_sensor``,
         ``q_earth_thigh``...): a task module's own ``analyse`` receives those of them it names as keyword
-        parameters (gait takes the shank gyroscope for its events); the shared detector uses none.
+        parameters (gait takes the shank gyroscope for its events, the step-up both gyroscopes for D7); the
+        shared detector uses none.
+    fit_flexion_rad : (N,) flexion for the least-squares event fits D5b/D5c instead of ``angles_rad[:, 0]``
+        (the step-up's D7 flexion, :func:`~estimators.motor_task.detection.gyroscope_flexion`); the search
+        (D1–D4), the curves and the ranges of motion keep the angles.
     Returns a :class:`TaskAnalysis`.  Raises ValueError for a wrong shape, rate or non-finite angles.
     """
     if isinstance(task, str):  # a registered task: its own analysis or default parameters, if it has them
@@ -266,7 +270,12 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
     flex = lowpass(a[:, 0], fs_hz, p.lowpass_hz) if len(a) else a[:, 0]
     span = task_span(flex, fs_hz, p) if len(a) > 1 else None
     warnings: list[QualityWarning] = []
-    cycles = detect_cycles(spec.sign * flex, fs_hz, span, spec, p, spec.sign * a[:, 0]) if span is not None else []
+    y_fit = a[:, 0]
+    if fit_flexion_rad is not None:
+        y_fit = np.asarray(fit_flexion_rad, dtype=np.float64)
+        if y_fit.shape != (len(a),) or not np.all(np.isfinite(y_fit)):
+            raise ValueError(f"fit_flexion_rad must be a finite ({len(a)},) array, got shape {y_fit.shape}")
+    cycles = detect_cycles(spec.sign * flex, fs_hz, span, spec, p, spec.sign * y_fit) if span is not None else []
     k = len(cycles)
     ev = np.array([c.events for c in cycles]).reshape(k, 5)
     complete = np.array([c.incomplete is None for c in cycles], dtype=bool)

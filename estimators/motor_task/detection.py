@@ -39,6 +39,50 @@ def lowpass(x: FloatArray, fs_hz: float, cutoff_hz: float) -> FloatArray:
     return sosfiltfilt(sos, x, axis=0, padlen=min(len(x) - 1, 3 * int(fs_hz / cutoff_hz)))
 
 
+def gyroscope_flexion(flex: FloatArray, fs_hz: float, gyr_thigh: FloatArray, gyr_shank: FloatArray,
+                      shank_axis_sensor: FloatArray, crossover_hz: float) -> FloatArray | None:
+    r"""Knee flexion for the event fits (D7): its shape from the two gyroscopes, its level from ``flex``.
+
+    The flexion rate is the shank's angular velocity about its flexion axis minus the thigh's about its own
+    (K1: flexing turns the tibia negatively about z),
+
+    .. math:: \dot\phi_g = -(\omega_{shank}\cdot\hat z_{shank} - \omega_{thigh}\cdot\hat z_{thigh}),\qquad
+        \phi_g(t) = \textstyle\int_0^t \dot\phi_g, \qquad
+        \phi_{fit} = \phi_g + \mathrm{LP}_{f_c}(\phi - \phi_g) \quad (D7)
+
+    with :math:`\hat z_{shank}` the calibrated flexion axis in shank-sensor coordinates and :math:`\hat z_{thigh}`
+    the thigh gyroscope's principal axis (dominant eigenvector of :math:`\sum\omega\omega^\top`: the hip flexes
+    about the thigh's z in a step-up), of the sign whose :math:`\phi_{fit}` stays closer to :math:`\phi` (the
+    wrong sign gives the difference instead of the sum of the hip's and the shank's rotation: in the simulator
+    +0.6 φ and −0.4 φ about z, so 0.2 φ instead of φ; no orientation is needed).  :math:`\mathrm{LP}_{f_c}` is the zero-phase Butterworth low-pass at
+    ``crossover_hz`` (a complementary filter): below it the orientation filters' flexion, above it the
+    integrated gyroscopes.  Why: with an accelerometer bias the orientation filters' tilt moves between the
+    solutions of two poses over a few seconds, and an offline smoother starts that move *before* the motion
+    does, so the flexion of a still knee ramps by ~1° in the 2–3 s before an impulse (seed 34 of
+    ``benchmarks/robustness.py``: −0.46° → +0.69°); a 5–10° impulse lasting 2 s is then timed 0.2 s early.  The
+    gyroscopes see no rotation while the knee is still.  Drift (residual gyroscope bias, scale) is slower than
+    :math:`f_c` and is removed by it.  None when a gyroscope is missing, not (N, 3) or not finite.
+    """
+    gt, gs = np.asarray(gyr_thigh, dtype=np.float64), np.asarray(gyr_shank, dtype=np.float64)
+    zs = np.asarray(shank_axis_sensor, dtype=np.float64).reshape(-1)
+    n = len(flex)
+    if (gt.shape != (n, 3) or gs.shape != (n, 3) or zs.shape != (3,) or n < 16
+            or not (np.all(np.isfinite(gt)) and np.all(np.isfinite(gs)) and np.all(np.isfinite(zs)))):
+        return None
+    zs = zs / np.linalg.norm(zs)
+    rate_s = gs @ zs
+    rate_t = gt @ np.linalg.eigh(gt.T @ gt)[1][:, -1]
+    f = np.asarray(flex, dtype=np.float64)
+    best, best_res = None, np.inf
+    for sign in (1.0, -1.0):  # the principal axis' sign: the one whose fast part matches the flexion's
+        phi_g = np.cumsum(-(rate_s - sign * rate_t)) / fs_hz
+        fit = phi_g + lowpass(f - phi_g, fs_hz, crossover_hz)
+        res = float(np.sum((f - fit) ** 2))
+        if res < best_res:
+            best, best_res = fit, res
+    return best
+
+
 def moving_sd(x: FloatArray, n: int) -> FloatArray:
     """Centred moving standard deviation over ``n`` samples (shorter at the ends), via cumulative sums (D2)."""
     return np.sqrt(moving_variance(x, max(int(n), 2)))
@@ -455,9 +499,9 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
             reason, msg = "incomplete_start", "the recording starts during this cycle"
         elif b == n:
             reason, msg = "incomplete_end", "the recording ends during this cycle"
-        elif before.rest is None or (k == 0 and before.rest.length < edge_rest):
+        elif before.rest is None or (k == 0 and before.rest.length < edge_rest * (1 if before.rest.start == 0 else 2)):
             reason, msg = "incomplete_start", "no rest in the start posture before this cycle"
-        elif after.rest is None or (k == k_n - 1 and after.rest.length < edge_rest):
+        elif after.rest is None or (k == k_n - 1 and after.rest.length < edge_rest * (1 if after.rest.end == n else 2)):
             reason, msg = "incomplete_end", "no return to rest in the start posture after this cycle"
         amplitude = float("nan")
         if before.rest is not None:
@@ -532,6 +576,14 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                 ev[3] = np.nan
         if reason is None and not np.all(np.isfinite(ev[[0, 2, 3, 4]])):
             reason, msg = "unmeasurable", "a transition of this cycle could not be measured"
+        # the recording's edges: the first onset and the last return to rest must also be fitted inside the
+        # recording (a still run at the edge may hold the slow start or end of a movement the edge cut)
+        if reason is None and k == 0 and not ev[0] >= 1.0:
+            reason, msg = "incomplete_start", "the recording starts before the knee is seen at rest for this cycle"
+            ev[:2] = np.nan
+        elif reason is None and k == k_n - 1 and not ev[4] <= n - 2.0:
+            reason, msg = "incomplete_end", "the recording ends before this cycle is back at rest"
+            ev[4] = np.nan
         if reason is None and amplitude < p.min_excursion_rad:
             reason, msg = "small_excursion", "the excursion towards the far plateau is too small"
         out.append(CycleEvents(ev, reason, msg, amplitude))

@@ -94,8 +94,14 @@ class MotorTaskParams:
     min_excursion_rad : smallest rest → far-plateau amplitude that makes a cycle.  Default 20°.
     min_countermovement_rad : smallest countermovement (impulse) that counts as one; a smaller one gives an
         impulse of zero duration.  Default 1.5°.
-    min_edge_rest_s : rest needed before the first and after the last cycle, else it is incomplete.
-        Default 0.2 s.
+    min_edge_rest_s : rest needed before the first and after the last cycle when it touches the recording's edge
+        (the knee seen at rest from the first / until the last sample).  Default 0.1 s.  A rest inside the
+        recording needs twice this (a turning point, the impulse's peak of a recording that starts during the
+        impulse, is still for ~0.15 s), and the fitted onset / return to rest must lie inside the recording;
+        else the cycle is incomplete.  Chosen on seeds 0–99 of ``benchmarks/robustness.py``: complete cycles
+        recorded with 0.02–0.2 s of rest at an edge have edge still runs of 0.15–0.19 s (the run also holds the
+        slow start or end of the movement), a cycle the recording cut at its onset 0.09 s.  It was 0.2 s for
+        every rest, which rejected the complete edge cycles of seeds 5 and 35.
     min_pause_s : shortest rest between the end of a fall and the next impulse that counts as a pause (which
         ends the cycle before it); a shorter one, or one the fit cannot tell from noise, makes the two cycles
         meet at one split.  Default 0.1 s.
@@ -111,6 +117,11 @@ class MotorTaskParams:
         normalised cycle to the mean of the accepted ones; ``None`` does not check that angle.
         Default (8°, None, None).
     min_accepted_cycles : rejection stops before fewer cycles than this would remain.  Default 3.
+    gyro_crossover_hz : when the task's analysis has both gyroscopes (step-up), the least-squares event fits
+        (D5b, D5c) use the flexion whose variations faster than this come from the integrated gyroscopes and
+        slower ones from the angles (D7, :func:`~estimators.motor_task.detection.gyroscope_flexion`).  Default
+        0.05 Hz, chosen on seeds 0–99 of ``benchmarks/robustness.py`` (0.2 Hz left 1.2 % of a slow cycle on
+        seed 10, 0.05 Hz 0.2 %).
     """
 
     lowpass_hz: float = 5.0
@@ -121,7 +132,7 @@ class MotorTaskParams:
     level_window_s: float = 0.3
     min_excursion_rad: float = math.radians(20.0)
     min_countermovement_rad: float = math.radians(1.5)
-    min_edge_rest_s: float = 0.2
+    min_edge_rest_s: float = 0.1
     min_pause_s: float = 0.1
     boundary_model: str = "min_jerk"
     boundary_threshold_rad: float = math.radians(2.0)
@@ -130,10 +141,11 @@ class MotorTaskParams:
     rejection_rmse_rad: tuple[float | None, float | None, float | None] = (
         math.radians(8.0), None, None)
     min_accepted_cycles: int = 3
+    gyro_crossover_hz: float = 0.05
 
     def __post_init__(self) -> None:
         positive = ("lowpass_hz", "activity_window_s", "activity_sd_rad", "stationary_rad_s", "level_window_s",
-                    "min_excursion_rad", "boundary_threshold_rad")
+                    "min_excursion_rad", "boundary_threshold_rad", "gyro_crossover_hz")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):

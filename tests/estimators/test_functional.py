@@ -211,3 +211,22 @@ def test_bad_input_is_refused():
         functional.task_calibration((at[:60], gt[:60]), (as_[:60], gs[:60]), fs_hz=FS_HZ)
     with pytest.raises(ValueError, match="window_s"):
         functional.FunctionalParams(window_s=0.0)
+
+
+def test_standing_task_calibration_refuses_a_task_shorter_than_its_still_window():
+    """A task shorter than ``window_s`` (0.3 s at 1000 Hz, slow enough to count as still) raised IndexError."""
+    fs = 1000.0
+
+    def rec(n, w=0.0, phase=0.0):
+        t = np.arange(n) / fs
+        g = np.zeros((n, 3))
+        g[:, 2], g[:, 0] = w * np.sin(2 * np.pi * 3 * t + phase), 0.2 * w * np.sin(2 * np.pi * 5 * t)
+        return np.tile([0.0, 9.81, 0.0], (n, 1)), g
+
+    with pytest.raises(knee.CalibrationError, match="lasts 0.30 s, shorter than the 0.5 s still window"):
+        functional.standing_task_calibration(rec(3000), rec(3000), rec(300, 0.03), rec(300, -0.02, 0.5), fs_hz=fs)
+
+
+def test_the_stillness_thresholds_have_one_definition():
+    for p in (knee.CalibrationParams(), functional.FunctionalParams()):
+        assert (p.max_gyr_sd_rad_s, p.max_acc_sd_m_s2) == (knee.STILL_MAX_GYR_SD_RAD_S, knee.STILL_MAX_ACC_SD_M_S2)

@@ -140,7 +140,7 @@ def test_auto_switches_to_the_constraint_on_a_bent_heading():
     assert (auto.used, auto.run, auto9.used, auto9.run, mag.used) == ("constraint", "6d", "constraint", "9d",
                                                                       "magnetometer")
     (w,) = auto.warnings
-    assert w.code == "magnetic_heading_unreliable" and w.params["bound_deg"] == pytest.approx(6.0)
+    assert w.code == "magnetic_heading_unreliable" and w.params["bound_deg"] == pytest.approx(np.rad2deg(heading.DISTURBED_BOUND_RAD))
     assert 25.0 < w.params["disagreement_deg"] < 40.0  # 30° and the hinge bias
     assert [x.code for x in mag.warnings] == ["magnetic_heading_disagrees"]
     err = {k: _rmse(knee.knee_angles(knee.q_femur_tibia(c.q_earth_femur, c.q_earth_tibia), "right"), truth)
@@ -202,7 +202,8 @@ def test_summary_for_the_results_file():
     qf, qt9, _, _ = _disturbed(30 * DEG)
     d = heading.choose_heading(qf, qt9, fs_hz=FS_HZ).to_dict()
     assert json.loads(json.dumps(d)) == d
-    assert (d["mode"], d["used"], d["run"], d["bound_deg"]) == ("auto", "constraint", "9d", pytest.approx(6.0))
+    assert (d["mode"], d["used"], d["run"], d["bound_deg"]) == ("auto", "constraint", "9d",
+                                                               pytest.approx(np.rad2deg(heading.DISAGREEMENT_BOUND_RAD)))
     assert d["disagreement_deg"] > 25.0 and d["offset_deg"]["min"] < -25.0 and abs(d["offset_deg"]["max"]) < 8.0
     assert d["excited_pct"] == 100.0 and 0.0 < d["residual_deg"] < 10.0
     _, qf, qt, _ = _truth(n_cycles=3)
