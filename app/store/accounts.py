@@ -138,6 +138,11 @@ def prune_attempts(db: Session, before_s: float) -> None:
     db.execute(delete(LoginAttempts).where(LoginAttempts.last_s < before_s, LoginAttempts.next_s < before_s))
 
 
+def user_by_id(db: Session, user_id: int) -> User | None:
+    """The user ``user_id`` of any clinic (a login's own account, found before by its email), or None."""
+    return db.get(User, user_id)
+
+
 def user_by_email(db: Session, email: str) -> User | None:
     return db.scalar(select(User).where(User.email == email))
 
@@ -173,4 +178,4 @@ def add_user(db: Session, clinic_id: int, *, email: str, name: str, role: str, p
 __all__ = ["active_token", "add_user", "attempt_wait_s", "browser_session", "clinic_user", "clinic_users",
            "close_browser_session", "close_user_browser_sessions", "delete_attempts_of_email", "open_browser_session",
            "prune_attempts", "refund_attempt", "refuse_taken_email", "reserve_attempt", "reset_attempts",
-           "token_label", "user_browser_sessions", "user_by_email"]
+           "token_label", "user_browser_sessions", "user_by_email", "user_by_id"]

@@ -133,9 +133,11 @@ def render(code: str, lang: str = DEFAULT, **params) -> str:
 
 def refusal(request: "Request | None", status: int, code: str, headers: dict[str, str] | None = None,
             **params) -> HTTPException:
-    """The ``HTTPException`` answering ``code`` in the request's language, its code in :data:`CODE_HEADER`."""
-    return HTTPException(status, render(code, language(request), **params), headers={CODE_HEADER: code,
-                                                                                     **(headers or {})})
+    """The :class:`app.web.refusals.Refusal` answering ``code`` with its ``detail`` in the request's language (the
+    same body and :data:`CODE_HEADER` as every refusal)."""
+    from app.web.refusals import Refusal  # that module reads this one's table
+
+    return Refusal(status, code, headers=headers, lang=language(request), **params)
 
 
 def placeholders(template: str) -> set[str]:

@@ -35,7 +35,6 @@ loop that also answers everybody's reads as little as an answer can.
 
 from __future__ import annotations
 
-import json
 import math
 import threading
 import time
@@ -150,6 +149,11 @@ class InFlight:
 
 
 
+async def receive_nothing() -> dict:
+    """The ``receive`` of a refusal answered before the request's body is read (the answer never reads it)."""
+    return {"type": "http.disconnect"}
+
+
 class LoginGate:
     """ASGI middleware in front of ``POST /api/v1/auth/login`` (module docstring): counts the request in ``InFlight``
     for as long as it is inside the app, and answers 429 (too many at once from this address) or 503 (hashing
@@ -164,13 +168,10 @@ class LoginGate:
     async def _refuse(scope, send, status: int, code: str, retry_s: int) -> None:
         from starlette.requests import Request
 
-        from app.web.messages import CODE_HEADER, language, render
+        from app.web.messages import refusal
 
-        body = json.dumps({"detail": render(code, language(Request(scope)))}).encode()
-        await send({"type": "http.response.start", "status": status,
-                    "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
-                                (b"retry-after", str(retry_s).encode()), (CODE_HEADER.lower().encode(), code.encode())]})
-        await send({"type": "http.response.body", "body": body})
+        response = refusal(Request(scope), status, code, headers={"Retry-After": str(retry_s)}).response()
+        await response(scope, receive_nothing, send)
 
     async def __call__(self, scope, receive, send) -> None:
         if scope["type"] != "http" or scope["path"] != self.PATH or scope["method"] != "POST":

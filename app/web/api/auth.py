@@ -46,7 +46,6 @@ from pydantic import BaseModel, Field
 from starlette.concurrency import run_in_threadpool
 
 from app.store import accounts
-from app.store.models import User
 from app.web.api.deps import COOKIE, DbDep, Principal, PrincipalDep, SettingsDep
 from app.web.api.schemas import LoginIn, MeOut, _In, user_out
 from app.web.audit import record, record_login
@@ -94,7 +93,7 @@ def _finish(request: Request, response: Response, email: str, ip: str | None, us
     state = request.app.state
     settings = state.settings
     with state.db.session() as s:
-        user = s.get(User, user_id) if user_id is not None else None
+        user = accounts.user_by_id(s, user_id) if user_id is not None else None
         if not ok or user is None or not user.active:
             reason = "unknown email" if user is None else "account deactivated" if not user.active else "wrong password"
             record_login(s, request, "login_failed", email=email, user=user, status=401, detail=reason)
@@ -208,7 +207,7 @@ async def change_password(body: PasswordChangeIn, request: Request, principal: B
             if not ok:
                 record(s, request, principal, "password_change", status=400, detail="wrong current password")
                 return None
-            row = s.get(User, user.id)
+            row = accounts.user_by_id(s, user.id)
             row.password_hash = new_hash
             request.app.state.login_throttle.succeeded(s, user.email, ip)
             ended = accounts.close_user_browser_sessions(s, user.id, keep_sha256=sha256_hex(principal.session_id))

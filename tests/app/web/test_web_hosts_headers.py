@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 
 import pytest
+from fastapi import Request  # at module level: the probe route's annotation is resolved here
 
 from web_helpers import clinic_token, demo_files, make_settings, new_session, wait_job
 
@@ -75,7 +76,7 @@ def test_docs_cannot_be_framed_and_no_server_banner(tmp_path):
 def test_production_without_a_public_url_does_not_trust_the_host(tmp_path):
     """Any Host allowed and no CHAKAMO_PUBLIC_URL: the FHIR export refuses (503, what to set) rather than write
     whatever Host a caller sent into a clinical document."""
-    from fastapi import FastAPI, Request
+    from fastapi import FastAPI
     from fastapi.testclient import TestClient
 
     from app.settings import Settings

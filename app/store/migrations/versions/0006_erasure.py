@@ -6,7 +6,7 @@ corrected is no longer served as final); artefacts' ``sha256`` is indexed (blob 
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
 
 Revision ID: 0006
-Revises: 0004
+Revises: 0005
 Create Date: 2026-12-01 23:00:00
 """
 from alembic import op

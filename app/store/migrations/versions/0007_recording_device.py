@@ -6,7 +6,7 @@ Rows made before this revision have none of them (NULL): their files are read ag
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
 
 Revision ID: 0007
-Revises: 0004 (other branches add 0005 and 0006; the chain is joined when they meet)
+Revises: 0006
 Create Date: 2026-12-01 23:00:00
 """
 from alembic import op
