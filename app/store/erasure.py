@@ -26,7 +26,7 @@ Order (each step a transaction; a crash between any two leaves a state the next 
 3. **sweep** (:func:`sweep`: the embedded runner's housekeeping at start and hourly, ``chakamo retention --apply``):
    pending marks (a crash between 1 and 2), blob rows no row references (deletions made before this module
    existed), and files on disk that no blob row names and that are older than ``grace_s`` (a writer places
-   its file a moment before its row commits: a job stores its artefacts, then records them) are erased, each
+   its file, under the blob's lock, a moment before its row commits: :func:`reserve_blob`) are erased, each
    with a mark of reason ``orphan``.
 
 Every writer places its file only under the blob's lock (:func:`reserve_blob`): an upload
@@ -139,11 +139,12 @@ def reserve_blob(db: Session, sha256: str, size_bytes: int) -> Blob:
     again and locked again, so the file placed next is always named by a row this transaction holds."""
     from app.store.database import ensure_blob
 
-    while True:
+    for _ in range(5):  # twice at most in practice: a row this transaction added is seen by no eraser
         ensure_blob(db, sha256, size_bytes)
         blob = lock_blob(db, sha256)
         if blob is not None:
             return blob
+    raise RuntimeError(f"the row of stored file {sha256[:12]}… could not be reserved")
 
 
 def _erase_one(database: Database, store: Storage, erasure_id: int) -> str:
