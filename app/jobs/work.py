@@ -29,7 +29,8 @@ A job's work (:func:`run_job`): copy the session's stored files into a temporary
 ``progress(stage, fraction)`` calls written to the job row), build ``results.json`` once and render every
 artefact from one report input (:func:`app.pipeline.render.render_all`: the PDFs in every language, the Excel files,
 report.html, scene.viser, timeseries.npz; part of them in the warm render process), store them as blobs
-(:func:`app.store.database.ensure_blob`: identical artefacts of concurrent jobs never collide) and record a new
+(:func:`app.store.erasure.reserve_blob`, under the blob's lock: identical artefacts of concurrent jobs never
+collide, nor an erasure of the same bytes) and record a new
 :class:`~app.store.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the data
 (ingestion or pipeline error) fails the job with the pipeline's sentence as ``error``; an unexpected
 exception fails it with a sentence and a reference id (a full disk — ``ENOSPC`` while storing the
@@ -42,6 +43,7 @@ from __future__ import annotations
 
 import datetime as dt
 import errno
+import hashlib
 import logging
 import secrets
 import threading
@@ -52,7 +54,8 @@ from typing import Literal, Protocol
 from sqlalchemy import or_, select, update
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
-from app.store.database import Database, ensure_blob
+from app.store.database import Database
+from app.store.erasure import reserve_blob
 from app.store.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
 from app.pipeline.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
@@ -309,11 +312,15 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         results = _public_results(build_results(outcome), session.id)
         files = render_all(outcome, results, job.lang, progress, pool, render_timeout_s)
         progress("store", 0.99)
-        stored = {key: store.put(data) for key, data in files.items()}
+        stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
+        contents = {stored[key]: data for key, data in files.items()}
         with db.session() as s:
             row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
-            for sha, size in sorted(set(stored.values())):
-                ensure_blob(s, sha, size)
+            for sha, size in sorted(contents):
+                # the file is placed under its blob's lock, as an upload's: the same bytes may be another
+                # session's artefact being erased right now (app.store.erasure)
+                reserve_blob(s, sha, size)
+                store.put(contents[sha, size])
             analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
                                 accepted_cycles=int(results["cycles"]["accepted"]),
                                 warnings=len(results["quality"]["warnings"]),

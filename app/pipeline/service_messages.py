@@ -33,6 +33,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Os arquivos não puderam ser verificados: a verificação parou inesperadamente; apague o último "
               "arquivo que adicionou e envie-o de novo, e se voltar a acontecer avise o seu administrador do "
               "ChakaMo."},
+    "session.check_busy": {
+        "en": "The files are stored, but the server could not check them within {seconds} s because it is busy "
+              "checking other files; open the session again in a moment and they are checked then.",
+        "es": "Los archivos están guardados, pero el servidor no pudo comprobarlos en {seconds} s porque está "
+              "ocupado comprobando otros archivos; abra la sesión de nuevo en un momento y se comprobarán entonces.",
+        "pt": "Os arquivos estão guardados, mas o servidor não pôde verificá-los em {seconds} s porque está "
+              "ocupado verificando outros arquivos; abra a sessão de novo daqui a pouco e serão verificados então."},
     "request.host_not_allowed": {
         "en": "This server does not answer to the address {host}; use the address your ChakaMo administrator "
               "gave you (CHAKAMO_ALLOWED_HOSTS).",

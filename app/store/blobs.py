@@ -182,10 +182,8 @@ class BlobStore:
         except FileNotFoundError:
             return False
         _fsync_dir(target.parent)
-        try:
-            target.parent.rmdir()  # the two-hex-digit folder, when it held only this blob
-        except OSError:
-            pass
+        # the two-hex-digit folder stays, even empty: a writer of another blob with the same prefix may have made
+        # it and be about to rename into it, and it holds no lock of that blob (256 folders at most)
         return True
 
     def stored(self) -> Iterator[tuple[str, float]]:

@@ -12,13 +12,16 @@ Fairness (issue 16, finding 4: one clinic's crafted files delayed every clinic's
 time server-wide): :data:`CHECK_GATE` lets one clinic run at most :data:`CHECKS_PER_CLINIC` check at a time
 and the server :data:`CHECK_CONCURRENCY`; a clinic's further checks wait for its own slot, never holding one
 of the others'.  With helper processes (:class:`CheckPool`, ``CHAKAMO_CHECK_PROCESSES`` of them when
-``CHAKAMO_RENDER_PROCESSES`` > 0) each check runs in a free one, off this process' GIL, so two clinics'
+``CHAKAMO_RENDER_PROCESSES`` > 0) the server's share is the number of helpers (the pool's own gate,
+:attr:`CheckPool.gate`) and each check runs in a free one, off this process' GIL, so two clinics'
 checks run side by side.  A check that takes longer than :data:`CHECK_TIMEOUT_S` has its helper replaced
 (the only case a helper is restarted: a check that raises leaves its helper as it is) and is answered
 :data:`CHECK_TOO_SLOW`, stored for those files: it is never run again in this process (which is what it
 would stall) nor again for the same files.  A helper that died under a check is replaced the same way and
 that check answered :data:`CHECK_STOPPED`.  Only when no helper is configured, or while one is still
-starting, does a check run in the request thread.
+starting, does a check run in the request thread.  No check waits for a slot longer than
+:data:`CHECK_WAIT_S` (the checks ahead of it finish, or are stopped, within :data:`CHECK_TIMEOUT_S`): past
+that it is answered ``session.check_busy``, not stored, and runs again when the session is opened or processed.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
@@ -45,10 +49,13 @@ from app.store.workspace import check_ingestion
 
 log = logging.getLogger("chakamo.uploads")
 
+#: longest a check waits for its clinic's and the server's slots; then it is answered ``session.check_busy``
+CHECK_WAIT_S = 75.0
 #: the upload's answer when its files are stored but their check could not run (it runs again later)
 CHECK_DEFERRED = ("The files are stored, but the server could not check them now; the check runs again when the "
                   "session is opened or processed.")
-#: ingestion checks running at once in one server process, over all clinics (the helper processes, by default)
+#: ingestion checks running at once in one server process, over all clinics, when they run in the request
+#: threads (no helper processes); with helpers, their number (``CHAKAMO_CHECK_PROCESSES``: :attr:`CheckPool.gate`)
 CHECK_CONCURRENCY = 2
 #: of which one clinic may run at most this many: its other checks wait for it, not for the others
 CHECKS_PER_CLINIC = 1
@@ -58,6 +65,10 @@ CHECK_TIMEOUT_S = 60.0
 
 def _failed(code: str, **params: Any) -> dict[str, Any]:
     return {"ok": False, "messages": [], "error": render(code, params, "en")}
+
+
+class CheckBusy(Exception):
+    """No slot became free within the wait's bound (module docstring)."""
 
 
 class CheckGate:
@@ -70,12 +81,23 @@ class CheckGate:
         self._lock = threading.Lock()
 
     @contextmanager
-    def slot(self, clinic_id: Any) -> Iterator[None]:
-        """Hold one of ``clinic_id``'s slots, then one of the server's, for the block."""
+    def slot(self, clinic_id: Any, wait_s: float = CHECK_WAIT_S) -> Iterator[None]:
+        """Hold one of ``clinic_id``'s slots, then one of the server's, for the block; :class:`CheckBusy` when
+        both were not had within ``wait_s`` in all."""
+        deadline = time.monotonic() + wait_s
         with self._lock:
             own = self._clinics.setdefault(clinic_id, threading.BoundedSemaphore(self.per_clinic))
-        with own, self._all:
-            yield
+        if not own.acquire(timeout=max(0.0, deadline - time.monotonic())):
+            raise CheckBusy
+        try:
+            if not self._all.acquire(timeout=max(0.0, deadline - time.monotonic())):
+                raise CheckBusy
+            try:
+                yield
+            finally:
+                self._all.release()
+        finally:
+            own.release()
 
 
 #: the process' gate (one per server process: the request threads share it)
@@ -99,6 +121,8 @@ class CheckPool:
         from app.pipeline.render import RenderPool
 
         self.processes = processes
+        #: admits as many checks at once as there are helpers (module docstring)
+        self.gate = CheckGate(processes, CHECKS_PER_CLINIC)
         self.helpers = [RenderPool(1, warm=warm_checks) for _ in range(processes)]
         self._free: queue.Queue = queue.Queue()
         for helper in self.helpers:
@@ -108,12 +132,16 @@ class CheckPool:
         """Block until every helper is warm (benchmarks, tests); True if all are usable."""
         return all(h.wait_warm(timeout_s) for h in self.helpers)
 
-    def run(self, fn, *args, timeout_s: float = CHECK_TIMEOUT_S):
+    def run(self, fn, *args, timeout_s: float = CHECK_TIMEOUT_S, wait_s: float = CHECK_WAIT_S):
         """``(True, fn(*args))`` from a free helper, or ``(False, None)`` when none is usable yet (still
         starting: the caller runs it itself).  :class:`CheckTimedOut` past ``timeout_s``, and
         :class:`BrokenProcessPool` when the helper died under it: either way that helper is replaced.  An
-        exception ``fn`` raised is raised here, its helper kept."""
-        helper = self._free.get()  # the gate admits at most as many checks as there are helpers
+        exception ``fn`` raised is raised here, its helper kept; :class:`CheckBusy` when no helper was free
+        within ``wait_s`` (:attr:`gate` admits at most as many checks as there are helpers: a bound only)."""
+        try:
+            helper = self._free.get(timeout=wait_s)
+        except queue.Empty:
+            raise CheckBusy from None
         try:
             future = helper.submit(fn, *args)
             if future is None:
@@ -145,23 +173,39 @@ def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict
 
 
 def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id: int, pool=None,
-                      gate: CheckGate = CHECK_GATE, timeout_s: float = CHECK_TIMEOUT_S) -> dict[str, Any]:
+                      gate: CheckGate | None = None, timeout_s: float = CHECK_TIMEOUT_S,
+                      wait_s: float = CHECK_WAIT_S) -> dict[str, Any]:
     """Run the ingestion over the session's stored files (no database connection held meanwhile; within the
     clinic's and the server's slots of ``gate``), store the result if the files did not change meanwhile
     (:func:`save_ingestion`) and return it.  With ``pool`` (a :class:`CheckPool`) the check runs in a helper
     process, off this process' GIL, for at most ``timeout_s`` (module docstring); without it, or while no
-    helper is warm yet, it runs here."""
+    helper is warm yet, it runs here.  ``gate``: the pool's (None), else :data:`CHECK_GATE`; no slot within
+    ``wait_s``: answered ``session.check_busy`` and not stored (module docstring)."""
+    if gate is None:
+        gate = getattr(pool, "gate", None) or CHECK_GATE
     with db_.session() as db:
         session = db.get(KneeSession, session_id)
         version = session.files_version
         patient, recordings = session.patient, list(session.recordings)
         db.expunge_all()
-    with gate.slot(session.clinic_id):
+    try:
+        ingestion = _check_in_slot(gate, pool, store, tmp_dir, session, patient, recordings, timeout_s, wait_s)
+    except CheckBusy:
+        log.warning("ingestion check of session %s not run: no check slot free within %.0f s", session_id, wait_s)
+        return _failed("session.check_busy", seconds=round(wait_s))  # not stored: checked again later
+    save_ingestion(db_, session_id, version, ingestion)
+    return ingestion
+
+
+def _check_in_slot(gate: CheckGate, pool, store: BlobStore, tmp_dir: Path, session: KneeSession, patient,
+                   recordings, timeout_s: float, wait_s: float) -> dict[str, Any]:
+    session_id = session.id
+    with gate.slot(session.clinic_id, wait_s):
         ran, ingestion = False, None
         if pool is not None:
             try:
                 ran, ingestion = pool.run(check_ingestion, store, tmp_dir, session, patient, recordings,
-                                          timeout_s=timeout_s)
+                                          timeout_s=timeout_s, wait_s=wait_s)
             except CheckTimedOut:
                 log.warning("ingestion check of session %s stopped after %.0f s; its helper process was replaced",
                             session_id, timeout_s)
@@ -171,7 +215,6 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
                 ran, ingestion = True, _failed("session.check_stopped")
         if not ran:
             ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
-    save_ingestion(db_, session_id, version, ingestion)
     return ingestion
 
 
@@ -209,5 +252,6 @@ class IngestionChecker:
         db.refresh(session)
 
 
-__all__ = ["CHECK_CONCURRENCY", "CHECK_DEFERRED", "CHECK_GATE", "CHECK_TIMEOUT_S", "CHECKS_PER_CLINIC", "CheckGate",
+__all__ = ["CHECK_CONCURRENCY", "CHECK_DEFERRED", "CHECK_GATE", "CHECK_TIMEOUT_S", "CHECK_WAIT_S", "CHECKS_PER_CLINIC",
+           "CheckBusy", "CheckGate",
            "CheckPool", "CheckTimedOut", "IngestionChecker", "refresh_ingestion", "save_ingestion", "warm_checks"]

@@ -26,12 +26,12 @@ Order (each step a transaction; a crash between any two leaves a state the next 
 3. **sweep** (:func:`sweep`: the embedded runner's housekeeping at start and hourly, ``chakamo retention --apply``):
    pending marks (a crash between 1 and 2), blob rows no row references (deletions made before this module
    existed), and files on disk that no blob row names and that are older than ``grace_s`` (a writer places
-   its file a moment before its row commits: a job stores its artefacts, then records them) are erased, each
+   its file, under the blob's lock, a moment before its row commits: :func:`reserve_blob`) are erased, each
    with a mark of reason ``orphan``.
 
-A job writes its artefacts' files before it takes the lock (:func:`app.jobs.work.run_job`); an artefact is
-erased only with its session (nothing of a session is deleted while one of its jobs runs), and
-:meth:`BlobWriter.commit` refreshes the modification time of a file it finds already stored, which the eraser
+Every writer places its file only under the blob's lock (:func:`reserve_blob`): an upload
+(:func:`app.store.recordings.store_upload`) and a job storing its artefacts (:func:`app.jobs.work.run_job`,
+whose bytes may equal another session's artefact that is being erased), and :meth:`BlobWriter.commit` refreshes the modification time of a file it finds already stored, which the eraser
 reads: a file touched after its mark was made is left for the next sweep instead of being unlinked (for
 :data:`ORPHAN_GRACE_S` at most: a writer that never committed its row leaves a file that is erased after it).
 
@@ -130,6 +130,21 @@ def lock_blob(db: Session, sha256: str) -> Blob | None:
     if db.get_bind().dialect.name == "postgresql":
         stmt = stmt.with_for_update()
     return db.scalars(stmt.execution_options(populate_existing=True)).first()
+
+
+def reserve_blob(db: Session, sha256: str, size_bytes: int) -> Blob:
+    """The blob's row, added if missing and locked until ``db``'s transaction ends: what a writer holds before it
+    places the file (an upload, a job's artefacts).  When an eraser deleted the row while this waited for its
+    lock (PostgreSQL: the row existed when it was ensured, was gone once the lock was granted), it is added
+    again and locked again, so the file placed next is always named by a row this transaction holds."""
+    from app.store.database import ensure_blob
+
+    for _ in range(5):  # twice at most in practice: a row this transaction added is seen by no eraser
+        ensure_blob(db, sha256, size_bytes)
+        blob = lock_blob(db, sha256)
+        if blob is not None:
+            return blob
+    raise RuntimeError(f"the row of stored file {sha256[:12]}… could not be reserved")
 
 
 def _erase_one(database: Database, store: Storage, erasure_id: int) -> str:
@@ -248,4 +263,4 @@ def erasure_log(db: Session, clinic_id: int, limit: int = 100) -> list[BlobErasu
 
 
 __all__ = ["ORPHAN_GRACE_S", "REASONS", "ErasureCounts", "erase_pending", "erasure_log", "lock_blob", "mark", "references",
-           "session_blobs", "sweep"]
+           "reserve_blob", "session_blobs", "sweep"]

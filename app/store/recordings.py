@@ -33,8 +33,7 @@ from app.pipeline.ingestion.provenance import sensor_of_file_name
 from app.pipeline.ingestion.split import CONTINUOUS
 from app.store.blobs import BlobWriter
 from app.store.analyses import supersede
-from app.store.database import ensure_blob
-from app.store.erasure import lock_blob
+from app.store.erasure import reserve_blob
 from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
 from app.store.models import KneeSession, Recording
 from app.store.sessions import clinic_session, refuse_while_processing
@@ -74,8 +73,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
     rows = []
     for name, writer in files:
         size, sha = writer.size_bytes, writer.sha256
-        ensure_blob(db, sha, size)
-        lock_blob(db, sha)  # before the file is placed (module docstring)
+        reserve_blob(db, sha, size)  # added and locked before the file is placed (module docstring)
         writer.commit()
         rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
                               segment=segment, role=role, device=sensor_of_file_name(name)))

@@ -31,7 +31,8 @@ from app.store.blobs import Storage
 from app.store.database import Database
 from app.store.erasure import erase_pending, mark, session_blobs
 from app.store.models import Job, KneeSession, Recording
-from app.store.sessions import ACTIVE, delete_sessions
+from app.store.errors import NotFound
+from app.store.sessions import ACTIVE, clinic_session, delete_sessions
 
 #: ``record(db, clinic_id=, patient_id=, session_id=, resource=)`` -> the audit event (``.id``, ``.actor``)
 Recorder = Callable[..., object]
@@ -101,6 +102,13 @@ def apply_retention(database: Database, store: Storage, days: int, *, now: dt.da
     ids: list[int] = []
     for d in report.due:
         with database.session() as db:
+            # locked before the re-check (as a patient's erasure does): an upload to the session, which takes
+            # the same lock, then either committed before (and the session is no longer due) or waits for this
+            # transaction and finds the session gone — never acknowledged, then deleted (PostgreSQL READ COMMITTED)
+            try:
+                clinic_session(db, d.clinic_id, d.session_id, lock=True)
+            except NotFound:  # erased meanwhile
+                continue
             again = [x for x in due_sessions(db, days, now) if x.session_id == d.session_id]
             if not again:  # touched (or erased) since the list was read
                 continue

@@ -85,7 +85,7 @@ def test_another_clinics_check_completes_while_a_long_one_runs(tmp_path):
 
     from fastapi.testclient import TestClient
 
-    from app.store.checks import CHECK_GATE, IngestionChecker
+    from app.store.checks import IngestionChecker
     from app.web.main import create_app
 
     settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1, CHAKAMO_CHECK_PROCESSES=2)
@@ -106,7 +106,7 @@ def test_another_clinics_check_completes_while_a_long_one_runs(tmp_path):
 
         thread = threading.Thread(target=check_a)
         thread.start()
-        while not any(sem._value == 0 for sem in CHECK_GATE._clinics.values()):  # A holds its clinic's slot
+        while not any(sem._value == 0 for sem in pool.gate._clinics.values()):  # A holds its clinic's slot
             assert thread.is_alive()
             threading.Event().wait(0.01)
         results["b"] = checker.refresh(sid_b)
@@ -141,3 +141,27 @@ def test_a_check_past_its_time_limit_is_stopped_answered_and_not_run_again_here(
         h = clinic_token(settings, "Slow")
         stored = client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
         assert stored == answer  # stored for these files: reading the session does not check them again
+
+
+def test_the_gate_follows_the_helpers_and_a_check_waits_for_a_slot_only_so_long(tmp_path):
+    """Review finding 5: the server's share of checks is CHAKAMO_CHECK_PROCESSES (it was 2 whatever the
+    helpers), and a check finding no slot free (one helper, held by another clinic's long check) is answered
+    within its bound, not stored, instead of waiting without end."""
+    from fastapi.testclient import TestClient
+
+    from app.store.checks import refresh_ingestion
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1, CHAKAMO_CHECK_PROCESSES=1)
+    with TestClient(create_app(settings)) as client:
+        pool, state = client.app.state.check_pool, client.app.state
+        assert pool.gate.total == 1 == len(pool.helpers)
+        sid = _stored_session(client, settings, "Wait", [("task-muslo-W-01012024-1.xlsx",
+                                                         _thesis_xlsx(tmp_path / "w.xlsx", 500))])
+        with pool.gate.slot("another clinic"):  # its long check holds the only helper
+            answer = refresh_ingestion(state.db, state.store, settings.tmp_dir, sid, pool, wait_s=0.05)
+        assert not answer["ok"] and "busy checking other files" in answer["error"], answer
+        h = clinic_token(settings, "Wait")
+        assert pool.wait_warm(120)
+        stored = client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
+        assert stored != answer and "ok" in stored  # not stored: checked when the session is opened
