@@ -120,3 +120,16 @@ def test_too_many_members_are_refused(tmp_path, monkeypatch):
         for k in range(5):
             z.writestr(f"S{k}.csv", header)
     assert _refused([p]).code == "zip.too_many_members"
+
+
+def test_a_sensor_logger_zip_bomb_is_refused_from_its_declared_size(tmp_path, monkeypatch):
+    p = tmp_path / "phone.zip"
+    head = b"time,seconds_elapsed,z,y,x\n1679000000000000000,0,0,0,9.8\n"
+    with zipfile.ZipFile(p, "w", zipfile.ZIP_DEFLATED, compresslevel=9) as z:
+        z.writestr("TotalAcceleration.csv", head + b"0" * (phyphox.MAX_MEMBER_MB * 2**20 + 1))
+        z.writestr("Gyroscope.csv", head)
+        z.writestr("Magnetometer.csv", head)
+    from app.pipeline.ingestion import sensorlogger
+    monkeypatch.setattr(sensorlogger, "read_member", lambda *a, **k: pytest.fail("member unpacked"))
+    err = _refused([p])
+    assert err.code == "zip.too_big" and err.params["member"] == "TotalAcceleration.csv"
