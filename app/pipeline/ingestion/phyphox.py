@@ -151,7 +151,12 @@ def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
     except ImportError:  # pragma: no cover - dependency declared in pyproject
         raise IngestionError("xlsx.no_openpyxl") from None
     excel.check_archive(path)  # the thesis workbook's caps, before openpyxl parses anything (module docstring)
-    excel.check_sheets(path)
+    try:
+        excel.check_sheets(path)
+    except IngestionError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged sheet's deflate stream or CRC
+        raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
     try:
         wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except Exception as exc:  # noqa: BLE001 - any damage of the workbook
