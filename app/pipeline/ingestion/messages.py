@@ -7,7 +7,7 @@ in the same language, a list joined by spaces.  Codes are stable identifiers: th
 carry ``{"code", "params"}`` and render them in the reader's language.
 
 Families: ``file.*``, ``cell.*``, ``stamp.*``, ``stream.*`` (any table), ``metabase.*``, ``generic.*``,
-``xlsx.*``, ``xsens.*``, ``opal.*``, ``shimmer.*``, ``phone.*``, ``phyphox.*`` (one format), ``split.*``, ``unit.*``, ``rate.*``,
+``xlsx.*``, ``xsens.*``, ``opal.*``, ``shimmer.*``, ``phone.*``, ``phyphox.*`` (one format), ``zip.*`` (a phone app's zip), ``split.*``, ``unit.*``, ``rate.*``,
 ``align.*``, ``recording.*``, ``session.*``, ``manifest.*``; ``note.*`` the notes (``Note.of(variant)``),
 ``check.*`` the provenance checks (:mod:`.provenance`), ``hint.*`` / ``word.*`` fragments.
 
@@ -676,6 +676,22 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: a sua parte {member} ocuparia {size_mb} MB ao ser descompactada, mais que os {limit_mb} MB "
               "que a pasta de trabalho de uma gravação pode ocupar; verifique se é uma gravação desta sessão, ou "
               "salve-a como CSV."},
+    "zip.too_big": {
+        "en": "{file}: its file {member} would take {size_mb} MB once unpacked, more than the {limit_mb} MB a "
+              "recording's export may take; check that it is the export of a recording of this session, or export "
+              "it again.",
+        "es": "{file}: su archivo {member} ocuparía {size_mb} MB al descomprimirse, más de los {limit_mb} MB que "
+              "puede ocupar la exportación de una grabación; compruebe que es la exportación de una grabación de "
+              "esta sesión, o expórtela de nuevo.",
+        "pt": "{file}: o seu arquivo {member} ocuparia {size_mb} MB ao ser descompactado, mais que os {limit_mb} MB "
+              "que a exportação de uma gravação pode ocupar; verifique se é a exportação de uma gravação desta "
+              "sessão, ou exporte-a de novo."},
+    "zip.too_many_members": {
+        "en": "{file}: the zip holds {count} files (at most {limit}); export the recording again from the app.",
+        "es": "{file}: el zip contiene {count} archivos (como mucho {limit}); exporte de nuevo la grabación desde "
+              "la aplicación.",
+        "pt": "{file}: o zip contém {count} arquivos (no máximo {limit}); exporte a gravação de novo a partir do "
+              "aplicativo."},
     "xlsx.too_many_parts": {
         "en": "{file}: the workbook holds {count} parts (at most {limit}); save it again from Excel as .xlsx.",
         "es": "{file}: el libro contiene {count} partes (como mucho {limit}); guárdelo de nuevo desde Excel "

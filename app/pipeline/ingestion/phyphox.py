@@ -25,6 +25,17 @@ the exports of the three experiments listed together (``session.json`` ``files``
 with g".  Time base: Unix seconds when every file is a zip with ``meta/time.csv`` (one phone's clock), else
 seconds from each export's start (``elapsed``: the sensors taken to start together).  Units are converted once,
 here (:mod:`.units`); Android's and iOS's phyphox both give the specific force with +9.81 on the up axis.
+
+Size caps (the thesis workbook's, issue 16 finding 4, and a zip bomb's).  An ``.xlsx`` goes through
+:func:`.excel.check_archive` and :func:`.excel.check_sheets` (the same caps, one definition) before openpyxl
+opens it, in the sniff too: a refusal there is the refusal the thesis reader would give, raised once.  Rows are
+read up to :data:`.excel.MAX_ROWS` and :data:`MAX_COLUMNS` columns.  A zip member is refused when its declared
+size passes :data:`MAX_MEMBER_MB`, the members read when they pass :data:`MAX_ZIP_MB` in all, the archive when
+it lists more than :data:`MAX_MEMBERS` entries; a member is read in pieces that stop at its cap, so a declared
+size that lies cannot take more memory either.  The numbers: phyphox writes a number in ~16 characters
+(``-1.234567890E-3,``), so a set of 4 columns takes ~64 B a row: 10 minutes at 100 Hz is ~4 MB, the one-set
+export of three sensors (15 columns) ~15 MB, a 400 Hz gyroscope's 10 minutes ~15 MB.  32 MB per member is twice
+the largest of these; 96 MB in all holds three such members (one per sensor) and ``meta/``.
 """
 
 from __future__ import annotations
@@ -38,6 +49,7 @@ from typing import Sequence
 
 import numpy as np
 
+from app.pipeline.ingestion import excel
 from app.pipeline.ingestion.model import IngestionError, Note, Stream
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, parse_table
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
@@ -47,6 +59,13 @@ _AXIS = {"acc": re.compile(r"^acceleration ([xyz])$"), "gyr": re.compile(r"^gyro
          "mag": re.compile(r"^magnetic field ([xyz])$")}
 _LINEAR = re.compile(r"^linear acceleration [xyz]$")
 _NAMES = {"acc": "Acceleration with g", "gyr": "Gyroscope", "mag": "Magnetometer"}
+#: largest unpacked zip member, all members read, most entries of the archive (module docstring)
+MAX_MEMBER_MB = 32
+MAX_ZIP_MB = 96
+MAX_MEMBERS = 64
+#: most columns of an .xlsx sheet read (a set is time + 3-4 per sensor; all raw sensors in one set ~25)
+MAX_COLUMNS = 64
+_MB = 1024 * 1024
 
 __all__ = ["looks_like_phyphox", "read_phyphox", "write_phyphox"]
 
@@ -87,12 +106,22 @@ def looks_like_phyphox(path: Path) -> bool:
                         return fh.read(4096).decode("utf-8-sig", "replace")
                 return any(_header_kinds(_first_line(head(n))) for n in _tables_zip(z)[:8])
         if suffix == ".xlsx":
+            try:
+                excel.check_archive(path)  # the caps before openpyxl (module docstring): refused, not sniffed
+                excel.check_sheets(path)
+            except IngestionError as exc:
+                if exc.code == "xlsx.cannot_open":
+                    return False
+                raise
             import openpyxl
             wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
             try:
-                return any(_header_kinds(next(ws.iter_rows(max_row=1, values_only=True), ())) for ws in wb.worksheets)
+                return any(_header_kinds(next(ws.iter_rows(max_row=1, max_col=MAX_COLUMNS, values_only=True), ()))
+                           for ws in wb.worksheets)
             finally:
                 wb.close()
+    except IngestionError:
+        raise
     except Exception:  # noqa: BLE001 - sniffing: anything unreadable is simply not phyphox
         return False
     return False
@@ -121,6 +150,13 @@ def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
         import openpyxl
     except ImportError:  # pragma: no cover - dependency declared in pyproject
         raise IngestionError("xlsx.no_openpyxl") from None
+    excel.check_archive(path)  # the thesis workbook's caps, before openpyxl parses anything (module docstring)
+    try:
+        excel.check_sheets(path)
+    except IngestionError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged sheet's deflate stream or CRC
+        raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
     try:
         wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except Exception as exc:  # noqa: BLE001 - any damage of the workbook
@@ -128,7 +164,7 @@ def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
     out = []
     try:
         for ws in wb.worksheets:
-            rows = list(ws.iter_rows(values_only=True))
+            rows = list(ws.iter_rows(max_row=excel.MAX_ROWS + 1, max_col=MAX_COLUMNS, values_only=True))
             if not rows or not _header_kinds(rows[0]):
                 continue
             header = ["" if c is None else str(c) for c in rows[0]]
@@ -146,11 +182,43 @@ def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
     return out
 
 
-def _epoch_offset(z: zipfile.ZipFile) -> float | None:
+def check_zip(path: Path, z: zipfile.ZipFile, members: Sequence[str]) -> None:
+    """Refuse an archive of more than :data:`MAX_MEMBERS` entries, or whose ``members`` declare more than
+    :data:`MAX_MEMBER_MB` each or :data:`MAX_ZIP_MB` in all (module docstring), from its directory alone."""
+    infos = z.infolist()
+    if len(infos) > MAX_MEMBERS:
+        raise IngestionError("zip.too_many_members", file=path, count=len(infos), limit=MAX_MEMBERS)
+    sizes = {i.filename: i.file_size for i in infos}
+    for m in members:
+        if sizes.get(m, 0) > MAX_MEMBER_MB * _MB:
+            raise IngestionError("zip.too_big", file=path, member=m, size_mb=sizes[m] // _MB, limit_mb=MAX_MEMBER_MB)
+    total = sum(sizes.get(m, 0) for m in members)
+    if total > MAX_ZIP_MB * _MB:
+        raise IngestionError("zip.too_big", file=path, member="(all)", size_mb=total // _MB, limit_mb=MAX_ZIP_MB)
+
+
+def read_member(path: Path, z: zipfile.ZipFile, member: str, limit_mb: int = MAX_MEMBER_MB,
+                chunk_bytes: int = 1 << 20) -> bytes:
+    """``member``'s bytes, read in pieces that stop once past ``limit_mb`` (then refused): the declared size
+    checked by :func:`check_zip` may lie."""
+    limit = limit_mb * _MB
+    pieces, size = [], 0
+    with z.open(member) as fh:
+        while True:
+            piece = fh.read(min(chunk_bytes, limit + 1 - size))
+            if not piece:
+                return b"".join(pieces)
+            pieces.append(piece)
+            size += len(piece)
+            if size > limit:
+                raise IngestionError("zip.too_big", file=path, member=member, size_mb=size // _MB, limit_mb=limit_mb)
+
+
+def _epoch_offset(path: Path, z: zipfile.ZipFile) -> float | None:
     """Unix seconds of experiment time 0 from ``meta/time.csv``'s first ``START`` row, or None."""
     try:
-        text = z.read("meta/time.csv").decode("utf-8-sig", "replace")
-    except KeyError:
+        text = read_member(path, z, "meta/time.csv").decode("utf-8-sig", "replace")
+    except (KeyError, zipfile.BadZipFile, OSError):
         return None
     lines = [ln for ln in text.splitlines() if ln.strip()]
     if len(lines) < 2:
@@ -179,15 +247,17 @@ def _tables(path: Path, notes: list) -> tuple[list[tuple[str, list[str], np.ndar
             raise IngestionError("phone.not_a_zip", file=path, reason=str(exc)[:120]) from None
         with z:
             out = []
-            for member in _tables_zip(z):
+            members = _tables_zip(z)
+            check_zip(path, z, members + [n for n in z.namelist() if n == "meta/time.csv"])
+            for member in members:
                 try:
-                    text = z.read(member).decode("utf-8-sig")
+                    text = read_member(path, z, member).decode("utf-8-sig")
                 except (UnicodeDecodeError, zipfile.BadZipFile, OSError) as exc:
                     raise IngestionError("phone.member_unreadable", file=path, member=member,
                                          reason=str(exc)[:120]) from None
                 if _header_kinds(_first_line(text)):
                     out.append((f"{path.name}/{member}", *_csv_table(path, text, f"{path.name}/{member}", notes)))
-            return out, _epoch_offset(z)
+            return out, _epoch_offset(path, z)
     from app.pipeline.ingestion.tables import read_text
     return [(path.name, *_csv_table(path, read_text(path), path.name, notes))], None
 

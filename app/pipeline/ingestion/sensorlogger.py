@@ -17,6 +17,8 @@ setting (its default) negates acceleration and gravity on every axis: with ``pla
 ``Metadata.csv`` the sum is negated back, and a note says the default setting was assumed (a recording made
 with the setting on would have the opposite sign: record with the setting off, or say so in session.json).
 The files may sit at the zip's root or in one folder inside it.
+The size caps of :mod:`.phyphox`'s zips hold here too (:func:`.phyphox.check_zip`, :func:`.phyphox.read_member`):
+a 10-minute 100 Hz sensor file takes ~5 MB.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.pipeline.ingestion.phyphox import check_zip, read_member
 from app.pipeline.ingestion.model import IngestionError, Note, Stream
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, parse_table
 from app.pipeline.ingestion.units import check_magnitude
@@ -58,7 +61,7 @@ def looks_like_sensorlogger(path: Path) -> bool:
 def _table(path: Path, z: zipfile.ZipFile, member: str, notes: list) -> tuple[np.ndarray, np.ndarray, str]:
     """``(t_s epoch, values (n, 3) in file order x, y, z, header text)`` of one sensor file."""
     try:
-        text = z.read(member).decode("utf-8-sig")
+        text = read_member(path, z, member).decode("utf-8-sig")
     except (UnicodeDecodeError, zipfile.BadZipFile, OSError) as exc:
         raise IngestionError("phone.member_unreadable", file=path, member=member, reason=str(exc)[:120]) from None
     header, rows = parse_table(path, text, notes)
@@ -71,11 +74,11 @@ def _table(path: Path, z: zipfile.ZipFile, member: str, notes: list) -> tuple[np
     return t_ns * 1e-9, data, member
 
 
-def _metadata(z: zipfile.ZipFile, members: dict[str, str]) -> dict[str, str]:
+def _metadata(path: Path, z: zipfile.ZipFile, members: dict[str, str]) -> dict[str, str]:
     if "Metadata.csv" not in members:
         return {}
     try:
-        lines = z.read(members["Metadata.csv"]).decode("utf-8-sig", "replace").splitlines()
+        lines = read_member(path, z, members["Metadata.csv"]).decode("utf-8-sig", "replace").splitlines()
     except (zipfile.BadZipFile, OSError):
         return {}
     if len(lines) < 2:
@@ -100,7 +103,8 @@ def read_sensorlogger(path: str | os.PathLike) -> tuple[Stream, Stream, Stream, 
             missing.append("TotalAcceleration.csv (or Accelerometer.csv + Gravity.csv)")
         if missing:
             raise IngestionError("phone.files_missing", file=path, files=", ".join(missing))
-        meta = _metadata(z, members)
+        check_zip(path, z, [members[n] for n in (*_KNOWN, "Metadata.csv") if n in members])  # phyphox's caps
+        meta = _metadata(path, z, members)
         ios = meta.get("platform", "").lower() == "ios"
         if "TotalAcceleration.csv" in members:
             t_a, acc, src = _table(path, z, members["TotalAcceleration.csv"], notes)
