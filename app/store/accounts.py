@@ -122,10 +122,21 @@ def reset_attempts(db: Session, keys: list[str]) -> None:
                .values(attempts=0, delay_s=0.0, next_s=0.0).execution_options(synchronize_session=False))
 
 
-def refund_attempt(db: Session, key: str) -> None:
-    """One reserved attempt of ``key`` given back (a successful login from a shared address)."""
+def refund_attempt(db: Session, key: str, *, free: int, base_s: float) -> None:
+    """Undo the reservation of a successful login from a shared address: the key's state before it, so a clinic
+    behind one address that logs in all morning is never slowed by its own successes (nor an attacker with one
+    valid account helped by them).
+
+    The reservation that admitted this login found ``next_s <= now`` (else it was refused), so admitting at once
+    again (``next_s = 0``) restores it exactly; ``delay_s`` goes back along :func:`reserve_attempt`'s rule, 0 for
+    ``n − 1 < free`` and ``d/2`` (at least ``base_s``) after — exact except past the cap, where ``d/2`` is the
+    lower bound of the delay before."""
+    n_prev = LoginAttempts.attempts - 1
+    prev_delay = case((n_prev < free, 0.0), (LoginAttempts.delay_s / 2.0 < base_s, base_s),
+                      else_=LoginAttempts.delay_s / 2.0)
     db.execute(update(LoginAttempts).where(LoginAttempts.key == key, LoginAttempts.attempts > 0)
-               .values(attempts=LoginAttempts.attempts - 1).execution_options(synchronize_session=False))
+               .values(attempts=n_prev, delay_s=prev_delay, next_s=0.0)
+               .execution_options(synchronize_session=False))
 
 
 def delete_attempts_of_email(db: Session, email: str) -> int:
@@ -138,9 +149,11 @@ def prune_attempts(db: Session, before_s: float) -> None:
     db.execute(delete(LoginAttempts).where(LoginAttempts.last_s < before_s, LoginAttempts.next_s < before_s))
 
 
-def user_by_id(db: Session, user_id: int) -> User | None:
-    """The user ``user_id`` of any clinic (a login's own account, found before by its email), or None."""
-    return db.get(User, user_id)
+def user_by_id(db: Session, user_id: int, *, lock: bool = False) -> User | None:
+    """The user ``user_id`` of any clinic (a login's own account, found before by its email), or None; ``lock``:
+    its row locked until ``db`` commits (``FOR UPDATE OF users`` on PostgreSQL — only the user's row, not the
+    rows its eager relationships join in; SQLite serialises writers)."""
+    return db.get(User, user_id, with_for_update={"of": User} if lock else None)
 
 
 def user_by_email(db: Session, email: str) -> User | None:

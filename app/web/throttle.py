@@ -112,7 +112,7 @@ class LoginThrottle:
         accounts.reset_attempts(db, [k for k, _, kind in keys if kind != "ip"])
         for key, _, kind in keys:
             if kind == "ip":
-                accounts.refund_attempt(db, key)
+                accounts.refund_attempt(db, key, free=self._free(kind), base_s=self.policy.base_s)
 
     @staticmethod
     def unlock(db: Session, email: str) -> int:

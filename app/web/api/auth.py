@@ -88,14 +88,21 @@ def _begin(request: Request, email: str, ip: str | None) -> tuple[float, tuple |
 
 
 def _finish(request: Request, response: Response, email: str, ip: str | None, user_id: int | None, ok: bool,
-            new_hash: str | None) -> dict:
-    """Record the outcome; on success reset the counters, store ``new_hash`` if any, open the session."""
+            verified: str | None, new_hash: str | None) -> dict:
+    """Record the outcome; on success reset the counters, store ``new_hash`` if any, open the session.
+
+    The user's row is locked and its hash must still be ``verified``, the one the password was checked against:
+    a password changed or reset while this login was being checked (an operator locking out a leaked password)
+    wins, and the login is refused rather than opening a session with the old password or writing the old
+    password's rehash over the new one."""
     state = request.app.state
     settings = state.settings
     with state.db.session() as s:
-        user = accounts.user_by_id(s, user_id) if user_id is not None else None
-        if not ok or user is None or not user.active:
-            reason = "unknown email" if user is None else "account deactivated" if not user.active else "wrong password"
+        user = accounts.user_by_id(s, user_id, lock=True) if user_id is not None else None
+        changed = ok and user is not None and user.password_hash != verified
+        if not ok or user is None or not user.active or changed:
+            reason = ("unknown email" if user is None else "account deactivated" if not user.active
+                      else "password changed during the login" if changed else "wrong password")
             record_login(s, request, "login_failed", email=email, user=user, status=401, detail=reason)
             return {}
         state.login_throttle.succeeded(s, email, ip)
@@ -133,7 +140,7 @@ async def login(body: LoginIn, request: Request, response: Response):
         except Busy:  # the old hash still works; it is upgraded at a later login
             pass
     out = await run_in_threadpool(_finish, request, response, email, ip, user_id, ok and found is not None,
-                                  new_hash)
+                                  stored, new_hash)
     if not out:
         raise refusal(request, 401, "login.wrong")
     return out

@@ -210,3 +210,47 @@ def test_waiting_logins_hold_no_request_thread(client, settings, accounts):
         release.set()
         for f in busy:
             f.result()
+
+
+def test_a_clinic_behind_one_address_is_not_slowed_by_its_own_successes(client, accounts):
+    """Review finding: once an address had used its free failures, each *successful* login behind it doubled the
+    address's delay (the refund gave the attempt back but kept the doubled delay), so a clinic behind one NAT
+    address ended at one login per 15 min.  A success now restores the address counter as it was."""
+    from app.store.models import LoginAttempts
+
+    throttle = client.app.state.login_throttle
+    policy = _slow(client.app, free_per_address=3)
+    address = "203.0.113.77"
+    with client.app.state.db.session() as s:  # the morning's typos from the clinic's address (other emails)
+        for i in range(policy.free_per_address):
+            assert throttle.reserve(f"typo{i}@clinic.test", address) == 0.0
+        s.execute(LoginAttempts.__table__.update().where(LoginAttempts.key == f"ip:{address}").values(next_s=0.0))
+        s.commit()
+    with _client(client.app, address) as clinic:
+        for _ in range(6):  # successful logins by the clinic's staff, one after another
+            assert clinic.post("/api/v1/auth/login", json={"email": EMAIL, "password": PASSWORD}).status_code == 200
+    with client.app.state.db.session() as s:
+        row = s.get(LoginAttempts, f"ip:{address}")
+        assert row.attempts == policy.free_per_address and row.next_s == 0.0
+        assert row.delay_s <= policy.base_s  # before the fix: 60 s doubled six times
+
+
+def test_a_password_reset_during_a_login_wins(client, accounts, monkeypatch):
+    """Review finding: a login checked against the old hash while an operator reset the password opened a session
+    with the old password (and its rehash could overwrite the new hash).  The hash must still be the one checked."""
+    from app.cli import admin as admin_cli
+    from app.web.api import auth
+
+    real_finish = auth._finish
+
+    def reset_then_finish(*args, **kwargs):
+        admin_cli.set_password(client.app.state.settings, email=EMAIL, password="Qz7!mountain-Lark-4411")
+        return real_finish(*args, **kwargs)
+
+    monkeypatch.setattr(auth, "_finish", reset_then_finish)
+    r = client.post("/api/v1/auth/login", json={"email": EMAIL, "password": PASSWORD})
+    assert r.status_code == 401 and r.headers["x-chakamo-code"] == "login.wrong"
+    monkeypatch.setattr(auth, "_finish", real_finish)
+    assert client.post("/api/v1/auth/login", json={"email": EMAIL, "password": PASSWORD}).status_code == 401
+    assert client.post("/api/v1/auth/login",
+                       json={"email": EMAIL, "password": "Qz7!mountain-Lark-4411"}).status_code == 200
