@@ -106,7 +106,9 @@ __all__ = ["DISAGREEMENT_BOUND_RAD", "DISTURBED_BOUND_RAD", "HEADING_MODES", "Co
 HEADING_MODES = ("auto", "magnetometer", "constraint")
 
 #: auto switches to the constraint heading when D (the largest windowed constraint offset on the 9D run, over
-#: the excited windows) exceeds this.  Chosen on the tuning seeds 0–5 of ``python -m benchmarks.heading --tune 0-5
+#: the excited windows) exceeds this, on the tasks whose ``TaskSpec.heading_bound`` is ``"tilt"`` (the
+#: step-up; other tasks use DISTURBED_BOUND_RAD).  History — the first bound, today's DISTURBED_BOUND_RAD: chosen
+#: on the tuning seeds 0–5 of ``python -m benchmarks.heading --tune 0-5
 #: --seeds 0-11 --disturb-deg 30`` (default filter, MetaMotionR error model, both legs and heights, default
 #: params): clean sessions read D = 1.2–2.0° (the hinge bias of the true knee rotation), a 30° shank field
 #: rotation over the middle third 10.7–14.6°; the bound is their midpoint, 6° (rounded).  Held out (seeds 6–11):

@@ -45,9 +45,9 @@ from estimators import __version__, knee
 from estimators import quaternion as quat
 from estimators.diagnosis import diagnose
 from estimators.disturbance import FieldCheck, field_disturbance
-from estimators.heading import HeadingChoice, choose_heading
+from estimators.heading import DISAGREEMENT_BOUND_RAD, DISTURBED_BOUND_RAD, HeadingChoice, choose_heading
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
-from estimators.motor_task import EVENTS, TaskAnalysis, analyse_task
+from estimators.motor_task import EVENTS, TASKS, TaskAnalysis, analyse_task
 from estimators.orientation import make
 from estimators.quality import QualityWarning
 
@@ -284,7 +284,7 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     elif options.calibration == "functional":
         segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)
         warnings += functional_warnings
-    choice = _heading_choice(options.heading, filt, task, gyr_task, segments,
+    choice = _heading_choice(options.heading, options.task, filt, task, gyr_task, segments,
                              {seg: knee.segment_orientation(q_es[seg], segments[seg].q_sensor_segment) for seg in SEGMENTS})
     warnings += list(choice.warnings)
     q_seg = {"thigh": choice.q_earth_femur, "shank": choice.q_earth_tibia}
@@ -335,16 +335,19 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         heading_choice=choice)
 
 
-def _heading_choice(mode: str, filt, task: dict, gyr_task: dict[str, FloatArray],
+def _heading_choice(mode: str, task_name: str, filt, task: dict, gyr_task: dict[str, FloatArray],
                     segments: dict[str, knee.SegmentCalibration], q_seg_9d: dict[str, FloatArray]) -> HeadingChoice:
     """The thigh–shank heading for ``--heading`` (:func:`estimators.heading.choose_heading`).  The constraint is
     computed on a 6D run of the same filter (no magnetic influence at all) whenever it is used: run up front for
     ``constraint``, and for ``auto`` only once the 9D check has decided to switch (a clean session pays nothing)."""
     fs_hz = task["thigh"].fs_hz
+    # the task's own auto bound (TaskSpec.heading_bound): the tilt bound only where it was measured
+    bound_rad = DISAGREEMENT_BOUND_RAD if TASKS[task_name].heading_bound == "tilt" else DISTURBED_BOUND_RAD
 
     def choose(q_seg_6d: dict[str, FloatArray] | None) -> HeadingChoice:
         six = {} if q_seg_6d is None else {"q_earth_femur_6d": q_seg_6d["thigh"], "q_earth_tibia_6d": q_seg_6d["shank"]}
-        return choose_heading(q_seg_9d["thigh"], q_seg_9d["shank"], fs_hz=fs_hz, mode=mode, **six)
+        return choose_heading(q_seg_9d["thigh"], q_seg_9d["shank"], fs_hz=fs_hz, mode=mode, bound_rad=bound_rad,
+                              **six)
 
     def six_d() -> dict[str, FloatArray]:
         return {seg: knee.segment_orientation(filt.estimate(rec.acc, gyr_task[seg], None, fs_hz=rec.fs_hz).orientation_,

@@ -44,6 +44,13 @@ class TaskSpec:
         impulse: flexion first rises 5–10° before the extension); gives the ``countermovement_peak`` event.
     phases : the reported phases, consecutive and covering onset → rest_reached.
     far_label : what the far plateau is called in messages ("full extension", "deepest flexion").
+    heading_bound : which disagreement bound ``--heading auto`` uses for this task before it takes the joint
+        constraint's heading (:func:`estimators.heading.choose_heading`): ``"disturbed"`` (default,
+        :data:`estimators.heading.DISTURBED_BOUND_RAD`, 6°) or ``"tilt"``
+        (:data:`~estimators.heading.DISAGREEMENT_BOUND_RAD`, 1.5°), set only by tasks whose motion the tilt bound
+        was chosen and held out on (the step-up, ``benchmarks.robustness``): on simulated walking it switched 2 of
+        12 clean sessions for a worse rotation (0.41 → 0.81°), and squats and seated extensions have no simulator
+        yet.
     """
 
     name: str
@@ -52,12 +59,15 @@ class TaskSpec:
     phases: tuple[PhaseSpec, ...]
     far_label: str
     description: str = ""
+    heading_bound: str = "disturbed"
 
     def __post_init__(self) -> None:
         if self.excursion not in ("extension", "flexion"):
             raise ValueError(f"TaskSpec.excursion must be 'extension' or 'flexion', got {self.excursion!r}")
         if not self.phases:
             raise ValueError("TaskSpec.phases must not be empty")
+        if self.heading_bound not in ("disturbed", "tilt"):
+            raise ValueError(f"TaskSpec.heading_bound must be 'disturbed' or 'tilt', got {self.heading_bound!r}")
         if self.phases[0].start != "onset" or self.phases[-1].end != "rest_reached":
             raise ValueError("TaskSpec.phases must run from 'onset' to 'rest_reached'")
         for a, b in zip(self.phases[:-1], self.phases[1:]):

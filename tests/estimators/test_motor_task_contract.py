@@ -205,3 +205,19 @@ def test_step_up_segmentation_on_varied_motions(shape, h, side, pauses, rest0, r
     true_pct = 100 * np.mean(np.diff(leg.phases_s, axis=1) / dur[:, None], axis=0)
     got = r.phase_stats()
     np.testing.assert_allclose([got[p]["mean_pct"] for p in ("impulse", "extension", "fall")], true_pct, atol=1.0)
+
+
+def test_only_the_step_up_uses_the_tilt_heading_bound():
+    """The 1.5° auto-heading bound was chosen and held out on step-ups only (benchmarks.robustness); every other
+    task keeps the 6° disturbed-field bound until its own motion is measured (review: on simulated walking the
+    tilt bound switched clean sessions for a worse rotation)."""
+    import pytest
+
+    from estimators.motor_task import TASKS
+    from estimators.motor_task.spec import PhaseSpec, TaskSpec
+
+    assert {name: spec.heading_bound for name, spec in TASKS.items()} == {
+        name: ("tilt" if name == "step_up" else "disturbed") for name in TASKS}
+    with pytest.raises(ValueError, match="heading_bound"):
+        TaskSpec(name="x", excursion="flexion", countermovement=False,
+                 phases=(PhaseSpec("a", "onset", "rest_reached"),), far_label="far", heading_bound="6")
