@@ -35,6 +35,7 @@ loop that also answers everybody's reads as little as an answer can.
 
 from __future__ import annotations
 
+import ipaddress
 import math
 import threading
 import time
@@ -60,9 +61,27 @@ class ThrottlePolicy:
     max_in_flight: int = 4
 
 
+def client_key(ip: str | None) -> str | None:
+    """The address a client's counters are kept under: an IPv4 address as it is, an IPv6 address as its /64
+    network (one host is routinely given a whole /64, so its full addresses would be unlimited counters and
+    in-flight slots); None or anything unparsable as given."""
+    if not ip:
+        return ip
+    try:
+        addr = ipaddress.ip_address(ip)
+    except ValueError:
+        return ip
+    if isinstance(addr, ipaddress.IPv6Address):
+        if addr.ipv4_mapped is not None:  # ::ffff:a.b.c.d is the IPv4 client a.b.c.d
+            return str(addr.ipv4_mapped)
+        return str(ipaddress.ip_network(f"{addr}/64", strict=False))
+    return str(addr)
+
+
 def _keys(email: str, ip: str | None) -> list[tuple[str, str | None, str]]:
     """``(key, email, kind)`` of the counters of one login, in the order they are locked (always the same order,
-    so two transactions never wait on each other's rows crosswise)."""
+    so two transactions never wait on each other's rows crosswise); the address as :func:`client_key`."""
+    ip = client_key(ip)
     out = [(f"pair:{email} {ip or '-'}", email, "pair"), (f"email:{email}", email, "email")]
     if ip:
         out.append((f"ip:{ip}", None, "ip"))
@@ -179,7 +198,7 @@ class LoginGate:
             return
         from app.web.security import hash_queue_full
 
-        ip = (scope.get("client") or ("-",))[0] or "-"
+        ip = client_key((scope.get("client") or ("-",))[0]) or "-"
         if not self.in_flight.enter(ip):
             await self._refuse(scope, send, 429, "login.too_many_at_once", 1)
             return
@@ -192,4 +211,4 @@ class LoginGate:
             self.in_flight.leave(ip)
 
 
-__all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy"]
+__all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy", "client_key"]

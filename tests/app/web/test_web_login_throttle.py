@@ -254,3 +254,21 @@ def test_a_password_reset_during_a_login_wins(client, accounts, monkeypatch):
     assert client.post("/api/v1/auth/login", json={"email": EMAIL, "password": PASSWORD}).status_code == 401
     assert client.post("/api/v1/auth/login",
                        json={"email": EMAIL, "password": "Qz7!mountain-Lark-4411"}).status_code == 200
+
+
+def test_an_ipv6_host_cannot_multiply_its_address_counters(client, accounts):
+    """Review finding: a host given a /64 has 2^64 addresses; its counters are kept per /64 network, so guesses
+    from many of its addresses share one address counter (IPv4 and IPv4-mapped addresses stay as they are)."""
+    from app.web.throttle import client_key
+
+    assert client_key("2001:db8:1:2::1") == client_key("2001:db8:1:2:ffff:abcd::9") == "2001:db8:1:2::/64"
+    assert client_key("2001:db8:1:3::1") != client_key("2001:db8:1:2::1")
+    assert client_key("::ffff:192.0.2.7") == client_key("192.0.2.7") == "192.0.2.7"
+    assert client_key(None) is None and client_key("testclient") == "testclient"
+    policy = _slow(client.app)
+    for i in range(policy.free_per_pair):
+        with _client(client.app, f"2001:db8:1:2::{i + 1:x}") as c:
+            assert c.post("/api/v1/auth/login", json={"email": EMAIL, "password": "guess guess guess"}).status_code == 401
+    with _client(client.app, "2001:db8:1:2::ff") as c:  # another address of the same /64: that pair is spent
+        r = c.post("/api/v1/auth/login", json={"email": EMAIL, "password": "guess guess guess"})
+        assert r.status_code == 429 and r.headers["x-chakamo-code"] == "login.throttled"
