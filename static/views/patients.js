@@ -253,7 +253,8 @@ function newSessionForm(patientId, onCancel) {
     notes: h("textarea", { name: "notes", rows: 2 }),
   };
   const message = h("div", { class: "form-message", "aria-live": "polite" });
-  const submit = h("button", { type: "submit" }, t("sessions.create"));
+  // disabled until the task menu is filled: a click before GET /options answers would send no task (422)
+  const submit = h("button", { type: "submit", disabled: true }, t("sessions.create"));
   const form = h("form", { class: "card form-grid", "aria-label": t("sessions.new") },
     h("h2", {}, t("sessions.new")),
     field(t("session.date"), f.date)[0],
@@ -267,10 +268,11 @@ function newSessionForm(patientId, onCancel) {
   const stepRow = f.step.closest(".field") || f.step.parentElement;
   const showStep = () => { if (stepRow) stepRow.hidden = f.task.value !== "step_up"; };
   f.task.addEventListener("change", showStep);
-  options().then((opts) => { fillSelect(f.task, "task", opts.tasks); showStep(); })
+  options().then((opts) => { fillSelect(f.task, "task", opts.tasks); showStep(); submit.disabled = false; })
     .catch((err) => message.append(alertBox(errorText(err))));
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
+    if (!f.task.value) return;  // the task menu is not filled yet (the button is disabled until it is)
     clear(message);
     submit.disabled = true;
     try {
