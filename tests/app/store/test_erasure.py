@@ -12,30 +12,15 @@ import os
 import time
 
 import pytest
+from store_world import erasure_world
 
 pytest.importorskip("sqlalchemy")
 
 
 @pytest.fixture
 def env(tmp_path):
-    from app.store.blobs import BlobStore
-    from app.store.database import Database
-    from app.store.models import Clinic
-    from app.store.patients import add_patient
-    from app.store.sessions import add_session
-
-    db = Database(f"sqlite:///{tmp_path / 'chakamo.db'}")
-    db.migrate()
-    store = BlobStore(tmp_path / "blobs")
-    with db.session() as s:
-        clinic = Clinic(name="Erasure")
-        s.add(clinic)
-        s.flush()
-        pid = add_patient(s, clinic.id, {"external_id": "E-1", "side": "right"}).id
-        sids = [add_session(s, clinic.id, pid, {}).id for _ in range(2)]
-        cid = clinic.id
-    yield {"db": db, "store": store, "cid": cid, "pid": pid, "sids": sids}
-    db.dispose()
+    with erasure_world(f"sqlite:///{tmp_path / 'chakamo.db'}", tmp_path, "Erasure", "E-1") as world:
+        yield world
 
 
 def _upload(env, session_id: int, name: str, data: bytes) -> int:

@@ -10,6 +10,7 @@ import datetime as dt
 import threading
 
 import pytest
+from store_world import erasure_world
 
 pytest.importorskip("sqlalchemy")
 
@@ -18,25 +19,9 @@ DATA = b"t_s,acc_x\n0,1\n" * 10
 
 @pytest.fixture(params=["sqlite", "postgresql"])
 def env(request, tmp_path):
-    from app.store.blobs import BlobStore
-    from app.store.database import Database
-    from app.store.models import Clinic
-    from app.store.patients import add_patient
-    from app.store.sessions import add_session
-
     url = f"sqlite:///{tmp_path / 'chakamo.db'}" if request.param == "sqlite" else request.getfixturevalue("pg_url")
-    db = Database(url)
-    db.migrate()
-    store = BlobStore(tmp_path / "blobs")
-    with db.session() as s:
-        clinic = Clinic(name="Races")
-        s.add(clinic)
-        s.flush()
-        pid = add_patient(s, clinic.id, {"external_id": "R-1", "side": "right"}).id
-        sids = [add_session(s, clinic.id, pid, {}).id for _ in range(2)]
-        cid = clinic.id
-    yield {"db": db, "store": store, "cid": cid, "pid": pid, "sids": sids, "kind": request.param}
-    db.dispose()
+    with erasure_world(url, tmp_path, "Races", "R-1") as world:
+        yield world | {"kind": request.param}
 
 
 def _writer(env, data: bytes = DATA):
