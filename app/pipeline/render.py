@@ -125,11 +125,13 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
         return fallback()
 
 
-#: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
-#: (CPU on the 10-cycle demo session at load average ~16: PDF 0.29 s, angles.xlsx 0.06, HTML 0.06 | scene 0.11,
-#: quaternions.xlsx 0.14, timeseries.npz 0.04–0.11 (its compression); ``python -m benchmarks.cold`` prints them)
-FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx", "report.html"),
-                                             ("scene.viser", "quaternions.xlsx", "timeseries.npz"))
+#: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process:
+#: the PDF is the one large piece, the rest balance it.  CPU on the 10-cycle demo session, each in a helper
+#: after :func:`warm_up` (``processing=False``): PDF 0.14 s, timeseries.npz 0.02 (its compression) | angles.xlsx
+#: 0.04, HTML 0.025, scene 0.03, quaternions.xlsx 0.065 — 0.16 s each (the old split, PDF + angles.xlsx + HTML |
+#: scene + quaternions.xlsx + npz, was 0.22 | 0.14 s); ``python -m benchmarks.cold`` prints them
+FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "timeseries.npz"),
+                                             ("angles.xlsx", "report.html", "scene.viser", "quaternions.xlsx"))
 
 
 def render_named(ri, names) -> dict[str, bytes]:
@@ -233,10 +235,7 @@ class ForkedRenderers:
                 payload = b""
             _write_all(session_w, payload)
         with timings.stage("render.imports"):
-            warm_up(processing=False)
-            import plotly.offline  # noqa: F401 — what reports.html and reports.scene import when they run
-            import viser  # noqa: F401
-            import viser._messages  # noqa: F401
+            warm_up(processing=False)  # also what the renderers load on their first call (before the forks below)
         children = []
         for g in range(1, len(self.groups)):  # forked now, before the report input arrives
             pid = os.fork()
@@ -432,24 +431,35 @@ class RenderPool:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
 
+#: what the renderers import only when they first run: plotly for the HTML, viser and its message classes for
+#: the scene, and rich, which viser's server imports as it starts (for its banner, silenced)
+_RENDER_TIME_IMPORTS = ("plotly.offline", "viser", "viser._messages", "rich.console", "rich.table")
+
+
 def warm_up(processing: bool = True) -> None:
     """Before the first job needs them: import the processing and report modules (≈1 s), make the PDF's font
-    cut (once per machine, ≈0.3 s) and run the default orientation filter once on one second of still data
-    (loads its compiled numba kernels, ≈0.3 s).  ``processing=False``: the report side only (no numba)."""
+    cut (once per machine, ≈0.3 s), load what the renderers load on their first call whatever the session
+    (:data:`_RENDER_TIME_IMPORTS`, the translation tables, plotly.js: ≈0.04 s of the first report's CPU) and
+    run the default orientation filter once on one second of still data (loads its compiled numba kernels,
+    ≈0.3 s).  ``processing=False``: the report side only (no numba)."""
     import importlib
 
     names = ("app.pipeline.session", "app.pipeline.results") if processing else ()
-    for name in names + ("reports.excel", "reports.html", "reports.pdf", "reports.scene"):
+    for name in names + ("reports.excel", "reports.html", "reports.pdf", "reports.scene") + _RENDER_TIME_IMPORTS:
         try:
             importlib.import_module(name)
         except Exception:  # noqa: BLE001 — the job importing it will report the problem
             log.exception("warm-up import of %s failed", name)
     try:
         from reports.fonts import font_files
+        from reports.html import plotly_js
+        from reports.i18n import table
 
         font_files()
+        table()
+        plotly_js()
     except Exception:  # noqa: BLE001 — only a warm-up
-        log.exception("warm-up of the PDF font failed")
+        log.exception("warm-up of the report files (font, translations, plotly.js) failed")
     if not processing:
         return
     try:
