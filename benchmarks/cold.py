@@ -7,8 +7,10 @@ Usage
 Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
 ``<entry>`` calling ``app.cli.console`` as the console script ``chakamo`` does, so it measures the
 checkout the interpreter imports ``app`` from (run from the worktree or set ``PYTHONPATH``).  One warm-up run of
-each command fills numba's on-disk cache and the ``.pyc`` files first; then ``--repeats`` runs give the median
-(and the spread, min–max) of
+each command fills numba's on-disk cache and the ``.pyc`` files first (with ``PYTHONDONTWRITEBYTECODE`` removed
+from its environment: set in a shell, it would have every timed run compile the project's modules again, ~0.13 s
+of CPU in the parent alone, which no installed copy pays: ``pip install`` and the Docker image compile them);
+then ``--repeats`` runs give the median (and the spread, min–max) of
 
 * *wall* — from ``Popen`` to the child's exit, s;
 * *CPU* — the child's user + system time from the same rusage, s: on a shared, loaded machine wall time
@@ -117,10 +119,14 @@ class Run:
     stderr_tail: str = ""
 
 
-def run_cli(args: list[str], env: dict[str, str] | None = None, entry: str = ENTRY) -> Run:
-    """One fresh ``chakamo`` process; wall, peak RSS (``os.wait4``) and the stamped stderr lines."""
+def run_cli(args: list[str], env: dict[str, str] | None = None, entry: str = ENTRY, *,
+            write_bytecode: bool = False) -> Run:
+    """One fresh ``chakamo`` process; wall, peak RSS (``os.wait4``) and the stamped stderr lines.
+    ``write_bytecode``: let it write ``.pyc`` files even when ``PYTHONDONTWRITEBYTECODE`` is set (the warm-up)."""
     env = dict(os.environ if env is None else env)
     env[TIMING_ENV] = "1"
+    if write_bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
     if entry is FLOOR_ENTRY:
         env.setdefault("OPENBLAS_NUM_THREADS", "1")  # as chakamo process sets it
     start = time.perf_counter()
@@ -249,9 +255,10 @@ def critical_path_cpu(run: Run) -> float | None:
     ``chakamo process`` runs in three processes (``app.pipeline.render.ForkedRenderers``): the parent reads and
     computes while a helper imports the report libraries; then two helpers render while the parent waits; then
     the parent writes.  On a shared machine wall time measures the other processes too, CPU time does not, so
-    the critical path is estimated as ``max(parent CPU before the reports, helper imports CPU) + max(render
-    CPU of a helper) + the parent's CPU in the reports stage (pickling) and in the write``, each a CPU time (what it takes alone on one core; page faults and
-    the pipes' copies are in them, the scheduler's switches are not)."""
+    the critical path is estimated as ``max(parent CPU before the reports, helper's read + imports CPU) +
+    max(render CPU of a helper) + the parent's CPU in the reports stage (pickling) and in the write``, each a
+    CPU time (what it takes alone on one core; page faults and the pipes' copies are in them, the scheduler's
+    switches are not)."""
     procs, cpu = run.processes, run.stages_cpu_s
     if "main" not in procs:
         return None
@@ -261,7 +268,8 @@ def critical_path_cpu(run: Run) -> float | None:
     if not helpers:
         return main_cpu
     reports = cpu.get("reports", 0.0)  # the parent's part: the report input, pickling it and the answers
-    return max(main_cpu - write - reports, cpu.get("render.imports", 0.0)) + reports + max(helpers) + write
+    helper = cpu.get("render.imports", 0.0) + (cpu.get("read", 0.0) if "read.wait" in cpu else 0.0)
+    return max(main_cpu - write - reports, helper) + reports + max(helpers) + write
 
 
 def _median(values: list[float]) -> float:
@@ -309,9 +317,13 @@ def summarise(name: str, runs: list[Run]) -> dict[str, Any]:
     return out
 
 
-def format_tables(summaries: list[dict[str, Any]], repeats: int) -> str:
-    lines = [f"cold start: fresh `chakamo` processes, median of {repeats} after one warm-up run (numba cache warm)",
-             "", f"{'command':<10} {'wall s':>7} {'range s':>11} {'CPU s':>6} {'peak RSS MB':>12} {'goal':>20}  verdict"]
+def format_tables(summaries: list[dict[str, Any]], repeats: int, load: tuple[list[float], list[float]] | None = None,
+                  ) -> str:
+    lines = [f"cold start: fresh `chakamo` processes, median of {repeats} after one warm-up run (numba cache warm)"]
+    if load is not None:
+        lines.append("load average (1, 5, 15 min) before " + ", ".join(f"{x:.2f}" for x in load[0])
+                     + "; after " + ", ".join(f"{x:.2f}" for x in load[1]))
+    lines += ["", f"{'command':<10} {'wall s':>7} {'range s':>11} {'CPU s':>6} {'peak RSS MB':>12} {'goal':>20}  verdict"]
     for s in summaries:
         wall_goal, rss_goal = GOALS.get(s["command"], (None, None))
         goal = " ".join(g for g in ((f"≤{wall_goal:g} s" if wall_goal else ""),
@@ -366,18 +378,19 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown command(s) {sorted(unknown)}: choose from help, version, process, floor")
     session = ensure_session(args.session) if "process" in commands else None
     summaries = []
+    load_before = list(os.getloadavg())
     with tempfile.TemporaryDirectory(prefix="chakamo_cold_out_") as tmp:
         argv_of = {"help": ["--help"], "version": ["--version"],
                    "process": ["process", str(session), "--out", str(Path(tmp) / "out")], "floor": []}
         for name in commands:
             entry = FLOOR_ENTRY if name == "floor" else ENTRY
-            warm = run_cli(argv_of[name], entry=entry)  # fills numba's cache and the .pyc files
+            warm = run_cli(argv_of[name], entry=entry, write_bytecode=True)  # fills numba's cache and the .pyc files
             if warm.returncode != 0:
                 raise SystemExit(f"`chakamo {' '.join(argv_of[name])}` failed ({warm.returncode}):\n{warm.stderr_tail}")
             runs = [run_cli(argv_of[name], entry=entry) for _ in range(args.repeats)]
             summaries.append(summarise(name, runs))
         heavy = heavy_imports(importtime_of(argv_of["process"]), args.imports) if args.imports and session else []
-    print(format_tables(summaries, args.repeats))
+    print(format_tables(summaries, args.repeats, (load_before, list(os.getloadavg()))))
     if heavy:
         print(f"\nprocess: the {len(heavy)} heaviest third-party imports, by the project module importing them "
               "(-X importtime, cumulative ms, one run)")

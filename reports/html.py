@@ -103,8 +103,8 @@ def _drop_none(obj: Any) -> Any:
 
 
 @lru_cache(maxsize=1)
-def _plotly_js() -> str:
-    """plotly.js from the installed plotly package (no CDN)."""
+def plotly_js() -> str:
+    """plotly.js from the installed plotly package (no CDN); read once per process (4.6 MB)."""
     from plotly.offline import get_plotlyjs
 
     return get_plotlyjs()
@@ -353,7 +353,7 @@ def render_html(ri: ReportInput) -> str:
         f'<!DOCTYPE html>\n<html lang="{_e(lang)}"><head><meta charset="utf-8">'
         f'<meta name="viewport" content="width=device-width, initial-scale=1">'
         f"<title>{_e(title)}{' — ' + _e(who) if who else ''}</title><style>{_CSS}</style>"
-        f"<script>{_plotly_js()}</script></head><body>"
+        f"<script>{plotly_js()}</script></head><body>"
         f"<header><h1>{_e(title)}</h1>"
         f"<p>{_e(who)}{' · ' + _e(ri.patient.date) if ri.patient.date else ''}</p></header>"
         f"<main>{body}</main><footer>{_e(tr('html.footer', lang, version=version))}</footer>"

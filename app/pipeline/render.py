@@ -125,11 +125,13 @@ def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
         return fallback()
 
 
-#: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process
-#: (CPU on the 10-cycle demo session at load average ~16: PDF 0.29 s, angles.xlsx 0.06, HTML 0.06 | scene 0.11,
-#: quaternions.xlsx 0.14, timeseries.npz 0.04–0.11 (its compression); ``python -m benchmarks.cold`` prints them)
-FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "angles.xlsx", "report.html"),
-                                             ("scene.viser", "quaternions.xlsx", "timeseries.npz"))
+#: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process:
+#: the PDF is the one large piece, the rest balance it.  CPU on the 10-cycle demo session, each in a helper
+#: after :func:`warm_up` (``processing=False``) and :func:`preload_renderers`: PDF 0.14 s, timeseries.npz 0.02 (its compression) | angles.xlsx
+#: 0.04, HTML 0.025, scene 0.03, quaternions.xlsx 0.065 — 0.16 s each (the old split, PDF + angles.xlsx + HTML |
+#: scene + quaternions.xlsx + npz, was 0.22 | 0.14 s); ``python -m benchmarks.cold`` prints them
+FORK_GROUPS: tuple[tuple[str, ...], ...] = (("report.pdf", "timeseries.npz"),
+                                             ("angles.xlsx", "report.html", "scene.viser", "quaternions.xlsx"))
 
 
 def render_named(ri, names) -> dict[str, bytes]:
@@ -142,6 +144,27 @@ def render_named(ri, names) -> dict[str, bytes]:
         with timings.stage(name):
             out[name] = render_artefact(ri, name, ri.language if name == "report.pdf" else "")
     return out
+
+
+#: what the renderers import only when they first run: plotly for the HTML, viser and its message classes for
+#: the scene, and rich, which viser's server imports as it starts (for its banner, silenced)
+RENDER_TIME_IMPORTS = ("plotly.offline", "viser", "viser._messages", "rich.console", "rich.table")
+
+
+def preload_renderers() -> None:
+    """Load what :func:`render_artefact` loads on its first call whatever the session: :data:`RENDER_TIME_IMPORTS`,
+    the translation tables and plotly.js (≈0.03 s of CPU, ≈0.04 s less in the first reports: the scene 0.02,
+    the HTML 0.01, the PDF 0.01).  For :class:`ForkedRenderers`' helpers, which have this time while the parent
+    computes; the bytes rendered are the same."""
+    import importlib
+
+    from reports.html import plotly_js
+    from reports.i18n import table
+
+    for name in RENDER_TIME_IMPORTS:
+        importlib.import_module(name)
+    table()
+    plotly_js()
 
 
 def _write_all(fd: int, data: bytes) -> None:
@@ -170,8 +193,8 @@ class ForkedRenderers:
     that do not depend on the session, and reading the files ~0.15 s that needs no numba.  So, before numpy
     is even imported, the command forks one helper.  Given ``read=(session folder, expected rate)`` it first
     reads the session (:func:`app.pipeline.ingestion.load_session`; :meth:`session` hands it over, pickled)
-    while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), and
-    forks once per further group of :data:`FORK_GROUPS`.  When the parent has the report input
+    while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), loads
+    what they load on a first call (:func:`preload_renderers`), and forks once per further group of :data:`FORK_GROUPS`.  When the parent has the report input
     (:meth:`render`, pickled through one pipe per helper), the helpers render their groups side by side and
     send the bytes back; the parent writes every file itself (all or nothing,
     :func:`app.pipeline.results.write_outputs`).  The bytes are those of :func:`render_artefact` in the parent
@@ -234,9 +257,7 @@ class ForkedRenderers:
             _write_all(session_w, payload)
         with timings.stage("render.imports"):
             warm_up(processing=False)
-            import plotly.offline  # noqa: F401 — what reports.html and reports.scene import when they run
-            import viser  # noqa: F401
-            import viser._messages  # noqa: F401
+            preload_renderers()  # before the forks below: every render helper has them
         children = []
         for g in range(1, len(self.groups)):  # forked now, before the report input arrives
             pid = os.fork()
@@ -465,5 +486,6 @@ def warm_up(processing: bool = True) -> None:
         log.exception("warm-up run of the orientation filter failed")
 
 
-__all__ = ["FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIMEOUT_S", "ForkedRenderers", "RenderPool",
-           "collect", "render_all", "render_artefact", "render_many", "render_named", "warm_up"]
+__all__ = ["FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S", "ForkedRenderers",
+           "RenderPool", "collect", "preload_renderers", "render_all", "render_artefact", "render_many", "render_named",
+           "warm_up"]
