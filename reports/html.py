@@ -30,7 +30,7 @@ import numpy as np
 from reports import i18n
 from reports.figures import reference_keypoints
 from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
-                            phase_spans_pct,
+                            phase_spans_pct, reference_sentence,
                             session_rows, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
@@ -255,8 +255,8 @@ def _reference_block(r: dict[str, Any], lang: str) -> str:
     ref = r.get("reference")
     if not ref:
         return f'<p class="muted">{_e(tr("data.not_available", lang))}</p>'
-    head = [_e(tr("html.ref.parameter", lang)), _e(tr("html.ref.value", lang)), _e(tr("html.ref.band", lang)),
-            _e(tr("html.ref.flag", lang))]
+    head = [_e(tr("ref.parameter", lang)), _e(tr("ref.value", lang)), _e(tr("ref.band", lang)),
+            _e(tr("ref.flag", lang))]
     rows = []
     for name, p in (ref.get("parameters") or {}).items():
         unit = {"deg": "°", "pct": " %", "s": " s"}.get(p.get("unit"), "")
@@ -265,11 +265,9 @@ def _reference_block(r: dict[str, Any], lang: str) -> str:
                 if p.get("low") is not None and p.get("high") is not None else f"{_num(p.get('mean'), lang, digits)}{unit}")
         flag = p.get("interpretation")
         rows.append(([_e(code_label("data.ref_param", name, lang)), f"{_num(p.get('value'), lang, digits)}{unit}",
-                      _e(band), _e(tr(f"html.ref.flag_{flag}", lang)) if flag else "–"],
+                      _e(band), _e(tr(f"ref.flag_{flag}", lang)) if flag else "–"],
                      "outside" if p.get("within_band") is False else ""))
-    kind = tr(f"html.ref.kind_{ref.get('kind')}", lang)
-    return (f'<p>{_e(kind)}: {_e(ref.get("source"))}. {_e(ref.get("population"))}; {_e(ref.get("conditions"))}. '
-            f'<span class="muted">{_e(ref.get("transcription"))}.</span></p>' + _table(head, rows))
+    return f"<p>{_e(reference_sentence(ref, lang))}</p>" + _table(head, rows)
 
 
 def _cycles_table(r: dict[str, Any], lang: str) -> str:

@@ -86,6 +86,7 @@ class KeyPoint:
 class Reference:
     """One task's reference: where it comes from, who was measured, and the bands per parameter."""
 
+    id: str    # names the reference in results.json (the reports translate its texts by it)
     task: str
     kind: str  # "normative" (a published population) or "single_study" (one study's own subject)
     source: str
@@ -97,7 +98,7 @@ class Reference:
 
 
 GAIT = Reference(
-    task="gait", kind="normative",
+    id="gait_perry_winter", task="gait", kind="normative",
     source="J. Perry, J. M. Burnfield, Gait Analysis: Normal and Pathological Function, 2nd ed., SLACK 2010, "
            "Ch. 4 (knee); with D. A. Winter, Biomechanics and Motor Control of Human Movement, 4th ed., Wiley 2009, "
            "Appendix A (normal cadence)",
@@ -131,7 +132,7 @@ _THESIS = dict(
 
 STEP_UP = {
     0.17: Reference(
-        task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
+        id="step_up_thesis_17cm", task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
         conditions="single-leg step-up, 17 cm step", **_THESIS,
         parameters={"cycle_s": _two_sd(3.38, 0.01, "s"), "impulse_pct": _two_sd(34.02, 0.89, "pct"),
                     "extension_pct": _two_sd(31.66, 2.96, "pct"), "fall_pct": _two_sd(34.02, 2.07, "pct"),
@@ -139,7 +140,7 @@ STEP_UP = {
                     "flexion_max_deg": Band(None, None, "deg", 82.96, None, False),
                     "flexion_min_deg": Band(None, None, "deg", 0.80, None, False)}),
     0.34: Reference(
-        task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
+        id="step_up_thesis_34cm", task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
         conditions="single-leg step-up, 34 cm step", **_THESIS,
         parameters={"cycle_s": _two_sd(3.54, 0.07, "s"), "impulse_pct": _two_sd(33.33, 1.13, "pct"),
                     "extension_pct": _two_sd(32.77, 2.26, "pct"), "fall_pct": _two_sd(33.90, 1.13, "pct"),
@@ -178,7 +179,7 @@ def compare(ref: Reference, values: Mapping[str, float | None]) -> dict:
         code = interpretation(v, band)
         params[name] = {"value": v, "low": band.low, "high": band.high, "mean": band.mean, "sd": band.sd,
                         "unit": band.unit, "interpretation": code, "within_band": None if code is None else code == "N"}
-    return {"task": ref.task, "kind": ref.kind, "source": ref.source, "population": ref.population,
+    return {"id": ref.id, "task": ref.task, "kind": ref.kind, "source": ref.source, "population": ref.population,
             "conditions": ref.conditions, "transcription": ref.transcription, "parameters": params,
             "outside": sorted(k for k, p in params.items() if p["within_band"] is False),
             "keypoints": [{"name": k.name, "pct": [k.pct_low, k.pct_high], "deg": [k.low_deg, k.high_deg]}

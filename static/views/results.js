@@ -140,15 +140,16 @@ function referenceSection(ref) {
       h("td", { class: "num" }, `${num(p.value, d)}${unit[p.unit] || ""}`), h("td", { class: "num" }, band),
       h("td", {}, p.interpretation ? t(`results.ref_flag_${p.interpretation}`) : "—"));
   });
+  const text = (field) => { const key = `ref.${ref.id}.${field}`; const s = t(key); return s === key ? ref[field] : s; };
   return h("section", { class: "card", "aria-labelledby": "h-reference", id: "reference" },
     h("h2", { id: "h-reference" }, t("results.reference")),
-    h("p", { class: "hint" }, `${t(`results.ref_kind_${ref.kind}`)}: ${ref.source}. ${ref.population}; ${ref.conditions}.`),
+    h("p", { class: "hint" }, `${t(`results.ref_kind_${ref.kind}`)}: ${ref.source}. ${text("population")}; ${text("conditions")}.`),
     h("table", { class: "data", id: "reference-table" },
       h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("results.ref_parameter")),
         h("th", { scope: "col", class: "num" }, t("results.ref_value")),
         h("th", { scope: "col", class: "num" }, t("results.ref_band")), h("th", { scope: "col" }, t("results.ref_flag")))),
       h("tbody", {}, rows)),
-    h("p", { class: "caption" }, ref.transcription));
+    h("p", { class: "caption" }, text("transcription")));
 }
 
 function qualitySection(r) {

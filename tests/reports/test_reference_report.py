@@ -65,3 +65,13 @@ def test_pdf_draws_the_boxes_in_the_reference_colour(tmp_path):
     assert orange_pixels(make_report_input("en")) == 0
     assert orange_pixels(_with_gait_reference("en")) > 100
     assert _REFERENCE_COLOUR.lower() == "#%02x%02x%02x" % figures._REFERENCE
+
+
+def test_pdf_lists_the_reference_with_its_flags():
+    pdf_text = subprocess.run(["pdftotext", "-layout", "-", "-"], input=render_pdf(_with_gait_reference("pt")),
+                              capture_output=True, check=True).stdout.decode("utf-8")
+    assert "Valores de referência" in pdf_text and "Referência normativa publicada" in pdf_text
+    assert "abaixo da referência" in pdf_text and "acima da referência" in pdf_text
+    no_ref = subprocess.run(["pdftotext", "-layout", "-", "-"], input=render_pdf(make_report_input("pt")),
+                            capture_output=True, check=True).stdout.decode("utf-8")
+    assert "Valores de referência" not in no_ref
