@@ -29,7 +29,11 @@ swing peak flexion                   60–65°         70–73 %
 toe-off (stance %)                   ~60 %          (58–62 % used here)
 ===================================  =============  =====================
 
-ROM is taken as swing peak minus stance minimum (55–62°).  **Limits** (stated in ``results.json`` too): no SD, no
+ROM is taken as swing peak minus stance minimum (55–62°).  ChakaMo's flexion is zero at the standing knee (its
+calibrations take the standing posture as straight), the reference's at the bones' alignment: a patient who stands
+with the knee flexed by a few degrees reads that much lower against the angle values (not against ROM or timing);
+the simulated walker stands at 2°, so simulated sessions read their stance minimum ~2° low (1.98° against 3–5°,
+flagged "L", in ``tests/app/pipeline/test_gait_session.py``'s session).  **Limits** (stated in ``results.json`` too): no SD, no
 sample size or age for this transcription; the values were *not* checked against a second published table in
 this change (Kadaba et al. 1990, J Orthop Res 8:383, n = 40 young adults, and Fukuchi et al. 2018, PeerJ 6:e4640,
 are the candidates), and the simulator's mean curve is built on the same key values, so simulated sessions are
@@ -105,7 +109,8 @@ GAIT = Reference(
     population="normal adults (n and ages not part of this transcription)",
     conditions="level walking at free (self-selected) speed",
     transcription="key values of the published mean knee curve, typed by hand as ranges of the mean (no SD); "
-                  "not checked against a second published table",
+                  "not checked against a second published table; ChakaMo reads flexion from the standing knee (0°), "
+                  "the reference from the bones, so a patient who stands flexed reads that much lower",
     parameters={
         "loading_response_peak_flexion_deg": Band(15.0, 20.0, "deg"),
         "stance_min_flexion_deg": Band(3.0, 5.0, "deg"),

@@ -75,3 +75,13 @@ def test_pdf_lists_the_reference_with_its_flags():
     no_ref = subprocess.run(["pdftotext", "-layout", "-", "-"], input=render_pdf(make_report_input("pt")),
                             capture_output=True, check=True).stdout.decode("utf-8")
     assert "Valores de referência" not in no_ref
+
+
+def test_the_reference_texts_are_translated_and_the_english_is_the_modules():
+    from reports import i18n
+
+    for ref in (reference.GAIT, *reference.STEP_UP.values()):
+        for field in ("population", "conditions", "transcription"):
+            key = f"ref.{ref.id}.{field}"
+            assert i18n.t(key, "en") == getattr(ref, field)
+            assert i18n.t(key, "es") != getattr(ref, field) and i18n.t(key, "pt") != getattr(ref, field)
