@@ -56,7 +56,7 @@ import numpy as np
 from estimators import knee
 from estimators import quaternion as quat
 from estimators.orientation import DEFAULT_METHOD, METHODS, estimate
-from estimators.simulation import ImuSpec, MagErrors, gait
+from estimators.simulation import ImuSpec, MagErrors, gait, random_rotation
 
 FS_HZ = 100.0
 ROM_GOAL_DEG = 2.0
@@ -79,16 +79,21 @@ class LegClip:
     info: dict
 
 
-def leg_sensors(leg, side: str, rng: np.random.Generator):
+def leg_sensors(leg, side: str, rng: np.random.Generator, *, protocol_axes: bool = False):
     """Thigh and shank sensors of one leg as the walking benchmarks strap them: lateral mounts with up to 15°
-    misalignment, MetaMotion-like errors with a factory-calibrated magnetometer; ``(grids, mounts, n)`` with both
-    grids cut to their common length ``n``."""
-    mounts = gait.lateral_mounting(side, np.deg2rad(15.0), seed=rng)
+    misalignment, MetaMotion-like errors with a factory-calibrated magnetometer; ``(grids, mounts, n, imus)`` with
+    both grids cut to their common length ``n`` and the :class:`SimulatedImu` of each (as a file would stamp them).
+    ``protocol_axes``: each sensor's axes along its segment's (+y up the segment, as the protocol wears them, seed
+    004 §8.2) before the misalignment, instead of x up and z out of the skin."""
+    if protocol_axes:
+        mounts = tuple(random_rotation(np.deg2rad(15.0), rng) for _ in range(2))
+    else:
+        mounts = gait.lateral_mounting(side, np.deg2rad(15.0), seed=rng)
     specs = [replace(ImuSpec.random(rng), mag=MagErrors.noise_only()) for _ in range(2)]
     imus = gait.simulate_leg(leg, specs[0], specs[1], q_thigh_sensor=mounts[0], q_shank_sensor=mounts[1],
                              seed=int(rng.integers(2**31)))
     grids = [imu.on_grid() for imu in imus]
-    return grids, mounts, min(len(g.t_s) for g in grids)
+    return grids, mounts, min(len(g.t_s) for g in grids), imus
 
 
 def clip(seed: int) -> list[LegClip]:
@@ -105,7 +110,7 @@ def clip(seed: int) -> list[LegClip]:
     out = []
     for side in ("right", "left"):
         leg = walk.leg(side)
-        grids, mounts, n = leg_sensors(leg, side, rng)
+        grids, mounts, n, _ = leg_sensors(leg, side, rng)
         t_true = grids[0].t_true_s[:n]
         segs = ("thigh", "shank")
         out.append(LegClip(

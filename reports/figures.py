@@ -50,6 +50,7 @@ _ACCEPTED_FILL = (228, 242, 233)
 _ACCEPTED = (46, 139, 87)
 _REJECTED = (192, 57, 43)
 _PHASE_LINE = (85, 85, 85)
+_REFERENCE = (214, 120, 0)     # the reference's key ranges (results["reference"]["keypoints"])
 _GRID = (221, 221, 221)
 _AXIS = (60, 60, 60)
 _TEXT = (30, 30, 30)
@@ -71,6 +72,13 @@ def phase_boundaries_pct(results: dict[str, Any]) -> list[float]:
     (step-up: impulse, then impulse + extension; :func:`reports.labels.phase_spans_pct`).  A missing
     percentage ends the list early."""
     return [end for _, _, end in phase_spans_pct(results)[:len(phase_names(results)) - 1]]
+
+
+def reference_keypoints(results: dict[str, Any]) -> list[dict[str, Any]]:
+    """The reference's key ranges of the mean flexion curve (``results["reference"]["keypoints"]``: ``pct`` and
+    ``deg`` pairs), or [] without a reference; the PDF and the HTML figure both draw them."""
+    keys = (results.get("reference") or {}).get("keypoints") or []
+    return [k for k in keys if len(k.get("pct") or ()) == 2 and len(k.get("deg") or ()) == 2]
 
 
 def nice_ticks(lo: float, hi: float, target: int = 5, *, expand: bool = True) -> tuple[float, float, list[float]]:
@@ -252,6 +260,9 @@ def draw_curves(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: floa
             if finite.size == 0 and mean.size:
                 finite = mean[np.isfinite(mean)]
             lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (math.nan, math.nan)
+            keys = reference_keypoints(ri.results) if angle == "flexion" else []
+            if keys and finite.size:
+                lo, hi = min([lo] + [kp["deg"][0] for kp in keys]), max([hi] + [kp["deg"][1] for kp in keys])
             y0, y1, yticks = nice_ticks(lo, hi, 4)
             panel = _Panel(pdf, *box, (0.0, 100.0), (y0, y1))
             panel.grid(xticks, yticks)
@@ -260,6 +271,12 @@ def draw_curves(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: floa
                 if has_sd:
                     panel.band(xs, mean - sd, mean + sd, _BAND)
                 panel.line(xs, mean, _LINE, 0.45)
+            pdf.set_draw_color(*_REFERENCE)
+            pdf.set_line_width(0.35)
+            for kp in keys:  # the reference's range of the mean at its place in the cycle: an open box
+                (a, b), (c, d) = kp["pct"], kp["deg"]
+                pdf.rect(float(panel.px(a)), float(panel.py(d)), float(panel.px(b) - panel.px(a)),
+                         float(panel.py(c) - panel.py(d)), style="D")
             pdf.set_draw_color(*_PHASE_LINE)
             pdf.set_line_width(0.25)
             pdf.set_dash_pattern(1.2, 0.8)
@@ -290,8 +307,15 @@ def draw_curves(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: floa
                     pdf.set_line_width(0.45)
                     pdf.line(sx, sy + sh / 2, sx + sw, sy + sh / 2)
 
-                _legend(pdf, panel.x + panel.w, y + 3.2, [(t("fig_sd", lang), band_swatch),
-                                                          (t("fig_mean", lang), line_swatch)])
+                def reference_swatch(sx: float, sy: float, sw: float, sh: float) -> None:
+                    pdf.set_draw_color(*_REFERENCE)
+                    pdf.set_line_width(0.35)
+                    pdf.rect(sx, sy, sw, sh, style="D")
+
+                items = [(t("fig_sd", lang), band_swatch), (t("fig_mean", lang), line_swatch)]
+                if keys:
+                    items.append((t("fig_reference", lang), reference_swatch))
+                _legend(pdf, panel.x + panel.w, y + 3.2, items)
 
 
 def _cycle_spans(ri: ReportInput) -> list[tuple[int, float, float, bool]]:
@@ -330,6 +354,9 @@ def draw_task(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: float 
             values = ri.angles_deg[:, ANGLES.index(angle)] if len(t_s) else np.zeros(0)
             finite = values[np.isfinite(values)]
             lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (math.nan, math.nan)
+            keys = reference_keypoints(ri.results) if angle == "flexion" else []
+            if keys and finite.size:
+                lo, hi = min([lo] + [kp["deg"][0] for kp in keys]), max([hi] + [kp["deg"][1] for kp in keys])
             y0, y1, yticks = nice_ticks(lo, hi, 4)
             panel = _Panel(pdf, *box, xlim, (y0, y1))
             for _, a, b, ok in spans:

@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from reports import i18n
+from reports.figures import reference_keypoints
 from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
-                            phase_spans_pct,
+                            phase_spans_pct, reference_sentence,
                             session_rows, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
@@ -42,6 +43,7 @@ _ACCEPTED_MARK, _REJECTED_MARK = "rgba(46, 160, 67, 0.5)", "rgba(214, 39, 40, 0.
 _ANGLE_COLOURS = {"flexion": "#1f77b4", "adduction": "#ff7f0e", "internal_rotation": "#2ca02c"}
 _RGBA = {"flexion": "rgba(31,119,180,0.2)", "adduction": "rgba(255,127,14,0.2)",
          "internal_rotation": "rgba(44,160,44,0.2)"}
+_REFERENCE_COLOUR = "#d67800"  # the reference's key ranges (reports.figures draws them in the same colour)
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Helvetica Neue",Arial,sans-serif;margin:0;
@@ -54,7 +56,7 @@ h2{font-size:1.15em;margin:0 0 10px;color:#1d3557}
 table{border-collapse:collapse;width:100%;font-size:.92em}
 th,td{border-bottom:1px solid #e3e7ee;padding:5px 8px;text-align:left}
 th{background:#eef2f7} td.num{text-align:right;font-variant-numeric:tabular-nums}
-tr.rejected td{background:#fdecec}
+tr.rejected td{background:#fdecec} tr.outside td{background:#fff4e0;font-weight:600}
 ul.warnings li{margin:3px 0} .muted{color:#5c677d}
 footer{font-size:.85em;color:#5c677d;text-align:center;padding:12px}
 """
@@ -193,6 +195,10 @@ def _curves_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
         data.append({**common, "type": "scatter", "y": _finite_list(m), "name": f"{name} ({mean_sd})",
                      "line": {"color": _ANGLE_COLOURS[angle], "width": 2},
                      "customdata": _finite_list(s), "hovertemplate": "%{y:.1f} ± %{customdata:.1f}°<extra></extra>"})
+    for kp in reference_keypoints(ri.results):  # the reference's ranges of the mean flexion (flexion is panel 1)
+        (a, b), (c, d) = kp["pct"], kp["deg"]
+        layout["shapes"].append({"type": "rect", "xref": "x", "yref": "y", "x0": a, "x1": b, "y0": c, "y1": d,
+                                 "line": {"color": _REFERENCE_COLOUR, "width": 2}})
     bounds = phase_spans_pct(ri.results)
     for k, (name, p0, p1) in enumerate(bounds):
         if k > 0:
@@ -241,6 +247,27 @@ def _phase_table(r: dict[str, Any], lang: str) -> str:
         rows.append(([_e(code_label("data.phase", name, lang)), _pm(ph, lang, "mean_s", "sd_s", 2),
                       _pm(ph, lang, "mean_pct", "sd_pct", 1)], ""))
     return _table(head, rows)
+
+
+def _reference_block(r: dict[str, Any], lang: str) -> str:
+    """The task's reference (``results["reference"]``): its source and population, then per parameter the
+    session's value, the band (or the reference's mean when it only shows one) and the flag (L / N / H)."""
+    ref = r.get("reference")
+    if not ref:
+        return f'<p class="muted">{_e(tr("data.not_available", lang))}</p>'
+    head = [_e(tr("ref.parameter", lang)), _e(tr("ref.value", lang)), _e(tr("ref.band", lang)),
+            _e(tr("ref.flag", lang))]
+    rows = []
+    for name, p in (ref.get("parameters") or {}).items():
+        unit = {"deg": "°", "pct": " %", "s": " s"}.get(p.get("unit"), "")
+        digits = 2 if p.get("unit") == "s" else 1
+        band = (f"{_num(p['low'], lang, digits)}–{_num(p['high'], lang, digits)}{unit}"
+                if p.get("low") is not None and p.get("high") is not None else f"{_num(p.get('mean'), lang, digits)}{unit}")
+        flag = p.get("interpretation")
+        rows.append(([_e(code_label("data.ref_param", name, lang)), f"{_num(p.get('value'), lang, digits)}{unit}",
+                      _e(band), _e(tr(f"ref.flag_{flag}", lang)) if flag else "–"],
+                     "outside" if p.get("within_band") is False else ""))
+    return f"<p>{_e(reference_sentence(ref, lang))}</p>" + _table(head, rows)
 
 
 def _cycles_table(r: dict[str, Any], lang: str) -> str:
@@ -345,6 +372,7 @@ def render_html(ri: ReportInput) -> str:
         section("html.section.curves", '<div class="plot" id="fig-curves"></div>'),
         section("html.section.rom", _rom_table(r, lang)),
         section("html.section.phases", _phase_table(r, lang)),
+        *([section("html.section.reference", _reference_block(r, lang))] if r.get("reference") else []),
         section("html.section.cycles", _cycles_table(r, lang)),
         section("html.section.quality", _quality_block(r, lang)),
     ])

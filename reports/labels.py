@@ -48,6 +48,17 @@ def code_label(prefix: str, code: Any, lang: str) -> str:
     return i18n.t(key, lang) if i18n.has(key) else str(code)
 
 
+def reference_sentence(ref: dict[str, Any], lang: str) -> str:
+    """``results["reference"]`` in one sentence: its kind, source, population and conditions (the texts of
+    :mod:`estimators.motor_task.reference`, translated by the reference's ``id`` where the tables have them)."""
+    def text(field: str) -> str:
+        key = f"ref.{ref.get('id')}.{field}"
+        return i18n.t(key, lang) if i18n.has(key) else str(ref.get(field) or "")
+
+    kind = tr(f"ref.kind_{ref.get('kind')}", lang)
+    return f"{kind}: {ref.get('source')}. {text('population')}; {text('conditions')}. {text('transcription')}."
+
+
 def heading_sentence(results: dict[str, Any], lang: str) -> str | None:
     """Which thigh–shank heading the angles use (``results["quality"]["heading"]``, ``--heading``), as one
     sentence for the report's quality section; None for a results file without it."""

@@ -45,7 +45,8 @@ from fpdf.enums import XPos, YPos
 
 from reports import bones, figures, fonts
 from reports.i18n import MISSING, fmt_mean_sd, fmt_number, has, t
-from reports.labels import calibration_sentence, code_label, get_path, heading_sentence, phase_names
+from reports.labels import (calibration_sentence, code_label, get_path, heading_sentence, phase_names,
+                            reference_sentence, tr)
 from reports.model import ReportInput
 from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
 from reports.warning_text import warning_text
@@ -157,6 +158,26 @@ def _tables(pdf: ReportPDF, ri: ReportInput) -> None:
     pdf.section("section_rom", space_after_mm=30)
     pdf.grid(rows, (2, 1.2, 1.2, 1.2), align=("LEFT", "RIGHT", "RIGHT", "RIGHT"), bold_cols=(0,))
     pdf.paragraph(pdf.tr("stats_note", n=n), size=8, color=GREY)
+
+
+def _reference(pdf: ReportPDF, ri: ReportInput) -> None:
+    """The task's reference (``results["reference"]``), when it has one: source, population, and per parameter the
+    session's mean, the band (or the reference's mean when it only shows one) and the flag."""
+    ref, lang = ri.results.get("reference"), pdf.lang
+    if not ref:
+        return
+    unit = {"deg": "°", "pct": " %", "s": " s"}
+    rows = [[tr("ref.parameter", lang), tr("ref.value", lang), tr("ref.band", lang), tr("ref.flag", lang)]]
+    for name, p in (ref.get("parameters") or {}).items():
+        u, d = unit.get(p.get("unit"), ""), DECIMALS["time_s"] if p.get("unit") == "s" else DECIMALS["deg"]
+        band = (f"{fmt_number(p['low'], d, lang)}–{fmt_number(p['high'], d, lang)}{u}"
+                if p.get("low") is not None and p.get("high") is not None else f"{fmt_number(p.get('mean'), d, lang)}{u}")
+        flag = p.get("interpretation")
+        rows.append([code_label("data.ref_param", name, lang), f"{fmt_number(p.get('value'), d, lang)}{u}", band,
+                     tr(f"ref.flag_{flag}", lang) if flag else MISSING])
+    pdf.section("section_reference", space_after_mm=40)
+    pdf.grid(rows, (2.4, 1.1, 1.1, 1.6), align=("LEFT", "RIGHT", "RIGHT", "LEFT"), bold_cols=(0,))
+    pdf.paragraph(reference_sentence(ref, lang), size=8, color=GREY)
 
 
 def _figure_section(pdf: ReportPDF, ri: ReportInput, draw: Callable[..., None], height_mm: float, section: str,
@@ -336,6 +357,7 @@ def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_pose
     _patient_block(pdf, ri)
     _task_and_protocol(pdf, ri)
     _tables(pdf, ri)
+    _reference(pdf, ri)
     _curves(pdf, ri)
     if key_poses:
         _key_poses(pdf, ri)

@@ -50,8 +50,19 @@ export function phaseSpans(phases) {
   return out;
 }
 
-/** Draw one angle's mean ± SD over 0–100 % of the cycle into `el` (results.json `curves[angle]`). */
-export async function drawCurve(el, angle, curve, phases) {
+/** The reference's key ranges of the mean flexion (results.json `reference.keypoints`) as open boxes. */
+export const REFERENCE_COLOUR = "#d67800";
+export function referenceShapes(keypoints) {
+  return (keypoints || []).filter((k) => Array.isArray(k.pct) && Array.isArray(k.deg)).map((k) => ({
+    type: "rect", xref: "x", yref: "y", x0: k.pct[0], x1: k.pct[1], y0: k.deg[0], y1: k.deg[1],
+    line: { color: REFERENCE_COLOUR, width: 2 } }));
+}
+
+/**
+ * Draw one angle's mean ± SD over 0–100 % of the cycle into `el` (results.json `curves[angle]`); `keypoints`
+ * (results.json `reference.keypoints`, flexion only) adds the reference's key ranges.
+ */
+export async function drawCurve(el, angle, curve, phases, keypoints) {
   const Plotly = await loadPlotly();
   const mean = (curve && curve.mean) || [];
   const sd = (curve && curve.sd) || mean.map(() => null);
@@ -65,8 +76,12 @@ export async function drawCurve(el, angle, curve, phases) {
     { x: pct, y: mean, mode: "lines", name, line: { color: ANGLE_COLOURS[angle], width: 2 }, customdata: sd,
       hovertemplate: `%{x:.0f} %: %{y:.1f} ± %{customdata:.1f}°<extra></extra>`, showlegend: false },
   ];
-  const shapes = [];
+  const shapes = referenceShapes(keypoints);
   const annotations = [];
+  if (shapes.length) {
+    annotations.push({ x: 1, y: 1.12, xref: "paper", yref: "paper", xanchor: "right", showarrow: false,
+      text: `<span style="color:${REFERENCE_COLOUR}">□</span> ${t("results.reference_band")}`, font: { size: 11 } });
+  }
   phaseSpans(phases).forEach(([phase, p0, p1], k) => {
     if (k > 0) {
       shapes.push({ type: "line", xref: "x", yref: "paper", x0: p0, x1: p0, y0: 0, y1: 1,

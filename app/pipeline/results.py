@@ -114,7 +114,32 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         },
         "software": {"version": __version__},
     }
-    return json_ready(results)
+    out = json_ready(results)
+    reference = _reference(out)
+    if reference is not None:
+        out["reference"] = reference
+    return out
+
+
+def _reference(r: dict[str, Any]) -> dict[str, Any] | None:
+    """The task's reference block (:func:`estimators.motor_task.reference.compare`): the session's means in the
+    reference's units (degrees, % of the cycle, s), or None for a task without a reference."""
+    from estimators.motor_task.reference import compare, reference_for
+
+    ref = reference_for(r["task"], (r.get("session") or {}).get("step_height_m"))
+    if ref is None:
+        return None
+    if r["task"] == "gait":
+        values = {k: v.get("mean") for k, v in ((r.get("gait") or {}).get("parameters") or {}).items()}
+    else:
+        phases = r.get("phases") or {}
+        flexion = (r.get("rom_deg") or {}).get("flexion") or {}
+        means_s = [p.get("mean_s") for p in phases.values()]
+        values = {f"{name}_pct": p.get("mean_pct") for name, p in phases.items()}
+        values["cycle_s"] = sum(means_s) if means_s and None not in means_s else None
+        values.update({f"flexion_{k}_deg": (flexion.get(stat) or {}).get("mean")
+                       for k, stat in (("rom", "range"), ("max", "max"), ("min", "min"))})
+    return json_ready(compare(ref, values))
 
 
 def _gait(gait: dict[str, Any]) -> dict[str, Any]:

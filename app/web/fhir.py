@@ -29,7 +29,10 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
   numbers of ``results.json`` unrounded; a value that is ``null`` there (SD of a single cycle) gets
   ``dataAbsentReason`` ``not-applicable``.  The accepted and detected cycle counts (``valueInteger``),
   the orientation filter and the angle convention (``valueString``) are components too: they belong to
-  the measurement, and a machine can read them.  Method: ChakaMo's ``imu-thigh-shank``.
+  the measurement, and a machine can read them.  Method: ChakaMo's ``imu-thigh-shank``.  When the task's
+  reference (``results.json`` ``reference``, :mod:`estimators.motor_task.reference`) flags the flexion range, its
+  range-mean component carries ``interpretation`` (HL7 v3 ObservationInterpretation L / N / H) and the band as
+  ``referenceRange``.
 - **Texts.**  ``conclusion`` summarises side, task, cycles and the quality warnings (English, as the
   warnings in ``results.json`` are); the session's notes follow.  R4 ``DiagnosticReport`` has no
   ``note`` element (R5 added it).  The narrative (``text``) repeats the table in XHTML.  The PDF goes in
@@ -76,6 +79,8 @@ V2_0074 = "http://terminology.hl7.org/CodeSystem/v2-0074"
 V2_0203 = "http://terminology.hl7.org/CodeSystem/v2-0203"
 OBSERVATION_CATEGORY = "http://terminology.hl7.org/CodeSystem/observation-category"
 DATA_ABSENT_REASON = "http://terminology.hl7.org/CodeSystem/data-absent-reason"
+INTERPRETATION = "http://terminology.hl7.org/CodeSystem/v3-ObservationInterpretation"
+_INTERPRETATION_TEXT = {"L": "Low", "N": "Normal", "H": "High"}
 
 #: SNOMED CT: 49076000 |Knee joint structure|, 272741003 |Laterality|, 24028007 |Right|, 7771000 |Left|
 KNEE_JOINT = ("49076000", "Knee joint structure")
@@ -203,6 +208,9 @@ def _results(results: Any) -> dict[str, Any]:
             for m in ("mean", "sd"):
                 path = f"rom_deg.{angle}.{stat}.{m}"
                 out["rom"][(angle, stat, m)] = _number(need(path), path)
+    # the reference's band of the flexion range (results.json "reference", issue 15 §3), when it flags one
+    band = ((results.get("reference") or {}).get("parameters") or {}).get("flexion_rom_deg") or {}
+    out["flexion_range_band"] = band if band.get("interpretation") in _INTERPRETATION_TEXT else None
     warnings = need("quality.warnings")
     if not isinstance(warnings, list) or not all(isinstance(w, Mapping) and "message" in w for w in warnings):
         raise FhirExportError("results['quality']['warnings'] must be a list of {'code', 'message'} objects")
@@ -276,6 +284,14 @@ def _observation(angle: str, r: dict, side: str, task: str, effective: str, issu
                                                         "display": "Not Applicable"}]}
             else:
                 comp["valueQuantity"] = {"value": value, "unit": "deg", "system": UCUM, "code": "deg"}
+            band = r["flexion_range_band"] if (angle, stat, m) == ("flexion", "range", "mean") else None
+            if band and value is not None:  # v3 L/N/H against the reference's band, which goes beside it
+                code = band["interpretation"]
+                comp["interpretation"] = [{"coding": [{"system": INTERPRETATION, "code": code,
+                                                       "display": _INTERPRETATION_TEXT[code]}]}]
+                comp["referenceRange"] = [{"low": {"value": band["low"], "unit": "deg", "system": UCUM, "code": "deg"},
+                                           "high": {"value": band["high"], "unit": "deg", "system": UCUM, "code": "deg"},
+                                           "text": "results.json reference (ChakaMo), see the report"}]
             components.append(comp)
     components += [
         {"code": {"coding": [_local("cycles-accepted", "Motor-task cycles accepted")]}, "valueInteger": r["accepted"]},

@@ -132,6 +132,17 @@ def normative_knee_rad(phase: ArrayLike) -> FloatArray:
     return _periodic_curve(KNEE_KEYFRAMES_DEG)(np.mod(np.asarray(phase, dtype=np.float64), 1.0))
 
 
+def _knee_curve(keyframes_deg: ArrayLike):
+    """The mean knee curve (phase → rad) through other key frames (``walking(knee_keyframes_deg=...)``)."""
+    k = np.asarray(keyframes_deg, dtype=np.float64)
+    if k.ndim != 2 or k.shape[1] != 2 or len(k) < 4 or not np.all(np.isfinite(k)) or k[0, 0] < 0.0 \
+            or k[-1, 0] >= 100.0 or np.any(np.diff(k[:, 0]) <= 0.0):
+        raise ValueError("knee_keyframes_deg must be (K >= 4, 2) finite rows (% of the stride, degrees) with the % "
+                         f"strictly increasing in [0, 100), got {keyframes_deg!r}")
+    spline = _periodic_curve(k)
+    return lambda phase: spline(np.mod(np.asarray(phase, dtype=np.float64), 1.0))
+
+
 def normative_hip_rad(phase: ArrayLike) -> FloatArray:
     """Mean normative thigh inclination / hip flexion (rad) at stride phase ``phase`` (G2)."""
     return _periodic_curve(HIP_KEYFRAMES_DEG)(np.mod(np.asarray(phase, dtype=np.float64), 1.0))
@@ -242,6 +253,7 @@ def walking(
     turn_at_s: float | None = None,
     turn_duration_s: float = 2.0,
     standing_start_s: float = 0.0,
+    knee_keyframes_deg: ArrayLike | None = None,
     seed: int | np.random.Generator | None = 0,
     fs_hz: float = DEFAULT_FS_HZ,
 ) -> GaitMotion:
@@ -257,6 +269,9 @@ def walking(
     wobble_axis : (3,) wobble axis in segment coordinates (normalised here).
     turn_at_s : start of a 180° turn (to the left), s, or None.   turn_duration_s : its length, s.
     standing_start_s : stand still this long first (knee straight), then start walking over one stride.
+    knee_keyframes_deg : (K, 2) (% of the stride from IC, knee flexion °) replacing :data:`KNEE_KEYFRAMES_DEG`
+        (K ≥ 4, % strictly increasing in [0, 100)): another mean knee curve, e.g. a stiff-knee pattern; the
+        periodic spline through it is the mean curve (G1); toe-off stays at 60 %.
     seed : random draws (stride times, amplitudes, start phase).   fs_hz : dense grid rate.
     """
     duration_s = _positive("duration_s", duration_s, 2.0, 600.0)
@@ -267,6 +282,7 @@ def walking(
                         ("thigh_impact_g", thigh_impact_g, 15.0), ("shank_wobble_rad", shank_wobble_rad, 0.2),
                         ("thigh_wobble_rad", thigh_wobble_rad, 0.2), ("standing_start_s", standing_start_s, 60.0)):
         _positive(name, v, 0.0, hi)
+    knee_curve = normative_knee_rad if knee_keyframes_deg is None else _knee_curve(knee_keyframes_deg)
     axis = np.asarray(wobble_axis, dtype=np.float64).reshape(3)
     if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0.0:
         raise ValueError(f"wobble_axis must be a finite non-zero 3-vector, got {wobble_axis!r}")
@@ -319,7 +335,7 @@ def walking(
     for side, lag in (("right", 0.0), ("left", 0.5)):
         s = side_sign(side)
         ph = np.mod(p_global - lag, 1.0)
-        flex = beta * (amp * normative_knee_rad(ph) + off) + (1.0 - beta) * np.deg2rad(2.0)
+        flex = beta * (amp * knee_curve(ph) + off) + (1.0 - beta) * np.deg2rad(2.0)
         add = beta * np.deg2rad(1.0 + 2.0 * np.sin(2.0 * np.pi * ph + 0.5))
         rot = np.deg2rad(-3.0) + np.deg2rad(8.0) * flex / np.deg2rad(65.0)
         knee_ang = np.column_stack([flex, add, rot])

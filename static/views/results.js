@@ -89,12 +89,14 @@ function renderResults(body, session, patient, analysis, r, section) {
     h("div", { class: "columns" },
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
+    r.reference ? referenceSection(r.reference) : null,
     qualitySection(r),
     downloadsSection(session.id, analysis.id),
     sceneSection(session.id, analysis.id));
 
   ANGLES.forEach((a, i) => {
-    drawCurve(charts[i], a, (r.curves || {})[a], r.phases).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
+    const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
+    drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
   });
   const observer = new MutationObserver(() => {
     if (!section.isConnected) { charts.forEach(purge); observer.disconnect(); }
@@ -124,6 +126,30 @@ function phaseTable(r) {
       h("td", { class: "num" }, meanSd(p, 2, "mean_s", "sd_s")),
       h("td", { class: "num" }, meanSd(p, 1, "mean_pct", "sd_pct"))))),
     h("caption", { class: "caption" }, t("results.mean_sd_caption")));
+}
+
+/** The task's reference (results.json `reference`): source, population, and per parameter value, band, flag. */
+function referenceSection(ref) {
+  const unit = { deg: "°", pct: " %", s: " s" };
+  const rows = Object.entries(ref.parameters || {}).map(([name, p]) => {
+    const d = p.unit === "s" ? 2 : 1;
+    const band = p.low !== null && p.high !== null ? `${num(p.low, d)}–${num(p.high, d)}${unit[p.unit] || ""}`
+      : `${num(p.mean, d)}${unit[p.unit] || ""}`;
+    return h("tr", { class: p.within_band === false ? "outside" : null },
+      h("th", { scope: "row" }, label("ref_param", name)),
+      h("td", { class: "num" }, `${num(p.value, d)}${unit[p.unit] || ""}`), h("td", { class: "num" }, band),
+      h("td", {}, p.interpretation ? t(`results.ref_flag_${p.interpretation}`) : "—"));
+  });
+  const text = (field) => { const key = `ref.${ref.id}.${field}`; const s = t(key); return s === key ? ref[field] : s; };
+  return h("section", { class: "card", "aria-labelledby": "h-reference", id: "reference" },
+    h("h2", { id: "h-reference" }, t("results.reference")),
+    h("p", { class: "hint" }, `${t(`results.ref_kind_${ref.kind}`)}: ${ref.source}. ${text("population")}; ${text("conditions")}.`),
+    h("table", { class: "data", id: "reference-table" },
+      h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("results.ref_parameter")),
+        h("th", { scope: "col", class: "num" }, t("results.ref_value")),
+        h("th", { scope: "col", class: "num" }, t("results.ref_band")), h("th", { scope: "col" }, t("results.ref_flag")))),
+      h("tbody", {}, rows)),
+    h("p", { class: "caption" }, text("transcription")));
 }
 
 function qualitySection(r) {

@@ -167,3 +167,16 @@ def test_lateral_mounting_points_the_sensor_z_out_of_the_skin():
 def test_bad_parameters_say_what_is_wrong(kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         gait.walking(**{"duration_s": 5.0, **kwargs})
+
+
+def test_another_knee_curve_is_followed_and_bad_key_frames_are_refused():
+    stiff = [(0.0, 3.0), (13.0, 8.0), (40.0, 2.0), (60.0, 20.0), (76.0, 40.0), (90.0, 16.0)]
+    w = gait.walking(8.0, seed=3, knee_keyframes_deg=stiff, amplitude_cv=0.0, offset_sd_rad=0.0, stride_cv=0.0)
+    leg = w.right
+    a, _, _, b = leg.motion.phases_s[1]
+    t = a + np.array([0.13, 0.40, 0.76]) * (b - a)
+    np.testing.assert_allclose(np.rad2deg(leg.knee_angles_at(t)[:, 0]), [8.0, 2.0, 40.0], atol=0.2)
+    for bad in ([(0.0, 1.0), (50.0, 2.0), (40.0, 3.0), (90.0, 4.0)], [(0.0, 1.0), (50.0, 2.0)],
+                [(0.0, 1.0), (30.0, 2.0), (60.0, np.nan), (90.0, 4.0)]):
+        with pytest.raises(ValueError, match="knee_keyframes_deg"):
+            gait.walking(8.0, knee_keyframes_deg=bad)

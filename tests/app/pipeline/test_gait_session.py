@@ -45,6 +45,11 @@ def test_a_task_only_walking_session_through_the_cli(tmp_path, capsys):
                       "cadence_steps_min"}
     assert 50.0 < p["swing_peak_flexion_deg"]["mean"] < 70.0 and 55.0 < p["stance_pct"]["mean"] < 65.0
     assert p["cadence_steps_min"]["mean"] == pytest.approx(110.0, abs=5.0)
+    ref = r["reference"]  # the normative band (estimators.motor_task.reference), compared with the same means
+    assert ref["kind"] == "normative" and "Perry" in ref["source"] and set(ref["parameters"]) <= set(p)
+    for name, band in ref["parameters"].items():
+        assert band["value"] == pytest.approx(p[name]["mean"])
+        assert band["within_band"] == (band["low"] <= band["value"] <= band["high"])
     npz = np.load(tmp_path / "out" / "timeseries.npz")
     assert npz["angles_deg"].shape == (len(npz["t_s"]), 3)
     assert (tmp_path / "out" / "report.pdf").stat().st_size > 10_000

@@ -282,6 +282,10 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
     expect(rows).to_have_count(3)
     assert re.search(r"\d+\.\d ± \d+\.\d", rows.first.inner_text()), rows.first.inner_text()
     expect(page.locator("#phase-table tbody tr").first).to_contain_text("Impulse")
+    # the thesis' own step-up as a single-study reference (results.json reference; seed 004 Tables 8.1-8.4)
+    expect(page.locator("#reference")).to_contain_text("Single-study reference (one subject)")
+    expect(page.locator("#reference-table tbody tr")).to_have_count(7)
+    expect(page.locator("#reference-table tbody tr").nth(1)).to_contain_text("Impulse (% of the cycle)")
     expect(page.locator(".quality")).to_be_visible()
     _no_raw_values(page)
 

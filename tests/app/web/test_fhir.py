@@ -252,3 +252,22 @@ def test_validate_rejects_what_r4_does_not_have(right):
         validate(doc | {"note": [{"text": "R5 added DiagnosticReport.note"}]})
     with pytest.raises(FhirExportError, match="fhir.resources R4B"):
         validate(doc | {"effectivePeriod": {"start": "2026-11-20"}})  # two choices of effective[x]
+
+
+def test_a_flagged_flexion_range_carries_the_reference_interpretation(right):
+    """results.json ``reference`` (issue 15 §3): a flexion range the reference flags gets the v3 L/N/H code and
+    the band as referenceRange on the range-mean component; the step-up's thesis ROM has no band, so none."""
+    results, pdf = right
+    assert "interpretation" not in components(contained(build(results, pdf), "Observation")["flexion"])["range-mean"]
+    value = results["rom_deg"]["flexion"]["range"]["mean"]
+    flagged = copy.deepcopy(results)
+    flagged["reference"]["parameters"]["flexion_rom_deg"] = {"value": value, "low": value + 5.0, "high": value + 10.0,
+                                                              "unit": "deg", "interpretation": "L", "within_band": False}
+    doc = build(flagged, pdf)
+    validate(doc)
+    comp = components(contained(doc, "Observation")["flexion"])["range-mean"]
+    assert comp["interpretation"][0]["coding"][0] == {
+        "system": "http://terminology.hl7.org/CodeSystem/v3-ObservationInterpretation", "code": "L", "display": "Low"}
+    assert (comp["referenceRange"][0]["low"]["value"], comp["referenceRange"][0]["high"]["value"]) == (value + 5, value + 10)
+    assert all("interpretation" not in c for o in contained(doc, "Observation").values() for c in o["component"]
+               if c is not comp)
