@@ -27,6 +27,13 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
               "del paciente en la web) o añada \"side\" a session.json.",
         "pt": "{file}: não se conhece o lado estudado; escolha o lado (chakamo process --side right|left, ou o lado "
               "do paciente na web) ou acrescente \"side\" ao session.json."},
+    "pipeline.side_with_two_knees": {
+        "en": "the session holds both knees, each with its own side; --side {side} would give both the same sign: "
+              "leave the side out (choose the involved knee with --involved).",
+        "es": "la sesión tiene ambas rodillas, cada una con su lado; --side {side} daría a ambas el mismo signo: "
+              "no indique el lado (elija la rodilla afectada con --involved).",
+        "pt": "a sessão tem os dois joelhos, cada um com seu lado; --side {side} daria aos dois o mesmo sinal: "
+              "não indique o lado (escolha o joelho afetado com --involved)."},
     "pipeline.bad_option": {
         "en": "{option} must be one of {allowed}, got {value}; pick one of those.",
         "es": "{option} debe ser uno de {allowed}, no {value}; elija uno de ellos.",

@@ -15,10 +15,11 @@ import os
 from pathlib import Path
 
 from app.pipeline import timings
-from app.pipeline.ingestion import load_session
-from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
+from app.pipeline.ingestion import load_knees
+from app.pipeline.knees import process_knees
+from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_progress
 from app.pipeline.render import ForkedRenderers, render_named
-from app.pipeline.results import build_results, report_input, results_json, timeseries_npz, write_outputs
+from app.pipeline.results import build_knees_results, report_input, results_json, timeseries_npz, write_outputs
 
 #: the rendered outputs, in the order they are written (after results.json); the same as
 #: :data:`app.pipeline.render.FORK_GROUPS` together (the series too: its compression is off the parent's path)
@@ -46,6 +47,9 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
                    renderer: ForkedRenderers | None = None) -> tuple[SessionOutcome, list[Path]]:
     """Read ``session_dir``, compute everything, render every output, then write them all into ``out_dir``.
 
+    A folder of both knees (:func:`app.pipeline.ingestion.load_knees`) processes each; ``results.json`` then has
+    both (:func:`app.pipeline.results.build_knees_results`) and the returned outcome is its top-level knee's.
+
     ``reports=False`` writes only ``results.json`` and ``timeseries.npz`` (no PDF, Excel, HTML or scene).
     ``renderer``: render processes forked at the command's start (:class:`app.pipeline.render.ForkedRenderers`,
     the CLI's cold start); without one every output is rendered here.  The bytes are the same either way.
@@ -63,17 +67,18 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
             session = renderer.session()
     if session is None:  # no helper, or it could not read: read here (and raise the error, if any)
         with timings.stage("read"):
-            session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
+            session = load_knees(session_dir, expected_fs_hz=options.expected_fs_hz)
     with timings.stage("pipeline"):
-        outcome = process_session(session, options, progress=progress)
-        results = build_results(outcome)
+        knees = process_knees(session, options, progress=progress)
+        outcome = knees.primary
+        results = build_knees_results(knees)
         files = {"results.json": results_json(results)}
         if not reports:
-            files["timeseries.npz"] = timeseries_npz(outcome)
+            files["timeseries.npz"] = timeseries_npz(outcome, knees)
     if reports:  # rendered with deferred imports: matplotlib, plotly and viser cost ~80 MB a process that needs no report
         progress("reports", 0.97)
         with timings.stage("reports"):
-            ri = report_input(outcome, results)
+            ri = report_input(outcome, results, knees=knees)
             rendered = renderer.render(ri) if renderer is not None else render_named(ri, REPORT_FILES)
         files |= {name: rendered[name] for name in REPORT_FILES}
     progress("write", 0.99)

@@ -169,7 +169,7 @@ class ForkedRenderers:
     kernels, on one core; the report libraries (fpdf2, openpyxl, viser, plotly) cost ~0.5 s more of imports
     that do not depend on the session, and reading the files ~0.15 s that needs no numba.  So, before numpy
     is even imported, the command forks one helper.  Given ``read=(session folder, expected rate)`` it first
-    reads the session (:func:`app.pipeline.ingestion.load_session`; :meth:`session` hands it over, pickled)
+    reads the session (:func:`app.pipeline.ingestion.load_knees`: every knee; :meth:`session` hands them over, pickled)
     while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), and
     forks once per further group of :data:`FORK_GROUPS`.  When the parent has the report input
     (:meth:`render`, pickled through one pipe per helper), the helpers render their groups side by side and
@@ -225,9 +225,9 @@ class ForkedRenderers:
         if read is not None:  # the session first: the parent needs it soonest
             try:
                 with timings.stage("read"):
-                    from app.pipeline.ingestion import load_session
+                    from app.pipeline.ingestion import load_knees
 
-                    session = load_session(read[0], expected_fs_hz=read[1])
+                    session = load_knees(read[0], expected_fs_hz=read[1])
                 payload = pickle.dumps(session, protocol=pickle.HIGHEST_PROTOCOL)
             except BaseException:  # noqa: BLE001 — the parent reads it again and reports the error itself
                 payload = b""

@@ -90,7 +90,7 @@ from app.pipeline.ingestion.opal import read_opal, write_opal
 from app.pipeline.ingestion.phyphox import read_phyphox, write_phyphox
 from app.pipeline.ingestion.provenance import (Finding, RecordingFacts, check_all, check_dates, check_patient,
                                                check_sensors, check_side, recording_facts, session_facts)
-from app.pipeline.ingestion.session import MANIFEST, load_session, read_recording
+from app.pipeline.ingestion.session import MANIFEST, load_knees, load_session, read_recording
 from app.pipeline.ingestion.sensorlogger import read_sensorlogger, write_sensorlogger
 from app.pipeline.ingestion.shimmer import read_shimmer, write_shimmer
 from app.pipeline.ingestion.writers import session_label, simulated_streams, write_session_metabase
@@ -102,7 +102,7 @@ __all__ = [
     "session_facts", "write_opal", "write_shimmer", "write_xsens", "read_sensorlogger", "write_sensorlogger",
     "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
     "Recognition",
-    "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_session", "read_generic_csv",
+    "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_knees", "load_session", "read_generic_csv",
     "read_metabase_csv", "read_recording", "read_thesis_xlsx", "session_label", "simulated_streams",
     "write_generic_csv",
     "write_metabase_csv", "write_recording_metabase", "write_session_metabase", "write_thesis_xlsx",
