@@ -111,14 +111,10 @@ def test_the_side_from_session_json_entries(walk, tmp_path):
     """Files that name no side, the side given per recording in ``session.json``."""
     folder = tmp_path / "s"
     folder.mkdir()
-    entries = []
+    groups: dict[str, list[str]] = {}
     for p in sorted(walk[0].glob("*.csv")):
-        side = "izquierda" if p.name.startswith("izquierda") else "derecha"
         name = p.name.replace("izquierda-", "a-").replace("derecha-", "b-")
         shutil.copy(p, folder / name)
-        entries.append((name, side))
-    groups: dict[str, list[str]] = {}
-    for name, side in entries:
         groups.setdefault(name.split("_MetaWear")[0], []).append(name)
     recordings = [{"files": files, "side": "izquierda" if label.startswith("a-") else "right"}
                   for label, files in groups.items()]
