@@ -59,6 +59,27 @@ def test_four_sensors_through_the_cli_give_the_lsi_put_in(cli_results):
         assert (out / name).stat().st_size > 5_000
 
 
+def test_the_reports_show_both_knees_and_the_lsi(cli_results):
+    import subprocess
+
+    import openpyxl
+
+    out, r = cli_results
+    text = subprocess.run(["pdftotext", "-layout", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert "Ambas rodillas" in text and "Índice de simetría entre miembros (LSI)" in text
+    swing = next(p for p in r["symmetry"]["parameters"] if p["name"] == "swing_peak_flexion")
+    row = next(line for line in text.splitlines() if "Pico de flexión en el balanceo" in line)
+    assert f"{swing['lsi_pct']:.1f}".replace(".", ",") in row  # the number results.json holds, decimal comma
+    page = (out / "report.html").read_text()
+    assert 'id="fig-knees"' in page and 'id="lsi"' in page and "Rodilla izquierda" in page
+    wb = openpyxl.load_workbook(out / "angles.xlsx", read_only=True)
+    assert {"Simetría", "Curvas de ambas rodillas"} <= set(wb.sheetnames)
+    rows = list(wb["Simetría"].iter_rows(values_only=True))
+    assert rows[0][0] == "Parámetro" and len(rows) == 1 + len(r["symmetry"]["parameters"])
+    assert any(row[4] == pytest.approx(swing["lsi_pct"]) for row in rows[1:])
+
+
 def test_the_other_knee_involved_gives_the_reciprocal(cli_results):
     r = cli_results[1]
     left = {p["name"]: p["lsi_pct"] for p in r["symmetry"]["parameters"]}
