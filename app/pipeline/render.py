@@ -79,19 +79,20 @@ def render_many(ri, keys: list[tuple[str, str]]) -> dict[tuple[str, str], bytes]
 
 
 def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | None" = None,
-               timeout_s: float = RENDER_TIMEOUT_S) -> dict[tuple[str, str], bytes]:
+               timeout_s: float = RENDER_TIMEOUT_S, knees=None) -> dict[tuple[str, str], bytes]:
     """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF).
 
     With a warm :class:`RenderPool`, the two other-language PDFs and angles.xlsx are rendered in the
     render process while this thread renders the rest (the report code holds the GIL: threads would not
     overlap); without one, or if that process fails or does not answer within ``timeout_s``, everything is
-    rendered here.  ``progress(stage, fraction)`` is told each step.
+    rendered here.  ``progress(stage, fraction)`` is told each step.  ``knees``: the
+    :class:`app.pipeline.knees.KneesOutcome` of a session of both knees (``outcome`` its top-level knee).
     """
     from app.pipeline.results import report_input, results_json, timeseries_npz
 
-    ri = report_input(outcome, results)
+    ri = report_input(outcome, results, knees=knees)
     files: dict[tuple[str, str], bytes] = {("results.json", ""): results_json(results).encode("utf-8"),
-                                           ("timeseries.npz", ""): timeseries_npz(outcome)}
+                                           ("timeseries.npz", ""): timeseries_npz(outcome, knees)}
     others = [("report.pdf", x) for x in LANGS if x != lang]
     # about equal halves (measured: a PDF 0.2-0.4 s, angles.xlsx 0.1 s, quaternions.xlsx 0.2 s, html 0.05 s,
     # scene 0.2 s)
