@@ -283,6 +283,18 @@ def _knees_sheets(wb: Workbook, ri: ReportInput, lang: str) -> None:
                      p.get("lsi_pct")])
 
 
+def _comparison_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
+    """The earlier session's numbers beside this one's (``results["comparison"]``), numbers as numbers."""
+    note, warning, rows = knees.comparison_table(ri.results, lang)
+    ws = wb.create_sheet(_sheet_title(tr("compare.sheet", lang)))
+    _header(ws, [*rows[0], tr("lsi.col.unit", lang)], [44, 22, 16, 14, 12])
+    for label, r in zip((row[0] for row in rows[1:]), ri.results["comparison"]["rows"]):
+        _append(ws, [label, r.get("a"), r.get("b"), r.get("change"), r["unit"]])
+    _append(ws, [note])
+    if warning:
+        _append(ws, [warning])
+
+
 def write_angles_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
     """Write ``angles.xlsx``: angles over time with cycle and phase, per-cycle table, normalised curves,
     patient and session (a two-knee session also both knees' curves and the symmetry index).  Labels in
@@ -294,6 +306,8 @@ def write_angles_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
     _curves_sheet(wb, ri, lang)
     if knees.has_knees(ri.results):
         _knees_sheets(wb, ri, lang)
+    if knees.has_comparison(ri.results):
+        _comparison_sheet(wb, ri, lang)
     _session_sheet(wb, ri, lang)
     _save(wb, bulk, path)
 

@@ -333,6 +333,14 @@ def _knees_sections(r: dict[str, Any], lang: str, section) -> str:
     return section("section.knees", note + '<div class="plot" id="fig-knees"></div>') + section("section.lsi", lsi)
 
 
+def _comparison_section(r: dict[str, Any], lang: str, section) -> str:
+    """An earlier session's numbers beside this one's (:func:`reports.knees.comparison_table`)."""
+    note, warning, rows = knees.comparison_table(r, lang)
+    warn = f'<p class="warning"><strong>{_e(warning)}</strong></p>' if warning else ""
+    table = _table([_e(c) for c in rows[0]], [([_e(c) for c in row], "") for row in rows[1:]])
+    return section("section.compare", f'<p class="note">{_e(note)}</p>{warn}{table}')
+
+
 # ---------------------------------------------------------------------------------------------- page
 def render_html(ri: ReportInput) -> str:
     """The interactive report as one self-contained HTML document (UTF-8 text)."""
@@ -357,6 +365,7 @@ def render_html(ri: ReportInput) -> str:
         section("html.section.task", '<div class="plot" id="fig-task"></div>'),
         section("html.section.curves", '<div class="plot" id="fig-curves"></div>'),
         _knees_sections(r, lang, section) if knees.has_knees(r) else "",
+        _comparison_section(r, lang, section) if knees.has_comparison(r) else "",
         section("html.section.rom", _rom_table(r, lang)),
         section("html.section.phases", _phase_table(r, lang)),
         section("html.section.cycles", _cycles_table(r, lang)),

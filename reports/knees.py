@@ -1,4 +1,5 @@
-"""The two-knee parts of every report: left and right curves overlaid, and the limb symmetry index table.
+"""The two-knee and comparison parts of every report: left and right curves overlaid, the limb symmetry index
+table, and an earlier session's numbers side by side (``results["comparison"]``, ``chakamo process --compare-with``).
 
 Everything comes from ``results.json`` (:func:`app.pipeline.results.build_knees_results`): ``knees`` (each knee's
 one-knee results: its ``curves``), ``involved_side`` and ``symmetry`` (the LSI per parameter, computed by the
@@ -8,7 +9,9 @@ format shows these parts.
 * :func:`lsi_rows` — the LSI table (heading row first) as texts in a language, for the PDF, HTML and Excel;
 * :func:`draw_knees_curves` — the PDF figure (three stacked panels: each knee's mean curve, left and right in
   two colours), drawn with :mod:`reports.figures`' panels;
-* :func:`knees_figure` — the same as a plotly spec for the HTML report.
+* :func:`knees_figure` — the same as a plotly spec for the HTML report;
+* :func:`comparison_table` — the comparison rows (earlier, this session, change) as texts, with the note and the
+  warning when the two analyses differ in method (:mod:`app.pipeline.comparison`).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 
 from reports.figures import ANGLE_ORDER, _curve, _layout, _legend, _Panel, nice_ticks
 from reports.i18n import fmt_number, t
+from reports.labels import code_label
 
 #: each side's line colour (both reports): left blue, right orange (told apart in grey print by the dash)
 SIDE_COLOURS = {"left": (31, 78, 121), "right": (214, 110, 22)}
@@ -134,4 +138,48 @@ def knees_figure(results: dict[str, Any], lang: str) -> dict[str, Any]:
     return {"data": data, "layout": layout}
 
 
-__all__ = ["DECIMALS", "SIDE_COLOURS", "draw_knees_curves", "has_knees", "involved_text", "knees_figure", "lsi_rows"]
+def has_comparison(results: dict[str, Any]) -> bool:
+    """True when ``results`` carries a comparison with an earlier analysis."""
+    return isinstance(results.get("comparison"), dict) and bool(results["comparison"].get("rows"))
+
+
+def _row_label(key: str, lang: str) -> str:
+    group, name, stat = (key.split(".") + ["", ""])[:3]
+    if group == "rom_deg":
+        return f"{t(f'angle_{name}', lang)} · {t(f'col_{stat}', lang)}"
+    if group == "phases":
+        return f"{code_label('data.phase', name, lang)} (%)"
+    if group == "gait":
+        return t(f"compare.gait.{stat}", lang)
+    if group == "symmetry":
+        return f"LSI · {t(f'lsi.param.{name}', lang)} (%)"
+    return key
+
+
+def comparison_table(results: dict[str, Any], lang: str) -> tuple[str, str | None, list[list[str]]]:
+    """``(note, mismatch warning or None, rows)`` of ``results["comparison"]``: rows start with the heading row
+    (parameter, earlier, this session, change); numbers with their unit, the change signed."""
+    c = results["comparison"]
+    w = c.get("with") or {}
+    note = t("compare.note", lang, date=w.get("date") or "—", filter=w.get("filter") or "—",
+             version=w.get("pipeline_version") or "—")
+    warning = None if c.get("comparable", True) else t(
+        "compare.mismatch", lang, what=", ".join(t(f"compare.what.{m}", lang) for m in c.get("mismatch", [])))
+    rows = [[t("compare.col.parameter", lang), f"{t('compare.col.earlier', lang)} ({w.get('date') or '—'})",
+             t("compare.col.this", lang), t("compare.col.change", lang)]]
+    for r in c["rows"]:
+        unit = r["unit"] if r["unit"] in ("deg", "s", "steps_min") else "pct_plain"
+        rows.append([_row_label(r["key"], lang), _plain(r.get("a"), unit, lang), _plain(r.get("b"), unit, lang),
+                     _plain(r.get("change"), unit, lang, signed=True)])
+    return note, warning, rows
+
+
+def _plain(x: float | None, unit: str, lang: str, signed: bool = False) -> str:
+    if x is None:
+        return "—"
+    text = fmt_number(x, DECIMALS.get(unit, 1), lang)
+    text = f"+{text}" if signed and x > 0 else text
+    return {"deg": f"{text}°", "s": f"{text} s", "steps_min": f"{text} {t('lsi.unit.steps_min', lang)}"}.get(unit, text)
+
+
+__all__ = ["DECIMALS", "comparison_table", "has_comparison", "SIDE_COLOURS", "draw_knees_curves", "has_knees", "involved_text", "knees_figure", "lsi_rows"]

@@ -13,8 +13,8 @@
    extension, fall: time mean ± SD in s and % of the cycle) and range-of-motion
    table (range, maximum, minimum: mean ± SD in degrees per angle);
 5. mean ± SD curves over the normalised cycle with the mean phase boundaries (:mod:`reports.figures`);
-   a session of both knees then shows both knees' curves overlaid and the limb symmetry index table
-   (:mod:`reports.knees`);
+   a session of both knees then shows both knees' curves overlaid and the limb symmetry index table, and one
+   processed with ``--compare-with`` the earlier session's numbers beside this one's (:mod:`reports.knees`);
 6. optional still of the key poses: start, peak flexion, full extension (``reports.bones.key_poses``, drawn
    as shaded vector triangles; if the geometry fails the report is written without it and the error
    logged);
@@ -200,6 +200,16 @@ def _both_knees(pdf: ReportPDF, ri: ReportInput) -> None:
     pdf.paragraph(pdf.tr("lsi.note"), size=8, color=GREY)
 
 
+def _comparison(pdf: ReportPDF, ri: ReportInput) -> None:
+    """An earlier session's numbers beside this one's (``results["comparison"]``, :mod:`reports.knees`)."""
+    note, warning, rows = knees.comparison_table(ri.results, pdf.lang)
+    pdf.section("section.compare", space_after_mm=40)
+    pdf.paragraph(note, size=8, color=GREY)
+    if warning:
+        pdf.paragraph(warning, size=9, style="B")
+    pdf.grid(rows, (2.6, 1.2, 1.2, 1.0), align=("LEFT", "RIGHT", "RIGHT", "RIGHT"), bold_cols=(0,))
+
+
 def _task_over_time(pdf: ReportPDF, ri: ReportInput) -> None:
     _figure_section(pdf, ri, figures.draw_task, figures.TASK_HEIGHT_MM, "section_task_time", "task_time_note")
 
@@ -362,6 +372,8 @@ def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_pose
     _curves(pdf, ri)
     if knees.has_knees(ri.results):
         _both_knees(pdf, ri)
+    if knees.has_comparison(ri.results):
+        _comparison(pdf, ri)
     if key_poses:
         _key_poses(pdf, ri)
     _task_over_time(pdf, ri)

@@ -34,6 +34,13 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
               "no indique el lado (elija la rodilla afectada con --involved).",
         "pt": "a sessão tem os dois joelhos, cada um com seu lado; --side {side} daria aos dois o mesmo sinal: "
               "não indique o lado (escolha o joelho afetado com --involved)."},
+    "pipeline.compare_unreadable": {
+        "en": "{file}: not the results.json of an earlier analysis ({reason}); give the results.json (or the output "
+              "folder) that chakamo process wrote for the earlier session.",
+        "es": "{file}: no es el results.json de un análisis anterior ({reason}); indique el results.json (o la "
+              "carpeta de salida) que chakamo process escribió para la sesión anterior.",
+        "pt": "{file}: não é o results.json de uma análise anterior ({reason}); indique o results.json (ou a pasta "
+              "de saída) que o chakamo process escreveu para a sessão anterior."},
     "pipeline.bad_option": {
         "en": "{option} must be one of {allowed}, got {value}; pick one of those.",
         "es": "{option} debe ser uno de {allowed}, no {value}; elija uno de ellos.",

@@ -1,10 +1,8 @@
 """Two sessions of one patient side by side (e.g. before and after treatment): ``GET /patients/{id}/compare``.
 
 :func:`compare_sessions` reads each session's analysis (its latest current one, or the one asked for) and puts
-their numbers in rows ``{"key", "unit", "a", "b", "change"}`` with ``change = b − a`` (``a`` the earlier session
-as the caller names it).  Keys are paths into ``results.json``: ``rom_deg.<angle>.<max|min|range>`` (mean over the
-accepted cycles), ``phases.<phase>.mean_pct``, ``gait.parameters.<name>.mean`` and ``symmetry.<name>.lsi_pct``
-(both knees).  The two analyses should come from the same orientation filter and pipeline version: a difference
+their numbers side by side (:func:`app.pipeline.comparison.comparison_rows`: ``change = b − a``, ``a`` the earlier
+session as the caller names it).  The two analyses should come from the same orientation filter and pipeline version: a difference
 of method is not the patient's.  Without explicit analyses, when the two latest analyses differ in either, the
 earlier session's latest analysis of the later one's series is used when there is one; ``comparable`` says
 whether the pair finally shares filter, pipeline version and task, and ``mismatch`` names what differs.
@@ -18,15 +16,12 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.pipeline.comparison import comparison_rows
 from app.store.analyses import find_artefact, pick_analysis
 from app.store.blobs import BlobStore
 from app.store.errors import NotFound
 from app.store.models import Analysis, KneeSession
 from app.store.sessions import clinic_session
-
-ANGLES = ("flexion", "adduction", "internal_rotation")
-ROM_STATS = ("max", "min", "range")
-
 
 def _same_series(db: Session, session_id: int, like: Analysis) -> Analysis | None:
     """The session's latest current analysis with ``like``'s filter and pipeline version, or None."""
@@ -34,36 +29,6 @@ def _same_series(db: Session, session_id: int, like: Analysis) -> Analysis | Non
         Analysis.session_id == session_id, Analysis.filter == like.filter,
         Analysis.pipeline_version == like.pipeline_version, Analysis.superseded_at.is_(None))
         .order_by(Analysis.id.desc()))
-
-
-def _rows(a: dict[str, Any], b: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every number both results hold, as comparison rows (module docstring)."""
-    def row(key: str, unit: str, x: Any, y: Any) -> dict[str, Any]:
-        x = x if isinstance(x, (int, float)) and not isinstance(x, bool) else None
-        y = y if isinstance(y, (int, float)) and not isinstance(y, bool) else None
-        return {"key": key, "unit": unit, "a": x, "b": y, "change": None if x is None or y is None else y - x}
-
-    def at(r: dict[str, Any], *path: str) -> Any:
-        for key in path:
-            r = r.get(key) if isinstance(r, dict) else None
-        return r
-
-    rows = [row(f"rom_deg.{angle}.{stat}", "deg", at(a, "rom_deg", angle, stat, "mean"),
-                at(b, "rom_deg", angle, stat, "mean")) for angle in ANGLES for stat in ROM_STATS]
-    for phase in (a.get("phases") or {}):
-        if phase in (b.get("phases") or {}):
-            rows.append(row(f"phases.{phase}.mean_pct", "pct", at(a, "phases", phase, "mean_pct"),
-                            at(b, "phases", phase, "mean_pct")))
-    for name in at(a, "gait", "parameters") or {}:
-        if name in (at(b, "gait", "parameters") or {}):
-            unit = name.rsplit("_", 1)[-1] if not name.endswith("steps_min") else "steps_min"
-            rows.append(row(f"gait.parameters.{name}.mean", unit, at(a, "gait", "parameters", name, "mean"),
-                            at(b, "gait", "parameters", name, "mean")))
-    sym_a = {p["name"]: p for p in (at(a, "symmetry", "parameters") or [])}
-    for p in at(b, "symmetry", "parameters") or []:
-        if p["name"] in sym_a:
-            rows.append(row(f"symmetry.{p['name']}.lsi_pct", "pct", sym_a[p["name"]].get("lsi_pct"), p.get("lsi_pct")))
-    return rows
 
 
 def _side(db: Session, store: BlobStore, session: KneeSession, analysis: Analysis
@@ -91,7 +56,7 @@ def compare_sessions(db: Session, store: BlobStore, clinic_id: int, patient_id: 
         chosen[0] = _same_series(db, sessions[0].id, chosen[1]) or chosen[0]
     (side_a, res_a), (side_b, res_b) = (_side(db, store, s, an) for s, an in zip(sessions, chosen))
     mismatch = [k for k in ("filter", "pipeline_version", "task") if side_a[k] != side_b[k]]
-    return {"a": side_a, "b": side_b, "comparable": not mismatch, "mismatch": mismatch, "rows": _rows(res_a, res_b)}
+    return {"a": side_a, "b": side_b, "comparable": not mismatch, "mismatch": mismatch, "rows": comparison_rows(res_a, res_b)}
 
 
 __all__ = ["compare_sessions"]

@@ -173,3 +173,40 @@ def test_a_pair_of_the_same_side_or_no_folder_is_refused(walk, tmp_path):
     with pytest.raises(IngestionError) as err:
         load_knees(left)
     assert err.value.code == "manifest.paired_not_found" and "../nowhere" in err.value.message("pt")
+
+
+def test_a_later_session_compared_with_an_earlier_one(cli_results, tmp_path):
+    """``chakamo process --compare-with``: the later walk's left flexion is 90 % of the right's (80 % before), so
+    the swing-peak LSI rises by 10 points; the reports show the comparison."""
+    import subprocess
+
+    earlier_out, earlier = cli_results
+    folder = tmp_path / "later"
+    write_knees_session(folder, simulate_walk_knees(seed=4, knee_gain={"left": 0.9}), patient_side="left")
+    out = tmp_path / "out"
+    assert main(["process", str(folder), "--out", str(out), "--task", "gait", "--lang", "pt",
+                 "--compare-with", str(earlier_out)]) == 0
+    c = json.loads((out / "results.json").read_text())["comparison"]
+    assert c["comparable"] and c["with"]["filter"] == earlier["filter"]["name"]
+    rows = {r["key"]: r for r in c["rows"]}
+    assert rows["symmetry.swing_peak_flexion.lsi_pct"]["change"] == pytest.approx(10.0, abs=5.0)
+    assert rows["rom_deg.flexion.range"]["a"] == earlier["rom_deg"]["flexion"]["range"]["mean"]
+    text = subprocess.run(["pdftotext", "-layout", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert "Comparação com uma sessão anterior" in text and "Mudança" in text
+
+
+def test_comparing_with_something_else_is_refused_and_a_method_change_is_said(cli_results, tmp_path):
+    from app.pipeline.comparison import comparison
+    from app.pipeline.process import process_folder
+
+    bad = tmp_path / "results.json"
+    bad.write_text("{\"not\": \"results\"}")
+    with pytest.raises(PipelineError) as err:
+        process_folder(tmp_path / "nowhere", tmp_path / "out", compare_with=bad)
+    assert err.value.code == "pipeline.compare_unreadable" and "results.json" in err.value.message("es")
+    r = cli_results[1]
+    other = {**r, "filter": {**r["filter"], "name": "madgwick"}}
+    c = comparison(other, r)
+    assert not c["comparable"] and c["mismatch"] == ["filter"]
+    assert all(row["change"] == 0.0 for row in c["rows"] if row["change"] is not None)
