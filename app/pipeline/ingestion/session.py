@@ -10,6 +10,7 @@ sensor's segment may also come from the manifest's ``sensors`` map (MAC → segm
     {
       "patient_id": "ML1", "side": "right", "step_height_m": 0.17, "date": "2023-03-13",
       "sensors": {"EB942CED9472": "thigh", "C3A1B2D4E5F6": "shank"},
+      "paired_session": "../left-knee",
       "recordings": [
         {"files": ["step-muslo-ML1-13032023-1.xlsx"], "segment": "thigh", "role": "task", "sheet": "Hoja1"},
         {"files": ["a_MetaWear_..._Accelerometer_100.000Hz_1.5.1.csv", "..._Gyroscope_...", "..._Magnetometer_..."],
@@ -20,8 +21,9 @@ sensor's segment may also come from the manifest's ``sensors`` map (MAC → segm
 A recording of the whole protocol per sensor (role ``continuous``, or no role and one recording per sensor) is
 split into figure-eight, standing, supine and task (:mod:`.split`); ``Session.splits`` says where.
 
-``recordings`` (when present) lists exactly the files to use; ``segment`` / ``role`` accept the same words as
-the file names in any of the three languages, and fall back to the names when absent.  The manifest wins
+``recordings`` (when present) lists exactly the files to use; ``segment`` / ``role`` (and ``side``, for a folder of
+both knees: :func:`load_knees`) accept the same words as the file names in any of the three languages, and fall
+back to the names when absent.  The manifest wins
 over names; every :class:`Recognition` says which one decided.
 
 Swapped segments (thigh sensor labelled shank) cannot be seen from the files; the pipeline checks it on
