@@ -407,6 +407,10 @@ function processStep(ctx) {
 function stageText(stage) {
   if (!stage) return "";
   const words = String(stage).trim().split(/\s+/);
+  // a session of both knees: "left orientation thigh" → "Left · Orientation of the thigh sensor"
+  if (words.length > 1 && (words[0] === "left" || words[0] === "right")) {
+    return `${label("side", words[0])} · ${stageText(words.slice(1).join(" "))}`;
+  }
   for (const key of [`stage.${words.join("_")}`, `stage.${words[0]}`]) {
     const text = t(key);
     if (text !== key) return text;
