@@ -439,7 +439,7 @@ def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dic
                  ) -> dict[str, list[tuple[int, dict, RawRecording]]] | None:
     """The recordings of each knee, ``{side: [(index, entry, recording)]}``, when the folder holds both knees (both
     sides named, each with a thigh and a shank recording); None for a one-knee folder (files that disagree on the
-    side there stay the provenance check's to refuse).  A recording naming no side in a two-knee folder is refused
+    side there stay the provenance check's to refuse).  With both sides named, a recording naming none is refused
     (``session.side_unknown``): it cannot be given to either knee."""
     sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     sides: list[str | None] = []
@@ -458,10 +458,10 @@ def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dic
         sides.append(None if side is None else side.value)
         if side is not None and segment is not None:
             segs.setdefault(side.value, set()).add(segment.value)
-    if len(segs) < 2 or not all(set(SEGMENTS) <= v for v in segs.values()):
-        return None
     unnamed = [rec.files[0].name for rec, side in zip(raws, sides) if side is None]
-    if unnamed:
+    if len(segs) < 2 or (not unnamed and not all(set(SEGMENTS) <= v for v in segs.values())):
+        return None  # one knee (its files naming two sides are the provenance check's to refuse)
+    if unnamed:  # both sides named, and recordings that name none: they belong to no knee
         raise IngestionError("session.side_unknown", file=unnamed[0], files=", ".join(unnamed))
     out: dict[str, list[tuple[int, dict, RawRecording]]] = {}
     for i, (e, rec, side) in enumerate(zip(entries, raws, sides)):
