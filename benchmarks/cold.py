@@ -2,7 +2,7 @@ r"""Cold start: the ``chakamo`` command line as a fresh process, as a clinician'
 
 Usage
 -----
-``python -m benchmarks.cold [--session DIR] [--repeats 5] [--commands help,version,process,floor] [--json OUT] [--imports N]``
+``python -m benchmarks.cold [--session DIR] [--task NAME] [--repeats 5] [--commands help,version,process,floor] [--json OUT] [--imports N]``
 
 Each command runs as a new subprocess of this interpreter, ``[sys.executable, "-c", "<entry>", ...]`` with
 ``<entry>`` calling ``app.cli.console`` as the console script ``chakamo`` does, so it measures the
@@ -369,6 +369,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="comma-separated subset of help,version,process,floor (default: all; floor: python, "
                              "numpy, numba and its first cached kernel, what every process command pays)")
     parser.add_argument("--json", type=Path, default=None, help="also write the summaries as JSON")
+    parser.add_argument("--task", default=None, help="the process command's --task (e.g. gait for a walking session, "
+                                                      "python -m benchmarks.knees --write DIR makes a four-sensor one)")
     parser.add_argument("--imports", type=int, default=0, metavar="N",
                         help="also list the N heaviest third-party imports of a process run, by importing module")
     args = parser.parse_args(argv)
@@ -381,7 +383,8 @@ def main(argv: list[str] | None = None) -> int:
     load_before = list(os.getloadavg())
     with tempfile.TemporaryDirectory(prefix="chakamo_cold_out_") as tmp:
         argv_of = {"help": ["--help"], "version": ["--version"],
-                   "process": ["process", str(session), "--out", str(Path(tmp) / "out")], "floor": []}
+                   "process": ["process", str(session), "--out", str(Path(tmp) / "out"),
+                               *(["--task", args.task] if args.task else [])], "floor": []}
         for name in commands:
             entry = FLOOR_ENTRY if name == "floor" else ENTRY
             warm = run_cli(argv_of[name], entry=entry, write_bytecode=True)  # fills numba's cache and the .pyc files

@@ -46,6 +46,7 @@ from openpyxl.cell import WriteOnlyCell
 from openpyxl.styles import Font
 from openpyxl.utils import get_column_letter
 
+from reports import knees
 from reports.labels import code_label, cycle_and_phase_per_sample, get_path, phase_names, session_rows, tr
 from reports.model import ANGLES, ReportInput
 
@@ -256,14 +257,57 @@ def _session_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
         _append(ws, [name, value])
 
 
+def _knees_sheets(wb: Workbook, ri: ReportInput, lang: str) -> None:
+    """A two-knee session (:mod:`reports.knees`): each knee's mean curves side by side, and the LSI table."""
+    ws = wb.create_sheet(_sheet_title(tr("knees.sheet", lang)))
+    sides = sorted(ri.results["knees"])
+    mean = tr("data.stat.mean", lang)
+    _header(ws, [tr("data.col.cycle_pct", lang)] + [f"{tr('knees.' + side, lang)}: {tr('data.angle.' + a, lang)} "
+                                                    f"{mean} (°)" for side in sides for a in ANGLES],
+            [10] + [30] * (3 * len(sides)))
+    cols = [get_path(ri.results, "knees", side, "curves", a, "mean") or [] for side in sides for a in ANGLES]
+    n = max((len(c) for c in cols), default=0)
+    pct = np.linspace(0.0, 100.0, n) if n > 1 else np.zeros(n)
+    for i in range(n):
+        _append(ws, [float(pct[i])] + [c[i] if i < len(c) else None for c in cols])
+    ws = wb.create_sheet(_sheet_title(tr("lsi.sheet", lang)))
+    rows = knees.lsi_rows(ri.results, lang)
+    if rows is None:
+        _header(ws, [tr("section.lsi", lang)], [80])
+        _append(ws, [tr("lsi.no_involved", lang)])
+        return
+    sym = ri.results["symmetry"]
+    _header(ws, [rows[0][0], tr("lsi.col.unit", lang), *rows[0][1:]], [44, 14, 22, 22, 12])
+    for p, row in zip(sym["parameters"], rows[1:]):  # numbers stay numbers in the workbook
+        _append(ws, [row[0], tr(f"lsi.unit.{p['unit']}", lang), p.get("involved"), p.get("uninvolved"),
+                     p.get("lsi_pct")])
+
+
+def _comparison_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
+    """The earlier session's numbers beside this one's (``results["comparison"]``), numbers as numbers."""
+    note, warning, rows = knees.comparison_table(ri.results, lang)
+    ws = wb.create_sheet(_sheet_title(tr("compare.sheet", lang)))
+    _header(ws, [*rows[0], tr("lsi.col.unit", lang)], [44, 22, 16, 14, 12])
+    for label, r in zip((row[0] for row in rows[1:]), ri.results["comparison"]["rows"]):
+        _append(ws, [label, r.get("a"), r.get("b"), r.get("change"), r["unit"]])
+    _append(ws, [note])
+    if warning:
+        _append(ws, [warning])
+
+
 def write_angles_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
     """Write ``angles.xlsx``: angles over time with cycle and phase, per-cycle table, normalised curves,
-    patient and session.  Labels in ``ri.language``; the file appears complete or not at all."""
+    patient and session (a two-knee session also both knees' curves and the symmetry index).  Labels in
+    ``ri.language``; the file appears complete or not at all."""
     lang = ri.language
     wb = Workbook(write_only=True)
     bulk = {1: _angles_sheet(wb, ri, lang)}
     _cycles_sheet(wb, ri, lang)
     _curves_sheet(wb, ri, lang)
+    if knees.has_knees(ri.results):
+        _knees_sheets(wb, ri, lang)
+    if knees.has_comparison(ri.results):
+        _comparison_sheet(wb, ri, lang)
     _session_sheet(wb, ri, lang)
     _save(wb, bulk, path)
 

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from reports import i18n
+from reports import i18n, knees
 from reports.figures import reference_keypoints
 from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
                             phase_spans_pct, reference_sentence,
@@ -213,7 +213,10 @@ def _curves_figure(ri: ReportInput, lang: str) -> dict[str, Any]:
 def figure_specs(ri: ReportInput) -> dict[str, dict[str, Any]]:
     """The plotly specs (``{"data": [...], "layout": {...}}``) of the report's figures, by element id."""
     lang = ri.language
-    return {"fig-task": _task_figure(ri, lang), "fig-curves": _curves_figure(ri, lang)}
+    specs = {"fig-task": _task_figure(ri, lang), "fig-curves": _curves_figure(ri, lang)}
+    if knees.has_knees(ri.results):
+        specs["fig-knees"] = knees.knees_figure(ri.results, lang)
+    return specs
 
 
 # -------------------------------------------------------------------------------------------- tables
@@ -347,6 +350,24 @@ def _patient_block(ri: ReportInput, lang: str) -> str:
     return f"<table>{''.join(rows)}</table>"
 
 
+def _knees_sections(r: dict[str, Any], lang: str, section) -> str:
+    """Both knees' curves overlaid and the LSI table (:mod:`reports.knees`)."""
+    note = f'<p class="note">{_e(tr("knees.curves_note", lang, involved=knees.involved_text(r, lang)))}</p>'
+    rows = knees.lsi_rows(r, lang)
+    lsi = f"<p>{_e(tr('lsi.no_involved', lang))}</p>" if rows is None else \
+        _table([_e(c) for c in rows[0]], [([_e(c) for c in row], "") for row in rows[1:]]) + \
+        f'<p class="note">{_e(tr("lsi.note", lang))}</p>'
+    return section("section.knees", note + '<div class="plot" id="fig-knees"></div>') + section("section.lsi", lsi)
+
+
+def _comparison_section(r: dict[str, Any], lang: str, section) -> str:
+    """An earlier session's numbers beside this one's (:func:`reports.knees.comparison_table`)."""
+    note, warning, rows = knees.comparison_table(r, lang)
+    warn = f'<p class="warning"><strong>{_e(warning)}</strong></p>' if warning else ""
+    table = _table([_e(c) for c in rows[0]], [([_e(c) for c in row], "") for row in rows[1:]])
+    return section("section.compare", f'<p class="note">{_e(note)}</p>{warn}{table}')
+
+
 # ---------------------------------------------------------------------------------------------- page
 def render_html(ri: ReportInput) -> str:
     """The interactive report as one self-contained HTML document (UTF-8 text)."""
@@ -370,6 +391,8 @@ def render_html(ri: ReportInput) -> str:
         section("html.section.patient", _patient_block(ri, lang)),
         section("html.section.task", '<div class="plot" id="fig-task"></div>'),
         section("html.section.curves", '<div class="plot" id="fig-curves"></div>'),
+        _knees_sections(r, lang, section) if knees.has_knees(r) else "",
+        _comparison_section(r, lang, section) if knees.has_comparison(r) else "",
         section("html.section.rom", _rom_table(r, lang)),
         section("html.section.phases", _phase_table(r, lang)),
         *([section("html.section.reference", _reference_block(r, lang))] if r.get("reference") else []),

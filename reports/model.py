@@ -49,6 +49,8 @@ class ReportInput:
     q_earth_segment : ``{"femur"|"tibia": (N, 4)}`` segment orientations (ISB frames), ENU.
     q_sensor_segment : ``{"thigh"|"shank": (4,)}`` the sensor-to-segment calibrations.
     patient : :class:`Patient`.   language : ``es``, ``en`` or ``pt``.
+    knees_series : a session of both knees: ``{"left"|"right": {"t_s": (M,), "angles_deg": (M, 3)}}`` (each knee's
+        task grid; ``results["knees"]`` holds each knee's results); ``{}`` for one knee.
     """
 
     results: dict[str, Any]
@@ -59,6 +61,7 @@ class ReportInput:
     q_sensor_segment: dict[str, FloatArray]
     patient: Patient = field(default_factory=Patient)
     language: str = "es"
+    knees_series: dict[str, dict[str, FloatArray]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.language not in LANGUAGES:

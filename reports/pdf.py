@@ -13,6 +13,8 @@
    extension, fall: time mean ± SD in s and % of the cycle) and range-of-motion
    table (range, maximum, minimum: mean ± SD in degrees per angle);
 5. mean ± SD curves over the normalised cycle with the mean phase boundaries (:mod:`reports.figures`);
+   a session of both knees then shows both knees' curves overlaid and the limb symmetry index table, and one
+   processed with ``--compare-with`` the earlier session's numbers beside this one's (:mod:`reports.knees`);
 6. optional still of the key poses: start, peak flexion, full extension (``reports.bones.key_poses``, drawn
    as shaded vector triangles; if the geometry fails the report is written without it and the error
    logged);
@@ -43,7 +45,7 @@ from typing import Any
 
 from fpdf.enums import XPos, YPos
 
-from reports import bones, figures, fonts
+from reports import bones, figures, fonts, knees
 from reports.i18n import MISSING, fmt_mean_sd, fmt_number, has, t
 from reports.labels import (calibration_sentence, code_label, get_path, heading_sentence, phase_names,
                             reference_sentence, tr)
@@ -196,6 +198,37 @@ def _figure_section(pdf: ReportPDF, ri: ReportInput, draw: Callable[..., None], 
 
 def _curves(pdf: ReportPDF, ri: ReportInput) -> None:
     _figure_section(pdf, ri, figures.draw_curves, figures.CURVES_HEIGHT_MM, "section_curves", "curves_note")
+
+
+def _both_knees(pdf: ReportPDF, ri: ReportInput) -> None:
+    """A two-knee session (:mod:`reports.knees`): left and right curves overlaid, then the LSI table."""
+    r = ri.results
+    h = figures.CURVES_HEIGHT_MM
+    pdf.section("section.knees", space_after_mm=h + 8)
+    pdf.paragraph(pdf.tr("knees.curves_note", involved=knees.involved_text(r, pdf.lang)), size=8, color=GREY)
+    pdf.ensure_space(h + 2.0)
+    y = pdf.get_y()
+    knees.draw_knees_curves(pdf, r, pdf.lang, pdf.l_margin, y, pdf.epw, h)
+    pdf.set_font(FONT, "", 9.5)
+    pdf.set_text_color(0, 0, 0)
+    pdf.set_xy(pdf.l_margin, y + h + 2.0)
+    rows = knees.lsi_rows(r, pdf.lang)
+    pdf.section("section.lsi", space_after_mm=40)
+    if rows is None:
+        pdf.paragraph(pdf.tr("lsi.no_involved"), size=9)
+        return
+    pdf.grid(rows, (2.6, 1.3, 1.3, 0.8), align=("LEFT", "RIGHT", "RIGHT", "RIGHT"), bold_cols=(0,))
+    pdf.paragraph(pdf.tr("lsi.note"), size=8, color=GREY)
+
+
+def _comparison(pdf: ReportPDF, ri: ReportInput) -> None:
+    """An earlier session's numbers beside this one's (``results["comparison"]``, :mod:`reports.knees`)."""
+    note, warning, rows = knees.comparison_table(ri.results, pdf.lang)
+    pdf.section("section.compare", space_after_mm=40)
+    pdf.paragraph(note, size=8, color=GREY)
+    if warning:
+        pdf.paragraph(warning, size=9, style="B")
+    pdf.grid(rows, (2.6, 1.2, 1.2, 1.0), align=("LEFT", "RIGHT", "RIGHT", "RIGHT"), bold_cols=(0,))
 
 
 def _task_over_time(pdf: ReportPDF, ri: ReportInput) -> None:
@@ -359,6 +392,10 @@ def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_pose
     _tables(pdf, ri)
     _reference(pdf, ri)
     _curves(pdf, ri)
+    if knees.has_knees(ri.results):
+        _both_knees(pdf, ri)
+    if knees.has_comparison(ri.results):
+        _comparison(pdf, ri)
     if key_poses:
         _key_poses(pdf, ri)
     _task_over_time(pdf, ri)

@@ -3,7 +3,7 @@
 ``chakamo demo --out DIR``
     Simulate a realistic session with known truth, write it as MetaBase files, process it through the
     same code path as real data and print the accuracy against the truth.
-``chakamo process SESSION_DIR --out DIR [--filter NAME] [--lang es|en|pt] [--side right|left] [--task NAME] ...``
+``chakamo process SESSION_DIR --out DIR [--filter NAME] [--lang es|en|pt] [--side right|left] [--task NAME] [--involved right|left] [--compare-with RESULTS_JSON] ...``
     Process one recorded session into ``results.json`` and the reports (``--task``: the motor task recorded).
 ``chakamo view OUT_DIR [--host 127.0.0.1] [--port 8080] [--lang es|en|pt]``
     Serve the 3D femur-tibia animation of a processed session live (viser), until Ctrl-C.
@@ -58,6 +58,12 @@ def add_parsers(sub) -> None:
                       help="accept recordings whose rate is not the protocol's 100 Hz")
     proc.add_argument("--task", choices=choices.TASK_NAMES, default=choices.DEFAULT_TASK,
                       help=f"motor task recorded (default: {choices.DEFAULT_TASK})")
+    proc.add_argument("--compare-with", type=Path, default=None, metavar="RESULTS_JSON",
+                      help="an earlier analysis' results.json (or its output folder): the reports then compare the "
+                           "two sessions side by side (e.g. before and after treatment)")
+    proc.add_argument("--involved", choices=choices.SIDE_NAMES, default=None,
+                      help="the involved knee of a two-knee session, the numerator of the limb symmetry index "
+                           "(default: the patient's side in session.json)")
 
     view = sub.add_parser("view", help="serve the live 3D femur-tibia animation of a processed session")
     view.add_argument("out", type=Path, metavar="OUT_DIR", help="a folder written by chakamo process or demo")
@@ -101,8 +107,10 @@ def run(args: argparse.Namespace) -> int:
 
             options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
                                      calibration=args.calibration, task=args.task, heading=args.heading,
-                                     expected_fs_hz=expected_fs_hz, language=args.lang or choices.DEFAULT_LANGUAGE)
-            _, written = process_folder(args.session, args.out, options, progress=_progress, renderer=renderer)
+                                     expected_fs_hz=expected_fs_hz, language=args.lang or choices.DEFAULT_LANGUAGE,
+                                     involved=args.involved)
+            _, written = process_folder(args.session, args.out, options, progress=_progress, renderer=renderer,
+                                        compare_with=args.compare_with)
         for path in written:
             print(path)
     elif args.command == "view":

@@ -252,12 +252,13 @@ def _transient(exc: BaseException) -> bool:
 
 
 def _public_results(results: dict, session_id: int) -> dict:
-    """results.json without the server's temporary folder in it."""
-    sess = results.get("session", {})
-    sess["folder"] = f"session {session_id}"
-    for src in sess.get("recognised", {}).values():
-        if isinstance(src, dict) and "files" in src:
-            src["files"] = [Path(f).name for f in src["files"]]
+    """results.json without the server's temporary folder in it (in each knee's part too)."""
+    for part in [results, *(results.get("knees") or {}).values()]:
+        sess = part.get("session", {})
+        sess["folder"] = f"session {session_id}"
+        for src in sess.get("recognised", {}).values():
+            if isinstance(src, dict) and "files" in src:
+                src["files"] = [Path(f).name for f in src["files"]]
     return results
 
 
@@ -287,9 +288,10 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
 
 def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
                  render_timeout_s: float) -> Outcome:
-    from app.pipeline.ingestion import IngestionError, load_session
-    from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions, process_session
-    from app.pipeline.results import build_results
+    from app.pipeline.ingestion import IngestionError, load_knees
+    from app.pipeline.knees import process_knees
+    from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions
+    from app.pipeline.results import build_knees_results
     from app.store.workspace import materialise, public_message
 
     progress = _Progress(db, job_id, attempt)
@@ -304,13 +306,13 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             s.expunge_all()
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
         options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
-                                 side=job.side)
+                                 side=job.side, involved=job.involved)
         with materialise(store, tmp_root, session, patient, recordings) as folder:
-            loaded = load_session(folder)
-            outcome = process_session(loaded, options,
-                                      progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
-        results = _public_results(build_results(outcome), session.id)
-        files = render_all(outcome, results, job.lang, progress, pool, render_timeout_s)
+            loaded = load_knees(folder)
+            knees = process_knees(loaded, options,
+                                  progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
+        results = _public_results(build_knees_results(knees), session.id)
+        files = render_all(knees.primary, results, job.lang, progress, pool, render_timeout_s, knees=knees)
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
         contents = {stored[key]: data for key, data in files.items()}

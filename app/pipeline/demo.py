@@ -132,6 +132,55 @@ def write_session(folder: Path, session: SimulatedSession, fmt: str = "metabase"
     return [*written, path]
 
 
+#: the side words written into a two-knee session's labels (Spanish, as the demo's other labels)
+SIDE_LABEL_WORDS = {"right": "derecha", "left": "izquierda"}
+#: one MAC per sensor of a two-knee session: (side, segment) → MAC
+KNEE_MACS = {("right", "thigh"): "D4F1A2B3C4E5", ("right", "shank"): "E8C2B1A0F9D7",
+             ("left", "thigh"): "C1D2E3F4A5B6", ("left", "shank"): "F6E5D4C3B2A1"}
+
+
+def simulate_walk_knees(*, seed: int, duration_s: float = 14.0, knee_gain: dict[str, float] | None = None,
+                        mounting_max_deg: float = 12.0) -> dict[str, SimulatedSession]:
+    """Both legs of one simulated walk (:func:`estimators.simulation.gait.walking`: normative curves, heel strikes,
+    soft-tissue wobble, a 2 s stand first), four factory-calibrated sensors with the simulator's noise, bias and
+    misalignment (up to ``mounting_max_deg``): ``{side: SimulatedSession}`` of task recordings only.
+    ``knee_gain`` scales one leg's flexion (a known asymmetry: ``{"left": 0.8}`` → an LSI of 80 % on flexion peaks
+    and ROM with the left knee involved)."""
+    from estimators.simulation import gait
+
+    walk = gait.walking(duration_s, standing_start_s=2.0, seed=seed, knee_gain=knee_gain)
+    epoch = EPOCH0_S + 300.0
+    out = {}
+    for j, side in enumerate(("right", "left")):
+        leg = walk.leg(side)
+        ids = [seed * 10 + 2 * j + i for i in range(2)]
+        mounts = [sim.random_rotation(np.deg2rad(mounting_max_deg), k) for k in ids]
+        specs = [replace(sim.ImuSpec.random(k), mag=sim.MagErrors.noise_only()) for k in ids]
+        imu_t, imu_s = gait.simulate_leg(leg, *specs, q_thigh_sensor=mounts[0], q_shank_sensor=mounts[1],
+                                         seed=seed * 10 + j)
+        recs = {("thigh", "task"): simulated_streams(imu_t, epoch), ("shank", "task"): simulated_streams(imu_s, epoch)}
+        out[side] = SimulatedSession(recs, leg.motion, {"task": epoch}, side, None)
+    return out
+
+
+def write_knees_session(folder: Path, knees: dict[str, SimulatedSession], *, patient_side: str | None = None
+                        ) -> list[Path]:
+    """Write both knees of :func:`simulate_walk_knees` into one folder as MetaBase CSV files whose labels name the
+    side (``izquierda-tarea-muslo-...``), with a ``session.json`` giving the patient's (involved) side if any."""
+    from app.pipeline.ingestion import write_recording_metabase
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for side, session in knees.items():
+        for (seg, role), streams in session.recordings.items():
+            label = f"{SIDE_LABEL_WORDS[side]}-" + session_label(seg, role, "DEMO-001", "22112026", lang="es")
+            written += write_recording_metabase(folder, label, KNEE_MACS[(side, seg)], streams)
+    manifest = {"patient_id": "DEMO-001", **({"side": patient_side} if patient_side else {})}
+    path = folder / "session.json"
+    path.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+    return [*written, path]
+
+
 #: the simulator's phase events (the columns of ``LegMotion.phases_s`` and of ``demo_truth.npz``
 #: ``phases_s``), named as the motor-task analysis names its events, and their columns in ``events_s``
 TRUTH_PHASE_EVENTS = ("onset", "countermovement_peak", "far_left", "rest_reached")

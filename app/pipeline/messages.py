@@ -27,6 +27,20 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
               "del paciente en la web) o añada \"side\" a session.json.",
         "pt": "{file}: não se conhece o lado estudado; escolha o lado (chakamo process --side right|left, ou o lado "
               "do paciente na web) ou acrescente \"side\" ao session.json."},
+    "pipeline.side_with_two_knees": {
+        "en": "the session holds both knees, each with its own side; --side {side} would give both the same sign: "
+              "leave the side out (choose the involved knee with --involved).",
+        "es": "la sesión tiene ambas rodillas, cada una con su lado; --side {side} daría a ambas el mismo signo: "
+              "no indique el lado (elija la rodilla afectada con --involved).",
+        "pt": "a sessão tem os dois joelhos, cada um com seu lado; --side {side} daria aos dois o mesmo sinal: "
+              "não indique o lado (escolha o joelho afetado com --involved)."},
+    "pipeline.compare_unreadable": {
+        "en": "{file}: not the results.json of an earlier analysis ({reason}); give the results.json (or the output "
+              "folder) that chakamo process wrote for the earlier session.",
+        "es": "{file}: no es el results.json de un análisis anterior ({reason}); indique el results.json (o la "
+              "carpeta de salida) que chakamo process escribió para la sesión anterior.",
+        "pt": "{file}: não é o results.json de uma análise anterior ({reason}); indique o results.json (ou a pasta "
+              "de saída) que o chakamo process escreveu para a sessão anterior."},
     "pipeline.bad_option": {
         "en": "{option} must be one of {allowed}, got {value}; pick one of those.",
         "es": "{option} debe ser uno de {allowed}, no {value}; elija uno de ellos.",

@@ -15,10 +15,12 @@ import os
 from pathlib import Path
 
 from app.pipeline import timings
-from app.pipeline.ingestion import load_session
-from app.pipeline.session import Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
+from app.pipeline.comparison import comparison
+from app.pipeline.ingestion import load_knees
+from app.pipeline.knees import process_knees
+from app.pipeline.session import PipelineError, Progress, ProcessOptions, SessionOutcome, _no_progress
 from app.pipeline.render import ForkedRenderers, render_named
-from app.pipeline.results import build_results, report_input, results_json, timeseries_npz, write_outputs
+from app.pipeline.results import build_knees_results, report_input, results_json, timeseries_npz, write_outputs
 
 #: the rendered outputs, in the order they are written (after results.json); the same as
 #: :data:`app.pipeline.render.FORK_GROUPS` together (the series too: its compression is off the parent's path)
@@ -41,12 +43,34 @@ def load_kernels(filter_name: str) -> None:
     make(filter_name).estimate(acc, np.zeros((n, 3)), mag, fs_hz=100.0)
 
 
+def _earlier_results(path: str | os.PathLike) -> dict:
+    """The ``results.json`` of ``--compare-with`` (a file or the output folder holding one); a
+    :class:`PipelineError` naming it when it cannot be read as one."""
+    import json
+
+    p = Path(path)
+    p = p / "results.json" if p.is_dir() else p
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise PipelineError("pipeline.compare_unreadable", file=str(p), reason=str(exc)[:200]) from None
+    if not isinstance(data, dict) or "rom_deg" not in data:
+        raise PipelineError("pipeline.compare_unreadable", file=str(p), reason="no rom_deg")
+    return data
+
+
 def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, options: ProcessOptions | None = None,
                    *, progress: Progress = _no_progress, reports: bool = True,
-                   renderer: ForkedRenderers | None = None) -> tuple[SessionOutcome, list[Path]]:
+                   renderer: ForkedRenderers | None = None,
+                   compare_with: str | os.PathLike | None = None) -> tuple[SessionOutcome, list[Path]]:
     """Read ``session_dir``, compute everything, render every output, then write them all into ``out_dir``.
 
+    A folder of both knees (:func:`app.pipeline.ingestion.load_knees`) processes each; ``results.json`` then has
+    both (:func:`app.pipeline.results.build_knees_results`) and the returned outcome is its top-level knee's.
+
     ``reports=False`` writes only ``results.json`` and ``timeseries.npz`` (no PDF, Excel, HTML or scene).
+    ``compare_with``: an earlier analysis' ``results.json`` (or the folder holding it): ``results.json`` then gains
+    ``comparison`` (:func:`app.pipeline.comparison.comparison`) and the reports a comparison section.
     ``renderer``: render processes forked at the command's start (:class:`app.pipeline.render.ForkedRenderers`,
     the CLI's cold start); without one every output is rendered here.  The bytes are the same either way.
 
@@ -54,6 +78,7 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
     ``ValueError``) with a message for the user; nothing is written then.
     """
     options = options or ProcessOptions()
+    earlier = None if compare_with is None else _earlier_results(compare_with)  # refused before any work
     progress("read", 0.0)
     session = None
     if renderer is not None and renderer.reading and not renderer.read_failed:  # meanwhile numba's kernels load
@@ -63,17 +88,20 @@ def process_folder(session_dir: str | os.PathLike, out_dir: str | os.PathLike, o
             session = renderer.session()
     if session is None:  # no helper, or it could not read: read here (and raise the error, if any)
         with timings.stage("read"):
-            session = load_session(session_dir, expected_fs_hz=options.expected_fs_hz)
+            session = load_knees(session_dir, expected_fs_hz=options.expected_fs_hz)
     with timings.stage("pipeline"):
-        outcome = process_session(session, options, progress=progress)
-        results = build_results(outcome)
+        knees = process_knees(session, options, progress=progress)
+        outcome = knees.primary
+        results = build_knees_results(knees)
+        if earlier is not None:
+            results["comparison"] = comparison(earlier, results)
         files = {"results.json": results_json(results)}
         if not reports:
-            files["timeseries.npz"] = timeseries_npz(outcome)
+            files["timeseries.npz"] = timeseries_npz(outcome, knees)
     if reports:  # rendered with deferred imports: matplotlib, plotly and viser cost ~80 MB a process that needs no report
         progress("reports", 0.97)
         with timings.stage("reports"):
-            ri = report_input(outcome, results)
+            ri = report_input(outcome, results, knees=knees)
             rendered = renderer.render(ri) if renderer is not None else render_named(ri, REPORT_FILES)
         files |= {name: rendered[name] for name in REPORT_FILES}
     progress("write", 0.99)

@@ -79,19 +79,20 @@ def render_many(ri, keys: list[tuple[str, str]]) -> dict[tuple[str, str], bytes]
 
 
 def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | None" = None,
-               timeout_s: float = RENDER_TIMEOUT_S) -> dict[tuple[str, str], bytes]:
+               timeout_s: float = RENDER_TIMEOUT_S, knees=None) -> dict[tuple[str, str], bytes]:
     """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF).
 
     With a warm :class:`RenderPool`, the two other-language PDFs and angles.xlsx are rendered in the
     render process while this thread renders the rest (the report code holds the GIL: threads would not
     overlap); without one, or if that process fails or does not answer within ``timeout_s``, everything is
-    rendered here.  ``progress(stage, fraction)`` is told each step.
+    rendered here.  ``progress(stage, fraction)`` is told each step.  ``knees``: the
+    :class:`app.pipeline.knees.KneesOutcome` of a session of both knees (``outcome`` its top-level knee).
     """
     from app.pipeline.results import report_input, results_json, timeseries_npz
 
-    ri = report_input(outcome, results)
+    ri = report_input(outcome, results, knees=knees)
     files: dict[tuple[str, str], bytes] = {("results.json", ""): results_json(results).encode("utf-8"),
-                                           ("timeseries.npz", ""): timeseries_npz(outcome)}
+                                           ("timeseries.npz", ""): timeseries_npz(outcome, knees)}
     others = [("report.pdf", x) for x in LANGS if x != lang]
     # about equal halves (measured: a PDF 0.2-0.4 s, angles.xlsx 0.1 s, quaternions.xlsx 0.2 s, html 0.05 s,
     # scene 0.2 s)
@@ -192,9 +193,10 @@ class ForkedRenderers:
     kernels, on one core; the report libraries (fpdf2, openpyxl, viser, plotly) cost ~0.5 s more of imports
     that do not depend on the session, and reading the files ~0.15 s that needs no numba.  So, before numpy
     is even imported, the command forks one helper.  Given ``read=(session folder, expected rate)`` it first
-    reads the session (:func:`app.pipeline.ingestion.load_session`; :meth:`session` hands it over, pickled)
-    while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), loads
-    what they load on a first call (:func:`preload_renderers`), and forks once per further group of :data:`FORK_GROUPS`.  When the parent has the report input
+    reads the session (:func:`app.pipeline.ingestion.load_knees`: every knee; :meth:`session` hands them over,
+    pickled) while the parent loads numba; then it imports the report modules (and makes the PDF's font cut), loads
+    what they load on a first call (:func:`preload_renderers`), and forks once per further group of
+    :data:`FORK_GROUPS`.  When the parent has the report input
     (:meth:`render`, pickled through one pipe per helper), the helpers render their groups side by side and
     send the bytes back; the parent writes every file itself (all or nothing,
     :func:`app.pipeline.results.write_outputs`).  The bytes are those of :func:`render_artefact` in the parent
@@ -248,9 +250,9 @@ class ForkedRenderers:
         if read is not None:  # the session first: the parent needs it soonest
             try:
                 with timings.stage("read"):
-                    from app.pipeline.ingestion import load_session
+                    from app.pipeline.ingestion import load_knees
 
-                    session = load_session(read[0], expected_fs_hz=read[1])
+                    session = load_knees(read[0], expected_fs_hz=read[1])
                 payload = pickle.dumps(session, protocol=pickle.HIGHEST_PROTOCOL)
             except BaseException:  # noqa: BLE001 — the parent reads it again and reports the error itself
                 payload = b""

@@ -27,6 +27,7 @@ from estimators.motor_task.analysis import ROM_STATS
 
 from reports.model import Patient, ReportInput
 
+from app.pipeline.knees import KneesOutcome, limb_symmetry
 from app.pipeline.session import SessionOutcome
 
 
@@ -142,6 +143,23 @@ def _reference(r: dict[str, Any]) -> dict[str, Any] | None:
     return json_ready(compare(ref, values))
 
 
+def build_knees_results(knees: KneesOutcome) -> dict[str, Any]:
+    """``results.json`` of a session of one or both knees.
+
+    One knee: :func:`build_results` unchanged.  Both knees: the top level is still one knee's results (DESIGN §4,
+    so every reader of the one-knee contract keeps working): the involved knee's, else the right's; beside it
+    ``involved_side`` (or None), ``knees`` (``{"left": ..., "right": ...}``: each knee's own one-knee results) and
+    ``symmetry`` (:func:`app.pipeline.knees.limb_symmetry`: the LSI per parameter, None without an involved side).
+    """
+    primary = build_results(knees.primary)
+    if not knees.bilateral:
+        return primary
+    per = {side: primary if outcome is knees.primary else build_results(outcome)
+           for side, outcome in sorted(knees.knees.items())}
+    return {**primary, "involved_side": knees.involved, "knees": per,
+            "symmetry": json_ready(limb_symmetry(per, knees.involved))}
+
+
 def _gait(gait: dict[str, Any]) -> dict[str, Any]:
     """The gait task's parameters for ``results.json``: each ``*_rad`` value in degrees as ``*_deg``, the rest as
     analysed (stride time and cadence with their CV, stance/swing and peak-timing percentages, bouts, turns)."""
@@ -191,23 +209,34 @@ def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
     return out
 
 
-def timeseries_npz(outcome: SessionOutcome) -> bytes:
-    """The task's series (``timeseries.npz``): t_s, angles_deg, and sensor and segment quaternions."""
+def timeseries_npz(outcome: SessionOutcome, knees: KneesOutcome | None = None) -> bytes:
+    """The task's series (``timeseries.npz``): t_s, angles_deg, and sensor and segment quaternions (of the knee
+    :func:`build_knees_results` puts at the top level); with both knees also ``t_s_left``, ``angles_deg_left``,
+    ``t_s_right``, ``angles_deg_right`` (each knee's own task grid)."""
     return _series_npz(outcome.t_s, np.rad2deg(outcome.angles_rad), outcome.q_earth_sensor,
                        {"femur": outcome.q_earth_segment["thigh"], "tibia": outcome.q_earth_segment["shank"]},
-                       {seg: cal.q_sensor_segment for seg, cal in outcome.segments.items()})
+                       {seg: cal.q_sensor_segment for seg, cal in outcome.segments.items()}, _knees_series(knees))
 
 
 def timeseries_npz_of(ri: ReportInput) -> bytes:
     """:func:`timeseries_npz` from the report input :func:`report_input` made of the outcome (the same arrays:
     its angles are the outcome's in degrees, as here), for a render process that has only the report input."""
-    return _series_npz(ri.t_s, ri.angles_deg, ri.q_earth_sensor, ri.q_earth_segment, ri.q_sensor_segment)
+    return _series_npz(ri.t_s, ri.angles_deg, ri.q_earth_sensor, ri.q_earth_segment, ri.q_sensor_segment,
+                       ri.knees_series)
 
 
-def _series_npz(t_s, angles_deg, q_earth_sensor, q_earth_segment, q_sensor_segment) -> bytes:
+def _knees_series(knees: KneesOutcome | None) -> dict[str, dict[str, np.ndarray]]:
+    """``{side: {"t_s", "angles_deg"}}`` of both knees (``{}`` for one knee)."""
+    if knees is None or not knees.bilateral:
+        return {}
+    return {side: {"t_s": o.t_s, "angles_deg": np.rad2deg(o.angles_rad)} for side, o in sorted(knees.knees.items())}
+
+
+def _series_npz(t_s, angles_deg, q_earth_sensor, q_earth_segment, q_sensor_segment, knees_series) -> bytes:
     buf = io.BytesIO()
+    per_knee = {f"{name}_{side}": v for side, series in knees_series.items() for name, v in series.items()}
     np.savez_compressed(
-        buf, t_s=t_s, angles_deg=angles_deg,
+        buf, t_s=t_s, angles_deg=angles_deg, **per_knee,
         q_earth_sensor_thigh=q_earth_sensor["thigh"], q_earth_sensor_shank=q_earth_sensor["shank"],
         q_earth_segment_femur=q_earth_segment["femur"], q_earth_segment_tibia=q_earth_segment["tibia"],
         q_sensor_segment_thigh=q_sensor_segment["thigh"], q_sensor_segment_shank=q_sensor_segment["shank"],
@@ -275,8 +304,10 @@ def session_patient(outcome: SessionOutcome) -> Patient:
     )
 
 
-def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None) -> ReportInput:
-    """What the reports read (``reports.model``): results.json, the task's series in degrees, orientations."""
+def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None,
+                 knees: KneesOutcome | None = None) -> ReportInput:
+    """What the reports read (``reports.model``): results.json, the task's series in degrees, orientations (of
+    ``outcome``, the top-level knee), and with ``knees`` of two knees each knee's angles."""
     if patient is None:
         patient = session_patient(outcome)
     return ReportInput(
@@ -288,4 +319,5 @@ def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Pati
         q_sensor_segment={seg: cal.q_sensor_segment for seg, cal in outcome.segments.items()},
         patient=patient,
         language=outcome.options.language,
+        knees_series=_knees_series(knees),
     )

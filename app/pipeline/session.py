@@ -143,6 +143,8 @@ class ProcessOptions:
         run of the same filter); ``magnetometer`` / ``constraint`` force one (:func:`estimators.heading.choose_heading`).
     expected_fs_hz : rate the protocol uses; ``None`` accepts the files' own rate.
     language : report language (``es``/``en``/``pt``), recorded for the reports.
+    involved : the involved knee of a two-knee session (``app.choices.SIDES``; None: the patient's side from
+        ``session.json``): the numerator of the limb symmetry index (:mod:`app.pipeline.knees`).
     """
 
     filter_name: str = DEFAULT_FILTER
@@ -154,10 +156,13 @@ class ProcessOptions:
     heading: str = DEFAULT_HEADING
     expected_fs_hz: float | None = 100.0
     language: str = DEFAULT_LANGUAGE
+    involved: str | None = None
 
     def __post_init__(self) -> None:
         if self.side is not None and self.side not in SIDE_NAMES:
             raise _option_error("side", SIDE_NAMES, self.side)
+        if self.involved is not None and self.involved not in SIDE_NAMES:
+            raise _option_error("involved side", SIDE_NAMES, self.involved)
         if self.angle_method not in ANGLE_CONVENTION_NAMES:
             raise _option_error("angle method", ANGLE_CONVENTION_NAMES, self.angle_method)
         if self.calibration not in CALIBRATION_NAMES:

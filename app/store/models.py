@@ -182,6 +182,8 @@ class Job(Base):
     heading: Mapped[str] = mapped_column(String(20), default="auto", server_default="auto")
     #: the side the clinician chose over the files' (ProcessOptions.side, kept as a warning); None: the files'
     side: Mapped[str | None] = mapped_column(String(5), nullable=True)
+    #: the involved knee of a two-knee session (ProcessOptions.involved: the LSI's numerator); None: the patient's
+    involved: Mapped[str | None] = mapped_column(String(5), nullable=True)
     #: a failed job's message as a catalogue code and its values (app.pipeline.ingestion.messages), for any language
     error_code: Mapped[str | None] = mapped_column(String(60), nullable=True)
     error_params: Mapped[dict | None] = mapped_column(JSON, nullable=True)

@@ -20,11 +20,11 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.choices import SEX_NAMES, SIDE_NAMES
-from app.store.analyses import find_artefact, latest_analysis, supersede
+from app.store.analyses import find_artefact, supersede
 from app.store.blobs import BlobStore
 from app.store.erasure import session_blobs
 from app.store.errors import Conflict, Invalid, NotFound
-from app.store.models import KneeSession, Patient, utcnow
+from app.store.models import Analysis, KneeSession, Patient, utcnow
 from app.store.sessions import check_version, delete_sessions, patient_sessions, refuse_while_processing
 
 #: the patient's columns a correction may change
@@ -164,18 +164,44 @@ def delete_patient(db: Session, clinic_id: int, patient_id: int,
     return session_ids, shas
 
 
-def rom_trend(db: Session, store: BlobStore, patient_id: int) -> list[dict[str, Any]]:
-    """ROM per session, oldest first, from each session's latest analysis (sessions without one, or whose latest
-    is superseded, left out)."""
-    points = []
-    for s in patient_sessions(db, patient_id, newest_first=False):
-        analysis = latest_analysis(db, s.id)
-        if analysis is None or analysis.superseded_at is not None:
-            continue
-        results = json.loads(store.read(find_artefact(db, analysis.id, "results.json").sha256))
-        points.append({"session_id": s.id, "date": s.date, "analysis_id": analysis.id, "filter": analysis.filter,
-                       "rom_deg": results.get("rom_deg", {})})
-    return points
+def rom_trend(db: Session, store: BlobStore, patient_id: int, filter_name: str | None = None,
+              pipeline_version: str | None = None) -> dict[str, Any]:
+    """The ROM per session, oldest first, from analyses of **one series**: the same orientation filter and pipeline
+    version (numbers from two filters or two versions differ by the method, not the patient: one session run
+    once with Madgwick read +1.7° of flexion against its default-filter neighbours).
+
+    The series is ``(filter_name, pipeline_version)`` when given, else the one that covers the most sessions (ties:
+    the one of the newest analysis).  Each session's point is its latest current (not superseded) analysis of that
+    series, named by ``analysis_id``; sessions without one are listed in ``left_out`` with the series they do have.
+    Returns ``{"filter", "pipeline_version", "points", "left_out", "series"}`` (``series``: every
+    ``{"filter", "pipeline_version", "sessions"}`` the patient's analyses offer, to choose another)."""
+    sessions = patient_sessions(db, patient_id, newest_first=False)
+    rows = list(db.execute(select(Analysis.id, Analysis.session_id, Analysis.filter, Analysis.pipeline_version)
+                           .join(KneeSession, KneeSession.id == Analysis.session_id)
+                           .where(KneeSession.patient_id == patient_id, Analysis.superseded_at.is_(None))
+                           .order_by(Analysis.id)))
+    latest: dict[tuple[str, str], dict[int, int]] = {}  # series → session → its latest analysis there
+    for aid, sid, filt, version in rows:
+        latest.setdefault((filt, version), {})[sid] = aid
+    series = sorted(latest, key=lambda k: (len(latest[k]), max(latest[k].values())), reverse=True)
+    chosen = (filter_name, pipeline_version) if filter_name is not None and pipeline_version is not None else \
+        next((k for k in series if (filter_name is None or k[0] == filter_name)
+              and (pipeline_version is None or k[1] == pipeline_version)), (filter_name, pipeline_version))
+    picked = latest.get(chosen, {})
+    points, left_out = [], []
+    for s in sessions:
+        if s.id in picked:
+            aid = picked[s.id]
+            results = json.loads(store.read(find_artefact(db, aid, "results.json").sha256))
+            points.append({"session_id": s.id, "date": s.date, "analysis_id": aid, "filter": chosen[0],
+                           "pipeline_version": chosen[1], "rom_deg": results.get("rom_deg", {})})
+        else:
+            have = [{"filter": k[0], "pipeline_version": k[1], "analysis_id": latest[k][s.id]}
+                    for k in series if s.id in latest[k]]
+            if have:
+                left_out.append({"session_id": s.id, "date": s.date, "analyses": have})
+    return {"filter": chosen[0], "pipeline_version": chosen[1], "points": points, "left_out": left_out,
+            "series": [{"filter": k[0], "pipeline_version": k[1], "sessions": len(latest[k])} for k in series]}
 
 
 __all__ = ["CORRECTABLE_FIELDS", "PROCESSED_FIELDS", "RANGES", "check_values", "add_patient", "clinic_patient", "correct_patient",

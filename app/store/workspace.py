@@ -1,7 +1,7 @@
 """A stored session as a folder the ingestion can read: files, ``session.json`` manifest, ingestion check.
 
 The database holds the facts typed in the browser or sent by a hospital system (patient side, step height,
-the segment/role chosen for an upload); the ingestion (:func:`app.pipeline.ingestion.load_session`) reads a folder.
+the segment/role chosen for an upload); the ingestion (:func:`app.pipeline.ingestion.load_knees`) reads a folder.
 :func:`materialise` bridges the two: it copies every recording of a session out of the blob store
 (checksums verified) under its original file name into a temporary folder and writes the ``session.json``
 that :mod:`app.pipeline.ingestion.session` documents:
@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from app.store.models import KneeSession, Patient, Recording
-from app.pipeline.ingestion import MANIFEST, IngestionError, load_session
+from app.pipeline.ingestion import MANIFEST, IngestionError, load_knees
 from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name
 from app.pipeline.ingestion.session import parse_manifest
 from app.store.blobs import BlobStore
@@ -129,15 +129,17 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
     folder = None
     try:
         with materialise(store, tmp_root, session, patient, recordings) as folder:
-            loaded = load_session(folder)
+            knees = load_knees(folder)  # one knee, or both (four sensors)
             messages = []
-            for (seg, role), rec in sorted(loaded.recordings.items()):
-                src = rec.source
-                files = [Path(f).name for f in src.get("files", ())]
-                what = f"{src.get('label')} ({len(files)} {src.get('format')} files)" if len(files) > 1 else \
-                    ", ".join(files)
-                messages.append(f"{seg} {role}: {what} — segment {src.get('segment')}, role {src.get('role')}")
-            messages += [public_message(n, folder) for n in loaded.notes]
+            for side, loaded in sorted(knees.items()):
+                knee = f"{side} " if len(knees) > 1 else ""
+                for (seg, role), rec in sorted(loaded.recordings.items()):
+                    src = rec.source
+                    files = [Path(f).name for f in src.get("files", ())]
+                    what = f"{src.get('label')} ({len(files)} {src.get('format')} files)" if len(files) > 1 else \
+                        ", ".join(files)
+                    messages.append(f"{knee}{seg} {role}: {what} — segment {src.get('segment')}, role {src.get('role')}")
+                messages += [public_message(n, folder) for n in loaded.notes if public_message(n, folder) not in messages]
             return {"ok": True, "messages": messages, "error": None}
     except (IngestionError, ValueError, OSError) as exc:
         text = str(exc)

@@ -13,6 +13,10 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
   HL7 v2 table 0203, system ``patient_identifier_system`` when the caller knows the hospital's MRN
   namespace, none otherwise) and ChakaMo's id (system ``{base_url}/patients``).  The report itself
   carries ``id`` = the session id and the identifier ``{base_url}/sessions`` | session id.
+- **Both knees.**  A session of both knees (results.json ``knees``) adds one contained Observation per limb
+  symmetry index parameter (``#lsi-swing-peak-flexion``...): the LSI in % as ``valueQuantity``, the involved and
+  uninvolved knees' values as components, ``bodySite`` the involved knee; the three angle Observations stay those
+  of the top-level (involved) knee.
 - **Codes.**  Category: HL7 v2 table 0074 ``PT`` "Physical Therapy" (report) and observation-category
   ``exam`` (observations: range of motion is a physical-examination finding).  LOINC has no term for
   an instrumented 3D knee angle during a motor task (its range-of-motion terms, e.g. 92851-5, are CMS
@@ -148,12 +152,13 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
     performer = [{"display": str(professional)}] if professional else None
 
     observations = [_observation(angle, r, side, task, effective, issued_at, performer) for angle in ANGLES]
+    lsi = _lsi_observations(results.get("symmetry"), task, effective, issued_at, performer)
     doc: dict[str, Any] = {
         "resourceType": "DiagnosticReport",
         "id": report_id,
         "language": "en",
         "text": {"status": "generated", "div": _narrative(r, side, task, effective, patient)},
-        "contained": [_patient(patient, base_url, patient_identifier_system), *observations],
+        "contained": [_patient(patient, base_url, patient_identifier_system), *observations, *lsi],
         "identifier": [{"system": f"{base_url}/sessions", "value": str(session["id"])}],
         "status": "final",
         "category": [{"coding": [{"system": V2_0074, "code": "PT", "display": "Physical Therapy"}]}],
@@ -163,7 +168,8 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         "effectiveDateTime": effective,
         "issued": issued_at,
         "performer": performer,
-        "result": [{"reference": f"#{obs['id']}", "display": _ANGLE_TEXT[a]} for a, obs in zip(ANGLES, observations)],
+        "result": [{"reference": f"#{obs['id']}", "display": _ANGLE_TEXT[a]} for a, obs in zip(ANGLES, observations)]
+        + [{"reference": f"#{obs['id']}", "display": obs["code"]["coding"][0]["display"]} for obs in lsi],
         "conclusion": _conclusion(r, side, task, session["notes"]),
         "presentedForm": [{
             "contentType": "application/pdf",
@@ -318,6 +324,52 @@ def _observation(angle: str, r: dict, side: str, task: str, effective: str, issu
                            f"{convention}"},
         "component": components,
     }
+
+
+#: UCUM of the LSI parameters' units (results.json ``symmetry.parameters[].unit``)
+_LSI_UCUM = {"deg": "deg", "pct": "%", "s": "s", "steps_min": "/min"}
+
+
+def _lsi_observations(symmetry: Any, task: str, effective: str, issued: str, performer: list | None
+                      ) -> list[dict[str, Any]]:
+    """A session of both knees: one Observation per limb symmetry index parameter (results.json ``symmetry``,
+    :mod:`app.pipeline.knees`): ``valueQuantity`` the LSI in % (involved / uninvolved × 100), components the
+    involved and uninvolved knees' values in the parameter's unit, ``bodySite`` the involved knee; an LSI that could
+    not be computed has a ``dataAbsentReason``.  None for a one-knee session or without an involved side."""
+    if not isinstance(symmetry, Mapping):
+        return []
+    out = []
+    for p in symmetry.get("parameters", []):
+        name = str(p["name"]).replace("_", "-")
+        display = f"Limb symmetry index, {str(p['name']).replace('_', ' ')}"
+        unit = _LSI_UCUM.get(p["unit"], "1")
+        components = []
+        for which in ("involved", "uninvolved"):
+            comp: dict[str, Any] = {"code": {"coding": [_local(f"{which}-knee-value", f"{which.capitalize()} knee, "
+                                                               "mean over its accepted cycles")]}}
+            value = _number(p.get(which), f"symmetry {p['name']} {which}")
+            if value is None:
+                comp["dataAbsentReason"] = {"coding": [{"system": DATA_ABSENT_REASON, "code": "not-applicable",
+                                                        "display": "Not Applicable"}]}
+            else:
+                comp["valueQuantity"] = {"value": value, "unit": unit, "system": UCUM, "code": unit}
+            components.append(comp)
+        obs: dict[str, Any] = {
+            "resourceType": "Observation", "id": f"lsi-{name}", "status": "final",
+            "category": [{"coding": [{"system": OBSERVATION_CATEGORY, "code": "exam", "display": "Exam"}]}],
+            "code": {"coding": [_local(f"lsi-{name}", display)],
+                     "text": f"{display} during {task}: involved / uninvolved × 100 %"},
+            "subject": {"reference": "#patient"}, "effectiveDateTime": effective, "issued": issued,
+            "performer": performer, "bodySite": _body_site(symmetry["involved"]), "component": components,
+        }
+        lsi = _number(p.get("lsi_pct"), f"symmetry {p['name']} lsi_pct")
+        if lsi is None:
+            obs["dataAbsentReason"] = {"coding": [{"system": DATA_ABSENT_REASON, "code": "not-applicable",
+                                                   "display": "Not Applicable"}]}
+        else:
+            obs["valueQuantity"] = {"value": lsi, "unit": "%", "system": UCUM, "code": "%"}
+        out.append(obs)
+    return out
 
 
 def _patient(patient: Mapping, base_url: str, identifier_system: str | None) -> dict[str, Any]:

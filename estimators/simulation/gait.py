@@ -256,6 +256,7 @@ def walking(
     knee_keyframes_deg: ArrayLike | None = None,
     seed: int | np.random.Generator | None = 0,
     fs_hz: float = DEFAULT_FS_HZ,
+    knee_gain: dict[str, float] | None = None,
 ) -> GaitMotion:
     """Level walking of both legs (G1–G5, module docstring), in motion from the first sample by default.
 
@@ -273,6 +274,9 @@ def walking(
         (K ≥ 4, % strictly increasing in [0, 100)): another mean knee curve, e.g. a stiff-knee pattern; the
         periodic spline through it is the mean curve (G1); toe-off stays at 60 %.
     seed : random draws (stride times, amplitudes, start phase).   fs_hz : dense grid rate.
+    knee_gain : ``{side: g}`` multiplies that leg's walking knee flexion (G1) by ``g`` (0.3–1.5; default 1): a
+        known asymmetry, e.g. ``{"left": 0.8}`` gives every left flexion peak and ROM 80 % of the same stride's
+        right value (the same random draws for both legs), for limb-symmetry tests.
     """
     duration_s = _positive("duration_s", duration_s, 2.0, 600.0)
     cadence = _positive("cadence_steps_min", cadence_steps_min, 60.0, 160.0)
@@ -331,11 +335,15 @@ def walking(
         + right_dir * (beta * 0.02 * np.sin(2.0 * np.pi * pr))[:, None]
     q_face = quat.multiply(quat.from_axis_angle(up, psi), segment_frame(0.0, "standing"))
 
+    gains = {"right": 1.0, "left": 1.0}
+    for side, g in (knee_gain or {}).items():
+        side_sign(side)
+        gains[side] = _positive(f"knee_gain[{side!r}]", g, 0.3, 1.5)
     legs = {}
     for side, lag in (("right", 0.0), ("left", 0.5)):
         s = side_sign(side)
         ph = np.mod(p_global - lag, 1.0)
-        flex = beta * (amp * knee_curve(ph) + off) + (1.0 - beta) * np.deg2rad(2.0)
+        flex = beta * gains[side] * (amp * knee_curve(ph) + off) + (1.0 - beta) * np.deg2rad(2.0)
         add = beta * np.deg2rad(1.0 + 2.0 * np.sin(2.0 * np.pi * ph + 0.5))
         rot = np.deg2rad(-3.0) + np.deg2rad(8.0) * flex / np.deg2rad(65.0)
         knee_ang = np.column_stack([flex, add, rot])

@@ -1,6 +1,8 @@
 // Results of one session (#/sessions/{id}[?analysis_id=N]): the analysis selector (one analysis per
 // filter run; earlier ones are kept), mean ± SD curves, ROM and phase tables, quality warnings, downloads,
-// and the 3D animation in viser's static client.
+// and the 3D animation in viser's static client.  A session of both knees adds the two knees' curves overlaid
+// and the limb symmetry index table; any session can be compared with another of the patient's
+// (GET /patients/{id}/compare: the numbers side by side, the change, and whether the two are comparable).
 //
 // Everything shown comes from results.json (GET /sessions/{id}/results) — the UI computes nothing clinical.
 // The 3D view is an <iframe> of /viser/index.html?playbackPath=<the session's scene.viser URL> (same origin,
@@ -9,7 +11,7 @@
 import { api, apiUrl } from "../api.js";
 import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
 import { t, lang, LANGUAGES } from "../i18n.js";
-import { ANGLES, drawCurve, purge } from "../charts.js";
+import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate } from "../app.js";
 
@@ -85,12 +87,15 @@ function renderResults(body, session, patient, analysis, r, section) {
     h("h2", { id: "h-curves" }, t("results.curves")), h("p", { class: "hint" }, t("results.curves_hint")),
     h("div", { class: "charts" }, charts));
 
-  clear(body).append(summary, curves,
+  const knees = kneesSection(r);
+  const kneeCharts = knees ? [...knees.querySelectorAll(".chart")] : [];
+  clear(body).append(summary, curves, ...(knees ? [knees] : []),
     h("div", { class: "columns" },
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
     qualitySection(r),
+    compareSection(session, analysis),
     downloadsSection(session.id, analysis.id),
     sceneSection(session.id, analysis.id));
 
@@ -98,10 +103,116 @@ function renderResults(body, session, patient, analysis, r, section) {
     const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
     drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
   });
+  ANGLES.forEach((a, i) => {
+    if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+  });
   const observer = new MutationObserver(() => {
-    if (!section.isConnected) { charts.forEach(purge); observer.disconnect(); }
+    if (!section.isConnected) { charts.forEach(purge); kneeCharts.forEach(purge); observer.disconnect(); }
   });
   observer.observe(document.getElementById("main"), { childList: true });
+}
+
+const SIDE_COLOURS = { left: "#1f4e79", right: "#d66e16" };
+
+/** Both knees (results.json `knees`, `symmetry`): each angle's two mean curves overlaid, and the LSI table. */
+function kneesSection(r) {
+  if (!r.knees || Object.keys(r.knees).length !== 2) return null;
+  const charts = ANGLES.map((a) => h("div", { class: "chart", id: `knees-${a}`, role: "img",
+    "aria-label": t("knees.curve_alt", { angle: label("angle", a) }) }));
+  const involved = r.involved_side ? label("side", r.involved_side) : t("knees.none_involved");
+  return h("section", { class: "card", id: "knees", "aria-labelledby": "h-knees" },
+    h("h2", { id: "h-knees" }, t("knees.title")), h("p", { class: "hint" }, t("knees.hint", { involved })),
+    h("div", { class: "charts" }, charts), lsiTable(r));
+}
+
+function lsiTable(r) {
+  const sym = r.symmetry;
+  if (!sym) return h("p", { class: "notice", id: "lsi-none" }, t("knees.lsi_none"));
+  const unit = (u) => t(`knees.unit.${u}`);
+  const value = (x, u, d) => (typeof x === "number" ? `${num(x, d)} ${unit(u)}` : "—");
+  return h("table", { class: "data", id: "lsi-table" },
+    h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("knees.parameter")),
+      h("th", { scope: "col", class: "num" }, t("knees.involved", { side: label("side", sym.involved) })),
+      h("th", { scope: "col", class: "num" }, t("knees.uninvolved", { side: label("side", sym.uninvolved) })),
+      h("th", { scope: "col", class: "num" }, t("knees.lsi")))),
+    h("tbody", {}, sym.parameters.map((p) => h("tr", {}, h("th", { scope: "row" }, t(`knees.param.${p.name}`)),
+      h("td", { class: "num" }, value(p.involved, p.unit, p.unit === "s" ? 2 : 1)),
+      h("td", { class: "num" }, value(p.uninvolved, p.unit, p.unit === "s" ? 2 : 1)),
+      h("td", { class: "num" }, typeof p.lsi_pct === "number" ? num(p.lsi_pct, 1) : "—")))),
+    h("caption", { class: "caption" }, t("knees.lsi_caption")));
+}
+
+async function drawKnees(el, angle, knees) {
+  const Plotly = await loadPlotly();
+  const data = Object.entries(knees).sort().map(([side, k]) => {
+    const mean = ((k.curves || {})[angle] || {}).mean || [];
+    return { x: mean.map((_, i) => (mean.length > 1 ? (100 * i) / (mean.length - 1) : 0)), y: mean, mode: "lines",
+      name: label("side", side), line: { color: SIDE_COLOURS[side], width: 2, dash: side === "right" ? "dash" : "solid" },
+      hovertemplate: `%{x:.0f} %: %{y:.1f}°<extra>${label("side", side)}</extra>` };
+  });
+  const layout = { title: { text: label("angle", angle), font: { size: 15 }, x: 0, xanchor: "left" }, height: 280,
+    margin: { l: 55, r: 15, t: 45, b: 45 }, separators: lang() === "en" ? ".," : ",.",
+    xaxis: { range: [0, 100], title: { text: t("results.cycle_pct") } }, yaxis: { title: { text: "°" } },
+    legend: { orientation: "h", y: 1.15, x: 1, xanchor: "right" }, paper_bgcolor: "rgba(0,0,0,0)", plot_bgcolor: "#fff" };
+  await Plotly.newPlot(el, data, layout, { displaylogo: false, responsive: true });
+}
+
+/** Compare this session's analysis with another session of the patient (the other one as "a" when it is earlier). */
+function compareSection(session, analysis) {
+  const select = h("select", { id: "compare-with", name: "compare" }, h("option", { value: "" }, t("compare.choose")));
+  const out = h("div", { id: "compare-out" });
+  (async () => {
+    try {
+      const sessions = await api("GET", `/patients/${session.patient_id}/sessions`);
+      sessions.filter((s) => s.id !== session.id && s.status === "done").forEach((s) =>
+        select.append(h("option", { value: String(s.id), "data-date": s.date },
+          t("compare.option", { id: s.id, date: date(s.date) }))));
+    } catch (err) {
+      out.append(alertBox(errorText(err)));
+    }
+  })();
+  select.addEventListener("change", async () => {
+    clear(out);
+    if (!select.value) return;
+    const other = Number(select.value);
+    const otherDate = select.selectedOptions[0].dataset.date;
+    const earlier = otherDate < session.date || (otherDate === session.date && other < session.id);
+    const [a, b] = earlier ? [other, session.id] : [session.id, other];
+    const query = earlier ? { a, b, b_analysis: analysis.id } : { a, b, a_analysis: analysis.id };
+    try {
+      out.append(compareTable(await api("GET", `/patients/${session.patient_id}/compare`, { query })));
+    } catch (err) {
+      out.append(alertBox(errorText(err)));
+    }
+  });
+  return h("section", { class: "card compare", "aria-labelledby": "h-compare" },
+    h("h2", { id: "h-compare" }, t("compare.title")), h("p", { class: "hint" }, t("compare.hint")),
+    h("label", { for: "compare-with" }, t("compare.with")), select, out);
+}
+
+function compareLabel(key) {
+  const [group, name, stat] = key.split(".");
+  if (group === "rom_deg") return `${label("angle", name)} · ${t(`results.rom_${stat}`)}`;
+  if (group === "phases") return `${label("phase", name)} (${t("results.cycle_share")})`;
+  if (group === "symmetry") return `${t("knees.lsi")} · ${t(`knees.param.${name}`)}`;
+  return t(`compare.gait.${key.split(".")[2]}`);
+}
+
+function compareTable(c) {
+  const side = (x) => `#${x.session_id} · ${date(x.date)} · ${label("filter", x.filter)} · ${x.pipeline_version}`;
+  const unit = (u) => (u === "deg" ? "°" : ` ${t(`knees.unit.${u}`)}`);
+  const cell = (x, u) => (typeof x === "number" ? `${num(x, u === "s" ? 2 : 1)}${unit(u)}` : "—");
+  const change = (x, u) => (typeof x === "number" ? `${x > 0 ? "+" : ""}${num(x, u === "s" ? 2 : 1)}${unit(u)}` : "—");
+  const notice = c.comparable ? [] : [h("div", { class: "notice warning", id: "compare-mismatch", role: "status" },
+    t("compare.mismatch", { what: c.mismatch.map((m) => t(`compare.what.${m}`)).join(", ") }))];
+  return h("div", {}, ...notice,
+    h("table", { class: "data", id: "compare-table" },
+      h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("knees.parameter")),
+        h("th", { scope: "col", class: "num" }, side(c.a)), h("th", { scope: "col", class: "num" }, side(c.b)),
+        h("th", { scope: "col", class: "num" }, t("compare.change")))),
+      h("tbody", {}, c.rows.map((row) => h("tr", {}, h("th", { scope: "row" }, compareLabel(row.key)),
+        h("td", { class: "num" }, cell(row.a, row.unit)), h("td", { class: "num" }, cell(row.b, row.unit)),
+        h("td", { class: "num" }, change(row.change, row.unit)))))));
 }
 
 function romTable(r) {

@@ -352,6 +352,8 @@ function processStep(ctx) {
   const headingSelect = h("select", { name: "heading" });
   // the side override (as `chakamo process --side`): empty = the patient's side, checked against the files'
   const sideSelect = h("select", { name: "side" });
+  // the involved knee of a session of both knees (as `chakamo process --involved`): empty = the patient's side
+  const involvedSelect = h("select", { name: "involved" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
     t("wizard.process"));
@@ -360,6 +362,7 @@ function processStep(ctx) {
     field(t("wizard.report_language"), language, t("wizard.report_language_hint"))[0],
     field(t("wizard.heading"), headingSelect, t("wizard.heading_hint"))[0],
     field(t("wizard.side"), sideSelect, t("wizard.side_hint"))[0],
+    field(t("wizard.involved"), involvedSelect, t("wizard.involved_hint"))[0],
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, processButton));
   if (!ingestion.ok) {
@@ -374,6 +377,10 @@ function processStep(ctx) {
     fillSelect(sideSelect, "side", opts.sides);
     sideSelect.prepend(h("option", { value: "", selected: true }, t("wizard.side_patient")));
     sideSelect.value = "";
+    fillSelect(involvedSelect, "side", opts.sides);
+    involvedSelect.prepend(h("option", { value: "", selected: true },
+      t("wizard.involved_patient", { side: label("side", ctx.patient.side) })));
+    involvedSelect.value = "";
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {
@@ -382,7 +389,7 @@ function processStep(ctx) {
     processButton.disabled = true;
     try {
       const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value,
-        side: sideSelect.value || null } });
+        side: sideSelect.value || null, involved: involvedSelect.value || null } });
       showProgress(ctx, answer.job_id);
     } catch (err) {
       message.append(alertBox(errorText(err)));
@@ -400,6 +407,10 @@ function processStep(ctx) {
 function stageText(stage) {
   if (!stage) return "";
   const words = String(stage).trim().split(/\s+/);
+  // a session of both knees: "left orientation thigh" → "Left · Orientation of the thigh sensor"
+  if (words.length > 1 && (words[0] === "left" || words[0] === "right")) {
+    return `${label("side", words[0])} · ${stageText(words.slice(1).join(" "))}`;
+  }
   for (const key of [`stage.${words.join("_")}`, `stage.${words[0]}`]) {
     const text = t(key);
     if (text !== key) return text;

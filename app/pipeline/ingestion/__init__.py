@@ -8,6 +8,10 @@ Public API
     Discover the files of one session folder (or use its ``session.json``), recognise each
     recording's segment (thigh/shank) and role (``mag_calibration``, ``standing``, ``lying``, ``task``),
     read and check them, and align them (:mod:`.align`).
+``load_knees(path, *, expected_fs_hz=100.0, roles=ROLES) -> {side: Session}``
+    Every knee of a folder: one for a two-sensor session, ``"left"`` and ``"right"`` for four sensors whose
+    recordings name their side (file name or ``session.json`` ``recordings[i].side``) or for a session paired
+    with another folder (``session.json`` ``paired_session``); ``load_session`` refuses a two-knee folder.
 ``Session.recording(segment, role) -> AlignedRecording``
     acc, gyr, mag ``(N, 3)`` on one grid ``t_s`` (from 0) at ``fs_hz``; ``source`` (files, format, how
     segment and role were recognised), ``flags`` (measured rates, trimmed seconds, NaN rows, notes).
@@ -53,8 +57,9 @@ Formats (recognised by name and content; every reader converts to SI once, in :m
   ``Session.splits``.
 * Any CSV (MetaBase, generic, Shimmer; Xsens with ``;``): ``;`` between fields with decimal commas (Excel in
   es/pt) is read; a cut last line and rows repeated exactly are dropped; each repair is a :class:`Note`.
-* ``session.json`` (:mod:`.session`): files → segment and role (``sensor`` for an APDM file), MAC → segment,
-  patient_id, side, step height, ``mag_field_ut`` (the local field for a normalised magnetometer).
+* ``session.json`` (:mod:`.session`): files → segment and role (``sensor`` for an APDM file) and side (both knees),
+  MAC → segment, patient_id, side, step height, ``mag_field_ut`` (the local field for a normalised magnetometer),
+  ``paired_session`` (the other knee's folder).
 
 A **normalised magnetometer** (Xsens, the generic ``normalised`` unit) has no µT scale.  It stays as the file
 gives it (norm ≈ 1): ``Stream.mag_unit == "normalised"`` and ``Stream.field_ut`` (declared strength or ``None``);
@@ -90,7 +95,7 @@ from app.pipeline.ingestion.opal import read_opal, write_opal
 from app.pipeline.ingestion.phyphox import read_phyphox, write_phyphox
 from app.pipeline.ingestion.provenance import (Finding, RecordingFacts, check_all, check_dates, check_patient,
                                                check_sensors, check_side, recording_facts, session_facts)
-from app.pipeline.ingestion.session import MANIFEST, load_session, read_recording
+from app.pipeline.ingestion.session import MANIFEST, load_knees, load_session, read_recording
 from app.pipeline.ingestion.sensorlogger import read_sensorlogger, write_sensorlogger
 from app.pipeline.ingestion.shimmer import read_shimmer, write_shimmer
 from app.pipeline.ingestion.writers import session_label, simulated_streams, write_session_metabase
@@ -102,7 +107,7 @@ __all__ = [
     "session_facts", "write_opal", "write_shimmer", "write_xsens", "read_sensorlogger", "write_sensorlogger",
     "KINDS", "MANIFEST", "ROLES", "SEGMENTS", "AlignedRecording", "IngestionError", "Note", "RawRecording",
     "Recognition",
-    "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_session", "read_generic_csv",
+    "Session", "SessionMetadata", "Stream", "align_pair", "align_recording", "load_knees", "load_session", "read_generic_csv",
     "read_metabase_csv", "read_recording", "read_thesis_xlsx", "session_label", "simulated_streams",
     "write_generic_csv",
     "write_metabase_csv", "write_recording_metabase", "write_session_metabase", "write_thesis_xlsx",

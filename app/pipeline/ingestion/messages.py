@@ -573,6 +573,34 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "la pierna (los ángulos de rodilla comparan ambos). {hint}",
         "pt": "{file}: só foi encontrado o sensor da {segment}; uma sessão precisa do sensor da coxa e do da "
               "perna (os ângulos do joelho comparam os dois). {hint}"},
+    "session.two_knees": {
+        "en": "{file}: the recordings are of both knees (four sensors); process the folder as a two-knee session "
+              "(chakamo process, or the web application's processing).",
+        "es": "{file}: las grabaciones son de ambas rodillas (cuatro sensores); procese la carpeta como sesión de "
+              "dos rodillas (chakamo process, o el procesamiento de la aplicación web).",
+        "pt": "{file}: as gravações são dos dois joelhos (quatro sensores); processe a pasta como sessão de dois "
+              "joelhos (chakamo process, ou o processamento da aplicação web)."},
+    "session.side_unknown": {
+        "en": "{file}: the session has recordings of both knees, but {files} does not say which side it is; add "
+              "right or left to its name, or \"side\" to its entry in session.json.",
+        "es": "{file}: la sesión tiene grabaciones de ambas rodillas, pero {files} no dice de qué lado es; añada "
+              "derecha o izquierda a su nombre, o \"side\" a su entrada en session.json.",
+        "pt": "{file}: a sessão tem gravações dos dois joelhos, mas {files} não diz de que lado é; acrescente "
+              "direita ou esquerda ao nome, ou \"side\" à sua entrada no session.json."},
+    "manifest.paired_not_found": {
+        "en": "{file}: paired_session = '{value}' is not a session folder; give the path of the other knee's "
+              "folder, relative to this one (e.g. ../left-knee).",
+        "es": "{file}: paired_session = '{value}' no es una carpeta de sesión; dé la ruta de la carpeta de la otra "
+              "rodilla, relativa a esta (p. ej. ../rodilla-izquierda).",
+        "pt": "{file}: paired_session = '{value}' não é uma pasta de sessão; dê o caminho da pasta do outro "
+              "joelho, relativo a esta (p. ex. ../joelho-esquerdo)."},
+    "manifest.paired_same_side": {
+        "en": "{file}: this session's side is {side} and the paired session {other}'s is {other_side}; a pair "
+              "needs one right and one left knee, each named (\"side\" in each session.json).",
+        "es": "{file}: el lado de esta sesión es {side} y el de la sesión emparejada {other} es {other_side}; un "
+              "par necesita una rodilla derecha y una izquierda, cada una nombrada (\"side\" en cada session.json).",
+        "pt": "{file}: o lado desta sessão é {side} e o da sessão pareada {other} é {other_side}; um par precisa "
+              "de um joelho direito e um esquerdo, cada um nomeado (\"side\" em cada session.json)."},
     "session.no_sensor": {
         "en": "{file}: no sensor found; a session needs both the thigh and the shank sensor (knee angles compare "
               "the two). {hint}",

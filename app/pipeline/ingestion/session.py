@@ -10,6 +10,7 @@ sensor's segment may also come from the manifest's ``sensors`` map (MAC → segm
     {
       "patient_id": "ML1", "side": "right", "step_height_m": 0.17, "date": "2023-03-13",
       "sensors": {"EB942CED9472": "thigh", "C3A1B2D4E5F6": "shank"},
+      "paired_session": "../left-knee",
       "recordings": [
         {"files": ["step-muslo-ML1-13032023-1.xlsx"], "segment": "thigh", "role": "task", "sheet": "Hoja1"},
         {"files": ["a_MetaWear_..._Accelerometer_100.000Hz_1.5.1.csv", "..._Gyroscope_...", "..._Magnetometer_..."],
@@ -20,8 +21,9 @@ sensor's segment may also come from the manifest's ``sensors`` map (MAC → segm
 A recording of the whole protocol per sensor (role ``continuous``, or no role and one recording per sensor) is
 split into figure-eight, standing, supine and task (:mod:`.split`); ``Session.splits`` says where.
 
-``recordings`` (when present) lists exactly the files to use; ``segment`` / ``role`` accept the same words as
-the file names in any of the three languages, and fall back to the names when absent.  The manifest wins
+``recordings`` (when present) lists exactly the files to use; ``segment`` / ``role`` (and ``side``, for a folder of
+both knees: :func:`load_knees`) accept the same words as the file names in any of the three languages, and fall
+back to the names when absent.  The manifest wins
 over names; every :class:`Recognition` says which one decided.
 
 Swapped segments (thigh sensor labelled shank) cannot be seen from the files; the pipeline checks it on
@@ -57,11 +59,11 @@ from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
 MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
 _MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut", "split",
-                  "name", "professional", "weight_kg", "height_m", "observations"}
-_ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor"}
+                  "paired_session", "name", "professional", "weight_kg", "height_m", "observations"}
+_ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor", "side"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
-                   "mag_field_ut": (int, float), "split": dict,
+                   "mag_field_ut": (int, float), "split": dict, "paired_session": str,
                    "sensors": dict, "recordings": list, "name": str, "professional": str,
                    "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
@@ -232,7 +234,7 @@ def _read_manifest(path: Path) -> dict[str, Any]:
     listed: dict[Path, int] = {}
     for i, e in enumerate(data.get("recordings", [])):
         if not isinstance(e, dict) or not isinstance(e.get("files"), list) or not e["files"] or set(e) - _ENTRY_KEYS \
-                or not all(isinstance(e.get(k, ""), str) for k in ("segment", "role")) \
+                or not all(isinstance(e.get(k, ""), str) for k in ("segment", "role", "side")) \
                 or not isinstance(e.get("sheet", ""), (str, type(None))) or not isinstance(e.get("sensor", ""), str):
             raise IngestionError("manifest.bad_entry", file=path, index=i)
         for f in e["files"]:
@@ -345,7 +347,7 @@ def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str
 
 def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
                  roles: Sequence[str] = ROLES, required: Sequence[str] | None = None) -> Session:
-    """Read and align one session folder (or its ``session.json``); see the package docstring.
+    """Read and align one session folder (or its ``session.json``) of one knee; see the package docstring.
 
     expected_fs_hz : accelerometer/gyroscope rate the protocol uses (refuse others beyond 3 %); ``None``
         accepts the files' own rate.   roles : the recordings read (others found are ignored).
@@ -353,14 +355,64 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
         of ``roles``).  The others of ``roles`` are optional — the pipeline then calibrates without them (issue 14
         §3: no figure-eight, no supine, the task alone), and a note says so — but one that a sensor has, the other
         sensor must have too (a forgotten file is named, not silently worked around).
+    A folder with both knees (four sensors, :func:`load_knees`) is refused here (``session.two_knees``).
     """
+    folder, mpath, manifest, entries, raws, notes, ignored = _read_folder(path)
+    if _knee_groups(mpath, manifest, entries, raws) is not None:
+        raise IngestionError("session.two_knees", file=folder)
+    return _assemble(folder, mpath, manifest, list(zip(range(len(entries)), entries, raws)), notes, ignored,
+                     expected_fs_hz, roles, required)
+
+
+def load_knees(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
+               roles: Sequence[str] = ROLES, required: Sequence[str] | None = None) -> dict[str, Session]:
+    """Every knee of a session folder: ``{side: Session}`` (one entry for a one-knee folder, keyed by its side or
+    ``""`` when nothing names it; two, ``"left"`` and ``"right"``, for both knees).
+
+    Both knees in one folder: four sensors (both thighs, both shanks) whose recordings each name their side, in
+    the file name (right/derecha/direita, left/izquierda/esquerda, :mod:`.labels`) or in ``session.json``
+    (``recordings[i].side``).  Each side must have both segments; each knee is then read as its own session
+    (:func:`load_session`'s rules per side; its ``metadata.side`` is that side, so adduction and rotation take the
+    side's sign).  The manifest's ``side`` then names the involved knee (the patient's side), not the recordings'.
+    Two one-knee sessions paired: ``session.json`` ``"paired_session": "../other-folder"`` (a folder beside this
+    one, of the other knee; its own ``paired_session`` is not followed).
+    """
+    folder, mpath, manifest, entries, raws, notes, ignored = _read_folder(path)
+    groups = _knee_groups(mpath, manifest, entries, raws)
+    if groups is None:
+        one = _assemble(folder, mpath, manifest, list(zip(range(len(entries)), entries, raws)), notes, ignored,
+                        expected_fs_hz, roles, required)
+        knees = {one.metadata.value("side") or "": one}
+        paired = manifest.get("paired_session")
+        if paired is None:
+            return knees
+        other_folder = (folder / paired).resolve()
+        if not other_folder.is_dir() or other_folder == folder.resolve():
+            raise IngestionError("manifest.paired_not_found", file=mpath, value=str(paired)[:120])
+        other = load_session(other_folder, expected_fs_hz=expected_fs_hz, roles=roles, required=required)
+        sides = (one.metadata.value("side"), other.metadata.value("side"))
+        if None in sides or sides[0] == sides[1]:
+            raise IngestionError("manifest.paired_same_side", file=mpath, other=other_folder.name,
+                                 side=str(sides[0]), other_side=str(sides[1]))
+        return {sides[0]: one, sides[1]: other}
+    out = {}
+    for side in sorted(groups):
+        picked = groups[side]
+        side_manifest = {**manifest, "side": side}
+        out[side] = _assemble(folder, mpath, side_manifest, picked, list(notes), ignored, expected_fs_hz, roles,
+                              required)
+    return out
+
+
+def _read_folder(path: str | os.PathLike):
+    """The folder, its manifest (path and content), the entries to read, each entry's recording as read (on one
+    session clock), and the notes and hints of the ``.csv`` files left out."""
     path = Path(path)
     folder = path.parent if path.is_file() else path
     if not folder.is_dir():
         raise IngestionError("session.no_folder", file=path)
     mpath = folder / MANIFEST if (folder / MANIFEST).is_file() else None
     manifest = _read_manifest(mpath) if mpath else {}
-    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     entries = manifest.get("recordings")
     left_out: list[str] = []
     if entries is None:  # discovered files are already paths inside folder: keep only their names
@@ -378,13 +430,54 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
         raise IngestionError("session.no_recordings", file=folder, count=len(names),
                              found=", ".join(names[:8]) + (", ..." if len(names) > 8 else "") if names else "-",
                              hint=ignored)
+    raws = [read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored, settle=False,
+                           sensor=e.get("sensor")) for e in entries]
+    return folder, mpath, manifest, entries, _settle_session_clock(raws), notes, ignored
+
+
+def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dict], raws: list[RawRecording]
+                 ) -> dict[str, list[tuple[int, dict, RawRecording]]] | None:
+    """The recordings of each knee, ``{side: [(index, entry, recording)]}``, when the folder holds both knees (both
+    sides named, each with a thigh and a shank recording); None for a one-knee folder (files that disagree on the
+    side there stay the provenance check's to refuse).  With both sides named, a recording naming none is refused
+    (``session.side_unknown``): it cannot be given to either knee."""
+    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
+    sides: list[str | None] = []
+    segs: dict[str, set[str]] = {}
+    for i, (e, rec) in enumerate(zip(entries, raws)):
+        side = rec.extras.get("side")
+        if "side" in e:
+            side = recognise_side(str(e["side"]), "session.json")
+            if side is None:
+                raise IngestionError("manifest.bad_side", file=mpath, value=str(e["side"])[:60])
+        segment = rec.segment
+        if rec.sensor_id and rec.sensor_id in sensors:
+            segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
+        if "segment" in e:
+            segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
+        sides.append(None if side is None else side.value)
+        if side is not None and segment is not None:
+            segs.setdefault(side.value, set()).add(segment.value)
+    unnamed = [rec.files[0].name for rec, side in zip(raws, sides) if side is None]
+    if len(segs) < 2 or (not unnamed and not all(set(SEGMENTS) <= v for v in segs.values())):
+        return None  # one knee (its files naming two sides are the provenance check's to refuse)
+    if unnamed:  # both sides named, and recordings that name none: they belong to no knee
+        raise IngestionError("session.side_unknown", file=unnamed[0], files=", ".join(unnamed))
+    out: dict[str, list[tuple[int, dict, RawRecording]]] = {}
+    for i, (e, rec, side) in enumerate(zip(entries, raws, sides)):
+        out.setdefault(side, []).append((i, e, rec))
+    return out
+
+
+def _assemble(folder: Path, mpath: Path | None, manifest: dict[str, Any], picked: list[tuple[int, dict, RawRecording]],
+              notes: list[str], ignored: list[dict], expected_fs_hz: float | None, roles: Sequence[str],
+              required: Sequence[str] | None) -> Session:
+    """One knee's :class:`Session` from its recordings as read (``picked``: index in the manifest, entry, recording)."""
+    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     recs: dict[tuple[str, str], RawRecording] = {}
     continuous: dict[str, list[tuple[RawRecording, str]]] = {}
     unrecognised: list[dict] = []
-    raws = [read_recording([folder / f for f in e["files"]], sheet=e.get("sheet"), hint=ignored, settle=False,
-                           sensor=e.get("sensor")) for e in entries]
-    raws = _settle_session_clock(raws)
-    for i, (e, rec) in enumerate(zip(entries, raws)):
+    for i, e, rec in picked:
         segment, role = rec.segment, rec.role
         if rec.sensor_id and rec.sensor_id in sensors:
             segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
@@ -456,4 +549,4 @@ def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.
                    notes=tuple(dict.fromkeys(notes)), manifest_data=manifest, splits=tuple(splits))
 
 
-__all__ = ["MANIFEST", "load_session", "read_recording"]
+__all__ = ["MANIFEST", "load_knees", "load_session", "read_recording"]

@@ -27,7 +27,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
     body = body or ProcessIn()
     name = body.filter or DEFAULT_FILTER  # the schema accepts only app.choices.FILTER_NAMES
     job = enqueue(db, principal.clinic_id, session_id, filter_name=name, lang=body.lang, checker=checker,
-                  heading=body.heading, side=body.side)
+                  heading=body.heading, side=body.side, involved=body.involved)
     session = scoped_session(db, principal, session_id)  # the row enqueue loaded (no new query)
     audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id)
     db.commit()  # committed before the runner can look for it

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Query, Request, Response
 
-from app.store import erasure, patients, sessions
+from app.store import comparisons, erasure, patients, sessions
 from app.web import audit
 from app.web.api.deps import Admin, Clinician, DbDep, Reader, StoreDep, scoped_patient
 from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
-from app.web.api.schemas import (PatientIn, PatientOut, PatientPatch, SessionIn, SessionOut, SessionSummaryOut,
-                                 TrendOut, patient_out, session_out, summaries)
+from app.web.api.schemas import (CompareOut, PatientIn, PatientOut, PatientPatch, SessionIn, SessionOut,
+                                 SessionSummaryOut, TrendOut, patient_out, session_out, summaries)
 
 router = APIRouter(prefix="/patients", tags=["patients"])
 
@@ -102,9 +102,25 @@ def create_session(patient_id: int, body: SessionIn, principal: Clinician, db: D
 
 
 @router.get("/{patient_id}/trend", response_model=TrendOut)
-def patient_trend(patient_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request):
-    """ROM per session, oldest first, from each session's latest finished analysis."""
+def patient_trend(patient_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                  filter: str | None = Query(None, max_length=40),
+                  pipeline_version: str | None = Query(None, max_length=40)):
+    """ROM per session, oldest first, from analyses of one filter and pipeline version (by default the series that
+    covers the most sessions); each point names its analysis, ``left_out`` the sessions without one."""
     scoped_patient(db, principal, patient_id)
-    points = patients.rom_trend(db, store, patient_id)
+    trend = patients.rom_trend(db, store, patient_id, filter, pipeline_version)
     audit.record(db, request, principal, "view", patient_id=patient_id)
-    return {"points": points}
+    return trend
+
+
+@router.get("/{patient_id}/compare", response_model=CompareOut)
+def compare_sessions(patient_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+                     a: int = Query(..., description="the earlier session (e.g. before treatment)"),
+                     b: int = Query(..., description="the later session"),
+                     a_analysis: int | None = None, b_analysis: int | None = None):
+    """Two sessions of the patient side by side: each one's analysis and every number both hold, with the change
+    ``b − a``; ``comparable`` is false when the analyses differ in filter, pipeline version or task."""
+    scoped_patient(db, principal, patient_id)
+    out = comparisons.compare_sessions(db, store, principal.clinic_id, patient_id, a, b, a_analysis, b_analysis)
+    audit.record(db, request, principal, "view", patient_id=patient_id)
+    return out

@@ -97,6 +97,9 @@ class ProcessIn(_In):
     #: the side analysed over the one the files say (as ``chakamo process --side``): a recording of the other leg
     #: is then processed, with a warning, instead of refused; None: the patient's side, checked against the files
     side: Side | None = None
+    #: the involved knee of a two-knee session (as ``chakamo process --involved``): the numerator of the limb
+    #: symmetry index in results.json ``symmetry``; None: the patient's side
+    involved: Side | None = None
 
 
 class OptionOut(BaseModel):
@@ -189,6 +192,8 @@ class JobOut(BaseModel):
     lang: str
     #: the side chosen over the files' (the process request's ``side``), or null
     side: str | None = None
+    #: the involved knee chosen for a two-knee session (the process request's ``involved``), or null
+    involved: str | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -241,13 +246,64 @@ class JobCreatedOut(BaseModel):
 class TrendPoint(BaseModel):
     session_id: int
     date: dt.date
+    #: the analysis the point comes from
     analysis_id: int
     filter: str
+    pipeline_version: str
     rom_deg: dict[str, Any]
 
 
+class TrendSeries(BaseModel):
+    """One filter and pipeline version among the patient's analyses, and how many sessions it covers."""
+    filter: str
+    pipeline_version: str
+    sessions: int
+
+
+class TrendLeftOut(BaseModel):
+    """A session with analyses, none of the trend's series: which ones it has."""
+    session_id: int
+    date: dt.date
+    analyses: list[dict[str, Any]]
+
+
 class TrendOut(BaseModel):
+    """``GET /patients/{id}/trend``: the points of one series (filter and pipeline version) only."""
+    filter: str | None
+    pipeline_version: str | None
     points: list[TrendPoint]
+    left_out: list[TrendLeftOut]
+    series: list[TrendSeries]
+
+
+class CompareSide(BaseModel):
+    session_id: int
+    date: dt.date
+    task: str | None
+    side: str | None
+    involved_side: str | None = None
+    analysis_id: int
+    filter: str
+    pipeline_version: str
+    accepted_cycles: int
+
+
+class CompareRow(BaseModel):
+    """One number of both sessions: ``key`` its path in results.json, ``change`` = b − a."""
+    key: str
+    unit: str
+    a: float | None
+    b: float | None
+    change: float | None
+
+
+class CompareOut(BaseModel):
+    """``GET /patients/{id}/compare?a=&b=``: two sessions side by side (:mod:`app.store.comparisons`)."""
+    a: CompareSide
+    b: CompareSide
+    comparable: bool
+    mismatch: list[str]
+    rows: list[CompareRow]
 
 
 class AuditEventOut(BaseModel):
@@ -288,7 +344,8 @@ def recording_out(r: Recording) -> dict[str, Any]:
 
 def job_out(j: Job) -> dict[str, Any]:
     out = {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "error_code",
-                                      "error_params", "log", "analysis_id", "filter", "lang", "side", "created_at",
+                                      "error_params", "log", "analysis_id", "filter", "lang", "side", "involved",
+                                      "created_at",
                                       "started_at", "finished_at")}
     if j.error_code:
         from app.pipeline.messages import message_dict

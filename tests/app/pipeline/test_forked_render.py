@@ -10,7 +10,7 @@ import pytest
 import numpy as np
 
 from app.pipeline.demo import simulate_session, write_session
-from app.pipeline.ingestion import load_session
+from app.pipeline.ingestion import load_knees
 from app.pipeline.process import REPORT_FILES, process_folder
 from app.pipeline.render import FORK_GROUPS, ForkedRenderers, render_named
 from app.pipeline.results import build_results, report_input, timeseries_npz, timeseries_npz_of
@@ -88,11 +88,13 @@ def test_a_failing_artefact_fails_here_as_it_would_without_helpers(report):
 
 
 def test_the_helper_reads_the_session_as_this_process_does(session_dir):
-    here = load_session(session_dir, expected_fs_hz=100.0)
+    (side, here), = load_knees(session_dir, expected_fs_hz=100.0).items()  # one knee: {side: Session}
     with ForkedRenderers(read=(session_dir, 100.0)) as renderer:
         assert renderer.reading
-        there = renderer.session()
+        knees = renderer.session()
         assert not renderer.reading
+    assert list(knees) == [side]
+    there = knees[side]
     assert there.recordings.keys() == here.recordings.keys()
     pairs = [(there.recordings[k], r) for k, r in here.recordings.items()] + list(zip(there.task, here.task))
     for a, b in pairs:

@@ -53,11 +53,12 @@ def test_a_job_whose_artefact_equals_content_being_erased_keeps_its_file(env, mo
     and erased after B's job rendered but before it committed; B's artefact must still be readable."""
     import hashlib
     import os
+    import types
 
     import app.jobs.work as work
     import app.pipeline.ingestion as ingestion
+    import app.pipeline.knees as knees
     import app.pipeline.results as results
-    import app.pipeline.session as pipeline
     import app.store.workspace as workspace
     from app.store.erasure import erase_pending
     from app.store.models import Artefact, Job
@@ -73,10 +74,10 @@ def test_a_job_whose_artefact_equals_content_being_erased_keeps_its_file(env, mo
         job_id = job.id
     # the pipeline is not what is tested: it renders one artefact, equal to A's recording
     monkeypatch.setattr(workspace, "materialise", lambda *a, **k: contextlib.nullcontext(env["store"].root))
-    monkeypatch.setattr(ingestion, "load_session", lambda folder: None)
-    monkeypatch.setattr(pipeline, "process_session", lambda loaded, options, progress: None)
-    monkeypatch.setattr(results, "build_results", lambda outcome: {"cycles": {"accepted": 3},
-                                                                    "quality": {"warnings": []}})
+    monkeypatch.setattr(ingestion, "load_knees", lambda folder: None)
+    monkeypatch.setattr(knees, "process_knees", lambda loaded, options, progress: types.SimpleNamespace(primary=None))
+    monkeypatch.setattr(results, "build_knees_results", lambda outcome: {"cycles": {"accepted": 3},
+                                                                          "quality": {"warnings": []}})
     monkeypatch.setattr(work, "_public_results", lambda res, sid: res)
     monkeypatch.setattr(work, "render_all", lambda *a, **k: {("quaternions.xlsx", None): DATA})
     owned = work._owned
