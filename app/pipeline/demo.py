@@ -65,8 +65,8 @@ def simulate_session(*, seed: int, side: str, n_cycles: int, accelerometer_error
     ``accelerometer_errors=False`` keeps the accelerometer ideal but for its noise: the conditions of the
     issue's accuracy goal (noise, gyroscope bias, hard/soft iron, mounting, clock drift).  With them, a
     0.1–0.3 m/s² accelerometer bias tilts each sensor's vertical by up to ~1.7°, which the 63° magnetic
-    dip turns into ~3° of heading and so of knee rotation: the figure-eight never holds still, so the
-    protocol gives no way to measure that bias (it would need still pauses in varied orientations).
+    dip turns into ~3° of heading and so of knee rotation; the pipeline measures that bias on the still poses
+    of the figure-eight's rests and the two postures (:mod:`estimators.accelerometer`) and removes it.
     ``supine_roll_out_deg`` lets the leg lie rolled outwards (toes out) in the supine recording.
     ``shank_task_field_turn_rad_s`` turns the magnetic field at the shank sensor about the vertical at that
     rate during the task only (a slowly drifting local disturbance, :func:`estimators.simulation.simulate`'s

@@ -75,6 +75,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         "curves": {name: _deg(c) for name, c in task["curves_rad"].items()},
         "calibration": {
             "magnetometer": {seg: cal.to_dict() for seg, cal in outcome.mag.items()},
+            # the accelerometer bias (and gain) from the still poses, applied before everything else
+            "accelerometer": None if outcome.acc is None else {seg: c.to_dict() for seg, c in outcome.acc.items()},
             "segment": {
                 seg: {
                     "q_sensor_segment": cal.q_sensor_segment,
@@ -178,6 +180,7 @@ def _protocol_facts(outcome: SessionOutcome) -> dict[str, Any]:
     methods = {cal.method for cal in outcome.segments.values()}
     return {"segment": methods.pop() if len(methods) == 1 else sorted(methods),
             "magnetometer": sorted({m.model for m in outcome.mag.values()}),
+            "accelerometer": None if outcome.acc is None else sorted({c.model for c in outcome.acc.values()}),
             "recordings": sorted({role for _, role in outcome.session.recordings})}
 
 

@@ -4,7 +4,11 @@ Stages (each reported to ``progress(stage, fraction)``):
 
 1. **read** — :func:`app.pipeline.ingestion.load_session`: files → streams in SI units on one grid per recording,
    the two task recordings on one common grid;
-2. **magnetometer** — per sensor, ellipsoid fit on its figure-eight (:func:`estimators.magnetometer.fit_ellipsoid`),
+2. **accelerometer** — per sensor, the bias (and, with enough still poses, the per-axis gain) from the still poses
+   of its figure-eight, standing and supine recordings (:mod:`estimators.accelerometer`), applied once to every
+   recording of that sensor before anything takes a vertical from it; without three independent gravity
+   directions (no figure-eight) nothing is corrected and ``accelerometer_not_calibrated`` says so;
+   **magnetometer** — per sensor, ellipsoid fit on its figure-eight (:func:`estimators.magnetometer.fit_ellipsoid`),
    applied to all its recordings;
 3. **segments** — per sensor, ``q_sensor_segment`` from standing and supine (:func:`estimators.knee.calibrate_segment`),
    and the gyroscope bias measured while those postures are still, subtracted from every later recording
@@ -42,6 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimators import __version__, knee
+from estimators.accelerometer import AccCalibration, fit_still_poses, still_poses
 from estimators import quaternion as quat
 from estimators.diagnosis import diagnose
 from estimators.disturbance import FieldCheck, field_disturbance
@@ -191,6 +196,7 @@ class SessionOutcome:
         the user changed.
     heading_task : the heading check over the task's straight-knee holds (None when there was none).
     heading_choice : which thigh–shank heading the knee angles use and why (``--heading``), with its figures.
+    acc : ``{segment: AccCalibration}`` applied to every recording of that sensor (``model == "none"``: nothing).
     """
 
     session: Session
@@ -213,6 +219,7 @@ class SessionOutcome:
     filter_params: Any
     heading_task: TaskHeading | None = None
     heading_choice: HeadingChoice | None = None
+    acc: dict[str, AccCalibration] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,9 +256,12 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     warnings += _provenance(session, side, overridden=options.side is not None)
     filt = make(options.filter_name, **dict(options.filter_params))
 
+    roles = {role for _, role in session.recordings}
+    progress("accelerometer", 0.1)
+    session, acc_cal = _calibrate_accelerometers(session, roles)
+    warnings += [w for seg in SEGMENTS if (w := _accelerometer_warning(seg, acc_cal[seg])) is not None]
     thigh, shank = session.task_pair()
     task = {"thigh": thigh, "shank": shank}
-    roles = {role for _, role in session.recordings}
 
     progress("magnetometer", 0.15)
     mag: dict[str, MagCalibration] = {}
@@ -337,7 +347,42 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         t_s=thigh.t_s, fs_hz=thigh.fs_hz, t0_s=thigh.t0_s, angles_rad=angles, q_earth_sensor=q_es,
         q_earth_segment=q_seg, q_femur_tibia=q_ft, mag=mag, segments=segments, field=field, heading=heading,
         analysis=analysis, warnings=tuple(warnings), filter_params=filt.params, heading_task=heading_task,
-        heading_choice=choice)
+        heading_choice=choice, acc=acc_cal)
+
+
+#: the recordings whose still poses calibrate a sensor's accelerometer (the task's are left out: its rests repeat
+#: the postures' directions and a subject's start posture may sway)
+ACC_CALIBRATION_ROLES = ("mag_calibration", "standing", "lying")
+
+
+def _calibrate_accelerometers(session: Session, roles: set[str]) -> tuple[Session, dict[str, AccCalibration]]:
+    """Per sensor, :func:`estimators.accelerometer.fit_still_poses` on the still poses of its calibration recordings,
+    applied to all its recordings (the task pair too): the session returned carries the corrected ``acc``."""
+    from dataclasses import replace
+
+    cal: dict[str, AccCalibration] = {}
+    for seg in SEGMENTS:
+        poses = [still_poses(r.acc, r.gyr, fs_hz=r.fs_hz) for role in ACC_CALIBRATION_ROLES if role in roles
+                 for r in (session.recording(seg, role),)]
+        cal[seg] = fit_still_poses(poses)
+    if all(c.model == "none" for c in cal.values()):
+        return session, cal
+    recordings = {(seg, role): replace(r, acc=cal[seg].apply(r.acc)) for (seg, role), r in session.recordings.items()}
+    task = tuple(replace(r, acc=cal[seg].apply(r.acc)) for seg, r in zip(SEGMENTS, session.task, strict=True))
+    return replace(session, recordings=recordings, task=task), cal
+
+
+def _accelerometer_warning(seg: str, cal: AccCalibration) -> QualityWarning | None:
+    """``accelerometer_not_calibrated`` when the sensor's accelerometer bias could not be measured (its ``note``)."""
+    if cal.model != "none":
+        return None
+    why = {"few_poses": "its recordings hold still poses in fewer than three independent directions (record the "
+                        "figure-eight with the sensor at rest before and after it)",
+           "implausible_bias": "the bias the still poses give is implausibly large",
+           "poses_not_still": "its still poses disagree (one of them was not at rest)"}[cal.note]
+    return QualityWarning("accelerometer_not_calibrated", f"{seg.capitalize()} sensor: the accelerometer bias was "
+                          f"not corrected: {why}; a bias tilts the angles by up to ~1°",
+                          {"segment": seg, "variant": cal.note, "poses": len(cal.poses_m_s2)})
 
 
 def _heading_choice(mode: str, task_name: str, filt, task: dict, gyr_task: dict[str, FloatArray],

@@ -39,7 +39,7 @@ Single-leg **step-up** (DESIGN.md §3; seed 004 §8.1, Fig. 8.2, Tables 8.1/8.3)
 * **extension** = peak flexion → leaving full extension (``far_left``: the knee reached ~0° and held it);
 * **fall** = leaving full extension → back at rest in the start posture (``rest_reached``);
 * **cycle** = onset → back at rest (``cycles_s``); the three phases sum to it.  A rest in the start posture
-  between the end of a fall and the next impulse that lasts at least ``min_pause_s`` (0.1 s) and is
+  between the end of a fall and the next impulse that lasts at least ``min_pause_s`` (0.03 s) and is
   distinguishable from noise (D5c) is a *pause*: it ends the cycle before it and belongs to no cycle; so
   does the rest before the first and after the last cycle.
 * Where this departs from the thesis: the thesis (``ciclos_tarea_motora``) cut the recording at the
@@ -79,8 +79,8 @@ D5b First impulse (a rest before it, no fall): :func:`.detection.fit_onset`, lea
 D5c Fall → (rest) → impulse: :func:`.detection.fit_split`, one least-squares fit from leaving the far
     plateau to the next peak of a minimum-jerk fall to :math:`L`, a rest at :math:`L` and a minimum-jerk
     impulse, linear in the three levels; the fall's end :math:`t_1` and the onset :math:`t_0 \ge t_1` by a
-    coarse-to-fine grid.  The rest is kept only if :math:`t_0-t_1 \ge` ``min_pause_s`` and the Bayesian
-    information criterion prefers it; otherwise :math:`t_1 = t_0`.  A fitted impulse smaller than
+    coarse-to-fine grid.  The rest is kept only if :math:`t_0-t_1 \ge` ``min_pause_s`` (default 0.03 s) and the
+    Bayesian information criterion prefers it; otherwise :math:`t_1 = t_0`.  A fitted impulse smaller than
     ``min_countermovement_rad`` is none.
 D6  ``boundary_model="threshold"``: instead, the instants the knee is ``boundary_threshold_rad`` away from the
     level it leaves / reaches (a clinical convention, later than D5 by construction).

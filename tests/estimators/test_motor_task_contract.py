@@ -175,6 +175,11 @@ CASES = [  # shape, step height, leg, pauses, initial rest, final rest, cycle_s,
     ("thesis", 0.34, "right", "random", 3.0, 0.5, 6.0, 4),
     ("rest_between", 0.17, "left", "random", 1.0, 1.0, None, 5),
     ("rest_between", 0.34, "right", None, 0.5, 2.0, None, 6),
+    # rests of 0.07-0.09 s, shorter than the old 0.1 s min_pause_s: merged, the next onset came a whole rest early;
+    # and 0.04 s, longer than the 1-2 sample phantom rests the BIC test lets through on continuous cycles
+    ("thesis", 0.34, "left", [0, 0, 0, 0, 0.07, 0, 0, 0.09, 0], 1.5, 1.0, 3.2, 7),
+    ("rest_between", 0.34, "left", [1.5, 1.5, 0.08, 1.5, 1.5, 0.09, 1.5, 1.5, 1.5], 0.5, 2.0, None, 8),
+    ("thesis", 0.17, "right", [0, 0.04, 0, 0, 0.04, 0, 0, 0, 0], 1.0, 1.0, 2.0, 9),
 ]
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from app.pipeline.demo import accuracy, simulate_session, write_session
@@ -35,9 +36,13 @@ def test_without_the_figure_eight_the_factory_calibration_is_used_and_said(truth
     outcome = _process(truth, tmp_path, ("standing", "lying", "task"))
     r = json.loads(json.dumps(build_results(outcome)))
     assert r["calibration"]["protocol"] == {"segment": "static", "magnetometer": ["factory"],
-                                            "recordings": ["lying", "standing", "task"]}
+                                            "accelerometer": ["none"], "recordings": ["lying", "standing", "task"]}
     notes = {w["params"].get("variant") for w in r["quality"]["warnings"] if w["code"] == "ingestion_note"}
     assert "no_mag_calibration" in notes, r["quality"]["warnings"]
+    # standing and supine alone hold gravity in one plane: the accelerometer bias is not observable, and said so
+    acc_notes = [w["params"] for w in r["quality"]["warnings"] if w["code"] == "accelerometer_not_calibrated"]
+    assert sorted(p["segment"] for p in acc_notes) == ["shank", "thigh"]
+    assert {p["variant"] for p in acc_notes} == {"few_poses"}
     # the simulated sensors carry hard and soft iron, so the raw fields disagree: the hinge heading takes over
     assert r["quality"]["heading"]["used"] == "constraint"
     acc = accuracy(outcome, truth)
@@ -77,3 +82,22 @@ def test_the_full_protocol_keeps_the_static_calibration(truth, tmp_path):
     r = build_results(outcome)
     assert r["calibration"]["protocol"]["segment"] == "static"
     assert r["calibration"]["protocol"]["magnetometer"] == ["ellipsoid"]
+    assert r["calibration"]["protocol"]["accelerometer"] == ["bias"]
+
+
+def test_the_accelerometer_bias_is_measured_on_the_protocols_still_poses(tmp_path):
+    """The figure-eight's rests, standing and supine hold gravity in three directions: the bias the simulator put
+    into each accelerometer is measured (up to the scale error it folds in) and removed before anything else."""
+    from estimators import simulation as sim
+
+    seed = 25
+    truth = simulate_session(seed=seed, side="left", n_cycles=4)
+    outcome = _process(truth, tmp_path, ALL)
+    r = json.loads(json.dumps(build_results(outcome)))
+    for i, seg in enumerate(("thigh", "shank")):
+        b_true = sim.ImuSpec.random(seed * 10 + i).acc.bias_m_s2  # the demo's sensor (app.pipeline.demo)
+        cal = r["calibration"]["accelerometer"][seg]
+        assert cal["model"] == "bias" and cal["poses"] >= 3 and cal["information"] > 0.5, cal
+        err = np.linalg.norm(np.array(cal["bias_m_s2"]) - b_true)
+        assert err < 0.5 * np.linalg.norm(b_true), (seg, cal["bias_m_s2"], b_true)
+    assert not [w for w in r["quality"]["warnings"] if w["code"] == "accelerometer_not_calibrated"]
