@@ -71,14 +71,15 @@ def heading_sentence(results: dict[str, Any], lang: str) -> str | None:
 
 
 def calibration_sentence(results: dict[str, Any], lang: str) -> str | None:
-    """Which calibration the session had (``results["calibration"]["protocol"]``): the sensor-to-segment method and
-    the magnetometer's, one sentence; None for a results file without it."""
+    """Which calibration the session had (``results["calibration"]["protocol"]``): the sensor-to-segment method,
+    the magnetometer's and the accelerometer's, one sentence; None for a results file without it."""
     p = get_path(results, "calibration", "protocol")
     if not isinstance(p, dict):
         return None
     segment = p.get("segment")
     parts = [code_label("calibration.segment", s, lang) for s in ([segment] if isinstance(segment, str) else segment or [])]
     parts += [code_label("calibration.magnetometer", m, lang) for m in p.get("magnetometer") or []]
+    parts += [code_label("calibration.accelerometer", m, lang) for m in p.get("accelerometer") or []]
     return "; ".join(parts) + "." if parts else None
 
 

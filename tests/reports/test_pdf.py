@@ -406,21 +406,26 @@ def test_the_quality_section_says_which_heading_the_angles_use(lang, used):
 
 @needs_poppler
 @pytest.mark.parametrize("lang", ["es", "en", "pt"])
-@pytest.mark.parametrize("segment, mag", [("static", "ellipsoid"), ("standing_functional", "factory"),
-                                          ("task_functional", "factory")])
-def test_the_report_says_which_calibration_was_used(lang, segment, mag):
-    """results.json's ``calibration.protocol`` is printed in the PDF and the HTML, translated."""
+@pytest.mark.parametrize("segment, mag, acc", [("static", "ellipsoid", "bias"), ("standing_functional", "factory", "none"),
+                                               ("task_functional", "factory", "none"), ("static", "ellipsoid", "bias_scale")])
+def test_the_report_says_which_calibration_was_used(lang, segment, mag, acc):
+    """results.json's ``calibration.protocol`` (sensor-to-segment, magnetometer and accelerometer models) is printed in
+    the PDF and the HTML, translated."""
     import html as _html
 
     from reports.html import render_html
     from reports.labels import calibration_sentence
 
     ri = _synthetic_ri(lang)
-    ri.results["calibration"]["protocol"] = {"segment": segment, "magnetometer": [mag], "recordings": ["task"]}
+    ri.results["calibration"]["protocol"] = {"segment": segment, "magnetometer": [mag], "accelerometer": [acc],
+                                             "recordings": ["task"]}
     sentence = calibration_sentence(ri.results, lang)
     assert sentence and "calibration." not in sentence  # every code has its translation
     other = calibration_sentence({"calibration": {"protocol": {"segment": "static" if segment != "static" else
-                                                               "task_functional", "magnetometer": [mag]}}}, lang)
+                                                               "task_functional", "magnetometer": [mag],
+                                                               "accelerometer": [acc]}}}, lang)
     assert sentence != other
+    without = calibration_sentence({"calibration": {"protocol": {"segment": segment, "magnetometer": [mag]}}}, lang)
+    assert sentence != without  # the accelerometer's model is said
     assert _flat(sentence) in _flat(_text(render_pdf(ri)))
     assert sentence in _html.unescape(render_html(ri))
