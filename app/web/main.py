@@ -16,8 +16,9 @@ answers its sentence in es/en/pt.
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
-``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI from the
-``swagger-ui-bundle`` package: no CDN, clinics are often offline), ``/healthz`` (the process answers: for
+``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI 5 from the
+``fastapi-offline`` package's static folder: no CDN, clinics are often offline; Swagger UI 4 cannot read the
+OpenAPI 3.1 document FastAPI writes), ``/healthz`` (the process answers: for
 a liveness probe) and ``/readyz`` (200 only when the database answers and the job engine can take jobs —
 the broker is reachable, or the embedded workers run; else 503 naming what is down: for a load balancer).
 """
@@ -76,9 +77,14 @@ def _viser_client_dir() -> Path:
 
 
 def _swagger_dir() -> Path:
-    from swagger_ui_bundle import swagger_ui_path
+    """The folder of Swagger UI 5's built files (``swagger-ui-bundle.js``, ``swagger-ui.css``, ``favicon.png``)
+    inside the installed ``fastapi-offline`` package: only its files are used, not its code."""
+    import importlib.util
 
-    return Path(str(swagger_ui_path))
+    spec = importlib.util.find_spec("fastapi_offline")
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError("the fastapi-offline package (Swagger UI for /docs) is not installed")
+    return Path(next(iter(spec.submodule_search_locations))) / "static"
 
 
 #: uvicorn options of ``chakamo serve``: no ``server: uvicorn`` banner (issue 16, finding 10e: it names the
@@ -243,7 +249,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return get_swagger_ui_html(openapi_url=app.openapi_url, title="ChakaMo API",
                                    swagger_js_url="/docs-assets/swagger-ui-bundle.js",
                                    swagger_css_url="/docs-assets/swagger-ui.css",
-                                   swagger_favicon_url="/docs-assets/favicon-32x32.png")
+                                   swagger_favicon_url="/docs-assets/favicon.png")
 
     app.mount("/static", StaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
     app.mount("/viser", StaticFiles(directory=_viser_client_dir(), html=True), name="viser")
