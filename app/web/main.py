@@ -12,7 +12,8 @@ internals (a damaged stored file) answer a sentence with a reference id; the det
 Middleware (plain ASGI), outermost first: :class:`app.web.headers.SecurityHeaders`,
 :class:`app.web.headers.AllowedHosts` (``CHAKAMO_ALLOWED_HOSTS``), :class:`app.web.limits.BodyLimit` (no request body above
 ``CHAKAMO_MAX_BODY_KB`` but the recordings upload's); a :class:`app.web.refusals.Refusal`
-answers its sentence in es/en/pt.
+answers its sentence in es/en/pt.  Every error answer is an RFC 7807 problem (``application/problem+json``,
+:mod:`app.web.problems`), and the OpenAPI document declares each operation's error answers with its schema.
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
@@ -37,6 +38,7 @@ from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import func, select, text
 from sqlalchemy.exc import OperationalError
@@ -48,6 +50,7 @@ from app.store.database import Database
 from app.store.models import User
 from app.web.headers import AllowedHosts, SecurityHeaders
 from app.web.limits import BodyLimit
+from app.web.problems import document_errors, problem_response
 from app.web.refusals import Refusal
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
 from app.settings import Settings, get_settings
@@ -171,7 +174,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @app.exception_handler(Refusal)
     async def refusal(request: Request, exc: Refusal):
         """A refusal the user caused: its sentence in English and in es/en/pt (:mod:`app.web.refusals`)."""
-        return exc.response()
+        return exc.response(instance=request.url.path)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def http_problem(request: Request, exc: StarletteHTTPException):
+        """Any other HTTP error as an RFC 7807 problem (:mod:`app.web.problems`)."""
+        return problem_response(exc.status_code, str(exc.detail), headers=exc.headers, instance=request.url.path)
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError):
@@ -181,30 +189,38 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             where = ".".join(str(x) for x in err.get("loc", ()) if x not in ("body", "query", "path"))
             parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
         detail = "; ".join(parts) + ". Correct the request and send it again."
-        return JSONResponse({"detail": detail, "errors": jsonable_encoder(exc.errors())}, status_code=422)
+        return problem_response(422, detail, instance=request.url.path, errors=jsonable_encoder(exc.errors()))
 
     @app.exception_handler(OperationalError)
     async def database_unreachable(request: Request, exc: OperationalError):
         """503 while the database is away (a restart, a fail-over): nothing was changed; the client retries."""
         log.warning("database unreachable during %s %s: %s", request.method, request.url.path, exc.orig)
-        return JSONResponse({"detail": "The database is not reachable at the moment (nothing was changed); try "
-                                       "again in a minute."}, status_code=503, headers={"Retry-After": "30"})
+        return problem_response(503, "The database is not reachable at the moment (nothing was changed); try "
+                                     "again in a minute.", headers={"Retry-After": "30"}, instance=request.url.path)
 
     @app.exception_handler(PoolTimeout)
     async def database_busy(request: Request, exc: PoolTimeout):
         """503 when every database connection stayed busy too long (an overload): nothing was changed."""
         log.warning("no database connection free for %s %s", request.method, request.url.path)
-        return JSONResponse({"detail": "The server is too busy at the moment (nothing was changed); try again in "
-                                       "a minute."}, status_code=503, headers={"Retry-After": "10"})
+        return problem_response(503, "The server is too busy at the moment (nothing was changed); try again in "
+                                     "a minute.", headers={"Retry-After": "10"}, instance=request.url.path)
 
     @app.exception_handler(CorruptBlob)
     async def corrupt_blob(request: Request, exc: CorruptBlob):
         """500 with a sentence and a reference id; the details (which file, where) go to the server log only."""
         ref = secrets.token_hex(4)
         log.error("corrupt blob (reference %s) under %s: %s", ref, store.root, exc)
-        return JSONResponse({"detail": f"A stored file is damaged or missing (reference {ref}); give the reference "
-                                       "to your ChakaMo administrator, who can restore it from a backup."},
-                            status_code=500)
+        return problem_response(500, f"A stored file is damaged or missing (reference {ref}); give the reference "
+                                     "to your ChakaMo administrator, who can restore it from a backup.",
+                                instance=request.url.path)
+
+    def openapi() -> dict:
+        """FastAPI's document with every error answer described (:func:`app.web.problems.document_errors`)."""
+        if app.openapi_schema is None:
+            app.openapi_schema = document_errors(FastAPI.openapi(app))
+        return app.openapi_schema
+
+    app.openapi = openapi
 
     @app.get("/healthz", include_in_schema=False)
     def healthz():

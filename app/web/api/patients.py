@@ -38,7 +38,8 @@ def list_patients(principal: Reader, db: DbDep, request: Request, q: str | None 
     return [patient_out(p) for p in rows]
 
 
-@router.post("", response_model=PatientOut, status_code=201)
+@router.post("", response_model=PatientOut, status_code=201,
+             responses={409: {"description": "the external id is already a patient of the clinic"}})
 def create_patient(body: PatientIn, principal: Clinician, db: DbDep, request: Request):
     patient = patients.add_patient(db, principal.clinic_id, body.model_dump())  # 409 for a taken external id
     audit.record(db, request, principal, "create", patient_id=patient.id)

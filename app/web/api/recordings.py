@@ -59,7 +59,7 @@ from starlette.requests import ClientDisconnect
 
 from app.store import erasure, recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
-from app.store.recordings import MANIFEST, MAX_MANIFEST_KB, manifest_problem
+from app.store.recordings import MANIFEST, MAX_MANIFEST_KB, SEGMENTS, UPLOAD_ROLES, manifest_problem
 from app.store.sessions import clinic_session, refuse_while_processing
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
@@ -260,8 +260,27 @@ async def _read_body(request: Request, parser: MultipartParser, ceiling: int, se
     await run_in_threadpool(parser.finalize)
 
 
+#: the multipart body of an upload, for OpenAPI (the route parses the stream itself, so FastAPI cannot see it)
+UPLOAD_BODY = {"required": True, "content": {"multipart/form-data": {
+    "schema": {"type": "object", "required": ["files"], "properties": {
+        "files": {"type": "array", "items": {"type": "string", "format": "binary"},
+                  "description": "the recordings (.csv, .xlsx) and optionally the session's session.json; the file "
+                                 "names carry segment and role as the ingestion rules say, unless the fields below "
+                                 "name them"},
+        "segment": {"type": "string", "enum": list(SEGMENTS),
+                    "description": "the sensor's segment for every file of this request"},
+        "role": {"type": "string", "enum": list(UPLOAD_ROLES),
+                 "description": "what every file of this request records (continuous: the whole protocol in one "
+                                "recording, split when read)"}}},
+    "encoding": {"files": {"contentType": "text/csv, application/vnd.openxmlformats-officedocument."
+                                          "spreadsheetml.sheet, application/json"}}}}}
+
+
 @router.post("/{session_id}/recordings", response_model=UploadOut, status_code=201,
-             responses={409: {"description": "file name already stored, or the session is being processed"},
+             openapi_extra={"requestBody": UPLOAD_BODY},
+             responses={400: {"description": "malformed multipart body, a field other than files/segment/role, an "
+                                             "unusable file name, or no file"},
+                        409: {"description": "file name already stored, or the session is being processed"},
                         413: {"description": "too large or too many files"}, 415: {"description": "wrong type"},
                         507: {"description": "the server's disk is full: nothing was stored"},
                         503: {"description": "too many uploads at once; try again"}})
@@ -353,4 +372,4 @@ def delete_recording(session_id: int, recording_id: int, principal: Clinician, r
     return Response(status_code=204)
 
 
-__all__ = ["FORM_FIELDS", "router"]
+__all__ = ["FORM_FIELDS", "UPLOAD_BODY", "router"]
