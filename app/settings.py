@@ -85,6 +85,10 @@ class Settings(BaseSettings):
     retention_days: int = Field(0, ge=0, le=36500, validation_alias="CHAKAMO_RETENTION_DAYS")
     public_url: str | None = Field(None, validation_alias="CHAKAMO_PUBLIC_URL")
     allowed_hosts: str = Field("*", validation_alias="CHAKAMO_ALLOWED_HOSTS")
+    #: the URI of the hospital's namespace of patients' record numbers (``external_id``), e.g.
+    #: ``urn:oid:2.16.840.1.113883.2.9.4.3.2`` or ``https://hospital.example/mrn``: the FHIR identifier's system
+    #: and the system of ``GET /patients?identifier=system|value``; None: not known (identifiers carry none)
+    patient_identifier_system: str | None = Field(None, validation_alias="CHAKAMO_PATIENT_IDENTIFIER_SYSTEM")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")
@@ -101,6 +105,17 @@ class Settings(BaseSettings):
         if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]+(/[\w.\-~/]*)?", value):
             raise SettingsError(f"CHAKAMO_PUBLIC_URL={value!r} is not an http(s) address; set it to the address "
                                 "users reach this server at, e.g. https://chakamo.hospital.example")
+        return value
+
+    @field_validator("patient_identifier_system", mode="after")
+    @classmethod
+    def _identifier_system(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        value = value.strip()
+        if not re.fullmatch(r"(urn:[a-z0-9][a-z0-9-]*:\S+|https?://\S+)", value, flags=re.IGNORECASE) or "|" in value:
+            raise SettingsError(f"CHAKAMO_PATIENT_IDENTIFIER_SYSTEM={value!r} is not a URI; set it to the hospital's "
+                                "record-number namespace, e.g. urn:oid:1.2.3 or https://hospital.example/mrn")
         return value
 
     @property

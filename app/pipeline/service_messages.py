@@ -160,6 +160,19 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "No file in the request; send the recordings in the multipart field 'files'.",
         "es": "No hay ningún archivo en la petición; envíe las grabaciones en el campo multipart 'files'.",
         "pt": "Não há nenhum arquivo na requisição; envie as gravações no campo multipart 'files'."},
+    "request.cursor_invalid": {
+        "en": "The cursor is not one this server gave; send the X-Next-Cursor of the previous page, or no cursor "
+              "for the first page.",
+        "es": "El cursor no es uno que haya dado este servidor; envíe el X-Next-Cursor de la página anterior, o "
+              "ningún cursor para la primera página.",
+        "pt": "O cursor não é um que este servidor tenha dado; envie o X-Next-Cursor da página anterior, ou nenhum "
+              "cursor para a primeira página."},
+    "request.idempotency_key_reused": {
+        "en": "Idempotency-Key {key} was used for another request; send a new key for a new request.",
+        "es": "La Idempotency-Key {key} ya se usó para otra petición; envíe una clave nueva para cada petición "
+              "nueva.",
+        "pt": "A Idempotency-Key {key} já foi usada para outra requisição; envie uma chave nova para cada "
+              "requisição nova."},
 }
 
 

@@ -21,6 +21,7 @@ artefacts (the database's cascades) and returns the blobs they named, which the 
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy import delete, func, select
@@ -88,6 +89,35 @@ def patient_sessions(db: Session, patient_id: int, newest_first: bool = True) ->
     """The patient's sessions by clinical date, then creation (newest first, or oldest first)."""
     order = (KneeSession.date.desc(), KneeSession.id.desc()) if newest_first else (KneeSession.date, KneeSession.id)
     return list(db.scalars(select(KneeSession).where(KneeSession.patient_id == patient_id).order_by(*order)))
+
+
+@dataclass(frozen=True)
+class Page:
+    """One page of a list: its ``rows``, how many rows the whole filtered list has (``total``), and the key to
+    continue after (``next_after``: the last row's sort key; None on the last page)."""
+
+    rows: list
+    total: int
+    next_after: Any
+
+
+def list_patient_sessions(db: Session, patient_id: int, *, after: tuple[dt.date, int] | None = None,
+                          limit: int | None = None) -> Page:
+    """:func:`patient_sessions` (newest first) as a :class:`Page`; ``after``: continue after this
+    ``(date, id)`` (keyset pagination), ``limit``: at most this many rows (None: all)."""
+    base = select(KneeSession).where(KneeSession.patient_id == patient_id)
+    total = db.scalar(select(func.count()).select_from(base.subquery()))
+    stmt = base
+    if after is not None:
+        day, sid = after
+        stmt = stmt.where((KneeSession.date < day) | ((KneeSession.date == day) & (KneeSession.id < sid)))
+    stmt = stmt.order_by(KneeSession.date.desc(), KneeSession.id.desc())
+    if limit is not None:
+        stmt = stmt.limit(limit + 1)
+    rows = list(db.scalars(stmt))
+    more = limit is not None and len(rows) > limit
+    rows = rows[:limit] if limit is not None else rows
+    return Page(rows, int(total or 0), (rows[-1].date, rows[-1].id) if more else None)
 
 
 def add_session(db: Session, clinic_id: int, patient_id: int, values: dict[str, Any]) -> KneeSession:
@@ -228,6 +258,6 @@ def delete_sessions(db: Session, session_ids: list[int]) -> None:
     db.expire_all()
 
 
-__all__ = ["ACTIVE", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
+__all__ = ["ACTIVE", "Page", "list_patient_sessions", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
            "ingestion_fresh", "patient_sessions", "ready", "refuse_while_processing", "session_analyses",
            "session_jobs", "session_status", "stored_ingestion", "summary_facts"]
