@@ -167,12 +167,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "ningún cursor para la primera página.",
         "pt": "O cursor não é um que este servidor tenha dado; envie o X-Next-Cursor da página anterior, ou nenhum "
               "cursor para a primeira página."},
-    "request.idempotency_key_reused": {
-        "en": "Idempotency-Key {key} was used for another request; send a new key for a new request.",
-        "es": "La Idempotency-Key {key} ya se usó para otra petición; envíe una clave nueva para cada petición "
-              "nueva.",
-        "pt": "A Idempotency-Key {key} já foi usada para outra requisição; envie uma chave nova para cada "
-              "requisição nova."},
+    "request.idempotency_key_invalid": {
+        "en": "The Idempotency-Key must be 1 to {limit} printable ASCII characters (a UUID, for example).",
+        "es": "La Idempotency-Key debe tener de 1 a {limit} caracteres ASCII imprimibles (un UUID, por ejemplo).",
+        "pt": "A Idempotency-Key deve ter de 1 a {limit} caracteres ASCII imprimíveis (um UUID, por exemplo)."},
 }
 
 

@@ -81,6 +81,10 @@ class ApiToken(Base):
     token_sha256: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     revoked_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: refused from this time on (null: never; a rotated token keeps working until its grace period ends)
+    expires_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: space-separated scopes (``app.choices.TOKEN_SCOPES``) the token may use within its role; null: all of them
+    scopes: Mapped[str | None] = mapped_column(String(300), nullable=True)
     clinic: Mapped[Clinic] = relationship(lazy="joined")
 
 
@@ -304,5 +308,24 @@ class LoginAttempts(Base):
     last_s: Mapped[float] = mapped_column(Float, default=0.0)
 
 
+class IdempotencyKey(Base):
+    """A POST that created something, remembered under the caller's ``Idempotency-Key`` (``app.store.idempotency``):
+    the same key again answers the same resource instead of creating another.  Only ids are kept (``resource_ids``),
+    never the answer's body, so an erasure leaves no copy of a patient's data here."""
+
+    __tablename__ = "idempotency_keys"
+    __table_args__ = (UniqueConstraint("clinic_id", "key", name="uq_idempotency_clinic_key"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    key: Mapped[str] = mapped_column(String(200))
+    #: sha256 of the method, the path and the request's body: the same key with another request is refused
+    request_sha256: Mapped[str] = mapped_column(String(64))
+    #: what was created: ``patient``, ``session``, ``upload`` or ``job``
+    kind: Mapped[str] = mapped_column(String(20))
+    resource_ids: Mapped[list] = mapped_column(JSON, default=list)
+    status: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow, index=True)
+
+
 __all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BlobErasure",
-           "BrowserSession", "Clinic", "Job", "KneeSession", "LoginAttempts", "Patient", "Recording", "User", "utcnow"]
+           "BrowserSession", "Clinic", "IdempotencyKey", "Job", "KneeSession", "LoginAttempts", "Patient", "Recording", "User", "utcnow"]

@@ -20,9 +20,11 @@ import datetime as dt
 
 from fastapi import APIRouter, Query, Request, Response
 
-from app.store import erasure, patients, sessions
+from app.store import erasure, idempotency, patients, sessions
+from app.store.sessions import session_analyses, session_jobs
 from app.web import audit
-from app.web.api.deps import Admin, Clinician, DbDep, Reader, SettingsDep, StoreDep, scoped_patient
+from app.web.api.deps import Admin, Clinician, DbDep, Reader, SettingsDep, StoreDep, scoped_patient, scoped_session
+from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.paging import MAX_LIMIT, PAGE_HEADERS, decode_cursor, identifier_value, page_headers
 from app.web.refusals import Refusal
 from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
@@ -61,12 +63,23 @@ def list_patients(principal: Reader, db: DbDep, request: Request, response: Resp
     return [patient_out(p) for p in page.rows]
 
 
-@router.post("", response_model=PatientOut, status_code=201,
-             responses={409: {"description": "the external id is already a patient of the clinic"}})
+@router.post("", response_model=PatientOut, status_code=201, openapi_extra={"parameters": [KEY_PARAMETER]},
+             responses={201: {"headers": LOCATION},
+                        409: {"description": "the external id is already a patient of the clinic, or the "
+                                             "Idempotency-Key was used for another request"}})
 def create_patient(body: PatientIn, principal: Clinician, db: DbDep, request: Request):
+    """A new patient (``Location``: its path).  With ``Idempotency-Key`` a repeat answers the same patient."""
+    key = key_of(request)
+    claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request, body), "patient") if key else None
+    if isinstance(claimed, idempotency.Replay):
+        patient = scoped_patient(db, principal, claimed.resource_ids[0])
+        audit.record(db, request, principal, "view", patient_id=patient.id)
+        return answer(patient_out(patient), claimed.status, f"/api/v1/patients/{patient.id}", replayed=True)
     patient = patients.add_patient(db, principal.clinic_id, body.model_dump())  # 409 for a taken external id
+    if claimed is not None:
+        idempotency.complete(claimed, [patient.id], 201)
     audit.record(db, request, principal, "create", patient_id=patient.id)
-    return patient_out(patient)
+    return answer(patient_out(patient), 201, f"/api/v1/patients/{patient.id}")
 
 
 @router.get("/{patient_id}", response_model=PatientOut)
@@ -126,13 +139,26 @@ def patient_sessions(patient_id: int, principal: Reader, db: DbDep, request: Req
     return summaries(page.rows, *sessions.summary_facts(db, page.rows))
 
 
-@router.post("/{patient_id}/sessions", response_model=SessionOut, status_code=201)
+@router.post("/{patient_id}/sessions", response_model=SessionOut, status_code=201,
+             openapi_extra={"parameters": [KEY_PARAMETER]},
+             responses={201: {"headers": LOCATION},
+                        409: {"description": "the Idempotency-Key was used for another request"}})
 def create_session(patient_id: int, body: SessionIn, principal: Clinician, db: DbDep, request: Request):
-    """A new, empty session of the patient (date defaults to today, UTC)."""
+    """A new, empty session of the patient (date defaults to today, UTC; ``Location``: its path).  With
+    ``Idempotency-Key`` a repeat answers the same session."""
     patient = scoped_patient(db, principal, patient_id)
+    key = key_of(request)
+    claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request, body), "session") if key else None
+    if isinstance(claimed, idempotency.Replay):
+        session = scoped_session(db, principal, claimed.resource_ids[0])
+        audit.record(db, request, principal, "view", patient_id=session.patient_id, session_id=session.id)
+        return answer(session_out(session, session_jobs(db, session.id), session_analyses(db, session.id)),
+                      claimed.status, f"/api/v1/sessions/{session.id}", replayed=True)
     session = sessions.add_session(db, principal.clinic_id, patient.id, body.model_dump())
+    if claimed is not None:
+        idempotency.complete(claimed, [session.id], 201)
     audit.record(db, request, principal, "create", patient_id=patient.id, session_id=session.id)
-    return session_out(session, [], [])
+    return answer(session_out(session, [], []), 201, f"/api/v1/sessions/{session.id}")
 
 
 @router.get("/{patient_id}/trend", response_model=TrendOut)
