@@ -89,6 +89,8 @@ class Settings(BaseSettings):
     #: ``urn:oid:2.16.840.1.113883.2.9.4.3.2`` or ``https://hospital.example/mrn``: the FHIR identifier's system
     #: and the system of ``GET /patients?identifier=system|value``; None: not known (identifiers carry none)
     patient_identifier_system: str | None = Field(None, validation_alias="CHAKAMO_PATIENT_IDENTIFIER_SYSTEM")
+    #: the first webhook retry's wait; each next one doubles it (``app.web.webhooks``)
+    webhook_retry_s: float = Field(10.0, gt=0, le=3600, validation_alias="CHAKAMO_WEBHOOK_RETRY_S")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")

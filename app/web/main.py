@@ -6,7 +6,7 @@ Start-up (the lifespan): create the data folders, apply the Alembic migrations, 
 another server runs this database's jobs, clears a crashed run's temporary files and resumes the jobs a
 previous run left queued or running; or :class:`app.jobs.celery_engine.CeleryJobRunner`, which hands jobs to the
 Celery workers), and when the database has no user yet print how
-to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
+to create the first admin (there are no default accounts or passwords).  It also starts the webhook sender (:class:`app.web.webhooks.WebhookSender`).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
 Middleware (plain ASGI), outermost first: :class:`app.web.headers.SecurityHeaders`,
@@ -53,6 +53,7 @@ from app.web.limits import BodyLimit
 from app.web.problems import document_errors, problem_response
 from app.web.refusals import Refusal
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
+from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
 from estimators import __version__
@@ -132,6 +133,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         except Exception:
             db.dispose()
             raise
+        sender = WebhookSender(db, settings.webhook_retry_s)  # app/web/webhooks.py: signed job notifications
+        sender.start()
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)
         check_pool = None
@@ -143,6 +146,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             app.state.check_pool = None
+            sender.stop()
             if check_pool is not None:
                 check_pool.shutdown()
             if runner.shutdown(wait=True):  # a job thread still running keeps its database
