@@ -89,6 +89,16 @@ class Settings(BaseSettings):
     #: ``urn:oid:2.16.840.1.113883.2.9.4.3.2`` or ``https://hospital.example/mrn``: the FHIR identifier's system
     #: and the system of ``GET /patients?identifier=system|value``; None: not known (identifiers carry none)
     patient_identifier_system: str | None = Field(None, validation_alias="CHAKAMO_PATIENT_IDENTIFIER_SYSTEM")
+    #: the namespace of ChakaMo's own FHIR identifier systems (``<base>/sessions``, ``<base>/patients``); None:
+    #: ``CHAKAMO_PUBLIC_URL``/api/v1.  Never built from a request's Host.
+    fhir_identifier_base: str | None = Field(None, validation_alias="CHAKAMO_FHIR_IDENTIFIER_BASE")
+    #: the URI of ChakaMo's FHIR code system; None: the product's own (``app.web.fhir.CODE_SYSTEM``)
+    fhir_code_system: str | None = Field(None, validation_alias="CHAKAMO_FHIR_CODE_SYSTEM")
+    #: how a DiagnosticReport names its patient: ``contained`` (a Patient inside it) or ``identifier`` (a logical
+    #: reference by the record number in CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, for a hospital that owns the Patient)
+    fhir_patient: str = Field("contained", pattern="^(contained|identifier)$", validation_alias="CHAKAMO_FHIR_PATIENT")
+    #: the URI of the namespace of the sessions' accession numbers (the ordering system's), when known
+    accession_system: str | None = Field(None, validation_alias="CHAKAMO_ACCESSION_SYSTEM")
     #: the first webhook retry's wait; each next one doubles it (``app.web.webhooks``)
     webhook_retry_s: float = Field(10.0, gt=0, le=3600, validation_alias="CHAKAMO_WEBHOOK_RETRY_S")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
@@ -109,15 +119,17 @@ class Settings(BaseSettings):
                                 "users reach this server at, e.g. https://chakamo.hospital.example")
         return value
 
-    @field_validator("patient_identifier_system", mode="after")
+    @field_validator("patient_identifier_system", "fhir_identifier_base", "fhir_code_system", "accession_system",
+                     mode="after")
     @classmethod
     def _identifier_system(cls, value: str | None) -> str | None:
         if value is None or not value.strip():
             return None
         value = value.strip()
         if not re.fullmatch(r"(urn:[a-z0-9][a-z0-9-]*:\S+|https?://\S+)", value, flags=re.IGNORECASE) or "|" in value:
-            raise SettingsError(f"CHAKAMO_PATIENT_IDENTIFIER_SYSTEM={value!r} is not a URI; set it to the hospital's "
-                                "record-number namespace, e.g. urn:oid:1.2.3 or https://hospital.example/mrn")
+            raise SettingsError(f"{value!r} is not a URI (CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, CHAKAMO_FHIR_IDENTIFIER_BASE, "
+                                "CHAKAMO_FHIR_CODE_SYSTEM, CHAKAMO_ACCESSION_SYSTEM); give e.g. urn:oid:1.2.3 or "
+                                "https://hospital.example/mrn")
         return value
 
     @property

@@ -99,7 +99,8 @@ def correct(settings: Settings | None, kind: str, *, clinic: str, row_id: int, s
     from app.store import patients, sessions
     from app.web.audit import record_operator
 
-    values = _parse_sets(sets, patients.CORRECTABLE_FIELDS if kind == "patient" else sessions.PROCESSED_FIELDS)
+    values = _parse_sets(sets, patients.CORRECTABLE_FIELDS if kind == "patient"
+                         else sessions.PROCESSED_FIELDS + sessions.ORDER_FIELDS)
     with _session(settings) as db:
         cid = _clinic_id(db, clinic)
         if kind == "patient":

@@ -48,12 +48,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Este servidor não responde ao endereço {host}; use o endereço que o seu administrador do ChakaMo "
               "lhe deu (CHAKAMO_ALLOWED_HOSTS)."},
     "request.public_url_missing": {
-        "en": "The FHIR export needs this server's public address, which is not set; ask your ChakaMo "
-              "administrator to set CHAKAMO_PUBLIC_URL (or CHAKAMO_ALLOWED_HOSTS).",
-        "es": "La exportación FHIR necesita la dirección pública de este servidor, que no está configurada; pida "
-              "a su administrador de ChakaMo que configure CHAKAMO_PUBLIC_URL (o CHAKAMO_ALLOWED_HOSTS).",
-        "pt": "A exportação FHIR precisa do endereço público deste servidor, que não está configurado; peça ao "
-              "seu administrador do ChakaMo que configure CHAKAMO_PUBLIC_URL (ou CHAKAMO_ALLOWED_HOSTS)."},
+        "en": "The FHIR export needs the namespace of this server's identifiers, which is not set; ask your ChakaMo "
+              "administrator to set CHAKAMO_PUBLIC_URL (or CHAKAMO_FHIR_IDENTIFIER_BASE).",
+        "es": "La exportación FHIR necesita el espacio de nombres de los identificadores de este servidor, que no "
+              "está configurado; pida a su administrador de ChakaMo que configure CHAKAMO_PUBLIC_URL (o "
+              "CHAKAMO_FHIR_IDENTIFIER_BASE).",
+        "pt": "A exportação FHIR precisa do espaço de nomes dos identificadores deste servidor, que não está "
+              "configurado; peça ao administrador do ChakaMo que configure CHAKAMO_PUBLIC_URL (ou "
+              "CHAKAMO_FHIR_IDENTIFIER_BASE)."},
     "request.body_too_large": {
         "en": "The request body is larger than {limit_kb} kB; requests other than uploads of recordings take "
               "small JSON bodies — send less.",

@@ -139,6 +139,11 @@ class KneeSession(Base):
     step_height_m: Mapped[float | None] = mapped_column(Float, nullable=True)
     professional: Mapped[str | None] = mapped_column(String(200), nullable=True)
     notes: Mapped[str | None] = mapped_column(Text, nullable=True)
+    #: the order and visit the session answers, as the hospital sent them (FHIR ``basedOn``, ``encounter``,
+    #: the accession identifier): references such as ``ServiceRequest/123``, ``Encounter/456``; not in the manifest
+    service_request: Mapped[str | None] = mapped_column(String(300), nullable=True)
+    encounter: Mapped[str | None] = mapped_column(String(300), nullable=True)
+    accession: Mapped[str | None] = mapped_column(String(100), nullable=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     #: the last ingestion check over all stored files (``{"ok", "messages", "error"}``), refreshed on every change
     ingestion: Mapped[dict | None] = mapped_column(JSON, nullable=True)

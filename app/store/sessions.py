@@ -190,6 +190,8 @@ def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None
 
 #: the session's columns a correction may change; every one goes into its manifest (the processing and the reports)
 PROCESSED_FIELDS = ("date", "task", "step_height_m", "professional", "notes")
+#: the hospital's order and visit (FHIR export only): correctable without superseding anything
+ORDER_FIELDS = ("service_request", "encounter", "accession")
 
 
 def check_version(kind: str, row_id: int, version: int, expected: int | None) -> None:
@@ -204,9 +206,10 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
     """Correct the session's ``values`` (columns of :data:`PROCESSED_FIELDS`); returns ``(session, the fields
     that changed, analyses superseded)`` (module docstring).  :class:`Invalid` for another column or a null
     date or task."""
-    unknown = sorted(set(values) - set(PROCESSED_FIELDS))
+    unknown = sorted(set(values) - set(PROCESSED_FIELDS) - set(ORDER_FIELDS))
     if unknown:
-        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct {', '.join(PROCESSED_FIELDS)}.")
+        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct "
+                      f"{', '.join(PROCESSED_FIELDS + ORDER_FIELDS)}.")
     for required in ("date", "task"):
         if required in values and values[required] is None:
             raise Invalid(f"{required} cannot be empty; give a value.")
@@ -225,8 +228,9 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
             setattr(session, k, values[k])
         session.version = session.version + 1
         session.updated_at = utcnow()
-        session.files_version = session.files_version + 1  # the manifest changed: the check is redone
-        n_superseded = supersede(db, [session.id])
+        if set(changed) & set(PROCESSED_FIELDS):
+            session.files_version = session.files_version + 1  # the manifest changed: the check is redone
+            n_superseded = supersede(db, [session.id])
         db.flush()
     return session, changed, n_superseded
 
@@ -258,6 +262,6 @@ def delete_sessions(db: Session, session_ids: list[int]) -> None:
     db.expire_all()
 
 
-__all__ = ["ACTIVE", "Page", "list_patient_sessions", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
+__all__ = ["ACTIVE", "ORDER_FIELDS", "Page", "list_patient_sessions", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
            "ingestion_fresh", "patient_sessions", "ready", "refuse_while_processing", "session_analyses",
            "session_jobs", "session_status", "stored_ingestion", "summary_facts"]

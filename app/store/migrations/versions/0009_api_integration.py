@@ -1,7 +1,8 @@
 """API integration (issue 17): ``idempotency_keys`` (a POST that created something, remembered under the
 caller's ``Idempotency-Key``: the resource's ids only, never a body), and API tokens gain ``expires_at`` and
 ``scopes`` (null for the tokens made before: no expiry, every scope of their role, as until now);
-``webhook_subscriptions`` and ``webhook_deliveries`` (signed job notifications and every attempt to send them).
+``webhook_subscriptions`` and ``webhook_deliveries`` (signed job notifications and every attempt to send them); sessions gain ``service_request``,
+``encounter`` and ``accession`` (the hospital's order and visit, for the FHIR export).
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
 
 Revision ID: 0009
@@ -79,12 +80,20 @@ def upgrade() -> None:
         batch_op.create_index(batch_op.f('ix_webhook_deliveries_state'), ['state'], unique=False)
         batch_op.create_index(batch_op.f('ix_webhook_deliveries_subscription_id'), ['subscription_id'],
                               unique=False)
+    with op.batch_alter_table('sessions', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('service_request', sa.String(length=300), nullable=True))
+        batch_op.add_column(sa.Column('encounter', sa.String(length=300), nullable=True))
+        batch_op.add_column(sa.Column('accession', sa.String(length=100), nullable=True))
     with op.batch_alter_table('api_tokens', schema=None) as batch_op:
         batch_op.add_column(sa.Column('expires_at', sa.DateTime(), nullable=True))
         batch_op.add_column(sa.Column('scopes', sa.String(length=300), nullable=True))
 
 
 def downgrade() -> None:
+    with op.batch_alter_table('sessions', schema=None) as batch_op:
+        batch_op.drop_column('accession')
+        batch_op.drop_column('encounter')
+        batch_op.drop_column('service_request')
     op.drop_table('webhook_deliveries')
     op.drop_table('webhook_subscriptions')
     with op.batch_alter_table('api_tokens', schema=None) as batch_op:
