@@ -35,6 +35,7 @@ import time: :func:`get_settings` builds them on first use and caches them; test
 from __future__ import annotations
 
 import re
+from contextvars import ContextVar
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
@@ -142,7 +143,7 @@ class Settings(BaseSettings):
         if self.job_backend == "celery" and not self.broker_url.startswith(("redis://", "rediss://")):
             raise SettingsError(f"CHAKAMO_BROKER_URL={self.broker_url!r} is not a Redis URL; set it to "
                                 "redis://HOST:6379/0 (the broker the Celery workers read).")
-        if self.env == "production":
+        if self.env == "production" and _KEY_NEEDED.get():
             if not self.secret_key:
                 raise SettingsError(
                     "CHAKAMO_SECRET_KEY is not set; set it to a long random string (e.g. the output of "
@@ -179,9 +180,16 @@ class Settings(BaseSettings):
         return int(self.max_file_mb * 1024 * 1024)
 
 
-@lru_cache(maxsize=1)
-def get_settings() -> Settings:
-    """The process' settings from the environment, built once (raises :class:`SettingsError` if unsafe)."""
+#: False while settings are read for a command that uses no secret key (:func:`get_settings`)
+_KEY_NEEDED: ContextVar[bool] = ContextVar("chakamo_key_needed", default=True)
+
+
+@lru_cache(maxsize=2)
+def get_settings(require_key: bool = True) -> Settings:
+    """The process' settings from the environment, built once (raises :class:`SettingsError` if unsafe).
+    ``require_key=False`` for commands that never use ``CHAKAMO_SECRET_KEY`` (the command line's clinics, users,
+    tokens and records: the key only signs the browsers' CSRF tokens), which then run without it in production."""
+    token = _KEY_NEEDED.set(require_key)
     try:
         return Settings()
     except SettingsError:
@@ -192,6 +200,8 @@ def get_settings() -> Settings:
             msgs = [str(e.get("ctx", {}).get("error", e.get("msg"))) for e in errors()]
             raise SettingsError("; ".join(msgs)) from None
         raise
+    finally:
+        _KEY_NEEDED.reset(token)
 
 
 __all__ = ["ALLOWED_SUFFIXES", "DEV_SECRET_KEY", "Settings", "SettingsError", "get_settings"]

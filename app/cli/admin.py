@@ -55,14 +55,45 @@ if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does 
 COMMANDS = ("serve", "clinics", "users", "tokens")
 
 
+def _head_revision() -> str | None:
+    """The newest migration's revision id, read from the files of ``app/store/migrations/versions`` (the one
+    revision no other names as its ``down_revision``), without importing alembic; None when that is not one."""
+    import re
+
+    from app.store.database import MIGRATIONS_DIR
+
+    revisions, downs = set(), set()
+    for path in (MIGRATIONS_DIR / "versions").glob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        rev = re.search(r"^revision\s*=\s*['\"]([^'\"]+)['\"]", text, re.MULTILINE)
+        down = re.search(r"^down_revision\s*=\s*['\"]([^'\"]+)['\"]", text, re.MULTILINE)
+        if rev:
+            revisions.add(rev.group(1))
+        if down:
+            downs.add(down.group(1))
+    heads = revisions - downs
+    return next(iter(heads)) if len(heads) == 1 else None
+
+
 def _database(settings: Settings | None) -> Database:
+    """The settings' database, migrated.  A database already at the newest revision is not handed to alembic:
+    importing it costs a set-up command about a third of its start (``benchmarks/cli_setup.py``)."""
+    from sqlalchemy import Column, MetaData, String, Table, select
+
     from app.store.database import Database
     from app.settings import get_settings
 
-    settings = settings or get_settings()
+    settings = settings or get_settings(require_key=False)  # set-up commands never use the secret key
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     db = Database(settings.db_url)
-    db.migrate()
+    try:
+        with db.engine.connect() as conn:
+            version = Table("alembic_version", MetaData(), Column("version_num", String(32)))  # alembic's table
+            current = conn.execute(select(version.c.version_num)).scalars().all()
+    except Exception:  # noqa: BLE001 — a new database (no table yet): alembic creates everything
+        current = []
+    if current != [_head_revision()]:
+        db.migrate()
     return db
 
 
