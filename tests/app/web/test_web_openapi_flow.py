@@ -9,7 +9,8 @@ bodies.  Errors the flow provokes (no token, an unknown id, a value outside an e
 declared for their operation and answer ``application/problem+json`` matching the ``Problem`` schema.
 
 Flow: patient → session → upload (multipart: ``files``, ``segment``, ``role`` as the document names them) →
-process → job until a terminal status → results → PDF → FHIR DiagnosticReport.
+webhook subscription → process → job until a terminal status (and the webhook's delivery) → results → PDF →
+FHIR DiagnosticReport.
 """
 
 from __future__ import annotations
@@ -106,7 +107,7 @@ def test_the_whole_flow_from_the_openapi_document(client, settings, demo_dir):
     assert raw["openapi"].startswith("3.1")
     scheme = next(s for s in raw["components"]["securitySchemes"].values() if s.get("scheme") == "bearer")
     assert scheme["type"] == "http"
-    h = clinic_token(settings, "Hospital OpenAPI")  # `chakamo tokens create`, as the description says
+    h = clinic_token(settings, "Hospital OpenAPI", role="admin")  # `chakamo tokens create`, as the description says
 
     # every error answer of the API is described by the Problem schema
     for method, path, op in doc.ops:
@@ -152,6 +153,17 @@ def test_the_whole_flow_from_the_openapi_document(client, settings, demo_dir):
     doc.check(op, r)
     assert r.json()["ingestion"]["ok"] is True
 
+    # webhook: the POST whose body is the webhook schema; its events from the document's enum
+    from test_web_webhooks import Receiver
+
+    receiver = Receiver([])
+    path, op = doc.find("post", lambda p, o: (doc.body_schema(o) or {}).get("title") == "WebhookIn")
+    events = doc.enum(doc.body_schema(op), "events")
+    assert set(events) == {"job.done", "job.failed"}
+    r = client.post(path, json={"url": receiver.url, "events": events}, headers=h)
+    assert r.status_code == 201, r.text  # the token is the clinic's admin (needed to subscribe)
+    doc.check(op, r)
+
     # process: the POST answering 202; its filter from the document's enum
     path, op = doc.find("post", lambda p, o: "202" in o["responses"])
     filters = doc.enum(doc.body_schema(op), "filter")
@@ -173,6 +185,11 @@ def test_the_whole_flow_from_the_openapi_document(client, settings, demo_dir):
             break
         time.sleep(0.2)
     assert r.json()["status"] == "done", r.json()
+
+    end = time.monotonic() + 120  # the webhook announced it (checked in detail by test_web_webhooks.py)
+    while not receiver.got and time.monotonic() < end:
+        time.sleep(0.2)
+    assert receiver.got and b'"job.done"' in receiver.got[0][1]
 
     # results, PDF and FHIR: found by the media types the document declares
     path, op = doc.find("get", lambda p, o: p.endswith("/results"))
