@@ -24,9 +24,16 @@
 | ``CHAKAMO_RETENTION_DAYS`` | 0 (off) | sessions with no activity for this many days are erased with their files (``chakamo retention``, :mod:`app.store.retention`) |
 | ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
 | ``CHAKAMO_ALLOWED_HOSTS`` | ``*`` | comma-separated host names a request's ``Host`` may name (``*.example.org`` for subdomains); others answer 400 (``/healthz``, ``/readyz`` excepted); ``*`` any |
+| ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` | none | URI of the hospital's record-number namespace: the FHIR MR identifier's system and ``GET /patients?identifier=system|value`` |
+| ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``) |
+| ``CHAKAMO_FHIR_CODE_SYSTEM`` | ChakaMo's ``urn:uuid:`` code system | URI of the code system of the exported codes |
+| ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it |
+| ``CHAKAMO_ACCESSION_SYSTEM`` | none | URI of the namespace of the sessions' accession numbers |
+| ``CHAKAMO_WEBHOOK_RETRY_S`` | 10 | first webhook retry's wait, doubling each time (:mod:`app.web.webhooks`) |
 
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
-missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
+missing or short secret key is then a clear start-up error of the server (the command line's set-up commands
+use no key and do not ask for one: :func:`get_settings` ``require_key=False``; ``development`` uses a fixed, publicly known
 key and drops the cookie's ``Secure`` flag so plain-http localhost works).  Settings are never created at
 import time: :func:`get_settings` builds them on first use and caches them; tests pass their own
 :class:`Settings` to :func:`app.web.main.create_app`.
