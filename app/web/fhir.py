@@ -18,7 +18,9 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
 - **Codes.**  Category: HL7 v2 table 0074 ``PT`` "Physical Therapy" (report) and observation-category
   ``exam`` (observations: range of motion is a physical-examination finding).  LOINC has no term for
   an instrumented 3D knee angle during a motor task (its range-of-motion terms, e.g. 92851-5, are CMS
-  assessment items, not angles; checked again for issue 17: none found), so report, observation, component and
+  assessment items, not angles; its older per-joint passive/active ROM terms of class H&P.PX, 41xxx, are
+  deprecated — seen for the shoulder's — and no LOINC copy is at hand here to check a knee one: no code is
+  emitted unchecked), so report, observation, component and
   method codes come from ChakaMo's own code system, :data:`CODE_SYSTEM` (a UUID URN: unique without owning a
   domain) or ``CHAKAMO_FHIR_CODE_SYSTEM``; the codes are part of the interface: never change one.
 - **Body site and laterality** (SNOMED CT): 49076000 |Knee joint structure| refined by the attribute
