@@ -11,7 +11,7 @@ Each request is ``POST <url>`` with the JSON body ``{"id": <delivery id>, "event
 
 A 2xx answer delivers it; anything else (another status, a timeout, a refused connection) is retried after
 ``CHAKAMO_WEBHOOK_RETRY_S · 2^(n−1)`` seconds (at most an hour apart, 8 attempts).  :class:`WebhookSender` runs
-in a daemon thread of every server (started and stopped with the app), every :attr:`WebhookSender.EVERY_S`
+in a daemon thread of every server (started and stopped with the app, on a database engine of its own), every :attr:`WebhookSender.EVERY_S`
 seconds: plan the new deliveries, then send the due ones.  Several servers share the work through the
 database (:func:`app.store.webhooks.claim_due`).  Redirects are not followed (a receiver's address is what the
 admin registered).
@@ -80,9 +80,12 @@ class WebhookSender:
         self._thread.start()
 
     def stop(self) -> None:
+        """Stop the thread after its current round, then close its database engine."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=TIMEOUT_S + 5)
+            if not self._thread.is_alive():
+                self.db.dispose()
 
     def run_once(self) -> int:
         """Plan, then send what is due; how many attempts were made."""
