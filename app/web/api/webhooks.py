@@ -26,11 +26,12 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, Field
 
-from app.store import webhooks
+from app.store import idempotency, webhooks
 from app.store.errors import Invalid
 from app.store.models import utcnow
 from app.web import audit
 from app.web.api.deps import Admin, DbDep, Reader
+from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 
 router = APIRouter(tags=["webhooks"])
 #: how long one event stream stays open (the browser reconnects)
@@ -72,10 +73,17 @@ def _out(row, secret: str | None = None) -> dict:
             "created_at": row.created_at, "secret": secret}
 
 
-@router.post("/webhooks", response_model=WebhookOut, status_code=201,
-             responses={400: {"description": "the URL is not http(s), or not https outside development"}})
-def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Request, response: Response):
-    """Subscribe ``url`` to the events; the answer's ``secret`` is shown only now."""
+@router.post("/webhooks", response_model=WebhookOut, status_code=201, openapi_extra={"parameters": [KEY_PARAMETER]},
+             responses={201: {"headers": LOCATION},
+                        400: {"description": "the URL is not http(s), or not https outside development"}})
+def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Request):
+    """Subscribe ``url`` to the events; the answer's ``secret`` is shown only now (and to a repeat of this
+    request with its ``Idempotency-Key``)."""
+    key = key_of(request)
+    claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request, body), "webhook") if key else None
+    if isinstance(claimed, idempotency.Replay):
+        row = webhooks.clinic_subscription(db, principal.clinic_id, claimed.resource_ids[0])
+        return answer(_out(row, row.secret), claimed.status, f"/api/v1/webhooks/{row.id}", replayed=True)
     url = body.url.strip()
     development = request.app.state.settings.development
     if not _URL.fullmatch(url) or (not development and not url.lower().startswith("https://")):
@@ -83,9 +91,10 @@ def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Reques
     secret = secrets.token_urlsafe(32)
     row = webhooks.add_subscription(db, principal.clinic_id, url=url, events=body.events, secret=secret,
                                     label=body.label)
+    if claimed is not None:
+        idempotency.complete(claimed, [row.id], 201)
     audit.record(db, request, principal, "create", detail=f"webhook {row.id} to {url[:200]}")
-    response.headers["Location"] = f"/api/v1/webhooks/{row.id}"
-    return _out(row, secret)
+    return answer(_out(row, secret), 201, f"/api/v1/webhooks/{row.id}")
 
 
 @router.get("/webhooks", response_model=list[WebhookOut])

@@ -89,6 +89,14 @@ def test_a_finished_job_is_pushed_signed_and_retried_and_streamed(live, demo_dir
     secret = hook["secret"]
     assert secret and r.headers["location"] == f"/api/v1/webhooks/{hook['id']}"
     assert api.get("/webhooks").json()[0]["secret"] is None  # shown once
+    again = api.post("/webhooks", json={"url": receiver.url, "events": ["job.done", "job.failed"], "label": "RIS"},
+                     headers={"Idempotency-Key": "hook-1"})
+    repeat = api.post("/webhooks", json={"url": receiver.url, "events": ["job.done", "job.failed"], "label": "RIS"},
+                      headers={"Idempotency-Key": "hook-1"})
+    assert again.status_code == repeat.status_code == 201 and repeat.json() == again.json()
+    assert repeat.headers["idempotent-replayed"] == "true"
+    assert api.delete(f"/webhooks/{again.json()['id']}").status_code == 204
+    assert len(api.get("/webhooks").json()) == 1
     assert api.post("/webhooks", json={"url": "ftp://x"}).status_code == 400
 
     pid = api.post("/patients", json={"external_id": "WH-1", "side": "right"}).json()["id"]
