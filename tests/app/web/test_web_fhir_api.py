@@ -77,3 +77,32 @@ def test_configured_export_search_and_metadata(fhir_client, demo_dir):
     R4Capability(cap, strict=True)
     R4BCapability.model_validate(cap)
     assert cap["fhirVersion"] == "4.0.1" and cap["implementation"]["url"] == f"{IDS}/fhir"
+
+
+def test_identifier_namespace_is_never_the_requests_host_in_production(tmp_path):
+    """Issue 17: with CHAKAMO_ALLOWED_HOSTS set (the Host checked) but no public URL, the export took the
+    namespace from the request's Host; now it answers 503 until one is configured."""
+    from fastapi import FastAPI, Request
+    from fastapi.testclient import TestClient
+
+    from app.settings import Settings
+    from app.web.api.fhir import fhir_base_url
+    from app.web.refusals import Refusal
+
+    probe = FastAPI()
+
+    @probe.get("/base")
+    def base(request: Request):
+        try:
+            return {"base": fhir_base_url(request)}
+        except Refusal as exc:
+            return {"refused": exc.status_code}
+
+    common = {"CHAKAMO_ENV": "production", "CHAKAMO_DATA_DIR": tmp_path, "CHAKAMO_SECRET_KEY": "k" * 40,
+              "CHAKAMO_ALLOWED_HOSTS": "chakamo.hospital.test"}
+    probe.state.settings = Settings(**common)
+    with TestClient(probe, base_url="http://chakamo.hospital.test") as c:
+        assert c.get("/base").json() == {"refused": 503}
+    probe.state.settings = Settings(**common, CHAKAMO_FHIR_IDENTIFIER_BASE=IDS)
+    with TestClient(probe, base_url="http://chakamo.hospital.test") as c:
+        assert c.get("/base").json() == {"base": IDS}
