@@ -7,6 +7,7 @@ model packages (``fhirclient`` R4 and ``fhir.resources`` R4B) here again, indepe
 from __future__ import annotations
 
 import pytest
+from fastapi import Request  # at module level: the probe route's annotation is resolved from these globals
 from web_helpers import clinic_token, demo_files, make_settings, wait_job
 
 MRN = "urn:oid:2.16.724.4.9.10.2"
@@ -82,7 +83,7 @@ def test_configured_export_search_and_metadata(fhir_client, demo_dir):
 def test_identifier_namespace_is_never_the_requests_host_in_production(tmp_path):
     """Issue 17: with CHAKAMO_ALLOWED_HOSTS set (the Host checked) but no public URL, the export took the
     namespace from the request's Host; now it answers 503 until one is configured."""
-    from fastapi import FastAPI, Request
+    from fastapi import FastAPI
     from fastapi.testclient import TestClient
 
     from app.settings import Settings
