@@ -68,6 +68,12 @@ SIDES = _choices((("right", "Right"), ("left", "Left")), "right")
 USER_ROLES = _choices((("admin", "Administrator"), ("clinician", "Clinician"), ("read_only", "Read only")),
                       "clinician")
 
+#: what an API token may touch within its role (``chakamo tokens create --scope``; none given: everything its role
+#: allows): a resource and ``read`` (GET) or ``write`` (POST, PATCH, DELETE); ``results`` covers the downloads
+TOKEN_SCOPE_RESOURCES: tuple[str, ...] = ("patients", "sessions", "recordings", "jobs", "results", "fhir", "audit",
+                                          "users")
+TOKEN_SCOPES: tuple[str, ...] = tuple(f"{r}:{a}" for r in TOKEN_SCOPE_RESOURCES for a in ("read", "write"))
+
 #: ``chakamo markov --method`` (research: not in GET /options)
 MARKOV_METHODS: tuple[str, ...] = ("auto", "mjls", "kf", "sme", "smea")
 
@@ -109,4 +115,4 @@ def options() -> dict[str, list[dict[str, Any]]]:
 __all__ = ["ANGLE_CONVENTIONS", "ANGLE_CONVENTION_NAMES", "CALIBRATIONS", "CALIBRATION_NAMES", "Choice",
            "DEFAULT_ANGLE_CONVENTION", "DEFAULT_CALIBRATION", "DEFAULT_FILTER", "DEFAULT_HEADING", "DEFAULT_LANGUAGE", "DEFAULT_TASK",
            "FILTERS", "FILTER_NAMES", "HEADINGS", "HEADING_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "MARKOV_METHODS", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
-           "TASK_NAMES", "USER_ROLES", "USER_ROLE_NAMES", "default", "names", "options"]
+           "TASK_NAMES", "TOKEN_SCOPES", "TOKEN_SCOPE_RESOURCES", "USER_ROLES", "USER_ROLE_NAMES", "default", "names", "options"]

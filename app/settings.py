@@ -24,9 +24,16 @@
 | ``CHAKAMO_RETENTION_DAYS`` | 0 (off) | sessions with no activity for this many days are erased with their files (``chakamo retention``, :mod:`app.store.retention`) |
 | ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
 | ``CHAKAMO_ALLOWED_HOSTS`` | ``*`` | comma-separated host names a request's ``Host`` may name (``*.example.org`` for subdomains); others answer 400 (``/healthz``, ``/readyz`` excepted); ``*`` any |
+| ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` | none | URI of the hospital's record-number namespace: the FHIR MR identifier's system and ``GET /patients?identifier=system|value`` |
+| ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``) |
+| ``CHAKAMO_FHIR_CODE_SYSTEM`` | ChakaMo's ``urn:uuid:`` code system | URI of the code system of the exported codes |
+| ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it |
+| ``CHAKAMO_ACCESSION_SYSTEM`` | none | URI of the namespace of the sessions' accession numbers |
+| ``CHAKAMO_WEBHOOK_RETRY_S`` | 10 | first webhook retry's wait, doubling each time (:mod:`app.web.webhooks`) |
 
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
-missing or short secret key is then a clear start-up error (``development`` uses a fixed, publicly known
+missing or short secret key is then a clear start-up error of the server (the command line's set-up commands
+use no key and do not ask for one: :func:`get_settings` ``require_key=False``; ``development`` uses a fixed, publicly known
 key and drops the cookie's ``Secure`` flag so plain-http localhost works).  Settings are never created at
 import time: :func:`get_settings` builds them on first use and caches them; tests pass their own
 :class:`Settings` to :func:`app.web.main.create_app`.
@@ -35,6 +42,7 @@ import time: :func:`get_settings` builds them on first use and caches them; test
 from __future__ import annotations
 
 import re
+from contextvars import ContextVar
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
@@ -85,6 +93,22 @@ class Settings(BaseSettings):
     retention_days: int = Field(0, ge=0, le=36500, validation_alias="CHAKAMO_RETENTION_DAYS")
     public_url: str | None = Field(None, validation_alias="CHAKAMO_PUBLIC_URL")
     allowed_hosts: str = Field("*", validation_alias="CHAKAMO_ALLOWED_HOSTS")
+    #: the URI of the hospital's namespace of patients' record numbers (``external_id``), e.g.
+    #: ``urn:oid:2.16.840.1.113883.2.9.4.3.2`` or ``https://hospital.example/mrn``: the FHIR identifier's system
+    #: and the system of ``GET /patients?identifier=system|value``; None: not known (identifiers carry none)
+    patient_identifier_system: str | None = Field(None, validation_alias="CHAKAMO_PATIENT_IDENTIFIER_SYSTEM")
+    #: the namespace of ChakaMo's own FHIR identifier systems (``<base>/sessions``, ``<base>/patients``); None:
+    #: ``CHAKAMO_PUBLIC_URL``/api/v1.  Never built from a request's Host.
+    fhir_identifier_base: str | None = Field(None, validation_alias="CHAKAMO_FHIR_IDENTIFIER_BASE")
+    #: the URI of ChakaMo's FHIR code system; None: the product's own (``app.web.fhir.CODE_SYSTEM``)
+    fhir_code_system: str | None = Field(None, validation_alias="CHAKAMO_FHIR_CODE_SYSTEM")
+    #: how a DiagnosticReport names its patient: ``contained`` (a Patient inside it) or ``identifier`` (a logical
+    #: reference by the record number in CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, for a hospital that owns the Patient)
+    fhir_patient: str = Field("contained", pattern="^(contained|identifier)$", validation_alias="CHAKAMO_FHIR_PATIENT")
+    #: the URI of the namespace of the sessions' accession numbers (the ordering system's), when known
+    accession_system: str | None = Field(None, validation_alias="CHAKAMO_ACCESSION_SYSTEM")
+    #: the first webhook retry's wait; each next one doubles it (``app.web.webhooks``)
+    webhook_retry_s: float = Field(10.0, gt=0, le=3600, validation_alias="CHAKAMO_WEBHOOK_RETRY_S")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")
@@ -103,6 +127,19 @@ class Settings(BaseSettings):
                                 "users reach this server at, e.g. https://chakamo.hospital.example")
         return value
 
+    @field_validator("patient_identifier_system", "fhir_identifier_base", "fhir_code_system", "accession_system",
+                     mode="after")
+    @classmethod
+    def _identifier_system(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        value = value.strip()
+        if not re.fullmatch(r"(urn:[a-z0-9][a-z0-9-]*:\S+|https?://\S+)", value, flags=re.IGNORECASE) or "|" in value:
+            raise SettingsError(f"{value!r} is not a URI (CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, CHAKAMO_FHIR_IDENTIFIER_BASE, "
+                                "CHAKAMO_FHIR_CODE_SYSTEM, CHAKAMO_ACCESSION_SYSTEM); give e.g. urn:oid:1.2.3 or "
+                                "https://hospital.example/mrn")
+        return value
+
     @property
     def host_patterns(self) -> tuple[str, ...]:
         """:data:`allowed_hosts` as lower-case names (``("*",)``: any)."""
@@ -113,7 +150,7 @@ class Settings(BaseSettings):
         if self.job_backend == "celery" and not self.broker_url.startswith(("redis://", "rediss://")):
             raise SettingsError(f"CHAKAMO_BROKER_URL={self.broker_url!r} is not a Redis URL; set it to "
                                 "redis://HOST:6379/0 (the broker the Celery workers read).")
-        if self.env == "production":
+        if self.env == "production" and _KEY_NEEDED.get():
             if not self.secret_key:
                 raise SettingsError(
                     "CHAKAMO_SECRET_KEY is not set; set it to a long random string (e.g. the output of "
@@ -150,9 +187,16 @@ class Settings(BaseSettings):
         return int(self.max_file_mb * 1024 * 1024)
 
 
-@lru_cache(maxsize=1)
-def get_settings() -> Settings:
-    """The process' settings from the environment, built once (raises :class:`SettingsError` if unsafe)."""
+#: False while settings are read for a command that uses no secret key (:func:`get_settings`)
+_KEY_NEEDED: ContextVar[bool] = ContextVar("chakamo_key_needed", default=True)
+
+
+@lru_cache(maxsize=2)
+def get_settings(require_key: bool = True) -> Settings:
+    """The process' settings from the environment, built once (raises :class:`SettingsError` if unsafe).
+    ``require_key=False`` for commands that never use ``CHAKAMO_SECRET_KEY`` (the command line's clinics, users,
+    tokens and records: the key only signs the browsers' CSRF tokens), which then run without it in production."""
+    token = _KEY_NEEDED.set(require_key)
     try:
         return Settings()
     except SettingsError:
@@ -163,6 +207,8 @@ def get_settings() -> Settings:
             msgs = [str(e.get("ctx", {}).get("error", e.get("msg"))) for e in errors()]
             raise SettingsError("; ".join(msgs)) from None
         raise
+    finally:
+        _KEY_NEEDED.reset(token)
 
 
 __all__ = ["ALLOWED_SUFFIXES", "DEV_SECRET_KEY", "Settings", "SettingsError", "get_settings"]

@@ -2,9 +2,10 @@
 //
 // Decisions: the browser authenticates with the HttpOnly session cookie set by POST /auth/login; every
 // state-changing request carries the X-CSRF-Token header with the token returned by login and /auth/me
-// (kept in memory only, never in storage).  Errors become ApiError with the server's `detail` sentence (or,
-// when the answer carries it, its `message` in the UI's language) so views can show it as is; a 401 also
-// calls the handler registered with onUnauthorized (back to login).
+// (kept in memory only, never in storage).  Errors are RFC 7807 problems (application/problem+json,
+// app/web/problems.py) and become ApiError with the server's `detail` sentence (or, when the answer carries it,
+// its `message` in the UI's language) so views can show it as is, and the problem's `code` and body for views
+// that tell refusals apart; a 401 also calls the handler registered with onUnauthorized (back to login).
 // Uploads use XMLHttpRequest instead of fetch, which cannot report upload progress.  Every request says the UI's
 // language (Accept-Language), so the server's refusals of logins, passwords and accounts come back in it.
 
@@ -15,10 +16,12 @@ let csrfToken = null;
 let unauthorizedHandler = null;
 
 export class ApiError extends Error {
-  constructor(status, detail) {
+  constructor(status, detail, problem = null) {
     super(detail);
     this.status = status;
     this.detail = detail;
+    this.problem = problem;                      // the problem body, when the answer was one
+    this.code = problem && problem.code ? problem.code : null;
   }
 }
 
@@ -47,15 +50,13 @@ function detailText(body, status, statusText) {
   if (typeof translated === "string" && translated) return translated;
   const detail = body && typeof body === "object" ? body.detail : null;
   if (typeof detail === "string") return detail;
-  if (Array.isArray(detail)) {   // FastAPI 422: [{loc, msg, ...}]
-    return detail.map((d) => `${(d.loc || []).filter((x) => x !== "body").join(".")}: ${d.msg}`).join("; ");
-  }
   if (typeof body === "string" && body.trim()) return body.trim().slice(0, 300);
   return `HTTP ${status} ${statusText || ""}`.trim();
 }
 
 function fail(status, body, statusText) {
-  const err = new ApiError(status, detailText(body, status, statusText));
+  const problem = body && typeof body === "object" && typeof body.status === "number" && body.title ? body : null;
+  const err = new ApiError(status, detailText(body, status, statusText), problem);
   if (status === 401 && unauthorizedHandler) unauthorizedHandler(err);
   throw err;
 }
@@ -63,7 +64,7 @@ function fail(status, body, statusText) {
 /** Call the API: `await api("POST", "/patients", {json: {...}})`; returns the parsed JSON (null for 204).
  *  `ifMatch`: the version a correction or erasure was based on (sent as `If-Match: "<version>"`). */
 export async function api(method, path, { json, query, ifMatch } = {}) {
-  const headers = { Accept: "application/json", "Accept-Language": lang() };
+  const headers = { Accept: "application/json, application/problem+json", "Accept-Language": lang() };
   if (ifMatch !== undefined && ifMatch !== null) headers["If-Match"] = `"${ifMatch}"`;
   const init = { method, headers, credentials: "same-origin" };
   if (json !== undefined) {
@@ -89,7 +90,7 @@ export function upload(path, formData, onProgress = () => {}) {
   return new Promise((resolve, reject) => {
     const xhr = new XMLHttpRequest();
     xhr.open("POST", apiUrl(path));
-    xhr.setRequestHeader("Accept", "application/json");
+    xhr.setRequestHeader("Accept", "application/json, application/problem+json");
     xhr.setRequestHeader("Accept-Language", lang());
     if (csrfToken) xhr.setRequestHeader("X-CSRF-Token", csrfToken);
     xhr.upload.addEventListener("progress", (e) => { if (e.lengthComputable) onProgress(e.loaded / e.total); });

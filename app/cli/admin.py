@@ -11,11 +11,16 @@
 ``chakamo users create --clinic NAME --email E --role admin|clinician|read_only [--name N] [--password-stdin]``
     A user; the password is asked twice without echo, or read from the first line of stdin with
     ``--password-stdin`` (for scripts).  There is never a default password.
-``chakamo tokens create --clinic NAME [--label L] [--role clinician|read_only|admin]``
+``chakamo tokens create --clinic NAME [--label L] [--role clinician|read_only|admin] [--expires-days N]
+[--scope resource:read|write ...]``
     An API token for a hospital system; printed once, alone on the last line of the output (only its
-    sha256 is stored, so it cannot be shown again).
+    sha256 is stored, so it cannot be shown again).  Optionally it expires (401 afterwards) and is limited to
+    scopes within its role (403 outside them; :mod:`app.store.tokens`).
+``chakamo tokens rotate ID [--grace-hours 24]``
+    A successor token (same clinic, label, role, scopes and lifetime), printed once on the last line; the old
+    one keeps working for the grace period, then answers 401.
 ``chakamo tokens list --clinic NAME`` / ``chakamo tokens revoke ID``
-    The clinic's API tokens (id, label, role, created, revoked; never the token), and revocation: the API
+    The clinic's API tokens (id, label, role, created, revoked, expires, scopes; never the token), and revocation: the API
     then answers 401 to it.  Revoking a revoked token changes nothing, so offboarding scripts can run twice.
 ``chakamo users deactivate --email E``
     Logins refused, and the user's browser sessions deleted, so an open browser is logged out at its next
@@ -50,14 +55,45 @@ if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does 
 COMMANDS = ("serve", "clinics", "users", "tokens")
 
 
+def _head_revision() -> str | None:
+    """The newest migration's revision id, read from the files of ``app/store/migrations/versions`` (the one
+    revision no other names as its ``down_revision``), without importing alembic; None when that is not one."""
+    import re
+
+    from app.store.database import MIGRATIONS_DIR
+
+    revisions, downs = set(), set()
+    for path in (MIGRATIONS_DIR / "versions").glob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        rev = re.search(r"^revision\s*=\s*['\"]([^'\"]+)['\"]", text, re.MULTILINE)
+        down = re.search(r"^down_revision\s*=\s*['\"]([^'\"]+)['\"]", text, re.MULTILINE)
+        if rev:
+            revisions.add(rev.group(1))
+        if down:
+            downs.add(down.group(1))
+    heads = revisions - downs
+    return next(iter(heads)) if len(heads) == 1 else None
+
+
 def _database(settings: Settings | None) -> Database:
+    """The settings' database, migrated.  A database already at the newest revision is not handed to alembic:
+    importing it costs a set-up command about a third of its start (``benchmarks/cli_setup.py``)."""
+    from sqlalchemy import Column, MetaData, String, Table, select
+
     from app.store.database import Database
     from app.settings import get_settings
 
-    settings = settings or get_settings()
+    settings = settings or get_settings(require_key=False)  # set-up commands never use the secret key
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     db = Database(settings.db_url)
-    db.migrate()
+    try:
+        with db.engine.connect() as conn:
+            version = Table("alembic_version", MetaData(), Column("version_num", String(32)))  # alembic's table
+            current = conn.execute(select(version.c.version_num)).scalars().all()
+    except Exception:  # noqa: BLE001 — a new database (no table yet): alembic creates everything
+        current = []
+    if current != [_head_revision()]:
+        db.migrate()
     return db
 
 
@@ -130,23 +166,52 @@ def create_user(settings: Settings | None, *, clinic: str, email: str, role: str
         return user.id
 
 
-def create_token(settings: Settings | None, *, clinic: str, label: str = "", role: str = "clinician") -> str:
-    """Create an API token of clinic ``clinic`` and return it (the only time it exists in clear)."""
+def create_token(settings: Settings | None, *, clinic: str, label: str = "", role: str = "clinician",
+                 expires_days: float | None = None, scopes: list[str] | None = None) -> str:
+    """Create an API token of clinic ``clinic`` and return it (the only time it exists in clear); ``expires_days``:
+    refused that many days from now (None: never); ``scopes``: :data:`app.choices.TOKEN_SCOPES` it may use
+    within its role (None: all)."""
     if role not in ROLES:
         raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
-    from app.store.models import ApiToken
+    from app.store import tokens
+    from app.store.errors import DomainError
     from app.web.audit import record_operator
     from app.web.security import new_token, sha256_hex
 
     token = new_token()
     with _session(settings) as s:
         c = _clinic(s, clinic)
-        row = ApiToken(clinic_id=c.id, label=label, role=role, token_sha256=sha256_hex(token))
-        s.add(row)
-        s.flush()
+        try:
+            row = tokens.add_token(s, c.id, token_sha256=sha256_hex(token), role=role, label=label,
+                                   expires_days=expires_days, scopes=scopes)
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
         record_operator(s, clinic_id=c.id, action="token_create", token_id=row.id,
-                        detail=f"token {row.id} role {role}" + (f" ({label})" if label else ""))
+                        detail=f"token {row.id} role {role}" + (f" ({label})" if label else "")
+                        + (f" scopes {row.scopes}" if row.scopes else "")
+                        + (f" expires {row.expires_at:%Y-%m-%d}" if row.expires_at else ""))
     return token
+
+
+def rotate_token(settings: Settings | None, token_id: int, *, grace_hours: float = 24.0) -> tuple[str, dict]:
+    """A successor of API token ``token_id`` (same clinic, label, role, scopes, lifetime) and the old one ending
+    ``grace_hours`` from now: ``(new token, {"id", "new_id", "clinic", "old_expires_at", "expires_at"})``."""
+    from app.store import tokens
+    from app.store.errors import DomainError
+    from app.web.audit import record_operator
+    from app.web.security import new_token, sha256_hex
+
+    token = new_token()
+    with _session(settings) as s:
+        try:
+            old, new = tokens.rotate_token(s, token_id, sha256_hex(token), grace_hours=grace_hours)
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
+        record_operator(s, clinic_id=old.clinic_id, action="token_create", token_id=new.id,
+                        detail=f"token {new.id} replaces token {old.id} (ends {old.expires_at:%Y-%m-%d %H:%M} UTC)")
+        info = {"id": old.id, "new_id": new.id, "clinic": old.clinic.name, "old_expires_at": old.expires_at,
+                "expires_at": new.expires_at}
+    return token, info
 
 
 def serve(host: str = "127.0.0.1", port: int = 8000, proxy_headers: bool = False,
@@ -190,6 +255,16 @@ def add_parsers(sub) -> None:
     t_create.add_argument("--clinic", required=True, metavar="NAME")
     t_create.add_argument("--label", default="", help="what the token is for, e.g. the hospital system")
     t_create.add_argument("--role", default="clinician", choices=ROLES, help="(default: clinician)")
+    t_create.add_argument("--expires-days", type=float, default=None, metavar="N",
+                          help="refused N days from now (default: never; a year is a sound choice)")
+    t_create.add_argument("--scope", action="append", default=None, metavar="SCOPE",
+                          help="what it may touch within its role, repeatable: resource:read|write, e.g. "
+                               "patients:write fhir:read (default: everything the role allows)")
+    t_rotate = tokens.add_parser("rotate", help="replace an API token: a new one (printed once), the old one ends "
+                                                "after a grace period")
+    t_rotate.add_argument("token_id", type=int, metavar="ID", help="the token's id (see `chakamo tokens list`)")
+    t_rotate.add_argument("--grace-hours", type=float, default=24.0, metavar="H",
+                          help="hours the old token keeps working (default 24; 0: ends now)")
     _add_account_parsers(users, tokens)
 
 
@@ -215,16 +290,24 @@ def run(args: argparse.Namespace) -> int:
                               name=args.name)
         print(f"user {args.email.strip().lower()} ({args.role}) created in {args.clinic!r} (id {user_id})")
     elif args.command == "tokens" and args.action == "create":
-        token = create_token(None, clinic=args.clinic, label=args.label, role=args.role)
-        print(f"API token for {args.clinic!r} ({args.role}{', ' + args.label if args.label else ''}). It is shown "
+        token = create_token(None, clinic=args.clinic, label=args.label, role=args.role,
+                             expires_days=args.expires_days, scopes=args.scope)
+        print(f"API token for {args.clinic!r} ({args.role}{', ' + args.label if args.label else ''}"
+              f"{', scopes ' + ' '.join(args.scope) if args.scope else ''}"
+              f"{f', expires in {args.expires_days:g} days' if args.expires_days else ''}). It is shown "
               "only now: store it in the hospital system; send it as 'Authorization: Bearer <token>'.")
+        print(token)
+    elif args.command == "tokens" and args.action == "rotate":
+        token, info = rotate_token(None, args.token_id, grace_hours=args.grace_hours)
+        print(f"API token {info['new_id']} of {info['clinic']!r} replaces token {info['id']}, which ends "
+              f"{_when(info['old_expires_at'])}. The new token is shown only now:")
         print(token)
     else:
         return run_account(args)
     return 0
 
 
-__all__ = ["COMMANDS", "add_parsers", "create_clinic", "create_token", "create_user", "run", "serve"]
+__all__ = ["COMMANDS", "add_parsers", "create_clinic", "create_token", "create_user", "rotate_token", "run", "serve"]
 
 
 # ------------------------------------------------------------------------------------------ offboarding
@@ -261,7 +344,7 @@ def list_tokens(settings: Settings | None, *, clinic: str) -> list[dict]:
         c = _clinic(s, clinic)
         rows = s.scalars(select(ApiToken).where(ApiToken.clinic_id == c.id).order_by(ApiToken.id))
         return [{"id": t.id, "label": t.label, "role": t.role, "created_at": t.created_at,
-                 "revoked_at": t.revoked_at} for t in rows]
+                 "revoked_at": t.revoked_at, "expires_at": t.expires_at, "scopes": t.scopes} for t in rows]
 
 
 def revoke_token(settings: Settings | None, token_id: int) -> dict:
@@ -346,10 +429,10 @@ def run_account(args: argparse.Namespace) -> int:
         if not rows:
             print(f"no API tokens in {args.clinic!r}; create one with `chakamo tokens create`")
             return 0
-        print(f"{'id':>5}  {'role':<10} {'created':<20} {'revoked':<20} label")
+        print(f"{'id':>5}  {'role':<10} {'created':<20} {'revoked':<20} {'expires':<20} {'scopes':<24} label")
         for r in rows:
             print(f"{r['id']:>5}  {r['role']:<10} {_when(r['created_at']):<20} {_when(r['revoked_at']):<20} "
-                  f"{r['label']}")
+                  f"{_when(r['expires_at']):<20} {r['scopes'] or 'all':<24} {r['label']}")
     elif args.command == "tokens" and args.action == "revoke":
         r = revoke_token(None, args.token_id)
         what = f"API token {r['id']} of {r['clinic']!r}{' (' + r['label'] + ')' if r['label'] else ''}"

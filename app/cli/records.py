@@ -99,7 +99,8 @@ def correct(settings: Settings | None, kind: str, *, clinic: str, row_id: int, s
     from app.store import patients, sessions
     from app.web.audit import record_operator
 
-    values = _parse_sets(sets, patients.CORRECTABLE_FIELDS if kind == "patient" else sessions.PROCESSED_FIELDS)
+    values = _parse_sets(sets, patients.CORRECTABLE_FIELDS if kind == "patient"
+                         else sessions.PROCESSED_FIELDS + sessions.ORDER_FIELDS)
     with _session(settings) as db:
         cid = _clinic_id(db, clinic)
         if kind == "patient":
@@ -123,7 +124,7 @@ def erase(settings: Settings | None, kind: str, *, clinic: str, row_id: int, con
     from app.settings import get_settings
     from app.web.audit import record_operator
 
-    settings = settings or get_settings()
+    settings = settings or get_settings(require_key=False)  # no secret key used here
     database = _database(settings)
     try:
         with database.session() as db:
@@ -163,7 +164,7 @@ def retention(settings: Settings | None, *, days: int | None = None, apply: bool
     from app.settings import get_settings
     from app.web.housekeeping import operator_recorder
 
-    settings = settings or get_settings()
+    settings = settings or get_settings(require_key=False)  # no secret key used here
     days = settings.retention_days if days is None else days
     if days <= 0:
         raise ValueError("the retention policy is off (CHAKAMO_RETENTION_DAYS is 0); give --days N or set "

@@ -48,12 +48,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Este servidor não responde ao endereço {host}; use o endereço que o seu administrador do ChakaMo "
               "lhe deu (CHAKAMO_ALLOWED_HOSTS)."},
     "request.public_url_missing": {
-        "en": "The FHIR export needs this server's public address, which is not set; ask your ChakaMo "
-              "administrator to set CHAKAMO_PUBLIC_URL (or CHAKAMO_ALLOWED_HOSTS).",
-        "es": "La exportación FHIR necesita la dirección pública de este servidor, que no está configurada; pida "
-              "a su administrador de ChakaMo que configure CHAKAMO_PUBLIC_URL (o CHAKAMO_ALLOWED_HOSTS).",
-        "pt": "A exportação FHIR precisa do endereço público deste servidor, que não está configurado; peça ao "
-              "seu administrador do ChakaMo que configure CHAKAMO_PUBLIC_URL (ou CHAKAMO_ALLOWED_HOSTS)."},
+        "en": "The FHIR export needs the namespace of this server's identifiers, which is not set; ask your ChakaMo "
+              "administrator to set CHAKAMO_PUBLIC_URL (or CHAKAMO_FHIR_IDENTIFIER_BASE).",
+        "es": "La exportación FHIR necesita el espacio de nombres de los identificadores de este servidor, que no "
+              "está configurado; pida a su administrador de ChakaMo que configure CHAKAMO_PUBLIC_URL (o "
+              "CHAKAMO_FHIR_IDENTIFIER_BASE).",
+        "pt": "A exportação FHIR precisa do espaço de nomes dos identificadores deste servidor, que não está "
+              "configurado; peça ao administrador do ChakaMo que configure CHAKAMO_PUBLIC_URL (ou "
+              "CHAKAMO_FHIR_IDENTIFIER_BASE)."},
     "request.body_too_large": {
         "en": "The request body is larger than {limit_kb} kB; requests other than uploads of recordings take "
               "small JSON bodies — send less.",
@@ -160,6 +162,17 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "No file in the request; send the recordings in the multipart field 'files'.",
         "es": "No hay ningún archivo en la petición; envíe las grabaciones en el campo multipart 'files'.",
         "pt": "Não há nenhum arquivo na requisição; envie as gravações no campo multipart 'files'."},
+    "request.cursor_invalid": {
+        "en": "The cursor is not one this server gave; send the X-Next-Cursor of the previous page, or no cursor "
+              "for the first page.",
+        "es": "El cursor no es uno que haya dado este servidor; envíe el X-Next-Cursor de la página anterior, o "
+              "ningún cursor para la primera página.",
+        "pt": "O cursor não é um que este servidor tenha dado; envie o X-Next-Cursor da página anterior, ou nenhum "
+              "cursor para a primeira página."},
+    "request.idempotency_key_invalid": {
+        "en": "The Idempotency-Key must be 1 to {limit} printable ASCII characters (a UUID, for example).",
+        "es": "La Idempotency-Key debe tener de 1 a {limit} caracteres ASCII imprimibles (un UUID, por ejemplo).",
+        "pt": "A Idempotency-Key deve ter de 1 a {limit} caracteres ASCII imprimíveis (um UUID, por exemplo)."},
 }
 
 

@@ -81,6 +81,10 @@ class ApiToken(Base):
     token_sha256: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     revoked_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: refused from this time on (null: never; a rotated token keeps working until its grace period ends)
+    expires_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: space-separated scopes (``app.choices.TOKEN_SCOPES``) the token may use within its role; null: all of them
+    scopes: Mapped[str | None] = mapped_column(String(300), nullable=True)
     clinic: Mapped[Clinic] = relationship(lazy="joined")
 
 
@@ -135,6 +139,11 @@ class KneeSession(Base):
     step_height_m: Mapped[float | None] = mapped_column(Float, nullable=True)
     professional: Mapped[str | None] = mapped_column(String(200), nullable=True)
     notes: Mapped[str | None] = mapped_column(Text, nullable=True)
+    #: the order and visit the session answers, as the hospital sent them (FHIR ``basedOn``, ``encounter``,
+    #: the accession identifier): references such as ``ServiceRequest/123``, ``Encounter/456``; not in the manifest
+    service_request: Mapped[str | None] = mapped_column(String(300), nullable=True)
+    encounter: Mapped[str | None] = mapped_column(String(300), nullable=True)
+    accession: Mapped[str | None] = mapped_column(String(100), nullable=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     #: the last ingestion check over all stored files (``{"ok", "messages", "error"}``), refreshed on every change
     ingestion: Mapped[dict | None] = mapped_column(JSON, nullable=True)
@@ -306,5 +315,61 @@ class LoginAttempts(Base):
     last_s: Mapped[float] = mapped_column(Float, default=0.0)
 
 
+class IdempotencyKey(Base):
+    """A POST that created something, remembered under the caller's ``Idempotency-Key`` (``app.store.idempotency``):
+    the same key again answers the same resource instead of creating another.  Only ids are kept (``resource_ids``),
+    never the answer's body, so an erasure leaves no copy of a patient's data here."""
+
+    __tablename__ = "idempotency_keys"
+    __table_args__ = (UniqueConstraint("clinic_id", "key", name="uq_idempotency_clinic_key"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    key: Mapped[str] = mapped_column(String(200))
+    #: sha256 of the method, the path and the request's body: the same key with another request is refused
+    request_sha256: Mapped[str] = mapped_column(String(64))
+    #: what was created: ``patient``, ``session``, ``upload`` or ``job``
+    kind: Mapped[str] = mapped_column(String(20))
+    resource_ids: Mapped[list] = mapped_column(JSON, default=list)
+    status: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow, index=True)
+
+
+class WebhookSubscription(Base):
+    """Where a clinic wants to hear that a job finished or failed (``app.store.webhooks``): each delivery is signed
+    with HMAC-SHA256 under ``secret`` (shown once, when the subscription is made)."""
+
+    __tablename__ = "webhook_subscriptions"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    url: Mapped[str] = mapped_column(String(2000))
+    #: space-separated event names (``job.done``, ``job.failed``)
+    events: Mapped[str] = mapped_column(String(200))
+    secret: Mapped[str] = mapped_column(String(100))
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    label: Mapped[str] = mapped_column(String(200), default="")
+
+
+class WebhookDelivery(Base):
+    """One event for one subscription, and every attempt to deliver it: the audit trail of the webhooks."""
+
+    __tablename__ = "webhook_deliveries"
+    __table_args__ = (UniqueConstraint("subscription_id", "job_id", name="uq_webhook_delivery_job"),)
+    id: Mapped[int] = mapped_column(primary_key=True)
+    subscription_id: Mapped[int] = mapped_column(ForeignKey("webhook_subscriptions.id", ondelete="CASCADE"),
+                                                 index=True)
+    clinic_id: Mapped[int] = mapped_column(Integer, index=True)
+    job_id: Mapped[int] = mapped_column(Integer)
+    event: Mapped[str] = mapped_column(String(40))
+    payload: Mapped[dict] = mapped_column(JSON)
+    #: ``pending`` (to send, at ``next_attempt_at``), ``delivered`` (a 2xx answer) or ``failed`` (attempts used up)
+    state: Mapped[str] = mapped_column(String(10), default="pending", index=True)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    next_attempt_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    last_status: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    last_error: Mapped[str] = mapped_column(String(300), default="")
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    delivered_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+
+
 __all__ = ["ROLES", "AuditEvent", "JOB_STATES", "Analysis", "ApiToken", "Artefact", "Base", "Blob", "BlobErasure",
-           "BrowserSession", "Clinic", "Job", "KneeSession", "LoginAttempts", "Patient", "Recording", "User", "utcnow"]
+           "BrowserSession", "Clinic", "IdempotencyKey", "Job", "KneeSession", "LoginAttempts", "Patient", "Recording", "User", "WebhookDelivery", "WebhookSubscription", "utcnow"]

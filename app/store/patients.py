@@ -25,7 +25,7 @@ from app.store.blobs import BlobStore
 from app.store.erasure import session_blobs
 from app.store.errors import Conflict, Invalid, NotFound
 from app.store.models import Analysis, KneeSession, Patient, utcnow
-from app.store.sessions import check_version, delete_sessions, patient_sessions, refuse_while_processing
+from app.store.sessions import Page, check_version, delete_sessions, patient_sessions, refuse_while_processing
 
 #: the patient's columns a correction may change
 CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg", "notes")
@@ -60,6 +60,18 @@ def clinic_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
 def search_patients(db: Session, clinic_id: int, q: str | None = None) -> list[Patient]:
     """The clinic's patients, newest first; ``q`` filters on external_id or name (case-insensitive
     substring, LIKE wildcards typed by the user taken literally)."""
+    return list_patients(db, clinic_id, q=q).rows
+
+
+def list_patients(db: Session, clinic_id: int, *, q: str | None = None, external_id: str | None = None,
+                  after_id: int | None = None, limit: int | None = None) -> Page:
+    """The clinic's patients, newest first (by id: ids grow with creation), as a :class:`Page`.
+
+    ``q``: case-insensitive substring of external_id or name (LIKE wildcards taken literally), for people
+    typing in a search box.  ``external_id``: exactly this record number (case and every character count: a
+    program looking a patient up must never get a near miss — "MRN-77" does not find "MRN-778899").
+    ``after_id``: continue after this id (keyset pagination: rows added or erased meanwhile neither repeat nor
+    skip a row); ``limit``: at most this many rows (None: all).  ``total`` counts the filtered list, every page."""
     stmt = select(Patient).where(Patient.clinic_id == clinic_id)
     if q and q.strip():
         text = q.strip().lower()
@@ -68,7 +80,18 @@ def search_patients(db: Session, clinic_id: int, q: str | None = None) -> list[P
         like = f"%{text}%"
         stmt = stmt.where(or_(func.lower(Patient.external_id).like(like, escape="\\"),
                               func.lower(Patient.name).like(like, escape="\\")))
-    return list(db.scalars(stmt.order_by(Patient.created_at.desc(), Patient.id.desc())))
+    if external_id is not None:
+        stmt = stmt.where(Patient.external_id == external_id)
+    total = db.scalar(select(func.count()).select_from(stmt.subquery()))
+    if after_id is not None:
+        stmt = stmt.where(Patient.id < after_id)
+    stmt = stmt.order_by(Patient.id.desc())
+    if limit is not None:
+        stmt = stmt.limit(limit + 1)
+    rows = list(db.scalars(stmt))
+    more = limit is not None and len(rows) > limit
+    rows = rows[:limit] if limit is not None else rows
+    return Page(rows, int(total or 0), rows[-1].id if more else None)
 
 
 def add_patient(db: Session, clinic_id: int, values: dict[str, Any]) -> Patient:
@@ -205,4 +228,4 @@ def rom_trend(db: Session, store: BlobStore, patient_id: int, filter_name: str |
 
 
 __all__ = ["CORRECTABLE_FIELDS", "PROCESSED_FIELDS", "RANGES", "check_values", "add_patient", "clinic_patient", "correct_patient",
-           "delete_patient", "rom_trend", "search_patients"]
+           "Page", "delete_patient", "list_patients", "rom_trend", "search_patients"]

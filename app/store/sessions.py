@@ -21,6 +21,7 @@ artefacts (the database's cascades) and returns the blobs they named, which the 
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy import delete, func, select
@@ -88,6 +89,35 @@ def patient_sessions(db: Session, patient_id: int, newest_first: bool = True) ->
     """The patient's sessions by clinical date, then creation (newest first, or oldest first)."""
     order = (KneeSession.date.desc(), KneeSession.id.desc()) if newest_first else (KneeSession.date, KneeSession.id)
     return list(db.scalars(select(KneeSession).where(KneeSession.patient_id == patient_id).order_by(*order)))
+
+
+@dataclass(frozen=True)
+class Page:
+    """One page of a list: its ``rows``, how many rows the whole filtered list has (``total``), and the key to
+    continue after (``next_after``: the last row's sort key; None on the last page)."""
+
+    rows: list
+    total: int
+    next_after: Any
+
+
+def list_patient_sessions(db: Session, patient_id: int, *, after: tuple[dt.date, int] | None = None,
+                          limit: int | None = None) -> Page:
+    """:func:`patient_sessions` (newest first) as a :class:`Page`; ``after``: continue after this
+    ``(date, id)`` (keyset pagination), ``limit``: at most this many rows (None: all)."""
+    base = select(KneeSession).where(KneeSession.patient_id == patient_id)
+    total = db.scalar(select(func.count()).select_from(base.subquery()))
+    stmt = base
+    if after is not None:
+        day, sid = after
+        stmt = stmt.where((KneeSession.date < day) | ((KneeSession.date == day) & (KneeSession.id < sid)))
+    stmt = stmt.order_by(KneeSession.date.desc(), KneeSession.id.desc())
+    if limit is not None:
+        stmt = stmt.limit(limit + 1)
+    rows = list(db.scalars(stmt))
+    more = limit is not None and len(rows) > limit
+    rows = rows[:limit] if limit is not None else rows
+    return Page(rows, int(total or 0), (rows[-1].date, rows[-1].id) if more else None)
 
 
 def add_session(db: Session, clinic_id: int, patient_id: int, values: dict[str, Any]) -> KneeSession:
@@ -160,6 +190,8 @@ def session_status(n_recordings: int, ingestion_ok: bool, latest_job: Job | None
 
 #: the session's columns a correction may change; every one goes into its manifest (the processing and the reports)
 PROCESSED_FIELDS = ("date", "task", "step_height_m", "professional", "notes")
+#: the hospital's order and visit (FHIR export only): correctable without superseding anything
+ORDER_FIELDS = ("service_request", "encounter", "accession")
 
 
 def check_version(kind: str, row_id: int, version: int, expected: int | None) -> None:
@@ -174,9 +206,10 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
     """Correct the session's ``values`` (columns of :data:`PROCESSED_FIELDS`); returns ``(session, the fields
     that changed, analyses superseded)`` (module docstring).  :class:`Invalid` for another column or a null
     date or task."""
-    unknown = sorted(set(values) - set(PROCESSED_FIELDS))
+    unknown = sorted(set(values) - set(PROCESSED_FIELDS) - set(ORDER_FIELDS))
     if unknown:
-        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct {', '.join(PROCESSED_FIELDS)}.")
+        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct "
+                      f"{', '.join(PROCESSED_FIELDS + ORDER_FIELDS)}.")
     for required in ("date", "task"):
         if required in values and values[required] is None:
             raise Invalid(f"{required} cannot be empty; give a value.")
@@ -195,8 +228,9 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
             setattr(session, k, values[k])
         session.version = session.version + 1
         session.updated_at = utcnow()
-        session.files_version = session.files_version + 1  # the manifest changed: the check is redone
-        n_superseded = supersede(db, [session.id])
+        if set(changed) & set(PROCESSED_FIELDS):
+            session.files_version = session.files_version + 1  # the manifest changed: the check is redone
+            n_superseded = supersede(db, [session.id])
         db.flush()
     return session, changed, n_superseded
 
@@ -228,6 +262,6 @@ def delete_sessions(db: Session, session_ids: list[int]) -> None:
     db.expire_all()
 
 
-__all__ = ["ACTIVE", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
+__all__ = ["ACTIVE", "ORDER_FIELDS", "Page", "list_patient_sessions", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
            "ingestion_fresh", "patient_sessions", "ready", "refuse_while_processing", "session_analyses",
            "session_jobs", "session_status", "stored_ingestion", "summary_facts"]

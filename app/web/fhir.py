@@ -6,13 +6,15 @@ returns it as is.  Pure: no database, no web framework, no clock unless ``issued
 
 Decisions (each a FHIR choice a hospital integrator will ask about):
 
-- **One resource, everything contained.**  The route answers one resource, so the ``Patient`` and the
-  three Observations (one per knee angle) are ``contained`` and referenced as ``#patient``,
-  ``#flexion``, ``#adduction``, ``#internal-rotation`` (FHIR ids may not hold ``_``).  Hospitals match
-  the patient on the contained Patient's identifiers: their own ``external_id`` (type ``MR`` of
-  HL7 v2 table 0203, system ``patient_identifier_system`` when the caller knows the hospital's MRN
-  namespace, none otherwise) and ChakaMo's id (system ``{base_url}/patients``).  The report itself
-  carries ``id`` = the session id and the identifier ``{base_url}/sessions`` | session id.
+- **One resource.**  The route answers one resource, so the three Observations (one per knee angle) are
+  ``contained`` and referenced as ``#flexion``, ``#adduction``, ``#internal-rotation`` (FHIR ids may not hold
+  ``_``).  The patient (``patient_mode``, ``CHAKAMO_FHIR_PATIENT``) is either a contained ``#patient`` carrying the
+  hospital's ``external_id`` (type ``MR`` of HL7 v2 table 0203, system ``patient_identifier_system`` when the
+  hospital's MRN namespace is configured) and ChakaMo's id (system ``{base_url}/patients``), or — for a
+  hospital that owns its Patient resources — a logical reference by that MR identifier, with nothing contained.
+  The report carries ``id`` = the session id and the identifiers ``{base_url}/sessions`` | session id and, when
+  the order gave one, its accession number (type ``ACSN``); ``basedOn`` names the order (a ServiceRequest
+  reference) and ``encounter`` the visit, both as the hospital sent them with the session.
 - **Both knees.**  A session of both knees (results.json ``knees``) adds one contained Observation per limb
   symmetry index parameter (``#lsi-swing-peak-flexion``...): the LSI in % as ``valueQuantity``, the involved and
   uninvolved knees' values as components, ``bodySite`` the involved knee; the three angle Observations stay those
@@ -20,25 +22,28 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
 - **Codes.**  Category: HL7 v2 table 0074 ``PT`` "Physical Therapy" (report) and observation-category
   ``exam`` (observations: range of motion is a physical-examination finding).  LOINC has no term for
   an instrumented 3D knee angle during a motor task (its range-of-motion terms, e.g. 92851-5, are CMS
-  assessment items, not angles), so report, observation, component and method codes come from ChakaMo's
-  own code system :data:`CODE_SYSTEM`.  Its URI sits under the reserved ``.example`` domain so that it
-  never resolves to someone else's; it is part of the interface: never change it or a code in it.
+  assessment items, not angles; its older per-joint passive/active ROM terms of class H&P.PX, 41xxx, are
+  deprecated — seen for the shoulder's — and no LOINC copy is at hand here to check a knee one: no code is
+  emitted unchecked), so report, observation, component and
+  method codes come from ChakaMo's own code system, :data:`CODE_SYSTEM` (a UUID URN: unique without owning a
+  domain) or ``CHAKAMO_FHIR_CODE_SYSTEM``; the codes are part of the interface: never change one.
 - **Body site and laterality** (SNOMED CT): 49076000 |Knee joint structure| refined by the attribute
   272741003 |Laterality| = 24028007 |Right| or 7771000 |Left| as a post-coordinated expression
   (``49076000:272741003=24028007``; FHIR allows SNOMED CT expressions in ``Coding.code``), plus the plain
   knee-joint code for receivers that cannot read expressions, and the text "Right knee joint".  The side
   is ``results["side"]``: the knee that was measured (the patient record's side may name the other).
 - **Numbers.**  Each Observation has no ``value[x]`` but components: ROM maximum, minimum and range
-  over a cycle, mean and SD (ddof = 1) over the accepted cycles, as UCUM ``deg`` quantities with the
-  numbers of ``results.json`` unrounded; a value that is ``null`` there (SD of a single cycle) gets
+  over a cycle, mean and SD (ddof = 1) over the accepted cycles, as UCUM ``deg`` quantities rounded to
+  :data:`DECIMALS` (0.1°, as the reports print them); a value that is ``null`` there (SD of a single cycle) gets
   ``dataAbsentReason`` ``not-applicable``.  The accepted and detected cycle counts (``valueInteger``),
   the orientation filter and the angle convention (``valueString``) are components too: they belong to
   the measurement, and a machine can read them.  Method: ChakaMo's ``imu-thigh-shank``.  When the task's
   reference (``results.json`` ``reference``, :mod:`estimators.motor_task.reference`) flags the flexion range, its
   range-mean component carries ``interpretation`` (HL7 v3 ObservationInterpretation L / N / H) and the band as
   ``referenceRange``.
-- **Texts.**  ``conclusion`` summarises side, task, cycles and the quality warnings (English, as the
-  warnings in ``results.json`` are); the session's notes follow.  R4 ``DiagnosticReport`` has no
+- **Texts.**  ``conclusion`` summarises side, task, cycles and the clinical quality warnings in the PDF's
+  language (``language`` says which; warnings translated by :func:`reports.warning_text.warning_text`; the
+  technical ingestion notes, :data:`TECHNICAL_WARNINGS`, are left out); the session's notes follow.  R4 ``DiagnosticReport`` has no
   ``note`` element (R5 added it).  The narrative (``text``) repeats the table in XHTML.  The PDF goes in
   ``presentedForm`` with its language, translated title, size and SHA-1 hash (base64, as R4 defines).
 - **Validation, twice.**  The dictionary is built by hand, then parsed by two maintained model
@@ -68,15 +73,45 @@ from datetime import date, datetime, timezone
 from typing import Any
 
 import pydantic
+from fhir.resources.R4B.bundle import Bundle as R4BBundle
+from fhir.resources.R4B.capabilitystatement import CapabilityStatement as R4BCapabilityStatement
 from fhir.resources.R4B.diagnosticreport import DiagnosticReport as R4BDiagnosticReport
+from fhirclient.models.bundle import Bundle as R4Bundle
+from fhirclient.models.capabilitystatement import CapabilityStatement as R4CapabilityStatement
 from fhirclient.models.diagnosticreport import DiagnosticReport as R4DiagnosticReport
 from fhirclient.models.fhirabstractbase import FHIRValidationError
 
 from app.choices import TASKS
 from reports.i18n import LANGUAGES, t
 
-#: ChakaMo's own code system (report, observation, component and method codes).  Stable: never change.
-CODE_SYSTEM = "http://chakamo.example/fhir/CodeSystem/knee-kinematics"
+#: ChakaMo's own code system (report, observation, component and method codes) unless
+#: ``CHAKAMO_FHIR_CODE_SYSTEM`` names another: a UUID URN (RFC 4122 §3), globally unique without a domain, so it
+#: can never resolve to someone else's, nor depend on the host ChakaMo runs on.  Stable: never change it or a code.
+CODE_SYSTEM = "urn:uuid:ebd20665-cf32-4709-83d2-dabc9acf8b93"
+#: decimals of the exported angles (the reports print one: sensor-based knee angles are not better than ~1°)
+DECIMALS = 1
+#: warning codes that describe the recordings' technical handling, not the patient (never in ``conclusion``)
+TECHNICAL_WARNINGS = frozenset({"ingestion_note"})
+#: how the report names its patient: a contained Patient, or a logical reference by the hospital's identifier
+PATIENT_MODES = ("contained", "identifier")
+_REFERENCE = re.compile(r"^(?:https?://\S+/)?(ServiceRequest|Encounter)/[A-Za-z0-9\-.]{1,64}$")
+#: the conclusion and narrative's fixed words, per language (the warnings come from reports.warning_text)
+_WORDS = {
+    "en": {"side": {"right": "Right knee", "left": "Left knee"}, "cycles": "{a} of {d} detected cycles accepted",
+           "filter": "orientation filter {f}", "warnings": "Quality warnings", "none": "none", "notes": "Session notes",
+           "table": "angle (degrees, mean ± SD over cycles)", "max": "maximum", "min": "minimum", "range": "range",
+           "patient": "patient"},
+    "es": {"side": {"right": "Rodilla derecha", "left": "Rodilla izquierda"},
+           "cycles": "{a} de {d} ciclos detectados aceptados", "filter": "filtro de orientación {f}",
+           "warnings": "Avisos de calidad", "none": "ninguno", "notes": "Notas de la sesión",
+           "table": "ángulo (grados, media ± DE entre ciclos)", "max": "máximo", "min": "mínimo", "range": "rango",
+           "patient": "paciente"},
+    "pt": {"side": {"right": "Joelho direito", "left": "Joelho esquerdo"},
+           "cycles": "{a} de {d} ciclos detectados aceitos", "filter": "filtro de orientação {f}",
+           "warnings": "Avisos de qualidade", "none": "nenhum", "notes": "Notas da sessão",
+           "table": "ângulo (graus, média ± DP entre ciclos)", "max": "máximo", "min": "mínimo", "range": "amplitude",
+           "patient": "paciente"},
+}
 SNOMED = "http://snomed.info/sct"
 UCUM = "http://unitsofmeasure.org"
 V2_0074 = "http://terminology.hl7.org/CodeSystem/v2-0074"
@@ -112,7 +147,9 @@ class FhirExportError(ValueError):
 
 
 def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes, lang: str, base_url: str,
-                      issued: datetime | None = None, patient_identifier_system: str | None = None) -> dict:
+                      issued: datetime | None = None, patient_identifier_system: str | None = None,
+                      code_system: str = CODE_SYSTEM, patient_mode: str = "contained",
+                      accession_system: str | None = None) -> dict:
     """The FHIR R4 ``DiagnosticReport`` of one processed knee session, as a JSON-ready dict (validated).
 
     session : ``{"id", "date", "task", "professional", "notes", "created_at"}``; ``date`` (ISO string,
@@ -121,9 +158,15 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         other, unknown, m, f (any case) or None.
     results : the session's ``results.json`` as a dict (DESIGN §4).
     pdf : the clinical report in ``lang`` (es, en or pt), put in ``presentedForm``.
-    base_url : the API root, e.g. ``"http://host/api/v1"``: namespace of the session and patient identifiers.
+    base_url : the namespace of the session and patient identifiers (an absolute URI: ``CHAKAMO_PUBLIC_URL``/api/v1
+        or ``CHAKAMO_FHIR_IDENTIFIER_BASE``; never the request's host).
     issued : when the report was released (timezone-aware; default: now, UTC, whole seconds).
     patient_identifier_system : the URI of the hospital's namespace of ``external_id`` when known.
+    code_system : the URI of ChakaMo's code system (default :data:`CODE_SYSTEM`).
+    patient_mode : ``contained`` (a Patient inside the report) or ``identifier`` (``subject`` is a logical
+        reference by the hospital's record number: needs ``patient_identifier_system``).
+    session may also hold ``service_request`` and ``encounter`` (FHIR references, ``basedOn`` and ``encounter``)
+    and ``accession`` (an identifier of type ACSN, in ``accession_system`` when given).
 
     Raises :class:`FhirExportError` (a ``ValueError``) naming the missing or malformed input.
     """
@@ -138,8 +181,18 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         raise FhirExportError(f"lang must be one of {', '.join(LANGUAGES)}, got {lang!r}")
     if not isinstance(pdf, (bytes, bytearray)) or not bytes(pdf[:5]) == b"%PDF-":
         raise FhirExportError("pdf must be the bytes of the PDF report (starting with %PDF-); render the report first")
-    if not isinstance(base_url, str) or not re.fullmatch(r"https?://\S+", base_url):
+    if not isinstance(base_url, str) or not re.fullmatch(r"(https?://|urn:)\S+", base_url):
         raise FhirExportError(f"base_url must be an absolute http(s) URL such as http://host/api/v1, got {base_url!r}")
+    if patient_mode not in PATIENT_MODES:
+        raise FhirExportError(f"patient_mode must be one of {', '.join(PATIENT_MODES)}, got {patient_mode!r}")
+    if patient_mode == "identifier" and (not patient_identifier_system or not patient["external_id"]):
+        raise FhirExportError("the patient can be referred to by identifier only with a record number and "
+                              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set")
+    for key in ("service_request", "encounter"):
+        ref = session.get(key)
+        if ref and not _REFERENCE.fullmatch(str(ref)):
+            raise FhirExportError(f"session {key} {ref!r} is not a FHIR reference such as "
+                                  f"{'ServiceRequest' if key == 'service_request' else 'Encounter'}/123")
     base_url = base_url.rstrip("/")
     r = _results(results)
     report_id = _fhir_id(session["id"], "session id")
@@ -151,26 +204,40 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
     professional = session["professional"] or None
     performer = [{"display": str(professional)}] if professional else None
 
-    observations = [_observation(angle, r, side, task, effective, issued_at, performer) for angle in ANGLES]
-    lsi = _lsi_observations(results.get("symmetry"), task, effective, issued_at, performer)
+    if patient_mode == "contained":
+        contained_patient = [_patient(patient, base_url, patient_identifier_system)]
+        subject = {"reference": "#patient"}
+    else:
+        contained_patient = []
+        subject = {"type": "Patient", "identifier": _mr_identifier(patient, patient_identifier_system)}
+    observations = [_observation(angle, r, side, task, effective, issued_at, performer, code_system, subject)
+                    for angle in ANGLES]
+    lsi = _lsi_observations(results.get("symmetry"), task, effective, issued_at, performer, code_system, subject)
+    identifiers = [{"system": f"{base_url}/sessions", "value": str(session["id"])}]
+    if session.get("accession"):
+        identifiers.append({"use": "official", "system": accession_system,
+                            "type": {"coding": [{"system": V2_0203, "code": "ACSN", "display": "Accession ID"}]},
+                            "value": str(session["accession"])})
     doc: dict[str, Any] = {
         "resourceType": "DiagnosticReport",
         "id": report_id,
-        "language": "en",
-        "text": {"status": "generated", "div": _narrative(r, side, task, effective, patient)},
-        "contained": [_patient(patient, base_url, patient_identifier_system), *observations, *lsi],
-        "identifier": [{"system": f"{base_url}/sessions", "value": str(session["id"])}],
+        "language": lang,  # the conclusion and narrative are in the PDF's language
+        "text": {"status": "generated", "div": _narrative(r, side, task, effective, patient, lang, results)},
+        "contained": [*contained_patient, *observations, *lsi],
+        "identifier": identifiers,
+        "basedOn": [{"reference": session["service_request"]}] if session.get("service_request") else None,
         "status": "final",
         "category": [{"coding": [{"system": V2_0074, "code": "PT", "display": "Physical Therapy"}]}],
-        "code": {"coding": [_local("knee-kinematics-report", "Instrumented knee kinematics report")],
+        "code": {"coding": [_local("knee-kinematics-report", "Instrumented knee kinematics report", code_system)],
                  "text": f"Knee kinematics, {task}, two magneto-inertial sensors (thigh, shank)"},
-        "subject": {"reference": "#patient"},
+        "subject": subject,
+        "encounter": {"reference": session["encounter"]} if session.get("encounter") else None,
         "effectiveDateTime": effective,
         "issued": issued_at,
         "performer": performer,
         "result": [{"reference": f"#{obs['id']}", "display": _ANGLE_TEXT[a]} for a, obs in zip(ANGLES, observations)]
         + [{"reference": f"#{obs['id']}", "display": obs["code"]["coding"][0]["display"]} for obs in lsi],
-        "conclusion": _conclusion(r, side, task, session["notes"]),
+        "conclusion": _conclusion(r, side, task, session["notes"], lang, results),
         "presentedForm": [{
             "contentType": "application/pdf",
             "language": lang,
@@ -220,7 +287,7 @@ def _results(results: Any) -> dict[str, Any]:
     warnings = need("quality.warnings")
     if not isinstance(warnings, list) or not all(isinstance(w, Mapping) and "message" in w for w in warnings):
         raise FhirExportError("results['quality']['warnings'] must be a list of {'code', 'message'} objects")
-    out["warnings"] = [(str(w.get("code", "")), str(w["message"])) for w in warnings]
+    out["warnings"] = [dict(w) for w in warnings if str(w.get("code", "")) not in TECHNICAL_WARNINGS]
     return out
 
 
@@ -263,8 +330,8 @@ def _instant(value: datetime | None) -> str:
     return value.isoformat()
 
 
-def _local(code: str, display: str) -> dict[str, str]:
-    return {"system": CODE_SYSTEM, "code": code, "display": display}
+def _local(code: str, display: str, system: str = CODE_SYSTEM) -> dict[str, str]:
+    return {"system": system, "code": code, "display": display}
 
 
 def _body_site(side: str) -> dict[str, Any]:
@@ -276,20 +343,20 @@ def _body_site(side: str) -> dict[str, Any]:
 
 
 def _observation(angle: str, r: dict, side: str, task: str, effective: str, issued: str,
-                 performer: list | None) -> dict[str, Any]:
+                 performer: list | None, system: str, subject: dict) -> dict[str, Any]:
     name = angle.replace("_", "-")
     components = []
     for stat in ROM_STATS:
         for m in ("mean", "sd"):
             what = "mean over the accepted cycles" if m == "mean" else "SD over the accepted cycles (ddof = 1)"
-            code = _local(f"{stat}-{m}", f"{_STAT_TEXT[stat]} per cycle, {what}")
+            code = _local(f"{stat}-{m}", f"{_STAT_TEXT[stat]} per cycle, {what}", system)
             comp: dict[str, Any] = {"code": {"coding": [code]}}
             value = r["rom"][(angle, stat, m)]
             if value is None:
                 comp["dataAbsentReason"] = {"coding": [{"system": DATA_ABSENT_REASON, "code": "not-applicable",
                                                         "display": "Not Applicable"}]}
             else:
-                comp["valueQuantity"] = {"value": value, "unit": "deg", "system": UCUM, "code": "deg"}
+                comp["valueQuantity"] = {"value": round(value, DECIMALS), "unit": "deg", "system": UCUM, "code": "deg"}
             band = r["flexion_range_band"] if (angle, stat, m) == ("flexion", "range", "mean") else None
             if band and value is not None:  # v3 L/N/H against the reference's band, which goes beside it
                 code = band["interpretation"]
@@ -300,10 +367,13 @@ def _observation(angle: str, r: dict, side: str, task: str, effective: str, issu
                                            "text": "results.json reference (ChakaMo), see the report"}]
             components.append(comp)
     components += [
-        {"code": {"coding": [_local("cycles-accepted", "Motor-task cycles accepted")]}, "valueInteger": r["accepted"]},
-        {"code": {"coding": [_local("cycles-detected", "Motor-task cycles detected")]}, "valueInteger": r["detected"]},
-        {"code": {"coding": [_local("orientation-filter", "Orientation filter")]}, "valueString": str(r["filter"])},
-        {"code": {"coding": [_local("angle-convention", "Knee angle convention")]},
+        {"code": {"coding": [_local("cycles-accepted", "Motor-task cycles accepted", system)]},
+         "valueInteger": r["accepted"]},
+        {"code": {"coding": [_local("cycles-detected", "Motor-task cycles detected", system)]},
+         "valueInteger": r["detected"]},
+        {"code": {"coding": [_local("orientation-filter", "Orientation filter", system)]},
+         "valueString": str(r["filter"])},
+        {"code": {"coding": [_local("angle-convention", "Knee angle convention", system)]},
          "valueString": str(r["angle_method"])},
     ]
     convention = _CONVENTION_TEXT.get(r["angle_method"], str(r["angle_method"]))
@@ -312,14 +382,15 @@ def _observation(angle: str, r: dict, side: str, task: str, effective: str, issu
         "id": name,
         "status": "final",
         "category": [{"coding": [{"system": OBSERVATION_CATEGORY, "code": "exam", "display": "Exam"}]}],
-        "code": {"coding": [_local(f"knee-{name}", _ANGLE_TEXT[angle])],
+        "code": {"coding": [_local(f"knee-{name}", _ANGLE_TEXT[angle], system)],
                  "text": f"{_ANGLE_TEXT[angle]} during {task}, degrees"},
-        "subject": {"reference": "#patient"},
+        "subject": subject,
         "effectiveDateTime": effective,
         "issued": issued,
         "performer": performer,
         "bodySite": _body_site(side),
-        "method": {"coding": [_local("imu-thigh-shank", "Two magneto-inertial measurement units, thigh and shank")],
+        "method": {"coding": [_local("imu-thigh-shank", "Two magneto-inertial measurement units, thigh and shank",
+                                     system)],
                    "text": f"Two magneto-inertial sensors (thigh, shank), orientation filter {r['filter']!r}, "
                            f"{convention}"},
         "component": components,
@@ -330,8 +401,8 @@ def _observation(angle: str, r: dict, side: str, task: str, effective: str, issu
 _LSI_UCUM = {"deg": "deg", "pct": "%", "s": "s", "steps_min": "/min"}
 
 
-def _lsi_observations(symmetry: Any, task: str, effective: str, issued: str, performer: list | None
-                      ) -> list[dict[str, Any]]:
+def _lsi_observations(symmetry: Any, task: str, effective: str, issued: str, performer: list | None,
+                      system: str, subject: dict) -> list[dict[str, Any]]:
     """A session of both knees: one Observation per limb symmetry index parameter (results.json ``symmetry``,
     :mod:`app.pipeline.knees`): ``valueQuantity`` the LSI in % (involved / uninvolved × 100), components the
     involved and uninvolved knees' values in the parameter's unit, ``bodySite`` the involved knee; an LSI that could
@@ -346,20 +417,20 @@ def _lsi_observations(symmetry: Any, task: str, effective: str, issued: str, per
         components = []
         for which in ("involved", "uninvolved"):
             comp: dict[str, Any] = {"code": {"coding": [_local(f"{which}-knee-value", f"{which.capitalize()} knee, "
-                                                               "mean over its accepted cycles")]}}
+                                                               "mean over its accepted cycles", system)]}}
             value = _number(p.get(which), f"symmetry {p['name']} {which}")
             if value is None:
                 comp["dataAbsentReason"] = {"coding": [{"system": DATA_ABSENT_REASON, "code": "not-applicable",
                                                         "display": "Not Applicable"}]}
             else:
-                comp["valueQuantity"] = {"value": value, "unit": unit, "system": UCUM, "code": unit}
+                comp["valueQuantity"] = {"value": round(value, DECIMALS), "unit": unit, "system": UCUM, "code": unit}
             components.append(comp)
         obs: dict[str, Any] = {
             "resourceType": "Observation", "id": f"lsi-{name}", "status": "final",
             "category": [{"coding": [{"system": OBSERVATION_CATEGORY, "code": "exam", "display": "Exam"}]}],
-            "code": {"coding": [_local(f"lsi-{name}", display)],
+            "code": {"coding": [_local(f"lsi-{name}", display, system)],
                      "text": f"{display} during {task}: involved / uninvolved × 100 %"},
-            "subject": {"reference": "#patient"}, "effectiveDateTime": effective, "issued": issued,
+            "subject": subject, "effectiveDateTime": effective, "issued": issued,
             "performer": performer, "bodySite": _body_site(symmetry["involved"]), "component": components,
         }
         lsi = _number(p.get("lsi_pct"), f"symmetry {p['name']} lsi_pct")
@@ -367,17 +438,22 @@ def _lsi_observations(symmetry: Any, task: str, effective: str, issued: str, per
             obs["dataAbsentReason"] = {"coding": [{"system": DATA_ABSENT_REASON, "code": "not-applicable",
                                                    "display": "Not Applicable"}]}
         else:
-            obs["valueQuantity"] = {"value": lsi, "unit": "%", "system": UCUM, "code": "%"}
+            obs["valueQuantity"] = {"value": round(lsi, DECIMALS), "unit": "%", "system": UCUM, "code": "%"}
         out.append(obs)
     return out
+
+
+def _mr_identifier(patient: Mapping, identifier_system: str | None) -> dict[str, Any]:
+    """The hospital's record number as a FHIR Identifier (type MR, in ``identifier_system`` when known)."""
+    return {"use": "usual", "system": identifier_system,
+            "type": {"coding": [{"system": V2_0203, "code": "MR", "display": "Medical record number"}]},
+            "value": str(patient["external_id"])}
 
 
 def _patient(patient: Mapping, base_url: str, identifier_system: str | None) -> dict[str, Any]:
     identifiers = []
     if patient["external_id"] not in (None, ""):
-        identifiers.append({"use": "usual", "system": identifier_system,
-                            "type": {"coding": [{"system": V2_0203, "code": "MR", "display": "Medical record number"}]},
-                            "value": str(patient["external_id"])})
+        identifiers.append(_mr_identifier(patient, identifier_system))
     if patient["id"] is not None:
         identifiers.append({"use": "secondary", "system": f"{base_url}/patients", "value": str(patient["id"])})
     sex = patient["sex"]
@@ -395,21 +471,33 @@ def _patient(patient: Mapping, base_url: str, identifier_system: str | None) -> 
             "gender": gender, "birthDate": birth or None}
 
 
-def _conclusion(r: dict, side: str, task: str, notes: Any) -> str:
-    text = (f"{side.capitalize()} knee, {task}: {r['accepted']} of {r['detected']} detected cycles accepted; "
-            f"orientation filter {r['filter']!r}. ")
-    if r["warnings"]:
-        text += f"Quality warnings ({len(r['warnings'])}): " + "; ".join(
-            f"[{code}] {message}" if code else message for code, message in r["warnings"]) + "."
+def _warning_lines(r: dict, lang: str, results: Mapping) -> list[str]:
+    """The clinical quality warnings in ``lang`` (technical notes left out: :data:`TECHNICAL_WARNINGS`)."""
+    from reports.warning_text import warning_text
+
+    return [warning_text(w, lang, results)[0] for w in r["warnings"]]
+
+
+def _conclusion(r: dict, side: str, task: str, notes: Any, lang: str = "en", results: Mapping | None = None) -> str:
+    """Side, task, cycles, filter, the clinical warnings and the session's notes, in ``lang`` (the task's name
+    stays English: the motor-task registry's label)."""
+    w = _WORDS[lang]
+    text = (f"{w['side'][side]}, {task}: {w['cycles'].format(a=r['accepted'], d=r['detected'])}; "
+            f"{w['filter'].format(f=repr(r['filter']))}. ")
+    lines = _warning_lines(r, lang, results or {})
+    if lines:
+        text += f"{w['warnings']} ({len(lines)}): " + "; ".join(lines) + "."
     else:
-        text += "Quality warnings: none."
+        text += f"{w['warnings']}: {w['none']}."
     if notes:
-        text += f" Session notes: {notes}"
+        text += f" {w['notes']}: {notes}"
     return text
 
 
-def _narrative(r: dict, side: str, task: str, effective: str, patient: Mapping) -> str:
+def _narrative(r: dict, side: str, task: str, effective: str, patient: Mapping, lang: str = "en",
+               results: Mapping | None = None) -> str:
     esc = html.escape
+    w = _WORDS[lang]
 
     def cell(angle: str, stat: str) -> str:
         mean, sd = r["rom"][(angle, stat, "mean")], r["rom"][(angle, stat, "sd")]
@@ -420,12 +508,14 @@ def _narrative(r: dict, side: str, task: str, effective: str, patient: Mapping) 
     rows = "".join(f"<tr><td>{esc(_ANGLE_TEXT[a])}</td>" + "".join(f"<td>{cell(a, s)}</td>" for s in ROM_STATS)
                    + "</tr>" for a in ANGLES)
     who = esc(str(patient["external_id"] or patient["id"]))
-    warnings = "".join(f"<li>{esc(m)}</li>" for _, m in r["warnings"]) or "<li>none</li>"
+    warnings = "".join(f"<li>{esc(m)}</li>" for m in _warning_lines(r, lang, results or {})) or \
+        f"<li>{w['none']}</li>"
     return ('<div xmlns="http://www.w3.org/1999/xhtml">'
-            f"<p>Knee kinematics, {esc(task)}, {esc(side)} knee; patient {who}; {esc(effective)}. "
-            f"{r['accepted']} of {r['detected']} cycles accepted, orientation filter {esc(str(r['filter']))}.</p>"
-            "<table><tr><th>angle (degrees, mean ± SD over cycles)</th><th>maximum</th><th>minimum</th>"
-            f"<th>range</th></tr>{rows}</table><p>Quality warnings:</p><ul>{warnings}</ul></div>")
+            f"<p>{esc(w['side'][side])}, {esc(task)}; {w['patient']} {who}; {esc(effective)}. "
+            f"{esc(w['cycles'].format(a=r['accepted'], d=r['detected']))}, "
+            f"{esc(w['filter'].format(f=r['filter']))}.</p>"
+            f"<table><tr><th>{esc(w['table'])}</th><th>{w['max']}</th><th>{w['min']}</th>"
+            f"<th>{w['range']}</th></tr>{rows}</table><p>{esc(w['warnings'])}:</p><ul>{warnings}</ul></div>")
 
 
 def _drop_none(x: Any) -> Any:
@@ -435,6 +525,47 @@ def _drop_none(x: Any) -> Any:
     if isinstance(x, list):
         return [_drop_none(v) for v in x]
     return x
+
+
+def search_bundle(reports: list[dict]) -> dict:
+    """A FHIR R4 ``searchset`` Bundle of ``reports`` (DiagnosticReports of :func:`diagnostic_report`), validated
+    with both model packages."""
+    doc = {"resourceType": "Bundle", "type": "searchset", "total": len(reports),
+           "entry": [{"resource": r, "search": {"mode": "match"}} for r in reports]}
+    doc = _drop_none(doc)
+    _validate_with(doc, R4Bundle, R4BBundle)
+    return doc
+
+
+def capability_statement(*, software_version: str, base_url: str, date_time: datetime | None = None) -> dict:
+    """The CapabilityStatement of ``GET /fhir/metadata``: FHIR 4.0.1, JSON, DiagnosticReport read and search by
+    ``patient`` (validated with both model packages)."""
+    doc = {"resourceType": "CapabilityStatement", "status": "active", "kind": "instance",
+           "date": _instant(date_time), "fhirVersion": "4.0.1", "format": ["application/fhir+json"],
+           "software": {"name": "ChakaMo", "version": software_version},
+           "implementation": {"description": "ChakaMo knee kinematics: DiagnosticReport export",
+                              "url": base_url + "/fhir" if base_url.startswith("http") else None},
+           "rest": [{"mode": "server",
+                     "security": {"description": "Authorization: Bearer <token> (chakamo tokens create)"},
+                     "resource": [{"type": "DiagnosticReport",
+                                   "interaction": [{"code": "read"}, {"code": "search-type"}],
+                                   "searchParam": [{"name": "patient", "type": "reference",
+                                                    "documentation": "the patient's ChakaMo id (123 or Patient/123)"}]}
+                                  ]}]}
+    doc = _drop_none(doc)
+    _validate_with(doc, R4CapabilityStatement, R4BCapabilityStatement)
+    return doc
+
+
+def _validate_with(doc: dict, r4_model, r4b_model) -> None:
+    try:
+        r4_model(doc, strict=True)
+    except FHIRValidationError as exc:
+        raise FhirExportError(f"{doc['resourceType']} is not valid FHIR R4 (4.0.1, fhirclient): {exc}") from None
+    try:
+        r4b_model.model_validate(doc)
+    except pydantic.ValidationError as exc:
+        raise FhirExportError(f"{doc['resourceType']} fails FHIR validation (fhir.resources R4B): {exc}") from None
 
 
 def validate(doc: dict) -> None:

@@ -2,7 +2,7 @@
 (:class:`app.jobs.inprocess.ThreadJobRunner`'s ``housekeeping``, set by :func:`app.web.main.make_runner`).
 
 :func:`housekeeping`: the erasure sweep (:func:`app.store.erasure.sweep`: marks a crash left pending, blob rows
-nothing references, files no row names) and, when ``CHAKAMO_RETENTION_DAYS`` is set, the retention policy
+nothing references, files no row names), the expiry of old ``Idempotency-Key`` records and, when ``CHAKAMO_RETENTION_DAYS`` is set, the retention policy
 (:mod:`app.store.retention`), whose erasures are audited as the operator (:func:`app.web.audit.record_operator`).
 It lives in the web layer because the audit log's writer does; the jobs layer only calls it.  With the Celery
 backend nothing runs it periodically yet: schedule ``chakamo retention --apply`` (cron, a systemd timer).
@@ -33,6 +33,10 @@ def housekeeping(settings, database, store, now=None) -> None:
     from app.store.retention import apply_retention
 
     sweep(database, store)
+    from app.store.idempotency import forget_old
+
+    with database.session() as db:  # Idempotency-Keys past their keeping time (app.store.idempotency)
+        forget_old(db, now)
     if settings.retention_days > 0:
         report = apply_retention(database, store, settings.retention_days, now=now or utcnow(), dry_run=False,
                                  record=operator_recorder(f"retention policy ({settings.retention_days} days)"))

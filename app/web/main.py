@@ -6,18 +6,20 @@ Start-up (the lifespan): create the data folders, apply the Alembic migrations, 
 another server runs this database's jobs, clears a crashed run's temporary files and resumes the jobs a
 previous run left queued or running; or :class:`app.jobs.celery_engine.CeleryJobRunner`, which hands jobs to the
 Celery workers), and when the database has no user yet print how
-to create the first admin (there are no default accounts or passwords).  Shutdown stops the runner after
+to create the first admin (there are no default accounts or passwords).  It also starts the webhook sender (:class:`app.web.webhooks.WebhookSender`).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
 Middleware (plain ASGI), outermost first: :class:`app.web.headers.SecurityHeaders`,
 :class:`app.web.headers.AllowedHosts` (``CHAKAMO_ALLOWED_HOSTS``), :class:`app.web.limits.BodyLimit` (no request body above
 ``CHAKAMO_MAX_BODY_KB`` but the recordings upload's); a :class:`app.web.refusals.Refusal`
-answers its sentence in es/en/pt.
+answers its sentence in es/en/pt.  Every error answer is an RFC 7807 problem (``application/problem+json``,
+:mod:`app.web.problems`), and the OpenAPI document declares each operation's error answers with its schema.
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
-``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI from the
-``swagger-ui-bundle`` package: no CDN, clinics are often offline), ``/healthz`` (the process answers: for
+``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI 5 from the
+``fastapi-offline`` package's static folder: no CDN, clinics are often offline; Swagger UI 4 cannot read the
+OpenAPI 3.1 document FastAPI writes), ``/healthz`` (the process answers: for
 a liveness probe) and ``/readyz`` (200 only when the database answers and the job engine can take jobs —
 the broker is reachable, or the embedded workers run; else 503 naming what is down: for a load balancer).
 """
@@ -36,6 +38,7 @@ from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy import func, select, text
 from sqlalchemy.exc import OperationalError
@@ -47,8 +50,10 @@ from app.store.database import Database
 from app.store.models import User
 from app.web.headers import AllowedHosts, SecurityHeaders
 from app.web.limits import BodyLimit
+from app.web.problems import document_errors, problem_response
 from app.web.refusals import Refusal
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
+from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
 from estimators import __version__
@@ -76,9 +81,14 @@ def _viser_client_dir() -> Path:
 
 
 def _swagger_dir() -> Path:
-    from swagger_ui_bundle import swagger_ui_path
+    """The folder of Swagger UI 5's built files (``swagger-ui-bundle.js``, ``swagger-ui.css``, ``favicon.png``)
+    inside the installed ``fastapi-offline`` package: only its files are used, not its code."""
+    import importlib.util
 
-    return Path(str(swagger_ui_path))
+    spec = importlib.util.find_spec("fastapi_offline")
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError("the fastapi-offline package (Swagger UI for /docs) is not installed")
+    return Path(next(iter(spec.submodule_search_locations))) / "static"
 
 
 #: uvicorn options of ``chakamo serve``: no ``server: uvicorn`` banner (issue 16, finding 10e: it names the
@@ -123,6 +133,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         except Exception:
             db.dispose()
             raise
+        # app/web/webhooks.py: signed job notifications, on an engine of their own (their rounds never take a
+        # connection the requests' pool counts on)
+        sender = WebhookSender(Database(settings.db_url), settings.webhook_retry_s)
+        sender.start()
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)
         check_pool = None
@@ -134,6 +148,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             app.state.check_pool = None
+            sender.stop()
             if check_pool is not None:
                 check_pool.shutdown()
             if runner.shutdown(wait=True):  # a job thread still running keeps its database
@@ -165,7 +180,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @app.exception_handler(Refusal)
     async def refusal(request: Request, exc: Refusal):
         """A refusal the user caused: its sentence in English and in es/en/pt (:mod:`app.web.refusals`)."""
-        return exc.response()
+        return exc.response(instance=request.url.path)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def http_problem(request: Request, exc: StarletteHTTPException):
+        """Any other HTTP error as an RFC 7807 problem (:mod:`app.web.problems`)."""
+        return problem_response(exc.status_code, str(exc.detail), headers=exc.headers, instance=request.url.path)
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError):
@@ -175,30 +195,38 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             where = ".".join(str(x) for x in err.get("loc", ()) if x not in ("body", "query", "path"))
             parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
         detail = "; ".join(parts) + ". Correct the request and send it again."
-        return JSONResponse({"detail": detail, "errors": jsonable_encoder(exc.errors())}, status_code=422)
+        return problem_response(422, detail, instance=request.url.path, errors=jsonable_encoder(exc.errors()))
 
     @app.exception_handler(OperationalError)
     async def database_unreachable(request: Request, exc: OperationalError):
         """503 while the database is away (a restart, a fail-over): nothing was changed; the client retries."""
         log.warning("database unreachable during %s %s: %s", request.method, request.url.path, exc.orig)
-        return JSONResponse({"detail": "The database is not reachable at the moment (nothing was changed); try "
-                                       "again in a minute."}, status_code=503, headers={"Retry-After": "30"})
+        return problem_response(503, "The database is not reachable at the moment (nothing was changed); try "
+                                     "again in a minute.", headers={"Retry-After": "30"}, instance=request.url.path)
 
     @app.exception_handler(PoolTimeout)
     async def database_busy(request: Request, exc: PoolTimeout):
         """503 when every database connection stayed busy too long (an overload): nothing was changed."""
         log.warning("no database connection free for %s %s", request.method, request.url.path)
-        return JSONResponse({"detail": "The server is too busy at the moment (nothing was changed); try again in "
-                                       "a minute."}, status_code=503, headers={"Retry-After": "10"})
+        return problem_response(503, "The server is too busy at the moment (nothing was changed); try again in "
+                                     "a minute.", headers={"Retry-After": "10"}, instance=request.url.path)
 
     @app.exception_handler(CorruptBlob)
     async def corrupt_blob(request: Request, exc: CorruptBlob):
         """500 with a sentence and a reference id; the details (which file, where) go to the server log only."""
         ref = secrets.token_hex(4)
         log.error("corrupt blob (reference %s) under %s: %s", ref, store.root, exc)
-        return JSONResponse({"detail": f"A stored file is damaged or missing (reference {ref}); give the reference "
-                                       "to your ChakaMo administrator, who can restore it from a backup."},
-                            status_code=500)
+        return problem_response(500, f"A stored file is damaged or missing (reference {ref}); give the reference "
+                                     "to your ChakaMo administrator, who can restore it from a backup.",
+                                instance=request.url.path)
+
+    def openapi() -> dict:
+        """FastAPI's document with every error answer described (:func:`app.web.problems.document_errors`)."""
+        if app.openapi_schema is None:
+            app.openapi_schema = document_errors(FastAPI.openapi(app))
+        return app.openapi_schema
+
+    app.openapi = openapi
 
     @app.get("/healthz", include_in_schema=False)
     def healthz():
@@ -243,7 +271,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return get_swagger_ui_html(openapi_url=app.openapi_url, title="ChakaMo API",
                                    swagger_js_url="/docs-assets/swagger-ui-bundle.js",
                                    swagger_css_url="/docs-assets/swagger-ui.css",
-                                   swagger_favicon_url="/docs-assets/favicon-32x32.png")
+                                   swagger_favicon_url="/docs-assets/favicon.png")
 
     app.mount("/static", StaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
     app.mount("/viser", StaticFiles(directory=_viser_client_dir(), html=True), name="viser")

@@ -25,7 +25,9 @@ from app.web.api.schemas import Lang
 from app.web.records import STATUS_HEADER, analysis_status
 from app.web.headers import REPORT_HTML_CSP
 
-router = APIRouter(prefix="/sessions", tags=["artefacts"])
+router = APIRouter(prefix="/sessions", tags=["artefacts"],
+                   responses={409: {"description": "the latest analysis is superseded (process the session again), "
+                                                   "or none has finished yet"}})
 
 
 def _send(db, store, principal, request: Request, session_id: int, name: str, analysis_id: int | None,

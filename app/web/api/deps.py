@@ -9,6 +9,8 @@ role) or from the ``chakamo_session`` cookie (a browser session: its user's clin
 cookie-authenticated POST/PUT/PATCH/DELETE must carry ``X-CSRF-Token`` (else 403); bearer requests need
 none (a browser never adds that header by itself).  Roles are ordered read_only < clinician < admin
 (:data:`app.web.security.ROLE_RANK`); :func:`require` builds a dependency refusing lower roles with 403.
+An API token past its ``expires_at`` answers 401; a token with scopes (:mod:`app.store.tokens`) is refused (403)
+on a route outside them (:func:`needed_scope`: the router's resource, read for GET, write otherwise).
 
 The upload route does not use the per-request session: a request body can stream for minutes, and a
 session opened by a dependency stays open (a pooled connection, on PostgreSQL an open transaction) until
@@ -42,7 +44,7 @@ from starlette.concurrency import run_in_threadpool
 
 from app.jobs.work import JobRunner
 from app.settings import Settings
-from app.store import accounts
+from app.store import accounts, tokens
 from app.store.blobs import BlobStore
 from app.store.checks import IngestionChecker
 from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotFound, PreconditionFailed
@@ -133,6 +135,8 @@ class Principal:
     token_id: int | None = None
     session_id: str | None = None  # the cookie's raw value (for the CSRF token), cookie callers only
     csrf_token: str | None = None
+    #: an API token's scopes (None: every scope of its role; browser sessions have no scopes)
+    scopes: frozenset[str] | None = None
 
 
 #: declares the bearer scheme in OpenAPI (the /docs "Authorize" button); the header is parsed below
@@ -167,8 +171,12 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
             raise _refuse(request, 401, "Unknown or revoked API token; check it or create a new one with "
                                         "`chakamo tokens create`.", "unknown or revoked API token",
                           headers={"WWW-Authenticate": "Bearer"})
+        if tokens.expired(row):
+            raise _refuse(request, 401, "This API token has expired; use its successor (`chakamo tokens rotate`) "
+                                        "or create a new one with `chakamo tokens create`.", "expired API token",
+                          clinic_id=row.clinic_id, headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
         principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
-                              token_id=row.id)
+                              token_id=row.id, scopes=tokens.scopes_of(row))
         request.state.principal = principal
         return principal
     sid = request.cookies.get(COOKIE)
@@ -207,6 +215,38 @@ def _role_why(principal: Principal, role: str) -> str:
     return f"role {principal.role} below {role}"
 
 
+#: the scope family of each router's tag (:data:`app.choices.TOKEN_SCOPES`); routers not listed need no scope
+#: (``auth``, ``options``, ``clinics``: who the caller is and the option lists)
+SCOPE_OF_TAG = {"patients": "patients", "sessions": "sessions", "recordings": "recordings", "jobs": "jobs",
+                "results": "results", "artefacts": "results", "fhir": "fhir", "audit": "audit", "users": "users",
+                "webhooks": "jobs"}
+UNSCOPED_TAGS = frozenset({"auth", "options", "clinics"})
+
+
+def needed_scope(request: Request) -> str | None:
+    """The scope the request's route needs: its router's family and ``read`` for GET/HEAD, else ``write``
+    (None: no scope needed).  A route of a router missing from :data:`SCOPE_OF_TAG` needs a scope no token
+    has (refused to scoped tokens: a new router must be given its family)."""
+    route = request.scope.get("route")
+    tag = (getattr(route, "tags", None) or ["?"])[0]
+    if tag in UNSCOPED_TAGS:
+        return None
+    family = SCOPE_OF_TAG.get(tag, f"unlisted-{tag}")
+    return f"{family}:{'read' if request.method in ('GET', 'HEAD') else 'write'}"
+
+
+def _scope_refusal(request: Request, principal: Principal) -> HTTPException | None:
+    """403 (recorded) when the caller's token lacks the route's scope; None when it may go on."""
+    if principal.scopes is None:
+        return None
+    scope = needed_scope(request)
+    if scope is None or scope in principal.scopes:
+        return None
+    record_refusal(request.app.state.db, request, 403, f"token lacks scope {scope}", principal=principal)
+    return HTTPException(403, f"This API token lacks the scope {scope} (it has {' '.join(sorted(principal.scopes))}); "
+                              "create a token with it: `chakamo tokens create --scope ...`.")
+
+
 def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Principal:
     """The caller of an upload, at least clinician: looked up in a short session closed before the body is
     read (module docstring)."""
@@ -215,6 +255,9 @@ def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Princip
     if not _role_ok(principal, "clinician"):
         record_refusal(request.app.state.db, request, 403, _role_why(principal, "clinician"), principal=principal)
         raise _role_refusal(principal, "clinician")
+    refusal = _scope_refusal(request, principal)
+    if refusal is not None:
+        raise refusal
     return principal
 
 
@@ -229,6 +272,10 @@ def require(role: str):
             await run_in_threadpool(record_refusal, request.app.state.db, request, 403, _role_why(principal, role),
                                     principal=principal)
             raise _role_refusal(principal, role)
+        if principal.scopes is not None:  # a scoped token: the route's scope too (a thread hop only for those)
+            refusal = await run_in_threadpool(_scope_refusal, request, principal)
+            if refusal is not None:
+                raise refusal
         return principal
 
     return dependency
@@ -257,5 +304,5 @@ def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
 __all__ = ["COOKIE", "CSRF_HEADER", "STATUS_OF", "Admin", "CheckerDep", "Clinician", "DbDep", "Principal",
            "PrincipalDep", "Reader", "RunnerDep", "SettingsDep", "StoreDep", "UploadClinician", "checker_of",
            "domain_errors", "get_checker", "get_db", "get_principal", "get_runner", "get_settings_dep", "get_store",
-           "get_upload_principal", "http_error", "require", "resolve_principal", "scoped_job", "scoped_patient",
+           "get_upload_principal", "http_error", "needed_scope", "require", "resolve_principal", "scoped_job", "scoped_patient",
            "scoped_session"]

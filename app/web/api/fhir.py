@@ -1,9 +1,13 @@
-"""``GET /fhir/DiagnosticReport/{session_id}``: the session's latest analysis as a FHIR R4 DiagnosticReport.
+"""``GET /fhir/DiagnosticReport/{session_id}``: the session's latest analysis as a FHIR R4 DiagnosticReport;
+``GET /fhir/DiagnosticReport?patient=`` a searchset Bundle of a patient's reports; ``GET /fhir/metadata`` the
+CapabilityStatement.
 
 The document is built by :func:`app.web.fhir.diagnostic_report` (another module of the project) from the
-session, patient, results.json and the PDF in the analysis' language; ``base_url`` is this server's
-``/api/v1`` address (the namespace of the session and patient identifiers), from ``CHAKAMO_PUBLIC_URL``
-(:func:`fhir_base_url`).  ``?analysis_id=`` picks an
+session, patient, results.json and the PDF in the analysis' language; ``base_url`` is the namespace of the
+session and patient identifiers (:func:`fhir_base_url`: configured, never a request's host outside development);
+the code system, the patient's identifier system, how the patient is named (contained or by identifier) and
+the accession's system come from the settings (``CHAKAMO_FHIR_*``, ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM``,
+``CHAKAMO_ACCESSION_SYSTEM``); the session's ``service_request``, ``encounter`` and ``accession`` are passed in.  ``?analysis_id=`` picks an
 earlier analysis.  Stored data the export cannot express (e.g. a patient's sex recorded before the API
 restricted it to male, female, other, unknown) answers 409 with the export's sentence, not 500.  A superseded
 analysis (:mod:`app.store.analyses`: a recording deleted or a printed detail corrected since) is never
@@ -15,29 +19,85 @@ from __future__ import annotations
 
 import json
 
-from fastapi import APIRouter, HTTPException, Request
+from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import Response
 
 from app.store.analyses import SupersededResults, artefact, latest_analysis, pick_analysis
 from app.web import audit
-from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
+from app.store.sessions import patient_sessions
+from app.web.api.deps import DbDep, Reader, StoreDep, scoped_patient, scoped_session
 from app.web.api.schemas import patient_out
-from app.web.fhir import FhirExportError, diagnostic_report
+from app.web.fhir import CODE_SYSTEM, FhirExportError, capability_statement, diagnostic_report, search_bundle
+from estimators import __version__
 from app.web.refusals import Refusal
 
 router = APIRouter(prefix="/fhir", tags=["fhir"])
 
 
 def fhir_base_url(request: Request) -> str:
-    """The namespace of the exported identifiers: ``CHAKAMO_PUBLIC_URL``/api/v1; else this request's address,
-    only when its ``Host`` was checked against ``CHAKAMO_ALLOWED_HOSTS`` or in development; else 503 (a
-    spoofed Host must never be written into a clinical document: issue 16, finding 10d)."""
+    """The namespace of the exported identifiers: ``CHAKAMO_FHIR_IDENTIFIER_BASE``, else ``CHAKAMO_PUBLIC_URL``/api/v1;
+    in development only, this request's address; else 503.  A request's ``Host`` never names identifiers in
+    production (issue 16, finding 10d; issue 17)."""
     settings = request.app.state.settings
+    if settings.fhir_identifier_base:
+        return settings.fhir_identifier_base.rstrip("/")
     if settings.public_url:
         return settings.public_url + "/api/v1"
-    if settings.host_patterns == ("*",) and not settings.development:
-        raise Refusal(503, "request.public_url_missing")
-    return str(request.base_url).rstrip("/") + "/api/v1"
+    if settings.development:
+        return str(request.base_url).rstrip("/") + "/api/v1"
+    raise Refusal(503, "request.public_url_missing")
+
+
+def _export(db, store, request: Request, session, analysis) -> dict:
+    """The DiagnosticReport of ``analysis`` of ``session`` (409 with the export's sentence when the stored data
+    cannot be expressed)."""
+    settings = request.app.state.settings
+    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
+    pdf = store.read(artefact(db, analysis, "report.pdf", analysis.lang).sha256)
+    sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
+            "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
+            "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,
+            "analysis_created_at": analysis.created_at.isoformat(), "filter": analysis.filter,
+            "service_request": session.service_request, "encounter": session.encounter,
+            "accession": session.accession}
+    patient = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in patient_out(session.patient).items()}
+    try:
+        return diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
+                                 base_url=fhir_base_url(request),
+                                 patient_identifier_system=settings.patient_identifier_system,
+                                 code_system=settings.fhir_code_system or CODE_SYSTEM,
+                                 patient_mode=settings.fhir_patient, accession_system=settings.accession_system)
+    except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
+        raise HTTPException(409, f"Session {session.id} cannot be exported to FHIR: {exc}; correct the record and "
+                                 "try again.") from None
+
+
+def _fhir(doc: dict) -> Response:
+    return Response(json.dumps(doc, ensure_ascii=False), media_type="application/fhir+json")
+
+
+@router.get("/metadata", response_class=Response, responses={200: {"content": {"application/fhir+json": {}}}})
+def metadata(request: Request, principal: Reader):
+    """The FHIR CapabilityStatement: what this server answers (read and search of DiagnosticReport)."""
+    return _fhir(capability_statement(software_version=__version__, base_url=fhir_base_url(request)))
+
+
+@router.get("/DiagnosticReport", response_class=Response,
+            responses={200: {"content": {"application/fhir+json": {}}}})
+def search_reports(request: Request, principal: Reader, db: DbDep, store: StoreDep,
+                   patient: str = Query(..., max_length=80, pattern=r"^(Patient/)?[0-9]{1,12}$",
+                                        description="the patient's ChakaMo id, as 123 or Patient/123")):
+    """A searchset Bundle of the patient's current reports: each session's latest analysis, newest session
+    first; sessions with none or with a superseded one are left out (a superseded report is never exported)."""
+    pid = int(patient.removeprefix("Patient/"))
+    scoped_patient(db, principal, pid)
+    reports = []
+    for session in patient_sessions(db, pid):
+        analysis = latest_analysis(db, session.id)
+        if analysis is not None and analysis.superseded_at is None:
+            reports.append(_export(db, store, request, session, analysis))
+    audit.record(db, request, principal, "export", patient_id=pid)
+    return _fhir(search_bundle(reports))
 
 
 @router.get("/DiagnosticReport/{session_id}", response_class=Response,
@@ -53,19 +113,6 @@ def diagnostic_report_route(session_id: int, request: Request, principal: Reader
     analysis = pick_analysis(db, session, analysis_id)
     if analysis.superseded_at is not None:  # asked for by id
         raise SupersededResults(session.id, analysis, readable_by_id=False)
-    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
-    pdf = store.read(artefact(db, analysis, "report.pdf", analysis.lang).sha256)
-    sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
-            "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
-            "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,
-            "analysis_created_at": analysis.created_at.isoformat(), "filter": analysis.filter}
-    patient = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in patient_out(session.patient).items()}
-    base_url = fhir_base_url(request)
-    try:
-        doc = diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
-                                base_url=base_url)
-    except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
-        raise HTTPException(409, f"Session {session_id} cannot be exported to FHIR: {exc}; correct the record and "
-                                 "try again.") from None
+    doc = _export(db, store, request, session, analysis)
     audit.record(db, request, principal, "export", patient_id=session.patient_id, session_id=session.id)
-    return Response(json.dumps(doc, ensure_ascii=False), media_type="application/fhir+json")
+    return _fhir(doc)

@@ -9,30 +9,56 @@ filter) adds one.
 """
 
 from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse
 
 from app.choices import DEFAULT_FILTER
 from app.jobs.queue import enqueue, hand_over
+from app.store import idempotency
+from app.store.sessions import Busy
 from app.web import audit
 from app.web.api.deps import CheckerDep, Clinician, DbDep, Reader, RunnerDep, scoped_job, scoped_session
 from app.web.api.schemas import JobCreatedOut, JobOut, ProcessIn, job_out
+from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 
 router = APIRouter(tags=["jobs"])
 
 
 @router.post("/sessions/{session_id}/process", response_model=JobCreatedOut, status_code=202,
-             responses={409: {"description": "recordings not ready, or the session is being processed"}})
+             openapi_extra={"parameters": [KEY_PARAMETER]},
+             responses={202: {"headers": LOCATION},
+                        409: {"description": "recordings not ready, the session is being processed, or the "
+                                             "Idempotency-Key was used for another request"}})
 def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep, checker: CheckerDep,
             request: Request, body: ProcessIn | None = None):
+    """Queue the processing (``Location``: the job).  With ``Idempotency-Key`` a repeat — also after the job
+    finished — answers the same job and starts nothing."""
     body = body or ProcessIn()
-    name = body.filter or DEFAULT_FILTER  # the schema accepts only app.choices.FILTER_NAMES
-    job = enqueue(db, principal.clinic_id, session_id, filter_name=name, lang=body.lang, checker=checker,
-                  heading=body.heading, side=body.side, involved=body.involved)
+    key = key_of(request)
+    fingerprint = request_sha256(request, body)
+    replay = idempotency.replayed(db, principal.clinic_id, key, fingerprint) if key else None
+    if replay is None:
+        name = body.filter or DEFAULT_FILTER  # the schema accepts only app.choices.FILTER_NAMES
+        try:
+            job = enqueue(db, principal.clinic_id, session_id, filter_name=name, lang=body.lang, checker=checker,
+                          heading=body.heading, side=body.side, involved=body.involved)
+        except Busy:  # busy with the job a concurrent request with this key just committed?
+            db.rollback()
+            replay = idempotency.replayed(db, principal.clinic_id, key, fingerprint) if key else None
+            if replay is None:
+                raise
+    if replay is None and key:  # claimed after enqueue, which may roll db back (its ingestion check)
+        claimed = idempotency.claim(db, principal.clinic_id, key, fingerprint, "job")
+        if isinstance(claimed, idempotency.Replay):
+            replay = claimed
+        else:
+            idempotency.complete(claimed, [job.id], 202)
+    if replay is not None:
+        job = scoped_job(db, principal, replay.resource_ids[0])
+        return answer({"job_id": job.id}, replay.status, f"/api/v1/jobs/{job.id}", replayed=True)
     session = scoped_session(db, principal, session_id)  # the row enqueue loaded (no new query)
     audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id)
     db.commit()  # committed before the runner can look for it
     hand_over(runner, job.id)
-    return JSONResponse({"job_id": job.id}, status_code=202)
+    return answer({"job_id": job.id}, 202, f"/api/v1/jobs/{job.id}")
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut)

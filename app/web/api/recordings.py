@@ -57,14 +57,15 @@ from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
-from app.store import erasure, recordings
+from app.store import erasure, idempotency, recordings
 from app.store.blobs import BlobStore, BlobWriter, TooLarge
-from app.store.recordings import MANIFEST, MAX_MANIFEST_KB, manifest_problem
-from app.store.sessions import clinic_session, refuse_while_processing
+from app.store.recordings import MANIFEST, MAX_MANIFEST_KB, SEGMENTS, UPLOAD_ROLES, manifest_problem
+from app.store.sessions import clinic_session, refuse_while_processing, stored_ingestion
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
 from app.web.records import ERRORS, erase_now
 from app.web.api.schemas import UploadOut, recording_out
+from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.refusals import Refusal
 
 log = logging.getLogger("chakamo.uploads")
@@ -216,17 +217,40 @@ def _check_session(request: Request, principal, session_id: int) -> None:
         refuse_while_processing(db, session_id, "upload the files")
 
 
+def _replay(request: Request, principal, session_id: int, key: str | None) -> Response | None:
+    """The answer of the earlier upload with this ``Idempotency-Key`` (None: a new key; :mod:`app.web.idempotency`).
+    An upload's key is bound to its path only (its files are not read again to compare them)."""
+    if key is None:
+        return None
+    with request.app.state.db.session() as db:
+        replay = idempotency.replayed(db, principal.clinic_id, key, request_sha256(request))
+        return None if replay is None else _replayed(db, request, principal, session_id, replay)
+
+
+def _replayed(db, request: Request, principal, session_id: int, replay: idempotency.Replay) -> Response:
+    session = clinic_session(db, principal.clinic_id, session_id)
+    rows = [r for r in session.recordings if r.id in set(replay.resource_ids)]
+    audit.record(db, request, principal, "view", patient_id=session.patient_id, session_id=session.id)
+    return answer({"recordings": [recording_out(r) for r in rows], "ingestion": stored_ingestion(session)},
+                  replay.status, f"/api/v1/sessions/{session_id}", replayed=True)
+
+
 def _store(request: Request, principal, session_id: int, upload: _Upload, segment: str | None,
-           role: str | None) -> dict:
+           role: str | None, key: str | None) -> Response:
     """Store the upload's files and their event in one transaction, then check the session's files."""
     with request.app.state.db.session() as db:
+        claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request), "upload") if key else None
+        if isinstance(claimed, idempotency.Replay):  # a concurrent upload with this key won
+            return _replayed(db, request, principal, session_id, claimed)
         session, rows = recordings.store_upload(db, principal.clinic_id, session_id, upload.files, segment=segment,
                                                 role=role, max_files=request.app.state.settings.max_files)
+        if claimed is not None:
+            idempotency.complete(claimed, [r.id for r in rows], 201)
         audit.record(db, request, principal, "upload", patient_id=session.patient_id, session_id=session.id)
         out = [recording_out(r) for r in rows]
     # the files are committed: whatever happens to their check, the upload stands
     ingestion = checker_of(request).refresh_or_defer(session_id, f"upload to session {session_id} stored")
-    return {"recordings": out, "ingestion": ingestion}
+    return answer({"recordings": out, "ingestion": ingestion}, 201, f"/api/v1/sessions/{session_id}")
 
 
 def _too_large(settings) -> Refusal:
@@ -260,8 +284,28 @@ async def _read_body(request: Request, parser: MultipartParser, ceiling: int, se
     await run_in_threadpool(parser.finalize)
 
 
+#: the multipart body of an upload, for OpenAPI (the route parses the stream itself, so FastAPI cannot see it)
+UPLOAD_BODY = {"required": True, "content": {"multipart/form-data": {
+    "schema": {"type": "object", "required": ["files"], "properties": {
+        "files": {"type": "array", "items": {"type": "string", "format": "binary"},
+                  "description": "the recordings (.csv, .xlsx) and optionally the session's session.json; the file "
+                                 "names carry segment and role as the ingestion rules say, unless the fields below "
+                                 "name them"},
+        "segment": {"type": "string", "enum": list(SEGMENTS),
+                    "description": "the sensor's segment for every file of this request"},
+        "role": {"type": "string", "enum": list(UPLOAD_ROLES),
+                 "description": "what every file of this request records (continuous: the whole protocol in one "
+                                "recording, split when read)"}}},
+    "encoding": {"files": {"contentType": "text/csv, application/vnd.openxmlformats-officedocument."
+                                          "spreadsheetml.sheet, application/json"}}}}}
+
+
 @router.post("/{session_id}/recordings", response_model=UploadOut, status_code=201,
-             responses={409: {"description": "file name already stored, or the session is being processed"},
+             openapi_extra={"requestBody": UPLOAD_BODY, "parameters": [KEY_PARAMETER]},
+             responses={201: {"headers": LOCATION},
+                        400: {"description": "malformed multipart body, a field other than files/segment/role, an "
+                                             "unusable file name, or no file"},
+                        409: {"description": "file name already stored, or the session is being processed"},
                         413: {"description": "too large or too many files"}, 415: {"description": "wrong type"},
                         507: {"description": "the server's disk is full: nothing was stored"},
                         503: {"description": "too many uploads at once; try again"}})
@@ -278,6 +322,10 @@ async def upload_recordings(session_id: int, request: Request, principal: Upload
 
 
 async def _upload(session_id: int, request: Request, principal, settings, store: BlobStore):
+    key = key_of(request)
+    replay = await run_in_threadpool(_replay, request, principal, session_id, key)
+    if replay is not None:  # the body is not read: nothing of it is stored
+        return replay
     await run_in_threadpool(_check_session, request, principal, session_id)
     ctype, params = parse_options_header(request.headers.get("content-type"))
     if ctype != b"multipart/form-data" or not params.get(b"boundary"):
@@ -322,7 +370,7 @@ async def _upload(session_id: int, request: Request, principal, settings, store:
         role = upload.fields.get("role") or None
         recordings.check_labels(segment, role)
         try:
-            return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role)
+            return await run_in_threadpool(_store, request, principal, session_id, upload, segment, role, key)
         except OSError as exc:
             if not _disk_full(exc):
                 raise
@@ -353,4 +401,4 @@ def delete_recording(session_id: int, recording_id: int, principal: Clinician, r
     return Response(status_code=204)
 
 
-__all__ = ["FORM_FIELDS", "router"]
+__all__ = ["FORM_FIELDS", "UPLOAD_BODY", "router"]

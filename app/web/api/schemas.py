@@ -72,6 +72,11 @@ class PatientPatch(_In):
     notes: str | None = Field(None, max_length=10000)
 
 
+#: a FHIR reference to a resource of one type: relative (``Type/id``) or absolute (``https://…/Type/id``)
+_SERVICE_REQUEST = r"^(https?://\S+/)?ServiceRequest/[A-Za-z0-9\-.]{1,64}$"
+_ENCOUNTER = r"^(https?://\S+/)?Encounter/[A-Za-z0-9\-.]{1,64}$"
+
+
 class SessionPatch(_In):
     """``PATCH /sessions/{id}``: the fields to correct (absent: unchanged; ``date`` and ``task`` cannot be null)."""
 
@@ -80,6 +85,11 @@ class SessionPatch(_In):
     step_height_m: float | None = Field(None, gt=0, lt=1)
     professional: str | None = Field(None, max_length=200)
     notes: str | None = Field(None, max_length=10000)
+    service_request: str | None = Field(None, max_length=300, pattern=_SERVICE_REQUEST,
+                                        description="the order: ServiceRequest/<id> or its absolute URL (FHIR basedOn)")
+    encounter: str | None = Field(None, max_length=300, pattern=_ENCOUNTER,
+                                  description="the visit: Encounter/<id> or its absolute URL (FHIR encounter)")
+    accession: str | None = Field(None, max_length=100, description="the accession number of the order")
 
 
 class SessionIn(_In):
@@ -88,6 +98,11 @@ class SessionIn(_In):
     step_height_m: float | None = Field(None, gt=0, lt=1)
     professional: str | None = Field(None, max_length=200)
     notes: str | None = Field(None, max_length=10000)
+    service_request: str | None = Field(None, max_length=300, pattern=_SERVICE_REQUEST,
+                                        description="the order: ServiceRequest/<id> or its absolute URL (FHIR basedOn)")
+    encounter: str | None = Field(None, max_length=300, pattern=_ENCOUNTER,
+                                  description="the visit: Encounter/<id> or its absolute URL (FHIR encounter)")
+    accession: str | None = Field(None, max_length=100, description="the accession number of the order")
 
 
 class ProcessIn(_In):
@@ -225,6 +240,9 @@ class SessionOut(SessionSummaryOut):
     step_height_m: float | None
     professional: str | None
     notes: str | None
+    service_request: str | None = None
+    encounter: str | None = None
+    accession: str | None = None
     recordings: list[RecordingOut]
     #: the stored sensor serials' provenance check (one sensor on both segments): ``{"code", "params", "message":
     #: {lang: text}}`` each (app.pipeline.ingestion.provenance.check_stored_sensors)
@@ -395,7 +413,8 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
                                             for a in analyses)
     out = summary_out(s, len(recs), latest, superseded)
     out |= {"version": s.version, "updated_at": s.updated_at, "step_height_m": s.step_height_m,
-            "professional": s.professional, "notes": s.notes,
+            "professional": s.professional, "notes": s.notes, "service_request": s.service_request,
+            "encounter": s.encounter, "accession": s.accession,
             "recordings": [recording_out(r) for r in recs], "sensor_warnings": sensor_warnings(recs),
             "ingestion": stored_ingestion(s, len(recs)),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}

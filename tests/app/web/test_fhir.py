@@ -130,7 +130,8 @@ def test_numbers_equal_results_json(right):
         comps = components(obs)
         for code in ROM_CODES:
             stat, m = code.split("-")
-            assert comps[code]["valueQuantity"]["value"] == results["rom_deg"][angle][stat][m]
+            # rounded to 0.1° as the reports print them (issue 17: 66.67807457718372 was exported)
+            assert comps[code]["valueQuantity"]["value"] == round(results["rom_deg"][angle][stat][m], 1)
         assert comps["cycles-accepted"]["valueInteger"] == results["cycles"]["accepted"]
         assert comps["cycles-detected"]["valueInteger"] == results["cycles"]["detected"]
         assert comps["orientation-filter"]["valueString"] == results["filter"]["name"]
@@ -271,3 +272,63 @@ def test_a_flagged_flexion_range_carries_the_reference_interpretation(right):
     assert (comp["referenceRange"][0]["low"]["value"], comp["referenceRange"][0]["high"]["value"]) == (value + 5, value + 10)
     assert all("interpretation" not in c for o in contained(doc, "Observation").values() for c in o["component"]
                if c is not comp)
+
+
+# ------------------------------------------------------------------------------ issue 17: integration choices
+def test_no_placeholder_domain_and_configurable_code_system(right):
+    results, pdf = right
+    text = json.dumps(build(results, pdf))
+    assert "chakamo.example" not in text and CODE_SYSTEM.startswith("urn:uuid:")
+    doc = build(results, pdf, code_system="https://terminology.hospital.test/CodeSystem/knee")
+    codings = [c for o in contained(doc, "Observation").values() for c in o["code"]["coding"]]
+    assert codings and all(c["system"] == "https://terminology.hospital.test/CodeSystem/knee" for c in codings)
+    assert CODE_SYSTEM not in json.dumps(doc)
+
+
+def test_language_follows_the_pdf_and_conclusion_is_clinical_only(right):
+    results, pdf = right
+    res = copy.deepcopy(results)
+    res["quality"]["warnings"] = [
+        {"code": "ingestion_note", "message": "thigh task: gyr ran on 1.55 s after the common span (cut)",
+         "params": {"variant": "stream_cut_after", "stream": "gyr", "seconds": 1.55, "segment": "thigh",
+                    "role": "task"}},
+        {"code": "few_cycles", "message": "only 3 cycles accepted"}]
+    for lang, side in (("pt", "Joelho direito"), ("es", "Rodilla derecha"), ("en", "Right knee")):
+        doc = build(res, pdf, lang=lang)
+        assert doc["language"] == lang == doc["presentedForm"][0]["language"]
+        assert doc["conclusion"].startswith(side), doc["conclusion"]
+        assert "1.55" not in doc["conclusion"] and "gyr" not in doc["conclusion"]  # no ingestion notes
+        assert "(1)" in doc["conclusion"]  # one clinical warning
+        assert "1.55" not in doc["text"]["div"]
+
+
+def test_patient_by_identifier_order_encounter_and_accession(right):
+    results, pdf = right
+    mrn = "urn:oid:2.16.724.4.9.10.2"
+    doc = build(results, pdf, patient_mode="identifier", patient_identifier_system=mrn,
+                accession_system="urn:oid:1.2.3.4.5",
+                session=session(service_request="ServiceRequest/RX-9", encounter="Encounter/E-4", accession="ACC-77"))
+    assert not contained(doc, "Patient")
+    subject = doc["subject"]
+    assert subject["identifier"]["system"] == mrn and subject["identifier"]["value"] == "MRN-0042"
+    assert all(o["subject"] == subject for o in contained(doc, "Observation").values())
+    assert doc["basedOn"] == [{"reference": "ServiceRequest/RX-9"}]
+    assert doc["encounter"] == {"reference": "Encounter/E-4"}
+    acsn = [i for i in doc["identifier"] if i.get("type", {}).get("coding", [{}])[0].get("code") == "ACSN"]
+    assert acsn == [{"use": "official", "system": "urn:oid:1.2.3.4.5", "value": "ACC-77",
+                     "type": {"coding": [{"system": "http://terminology.hl7.org/CodeSystem/v2-0203", "code": "ACSN",
+                                          "display": "Accession ID"}]}}]
+    validate(doc)
+    with pytest.raises(FhirExportError, match="CHAKAMO_PATIENT_IDENTIFIER_SYSTEM"):
+        build(results, pdf, patient_mode="identifier")
+    with pytest.raises(FhirExportError, match="not a FHIR reference"):
+        build(results, pdf, session=session(encounter="visit 4"))
+
+
+def test_search_bundle_and_capability_statement_validate():
+    from app.web.fhir import capability_statement, search_bundle
+
+    cap = capability_statement(software_version="1.0", base_url="https://chakamo.hospital.test/api/v1")
+    assert cap["fhirVersion"] == "4.0.1"
+    assert cap["rest"][0]["resource"][0]["searchParam"][0]["name"] == "patient"
+    assert search_bundle([]) == {"resourceType": "Bundle", "type": "searchset", "total": 0}

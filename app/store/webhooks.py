@@ -1,0 +1,169 @@
+"""Webhooks: a clinic's subscriptions, the deliveries of job events, and their attempts (the audit trail).
+
+When a job of the clinic ends — ``done`` or ``failed`` — every subscription made before it ended and asking
+for that event gets one delivery (:func:`plan_deliveries`; unique per subscription and job, so two servers
+planning at once make one).  A delivery carries ids and links only, never a patient's data.  The sender
+(:mod:`app.web.webhooks`) claims due deliveries (:func:`claim_due`: their next attempt is pushed a lease ahead
+in the same statement that checks it, so two servers never send one attempt twice) and records each attempt
+(:func:`record_attempt`): a 2xx answer delivers it; otherwise the next attempt waits ``base_s · 2^(n−1)``
+(capped at :data:`MAX_BACKOFF_S`) until :data:`MAX_ATTEMPTS` attempts were made, then the delivery is
+``failed``.  Every row stays as the audit trail (``GET /webhooks/{id}/deliveries``).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import and_, exists, select, update
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from app.store.errors import Invalid, NotFound
+from app.store.models import Job, KneeSession, WebhookDelivery, WebhookSubscription, utcnow
+
+#: the events a subscription may ask for: a job's end
+EVENTS = ("job.done", "job.failed")
+MAX_ATTEMPTS = 8
+MAX_BACKOFF_S = 3600.0
+#: how long a claimed attempt keeps other senders away (longer than a send's timeout)
+LEASE_S = 60.0
+
+
+def add_subscription(db: Session, clinic_id: int, *, url: str, events: list[str], secret: str,
+                     label: str = "") -> WebhookSubscription:
+    unknown = [e for e in events if e not in EVENTS]
+    if unknown or not events:
+        raise Invalid(f"unknown or no event {', '.join(unknown)}; use {' or '.join(EVENTS)}")
+    row = WebhookSubscription(clinic_id=clinic_id, url=url, events=" ".join(sorted(set(events))), secret=secret,
+                              label=label)
+    db.add(row)
+    db.flush()
+    return row
+
+
+def subscriptions(db: Session, clinic_id: int) -> list[WebhookSubscription]:
+    return list(db.scalars(select(WebhookSubscription).where(WebhookSubscription.clinic_id == clinic_id)
+                           .order_by(WebhookSubscription.id)))
+
+
+def clinic_subscription(db: Session, clinic_id: int, subscription_id: int) -> WebhookSubscription:
+    row = db.get(WebhookSubscription, subscription_id)
+    if row is None or row.clinic_id != clinic_id:
+        raise NotFound(f"No webhook {subscription_id} in your clinic; check the id.", row.clinic_id if row else None)
+    return row
+
+
+def delete_subscription(db: Session, clinic_id: int, subscription_id: int) -> None:
+    """Delete the subscription and its deliveries (pending ones are never sent)."""
+    db.delete(clinic_subscription(db, clinic_id, subscription_id))
+    db.flush()
+
+
+def deliveries(db: Session, clinic_id: int, subscription_id: int, limit: int = 100) -> list[WebhookDelivery]:
+    """The subscription's deliveries, newest first."""
+    clinic_subscription(db, clinic_id, subscription_id)
+    return list(db.scalars(select(WebhookDelivery).where(WebhookDelivery.subscription_id == subscription_id)
+                           .order_by(WebhookDelivery.id.desc()).limit(limit)))
+
+
+def _payload(job: Job, patient_id: int, event: str) -> dict[str, Any]:
+    return {"event": event, "job": {"id": job.id, "status": job.status, "session_id": job.session_id,
+                                    "patient_id": patient_id, "analysis_id": job.analysis_id,
+                                    "error_code": job.error_code,
+                                    "finished_at": job.finished_at.isoformat() if job.finished_at else None},
+            "links": {"job": f"/api/v1/jobs/{job.id}", "session": f"/api/v1/sessions/{job.session_id}",
+                      "results": f"/api/v1/sessions/{job.session_id}/results"}}
+
+
+def plan_deliveries(db: Session, limit: int = 200) -> int:
+    """A pending delivery for every ended job a subscription of its clinic has not got yet (module docstring);
+    how many were made.  Commits."""
+    planned = 0
+    for sub in db.scalars(select(WebhookSubscription)).all():
+        wanted = [e.split(".", 1)[1] for e in sub.events.split()]
+        rows = db.execute(
+            select(Job, KneeSession.patient_id).join(KneeSession, KneeSession.id == Job.session_id)
+            .where(Job.clinic_id == sub.clinic_id, Job.status.in_(wanted), Job.finished_at.is_not(None),
+                   Job.finished_at >= sub.created_at,
+                   ~exists().where(and_(WebhookDelivery.subscription_id == sub.id, WebhookDelivery.job_id == Job.id)))
+            .order_by(Job.id).limit(limit)).all()
+        for job, patient_id in rows:
+            event = f"job.{job.status}"
+            db.add(WebhookDelivery(subscription_id=sub.id, clinic_id=sub.clinic_id, job_id=job.id, event=event,
+                                   payload=_payload(job, patient_id, event), state="pending", attempts=0,
+                                   next_attempt_at=utcnow(), last_error=""))
+            try:
+                db.commit()
+                planned += 1
+            except IntegrityError:  # another server planned it meanwhile
+                db.rollback()
+    return planned
+
+
+@dataclass(frozen=True)
+class Due:
+    """A delivery to attempt now: where, with which secret, what."""
+
+    id: int
+    url: str
+    secret: str
+    event: str
+    payload: dict
+    attempt: int
+
+
+def claim_due(db: Session, now: dt.datetime | None = None, limit: int = 20) -> list[Due]:
+    """The pending deliveries due now, each claimed for :data:`LEASE_S` (module docstring).  Commits."""
+    now = now or utcnow()
+    candidates = db.execute(select(WebhookDelivery.id, WebhookDelivery.next_attempt_at)
+                            .where(WebhookDelivery.state == "pending", WebhookDelivery.next_attempt_at <= now)
+                            .order_by(WebhookDelivery.next_attempt_at).limit(limit)).all()
+    claimed = []
+    for delivery_id, due_at in candidates:
+        won = db.execute(update(WebhookDelivery)
+                         .where(WebhookDelivery.id == delivery_id, WebhookDelivery.next_attempt_at == due_at,
+                                WebhookDelivery.state == "pending")
+                         .values(next_attempt_at=now + dt.timedelta(seconds=LEASE_S))).rowcount
+        db.commit()
+        if won:
+            d = db.get(WebhookDelivery, delivery_id)
+            sub = db.get(WebhookSubscription, d.subscription_id)
+            claimed.append(Due(d.id, sub.url, sub.secret, d.event, dict(d.payload), d.attempts + 1))
+    return claimed
+
+
+def record_attempt(db: Session, delivery_id: int, *, status: int | None, error: str, base_s: float,
+                   now: dt.datetime | None = None) -> str:
+    """Record one attempt (``status``: the receiver's HTTP status, None when none came); the delivery's new
+    state.  Commits."""
+    now = now or utcnow()
+    d = db.get(WebhookDelivery, delivery_id)
+    if d is None:  # its subscription was deleted meanwhile
+        return "deleted"
+    d.attempts += 1
+    d.last_status, d.last_error = status, error[:300]
+    if status is not None and 200 <= status < 300:
+        d.state, d.delivered_at = "delivered", now
+    elif d.attempts >= MAX_ATTEMPTS:
+        d.state = "failed"
+    else:
+        d.next_attempt_at = now + dt.timedelta(seconds=min(MAX_BACKOFF_S, base_s * 2 ** (d.attempts - 1)))
+    db.commit()
+    return d.state
+
+
+def job_states(db: Session, clinic_id: int, since: dt.datetime) -> list[dict[str, Any]]:
+    """The clinic's jobs that are queued or running, or ended at or after ``since``: ``id, session_id, status,
+    progress, stage`` (the server-sent event stream's source)."""
+    rows = db.scalars(select(Job).where(Job.clinic_id == clinic_id,
+                                        Job.status.in_(("queued", "running")) | (Job.finished_at >= since))
+                      .order_by(Job.id)).all()
+    return [{"id": j.id, "session_id": j.session_id, "status": j.status, "progress": j.progress, "stage": j.stage,
+             "analysis_id": j.analysis_id} for j in rows]
+
+
+__all__ = ["EVENTS", "LEASE_S", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
+           "clinic_subscription", "delete_subscription", "deliveries", "job_states", "plan_deliveries", "record_attempt",
+           "subscriptions"]

@@ -1,0 +1,105 @@
+"""API tokens: expiry, rotation and scopes (issue 17, §1; :mod:`app.store.tokens`, :mod:`app.web.api.deps`).
+
+Tokens are made by the real ``chakamo tokens`` command (a subprocess, as an operator runs it) and by the
+functions behind it; the API then answers them as the rules say: an expired or rotated-out token 401, a scoped
+token 403 outside its scopes.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import subprocess
+import sys
+
+import pytest
+from web_helpers import make_settings
+
+
+@pytest.fixture
+def app_client(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data")
+    with TestClient(create_app(settings)) as c:
+        admin_cli.create_clinic(settings, "Hospital Tokens")
+        yield c, settings
+
+
+def _chakamo(settings, *args: str) -> subprocess.CompletedProcess:
+    env = os.environ | {"CHAKAMO_DATA_DIR": str(settings.data_dir), "CHAKAMO_ENV": "development"}
+    return subprocess.run([sys.executable, "-m", "app.cli.main", *args], env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_cli_creates_scoped_expiring_tokens_and_rotates_them(app_client):
+    client, settings = app_client
+    out = _chakamo(settings, "tokens", "create", "--clinic", "Hospital Tokens", "--label", "PACS", "--expires-days",
+                   "30", "--scope", "fhir:read", "--scope", "patients:read")
+    assert out.returncode == 0, out.stderr
+    token = out.stdout.strip().splitlines()[-1]
+    h = {"Authorization": f"Bearer {token}"}
+    assert client.get("/api/v1/patients", headers=h).status_code == 200
+    r = client.post("/api/v1/patients", json={"external_id": "T-1", "side": "left"}, headers=h)
+    assert r.status_code == 403 and "patients:write" in r.json()["detail"]
+    assert client.get("/api/v1/jobs/1", headers=h).status_code == 403  # jobs:read not granted
+    assert client.get("/api/v1/options", headers=h).status_code == 200  # needs no scope
+
+    from app.cli import admin as admin_cli
+
+    (row,) = admin_cli.list_tokens(settings, clinic="Hospital Tokens")
+    assert row["scopes"] == "fhir:read patients:read" and row["label"] == "PACS"
+    lifetime = row["expires_at"] - row["created_at"]
+    assert abs(lifetime - dt.timedelta(days=30)) < dt.timedelta(minutes=1)
+
+    out = _chakamo(settings, "tokens", "rotate", str(row["id"]), "--grace-hours", "2")
+    assert out.returncode == 0, out.stderr
+    successor = out.stdout.strip().splitlines()[-1]
+    h2 = {"Authorization": f"Bearer {successor}"}
+    assert client.get("/api/v1/patients", headers=h2).status_code == 200
+    assert client.get("/api/v1/patients", headers=h).status_code == 200  # the grace period
+    old, new = admin_cli.list_tokens(settings, clinic="Hospital Tokens")
+    assert new["scopes"] == old["scopes"] and new["label"] == "PACS"
+    assert abs((new["expires_at"] - new["created_at"]) - lifetime) < dt.timedelta(minutes=1)
+    assert old["expires_at"] <= old["created_at"] + dt.timedelta(hours=2, minutes=1)
+
+    # rotation without grace: the old token ends now, with a sentence saying so
+    _, info = admin_cli.rotate_token(settings, new["id"], grace_hours=0)
+    r = client.get("/api/v1/patients", headers=h2)
+    assert r.status_code == 401 and "expired" in r.json()["detail"]
+    assert r.headers["content-type"] == "application/problem+json"
+    with pytest.raises(ValueError, match="revoked or expired"):
+        admin_cli.rotate_token(settings, new["id"])
+
+
+def test_bad_token_options_are_refused_with_a_sentence(app_client):
+    _, settings = app_client
+    from app.cli import admin as admin_cli
+
+    with pytest.raises(ValueError, match="unknown scope"):
+        admin_cli.create_token(settings, clinic="Hospital Tokens", scopes=["patients:delete"])
+    with pytest.raises(ValueError, match="out of range"):
+        admin_cli.create_token(settings, clinic="Hospital Tokens", expires_days=0)
+    out = _chakamo(settings, "tokens", "create", "--clinic", "Hospital Tokens", "--scope", "everything")
+    assert out.returncode == 2 and "unknown scope everything" in out.stderr
+
+
+def test_a_scoped_upload_token_cannot_read_patients(app_client, demo_dir):
+    client, settings = app_client
+    from app.cli import admin as admin_cli
+
+    full = {"Authorization": "Bearer " + admin_cli.create_token(settings, clinic="Hospital Tokens")}
+    pid = client.post("/api/v1/patients", json={"external_id": "U-1", "side": "right"}, headers=full).json()["id"]
+    sid = client.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=full).json()["id"]
+    uploader = {"Authorization": "Bearer " + admin_cli.create_token(
+        settings, clinic="Hospital Tokens", scopes=["recordings:write", "jobs:write jobs:read"])}
+    files = [("files", (p.name, p.read_bytes(), "text/csv")) for p in sorted(demo_dir.glob("*.csv"))[:3]]
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", files=files, headers=uploader).status_code == 201
+    assert client.get(f"/api/v1/patients/{pid}", headers=uploader).status_code == 403
+    assert client.get(f"/api/v1/sessions/{sid}/results", headers=uploader).status_code == 403
+    reader = {"Authorization": "Bearer " + admin_cli.create_token(settings, clinic="Hospital Tokens",
+                                                                  scopes=["sessions:read"])}
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", files=files, headers=reader).status_code == 403
