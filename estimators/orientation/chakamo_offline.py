@@ -10,7 +10,10 @@ import numpy as np
 from estimators import signal
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray
+from estimators.orientation.base import BoolArray, FloatArray
+
+#: reweighting passes of :func:`robust_heading` (the weights settle after 2–3 on the gait and BROAD data)
+ROBUST_ITERATIONS = 3
 
 
 def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
@@ -61,6 +64,42 @@ def field_weights(mag_e: FloatArray, accepted: FloatArray, norm_sigma: float, di
     z2 = ((norm - n_ref) / (norm_sigma * n_ref)) ** 2 + ((dip - d_ref) / dip_sigma_rad) ** 2
     w[accepted] = np.exp(-0.5 * z2[accepted])
     return w
+
+
+def guarded(near: BoolArray, guard: int) -> BoolArray:
+    """The samples of ``near`` whose every neighbour within ``guard`` samples (either side) is also near (15a).
+
+    The edges of a disturbance are not trusted on *both* sides: the causal hysteresis (11) guards only the
+    time after a disturbance, and the two passes' hysteresis together would guard 2 × ``mag_min_undisturbed_s``
+    around each one, more than a walking swing phase lasts (0.5 s).  The recording's own ends are no disturbance.
+    """
+    near = np.asarray(near, dtype=bool)
+    if guard <= 0 or near.all():
+        return near.copy()
+    n = near.shape[0]
+    bad = np.concatenate([[0], np.cumsum(~near)])
+    idx = np.arange(n)
+    lo, hi = np.maximum(idx - guard, 0), np.minimum(idx + guard + 1, n)
+    return near & (bad[hi] - bad[lo] == 0)
+
+
+def robust_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float, width_rad: float,
+                   iterations: int = ROBUST_ITERATIONS) -> FloatArray:
+    r"""Heading offset (14) with Cauchy weights of the residual (15b), by iterative reweighting.
+
+    :math:`w_j \leftarrow w_j\,c^2/(c^2 + r_j^2)`, :math:`r_j = \operatorname{wrap}(\delta^*_j - \delta_s(t_j))`,
+    :math:`c` = ``width_rad``, then (14) again (``iterations`` times).  The earth's field is fixed in ``E``, so the
+    target of clean samples follows the smoothed heading; a field that a disturbance turns about the vertical
+    keeps its norm and dip (it passes (11) and (15)) but not its target.  ``width_rad`` = 0: plain (14).
+    """
+    delta = smooth_heading(target_rad, weight, tau_s, dt_s)
+    if width_rad <= 0.0:
+        return delta
+    c2 = width_rad * width_rad
+    for _ in range(iterations):
+        r = np.angle(np.exp(1j * (target_rad - delta)))
+        delta = smooth_heading(target_rad, weight * (c2 / (c2 + r * r)), tau_s, dt_s)
+    return delta
 
 
 def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float) -> FloatArray:
