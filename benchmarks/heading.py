@@ -62,8 +62,12 @@ def disturbed_mag(grid, angle_rad: float, start_s: float, stop_s: float, ramp_s:
 
 
 def session(seed: int, side: str, height_m: float, disturb_rad: float, n_cycles: int = 8,
-            filter_name: str = "chakamo", shape: str = "rest_between"):
-    """9D and 6D segment orientations of both segments and the true knee angles (see module docstring)."""
+            filter_name: str = "chakamo", shape: str = "rest_between",
+            disturb_span: tuple[float, float] = (1.0 / 3.0, 2.0 / 3.0)):
+    """9D and 6D segment orientations of both segments and the true knee angles (see module docstring).
+
+    ``disturb_span``: the part of the task (fractions of its duration) during which the shank's field is turned.
+    """
     rng = np.random.default_rng(1000 + seed)
     leg = sim.step_up(n_cycles, height_m, side, shape=shape, seed=seed, facing_rad=float(rng.uniform(-np.pi, np.pi)))
     spec = sim.ImuSpec()
@@ -76,7 +80,7 @@ def session(seed: int, side: str, height_m: float, disturb_rad: float, n_cycles:
                                  lever_arm_m=getattr(leg, f"{name}_lever_arm_m"))
         mag = (g.mag - spec.mag.hard_iron_ut) @ np.linalg.inv(spec.mag.soft_iron).T
         if name == "shank" and disturb_rad != 0.0:
-            mag = mag + disturbed_mag(g, disturb_rad, dur / 3.0, 2.0 * dur / 3.0)
+            mag = mag + disturbed_mag(g, disturb_rad, disturb_span[0] * dur, disturb_span[1] * dur)
         gyr = g.gyr - spec.gyr.bias_rad_s
         q_ss = quat.conjugate(mount)
         q9 = filt.estimate(g.acc, gyr, mag, fs_hz=g.fs_hz).orientation_

@@ -66,8 +66,8 @@ STATE_SIZE = 92
 COEFF_SIZE = 33
 
 # --- auxiliary per-sample outputs (columns of ``aux``)
-A_BIAS, A_P, A_REST, A_MAGUSED = 0, 3, 9, 10
-AUX_SIZE = 11
+A_BIAS, A_P, A_REST, A_MAGUSED, A_MAGNEAR = 0, 3, 9, 10, 11
+AUX_SIZE = 12
 
 
 # =====================================================================================
@@ -335,6 +335,8 @@ def chakamo_batch(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_aux):
                 aux[k, A_P + j] = s[S_P + j]
             aux[k, A_REST] = s[S_REST]
             aux[k, A_MAGUSED] = used
+            # the field was near the reference at this sample (hysteresis aside): t_undist runs
+            aux[k, A_MAGNEAR] = 1.0 if mag_ok[k] and s[S_TUND] > 0.0 else 0.0
     return out, s, aux
 
 

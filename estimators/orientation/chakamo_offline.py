@@ -10,7 +10,12 @@ import numpy as np
 from estimators import signal
 
 from estimators import quaternion as quat
-from estimators.orientation.base import FloatArray
+from estimators.orientation.base import BoolArray, FloatArray
+
+#: reweighting passes of :func:`robust_heading` (the weights settle after 2–3 on the gait and BROAD data)
+ROBUST_ITERATIONS = 3
+#: blocks per heading time constant in the kernel sums of (14) (see :func:`robust_heading`)
+BLOCKS_PER_TAU = 100
 
 
 def butterworth(tau_s: float, fs_hz: float) -> tuple[FloatArray, FloatArray]:
@@ -63,28 +68,90 @@ def field_weights(mag_e: FloatArray, accepted: FloatArray, norm_sigma: float, di
     return w
 
 
-def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float) -> FloatArray:
-    """Heading offset (14): two-sided exponential, weighted mean of the unwrapped target ``(N,)``, rad."""
-    n = target_rad.shape[0]
+def guarded(near: BoolArray, guard: int) -> BoolArray:
+    """The samples of ``near`` whose every neighbour within ``guard`` samples (either side) is also near (15a).
+
+    The edges of a disturbance are not trusted on *both* sides: the causal hysteresis (11) guards only the
+    time after a disturbance, and the two passes' hysteresis together would guard 2 × ``mag_min_undisturbed_s``
+    around each one, more than a walking swing phase lasts (0.5 s).  The recording's own ends are no disturbance.
+    """
+    near = np.asarray(near, dtype=bool)
+    if guard <= 0 or near.all():
+        return near.copy()
+    n = near.shape[0]
+    idx = np.arange(n)
+    last_bad = np.maximum.accumulate(np.where(near, -n - guard, idx))  # latest rejected sample at or before k
+    next_bad = np.minimum.accumulate(np.where(near, 2 * n + guard, idx)[::-1])[::-1]  # earliest at or after k
+    return (idx - last_bad > guard) & (next_bad - idx > guard)
+
+
+def robust_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float, width_rad: float,
+                   iterations: int = ROBUST_ITERATIONS) -> FloatArray:
+    r"""Heading offset (14) with Cauchy weights of the residual (15b), by iterative reweighting.
+
+    :math:`w_j \leftarrow w_j\,c^2/(c^2 + r_j^2)`, :math:`r_j = \delta^*_j - \delta_s(t_j)` (unwrapped target),
+    :math:`c` = ``width_rad``, then (14) again (``iterations`` times).  The earth's field is fixed in ``E``, so the
+    target of clean samples follows the smoothed heading; a field that a disturbance turns about the vertical
+    keeps its norm and dip (it passes (11) and (15)) but not its target.  ``width_rad`` = 0: plain (14).
+
+    The kernel sums of (14) are taken over blocks of ``τ/100`` (``BLOCKS_PER_TAU``): within a block the kernel
+    weight :math:`e^{-|t_k - t_j|/\tau}` changes by under 1 %, and the smoothed heading is interpolated linearly
+    between block centres.
+    """
     w = np.asarray(weight, dtype=np.float64)
+    n = target_rad.shape[0]
     used = w > 0.0
     if not used.any():
         return np.zeros(n)
-    unwrapped = np.zeros(n)
-    unwrapped[used] = np.unwrap(target_rad[used])
-    decay = math.exp(-dt_s / tau_s)
-
-    def two_sided(x: FloatArray) -> FloatArray:
-        fwd = signal.lfilter([1.0], [1.0, -decay], x)
-        bwd = signal.lfilter([1.0], [1.0, -decay], x[::-1])[::-1]
-        return fwd + bwd - x
-
-    num = two_sided(w * unwrapped)
-    den = two_sided(w)
-    ok = den > 1e-200
-    delta = np.zeros(n)
-    delta[ok] = num[ok] / den[ok]
-    if not ok.all():  # gaps longer than ~700 τ: hold the nearest smoothed value
-        idx = np.flatnonzero(ok)
-        delta = np.interp(np.arange(n), idx, delta[idx])
+    unwrapped = _unwrapped(target_rad, used)
+    block = max(1, int(tau_s / (BLOCKS_PER_TAU * dt_s)))
+    delta = _two_sided_mean(unwrapped, w, math.exp(-block * dt_s / tau_s), block)
+    if width_rad > 0.0:
+        c2 = width_rad * width_rad
+        for _ in range(iterations):
+            r = unwrapped - delta
+            delta = _two_sided_mean(unwrapped, w * (c2 / (c2 + r * r)), math.exp(-block * dt_s / tau_s), block)
     return delta
+
+
+def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float) -> FloatArray:
+    """Heading offset (14): two-sided exponential, weighted mean of the unwrapped target ``(N,)``, rad."""
+    return robust_heading(target_rad, weight, tau_s, dt_s, 0.0)
+
+
+def _unwrapped(target_rad: FloatArray, used: BoolArray) -> FloatArray:
+    """The target unwrapped over the used samples (zero elsewhere)."""
+    x = target_rad[used]
+    step = np.diff(x)
+    step -= (2.0 * math.pi) * np.round(step / (2.0 * math.pi))
+    unwrapped = np.zeros(target_rad.shape[0])
+    unwrapped[used] = x[0] + np.concatenate([[0.0], np.cumsum(step)])
+    return unwrapped
+
+
+def _two_sided_mean(unwrapped: FloatArray, w: FloatArray, decay: float, block: int) -> FloatArray:
+    """(14) for given weights on blocks of ``block`` samples (``decay`` per block), interpolated back."""
+    n = unwrapped.shape[0]
+    nb = -(-n // block)
+    x = np.zeros((2, nb * block))
+    np.multiply(w, unwrapped, out=x[0, :n])
+    x[1, :n] = w
+    sums = x.reshape(2, nb, block).sum(axis=2)
+
+    def two_sided(v: FloatArray) -> FloatArray:
+        y = signal.lfilter([1.0], [1.0, -decay], v)
+        y += signal.lfilter([1.0], [1.0, -decay], np.ascontiguousarray(v[::-1]))[::-1]
+        y -= v
+        return y
+
+    num, den = two_sided(sums[0]), two_sided(sums[1])
+    ok = den > 1e-200  # gaps longer than ~700 τ: hold the nearest smoothed value
+    if not ok.all() or nb * block > n:  # the general form: linear between the (valid) block centres
+        centre = np.arange(nb) * block + 0.5 * (min(block, n) - 1)
+        return np.interp(np.arange(n), centre[ok], num[ok] / den[ok])
+    # the same interpolation on the regular grid of full blocks, without a search
+    v = num / den
+    ends = np.concatenate([v[:1], v, v[-1:]])
+    frac = (np.arange(block) - 0.5 * (block - 1)) / block
+    ramp = np.where(frac >= 0.0, frac * (ends[2:] - v)[:, None], frac * (v - ends[:-2])[:, None])
+    return (v[:, None] + ramp).reshape(-1)

@@ -11,7 +11,7 @@ import numpy as np
 
 from estimators import quaternion as quat
 from estimators.orientation.chakamo_kernels import (
-    AUX_SIZE, A_BIAS, A_MAGUSED, A_P, A_REST, C_A1, C_A2, C_B0, C_B1, C_B2, C_CLIP, C_DIPTH, C_DT, C_KCAND,
+    AUX_SIZE, A_BIAS, A_MAGNEAR, A_MAGUSED, A_P, A_REST, C_A1, C_A2, C_B0, C_B1, C_B2, C_CLIP, C_DIPTH, C_DT, C_KCAND,
     C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
     C_NORMTH, C_P0, C_QBIAS, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
     C_THA2, C_THG2, S_ALP, S_AREST, S_BIAS, S_DELTA, S_GREST, S_LP, S_MCANDD, S_MCANDN, S_MDIST, S_MLP,
@@ -192,6 +192,7 @@ def chakamo_batch_reference(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_
             aux[k, A_P:A_P + 6] = s[S_P:S_P + 6]
             aux[k, A_REST] = s[S_REST]
             aux[k, A_MAGUSED] = used
+            aux[k, A_MAGNEAR] = 1.0 if mag_ok[k] and s[S_TUND] > 0.0 else 0.0
     return out, s, aux
 
 

@@ -12,7 +12,8 @@ import pytest
 from estimators import quaternion as quat
 from estimators.orientation import chakamo_kernels as kern
 from estimators.orientation import chakamo_reference as ref
-from estimators.orientation.chakamo import Chakamo, ChakamoParams, smooth_heading
+from estimators.orientation.chakamo import Chakamo, ChakamoParams
+from estimators.orientation.chakamo_offline import guarded, robust_heading, smooth_heading
 
 G_UP = np.array([0.0, 0.0, 9.81])
 FIELD = np.array([0.0, 20.0, -40.0])
@@ -326,3 +327,27 @@ def test_offline_recovers_a_recording_that_starts_disturbed():
     assert err.mean() < 1.0  # the backward pass knows the clean field
     q_causal = Chakamo(ChakamoParams(offline=False)).estimate(acc, gyr, mag, fs_hz=fs).orientation_
     assert np.degrees(quat.angle_between(q_causal, q_true))[:1000].mean() > 10.0  # the causal filter does not (~45°)
+
+
+def test_offline_guard_is_two_sided_and_spares_the_recording_ends():
+    """(15a): a rejected sample removes its neighbours within the guard on both sides; the ends are no disturbance."""
+    near = np.ones(20, dtype=bool)
+    near[10] = False
+    kept = guarded(near, 2)
+    assert np.array_equal(np.flatnonzero(~kept), [8, 9, 10, 11, 12])
+    assert np.array_equal(guarded(near, 0), near)
+
+
+def test_robust_heading_ignores_a_field_turned_about_the_vertical():
+    """(15b): 30 % of the samples see north turned by 29° (same norm and dip, so (11) and (15) pass them)."""
+    rng = np.random.default_rng(3)
+    n = 1000
+    target = np.full(n, 0.1) + rng.normal(0.0, 0.01, n)
+    turned = (np.arange(n) % 10) < 3
+    target[turned] += 0.5
+    weight = np.ones(n)
+    plain = smooth_heading(target, weight, tau_s=20.0, dt_s=0.01)
+    robust = robust_heading(target, weight, 20.0, 0.01, np.radians(5.0))
+    assert np.degrees(np.max(np.abs(plain - 0.1))) > 8.0
+    assert np.degrees(np.max(np.abs(robust - 0.1))) < 1.0
+    assert np.array_equal(robust_heading(target, weight, 20.0, 0.01, 0.0), plain)

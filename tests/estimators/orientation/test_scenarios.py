@@ -64,12 +64,15 @@ def test_chakamo_short_clip_and_floor_disturbance(name, params, seed):
         assert heading_rms_deg(q, clip) <= 5.0
 
 
-@pytest.mark.xfail(strict=True, reason="offline ChakaMo, floor disturbance 0.3: heading RMS 1.3, 6.2, 0.5, 4.4, 12.8, "
-                                       "3.5° on seeds 0–5 (seeds 1 and 4 over 5°): stance-phase fields within the "
-                                       "rejection thresholds pass as the earth's")
-def test_chakamo_floor_disturbance_every_seed():
-    """Issue 13 §1 (indoor disturbances near the floor) on every seed 0–5, not only the two asserted above."""
-    for seed in range(6):
+@pytest.mark.parametrize("seeds", [range(6), range(6, 12)], ids=["tuned", "held-out"])
+def test_chakamo_floor_disturbance_every_seed(seeds):
+    """Issue 13 §1 (indoor disturbances near the floor) on every seed, not only the two asserted above.
+
+    Was 1.3, 6.2, 0.5, 4.4, 12.8, 3.5° on seeds 0–5 (11.2, 9.6, 5.0, 3.7, 8.2, 5.3° on 6–11).  Causes (chakamo
+    module docstring, (15a-b)): both passes' hysteresis together excluded every clean swing, leaving only the
+    floor fields that turn north about the vertical at an unchanged norm and dip.  With the two-sided guard and
+    the robust heading (both chosen on seeds 0–5): ≤ 1.7° on 0–5, ≤ 2.2° on the held-out seeds 6–11."""
+    for seed in seeds:
         clip = gait_clip(seed=seed, floor_disturbance=0.3)
         q = make("chakamo").estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
         assert heading_rms_deg(q, clip) <= 5.0, seed
@@ -93,9 +96,13 @@ def test_every_method_meets_the_5_degree_goal_in_gait(name):
 
 
 HELD_OUT = [pytest.param(m, marks=pytest.mark.xfail(
-    strict=True, reason="guo, held-out seeds 7 and 8: heading RMS 4.7° and 6.4° (tilt ≤ 4.3°): its in-motion "
-                        "bias state (deviation 12) learns a wrong vertical bias from heading innovations that "
-                        "carry the tilt error × tan(dip); without that state the tilt drifts instead"))
+    strict=True, reason="guo, held-out seeds 7 and 8: heading RMS 4.6° and 6.4° (tilt ≤ 4.3°). Cause, measured: the "
+                        "decoupled heading uses the predicted tilt, so a tilt error δ reads as δ·tan(dip) of heading "
+                        "(same clips with the field's dip set to 0°/30°/63°: worst 0.3°/2.0°/6.4°); that error is slow "
+                        "(seed 8: tilt error 0.4° → 4.3° while the covariance predicts 1.3°), so the bias state "
+                        "(deviation 12) learns a wrong vertical bias (error 1.9 °/s, true bias 1 °/s). Dropping the "
+                        "heading part from the bias update gives 4.5° here but 8.1° on the step-up with a 1.7 °/s "
+                        "bias (planar motion: the vertical bias is seen only in heading), so it is not the fix"))
             if m == "guo" else m for m in METHODS]
 
 
