@@ -130,9 +130,12 @@ function qualitySection(r) {
   const warnings = ((r.quality || {}).warnings) || [];
   const rejected = ((r.cycles || {}).rejected) || [];
   const items = [
-    ...warnings.map((w) => h("li", { class: "warning" }, typeof w === "string" ? w : (w.message || w.code || ""))),
+    // in the reader's language: results.json gives each warning's text in es/en/pt (as the reports print it);
+    // an analysis stored before that shows its English message
+    ...warnings.map((w) => h("li", { class: "warning", "data-code": typeof w === "string" ? null : w.code },
+      typeof w === "string" ? w : ((w.text || {})[lang()] || w.message || w.code || ""))),
     ...rejected.map((c) => h("li", { class: "warning" }, t("results.rejected_cycle", {
-      n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message ? ` — ${c.message}` : "")),
+      n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message && lang() === "en" ? ` — ${c.message}` : "")),   // English detail
   ];
   return h("section", { class: "card quality", "aria-labelledby": "h-quality" },
     h("h2", { id: "h-quality" }, t("results.quality")),

@@ -559,6 +559,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: esta gravação contínua de todo o protocolo não tem uma postura {posture} mantida parada "
               "5 s ou mais (posturas paradas encontradas, duração @ início (ângulo com o +y do sensor): {found}); grave de novo o protocolo mantendo paradas as "
               "posturas em pé e dorsal 30 s cada, ou exporte as suas partes como gravações separadas."},
+    "word.recording_group": {  # a fragment of app.pipeline.service_messages "session.recognised"
+        "en": "{label} ({n} {format} files)",
+        "es": "{label} ({n} archivos {format})",
+        "pt": "{label} ({n} arquivos {format})"},
     "session.recording_twice": {
         "en": "{file} and {other} are both the {role} recording of the {segment}; keep one (or list the one to use "
               "in session.json).",
@@ -914,6 +918,12 @@ WORDS = {
     "task": {"en": "task", "es": "tarea", "pt": "tarefa"},
     "continuous": {"en": "continuous", "es": "continua", "pt": "contínua"},
     "right": {"en": "right", "es": "derecha", "pt": "direita"},
+    # how a segment or role was recognised (Recognition.method), for the session check's lines
+    "how_file_name": {"en": "the file name", "es": "el nombre del archivo", "pt": "o nome do arquivo"},
+    "how_metabase_label": {"en": "the MetaBase label", "es": "la etiqueta de MetaBase", "pt": "o rótulo do MetaBase"},
+    "how_session_json": {"en": "session.json", "es": "session.json", "pt": "session.json"},
+    "how_split": {"en": "the split of the continuous recording", "es": "la división de la grabación continua",
+                  "pt": "a divisão da gravação contínua"},
     "left": {"en": "left", "es": "izquierda", "pt": "esquerda"},
 }
 

@@ -48,7 +48,7 @@ from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note,
                                  SessionMetadata)
 from app.pipeline.ingestion.opal import list_sensors, read_opal
 from app.pipeline.ingestion.split import CONTINUOUS, left_unsplit, split_session
-from app.pipeline.ingestion.phyphox import looks_like_phyphox, read_phyphox
+from app.pipeline.ingestion.phyphox import phyphox_device_id, looks_like_phyphox, read_phyphox
 from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
@@ -112,6 +112,7 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
             facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
     elif all(p.suffix.lower() in (".csv", ".txt", ".zip", ".xlsx") for p in paths) and all(map(looks_like_phyphox, paths)):
         acc, gyr, mag = read_phyphox(paths)
+        sensor_id = phyphox_device_id(paths)
         stems = [p.stem for p in paths]
         label = os.path.commonprefix(stems).strip(" _-") if len(stems) > 1 else stems[0]
         label, fmt, method = label or stems[0], "phyphox", "file name"
