@@ -42,7 +42,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "ocupado comprobando otros archivos; abra la sesión de nuevo en un momento y se comprobarán entonces.",
         "pt": "Os arquivos estão guardados, mas o servidor não pôde verificá-los em {seconds} s porque está "
               "ocupado verificando outros arquivos; abra a sessão de novo daqui a pouco e serão verificados então."},
-    "session.no_recordings": {
+    "session.no_files_yet": {
         "en": "No recordings yet; upload the session's files.",
         "es": "Todavía no hay grabaciones; suba los archivos de la sesión.",
         "pt": "Ainda não há gravações; envie os arquivos da sessão."},

@@ -35,8 +35,8 @@ from app.store.blobs import BlobStore
 
 
 #: the Ingestion object of a session without recordings (the API answers it too before any check ran)
-NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": render("session.no_recordings", {}),
-                                  "error_item": item("session.no_recordings", {}, render("session.no_recordings", {}))}
+NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": render("session.no_files_yet", {}),
+                                  "error_item": item("session.no_files_yet", {}, render("session.no_files_yet", {}))}
 
 
 def _number(x: Any) -> float | None:

@@ -555,8 +555,8 @@ function processStep(ctx) {
   // the side override (as `chakamo process --side`): empty = the patient's side, checked against the files'
   const sideSelect = h("select", { name: "side" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
-  const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
-    t("wizard.process"));
+  // enabled once GET /options has filled the menus: a click before that sent no filter (422, seen under load)
+  const processButton = h("button", { type: "submit", class: "primary", disabled: true }, t("wizard.process"));
   const form = h("form", { class: "card form-grid process-form" },
     field(t("wizard.filter"), filter, t("wizard.filter_hint"))[0],
     field(t("wizard.report_language"), language, t("wizard.report_language_hint"))[0],
@@ -579,6 +579,7 @@ function processStep(ctx) {
     fillSelect(sideSelect, "side", opts.sides);
     sideSelect.prepend(h("option", { value: "", selected: true }, t("wizard.side_patient")));
     sideSelect.value = "";
+    processButton.disabled = !ingestion.ok || !canEdit() || Boolean(ctx.activeJob);
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {

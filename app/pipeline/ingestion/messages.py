@@ -541,14 +541,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: essa pasta de sessão não existe; verifique o caminho."},
     "session.no_recordings": {
         "en": "{file}: no recordings found; the folder holds {count} file(s): {found}. ChakaMo reads MetaBase "
-              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer and Sensor Logger (.zip) files: "
+              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer, Sensor Logger (.zip) and phyphox files: "
               "check the folder, or export the recordings again. {hint}",
         "es": "{file}: no se encontró ninguna grabación; la carpeta tiene {count} archivo(s): {found}. ChakaMo lee "
-              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer y Sensor Logger "
-              "(.zip): compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
+              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
+              "(.zip) y phyphox: compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
         "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} arquivo(s): {found}. O ChakaMo lê "
-              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer e Sensor Logger "
-              "(.zip): verifique a pasta, ou exporte as gravações de novo. {hint}"},
+              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
+              "(.zip) e phyphox: verifique a pasta, ou exporte as gravações de novo. {hint}"},
     "split.no_posture": {
         "en": "{file}: this continuous recording of the whole protocol has no {posture} posture held still for 5 s "
               "or more (still postures found, duration @ start (angle from the sensor's +y): {found}); record the protocol again holding standing and supine "

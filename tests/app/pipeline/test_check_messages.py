@@ -27,9 +27,15 @@ def test_every_code_the_check_stores_has_three_languages():
         text = p.read_text(encoding="utf-8")
         used |= set(re.findall(r"(?:item|render|_failed|Refusal\(\d+,)\s*\(?\s*[\"']([a-z_]+\.[a-z_]+)[\"']", text))
     tables = {**INGESTION, **PIPELINE_CATALOGUE, **SERVICE}
-    assert "session.recognised" in used and "session.no_recordings" in used
+    assert "session.recognised" in used and "session.no_files_yet" in used
     missing = sorted(c for c in used if c not in tables or not _complete(tables[c]))
     assert not missing, missing
+
+
+def test_no_code_is_defined_twice():
+    """A stored code is looked up in the service table first: one also in the ingestion's would show the wrong text."""
+    assert not set(SERVICE) & set(INGESTION) and not set(SERVICE) & set(PIPELINE_CATALOGUE)
+    assert not set(PIPELINE_CATALOGUE) & set(INGESTION)
 
 
 def test_every_note_variant_has_three_languages():
