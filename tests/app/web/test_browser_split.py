@@ -40,8 +40,8 @@ def _login(page, base: str, email_label: str, password_label: str, button: str) 
     page.get_by_role("button", name=button).click()
 
 
-def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(browser, server, continuous_files,  # noqa: F811
-                                                                         slow_expect, tmp_path):
+def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
+        browser, server, continuous_files, slow_expect, tmp_path):  # noqa: F811
     expect = slow_expect
     files, truth = continuous_files
     context = browser.new_context(locale="es-ES", viewport={"width": 1280, "height": 1000})
