@@ -477,6 +477,7 @@ function splitCard(ctx, segment, split, spans, message) {
     inputs[role] = [from, to];
     [from, to].forEach((input, k) => input.addEventListener("input", () => {
       const value = Number(input.value);
+      clear(message);   // a refusal of the earlier values no longer applies
       if (input.value !== "" && Number.isFinite(value)) {
         spans[role][k] = value;
         draw();

@@ -107,6 +107,7 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         editor.get_by_role("button", name="Confirmar los cortes").click()
         expect(editor.get_by_role("alert")).to_contain_text("el inicio debe ir antes del fin")
         wrong.fill(saved_lying)
+        expect(editor.get_by_role("alert")).to_have_count(0)   # corrected: the refusal goes
 
         editor.get_by_role("button", name="Confirmar los cortes").click()
         expect(page.locator("#split .split-state")).to_have_attribute("data-confirmed", "yes")
