@@ -792,6 +792,12 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "word.role": {"en": "role", "es": "papel", "pt": "papel"},
     "word.segment": {"en": "segment", "es": "segmento", "pt": "segmento"},
     "word.role_segment": {"en": "role and segment", "es": "papel y segmento", "pt": "papel e segmento"},
+    "word.side": {"en": "side", "es": "lado", "pt": "lado"},
+    "word.ambiguity": {"en": ": {reasons}", "es": ": {reasons}", "pt": ": {reasons}"},   # hint.unrecognised's why
+    "word.label_ambiguous": {  # a file name naming two roles or segments (labels.AmbiguousLabel)
+        "en": "the label '{label}' names more than one {what}: {found}",
+        "es": "la etiqueta '{label}' nombra más de un {what}: {found}",
+        "pt": "o rótulo '{label}' nomeia mais de um {what}: {found}"},
     "word.role_of": {"en": "{role} of the {segment}", "es": "{role} ({segment})", "pt": "{role} ({segment})"},
     # -------------------------------------------------------------------------------------------- notes
     "note.csv_semicolon": {
