@@ -51,20 +51,17 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
     path, ``..``, a file that was not uploaded) raises :class:`IngestionError`, so a manifest can never make
     the ingestion read a file outside the session's own folder."""
     if uploaded is not None and not isinstance(uploaded, dict):
-        raise IngestionError(f"{MANIFEST}: must be a JSON object ({{\"side\": ..., \"recordings\": [...]}}), not "
-                             f"{type(uploaded).__name__}; fix it or delete that recording")
+        raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
     manifest: dict[str, Any] = dict(uploaded or {})
     stored = {r.file_name for r in recordings if r.file_name != MANIFEST}
     listed = manifest.get("recordings") or []
     if not isinstance(listed, list):
-        raise IngestionError(f"{MANIFEST}: \"recordings\" must be a list of {{\"files\": [...], \"segment\": ..., "
-                             "\"role\": ...}} entries; fix it or delete that recording")
+        raise IngestionError("manifest.stored_recordings_not_list", file=MANIFEST)
     for entry in listed:
         files = entry.get("files") if isinstance(entry, dict) else None
         for name in files if isinstance(files, list) else [files]:
             if not isinstance(name, str) or Path(name).name != name or name not in stored:
-                raise IngestionError(f"{MANIFEST}: the recording file {name!r} is not one of this session's "
-                                     "uploaded files; list only the uploaded files' names")
+                raise IngestionError("manifest.not_uploaded", file=MANIFEST, name=repr(name)[:80])
     facts = {
         "side": patient.side, "patient_id": patient.external_id, "date": session.date.isoformat(),
         "step_height_m": _number(session.step_height_m), "name": patient.name,
@@ -107,9 +104,9 @@ def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient:
                 try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
                     uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
                 except (UnicodeDecodeError, json.JSONDecodeError):
-                    raise IngestionError(f"{MANIFEST}: not valid UTF-8 JSON; fix it or delete that recording.") from None
+                    raise IngestionError("manifest.stored_not_json", file=MANIFEST) from None
                 if not isinstance(uploaded, dict):
-                    raise IngestionError(f"{MANIFEST}: must be a JSON object; fix it or delete that recording.")
+                    raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
                 continue
             store.copy_to(rec.sha256, folder / rec.file_name)
         manifest = build_manifest(session, patient, recordings, uploaded)

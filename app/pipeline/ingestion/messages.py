@@ -634,6 +634,32 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "liste las grabaciones por sus nombres en esta carpeta.",
         "pt": "{file}: recordings[{index}] lista {name}, que não é um arquivo dentro da pasta da sessão; liste as "
               "gravações pelos seus nomes nesta pasta."},
+    # a session.json stored by the web (app.store.workspace): fixed by deleting that recording and uploading anew
+    "manifest.stored_not_json": {
+        "en": "{file}: not valid UTF-8 JSON; fix it or delete that recording.",
+        "es": "{file}: no es JSON UTF-8 válido; corríjalo o borre esa grabación.",
+        "pt": "{file}: não é JSON UTF-8 válido; corrija-o ou apague essa gravação."},
+    "manifest.stored_not_object": {
+        "en": "{file}: must be a JSON object ({{\"side\": ..., \"recordings\": [...]}}), not {kind}; fix it or delete "
+              "that recording.",
+        "es": "{file}: debe ser un objeto JSON ({{\"side\": ..., \"recordings\": [...]}}), no {kind}; corríjalo o "
+              "borre esa grabación.",
+        "pt": "{file}: deve ser um objeto JSON ({{\"side\": ..., \"recordings\": [...]}}), não {kind}; corrija-o ou "
+              "apague essa gravação."},
+    "manifest.stored_recordings_not_list": {
+        "en": "{file}: \"recordings\" must be a list of {{\"files\": [...], \"segment\": ..., \"role\": ...}} "
+              "entries; fix it or delete that recording.",
+        "es": "{file}: \"recordings\" debe ser una lista de entradas {{\"files\": [...], \"segment\": ..., "
+              "\"role\": ...}}; corríjalo o borre esa grabación.",
+        "pt": "{file}: \"recordings\" deve ser uma lista de entradas {{\"files\": [...], \"segment\": ..., "
+              "\"role\": ...}}; corrija-o ou apague essa gravação."},
+    "manifest.not_uploaded": {  # the web: a stored session.json naming a file the session does not hold
+        "en": "{file}: the recording file {name} is not one of this session's uploaded files; list only the "
+              "uploaded files' names, or delete that recording.",
+        "es": "{file}: el archivo de grabación {name} no es uno de los archivos subidos a esta sesión; liste solo "
+              "los nombres de los archivos subidos, o borre esa grabación.",
+        "pt": "{file}: o arquivo de gravação {name} não é um dos arquivos enviados a esta sessão; liste só os "
+              "nomes dos arquivos enviados, ou apague essa gravação."},
     "manifest.file_twice": {
         "en": "{file}: '{name}' is listed twice (recordings[{first}] and recordings[{second}]); list each file "
               "once.",

@@ -8,6 +8,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from app.pipeline.ingestion.messages import CATALOGUE as INGESTION, LANGUAGES
 from app.pipeline.ingestion.model import ROLES, Recognition
 from app.pipeline.messages import PIPELINE_CATALOGUE
@@ -73,3 +75,22 @@ def test_a_stored_check_line_renders_in_each_language():
                       "role": "task"}, "thigh task: gyr ran on 1.50 s after the common span (cut)", note=True)
     assert item_texts(cut)["es"] != item_texts(cut)["en"] and "1,50" in item_texts(cut)["es"]
     assert set(item_texts("an old English line").values()) == {"an old English line"}
+
+
+@pytest.mark.parametrize("uploaded, words", [([1, 2], "debe ser un objeto JSON"),
+                                             ({"recordings": 3}, "debe ser una lista"),
+                                             ({"recordings": [{"files": ["../x.csv"]}]}, "no es uno de los archivos")])
+def test_a_stored_manifest_refusal_comes_in_each_language(uploaded, words):
+    import datetime as dt
+
+    from app.pipeline.ingestion import IngestionError
+    from app.store.models import KneeSession, Patient, Recording
+    from app.store.workspace import build_manifest
+
+    rows = (KneeSession(id=1, clinic_id=1, patient_id=1, date=dt.date(2026, 12, 1), task="step_up"),
+            Patient(id=1, clinic_id=1, external_id="W-1", side="left"),
+            [Recording(id=1, session_id=1, file_name="a.csv", size_bytes=1, sha256="0" * 64)])
+    with pytest.raises(IngestionError) as exc:
+        build_manifest(*rows, uploaded=uploaded)
+    assert exc.value.code.startswith("manifest.") and words in exc.value.message("es")
+    assert "borre esa grabación" in exc.value.message("es") and "apague essa gravação" in exc.value.message("pt")
