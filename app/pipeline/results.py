@@ -26,9 +26,7 @@ from estimators.motor_task import ANGLES
 from estimators.motor_task.analysis import ROM_STATS
 
 from reports.model import Patient, ReportInput
-from reports.warning_text import warning_text
 
-from app.pipeline.ingestion.messages import LANGUAGES
 from app.pipeline.session import SessionOutcome
 
 
@@ -116,11 +114,7 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
         },
         "software": {"version": __version__},
     }
-    out = json_ready(results)
-    # each warning also in every language, as the reports print it (the results page shows the reader's)
-    for w in out["quality"]["warnings"]:
-        w["text"] = {lang: warning_text(w, lang, out)[0] for lang in LANGUAGES}
-    return out
+    return json_ready(results)
 
 
 def _gait(gait: dict[str, Any]) -> dict[str, Any]:

@@ -134,13 +134,14 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         expect(row).to_contain_text(f"{dragged:.1f}".replace(".", ","))
         results = context.request.get(f"{server}/api/v1/sessions/{sid}/results").json()
         assert results["session"]["split"]["thigh"]["spans_s"]["standing"] == moved
-        warnings = results["quality"]["warnings"]
+        warnings = context.request.get(f"{server}/api/v1/sessions/{sid}/warnings").json()
+        assert [w["code"] for w in warnings] == [w["code"] for w in results["quality"]["warnings"]]
         assert warnings, "a continuous session has at least its split notes"
         shown = page.locator("#warnings li.warning[data-code]")
         expect(shown).to_have_count(len(warnings))
         texts = shown.all_inner_texts()
-        assert texts == [w["text"]["es"] for w in warnings]
-        assert any(w["text"]["es"] != w["message"] for w in warnings)
+        assert texts == [w["message"]["es"] for w in warnings]
+        assert any(w["message"]["es"] != w["message"]["en"] for w in warnings)
         assert not any("one continuous recording" in t for t in texts), texts
         assert errors == []
     except Exception:
@@ -162,7 +163,7 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         page.goto(f"{server}/#/sessions/{sid}")
         shown = page.locator("#warnings li.warning[data-code]")
         expect(shown).to_have_count(len(warnings))
-        assert shown.all_inner_texts() == [w["text"]["pt"] for w in warnings]
+        assert shown.all_inner_texts() == [w["message"]["pt"] for w in warnings]
     except Exception:
         page.screenshot(path=str(tmp_path / "split-pt.png"), full_page=True)
         raise
