@@ -3,6 +3,9 @@ r"""Speed and memory of one knee session through ``chakamo process`` (issue 3 go
 Usage: ``python -m benchmarks.pipeline [--cycles 10] [--repeats 5] [--filter NAME] [--format metabase|generic|xlsx]
 [--outputs results|all]``
 
+The read and alignment alone of every supported format (issue 14's goal, ≤ 0.3 s) is
+``python -m benchmarks.read_formats``.
+
 ``--outputs results`` (issue 3's goal) writes ``results.json`` and ``timeseries.npz`` only and never imports the
 report libraries; ``all`` (the default, issue 4's goal ≤ 0.5 s for the outputs) adds the PDF, Excel, HTML and
 3D scene.  Run each in its own process: the peak resident memory is per process.

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from app.pipeline.ingestion.messages import CATALOGUE as INGESTION_CATALOGUE
+from app.pipeline.ingestion.messages import LANGUAGES
 from app.pipeline.ingestion.messages import message_dict as _message_dict
 from app.pipeline.ingestion.messages import render as _render
 
@@ -40,6 +42,30 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "ocupado comprobando otros archivos; abra la sesión de nuevo en un momento y se comprobarán entonces.",
         "pt": "Os arquivos estão guardados, mas o servidor não pôde verificá-los em {seconds} s porque está "
               "ocupado verificando outros arquivos; abra a sessão de novo daqui a pouco e serão verificados então."},
+    "session.no_files_yet": {
+        "en": "No recordings yet; upload the session's files.",
+        "es": "Todavía no hay grabaciones; suba los archivos de la sesión.",
+        "pt": "Ainda não há gravações; envie os arquivos da sessão."},
+    "session.being_checked": {
+        "en": "The session's files are being checked; reload in a moment.",
+        "es": "Se están comprobando los archivos de la sesión; recargue en un momento.",
+        "pt": "Os arquivos da sessão estão sendo verificados; recarregue daqui a pouco."},
+    "session.check_deferred": {
+        "en": "The files are stored, but the server could not check them now; the check runs again when the "
+              "session is opened or processed.",
+        "es": "Los archivos están guardados, pero el servidor no pudo comprobarlos ahora; la comprobación se repite "
+              "cuando se abra o se procese la sesión.",
+        "pt": "Os arquivos estão guardados, mas o servidor não pôde verificá-los agora; a verificação se repete "
+              "quando a sessão for aberta ou processada."},
+    "session.knee.left": {"en": "Left knee:", "es": "Rodilla izquierda:", "pt": "Joelho esquerdo:"},
+    "session.knee.right": {"en": "Right knee:", "es": "Rodilla derecha:", "pt": "Joelho direito:"},
+    "session.recognised": {
+        "en": "{segment} {role}: {files} — segment from {segment_how}{segment_evidence}, role from "
+              "{role_how}{role_evidence}",
+        "es": "{segment} {role}: {files} — segmento según {segment_how}{segment_evidence}, función según "
+              "{role_how}{role_evidence}",
+        "pt": "{segment} {role}: {files} — segmento segundo {segment_how}{segment_evidence}, função segundo "
+              "{role_how}{role_evidence}"},
     "request.host_not_allowed": {
         "en": "This server does not answer to the address {host}; use the address your ChakaMo administrator "
               "gave you (CHAKAMO_ALLOWED_HOSTS).",
@@ -121,12 +147,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "Archivo enviado en el campo de formulario {field}; envíe cada archivo en el campo 'files'.",
         "pt": "Arquivo enviado no campo de formulário {field}; envie cada arquivo no campo 'files'."},
     "request.file_type": {
-        "en": "{file}: files of type {suffix} are not accepted; upload {allowed} files (MetaBase or generic CSV, "
-              "thesis Excel, session.json).",
-        "es": "{file}: no se aceptan archivos del tipo {suffix}; suba archivos {allowed} (CSV de MetaBase o "
-              "genérico, Excel de la tesis, session.json).",
-        "pt": "{file}: arquivos do tipo {suffix} não são aceitos; envie arquivos {allowed} (CSV do MetaBase ou "
-              "genérico, Excel da tese, session.json)."},
+        "en": "{file}: files of type {suffix} are not accepted; upload {allowed} files (CSV of MetaBase, Xsens, "
+              "Shimmer, phyphox or the generic layout, thesis Excel, zip of Sensor Logger or phyphox, session.json; "
+              "an APDM .h5 file is read by the command line: chakamo process).",
+        "es": "{file}: no se aceptan archivos del tipo {suffix}; suba archivos {allowed} (CSV de MetaBase, Xsens, "
+              "Shimmer, phyphox o del formato genérico, Excel de la tesis, zip de Sensor Logger o phyphox, "
+              "session.json; un archivo .h5 de APDM se lee con la línea de comandos: chakamo process).",
+        "pt": "{file}: arquivos do tipo {suffix} não são aceitos; envie arquivos {allowed} (CSV do MetaBase, Xsens, "
+              "Shimmer, phyphox ou do formato genérico, Excel da tese, zip do Sensor Logger ou phyphox, "
+              "session.json; um arquivo .h5 da APDM é lido pela linha de comando: chakamo process)."},
     "request.json_not_manifest": {
         "en": "{file}: the only JSON file a session takes is its {manifest}; rename it.",
         "es": "{file}: el único archivo JSON que admite una sesión es su {manifest}; cámbiele el nombre.",
@@ -186,4 +215,67 @@ def message_dict(code: str, params: Mapping[str, Any]) -> dict[str, Any]:
     return _message_dict(code, params, CATALOGUE)
 
 
-__all__ = ["CATALOGUE", "message_dict", "render"]
+def item(code: str | None, params: Mapping[str, Any], text: str, *, note: bool = False) -> dict[str, Any]:
+    """A message as stored (the session's ingestion check, :mod:`app.store.checks`): its ``code`` and ``params``,
+    and ``text`` (English, what older readers show).  ``note=True``: an ingestion :class:`~app.pipeline.ingestion.Note`
+    (its ``params`` carry ``variant``, ``segment``, ``role``), rendered as the note renders itself."""
+    out: dict[str, Any] = {"code": code, "params": dict(params), "text": text}
+    if note:
+        out["note"] = True
+    return out
+
+
+def render_item(stored: Mapping[str, Any] | str, lang: str = "en") -> str:
+    """A stored :func:`item` in ``lang``: this table, the pipeline's and the ingestion's codes
+    (:func:`app.pipeline.messages.render_message`); a note through its own catalogue code or, for the notes only the
+    reports translate, ``warning.ingestion_note.<variant>`` (:func:`reports.warning_text.warning_text`).  A plain
+    string (stored before codes were) and anything without a translation stay as written."""
+    if isinstance(stored, str):
+        return stored
+    code, params, text = stored.get("code"), stored.get("params") or {}, str(stored.get("text") or "")
+    if stored.get("note"):
+        from app.pipeline.ingestion.model import Note
+        from reports.warning_text import warning_text
+
+        note = Note(text, params)
+        if note.code is not None:
+            return note.message(lang)
+        return warning_text({"code": "ingestion_note", "message": text, "params": dict(params)}, lang)[0]
+    if code in CATALOGUE:
+        return render(code, params, lang)
+    from app.pipeline.messages import known, render_message
+
+    return render_message(code, params, lang) if code and known(code) else text
+
+
+def _how(method: str) -> Any:
+    slug = "how_" + "".join(c if c.isalnum() else "_" for c in method.lower()).strip("_").replace("__", "_")
+    return {"code": f"word.{slug}"} if f"word.{slug}" in INGESTION_CATALOGUE else method
+
+
+def recognised_item(segment: str, role: str, source: Mapping[str, Any]) -> dict[str, Any]:
+    """The session check's line for the recording ``segment`` / ``role`` whose ``source`` is
+    :attr:`app.pipeline.ingestion.AlignedRecording.source`: its files and how its segment and role were found."""
+    from pathlib import Path
+
+    files = [Path(f).name for f in source.get("files", ())]
+    if len(files) > 1:
+        what: Any = {"code": "word.recording_group",
+                     "params": {"label": source.get("label"), "n": len(files), "format": source.get("format")}}
+    else:
+        what = ", ".join(files)
+    params: dict[str, Any] = {"segment": {"code": f"word.{segment}"}, "role": {"code": f"word.{role}"}, "files": what}
+    found = source.get("found_by") or {}
+    for key in ("segment", "role"):
+        method, evidence = found.get(key) or ("session.json", "")
+        params[f"{key}_how"] = _how(method)
+        params[f"{key}_evidence"] = f" ('{evidence}')" if evidence else ""
+    return item("session.recognised", params, render("session.recognised", params, "en"))
+
+
+def item_texts(stored: Mapping[str, Any] | str) -> dict[str, str]:
+    """``{lang: text}`` of a stored :func:`item` (:func:`render_item`)."""
+    return {lang: render_item(stored, lang) for lang in LANGUAGES}
+
+
+__all__ = ["CATALOGUE", "item", "item_texts", "message_dict", "recognised_item", "render", "render_item"]

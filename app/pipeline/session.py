@@ -294,7 +294,12 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         progress(f"orientation {seg}", 0.45 + 0.2 * i)
         q_es[seg] = filt.estimate(rec.acc, gyr_task[seg], mag_task[seg], fs_hz=rec.fs_hz).orientation_
     q_standing = _standing_orientations(session, filt, mag, segments) if "standing" in roles else None
-    if protocol != "postures":  # the second pass: the 9D orientations fix the axes' relative sign and rotation zero
+    if protocol != "postures" and "mag_calibration" in roles:
+        # the second pass: the 9D orientations fix the axes' relative sign and rotation zero.  Only with magnetometers
+        # calibrated on the figure-eight: uncalibrated hard iron turns the 9D headings by tens of degrees, which
+        # turned the shank's axis ~47° or flipped the hinge sign (simulated walking, tests/app/pipeline/
+        # test_protocols.py); without it the sign comes from the mounting and the rotation zero from the hinge frame
+        # itself (y gravity, z the hinge axis: the two segments' frames coincide at the straight window)
         segments, _ = _functional_segments(session, protocol, task, q_task=q_es, q_standing=q_standing)
     elif options.calibration == "functional":
         segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)

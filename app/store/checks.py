@@ -40,10 +40,10 @@ from typing import Any, Iterator
 from sqlalchemy import update
 from sqlalchemy.orm import Session
 
-from app.pipeline.service_messages import render
+from app.pipeline.service_messages import item, item_texts, render
 from app.store.blobs import BlobStore
 from app.store.database import Database
-from app.store.models import KneeSession
+from app.store.models import KneeSession, Recording
 from app.store.sessions import ingestion_fresh
 from app.store.workspace import check_ingestion
 
@@ -52,8 +52,7 @@ log = logging.getLogger("chakamo.uploads")
 #: longest a check waits for its clinic's and the server's slots; then it is answered ``session.check_busy``
 CHECK_WAIT_S = 75.0
 #: the upload's answer when its files are stored but their check could not run (it runs again later)
-CHECK_DEFERRED = ("The files are stored, but the server could not check them now; the check runs again when the "
-                  "session is opened or processed.")
+CHECK_DEFERRED = render("session.check_deferred", {})
 #: ingestion checks running at once in one server process, over all clinics, when they run in the request
 #: threads (no helper processes); with helpers, their number (``CHAKAMO_CHECK_PROCESSES``: :attr:`CheckPool.gate`)
 CHECK_CONCURRENCY = 2
@@ -64,7 +63,21 @@ CHECK_TIMEOUT_S = 60.0
 
 
 def _failed(code: str, **params: Any) -> dict[str, Any]:
-    return {"ok": False, "messages": [], "error": render(code, params, "en")}
+    text = render(code, params, "en")
+    return {"ok": False, "messages": [], "error": text, "error_item": item(code, params, text)}
+
+
+def ingestion_view(stored: dict[str, Any]) -> dict[str, Any]:
+    """A stored check as the API answers it: as stored, plus ``message_texts`` and ``error_message`` (every
+    language, :func:`app.pipeline.service_messages.item_texts`, from the codes stored in ``items`` and
+    ``error_item``; a check stored before them shows its English text in every language) and ``splits``."""
+    items = stored.get("items")
+    if items is None:
+        items = list(stored.get("messages") or [])
+    error = stored.get("error_item") or stored.get("error")
+    return {"ok": bool(stored.get("ok")), "messages": list(stored.get("messages") or []), "error": stored.get("error"),
+            "message_texts": [item_texts(i) for i in items], "error_message": item_texts(error) if error else None,
+            "splits": stored.get("splits") or {}}
 
 
 class CheckBusy(Exception):
@@ -165,11 +178,18 @@ class CheckPool:
 
 def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict) -> bool:
     """Store ``ingestion`` (computed from the files of ``version``) unless the files changed since; True if
-    stored.  One conditional UPDATE: a check of older files never overwrites a newer one."""
+    stored.  One conditional UPDATE: a check of older files never overwrites a newer one.  In the same
+    transaction each recording gets the sensor serial the reading found in its file (``ingestion["devices"]``,
+    every format that carries one: :func:`app.store.workspace.file_facts`), over the one its name gave at upload."""
     with db_.session() as db:
         res = db.execute(update(KneeSession).where(KneeSession.id == session_id, KneeSession.files_version == version)
                          .values(ingestion=ingestion, ingestion_version=version))
-        return res.rowcount == 1
+        if res.rowcount != 1:
+            return False
+        for name, device in (ingestion.get("devices") or {}).items():
+            db.execute(update(Recording).where(Recording.session_id == session_id, Recording.file_name == name)
+                       .values(device=device))
+        return True
 
 
 def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id: int, pool=None,
@@ -240,7 +260,7 @@ class IngestionChecker:
             return self.refresh(session_id)
         except Exception:  # noqa: BLE001
             log.warning("%s; its ingestion check failed and runs again later", what, exc_info=True)
-            return {"ok": False, "messages": [], "error": CHECK_DEFERRED}
+            return _failed("session.check_deferred")
 
     def ensure_fresh(self, db: Session, session: KneeSession) -> None:
         """When the stored check of ``session`` (a row of ``db``) is stale, check its files again with no
@@ -254,4 +274,4 @@ class IngestionChecker:
 
 __all__ = ["CHECK_CONCURRENCY", "CHECK_DEFERRED", "CHECK_GATE", "CHECK_TIMEOUT_S", "CHECK_WAIT_S", "CHECKS_PER_CLINIC",
            "CheckBusy", "CheckGate",
-           "CheckPool", "CheckTimedOut", "IngestionChecker", "refresh_ingestion", "save_ingestion", "warm_checks"]
+           "CheckPool", "CheckTimedOut", "IngestionChecker", "ingestion_view", "refresh_ingestion", "save_ingestion", "warm_checks"]

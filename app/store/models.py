@@ -154,6 +154,8 @@ class KneeSession(Base):
     #: bumped by every correction (PATCH): the ``ETag`` a ``DELETE`` / ``PATCH`` names in ``If-Match``
     version: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: the clinician's cuts of the continuous recordings (``session.json`` ``"split"``), or None: the automatic ones
+    split: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     patient: Mapped[Patient] = relationship(lazy="joined")
     recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
                                                           cascade="all, delete-orphan")

@@ -30,7 +30,7 @@ from sqlalchemy.orm import Session
 from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS, IngestionError
 from app.pipeline.ingestion.session import MAX_MANIFEST_KB, check_manifest_size
 from app.pipeline.ingestion.provenance import sensor_of_file_name
-from app.pipeline.ingestion.split import CONTINUOUS
+from app.pipeline.ingestion.split import CONTINUOUS, check_split
 from app.store.blobs import BlobWriter
 from app.store.analyses import supersede
 from app.store.erasure import reserve_blob
@@ -107,6 +107,28 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
 
 
 
+def set_split(db: Session, clinic_id: int, session_id: int, split: dict | None) -> tuple[KneeSession, int]:
+    """Store the clinician's cuts of the session's continuous recordings (``{segment: {role: [start_s, end_s]}}``,
+    :func:`app.pipeline.ingestion.split.given_spans`), or None to go back to the automatic split; returns
+    ``(session, analyses superseded)``.  Like a change of the files it bumps ``files_version`` (the check is
+    redone with the new cuts, which also go into the processing's ``session.json``) and supersedes the
+    session's analyses (computed from the old cuts).  :class:`Invalid` for a malformed split (the ingestion's
+    sentence), :class:`Conflict` while the session is being processed."""
+    if split is not None:
+        try:
+            check_split(split)
+        except IngestionError as exc:
+            raise Invalid(str(exc)) from None
+    session = clinic_session(db, clinic_id, session_id, lock=True)
+    refuse_while_processing(db, session.id, "move the cuts")
+    session.split = split or None
+    session.files_version = KneeSession.files_version + 1
+    n_superseded = supersede(db, [session.id])
+    db.flush()
+    refuse_while_processing(db, session.id, "move the cuts")
+    return session, n_superseded
+
+
 def manifest_problem(data: bytes) -> IngestionError | None:
     """Why an uploaded ``session.json`` must be refused before it is stored (larger than ``MAX_MANIFEST_KB`` or
     nested too deep, :func:`app.pipeline.ingestion.session.check_manifest_size`; issue 16 finding 5), or None."""
@@ -117,4 +139,4 @@ def manifest_problem(data: bytes) -> IngestionError | None:
     return None
 
 __all__ = ["MANIFEST", "MAX_MANIFEST_KB", "ROLES", "SEGMENTS", "UPLOAD_ROLES", "check_labels", "delete_recording",
-           "manifest_problem", "store_upload"]
+           "manifest_problem", "set_split", "store_upload"]

@@ -32,12 +32,14 @@ from app.store.analyses import supersede
 from app.store.erasure import session_blobs
 from app.store.errors import Conflict, Invalid, NotFound, PreconditionFailed
 from app.store.models import Analysis, Artefact, Job, KneeSession, Recording, utcnow
+from app.pipeline.service_messages import item, render
 from app.store.workspace import NO_RECORDINGS
 
 #: the job states during which a session's files must not change
 ACTIVE = ("queued", "running")
 #: the stored check shown while a stale one is being redone
-BEING_CHECKED = {"ok": False, "messages": [], "error": "The session's files are being checked; reload in a moment."}
+BEING_CHECKED = {"ok": False, "messages": [], "error": render("session.being_checked", {}),
+                 "error_item": item("session.being_checked", {}, render("session.being_checked", {}))}
 
 
 class Busy(Conflict):

@@ -10,6 +10,7 @@ that :mod:`app.pipeline.ingestion.session` documents:
   report-only keys ``name``, ``professional``, ``weight_kg``, ``height_m``, ``observations``;
 * ``recordings`` only when an upload declared a segment or role: every file is then listed (MetaBase streams
   grouped into their recording), with the declared segment/role — the rest is still recognised from names;
+* ``split``: the cuts the clinician confirmed or moved in the wizard (``KneeSession.split``);
 * a ``session.json`` uploaded with the recordings is the base; the database's facts win over its keys.
 
 :func:`check_ingestion` runs the ingestion on that folder and returns the contract's Ingestion object.
@@ -29,11 +30,13 @@ from app.store.models import KneeSession, Patient, Recording
 from app.pipeline.ingestion import MANIFEST, IngestionError, load_knees
 from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name
 from app.pipeline.ingestion.session import parse_manifest
+from app.pipeline.service_messages import item, recognised_item, render
 from app.store.blobs import BlobStore
 
 
 #: the Ingestion object of a session without recordings (the API answers it too before any check ran)
-NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": "No recordings yet; upload the session's files."}
+NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": render("session.no_files_yet", {}),
+                                  "error_item": item("session.no_files_yet", {}, render("session.no_files_yet", {}))}
 
 
 def _number(x: Any) -> float | None:
@@ -48,20 +51,17 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
     path, ``..``, a file that was not uploaded) raises :class:`IngestionError`, so a manifest can never make
     the ingestion read a file outside the session's own folder."""
     if uploaded is not None and not isinstance(uploaded, dict):
-        raise IngestionError(f"{MANIFEST}: must be a JSON object ({{\"side\": ..., \"recordings\": [...]}}), not "
-                             f"{type(uploaded).__name__}; fix it or delete that recording")
+        raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
     manifest: dict[str, Any] = dict(uploaded or {})
     stored = {r.file_name for r in recordings if r.file_name != MANIFEST}
     listed = manifest.get("recordings") or []
     if not isinstance(listed, list):
-        raise IngestionError(f"{MANIFEST}: \"recordings\" must be a list of {{\"files\": [...], \"segment\": ..., "
-                             "\"role\": ...}} entries; fix it or delete that recording")
+        raise IngestionError("manifest.stored_recordings_not_list", file=MANIFEST)
     for entry in listed:
         files = entry.get("files") if isinstance(entry, dict) else None
         for name in files if isinstance(files, list) else [files]:
             if not isinstance(name, str) or Path(name).name != name or name not in stored:
-                raise IngestionError(f"{MANIFEST}: the recording file {name!r} is not one of this session's "
-                                     "uploaded files; list only the uploaded files' names")
+                raise IngestionError("manifest.not_uploaded", file=MANIFEST, name=repr(name)[:80])
     facts = {
         "side": patient.side, "patient_id": patient.external_id, "date": session.date.isoformat(),
         "step_height_m": _number(session.step_height_m), "name": patient.name,
@@ -70,6 +70,8 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
         "observations": session.notes,
     }
     manifest |= {k: v for k, v in facts.items() if v not in (None, "")}
+    if session.split:  # the clinician's cuts, confirmed in the wizard (app.store.recordings.set_split)
+        manifest["split"] = session.split
     data = [r for r in recordings if r.file_name != MANIFEST]
     if any(r.segment or r.role for r in data):
         by_name = {r.file_name: r for r in data}
@@ -102,9 +104,9 @@ def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient:
                 try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
                     uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
                 except (UnicodeDecodeError, json.JSONDecodeError):
-                    raise IngestionError(f"{MANIFEST}: not valid UTF-8 JSON; fix it or delete that recording.") from None
+                    raise IngestionError("manifest.stored_not_json", file=MANIFEST) from None
                 if not isinstance(uploaded, dict):
-                    raise IngestionError(f"{MANIFEST}: must be a JSON object; fix it or delete that recording.")
+                    raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
                 continue
             store.copy_to(rec.sha256, folder / rec.file_name)
         manifest = build_manifest(session, patient, recordings, uploaded)
@@ -121,29 +123,69 @@ def public_message(text: str, folder: Path | None) -> str:
     return text.replace(str(folder) + "/", "").replace(str(folder), "the session")
 
 
+def _public(value: Any, folder: Path | None) -> Any:
+    """``value`` (a message's parameter) with the server's temporary path ``folder`` taken out of its strings."""
+    if isinstance(value, str):
+        return public_message(value, folder)
+    if isinstance(value, dict):
+        return {k: _public(v, folder) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_public(v, folder) for v in value]
+    return value
+
+
+def _note_item(note: str, folder: Path | None) -> dict[str, Any]:
+    params = _public(dict(getattr(note, "params", {}) or {}), folder)
+    return item(None, params, public_message(str(note), folder), note=bool(params.get("variant")))
+
+
+def file_facts(loaded) -> dict[str, dict[str, str]]:
+    """What the reading found of each stored file of a loaded session: ``devices`` (the sensor serial its content
+    or name carries, every format that has one: :attr:`app.pipeline.ingestion.RawRecording.sensor_id`) and
+    ``segments`` (the segment it was recognised as), by file name; stored with the recordings
+    (:func:`app.store.checks.save_ingestion`) for the server's same-sensor check."""
+    devices, segments = {}, {}
+    for (seg, _), rec in loaded.recordings.items():
+        for f in rec.source.get("files", ()):
+            name = Path(f).name
+            segments[name] = seg
+            if rec.source.get("sensor_id"):
+                devices[name] = str(rec.source["sensor_id"])[:64]
+    return {"devices": devices, "segments": segments}
+
+
 def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
                     recordings: Sequence[Recording]) -> dict[str, Any]:
-    """The contract's Ingestion ``{"ok", "messages", "error"}`` of the session's stored files."""
+    """The contract's Ingestion ``{"ok", "messages", "error"}`` of the session's stored files (English), with
+    ``items`` and ``error_item``: the same messages as codes and params (:func:`app.pipeline.service_messages.item`),
+    which the API renders in the reader's language; and ``splits``, where each continuous recording was cut
+    (:meth:`app.pipeline.ingestion.split.Split.to_dict`, with its trace), for the wizard to show and move."""
     if not [r for r in recordings if r.file_name != MANIFEST]:
         return dict(NO_RECORDINGS)
     folder = None
     try:
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             knees = load_knees(folder)  # one knee, or both (four sensors)
-            messages = []
+            items, splits, devices, segments = [], {}, {}, {}
             for side, loaded in sorted(knees.items()):
-                knee = f"{side} " if len(knees) > 1 else ""
-                for (seg, role), rec in sorted(loaded.recordings.items()):
-                    src = rec.source
-                    files = [Path(f).name for f in src.get("files", ())]
-                    what = f"{src.get('label')} ({len(files)} {src.get('format')} files)" if len(files) > 1 else \
-                        ", ".join(files)
-                    messages.append(f"{knee}{seg} {role}: {what} — segment {src.get('segment')}, role {src.get('role')}")
-                messages += [public_message(n, folder) for n in loaded.notes if public_message(n, folder) not in messages]
-            return {"ok": True, "messages": messages, "error": None}
-    except (IngestionError, ValueError, OSError) as exc:
-        text = str(exc)
-        return {"ok": False, "messages": [], "error": public_message(text, folder)}
+                if len(knees) > 1:
+                    items.append(item(f"session.knee.{side}", {}, render(f"session.knee.{side}", {}, "en")))
+                items += [recognised_item(seg, role, rec.source) for (seg, role), rec in sorted(loaded.recordings.items())]
+                items += [n for n in (_note_item(n, folder) for n in loaded.notes) if n not in items]
+                knee = f"{side}_" if len(knees) > 1 else ""
+                splits.update({f"{knee}{s.segment}": s.to_dict(trace=True) for s in loaded.splits})
+                facts = file_facts(loaded)
+                devices.update(facts["devices"])
+                segments.update({name: f"{knee}{seg}" for name, seg in facts["segments"].items()})
+            return {"ok": True, "messages": [i["text"] for i in items], "error": None, "items": items,
+                    "error_item": None, "splits": splits, "devices": devices, "segments": segments}
+    except IngestionError as exc:
+        text = public_message(str(exc), folder)
+        return {"ok": False, "messages": [], "error": text, "items": [],
+                "error_item": item(exc.code, _public(dict(exc.params), folder), text)}
+    except (ValueError, OSError) as exc:
+        text = public_message(str(exc), folder)
+        return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None}
 
 
-__all__ = ["NO_RECORDINGS", "build_manifest", "check_ingestion", "materialise", "public_message"]
+__all__ = ["NO_RECORDINGS", "build_manifest", "check_ingestion", "file_facts", "materialise", "public_message"]

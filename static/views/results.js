@@ -48,14 +48,17 @@ export function resultsView(sessionId, query) {
     const superseded = analysis.superseded_at   // Node.append would print a null: only the notice, when due
       ? [h("div", { class: "notice warning", role: "status", id: "superseded" }, t("results.superseded"))] : [];
     clear(section).append(...head, ...superseded, analysisSelector(sessionId, analyses, analysis), body);
-    let results;
+    let results, warnings;
     try {
-      results = await api("GET", `/sessions/${sessionId}/results`, { query: { analysis_id: analysis.id } });
+      // the warnings in every language come beside results.json (GET .../warnings); without them, English
+      [results, warnings] = await Promise.all([
+        api("GET", `/sessions/${sessionId}/results`, { query: { analysis_id: analysis.id } }),
+        api("GET", `/sessions/${sessionId}/warnings`, { query: { analysis_id: analysis.id } }).catch(() => null)]);
     } catch (err) {
       clear(body).append(alertBox(errorText(err)));
       return;
     }
-    renderResults(body, session, patient, analysis, results, section);
+    renderResults(body, session, patient, analysis, results, section, warnings);
   })();
   return section;
 }
@@ -71,7 +74,7 @@ function analysisSelector(sessionId, analyses, current) {
     analyses.length > 1 ? h("span", { class: "hint" }, t("results.analyses_n", { n: analyses.length })) : null);
 }
 
-function renderResults(body, session, patient, analysis, r, section) {
+function renderResults(body, session, patient, analysis, r, section, warnings) {
   const cycles = r.cycles || {};
   const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
     [[t("patient.side"), label("side", r.side || patient.side)],
@@ -94,7 +97,7 @@ function renderResults(body, session, patient, analysis, r, section) {
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
-    qualitySection(r),
+    qualitySection(r, warnings),
     compareSection(session, analysis),
     downloadsSection(session.id, analysis.id),
     sceneSection(session.id, analysis.id));
@@ -263,13 +266,17 @@ function referenceSection(ref) {
     h("p", { class: "caption" }, text("transcription")));
 }
 
-function qualitySection(r) {
+function qualitySection(r, translated) {
   const warnings = ((r.quality || {}).warnings) || [];
+  const texts = Array.isArray(translated) && translated.length === warnings.length ? translated : [];
   const rejected = ((r.cycles || {}).rejected) || [];
   const items = [
-    ...warnings.map((w) => h("li", { class: "warning" }, typeof w === "string" ? w : (w.message || w.code || ""))),
+    // in the reader's language (GET .../warnings renders each from its code and params, as the reports do);
+    // the English message when that answer is missing
+    ...warnings.map((w, i) => h("li", { class: "warning", "data-code": typeof w === "string" ? null : w.code },
+      typeof w === "string" ? w : (((texts[i] || {}).message || {})[lang()] || w.message || w.code || ""))),
     ...rejected.map((c) => h("li", { class: "warning" }, t("results.rejected_cycle", {
-      n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message ? ` — ${c.message}` : "")),
+      n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message && lang() === "en" ? ` — ${c.message}` : "")),   // English detail
   ];
   return h("section", { class: "card quality", "aria-labelledby": "h-quality" },
     h("h2", { id: "h-quality" }, t("results.quality")),

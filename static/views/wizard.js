@@ -20,6 +20,14 @@
 //   is shown at once, before processing; "Process" stays disabled until it is ok.
 // - Files without a zone (e.g. session.json, or uploaded through the API without segment/role) are listed
 //   in an "other files" zone; the ingestion rules recognise them from their names.
+// - One continuous recording per sensor (the "whole protocol" zone, role `continuous`, or recognised from its
+//   name) is split by the server's check, whose answer carries each sensor's cuts and a motion trace
+//   (`ingestion.splits`).  Step 2 draws the trace with the parts over it; the clinician drags a cut (or moves it
+//   with the arrow keys, or types its seconds) and confirms: PUT /sessions/{id}/split stores the cuts ON THE
+//   SERVER (app/store/recordings.py set_split), the files are checked again with them, and the processing uses
+//   them (session.json "split").  "Back to the automatic cuts" stores none.  The browser keeps nothing.
+// - Every sentence of the check is shown in the UI's language (`message_texts` / `error_message`: the server
+//   stores codes and renders them in es/en/pt); a check stored before that falls back to its English text.
 // - Progress: GET /jobs/{id} every 300 ms while the page is shown; <progress> carries the fraction.
 
 import { api, upload } from "../api.js";
@@ -31,6 +39,8 @@ import { canEdit } from "../app.js";
 
 export const SEGMENTS = ["thigh", "shank"];
 export const ROLES = ["mag_calibration", "standing", "lying", "task"];
+// the upload zones of a segment: the four recordings, or one recording of the whole protocol (split by the server)
+const ZONE_ROLES = [...ROLES, "continuous"];
 const POLL_MS = 300;
 
 // ------------------------------------------------------------------------------ sensors (step 1 state)
@@ -123,6 +133,7 @@ function renderShell(ctx) {
   ctx.stepNav = h("ol", { class: "steps" });
   ctx.body = h("div", { class: "step-body" });
   ctx.ingestionArea = h("div", { class: "ingestion", "aria-live": "polite" });
+  ctx.splitArea = h("div", { class: "split-area" });
   const hasResults = (session.analyses || []).length > 0;
   append(clear(ctx.section), [
     h("nav", { class: "crumbs", "aria-label": t("common.breadcrumbs") },
@@ -205,20 +216,20 @@ function uploadStep(ctx) {
   ctx.zones = [];
   const groups = SEGMENTS.map((seg) => h("fieldset", { class: "card segment-group", "data-segment": seg },
     h("legend", {}, `${label("segment", seg)} — ${sensorOn(ctx.sensors, seg)}`),
-    h("div", { class: "zones" }, ROLES.map((role) => dropZone(ctx, seg, role)))));
+    h("div", { class: "zones" }, ZONE_ROLES.map((role) => dropZone(ctx, seg, role)))));
   const other = h("fieldset", { class: "card segment-group other" },
     h("legend", {}, t("wizard.other_files")), h("div", { class: "zones" }, dropZone(ctx, null, null)));
   const wrap = h("div", {},
     h("h2", {}, t("wizard.step2_title")),
     h("p", {}, t("wizard.step2_lead")),
-    groups, other, ctx.ingestionArea,
+    groups, other, ctx.ingestionArea, ctx.splitArea,
     navButtons(ctx, { back: 1, next: 3 }));
   renderIngestion(ctx, ctx.session.ingestion);
   return wrap;
 }
 
 function zoneRecordings(ctx, segment, role) {
-  const zoneKeys = new Set(SEGMENTS.flatMap((s) => ROLES.map((r) => `${s}/${r}`)));
+  const zoneKeys = new Set(SEGMENTS.flatMap((s) => ZONE_ROLES.map((r) => `${s}/${r}`)));
   return (ctx.session.recordings || []).filter((r) => (segment === null
     ? !zoneKeys.has(`${r.segment}/${r.role}`)
     : r.segment === segment && r.role === role));
@@ -228,7 +239,7 @@ function dropZone(ctx, segment, role) {
   const title = segment ? label("recording", role) : t("wizard.other_files_title");
   const hint = segment ? t(`wizard.role_hint.${role}`) : t("wizard.other_files_hint");
   const inputId = `file-${segment || "other"}-${role || "any"}`;
-  const input = h("input", { type: "file", multiple: true, accept: ".csv,.xlsx,.json", id: inputId, class: "visually-hidden",
+  const input = h("input", { type: "file", multiple: true, accept: ".csv,.xlsx,.json,.zip", id: inputId, class: "visually-hidden",
     tabindex: "-1", "aria-hidden": "true" });
   const list = h("ul", { class: "files" });
   const status = h("div", { class: "zone-status", role: "status" });
@@ -320,8 +331,19 @@ async function reloadSession(ctx, ingestion) {
   renderIngestion(ctx, ingestion || ctx.session.ingestion);
 }
 
-/** The ingestion check of the session (ok / error sentence / messages). */
+/** A sentence of the check in the UI's language: `texts` ({lang: text}) from the server, else `english`. */
+function inLanguage(texts, english) {
+  return (texts && texts[lang()]) || english;
+}
+
+/** The check's error sentence in the UI's language. */
+function ingestionError(ingestion) {
+  return inLanguage(ingestion.error_message, ingestion.error);
+}
+
+/** The ingestion check of the session (ok / error sentence / messages), then the split of continuous recordings. */
 function renderIngestion(ctx, ingestion) {
+  renderSplit(ctx, ingestion);
   const area = ctx.ingestionArea;
   clear(area);
   if (!(ctx.session.recordings || []).length) {
@@ -334,13 +356,194 @@ function renderIngestion(ctx, ingestion) {
     h("h3", {}, t("wizard.check_title")),
     ingestion.ok ? h("p", { class: "ok-line" }, t("wizard.check_ok"))
       : h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.check_error")), " ",
-        h("span", { class: "ingestion-error" }, ingestion.error || t("error.unknown"))));
-  const messages = ingestion.messages || [];
+        h("span", { class: "ingestion-error" }, ingestionError(ingestion) || t("error.unknown"))));
+  const english = ingestion.messages || [];
+  const texts = ingestion.message_texts || [];
+  const messages = english.map((m, i) => inLanguage(texts[i], m));
   if (messages.length) {
     box.append(h("details", { open: true }, h("summary", {}, t("wizard.check_messages", { n: messages.length })),
       h("ul", { class: "messages" }, messages.map((m) => h("li", {}, m)))));
   }
   area.append(box);
+}
+
+// ---------------------------------------------------------------------- the split of continuous recordings
+const SVG_NS = "http://www.w3.org/2000/svg";
+const PART_COLOURS = { mag_calibration: "#c9d8f0", standing: "#cfe8cf", lying: "#f3e2bf", task: "#ead0e6" };
+const TRACE_W = 1000;
+const TRACE_H = 120;
+
+function svg(tag, attrs = {}, ...children) {
+  const el = document.createElementNS(SVG_NS, tag);
+  for (const [k, v] of Object.entries(attrs)) if (v !== null && v !== undefined) el.setAttribute(k, String(v));
+  for (const c of children) el.append(c);
+  return el;
+}
+
+/** A small square of the colour `role` has on the trace. */
+function swatch(role) {
+  return svg("svg", { width: 12, height: 12, "aria-hidden": "true", class: "swatch" },
+    svg("rect", { x: 0, y: 0, width: 12, height: 12, fill: PART_COLOURS[role], stroke: "#888" }));
+}
+
+/** Seconds shown with one decimal (what the inputs and the server take). */
+function sec(x) {
+  return Math.round(x * 10) / 10;
+}
+
+/** Step 2's split editor: one card per sensor whose continuous recording the check cut (`ingestion.splits`). */
+function renderSplit(ctx, ingestion) {
+  const area = ctx.splitArea;
+  if (!area) return;
+  clear(area);
+  const splits = (ingestion && ingestion.splits) || {};
+  const segments = SEGMENTS.filter((s) => splits[s] && splits[s].spans_s);
+  if (!segments.length) return;
+  // the cuts being edited, per segment: [start_s, end_s] per part, starting from what the check used
+  const edit = Object.fromEntries(segments.map((s) => [s, Object.fromEntries(
+    Object.entries(splits[s].spans_s).map(([role, span]) => [role, [Number(span[0]), Number(span[1])]]))]));
+  const confirmed = ingestion.confirmed_split || (ctx.session.ingestion || {}).confirmed_split || null;
+  const message = h("div", { class: "form-message", "aria-live": "polite" });
+  const cards = segments.map((seg) => splitCard(ctx, seg, splits[seg], edit[seg], message));
+  const confirm = h("button", { type: "button", class: "primary", id: "split-confirm", disabled: !canEdit() },
+    t("wizard.split_confirm"));
+  const reset = confirmed ? h("button", { type: "button", class: "secondary", id: "split-reset", disabled: !canEdit() },
+    t("wizard.split_reset")) : null;
+  const store = async (body, button) => {
+    clear(message);
+    const bad = body ? badSpan(segments, splits, body) : null;
+    if (bad) {
+      message.append(alertBox(bad));
+      return;
+    }
+    button.disabled = true;
+    try {
+      const answer = await api("PUT", `/sessions/${ctx.sessionId}/split`, { json: { split: body } });
+      await reloadSession(ctx, answer);
+      ctx.splitArea.querySelector(".split-state").focus();
+    } catch (err) {
+      message.append(alertBox(errorText(err)));
+      button.disabled = false;
+    }
+  };
+  confirm.addEventListener("click", () => store(edit, confirm));
+  if (reset) reset.addEventListener("click", () => store(null, reset));
+  area.append(h("section", { class: "card split-editor", id: "split", "aria-labelledby": "split-title" },
+    h("h3", { id: "split-title" }, t("wizard.split_title")),
+    h("p", { class: "hint" }, t("wizard.split_lead")),
+    h("p", { class: `split-state notice ${confirmed ? "info" : "warning"}`, role: "status", tabindex: "-1",
+      "data-confirmed": confirmed ? "yes" : "no" }, t(confirmed ? "wizard.split_confirmed" : "wizard.split_automatic")),
+    cards, message, h("div", { class: "actions" }, confirm, reset)));
+}
+
+/** The sentence for the first cut that is not 0 ≤ start < end ≤ the recording's length, or null. */
+function badSpan(segments, splits, body) {
+  for (const seg of segments) {
+    const duration = Number(splits[seg].duration_s) || Infinity;
+    for (const [role, [a, b]] of Object.entries(body[seg] || {})) {
+      if (!(Number.isFinite(a) && Number.isFinite(b) && a >= 0 && a < b && b <= duration + 0.05)) {
+        return t("wizard.split_bad", { segment: label("segment", seg), part: label("recording", role),
+          duration: num(duration, 1) });
+      }
+    }
+  }
+  return null;
+}
+
+/** One sensor's trace with its parts, draggable cuts and the typed seconds of each part. */
+function splitCard(ctx, segment, split, spans, message) {
+  const duration = Number(split.duration_s) || Math.max(...Object.values(spans).map((p) => p[1]), 1);
+  const trace = split.trace || [];
+  const hz = Number(split.trace_hz) || 1;
+  const top = Math.max(...trace, 1e-6);
+  const x = (s) => (s / duration) * TRACE_W;
+  const points = trace.map((v, i) => `${x(i / hz).toFixed(1)},${(TRACE_H - 4 - (v / top) * (TRACE_H - 12)).toFixed(1)}`);
+  const bands = svg("g", { class: "parts" });
+  const handles = svg("g", { class: "cuts" });
+  const plot = svg("svg", { viewBox: `0 0 ${TRACE_W} ${TRACE_H}`, preserveAspectRatio: "none", class: "split-trace",
+    width: "100%", height: TRACE_H, role: "img", "data-segment": segment,
+    "aria-label": t("wizard.split_trace", { segment: label("segment", segment), seconds: num(duration, 0) }) },
+  svg("rect", { x: 0, y: 0, width: TRACE_W, height: TRACE_H, fill: "#fafafa" }), bands,
+  svg("polyline", { points: points.join(" "), fill: "none", stroke: "#333", "stroke-width": 1.2,
+    "vector-effect": "non-scaling-stroke" }), handles);
+  const inputs = {};
+  const rows = ROLES.filter((role) => spans[role]).map((role) => {
+    const from = h("input", { type: "number", step: "0.1", min: "0", max: String(sec(duration)), inputmode: "decimal",
+      name: `split-${segment}-${role}-from`, value: String(sec(spans[role][0])), disabled: !canEdit(),
+      "aria-label": t("wizard.split_from_of", { segment: label("segment", segment), part: label("recording", role) }) });
+    const to = h("input", { type: "number", step: "0.1", min: "0", max: String(sec(duration)), inputmode: "decimal",
+      name: `split-${segment}-${role}-to`, value: String(sec(spans[role][1])), disabled: !canEdit(),
+      "aria-label": t("wizard.split_to_of", { segment: label("segment", segment), part: label("recording", role) }) });
+    inputs[role] = [from, to];
+    [from, to].forEach((input, k) => input.addEventListener("input", () => {
+      const value = Number(input.value);
+      clear(message);   // a refusal of the earlier values no longer applies
+      if (input.value !== "" && Number.isFinite(value)) {
+        spans[role][k] = value;
+        draw();
+      }
+    }));
+    return h("tr", { "data-role": role },
+      h("th", { scope: "row" }, swatch(role), " ", label("recording", role)),
+      h("td", {}, from), h("td", {}, to));
+  });
+  const draw = () => {
+    while (bands.firstChild) bands.firstChild.remove();
+    while (handles.firstChild) handles.firstChild.remove();
+    for (const role of ROLES.filter((r) => spans[r])) {
+      const [a, b] = spans[role];
+      bands.append(svg("rect", { x: x(a).toFixed(1), y: 0, width: Math.max(0, x(b) - x(a)).toFixed(1), height: TRACE_H,
+        fill: PART_COLOURS[role], "data-role": role }, svg("title", {}, label("recording", role))));
+      [0, 1].forEach((k) => handles.append(cutHandle(role, k)));
+    }
+  };
+  // a cut: a wide invisible grip around a thin line; dragged with the pointer, or moved with the arrow keys
+  const cutHandle = (role, k) => {
+    const at = x(spans[role][k]);
+    const name = t(k === 0 ? "wizard.split_from_of" : "wizard.split_to_of",
+      { segment: label("segment", segment), part: label("recording", role) });
+    const grip = svg("g", { class: "cut", tabindex: canEdit() ? "0" : null, role: "slider", "aria-label": name,
+      "aria-valuemin": 0, "aria-valuemax": sec(duration), "aria-valuenow": sec(spans[role][k]),
+      "data-role": role, "data-edge": k === 0 ? "from" : "to", cursor: "ew-resize" },
+    svg("rect", { x: (at - 8).toFixed(1), y: 0, width: 16, height: TRACE_H, fill: "transparent" }),
+    svg("line", { x1: at.toFixed(1), x2: at.toFixed(1), y1: 0, y2: TRACE_H, stroke: "#1d4e89", "stroke-width": 2,
+      "vector-effect": "non-scaling-stroke" }));
+    if (!canEdit()) return grip;
+    const move = (seconds) => {
+      spans[role][k] = sec(Math.min(duration, Math.max(0, seconds)));
+      inputs[role][k].value = String(spans[role][k]);
+      clear(message);
+      draw();
+    };
+    grip.addEventListener("pointerdown", (e) => {
+      e.preventDefault();
+      const box = plot.getBoundingClientRect();
+      const onMove = (ev) => move(((ev.clientX - box.left) / box.width) * duration);
+      const onUp = () => {
+        window.removeEventListener("pointermove", onMove);
+        window.removeEventListener("pointerup", onUp);
+      };
+      window.addEventListener("pointermove", onMove);
+      window.addEventListener("pointerup", onUp);
+    });
+    grip.addEventListener("keydown", (e) => {
+      const step = e.shiftKey ? 5 : 0.5;
+      if (e.key !== "ArrowLeft" && e.key !== "ArrowRight") return;
+      e.preventDefault();
+      move(spans[role][k] + (e.key === "ArrowLeft" ? -step : step));
+      const again = handles.querySelector(`.cut[data-role="${role}"][data-edge="${k === 0 ? "from" : "to"}"]`);
+      if (again) again.focus();
+    });
+    return grip;
+  };
+  draw();
+  return h("div", { class: "split-sensor", "data-segment": segment },
+    h("h4", {}, label("segment", segment), " — ", h("span", { class: "file-name" }, split.file || "")),
+    plot,
+    h("table", { class: "data split-table" },
+      h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("wizard.split_part")),
+        h("th", { scope: "col" }, t("wizard.split_from")), h("th", { scope: "col" }, t("wizard.split_to")))),
+      h("tbody", {}, rows)));
 }
 
 // ---------------------------------------------------------------------------------------- step 3
@@ -355,8 +558,8 @@ function processStep(ctx) {
   // the involved knee of a session of both knees (as `chakamo process --involved`): empty = the patient's side
   const involvedSelect = h("select", { name: "involved" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
-  const processButton = h("button", { type: "submit", class: "primary", disabled: !ingestion.ok || !canEdit() },
-    t("wizard.process"));
+  // enabled once GET /options has filled the menus: a click before that sent no filter (422, seen under load)
+  const processButton = h("button", { type: "submit", class: "primary", disabled: true }, t("wizard.process"));
   const form = h("form", { class: "card form-grid process-form" },
     field(t("wizard.filter"), filter, t("wizard.filter_hint"))[0],
     field(t("wizard.report_language"), language, t("wizard.report_language_hint"))[0],
@@ -367,8 +570,11 @@ function processStep(ctx) {
     h("div", { class: "actions wide" }, processButton));
   if (!ingestion.ok) {
     message.append(alertBox(ingestion.error
-      ? t("wizard.cannot_process", { error: ingestion.error })
+      ? t("wizard.cannot_process", { error: ingestionError(ingestion) })
       : t("wizard.cannot_process_empty")));
+  } else if (Object.keys(ingestion.splits || {}).length && !ingestion.confirmed_split) {
+    message.append(h("div", { class: "notice warning", role: "status", id: "split-unconfirmed" },
+      t("wizard.split_unconfirmed")));
   }
   options().then((opts) => {
     fillSelect(filter, "filter", opts.filters);
@@ -381,6 +587,7 @@ function processStep(ctx) {
     involvedSelect.prepend(h("option", { value: "", selected: true },
       t("wizard.involved_patient", { side: label("side", ctx.patient.side) })));
     involvedSelect.value = "";
+    processButton.disabled = !ingestion.ok || !canEdit() || Boolean(ctx.activeJob);
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
   form.addEventListener("submit", async (e) => {

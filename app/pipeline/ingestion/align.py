@@ -115,7 +115,9 @@ def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role:
     source = {"files": [str(f) for f in rec.files], "format": rec.fmt, "label": rec.label,
               "sensor_id": rec.sensor_id,
               "segment": rec.segment.describe() if rec.segment else segment,
-              "role": rec.role.describe() if rec.role else role, "notes": list(rec.notes)}
+              "role": rec.role.describe() if rec.role else role, "notes": list(rec.notes),
+              # how segment and role were found ([method, evidence]), for the session check's translated lines
+              "found_by": {k: [r.method, str(r.evidence)] for k, r in (("segment", rec.segment), ("role", rec.role)) if r}}
     flags = {"stream_fs_hz": {s.kind: round(s.fs_hz, 4) for s in rec.streams},
              "declared_units": {s.kind: s.declared_unit for s in rec.streams},
              "trimmed_s": trimmed, "nan_rows": nan_rows, "notes": notes,

@@ -59,6 +59,23 @@ def tokens(text: str) -> list[str]:
     return [t for t in re.split(r"[^a-z0-9]+", fold(text)) if t]
 
 
+class AmbiguousLabel(ValueError):
+    """A label naming more than one value of ``what`` (``"role"``, ``"segment"``, ``"side"``...): ``found`` maps
+    each value to the word that named it.  ``str()`` is the English sentence; :meth:`fragment` the translatable
+    ``word.label_ambiguous`` fragment of the ingestion catalogue."""
+
+    def __init__(self, label: str, what: str, found: dict[str, str]) -> None:
+        self.label, self.what, self.found = label, what, dict(found)
+        super().__init__(f"the label {label!r} names more than one {what}: "
+                         + ", ".join(f"{v} ({w!r})" for v, w in found.items()))
+
+    def fragment(self) -> dict:
+        """``{"code": "word.label_ambiguous", "params": ...}``: the sentence in every language."""
+        return {"code": "word.label_ambiguous", "params": {
+            "label": self.label, "what": {"code": f"word.{self.what}"},
+            "found": ", ".join(f"{v} ('{w}')" for v, w in self.found.items())}}
+
+
 def _candidates(toks: list[str]) -> list[str]:
     return toks + [a + b for a, b in zip(toks, toks[1:])]
 
@@ -71,8 +88,7 @@ def _find(text: str, vocabulary: dict[str, tuple[str, ...]], what: str,
             if cand in words and value not in found:
                 found[value] = cand
     if len(found) > 1:
-        raise ValueError(f"the label {text!r} names more than one {what}: "
-                         + ", ".join(f"{v} ({w!r})" for v, w in found.items()))
+        raise AmbiguousLabel(text, what, found)
     if not found:
         return None
     value, word = next(iter(found.items()))

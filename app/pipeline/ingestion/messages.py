@@ -541,14 +541,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: essa pasta de sessão não existe; verifique o caminho."},
     "session.no_recordings": {
         "en": "{file}: no recordings found; the folder holds {count} file(s): {found}. ChakaMo reads MetaBase "
-              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer and Sensor Logger (.zip) files: "
+              "exports, thesis .xlsx, generic CSV, Xsens, APDM .h5, Shimmer, Sensor Logger (.zip) and phyphox files: "
               "check the folder, or export the recordings again. {hint}",
         "es": "{file}: no se encontró ninguna grabación; la carpeta tiene {count} archivo(s): {found}. ChakaMo lee "
-              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer y Sensor Logger "
-              "(.zip): compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
+              "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
+              "(.zip) y phyphox: compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
         "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} arquivo(s): {found}. O ChakaMo lê "
-              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer e Sensor Logger "
-              "(.zip): verifique a pasta, ou exporte as gravações de novo. {hint}"},
+              "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
+              "(.zip) e phyphox: verifique a pasta, ou exporte as gravações de novo. {hint}"},
     "split.no_posture": {
         "en": "{file}: this continuous recording of the whole protocol has no {posture} posture held still for 5 s "
               "or more (still postures found, duration @ start (angle from the sensor's +y): {found}); record the protocol again holding standing and supine "
@@ -559,6 +559,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: esta gravação contínua de todo o protocolo não tem uma postura {posture} mantida parada "
               "5 s ou mais (posturas paradas encontradas, duração @ início (ângulo com o +y do sensor): {found}); grave de novo o protocolo mantendo paradas as "
               "posturas em pé e dorsal 30 s cada, ou exporte as suas partes como gravações separadas."},
+    "word.recording_group": {  # a fragment of app.pipeline.service_messages "session.recognised"
+        "en": "{label} ({n} {format} files)",
+        "es": "{label} ({n} archivos {format})",
+        "pt": "{label} ({n} arquivos {format})"},
     "session.recording_twice": {
         "en": "{file} and {other} are both the {role} recording of the {segment}; keep one (or list the one to use "
               "in session.json).",
@@ -658,6 +662,32 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "liste las grabaciones por sus nombres en esta carpeta.",
         "pt": "{file}: recordings[{index}] lista {name}, que não é um arquivo dentro da pasta da sessão; liste as "
               "gravações pelos seus nomes nesta pasta."},
+    # a session.json stored by the web (app.store.workspace): fixed by deleting that recording and uploading anew
+    "manifest.stored_not_json": {
+        "en": "{file}: not valid UTF-8 JSON; fix it or delete that recording.",
+        "es": "{file}: no es JSON UTF-8 válido; corríjalo o borre esa grabación.",
+        "pt": "{file}: não é JSON UTF-8 válido; corrija-o ou apague essa gravação."},
+    "manifest.stored_not_object": {
+        "en": "{file}: must be a JSON object ({{\"side\": ..., \"recordings\": [...]}}), not {kind}; fix it or delete "
+              "that recording.",
+        "es": "{file}: debe ser un objeto JSON ({{\"side\": ..., \"recordings\": [...]}}), no {kind}; corríjalo o "
+              "borre esa grabación.",
+        "pt": "{file}: deve ser um objeto JSON ({{\"side\": ..., \"recordings\": [...]}}), não {kind}; corrija-o ou "
+              "apague essa gravação."},
+    "manifest.stored_recordings_not_list": {
+        "en": "{file}: \"recordings\" must be a list of {{\"files\": [...], \"segment\": ..., \"role\": ...}} "
+              "entries; fix it or delete that recording.",
+        "es": "{file}: \"recordings\" debe ser una lista de entradas {{\"files\": [...], \"segment\": ..., "
+              "\"role\": ...}}; corríjalo o borre esa grabación.",
+        "pt": "{file}: \"recordings\" deve ser uma lista de entradas {{\"files\": [...], \"segment\": ..., "
+              "\"role\": ...}}; corrija-o ou apague essa gravação."},
+    "manifest.not_uploaded": {  # the web: a stored session.json naming a file the session does not hold
+        "en": "{file}: the recording file {name} is not one of this session's uploaded files; list only the "
+              "uploaded files' names, or delete that recording.",
+        "es": "{file}: el archivo de grabación {name} no es uno de los archivos subidos a esta sesión; liste solo "
+              "los nombres de los archivos subidos, o borre esa grabación.",
+        "pt": "{file}: o arquivo de gravação {name} não é um dos arquivos enviados a esta sessão; liste só os "
+              "nomes dos arquivos enviados, ou apague essa gravação."},
     "manifest.file_twice": {
         "en": "{file}: '{name}' is listed twice (recordings[{first}] and recordings[{second}]); list each file "
               "once.",
@@ -816,6 +846,12 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "word.role": {"en": "role", "es": "papel", "pt": "papel"},
     "word.segment": {"en": "segment", "es": "segmento", "pt": "segmento"},
     "word.role_segment": {"en": "role and segment", "es": "papel y segmento", "pt": "papel e segmento"},
+    "word.side": {"en": "side", "es": "lado", "pt": "lado"},
+    "word.ambiguity": {"en": ": {reasons}", "es": ": {reasons}", "pt": ": {reasons}"},   # hint.unrecognised's why
+    "word.label_ambiguous": {  # a file name naming two roles or segments (labels.AmbiguousLabel)
+        "en": "the label '{label}' names more than one {what}: {found}",
+        "es": "la etiqueta '{label}' nombra más de un {what}: {found}",
+        "pt": "o rótulo '{label}' nomeia mais de um {what}: {found}"},
     "word.role_of": {"en": "{role} of the {segment}", "es": "{role} ({segment})", "pt": "{role} ({segment})"},
     # -------------------------------------------------------------------------------------------- notes
     "note.csv_semicolon": {
@@ -942,6 +978,12 @@ WORDS = {
     "task": {"en": "task", "es": "tarea", "pt": "tarefa"},
     "continuous": {"en": "continuous", "es": "continua", "pt": "contínua"},
     "right": {"en": "right", "es": "derecha", "pt": "direita"},
+    # how a segment or role was recognised (Recognition.method), for the session check's lines
+    "how_file_name": {"en": "the file name", "es": "el nombre del archivo", "pt": "o nome do arquivo"},
+    "how_metabase_label": {"en": "the MetaBase label", "es": "la etiqueta de MetaBase", "pt": "o rótulo do MetaBase"},
+    "how_session_json": {"en": "session.json", "es": "session.json", "pt": "session.json"},
+    "how_split": {"en": "the split of the continuous recording", "es": "la división de la grabación continua",
+                  "pt": "a divisão da gravação contínua"},
     "left": {"en": "left", "es": "izquierda", "pt": "esquerda"},
 }
 

@@ -8,7 +8,8 @@ experiments' ``<export>`` sets):
   ``-1.2E-3``) with the chosen decimal mark; a column shorter than the others is padded with ``NaN``.  The full
   export is a ``.zip`` with one ``<set name>.csv`` per export set (``Raw Data.csv``) and ``meta/device.csv``,
   ``meta/time.csv`` (``"event","experiment time","system time","system time text"``: the ``START`` row maps the
-  experiment's time 0 to Unix seconds); the "minimal" export is the single ``.csv``.
+  experiment's time 0 to Unix seconds); the "minimal" export is the single ``.csv``.  ``meta/device.csv`` names the
+  phone's model; a serial only when it has a unique-id row (:func:`phyphox_device_id`).
 * **Excel** (``.xlsx``): one sheet per export set, the header in row 1, numbers below.
 
 Columns, by name (case-insensitive; each set restarts with its own ``Time (s)``)::
@@ -235,6 +236,39 @@ def _epoch_offset(path: Path, z: zipfile.ZipFile) -> float | None:
     return None
 
 
+#: ``meta/device.csv`` properties that name one device (not a model), lower case without spaces
+_DEVICE_ID_KEYS = ("uniqueid", "deviceid", "serial", "serialnumber")
+
+
+def phyphox_device_id(paths: Sequence[str | os.PathLike]) -> str | None:
+    """The phone's own identifier from the zips' ``meta/device.csv`` (``"property","value"`` rows), or None.
+
+    Only a property naming one device counts (:data:`_DEVICE_ID_KEYS`): the ``deviceModel`` / ``deviceBrand`` rows
+    every export carries name a model, which two phones of a clinic may share, so they are never taken for a
+    serial (the same-sensor check would then call two phones one).  Every zip must give the same id."""
+    ids = set()
+    for p in map(Path, paths):
+        if p.suffix.lower() != ".zip":
+            return None
+        try:
+            with zipfile.ZipFile(p) as z:
+                text = read_member(p, z, "meta/device.csv").decode("utf-8-sig", "replace")
+        except (KeyError, zipfile.BadZipFile, OSError):
+            return None
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        sep = "\t" if lines and "\t" in lines[0] else ";" if lines and ";" in lines[0] else ","
+        found = None
+        for ln in lines[1:]:
+            cells = [c.strip().strip('"') for c in ln.split(sep)]
+            if len(cells) >= 2 and cells[0].lower().replace(" ", "").replace("_", "") in _DEVICE_ID_KEYS and cells[1]:
+                found = cells[1][:64]
+                break
+        if found is None:
+            return None
+        ids.add(found)
+    return ids.pop() if len(ids) == 1 else None
+
+
 def _tables(path: Path, notes: list) -> tuple[list[tuple[str, list[str], np.ndarray]], float | None]:
     """``([(where, header, table)], epoch offset or None)`` of one export file."""
     suffix = path.suffix.lower()
@@ -346,7 +380,8 @@ def _java_sci(x: float, decimal: str) -> str:
 
 
 def write_phyphox(path: str | os.PathLike, streams: dict, *, layout: str = "zip", separator: str = ",",
-                  decimal: str = ".", epoch0_s: float | None = None, old_names: bool = False) -> Path:
+                  decimal: str = ".", epoch0_s: float | None = None, old_names: bool = False,
+                  unique_id: str | None = None) -> Path:
     """Write a phyphox-style export (tests, fuzzing) of ``{"acc": (t_s, m/s²), "gyr": (t_s, rad/s), "mag": (t_s,
     µT)}`` with ``t_s`` from the experiment's start.
 
@@ -355,6 +390,7 @@ def write_phyphox(path: str | os.PathLike, streams: dict, *, layout: str = "zip"
         the minimal export), ``"xlsx"`` (one sheet per set).   separator / decimal : the CSV flavour.
     epoch0_s : Unix seconds of experiment time 0, written to ``meta/time.csv`` (zip layouts).
     old_names : ``Magnetic Field x`` as older app versions spell it.
+    unique_id : a ``uniqueID`` row in ``meta/device.csv`` (:func:`phyphox_device_id`); None: the model only.
     """
     path = Path(path)
     mag = "Magnetic Field" if old_names else "Magnetic field"
@@ -400,7 +436,8 @@ def write_phyphox(path: str | os.PathLike, streams: dict, *, layout: str = "zip"
             z.writestr(f"{title}.csv", csv_text(header, table))
         q = '"'
         z.writestr("meta/device.csv", separator.join([q + "property" + q, q + "value" + q]) + "\n"
-                   + separator.join([q + "deviceModel" + q, q + "Pixel 7" + q]) + "\n")
+                   + separator.join([q + "deviceModel" + q, q + "Pixel 7" + q]) + "\n"
+                   + (separator.join([q + "uniqueID" + q, q + unique_id + q]) + "\n" if unique_id else ""))
         if epoch0_s is not None:
             buf = io.StringIO()
             buf.write(separator.join(f'"{h}"' for h in ("event", "experiment time", "system time",

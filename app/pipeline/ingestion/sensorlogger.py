@@ -7,7 +7,8 @@ Layout (the app's "zip" export; its public units and cross-platform references):
     Gravity.csv             time,seconds_elapsed,z,y,x     m/s², the gravity vector
     Gyroscope.csv           time,seconds_elapsed,z,y,x     rad/s
     Magnetometer.csv        time,seconds_elapsed,z,y,x     µT
-    Metadata.csv            ...,platform,...,device name,...   (optional)
+    Metadata.csv            ...,device name,...,platform,...,device id,...   (optional; the sensor id: device id,
+                            else the user-set device name)
 
 ``time`` is Unix epoch in **nanoseconds** (UTC; one clock for every sensor of the phone); the columns are
 picked by name.  Specific force (what ChakaMo's ``acc`` is): ``TotalAcceleration`` when present; else
@@ -89,7 +90,7 @@ def _metadata(path: Path, z: zipfile.ZipFile, members: dict[str, str]) -> dict[s
 
 
 def read_sensorlogger(path: str | os.PathLike) -> tuple[Stream, Stream, Stream, str | None]:
-    """Read a Sensor Logger zip → ``(acc specific force m/s², gyr rad/s, mag µT, device name)``, epoch s."""
+    """Read a Sensor Logger zip → ``(acc specific force m/s², gyr rad/s, mag µT, device id or name)``, epoch s."""
     path = Path(path)
     try:
         z = zipfile.ZipFile(path)
@@ -126,15 +127,18 @@ def read_sensorlogger(path: str | os.PathLike) -> tuple[Stream, Stream, Stream, 
         check_magnitude(kind, v, unit, path)
         streams.append(Stream(kind=kind, t_s=t, values=v, declared_unit=unit, file=path,
                               notes=tuple(dict.fromkeys(notes)) if kind == "acc" else ()))
-    device = meta.get("device name") or meta.get("devicename") or meta.get("device") or None
+    # the app's own id of the phone first (a serial); the user-set device name only when there is none
+    device = meta.get("device id") or meta.get("deviceid") or meta.get("device name") or meta.get("devicename") \
+        or meta.get("device") or None
     return streams[0], streams[1], streams[2], device
 
 
 def write_sensorlogger(path: str | os.PathLike, streams: dict, *, platform: str = "android",
-                       total: bool = True) -> Path:
+                       total: bool = True, device_id: str | None = None) -> Path:
     """Write a Sensor Logger-style zip (tests, demo).  ``streams`` ``{"acc": (t_s, specific force m/s²),
     "gyr": (t_s, rad/s), "mag": (t_s, µT)}``.  ``total``: a TotalAcceleration.csv (Android); else
-    Accelerometer.csv (without gravity) + Gravity.csv (a low-passed specific force), negated for iOS."""
+    Accelerometer.csv (without gravity) + Gravity.csv (a low-passed specific force), negated for iOS.
+    ``device_id``: a ``device id`` column in Metadata.csv (newer app versions); None: the device name only."""
     path = Path(path)
 
     def table(t, v):
@@ -158,6 +162,7 @@ def write_sensorlogger(path: str | os.PathLike, streams: dict, *, platform: str 
             z.writestr("Gravity.csv", table(t, sign * g))
         z.writestr("Gyroscope.csv", table(*streams["gyr"]))
         z.writestr("Magnetometer.csv", table(*streams["mag"]))
-        z.writestr("Metadata.csv", f"version,device name,recording time,platform\n3,Pixel 7,2023-03-13_10-00-00,"
-                                   f"{platform}\n")
+        extra = (",device id", f",{device_id}") if device_id else ("", "")
+        z.writestr("Metadata.csv", f"version,device name,recording time,platform{extra[0]}\n3,Pixel 7,"
+                                   f"2023-03-13_10-00-00,{platform}{extra[1]}\n")
     return path

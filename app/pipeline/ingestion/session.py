@@ -42,7 +42,7 @@ from typing import Any, Sequence
 from app.pipeline.ingestion.align import align_pair, align_recording, check_rates
 from app.pipeline.ingestion.excel import read_thesis_xlsx
 from app.pipeline.ingestion.generic import read_generic_csv
-from app.pipeline.ingestion.labels import (LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
+from app.pipeline.ingestion.labels import (AmbiguousLabel, LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
                                   recognise_step_height)
 from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_name, read_metabase_csv, settle_local_time,
                                             start_time)
@@ -50,7 +50,7 @@ from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note,
                                  SessionMetadata)
 from app.pipeline.ingestion.opal import list_sensors, read_opal
 from app.pipeline.ingestion.split import CONTINUOUS, left_unsplit, split_session
-from app.pipeline.ingestion.phyphox import looks_like_phyphox, read_phyphox
+from app.pipeline.ingestion.phyphox import phyphox_device_id, looks_like_phyphox, read_phyphox
 from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
@@ -114,6 +114,7 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
             facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
     elif all(p.suffix.lower() in (".csv", ".txt", ".zip", ".xlsx") for p in paths) and all(map(looks_like_phyphox, paths)):
         acc, gyr, mag = read_phyphox(paths)
+        sensor_id = phyphox_device_id(paths)
         stems = [p.stem for p in paths]
         label = os.path.commonprefix(stems).strip(" _-") if len(stems) > 1 else stems[0]
         label, fmt, method = label or stems[0], "phyphox", "file name"
@@ -143,9 +144,9 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
                          ("step", recognise_step_height)):
         try:
             found[name] = finder(label, method)
-        except ValueError as exc:       # ambiguous: left to session.json, reported if nothing decides
+        except AmbiguousLabel as exc:   # ambiguous: left to session.json, reported if nothing decides
             found[name] = None
-            notes += (f"{paths[0].name}: {exc}",)
+            notes += (Note(f"{paths[0].name}: {exc}", {"file": paths[0].name, "ambiguous": exc.fragment()}),)
     role, segment, side, step = found["role"], found["segment"], found["side"], found["step"]
     extras = {**facts, **(parse_thesis_name(label) or {})}
     if side:
@@ -345,6 +346,12 @@ def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str
     return SessionMetadata(**found)
 
 
+def _ambiguity(rec: RawRecording) -> list:
+    """The ``why`` of ``hint.unrecognised``: the ambiguous labels of ``rec``'s notes (``word.ambiguity``), or ""."""
+    found = [n.params["ambiguous"] for n in rec.notes if isinstance(n, Note) and "ambiguous" in n.params]
+    return {"code": "word.ambiguity", "params": {"reasons": found}} if found else ""
+
+
 def load_session(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
                  roles: Sequence[str] = ROLES, required: Sequence[str] | None = None) -> Session:
     """Read and align one session folder (or its ``session.json``) of one knee; see the package docstring.
@@ -493,10 +500,8 @@ def _assemble(folder: Path, mpath: Path | None, manifest: dict[str, Any], picked
             if role is None or segment is None:
                 what = {"code": "word.role_segment" if role is None and segment is None else
                         "word.role" if role is None else "word.segment"}
-                why = "; ".join(n.split(": ", 1)[1] for n in rec.notes if "names more than one" in n)
                 unrecognised.append({"code": "hint.unrecognised",
-                                     "params": {"file": rec.files[0].name, "what": what,
-                                                "why": f": {why}" if why else ""}})
+                                     "params": {"file": rec.files[0].name, "what": what, "why": _ambiguity(rec)}})
             continue
         rec = RawRecording(rec.acc, rec.gyr, rec.mag, rec.fmt, segment, role, rec.label, rec.sensor_id,
                            rec.extras, rec.notes)
@@ -508,10 +513,9 @@ def _assemble(folder: Path, mpath: Path | None, manifest: dict[str, Any], picked
     recs, splits, split_notes = split_session(continuous, recs, expected_fs_hz, manifest.get("split"), mpath)
     notes += split_notes
     for r in left_unsplit(continuous, splits):
-        why = "; ".join(n.split(": ", 1)[1] for n in r.notes if "names more than one" in n)
         unrecognised.append({"code": "hint.unrecognised", "params": {"file": r.files[0].name,
                                                                      "what": {"code": "word.role"},
-                                                                     "why": f": {why}" if why else ""}})
+                                                                     "why": _ambiguity(r)}})
     hint = ignored + unrecognised + [{"code": "hint.naming", "params": {"manifest": MANIFEST}}]
     segs = {s for s, _ in recs}
     if len(segs) < 2:

@@ -23,6 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
 from estimators.protocol_split import PARTS, ProtocolSplit, SplitError, split_protocol
 
 from app.pipeline.ingestion.align import align_recording, check_rates
@@ -30,8 +32,10 @@ from app.pipeline.ingestion.model import IngestionError, Note, RawRecording, Rec
 
 #: the role of a recording that holds the whole protocol
 CONTINUOUS = "continuous"
+#: samples per second of the motion trace the wizard draws under the cuts (:func:`motion_trace`)
+TRACE_HZ = 4.0
 
-__all__ = ["CONTINUOUS", "Split", "left_unsplit", "split_recording", "split_session"]
+__all__ = ["CONTINUOUS", "TRACE_HZ", "Split", "check_split", "left_unsplit", "motion_trace", "split_recording", "split_session"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +46,8 @@ class Split:
     spans_s : ``{role: (start_s, end_s)}``, seconds from the recording's first common sample.
     t0_s : that sample on the file's time base.   how : ``"role"`` (named continuous) or ``"only recording"``.
     octants : octants of magnetometer directions the figure-eight reached (0 without one).
+    duration_s : the recording's length on its grid.   trace : :func:`motion_trace` of it, at ``trace_hz``: what the
+    wizard draws under the cuts for the clinician to confirm or move them.
     """
 
     segment: str
@@ -50,10 +56,30 @@ class Split:
     t0_s: float
     how: str
     octants: int
+    duration_s: float = 0.0
+    trace: tuple[float, ...] = ()
+    trace_hz: float = TRACE_HZ
 
-    def to_dict(self) -> dict:
-        return {"file": self.file, "how": self.how, "octants": self.octants,
-                "spans_s": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.spans_s.items()}}
+    def to_dict(self, trace: bool = False) -> dict:
+        """``results.json`` ``session.split[segment]``; ``trace=True`` adds ``duration_s``, ``trace_hz`` and ``trace``
+        (the session check's, for the wizard)."""
+        out = {"file": self.file, "how": self.how, "octants": self.octants,
+               "spans_s": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.spans_s.items()}}
+        if trace:
+            out |= {"duration_s": round(self.duration_s, 3), "trace_hz": self.trace_hz,
+                    "trace": [round(x, 3) for x in self.trace]}
+        return out
+
+
+def motion_trace(gyr, fs_hz: float, trace_hz: float = TRACE_HZ):
+    """The angular speed ``|ω|`` (rad/s) of ``gyr`` ``(N, 3)`` at ``fs_hz``, as its RMS over bins of ``1/trace_hz``
+    s: still postures are near 0, the figure-eight and the task well above (what the split itself looks for,
+    :mod:`estimators.protocol_split`).  NaN samples are ignored; an empty bin is 0."""
+    step = max(1, int(round(fs_hz / trace_hz)))
+    speed2 = np.nansum(np.asarray(gyr, float) ** 2, axis=1)
+    n = len(speed2) // step * step
+    bins = speed2[:n].reshape(-1, step) if n else np.zeros((0, step))
+    return tuple(float(x) for x in np.sqrt(bins.mean(axis=1)))
 
 
 def _cut(stream: Stream, t0: float, t1: float) -> Stream:
@@ -72,6 +98,15 @@ def given_spans(value, manifest: Path | None, segment: str) -> dict[str, tuple[f
         raise IngestionError("manifest.bad_split", file=manifest, segment=segment, value=repr(value)[:80],
                              roles=", ".join(PARTS))
     return {k: (float(v[0]), float(v[1])) for k, v in value.items()}
+
+
+def check_split(given, manifest: Path | None = None) -> dict[str, dict[str, tuple[float, float]]]:
+    """``session.json`` ``split`` (``{segment: {role: [start_s, end_s]}}``) checked (:func:`given_spans` per
+    segment); :class:`IngestionError` ``manifest.bad_split`` otherwise."""
+    if not isinstance(given, dict) or set(given) - {"thigh", "shank"}:
+        raise IngestionError("manifest.bad_split", file=manifest, segment="thigh | shank", value=repr(given)[:80],
+                             roles=", ".join(PARTS))
+    return {seg: given_spans(v, manifest, seg) for seg, v in given.items()}
 
 
 def split_recording(rec: RawRecording, segment: str, expected_fs_hz: float | None, how: str,
@@ -104,7 +139,8 @@ def split_recording(rec: RawRecording, segment: str, expected_fs_hz: float | Non
         parts[role] = replace(rec, acc=streams[0], gyr=streams[1], mag=streams[2],
                               role=Recognition(role, "split", f"{a:.1f}–{b:.1f} s of {rec.files[0].name}"),
                               notes=rec.notes if i == 0 else ())
-    split = Split(segment, rec.files[0].name, spans, grid.t0_s, how, found.octants if found is not None else 0)
+    split = Split(segment, rec.files[0].name, spans, grid.t0_s, how, found.octants if found is not None else 0,
+                  duration_s=len(grid.t_s) / grid.fs_hz, trace=motion_trace(grid.gyr, grid.fs_hz))
     span = {f"{k}_from_s": spans[k][0] for k in spans} | {f"{k}_to_s": spans[k][1] for k in spans}
     variant = "recording_split" if "mag_calibration" in spans else "recording_split_no_fig8"
     return parts, split, Note.of(variant, file=rec.files[0].name, segment=segment, **span)
@@ -118,10 +154,7 @@ def split_session(continuous: dict[str, list[tuple[RawRecording, str]]], recs: d
     exactly one such recording and nothing else was recognised (``how == "only recording"``).  ``given``:
     ``session.json`` ``split`` (``{segment: {role: [start_s, end_s]}}``, :func:`given_spans`).  Returns the
     recordings with the parts added, the splits and their notes."""
-    given = given or {}
-    if not isinstance(given, dict) or set(given) - {"thigh", "shank"}:
-        raise IngestionError("manifest.bad_split", file=manifest, segment="thigh | shank", value=repr(given)[:80],
-                             roles=", ".join(PARTS))
+    spans_of = check_split(given or {}, manifest)
     named = {seg: [r for r, how in items if how == "role"] for seg, items in continuous.items()}
     unnamed = {seg: [r for r, how in items if how != "role"] for seg, items in continuous.items()}
     chosen = {seg: [(r, "role") for r in rs] for seg, rs in named.items() if rs}
@@ -130,7 +163,7 @@ def split_session(continuous: dict[str, list[tuple[RawRecording, str]]], recs: d
     out, splits, notes = dict(recs), [], []
     for seg in sorted(chosen):
         for rec, how in chosen[seg]:
-            spans = given_spans(given[seg], manifest, seg) if seg in given else None
+            spans = spans_of.get(seg)
             parts, split, note = split_recording(rec, seg, expected_fs_hz, how, spans)
             for role, part in parts.items():
                 if (seg, role) in out:

@@ -8,7 +8,7 @@ it arrives too, whatever the headers say (a chunked body has no Content-Length):
 files of the largest size plus a little room for the multipart framing it is refused (413); a declared
 Content-Length above that is refused before a byte is read.  A body may hold at most ``max_files + 4``
 parts, and besides the files only the form fields ``segment`` and ``role`` (400 for any other).  A file
-name whose type is not allowed (``.csv``, ``.xlsx``, ``.json``) is refused (415) before its bytes are read;
+name whose type is not allowed (``.csv``, ``.xlsx``, ``.json``, ``.zip``: :data:`app.settings.ALLOWED_SUFFIXES`) is refused (415) before its bytes are read;
 more than ``CHAKAMO_MAX_FILES`` files per request or per session answers 413.  Only when the whole request
 has been read are the blobs committed and the recordings inserted (all or none,
 :func:`app.store.recordings.store_upload`), then the session's files are checked by the ingestion
@@ -33,6 +33,9 @@ ingestion check is stored with the version it was computed from and only if that
 (:func:`app.store.checks.save_ingestion`), so a slower, older check can never overwrite a newer one; a session
 whose stored check is stale is checked again when it is read or processed.  Two uploads racing for the same
 file name: one wins, the other gets 409 (the database's unique constraint decides).
+
+``PUT /sessions/{id}/split`` stores where the clinician confirmed or moved the cuts of the continuous recordings
+(:func:`app.store.recordings.set_split`) and answers the check redone with them.
 
 Audit: an upload and a deletion each record one event (``upload`` / ``delete``, :mod:`app.web.audit`) in the
 transaction that stores or removes the recordings, so the files and their event commit together.
@@ -64,7 +67,7 @@ from app.store.sessions import clinic_session, refuse_while_processing, stored_i
 from app.web import audit
 from app.web.api.deps import Clinician, SettingsDep, StoreDep, UploadClinician, checker_of
 from app.web.records import ERRORS, erase_now
-from app.web.api.schemas import UploadOut, recording_out
+from app.web.api.schemas import IngestionOut, SplitIn, UploadOut, ingestion_out, recording_out
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.refusals import Refusal
 
@@ -248,9 +251,11 @@ def _store(request: Request, principal, session_id: int, upload: _Upload, segmen
             idempotency.complete(claimed, [r.id for r in rows], 201)
         audit.record(db, request, principal, "upload", patient_id=session.patient_id, session_id=session.id)
         out = [recording_out(r) for r in rows]
+        split = session.split
     # the files are committed: whatever happens to their check, the upload stands
     ingestion = checker_of(request).refresh_or_defer(session_id, f"upload to session {session_id} stored")
-    return answer({"recordings": out, "ingestion": ingestion}, 201, f"/api/v1/sessions/{session_id}")
+    return answer({"recordings": out, "ingestion": ingestion_out(ingestion, split)}, 201,
+                  f"/api/v1/sessions/{session_id}")
 
 
 def _too_large(settings) -> Refusal:
@@ -399,6 +404,27 @@ def delete_recording(session_id: int, recording_id: int, principal: Clinician, r
     # the deletion is committed: whatever happens to the new check, it stands (the stale check is redone)
     checker_of(request).refresh_or_defer(session_id, f"recording deleted from session {session_id}")
     return Response(status_code=204)
+
+
+def _set_split(request: Request, principal, session_id: int, split: dict | None) -> dict:
+    with request.app.state.db.session() as db:
+        session, _ = recordings.set_split(db, principal.clinic_id, session_id, split)
+        audit.record(db, request, principal, "update", patient_id=session.patient_id, session_id=session.id,
+                     detail="split moved" if split else "split reset to the automatic one")
+        stored = session.split
+    ingestion = checker_of(request).refresh_or_defer(session_id, f"split of session {session_id} stored")
+    return ingestion_out(ingestion, stored)
+
+
+@router.put("/{session_id}/split", response_model=IngestionOut,
+            responses={k: v for k, v in ERRORS.items() if k != 412})
+def put_split(session_id: int, body: SplitIn, principal: Clinician, request: Request):
+    """Store the clinician's cuts of the session's continuous recordings (``{segment: {role: [start_s, end_s]}}``,
+    seconds from each recording's start, as the check's ``splits`` show them; null: the automatic split again),
+    then check the files with them and answer that check.  The processing uses the stored cuts
+    (``session.json`` ``"split"``); the session's earlier analyses become superseded
+    (:func:`app.store.recordings.set_split`)."""
+    return _set_split(request, principal, session_id, body.split)
 
 
 __all__ = ["FORM_FIELDS", "UPLOAD_BODY", "router"]

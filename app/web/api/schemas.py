@@ -185,9 +185,26 @@ class RecordingOut(BaseModel):
 
 
 class IngestionOut(BaseModel):
+    """The session's ingestion check: ``messages`` / ``error`` in English (as before), ``message_texts`` /
+    ``error_message`` the same in every language (``{lang: text}``, from the codes the check stored:
+    :func:`app.pipeline.service_messages.render_item`), and ``splits``, each sensor's continuous recording as cut
+    (``spans_s``, ``duration_s``, a motion ``trace`` at ``trace_hz``) for the wizard to show and move."""
+
     ok: bool
     messages: list[str]
     error: str | None
+    message_texts: list[dict[str, str]] = []
+    error_message: dict[str, str] | None = None
+    splits: dict[str, dict[str, Any]] = {}
+    #: the cuts the clinician stored (``PUT /sessions/{id}/split``), or None: the automatic split
+    confirmed_split: dict[str, Any] | None = None
+
+
+class SplitIn(BaseModel):
+    """``PUT /sessions/{id}/split``: ``{segment: {role: [start_s, end_s]}}`` (seconds from the recording's start),
+    or null to go back to the automatic split."""
+
+    split: dict[str, dict[str, list[float]]] | None
 
 
 class JobOut(BaseModel):
@@ -394,14 +411,22 @@ def summary_out(s: KneeSession, n_recordings: int, latest_job: Job | None, super
             "n_recordings": n_recordings, "status": session_status(n_recordings, ready(s), latest_job, superseded)}
 
 
-def sensor_warnings(recs: list[Recording]) -> list[dict[str, Any]]:
-    """The provenance check of the serials stored with ``recs`` (upload segment + device), each finding in
-    es/en/pt."""
+def sensor_warnings(recs: list[Recording], segments: dict[str, str] | None = None) -> list[dict[str, Any]]:
+    """The provenance check of the serials stored with ``recs`` (the segment declared at upload, else the one the
+    check recognised, ``segments`` by file name; and the device), each finding in es/en/pt."""
     from app.pipeline.ingestion.messages import message_dict
     from app.pipeline.ingestion.provenance import check_stored_sensors
 
-    found = check_stored_sensors((r.file_name, r.segment, r.device) for r in recs)
+    segments = segments or {}
+    found = check_stored_sensors((r.file_name, r.segment or segments.get(r.file_name), r.device) for r in recs)
     return [message_dict(f.code, f.params) for f in found]
+
+
+def ingestion_out(stored: dict[str, Any], confirmed: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The IngestionOut of a stored check (:func:`app.store.checks.ingestion_view`) and the stored cuts."""
+    from app.store.checks import ingestion_view
+
+    return ingestion_view(stored) | {"confirmed_split": confirmed}
 
 
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:
@@ -415,7 +440,8 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
     out |= {"version": s.version, "updated_at": s.updated_at, "step_height_m": s.step_height_m,
             "professional": s.professional, "notes": s.notes, "service_request": s.service_request,
             "encounter": s.encounter, "accession": s.accession,
-            "recordings": [recording_out(r) for r in recs], "sensor_warnings": sensor_warnings(recs),
-            "ingestion": stored_ingestion(s, len(recs)),
+            "recordings": [recording_out(r) for r in recs],
+            "sensor_warnings": sensor_warnings(recs, stored_ingestion(s, len(recs)).get("segments")),
+            "ingestion": ingestion_out(stored_ingestion(s, len(recs)), s.split),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out

@@ -26,12 +26,12 @@ from typing import Callable
 from hypothesis import strategies as st
 
 from ingestion_fuzz_vendors import (excel_epoch, excel_epoch_semicolon, opal_dataset_dropped, opal_truncated,
-                                    rows_copied_exactly, sensorlogger_cell_garbage, sensorlogger_member_dropped, shimmer_sep_variants, shimmer_units_row, truncated_last_line,
+                                    rows_copied_exactly, sensorlogger_cell_garbage, sensorlogger_member_dropped, sensorlogger_metadata, shimmer_sep_variants, shimmer_units_row, truncated_last_line,
                                     xsens_column_missing, xsens_layout_variants, xsens_mag_in_micro_tesla,
                                     xsens_text_cell)
 
-from ingestion_fuzz_phyphox import (phyphox_cell_garbage, phyphox_flavour, phyphox_linear_acceleration,
-                                    phyphox_sensor_dropped)
+from ingestion_fuzz_phyphox import (phyphox_cell_garbage, phyphox_device_meta, phyphox_flavour,
+                                    phyphox_linear_acceleration, phyphox_sensor_dropped)
 from ingestion_fuzz_metabase import (CELL_TEXT, GARBAGE, Draw, _drop_column, _lines, _save, _set_cell, converted_unit,
                                      day_boundary, decimal_comma, declared_unit, duplicated_stamp, empty,
                                      extra_columns, gap_seconds, header_only, huge_value, label_two_roles,
@@ -80,6 +80,20 @@ def manifest_wrong_types(folder, draw):
     key = draw(st.sampled_from(["side", "step_height_m", "patient_id", "date", "sensors", "recordings", "name",
                                 "weight_kg"]))
     data[key] = draw(JSON_VALUES)
+    p.write_text(json.dumps(data))
+    return (p,)
+
+
+def manifest_split(folder, draw):
+    """session.json "split" (the clinician's cuts of continuous recordings) given any JSON value, or cuts of
+    random roles and seconds: refused as a malformed split, or loaded when well formed (no recording is continuous
+    here, so well-formed cuts change nothing)."""
+    p = _manifest(folder)
+    data = json.loads(p.read_text())
+    roles = st.sampled_from(["mag_calibration", "standing", "lying", "task", "sitting", ""])
+    span = st.one_of(st.lists(st.one_of(st.floats(allow_nan=True), st.integers(-5, 500)), max_size=3), JSON_VALUES)
+    data["split"] = draw(st.one_of(JSON_VALUES, st.dictionaries(st.sampled_from(["thigh", "shank", "knee"]),
+                                                                st.dictionaries(roles, span, max_size=3), max_size=2)))
     p.write_text(json.dumps(data))
     return (p,)
 
@@ -354,6 +368,11 @@ KINDS: dict[str, Kind] = {
                                         phyphox_linear_acceleration),
     "phyphox_sensor_dropped": Kind("phyphox", "a sensor's set or columns missing from a phyphox zip",
                                    phyphox_sensor_dropped),
+    "phyphox_device_meta": Kind("phyphox", "meta/device.csv removed, emptied or garbage (the phone's id is optional)",
+                                phyphox_device_meta, must_load=True),
+    "sensorlogger_metadata": Kind("sensorlogger", "Metadata.csv removed, emptied, header only or garbage",
+                                  sensorlogger_metadata, must_load=True),
+    "manifest_split": Kind("metabase", "session.json \"split\" given any value or random cuts", manifest_split),
     "phyphox_flavour": Kind("phyphox", "another of phyphox's CSV flavours (',', tab, ';'; '.' or ',' decimals)",
                             phyphox_flavour, must_load=True),
     "decimal_comma": Kind("metabase", "',' decimal with ',' still the separator, from a random row on",

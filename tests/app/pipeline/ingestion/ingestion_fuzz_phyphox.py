@@ -105,3 +105,20 @@ def phyphox_flavour(folder, draw):
         files[n] = "\n".join(out) + "\n"
     _rezip(p, files)
     return (p,)
+
+
+def phyphox_device_meta(folder, draw):
+    """``meta/device.csv`` removed, emptied, or given garbage / a unique-id row of garbage (it names the phone; the
+    recording must load whatever it holds)."""
+    p, files = _zip(folder, draw)
+    how = draw(st.sampled_from(["drop", "empty", "garbage", "unique_id"]))
+    if how == "drop":
+        files.pop("meta/device.csv", None)
+    elif how == "empty":
+        files["meta/device.csv"] = ""
+    elif how == "garbage":
+        files["meta/device.csv"] = draw(GARBAGE)
+    else:
+        files["meta/device.csv"] = '"property","value"\n"uniqueID","' + draw(GARBAGE).replace('"', "") + '"\n'
+    _rezip(p, files)
+    return (p,)

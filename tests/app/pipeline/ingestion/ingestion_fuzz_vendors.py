@@ -232,3 +232,27 @@ def sensorlogger_member_dropped(folder, draw):
             if n != gone:
                 z.writestr(n, data)
     return (p,)
+
+
+def sensorlogger_metadata(folder, draw):
+    """Metadata.csv removed, emptied, cut after its header, or given garbage (device id, name and platform are
+    optional: the recording must load)."""
+    import zipfile
+    p = _one(folder, draw, "*.zip")
+    with zipfile.ZipFile(p) as z:
+        files = {n: z.read(n).decode() for n in z.namelist()}
+    how = draw(st.sampled_from(["drop", "empty", "header_only", "garbage", "garbage_id"]))
+    if how == "drop":
+        files.pop("Metadata.csv", None)
+    elif how == "empty":
+        files["Metadata.csv"] = ""
+    elif how == "header_only":
+        files["Metadata.csv"] = files.get("Metadata.csv", "version\n").splitlines()[0] + "\n"
+    elif how == "garbage":
+        files["Metadata.csv"] = draw(GARBAGE)
+    else:
+        files["Metadata.csv"] = "version,device id,platform\n3," + draw(GARBAGE).replace("\n", " ") + ",android\n"
+    with zipfile.ZipFile(p, "w") as z:
+        for n, text in files.items():
+            z.writestr(n, text)
+    return (p,)

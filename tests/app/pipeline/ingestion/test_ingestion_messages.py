@@ -159,3 +159,14 @@ def test_excel_rounded_epochs_with_semicolons_and_decimal_commas(folder):
     variants = {n.params.get("variant") for n in session.notes if hasattr(n, "params")}
     assert {"csv_semicolon", "excel_epoch_rebuilt", "excel_epoch_offset"} <= variants
     assert 9.0 < np.nanmedian(np.linalg.norm(session.task_pair()[1].acc, axis=1)) < 10.6
+
+
+def test_an_ambiguous_label_is_explained_in_each_language(folder):
+    """A name that holds two roles ("standing" and "step"): the refusal says so in the reader's language, not in
+    English inside a Spanish sentence."""
+    for p in list(folder.glob("standing-muslo*")):
+        p.rename(p.with_name(p.name.replace("standing-muslo", "standing-step-muslo")))
+    exc = _refusal(folder)
+    assert "names more than one role: standing ('standing'), task ('step')" in str(exc)
+    assert "nombra más de un papel: standing ('standing'), task ('step')" in exc.message("es")
+    assert "nomeia mais de um papel" in exc.message("pt") and "names more" not in exc.message("pt")
