@@ -32,7 +32,9 @@ def _processed_session(client, h, pid: int, files, date: str, **process) -> int:
     sid = client.post(f"/api/v1/patients/{pid}/sessions", json={"task": "gait", "date": date}, headers=h).json()["id"]
     r = client.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=files)
     assert r.status_code == 201 and r.json()["ingestion"]["ok"] is True, r.text
-    assert any(m.startswith("left thigh task") for m in r.json()["ingestion"]["messages"])
+    messages = r.json()["ingestion"]["messages"]
+    assert messages.index("Left knee:") < messages.index("Right knee:")  # each knee's recordings under its header
+    assert sum(m.startswith("thigh task") for m in messages) == 2
     job = wait_job(client, client.post(f"/api/v1/sessions/{sid}/process", json={"lang": "en", **process},
                                        headers=h).json()["job_id"], h)
     assert job["status"] == "done", job
