@@ -90,6 +90,9 @@ def test_results_json_follows_the_contract(right_session, tmp_path):
     assert sum(r["phases"][p]["mean_pct"] for p in ("impulse", "extension", "fall")) == pytest.approx(100.0, abs=0.5)
     assert set(r["calibration"]["magnetometer"]) == {"thigh", "shank"}
     assert set(r["calibration"]["segment"]) == {"thigh", "shank"}
+    # figure-eight rests, standing, supine: three directions for three bias parameters, so the fit is unchecked
+    assert {(a["model"], a["directions"], a["validated"]) for a in r["calibration"]["accelerometer"].values()} == {
+        ("bias", 3, False)}
     assert all(set(w) == {"code", "message", "params"} for w in r["quality"]["warnings"])
     assert r["software"]["version"]
     assert r["session"]["language"] == "en"
