@@ -40,16 +40,35 @@ The bias needs gravity in three independent directions; bias and gain together n
 whose normalised Jacobian :math:`\tilde J` (bias columns as they are, gain columns divided by
 :math:`g`, so both are in m/s² per m/s²) is well conditioned.  The Gauss–Newton covariance is
 :math:`\sigma^2(\tilde J^\top\tilde J)^{-1}` for a pose error :math:`\sigma`, so the check is the *information*
-:math:`\lambda_{min}(\tilde J^\top\tilde J)`, the smallest eigenvalue (for the bias model
-:math:`\sum_i \mathbf u_i\mathbf u_i^\top`: 1 for three orthogonal poses, 0 when all lie in one plane; a third pose
-:math:`\alpha` out of the plane of two others adds :math:`\sin^2\alpha`).  A pose's error (its residual motion,
-and the scale error the bias model folds into :math:`\mathbf b`: about 0.5 % of g ≈ 0.05 m/s²) reaches the
-estimate amplified by :math:`1/\sqrt{\lambda_{min}}` in the weakest direction; below ``MIN_INFORMATION``
-(0.3: an amplification above 1.8, a third pose less than 33° out of the others' plane) the estimate's error is
-as large as the bias it should remove, so the recording is "too poor" and nothing is corrected
-(``model == "none"`` with a ``note``).  The gain model is used only with :data:`MIN_POSES_SCALE` poses or more
-(redundancy to check it) and the same information over its six columns; otherwise the bias model (three
-parameters) is used.
+:math:`\lambda_{min}(\tilde J^\top\tilde J)`, the smallest eigenvalue, taken over the **distinct directions**:
+poses whose gravity directions lie within ``SAME_DIRECTION_DEG`` (5°) of each other are one direction (their mean
+reading is its row).  Copies of one pose add no information about the directions they do not see, and the error
+the bias model folds into :math:`\mathbf b` (the scale error along that pose's axis, about 0.5 % of g ≈
+0.05 m/s²) is the same in every copy, so it does not average out: three copies of a pose weigh as one.
+
+For the bias model the information is :math:`\lambda_{min}(\sum_c \mathbf u_c\mathbf u_c^\top)` over the
+directions :math:`\mathbf u_c`: 1 for three orthogonal directions, 0 when all lie in one plane.  Two orthogonal
+directions and a third :math:`\alpha` out of their plane give exactly (eq. A4a)
+
+.. math::  \lambda_{min} = 1 - \cos\alpha
+
+(rotate the plane so :math:`\mathbf u_3 = (\cos\alpha, 0, \sin\alpha)`; the x–z block
+:math:`\begin{pmatrix}1+\cos^2\alpha & \cos\alpha\sin\alpha\\ \cos\alpha\sin\alpha & \sin^2\alpha\end{pmatrix}`
+has trace 2 and determinant :math:`\sin^2\alpha`), whatever the third direction's azimuth.  A pose's error
+reaches the estimate amplified by :math:`1/\sqrt{\lambda_{min}}` in the weakest direction; below
+``MIN_INFORMATION`` (0.3: an amplification above 1.8, i.e. by A4a a third direction less than
+:math:`\arccos 0.7` = 45.6° out of the plane of two orthogonal ones) the estimate's error is as large as the bias
+it should remove, so the recording is "too poor" and nothing is corrected (``model == "none"`` with a ``note``).
+The gain model is used only with :data:`MIN_POSES_SCALE` distinct directions or more (redundancy to check it)
+and the same information over its six columns; otherwise the bias model (three parameters) is used.
+
+Validation (eq. A5): with more distinct directions than parameters the fitted poses' RMS residual
+:math:`\sqrt{\tfrac1P\sum_i r_i^2}` must stay under ``MAX_RESIDUAL_M_S2`` (else a pose moved: nothing is
+corrected).  With no spare direction (the protocol's usual three: figure-eight rest, standing, supine) the fit
+passes through one point per direction exactly: the residual then only says whether copies of one direction
+(the figure-eight's rests before and after) agree, nothing checks the fit itself but
+:math:`|\mathbf b| \le` ``MAX_BIAS_M_S2``, and the result says so: ``validated`` False (``results.json``
+``calibration.accelerometer.<segment>.validated``).
 
 The protocol's still poses
 --------------------------
@@ -87,6 +106,8 @@ MIN_POSES_SCALE = 8
 MAX_BIAS_M_S2 = 1.0
 #: the fitted poses' RMS norm residual above this (m/s²) says a pose was not at rest: nothing is corrected
 MAX_RESIDUAL_M_S2 = 0.1
+#: poses whose gravity directions lie within this angle (degrees) are one direction (module docstring, eq. A4)
+SAME_DIRECTION_DEG = 5.0
 
 __all__ = ["AccCalibration", "fit_still_poses", "still_poses"]
 
@@ -97,8 +118,12 @@ class AccCalibration:
 
     bias_m_s2 : (3,) :math:`\\mathbf b`.   gain : (3,) the diagonal of :math:`K` (ones for the bias model).
     model : ``"bias_scale"``, ``"bias"`` or ``"none"`` (not corrected: ``note`` says why).
-    poses_m_s2 : (P, 3) the still poses' mean readings.   information : the smallest eigenvalue of eq. A4 for the
-        bias model's columns (≥ ``MIN_INFORMATION`` to correct).   residual_rms_m_s2 : RMS of :math:`r_i` at the solution (NaN without redundancy).
+    poses_m_s2 : (P, 3) the still poses' mean readings.   directions : how many distinct gravity directions they
+        hold (eq. A4).   information : the smallest eigenvalue of eq. A4 for the bias model's columns over the
+        distinct directions (≥ ``MIN_INFORMATION`` to correct).   residual_rms_m_s2 : RMS of :math:`r_i` at the
+        solution (NaN without a spare pose).
+    validated : True when the residual (eq. A5) checked the fit, False when there was no spare direction to check
+        it with (the correction is still applied) or nothing was corrected.
     note : ``""``, ``"few_poses"`` (gravity in fewer than three independent directions: e.g. no figure-eight),
         ``"implausible_bias"`` or ``"poses_not_still"`` (the fit's residual or size says a pose moved).
     """
@@ -110,6 +135,8 @@ class AccCalibration:
     information: float
     residual_rms_m_s2: float
     note: str = ""
+    directions: int = 0
+    validated: bool = False
 
     def apply(self, acc: ArrayLike) -> FloatArray:
         """Corrected specific force :math:`K(\\mathbf a - \\mathbf b)` of ``acc`` (N, 3), m/s²."""
@@ -117,8 +144,8 @@ class AccCalibration:
 
     def to_dict(self) -> dict:
         return {"model": self.model, "bias_m_s2": self.bias_m_s2.tolist(), "gain": self.gain.tolist(),
-                "poses": len(self.poses_m_s2), "information": self.information, "residual_rms_m_s2": self.residual_rms_m_s2,
-                "note": self.note}
+                "poses": len(self.poses_m_s2), "directions": self.directions, "information": self.information,
+                "residual_rms_m_s2": self.residual_rms_m_s2, "validated": self.validated, "note": self.note}
 
 
 def still_poses(acc: ArrayLike, gyr: ArrayLike, *, fs_hz: float, window_s: float = 0.5,
@@ -152,6 +179,22 @@ def _residuals(poses: FloatArray, b: FloatArray, k: FloatArray, g: float) -> tup
     return norm - g, np.hstack([-vh * k, vh * d])
 
 
+def _directions(poses: FloatArray) -> FloatArray:
+    """(C, 3) one mean reading per distinct gravity direction (eq. A4): each pose joins the first direction whose
+    first pose lies within ``SAME_DIRECTION_DEG`` of its own, else starts a new one."""
+    u = poses / np.linalg.norm(poses, axis=1)[:, None]
+    cos_same = np.cos(np.deg2rad(SAME_DIRECTION_DEG))
+    heads: list[int] = []
+    label = np.empty(len(poses), dtype=int)
+    for i in range(len(poses)):
+        c = next((j for j, h in enumerate(heads) if u[h] @ u[i] >= cos_same), None)
+        if c is None:
+            heads.append(i)
+            c = len(heads) - 1
+        label[i] = c
+    return np.array([poses[label == c].mean(axis=0) for c in range(len(heads))]).reshape(-1, 3)
+
+
 def _information(jac: FloatArray, g: float) -> float:
     """Smallest eigenvalue of the information matrix (eq. A4), the gain columns (4–6) divided by g."""
     j = jac.copy()
@@ -170,14 +213,17 @@ def fit_still_poses(poses: ArrayLike | Iterable[ArrayLike], *, gravity_m_s2: flo
     p = np.vstack([np.asarray(x, dtype=np.float64).reshape(-1, 3) for x in arrs]) if arrs else np.zeros((0, 3))
     p = p[np.all(np.isfinite(p), axis=1)]
     g = float(gravity_m_s2)
-    none = dict(bias_m_s2=np.zeros(3), gain=np.ones(3), model="none", poses_m_s2=p, residual_rms_m_s2=float("nan"))
-    if len(p) < 3:
+    p = p[np.linalg.norm(p, axis=1) > 0]
+    dirs = _directions(p) if len(p) else np.zeros((0, 3))
+    none = dict(bias_m_s2=np.zeros(3), gain=np.ones(3), model="none", poses_m_s2=p, residual_rms_m_s2=float("nan"),
+                directions=len(dirs))
+    if len(dirs) < 3:
         return AccCalibration(information=0.0, note="few_poses", **none)
-    _, jac0 = _residuals(p, np.zeros(3), np.ones(3), g)
+    _, jac0 = _residuals(dirs, np.zeros(3), np.ones(3), g)  # one row per distinct direction (eq. A4)
     info = _information(jac0[:, :3], g)
     if info < MIN_INFORMATION:
         return AccCalibration(information=info, note="few_poses", **none)
-    scale = len(p) >= MIN_POSES_SCALE and _information(jac0, g) >= MIN_INFORMATION
+    scale = len(dirs) >= MIN_POSES_SCALE and _information(jac0, g) >= MIN_INFORMATION
     cols = slice(0, 6 if scale else 3)
     b, k = np.zeros(3), np.ones(3)
     for _ in range(iterations):
@@ -189,10 +235,12 @@ def fit_still_poses(poses: ArrayLike | Iterable[ArrayLike], *, gravity_m_s2: flo
         if np.max(np.abs(step)) < 1e-9:
             break
     r, _ = _residuals(p, b, k, g)
-    dof = len(p) - (6 if scale else 3)
-    rms = float(np.sqrt(np.mean(r ** 2))) if dof > 0 else float("nan")
+    n_par = 6 if scale else 3
+    validated = len(dirs) > n_par  # a spare direction checks the fit (eq. A5)
+    rms = float(np.sqrt(np.mean(r ** 2))) if len(p) > n_par else float("nan")
     if not np.linalg.norm(b) <= MAX_BIAS_M_S2:
         return AccCalibration(information=info, note="implausible_bias", **none)
-    if rms > MAX_RESIDUAL_M_S2:
+    if rms > MAX_RESIDUAL_M_S2:  # NaN (no spare pose) never exceeds: then only |b| is checked
         return AccCalibration(information=info, note="poses_not_still", **none)
-    return AccCalibration(b, k, "bias_scale" if scale else "bias", p, info, rms)
+    return AccCalibration(b, k, "bias_scale" if scale else "bias", p, info, rms, directions=len(dirs),
+                          validated=validated)

@@ -137,9 +137,10 @@ def _reference(r: dict[str, Any]) -> dict[str, Any] | None:
     else:
         phases = r.get("phases") or {}
         flexion = (r.get("rom_deg") or {}).get("flexion") or {}
-        means_s = [p.get("mean_s") for p in phases.values()]
         values = {f"{name}_pct": p.get("mean_pct") for name, p in phases.items()}
-        values["cycle_s"] = sum(means_s) if means_s and None not in means_s else None
+        # the cycle's own mean: ``phases`` holds the task's phases *and* "movement" and "cycle", so their sum is
+        # not the cycle time (it was ~3x it)
+        values["cycle_s"] = (phases.get("cycle") or {}).get("mean_s")
         values.update({f"flexion_{k}_deg": (flexion.get(stat) or {}).get("mean")
                        for k, stat in (("rom", "range"), ("max", "max"), ("min", "min"))})
     return json_ready(compare(ref, values))

@@ -523,7 +523,7 @@ def detect_cycles(y: FloatArray, fs_hz: float, span: tuple[int, int], task: Task
                 if p.boundary_model == "min_jerk":
                     prev_left = out[k - 1].events[3] if k > 0 else float("nan")
                     if np.isfinite(prev_left):  # D5c: the previous fall's end and this onset together
-                        t1, s0 = fit_split(y_fit, prev_left, peak, fs_hz, p.min_pause_s * fs_hz)
+                        t1, s0 = fit_split(y_fit, prev_left, peak, fs_hz, p.min_pause_samples(fs_hz))
                         if np.isfinite(t1) and np.isfinite(s0):
                             _, lev_l, lev_p, _ = split_levels(y_fit, prev_left, peak, t1, s0)
                             if lev_l - lev_p < p.min_countermovement_rad:  # the fit finds no impulse

@@ -32,8 +32,10 @@ toe-off (stance %)                   ~60 %          (58–62 % used here)
 ROM is taken as swing peak minus stance minimum (55–62°).  ChakaMo's flexion is zero at the standing knee (its
 calibrations take the standing posture as straight), the reference's at the bones' alignment: a patient who stands
 with the knee flexed by a few degrees reads that much lower against the angle values (not against ROM or timing);
-the simulated walker stands at 2°, so simulated sessions read their stance minimum ~2° low (1.98° against 3–5°,
-flagged "L", in ``tests/app/pipeline/test_gait_session.py``'s session).  **Limits** (stated in ``results.json`` too): no SD, no
+the simulated walker stands at 2°, so simulated sessions read their stance minimum ~2° low (1.98° against 3–5°
+in ``tests/app/pipeline/test_gait_session.py``'s session).  So only what does not depend on where zero is, the
+flexion ROM, the swing-peak timing and the stance %, is flagged (R1); the three absolute angles are shown beside
+their bands without a flag (``Band.flag`` False).  **Limits** (stated in ``results.json`` too): no SD, no
 sample size or age for this transcription; the values were *not* checked against a second published table in
 this change (Kadaba et al. 1990, J Orthop Res 8:383, n = 40 young adults, and Fukuchi et al. 2018, PeerJ 6:e4640,
 are the candidates), and the simulator's mean curve is built on the same key values, so simulated sessions are
@@ -43,9 +45,10 @@ Step-up (``STEP_UP``)
 ---------------------
 The source thesis' own measurement (seed 004 §8.7.3–8.7.4, Tables 8.1–8.4): **one subject**, 10 step-ups of
 which 8 were averaged, at 17 cm and at 34 cm; MetaMotionR sensors, the thesis' own pipeline and its ZYX angles.
-A *single-study* reference, labelled as such: its band for the phase percentages is the subject's mean ± 2 SD
-over the cycles; its knee flexion ROM has no SD (the table gives the mean range, maximum and minimum), so the ROM
-is shown beside the session's value without a flag.  Table 8.1 (17 cm): cycle 3.38 ± 0.01 s; impulse 34.02 ±
+A *single-study* reference, labelled as such and **never flagged**: one subject's SD over its own cycles is no
+spread of a population (its mean ± 2 SD, 3.36–3.40 s at 17 cm, flagged the simulated patient's correct 3.37 s
+cycle "L"), so every value (cycle time, phase %, flexion ROM, maximum, minimum) is the subject's mean shown beside
+the session's, without a band or L/N/H (the SD stays in ``results.json`` where the table gives one).  Table 8.1 (17 cm): cycle 3.38 ± 0.01 s; impulse 34.02 ±
 0.89 %, extension 31.66 ± 2.96 %, fall 34.02 ± 2.07 %.  Table 8.3 (34 cm): cycle 3.54 ± 0.07 s; impulse
 33.33 ± 1.13 %, extension 32.77 ± 2.26 %, fall 33.90 ± 1.13 %.  Tables 8.2 / 8.4: flexion range 81.96° / 115.16°,
 maximum 82.96° / 111.16°, minimum 0.80° / −3.72° (the thesis' own table; its 34 cm range is not max − min,
@@ -110,11 +113,12 @@ GAIT = Reference(
     conditions="level walking at free (self-selected) speed",
     transcription="key values of the published mean knee curve, typed by hand as ranges of the mean (no SD); "
                   "not checked against a second published table; ChakaMo reads flexion from the standing knee (0°), "
-                  "the reference from the bones, so a patient who stands flexed reads that much lower",
+                  "the reference from the bones, so a patient who stands flexed reads that much lower: the absolute "
+                  "angles are shown without a flag, only the ROM and the timing percentages are flagged",
     parameters={
-        "loading_response_peak_flexion_deg": Band(15.0, 20.0, "deg"),
-        "stance_min_flexion_deg": Band(3.0, 5.0, "deg"),
-        "swing_peak_flexion_deg": Band(60.0, 65.0, "deg"),
+        "loading_response_peak_flexion_deg": Band(15.0, 20.0, "deg", flag=False),
+        "stance_min_flexion_deg": Band(3.0, 5.0, "deg", flag=False),
+        "swing_peak_flexion_deg": Band(60.0, 65.0, "deg", flag=False),
         "flexion_rom_deg": Band(55.0, 62.0, "deg"),
         "swing_peak_timing_pct": Band(70.0, 73.0, "pct"),
         "stance_pct": Band(58.0, 62.0, "pct"),
@@ -125,33 +129,36 @@ GAIT = Reference(
 )
 
 
-def _two_sd(mean: float, sd: float, unit: str) -> Band:
-    return Band(round(mean - 2.0 * sd, 6), round(mean + 2.0 * sd, 6), unit, mean, sd)
+def _shown(mean: float, sd: float | None, unit: str) -> Band:
+    """A single-study value: the subject's mean (and SD over its own cycles) shown without a band or a flag.  One
+    subject's cycle-to-cycle SD is no population spread (its ± 2 SD "band" of 3.36–3.40 s flagged the simulated
+    patient's 3.37 s cycle "L"), so nothing is judged against it."""
+    return Band(None, None, unit, mean, sd, False)
 
 
 _THESIS = dict(
     kind="single_study",
     source="source thesis (seed 004), §8.7.3–8.7.4, Tables 8.1–8.4",
-    transcription="typed by hand from the thesis' tables; phase bands are the subject's mean ± 2 SD over its cycles; "
-                  "flexion ROM, maximum and minimum have no SD and are not flagged")
+    transcription="typed by hand from the thesis' tables; one subject's means, shown beside the session's values "
+                  "without a band or a flag: one subject's spread over its own cycles is no range of normal")
 
 STEP_UP = {
     0.17: Reference(
         id="step_up_thesis_17cm", task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
         conditions="single-leg step-up, 17 cm step", **_THESIS,
-        parameters={"cycle_s": _two_sd(3.38, 0.01, "s"), "impulse_pct": _two_sd(34.02, 0.89, "pct"),
-                    "extension_pct": _two_sd(31.66, 2.96, "pct"), "fall_pct": _two_sd(34.02, 2.07, "pct"),
-                    "flexion_rom_deg": Band(None, None, "deg", 81.96, None, False),
-                    "flexion_max_deg": Band(None, None, "deg", 82.96, None, False),
-                    "flexion_min_deg": Band(None, None, "deg", 0.80, None, False)}),
+        parameters={"cycle_s": _shown(3.38, 0.01, "s"), "impulse_pct": _shown(34.02, 0.89, "pct"),
+                    "extension_pct": _shown(31.66, 2.96, "pct"), "fall_pct": _shown(34.02, 2.07, "pct"),
+                    "flexion_rom_deg": _shown(81.96, None, "deg"),
+                    "flexion_max_deg": _shown(82.96, None, "deg"),
+                    "flexion_min_deg": _shown(0.80, None, "deg")}),
     0.34: Reference(
         id="step_up_thesis_34cm", task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
         conditions="single-leg step-up, 34 cm step", **_THESIS,
-        parameters={"cycle_s": _two_sd(3.54, 0.07, "s"), "impulse_pct": _two_sd(33.33, 1.13, "pct"),
-                    "extension_pct": _two_sd(32.77, 2.26, "pct"), "fall_pct": _two_sd(33.90, 1.13, "pct"),
-                    "flexion_rom_deg": Band(None, None, "deg", 115.16, None, False),
-                    "flexion_max_deg": Band(None, None, "deg", 111.16, None, False),
-                    "flexion_min_deg": Band(None, None, "deg", -3.72, None, False)}),
+        parameters={"cycle_s": _shown(3.54, 0.07, "s"), "impulse_pct": _shown(33.33, 1.13, "pct"),
+                    "extension_pct": _shown(32.77, 2.26, "pct"), "fall_pct": _shown(33.90, 1.13, "pct"),
+                    "flexion_rom_deg": _shown(115.16, None, "deg"),
+                    "flexion_max_deg": _shown(111.16, None, "deg"),
+                    "flexion_min_deg": _shown(-3.72, None, "deg")}),
 }
 
 

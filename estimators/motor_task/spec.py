@@ -122,6 +122,8 @@ class MotorTaskParams:
         the onsets by a sample and bend the mean curve of fast cycles (held-out seed 156: flexion curve 0.67° →
         1.05°).  On the tuning seeds 0–12 and those with rests under 0.25 s (2, 20, 30, 31, 62, 80, 96) every
         phantom rest was ≤ 0.02 s (69 continuous junctions) and every real rest of ≥ 0.03 s was kept at its length.
+        Applied as :meth:`min_pause_samples`: never under 3 samples (0.03 s is 1.5 samples at 50 Hz, where the
+        BIC test kept 2-sample phantom rests on continuous cycles).
     boundary_model : ``"min_jerk"`` (default): each transition's start and end are those of the
         minimum-jerk movement fitting its 10 %…90 % crossing times; ``"threshold"``: the instants the
         knee is ``boundary_threshold_rad`` away from the plateau it leaves / reaches.
@@ -159,6 +161,12 @@ class MotorTaskParams:
         math.radians(8.0), None, None)
     min_accepted_cycles: int = 3
     gyro_crossover_hz: float = 0.05
+
+    def min_pause_samples(self, fs_hz: float) -> float:
+        r"""``min_pause_s`` in samples at ``fs_hz``, floored at 3: :math:`\max(t_{pause} f_s,\ 3)`.  The phantom
+        rests the BIC test lets through on continuous cycles are 1–2 samples long at any rate (≤ 0.02 s at 100 Hz,
+        0.04 s at 50 Hz), so a rest must be at least 3 samples to count."""
+        return max(self.min_pause_s * fs_hz, 3.0)
 
     def __post_init__(self) -> None:
         positive = ("lowpass_hz", "activity_window_s", "activity_sd_rad", "stationary_rad_s", "level_window_s",

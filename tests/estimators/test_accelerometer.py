@@ -93,3 +93,50 @@ def test_a_pose_that_moved_is_not_used_to_correct():
 def test_bad_shapes_are_refused(shape):
     with pytest.raises(ValueError, match="shape"):
         still_poses(np.zeros(shape), np.zeros(shape), fs_hz=100.0)
+
+
+def _up(u):
+    """The still pose whose gravity reading points along the sensor direction ``u`` (plus the bias)."""
+    u = np.asarray(u, dtype=np.float64) / np.linalg.norm(u)
+    axis = np.cross(u, [0.0, 0.0, 1.0])
+    s = np.linalg.norm(axis)
+    return Z_UP if s < 1e-12 else tuple(quat.from_axis_angle(axis / s, np.arctan2(s, u[2])))
+
+
+@pytest.mark.parametrize("alpha_deg, corrected", [(40.0, False), (44.0, False), (47.0, True), (55.0, True)])
+def test_the_third_directions_angle_rule_holds_and_copies_count_once(alpha_deg, corrected):
+    """Eq. A4a: with two orthogonal directions a third one alpha out of their plane gives information 1 - cos alpha,
+    so MIN_INFORMATION (0.3) asks for alpha >= 45.6°, whatever its azimuth.  Repeating every pose three times (the
+    figure-eight's rests before and after, the same posture recorded twice) adds no direction: the decision and
+    the information are those of one copy (it tripled the information before, passing 40°), and the bias is the
+    simulator's when corrected."""
+    a, az = np.deg2rad(alpha_deg), np.deg2rad(30.0)
+    third = (np.sin(a), np.cos(a) * np.sin(az), np.cos(a) * np.cos(az))
+    qs = (Z_UP, Y_UP, _up(third))
+    once = fit_still_poses([_poses(_still(q), _spec(), seed=i) for i, q in enumerate(qs)])
+    thrice = fit_still_poses([_poses(_still(q), _spec(), seed=10 * k + i) for k in range(3) for i, q in enumerate(qs)])
+    assert once.information == pytest.approx(1.0 - np.cos(a), abs=0.015)  # the readings carry the 0.28 m/s² bias
+    assert thrice.directions == once.directions == 3 and len(thrice.poses_m_s2) == 9
+    assert thrice.information == pytest.approx(once.information, abs=0.005)
+    for cal in (once, thrice):
+        assert (cal.model == "bias") is corrected and cal.note == ("" if corrected else "few_poses")
+        if corrected:
+            assert np.linalg.norm(cal.bias_m_s2 - BIAS) < 0.01
+
+
+def test_without_a_spare_direction_the_fit_is_applied_but_not_validated():
+    """The protocol's poses (the figure-eight's two rests in one orientation, standing, supine) are three
+    directions for three bias parameters: the fit passes through them exactly and nothing checks it (rms was NaN
+    and ``NaN > MAX_RESIDUAL`` passed silently).  The result says "not validated"; a fourth direction validates."""
+    protocol = [_poses(_still(q), _spec(), seed=i) for i, q in enumerate((Z_UP, Z_UP, Y_UP, X_UP))]
+    cal = fit_still_poses(protocol)
+    assert (cal.model, cal.directions, cal.validated) == ("bias", 3, False)
+    assert cal.residual_rms_m_s2 < 0.01 and cal.to_dict()["validated"] is False  # the two rests agree, no more
+    three = fit_still_poses(protocol[1:])
+    assert (three.model, three.validated) == ("bias", False) and np.isnan(three.residual_rms_m_s2)
+    assert np.linalg.norm(cal.bias_m_s2 - BIAS) < 0.01  # still the simulator's bias: the correction is applied
+    fourth = fit_still_poses(protocol + [_poses(_still(_up((1.0, 1.0, -1.0))), _spec(), seed=9)])
+    assert (fourth.model, fourth.directions, fourth.validated) == ("bias", 4, True)
+    assert fourth.residual_rms_m_s2 < 0.01 and fourth.to_dict()["validated"] is True
+    assert np.linalg.norm(fourth.bias_m_s2 - BIAS) < 0.01
+    assert fit_still_poses([]).validated is False

@@ -226,3 +226,20 @@ def test_only_the_step_up_uses_the_tilt_heading_bound():
     with pytest.raises(ValueError, match="heading_bound"):
         TaskSpec(name="x", excursion="flexion", countermovement=False,
                  phases=(PhaseSpec("a", "onset", "rest_reached"),), far_label="far", heading_bound="6")
+
+
+@pytest.mark.parametrize("seed, h, cycle_s", [(0, 0.17, 2.0), (2, 0.34, None)])
+def test_min_pause_is_at_least_three_samples_at_50_hz(seed, h, cycle_s):
+    """``min_pause_s`` (0.03 s) is 1.5 samples at 50 Hz: the BIC test then kept 2-sample (0.04 s) phantom rests
+    between the simulator's continuous cycles (no rest in the truth), ending the cycle before them early.  Applied
+    as at least 3 samples (``MotorTaskParams.min_pause_samples``), those junctions meet at one split as in the truth."""
+    fs = 50.0
+    leg = sim.step_up(n_cycles=10, step_height_m=h, side="right", shape="thesis", pauses_s=None, initial_rest_s=1.0,
+                      final_rest_s=1.0, cycle_s=cycle_s, seed=seed, fs_hz=fs)
+    assert np.all(leg.cycles_s[1:, 0] == leg.cycles_s[:-1, 1])  # truth: every junction is continuous
+    angles = leg.knee_angles_rad + 0.5 * DEG * np.random.default_rng(seed).standard_normal(leg.knee_angles_rad.shape)
+    r = analyse_task(angles, fs)
+    assert r.n_detected == 10
+    rests = (r.cycles_s[1:, 0] - r.cycles_s[:-1, 1]) * fs
+    assert not np.any((rests > 0) & (rests < 3)), np.round(rests, 2)
+    assert MotorTaskParams().min_pause_samples(fs) == 3.0 and MotorTaskParams().min_pause_samples(200.0) == 6.0

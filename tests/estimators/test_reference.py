@@ -28,7 +28,7 @@ def test_step_up_values_are_the_thesis_tables_as_printed():
         for name, row in (("impulse", "Impulso"), ("extension", "Extensión"), ("fall", "Caída")):
             band = r.parameters[f"{name}_pct"]
             assert (band.mean, band.sd) == rows[row][2:]
-            assert band.low == pytest.approx(band.mean - 2 * band.sd) and band.high == pytest.approx(band.mean + 2 * band.sd)
+            assert band.low is None and band.high is None and not band.flag  # shown, not flagged (below)
         rom = re.search(r"Flexión - extensión \(x\)(?:</b>)?\t([-\d.]+)\t([-\d.]+)\t([-\d.]+)",
                         text[:text.index(table_rom)][-900:])
         assert (r.parameters["flexion_rom_deg"].mean, r.parameters["flexion_max_deg"].mean,
@@ -50,11 +50,39 @@ def test_interpretation_is_low_normal_or_high_and_none_without_a_flag():
 
 
 def test_compare_flags_the_values_outside_and_keeps_the_source():
-    block = ref.compare(ref.GAIT, {"swing_peak_flexion_deg": 50.0, "stance_min_flexion_deg": 4.0,
+    block = ref.compare(ref.GAIT, {"flexion_rom_deg": 50.0, "swing_peak_timing_pct": 71.0,
                                    "stance_pct": float("nan")})
     p = block["parameters"]
-    assert p["swing_peak_flexion_deg"]["interpretation"] == "L" and p["swing_peak_flexion_deg"]["within_band"] is False
-    assert p["stance_min_flexion_deg"]["within_band"] is True
+    assert p["flexion_rom_deg"]["interpretation"] == "L" and p["flexion_rom_deg"]["within_band"] is False
+    assert p["swing_peak_timing_pct"]["within_band"] is True
     assert p["stance_pct"]["value"] is None and p["stance_pct"]["within_band"] is None
-    assert block["outside"] == ["swing_peak_flexion_deg"]
+    assert block["outside"] == ["flexion_rom_deg"]
     assert "Perry" in block["source"] and block["kind"] == "normative" and len(block["keypoints"]) == 3
+
+
+def test_the_gait_absolute_angles_are_shown_without_a_flag():
+    """ChakaMo's flexion is zero at the standing knee, Perry & Burnfield's at the bones: the simulated walker stands
+    at 2° (:mod:`estimators.simulation.gait`), so its normal stance minimum reads 1.98° and was flagged "L".  Only
+    what does not depend on the zero (ROM, timing and stance %) is flagged; the absolute angles keep their band."""
+    block = ref.compare(ref.GAIT, {"stance_min_flexion_deg": 1.98, "loading_response_peak_flexion_deg": 13.0,
+                                   "swing_peak_flexion_deg": 58.0, "flexion_rom_deg": 56.0, "stance_pct": 60.0,
+                                   "swing_peak_timing_pct": 71.0})
+    p = block["parameters"]
+    for name in ("stance_min_flexion_deg", "loading_response_peak_flexion_deg", "swing_peak_flexion_deg"):
+        assert p[name]["interpretation"] is None and p[name]["within_band"] is None, name
+        assert p[name]["low"] is not None and p[name]["high"] is not None  # the band is still shown
+    assert {n: q["interpretation"] for n, q in p.items() if q["interpretation"]} == {
+        "flexion_rom_deg": "N", "stance_pct": "N", "swing_peak_timing_pct": "N"}
+    assert block["outside"] == []
+
+
+@pytest.mark.parametrize("height", [0.17, 0.34])
+def test_the_single_study_step_up_is_shown_and_never_flagged(height):
+    """The thesis' step-up is one subject's cycles: its ± 2 SD (3.36–3.40 s at 17 cm) is no population range and
+    flagged the demo's correct 3.35 s cycle "L".  Every value is shown (the subject's mean) with no L/N/H."""
+    r = ref.reference_for("step_up", height)
+    assert r.kind == "single_study" and all(not b.flag for b in r.parameters.values())
+    block = ref.compare(r, {"cycle_s": 3.35, "impulse_pct": 20.0, "extension_pct": 45.0, "fall_pct": 35.0,
+                            "flexion_rom_deg": 60.0, "flexion_max_deg": 61.0, "flexion_min_deg": 1.0})
+    assert all(p["interpretation"] is None and p["within_band"] is None for p in block["parameters"].values())
+    assert block["outside"] == [] and block["parameters"]["cycle_s"]["mean"] in (3.38, 3.54)

@@ -23,8 +23,8 @@ except ImportError:  # pragma: no cover - when tests are a package
 
 def _with_gait_reference(lang: str):
     ri = make_report_input(lang)
-    values = {"loading_response_peak_flexion_deg": 17.0, "stance_min_flexion_deg": 1.0,
-              "swing_peak_flexion_deg": 70.0, "stance_pct": 60.0}
+    values = {"loading_response_peak_flexion_deg": 17.0, "stance_min_flexion_deg": 1.0,  # absolute: never flagged
+              "swing_peak_flexion_deg": 70.0, "flexion_rom_deg": 50.0, "stance_pct": 65.0}
     results = {**ri.results, "reference": reference.compare(reference.GAIT, values)}
     return dataclasses.replace(ri, results=results)
 
@@ -37,7 +37,7 @@ def test_html_draws_the_key_ranges_on_the_flexion_panel_and_flags_the_values_out
     assert all(s["xref"] == "x" and s["yref"] == "y" for s in shapes)  # the first panel: flexion
     page = render_html(ri)
     assert "Published normative reference" in page and "Perry" in page
-    assert page.count('<tr class="outside">') == 2                     # stance minimum low, swing peak high
+    assert page.count('<tr class="outside">') == 2                     # ROM low, stance % high
     assert "below the reference" in page and "above the reference" in page
     assert "Valores de referencia" in render_html(_with_gait_reference("es"))
     assert "Valores de referência" in render_html(_with_gait_reference("pt"))

@@ -90,6 +90,9 @@ def test_results_json_follows_the_contract(right_session, tmp_path):
     assert sum(r["phases"][p]["mean_pct"] for p in ("impulse", "extension", "fall")) == pytest.approx(100.0, abs=0.5)
     assert set(r["calibration"]["magnetometer"]) == {"thigh", "shank"}
     assert set(r["calibration"]["segment"]) == {"thigh", "shank"}
+    # figure-eight rests, standing, supine: three directions for three bias parameters, so the fit is unchecked
+    assert {(a["model"], a["directions"], a["validated"]) for a in r["calibration"]["accelerometer"].values()} == {
+        ("bias", 3, False)}
     assert all(set(w) == {"code", "message", "params"} for w in r["quality"]["warnings"])
     assert r["software"]["version"]
     assert r["session"]["language"] == "en"
@@ -348,3 +351,17 @@ def test_patient_block_from_session_json(right_session, tmp_path):
     assert (patient.name_or_id, patient.professional, patient.weight_kg, patient.height_m, patient.observations) == (
         "Ana Núñez", "Dra. Peña", 61.5, 1.64, "=dolor anterior; 3 días")
     assert patient.side == "right"
+
+
+def test_step_up_reference_cycle_time_is_the_cycle_mean(right_session, tmp_path):
+    """results.json ``reference`` ``cycle_s`` is the session's mean cycle time, which the simulator knows: the
+    mean of its true cycles' durations (and the pipeline's own boundaries).  It was the sum of every entry of
+    ``phases``, which also holds "movement" and "cycle", about 3x the cycle and flagged "H"."""
+    write_session(tmp_path / "session", right_session)
+    outcome, _ = process_folder(tmp_path / "session", tmp_path / "out", reports=False)
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    true_cycle_s = float(np.mean(np.diff(right_session.motion.cycles_s, axis=1)))
+    found = np.asarray(r["cycles"]["boundaries_s"], dtype=float)
+    cycle = r["reference"]["parameters"]["cycle_s"]
+    assert cycle["value"] == pytest.approx(true_cycle_s, abs=0.05)
+    assert cycle["value"] == pytest.approx(float(np.mean(found[:, 1] - found[:, 0])), abs=0.03)
