@@ -91,16 +91,9 @@ def process_knees(knees: Mapping[str, Session], options: ProcessOptions | None =
 
 
 def _patient_side(knees: Mapping[str, Session]) -> str | None:
-    """The manifest's ``side`` of a two-knee folder (the patient's involved knee, as the web application writes it)."""
-    from app.pipeline.ingestion.labels import recognise_side
-
-    for session in knees.values():
-        value = session.manifest_data.get("side")
-        if isinstance(value, str):
-            found = recognise_side(value, "session.json")
-            if found is not None:
-                return found.value
-    return None
+    """The patient's side of a two-knee session (``session.json``'s ``side``, as the web application writes it):
+    :attr:`Session.patient_side`, kept by :func:`app.pipeline.ingestion.load_knees` apart from each knee's own."""
+    return next((s.patient_side for s in knees.values() if s.patient_side is not None), None)
 
 
 def _at(results: Mapping[str, Any], path: tuple[str, ...]) -> float | None:

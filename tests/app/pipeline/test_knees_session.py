@@ -80,6 +80,34 @@ def test_the_reports_show_both_knees_and_the_lsi(cli_results):
     assert any(row[4] == pytest.approx(swing["lsi_pct"]) for row in rows[1:])
 
 
+def test_the_patients_right_side_is_the_default_involved_knee(walk, tmp_path):
+    """``session.json`` ``side: right`` and no ``--involved``: the right knee is the involved one (each knee's own
+    side must not hide the patient's: the top level, the report and every LSI would describe the other knee)."""
+    folder = tmp_path / "s"
+    shutil.copytree(walk[0], folder)
+    manifest = json.loads((folder / "session.json").read_text())
+    (folder / "session.json").write_text(json.dumps({**manifest, "side": "right"}))
+    knees = load_knees(folder)
+    assert {s.patient_side for s in knees.values()} == {"right"}
+    assert {side: s.metadata.value("side") for side, s in knees.items()} == {"left": "left", "right": "right"}
+    out = tmp_path / "out"
+    assert main(["process", str(folder), "--out", str(out), "--task", "gait", "--lang", "en"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["involved_side"] == "right" and r["side"] == "right" and r["rom_deg"] == r["knees"]["right"]["rom_deg"]
+    sym = {p["name"]: p["lsi_pct"] for p in r["symmetry"]["parameters"]}
+    assert r["symmetry"]["involved"] == "right"
+    assert sym["swing_peak_flexion"] == pytest.approx(100 / GAIN, abs=6.0)  # the right knee is the stronger one
+
+
+def test_a_patient_side_that_is_no_side_is_refused(walk, tmp_path):
+    folder = tmp_path / "s"
+    shutil.copytree(walk[0], folder)
+    (folder / "session.json").write_text(json.dumps({"side": "both"}))
+    with pytest.raises(IngestionError) as err:
+        load_knees(folder)
+    assert err.value.code == "manifest.bad_side"
+
+
 def test_the_other_knee_involved_gives_the_reciprocal(cli_results):
     r = cli_results[1]
     left = {p["name"]: p["lsi_pct"] for p in r["symmetry"]["parameters"]}
@@ -159,6 +187,7 @@ def test_two_one_knee_sessions_paired(walk, tmp_path):
     (left / "session.json").write_text(json.dumps({"side": "left", "paired_session": "../right"}))
     knees = load_knees(left)
     assert sorted(knees) == ["left", "right"] and knees["right"].folder == right.resolve()
+    assert {s.patient_side for s in knees.values()} == {"left"}
     assert list(load_knees(right)) == ["right"]  # the side from the file names; no pairing from this side
 
 
