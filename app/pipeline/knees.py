@@ -27,6 +27,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from app.pipeline.comparison import at, number
 from app.pipeline.ingestion import Session
 from app.pipeline.session import PipelineError, Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
 
@@ -96,15 +97,6 @@ def _patient_side(knees: Mapping[str, Session]) -> str | None:
     return next((s.patient_side for s in knees.values() if s.patient_side is not None), None)
 
 
-def _at(results: Mapping[str, Any], path: tuple[str, ...]) -> float | None:
-    x: Any = results
-    for key in path:
-        if not isinstance(x, Mapping) or key not in x:
-            return None
-        x = x[key]
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
-
-
 def lsi_parameters(task: str) -> tuple[tuple[str, tuple[str, ...], str], ...]:
     """The LSI parameters of ``task``: :data:`LSI_GAIT` for gait, :data:`LSI_COMMON` for the other tasks."""
     return LSI_GAIT if task == "gait" else LSI_COMMON
@@ -119,7 +111,7 @@ def limb_symmetry(knees: Mapping[str, Mapping[str, Any]], involved: str | None) 
     task = knees[involved].get("task", "")
     rows = []
     for name, path, unit in lsi_parameters(task):
-        a, b = _at(knees[involved], path), _at(knees[uninvolved], path)
+        a, b = number(at(knees[involved], *path)), number(at(knees[uninvolved], *path))
         lsi = 100.0 * a / b if a is not None and b is not None and b > 0.0 else None
         rows.append({"name": name, "unit": unit, "involved": a, "uninvolved": b, "lsi_pct": lsi})
     return {"involved": involved, "uninvolved": uninvolved, "parameters": rows}
