@@ -68,19 +68,21 @@ class KneesOutcome:
 
 
 def process_knees(knees: Mapping[str, Session], options: ProcessOptions | None = None, *,
-                  progress: Progress = _no_progress) -> KneesOutcome:
+                  progress: Progress = _no_progress, web: bool = False) -> KneesOutcome:
     """Process each knee of ``knees`` (:func:`app.pipeline.ingestion.load_knees`) with its own side.
 
     With two knees the side comes from each knee's recordings (``options.side`` would give both the same sign:
     refused); ``options.involved`` (else the session's ``side``: the patient's, in ``session.json``) picks the
-    involved knee.  With one knee, everything is as :func:`process_session`.
+    involved knee.  With one knee, everything is as :func:`process_session`.  ``web``: the caller is the web
+    application, whose refusal of ``options.side`` names its form and request fields, not the CLI's options.
     """
     options = options or ProcessOptions()
     if len(knees) == 1:
         outcome = process_session(next(iter(knees.values())), options, progress=progress)
         return KneesOutcome({outcome.side: outcome}, options.involved or None)
     if options.side is not None:
-        raise PipelineError("pipeline.side_with_two_knees", side=options.side)
+        raise PipelineError("pipeline.side_with_two_knees.web" if web else "pipeline.side_with_two_knees",
+                            side=options.side)
     out: dict[str, SessionOutcome] = {}
     for i, (side, session) in enumerate(sorted(knees.items())):
         def part(stage: str, fraction: float, i: int = i, side: str = side) -> None:

@@ -136,6 +136,12 @@ def test_two_knees_refuse_one_side_for_both(walk):
     with pytest.raises(PipelineError) as err:
         process_knees(load_knees(walk[0]), ProcessOptions(task="gait", side="left"))
     assert err.value.code == "pipeline.side_with_two_knees" and "--involved" in err.value.message("es")
+    # the web's user has no command line: the same refusal names the form's fields and the request's
+    with pytest.raises(PipelineError) as err:
+        process_knees(load_knees(walk[0]), ProcessOptions(task="gait", side="left"), web=True)
+    assert err.value.code == "pipeline.side_with_two_knees.web"
+    for lang, field in (("es", "Rodilla afectada"), ("en", "Involved knee"), ("pt", "Joelho afetado")):
+        assert field in err.value.message(lang) and "--" not in err.value.message(lang)
 
 
 def test_a_two_knee_folder_is_not_read_as_one_knee(walk):

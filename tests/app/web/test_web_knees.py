@@ -123,3 +123,14 @@ def test_the_patients_side_is_the_default_involved_knee_and_the_trend_keeps_to_i
     assert [p["session_id"] for p in trend["points"]] == [first, second]
     assert [p["side"] for p in trend["points"]] == ["right", "right"]
     assert trend["points"][1]["rom_deg"] == r2["knees"]["right"]["rom_deg"] != r2["rom_deg"]
+
+
+def test_a_side_for_both_knees_is_refused_in_the_webs_words(client, settings, walks):
+    h = clinic_token(settings, "KneesSide")
+    pid = client.post("/api/v1/patients", json={"external_id": "K-S", "side": "right"}, headers=h).json()["id"]
+    sid = client.post(f"/api/v1/patients/{pid}/sessions", json={"task": "gait"}, headers=h).json()["id"]
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=walks[0.8]).status_code == 201
+    job = wait_job(client, client.post(f"/api/v1/sessions/{sid}/process", json={"side": "left"},
+                                       headers=h).json()["job_id"], h)
+    assert job["status"] == "failed" and job["error_code"] == "pipeline.side_with_two_knees.web", job
+    assert "Involved knee" in job["error"] and "--" not in job["error"]
