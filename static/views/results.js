@@ -267,7 +267,9 @@ function qualitySection(r) {
   const warnings = ((r.quality || {}).warnings) || [];
   const rejected = ((r.cycles || {}).rejected) || [];
   const items = [
-    ...warnings.map((w) => h("li", { class: "warning" }, typeof w === "string" ? w : (w.message || w.code || ""))),
+    // a session of both knees: each knee's own warnings name it (params.knee; app.pipeline.results.knees_warnings)
+    ...warnings.map((w) => h("li", { class: "warning" }, typeof w === "string" ? w
+      : `${(w.params || {}).knee ? t(`results.warning_knee.${w.params.knee}`) : ""}${w.message || w.code || ""}`)),
     ...rejected.map((c) => h("li", { class: "warning" }, t("results.rejected_cycle", {
       n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message ? ` — ${c.message}` : "")),
   ];

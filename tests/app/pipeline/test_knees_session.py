@@ -99,6 +99,50 @@ def test_the_patients_right_side_is_the_default_involved_knee(walk, tmp_path):
     assert sym["swing_peak_flexion"] == pytest.approx(100 / GAIN, abs=6.0)  # the right knee is the stronger one
 
 
+def test_the_other_knees_warnings_reach_the_top_level_with_its_knee(walk, tmp_path):
+    """The right (uninvolved) shank sensor stopped 2 s early (the right thigh's task is cut to the pair's span, a
+    note) and a magnet lay by the right thigh sensor for 7 s (+30/−20 µT: a clinical warning), both of the right
+    knee only.  They reach the top level (what the reports, the web and FHIR print) named as the right knee's, in
+    each language; a warning both knees raise alike (no figure-eight recording) is said once."""
+    import subprocess
+
+    from app.web.fhir import diagnostic_report
+
+    folder = tmp_path / "s"
+    shutil.copytree(walk[0], folder)
+    for p in folder.glob("derecha-step-pierna*.csv"):
+        lines = p.read_text().splitlines(keepends=True)
+        p.write_text("".join(lines[:len(lines) - (len(lines) - 1) // 7]))  # the last 2 s of 14 lost
+    for p in folder.glob("derecha-step-muslo*Magnetometer*.csv"):  # tesla, 20 Hz: from 3 s to 10 s
+        head, *rows = p.read_text().splitlines()
+        rows = [",".join([*f[:3], f"{float(f[3]) + 30e-6:.9f}", f"{float(f[4]) - 20e-6:.9f}", *f[5:]])
+                if 60 <= i < 200 else ",".join(f) for i, f in enumerate(row.split(",") for row in rows)]
+        p.write_text("\n".join([head, *rows]) + "\n")
+    out = tmp_path / "out"
+    assert main(["process", str(folder), "--out", str(out), "--task", "gait", "--lang", "es"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["involved_side"] == "left"
+    right_only = [w for w in r["knees"]["right"]["quality"]["warnings"]
+                  if w not in r["knees"]["left"]["quality"]["warnings"]]
+    assert {w["code"] for w in right_only} == {"ingestion_note", "magnetic_disturbance"}
+    clinical = [w for w in right_only if w["code"] != "ingestion_note"]  # FHIR's conclusion leaves notes out
+    top = r["quality"]["warnings"]
+    assert [w for w in top if (w["params"] or {}).get("knee") == "right"] == \
+        [{**w, "params": {**w["params"], "knee": "right"}} for w in right_only]
+    no_mag = [w for w in top if w["params"].get("variant") == "no_mag_calibration"]
+    assert len(no_mag) == 1 and "knee" not in no_mag[0]["params"]
+    text = subprocess.run(["pdftotext", "-layout", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert "Rodilla derecha: " in text
+    for lang, prefix in (("es", "Rodilla derecha: "), ("en", "Right knee: "), ("pt", "Joelho direito: ")):
+        doc = diagnostic_report(session={"id": 1, "date": "2026-11-22", "task": "gait", "professional": "",
+                                         "notes": "", "created_at": None},
+                                patient={"id": 1, "external_id": "DEMO-001", "side": "left", "name": "",
+                                         "birth_date": None, "sex": None},
+                                results=r, pdf=b"%PDF-1.4", lang=lang, base_url="https://chakamo.example")
+        assert doc["conclusion"].count(prefix) == len(clinical), (lang, doc["conclusion"])
+
+
 def test_a_patient_side_that_is_no_side_is_refused(walk, tmp_path):
     folder = tmp_path / "s"
     shutil.copytree(walk[0], folder)
