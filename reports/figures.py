@@ -194,6 +194,15 @@ class _Panel:
         pdf.text(self.x, self.y - 1.6 if baseline_y is None else baseline_y, text)
         pdf.set_font(style="", size=_TICK_PT)
 
+    def angle_axes(self, angle: str, k: int, xticks: Sequence[float], yticks: Sequence[float], lang: str,
+                   top_y: float) -> None:
+        """Frame, tick labels and title of the ``k``-th of the three angle panels over the cycle (the last one
+        names the x axis; the first's title is raised above the legend, to ``top_y + 3.4`` mm)."""
+        self.frame()
+        self.y_labels(yticks, lang, t(f"axis_{angle}", lang))
+        self.x_labels(xticks, lang, t("fig_cycle_pct", lang) if k == 2 else None)
+        self.title(t(f"angle_{angle}", lang), top_y + 3.4 if k == 0 else None)
+
     def line(self, xs: np.ndarray, ys: np.ndarray, rgb: tuple[int, int, int], width_mm: float) -> None:
         """A polyline, broken where a value is missing."""
         pdf = self.pdf
@@ -284,10 +293,7 @@ def draw_curves(pdf: Any, ri: ReportInput, x: float, y: float, w: float, h: floa
                 bx = float(panel.px(b))
                 pdf.line(bx, panel.y, bx, panel.y + panel.h)
             pdf.set_dash_pattern()
-            panel.frame()
-            panel.y_labels(yticks, lang, t(f"axis_{angle}", lang))
-            panel.x_labels(xticks, lang, t("fig_cycle_pct", lang) if k == 2 else None)
-            panel.title(t(f"angle_{angle}", lang), y + 3.4 if k == 0 else None)
+            panel.angle_axes(angle, k, xticks, yticks, lang, y)
             if k == 0:
                 pdf.set_font(size=_TICK_PT)
                 pdf.set_text_color(*_PHASE_LINE)

@@ -89,10 +89,7 @@ def draw_knees_curves(pdf: Any, results: dict[str, Any], lang: str, x: float, y:
                         pdf.set_dash_pattern(1.6, 0.8)
                     panel.line(np.linspace(0.0, 100.0, m.size), m, SIDE_COLOURS.get(side, (0, 0, 0)), 0.45)
                     pdf.set_dash_pattern()
-            panel.frame()
-            panel.y_labels(yticks, lang, t(f"axis_{angle}", lang))
-            panel.x_labels(xticks, lang, t("fig_cycle_pct", lang) if k == 2 else None)
-            panel.title(t(f"angle_{angle}", lang), y + 3.4 if k == 0 else None)
+            panel.angle_axes(angle, k, xticks, yticks, lang, y)
             if k == 0:
                 def swatch(side: str):
                     def draw(sx: float, sy: float, sw: float, sh: float) -> None:

@@ -14,6 +14,9 @@ the values it states, by name and unrounded.  Reports print them in Spanish, Eng
   ``params["role"]`` the ingestion notes' ``"Muslo, tarea: "``.
 * ``cycles_rejected`` lists the rejected cycles with their translated reasons from
   ``results["cycles"]["rejected"]`` (the reason codes), not the estimators' English sentences.
+* ``params["knee"]`` (``left``/``right``: a session of both knees, :func:`app.pipeline.results.knees_warnings`)
+  puts the knee first, ``warning.knee.<side>`` (``"Rodilla izquierda: "``), in every language, English and the
+  English fallback included; its rejected cycles are then that knee's (``results["knees"][side]``).
 
 Anything that cannot be translated completely — a code (or variant) without an entry, params missing a
 field or holding ``null`` where a number belongs (``results.json`` has no infinity) — is printed in English
@@ -88,6 +91,17 @@ def warning_text(warning: Mapping[str, Any] | str, lang: str, results: Mapping[s
     """
     if not isinstance(warning, Mapping):
         return str(warning), lang == "en"
+    params = warning.get("params")
+    knee = params.get("knee") if isinstance(params, Mapping) else None
+    entry = i18n.table().get(f"warning.knee.{knee}")
+    if entry is None:
+        return _warning_text(warning, lang, results)
+    text, translated = _warning_text(warning, lang, ((results or {}).get("knees") or {}).get(knee, results))
+    return entry[lang if translated else "en"] + text, translated
+
+
+def _warning_text(warning: Mapping[str, Any], lang: str, results: Mapping[str, Any] | None) -> tuple[str, bool]:
+    """:func:`warning_text` but the knee's prefix."""
     code = str(warning.get("code") or "")
     message = str(warning.get("message") or code)
     if lang == "en" or not code:

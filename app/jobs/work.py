@@ -309,7 +309,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                  side=job.side, involved=job.involved)
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             loaded = load_knees(folder)
-            knees = process_knees(loaded, options,
+            knees = process_knees(loaded, options, web=True,
                                   progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
         results = _public_results(build_knees_results(knees), session.id)
         files = render_all(knees.primary, results, job.lang, progress, pool, render_timeout_s, knees=knees)

@@ -4,8 +4,9 @@ Rows ``{"key", "unit", "a", "b", "change"}`` with ``change = b − a`` (``a`` th
 into ``results.json``: ``rom_deg.<angle>.<max|min|range>`` (mean over the accepted cycles, deg),
 ``phases.<phase>.mean_pct``, ``gait.parameters.<name>.mean`` (its unit the name's suffix) and
 ``symmetry.<name>.lsi_pct`` (sessions of both knees).  The two should come from the same orientation filter,
-pipeline version and task, else part of a change is the method's: :func:`comparison` says which differ
-(``mismatch``).  Used by the web's ``GET /patients/{id}/compare`` (:mod:`app.store.comparisons`) and by
+pipeline version and task, else part of a change is the method's, and describe the same knee (``side``: the
+top level of a two-knee session is its involved knee), else the change is one knee against the other:
+:func:`mismatch` (the one rule, the web's comparisons use it too) says which differ.  Used by the web's ``GET /patients/{id}/compare`` (:mod:`app.store.comparisons`) and by
 ``chakamo process --compare-with``, whose reports then show a comparison section.
 """
 
@@ -16,19 +17,33 @@ from typing import Any
 
 ANGLES = ("flexion", "adduction", "internal_rotation")
 ROM_STATS = ("max", "min", "range")
+#: what two analyses must share to be compared (module docstring)
+COMPARED = ("filter", "pipeline_version", "task", "side")
+
+
+def mismatch(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[str]:
+    """The facts of :data:`COMPARED` that differ between two analyses (``{"filter", "pipeline_version", "task",
+    "side", ...}`` each); empty when they are comparable."""
+    return [k for k in COMPARED if a.get(k) != b.get(k)]
+
+
+def at(r: Any, *path: str) -> Any:
+    """The value at ``path`` in nested mappings (``results.json``), None where a key is missing."""
+    for key in path:
+        r = r.get(key) if isinstance(r, Mapping) else None
+    return r
+
+
+def number(x: Any) -> float | None:
+    """``x`` as a float when it is a number (not a bool), else None."""
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
 
 
 def comparison_rows(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[dict[str, Any]]:
     """Every number both results hold, as rows ``{"key", "unit", "a", "b", "change"}`` (module docstring)."""
     def row(key: str, unit: str, x: Any, y: Any) -> dict[str, Any]:
-        x = x if isinstance(x, (int, float)) and not isinstance(x, bool) else None
-        y = y if isinstance(y, (int, float)) and not isinstance(y, bool) else None
+        x, y = number(x), number(y)
         return {"key": key, "unit": unit, "a": x, "b": y, "change": None if x is None or y is None else y - x}
-
-    def at(r: dict[str, Any], *path: str) -> Any:
-        for key in path:
-            r = r.get(key) if isinstance(r, dict) else None
-        return r
 
     rows = [row(f"rom_deg.{angle}.{stat}", "deg", at(a, "rom_deg", angle, stat, "mean"),
                 at(b, "rom_deg", angle, stat, "mean")) for angle in ANGLES for stat in ROM_STATS]
@@ -58,8 +73,8 @@ def comparison(earlier: Mapping[str, Any], later: Mapping[str, Any]) -> dict[str
                 "task": r.get("task"), "side": r.get("side")}
 
     a, b = facts(earlier), facts(later)
-    mismatch = [k for k in ("filter", "pipeline_version", "task", "side") if a[k] != b[k]]
-    return {"with": a, "comparable": not mismatch, "mismatch": mismatch, "rows": comparison_rows(earlier, later)}
+    differ = mismatch(a, b)
+    return {"with": a, "comparable": not differ, "mismatch": differ, "rows": comparison_rows(earlier, later)}
 
 
-__all__ = ["comparison", "comparison_rows"]
+__all__ = ["COMPARED", "at", "comparison", "comparison_rows", "mismatch", "number"]

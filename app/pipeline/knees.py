@@ -27,6 +27,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from app.pipeline.comparison import at, number
 from app.pipeline.ingestion import Session
 from app.pipeline.session import PipelineError, Progress, ProcessOptions, SessionOutcome, _no_progress, process_session
 
@@ -67,19 +68,21 @@ class KneesOutcome:
 
 
 def process_knees(knees: Mapping[str, Session], options: ProcessOptions | None = None, *,
-                  progress: Progress = _no_progress) -> KneesOutcome:
+                  progress: Progress = _no_progress, web: bool = False) -> KneesOutcome:
     """Process each knee of ``knees`` (:func:`app.pipeline.ingestion.load_knees`) with its own side.
 
     With two knees the side comes from each knee's recordings (``options.side`` would give both the same sign:
     refused); ``options.involved`` (else the session's ``side``: the patient's, in ``session.json``) picks the
-    involved knee.  With one knee, everything is as :func:`process_session`.
+    involved knee.  With one knee, everything is as :func:`process_session`.  ``web``: the caller is the web
+    application, whose refusal of ``options.side`` names its form and request fields, not the CLI's options.
     """
     options = options or ProcessOptions()
     if len(knees) == 1:
         outcome = process_session(next(iter(knees.values())), options, progress=progress)
         return KneesOutcome({outcome.side: outcome}, options.involved or None)
     if options.side is not None:
-        raise PipelineError("pipeline.side_with_two_knees", side=options.side)
+        raise PipelineError("pipeline.side_with_two_knees.web" if web else "pipeline.side_with_two_knees",
+                            side=options.side)
     out: dict[str, SessionOutcome] = {}
     for i, (side, session) in enumerate(sorted(knees.items())):
         def part(stage: str, fraction: float, i: int = i, side: str = side) -> None:
@@ -91,25 +94,9 @@ def process_knees(knees: Mapping[str, Session], options: ProcessOptions | None =
 
 
 def _patient_side(knees: Mapping[str, Session]) -> str | None:
-    """The manifest's ``side`` of a two-knee folder (the patient's involved knee, as the web application writes it)."""
-    from app.pipeline.ingestion.labels import recognise_side
-
-    for session in knees.values():
-        value = session.manifest_data.get("side")
-        if isinstance(value, str):
-            found = recognise_side(value, "session.json")
-            if found is not None:
-                return found.value
-    return None
-
-
-def _at(results: Mapping[str, Any], path: tuple[str, ...]) -> float | None:
-    x: Any = results
-    for key in path:
-        if not isinstance(x, Mapping) or key not in x:
-            return None
-        x = x[key]
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+    """The patient's side of a two-knee session (``session.json``'s ``side``, as the web application writes it):
+    :attr:`Session.patient_side`, kept by :func:`app.pipeline.ingestion.load_knees` apart from each knee's own."""
+    return next((s.patient_side for s in knees.values() if s.patient_side is not None), None)
 
 
 def lsi_parameters(task: str) -> tuple[tuple[str, tuple[str, ...], str], ...]:
@@ -126,7 +113,7 @@ def limb_symmetry(knees: Mapping[str, Mapping[str, Any]], involved: str | None) 
     task = knees[involved].get("task", "")
     rows = []
     for name, path, unit in lsi_parameters(task):
-        a, b = _at(knees[involved], path), _at(knees[uninvolved], path)
+        a, b = number(at(knees[involved], *path)), number(at(knees[uninvolved], *path))
         lsi = 100.0 * a / b if a is not None and b is not None and b > 0.0 else None
         rows.append({"name": name, "unit": unit, "involved": a, "uninvolved": b, "lsi_pct": lsi})
     return {"involved": involved, "uninvolved": uninvolved, "parameters": rows}

@@ -29,11 +29,21 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
               "do paciente na web) ou acrescente \"side\" ao session.json."},
     "pipeline.side_with_two_knees": {
         "en": "the session holds both knees, each with its own side; --side {side} would give both the same sign: "
-              "leave the side out (choose the involved knee with --involved).",
+              "leave --side out (choose the involved knee with --involved).",
         "es": "la sesión tiene ambas rodillas, cada una con su lado; --side {side} daría a ambas el mismo signo: "
-              "no indique el lado (elija la rodilla afectada con --involved).",
+              "quite --side (elija la rodilla afectada con --involved).",
         "pt": "a sessão tem os dois joelhos, cada um com seu lado; --side {side} daria aos dois o mesmo sinal: "
-              "não indique o lado (escolha o joelho afetado com --involved)."},
+              "retire --side (escolha o joelho afetado com --involved)."},
+    "pipeline.side_with_two_knees.web": {
+        "en": "the session holds both knees, each with its own side; the side analysed ({side}) would give both the "
+              "same sign: process again with \"Side analysed\" left as the patient's side and the knee chosen in "
+              "\"Involved knee\" (API: no \"side\" in the process request; \"involved\" instead).",
+        "es": "la sesión tiene ambas rodillas, cada una con su lado; el lado analizado ({side}) daría a ambas el "
+              "mismo signo: procese de nuevo con \"Lado analizado\" en el lado del paciente y la rodilla elegida en "
+              "\"Rodilla afectada\" (API: sin \"side\" en la petición de procesado; \"involved\" en su lugar).",
+        "pt": "a sessão tem os dois joelhos, cada um com seu lado; o lado analisado ({side}) daria aos dois o mesmo "
+              "sinal: processe de novo com \"Lado analisado\" no lado do paciente e o joelho escolhido em "
+              "\"Joelho afetado\" (API: sem \"side\" no pedido de processamento; \"involved\" em seu lugar)."},
     "pipeline.compare_unreadable": {
         "en": "{file}: not the results.json of an earlier analysis ({reason}); give the results.json (or the output "
               "folder) that chakamo process wrote for the earlier session.",

@@ -153,14 +153,37 @@ def build_knees_results(knees: KneesOutcome) -> dict[str, Any]:
     so every reader of the one-knee contract keeps working): the involved knee's, else the right's; beside it
     ``involved_side`` (or None), ``knees`` (``{"left": ..., "right": ...}``: each knee's own one-knee results) and
     ``symmetry`` (:func:`app.pipeline.knees.limb_symmetry`: the LSI per parameter, None without an involved side).
+    The top level's ``quality.warnings`` are both knees' (:func:`knees_warnings`), so the other knee's reach the
+    reports, the web and FHIR too.
     """
     primary = build_results(knees.primary)
     if not knees.bilateral:
         return primary
     per = {side: primary if outcome is knees.primary else build_results(outcome)
            for side, outcome in sorted(knees.knees.items())}
-    return {**primary, "involved_side": knees.involved, "knees": per,
+    top = next(side for side, outcome in knees.knees.items() if outcome is knees.primary)
+    quality = {**primary["quality"], "warnings": knees_warnings(per, top)}
+    return {**primary, "quality": quality, "involved_side": knees.involved, "knees": per,
             "symmetry": json_ready(limb_symmetry(per, knees.involved))}
+
+
+def knees_warnings(per: Mapping[str, Mapping[str, Any]], first: str) -> list[dict[str, Any]]:
+    """Both knees' ``quality.warnings`` as one list, knee ``first`` (the top level's) first: a warning both knees
+    raise alike (a session-wide one, as a recording missing from the folder, or the same on both legs) once and as
+    it is; every other with ``params["knee"]`` = its knee's side, which the reports, the web and FHIR print as a
+    translated prefix (:func:`reports.warning_text.warning_text`).  ``knee``, not ``side``: a warning's ``side``
+    is already the recording's side in ``check.side_mismatch``."""
+    order = [first, *sorted(side for side in per if side != first)]
+    lists = [list(per[side]["quality"]["warnings"]) for side in order]
+    shared = [w for w in lists[0] if all(w in other for other in lists[1:])]
+
+    def of(w: Mapping[str, Any], side: str) -> dict[str, Any]:
+        return {**w, "params": {**(w.get("params") or {}), "knee": side}}
+
+    out = [dict(w) if w in shared else of(w, first) for w in lists[0]]
+    for side, warnings in zip(order[1:], lists[1:]):
+        out += [of(w, side) for w in warnings if w not in shared]
+    return out
 
 
 def _gait(gait: dict[str, Any]) -> dict[str, Any]:

@@ -5,7 +5,8 @@ their numbers side by side (:func:`app.pipeline.comparison.comparison_rows`: ``c
 session as the caller names it).  The two analyses should come from the same orientation filter and pipeline version: a difference
 of method is not the patient's.  Without explicit analyses, when the two latest analyses differ in either, the
 earlier session's latest analysis of the later one's series is used when there is one; ``comparable`` says
-whether the pair finally shares filter, pipeline version and task, and ``mismatch`` names what differs.
+whether the pair finally shares filter, pipeline version, task and knee (:func:`app.pipeline.comparison.mismatch`,
+the rule ``chakamo process --compare-with`` applies too), and ``mismatch`` names what differs.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.pipeline.comparison import comparison_rows
+from app.pipeline.comparison import comparison_rows, mismatch
 from app.store.analyses import find_artefact, pick_analysis
 from app.store.blobs import BlobStore
 from app.store.errors import NotFound
@@ -55,8 +56,8 @@ def compare_sessions(db: Session, store: BlobStore, clinic_id: int, patient_id: 
                                                                                  chosen[1].pipeline_version):
         chosen[0] = _same_series(db, sessions[0].id, chosen[1]) or chosen[0]
     (side_a, res_a), (side_b, res_b) = (_side(db, store, s, an) for s, an in zip(sessions, chosen))
-    mismatch = [k for k in ("filter", "pipeline_version", "task") if side_a[k] != side_b[k]]
-    return {"a": side_a, "b": side_b, "comparable": not mismatch, "mismatch": mismatch, "rows": comparison_rows(res_a, res_b)}
+    differ = mismatch(side_a, side_b)
+    return {"a": side_a, "b": side_b, "comparable": not differ, "mismatch": differ, "rows": comparison_rows(res_a, res_b)}
 
 
 __all__ = ["compare_sessions"]

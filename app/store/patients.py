@@ -197,7 +197,11 @@ def rom_trend(db: Session, store: BlobStore, patient_id: int, filter_name: str |
     the one of the newest analysis).  Each session's point is its latest current (not superseded) analysis of that
     series, named by ``analysis_id``; sessions without one are listed in ``left_out`` with the series they do have.
     Returns ``{"filter", "pipeline_version", "points", "left_out", "series"}`` (``series``: every
-    ``{"filter", "pipeline_version", "sessions"}`` the patient's analyses offer, to choose another)."""
+    ``{"filter", "pipeline_version", "sessions"}`` the patient's analyses offer, to choose another).
+    A point's ``rom_deg`` is the patient's knee's (``side``): in a session of both knees ``knees[patient side]``,
+    whichever knee was chosen as involved for that analysis (the top level), so one series never sets one knee
+    against the other."""
+    patient_side = db.get(Patient, patient_id).side
     sessions = patient_sessions(db, patient_id, newest_first=False)
     rows = list(db.execute(select(Analysis.id, Analysis.session_id, Analysis.filter, Analysis.pipeline_version)
                            .join(KneeSession, KneeSession.id == Analysis.session_id)
@@ -216,8 +220,9 @@ def rom_trend(db: Session, store: BlobStore, patient_id: int, filter_name: str |
         if s.id in picked:
             aid = picked[s.id]
             results = json.loads(store.read(find_artefact(db, aid, "results.json").sha256))
+            knee = (results.get("knees") or {}).get(patient_side) or results
             points.append({"session_id": s.id, "date": s.date, "analysis_id": aid, "filter": chosen[0],
-                           "pipeline_version": chosen[1], "rom_deg": results.get("rom_deg", {})})
+                           "pipeline_version": chosen[1], "side": knee.get("side"), "rom_deg": knee.get("rom_deg", {})})
         else:
             have = [{"filter": k[0], "pipeline_version": k[1], "analysis_id": latest[k][s.id]}
                     for k in series if s.id in latest[k]]

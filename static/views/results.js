@@ -271,10 +271,12 @@ function qualitySection(r, translated) {
   const texts = Array.isArray(translated) && translated.length === warnings.length ? translated : [];
   const rejected = ((r.cycles || {}).rejected) || [];
   const items = [
-    // in the reader's language (GET .../warnings renders each from its code and params, as the reports do);
-    // the English message when that answer is missing
+    // in the reader's language (GET .../warnings renders each from its code and params, as the reports do, the
+    // knee of a two-knee session first: reports.warning_text); the English message when that answer is missing,
+    // with the knee named (params.knee; app.pipeline.results.knees_warnings)
     ...warnings.map((w, i) => h("li", { class: "warning", "data-code": typeof w === "string" ? null : w.code },
-      typeof w === "string" ? w : (((texts[i] || {}).message || {})[lang()] || w.message || w.code || ""))),
+      typeof w === "string" ? w : (((texts[i] || {}).message || {})[lang()]
+        || `${(w.params || {}).knee ? t(`results.warning_knee.${w.params.knee}`) : ""}${w.message || w.code || ""}`))),
     ...rejected.map((c) => h("li", { class: "warning" }, t("results.rejected_cycle", {
       n: Number.isInteger(c.index) ? c.index + 1 : "?", reason: label("reason", c.reason) }), c.message && lang() === "en" ? ` — ${c.message}` : "")),   // English detail
   ];

@@ -287,6 +287,8 @@ class Session:
     notes : sentences worth showing a user (sheet chosen, streams trimmed, default step height...); for
         the task, those of ``task`` (trimmed to the pair's span, clock drift between the sensors).
     splits : :class:`.split.Split` per sensor whose one continuous recording was split into the protocol's parts.
+    patient_side : for a knee of a two-knee session (:func:`.session.load_knees`), the patient's side (the involved
+        knee) that ``session.json`` names, kept apart from ``metadata.side`` (this knee's own); None elsewhere.
     """
 
     folder: Path
@@ -298,6 +300,7 @@ class Session:
     notes: tuple[str, ...] = ()
     manifest_data: Mapping[str, Any] = field(default_factory=dict)
     splits: tuple = ()
+    patient_side: str | None = None
 
     def recording(self, segment: str, role: str) -> AlignedRecording:
         """The aligned recording of ``segment`` (thigh/shank) in ``role`` (see :data:`ROLES`)."""

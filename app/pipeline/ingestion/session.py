@@ -380,9 +380,11 @@ def load_knees(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
     the file name (right/derecha/direita, left/izquierda/esquerda, :mod:`.labels`) or in ``session.json``
     (``recordings[i].side``).  Each side must have both segments; each knee is then read as its own session
     (:func:`load_session`'s rules per side; its ``metadata.side`` is that side, so adduction and rotation take the
-    side's sign).  The manifest's ``side`` then names the involved knee (the patient's side), not the recordings'.
+    side's sign).  The manifest's ``side`` then names the involved knee (the patient's side), not the recordings':
+    each knee's ``patient_side`` (``manifest.bad_side`` when it is not a side).
     Two one-knee sessions paired: ``session.json`` ``"paired_session": "../other-folder"`` (a folder beside this
-    one, of the other knee; its own ``paired_session`` is not followed).
+    one, of the other knee; its own ``paired_session`` is not followed); the patient's side is then this folder's
+    when its ``session.json`` names a ``side``.
     """
     folder, mpath, manifest, entries, raws, notes, ignored = _read_folder(path)
     groups = _knee_groups(mpath, manifest, entries, raws)
@@ -401,13 +403,20 @@ def load_knees(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
         if None in sides or sides[0] == sides[1]:
             raise IngestionError("manifest.paired_same_side", file=mpath, other=other_folder.name,
                                  side=str(sides[0]), other_side=str(sides[1]))
-        return {sides[0]: one, sides[1]: other}
+        patient = sides[0] if manifest.get("side") is not None else None  # this folder's side, when it names one
+        return {side: replace(s, patient_side=patient) for side, s in zip(sides, (one, other))}
+    patient = manifest.get("side")
+    if patient is not None:
+        found = recognise_side(str(patient), "session.json")
+        if found is None:
+            raise IngestionError("manifest.bad_side", file=mpath, value=str(patient)[:60])
+        patient = found.value
     out = {}
     for side in sorted(groups):
         picked = groups[side]
         side_manifest = {**manifest, "side": side}
-        out[side] = _assemble(folder, mpath, side_manifest, picked, list(notes), ignored, expected_fs_hz, roles,
-                              required)
+        out[side] = replace(_assemble(folder, mpath, side_manifest, picked, list(notes), ignored, expected_fs_hz,
+                                      roles, required), patient_side=patient)
     return out
 
 

@@ -285,6 +285,8 @@ class TrendPoint(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    #: the knee ``rom_deg`` describes: the patient's (in a session of both knees too)
+    side: str | None = None
     rom_deg: dict[str, Any]
 
 

@@ -80,6 +80,78 @@ def test_the_reports_show_both_knees_and_the_lsi(cli_results):
     assert any(row[4] == pytest.approx(swing["lsi_pct"]) for row in rows[1:])
 
 
+def test_the_patients_right_side_is_the_default_involved_knee(walk, tmp_path):
+    """``session.json`` ``side: right`` and no ``--involved``: the right knee is the involved one (each knee's own
+    side must not hide the patient's: the top level, the report and every LSI would describe the other knee)."""
+    folder = tmp_path / "s"
+    shutil.copytree(walk[0], folder)
+    manifest = json.loads((folder / "session.json").read_text())
+    (folder / "session.json").write_text(json.dumps({**manifest, "side": "right"}))
+    knees = load_knees(folder)
+    assert {s.patient_side for s in knees.values()} == {"right"}
+    assert {side: s.metadata.value("side") for side, s in knees.items()} == {"left": "left", "right": "right"}
+    out = tmp_path / "out"
+    assert main(["process", str(folder), "--out", str(out), "--task", "gait", "--lang", "en"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["involved_side"] == "right" and r["side"] == "right" and r["rom_deg"] == r["knees"]["right"]["rom_deg"]
+    sym = {p["name"]: p["lsi_pct"] for p in r["symmetry"]["parameters"]}
+    assert r["symmetry"]["involved"] == "right"
+    assert sym["swing_peak_flexion"] == pytest.approx(100 / GAIN, abs=6.0)  # the right knee is the stronger one
+
+
+def test_the_other_knees_warnings_reach_the_top_level_with_its_knee(walk, tmp_path):
+    """The right (uninvolved) shank sensor stopped 2 s early (the right thigh's task is cut to the pair's span, a
+    note) and a magnet lay by the right thigh sensor for 7 s (+30/−20 µT: a clinical warning), both of the right
+    knee only.  They reach the top level (what the reports, the web and FHIR print) named as the right knee's, in
+    each language; a warning both knees raise alike (no figure-eight recording) is said once."""
+    import subprocess
+
+    from app.web.fhir import diagnostic_report
+
+    folder = tmp_path / "s"
+    shutil.copytree(walk[0], folder)
+    for p in folder.glob("derecha-step-pierna*.csv"):
+        lines = p.read_text().splitlines(keepends=True)
+        p.write_text("".join(lines[:len(lines) - (len(lines) - 1) // 7]))  # the last 2 s of 14 lost
+    for p in folder.glob("derecha-step-muslo*Magnetometer*.csv"):  # tesla, 20 Hz: from 3 s to 10 s
+        head, *rows = p.read_text().splitlines()
+        rows = [",".join([*f[:3], f"{float(f[3]) + 30e-6:.9f}", f"{float(f[4]) - 20e-6:.9f}", *f[5:]])
+                if 60 <= i < 200 else ",".join(f) for i, f in enumerate(row.split(",") for row in rows)]
+        p.write_text("\n".join([head, *rows]) + "\n")
+    out = tmp_path / "out"
+    assert main(["process", str(folder), "--out", str(out), "--task", "gait", "--lang", "es"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["involved_side"] == "left"
+    right_only = [w for w in r["knees"]["right"]["quality"]["warnings"]
+                  if w not in r["knees"]["left"]["quality"]["warnings"]]
+    assert {w["code"] for w in right_only} == {"ingestion_note", "magnetic_disturbance"}
+    clinical = [w for w in right_only if w["code"] != "ingestion_note"]  # FHIR's conclusion leaves notes out
+    top = r["quality"]["warnings"]
+    assert [w for w in top if (w["params"] or {}).get("knee") == "right"] == \
+        [{**w, "params": {**w["params"], "knee": "right"}} for w in right_only]
+    no_mag = [w for w in top if w["params"].get("variant") == "no_mag_calibration"]
+    assert len(no_mag) == 1 and "knee" not in no_mag[0]["params"]
+    text = subprocess.run(["pdftotext", "-layout", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert "Rodilla derecha: " in text
+    for lang, prefix in (("es", "Rodilla derecha: "), ("en", "Right knee: "), ("pt", "Joelho direito: ")):
+        doc = diagnostic_report(session={"id": 1, "date": "2026-11-22", "task": "gait", "professional": "",
+                                         "notes": "", "created_at": None},
+                                patient={"id": 1, "external_id": "DEMO-001", "side": "left", "name": "",
+                                         "birth_date": None, "sex": None},
+                                results=r, pdf=b"%PDF-1.4", lang=lang, base_url="https://chakamo.example")
+        assert doc["conclusion"].count(prefix) == len(clinical), (lang, doc["conclusion"])
+
+
+def test_a_patient_side_that_is_no_side_is_refused(walk, tmp_path):
+    folder = tmp_path / "s"
+    shutil.copytree(walk[0], folder)
+    (folder / "session.json").write_text(json.dumps({"side": "both"}))
+    with pytest.raises(IngestionError) as err:
+        load_knees(folder)
+    assert err.value.code == "manifest.bad_side"
+
+
 def test_the_other_knee_involved_gives_the_reciprocal(cli_results):
     r = cli_results[1]
     left = {p["name"]: p["lsi_pct"] for p in r["symmetry"]["parameters"]}
@@ -108,6 +180,12 @@ def test_two_knees_refuse_one_side_for_both(walk):
     with pytest.raises(PipelineError) as err:
         process_knees(load_knees(walk[0]), ProcessOptions(task="gait", side="left"))
     assert err.value.code == "pipeline.side_with_two_knees" and "--involved" in err.value.message("es")
+    # the web's user has no command line: the same refusal names the form's fields and the request's
+    with pytest.raises(PipelineError) as err:
+        process_knees(load_knees(walk[0]), ProcessOptions(task="gait", side="left"), web=True)
+    assert err.value.code == "pipeline.side_with_two_knees.web"
+    for lang, field in (("es", "Rodilla afectada"), ("en", "Involved knee"), ("pt", "Joelho afetado")):
+        assert field in err.value.message(lang) and "--" not in err.value.message(lang)
 
 
 def test_a_two_knee_folder_is_not_read_as_one_knee(walk):
@@ -159,6 +237,7 @@ def test_two_one_knee_sessions_paired(walk, tmp_path):
     (left / "session.json").write_text(json.dumps({"side": "left", "paired_session": "../right"}))
     knees = load_knees(left)
     assert sorted(knees) == ["left", "right"] and knees["right"].folder == right.resolve()
+    assert {s.patient_side for s in knees.values()} == {"left"}
     assert list(load_knees(right)) == ["right"]  # the side from the file names; no pairing from this side
 
 

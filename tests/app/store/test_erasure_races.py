@@ -75,7 +75,7 @@ def test_a_job_whose_artefact_equals_content_being_erased_keeps_its_file(env, mo
     # the pipeline is not what is tested: it renders one artefact, equal to A's recording
     monkeypatch.setattr(workspace, "materialise", lambda *a, **k: contextlib.nullcontext(env["store"].root))
     monkeypatch.setattr(ingestion, "load_knees", lambda folder: None)
-    monkeypatch.setattr(knees, "process_knees", lambda loaded, options, progress: types.SimpleNamespace(primary=None))
+    monkeypatch.setattr(knees, "process_knees", lambda loaded, options, progress, web=False: types.SimpleNamespace(primary=None))
     monkeypatch.setattr(results, "build_knees_results", lambda outcome: {"cycles": {"accepted": 3},
                                                                           "quality": {"warnings": []}})
     monkeypatch.setattr(work, "_public_results", lambda res, sid: res)

@@ -87,7 +87,8 @@ def test_four_sensors_lsi_fhir_comparison_and_trend(client, settings, walks):
     assert c2["comparable"] and c2["a"]["analysis_id"] == trend["points"][0]["analysis_id"]
     forced = client.get(f"/api/v1/patients/{pid}/compare?a={before}&b={after}&a_analysis={again['analysis_id']}",
                         headers=h).json()
-    assert not forced["comparable"] and forced["mismatch"] == ["filter"]
+    # that Madgwick run chose no involved knee: the patient's (right) one is its top level, the other run's the left
+    assert not forced["comparable"] and forced["mismatch"] == ["filter", "side"]
 
 
 def test_comparing_another_patients_session_is_refused(client, settings, walks):
@@ -99,3 +100,39 @@ def test_comparing_another_patients_session_is_refused(client, settings, walks):
     r = client.get(f"/api/v1/patients/{p1}/compare?a={s1}&b={s2}", headers=h)
     assert r.status_code == 404 and "not one of patient" in r.json()["detail"]
     assert client.get(f"/api/v1/patients/{p1}/compare?a={s1}&b={s1}", headers=h).status_code == 404  # no analysis
+
+
+def test_the_patients_side_is_the_default_involved_knee_and_the_trend_keeps_to_it(client, settings, walks):
+    """A right-sided patient, the process request's ``involved`` left out (as the browser sends it): the right knee
+    is the involved one (its swing-peak LSI 1/0.8 = 125 %); a second session processed with the left knee involved
+    is compared as another knee (``mismatch`` names the side), and the ROM trend stays on the right knee."""
+    h = clinic_token(settings, "KneesRight")
+    pid = client.post("/api/v1/patients", json={"external_id": "K-R", "side": "right"}, headers=h).json()["id"]
+    first = _processed_session(client, h, pid, walks[0.8], "2026-11-01", involved=None)
+    r = client.get(f"/api/v1/sessions/{first}/results", headers=h).json()
+    assert r["involved_side"] == "right" and r["side"] == "right" and r["rom_deg"] == r["knees"]["right"]["rom_deg"]
+    assert _lsi(r, "swing_peak_flexion") == pytest.approx(100 / 0.8, abs=6.0)
+    fhir = client.get(f"/api/v1/fhir/DiagnosticReport/{first}", headers=h).json()
+    swing = next(o for o in fhir["contained"] if o["id"] == "lsi-swing-peak-flexion")
+    assert swing["bodySite"]["text"] == "Right knee joint"
+
+    second = _processed_session(client, h, pid, walks[0.9], "2026-11-20", involved="left")
+    r2 = client.get(f"/api/v1/sessions/{second}/results", headers=h).json()
+    assert r2["side"] == "left"
+    c = client.get(f"/api/v1/patients/{pid}/compare?a={first}&b={second}", headers=h).json()
+    assert not c["comparable"] and c["mismatch"] == ["side"]
+    trend = client.get(f"/api/v1/patients/{pid}/trend", headers=h).json()
+    assert [p["session_id"] for p in trend["points"]] == [first, second]
+    assert [p["side"] for p in trend["points"]] == ["right", "right"]
+    assert trend["points"][1]["rom_deg"] == r2["knees"]["right"]["rom_deg"] != r2["rom_deg"]
+
+
+def test_a_side_for_both_knees_is_refused_in_the_webs_words(client, settings, walks):
+    h = clinic_token(settings, "KneesSide")
+    pid = client.post("/api/v1/patients", json={"external_id": "K-S", "side": "right"}, headers=h).json()["id"]
+    sid = client.post(f"/api/v1/patients/{pid}/sessions", json={"task": "gait"}, headers=h).json()["id"]
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=walks[0.8]).status_code == 201
+    job = wait_job(client, client.post(f"/api/v1/sessions/{sid}/process", json={"side": "left"},
+                                       headers=h).json()["job_id"], h)
+    assert job["status"] == "failed" and job["error_code"] == "pipeline.side_with_two_knees.web", job
+    assert "Involved knee" in job["error"] and "--" not in job["error"]
