@@ -38,8 +38,9 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
 #: as many as FastAPI's request threads (40), so requests never queue for a connection behind each other —
 #: on SQLite too (SQLAlchemy's default there is 5 + 10, waited for 30 s): a SQLite writer waits up to the busy
 #: timeout for the one write lock *holding its connection*, so during an upload burst (each upload places its
-#: files under that lock) 15 waiting writers used to leave no connection for the reads, which in WAL mode never
-#: wait for a writer — reads then took 30 s and more (issue 16 finding 10h)
+#: files under that lock) 15 waiting writers used to leave no connection for any other request — a plain read,
+#: which in WAL mode never waits for a writer, waited 30 s for a connection, and the pile-up fed itself
+#: (issue 16 finding 10h)
 POOL_SIZE, POOL_OVERFLOW, POOL_TIMEOUT_S = 20, 20, 10.0
 
 

@@ -1,5 +1,5 @@
 """The SQLite database's connection pool (issue 16 finding 10h): writers queued on SQLite's one write lock each
-hold a pooled connection while they wait; a read (WAL: it never waits for a writer) must still get one.  With
+hold a pooled connection while they wait; a plain read (WAL: it never waits for a writer) must still get one.  With
 SQLAlchemy's default pool for a SQLite file (5 + 10 connections) 15 such writers left a read waiting for a
 connection for 30 s and then failing — what made every read of the embedded server take tens of seconds during
 an upload burst (uploads place their files holding the write lock)."""
