@@ -23,8 +23,11 @@ running jobs and says whether they all stopped; the application disposes the dat
 **Priority** (issue 16 finding 10h): each worker thread lowers its own CPU priority at start by
 :data:`app.pipeline.render.BACKGROUND_NICE` (on Linux a nice value is per thread; the threads a job starts
 inherit it), as do the render and upload-check helper processes — so when the machine is short of CPU (a burst
-of uploads, other programs), the request threads and the event loop are scheduled first and reads stay quick,
-and processing takes the CPU they leave.  The workers are at most ``CHAKAMO_WORKERS`` (default 2).
+of uploads, other programs), the request threads and the event loop are scheduled first, and processing takes
+the CPU they leave.  The step that holds the database's write lock (storing a job's artefacts and analysis)
+runs on one *storer* thread at the server's own priority (``run_job``'s ``locked``): a lowered thread holding
+the lock would make every writing request wait on it (priority inversion).  The workers are at most
+``CHAKAMO_WORKERS`` (default 2).
 
 **A database that is away or busy** (:class:`app.jobs.work.TransientJobError`: an outage, or no pooled connection
 free within the pool's timeout because the server is starved): the worker waits (:attr:`ThreadJobRunner.RETRY_S`,
@@ -40,6 +43,7 @@ import shutil
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from sqlalchemy import create_engine, text
@@ -159,6 +163,7 @@ class ThreadJobRunner:
         self._queue: queue.Queue[int | None] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self._stop = threading.Event()
+        self._storer: ThreadPoolExecutor | None = None
 
     def start(self) -> None:
         """Take the :class:`RunnerLock` (:class:`RunnerLocked` if another server has it), clear a crashed
@@ -171,6 +176,9 @@ class ThreadJobRunner:
         self._stop.clear()
         if self.render_processes > 0 and self.pool is None:
             self.pool = RenderPool(self.render_processes)
+        if self._storer is None:  # its thread made now, from this thread: at the server's priority (docstring)
+            self._storer = ThreadPoolExecutor(1, thread_name_prefix="chakamo-store")
+            self._storer.submit(int).result()
         # holding the lock, every job left running was a dead server's: a zero lease requeues them all now
         pending = sweep(self.db, lease_s=0.0, redispatch_s=0.0, why="server stopped")
         for i in range(self.workers):
@@ -208,6 +216,10 @@ class ThreadJobRunner:
             except Exception:  # noqa: BLE001 — e.g. the database is restarting: sweep again next time
                 log.warning("job sweep failed; trying again in %g s", self.SWEEP_EVERY_S, exc_info=True)
 
+    def _locked(self, step):
+        """Run ``step`` on the storer thread (module docstring), or here when the runner was not started."""
+        return self._storer.submit(step).result() if self._storer is not None else step()
+
     def run(self, job_id: int) -> Outcome | None:
         """Run job ``job_id`` in the calling thread; while the database is away or busy
         (:class:`~app.jobs.work.TransientJobError`), wait and run the same attempt again (module docstring).
@@ -216,7 +228,7 @@ class ThreadJobRunner:
         while not self._stop.is_set():
             try:
                 return run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s,
-                               self.lease_s, resume_attempt=attempt)
+                               self.lease_s, resume_attempt=attempt, locked=self._locked)
             except TransientJobError as exc:
                 attempt = exc.attempt if exc.attempt is not None else attempt
                 log.warning("job %s: %s; running it again in %g s", job_id, exc, wait_s)
@@ -254,6 +266,9 @@ class ThreadJobRunner:
         if alive:
             log.warning("%d job threads still running at shutdown; their jobs resume at the next start", len(alive))
         self._threads.clear()
+        if self._storer is not None and not alive:
+            self._storer.shutdown(wait=True)
+            self._storer = None
         if self.pool is not None:
             self.pool.shutdown()
             self.pool = None
