@@ -20,14 +20,14 @@ sweep and the retention policy, :func:`app.web.housekeeping.housekeeping`) runs 
 every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the
 running jobs and says whether they all stopped; the application disposes the database only then.
 
-**Priority** (issue 16 finding 10h): each worker thread lowers its own CPU priority at start by
-:data:`app.pipeline.render.BACKGROUND_NICE` (on Linux a nice value is per thread; the threads a job starts
-inherit it), as do the render and upload-check helper processes — so when the machine is short of CPU (a burst
-of uploads, other programs), the request threads and the event loop are scheduled first, and processing takes
-the CPU they leave.  The step that holds the database's write lock (storing a job's artefacts and analysis)
-runs on one *storer* thread at the server's own priority (``run_job``'s ``locked``): a lowered thread holding
-the lock would make every writing request wait on it (priority inversion).  The workers are at most
-``CHAKAMO_WORKERS`` (default 2).
+**Priority** (issue 16 finding 10h): the worker threads run at the server's own priority.  Lowering them
+(``os.nice`` is per thread on Linux) was tried and dropped: a lowered thread inside the API process still holds
+the interpreter's lock while it runs Python and holds the database's write lock while it stores (progress,
+heartbeats, artefacts) — on a starved machine every request thread then waits on the least favoured thread of
+the machine (priority inversion), and ``benchmarks.load`` showed no gain.  Background work runs at a lower
+priority only where it has a process of its own: the render and upload-check helpers
+(:func:`app.pipeline.render.lower_priority`), and Celery workers (``nice chakamo worker``).  The workers are at
+most ``CHAKAMO_WORKERS`` (default 2).
 
 **A database that is away or busy** (:class:`app.jobs.work.TransientJobError`: an outage, or no pooled connection
 free within the pool's timeout because the server is starved): the worker waits (:attr:`ThreadJobRunner.RETRY_S`,
@@ -43,7 +43,6 @@ import shutil
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from sqlalchemy import create_engine, text
@@ -51,7 +50,7 @@ from sqlalchemy.pool import NullPool
 
 from app.store.database import Database
 from app.jobs.work import LEASE_S, Outcome, TransientJobError, mark_dispatched, run_job, sweep
-from app.pipeline.render import RENDER_TIMEOUT_S, RenderPool, lower_priority, warm_up
+from app.pipeline.render import RENDER_TIMEOUT_S, RenderPool, warm_up
 from app.store.blobs import Storage
 
 log = logging.getLogger("chakamo.jobs")
@@ -163,7 +162,6 @@ class ThreadJobRunner:
         self._queue: queue.Queue[int | None] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self._stop = threading.Event()
-        self._storer: ThreadPoolExecutor | None = None
 
     def start(self) -> None:
         """Take the :class:`RunnerLock` (:class:`RunnerLocked` if another server has it), clear a crashed
@@ -176,9 +174,6 @@ class ThreadJobRunner:
         self._stop.clear()
         if self.render_processes > 0 and self.pool is None:
             self.pool = RenderPool(self.render_processes)
-        if self._storer is None:  # its thread made now, from this thread: at the server's priority (docstring)
-            self._storer = ThreadPoolExecutor(1, thread_name_prefix="chakamo-store")
-            self._storer.submit(int).result()
         # holding the lock, every job left running was a dead server's: a zero lease requeues them all now
         pending = sweep(self.db, lease_s=0.0, redispatch_s=0.0, why="server stopped")
         for i in range(self.workers):
@@ -216,10 +211,6 @@ class ThreadJobRunner:
             except Exception:  # noqa: BLE001 — e.g. the database is restarting: sweep again next time
                 log.warning("job sweep failed; trying again in %g s", self.SWEEP_EVERY_S, exc_info=True)
 
-    def _locked(self, step):
-        """Run ``step`` on the storer thread (module docstring), or here when the runner was not started."""
-        return self._storer.submit(step).result() if self._storer is not None else step()
-
     def run(self, job_id: int) -> Outcome | None:
         """Run job ``job_id`` in the calling thread; while the database is away or busy
         (:class:`~app.jobs.work.TransientJobError`), wait and run the same attempt again (module docstring).
@@ -228,7 +219,7 @@ class ThreadJobRunner:
         while not self._stop.is_set():
             try:
                 return run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s,
-                               self.lease_s, resume_attempt=attempt, locked=self._locked)
+                               self.lease_s, resume_attempt=attempt)
             except TransientJobError as exc:
                 attempt = exc.attempt if exc.attempt is not None else attempt
                 log.warning("job %s: %s; running it again in %g s", job_id, exc, wait_s)
@@ -237,7 +228,6 @@ class ThreadJobRunner:
         return None
 
     def _work(self) -> None:
-        lower_priority(whole_process=False)  # module docstring: background work yields the CPU to requests
         while True:
             job_id = self._queue.get()
             if job_id is None or self._stop.is_set():  # a queued job left here stays queued in the database
@@ -266,9 +256,6 @@ class ThreadJobRunner:
         if alive:
             log.warning("%d job threads still running at shutdown; their jobs resume at the next start", len(alive))
         self._threads.clear()
-        if self._storer is not None and not alive:
-            self._storer.shutdown(wait=True)
-            self._storer = None
         if self.pool is not None:
             self.pool.shutdown()
             self.pool = None

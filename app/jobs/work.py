@@ -50,10 +50,9 @@ import hashlib
 import logging
 import secrets
 import threading
-from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Literal, Protocol, TypeVar
+from typing import Literal, Protocol
 
 from sqlalchemy import or_, select, update
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
@@ -67,7 +66,6 @@ from app.pipeline.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderP
 from app.store.blobs import Storage
 
 log = logging.getLogger("chakamo.jobs")
-_T = TypeVar("_T")
 
 #: a job interrupted this many times (a server stop, a lost worker, an expired lease) is failed instead of run again
 MAX_ATTEMPTS = 3
@@ -272,24 +270,14 @@ def _public_results(results: dict, session_id: int) -> dict:
 Outcome = Literal["done", "failed", "busy", "finished"]
 
 
-def _at_once(step: Callable[[], _T]) -> _T:
-    return step()
-
-
 def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None = None,
             render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S,
-            resume_attempt: int | None = None, locked: Callable[[Callable[[], _T]], _T] = _at_once) -> Outcome:
+            resume_attempt: int | None = None) -> Outcome:
     """Claim and run job ``job_id`` (module docstring).  Returns ``done`` or ``failed`` when this call ran it,
     ``busy`` when another worker holds it (running, lease not expired), ``finished`` when it had already ended
     (or is unknown).  Never raises for bad data; raises :class:`TransientJobError` when the database went away
     (the job is then left to the sweeper or to the engine's retry, which passes the error's ``attempt`` back as
-    ``resume_attempt``: the same run goes on, not a new attempt).
-
-    ``locked(step)`` runs the step that stores the artefacts and the analysis — the one that holds the database's
-    write lock while it places the files (on SQLite the one lock of the whole database) — and returns its
-    result.  The embedded runner runs it on a thread at the API's CPU priority, not on its lowered job thread:
-    a starved low-priority thread holding the lock would make every request that writes (an audited read
-    too) wait on the least favoured thread of the machine — a priority inversion."""
+    ``resume_attempt``: the same run goes on, not a new attempt)."""
     try:
         if resume_attempt is not None and reclaim(db, job_id, resume_attempt):
             attempt = resume_attempt
@@ -302,41 +290,13 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
             raise TransientJobError(f"job {job_id}: database unreachable", resume_attempt) from exc
         raise
     with heartbeat(db, job_id, attempt, lease_s):
-        return _run_claimed(job_id, attempt, db, store, tmp_root, pool, render_timeout_s, locked)
-
-
-def _store(db: Database, store: Storage, job_id: int, attempt: int, job: Job, session: KneeSession, results: dict,
-           stored: dict, contents: dict) -> Outcome:
-    """Place the artefacts' files and record the analysis in one transaction (:func:`run_job`'s ``locked``
-    step); :class:`Superseded` when this run no longer owns the job."""
-    from app.pipeline.session import PIPELINE_VERSION
-
-    with db.session() as s:
-        row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
-        for sha, size in sorted(contents):
-            # the file is placed under its blob's lock, as an upload's: the same bytes may be another
-            # session's artefact being erased right now (app.store.erasure)
-            reserve_blob(s, sha, size)
-            store.put(contents[sha, size])
-        analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
-                            accepted_cycles=int(results["cycles"]["accepted"]),
-                            warnings=len(results["quality"]["warnings"]),
-                            pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
-        analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
-                              for (name, lang), (sha, size) in stored.items()]
-        s.add(analysis)
-        s.flush()
-        row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
-        row.analysis_id = analysis.id
-        row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
-                             f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
-    return "done"
+        return _run_claimed(job_id, attempt, db, store, tmp_root, pool, render_timeout_s)
 
 
 def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
-                 render_timeout_s: float, locked: Callable[[Callable[[], _T]], _T] = _at_once) -> Outcome:
+                 render_timeout_s: float) -> Outcome:
     from app.pipeline.ingestion import IngestionError, load_session
-    from app.pipeline.session import PipelineError, ProcessOptions, process_session
+    from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions, process_session
     from app.pipeline.results import build_results
     from app.store.workspace import materialise, public_message
 
@@ -362,7 +322,26 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
         contents = {stored[key]: data for key, data in files.items()}
-        return locked(lambda: _store(db, store, job_id, attempt, job, session, results, stored, contents))
+        with db.session() as s:
+            row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
+            for sha, size in sorted(contents):
+                # the file is placed under its blob's lock, as an upload's: the same bytes may be another
+                # session's artefact being erased right now (app.store.erasure)
+                reserve_blob(s, sha, size)
+                store.put(contents[sha, size])
+            analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
+                                accepted_cycles=int(results["cycles"]["accepted"]),
+                                warnings=len(results["quality"]["warnings"]),
+                                pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
+            analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
+                                  for (name, lang), (sha, size) in stored.items()]
+            s.add(analysis)
+            s.flush()
+            row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
+            row.analysis_id = analysis.id
+            row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
+                                 f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
+        return "done"
     except Superseded:  # the sweeper gave the job to another run (this one looked lost): that run stands
         log.warning("job %s: attempt %s was taken over by another run; its results are dropped", job_id, attempt)
         return "finished"

@@ -17,7 +17,6 @@ import dataclasses
 import logging
 import os
 import signal
-import sys
 import tempfile
 import threading
 import time
@@ -368,20 +367,16 @@ class ForkedRenderers:
         self.close()
 
 
-#: nice increment of the server's background work — the embedded job threads (:mod:`app.jobs.inprocess`) and
-#: the render and upload-check helper processes (:class:`RenderPool`) — so that under CPU starvation the
-#: scheduler serves the API's request threads and event loop first (issue 16 finding 10h); 10 gives a busy
-#: nice-0 thread about nine times the CPU of a busy background one (the kernel's weights 1024 : 110)
+#: nice increment of the render and upload-check helper processes (:class:`RenderPool`): under CPU starvation
+#: the scheduler serves the API process first (issue 16 finding 10h); 10 gives a busy nice-0 process about nine
+#: times the CPU of a busy helper (the kernel's weights 1024 : 110).  Only processes: a lowered thread of the API
+#: process would hold the interpreter's and the database's locks at that priority (:mod:`app.jobs.inprocess`)
 BACKGROUND_NICE = 10
 
 
-def lower_priority(*, whole_process: bool) -> bool:
-    """Lower the CPU priority of the calling thread (``whole_process=False``) or of this whole process by
-    :data:`BACKGROUND_NICE`; threads and processes started afterwards from it inherit it.  Returns whether it
-    was lowered.  On Linux a nice value belongs to one thread (``setpriority`` on the caller); elsewhere it is
-    the whole process', so a thread's request is declined there (it would slow the API down with it)."""
-    if not whole_process and not sys.platform.startswith("linux"):
-        return False
+def lower_priority() -> bool:
+    """Lower this process' CPU priority by :data:`BACKGROUND_NICE` (a helper process at start-up); the
+    processes it starts inherit it.  Returns whether it was lowered."""
     try:
         os.nice(BACKGROUND_NICE)
     except (AttributeError, OSError):  # no os.nice (Windows), or not permitted: run at the usual priority
@@ -392,7 +387,7 @@ def lower_priority(*, whole_process: bool) -> bool:
 def _exit_with_parent(parent_pid: int) -> None:
     """In a render or check helper process: run at the background priority (:data:`BACKGROUND_NICE`), and exit as
     soon as the server process is gone (even killed with SIGKILL)."""
-    lower_priority(whole_process=True)
+    lower_priority()
     def watch() -> None:
         while os.getppid() == parent_pid:
             time.sleep(1.0)

@@ -1,7 +1,7 @@
-"""Background work under CPU starvation (issue 16 finding 10h): the embedded job threads and the render and
-upload-check helper processes run at a lower CPU priority than the API's threads, and a job whose database
-connection could not be had in time (SQLAlchemy's pool ``TimeoutError``, seen under load) waits and runs the
-same attempt again instead of failing.  Each runs on SQLite and on PostgreSQL (``settings``)."""
+"""Background work under CPU starvation (issue 16 finding 10h): the render and upload-check helper processes run
+at a lower CPU priority than the API, and a job whose database connection could not be had in time
+(SQLAlchemy's pool ``TimeoutError``, seen under load) waits and runs the same attempt again instead of failing.
+The pool-timeout tests run on SQLite and on PostgreSQL (``settings``)."""
 
 from __future__ import annotations
 
@@ -13,16 +13,6 @@ import test_job_leases as leases
 
 #: the fixtures and the job-row builder of the lease tests: a server with an uploaded session, its runner stopped
 world, stopped, _job = leases.world, leases.stopped, leases._job
-
-
-def test_job_threads_run_below_the_api_s_priority(client):
-    from app.pipeline.render import BACKGROUND_NICE
-
-    mine = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
-    workers = [t for t in threading.enumerate() if t.name.startswith("chakamo-job-")]
-    assert workers
-    assert {os.getpriority(os.PRIO_PROCESS, t.native_id) for t in workers} == {min(19, mine + BACKGROUND_NICE)}
-    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == mine  # the caller's own is unchanged
 
 
 def test_helper_processes_run_below_the_api_s_priority():
@@ -130,31 +120,3 @@ def test_a_job_cut_short_by_a_pool_timeout_mid_way_runs_again_not_failed(setting
         assert (job.status, job.attempts) == ("done", 1) and job.analysis_id is not None
     db.dispose()
 
-
-def test_the_step_holding_the_write_lock_runs_at_the_server_s_priority(settings, world):
-    """Storing a job's artefacts holds the database's write lock (on SQLite the whole database's).  Run on the
-    lowered job thread, a starved machine made every writing request — an audited read too — wait on the
-    least favoured thread (priority inversion, seen in benchmarks.load as reads and creates waiting minutes).
-    The analysis is now written by a thread at the server's own priority; the computing stays lowered."""
-    from sqlalchemy import event
-
-    from app.pipeline.render import BACKGROUND_NICE
-    from web_helpers import wait_job
-
-    client, h, session_id = world
-    mine = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
-    writers: list[int] = []
-
-    def seen(conn, cursor, statement, *_):
-        if statement.lstrip().upper().startswith("INSERT INTO ANALYSES"):
-            writers.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
-
-    event.listen(client.app.state.db.engine, "before_cursor_execute", seen)
-    try:
-        r = client.post(f"/api/v1/sessions/{session_id}/process", json={}, headers=h)
-        assert wait_job(client, r.json()["job_id"], h)["status"] == "done", r.text
-    finally:
-        event.remove(client.app.state.db.engine, "before_cursor_execute", seen)
-    assert writers == [mine]
-    workers = [t for t in threading.enumerate() if t.name.startswith("chakamo-job-")]
-    assert {os.getpriority(os.PRIO_PROCESS, t.native_id) for t in workers} == {min(19, mine + BACKGROUND_NICE)}
