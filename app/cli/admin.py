@@ -141,7 +141,8 @@ def create_clinic(settings: Settings | None, name: str) -> int:
 def create_user(settings: Settings | None, *, clinic: str, email: str, role: str, password: str,
                 name: str = "") -> int:
     """Create a user of clinic ``clinic``; returns the id.  ValueError for a bad role, weak password or
-    an email already used."""
+    an email that already has an account in that clinic (accounts are per clinic: the same email may have an
+    account in another clinic)."""
     if role not in ROLES:
         raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
     email = email.strip().lower()
@@ -156,8 +157,8 @@ def create_user(settings: Settings | None, *, clinic: str, email: str, role: str
     check_password_strength(password, email=email, name=name)
     with _session(settings) as s:
         c = _clinic(s, clinic)
-        if s.scalar(select(User.id).where(User.email == email)) is not None:
-            raise ValueError(f"the email {email} already has an account; use another email")
+        if s.scalar(select(User.id).where(User.email == email, User.clinic_id == c.id)) is not None:
+            raise ValueError(f"the email {email} already has an account in {clinic!r}; use another email")
         user = User(clinic_id=c.id, email=email, name=name, role=role, password_hash=hash_password(password))
         s.add(user)
         s.flush()
@@ -271,7 +272,9 @@ def add_parsers(sub) -> None:
 def _read_password(from_stdin: bool) -> str:
     if from_stdin:
         return sys.stdin.readline().rstrip("\r\n")
-    first = getpass.getpass("Password (at least 10 characters): ")
+    from app.web.passwords import MIN_PASSWORD_LENGTH
+
+    first = getpass.getpass(f"Password (at least {MIN_PASSWORD_LENGTH} characters): ")
     if getpass.getpass("Repeat the password: ") != first:
         raise ValueError("the two passwords differ; run the command again")
     return first
@@ -313,16 +316,25 @@ __all__ = ["COMMANDS", "add_parsers", "create_clinic", "create_token", "create_u
 # ------------------------------------------------------------------------------------------ offboarding
 
 
-def _user(s, email: str):
+def _user(s, email: str, clinic: str | None = None):
+    """The account of ``email`` in clinic ``clinic``, or its only account when no clinic is given; ValueError
+    for none, and for an email with accounts in several clinics and no clinic given (it names them)."""
     from sqlalchemy import select
 
     from app.store.models import User
 
     email = email.strip().lower()
-    user = s.scalar(select(User).where(User.email == email))
-    if user is None:
-        raise ValueError(f"no user with the email {email!r}; check it (emails are the login names)")
-    return user
+    stmt = select(User).where(User.email == email)
+    if clinic is not None:
+        stmt = stmt.where(User.clinic_id == _clinic(s, clinic).id)
+    users = list(s.scalars(stmt.order_by(User.id)))
+    if not users:
+        where = f" in {clinic!r}" if clinic is not None else ""
+        raise ValueError(f"no user with the email {email!r}{where}; check it (emails are the login names)")
+    if len(users) > 1:
+        names = ", ".join(repr(u.clinic.name) for u in users)
+        raise ValueError(f"the email {email!r} has accounts in several clinics ({names}); say which with --clinic")
+    return users[0]
 
 
 def _close_browser_sessions(s, user_id: int) -> int:
@@ -368,13 +380,14 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
                 "revoked_at": token.revoked_at, "already": already}
 
 
-def deactivate_user(settings: Settings | None, *, email: str) -> int:
-    """Deactivate the user with ``email`` (login refused) and delete their browser sessions; returns how many
-    sessions were closed.  ValueError for an unknown email."""
+def deactivate_user(settings: Settings | None, *, email: str, clinic: str | None = None) -> int:
+    """Deactivate the user with ``email`` (of clinic ``clinic`` when the email has accounts in several; login
+    refused) and delete their browser sessions; returns how many sessions were closed.  ValueError for an
+    unknown email, or an ambiguous one without ``clinic``."""
     from app.web.audit import record_operator
 
     with _session(settings) as s:
-        user = _user(s, email)
+        user = _user(s, email, clinic)
         user.active = False
         closed = _close_browser_sessions(s, user.id)
         record_operator(s, clinic_id=user.clinic_id, action="user_change", user_id=user.id,
@@ -382,15 +395,16 @@ def deactivate_user(settings: Settings | None, *, email: str) -> int:
         return closed
 
 
-def set_password(settings: Settings | None, *, email: str, password: str) -> int:
-    """Give the user with ``email`` a new ``password`` (the rules of ``users create``: app.web.passwords) and
-    delete their browser sessions; returns how many were closed.  ValueError for an unknown email or a weak
-    password (nothing changes)."""
+def set_password(settings: Settings | None, *, email: str, password: str, clinic: str | None = None) -> int:
+    """Give the user with ``email`` (of clinic ``clinic`` when the email has accounts in several) a new
+    ``password`` (the rules of ``users create``: app.web.passwords) and delete their browser sessions; returns how
+    many were closed.  ValueError for an unknown email, an ambiguous one without ``clinic``, or a weak password
+    (nothing changes)."""
     from app.web.audit import record_operator
     from app.web.security import check_password_strength, hash_password
 
     with _session(settings) as s:
-        user = _user(s, email)
+        user = _user(s, email, clinic)
         check_password_strength(password, email=user.email, name=user.name)
         user.password_hash = hash_password(password)
         closed = _close_browser_sessions(s, user.id)
@@ -408,14 +422,16 @@ def _add_account_parsers(users, tokens) -> None:
 
     u_off = users.add_parser("deactivate", help="refuse a user's logins and log out their browsers")
     u_off.add_argument("--email", required=True)
+    u_off.add_argument("--clinic", metavar="NAME", help="the account's clinic (needed when the email has several)")
     u_pw = users.add_parser("set-password", help="set a user's password and log out their browsers")
     u_pw.add_argument("--email", required=True)
+    u_pw.add_argument("--clinic", metavar="NAME", help="the account's clinic (needed when the email has several)")
     u_pw.add_argument("--password-stdin", action="store_true", help="read the password from stdin's first line")
 
 
-def _check_user_exists(email: str) -> None:
+def _check_user_exists(email: str, clinic: str | None) -> None:
     with _session(None) as s:
-        _user(s, email)
+        _user(s, email, clinic)
 
 
 def _when(value) -> str:
@@ -441,13 +457,13 @@ def run_account(args: argparse.Namespace) -> int:
         else:
             print(f"{what} revoked: the API now answers 401 to it")
     elif args.command == "users" and args.action == "deactivate":
-        closed = deactivate_user(None, email=args.email)
+        closed = deactivate_user(None, email=args.email, clinic=args.clinic)
         print(f"user {args.email.strip().lower()} deactivated: logins refused, {closed} browser session(s) closed")
     elif args.command == "users" and args.action == "set-password":
         if not args.password_stdin:  # an unknown email is said before the prompts, not after
-            _check_user_exists(args.email)
+            _check_user_exists(args.email, args.clinic)
         password = _read_password(args.password_stdin)
-        closed = set_password(None, email=args.email, password=password)
+        closed = set_password(None, email=args.email, password=password, clinic=args.clinic)
         print(f"password of {args.email.strip().lower()} changed; {closed} browser session(s) closed")
     else:  # pragma: no cover - argparse only lets the registered actions through
         raise ValueError(f"unknown action {args.command} {args.action}; see chakamo {args.command} --help")

@@ -17,8 +17,22 @@ time — the first one's jobs.  Several processes or machines need the distribut
 crashed server left behind: its temporary ``session-*`` folders and unfinished uploads
 (``blobs/.incoming/up-*``).  Periodic housekeeping the application hands in (``housekeeping``: the erasure
 sweep and the retention policy, :func:`app.web.housekeeping.housekeeping`) runs once after start-up and then
-every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the running jobs and says whether they all stopped; the
-application disposes the database only then.
+every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the
+running jobs and says whether they all stopped; the application disposes the database only then.
+
+**Priority** (issue 16 finding 10h): the worker threads run at the server's own priority.  Lowering them
+(``os.nice`` is per thread on Linux) was tried and dropped: a lowered thread inside the API process still holds
+the interpreter's lock while it runs Python and holds the database's write lock while it stores (progress,
+heartbeats, artefacts) — on a starved machine every request thread then waits on the least favoured thread of
+the machine (priority inversion), and ``benchmarks.load`` showed no gain.  Background work runs at a lower
+priority only where it has a process of its own: the render and upload-check helpers
+(:func:`app.pipeline.render.lower_priority`), and Celery workers (``nice chakamo worker``).  The workers are at
+most ``CHAKAMO_WORKERS`` (default 2).
+
+**A database that is away or busy** (:class:`app.jobs.work.TransientJobError`: an outage, or no pooled connection
+free within the pool's timeout because the server is starved): the worker waits (:attr:`ThreadJobRunner.RETRY_S`,
+doubling, at most :attr:`ThreadJobRunner.RETRY_MAX_S`) and runs the same attempt again (:meth:`ThreadJobRunner.run`)
+— the job is never failed for it, and the wait does not count as one of its attempts.
 """
 
 from __future__ import annotations
@@ -35,7 +49,7 @@ from sqlalchemy import create_engine, text
 from sqlalchemy.pool import NullPool
 
 from app.store.database import Database
-from app.jobs.work import LEASE_S, mark_dispatched, run_job, sweep
+from app.jobs.work import LEASE_S, Outcome, TransientJobError, mark_dispatched, run_job, sweep
 from app.pipeline.render import RENDER_TIMEOUT_S, RenderPool, warm_up
 from app.store.blobs import Storage
 
@@ -133,6 +147,8 @@ class ThreadJobRunner:
     SWEEP_EVERY_S = 5.0
     #: seconds between two housekeeping runs (erasure sweep, retention policy)
     HOUSEKEEPING_EVERY_S = 3600.0
+    #: first wait before a job cut short by the database (away or busy) runs again, doubling up to the most
+    RETRY_S, RETRY_MAX_S = 1.0, 30.0
 
     def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
                  render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
@@ -195,14 +211,30 @@ class ThreadJobRunner:
             except Exception:  # noqa: BLE001 — e.g. the database is restarting: sweep again next time
                 log.warning("job sweep failed; trying again in %g s", self.SWEEP_EVERY_S, exc_info=True)
 
+    def run(self, job_id: int) -> Outcome | None:
+        """Run job ``job_id`` in the calling thread; while the database is away or busy
+        (:class:`~app.jobs.work.TransientJobError`), wait and run the same attempt again (module docstring).
+        None when the runner stopped before it could run."""
+        wait_s, attempt = self.RETRY_S, None
+        while not self._stop.is_set():
+            try:
+                return run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s,
+                               self.lease_s, resume_attempt=attempt)
+            except TransientJobError as exc:
+                attempt = exc.attempt if exc.attempt is not None else attempt
+                log.warning("job %s: %s; running it again in %g s", job_id, exc, wait_s)
+                self._stop.wait(wait_s)
+                wait_s = min(2.0 * wait_s, self.RETRY_MAX_S)
+        return None
+
     def _work(self) -> None:
         while True:
             job_id = self._queue.get()
             if job_id is None or self._stop.is_set():  # a queued job left here stays queued in the database
                 return
             try:
-                run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s, self.lease_s)
-            except Exception:  # noqa: BLE001 — e.g. the database went away: keep the worker alive
+                self.run(job_id)
+            except Exception:  # noqa: BLE001 — an unexpected error outside the job's own handling: keep the worker
                 log.exception("worker could not run job %s (the sweeper runs it again)", job_id)
 
     def problem(self) -> str | None:

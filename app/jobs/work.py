@@ -22,7 +22,10 @@ files' version and the pipeline version).  :class:`app.jobs.inprocess.ThreadJobR
 lease (every job left running belonged to a dead server); the Celery engine (:mod:`app.jobs.celery_engine`) sweeps
 in the API server and in every worker.  A database outage during a job (``OperationalError``) is not the data's fault:
 :func:`run_job` re-raises it as :class:`TransientJobError` (the Celery task retries with back-off; the
-embedded runner leaves it to the sweeper) instead of failing the job.
+embedded runner runs the same attempt again after a back-off, :meth:`app.jobs.inprocess.ThreadJobRunner.run`)
+instead of failing the job.  So does a wait for a pooled connection that timed out (SQLAlchemy's pool
+``TimeoutError``: every connection busy, e.g. a server starved of CPU): it is the server's state, never the
+job's, and the job waits and runs again rather than fail.
 
 A job's work (:func:`run_job`): copy the session's stored files into a temporary folder with its
 ``session.json`` (:mod:`app.store.workspace`), load and process them (:func:`app.pipeline.session.process_session`, its
@@ -53,6 +56,7 @@ from typing import Literal, Protocol
 
 from sqlalchemy import or_, select, update
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 
 from app.store.database import Database
 from app.store.erasure import reserve_blob
@@ -247,8 +251,10 @@ def _is_disk_full(exc: BaseException) -> bool:
 
 
 def _transient(exc: BaseException) -> bool:
-    """A database that went away (connection refused or dropped), not a problem of this job."""
-    return isinstance(exc, OperationalError) or (isinstance(exc, DBAPIError) and exc.connection_invalidated)
+    """A database that went away (connection refused or dropped) or no pooled connection free in time (the
+    pool's ``TimeoutError``): the server's state, not a problem of this job (module docstring)."""
+    return isinstance(exc, (OperationalError, PoolTimeout)) or (
+        isinstance(exc, DBAPIError) and exc.connection_invalidated)
 
 
 def _public_results(results: dict, session_id: int) -> dict:
@@ -280,8 +286,10 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
             attempt = claim(db, job_id)
         if attempt is None:
             return "busy" if job_state(db, job_id) in ("queued", "running") else "finished"
-    except OperationalError as exc:
-        raise TransientJobError(f"job {job_id}: database unreachable") from exc
+    except Exception as exc:
+        if _transient(exc):  # not claimed (or not known to be): the retry resumes the attempt it was given
+            raise TransientJobError(f"job {job_id}: database unreachable", resume_attempt) from exc
+        raise
     with heartbeat(db, job_id, attempt, lease_s):
         return _run_claimed(job_id, attempt, db, store, tmp_root, pool, render_timeout_s)
 
@@ -347,8 +355,8 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         _fail(db, job_id, attempt, public_message(str(exc), folder), exc.code if coded else None,
               _public_params(exc.params, folder) if coded else None)
     except Exception as exc:  # noqa: BLE001 — a job must end failed, never stay running
-        if _transient(exc):  # not the job's fault: leave it running; its lease expires and it is run again
-            log.warning("job %s: database unreachable (%s); it will run again", job_id, type(exc).__name__)
+        if _transient(exc):  # not the job's fault: leave it running; the engine runs this attempt again
+            log.warning("job %s: database unreachable or busy (%s); it will run again", job_id, type(exc).__name__)
             raise TransientJobError(f"job {job_id}: database unreachable", attempt) from exc
         if _is_disk_full(exc):
             log.error("job %s failed: no space left to store its artefacts (%s)", job_id, exc)

@@ -390,8 +390,27 @@ class ForkedRenderers:
         self.close()
 
 
+#: nice increment of the render and upload-check helper processes (:class:`RenderPool`): under CPU starvation
+#: the scheduler serves the API process first (issue 16 finding 10h); 10 gives a busy nice-0 process about nine
+#: times the CPU of a busy helper (the kernel's weights 1024 : 110).  Only processes: a lowered thread of the API
+#: process would hold the interpreter's and the database's locks at that priority (:mod:`app.jobs.inprocess`)
+BACKGROUND_NICE = 10
+
+
+def lower_priority() -> bool:
+    """Lower this process' CPU priority by :data:`BACKGROUND_NICE` (a helper process at start-up); the
+    processes it starts inherit it.  Returns whether it was lowered."""
+    try:
+        os.nice(BACKGROUND_NICE)
+    except (AttributeError, OSError):  # no os.nice (Windows), or not permitted: run at the usual priority
+        return False
+    return True
+
+
 def _exit_with_parent(parent_pid: int) -> None:
-    """In a render process: exit as soon as the server process is gone (even killed with SIGKILL)."""
+    """In a render or check helper process: run at the background priority (:data:`BACKGROUND_NICE`), and exit as
+    soon as the server process is gone (even killed with SIGKILL)."""
+    lower_priority()
     def watch() -> None:
         while os.getppid() == parent_pid:
             time.sleep(1.0)
@@ -488,6 +507,6 @@ def warm_up(processing: bool = True) -> None:
         log.exception("warm-up run of the orientation filter failed")
 
 
-__all__ = ["FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S", "ForkedRenderers",
-           "RenderPool", "collect", "preload_renderers", "render_all", "render_artefact", "render_many", "render_named",
-           "warm_up"]
+__all__ = ["BACKGROUND_NICE", "FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S",
+           "ForkedRenderers", "RenderPool", "collect", "lower_priority", "preload_renderers", "render_all", "render_artefact",
+           "render_many", "render_named", "warm_up"]

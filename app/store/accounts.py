@@ -1,7 +1,8 @@
 """Accounts: API tokens, browser sessions and users as the API finds and changes them.
 
 Secrets are looked up by their sha256 only (the caller hashes them, :func:`app.web.security.sha256_hex`);
-emails are the login names, unique across clinics.
+an account is a clinic's (issue 16 finding 10b): an email is unique within its clinic and may have accounts in
+several clinics, so a login names the clinic when its email has more than one (:func:`login_account`).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.store.errors import Conflict
-from app.store.models import ApiToken, BrowserSession, LoginAttempts, User, utcnow
+from app.store.models import ApiToken, BrowserSession, Clinic, LoginAttempts, User, utcnow
 
 
 def active_token(db: Session, token_sha256: str) -> ApiToken | None:
@@ -139,9 +140,13 @@ def refund_attempt(db: Session, key: str, *, free: int, base_s: float) -> None:
                .execution_options(synchronize_session=False))
 
 
-def delete_attempts_of_email(db: Session, email: str) -> int:
-    """Forget every counter of ``email`` (an admin's unlock); returns how many rows went."""
-    return db.execute(delete(LoginAttempts).where(LoginAttempts.email == email)).rowcount or 0
+def delete_attempts_of_email(db: Session, email: str, *, also_key: str | None = None) -> int:
+    """Forget the counters kept under ``email`` and the counter ``also_key`` (an admin's unlock); returns how
+    many rows went."""
+    where = LoginAttempts.email == email
+    if also_key is not None:
+        where = where | (LoginAttempts.key == also_key)
+    return db.execute(delete(LoginAttempts).where(where)).rowcount or 0
 
 
 def prune_attempts(db: Session, before_s: float) -> None:
@@ -156,28 +161,46 @@ def user_by_id(db: Session, user_id: int, *, lock: bool = False) -> User | None:
     return db.get(User, user_id, with_for_update={"of": User} if lock else None)
 
 
-def user_by_email(db: Session, email: str) -> User | None:
-    return db.scalar(select(User).where(User.email == email))
+def login_account(db: Session, email: str, clinic: str | None = None) -> User | None:
+    """The account a login of ``email`` opens: with ``clinic`` (a clinic's name) that clinic's account of the
+    email; without it the email's only account.  None when there is no such account, *and* when the email has
+    accounts in several clinics but no clinic was named — the caller answers that exactly like an unknown email
+    (same refusal, same work), so a login never tells anyone how many clinics know an email.
+
+    One statement whatever the answer: at most two accounts are read (two suffice to know the email is
+    ambiguous)."""
+    stmt = select(User).where(User.email == email)
+    if clinic is not None:
+        stmt = stmt.join(Clinic, Clinic.id == User.clinic_id).where(Clinic.name == clinic)
+    found = list(db.scalars(stmt.order_by(User.id).limit(2)))
+    return found[0] if len(found) == 1 else None
 
 
 def clinic_users(db: Session, clinic_id: int) -> list[User]:
     return list(db.scalars(select(User).where(User.clinic_id == clinic_id).order_by(User.id)))
 
 
+def clinic_user_by_email(db: Session, clinic_id: int, email: str) -> User | None:
+    """The account of ``email`` in clinic ``clinic_id`` (accounts of other clinics are never looked at)."""
+    return db.scalar(select(User).where(User.clinic_id == clinic_id, User.email == email))
+
+
 def _taken(email: str) -> Conflict:
-    return Conflict(f"The email {email} already has an account; use another email.")
+    return Conflict(f"The email {email} already has an account in this clinic; use another email.")
 
 
-def refuse_taken_email(db: Session, email: str) -> None:
-    """:class:`Conflict` when ``email`` has an account (checked before the costly password hash)."""
-    if user_by_email(db, email) is not None:
+def refuse_taken_email(db: Session, clinic_id: int, email: str) -> None:
+    """:class:`Conflict` when ``email`` has an account in clinic ``clinic_id``; an account of the same email in
+    another clinic is no obstacle and is never looked at (issue 16 finding 10b: the answer must not depend on
+    other clinics)."""
+    if clinic_user_by_email(db, clinic_id, email) is not None:
         raise _taken(email)
 
 
 def add_user(db: Session, clinic_id: int, *, email: str, name: str, role: str, password_hash: str) -> User:
-    """A new user of the clinic; :class:`Conflict` when the email is taken — also when two requests race
-    (the unique constraint decides)."""
-    refuse_taken_email(db, email)
+    """A new user of the clinic; :class:`Conflict` when the email is taken in this clinic — also when two
+    requests race (the unique constraint on ``(email, clinic_id)`` decides)."""
+    refuse_taken_email(db, clinic_id, email)
     user = User(clinic_id=clinic_id, email=email, name=name, role=role, password_hash=password_hash)
     db.add(user)
     try:
@@ -188,7 +211,7 @@ def add_user(db: Session, clinic_id: int, *, email: str, name: str, role: str, p
     return user
 
 
-__all__ = ["active_token", "add_user", "attempt_wait_s", "browser_session", "clinic_user", "clinic_users",
-           "close_browser_session", "close_user_browser_sessions", "delete_attempts_of_email", "open_browser_session",
-           "prune_attempts", "refund_attempt", "refuse_taken_email", "reserve_attempt", "reset_attempts",
-           "token_label", "user_browser_sessions", "user_by_email", "user_by_id"]
+__all__ = ["active_token", "add_user", "attempt_wait_s", "browser_session", "clinic_user", "clinic_user_by_email",
+           "clinic_users", "close_browser_session", "close_user_browser_sessions", "delete_attempts_of_email",
+           "login_account", "open_browser_session", "prune_attempts", "refund_attempt", "refuse_taken_email",
+           "reserve_attempt", "reset_attempts", "token_label", "user_browser_sessions", "user_by_id"]

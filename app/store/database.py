@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from sqlalchemy import create_engine, event
+from sqlalchemy import create_engine, event, make_url
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -35,19 +35,26 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
 
 
 #: connections a server process keeps (and may add) per database, and how long a request waits for one:
-#: as many as FastAPI's request threads (40), so requests never queue for a connection behind each other
+#: as many as FastAPI's request threads (40), so requests never queue for a connection behind each other —
+#: on SQLite too (SQLAlchemy's default there is 5 + 10, waited for 30 s): a SQLite writer waits up to the busy
+#: timeout for the one write lock *holding its connection*, so during an upload burst (each upload places its
+#: files under that lock) 15 waiting writers used to leave no connection for any other request — a plain read,
+#: which in WAL mode never waits for a writer, waited 30 s for a connection, and the pile-up fed itself
+#: (issue 16 finding 10h)
 POOL_SIZE, POOL_OVERFLOW, POOL_TIMEOUT_S = 20, 20, 10.0
 
 
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; for a SQLite file its folder is created and the pragmas above applied; for a
-    server database a pool of :data:`POOL_SIZE` (+ :data:`POOL_OVERFLOW`) connections, checked before use
-    (a restarted server's dead connections are replaced) and waited for at most :data:`POOL_TIMEOUT_S`."""
+    """An engine for ``url`` with a pool of :data:`POOL_SIZE` (+ :data:`POOL_OVERFLOW`) connections waited for at
+    most :data:`POOL_TIMEOUT_S`; for a SQLite file its folder is created and the pragmas above applied; a server
+    database's connections are checked before use (a restarted server's dead connections are replaced)."""
     if url.startswith("sqlite"):
-        path = url.split("///", 1)[-1]
+        path = make_url(url).database
+        pool = {}  # an in-memory database keeps a pool of its own kind
         if path and path != ":memory:":
             Path(path).parent.mkdir(parents=True, exist_ok=True)
-        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15})
+            pool = dict(pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW, pool_timeout=POOL_TIMEOUT_S)
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15}, **pool)
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
     return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,

@@ -61,9 +61,12 @@ class Clinic(Base):
 
 class User(Base):
     __tablename__ = "users"
+    #: an account is a clinic's: one email may have an account in several clinics, at most one in each (its
+    #: first column, the email, also serves the login's lookup by email)
+    __table_args__ = (UniqueConstraint("email", "clinic_id", name="uq_users_email_clinic"),)
     id: Mapped[int] = mapped_column(primary_key=True)
     clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
-    email: Mapped[str] = mapped_column(String(320), unique=True)  # login name: unique across clinics
+    email: Mapped[str] = mapped_column(String(320))  # login name, unique within its clinic
     name: Mapped[str] = mapped_column(String(200), default="")
     role: Mapped[str] = mapped_column(String(20))
     password_hash: Mapped[str] = mapped_column(String(300))
@@ -300,12 +303,13 @@ class AuditEvent(Base):
 
 class LoginAttempts(Base):
     """The login throttle's counters, one row per key (``app.web.throttle.LoginThrottle``): ``pair:<email> <address>``,
-    ``email:<email>`` or ``ip:<address>``.  Times are Unix seconds (floats), so that the one atomic ``UPDATE`` that
+    ``email:<email>``, ``account:<email>|<clinic digest>`` or ``ip:<address>``.  Times are Unix seconds (floats), so that the one atomic ``UPDATE`` that
     reserves an attempt does its arithmetic in SQL alike on SQLite and PostgreSQL."""
 
     __tablename__ = "login_attempts"
     key: Mapped[str] = mapped_column(String(420), primary_key=True)
-    #: the email of ``pair:`` and ``email:`` keys (an admin's unlock deletes them by it), null for ``ip:`` keys
+    #: the email of ``pair:`` and ``email:`` keys (an admin's unlock deletes them by it), null for ``ip:`` and
+    #: ``account:`` keys (an unlock deletes its own clinic's ``account:`` key by its key)
     email: Mapped[str | None] = mapped_column(String(320), nullable=True, index=True)
     #: attempts reserved since the key was last reset (a success resets ``pair:`` and ``email:`` keys)
     attempts: Mapped[int] = mapped_column(Integer, default=0)

@@ -23,9 +23,12 @@ CODE_HEADER = "X-ChakaMo-Code"
 
 CATALOGUE: dict[str, dict[str, str]] = {
     "login.wrong": {
-        "en": "Wrong email or password; try again or ask your clinic admin to reset it.",
-        "es": "Correo o contraseña incorrectos; inténtelo de nuevo o pida al administrador de su clínica que la restablezca.",
-        "pt": "E-mail ou senha incorretos; tente de novo ou peça ao administrador da sua clínica que a redefina."},
+        "en": "Wrong email or password (if your email has accounts in several clinics, also give the clinic's "
+              "name); try again or ask your clinic admin to reset it.",
+        "es": "Correo o contraseña incorrectos (si su correo tiene cuentas en varias clínicas, indique también el "
+              "nombre de la clínica); inténtelo de nuevo o pida al administrador de su clínica que la restablezca.",
+        "pt": "E-mail ou senha incorretos (se o seu e-mail tem contas em várias clínicas, indique também o nome da "
+              "clínica); tente de novo ou peça ao administrador da sua clínica que a redefina."},
     "login.throttled": {
         "en": "Too many failed logins for this email or from this computer; wait {seconds} s and try again, or ask "
               "your clinic admin to unlock the account.",
@@ -98,12 +101,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "No puede cambiar su propio rol ni desactivarse; pídaselo a otro administrador de su clínica.",
         "pt": "Não pode alterar o seu próprio papel nem desativar-se; peça a outro administrador da sua clínica."},
     "account.email_unavailable": {
-        "en": "The email {email} cannot be used for a new account of your clinic; use another email, or ask the "
-              "ChakaMo operator.",
-        "es": "El correo {email} no puede usarse para una cuenta nueva de su clínica; use otro correo o consulte al "
-              "operador de ChakaMo.",
-        "pt": "O e-mail {email} não pode ser usado para uma conta nova da sua clínica; use outro e-mail ou consulte o "
-              "operador do ChakaMo."},
+        "en": "The email {email} already has an account in your clinic; use another email, or change that "
+              "account.",
+        "es": "El correo {email} ya tiene una cuenta en su clínica; use otro correo o modifique esa cuenta.",
+        "pt": "O e-mail {email} já tem uma conta na sua clínica; use outro e-mail ou altere essa conta."},
 }
 
 

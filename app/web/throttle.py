@@ -10,6 +10,15 @@ has used up the allowance is refused (429) like the wrong ones.  A successful lo
 counters and gives its reservation on the address counter back (a clinic behind one NAT address logs in all
 morning without being slowed).
 
+**Accounts per clinic** (issue 16 finding 10b: an email may have an account in several clinics; a login
+names the clinic when it has, :func:`app.store.accounts.login_account`).  The ``email:`` and ``pair:`` counters
+are the email's — the person's, whichever of their accounts is tried, so naming a clinic or not never gives a
+guesser a second allowance.  A login that names a clinic also reserves on ``account:<email>|<clinic>`` (free as
+``email:``), a counter of that clinic's account that only that clinic's admin clears: an unlock clears the
+email's counters and the account counter of the admin's own clinic, so an admin of one clinic can never lift the
+limit on guesses at the same email's account in another clinic.  The keys depend only on what the login typed,
+never on whether an account exists: the counters answer alike for known and unknown accounts.
+
 **Progressive delay, not lock-out** (:class:`ThrottlePolicy`).  Per counter, the first ``free`` attempts are
 immediate; after that each attempt makes the next wait ``d(n) = min(cap_s, base_s · 2^(n − free))`` seconds
 (``n`` the attempts so far: 1 s, 2 s, 4 s … 15 min).  The counters differ only in ``free``: 5 for one email
@@ -28,6 +37,13 @@ moving/fixed windows count hits but do not express "the next attempt waits ``d(n
 **Concurrent logins per address** (:class:`InFlight`): at most ``max_in_flight`` logins of one client address
 are inside the server at once (in memory, per server process); one more is answered 429 at once, before any
 database work — one machine cannot fill the hashing queue (:mod:`app.web.security`) that everybody shares.
+
+**Without a client address** (uvicorn on a unix socket, behind a proxy that does not pass the browser's
+address): clients cannot be told apart, so nothing is kept per address — no ``ip:`` or ``pair:`` counter and no
+in-flight cap.  Keying them all under one shared "address" would let any one client hold every login of the
+server (4 in flight) and push every email's ``pair:`` counter into its delay for everybody (the lock-out of
+finding 10a again).  What still holds: the ``email:``/``account:`` counters and the hashing queue's bound (503
+when full).  Deployments behind a proxy should pass the address (``chakamo serve --proxy-headers``).
 :class:`LoginGate`, an ASGI middleware, gives these refusals (and the 503 of a full hashing queue) before the
 request reaches the framework — no routing, no body parsing, no dependency: a flood of them costs the event
 loop that also answers everybody's reads as little as an answer can.
@@ -35,6 +51,7 @@ loop that also answers everybody's reads as little as an answer can.
 
 from __future__ import annotations
 
+import hashlib
 import ipaddress
 import math
 import threading
@@ -78,11 +95,22 @@ def client_key(ip: str | None) -> str | None:
     return str(addr)
 
 
-def _keys(email: str, ip: str | None) -> list[tuple[str, str | None, str]]:
+def account_key(email: str, clinic: str) -> str:
+    """The ``account:`` counter of ``email``'s account in the clinic named ``clinic`` (the name as a short
+    digest: the key fits its column whatever the name's length)."""
+    return f"account:{email}|{hashlib.sha256(clinic.encode()).hexdigest()[:16]}"
+
+
+def _keys(email: str, ip: str | None, clinic: str | None = None) -> list[tuple[str, str | None, str]]:
     """``(key, email, kind)`` of the counters of one login, in the order they are locked (always the same order,
-    so two transactions never wait on each other's rows crosswise); the address as :func:`client_key`."""
+    so two transactions never wait on each other's rows crosswise); the address as :func:`client_key`, none of
+    its counters without one (module docstring).  ``email`` is set on the rows an unlock clears by email; the
+    ``account:`` row has none (only its own clinic's unlock clears it, by key)."""
     ip = client_key(ip)
-    out = [(f"pair:{email} {ip or '-'}", email, "pair"), (f"email:{email}", email, "email")]
+    out = [(f"pair:{email} {ip}", email, "pair")] if ip else []
+    out.append((f"email:{email}", email, "email"))
+    if clinic is not None:
+        out.append((account_key(email, clinic), None, "account"))
     if ip:
         out.append((f"ip:{ip}", None, "ip"))
     return out
@@ -100,19 +128,21 @@ class LoginThrottle:
 
     def _free(self, kind: str) -> int:
         p = self.policy
-        return {"pair": p.free_per_pair, "email": p.free_per_email, "ip": p.free_per_address}[kind]
+        return {"pair": p.free_per_pair, "email": p.free_per_email, "account": p.free_per_email,
+                "ip": p.free_per_address}[kind]
 
-    def reserve(self, email: str, ip: str | None) -> float:
-        """Reserve one attempt of ``email`` from ``ip`` on every counter, committed at once; returns 0.0 when
-        reserved, else the seconds to wait (nothing reserved).  Blocking (database): call it from a thread."""
+    def reserve(self, email: str, ip: str | None, clinic: str | None = None) -> float:
+        """Reserve one attempt of ``email`` (of the account in the clinic named ``clinic`` when given) from ``ip``
+        on every counter, committed at once; returns 0.0 when reserved, else the seconds to wait (nothing
+        reserved).  Blocking (database): call it from a thread."""
         p, now = self.policy, time.time()
-        keys = [k for k, _, _ in _keys(email, ip)]
+        keys = [k for k, _, _ in _keys(email, ip, clinic)]
         with self.db.sessions() as s:  # a plain read first: a key still waiting refuses without a write lock
             wait = accounts.attempt_wait_s(s, keys, now)
         if wait > 0:
             return max(1.0, math.ceil(wait))
         with self.db.sessions() as s:  # the atomic reservation (the authority; the read above only saves writes)
-            for key, key_email, kind in _keys(email, ip):
+            for key, key_email, kind in _keys(email, ip, clinic):
                 if not accounts.reserve_attempt(s, key, key_email, now, free=self._free(kind), base_s=p.base_s,
                                                 cap_s=p.cap_s, forget_s=p.forget_s):
                     s.rollback()
@@ -124,19 +154,20 @@ class LoginThrottle:
                 accounts.prune_attempts(s, now - p.forget_s)
         return 0.0
 
-    def succeeded(self, db: Session, email: str, ip: str | None) -> None:
-        """After a right password: reset the pair and email counters, give the address its attempt back (in the
-        login's transaction ``db``)."""
-        keys = _keys(email, ip)
+    def succeeded(self, db: Session, email: str, ip: str | None, clinic: str | None = None) -> None:
+        """After a right password: reset the pair, email and account counters, give the address its attempt back
+        (in the login's transaction ``db``)."""
+        keys = _keys(email, ip, clinic)
         accounts.reset_attempts(db, [k for k, _, kind in keys if kind != "ip"])
         for key, _, kind in keys:
             if kind == "ip":
                 accounts.refund_attempt(db, key, free=self._free(kind), base_s=self.policy.base_s)
 
     @staticmethod
-    def unlock(db: Session, email: str) -> int:
-        """Clear every counter of ``email`` (an admin's unlock); returns how many were cleared."""
-        return accounts.delete_attempts_of_email(db, email)
+    def unlock(db: Session, email: str, clinic: str) -> int:
+        """Clear the counters of ``email`` and of its account in the clinic named ``clinic`` — never another
+        clinic's account counter (module docstring); an admin's unlock.  Returns how many were cleared."""
+        return accounts.delete_attempts_of_email(db, email, also_key=account_key(email, clinic))
 
 
 class InFlight:
@@ -198,8 +229,8 @@ class LoginGate:
             return
         from app.web.security import hash_queue_full
 
-        ip = client_key((scope.get("client") or ("-",))[0]) or "-"
-        if not self.in_flight.enter(ip):
+        ip = client_key((scope.get("client") or (None,))[0])  # None: no address, no per-address cap (docstring)
+        if ip and not self.in_flight.enter(ip):
             await self._refuse(scope, send, 429, "login.too_many_at_once", 1)
             return
         try:
@@ -208,7 +239,8 @@ class LoginGate:
                 return
             await self.app(scope, receive, send)
         finally:
-            self.in_flight.leave(ip)
+            if ip:
+                self.in_flight.leave(ip)
 
 
-__all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy", "client_key"]
+__all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy", "account_key", "client_key"]

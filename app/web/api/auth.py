@@ -12,12 +12,19 @@ Login, in order (issue 16 findings 1, 2, 10a; :mod:`app.web.throttle`, :mod:`app
    429 at once; the hashing queue full → 503 at once (both with ``Retry-After``, no database work; answered by
    the ASGI middleware :class:`app.web.throttle.LoginGate` before the request reaches this route);
 2. an attempt is reserved on the email's and the address's counters, atomically in the database, *before*
-   the password is checked; a counter still in its progressive delay → 429 with ``Retry-After``, no check
-   (recorded as ``login_refused`` when the email has an account; a refused guess at an unknown email is not
-   written, so that an address spraying made-up emails cannot turn each refusal into a database write);
+   the password is checked; a counter still in its progressive delay → 429 with ``Retry-After``, no check,
+   recorded as ``login_refused`` — for an unknown email too (in no clinic), so that a refusal costs the same
+   work (one read, one audit write) whether the email has an account or not and its timing tells nothing;
 3. the password is checked on the bounded hashing pool, awaited: this ``async`` route holds no request thread
    while it waits (the database steps run on the thread pool, a few milliseconds each);
-4. success resets the counters, opens the session and records ``login``; failure records ``login_failed``.
+4. success resets the counters, opens the session and records ``login``; failure records ``login_failed``
+   (the same statements for an unknown email as for a wrong password: the account row is looked up either way).
+
+Accounts are per clinic (issue 16 finding 10b): an email may have an account in several clinics.  The login
+body's optional ``clinic`` (the clinic's name) picks one; without it the email's only account is used, and an
+email with several accounts is refused like an unknown one (:func:`app.store.accounts.login_account`; the 401
+sentence says to name the clinic), so nobody learns from a login how many clinics know an email.  The throttle's
+counters stay keyed by the email (the person behind it), whichever of their accounts is tried.
 
 A successful login whose stored hash is of an older scheme or weaker parameters
 (:func:`app.web.security.needs_rehash`: the scrypt hashes of earlier versions) stores a new argon2id hash of the
@@ -74,21 +81,22 @@ def _address(request: Request) -> str | None:
     return request.client.host if request.client else None
 
 
-def _begin(request: Request, email: str, ip: str | None) -> tuple[float, tuple | None]:
+def _begin(request: Request, email: str, clinic: str | None, ip: str | None) -> tuple[float, tuple | None]:
     """Reserve the attempt (:meth:`app.web.throttle.LoginThrottle.reserve`) and find the account; a refused
-    reservation is recorded (``login_refused``).  Returns ``(wait_s, (id, hash, active) or None)``."""
+    reservation is recorded (``login_refused``), whether the email has an account or not (module docstring,
+    step 2).  Returns ``(wait_s, (id, hash, active) or None)``."""
     state = request.app.state
-    wait_s = state.login_throttle.reserve(email, ip)
+    wait_s = state.login_throttle.reserve(email, ip, clinic)
     with state.db.session() as s:
-        user = accounts.user_by_email(s, email)
-        if wait_s and user is not None:  # (an unknown email's refusal is not written: module docstring)
+        user = accounts.login_account(s, email, clinic)
+        if wait_s:
             record_login(s, request, "login_refused", email=email, user=user, status=429,
                          detail=f"throttled: wait {wait_s:g} s")
         return wait_s, (user.id, user.password_hash, user.active) if user else None
 
 
-def _finish(request: Request, response: Response, email: str, ip: str | None, user_id: int | None, ok: bool,
-            verified: str | None, new_hash: str | None) -> dict:
+def _finish(request: Request, response: Response, email: str, clinic: str | None, ip: str | None,
+            user_id: int | None, ok: bool, verified: str | None, new_hash: str | None) -> dict:
     """Record the outcome; on success reset the counters, store ``new_hash`` if any, open the session.
 
     The user's row is locked and its hash must still be ``verified``, the one the password was checked against:
@@ -98,14 +106,15 @@ def _finish(request: Request, response: Response, email: str, ip: str | None, us
     state = request.app.state
     settings = state.settings
     with state.db.session() as s:
-        user = accounts.user_by_id(s, user_id, lock=True) if user_id is not None else None
+        # looked up (and locked) for an unknown email too, as id 0 that no row has: the same statements either way
+        user = accounts.user_by_id(s, user_id if user_id is not None else 0, lock=True)
         changed = ok and user is not None and user.password_hash != verified
         if not ok or user is None or not user.active or changed:
             reason = ("unknown email" if user is None else "account deactivated" if not user.active
                       else "password changed during the login" if changed else "wrong password")
             record_login(s, request, "login_failed", email=email, user=user, status=401, detail=reason)
             return {}
-        state.login_throttle.succeeded(s, email, ip)
+        state.login_throttle.succeeded(s, email, ip, clinic)
         if new_hash:
             user.password_hash = new_hash
         sid = new_session_id()
@@ -123,7 +132,7 @@ async def login(body: LoginIn, request: Request, response: Response):
     """Check email and password; set the session cookie; return the user and the CSRF token (module docstring)."""
     email, ip = body.email.lower(), _address(request)
     # step 1 (the per-address cap, a full hashing queue) is app.web.throttle.LoginGate, before this route
-    wait_s, found = await run_in_threadpool(_begin, request, email, ip)
+    wait_s, found = await run_in_threadpool(_begin, request, email, body.clinic, ip)
     if wait_s:
         raise refusal(request, 429, "login.throttled", headers={"Retry-After": f"{wait_s:.0f}"},
                       seconds=f"{wait_s:.0f}")
@@ -139,8 +148,8 @@ async def login(body: LoginIn, request: Request, response: Response):
             new_hash = await hash_password_async(body.password)
         except Busy:  # the old hash still works; it is upgraded at a later login
             pass
-    out = await run_in_threadpool(_finish, request, response, email, ip, user_id, ok and found is not None,
-                                  stored, new_hash)
+    out = await run_in_threadpool(_finish, request, response, email, body.clinic, ip, user_id,
+                                  ok and found is not None, stored, new_hash)
     if not out:
         raise refusal(request, 401, "login.wrong")
     return out
@@ -199,7 +208,7 @@ async def change_password(body: PasswordChangeIn, request: Request, principal: B
         check_password_strength(body.new_password, email=user.email, name=user.name)
     except WeakPassword as error:
         raise _weak(request, error) from None
-    wait_s = await run_in_threadpool(request.app.state.login_throttle.reserve, user.email, ip)
+    wait_s = await run_in_threadpool(request.app.state.login_throttle.reserve, user.email, ip, user.clinic.name)
     if wait_s:
         raise refusal(request, 429, "login.throttled", headers={"Retry-After": f"{wait_s:.0f}"},
                       seconds=f"{wait_s:.0f}")
@@ -216,7 +225,7 @@ async def change_password(body: PasswordChangeIn, request: Request, principal: B
                 return None
             row = accounts.user_by_id(s, user.id)
             row.password_hash = new_hash
-            request.app.state.login_throttle.succeeded(s, user.email, ip)
+            request.app.state.login_throttle.succeeded(s, user.email, ip, user.clinic.name)
             ended = accounts.close_user_browser_sessions(s, user.id, keep_sha256=sha256_hex(principal.session_id))
             record(s, request, principal, "password_change", status=200,
                    detail=f"self-service; {ended} other session(s) ended")

@@ -37,6 +37,8 @@ class _In(BaseModel):
 class LoginIn(_In):
     email: str = Field(min_length=3, max_length=320)
     password: str = Field(min_length=1, max_length=1000)
+    #: the clinic's name, needed only when the email has accounts in several clinics (app.web.api.auth)
+    clinic: str | None = Field(None, min_length=1, max_length=200)
 
 
 class UserIn(_In):

@@ -4,15 +4,15 @@
   the caller's language); ``PATCH /users/{id}`` changes a role or the active flag (an admin cannot change their
   own, so a clinic always keeps the admin who is acting); deactivating ends the user's browser sessions.
 * ``POST /users/{id}/unlock`` clears the account's login counters (:mod:`app.web.throttle`): a user slowed down
-  by failed logins — theirs or someone else's — can log in again at once.
+  by failed logins — theirs or someone else's — can log in again at once.  It clears the email's counters and
+  this clinic's account counter, never the counter of the same email's account in another clinic.
 
-Emails are the login names, unique across clinics, so an email already in use cannot be given to a new
-account.  The answer to that (409, ``account.email_unavailable``) is the same sentence whether the email is
-taken in the caller's clinic or in another one, and comes after the same password hash as a success (equal
-timing); each such refusal is recorded (``user_create``, 409) so the operator sees an admin probing for emails.
-What this does *not* remove (issue 16 finding 10b, left open): an admin who does not find the email in their
-own clinic's list can still conclude that another clinic uses it — only accounts unique per clinic (login by
-clinic and email) would close that.  Every creation and change is audited (:mod:`app.web.audit`).
+Accounts are per clinic (issue 16 finding 10b): an email is unique within its clinic, and the same person may
+have an account in several clinics (logging in names the clinic then: :mod:`app.web.api.auth`).  A new
+account's email is refused (409, ``account.email_unavailable``) only when the caller's own clinic already has
+it — which the admin can see in their own list anyway; accounts of other clinics are never looked at, so
+creating an account tells an admin nothing about any other clinic.  Each refusal is recorded (``user_create``,
+409).  Every creation and change is audited (:mod:`app.web.audit`).
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ async def create_user(body: UserIn, request: Request, principal: Admin):
         check_password_strength(body.password, email=email, name=body.name)
     except WeakPassword as error:
         raise refusal(request, 422, error.code, **error.params) from None
-    try:  # hashed before the email is looked at: a taken email costs the same time as a new one
+    try:
         password_hash = await hash_password_async(body.password)
     except Busy:
         raise refusal(request, 503, "password.busy", headers={"Retry-After": "2"}) from None
@@ -80,7 +80,7 @@ async def create_user(body: UserIn, request: Request, principal: Admin):
                                          password_hash=password_hash)
                 record(s, request, principal, "user_create", status=201, detail=f"user {user.id} role {user.role}")
                 return user_out(user)
-        except Conflict:  # taken, here or in another clinic: one answer (module docstring)
+        except Conflict:  # taken in this clinic (module docstring)
             with db_.session() as s:
                 record(s, request, principal, "user_create", status=409, detail="email already in use")
             return None
@@ -124,7 +124,7 @@ def change_user(user_id: int, body: UserPatchIn, request: Request, principal: Ad
 def unlock_user(user_id: int, request: Request, principal: Admin, db: DbDep):
     """Clear the user's login counters: they can log in again at once (module docstring)."""
     user = _user_of_clinic(request, principal, db, user_id)
-    cleared = LoginThrottle.unlock(db, user.email)
+    cleared = LoginThrottle.unlock(db, user.email, user.clinic.name)
     record(db, request, principal, "unlock", status=200, detail=f"user {user.id}: {cleared} counter(s) cleared")
     return {"cleared": cleared}
 

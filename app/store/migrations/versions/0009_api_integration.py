@@ -6,7 +6,7 @@ caller's ``Idempotency-Key``: the resource's ids only, never a body), and API to
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
 
 Revision ID: 0009
-Revises: 0007
+Revises: 0008
 Create Date: 2026-12-02 04:10:00
 """
 from alembic import op
@@ -15,7 +15,7 @@ import sqlalchemy as sa
 
 
 revision = '0009'
-down_revision = '0007'
+down_revision = '0008'
 branch_labels = None
 depends_on = None
 
