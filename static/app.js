@@ -122,15 +122,19 @@ function loginView() {
     h("input", { type: "email", name: "email", autocomplete: "username", required: true }));
   const [passField, password] = field(t("login.password"),
     h("input", { type: "password", name: "password", autocomplete: "current-password", required: true }));
+  // an email may have accounts in several clinics (one per clinic): then the clinic's name says which one
+  const [clinicField, clinic] = field(t("login.clinic"),
+    h("input", { type: "text", name: "clinic", autocomplete: "organization", maxlength: 200 }));
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const submit = h("button", { type: "submit" }, t("login.submit"));
-  const form = h("form", { class: "card login" }, emailField, passField, message, submit);
+  const form = h("form", { class: "card login" }, emailField, passField, clinicField, message, submit);
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
     clear(message);
     submit.disabled = true;
     try {
-      const answer = await api("POST", "/auth/login", { json: { email: email.value.trim(), password: password.value } });
+      const answer = await api("POST", "/auth/login", { json: { email: email.value.trim(), password: password.value,
+        clinic: clinic.value.trim() || null } });
       state.user = answer.user;
       setCsrf(answer.csrf_token);
       const next = state.wanted && !state.wanted.startsWith("#/login") ? state.wanted : "#/patients";

@@ -97,6 +97,10 @@ def _make_clinic_admin(settings) -> None:
                           password=PASSWORD)
 
 
+#: each running ``server``'s settings by its base URL (a test that needs the CLI's set-up functions on it)
+SETTINGS: dict[str, object] = {}
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """Base URL of the real app (uvicorn thread on loopback, temporary data dir, development env)."""
@@ -118,6 +122,7 @@ def server(tmp_path_factory):
             pytest.fail("the app did not start on loopback")
         time.sleep(0.05)
     _make_clinic_admin(settings)
+    SETTINGS[f"http://127.0.0.1:{port}"] = settings
     try:
         yield f"http://127.0.0.1:{port}"
     finally:

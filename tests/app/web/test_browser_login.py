@@ -1,0 +1,40 @@
+"""Logging in when one email has accounts in two clinics (issue 16 finding 10b: accounts are per clinic), in real
+Chromium, in Portuguese: without the clinic the form refuses with the sentence that says to name it; with the
+clinic's name typed in the form's clinic field the user lands in that clinic's patient list (read back through
+``/auth/me``).  Texts from static/i18n/pt.json."""
+
+from __future__ import annotations
+
+from test_browser_e2e import SETTINGS, WAIT_MS, _tables, server, slow_expect  # noqa: F401 — fixtures
+
+TWO = "two.clinics@clinic.test"
+PASSWORD_A, PASSWORD_B = "amber falcon river stone", "quiet harbour violet maple"
+
+
+def test_an_email_with_accounts_in_two_clinics_logs_in_by_naming_the_clinic(browser, server, slow_expect):  # noqa: F811
+    from app.cli import admin as admin_cli
+
+    settings = SETTINGS[server]
+    for clinic, password in (("Clínica Norte", PASSWORD_A), ("Clínica Sul", PASSWORD_B)):
+        admin_cli.create_clinic(settings, clinic)
+        admin_cli.create_user(settings, clinic=clinic, email=TWO, role="clinician", name=clinic, password=password)
+    pt = _tables()["pt"]
+    context = browser.new_context(locale="pt-PT", viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        page.goto(f"{server}/#/patients")
+        page.locator("input[name=email]").fill(TWO)
+        page.locator("input[name=password]").fill(PASSWORD_B)
+        page.locator("form.login button[type=submit]").click()  # no clinic named: which account is unknown
+        slow_expect(page.locator("form.login .form-message")).to_contain_text(pt["login.failed"])
+        page.locator("input[name=clinic]").fill("Clínica Sul")
+        page.locator("form.login button[type=submit]").click()
+        slow_expect(page.locator("h1")).to_have_text(pt["patients.title"])
+        me = context.request.get(f"{server}/api/v1/auth/me").json()
+        assert me["user"]["email"] == TWO and me["user"]["name"] == "Clínica Sul", me
+        assert not errors, errors
+    finally:
+        context.close()
