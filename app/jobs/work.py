@@ -63,7 +63,7 @@ from app.store.erasure import reserve_blob
 from app.store.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
 from app.pipeline.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
-from app.store.blobs import Storage
+from app.store.blobs import Storage, discarding
 
 log = logging.getLogger("chakamo.jobs")
 
@@ -324,13 +324,22 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
         contents = {stored[key]: data for key, data in files.items()}
-        with db.session() as s:
+        # written and fsynced before the transaction (BlobWriter.seal): under the locks only the renames
+        sealed = {}
+        try:
+            for key in sorted(contents):
+                sealed[key] = store.sealed(contents[key])
+        except BaseException:
+            for w in sealed.values():
+                w.discard()
+            raise
+        with db.session() as s, discarding(sealed.values()):
             row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
             for sha, size in sorted(contents):
                 # the file is placed under its blob's lock, as an upload's: the same bytes may be another
                 # session's artefact being erased right now (app.store.erasure)
                 reserve_blob(s, sha, size)
-                store.put(contents[sha, size])
+                sealed[sha, size].commit()
             analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
                                 accepted_cycles=int(results["cycles"]["accepted"]),
                                 warnings=len(results["quality"]["warnings"]),

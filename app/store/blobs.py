@@ -35,7 +35,8 @@ import os
 import re
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -82,13 +83,23 @@ class BlobWriter:
         """The hex digest of the bytes written so far (the address :meth:`commit` will use)."""
         return self._hash.hexdigest()
 
-    def commit(self) -> str:
-        """Move the file to its content address, durably (module docstring); returns the sha256 hex digest.  A
-        file already stored there is kept and its modification time refreshed (the eraser reads it:
-        :mod:`app.store.erasure`)."""
+    def seal(self) -> None:
+        """Make the written bytes durable (flush, fsync, close) without placing the file: the slow half of
+        :meth:`commit`, which callers do *before* their database transaction, so that the part of :meth:`commit`
+        done under the blob's lock — and, on SQLite, under the database's one write lock that every writing request
+        waits for — is a rename and a folder fsync, not an fsync of the whole file (issue 16 finding 10h: a burst of
+        uploads held that lock through each file's fsync).  Idempotent; no more :meth:`write` after it."""
+        if self._file.closed:
+            return
         self._file.flush()
         os.fsync(self._file.fileno())
         self._file.close()
+
+    def commit(self) -> str:
+        """Move the file to its content address, durably (module docstring; :meth:`seal` first if the caller did
+        not); returns the sha256 hex digest.  A file already stored there is kept and its modification time
+        refreshed (the eraser reads it: :mod:`app.store.erasure`)."""
+        self.seal()
         digest = self._hash.hexdigest()
         target = self._store.path(digest)
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -201,13 +212,24 @@ class BlobStore:
 
     def put(self, data: bytes) -> tuple[str, int]:
         """Store ``data``; returns ``(sha256, size_bytes)``.  On failure (e.g. ``ENOSPC``) nothing is left behind."""
-        w = self.writer()
+        w = self.sealed(data)
         try:
-            w.write(data)
             return w.commit(), w.size_bytes
         except BaseException:
             w.discard()
             raise
+
+    def sealed(self, data: bytes) -> BlobWriter:
+        """A :class:`BlobWriter` holding ``data``, durable but not yet placed (:meth:`BlobWriter.seal`): the caller
+        commits it under the blob's lock, or discards it.  On failure nothing is left behind."""
+        w = self.writer()
+        try:
+            w.write(data)
+            w.seal()
+        except BaseException:
+            w.discard()
+            raise
+        return w
 
     def read(self, sha256: str) -> bytes:
         """The content of blob ``sha256``, verified; raises :class:`CorruptBlob` if missing or altered."""
@@ -234,10 +256,23 @@ class BlobStore:
             raise CorruptBlob(f"stored file {sha256[:12]}… does not match its checksum; restore it from a backup")
 
 
+@contextmanager
+def discarding(writers: Iterable[BlobWriter]) -> Iterator[None]:
+    """On leaving, discard every writer of ``writers`` (after :meth:`BlobWriter.commit` there is nothing left to
+    discard: the placed file is kept), so sealed files a failed transaction never placed leave nothing behind."""
+    try:
+        yield
+    finally:
+        for w in writers:
+            w.discard()
+
+
 class Storage(Protocol):
     """What the application needs of a file store (module docstring)."""
 
     def writer(self, max_bytes: int | None = None) -> BlobWriter: ...
+
+    def sealed(self, data: bytes) -> BlobWriter: ...
 
     def put(self, data: bytes) -> tuple[str, int]: ...
 
