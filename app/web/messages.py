@@ -104,6 +104,20 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "operador de ChakaMo.",
         "pt": "O e-mail {email} não pode ser usado para uma conta nova da sua clínica; use outro e-mail ou consulte o "
               "operador do ChakaMo."},
+    # webhooks (app.web.api.webhooks)
+    "webhook.url_invalid": {
+        "en": "The webhook URL {url} is not an absolute https:// address; give the receiver's full https address.",
+        "es": "La URL del webhook {url} no es una dirección https:// absoluta; indique la dirección https completa "
+              "del receptor.",
+        "pt": "A URL do webhook {url} não é um endereço https:// absoluto; indique o endereço https completo do "
+              "receptor."},
+    "webhook.url_refused": {
+        "en": "This server does not send webhooks to {host}; ask your ChakaMo administrator to add it to "
+              "CHAKAMO_WEBHOOK_ALLOWED_HOSTS.",
+        "es": "Este servidor no envía webhooks a {host}; pida a su administrador de ChakaMo que lo añada a "
+              "CHAKAMO_WEBHOOK_ALLOWED_HOSTS.",
+        "pt": "Este servidor não envia webhooks para {host}; peça ao seu administrador do ChakaMo que o adicione a "
+              "CHAKAMO_WEBHOOK_ALLOWED_HOSTS."},
 }
 
 

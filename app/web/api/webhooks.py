@@ -3,7 +3,8 @@
 
 ``POST /webhooks {"url", "events": ["job.done", "job.failed"], "label"}`` answers the subscription with its
 ``secret`` — the only time it is shown — with which every delivery is signed (:mod:`app.web.webhooks` says how
-to verify it).  The URL must be ``https`` outside development.  ``GET /webhooks`` lists them (no secrets),
+to verify it).  The URL must be ``https`` outside development and name a host of the operator's
+``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` (:mod:`app.web.webhooks` keeps internal addresses out).  ``GET /webhooks`` lists them (no secrets),
 ``DELETE /webhooks/{id}`` ends one, ``GET /webhooks/{id}/deliveries`` is its audit trail: every delivery with its
 attempts, the last status and error.  Creating and deleting are recorded in the audit log.
 
@@ -20,6 +21,7 @@ import datetime as dt
 import json
 import re
 import secrets
+import urllib.parse
 
 from fastapi import APIRouter, Request, Response
 from fastapi.concurrency import run_in_threadpool
@@ -27,11 +29,12 @@ from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, Field
 
 from app.store import idempotency, webhooks
-from app.store.errors import Invalid
 from app.store.models import utcnow
 from app.web import audit
 from app.web.api.deps import Admin, DbDep, Reader
+from app.web.headers import host_allowed
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
+from app.web.refusals import Refusal
 
 router = APIRouter(tags=["webhooks"])
 #: how long one event stream stays open (the browser reconnects)
@@ -75,7 +78,8 @@ def _out(row, secret: str | None = None) -> dict:
 
 @router.post("/webhooks", response_model=WebhookOut, status_code=201, openapi_extra={"parameters": [KEY_PARAMETER]},
              responses={201: {"headers": LOCATION},
-                        400: {"description": "the URL is not http(s), or not https outside development"}})
+                        400: {"description": "the URL is not http(s), not https outside development, or its host is "
+                                              "not in CHAKAMO_WEBHOOK_ALLOWED_HOSTS"}})
 def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Request):
     """Subscribe ``url`` to the events; the answer's ``secret`` is shown only now (and to a repeat of this
     request with its ``Idempotency-Key``)."""
@@ -85,9 +89,12 @@ def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Reques
         row = webhooks.clinic_subscription(db, principal.clinic_id, claimed.resource_ids[0])
         return answer(_out(row, row.secret), claimed.status, f"/api/v1/webhooks/{row.id}", replayed=True)
     url = body.url.strip()
-    development = request.app.state.settings.development
-    if not _URL.fullmatch(url) or (not development and not url.lower().startswith("https://")):
-        raise Invalid(f"webhook URL {url[:80]!r} must be an absolute https:// address")
+    settings = request.app.state.settings
+    if not _URL.fullmatch(url) or (not settings.development and not url.lower().startswith("https://")):
+        raise Refusal(400, "webhook.url_invalid", url=repr(url[:80]))
+    host = urllib.parse.urlsplit(url).hostname or ""
+    if not host_allowed(host, settings.webhook_host_patterns):  # the sender checks the address again
+        raise Refusal(400, "webhook.url_refused", host=repr(host[:80]))
     secret = secrets.token_urlsafe(32)
     row = webhooks.add_subscription(db, principal.clinic_id, url=url, events=body.events, secret=secret,
                                     label=body.label)

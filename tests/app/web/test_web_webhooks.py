@@ -51,7 +51,7 @@ def live(tmp_path):
     from app.cli import admin as admin_cli
     from app.web.main import create_app
 
-    settings = make_settings(tmp_path / "data", CHAKAMO_WEBHOOK_RETRY_S=0.5)
+    settings = make_settings(tmp_path / "data", CHAKAMO_WEBHOOK_RETRY_S=0.5, CHAKAMO_WEBHOOK_ALLOWED_HOSTS="127.0.0.1")
     sock = _loopback_socket()
     srv = uvicorn.Server(uvicorn.Config(create_app(settings), log_level="warning", access_log=False))
     thread = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
