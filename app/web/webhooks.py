@@ -154,18 +154,27 @@ class WebhookSender:
                 self.db.dispose()
 
     def run_once(self) -> int:
-        """Plan, then send what is due; how many attempts were made."""
+        """Plan, then send what is due, one claimed delivery at a time; a subscription whose attempt failed gets
+        no other this round (a dead receiver costs a round one timeout, not one per delivery, so it holds no
+        other clinic's deliveries up); how many attempts were made."""
         with self.db.sessions() as s:
             webhooks.plan_deliveries(s)
-            due = webhooks.claim_due(s)
-        for d in due:
+        failed: set[int] = set()
+        made = 0
+        while not self._stop.is_set():
+            with self.db.sessions() as s:
+                d = webhooks.claim_due(s, skip=frozenset(failed))
+            if d is None:
+                break
+            made += 1
             status, error = send(d, self.allowed_hosts)
             with self.db.sessions() as s:
-                state = webhooks.record_attempt(s, d.id, status=status, error=error, base_s=self.retry_base_s)
+                state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s)
             if state != "delivered":
+                failed.add(d.subscription_id)
                 log.warning("webhook delivery %s (%s) attempt %d to %s: %s -> %s", d.id, d.event, d.attempt, d.url,
                             error or status, state)
-        return len(due)
+        return made
 
     def _loop(self) -> None:
         while not self._stop.wait(self.EVERY_S):

@@ -7,6 +7,7 @@ real names (``localhost``).
 
 from __future__ import annotations
 
+import datetime as dt
 import socket
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -66,7 +67,7 @@ def test_internal_addresses_are_refused_at_send_time_unless_named_exactly():
 
 
 def _due(url: str) -> webhooks.Due:
-    return webhooks.Due(1, url, "s" * 32, "job.done", {"event": "job.done"}, 1)
+    return webhooks.Due(1, url, "s" * 32, "job.done", {"event": "job.done"}, 1, dt.datetime.now(), 1)
 
 
 def test_the_trail_says_could_not_connect_never_the_cause():
