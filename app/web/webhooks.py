@@ -39,6 +39,7 @@ import urllib.parse
 
 from app.store import webhooks
 from app.web.headers import host_allowed
+from app.web.sealed import unseal
 
 log = logging.getLogger("chakamo.webhooks")
 TIMEOUT_S = 10.0
@@ -105,14 +106,15 @@ class _PinnedHTTPS(http.client.HTTPSConnection):
         self.sock = self._context.wrap_socket(sock, server_hostname=self.host)
 
 
-def send(due: webhooks.Due, patterns: tuple[str, ...]) -> tuple[int | None, str]:
+def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes) -> tuple[int | None, str]:
     """POST one delivery to the address :func:`resolve` allows; ``(status or None, error sentence or "")``.
     The error a clinic sees is generic (``HTTP <status>`` or :data:`NO_CONNECTION`); why the connection failed
-    is logged for the operator only (it would tell a clinic about the server's network)."""
+    is logged for the operator only (it would tell a clinic about the server's network).  ``key``: the
+    ``CHAKAMO_SECRET_KEY`` the subscription's secret is sealed under (:mod:`app.web.sealed`)."""
     body = json.dumps({"id": due.id, **due.payload}, separators=(",", ":")).encode()
     headers = {"Content-Type": "application/json", "User-Agent": "ChakaMo-Webhooks",
                "X-ChakaMo-Event": due.event, "X-ChakaMo-Delivery": str(due.id),
-               "X-ChakaMo-Signature": signature(due.secret, int(time.time()), body)}
+               "X-ChakaMo-Signature": signature(unseal(key, due.secret), int(time.time()), body)}
     url = urllib.parse.urlsplit(due.url)
     https = url.scheme.lower() == "https"
     try:
@@ -135,8 +137,8 @@ class WebhookSender:
 
     EVERY_S = 1.0
 
-    def __init__(self, db, retry_base_s: float, allowed_hosts: tuple[str, ...] = ()) -> None:
-        self.db, self.retry_base_s, self.allowed_hosts = db, retry_base_s, allowed_hosts
+    def __init__(self, db, retry_base_s: float, allowed_hosts: tuple[str, ...], key: bytes) -> None:
+        self.db, self.retry_base_s, self.allowed_hosts, self.key = db, retry_base_s, allowed_hosts, key
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -167,7 +169,7 @@ class WebhookSender:
             if d is None:
                 break
             made += 1
-            status, error = send(d, self.allowed_hosts)
+            status, error = send(d, self.allowed_hosts, self.key)
             with self.db.sessions() as s:
                 state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s)
             if state != "delivered":

@@ -35,6 +35,7 @@ from app.web.api.deps import Admin, DbDep, Reader
 from app.web.headers import host_allowed
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.refusals import Refusal
+from app.web.sealed import seal
 
 router = APIRouter(tags=["webhooks"])
 #: how long one event stream stays open (the browser reconnects)
@@ -55,7 +56,8 @@ class WebhookOut(BaseModel):
     events: list[str]
     label: str
     created_at: dt.datetime
-    secret: str | None = Field(None, description="only in the answer of the POST: sign-checking key, keep it")
+    secret: str | None = Field(None, description="only in the answer of the first POST: sign-checking key, keep "
+                                                     "it (a replay of the POST does not show it again)")
 
 
 class DeliveryOut(BaseModel):
@@ -81,13 +83,13 @@ def _out(row, secret: str | None = None) -> dict:
                         400: {"description": "the URL is not http(s), not https outside development, or its host is "
                                               "not in CHAKAMO_WEBHOOK_ALLOWED_HOSTS"}})
 def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Request):
-    """Subscribe ``url`` to the events; the answer's ``secret`` is shown only now (and to a repeat of this
-    request with its ``Idempotency-Key``)."""
+    """Subscribe ``url`` to the events; the answer's ``secret`` is shown only now (a repeat of this request with
+    its ``Idempotency-Key`` answers the subscription without it); it is stored sealed (:mod:`app.web.sealed`)."""
     key = key_of(request)
     claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request, body), "webhook") if key else None
     if isinstance(claimed, idempotency.Replay):
         row = webhooks.clinic_subscription(db, principal.clinic_id, claimed.resource_ids[0])
-        return answer(_out(row, row.secret), claimed.status, f"/api/v1/webhooks/{row.id}", replayed=True)
+        return answer(_out(row), claimed.status, f"/api/v1/webhooks/{row.id}", replayed=True)
     url = body.url.strip()
     settings = request.app.state.settings
     if not _URL.fullmatch(url) or (not settings.development and not url.lower().startswith("https://")):
@@ -96,8 +98,8 @@ def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Reques
     if not host_allowed(host, settings.webhook_host_patterns):  # the sender checks the address again
         raise Refusal(400, "webhook.url_refused", host=repr(host[:80]))
     secret = secrets.token_urlsafe(32)
-    row = webhooks.add_subscription(db, principal.clinic_id, url=url, events=body.events, secret=secret,
-                                    label=body.label)
+    row = webhooks.add_subscription(db, principal.clinic_id, url=url, events=body.events,
+                                    secret=seal(settings.key, secret), label=body.label)
     if claimed is not None:
         idempotency.complete(claimed, [row.id], 201)
     audit.record(db, request, principal, "create", detail=f"webhook {row.id} to {url[:200]}")

@@ -80,7 +80,7 @@ def test_a_dead_receiver_gets_one_attempt_a_round_and_holds_no_one_up(db):
     try:
         dead = _subscription(db, f"http://127.0.0.1:{dead_port}/dead", 5)
         live = _subscription(db, f"http://127.0.0.1:{server.server_address[1]}/live", 2)
-        sender = WebhookSender(db, 10.0, ("127.0.0.1",))
+        sender = WebhookSender(db, 10.0, ("127.0.0.1",), b"k" * 32)
         assert sender.run_once() == 3  # the dead one's first failure ends its round
         with db.session() as s:
             rows = s.query(WebhookDelivery).all()

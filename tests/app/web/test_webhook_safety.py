@@ -16,6 +16,7 @@ import pytest
 from web_helpers import make_settings
 
 from app.store import webhooks
+from app.web.sealed import PREFIX, seal, unseal
 from app.web.webhooks import NO_CONNECTION, AddressRefused, resolve, send
 
 
@@ -66,17 +67,20 @@ def test_internal_addresses_are_refused_at_send_time_unless_named_exactly():
     assert resolve("localhost", 80, ("localhost",)) in ("127.0.0.1", "::1")
 
 
+KEY = b"an operator's key of at least 32 characters"
+
+
 def _due(url: str) -> webhooks.Due:
-    return webhooks.Due(1, url, "s" * 32, "job.done", {"event": "job.done"}, 1, dt.datetime.now(), 1)
+    return webhooks.Due(1, url, seal(KEY, "s" * 43), "job.done", {"event": "job.done"}, 1, dt.datetime.now(), 1)
 
 
 def test_the_trail_says_could_not_connect_never_the_cause():
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    assert send(_due(f"http://127.0.0.1:{port}/"), ("127.0.0.1",)) == (None, NO_CONNECTION)
+    assert send(_due(f"http://127.0.0.1:{port}/"), ("127.0.0.1",), KEY) == (None, NO_CONNECTION)
     # refused (not allowed) looks the same as closed: no port scanning through the trail
-    assert send(_due(f"http://127.0.0.1:{port}/"), ("*",)) == (None, NO_CONNECTION)
+    assert send(_due(f"http://127.0.0.1:{port}/"), ("*",), KEY) == (None, NO_CONNECTION)
 
 
 def test_an_allowed_receiver_gets_the_post_on_the_checked_address():
@@ -95,8 +99,38 @@ def test_an_allowed_receiver_gets_the_post_on_the_checked_address():
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
         url = f"http://127.0.0.1:{server.server_address[1]}/hook?x=1"
-        assert send(_due(url), ("127.0.0.1",)) == (204, "")
-        assert send(_due(url), ("127.0.0.1",)) == (503, "HTTP 503")
+        assert send(_due(url), ("127.0.0.1",), KEY) == (204, "")
+        assert send(_due(url), ("127.0.0.1",), KEY) == (503, "HTTP 503")
         assert got[0][0] == "/hook?x=1" and got[0][1].startswith("127.0.0.1")
     finally:
         server.shutdown()
+
+
+def test_a_webhook_secret_is_stored_sealed_and_shown_only_once(tmp_path):
+    from cryptography.exceptions import InvalidTag
+
+    from app.store.database import Database
+    from app.store.models import WebhookSubscription
+
+    client = _client(tmp_path, "hooks.example.org")
+    try:
+        body = {"url": "https://hooks.example.org/x", "events": ["job.done"]}
+        first = client.post("/api/v1/webhooks", json=body, headers={"Idempotency-Key": "h-1"})
+        replay = client.post("/api/v1/webhooks", json=body, headers={"Idempotency-Key": "h-1"})
+        secret = first.json()["secret"]
+        assert first.status_code == replay.status_code == 201 and len(secret) == 43
+        assert replay.headers["idempotent-replayed"] == "true" and replay.json()["secret"] is None
+        assert replay.json()["id"] == first.json()["id"]
+        settings = client.app.state.settings
+    finally:
+        client.__exit__(None, None, None)
+    db = Database(settings.db_url)
+    try:
+        with db.session() as s:
+            stored = s.query(WebhookSubscription).one().secret
+    finally:
+        db.dispose()
+    assert stored.startswith(PREFIX) and secret not in stored and len(stored) <= 100
+    assert unseal(settings.key, stored) == secret
+    with pytest.raises(InvalidTag):  # a copy of the database without the key opens nothing
+        unseal(b"another key of at least thirty-two characters", stored)
