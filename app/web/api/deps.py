@@ -42,6 +42,7 @@ from fastapi.security import HTTPBearer
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
+from app.choices import TOKEN_SCOPES
 from app.jobs.work import JobRunner
 from app.settings import Settings
 from app.store import accounts, tokens
@@ -221,13 +222,28 @@ SCOPE_OF_TAG = {"patients": "patients", "sessions": "sessions", "recordings": "r
                 "results": "results", "artefacts": "results", "fhir": "fhir", "audit": "audit", "users": "users",
                 "webhooks": "jobs"}
 UNSCOPED_TAGS = frozenset({"auth", "options", "clinics"})
+#: the ``openapi_extra`` member naming a route's own scope where its router's family is not what it touches
+#: (``GET /patients/{id}/trend`` reads results): :func:`route_scope`
+SCOPE_MEMBER = "x-chakamo-scope"
+
+
+def route_scope(scope: str, **openapi_extra) -> dict:
+    """``openapi_extra`` of a route that needs ``scope`` (one of :data:`app.choices.TOKEN_SCOPES`) whatever its
+    router; also shown in the OpenAPI document."""
+    if scope not in TOKEN_SCOPES:
+        raise ValueError(f"unknown scope {scope}")
+    return {SCOPE_MEMBER: scope, **openapi_extra}
 
 
 def needed_scope(request: Request) -> str | None:
-    """The scope the request's route needs: its router's family and ``read`` for GET/HEAD, else ``write``
-    (None: no scope needed).  A route of a router missing from :data:`SCOPE_OF_TAG` needs a scope no token
-    has (refused to scoped tokens: a new router must be given its family)."""
+    """The scope the request's route needs: the one it names (:func:`route_scope`), else its router's family
+    and ``read`` for GET/HEAD, else ``write`` (None: no scope needed).  A route of a router missing from
+    :data:`SCOPE_OF_TAG` needs a scope no token has (refused to scoped tokens: a new router must be given its
+    family)."""
     route = request.scope.get("route")
+    own = (getattr(route, "openapi_extra", None) or {}).get(SCOPE_MEMBER)
+    if own is not None:
+        return own
     tag = (getattr(route, "tags", None) or ["?"])[0]
     if tag in UNSCOPED_TAGS:
         return None
@@ -304,5 +320,5 @@ def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
 __all__ = ["COOKIE", "CSRF_HEADER", "STATUS_OF", "Admin", "CheckerDep", "Clinician", "DbDep", "Principal",
            "PrincipalDep", "Reader", "RunnerDep", "SettingsDep", "StoreDep", "UploadClinician", "checker_of",
            "domain_errors", "get_checker", "get_db", "get_principal", "get_runner", "get_settings_dep", "get_store",
-           "get_upload_principal", "http_error", "needed_scope", "require", "resolve_principal", "scoped_job", "scoped_patient",
+           "get_upload_principal", "http_error", "needed_scope", "require", "route_scope", "resolve_principal", "scoped_job", "scoped_patient",
            "scoped_session"]
