@@ -25,7 +25,7 @@
 | ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
 | ``CHAKAMO_ALLOWED_HOSTS`` | ``*`` | comma-separated host names a request's ``Host`` may name (``*.example.org`` for subdomains); others answer 400 (``/healthz``, ``/readyz`` excepted); ``*`` any |
 | ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` | none | URI of the hospital's record-number namespace: the FHIR MR identifier's system and ``GET /patients?identifier=system|value`` |
-| ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``) |
+| ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``): an http(s) address (a ``urn:`` is refused at start-up) |
 | ``CHAKAMO_FHIR_CODE_SYSTEM`` | ChakaMo's ``urn:uuid:`` code system | URI of the code system of the exported codes |
 | ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it |
 | ``CHAKAMO_ACCESSION_SYSTEM`` | none | URI of the namespace of the sessions' accession numbers |
@@ -143,6 +143,16 @@ class Settings(BaseSettings):
             raise SettingsError(f"{value!r} is not a URI (CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, CHAKAMO_FHIR_IDENTIFIER_BASE, "
                                 "CHAKAMO_FHIR_CODE_SYSTEM, CHAKAMO_ACCESSION_SYSTEM); give e.g. urn:oid:1.2.3 or "
                                 "https://hospital.example/mrn")
+        return value
+
+    @field_validator("fhir_identifier_base", mode="after")
+    @classmethod
+    def _identifier_base(cls, value: str | None) -> str | None:
+        if value is not None and not re.match(r"https?://", value, flags=re.IGNORECASE):
+            raise SettingsError(f"CHAKAMO_FHIR_IDENTIFIER_BASE={value!r} is not an http(s) address: the identifier "
+                                "systems are <base>/sessions and <base>/patients, which a urn: cannot be extended "
+                                "into; give e.g. https://chakamo.hospital.example/api/v1, or leave it unset "
+                                "(CHAKAMO_PUBLIC_URL/api/v1)")
         return value
 
     @property
