@@ -104,6 +104,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "operador de ChakaMo.",
         "pt": "O e-mail {email} não pode ser usado para uma conta nova da sua clínica; use outro e-mail ou consulte o "
               "operador do ChakaMo."},
+    # Idempotency-Key (app.store.idempotency, app.web.idempotency)
+    "idempotency.key_reused": {
+        "en": "Idempotency-Key {key} was used for another request; send a new key for a new request.",
+        "es": "La Idempotency-Key {key} se usó para otra petición; envíe una clave nueva para una petición nueva.",
+        "pt": "A Idempotency-Key {key} foi usada para outro pedido; envie uma chave nova para um pedido novo."},
+    "idempotency.in_flight": {
+        "en": "A request with Idempotency-Key {key} is still running; retry in a few seconds.",
+        "es": "Una petición con la Idempotency-Key {key} aún está en curso; reinténtelo en unos segundos.",
+        "pt": "Um pedido com a Idempotency-Key {key} ainda está em andamento; tente de novo em alguns segundos."},
     # webhooks (app.web.api.webhooks)
     "webhook.url_invalid": {
         "en": "The webhook URL {url} is not an absolute https:// address; give the receiver's full https address.",
