@@ -11,7 +11,9 @@ attempts, the last status and error.  Creating and deleting are recorded in the 
 ``GET /events`` (``text/event-stream``, any role): ``event: job`` with ``{"id", "session_id", "status",
 "progress", "stage", "analysis_id"}`` whenever one of the clinic's jobs changes, checked every second; a comment
 line every 15 s keeps proxies from closing it; the stream ends after :data:`STREAM_S` seconds and the browser's
-``EventSource`` reconnects by itself.
+``EventSource`` reconnects by itself.  The caller is resolved again every :data:`RECHECK_S` seconds: a token
+expired or revoked, or a login closed, meanwhile ends the stream with ``event: end`` carrying the refusal
+(``{"status", "code", "params", "message"}``), so a revoked credential stops hearing the clinic's news.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import re
 import secrets
 import urllib.parse
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, HTTPException, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, Field
@@ -31,7 +33,7 @@ from pydantic import BaseModel, Field
 from app.store import idempotency, webhooks
 from app.store.models import utcnow
 from app.web import audit
-from app.web.api.deps import Admin, DbDep, Reader
+from app.web.api.deps import Admin, DbDep, Reader, resolve_principal
 from app.web.headers import host_allowed
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.refusals import Refusal
@@ -40,6 +42,8 @@ from app.web.sealed import seal
 router = APIRouter(tags=["webhooks"])
 #: how long one event stream stays open (the browser reconnects)
 STREAM_S = 600.0
+#: how often the stream checks that its caller is still let in (a revoked or expired token)
+RECHECK_S = 30.0
 _URL = re.compile(r"https?://[^\s/?#]+[^\s]*", re.IGNORECASE)
 
 
@@ -133,6 +137,17 @@ def _states(request: Request, clinic_id: int, since: dt.datetime) -> list[dict]:
         return webhooks.job_states(db, clinic_id, since)
 
 
+def _refused(request: Request, clinic_id: int) -> dict | None:
+    """None while the request's credentials still let it in to ``clinic_id``; else the refusal's body."""
+    try:
+        with request.app.state.db.session() as db:
+            again = resolve_principal(request, db, request.app.state.settings)
+    except HTTPException as exc:
+        body = exc.body() if isinstance(exc, Refusal) else {"detail": exc.detail}
+        return {"status": exc.status_code} | {k: body[k] for k in ("code", "params", "message", "detail") if k in body}
+    return None if again.clinic_id == clinic_id else {"status": 403}
+
+
 @router.get("/events", response_class=StreamingResponse,
             responses={200: {"content": {"text/event-stream": {}},
                              "description": "server-sent events: `event: job` with the job's state as JSON"}})
@@ -142,11 +157,18 @@ async def events(principal: Reader, request: Request):
 
     async def stream():
         start, last, shown = asyncio.get_running_loop().time(), 0.0, {}
+        checked = start
         since = utcnow()
         yield "retry: 3000\n\n"
         while asyncio.get_running_loop().time() - start < STREAM_S:
             if await request.is_disconnected():
                 return
+            if asyncio.get_running_loop().time() - checked >= RECHECK_S:
+                checked = asyncio.get_running_loop().time()
+                refused = await run_in_threadpool(_refused, request, clinic_id)
+                if refused is not None:
+                    yield f"event: end\ndata: {json.dumps(refused)}\n\n"
+                    return
             for job in await run_in_threadpool(_states, request, clinic_id, since - dt.timedelta(seconds=5)):
                 key = (job["status"], job["progress"], job["stage"])
                 if shown.get(job["id"]) != key:

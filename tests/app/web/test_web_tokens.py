@@ -127,3 +127,28 @@ def test_a_route_is_guarded_by_what_it_touches_not_by_its_router(app_client):
     made = client.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=bearer("sessions:write"))
     assert made.status_code == 201, made.text
     assert client.get(f"/api/v1/patients/{pid}", headers=patients_only).status_code == 200
+
+
+def test_the_event_stream_ends_when_its_token_is_revoked(app_client, monkeypatch):
+    """``GET /events`` resolves its caller again while streaming: a token revoked meanwhile ends the stream with
+    ``event: end`` carrying the refusal's code and es/en/pt message (it used to stream on for up to 600 s)."""
+    import json
+    import threading
+
+    from app.cli import admin as admin_cli
+    from app.web.api import webhooks as events_api
+
+    client, settings = app_client
+    monkeypatch.setattr(events_api, "RECHECK_S", 0.2)
+    monkeypatch.setattr(events_api, "STREAM_S", 30.0)
+    token = admin_cli.create_token(settings, clinic="Hospital Tokens", label="stream")
+    token_id = admin_cli.list_tokens(settings, clinic="Hospital Tokens")[-1]["id"]
+    timer = threading.Timer(1.0, admin_cli.revoke_token, (settings, token_id))
+    timer.start()
+    r = client.get("/api/v1/events", headers={"Authorization": f"Bearer {token}"})
+    timer.join()
+    assert r.status_code == 200
+    blocks = [b for b in r.text.split("\n\n") if b.startswith("event: end")]
+    assert blocks, r.text
+    end = json.loads(blocks[0].split("data: ", 1)[1])
+    assert end["status"] == 401 and end["code"] == "auth.token_unknown" and set(end["message"]) == {"es", "en", "pt"}
