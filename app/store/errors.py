@@ -10,10 +10,10 @@ from __future__ import annotations
 
 
 class DomainError(Exception):
-    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do.  ``code`` and
+    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do.  ``message_code`` and
     ``params``, when set, name its es/en/pt sentence (``app.web.refusals``; ``detail`` is then its English)."""
 
-    code: str | None = None
+    message_code: str | None = None
 
     def __init__(self, detail: str, **params) -> None:
         super().__init__(detail)

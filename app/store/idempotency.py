@@ -33,7 +33,7 @@ MAX_KEY_LENGTH = 200
 class KeyReused(Conflict):
     """The key was used for another request (another path or body)."""
 
-    code = "idempotency.key_reused"
+    message_code = "idempotency.key_reused"
 
     def __init__(self, key: str) -> None:
         super().__init__(f"Idempotency-Key {key!r} was used for another request; send a new key for a new request.",
@@ -44,7 +44,7 @@ class KeyReused(Conflict):
 class KeyInFlight(Conflict):
     """The first request with this key has not finished yet."""
 
-    code = "idempotency.in_flight"
+    message_code = "idempotency.in_flight"
 
     def __init__(self, key: str) -> None:
         super().__init__(f"A request with Idempotency-Key {key!r} is still running; retry in a few seconds.",

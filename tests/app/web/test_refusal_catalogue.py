@@ -51,8 +51,8 @@ def test_every_refusal_code_is_in_a_catalogue_in_three_languages():
             codes.add((where, node.args[2].value))
     for module in (errors, __import__("app.store.idempotency", fromlist=["x"])):
         for cls in vars(module).values():
-            if inspect.isclass(cls) and issubclass(cls, errors.DomainError) and cls.code is not None:
-                codes.add((module.__name__, cls.code))
+            if inspect.isclass(cls) and issubclass(cls, errors.DomainError) and cls.message_code is not None:
+                codes.add((module.__name__, cls.message_code))
     assert {c for _, c in codes} >= {"auth.scope_missing", "auth.token_expired", "idempotency.key_reused",
                                      "idempotency.in_flight", "webhook.url_refused"}
     missing = [(w, c) for w, c in codes if c not in CODES or set(CODES[c]) != {"es", "en", "pt"}]
