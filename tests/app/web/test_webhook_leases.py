@@ -2,7 +2,7 @@
 17's webhooks: a round used to claim 20 deliveries under one 60 s lease and send them 10 s each, so the lease ran
 out and another server sent them again, and the late attempt was recorded over the other server's).
 
-A real SQLite database migrated by the product; real receivers on loopback (``http.server``) and a real closed
+A real database (SQLite and PostgreSQL) migrated by the product; real receivers on loopback (``http.server``) and a real closed
 port.
 """
 
@@ -22,8 +22,8 @@ from app.web.webhooks import WebhookSender
 
 
 @pytest.fixture
-def db(tmp_path):
-    database = Database(f"sqlite:///{tmp_path / 'hooks.db'}")
+def db(tmp_path, database_url):
+    database = Database(database_url or f"sqlite:///{tmp_path / 'hooks.db'}")
     database.migrate()
     yield database
     database.dispose()
