@@ -25,10 +25,11 @@
 | ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
 | ``CHAKAMO_ALLOWED_HOSTS`` | ``*`` | comma-separated host names a request's ``Host`` may name (``*.example.org`` for subdomains); others answer 400 (``/healthz``, ``/readyz`` excepted); ``*`` any |
 | ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` | none | URI of the hospital's record-number namespace: the FHIR MR identifier's system and ``GET /patients?identifier=system|value`` |
-| ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``) |
+| ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``): an http(s) address (a ``urn:`` is refused at start-up) |
 | ``CHAKAMO_FHIR_CODE_SYSTEM`` | ChakaMo's ``urn:uuid:`` code system | URI of the code system of the exported codes |
 | ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it |
 | ``CHAKAMO_ACCESSION_SYSTEM`` | none | URI of the namespace of the sessions' accession numbers |
+| ``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` | none (webhooks refused) | comma-separated host names a webhook URL may name (``*.hospital.example`` for subdomains, ``*`` any); a name resolving to a loopback, private, link-local or multicast address is refused at send time unless named exactly here (:mod:`app.web.webhooks`) |
 | ``CHAKAMO_WEBHOOK_RETRY_S`` | 10 | first webhook retry's wait, doubling each time (:mod:`app.web.webhooks`) |
 
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
@@ -111,6 +112,8 @@ class Settings(BaseSettings):
     accession_system: str | None = Field(None, validation_alias="CHAKAMO_ACCESSION_SYSTEM")
     #: the first webhook retry's wait; each next one doubles it (``app.web.webhooks``)
     webhook_retry_s: float = Field(10.0, gt=0, le=3600, validation_alias="CHAKAMO_WEBHOOK_RETRY_S")
+    #: the host names webhook URLs may name (``app.web.webhooks``); empty: webhooks are refused
+    webhook_allowed_hosts: str = Field("", validation_alias="CHAKAMO_WEBHOOK_ALLOWED_HOSTS")
     allowed_suffixes: tuple[str, ...] = ALLOWED_SUFFIXES
 
     @field_validator("env", "job_backend", mode="before")
@@ -142,10 +145,25 @@ class Settings(BaseSettings):
                                 "https://hospital.example/mrn")
         return value
 
+    @field_validator("fhir_identifier_base", mode="after")
+    @classmethod
+    def _identifier_base(cls, value: str | None) -> str | None:
+        if value is not None and not re.match(r"https?://", value, flags=re.IGNORECASE):
+            raise SettingsError(f"CHAKAMO_FHIR_IDENTIFIER_BASE={value!r} is not an http(s) address: the identifier "
+                                "systems are <base>/sessions and <base>/patients, which a urn: cannot be extended "
+                                "into; give e.g. https://chakamo.hospital.example/api/v1, or leave it unset "
+                                "(CHAKAMO_PUBLIC_URL/api/v1)")
+        return value
+
     @property
     def host_patterns(self) -> tuple[str, ...]:
         """:data:`allowed_hosts` as lower-case names (``("*",)``: any)."""
         return tuple(h.strip().lower() for h in self.allowed_hosts.split(",") if h.strip()) or ("*",)
+
+    @property
+    def webhook_host_patterns(self) -> tuple[str, ...]:
+        """:data:`webhook_allowed_hosts` as lower-case names (empty: none allowed)."""
+        return tuple(h.strip().lower() for h in self.webhook_allowed_hosts.split(",") if h.strip())
 
     @model_validator(mode="after")
     def _refuse_insecure(self) -> "Settings":

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 
 class DomainError(Exception):
-    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do."""
+    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do.  ``message_code`` and
+    ``params``, when set, name its es/en/pt sentence (``app.web.refusals``; ``detail`` is then its English)."""
 
-    def __init__(self, detail: str) -> None:
+    message_code: str | None = None
+
+    def __init__(self, detail: str, **params) -> None:
         super().__init__(detail)
-        self.detail = detail
+        self.detail, self.params = detail, params
 
 
 class NotFound(DomainError):

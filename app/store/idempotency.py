@@ -33,16 +33,22 @@ MAX_KEY_LENGTH = 200
 class KeyReused(Conflict):
     """The key was used for another request (another path or body)."""
 
+    message_code = "idempotency.key_reused"
+
     def __init__(self, key: str) -> None:
-        super().__init__(f"Idempotency-Key {key!r} was used for another request; send a new key for a new request.")
+        super().__init__(f"Idempotency-Key {key!r} was used for another request; send a new key for a new request.",
+                         key=repr(key))
         self.key = key
 
 
 class KeyInFlight(Conflict):
     """The first request with this key has not finished yet."""
 
+    message_code = "idempotency.in_flight"
+
     def __init__(self, key: str) -> None:
-        super().__init__(f"A request with Idempotency-Key {key!r} is still running; retry in a few seconds.")
+        super().__init__(f"A request with Idempotency-Key {key!r} is still running; retry in a few seconds.",
+                         key=repr(key))
 
 
 @dataclass(frozen=True)

@@ -342,7 +342,8 @@ class IdempotencyKey(Base):
 
 class WebhookSubscription(Base):
     """Where a clinic wants to hear that a job finished or failed (``app.store.webhooks``): each delivery is signed
-    with HMAC-SHA256 under ``secret`` (shown once, when the subscription is made)."""
+    with HMAC-SHA256 under ``secret`` (shown once, when the subscription is made; stored sealed under
+    ``CHAKAMO_SECRET_KEY``, :mod:`app.web.sealed`)."""
 
     __tablename__ = "webhook_subscriptions"
     id: Mapped[int] = mapped_column(primary_key=True)

@@ -3,9 +3,9 @@
 When a job of the clinic ends — ``done`` or ``failed`` — every subscription made before it ended and asking
 for that event gets one delivery (:func:`plan_deliveries`; unique per subscription and job, so two servers
 planning at once make one).  A delivery carries ids and links only, never a patient's data.  The sender
-(:mod:`app.web.webhooks`) claims due deliveries (:func:`claim_due`: their next attempt is pushed a lease ahead
-in the same statement that checks it, so two servers never send one attempt twice) and records each attempt
-(:func:`record_attempt`): a 2xx answer delivers it; otherwise the next attempt waits ``base_s · 2^(n−1)``
+(:mod:`app.web.webhooks`) claims one due delivery at a time (:func:`claim_due`: its next attempt is pushed a
+lease ahead in the same statement that checks it, so two servers never send one attempt twice) and records each
+attempt only while that lease is still its own (:func:`record_attempt`, a conditional update): a 2xx answer delivers it; otherwise the next attempt waits ``base_s · 2^(n−1)``
 (capped at :data:`MAX_BACKOFF_S`) until :data:`MAX_ATTEMPTS` attempts were made, then the delivery is
 ``failed``.  Every row stays as the audit trail (``GET /webhooks/{id}/deliveries``).
 """
@@ -104,7 +104,7 @@ def plan_deliveries(db: Session, limit: int = 200) -> int:
 
 @dataclass(frozen=True)
 class Due:
-    """A delivery to attempt now: where, with which secret, what."""
+    """A delivery to attempt now: where, with which secret, what; ``lease``: until when it is ours."""
 
     id: int
     url: str
@@ -112,46 +112,61 @@ class Due:
     event: str
     payload: dict
     attempt: int
+    lease: dt.datetime
+    subscription_id: int
 
 
-def claim_due(db: Session, now: dt.datetime | None = None, limit: int = 20) -> list[Due]:
-    """The pending deliveries due now, each claimed for :data:`LEASE_S` (module docstring).  Commits."""
+def claim_due(db: Session, now: dt.datetime | None = None, skip: frozenset[int] = frozenset()) -> Due | None:
+    """The pending delivery due first now, not of a subscription in ``skip``, claimed for :data:`LEASE_S`
+    (module docstring); None when none is due.  One at a time: the lease covers one send (a send's timeout is
+    well under it), so it cannot run out while the sender works through a batch.  Commits."""
     now = now or utcnow()
-    candidates = db.execute(select(WebhookDelivery.id, WebhookDelivery.next_attempt_at)
-                            .where(WebhookDelivery.state == "pending", WebhookDelivery.next_attempt_at <= now)
-                            .order_by(WebhookDelivery.next_attempt_at).limit(limit)).all()
-    claimed = []
-    for delivery_id, due_at in candidates:
+    lease = now + dt.timedelta(seconds=LEASE_S)
+    while True:
+        query = (select(WebhookDelivery.id, WebhookDelivery.next_attempt_at)
+                 .where(WebhookDelivery.state == "pending", WebhookDelivery.next_attempt_at <= now)
+                 .order_by(WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(1))
+        if skip:
+            query = query.where(WebhookDelivery.subscription_id.not_in(skip))
+        candidate = db.execute(query).first()
+        if candidate is None:
+            return None
+        delivery_id, due_at = candidate
         won = db.execute(update(WebhookDelivery)
                          .where(WebhookDelivery.id == delivery_id, WebhookDelivery.next_attempt_at == due_at,
                                 WebhookDelivery.state == "pending")
-                         .values(next_attempt_at=now + dt.timedelta(seconds=LEASE_S))).rowcount
+                         .values(next_attempt_at=lease)).rowcount
         db.commit()
         if won:
             d = db.get(WebhookDelivery, delivery_id)
             sub = db.get(WebhookSubscription, d.subscription_id)
-            claimed.append(Due(d.id, sub.url, sub.secret, d.event, dict(d.payload), d.attempts + 1))
-    return claimed
+            return Due(d.id, sub.url, sub.secret, d.event, dict(d.payload), d.attempts + 1, lease, sub.id)
+        # another server took it meanwhile: the next one
 
 
-def record_attempt(db: Session, delivery_id: int, *, status: int | None, error: str, base_s: float,
+def record_attempt(db: Session, due: Due, *, status: int | None, error: str, base_s: float,
                    now: dt.datetime | None = None) -> str:
-    """Record one attempt (``status``: the receiver's HTTP status, None when none came); the delivery's new
-    state.  Commits."""
+    """Record one attempt of ``due`` (``status``: the receiver's HTTP status, None when none came) when its lease
+    is still ours; the delivery's new state (``lost``: the lease ran out and another sender owns the delivery,
+    ``deleted``: its subscription was deleted).  Commits."""
     now = now or utcnow()
-    d = db.get(WebhookDelivery, delivery_id)
+    d = db.get(WebhookDelivery, due.id)
     if d is None:  # its subscription was deleted meanwhile
         return "deleted"
-    d.attempts += 1
-    d.last_status, d.last_error = status, error[:300]
+    attempts = d.attempts + 1
+    values: dict[str, Any] = {"attempts": attempts, "last_status": status, "last_error": error[:300]}
     if status is not None and 200 <= status < 300:
-        d.state, d.delivered_at = "delivered", now
-    elif d.attempts >= MAX_ATTEMPTS:
-        d.state = "failed"
+        values |= {"state": "delivered", "delivered_at": now}
+    elif attempts >= MAX_ATTEMPTS:
+        values |= {"state": "failed"}
     else:
-        d.next_attempt_at = now + dt.timedelta(seconds=min(MAX_BACKOFF_S, base_s * 2 ** (d.attempts - 1)))
+        values |= {"next_attempt_at": now + dt.timedelta(seconds=min(MAX_BACKOFF_S, base_s * 2 ** (attempts - 1)))}
+    won = db.execute(update(WebhookDelivery)
+                     .where(WebhookDelivery.id == due.id, WebhookDelivery.state == "pending",
+                            WebhookDelivery.next_attempt_at == due.lease, WebhookDelivery.attempts == d.attempts)
+                     .values(**values)).rowcount
     db.commit()
-    return d.state
+    return values.get("state", "pending") if won else "lost"
 
 
 def job_states(db: Session, clinic_id: int, since: dt.datetime) -> list[dict[str, Any]]:

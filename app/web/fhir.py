@@ -82,6 +82,7 @@ from fhirclient.models.diagnosticreport import DiagnosticReport as R4DiagnosticR
 from fhirclient.models.fhirabstractbase import FHIRValidationError
 
 from app.choices import TASKS
+from estimators.motor_task import reference
 from reports.i18n import LANGUAGES, t
 
 #: ChakaMo's own code system (report, observation, component and method codes) unless
@@ -181,7 +182,7 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         raise FhirExportError(f"lang must be one of {', '.join(LANGUAGES)}, got {lang!r}")
     if not isinstance(pdf, (bytes, bytearray)) or not bytes(pdf[:5]) == b"%PDF-":
         raise FhirExportError("pdf must be the bytes of the PDF report (starting with %PDF-); render the report first")
-    if not isinstance(base_url, str) or not re.fullmatch(r"(https?://|urn:)\S+", base_url):
+    if not isinstance(base_url, str) or not re.fullmatch(r"https?://\S+", base_url):
         raise FhirExportError(f"base_url must be an absolute http(s) URL such as http://host/api/v1, got {base_url!r}")
     if patient_mode not in PATIENT_MODES:
         raise FhirExportError(f"patient_mode must be one of {', '.join(PATIENT_MODES)}, got {patient_mode!r}")
@@ -359,11 +360,14 @@ def _observation(angle: str, r: dict, side: str, task: str, effective: str, issu
                 comp["valueQuantity"] = {"value": round(value, DECIMALS), "unit": "deg", "system": UCUM, "code": "deg"}
             band = r["flexion_range_band"] if (angle, stat, m) == ("flexion", "range", "mean") else None
             if band and value is not None:  # v3 L/N/H against the reference's band, which goes beside it
-                code = band["interpretation"]
+                # on the numbers as exported: a reader comparing 60.0 with low 60.0 must see the flag we give
+                # (59.96 against 60 is L in results.json, but reads 60.0 here: N)
+                low, high = round(band["low"], DECIMALS), round(band["high"], DECIMALS)
+                code = reference.interpretation(round(value, DECIMALS), reference.Band(low, high, "deg"))
                 comp["interpretation"] = [{"coding": [{"system": INTERPRETATION, "code": code,
                                                        "display": _INTERPRETATION_TEXT[code]}]}]
-                comp["referenceRange"] = [{"low": {"value": band["low"], "unit": "deg", "system": UCUM, "code": "deg"},
-                                           "high": {"value": band["high"], "unit": "deg", "system": UCUM, "code": "deg"},
+                comp["referenceRange"] = [{"low": {"value": low, "unit": "deg", "system": UCUM, "code": "deg"},
+                                           "high": {"value": high, "unit": "deg", "system": UCUM, "code": "deg"},
                                            "text": "results.json reference (ChakaMo), see the report"}]
             components.append(comp)
     components += [
@@ -537,14 +541,15 @@ def search_bundle(reports: list[dict]) -> dict:
     return doc
 
 
-def capability_statement(*, software_version: str, base_url: str, date_time: datetime | None = None) -> dict:
+def capability_statement(*, software_version: str, server_url: str | None, date_time: datetime | None = None
+                         ) -> dict:
     """The CapabilityStatement of ``GET /fhir/metadata``: FHIR 4.0.1, JSON, DiagnosticReport read and search by
-    ``patient`` (validated with both model packages)."""
+    ``patient`` (validated with both model packages); ``server_url``: this server's FHIR address (None: unknown)."""
     doc = {"resourceType": "CapabilityStatement", "status": "active", "kind": "instance",
            "date": _instant(date_time), "fhirVersion": "4.0.1", "format": ["application/fhir+json"],
            "software": {"name": "ChakaMo", "version": software_version},
            "implementation": {"description": "ChakaMo knee kinematics: DiagnosticReport export",
-                              "url": base_url + "/fhir" if base_url.startswith("http") else None},
+                              "url": server_url},
            "rest": [{"mode": "server",
                      "security": {"description": "Authorization: Bearer <token> (chakamo tokens create)"},
                      "resource": [{"type": "DiagnosticReport",

@@ -45,9 +45,10 @@ def key_of(request: Request) -> str | None:
     return key
 
 
-def request_sha256(request: Request, body: Any = None) -> str:
-    """The identity the key is bound to: method, path and the parsed body (a pydantic model, or None)."""
-    data = body.model_dump_json().encode() if body is not None else b""
+def request_sha256(request: Request, body: Any = None, raw: bytes = b"") -> str:
+    """The identity the key is bound to: method, path and the parsed body (a pydantic model, or None) or
+    ``raw`` (an upload's description of its parts)."""
+    data = body.model_dump_json().encode() if body is not None else raw
     return fingerprint(request.method, request.url.path, data)
 
 

@@ -135,7 +135,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             raise
         # app/web/webhooks.py: signed job notifications, on an engine of their own (their rounds never take a
         # connection the requests' pool counts on)
-        sender = WebhookSender(Database(settings.db_url), settings.webhook_retry_s)
+        sender = WebhookSender(Database(settings.db_url), settings.webhook_retry_s,
+                               settings.webhook_host_patterns, settings.key)
         sender.start()
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)

@@ -105,6 +105,70 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "account.",
         "es": "El correo {email} ya tiene una cuenta en su clínica; use otro correo o modifique esa cuenta.",
         "pt": "O e-mail {email} já tem uma conta na sua clínica; use outro e-mail ou altere essa conta."},
+    # API tokens and logins presented but refused (app.web.api.deps)
+    "auth.bearer_malformed": {
+        "en": "The Authorization header must be 'Bearer <token>'; create a token with `chakamo tokens create`.",
+        "es": "La cabecera Authorization debe ser 'Bearer <token>'; cree un token con `chakamo tokens create`.",
+        "pt": "O cabeçalho Authorization deve ser 'Bearer <token>'; crie um token com `chakamo tokens create`."},
+    "auth.token_unknown": {
+        "en": "Unknown or revoked API token; check it or create a new one with `chakamo tokens create`.",
+        "es": "Token de API desconocido o revocado; compruébelo o cree uno nuevo con `chakamo tokens create`.",
+        "pt": "Token de API desconhecido ou revogado; verifique-o ou crie um novo com `chakamo tokens create`."},
+    "auth.token_expired": {
+        "en": "This API token has expired; use its successor (`chakamo tokens rotate`) or create a new one with "
+              "`chakamo tokens create`.",
+        "es": "Este token de API ha caducado; use su sucesor (`chakamo tokens rotate`) o cree uno nuevo con "
+              "`chakamo tokens create`.",
+        "pt": "Este token de API expirou; use o seu sucessor (`chakamo tokens rotate`) ou crie um novo com "
+              "`chakamo tokens create`."},
+    "auth.not_logged_in": {
+        "en": "Not logged in; log in, or send 'Authorization: Bearer <token>'.",
+        "es": "No ha iniciado sesión; inicie sesión o envíe 'Authorization: Bearer <token>'.",
+        "pt": "Não iniciou sessão; inicie sessão ou envie 'Authorization: Bearer <token>'."},
+    "auth.login_closed": {
+        "en": "Your session has expired or was closed; log in again.",
+        "es": "Su sesión ha caducado o se cerró; inicie sesión de nuevo.",
+        "pt": "A sua sessão expirou ou foi encerrada; inicie sessão de novo."},
+    "auth.csrf": {
+        "en": "Missing or wrong {header} header; send the csrf_token that login and /auth/me return.",
+        "es": "Falta la cabecera {header} o es incorrecta; envíe el csrf_token que devuelven el inicio de sesión "
+              "y /auth/me.",
+        "pt": "Falta o cabeçalho {header} ou está errado; envie o csrf_token que o início de sessão e /auth/me "
+              "devolvem."},
+    "auth.role_needed": {
+        "en": "This needs the {role} role (yours is {yours}); ask a clinic admin.",
+        "es": "Esto necesita el rol {role} (el suyo es {yours}); pídalo a un administrador de la clínica.",
+        "pt": "Isto precisa do papel {role} (o seu é {yours}); peça a um administrador da clínica."},
+    "auth.scope_missing": {
+        "en": "This API token lacks the scope {scope} (it has {scopes}); create a token with it: "
+              "`chakamo tokens create --scope ...`.",
+        "es": "A este token de API le falta el ámbito {scope} (tiene {scopes}); cree un token con él: "
+              "`chakamo tokens create --scope ...`.",
+        "pt": "A este token de API falta o escopo {scope} (tem {scopes}); crie um token com ele: "
+              "`chakamo tokens create --scope ...`."},
+    # Idempotency-Key (app.store.idempotency, app.web.idempotency)
+    "idempotency.key_reused": {
+        "en": "Idempotency-Key {key} was used for another request; send a new key for a new request.",
+        "es": "La Idempotency-Key {key} se usó para otra petición; envíe una clave nueva para una petición nueva.",
+        "pt": "A Idempotency-Key {key} foi usada para outro pedido; envie uma chave nova para um pedido novo."},
+    "idempotency.in_flight": {
+        "en": "A request with Idempotency-Key {key} is still running; retry in a few seconds.",
+        "es": "Una petición con la Idempotency-Key {key} aún está en curso; reinténtelo en unos segundos.",
+        "pt": "Um pedido com a Idempotency-Key {key} ainda está em andamento; tente de novo em alguns segundos."},
+    # webhooks (app.web.api.webhooks)
+    "webhook.url_invalid": {
+        "en": "The webhook URL {url} is not an absolute https:// address; give the receiver's full https address.",
+        "es": "La URL del webhook {url} no es una dirección https:// absoluta; indique la dirección https completa "
+              "del receptor.",
+        "pt": "A URL do webhook {url} não é um endereço https:// absoluto; indique o endereço https completo do "
+              "receptor."},
+    "webhook.url_refused": {
+        "en": "This server does not send webhooks to {host}; ask your ChakaMo administrator to add it to "
+              "CHAKAMO_WEBHOOK_ALLOWED_HOSTS.",
+        "es": "Este servidor no envía webhooks a {host}; pida a su administrador de ChakaMo que lo añada a "
+              "CHAKAMO_WEBHOOK_ALLOWED_HOSTS.",
+        "pt": "Este servidor não envia webhooks para {host}; peça ao seu administrador do ChakaMo que o adicione a "
+              "CHAKAMO_WEBHOOK_ALLOWED_HOSTS."},
 }
 
 

@@ -42,6 +42,7 @@ from fastapi.security import HTTPBearer
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
+from app.choices import TOKEN_SCOPES
 from app.jobs.work import JobRunner
 from app.settings import Settings
 from app.store import accounts, tokens
@@ -52,6 +53,7 @@ from app.store.models import Job, KneeSession, Patient, User, utcnow
 from app.store.patients import clinic_patient
 from app.store.sessions import clinic_job, clinic_session
 from app.web.audit import record_refusal
+from app.web.refusals import Refusal
 from app.web.security import ROLE_RANK, csrf_ok, csrf_token, sha256_hex
 
 COOKIE = "chakamo_session"
@@ -103,6 +105,8 @@ STATUS_OF: dict[type[DomainError], int] = {NotFound: 404, Conflict: 409, Invalid
 def http_error(error: DomainError) -> HTTPException:
     """The ``HTTPException`` answering ``error`` (:data:`STATUS_OF`; 400 for a class not listed)."""
     status = next((code for cls, code in STATUS_OF.items() if isinstance(error, cls)), 400)
+    if error.message_code is not None:  # a sentence of the catalogues: es/en/pt with its code (app.web.refusals)
+        return Refusal(status, error.message_code, **error.params)
     return HTTPException(status, error.detail)
 
 
@@ -148,11 +152,12 @@ def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depen
     return resolve_principal(request, db, settings)
 
 
-def _refuse(request: Request, status: int, detail: str, why: str, *, clinic_id: int | None = None,
-            user_id: int | None = None, actor: str = "", headers: dict | None = None) -> HTTPException:
-    """The ``HTTPException`` of a refused authentication, recorded first (``denied``, :mod:`app.web.audit`)."""
+def _refuse(request: Request, status: int, code: str, why: str, *, clinic_id: int | None = None,
+            user_id: int | None = None, actor: str = "", headers: dict | None = None, **params) -> HTTPException:
+    """The :class:`~app.web.refusals.Refusal` (catalogue ``code``) of a refused authentication, recorded first
+    (``denied``, :mod:`app.web.audit`)."""
     record_refusal(request.app.state.db, request, status, why, clinic_id=clinic_id, user_id=user_id, actor=actor)
-    return HTTPException(status, detail, headers=headers)
+    return Refusal(status, code, headers=headers, **params)
 
 
 def resolve_principal(request: Request, db: Session, settings: Settings) -> Principal:
@@ -163,17 +168,14 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
     if auth:
         scheme, _, token = auth.partition(" ")
         if scheme.lower() != "bearer" or not token.strip():
-            raise _refuse(request, 401, "The Authorization header must be 'Bearer <token>'; create a token with "
-                                        "`chakamo tokens create`.", "malformed Authorization header",
+            raise _refuse(request, 401, "auth.bearer_malformed", "malformed Authorization header",
                           headers={"WWW-Authenticate": "Bearer"})
         row = accounts.active_token(db, sha256_hex(token.strip()))
         if row is None:
-            raise _refuse(request, 401, "Unknown or revoked API token; check it or create a new one with "
-                                        "`chakamo tokens create`.", "unknown or revoked API token",
+            raise _refuse(request, 401, "auth.token_unknown", "unknown or revoked API token",
                           headers={"WWW-Authenticate": "Bearer"})
         if tokens.expired(row):
-            raise _refuse(request, 401, "This API token has expired; use its successor (`chakamo tokens rotate`) "
-                                        "or create a new one with `chakamo tokens create`.", "expired API token",
+            raise _refuse(request, 401, "auth.token_expired", "expired API token",
                           clinic_id=row.clinic_id, headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
         principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
                               token_id=row.id, scopes=tokens.scopes_of(row))
@@ -181,18 +183,17 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
         return principal
     sid = request.cookies.get(COOKIE)
     if not sid:
-        raise HTTPException(401, "Not logged in; log in, or send 'Authorization: Bearer <token>'.")
+        raise Refusal(401, "auth.not_logged_in")
     row = accounts.browser_session(db, sha256_hex(sid))
     if row is None or row.expires_at <= utcnow() or not row.user.active:
         why = "unknown or closed session" if row is None else \
             "expired session" if row.expires_at <= utcnow() else "deactivated account"
-        raise _refuse(request, 401, "Your session has expired or was closed; log in again.", why,
+        raise _refuse(request, 401, "auth.login_closed", why,
                       clinic_id=row.user.clinic_id if row else None, user_id=row.user_id if row else None,
                       actor=row.user.email if row else "")
     if request.method in _UNSAFE and not csrf_ok(settings.key, sid, request.headers.get(CSRF_HEADER)):
-        raise _refuse(request, 403, f"Missing or wrong {CSRF_HEADER} header; send the csrf_token that login and "
-                                    "/auth/me return.", "missing or wrong CSRF header",
-                      clinic_id=row.user.clinic_id, user_id=row.user_id, actor=row.user.email)
+        raise _refuse(request, 403, "auth.csrf", "missing or wrong CSRF header", clinic_id=row.user.clinic_id,
+                      user_id=row.user_id, actor=row.user.email, header=CSRF_HEADER)
     user = row.user
     principal = Principal(clinic_id=user.clinic_id, clinic_name=user.clinic.name, role=user.role, via="cookie",
                           user=user, session_id=sid, csrf_token=csrf_token(settings.key, sid))
@@ -208,7 +209,7 @@ def _role_ok(principal: Principal, role: str) -> bool:
 
 
 def _role_refusal(principal: Principal, role: str) -> HTTPException:
-    return HTTPException(403, f"This needs the {role} role (yours is {principal.role}); ask a clinic admin.")
+    return Refusal(403, "auth.role_needed", role=role, yours=principal.role)
 
 
 def _role_why(principal: Principal, role: str) -> str:
@@ -221,13 +222,28 @@ SCOPE_OF_TAG = {"patients": "patients", "sessions": "sessions", "recordings": "r
                 "results": "results", "artefacts": "results", "fhir": "fhir", "audit": "audit", "users": "users",
                 "webhooks": "jobs"}
 UNSCOPED_TAGS = frozenset({"auth", "options", "clinics"})
+#: the ``openapi_extra`` member naming a route's own scope where its router's family is not what it touches
+#: (``GET /patients/{id}/trend`` reads results): :func:`route_scope`
+SCOPE_MEMBER = "x-chakamo-scope"
+
+
+def route_scope(scope: str, **openapi_extra) -> dict:
+    """``openapi_extra`` of a route that needs ``scope`` (one of :data:`app.choices.TOKEN_SCOPES`) whatever its
+    router; also shown in the OpenAPI document."""
+    if scope not in TOKEN_SCOPES:
+        raise ValueError(f"unknown scope {scope}")
+    return {SCOPE_MEMBER: scope, **openapi_extra}
 
 
 def needed_scope(request: Request) -> str | None:
-    """The scope the request's route needs: its router's family and ``read`` for GET/HEAD, else ``write``
-    (None: no scope needed).  A route of a router missing from :data:`SCOPE_OF_TAG` needs a scope no token
-    has (refused to scoped tokens: a new router must be given its family)."""
+    """The scope the request's route needs: the one it names (:func:`route_scope`), else its router's family
+    and ``read`` for GET/HEAD, else ``write`` (None: no scope needed).  A route of a router missing from
+    :data:`SCOPE_OF_TAG` needs a scope no token has (refused to scoped tokens: a new router must be given its
+    family)."""
     route = request.scope.get("route")
+    own = (getattr(route, "openapi_extra", None) or {}).get(SCOPE_MEMBER)
+    if own is not None:
+        return own
     tag = (getattr(route, "tags", None) or ["?"])[0]
     if tag in UNSCOPED_TAGS:
         return None
@@ -243,8 +259,7 @@ def _scope_refusal(request: Request, principal: Principal) -> HTTPException | No
     if scope is None or scope in principal.scopes:
         return None
     record_refusal(request.app.state.db, request, 403, f"token lacks scope {scope}", principal=principal)
-    return HTTPException(403, f"This API token lacks the scope {scope} (it has {' '.join(sorted(principal.scopes))}); "
-                              "create a token with it: `chakamo tokens create --scope ...`.")
+    return Refusal(403, "auth.scope_missing", scope=scope, scopes=" ".join(sorted(principal.scopes)))
 
 
 def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Principal:
@@ -304,5 +319,5 @@ def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
 __all__ = ["COOKIE", "CSRF_HEADER", "STATUS_OF", "Admin", "CheckerDep", "Clinician", "DbDep", "Principal",
            "PrincipalDep", "Reader", "RunnerDep", "SettingsDep", "StoreDep", "UploadClinician", "checker_of",
            "domain_errors", "get_checker", "get_db", "get_principal", "get_runner", "get_settings_dep", "get_store",
-           "get_upload_principal", "http_error", "needed_scope", "require", "resolve_principal", "scoped_job", "scoped_patient",
+           "get_upload_principal", "http_error", "needed_scope", "require", "route_scope", "resolve_principal", "scoped_job", "scoped_patient",
            "scoped_session"]

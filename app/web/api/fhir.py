@@ -48,6 +48,18 @@ def fhir_base_url(request: Request) -> str:
     raise Refusal(503, "request.public_url_missing")
 
 
+def fhir_server_url(request: Request) -> str | None:
+    """This server's FHIR address for the CapabilityStatement: ``CHAKAMO_PUBLIC_URL``/api/v1/fhir (the identifier
+    namespace ``CHAKAMO_FHIR_IDENTIFIER_BASE`` names identifiers, not this server); in development only, this
+    request's address; else None (the statement then names none)."""
+    settings = request.app.state.settings
+    if settings.public_url:
+        return settings.public_url + "/api/v1/fhir"
+    if settings.development:
+        return str(request.base_url).rstrip("/") + "/api/v1/fhir"
+    return None
+
+
 def _export(db, store, request: Request, session, analysis) -> dict:
     """The DiagnosticReport of ``analysis`` of ``session`` (409 with the export's sentence when the stored data
     cannot be expressed)."""
@@ -79,7 +91,7 @@ def _fhir(doc: dict) -> Response:
 @router.get("/metadata", response_class=Response, responses={200: {"content": {"application/fhir+json": {}}}})
 def metadata(request: Request, principal: Reader):
     """The FHIR CapabilityStatement: what this server answers (read and search of DiagnosticReport)."""
-    return _fhir(capability_statement(software_version=__version__, base_url=fhir_base_url(request)))
+    return _fhir(capability_statement(software_version=__version__, server_url=fhir_server_url(request)))
 
 
 @router.get("/DiagnosticReport", response_class=Response,

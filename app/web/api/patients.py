@@ -23,7 +23,8 @@ from fastapi import APIRouter, Query, Request, Response
 from app.store import comparisons, erasure, idempotency, patients, sessions
 from app.store.sessions import session_analyses, session_jobs
 from app.web import audit
-from app.web.api.deps import Admin, Clinician, DbDep, Reader, SettingsDep, StoreDep, scoped_patient, scoped_session
+from app.web.api.deps import (Admin, Clinician, DbDep, Reader, SettingsDep, StoreDep, route_scope, scoped_patient,
+                              scoped_session)
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.paging import MAX_LIMIT, PAGE_HEADERS, decode_cursor, identifier_value, page_headers
 from app.web.refusals import Refusal
@@ -140,7 +141,7 @@ def patient_sessions(patient_id: int, principal: Reader, db: DbDep, request: Req
 
 
 @router.post("/{patient_id}/sessions", response_model=SessionOut, status_code=201,
-             openapi_extra={"parameters": [KEY_PARAMETER]},
+             openapi_extra=route_scope("sessions:write", parameters=[KEY_PARAMETER]),
              responses={201: {"headers": LOCATION},
                         409: {"description": "the Idempotency-Key was used for another request"}})
 def create_session(patient_id: int, body: SessionIn, principal: Clinician, db: DbDep, request: Request):
@@ -161,7 +162,7 @@ def create_session(patient_id: int, body: SessionIn, principal: Clinician, db: D
     return answer(session_out(session, [], []), 201, f"/api/v1/sessions/{session.id}")
 
 
-@router.get("/{patient_id}/trend", response_model=TrendOut)
+@router.get("/{patient_id}/trend", response_model=TrendOut, openapi_extra=route_scope("results:read"))
 def patient_trend(patient_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
                   filter: str | None = Query(None, max_length=40),
                   pipeline_version: str | None = Query(None, max_length=40)):
@@ -173,7 +174,7 @@ def patient_trend(patient_id: int, principal: Reader, db: DbDep, store: StoreDep
     return trend
 
 
-@router.get("/{patient_id}/compare", response_model=CompareOut)
+@router.get("/{patient_id}/compare", response_model=CompareOut, openapi_extra=route_scope("results:read"))
 def compare_sessions(patient_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
                      a: int = Query(..., description="the earlier session (e.g. before treatment)"),
                      b: int = Query(..., description="the later session"),

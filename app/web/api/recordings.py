@@ -51,6 +51,7 @@ stored.
 from __future__ import annotations
 
 import errno
+import json
 import logging
 from pathlib import PurePosixPath, PureWindowsPath
 
@@ -225,16 +226,6 @@ def _check_session(request: Request, principal, session_id: int) -> None:
         refuse_while_processing(db, session_id, "upload the files")
 
 
-def _replay(request: Request, principal, session_id: int, key: str | None) -> Response | None:
-    """The answer of the earlier upload with this ``Idempotency-Key`` (None: a new key; :mod:`app.web.idempotency`).
-    An upload's key is bound to its path only (its files are not read again to compare them)."""
-    if key is None:
-        return None
-    with request.app.state.db.session() as db:
-        replay = idempotency.replayed(db, principal.clinic_id, key, request_sha256(request))
-        return None if replay is None else _replayed(db, request, principal, session_id, replay)
-
-
 def _replayed(db, request: Request, principal, session_id: int, replay: idempotency.Replay) -> Response:
     session = clinic_session(db, principal.clinic_id, session_id)
     rows = [r for r in session.recordings if r.id in set(replay.resource_ids)]
@@ -243,13 +234,22 @@ def _replayed(db, request: Request, principal, session_id: int, replay: idempote
                   replay.status, f"/api/v1/sessions/{session_id}", replayed=True)
 
 
+def _upload_sha256(request: Request, upload: _Upload) -> str:
+    """The identity an upload's ``Idempotency-Key`` is bound to: its path, form fields and every file's name,
+    size and sha256 (:mod:`app.web.idempotency`), so the key reused with other files answers 409 instead of
+    replaying the first upload and dropping the new files."""
+    parts = sorted((name, w.size_bytes, w.sha256) for name, w in upload.files)
+    return request_sha256(request, raw=json.dumps({"fields": upload.fields, "files": parts}, sort_keys=True).encode())
+
+
 def _store(request: Request, principal, session_id: int, upload: _Upload, segment: str | None,
            role: str | None, key: str | None) -> Response:
     """Store the upload's files and their event in one transaction, then check the session's files.  The files
     are fsynced first, outside the transaction: under its locks they are only renamed (issue 16 finding 10h)."""
     upload.seal()
     with request.app.state.db.session() as db:
-        claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request), "upload") if key else None
+        claimed = (idempotency.claim(db, principal.clinic_id, key, _upload_sha256(request, upload), "upload")
+                   if key else None)
         if isinstance(claimed, idempotency.Replay):  # a concurrent upload with this key won
             return _replayed(db, request, principal, session_id, claimed)
         session, rows = recordings.store_upload(db, principal.clinic_id, session_id, upload.files, segment=segment,
@@ -334,10 +334,7 @@ async def upload_recordings(session_id: int, request: Request, principal: Upload
 
 
 async def _upload(session_id: int, request: Request, principal, settings, store: BlobStore):
-    key = key_of(request)
-    replay = await run_in_threadpool(_replay, request, principal, session_id, key)
-    if replay is not None:  # the body is not read: nothing of it is stored
-        return replay
+    key = key_of(request)  # bound to the files too: compared once they are read (_upload_sha256)
     await run_in_threadpool(_check_session, request, principal, session_id)
     ctype, params = parse_options_header(request.headers.get("content-type"))
     if ctype != b"multipart/form-data" or not params.get(b"boundary"):

@@ -27,7 +27,8 @@ def settings(tmp_path, database_url):
     from web_helpers import make_settings
 
     extra = {"DATABASE_URL": database_url} if database_url else {}
-    return make_settings(tmp_path / "data", **extra)
+    # the tests' webhook receivers listen on loopback: named exactly, as an operator would allow an internal host
+    return make_settings(tmp_path / "data", CHAKAMO_WEBHOOK_ALLOWED_HOSTS="127.0.0.1", **extra)
 
 
 @pytest.fixture

@@ -269,9 +269,36 @@ def test_a_flagged_flexion_range_carries_the_reference_interpretation(right):
     comp = components(contained(doc, "Observation")["flexion"])["range-mean"]
     assert comp["interpretation"][0]["coding"][0] == {
         "system": "http://terminology.hl7.org/CodeSystem/v3-ObservationInterpretation", "code": "L", "display": "Low"}
-    assert (comp["referenceRange"][0]["low"]["value"], comp["referenceRange"][0]["high"]["value"]) == (value + 5, value + 10)
+    assert (comp["referenceRange"][0]["low"]["value"], comp["referenceRange"][0]["high"]["value"]) == (
+        round(value + 5, 1), round(value + 10, 1))
     assert all("interpretation" not in c for o in contained(doc, "Observation").values() for c in o["component"]
                if c is not comp)
+
+
+def test_the_flag_is_the_one_the_exported_numbers_show(right):
+    """The L/N/H code is decided on the value and band as exported (one decimal): a range of 59.96° reads 60.0
+    in the export, so against a low of 60 it is N, not the L results.json computed on 59.96; the band is rounded
+    alike (59.96 > 59.951 → 60.0 ≥ 60.0)."""
+    results, pdf = right
+    flagged = copy.deepcopy(results)
+    flagged["rom_deg"]["flexion"]["range"]["mean"] = 59.96
+    flagged["reference"]["parameters"]["flexion_rom_deg"] = {"value": 59.96, "low": 60.0, "high": 70.04,
+                                                              "unit": "deg", "interpretation": "L", "within_band": False}
+    doc = build(flagged, pdf)
+    validate(doc)
+    comp = components(contained(doc, "Observation")["flexion"])["range-mean"]
+    assert comp["valueQuantity"]["value"] == 60.0 and comp["interpretation"][0]["coding"][0]["code"] == "N"
+    assert comp["referenceRange"][0]["high"]["value"] == 70.0
+    flagged["rom_deg"]["flexion"]["range"]["mean"] = 59.94  # reads 59.9: below 60.0
+    comp = components(contained(build(flagged, pdf), "Observation")["flexion"])["range-mean"]
+    assert comp["valueQuantity"]["value"] == 59.9 and comp["interpretation"][0]["coding"][0]["code"] == "L"
+
+
+def test_an_identifier_base_that_cannot_be_extended_is_refused_at_start_up(tmp_path):
+    from app.settings import Settings
+
+    with pytest.raises(ValueError, match="CHAKAMO_FHIR_IDENTIFIER_BASE='urn:oid:1.2.3' is not an http"):
+        Settings(CHAKAMO_ENV="development", CHAKAMO_DATA_DIR=tmp_path, CHAKAMO_FHIR_IDENTIFIER_BASE="urn:oid:1.2.3")
 
 
 # ------------------------------------------------------------------------------ issue 17: integration choices
@@ -328,7 +355,7 @@ def test_patient_by_identifier_order_encounter_and_accession(right):
 def test_search_bundle_and_capability_statement_validate():
     from app.web.fhir import capability_statement, search_bundle
 
-    cap = capability_statement(software_version="1.0", base_url="https://chakamo.hospital.test/api/v1")
+    cap = capability_statement(software_version="1.0", server_url="https://chakamo.hospital.test/api/v1/fhir")
     assert cap["fhirVersion"] == "4.0.1"
     assert cap["rest"][0]["resource"][0]["searchParam"][0]["name"] == "patient"
     assert search_bundle([]) == {"resourceType": "Bundle", "type": "searchset", "total": 0}

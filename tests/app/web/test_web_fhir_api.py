@@ -13,6 +13,7 @@ from web_helpers import clinic_token, demo_files, make_settings, wait_job
 MRN = "urn:oid:2.16.724.4.9.10.2"
 IDS = "https://fhir.hospital.test/chakamo"
 CODES = "https://terminology.hospital.test/CodeSystem/chakamo"
+PUBLIC = "https://chakamo.hospital.test"
 
 
 @pytest.fixture
@@ -23,7 +24,8 @@ def fhir_client(tmp_path):
 
     settings = make_settings(tmp_path / "data", CHAKAMO_PATIENT_IDENTIFIER_SYSTEM=MRN,
                              CHAKAMO_FHIR_IDENTIFIER_BASE=IDS, CHAKAMO_FHIR_CODE_SYSTEM=CODES,
-                             CHAKAMO_FHIR_PATIENT="identifier", CHAKAMO_ACCESSION_SYSTEM="urn:oid:1.2.3.4")
+                             CHAKAMO_FHIR_PATIENT="identifier", CHAKAMO_ACCESSION_SYSTEM="urn:oid:1.2.3.4",
+                             CHAKAMO_PUBLIC_URL=PUBLIC)
     with TestClient(create_app(settings), base_url="http://evil.example") as c:
         yield c, settings
 
@@ -77,7 +79,7 @@ def test_configured_export_search_and_metadata(fhir_client, demo_dir):
     cap = client.get("/api/v1/fhir/metadata", headers=h).json()
     R4Capability(cap, strict=True)
     R4BCapability.model_validate(cap)
-    assert cap["fhirVersion"] == "4.0.1" and cap["implementation"]["url"] == f"{IDS}/fhir"
+    assert cap["fhirVersion"] == "4.0.1" and cap["implementation"]["url"] == f"{PUBLIC}/api/v1/fhir"  # the server, not the ids' namespace
 
 
 def test_identifier_namespace_is_never_the_requests_host_in_production(tmp_path):

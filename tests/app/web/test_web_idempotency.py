@@ -96,3 +96,23 @@ def test_concurrent_requests_with_one_key_create_one_patient(client, settings):
     assert all(r.status_code == 201 or (r.status_code == 409 and "Idempotency-Key" in r.json()["detail"])
                for r in answers), [(r.status_code, r.text) for r in answers]
     assert int(client.get("/api/v1/patients", headers=h).headers["x-total-count"]) == 1
+
+
+def test_an_upload_key_is_bound_to_its_files(client, settings, demo_dir):
+    """The same key with other files is another request: 409 with its code in three languages, and the other
+    files are neither stored nor dropped silently (it used to answer 201 "replayed" and drop them)."""
+    h = clinic_token(settings, "Hospital Upload Keys")
+    pid = client.post("/api/v1/patients", json={"external_id": "UK-1", "side": "right"}, headers=h).json()["id"]
+    sid = client.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=h).json()["id"]
+    files = demo_files(demo_dir)
+    k = h | {"Idempotency-Key": "upload-1"}
+    first = client.post(f"/api/v1/sessions/{sid}/recordings", files=files[:3], headers=k)
+    assert first.status_code == 201, first.text
+    again = client.post(f"/api/v1/sessions/{sid}/recordings", files=files[:3], headers=k)
+    assert again.status_code == 201 and again.headers["idempotent-replayed"] == "true"
+    other = client.post(f"/api/v1/sessions/{sid}/recordings", files=files[3:6], headers=k)
+    assert other.status_code == 409, other.text
+    body = other.json()
+    assert body["code"] == "idempotency.key_reused" and set(body["message"]) == {"es", "en", "pt"}
+    assert "upload-1" in body["message"]["es"] and other.headers["x-chakamo-code"] == "idempotency.key_reused"
+    assert len(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["recordings"]) == 3

@@ -103,3 +103,52 @@ def test_a_scoped_upload_token_cannot_read_patients(app_client, demo_dir):
     reader = {"Authorization": "Bearer " + admin_cli.create_token(settings, clinic="Hospital Tokens",
                                                                   scopes=["sessions:read"])}
     assert client.post(f"/api/v1/sessions/{sid}/recordings", files=files, headers=reader).status_code == 403
+
+
+def test_a_route_is_guarded_by_what_it_touches_not_by_its_router(app_client):
+    """``/patients/{id}/trend`` and ``/compare`` are clinical results (``results:read``); a new session is
+    ``sessions:write``: a ``patients:*`` token reads neither nor makes sessions."""
+    client, settings = app_client
+    from app.cli import admin as admin_cli
+
+    def bearer(*scopes):
+        return {"Authorization": "Bearer " + admin_cli.create_token(settings, clinic="Hospital Tokens",
+                                                                      scopes=list(scopes) or None)}
+
+    full = bearer()
+    pid = client.post("/api/v1/patients", json={"external_id": "S-1", "side": "right"}, headers=full).json()["id"]
+    sid = client.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=full).json()["id"]
+    patients_only = bearer("patients:read", "patients:write")
+    for path in (f"/patients/{pid}/trend", f"/patients/{pid}/compare?a={sid}&b={sid}"):
+        r = client.get("/api/v1" + path, headers=patients_only)
+        assert r.status_code == 403 and "results:read" in r.text, path
+        assert client.get("/api/v1" + path, headers=bearer("results:read")).status_code != 403, path
+    assert client.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=patients_only).status_code == 403
+    made = client.post(f"/api/v1/patients/{pid}/sessions", json={}, headers=bearer("sessions:write"))
+    assert made.status_code == 201, made.text
+    assert client.get(f"/api/v1/patients/{pid}", headers=patients_only).status_code == 200
+
+
+def test_the_event_stream_ends_when_its_token_is_revoked(app_client, monkeypatch):
+    """``GET /events`` resolves its caller again while streaming: a token revoked meanwhile ends the stream with
+    ``event: end`` carrying the refusal's code and es/en/pt message (it used to stream on for up to 600 s)."""
+    import json
+    import threading
+
+    from app.cli import admin as admin_cli
+    from app.web.api import webhooks as events_api
+
+    client, settings = app_client
+    monkeypatch.setattr(events_api, "RECHECK_S", 0.2)
+    monkeypatch.setattr(events_api, "STREAM_S", 30.0)
+    token = admin_cli.create_token(settings, clinic="Hospital Tokens", label="stream")
+    token_id = admin_cli.list_tokens(settings, clinic="Hospital Tokens")[-1]["id"]
+    timer = threading.Timer(1.0, admin_cli.revoke_token, (settings, token_id))
+    timer.start()
+    r = client.get("/api/v1/events", headers={"Authorization": f"Bearer {token}"})
+    timer.join()
+    assert r.status_code == 200
+    blocks = [b for b in r.text.split("\n\n") if b.startswith("event: end")]
+    assert blocks, r.text
+    end = json.loads(blocks[0].split("data: ", 1)[1])
+    assert end["status"] == 401 and end["code"] == "auth.token_unknown" and set(end["message"]) == {"es", "en", "pt"}
