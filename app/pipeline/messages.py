@@ -84,6 +84,19 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
         "en": "functional calibration on {thigh_files} and {shank_files}: {reason}",
         "es": "calibración funcional con {thigh_files} y {shank_files}: {reason}",
         "pt": "calibração funcional com {thigh_files} e {shank_files}: {reason}"},
+    "pipeline.functional_needs_figure_eight": {
+        "en": "the functional calibration needs the magnetometer calibration (figure-eight) recording: without it "
+              "the sensors' headings carry the magnetometers' hard iron, which turned the knee's axes by over 10° "
+              "in tests; process this session with the static calibration, or record the figure-eight of both "
+              "sensors",
+        "es": "la calibración funcional necesita la grabación de calibración del magnetómetro (el ocho): sin ella "
+              "las orientaciones horizontales de los sensores llevan el hierro duro de los magnetómetros, que giró "
+              "los ejes de la rodilla más de 10° en las pruebas; procese esta sesión con la calibración estática o "
+              "grabe el ocho de ambos sensores",
+        "pt": "a calibração funcional precisa da gravação de calibração do magnetômetro (o oito): sem ela as "
+              "orientações horizontais dos sensores carregam o ferro duro dos magnetômetros, que girou os eixos do "
+              "joelho mais de 10° nos testes; processe esta sessão com a calibração estática ou grave o oito dos "
+              "dois sensores"},
     "pipeline.implausible_angles": {
         "en": "{thigh_files} (thigh) and {shank_files} (shank): {cause}.",
         "es": "{thigh_files} (muslo) y {shank_files} (pierna): {cause}.",
