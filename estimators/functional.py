@@ -68,6 +68,10 @@ start), raises :class:`estimators.knee.CalibrationError` saying what to record. 
 a task whose only still moments are *flexed* (a step-up without its extension holds) looks like a straight
 reference with the wrong sign and a small overshoot (the impulse, 5–10°): above ``straight_tol_rad`` it warns
 (``functional_overshoot``), above ``max_overshoot_rad`` it refuses.
+When that overshoot follows a relative sign taken from the mounting rule and Seel's own test gives the other one
+(on both protocols), the rule's assumption failed, not the posture: one sensor is turned round
+(:class:`SensorTurnedError`; on simulated walks with the shank turned 180° about its long axis the overshoot was
+25–43°, seeds 1–8, while Seel agreed with the mounting on all eight walks worn alike).
 
 How the pipeline calls them
 ---------------------------
@@ -104,10 +108,32 @@ from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["FunctionalCalibration", "FunctionalFit", "FunctionalParams", "HingeAxes", "hinge_axes",
+__all__ = ["FunctionalCalibration", "FunctionalFit", "FunctionalParams", "HingeAxes", "SensorTurnedError", "hinge_axes",
            "standing_task_calibration", "task_calibration"]
 
 SEGMENTS = ("thigh", "shank")
+
+
+class SensorTurnedError(CalibrationError):
+    """The relative sign came from the mounting rule (both sensors worn alike, F2 i), Seel's own consistency test
+    gives the other sign, and with the mounting's sign the task extends the knee beyond every straight reference by
+    more than ``max_overshoot_rad``: one sensor is turned round (e.g. the shank's 180° about its long axis), which
+    the mounting rule cannot see.  ``overshoot_deg`` is that extension."""
+
+    def __init__(self, overshoot_rad: float) -> None:
+        self.overshoot_deg = float(np.rad2deg(overshoot_rad))
+        super().__init__(f"the knee extended {self.overshoot_deg:.0f}° beyond its straight reference with the hinge "
+                         "axes signed as if both sensors were worn alike, and the gyroscopes' own test gives the other "
+                         "sign: the thigh and shank sensors do not seem to be worn on the same side of the leg (one "
+                         "is turned round); wear both with the same face outwards and +y up the leg and record again")
+
+
+def _check_mounting_sign(axes: HingeAxes, overshoot_rad: float, p: FunctionalParams) -> None:
+    """Raise :class:`SensorTurnedError` when an overshoot beyond ``max_overshoot_rad`` follows a mounting-derived
+    relative sign that Seel's disagrees with (F2 i): the mounting rule's assumption failed, not the posture."""
+    if (overshoot_rad > p.max_overshoot_rad and axes.relative_sign_source == "mounting"
+            and not axes.seel_sign_agrees):
+        raise SensorTurnedError(overshoot_rad)
 SIGN_PERCENTILE = 0.5  # the percentile of the knee angle that measures the overshoot (F2)
 
 
@@ -492,6 +518,7 @@ def standing_task_calibration(standing_thigh, standing_shank, task_thigh, task_s
     still_alpha = (c[starts + w] - c[starts]) / w
     ok = np.isfinite(alpha)
     sign, over, margin, flex, bend_still = _sign_and_straight(alpha[ok], still_alpha, ref, int(p.smooth_s * fs_hz))
+    _check_mounting_sign(axes, over, p)
     bend = float(-np.min(bend_still)) if len(bend_still) else 0.0  # standing minus the task's straightest still moment
     if abs(bend) > p.straight_tol_rad:
         warnings.append(_warn("functional_standing_not_straight",
@@ -550,6 +577,7 @@ def task_calibration(task_thigh, task_shank, *, fs_hz: float, q_task: dict | Non
     still_alpha = (c[starts + w] - c[starts]) / w
     ok = np.isfinite(alpha)
     sign, over, margin, flex, bend_all = _sign_and_straight(alpha[ok], still_alpha, None, int(p.smooth_s * fs_hz))
+    _check_mounting_sign(axes, over, p)
     if over > p.max_overshoot_rad:
         raise CalibrationError(
             f"the knee extended {np.rad2deg(over):.0f}° further during the task than in any moment both sensors were "

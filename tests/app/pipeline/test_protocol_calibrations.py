@@ -13,11 +13,15 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
-from app.pipeline.demo import accuracy, simulate_session, write_session
-from app.pipeline.ingestion import load_session
+from app.pipeline.demo import EPOCH0_S, SimulatedSession, accuracy, simulate_session, write_session
+from app.pipeline.ingestion import load_session, simulated_streams
 from app.pipeline.session import PipelineError, ProcessOptions, process_session
+from estimators import quaternion as quat
+from estimators import simulation as sim
+from estimators.simulation import gait
 
 from test_task_only_hard_iron import _walk  # the same walk (this folder is on sys.path: no packages)
 
@@ -60,3 +64,25 @@ def test_each_protocol_completes_or_is_refused_in_words(step_up, tmp_path, proto
     max_adduction = 4.0 if calibration == "functional" and protocol == "full" else 3.0
     assert acc["rmse_deg"]["flexion"] <= 3.0 and acc["rmse_deg"]["adduction"] <= max_adduction, acc
     assert acc["rmse_deg"]["internal_rotation"] <= 3.0, acc
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_shank_sensor_turned_round_is_named_not_taken_for_a_missing_standing_start(tmp_path, seed):
+    """Without a figure-eight the hinge axes' relative sign comes from the mounting rule (both sensors worn alike,
+    :mod:`estimators.functional` F2 i).  A shank sensor turned 180° about its long axis breaks it: the walk (with its
+    2 s standing start) was refused as "never still while straight; record 2 s of standing still"."""
+    leg = gait.walking(14.0, standing_start_s=2.0, seed=seed).leg("right")
+    mounts = [sim.random_rotation(np.deg2rad(12.0), seed * 10 + i) for i in range(2)]
+    mounts[1] = quat.multiply(quat.from_axis_angle([0.0, 1.0, 0.0], np.pi), mounts[1])  # the shank turned round
+    specs = [sim.ImuSpec.random(seed * 10 + i) for i in range(2)]
+    imu_t, imu_s = gait.simulate_leg(leg, *specs, q_thigh_sensor=mounts[0], q_shank_sensor=mounts[1], seed=seed)
+    epoch = EPOCH0_S + 300.0
+    recs = {("thigh", "task"): simulated_streams(imu_t, epoch), ("shank", "task"): simulated_streams(imu_s, epoch)}
+    write_session(tmp_path / "session", SimulatedSession(recs, leg.motion, {"task": epoch}, "right", None))
+    with pytest.raises(PipelineError) as caught:
+        process_session(load_session(tmp_path / "session"), ProcessOptions(task="gait"))
+    exc = caught.value
+    assert exc.code == "pipeline.sensor_turned_round", exc
+    for lang, words in (("en", "not seem to be worn on the same side of the leg"), ("es", "mismo lado de la pierna"),
+                        ("pt", "mesmo lado da perna")):
+        assert words in exc.message(lang) and "{" not in exc.message(lang), exc.message(lang)
