@@ -99,18 +99,17 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
               "dois sensores"},
     "pipeline.sensor_turned_round": {
         "en": "{thigh_files} (thigh) and {shank_files} (shank): the thigh and shank sensors do not seem to be worn on "
-              "the same side of the leg (one is turned round): with both taken as worn alike the knee would extend "
-              "{overshoot_deg:.0f}° beyond straight, and the gyroscopes point to one sensor turned round; wear both "
-              "sensors with the same face outwards and their +y axis up the leg, and record the session again",
+              "the same side of the leg (one is turned round): the knee's motion fits one sensor turned round far "
+              "better than both worn alike; wear both sensors with the same face outwards and their +y axis up the "
+              "leg, and record the session again",
         "es": "{thigh_files} (muslo) y {shank_files} (pierna): los sensores del muslo y de la pierna no parecen "
-              "llevarse en el mismo lado de la pierna (uno está girado): tomándolos como colocados igual la rodilla "
-              "se extendería {overshoot_deg:.0f}° más allá de recta, y los giroscopios indican un sensor girado; "
-              "coloque ambos sensores con la misma cara hacia fuera y su eje +y hacia arriba a lo largo de la pierna, "
-              "y grabe de nuevo la sesión",
+              "llevarse en el mismo lado de la pierna (uno está girado): el movimiento de la rodilla encaja mucho "
+              "mejor con un sensor girado que con ambos colocados igual; coloque ambos sensores con la misma cara "
+              "hacia fuera y su eje +y hacia arriba a lo largo de la pierna, y grabe de nuevo la sesión",
         "pt": "{thigh_files} (coxa) e {shank_files} (perna): os sensores da coxa e da perna não parecem estar no "
-              "mesmo lado da perna (um está virado): tomando-os como colocados igual o joelho se estenderia "
-              "{overshoot_deg:.0f}° além de reto, e os giroscópios indicam um sensor virado; coloque os dois sensores "
-              "com a mesma face para fora e o eixo +y para cima ao longo da perna, e grave a sessão de novo"},
+              "mesmo lado da perna (um está virado): o movimento do joelho se ajusta muito melhor a um sensor virado "
+              "do que aos dois colocados igual; coloque os dois sensores com a mesma face para fora e o eixo +y para "
+              "cima ao longo da perna, e grave a sessão de novo"},
     "pipeline.implausible_angles": {
         "en": "{thigh_files} (thigh) and {shank_files} (shank): {cause}.",
         "es": "{thigh_files} (muslo) y {shank_files} (pierna): {cause}.",

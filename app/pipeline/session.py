@@ -483,9 +483,9 @@ def _functional_segments(session: Session, protocol: str, task: dict, *, q_task:
                                                        *pairs, fs_hz=fs_hz, q_standing=q_st, q_task=q_task)
         else:
             cal = functional.task_calibration(*pairs, fs_hz=fs_hz, q_task=q_task)
-    except functional.SensorTurnedError as exc:
+    except functional.SensorTurnedError:
         raise PipelineError("pipeline.sensor_turned_round", thigh_files=_files(task["thigh"]),
-                            shank_files=_files(task["shank"]), overshoot_deg=exc.overshoot_deg) from None
+                            shank_files=_files(task["shank"])) from None
     except ValueError as exc:
         files = ", ".join(_files(task[seg]) for seg in SEGMENTS)
         raise PipelineError("pipeline.functional_segment_calibration", files=files, reason=str(exc)) from None

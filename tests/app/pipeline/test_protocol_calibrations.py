@@ -86,3 +86,25 @@ def test_a_shank_sensor_turned_round_is_named_not_taken_for_a_missing_standing_s
     for lang, words in (("en", "not seem to be worn on the same side of the leg"), ("es", "mismo lado de la pierna"),
                         ("pt", "mesmo lado da perna")):
         assert words in exc.message(lang) and "{" not in exc.message(lang), exc.message(lang)
+
+
+@pytest.mark.parametrize("seed", [11, 12])  # held out: the 30° margin gap was chosen on seeds 1-8
+def test_standing_and_task_with_a_shank_turned_round_is_refused_not_reported_48_degrees_off(tmp_path, seed):
+    """Standing + task without a figure-eight: the standing reference keeps the overshoot small, so a shank sensor
+    turned 180° about its long axis (x and z negated in every stream) went through with ~48° of flexion RMSE.
+    Worn alike, the same session completes."""
+    truth = simulate_session(seed=seed, side="right", n_cycles=6, accelerometer_errors=False)
+    flip = np.array([-1.0, 1.0, -1.0])
+    for turned in (False, True):
+        recs = {(seg, role): {k: (t, v * flip if turned and seg == "shank" else v) for k, (t, v) in st.items()}
+                for (seg, role), st in truth.recordings.items() if role in ("standing", "task")}
+        t = replace(truth, recordings=recs)
+        write_session(tmp_path / f"s{turned}", t)
+        if not turned:
+            outcome = process_session(load_session(tmp_path / f"s{turned}"), ProcessOptions())
+            assert accuracy(outcome, t)["rmse_deg"]["flexion"] <= 1.0
+            continue
+        with pytest.raises(PipelineError) as caught:
+            process_session(load_session(tmp_path / f"s{turned}"), ProcessOptions())
+        assert caught.value.code == "pipeline.sensor_turned_round", caught.value
+        assert "mismo lado de la pierna" in caught.value.message("es")
