@@ -68,6 +68,14 @@ start), raises :class:`estimators.knee.CalibrationError` saying what to record. 
 a task whose only still moments are *flexed* (a step-up without its extension holds) looks like a straight
 reference with the wrong sign and a small overshoot (the impulse, 5–10°): above ``straight_tol_rad`` it warns
 (``functional_overshoot``), above ``max_overshoot_rad`` it refuses.
+When that overshoot follows a relative sign taken from the mounting rule and Seel's own test gives the other one
+(on both protocols), the rule's assumption failed, not the posture: one sensor is turned round
+(:class:`SensorTurnedError`; on simulated walks with the shank turned 180° about its long axis the overshoot was
+25–43°, seeds 1–8, while Seel agreed with the mounting on all eight walks worn alike).  With a standing posture the
+overshoot stays small (0.1–3.2°) and Seel's sign is a coin toss on step-ups (3 of 8 agreed worn alike), so there the
+other relative sign is tried: one sensor turned round when its sign margin (F2) beats the mounting's by more than
+``turned_margin_gap_rad`` (simulated step-ups, seeds 1–8: margin 84–87° with the right sign, 17–22° with the
+wrong one; 48° of flexion RMSE went unnoticed).
 
 How the pipeline calls them
 ---------------------------
@@ -104,10 +112,34 @@ from estimators.quality import QualityWarning
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["FunctionalCalibration", "FunctionalFit", "FunctionalParams", "HingeAxes", "hinge_axes",
+__all__ = ["FunctionalCalibration", "FunctionalFit", "FunctionalParams", "HingeAxes", "SensorTurnedError", "hinge_axes",
            "standing_task_calibration", "task_calibration"]
 
 SEGMENTS = ("thigh", "shank")
+
+
+class SensorTurnedError(CalibrationError):
+    """The relative sign came from the mounting rule (both sensors worn alike, F2 i), Seel's own consistency test
+    gives the other sign, and with the mounting's sign the task extends the knee beyond every straight reference by
+    more than ``max_overshoot_rad``: one sensor is turned round (e.g. the shank's 180° about its long axis), which
+    the mounting rule cannot see.  ``overshoot_deg`` is that extension."""
+
+    def __init__(self, overshoot_rad: float, margin_gain_rad: float | None = None) -> None:
+        self.overshoot_deg = float(np.rad2deg(overshoot_rad))
+        self.margin_gain_deg = None if margin_gain_rad is None else float(np.rad2deg(margin_gain_rad))
+        why = (f"the knee extended {self.overshoot_deg:.0f}° beyond its straight reference" if margin_gain_rad is None
+               else f"the flexion's direction is {self.margin_gain_deg:.0f}° clearer with one sensor turned round")
+        super().__init__(f"{why} with the hinge axes signed as if both sensors were worn alike: the thigh and shank "
+                         "sensors do not seem to be worn on the same side of the leg (one is turned round); wear both "
+                         "with the same face outwards and +y up the leg and record again")
+
+
+def _check_mounting_sign(axes: HingeAxes, overshoot_rad: float, p: FunctionalParams) -> None:
+    """Raise :class:`SensorTurnedError` when an overshoot beyond ``max_overshoot_rad`` follows a mounting-derived
+    relative sign that Seel's disagrees with (F2 i): the mounting rule's assumption failed, not the posture."""
+    if (overshoot_rad > p.max_overshoot_rad and axes.relative_sign_source == "mounting"
+            and not axes.seel_sign_agrees):
+        raise SensorTurnedError(overshoot_rad)
 SIGN_PERCENTILE = 0.5  # the percentile of the knee angle that measures the overshoot (F2)
 
 
@@ -130,6 +162,9 @@ class FunctionalParams:
     max_overshoot_rad : the task may extend the knee at most this far beyond the straight reference (F2, 0.5th
         percentile) before the task-only method refuses: no still moment was straight (10°; simulated gait with a
         standing start reaches ~3°, a step-up ~1°).
+    turned_margin_gap_rad : standing + task with a mounting-derived relative sign: one sensor is taken as turned round
+        when the other relative sign's margin (F2) is larger by this much (30°; 62–70° on simulated step-ups with the
+        shank turned round, seeds 1–8).
     principal_weight : the pull of Seel's axes towards each sensor's principal rotation axis
         (:func:`estimators.joint_axis.estimate_axis`; 1.0, chosen on simulated step-ups and gait, seeds 0–2: the
         femur's in-plane axis error fell from 1–23° to 0–4°; 0 is Seel's problem exactly).
@@ -146,13 +181,15 @@ class FunctionalParams:
     max_axis_residual_rad_s: float = 0.35
     same_mounting_min_cos: float = 0.5
     max_overshoot_rad: float = float(np.deg2rad(10.0))
+    turned_margin_gap_rad: float = float(np.deg2rad(30.0))
     principal_weight: float = 1.0
     max_samples: int = 6000
     smooth_s: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("window_s", "max_gyr_sd_rad_s", "max_acc_sd_m_s2", "straight_tol_rad", "min_sign_margin_rad",
-                     "min_axis_angle_rad", "max_axis_residual_rad_s", "same_mounting_min_cos", "smooth_s", "max_overshoot_rad"):
+                     "min_axis_angle_rad", "max_axis_residual_rad_s", "same_mounting_min_cos", "smooth_s", "max_overshoot_rad",
+                     "turned_margin_gap_rad"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
@@ -492,6 +529,16 @@ def standing_task_calibration(standing_thigh, standing_shank, task_thigh, task_s
     still_alpha = (c[starts + w] - c[starts]) / w
     ok = np.isfinite(alpha)
     sign, over, margin, flex, bend_still = _sign_and_straight(alpha[ok], still_alpha, ref, int(p.smooth_s * fs_hz))
+    _check_mounting_sign(axes, over, p)
+    if axes.relative_sign_source == "mounting":  # the other relative sign, to see whether one sensor is turned round
+        alpha_f = _knee_from_gravity(at, as_, axes.j_thigh, -axes.j_shank)
+        ref_f = complex(_knee_from_gravity(stand["thigh"].acc_mean_m_s2[None], stand["shank"].acc_mean_m_s2[None],
+                                           axes.j_thigh, -axes.j_shank)[0])
+        c_f = np.concatenate([[0.0], np.cumsum(np.where(np.isfinite(alpha_f), alpha_f, 0.0))])
+        _, over_f, margin_f, _, _ = _sign_and_straight(alpha_f[ok], (c_f[starts + w] - c_f[starts]) / w, ref_f,
+                                                       int(p.smooth_s * fs_hz))
+        if margin_f - margin > p.turned_margin_gap_rad and over_f <= p.straight_tol_rad:
+            raise SensorTurnedError(over, margin_f - margin)
     bend = float(-np.min(bend_still)) if len(bend_still) else 0.0  # standing minus the task's straightest still moment
     if abs(bend) > p.straight_tol_rad:
         warnings.append(_warn("functional_standing_not_straight",
@@ -550,6 +597,7 @@ def task_calibration(task_thigh, task_shank, *, fs_hz: float, q_task: dict | Non
     still_alpha = (c[starts + w] - c[starts]) / w
     ok = np.isfinite(alpha)
     sign, over, margin, flex, bend_all = _sign_and_straight(alpha[ok], still_alpha, None, int(p.smooth_s * fs_hz))
+    _check_mounting_sign(axes, over, p)
     if over > p.max_overshoot_rad:
         raise CalibrationError(
             f"the knee extended {np.rad2deg(over):.0f}° further during the task than in any moment both sensors were "

@@ -84,6 +84,32 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
         "en": "functional calibration on {thigh_files} and {shank_files}: {reason}",
         "es": "calibración funcional con {thigh_files} y {shank_files}: {reason}",
         "pt": "calibração funcional com {thigh_files} e {shank_files}: {reason}"},
+    "pipeline.functional_needs_figure_eight": {
+        "en": "the functional calibration needs the magnetometer calibration (figure-eight) recording: without it "
+              "the sensors' headings carry the magnetometers' hard iron, which turned the knee's axes by over 10° "
+              "in tests; process this session with the static calibration, or record the figure-eight of both "
+              "sensors",
+        "es": "la calibración funcional necesita la grabación de calibración del magnetómetro (el ocho): sin ella "
+              "las orientaciones horizontales de los sensores llevan el hierro duro de los magnetómetros, que giró "
+              "los ejes de la rodilla más de 10° en las pruebas; procese esta sesión con la calibración estática o "
+              "grabe el ocho de ambos sensores",
+        "pt": "a calibração funcional precisa da gravação de calibração do magnetômetro (o oito): sem ela as "
+              "orientações horizontais dos sensores carregam o ferro duro dos magnetômetros, que girou os eixos do "
+              "joelho mais de 10° nos testes; processe esta sessão com a calibração estática ou grave o oito dos "
+              "dois sensores"},
+    "pipeline.sensor_turned_round": {
+        "en": "{thigh_files} (thigh) and {shank_files} (shank): the thigh and shank sensors do not seem to be worn on "
+              "the same side of the leg (one is turned round): the knee's motion fits one sensor turned round far "
+              "better than both worn alike; wear both sensors with the same face outwards and their +y axis up the "
+              "leg, and record the session again",
+        "es": "{thigh_files} (muslo) y {shank_files} (pierna): los sensores del muslo y de la pierna no parecen "
+              "llevarse en el mismo lado de la pierna (uno está girado): el movimiento de la rodilla encaja mucho "
+              "mejor con un sensor girado que con ambos colocados igual; coloque ambos sensores con la misma cara "
+              "hacia fuera y su eje +y hacia arriba a lo largo de la pierna, y grabe de nuevo la sesión",
+        "pt": "{thigh_files} (coxa) e {shank_files} (perna): os sensores da coxa e da perna não parecem estar no "
+              "mesmo lado da perna (um está virado): o movimento do joelho se ajusta muito melhor a um sensor virado "
+              "do que aos dois colocados igual; coloque os dois sensores com a mesma face para fora e o eixo +y para "
+              "cima ao longo da perna, e grave a sessão de novo"},
     "pipeline.implausible_angles": {
         "en": "{thigh_files} (thigh) and {shank_files} (shank): {cause}.",
         "es": "{thigh_files} (muslo) y {shank_files} (pierna): {cause}.",

@@ -301,7 +301,13 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         # test_protocols.py); without it the sign comes from the mounting and the rotation zero from the hinge frame
         # itself (y gravity, z the hinge axis: the two segments' frames coincide at the straight window)
         segments, _ = _functional_segments(session, protocol, task, q_task=q_es, q_standing=q_standing)
-    elif options.calibration == "functional":
+    elif protocol == "postures" and options.calibration == "functional":
+        # standing + task (c) and the task alone (d) are functional already (the task's hinge axes): ``functional``
+        # asks nothing more of them.  On the postures the femur's axis is checked against, and the tibia's rotation
+        # zero taken from, the 9D orientations, which without a figure-eight carry the uncalibrated hard iron
+        # (adduction and rotation 13° RMSE on simulated step-ups, tests/app/pipeline/test_protocol_calibrations.py)
+        if "mag_calibration" not in roles:
+            raise PipelineError("pipeline.functional_needs_figure_eight")
         segments, functional_warnings = _functional(segments, thigh, shank, gyr_task, q_es, q_standing)
         warnings += functional_warnings
     choice = _heading_choice(options.heading, options.task, filt, task, gyr_task, segments,
@@ -477,6 +483,9 @@ def _functional_segments(session: Session, protocol: str, task: dict, *, q_task:
                                                        *pairs, fs_hz=fs_hz, q_standing=q_st, q_task=q_task)
         else:
             cal = functional.task_calibration(*pairs, fs_hz=fs_hz, q_task=q_task)
+    except functional.SensorTurnedError:
+        raise PipelineError("pipeline.sensor_turned_round", thigh_files=_files(task["thigh"]),
+                            shank_files=_files(task["shank"])) from None
     except ValueError as exc:
         files = ", ".join(_files(task[seg]) for seg in SEGMENTS)
         raise PipelineError("pipeline.functional_segment_calibration", files=files, reason=str(exc)) from None

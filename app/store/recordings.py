@@ -116,7 +116,7 @@ def set_split(db: Session, clinic_id: int, session_id: int, split: dict | None) 
     sentence), :class:`Conflict` while the session is being processed."""
     if split is not None:
         try:
-            check_split(split)
+            check_split(split, knees=True)  # a four-sensor session's cuts are keyed by knee (left_thigh …)
         except IngestionError as exc:
             raise Invalid(str(exc)) from None
     session = clinic_session(db, clinic_id, session_id, lock=True)

@@ -252,7 +252,7 @@ function dropZone(ctx, segment, role) {
     if (text) macNote.append(h("div", { class: "notice warning mac-warning", role: "alert" }, text));
   };
   const choose = h("button", { type: "button", class: "secondary small" }, t("wizard.choose_files"));
-  choose.setAttribute("aria-label", `${t("wizard.choose_files")}: ${segment ? `${label("segment", segment)}, ` : ""}${title}`);
+  choose.setAttribute("aria-label", `${t("wizard.choose_files")}: ${segment ? `${sensorName(segment)}, ` : ""}${title}`);
   const zone = h("div", { class: "zone", "data-segment": segment || "", "data-role": role || "" },
     h("h3", {}, title), h("p", { class: "hint" }, hint), list,
     h("div", { class: "zone-actions" }, choose, h("span", { class: "drop-hint" }, t("wizard.or_drop"))),
@@ -391,13 +391,29 @@ function sec(x) {
   return Math.round(x * 10) / 10;
 }
 
+/** The check's key of a sensor ("thigh", or "left_thigh" for a knee of a four-sensor session) in words. */
+function sensorName(key) {
+  const m = /^(left|right)_(thigh|shank)$/.exec(key);
+  return m ? `${label("side", m[1])} · ${label("segment", m[2])}` : label("segment", key);
+}
+
+/** Thigh before shank (the order of SEGMENTS), the left knee's before the right's. */
+function bySensor(a, b) {
+  const order = (k) => {
+    const m = /^(?:(left|right)_)?(thigh|shank)$/.exec(k) || [];
+    return (m[1] === "right" ? 10 : 0) + SEGMENTS.indexOf(m[2]);
+  };
+  return order(a) - order(b);
+}
+
 /** Step 2's split editor: one card per sensor whose continuous recording the check cut (`ingestion.splits`). */
 function renderSplit(ctx, ingestion) {
   const area = ctx.splitArea;
   if (!area) return;
   clear(area);
   const splits = (ingestion && ingestion.splits) || {};
-  const segments = SEGMENTS.filter((s) => splits[s] && splits[s].spans_s);
+  // a sensor's key: "thigh"/"shank", or "left_thigh"… for a four-sensor session (the check keys them by knee)
+  const segments = Object.keys(splits).filter((s) => splits[s] && splits[s].spans_s).sort(bySensor);
   if (!segments.length) return;
   // the cuts being edited, per segment: [start_s, end_s] per part, starting from what the check used
   const edit = Object.fromEntries(segments.map((s) => [s, Object.fromEntries(
@@ -442,7 +458,7 @@ function badSpan(segments, splits, body) {
     const duration = Number(splits[seg].duration_s) || Infinity;
     for (const [role, [a, b]] of Object.entries(body[seg] || {})) {
       if (!(Number.isFinite(a) && Number.isFinite(b) && a >= 0 && a < b && b <= duration + 0.05)) {
-        return t("wizard.split_bad", { segment: label("segment", seg), part: label("recording", role),
+        return t("wizard.split_bad", { segment: sensorName(seg), part: label("recording", role),
           duration: num(duration, 1) });
       }
     }
@@ -462,7 +478,7 @@ function splitCard(ctx, segment, split, spans, message) {
   const handles = svg("g", { class: "cuts" });
   const plot = svg("svg", { viewBox: `0 0 ${TRACE_W} ${TRACE_H}`, preserveAspectRatio: "none", class: "split-trace",
     width: "100%", height: TRACE_H, role: "img", "data-segment": segment,
-    "aria-label": t("wizard.split_trace", { segment: label("segment", segment), seconds: num(duration, 0) }) },
+    "aria-label": t("wizard.split_trace", { segment: sensorName(segment), seconds: num(duration, 0) }) },
   svg("rect", { x: 0, y: 0, width: TRACE_W, height: TRACE_H, fill: "#fafafa" }), bands,
   svg("polyline", { points: points.join(" "), fill: "none", stroke: "#333", "stroke-width": 1.2,
     "vector-effect": "non-scaling-stroke" }), handles);
@@ -470,10 +486,10 @@ function splitCard(ctx, segment, split, spans, message) {
   const rows = ROLES.filter((role) => spans[role]).map((role) => {
     const from = h("input", { type: "number", step: "0.1", min: "0", max: String(sec(duration)), inputmode: "decimal",
       name: `split-${segment}-${role}-from`, value: String(sec(spans[role][0])), disabled: !canEdit(),
-      "aria-label": t("wizard.split_from_of", { segment: label("segment", segment), part: label("recording", role) }) });
+      "aria-label": t("wizard.split_from_of", { segment: sensorName(segment), part: label("recording", role) }) });
     const to = h("input", { type: "number", step: "0.1", min: "0", max: String(sec(duration)), inputmode: "decimal",
       name: `split-${segment}-${role}-to`, value: String(sec(spans[role][1])), disabled: !canEdit(),
-      "aria-label": t("wizard.split_to_of", { segment: label("segment", segment), part: label("recording", role) }) });
+      "aria-label": t("wizard.split_to_of", { segment: sensorName(segment), part: label("recording", role) }) });
     inputs[role] = [from, to];
     [from, to].forEach((input, k) => input.addEventListener("input", () => {
       const value = Number(input.value);
@@ -501,7 +517,7 @@ function splitCard(ctx, segment, split, spans, message) {
   const cutHandle = (role, k) => {
     const at = x(spans[role][k]);
     const name = t(k === 0 ? "wizard.split_from_of" : "wizard.split_to_of",
-      { segment: label("segment", segment), part: label("recording", role) });
+      { segment: sensorName(segment), part: label("recording", role) });
     const grip = svg("g", { class: "cut", tabindex: canEdit() ? "0" : null, role: "slider", "aria-label": name,
       "aria-valuemin": 0, "aria-valuemax": sec(duration), "aria-valuenow": sec(spans[role][k]),
       "data-role": role, "data-edge": k === 0 ? "from" : "to", cursor: "ew-resize" },
@@ -538,7 +554,7 @@ function splitCard(ctx, segment, split, spans, message) {
   };
   draw();
   return h("div", { class: "split-sensor", "data-segment": segment },
-    h("h4", {}, label("segment", segment), " — ", h("span", { class: "file-name" }, split.file || "")),
+    h("h4", {}, sensorName(segment), " — ", h("span", { class: "file-name" }, split.file || "")),
     plot,
     h("table", { class: "data split-table" },
       h("thead", {}, h("tr", {}, h("th", { scope: "col" }, t("wizard.split_part")),

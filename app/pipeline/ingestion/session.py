@@ -49,7 +49,7 @@ from app.pipeline.ingestion.metabase import (group_metabase_files, parse_file_na
 from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note, RawRecording, Recognition, Session,
                                  SessionMetadata)
 from app.pipeline.ingestion.opal import list_sensors, read_opal
-from app.pipeline.ingestion.split import CONTINUOUS, left_unsplit, split_session
+from app.pipeline.ingestion.split import CONTINUOUS, knee_split, left_unsplit, split_session
 from app.pipeline.ingestion.phyphox import phyphox_device_id, looks_like_phyphox, read_phyphox
 from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
@@ -414,7 +414,7 @@ def load_knees(path: str | os.PathLike, *, expected_fs_hz: float | None = 100.0,
     out = {}
     for side in sorted(groups):
         picked = groups[side]
-        side_manifest = {**manifest, "side": side}
+        side_manifest = {**manifest, "side": side, "split": knee_split(manifest.get("split"), side, mpath)}
         out[side] = replace(_assemble(folder, mpath, side_manifest, picked, list(notes), ignored, expected_fs_hz,
                                       roles, required), patient_side=patient)
     return out

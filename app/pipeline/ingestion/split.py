@@ -100,13 +100,36 @@ def given_spans(value, manifest: Path | None, segment: str) -> dict[str, tuple[f
     return {k: (float(v[0]), float(v[1])) for k, v in value.items()}
 
 
-def check_split(given, manifest: Path | None = None) -> dict[str, dict[str, tuple[float, float]]]:
+#: the keys of a four-sensor session's ``split``: each knee's sensor (``left_thigh`` …, what its check shows)
+KNEE_SPLIT_KEYS = tuple(f"{side}_{seg}" for side in ("left", "right") for seg in ("thigh", "shank"))
+
+
+def check_split(given, manifest: Path | None = None, *, knees: bool = False) -> dict[str, dict[str, tuple[float, float]]]:
     """``session.json`` ``split`` (``{segment: {role: [start_s, end_s]}}``) checked (:func:`given_spans` per
-    segment); :class:`IngestionError` ``manifest.bad_split`` otherwise."""
-    if not isinstance(given, dict) or set(given) - {"thigh", "shank"}:
-        raise IngestionError("manifest.bad_split", file=manifest, segment="thigh | shank", value=repr(given)[:80],
+    segment); :class:`IngestionError` ``manifest.bad_split`` otherwise.  ``knees=True`` also takes a four-sensor
+    session's knee-prefixed keys (:data:`KNEE_SPLIT_KEYS`; not mixed with plain ones), which
+    :func:`app.pipeline.ingestion.session.load_knees` hands to each knee without their prefix."""
+    plain = {"thigh", "shank"}
+    ok = isinstance(given, dict) and (set(given) <= plain or (knees and set(given) <= set(KNEE_SPLIT_KEYS)))
+    if not ok:
+        keys = " | ".join(("thigh", "shank") + (KNEE_SPLIT_KEYS if knees else ()))
+        raise IngestionError("manifest.bad_split", file=manifest, segment=keys, value=repr(given)[:80],
                              roles=", ".join(PARTS))
     return {seg: given_spans(v, manifest, seg) for seg, v in given.items()}
+
+
+def knee_split(given, side: str, manifest: Path | None = None) -> dict | None:
+    """The ``split`` of one knee of a four-sensor session: its ``{side}_{segment}`` entries without the prefix
+    (checked, :func:`check_split`); None when the clinician moved no cut of that knee.  Plain keys cannot say
+    which knee's sensor they cut: refused (``manifest.bad_split``)."""
+    if not given:
+        return None
+    check_split(given, manifest, knees=True)
+    if set(given) - set(KNEE_SPLIT_KEYS):
+        raise IngestionError("manifest.bad_split", file=manifest, segment=" | ".join(KNEE_SPLIT_KEYS),
+                             value=repr(given)[:80], roles=", ".join(PARTS))
+    mine = {k.removeprefix(f"{side}_"): v for k, v in given.items() if k.startswith(f"{side}_")}
+    return mine or None
 
 
 def split_recording(rec: RawRecording, segment: str, expected_fs_hz: float | None, how: str,

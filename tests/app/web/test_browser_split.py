@@ -169,3 +169,57 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         raise
     finally:
         context.close()
+
+
+def test_a_four_sensor_sessions_cuts_get_one_editor_per_sensor(browser, server, tmp_path, slow_expect):  # noqa: F811
+    """Both knees' continuous recordings (file names say the side): step 2 shows an editor for each of the four
+    sensors, named by side and segment (none appeared: the wizard looked for "thigh" and "shank" only), and a cut
+    moved on the right shank is stored under ``right_shank`` and applied to that sensor only."""
+    from app.pipeline.ingestion.metabase import write_recording_metabase
+
+    expect = slow_expect
+    streams, _, _ = _continuous(seed=1, n_cycles=3)
+    words = {"left": "izquierda", "right": "derecha", "thigh": "muslo", "shank": "pierna"}
+    folder = tmp_path / "knees"
+    folder.mkdir()
+    for i, side in enumerate(("left", "right")):
+        for j, seg in enumerate(("thigh", "shank")):
+            write_recording_metabase(folder, f"{words[seg]}-{words[side]}-ML1-13032023-1", f"D4F1A2B3C4{i}{j}",
+                                     streams[seg])
+    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000})
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        _login(page, server, "Email", "Password", "Log in")
+        expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        sid = _api_session(context, server, "E2E-SPLIT-KNEES", "right")
+        api = f"{server}/api/v1"
+        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        for side in ("left", "right"):
+            for seg in ("thigh", "shank"):
+                files = sorted(folder.glob(f"{words[seg]}-{words[side]}-*.csv"))
+                for p in files:
+                    r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf, multipart={
+                        "files": {"name": p.name, "mimeType": "text/csv", "buffer": p.read_bytes()},
+                        "segment": seg, "role": "continuous"})
+                    assert r.status == 201, r.text()
+        page.goto(f"{server}/#/sessions/{sid}/wizard")   # the session has files: the wizard opens on step 2
+        editor = page.locator("#split")
+        keys = ("left_thigh", "left_shank", "right_thigh", "right_shank")
+        for key in keys:
+            expect(editor.locator(f".split-sensor[data-segment={key}] svg.split-trace polyline")).to_have_count(1)
+        start = editor.locator("input[name=split-right_shank-standing-from]")
+        expect(start).to_have_attribute("aria-label", "Right · Shank, Standing: start (s)")
+        moved = round(float(start.input_value()) + 1.0, 1)
+        start.fill(str(moved))
+        editor.get_by_role("button", name="Confirm the cuts").click()
+        expect(page.locator("#split .split-state")).to_have_attribute("data-confirmed", "yes")
+        stored = context.request.get(f"{api}/sessions/{sid}").json()["ingestion"]
+        assert stored["confirmed_split"]["right_shank"]["standing"][0] == moved
+        assert stored["splits"]["right_shank"]["how"] == "session.json"
+        assert stored["splits"]["left_shank"]["spans_s"] == stored["confirmed_split"]["left_shank"]  # kept as shown
+        assert not errors, errors
+    finally:
+        context.close()

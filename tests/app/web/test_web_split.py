@@ -133,3 +133,47 @@ def test_a_refused_check_is_in_every_language(tmp_path):
         ing = r.json()["ingestion"]
     assert ing["ok"] is False and ing["error_message"]["en"] == ing["error"]
     assert ing["error_message"]["es"] != ing["error_message"]["en"] != ing["error_message"]["pt"]
+
+
+def test_a_four_sensor_sessions_cut_is_moved_per_knee(tmp_path, continuous):
+    """Both knees' continuous recordings (file names say the side): the check keys each sensor's cuts by knee
+    (``left_thigh`` …); a moved cut of one knee's sensor is stored under that key, refused before, and the redone
+    check applies it to that sensor only."""
+    from fastapi.testclient import TestClient
+
+    from app.pipeline.ingestion.metabase import write_recording_metabase
+    from app.web.main import create_app
+
+    streams, _, _ = continuous
+    words = {"left": "izquierda", "right": "derecha", "thigh": "muslo", "shank": "pierna"}
+    macs = {"left": "D4F1A2B3C4E1", "right": "D4F1A2B3C4E2"}
+    folder = tmp_path / "files"
+    folder.mkdir()
+    for side in ("left", "right"):
+        for seg in ("thigh", "shank"):
+            write_recording_metabase(folder, f"{words[seg]}-{words[side]}-ML1-13032023-1",
+                                     macs[side][:-2] + ("A" if seg == "thigh" else "B") + macs[side][-1], streams[seg])
+    settings = make_settings(tmp_path / "data")
+    h = clinic_token(settings, "S")
+    with TestClient(create_app(settings)) as c:
+        _, sid = new_session(c, h)
+        for side in ("left", "right"):
+            for seg in ("thigh", "shank"):
+                files = [("files", (p.name, p.read_bytes(), "text/csv"))
+                         for p in sorted(folder.glob(f"{words[seg]}-{words[side]}-*.csv"))]
+                r = c.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=files,
+                           data={"segment": seg, "role": "continuous"})
+                assert r.status_code == 201, r.text
+        ingestion = r.json()["ingestion"]
+        assert ingestion["ok"] is True, ingestion
+        assert set(ingestion["splits"]) == {"left_thigh", "left_shank", "right_thigh", "right_shank"}
+        a, b = ingestion["splits"]["right_shank"]["spans_s"]["standing"]
+        moved = [round(a + 2.0, 1), round(b - 2.0, 1)]
+        r = c.put(f"/api/v1/sessions/{sid}/split", headers=h, json={"split": {"right_shank": {"standing": moved}}})
+        assert r.status_code == 200, r.text
+        splits = r.json()["splits"]
+        assert splits["right_shank"]["how"] == "session.json" and splits["right_shank"]["spans_s"]["standing"] == moved
+        assert {k: v["how"] for k, v in splits.items() if k != "right_shank"} == dict.fromkeys(
+            ("left_shank", "left_thigh", "right_thigh"), "role")
+        r = c.put(f"/api/v1/sessions/{sid}/split", headers=h, json={"split": {"shank": {"standing": moved}}})
+        assert r.status_code == 200 and r.json()["ok"] is False  # a plain key cannot say which knee: the check refuses
