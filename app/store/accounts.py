@@ -165,7 +165,7 @@ def clinic_users(db: Session, clinic_id: int) -> list[User]:
 
 
 def _taken(email: str) -> Conflict:
-    return Conflict(f"The email {email} already has an account; use another email.")
+    return Conflict(code="store.email_taken", email=email)
 
 
 def refuse_taken_email(db: Session, email: str) -> None:

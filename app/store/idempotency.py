@@ -34,7 +34,7 @@ class KeyReused(Conflict):
     """The key was used for another request (another path or body)."""
 
     def __init__(self, key: str) -> None:
-        super().__init__(f"Idempotency-Key {key!r} was used for another request; send a new key for a new request.")
+        super().__init__(code="store.key_reused", key=key)
         self.key = key
 
 
@@ -42,7 +42,7 @@ class KeyInFlight(Conflict):
     """The first request with this key has not finished yet."""
 
     def __init__(self, key: str) -> None:
-        super().__init__(f"A request with Idempotency-Key {key!r} is still running; retry in a few seconds.")
+        super().__init__(code="store.key_in_flight", key=key)
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.pipeline.ingestion.model import IngestionError, Stream
+from app.pipeline.ingestion.model import IngestionError, Note, Stream
 from app.pipeline.ingestion.tables import check_stamps, first_huge_cell
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
 from app.pipeline.ingestion.xlsx_cells import Workbook, count_tags
@@ -176,7 +176,8 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
         raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
     finally:
         wb.close()
-    note = f"sheet {chosen!r}" + (f" of {names}" if len(names) > 1 else "")
+    note = Note.of("sheet_chosen_of", sheet=chosen, sheets=str(names)) if len(names) > 1 else \
+        Note.of("sheet_chosen", sheet=chosen)
     if len(numbers) < 2:
         raise IngestionError("xlsx.no_rows", file=path, sheet=chosen)
     problem = _layout_problem(header_row)

@@ -52,6 +52,7 @@ from app.store.models import Job, KneeSession, Patient, User, utcnow
 from app.store.patients import clinic_patient
 from app.store.sessions import clinic_job, clinic_session
 from app.web.audit import record_refusal
+from app.web.refusals import Refusal
 from app.web.security import ROLE_RANK, csrf_ok, csrf_token, sha256_hex
 
 COOKIE = "chakamo_session"
@@ -103,6 +104,8 @@ STATUS_OF: dict[type[DomainError], int] = {NotFound: 404, Conflict: 409, Invalid
 def http_error(error: DomainError) -> HTTPException:
     """The ``HTTPException`` answering ``error`` (:data:`STATUS_OF`; 400 for a class not listed)."""
     status = next((code for cls, code in STATUS_OF.items() if isinstance(error, cls)), 400)
+    if error.code is not None:   # its sentence in es/en/pt, with code and params (app.web.refusals)
+        return Refusal(status, error.code, **error.params)
     return HTTPException(status, error.detail)
 
 

@@ -87,7 +87,7 @@ def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Reques
     url = body.url.strip()
     development = request.app.state.settings.development
     if not _URL.fullmatch(url) or (not development and not url.lower().startswith("https://")):
-        raise Invalid(f"webhook URL {url[:80]!r} must be an absolute https:// address")
+        raise Invalid(code="store.webhook_url", url=url[:80])
     secret = secrets.token_urlsafe(32)
     row = webhooks.add_subscription(db, principal.clinic_id, url=url, events=body.events, secret=secret,
                                     label=body.label)
