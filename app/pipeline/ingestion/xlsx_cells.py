@@ -40,9 +40,9 @@ _SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*/?>")
 _SHEET_DATA_END = re.compile(rb"</" + _P + rb"sheetData\s*>")
 _ROW_END = re.compile(rb"</" + _P + rb"row\s*>|<" + _P + rb"row[^>]*/>")
 #: a cell as every writer known writes it (no namespace prefix, ``r`` first, ``s`` and ``t`` only, double quotes):
-#: column letters and row of ``r``, ``t``, the ``<v>`` text after an optional ``<f>``, and the rest of its content
-_FAST = re.compile(rb'<c r="([A-Z]+)(\d+)"(?: s="\d+")?(?: t="(\w+)")?(?: s="\d+")?(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?'
-                   rb'(?:<v>([^<]*)</v>)?(.*?)</c>)', re.S)
+#: ``r`` (column letters, row), ``t``, and the ``<v>`` text after an optional ``<f>``
+_FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: s="\d+")?'
+                   rb'(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?(?:<v>([^<]*)</v>)?.*?</c>)', re.S)
 _ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])([^>]*?)(?:/>|>(.*?)</" + _P + rb"row\s*>)", re.S)
 _CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])([^>]*?)(?:/>|>(.*?)</" + _P + rb"c\s*>)", re.S)
 _ATTR = re.compile(rb"""([\w:.-]+)\s*=\s*(?:"([^"]*)"|'([^']*)')""")
@@ -84,15 +84,26 @@ def count_tags(data: bytes, name: bytes, end: int | None = None) -> int:
     return data.count(b"<" + name, 0, end)
 
 
-def _columns(letters: np.ndarray) -> np.ndarray:
-    """1-based columns of an array of column letters (``b"AB"`` → 28), vectorised; 4 letters or more (beyond
-    Excel's XFD) give a column past any read."""
-    codes = letters.astype("S4").view(np.uint8).reshape(-1, 4).astype(np.int64)
+def _references(refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1-based (columns, rows) of an array of cell references (``b"AB12"`` → 28, 12), vectorised over the bytes
+    (``[A-Z]{1,3}[0-9]{1,9}``, as :data:`_FAST` matches them)."""
+    width = min(refs.dtype.itemsize, 12)   # the longest reference present
+    codes = refs.astype(f"S{width}").view(np.uint8).reshape(-1, width).astype(np.int64)
     col = np.zeros(len(codes), dtype=np.int64)
-    for k in range(3):
-        present = codes[:, k] != 0
-        col = np.where(present, col * 26 + codes[:, k] - 64, col)
-    return np.where(codes[:, 3] != 0, 1 << 40, col)
+    row = np.zeros(len(codes), dtype=np.int64)
+    for k in range(width):
+        c = codes[:, k]
+        letter, digit = (c >= 65) & (c <= 90), (c >= 48) & (c <= 57)
+        col = np.where(letter, col * 26 + c - 64, col)
+        row = np.where(digit, row * 10 + c - 48, row)
+    return col, row
+
+
+def _content(body: bytes, ref: bytes) -> bytes:
+    """The content of the cell ``ref`` (its first occurrence in ``body``)."""
+    start = body.find(b'<c r="' + ref + b'"')
+    start = body.find(b">", start) + 1
+    return body[start:body.find(b"</c>", start)]
 
 
 def _column(ref: bytes) -> int:
@@ -206,12 +217,11 @@ class Workbook:
                         others[(i, j)] = v
             last = max([i for i in range(len(rows)) if any(x is not None for x in rows[i])], default=-1) + 1
             return numbers[:last], others
-        table = np.array(cells)                           # one (cells × 5) bytes array: no object per cell
-        row = table[:, 1].astype(np.int64)
+        table = np.array(cells)                           # one (cells × 3) bytes array: no object per cell
+        col, row = _references(table[:, 0])
         beyond = np.nonzero(row > max_row)[0]
         n = int(beyond[0]) if beyond.size else len(row)   # openpyxl stops at the first row beyond max_row
-        col = _columns(table[:n, 0])
-        row, kind, value = row[:n], table[:n, 2], table[:n, 3]
+        col, row, kind, value = col[:n], row[:n], table[:n, 1], table[:n, 2]
         keep = (col >= 1) & (col <= max_col) & (row >= 1)
         number = keep & ((kind == b"") | (kind == b"n")) & (value != b"")
         n_rows = int(row[keep].max()) if keep.any() else 0
@@ -219,7 +229,8 @@ class Workbook:
         numbers[row[number] - 1, col[number] - 1] = value[number].astype(np.float64)
         others = {}
         for k in np.nonzero(keep & ~number)[0]:
-            v = self._value(*cells[k][2:])
+            v = self._value(cells[k][1], cells[k][2], _content(body, cells[k][0]) if cells[k][1] == b"inlineStr"
+                            else b"")
             if v is not None:
                 others[(int(row[k]) - 1, int(col[k]) - 1)] = v
         return numbers, others

@@ -28,6 +28,16 @@ def _same(path, max_row, max_col):
             assert len(mine) == len(theirs), name
             for a, b in zip(mine, theirs):
                 assert [(type(x), x) for x in a] == [(type(x), x) for x in b], name
+            numbers, others = wb.table(name, max_row, max_col)   # the fast reader: the same values
+            for i, r in enumerate(theirs):
+                for j, v in enumerate(r):
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        assert numbers[i, j] == float(v) and (i, j) not in others, (name, i, j)
+                    elif v is None:
+                        assert (i >= len(numbers) or np.isnan(numbers[i, j])) and (i, j) not in others
+                    else:
+                        assert type(others[(i, j)]) is type(v) and others[(i, j)] == v, (name, i, j)
+                        assert np.isnan(numbers[i, j])
 
 
 def test_thesis_workbook_values_are_openpyxls(tmp_path):
@@ -85,3 +95,39 @@ def test_rows_far_away_pad_like_openpyxl(tmp_path, max_row):
     path = tmp_path / "far.xlsx"
     wb.save(path)
     _same(path, max_row, 4)
+
+
+def _with_sheet(path, xml: bytes):
+    """A one-sheet workbook written by openpyxl whose sheet XML is replaced by ``xml``."""
+    import io
+    import zipfile
+
+    wb = openpyxl.Workbook()
+    buf = io.BytesIO()
+    wb.save(buf)
+    src = zipfile.ZipFile(io.BytesIO(buf.getvalue()))
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as out:
+        for info in src.infolist():
+            out.writestr(info.filename, xml if info.filename == "xl/worksheets/sheet1.xml" else src.read(info))
+    return path
+
+
+@pytest.mark.parametrize("cells", [
+    # no references (the slow path), a rich inline string, an error, a str formula result, escapes
+    '<row><c t="inlineStr"><is><r><t>tiem</t></r><r><t>po (s)</t></r></is></c><c t="e"><v>#N/A</v></c>'
+    '<c t="str"><f>A1</f><v>a &amp; b</v></c></row><row><c><v>1.5</v></c><c><v>2</v></c><c t="b"><v>1</v></c></row>',
+    # a namespace prefix, attributes in another order and single quotes (the slow path)
+    '<x:row r="1"><x:c t="n" r="B1"><x:v>3</x:v></x:c></x:row><x:row r="3"><x:c r=\'A3\' s="0"><x:v>-2E-3</x:v>'
+    '</x:c><x:c r="C3" t="inlineStr"><x:is><x:t>ação</x:t></x:is></x:c></x:row>',
+    # the fast path with a gap in the rows and an empty value
+    '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c></row><row r="4"><c r="A4" s="1" t="n">'
+    '<v>0.25</v></c><c r="B4" t="n"></c><c r="D4"><v>7</v></c></row>',
+])
+def test_hand_written_sheets_read_like_openpyxl(tmp_path, cells):
+    prefix = ' xmlns:x="http://schemas.openxmlformats.org/spreadsheetml/2006/main"' if "<x:" in cells else ""
+    tag = "x:" if prefix else ""
+    xml = ('<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
+           f'spreadsheetml/2006/main"{prefix}><{tag}sheetData>{cells}</{tag}sheetData></worksheet>').encode()
+    path = _with_sheet(tmp_path / "hand.xlsx", xml)
+    for max_row in (1, 4, 10):
+        _same(path, max_row, 5)
