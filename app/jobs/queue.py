@@ -38,7 +38,7 @@ class NotReady(Conflict):
     """The session's files do not pass the ingestion check; ``reason`` is the check's sentence (or None)."""
 
     def __init__(self, reason: str | None) -> None:
-        super().__init__(f"The session's recordings are not ready to process: {reason or 'no recordings yet'}")
+        super().__init__(code="store.not_ready", reason=reason or "no recordings yet")
         self.reason = reason
 
 
@@ -46,7 +46,7 @@ class UpToDate(Conflict):
     """An analysis with the same filter and language exists for this pipeline version and these files."""
 
     def __init__(self, analysis_id: int) -> None:
-        super().__init__(f"analysis {analysis_id} (pipeline {PIPELINE_VERSION})")
+        super().__init__(code="store.up_to_date", analysis_id=analysis_id, version=PIPELINE_VERSION)
         self.analysis_id = analysis_id
 
 

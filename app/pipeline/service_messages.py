@@ -202,6 +202,166 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "The Idempotency-Key must be 1 to {limit} printable ASCII characters (a UUID, for example).",
         "es": "La Idempotency-Key debe tener de 1 a {limit} caracteres ASCII imprimibles (un UUID, por ejemplo).",
         "pt": "A Idempotency-Key deve ter de 1 a {limit} caracteres ASCII imprimíveis (um UUID, por exemplo)."},
+    "store.no_analysis": {
+        "en": "No analysis {analysis_id} in session {session_id}; check the id.",
+        "es": "No hay análisis {analysis_id} en la sesión {session_id}; compruebe el id.",
+        "pt": "Não há análise {analysis_id} na sessão {session_id}; verifique o id."},
+    "store.no_results": {
+        "en": "Session {session_id} has no results yet; process it first (POST /api/v1/sessions/{session_id}/process).",
+        "es": "La sesión {session_id} aún no tiene resultados; procésela primero (POST /api/v1/sessions/{session_id}/process).",
+        "pt": "A sessão {session_id} ainda não tem resultados; processe-a primeiro (POST /api/v1/sessions/{session_id}/process)."},
+    "store.no_artefact": {
+        "en": "Analysis {analysis_id} has no {name}{in_lang}; process the session again to make it.",
+        "es": "El análisis {analysis_id} no tiene {name}{in_lang}; procese la sesión de nuevo para generarlo.",
+        "pt": "A análise {analysis_id} não tem {name}{in_lang}; processe a sessão de novo para gerá-lo."},
+    "store.superseded": {
+        "en": "The results of session {session_id} were computed from recordings or details that have changed since (analysis {analysis_id}, superseded {when} UTC); process the session again{tail}.",
+        "es": "Los resultados de la sesión {session_id} se calcularon con grabaciones o datos que han cambiado desde entonces (análisis {analysis_id}, reemplazado el {when} UTC); procese la sesión de nuevo{tail}.",
+        "pt": "Os resultados da sessão {session_id} foram calculados com gravações ou dados que mudaram desde então (análise {analysis_id}, substituída em {when} UTC); processe a sessão de novo{tail}."},
+    "store.unknown_segment": {
+        "en": "segment {segment!r} is unknown; use {allowed}.",
+        "es": "el segmento {segment!r} es desconocido; use {allowed}.",
+        "pt": "o segmento {segment!r} é desconhecido; use {allowed}."},
+    "store.unknown_role": {
+        "en": "role {role!r} is unknown; use one of {allowed}.",
+        "es": "el papel {role!r} es desconocido; use uno de {allowed}.",
+        "pt": "o papel {role!r} é desconhecido; use um de {allowed}."},
+    "store.sent_twice": {
+        "en": "{names} sent twice in one upload; send each file once.",
+        "es": "{names} enviado dos veces en una misma subida; envíe cada archivo una vez.",
+        "pt": "{names} enviado duas vezes no mesmo envio; envie cada arquivo uma vez."},
+    "store.already_uploaded": {
+        "en": "{names} already uploaded to this session; delete the earlier recording first to replace it.",
+        "es": "{names} ya se subió a esta sesión; borre primero la grabación anterior para reemplazarla.",
+        "pt": "{names} já foi enviado a esta sessão; apague primeiro a gravação anterior para substituí-la."},
+    "store.too_many_files": {
+        "en": "A session holds at most {limit} files ({stored} already stored); delete the ones not needed.",
+        "es": "Una sesión admite como máximo {limit} archivos ({stored} ya guardados); borre los que no necesite.",
+        "pt": "Uma sessão admite no máximo {limit} arquivos ({stored} já guardados); apague os que não precisa."},
+    "store.upload_raced": {
+        "en": "{names}: another upload to this session stored a file of the same name at the same time; reload the session and check its files.",
+        "es": "{names}: otra subida a esta sesión guardó un archivo con el mismo nombre al mismo tiempo; recargue la sesión y compruebe sus archivos.",
+        "pt": "{names}: outro envio a esta sessão guardou um arquivo com o mesmo nome ao mesmo tempo; recarregue a sessão e verifique os seus arquivos."},
+    "store.no_recording": {
+        "en": "No recording {recording_id} in session {session_id}; check the ids.",
+        "es": "No hay grabación {recording_id} en la sesión {session_id}; compruebe los ids.",
+        "pt": "Não há gravação {recording_id} na sessão {session_id}; verifique os ids."},
+    "store.no_session": {
+        "en": "No session {session_id} in your clinic; check the id.",
+        "es": "No hay sesión {session_id} en su clínica; compruebe el id.",
+        "pt": "Não há sessão {session_id} na sua clínica; verifique o id."},
+    "store.no_job": {
+        "en": "No job {job_id} in your clinic; check the id.",
+        "es": "No hay trabajo {job_id} en su clínica; compruebe el id.",
+        "pt": "Não há tarefa {job_id} na sua clínica; verifique o id."},
+    "store.busy": {
+        "en": "Session {session_id} is being processed (job {job_id}); {what} when that job has finished.",
+        "es": "La sesión {session_id} se está procesando (trabajo {job_id}); {what} cuando ese trabajo haya terminado.",
+        "pt": "A sessão {session_id} está sendo processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
+    "store.changed_meanwhile": {
+        "en": "{kind} {row_id} was changed by someone else meanwhile (it is now version {version}, you sent {expected}); reload it and try again.",
+        "es": "{kind} {row_id} fue cambiado por otra persona mientras tanto (ahora es la versión {version}, usted envió {expected}); recárguelo e inténtelo de nuevo.",
+        "pt": "{kind} {row_id} foi alterado por outra pessoa entretanto (agora é a versão {version}, você enviou {expected}); recarregue-o e tente de novo."},
+    "store.not_correctable": {
+        "en": "{fields} cannot be corrected; correct {allowed}.",
+        "es": "{fields} no se puede corregir; corrija {allowed}.",
+        "pt": "{fields} não pode ser corrigido; corrija {allowed}."},
+    "store.empty_value": {
+        "en": "{field} cannot be empty; give a value.",
+        "es": "{field} no puede estar vacío; indique un valor.",
+        "pt": "{field} não pode estar vazio; indique um valor."},
+    "store.step_out_of_range": {
+        "en": "step_height_m {value} is out of range; give the step's height in metres (e.g. 0.17).",
+        "es": "step_height_m {value} está fuera de rango; indique la altura del escalón en metros (p. ej. 0,17).",
+        "pt": "step_height_m {value} está fora do intervalo; indique a altura do degrau em metros (p. ex. 0,17)."},
+    "store.unknown_task": {
+        "en": "task {task!r} is unknown; use one of {allowed}.",
+        "es": "la tarea {task!r} es desconocida; use una de {allowed}.",
+        "pt": "a tarefa {task!r} é desconhecida; use uma de {allowed}."},
+    "store.unknown_event": {
+        "en": "unknown or no event {events}; use {allowed}",
+        "es": "evento desconocido o ninguno {events}; use {allowed}",
+        "pt": "evento desconhecido ou nenhum {events}; use {allowed}"},
+    "store.no_webhook": {
+        "en": "No webhook {webhook_id} in your clinic; check the id.",
+        "es": "No hay webhook {webhook_id} en su clínica; compruebe el id.",
+        "pt": "Não há webhook {webhook_id} na sua clínica; verifique o id."},
+    "store.out_of_range": {
+        "en": "{field} {value} is out of range; give a value between {low} and {high}.",
+        "es": "{field} {value} está fuera de rango; indique un valor entre {low} y {high}.",
+        "pt": "{field} {value} está fora do intervalo; indique um valor entre {low} e {high}."},
+    "store.unknown_value": {
+        "en": "{field} {value!r} is unknown; use one of {allowed}.",
+        "es": "{field} {value!r} es desconocido; use uno de {allowed}.",
+        "pt": "{field} {value!r} é desconhecido; use um de {allowed}."},
+    "store.no_patient": {
+        "en": "No patient {patient_id} in your clinic; check the id.",
+        "es": "No hay paciente {patient_id} en su clínica; compruebe el id.",
+        "pt": "Não há paciente {patient_id} na sua clínica; verifique o id."},
+    "store.patient_exists": {
+        "en": "Patient {external_id!r} already exists in your clinic{with_id}; open that patient instead.",
+        "es": "El paciente {external_id!r} ya existe en su clínica{with_id}; abra ese paciente.",
+        "pt": "O paciente {external_id!r} já existe na sua clínica{with_id}; abra esse paciente."},
+    "store.patient_id_taken": {
+        "en": "Patient {external_id!r} already exists in your clinic{with_id}; choose another identifier.",
+        "es": "El paciente {external_id!r} ya existe en su clínica{with_id}; elija otro identificador.",
+        "pt": "O paciente {external_id!r} já existe na sua clínica{with_id}; escolha outro identificador."},
+    "store.not_patients_session": {
+        "en": "Session {session_id} is not one of patient {patient_id}'s; compare two sessions of one patient.",
+        "es": "La sesión {session_id} no es del paciente {patient_id}; compare dos sesiones de un mismo paciente.",
+        "pt": "A sessão {session_id} não é do paciente {patient_id}; compare duas sessões de um mesmo paciente."},
+    "store.email_taken": {
+        "en": "The email {email} already has an account; use another email.",
+        "es": "El correo {email} ya tiene una cuenta; use otro correo.",
+        "pt": "O e-mail {email} já tem uma conta; use outro e-mail."},
+    "store.key_reused": {
+        "en": "Idempotency-Key {key!r} was used for another request; send a new key for a new request.",
+        "es": "La Idempotency-Key {key!r} se usó para otra petición; envíe una clave nueva para una petición nueva.",
+        "pt": "A Idempotency-Key {key!r} foi usada noutro pedido; envie uma chave nova para um pedido novo."},
+    "store.key_in_flight": {
+        "en": "A request with Idempotency-Key {key!r} is still running; retry in a few seconds.",
+        "es": "Una petición con la Idempotency-Key {key!r} aún está en curso; reintente en unos segundos.",
+        "pt": "Um pedido com a Idempotency-Key {key!r} ainda está em curso; tente de novo em alguns segundos."},
+    "store.not_ready": {
+        "en": "The session's recordings are not ready to process: {reason}",
+        "es": "Las grabaciones de la sesión no están listas para procesar: {reason}",
+        "pt": "As gravações da sessão não estão prontas para processar: {reason}"},
+    "store.up_to_date": {
+        "en": "analysis {analysis_id} (pipeline {version})",
+        "es": "análisis {analysis_id} (pipeline {version})",
+        "pt": "análise {analysis_id} (pipeline {version})"},
+    "request.invalid": {
+        "en": "{fields}: invalid or missing value ({problems}). Correct the request and send it again.",
+        "es": "{fields}: valor no válido o ausente. Corrija la petición y envíela de nuevo.",
+        "pt": "{fields}: valor inválido ou ausente. Corrija o pedido e envie-o de novo."},
+    "store.unknown_scope": {
+        "en": "unknown scope {scopes}; use resource:read or resource:write, e.g. {examples} (all: {all})",
+        "es": "ámbito desconocido {scopes}; use recurso:read o recurso:write, p. ej. {examples} (todos: {all})",
+        "pt": "âmbito desconhecido {scopes}; use recurso:read ou recurso:write, p. ex. {examples} (todos: {all})"},
+    "store.no_scope": {
+        "en": "no scope given; name at least one, or leave --scope out for every scope of the role",
+        "es": "no se indicó ningún ámbito; nombre al menos uno, u omita --scope para todos los ámbitos del rol",
+        "pt": "nenhum âmbito indicado; nomeie pelo menos um, ou omita --scope para todos os âmbitos do papel"},
+    "store.unknown_token_role": {
+        "en": "unknown role {role!r}; use one of {allowed}",
+        "es": "rol desconocido {role!r}; use uno de {allowed}",
+        "pt": "papel desconhecido {role!r}; use um de {allowed}"},
+    "store.expiry_out_of_range": {
+        "en": "--expires-days {days} is out of range; give 1 to {limit} days",
+        "es": "--expires-days {days} está fuera de rango; indique de 1 a {limit} días",
+        "pt": "--expires-days {days} está fora do intervalo; indique de 1 a {limit} dias"},
+    "store.no_token": {
+        "en": "no API token with id {token_id}; see the ids with `chakamo tokens list --clinic NAME`",
+        "es": "no hay token de API con id {token_id}; vea los ids con `chakamo tokens list --clinic NOMBRE`",
+        "pt": "não há token de API com id {token_id}; veja os ids com `chakamo tokens list --clinic NOME`"},
+    "store.token_dead": {
+        "en": "token {token_id} is revoked or expired; create a new one with `chakamo tokens create`",
+        "es": "el token {token_id} está revocado o caducado; cree uno nuevo con `chakamo tokens create`",
+        "pt": "o token {token_id} está revogado ou expirado; crie um novo com `chakamo tokens create`"},
+    "store.grace_out_of_range": {
+        "en": "--grace-hours {hours} is out of range; give 0 to {limit} hours",
+        "es": "--grace-hours {hours} está fuera de rango; indique de 0 a {limit} horas",
+        "pt": "--grace-hours {hours} está fora do intervalo; indique de 0 a {limit} horas"},
 }
 
 

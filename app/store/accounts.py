@@ -186,7 +186,7 @@ def clinic_user_by_email(db: Session, clinic_id: int, email: str) -> User | None
 
 
 def _taken(email: str) -> Conflict:
-    return Conflict(f"The email {email} already has an account in this clinic; use another email.")
+    return Conflict(code="store.email_taken", email=email)
 
 
 def refuse_taken_email(db: Session, clinic_id: int, email: str) -> None:

@@ -25,10 +25,8 @@ class SupersededResults(Conflict):
 
     def __init__(self, session_id: int, analysis: Analysis, readable_by_id: bool = True) -> None:
         tail = (f", or ask for analysis_id={analysis.id} to see the superseded report" if readable_by_id else "")
-        super().__init__(f"The results of session {session_id} were computed from recordings or details that have "
-                         f"changed since (analysis {analysis.id}, superseded "
-                         f"{analysis.superseded_at:%Y-%m-%d %H:%M} UTC); process the session again{tail}.")
-        self.code = "superseded"
+        super().__init__(code="store.superseded", session_id=session_id, analysis_id=analysis.id,
+                         when=f"{analysis.superseded_at:%Y-%m-%d %H:%M}", tail=tail)
         self.analysis_id = analysis.id
 
 
@@ -52,12 +50,11 @@ def pick_analysis(db: Session, session: KneeSession, analysis_id: int | None) ->
     if analysis_id is not None:
         analysis = db.get(Analysis, analysis_id)
         if analysis is None or analysis.session_id != session.id:
-            raise NotFound(f"No analysis {analysis_id} in session {session.id}; check the id.")
+            raise NotFound(code="store.no_analysis", analysis_id=analysis_id, session_id=session.id)
         return analysis
     analysis = latest_analysis(db, session.id)
     if analysis is None:
-        raise NotFound(f"Session {session.id} has no results yet; process it first "
-                       f"(POST /api/v1/sessions/{session.id}/process).")
+        raise NotFound(code="store.no_results", session_id=session.id)
     if analysis.superseded_at is not None:
         raise SupersededResults(session.id, analysis)
     return analysis
@@ -72,8 +69,8 @@ def artefact(db: Session, analysis: Analysis, name: str, lang: str = "") -> Arte
     """The artefact ``name`` (in ``lang`` for a report) of ``analysis``, else :class:`NotFound`."""
     row = find_artefact(db, analysis.id, name, lang)
     if row is None:
-        raise NotFound(f"Analysis {analysis.id} has no {name}{' in ' + lang if lang else ''}; process "
-                       "the session again to make it.")
+        raise NotFound(code="store.no_artefact", analysis_id=analysis.id, name=name,
+                       in_lang=f" ({lang})" if lang else "")
     return row
 
 

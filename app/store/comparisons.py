@@ -50,7 +50,7 @@ def compare_sessions(db: Session, store: BlobStore, clinic_id: int, patient_id: 
     sessions = [clinic_session(db, clinic_id, sid) for sid in (a, b)]
     for s in sessions:
         if s.patient_id != patient_id:
-            raise NotFound(f"Session {s.id} is not one of patient {patient_id}'s; compare two sessions of one patient.")
+            raise NotFound(code="store.not_patients_session", session_id=s.id, patient_id=patient_id)
     chosen = [pick_analysis(db, s, aid) for s, aid in zip(sessions, (a_analysis, b_analysis))]
     if a_analysis is None and (chosen[0].filter, chosen[0].pipeline_version) != (chosen[1].filter,
                                                                                  chosen[1].pipeline_version):

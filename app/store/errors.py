@@ -8,24 +8,33 @@ code in one place (:data:`app.web.api.deps.STATUS_OF`, applied to every route by
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class DomainError(Exception):
-    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do.  ``message_code`` and
-    ``params``, when set, name its es/en/pt sentence (``app.web.refusals``; ``detail`` is then its English)."""
+    """A request the data cannot satisfy; ``str(error)`` says what is wrong and what to do.
 
-    message_code: str | None = None
+    ``DomainError(code=..., **params)``: the sentence is entry ``code`` of
+    :data:`app.pipeline.service_messages.CATALOGUE` or of the ingestion's (English here; the API answers it in es/en/pt, issue 14 §5).
+    A bare ``detail`` is English only: ``tests/app/pipeline/test_check_messages.py`` refuses one in the store."""
 
-    def __init__(self, detail: str, **params) -> None:
+    def __init__(self, detail: str | None = None, *, code: str | None = None, **params: Any) -> None:
+        if code is not None:   # the service table, else the ingestion's (a file's refusal passed on)
+            from app.pipeline.ingestion.messages import render as ingestion_render
+            from app.pipeline.service_messages import CATALOGUE, render
+
+            detail = render(code, params, "en") if code in CATALOGUE else ingestion_render(code, params, "en")
         super().__init__(detail)
-        self.detail, self.params = detail, params
+        self.detail, self.code, self.params = detail, code, params
 
 
 class NotFound(DomainError):
     """An unknown id, or another clinic's (the same answer, so ids of other clinics cannot be probed).
     ``owner_clinic_id`` is the clinic that does own the id, when another one does (for its audit log only)."""
 
-    def __init__(self, detail: str, owner_clinic_id: int | None = None) -> None:
-        super().__init__(detail)
+    def __init__(self, detail: str | None = None, owner_clinic_id: int | None = None, *, code: str | None = None,
+                 **params: Any) -> None:
+        super().__init__(detail, code=code, **params)
         self.owner_clinic_id = owner_clinic_id
 
 

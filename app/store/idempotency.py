@@ -33,22 +33,16 @@ MAX_KEY_LENGTH = 200
 class KeyReused(Conflict):
     """The key was used for another request (another path or body)."""
 
-    message_code = "idempotency.key_reused"
-
     def __init__(self, key: str) -> None:
-        super().__init__(f"Idempotency-Key {key!r} was used for another request; send a new key for a new request.",
-                         key=repr(key))
+        super().__init__(code="store.key_reused", key=key)
         self.key = key
 
 
 class KeyInFlight(Conflict):
     """The first request with this key has not finished yet."""
 
-    message_code = "idempotency.in_flight"
-
     def __init__(self, key: str) -> None:
-        super().__init__(f"A request with Idempotency-Key {key!r} is still running; retry in a few seconds.",
-                         key=repr(key))
+        super().__init__(code="store.key_in_flight", key=key)
 
 
 @dataclass(frozen=True)

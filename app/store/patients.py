@@ -42,18 +42,18 @@ def check_values(values: dict[str, Any], ranges: dict[str, tuple[float, float]],
     for key, (lo, hi) in ranges.items():
         v = values.get(key)
         if v is not None and not lo < float(v) < hi:
-            raise Invalid(f"{key} {v} is out of range; give a value between {lo:g} and {hi:g}.")
+            raise Invalid(code="store.out_of_range", field=key, value=v, low=f"{lo:g}", high=f"{hi:g}")
     for key, allowed in choices.items():
         v = values.get(key)
         if v is not None and v not in allowed:
-            raise Invalid(f"{key} {v!r} is unknown; use one of {', '.join(allowed)}.")
+            raise Invalid(code="store.unknown_value", field=key, value=str(v), allowed=", ".join(allowed))
 
 
 def clinic_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
     """Patient ``patient_id`` of clinic ``clinic_id``, else :class:`NotFound`."""
     row = db.get(Patient, patient_id)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No patient {patient_id} in your clinic; check the id.", row.clinic_id if row else None)
+        raise NotFound(None, row.clinic_id if row else None, code="store.no_patient", patient_id=patient_id)
     return row
 
 
@@ -100,15 +100,13 @@ def add_patient(db: Session, clinic_id: int, values: dict[str, Any]) -> Patient:
     external_id = values["external_id"]
     exists = db.scalar(select(Patient.id).where(Patient.clinic_id == clinic_id, Patient.external_id == external_id))
     if exists is not None:
-        raise Conflict(f"Patient {external_id!r} already exists in your clinic (id {exists}); open that patient "
-                       "instead.")
+        raise Conflict(code="store.patient_exists", external_id=external_id, with_id=f" (id {exists})")
     patient = Patient(clinic_id=clinic_id, **values)
     db.add(patient)
     try:
         db.flush()
     except IntegrityError:  # created by a concurrent request between the check and the insert
-        raise Conflict(f"Patient {external_id!r} already exists in your clinic; open that patient instead.") \
-            from None
+        raise Conflict(code="store.patient_exists", external_id=external_id, with_id="") from None
     return patient
 
 
@@ -117,7 +115,7 @@ def _lock_patient(db: Session, clinic_id: int, patient_id: int) -> Patient:
     db.execute(select(Patient.id).where(Patient.id == patient_id).with_for_update())
     row = db.get(Patient, patient_id, populate_existing=True)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No patient {patient_id} in your clinic; check the id.")
+        raise NotFound(code="store.no_patient", patient_id=patient_id)
     return row
 
 
@@ -138,10 +136,10 @@ def correct_patient(db: Session, clinic_id: int, patient_id: int, values: dict[s
     external id or side; :class:`Conflict` for an external id another patient of the clinic has."""
     unknown = sorted(set(values) - set(CORRECTABLE_FIELDS))
     if unknown:
-        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct {', '.join(CORRECTABLE_FIELDS)}.")
+        raise Invalid(code="store.not_correctable", fields=", ".join(unknown), allowed=", ".join(CORRECTABLE_FIELDS))
     for required in ("external_id", "side"):
         if required in values and values[required] is None:
-            raise Invalid(f"{required} cannot be empty; give a value.")
+            raise Invalid(code="store.empty_value", field=required)
     check_values(values, RANGES, {"side": SIDE_NAMES, "sex": SEX_NAMES})
     patient = _lock_patient(db, clinic_id, patient_id)
     check_version("Patient", patient.id, patient.version, expected_version)
@@ -154,8 +152,7 @@ def correct_patient(db: Session, clinic_id: int, patient_id: int, values: dict[s
                                                    Patient.external_id == values["external_id"],
                                                    Patient.id != patient.id))
         if other is not None:
-            raise Conflict(f"Patient {values['external_id']!r} already exists in your clinic (id {other}); "
-                           "choose another identifier.")
+            raise Conflict(code="store.patient_id_taken", external_id=values["external_id"], with_id=f" (id {other})")
     for k in changed:
         setattr(patient, k, values[k])
     patient.version = patient.version + 1
@@ -168,8 +165,7 @@ def correct_patient(db: Session, clinic_id: int, patient_id: int, values: dict[s
     try:
         db.flush()
     except IntegrityError:  # the same identifier taken by a concurrent request
-        raise Conflict(f"Patient {values['external_id']!r} already exists in your clinic; choose another "
-                       "identifier.") from None
+        raise Conflict(code="store.patient_id_taken", external_id=values["external_id"], with_id="") from None
     return patient, changed, n_superseded
 
 

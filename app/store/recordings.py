@@ -45,9 +45,9 @@ UPLOAD_ROLES = (*ROLES, CONTINUOUS)
 def check_labels(segment: str | None, role: str | None) -> None:
     """:class:`Invalid` for an unknown segment or role (None: not given)."""
     if segment is not None and segment not in SEGMENTS:
-        raise Invalid(f"segment {segment!r} is unknown; use {' or '.join(SEGMENTS)}.")
+        raise Invalid(code="store.unknown_segment", segment=str(segment), allowed=" / ".join(SEGMENTS))
     if role is not None and role not in UPLOAD_ROLES:
-        raise Invalid(f"role {role!r} is unknown; use one of {', '.join(UPLOAD_ROLES)}.")
+        raise Invalid(code="store.unknown_role", role=str(role), allowed=", ".join(UPLOAD_ROLES))
 
 
 def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple[str, BlobWriter]], *,
@@ -59,17 +59,15 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
     names = [n for n, _ in files]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
-        raise Invalid(f"{', '.join(dupes)} sent twice in one upload; send each file once.")
+        raise Invalid(code="store.sent_twice", names=", ".join(dupes))
     session = clinic_session(db, clinic_id, session_id, lock=True)
     refuse_while_processing(db, session.id, "upload the files")
     have = set(db.scalars(select(Recording.file_name).where(Recording.session_id == session.id)))
     clash = sorted(have & set(names))
     if clash:
-        raise Conflict(f"{', '.join(clash)} already uploaded to this session; delete the earlier recording first "
-                       "to replace it.")
+        raise Conflict(code="store.already_uploaded", names=", ".join(clash))
     if len(have) + len(names) > max_files:
-        raise LimitExceeded(f"A session holds at most {max_files} files ({len(have)} already stored); delete the "
-                            "ones not needed.")
+        raise LimitExceeded(code="store.too_many_files", limit=max_files, stored=len(have))
     rows = []
     for name, writer in files:
         size, sha = writer.size_bytes, writer.sha256
@@ -82,8 +80,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
     try:
         db.flush()
     except IntegrityError:  # another upload stored the same file name meanwhile
-        raise Conflict(f"{', '.join(names)}: another upload to this session stored a file of the same name at the "
-                       "same time; reload the session and check its files.") from None
+        raise Conflict(code="store.upload_raced", names=", ".join(names)) from None
     refuse_while_processing(db, session.id, "upload the files")  # a job queued meanwhile (SQLite) wins
     return session, rows
 
@@ -95,7 +92,7 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
     session = clinic_session(db, clinic_id, session_id, lock=True)
     rec = db.get(Recording, recording_id)
     if rec is None or rec.session_id != session.id:
-        raise NotFound(f"No recording {recording_id} in session {session_id}; check the ids.")
+        raise NotFound(code="store.no_recording", recording_id=recording_id, session_id=session_id)
     refuse_while_processing(db, session.id, "delete files")
     sha = rec.sha256
     db.delete(rec)
@@ -118,7 +115,7 @@ def set_split(db: Session, clinic_id: int, session_id: int, split: dict | None) 
         try:
             check_split(split, knees=True)  # a four-sensor session's cuts are keyed by knee (left_thigh …)
         except IngestionError as exc:
-            raise Invalid(str(exc)) from None
+            raise Invalid(code=exc.code, **exc.params) from None
     session = clinic_session(db, clinic_id, session_id, lock=True)
     refuse_while_processing(db, session.id, "move the cuts")
     session.split = split or None

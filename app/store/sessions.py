@@ -46,8 +46,7 @@ class Busy(Conflict):
     """A job of the session is queued or running (``job_id``): its files must not change under it."""
 
     def __init__(self, session_id: int, job_id: int, what: str) -> None:
-        super().__init__(f"Session {session_id} is being processed (job {job_id}); {what} when that job has "
-                         "finished.")
+        super().__init__(code="store.busy", session_id=session_id, job_id=job_id, what=what)
         self.session_id, self.job_id = session_id, job_id
 
 
@@ -60,7 +59,7 @@ def clinic_session(db: Session, clinic_id: int, session_id: int, lock: bool = Fa
     # once locked, read the row again even if this session loaded it before (a change committed meanwhile)
     row = db.get(KneeSession, session_id, populate_existing=lock)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No session {session_id} in your clinic; check the id.", row.clinic_id if row else None)
+        raise NotFound(None, row.clinic_id if row else None, code="store.no_session", session_id=session_id)
     return row
 
 
@@ -83,7 +82,7 @@ def refuse_while_processing(db: Session, session_id: int, what: str) -> None:
 def clinic_job(db: Session, clinic_id: int, job_id: int) -> Job:
     row = db.get(Job, job_id)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No job {job_id} in your clinic; check the id.", row.clinic_id if row else None)
+        raise NotFound(None, row.clinic_id if row else None, code="store.no_job", job_id=job_id)
     return row
 
 
@@ -199,8 +198,8 @@ ORDER_FIELDS = ("service_request", "encounter", "accession")
 def check_version(kind: str, row_id: int, version: int, expected: int | None) -> None:
     """:class:`PreconditionFailed` when the caller's ``If-Match`` version ``expected`` is not ``version``."""
     if expected is not None and expected != version:
-        raise PreconditionFailed(f"{kind} {row_id} was changed by someone else meanwhile (it is now version "
-                                 f"{version}, you sent {expected}); reload it and try again.")
+        raise PreconditionFailed(code="store.changed_meanwhile", kind=kind, row_id=row_id, version=version,
+                                 expected=expected)
 
 
 def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[str, Any],
@@ -210,16 +209,16 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
     date or task."""
     unknown = sorted(set(values) - set(PROCESSED_FIELDS) - set(ORDER_FIELDS))
     if unknown:
-        raise Invalid(f"{', '.join(unknown)} cannot be corrected; correct "
-                      f"{', '.join(PROCESSED_FIELDS + ORDER_FIELDS)}.")
+        raise Invalid(code="store.not_correctable", fields=", ".join(unknown),
+                      allowed=", ".join(PROCESSED_FIELDS + ORDER_FIELDS))
     for required in ("date", "task"):
         if required in values and values[required] is None:
-            raise Invalid(f"{required} cannot be empty; give a value.")
+            raise Invalid(code="store.empty_value", field=required)
     step = values.get("step_height_m")
     if step is not None and not 0 < float(step) < 1:
-        raise Invalid(f"step_height_m {step} is out of range; give the step's height in metres (e.g. 0.17).")
+        raise Invalid(code="store.step_out_of_range", value=step)
     if values.get("task") is not None and values["task"] not in TASK_NAMES:
-        raise Invalid(f"task {values['task']!r} is unknown; use one of {', '.join(TASK_NAMES)}.")
+        raise Invalid(code="store.unknown_task", task=str(values["task"]), allowed=", ".join(TASK_NAMES))
     session = clinic_session(db, clinic_id, session_id, lock=True)
     check_version("Session", session.id, session.version, expected_version)
     refuse_while_processing(db, session.id, "correct it")

@@ -31,10 +31,10 @@ def parse_scopes(scopes: Iterable[str] | None) -> str | None:
     items = sorted({part for s in scopes for part in s.replace(",", " ").split() if part})
     unknown = [s for s in items if s not in TOKEN_SCOPES]
     if unknown:
-        raise Invalid(f"unknown scope {', '.join(unknown)}; use resource:read or resource:write, e.g. "
-                      f"{', '.join(TOKEN_SCOPES[:4])} (all: {' '.join(TOKEN_SCOPES)})")
+        raise Invalid(code="store.unknown_scope", scopes=", ".join(unknown), examples=", ".join(TOKEN_SCOPES[:4]),
+                      all=" ".join(TOKEN_SCOPES))
     if not items:
-        raise Invalid("no scope given; name at least one, or leave --scope out for every scope of the role")
+        raise Invalid(code="store.no_scope")
     return " ".join(items)
 
 
@@ -53,9 +53,9 @@ def add_token(db: Session, clinic_id: int, *, token_sha256: str, role: str, labe
     """A new token of the clinic (flushed); :class:`Invalid` for an unknown role or scope or a lifetime outside
     (0, :data:`MAX_DAYS`] days."""
     if role not in USER_ROLE_NAMES:
-        raise Invalid(f"unknown role {role!r}; use one of {', '.join(USER_ROLE_NAMES)}")
+        raise Invalid(code="store.unknown_token_role", role=str(role), allowed=", ".join(USER_ROLE_NAMES))
     if expires_days is not None and not 0 < expires_days <= MAX_DAYS:
-        raise Invalid(f"--expires-days {expires_days:g} is out of range; give 1 to {MAX_DAYS} days")
+        raise Invalid(code="store.expiry_out_of_range", days=f"{expires_days:g}", limit=MAX_DAYS)
     expires_at = (now or utcnow()) + dt.timedelta(days=expires_days) if expires_days is not None else None
     row = ApiToken(clinic_id=clinic_id, label=label, role=role, token_sha256=token_sha256,
                    scopes=parse_scopes(scopes), expires_at=expires_at)
@@ -72,11 +72,11 @@ def rotate_token(db: Session, token_id: int, new_sha256: str, *, grace_hours: fl
     now = now or utcnow()
     old = db.get(ApiToken, token_id)
     if old is None:
-        raise NotFound(f"no API token with id {token_id}; see the ids with `chakamo tokens list --clinic NAME`")
+        raise NotFound(code="store.no_token", token_id=token_id)
     if old.revoked_at is not None or expired(old, now):
-        raise Invalid(f"token {token_id} is revoked or expired; create a new one with `chakamo tokens create`")
+        raise Invalid(code="store.token_dead", token_id=token_id)
     if not 0 <= grace_hours <= 24 * 30:
-        raise Invalid(f"--grace-hours {grace_hours:g} is out of range; give 0 to {24 * 30} hours")
+        raise Invalid(code="store.grace_out_of_range", hours=f"{grace_hours:g}", limit=24 * 30)
     lifetime = old.expires_at - old.created_at if old.expires_at is not None else None
     new = ApiToken(clinic_id=old.clinic_id, label=old.label, role=old.role, token_sha256=new_sha256,
                    scopes=old.scopes, expires_at=now + lifetime if lifetime is not None else None)

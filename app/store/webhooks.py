@@ -35,7 +35,7 @@ def add_subscription(db: Session, clinic_id: int, *, url: str, events: list[str]
                      label: str = "") -> WebhookSubscription:
     unknown = [e for e in events if e not in EVENTS]
     if unknown or not events:
-        raise Invalid(f"unknown or no event {', '.join(unknown)}; use {' or '.join(EVENTS)}")
+        raise Invalid(code="store.unknown_event", events=", ".join(unknown), allowed=" / ".join(EVENTS))
     row = WebhookSubscription(clinic_id=clinic_id, url=url, events=" ".join(sorted(set(events))), secret=secret,
                               label=label)
     db.add(row)
@@ -51,7 +51,7 @@ def subscriptions(db: Session, clinic_id: int) -> list[WebhookSubscription]:
 def clinic_subscription(db: Session, clinic_id: int, subscription_id: int) -> WebhookSubscription:
     row = db.get(WebhookSubscription, subscription_id)
     if row is None or row.clinic_id != clinic_id:
-        raise NotFound(f"No webhook {subscription_id} in your clinic; check the id.", row.clinic_id if row else None)
+        raise NotFound(None, row.clinic_id if row else None, code="store.no_webhook", webhook_id=subscription_id)
     return row
 
 

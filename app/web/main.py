@@ -51,7 +51,8 @@ from app.store.models import User
 from app.web.headers import AllowedHosts, SecurityHeaders
 from app.web.limits import BodyLimit
 from app.web.problems import document_errors, problem_response
-from app.web.refusals import Refusal
+from app.web.messages import CODE_HEADER
+from app.web.refusals import Refusal, members as refusal_members
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
 from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
@@ -190,13 +191,21 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.exception_handler(RequestValidationError)
     async def validation_error(request: Request, exc: RequestValidationError):
-        """422 with one sentence (the contract's error shape), the pydantic details kept under ``errors``."""
-        parts = []
+        """422 with one sentence (the contract's error shape), the pydantic details kept under ``errors``; like
+        every refusal it carries ``code`` (``request.invalid``), ``params`` (the fields) and ``message`` in
+        es/en/pt (:data:`app.pipeline.service_messages.CATALOGUE`; pydantic's own words are English only, so the
+        es/pt sentences name the fields and say the value is missing or invalid)."""
+        parts, fields = [], []
         for err in exc.errors()[:3]:
             where = ".".join(str(x) for x in err.get("loc", ()) if x not in ("body", "query", "path"))
             parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
+            fields.append(where or "request")
         detail = "; ".join(parts) + ". Correct the request and send it again."
-        return problem_response(422, detail, instance=request.url.path, errors=jsonable_encoder(exc.errors()))
+        params = {"fields": ", ".join(dict.fromkeys(fields)),
+                  "problems": "; ".join(str(e.get("msg", "invalid")) for e in exc.errors()[:3])}
+        return problem_response(422, detail, instance=request.url.path, errors=jsonable_encoder(exc.errors()),
+                                headers={CODE_HEADER: "request.invalid"},
+                                **refusal_members("request.invalid", params))
 
     @app.exception_handler(OperationalError)
     async def database_unreachable(request: Request, exc: OperationalError):

@@ -146,15 +146,6 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "`chakamo tokens create --scope ...`.",
         "pt": "A este token de API falta o escopo {scope} (tem {scopes}); crie um token com ele: "
               "`chakamo tokens create --scope ...`."},
-    # Idempotency-Key (app.store.idempotency, app.web.idempotency)
-    "idempotency.key_reused": {
-        "en": "Idempotency-Key {key} was used for another request; send a new key for a new request.",
-        "es": "La Idempotency-Key {key} se usó para otra petición; envíe una clave nueva para una petición nueva.",
-        "pt": "A Idempotency-Key {key} foi usada para outro pedido; envie uma chave nova para um pedido novo."},
-    "idempotency.in_flight": {
-        "en": "A request with Idempotency-Key {key} is still running; retry in a few seconds.",
-        "es": "Una petición con la Idempotency-Key {key} aún está en curso; reinténtelo en unos segundos.",
-        "pt": "Um pedido com a Idempotency-Key {key} ainda está em andamento; tente de novo em alguns segundos."},
     # webhooks (app.web.api.webhooks)
     "webhook.url_invalid": {
         "en": "The webhook URL {url} is not an absolute https:// address; give the receiver's full https address.",

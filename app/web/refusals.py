@@ -55,4 +55,10 @@ class Refusal(HTTPException):
                                    headers=(self.headers or {}) | (extra_headers or {}))
 
 
-__all__ = ["Refusal", "catalogue_of"]
+def members(code: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """``code``, ``params`` and ``message`` ``{lang: sentence}`` of a refusal answered without a :class:`Refusal`
+    (the 422 of a request FastAPI's validation refuses, :mod:`app.web.main`)."""
+    return ingestion_messages.message_dict(code, params, catalogue_of(code))
+
+
+__all__ = ["Refusal", "catalogue_of", "members"]

@@ -10,22 +10,23 @@ Row 1 is the header, data from row 2; each column's unit is read from its header
 File names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-{ddmmyyyy}-{n}[-H].xlsx``.
 The time base is elapsed seconds (no epoch): the two sensors' recordings are assumed to start together.
 A workbook with several sheets: the one sheet whose header has this layout is used (and the choice is
-noted); none or several such sheets is refused.  Needs ``openpyxl``.
+noted); none or several such sheets is refused.  The cells are read by :mod:`.xlsx_cells` (the sheet XML
+matched by regular expressions, openpyxl's values: ~0.1 s of CPU for a 10-cycle session's eight workbooks where
+openpyxl took 1.6 s); ``openpyxl`` reads the shared strings and writes the test workbooks.
 
 Size caps (issue 16, finding 4: a 70 kB crafted workbook unpacked to 18 MB of identical rows and cost
 10–30 s of CPU; the cost of reading grows with rows and cells, about 0.1 ms a row measured here).  An .xlsx
-is a zip archive: before openpyxl opens it, the archive's directory is read (:func:`check_archive`) and a
+is a zip archive: before any part is parsed, the archive's directory is read (:func:`check_archive`) and a
 part that would unpack beyond :data:`MAX_SHEET_MB` (a worksheet) or :data:`MAX_PART_MB` (anything else:
 shared strings and styles are parsed whole when the workbook opens), more than :data:`MAX_PARTS` parts or
 more than :data:`MAX_UNPACKED_MB` in all is refused.  ``ZipInfo.file_size`` is a declaration, but Python's
 reader never returns more bytes than it (and checks the CRC at the end), so a lying archive is bounded too.
 Then each worksheet's XML is streamed once through a tag count (:func:`check_sheets`, ~0.03 s a MB:
-decompression and a regular expression, no XML tree, stopped at the caps), and more than :data:`MAX_ROWS`
-rows or :data:`MAX_CELLS` cells is refused before openpyxl opens the workbook (which parses a sheet whole
-when it declares no dimension); the parse itself is bounded by the same numbers
-(``max_row``, and the 13 columns of the layout), so a row number far away (``r="1048576"``, which openpyxl
-fills with empty rows) or a cell in column XFD (a row padded to 16 384 cells) cannot blow it up either.  The worst accepted workbook
-costs ~6 s of CPU; the checks of the web application run in a helper process with a time limit.
+decompression and :func:`.xlsx_cells.count_tags`, no XML tree, stopped at the caps), and more than :data:`MAX_ROWS`
+rows or :data:`MAX_CELLS` cells is refused before the sheets are parsed; the parse itself is bounded by the
+same numbers (``max_row``, and the 13 columns of the layout), so a row number far away (``r="1048576"``, filled
+with empty rows up to ``max_row``) or a cell in column XFD cannot blow it up either.  The worst accepted workbook
+cost ~6 s of CPU with openpyxl; the checks of the web application run in a helper process with a time limit.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from app.pipeline.ingestion.model import IngestionError, Stream
+from app.pipeline.ingestion.model import IngestionError, Note, Stream
 from app.pipeline.ingestion.tables import check_stamps, first_huge_cell
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
+from app.pipeline.ingestion.xlsx_cells import Workbook, count_tags
 
 HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/s)", "y-axis (deg/s)",
           "z-axis (deg/s)", "elapsed (s)", "x-axis (T)", "y-axis (T)", "z-axis (T)", "elapsed (s)",
@@ -57,9 +59,6 @@ MAX_PART_MB = 8
 #: largest unpacked workbook, and most parts in its archive
 MAX_UNPACKED_MB = 128
 MAX_PARTS = 256
-#: a row and a cell start tag, with or without a namespace prefix (``<row ...>``, ``<x:c/>``)
-_ROW_TAG = re.compile(rb"<(?:[A-Za-z_][\w.-]*:)?row[\s/>]")
-_CELL_TAG = re.compile(rb"<(?:[A-Za-z_][\w.-]*:)?c[\s/>]")
 
 
 def _openpyxl():
@@ -68,6 +67,10 @@ def _openpyxl():
     except ImportError:  # pragma: no cover - dependency declared in pyproject
         raise IngestionError("xlsx.no_openpyxl") from None
     return openpyxl
+
+
+def _first_row(wb: Workbook, name: str) -> tuple:
+    return next(iter(wb.rows(name, max_row=1, max_col=len(HEADER))), ())
 
 
 def _layout_problem(header: list) -> str | None:
@@ -116,8 +119,8 @@ def count_rows_cells(path: Path, member: str, stop_rows: int | None = None, stop
             piece = fh.read(chunk_bytes)
             data = carry + piece
             cut = data.rfind(b">") + 1 if piece else len(data)
-            rows += len(_ROW_TAG.findall(data, 0, cut))
-            cells += len(_CELL_TAG.findall(data, 0, cut))
+            rows += count_tags(data, b"row", cut)
+            cells += count_tags(data, b"c", cut)
             carry = data[cut:]
             if not piece or (stop_rows is not None and rows > stop_rows) or \
                     (stop_cells is not None and cells > stop_cells):
@@ -126,7 +129,7 @@ def count_rows_cells(path: Path, member: str, stop_rows: int | None = None, stop
 
 def check_sheets(path: Path) -> None:
     """Refuse a workbook one of whose worksheets holds too many rows or cells (module docstring), counted in
-    its XML before openpyxl opens it (opening parses a sheet whole when it declares no dimension)."""
+    its XML before any sheet is parsed."""
     with zipfile.ZipFile(path) as z:
         members = [i.filename for i in z.infolist() if i.filename.startswith("xl/worksheets/")
                    and i.filename.endswith(".xml")]
@@ -144,11 +147,10 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
 
     Refused before parsing when beyond the size caps (module docstring)."""
     path = Path(path)
-    openpyxl = _openpyxl()
     check_archive(path)
     check_sheets(path)
     try:
-        wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+        wb = Workbook(path)
     except Exception as exc:  # zip/xml errors of a damaged file
         raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
     try:
@@ -158,43 +160,42 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
                 raise IngestionError("xlsx.no_such_sheet", file=path, sheet=sheet, sheets=", ".join(names))
             chosen = sheet
         else:
-            good = []
-            for n in names:
-                first = next(wb[n].iter_rows(min_row=1, max_row=1, values_only=True), ())
-                if _layout_problem(list(first)) is None:
-                    good.append(n)
+            good = [n for n in names if _layout_problem(list(_first_row(wb, n))) is None]
             if len(good) != 1:
                 detail = ""
                 if not good:
-                    first = next(wb[names[0]].iter_rows(min_row=1, max_row=1, values_only=True), ())
-                    detail = f" (sheet {names[0]!r}: {_layout_problem(list(first)) or 'empty'})"
+                    detail = f" (sheet {names[0]!r}: {_layout_problem(list(_first_row(wb, names[0]))) or 'empty'})"
                 raise IngestionError("xlsx.no_layout_sheet" if not good else "xlsx.several_layout_sheets",
                                      file=path, sheets=", ".join(good), detail=detail)
             chosen = good[0]
-        rows = [list(r) for r in wb[chosen].iter_rows(max_row=MAX_ROWS + 1, max_col=len(HEADER), values_only=True)]
+        header_row = list(_first_row(wb, chosen))
+        numbers, others = wb.table(chosen, max_row=MAX_ROWS + 1, max_col=len(HEADER))
+    except IngestionError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged sheet (deflate stream, CRC, a cell's bad number)
+        raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
     finally:
         wb.close()
-    note = f"sheet {chosen!r}" + (f" of {names}" if len(names) > 1 else "")
-    if len(rows) < 2:
+    note = Note.of("sheet_chosen_of", sheet=chosen, sheets=str(names)) if len(names) > 1 else \
+        Note.of("sheet_chosen", sheet=chosen)
+    if len(numbers) < 2:
         raise IngestionError("xlsx.no_rows", file=path, sheet=chosen)
-    problem = _layout_problem(rows[0])
+    problem = _layout_problem(header_row)
     if problem:
         raise IngestionError("xlsx.not_layout", file=path, sheet=chosen, problem=problem)
-    header = [("" if c is None else str(c)) for c in rows[0]]
+    header = [("" if c is None else str(c)) for c in header_row]
     width = 11
-    table = np.full((len(rows) - 1, width), np.nan)
-    for i, r in enumerate(rows[1:]):
-        for j in range(min(width, len(r))):
-            c = r[j]
-            if c is None or (isinstance(c, str) and not c.strip()):
-                continue
-            try:
-                if isinstance(c, bool):         # Excel's TRUE/FALSE: float() would take them as 1/0
-                    raise TypeError
-                table[i, j] = float(c)
-            except (TypeError, ValueError):
-                raise IngestionError("xlsx.cell_not_number", file=path, sheet=chosen, cell=f"{chr(65 + j)}{i + 2}",
-                                     value=repr(c)[:40]) from None
+    table = numbers[1:, :width].copy()
+    for (i, j), c in sorted(others.items()):   # text and booleans below the header: a number typed as text
+        if i == 0 or j >= width or (isinstance(c, str) and not c.strip()):
+            continue
+        try:
+            if isinstance(c, bool):         # Excel's TRUE/FALSE: float() would take them as 1/0
+                raise TypeError
+            table[i - 1, j] = float(c)
+        except (TypeError, ValueError):
+            raise IngestionError("xlsx.cell_not_number", file=path, sheet=chosen, cell=f"{chr(65 + j)}{i + 1}",
+                                 value=repr(c)[:40]) from None
     huge = first_huge_cell(table)  # the CSV readers' check: inf, 1e300 (norms would overflow); nan is empty
     if huge is not None:
         i, j = huge

@@ -919,6 +919,26 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "de los ejes de bisagra de la rodilla en la tarea",
         "pt": "{file}: não há gravação em decúbito dorsal: os eixos dos segmentos vêm da postura em pé e dos eixos de "
               "dobradiça do joelho na tarefa"},
+    "note.sheet_chosen": {
+        "en": "sheet {sheet!r}",
+        "es": "hoja {sheet!r}",
+        "pt": "folha {sheet!r}"},
+    "note.sheet_chosen_of": {
+        "en": "sheet {sheet!r} of {sheets}",
+        "es": "hoja {sheet!r} de {sheets}",
+        "pt": "folha {sheet!r} de {sheets}"},
+    "note.file_sheet_chosen": {
+        "en": "{file}: sheet {sheet!r}",
+        "es": "{file}: hoja {sheet!r}",
+        "pt": "{file}: folha {sheet!r}"},
+    "note.file_sheet_chosen_of": {
+        "en": "{file}: sheet {sheet!r} of {sheets}",
+        "es": "{file}: hoja {sheet!r} de {sheets}",
+        "pt": "{file}: folha {sheet!r} de {sheets}"},
+    "note.names_disagree": {
+        "en": "file names disagree on {key}: {values}; used {used}",
+        "es": "los nombres de archivo no coinciden en {key}: {values}; se usó {used}",
+        "pt": "os nomes de arquivo não coincidem em {key}: {values}; foi usado {used}"},
     "note.csv_decimal_comma": {
         "en": "{file}: read with tabs between fields and ',' as the decimal point",
         "es": "{file}: leído con tabuladores entre campos y ',' como separador decimal",

@@ -74,7 +74,7 @@ class Note(str):
     translated from data (``reports/translations_warnings.json``, ``warning.ingestion_note.<variant>``).
 
     A ``str`` subclass so ``Session.notes`` stays a tuple of sentences for every reader of it; ``params``
-    is a read-only copy.  Notes without a translation (sheet chosen, file ignored) stay plain ``str``.
+    is a read-only copy.  Notes without a translation (file ignored) stay plain ``str``.
     """
 
     params: Mapping[str, Any]

@@ -28,8 +28,8 @@ seconds from each export's start (``elapsed``: the sensors taken to start togeth
 here (:mod:`.units`); Android's and iOS's phyphox both give the specific force with +9.81 on the up axis.
 
 Size caps (the thesis workbook's, issue 16 finding 4, and a zip bomb's).  An ``.xlsx`` goes through
-:func:`.excel.check_archive` and :func:`.excel.check_sheets` (the same caps, one definition) before openpyxl
-opens it, in the sniff too: a refusal there is the refusal the thesis reader would give, raised once.  Rows are
+:func:`.excel.check_archive` and :func:`.excel.check_sheets` (the same caps, one definition) before its sheets
+are parsed (:mod:`.xlsx_cells`, the thesis reader's cell reader), in the sniff too: a refusal there is the refusal the thesis reader would give, raised once.  Rows are
 read up to :data:`.excel.MAX_ROWS` and :data:`MAX_COLUMNS` columns.  A zip member is refused when its declared
 size passes :data:`MAX_MEMBER_MB`, the members read when they pass :data:`MAX_ZIP_MB` in all, the archive when
 it lists more than :data:`MAX_MEMBERS` entries; a member is read in pieces that stop at its cap, so a declared
@@ -54,6 +54,7 @@ from app.pipeline.ingestion import excel
 from app.pipeline.ingestion.model import IngestionError, Note, Stream
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, parse_table
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
+from app.pipeline.ingestion.xlsx_cells import Workbook
 
 _COLUMN = re.compile(r"^\s*(?P<name>.*?)\s*\((?P<unit>[^()]*)\)\s*$")
 _AXIS = {"acc": re.compile(r"^acceleration ([xyz])$"), "gyr": re.compile(r"^gyroscope ([xyz])$"),
@@ -114,13 +115,9 @@ def looks_like_phyphox(path: Path) -> bool:
                 if exc.code == "xlsx.cannot_open":
                     return False
                 raise
-            import openpyxl
-            wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
-            try:
-                return any(_header_kinds(next(ws.iter_rows(max_row=1, max_col=MAX_COLUMNS, values_only=True), ()))
-                           for ws in wb.worksheets)
-            finally:
-                wb.close()
+            with Workbook(path) as wb:
+                return any(_header_kinds(next(iter(wb.rows(n, max_row=1, max_col=MAX_COLUMNS)), ()))
+                           for n in wb.sheetnames)
     except IngestionError:
         raise
     except Exception:  # noqa: BLE001 - sniffing: anything unreadable is simply not phyphox
@@ -147,11 +144,7 @@ def _csv_table(path: Path, text: str, where: str, notes: list) -> tuple[list[str
 
 
 def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
-    try:
-        import openpyxl
-    except ImportError:  # pragma: no cover - dependency declared in pyproject
-        raise IngestionError("xlsx.no_openpyxl") from None
-    excel.check_archive(path)  # the thesis workbook's caps, before openpyxl parses anything (module docstring)
+    excel.check_archive(path)  # the thesis workbook's caps, before any sheet is parsed (module docstring)
     try:
         excel.check_sheets(path)
     except IngestionError:
@@ -159,25 +152,25 @@ def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
     except Exception as exc:  # noqa: BLE001 - a damaged sheet's deflate stream or CRC
         raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
     try:
-        wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+        wb = Workbook(path)
     except Exception as exc:  # noqa: BLE001 - any damage of the workbook
         raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
     out = []
     try:
-        for ws in wb.worksheets:
-            rows = list(ws.iter_rows(max_row=excel.MAX_ROWS + 1, max_col=MAX_COLUMNS, values_only=True))
-            if not rows or not _header_kinds(rows[0]):
-                continue
-            header = ["" if c is None else str(c) for c in rows[0]]
-            table = np.full((len(rows) - 1, len(header)), np.nan)
-            for i, r in enumerate(rows[1:]):
-                for j, v in enumerate(r[:len(header)]):
-                    if isinstance(v, (int, float)) and not isinstance(v, bool):
-                        table[i, j] = float(v)
-                    elif v not in (None, "", "NaN"):
-                        raise IngestionError("cell.not_number", file=path, row=i + 2, column=header[j],
-                                             cell=str(v)[:40])
-            out.append((ws.title, header, table))
+        for name in wb.sheetnames:
+            try:
+                first = next(iter(wb.rows(name, max_row=1, max_col=MAX_COLUMNS)), ())
+                if not _header_kinds(first):
+                    continue
+                numbers, others = wb.table(name, max_row=excel.MAX_ROWS + 1, max_col=MAX_COLUMNS)
+            except Exception as exc:  # noqa: BLE001 - a damaged sheet (deflate stream, CRC, a bad number)
+                raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
+            header = ["" if c is None else str(c) for c in first]
+            table = numbers[1:, :len(header)]
+            for (i, j), v in sorted(others.items()):
+                if i > 0 and j < len(header) and v not in ("", "NaN"):
+                    raise IngestionError("cell.not_number", file=path, row=i + 1, column=header[j], cell=str(v)[:40])
+            out.append((name, header, table))
     finally:
         wb.close()
     return out

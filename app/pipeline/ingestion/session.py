@@ -120,7 +120,9 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
         label, fmt, method = label or stems[0], "phyphox", "file name"
     elif len(paths) == 1 and paths[0].suffix.lower() == ".xlsx":
         acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
-        notes = (f"{paths[0].name}: {note}",)
+        rest = {k: v for k, v in note.params.items() if k != "variant"}
+        notes = (Note.of("file_sheet_chosen_of" if "sheets" in rest else "file_sheet_chosen", file=paths[0].name,
+                         **rest),)
         label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
     elif len(paths) == 1 and paths[0].suffix.lower() in (".h5", ".hdf5"):
         acc, gyr, mag, sensor_id, sensor_label = read_opal(paths[0], sensor)
@@ -335,8 +337,8 @@ def _metadata(manifest: dict[str, Any], mpath: Path | None, recs: dict[tuple[str
             continue
         values = [r.extras[key] for r in task_first if key in r.extras]
         if len({str(v.value) for v in values}) > 1:
-            notes.append(f"file names disagree on {key}: {sorted({str(v.value) for v in values})}; "
-                         f"used {values[0].value!r}")
+            notes.append(Note.of("names_disagree", key=key, values=str(sorted({str(v.value) for v in values})),
+                                 used=repr(values[0].value)))
         found[key] = values[0] if values else None
     if found["step_height_m"] is None and ("thigh", "task") in recs:
         task = recs[("thigh", "task")]

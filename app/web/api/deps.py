@@ -105,8 +105,8 @@ STATUS_OF: dict[type[DomainError], int] = {NotFound: 404, Conflict: 409, Invalid
 def http_error(error: DomainError) -> HTTPException:
     """The ``HTTPException`` answering ``error`` (:data:`STATUS_OF`; 400 for a class not listed)."""
     status = next((code for cls, code in STATUS_OF.items() if isinstance(error, cls)), 400)
-    if error.message_code is not None:  # a sentence of the catalogues: es/en/pt with its code (app.web.refusals)
-        return Refusal(status, error.message_code, **error.params)
+    if error.code is not None:   # its sentence in es/en/pt, with code and params (app.web.refusals)
+        return Refusal(status, error.code, **error.params)
     return HTTPException(status, error.detail)
 
 

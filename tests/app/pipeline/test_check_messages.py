@@ -34,6 +34,54 @@ def test_every_code_the_check_stores_has_three_languages():
     assert not missing, missing
 
 
+_DOMAIN = {"DomainError", "NotFound", "Conflict", "Invalid", "LimitExceeded", "PreconditionFailed"}
+
+
+def _domain_calls():
+    """Every ``NotFound(...)``/``Conflict(...)``/… call in app/ and every ``super().__init__(...)`` of a class
+    derived from one (transitively, by name: ``Busy(Conflict)``, ``NotReady(Conflict)``), as ``(where, call)``."""
+    import ast
+
+    trees = {p: ast.parse(p.read_text(encoding="utf-8")) for p in APP.rglob("*.py")}
+    domain = set(_DOMAIN)
+    for _ in range(3):   # subclasses of subclasses (Busy(Conflict), …)
+        for tree in trees.values():
+            for node in ast.walk(tree):
+                if isinstance(node, ast.ClassDef) and any(getattr(b, "id", None) in domain for b in node.bases):
+                    domain.add(node.name)
+    for p, tree in trees.items():
+        if p.name == "errors.py" and p.parent.name == "store":
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) in _DOMAIN - {"DomainError"}:
+                yield f"{p.relative_to(APP)}:{node.lineno}", node   # (a subclass's own __init__ is checked below)
+            if isinstance(node, ast.ClassDef) and node.name in domain:
+                for call in ast.walk(node):
+                    if isinstance(call, ast.Call) and isinstance(call.func, ast.Attribute) \
+                            and call.func.attr == "__init__" and isinstance(call.func.value, ast.Call):
+                        yield f"{p.relative_to(APP)}:{call.lineno}", call
+
+
+def test_every_refusal_of_the_data_layer_has_a_code_in_three_languages():
+    """A store/jobs refusal (:mod:`app.store.errors`) reaches the user as a 4xx answer whose ``message`` is
+    es/en/pt only when it is raised with ``code=`` (issue 14 §5): one raised with an English sentence, or with
+    a code whose entry lacks a language, fails here."""
+    tables = {**INGESTION, **SERVICE}
+    seen, english, incomplete = 0, [], []
+    for where, call in _domain_calls():
+        seen += 1
+        code = next((k.value for k in call.keywords if k.arg == "code"), None)
+        if code is None or any(isinstance(a, (ast_str := __import__("ast")).Constant) and isinstance(a.value, str)
+                               or isinstance(a, ast_str.JoinedStr) for a in call.args):
+            english.append(where)
+        elif isinstance(code, __import__("ast").Constant) and not (code.value in tables
+                                                                  and _complete(tables[code.value])):
+            incomplete.append((where, code.value))
+    assert seen > 30
+    assert not english, f"raised with an English sentence, give it a code= in service_messages: {english}"
+    assert not incomplete, incomplete
+
+
 def test_no_code_is_defined_twice():
     """A stored code is looked up in the service table first: one also in the ingestion's would show the wrong text."""
     assert not set(SERVICE) & set(INGESTION) and not set(SERVICE) & set(PIPELINE_CATALOGUE)

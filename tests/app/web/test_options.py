@@ -75,6 +75,13 @@ def test_the_api_refuses_a_task_it_does_not_know(client, settings):
     pid = client.post("/api/v1/patients", json={"external_id": "P-1", "side": "left"}, headers=h).json()["id"]
     r = client.post(f"/api/v1/patients/{pid}/sessions", json={"task": "moonwalk"}, headers=h)
     assert r.status_code == 422 and "task" in r.json()["detail"], r.text
+    body = r.json()   # like every refusal: a code, its params and the sentence in es/en/pt naming the field
+    assert body["code"] == "request.invalid" and r.headers["X-ChakaMo-Code"] == "request.invalid"
+    assert set(body["message"]) == {"es", "en", "pt"} and all("task" in t for t in body["message"].values())
+    assert "Corrija" in body["message"]["es"] and "Corrija" in body["message"]["pt"]
+    missing = client.get(f"/api/v1/patients/{pid + 999}", headers=h)   # a store refusal (404): coded, 3 languages
+    assert missing.status_code == 404 and missing.json()["code"] == "store.no_patient", missing.text
+    assert "paciente" in missing.json()["message"]["es"] and "paciente" in missing.json()["message"]["pt"]
     assert all(repr(t) in r.json()["detail"] for t in choices.TASK_NAMES), r.text
 
 

@@ -113,6 +113,6 @@ def test_an_upload_key_is_bound_to_its_files(client, settings, demo_dir):
     other = client.post(f"/api/v1/sessions/{sid}/recordings", files=files[3:6], headers=k)
     assert other.status_code == 409, other.text
     body = other.json()
-    assert body["code"] == "idempotency.key_reused" and set(body["message"]) == {"es", "en", "pt"}
-    assert "upload-1" in body["message"]["es"] and other.headers["x-chakamo-code"] == "idempotency.key_reused"
+    assert body["code"] == "store.key_reused" and set(body["message"]) == {"es", "en", "pt"}
+    assert "upload-1" in body["message"]["es"] and other.headers["x-chakamo-code"] == "store.key_reused"
     assert len(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["recordings"]) == 3

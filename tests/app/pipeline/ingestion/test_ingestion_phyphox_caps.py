@@ -29,11 +29,15 @@ def _refused(paths) -> IngestionError:
 
 def test_the_crafted_workbook_is_refused_through_read_recording(tmp_path, monkeypatch):
     import openpyxl
+
+    from app.pipeline.ingestion.xlsx_cells import Workbook
     opened = []
     monkeypatch.setattr(openpyxl, "load_workbook", lambda *a, **k: opened.append(a) or pytest.fail("opened"))
+    for method in ("rows", "table"):   # the cell reader never parses a sheet of it
+        monkeypatch.setattr(Workbook, method, lambda *a, **k: opened.append(a) or pytest.fail("parsed"))
     p = crafted_rows_xlsx(tmp_path / "step-muslo-X-01012024-1.xlsx")
     err = _refused([p])
-    assert err.code == "xlsx.too_many_rows" and not opened  # refused before openpyxl saw it, sniff included
+    assert err.code == "xlsx.too_many_rows" and not opened  # refused before any sheet was parsed, sniff included
 
 
 def test_a_phyphox_header_workbook_past_the_row_cap_is_refused(tmp_path):

@@ -1,0 +1,288 @@
+"""The cell values of an .xlsx workbook's sheets, read straight from the sheet XML (ECMA-376 Part 1, §18.3.1).
+
+openpyxl builds a Python object for every XML element of a sheet (a row, a cell, its ``<v>``): ~1.6 s of CPU
+for the eight workbooks of a 10-cycle thesis session (issue 14, ``python -m benchmarks.read_formats``).  Here
+each ``<row>`` and each ``<c r=.. t=..>…</c>`` of ``<sheetData>`` is matched by a regular expression over the
+decompressed bytes and only the value is converted, with openpyxl's rules so that the values are the same as
+``openpyxl.load_workbook(path, read_only=True, data_only=True)[name].iter_rows(max_row=…, max_col=…,
+values_only=True)`` (tested with openpyxl as the oracle):
+
+- ``t`` absent or ``n``: the ``<v>`` text as ``int`` when it has no ``.``/``e``/``E``, else ``float``;
+  ``s``: the shared string of that index (``xl/sharedStrings.xml``, read by openpyxl's own string-table reader);
+  ``str`` and ``e``: the text; ``b``: ``bool``; ``inlineStr``: the ``<t>`` texts of its ``<is>`` joined;
+  an empty or missing ``<v>`` is ``None``; a formula's cached ``<v>`` is its value (``data_only``).
+- A row without ``r`` follows the previous one; a cell without ``r`` the previous cell of its row.  Missing rows
+  are rows of ``None``, every row has ``max_col`` values, and a row beyond ``max_row`` stops the read and pads
+  the rows up to ``max_row`` with ``None`` rows (as openpyxl does).
+- Not interpreted: number formats (a date-styled number is its serial number, openpyxl makes it a ``datetime``;
+  neither reader of this package accepts a date), ``t="d"`` ISO dates (kept as text), and a ``>`` inside an
+  attribute value of ``<c>``/``<row>`` (no spreadsheet program writes one).
+
+The workbook's size caps (:func:`app.pipeline.ingestion.excel.check_archive` and ``check_sheets``) must have
+run before: a worksheet is decompressed whole (≤ ``MAX_SHEET_MB``) and its rows and cells are bounded.
+"""
+
+from __future__ import annotations
+
+import posixpath
+import re
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree
+
+import numpy as np
+
+_MAIN = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
+_REL = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
+_PKG_REL = "{http://schemas.openxmlformats.org/package/2006/relationships}"
+_P = rb"(?:[A-Za-z_][\w.-]*:)?"  # an optional namespace prefix
+_SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*/?>")
+_SHEET_DATA_END = re.compile(rb"</" + _P + rb"sheetData\s*>")
+_ROW_END = re.compile(rb"</" + _P + rb"row\s*>|<" + _P + rb"row[^>]*/>")
+#: a cell as every writer known writes it (no namespace prefix, ``r`` first, ``s`` and ``t`` only, double quotes):
+#: ``r`` (column letters, row), ``t``, and the ``<v>`` text after an optional ``<f>``
+_FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: s="\d+")?'
+                   rb'(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?(?:<v>([^<]*)</v>)?.*?</c>)', re.S)
+_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])([^>]*?)(?:/>|>(.*?)</" + _P + rb"row\s*>)", re.S)
+_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])([^>]*?)(?:/>|>(.*?)</" + _P + rb"c\s*>)", re.S)
+_ATTR = re.compile(rb"""([\w:.-]+)\s*=\s*(?:"([^"]*)"|'([^']*)')""")
+_V = re.compile(rb"<" + _P + rb"v(?:\s[^>]*)?>(.*?)</" + _P + rb"v\s*>", re.S)
+_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?:\s[^>]*)?(?:/>|>(.*?)</\1\2\s*>)", re.S)
+_ENTITY = re.compile(r"&(#x[0-9A-Fa-f]+|#[0-9]+|lt|gt|amp|quot|apos);")
+_NAMED = {"lt": "<", "gt": ">", "amp": "&", "quot": '"', "apos": "'"}
+
+
+def _unescape(raw: bytes) -> str:
+    text = raw.decode("utf-8")
+    if "&" not in text:
+        return text
+
+    def one(m: re.Match) -> str:
+        e = m.group(1)
+        if e[0] == "#":
+            return chr(int(e[2:], 16) if e[1] in "xX" else int(e[1:]))
+        return _NAMED[e]
+    return _ENTITY.sub(one, text)
+
+
+def _attrs(raw: bytes) -> dict[bytes, bytes]:
+    """An element's attributes by local name (``x:r`` → ``r``)."""
+    return {m.group(1).rsplit(b":", 1)[-1]: m.group(2) if m.group(2) is not None else m.group(3)
+            for m in _ATTR.finditer(raw)}
+
+
+def count_tags(data: bytes, name: bytes, end: int | None = None) -> int:
+    """Start tags ``<name …>`` (with or without a namespace prefix: ``<x:name/>``) in ``data[:end]``, or a few more.
+
+    One ``bytes.count`` of ``<name`` (a C scan, ~10× faster than a regular expression): it also counts the
+    other tags whose name begins so (``<cols>``, ``<col>``, ``<cfRule>``, ``<rowBreaks>``: a few a sheet, none
+    inside ``<sheetData>``), so as a cap it is stricter by those few, never looser.  A regular expression
+    (exact) only when a ``:name`` occurs (a prefixed tag, or that text in a value)."""
+    end = len(data) if end is None else end
+    if data.find(b":" + name, 0, end) >= 0:
+        return len(re.compile(rb"<(?:[A-Za-z_][\w.-]*:)?" + re.escape(name) + rb"[\s/>]").findall(data, 0, end))
+    return data.count(b"<" + name, 0, end)
+
+
+def _references(refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1-based (columns, rows) of an array of cell references (``b"AB12"`` → 28, 12), vectorised over the bytes
+    (``[A-Z]{1,3}[0-9]{1,9}``, as :data:`_FAST` matches them)."""
+    width = min(refs.dtype.itemsize, 12)   # the longest reference present
+    codes = refs.astype(f"S{width}").view(np.uint8).reshape(-1, width).astype(np.int64)
+    col = np.zeros(len(codes), dtype=np.int64)
+    row = np.zeros(len(codes), dtype=np.int64)
+    for k in range(width):
+        c = codes[:, k]
+        letter, digit = (c >= 65) & (c <= 90), (c >= 48) & (c <= 57)
+        col = np.where(letter, col * 26 + c - 64, col)
+        row = np.where(digit, row * 10 + c - 48, row)
+    return col, row
+
+
+def _content(body: bytes, ref: bytes) -> bytes:
+    """The content of the cell ``ref`` (its first occurrence in ``body``)."""
+    start = body.find(b'<c r="' + ref + b'"')
+    start = body.find(b">", start) + 1
+    return body[start:body.find(b"</c>", start)]
+
+
+def _column(ref: bytes) -> int:
+    """1-based column of a cell reference (``b"AB12"`` → 28)."""
+    n = 0
+    for ch in ref:
+        if 65 <= ch <= 90:
+            n = n * 26 + ch - 64
+        elif 97 <= ch <= 122:
+            n = n * 26 + ch - 96
+        else:
+            break
+    return n
+
+
+def _inline(body: bytes) -> str:
+    """openpyxl's ``Text.content``: the ``<t>`` texts of an ``<is>``, plain and rich runs, phonetic runs left out."""
+    out, skip_to = [], -1
+    for m in _T.finditer(body):
+        if m.start() < skip_to:
+            continue
+        if m.group(2) == b"rPh":
+            skip_to = m.end()
+            continue
+        out.append(_unescape(m.group(3) or b""))
+    return "".join(out)
+
+
+class Workbook:
+    """An open .xlsx: :attr:`sheetnames` in workbook order and :meth:`rows` of one sheet."""
+
+    def __init__(self, path: str | Path) -> None:
+        self._zip = zipfile.ZipFile(path)
+        try:
+            names = set(self._zip.namelist())
+            wb = ElementTree.fromstring(self._zip.read("xl/workbook.xml"))
+            rels = ElementTree.fromstring(self._zip.read("xl/_rels/workbook.xml.rels"))
+            targets, strings_part = {}, None
+            for rel in rels.iter(_PKG_REL + "Relationship"):
+                target = rel.get("Target", "")
+                target = target.lstrip("/") if target.startswith("/") else posixpath.normpath("xl/" + target)
+                targets[rel.get("Id")] = target
+                if rel.get("Type", "").endswith("/sharedStrings"):
+                    strings_part = target
+            self._parts = {}
+            for sheet in wb.iter(_MAIN + "sheet"):
+                self._parts[sheet.get("name")] = targets[sheet.get(_REL + "id")]
+            self.sheetnames = list(self._parts)
+            if strings_part is None and "xl/sharedStrings.xml" in names:
+                strings_part = "xl/sharedStrings.xml"
+            self._strings: list[str] = []
+            if strings_part is not None and strings_part in names:
+                from openpyxl.reader.strings import read_string_table
+
+                with self._zip.open(strings_part) as fh:
+                    self._strings = read_string_table(fh)
+        except BaseException:
+            self._zip.close()
+            raise
+
+    def close(self) -> None:
+        self._zip.close()
+
+    def __enter__(self) -> Workbook:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _sheet_data(self, name: str, rows: int | None = None) -> bytes:
+        """The bytes between ``<sheetData>`` and ``</sheetData>`` of sheet ``name`` (empty when it has none); with
+        ``rows``, only as far as the ``rows``-th ``</row>`` (the header without decompressing the whole sheet)."""
+        if rows is None:
+            data = self._zip.read(self._parts[name])
+        else:
+            data = b""
+            with self._zip.open(self._parts[name]) as fh:
+                while piece := fh.read(1 << 16):
+                    data += piece
+                    if len(_ROW_END.findall(data)) >= rows or b"sheetData>" in data[-(1 << 16) - 12:] and \
+                            _SHEET_DATA_END.search(data):
+                        break
+        start = _SHEET_DATA_START.search(data)
+        if start is None or data[start.end() - 2:start.end()] == b"/>":
+            return b""
+        end = data.rfind(b"sheetData", start.end())
+        if end < 0 or rows is not None:
+            return data[start.end():]
+        return data[start.end():data.rfind(b"<", start.end(), end)]
+
+    def table(self, name: str, max_row: int, max_col: int) -> tuple[np.ndarray, dict[tuple[int, int], object]]:
+        """The same cells as :meth:`rows`, as ``(numbers, others)``: ``numbers[i, j]`` the float of row ``i + 1``,
+        column ``j + 1`` when that cell is a number (``t`` absent or ``n``), NaN otherwise; ``others[(i, j)]`` every
+        other non-empty value (text, bool) as :meth:`rows` gives it.  Rows end at the last one holding a cell.
+
+        The numbers are found by one regular expression over the sheet (:data:`_FAST`: reference, type, value)
+        and converted by numpy in one call (the same correctly rounded decimal → binary64 as ``float``), so a
+        cell costs no Python object: ~20× faster than :meth:`rows` on the thesis session.  A sheet whose cells do
+        not all carry their reference (``r``) is read through :meth:`rows` instead."""
+        body = self._sheet_data(name)
+        cells = _FAST.findall(body)
+        if not cells or len(cells) != body.count(b"<c"):   # inside <sheetData> only cells' tags begin so
+            rows = self.rows(name, max_row, max_col)
+            numbers = np.full((len(rows), max_col), np.nan)
+            others: dict[tuple[int, int], object] = {}
+            for i, r in enumerate(rows):
+                for j, v in enumerate(r):
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        numbers[i, j] = v
+                    elif v is not None:
+                        others[(i, j)] = v
+            last = max([i for i in range(len(rows)) if any(x is not None for x in rows[i])], default=-1) + 1
+            return numbers[:last], others
+        table = np.array(cells)                           # one (cells × 3) bytes array: no object per cell
+        col, row = _references(table[:, 0])
+        beyond = np.nonzero(row > max_row)[0]
+        n = int(beyond[0]) if beyond.size else len(row)   # openpyxl stops at the first row beyond max_row
+        col, row, kind, value = col[:n], row[:n], table[:n, 1], table[:n, 2]
+        keep = (col >= 1) & (col <= max_col) & (row >= 1)
+        number = keep & ((kind == b"") | (kind == b"n")) & (value != b"")
+        n_rows = int(row[keep].max()) if keep.any() else 0
+        numbers = np.full((n_rows, max_col), np.nan)
+        numbers[row[number] - 1, col[number] - 1] = value[number].astype(np.float64)
+        others = {}
+        for k in np.nonzero(keep & ~number)[0]:
+            v = self._value(cells[k][1], cells[k][2], _content(body, cells[k][0]) if cells[k][1] == b"inlineStr"
+                            else b"")
+            if v is not None:
+                others[(int(row[k]) - 1, int(col[k]) - 1)] = v
+        return numbers, others
+
+    def _value(self, kind: bytes, raw: bytes, inner: bytes):
+        """One cell's value by openpyxl's rules (module docstring); ``inner`` the cell's content after its ``<v>``."""
+        if kind == b"inlineStr":
+            start = re.search(rb"<" + _P + rb"is[\s>/]", inner)
+            return _inline(inner[start.start():]) if start else None
+        if not raw:
+            return None
+        if kind in (b"n", b""):
+            return float(raw) if b"." in raw or b"e" in raw or b"E" in raw else int(raw)
+        if kind == b"s":
+            return self._strings[int(raw)]
+        if kind == b"b":
+            return bool(int(raw))
+        return _unescape(raw)  # str, e, d
+
+    def rows(self, name: str, max_row: int, max_col: int, min_row: int = 1) -> list[tuple]:
+        """Rows ``min_row``–``max_row`` of sheet ``name``, each ``max_col`` values (module docstring)."""
+        body = self._sheet_data(name, rows=max_row if max_row <= 8 else None)
+        empty = (None,) * max_col
+        out: list[tuple] = []
+        counter = min_row
+        index = 0
+        for row in _ROW.finditer(body):
+            r = _attrs(row.group(1)).get(b"r")
+            index = int(r) if r is not None and r.isdigit() else (int(float(r)) if r is not None else index + 1)
+            if index > max_row:
+                break
+            while counter < index:
+                out.append(empty)
+                counter += 1
+            if counter > index:
+                continue
+            counter += 1
+            values = [None] * max_col
+            col = 0
+            for cell in _CELL.finditer(row.group(2) or b""):
+                a = _attrs(cell.group(1))
+                ref = a.get(b"r")
+                col = _column(ref) if ref else col + 1
+                if not 1 <= col <= max_col:
+                    continue
+                inner = cell.group(2) or b""
+                v = _V.search(inner)
+                values[col - 1] = self._value(a.get(b"t", b"n"), v.group(1) if v else b"", inner)
+            out.append(tuple(values))
+        if max_row < index:
+            out.extend([empty] * (max_row + 1 - counter))
+        return out
+
+
+__all__ = ["Workbook"]

@@ -1,0 +1,133 @@
+"""The streaming cell reader (:mod:`app.pipeline.ingestion.xlsx_cells`) against openpyxl as the oracle."""
+
+from __future__ import annotations
+
+import numpy as np
+import openpyxl
+import pytest
+
+from app.pipeline.ingestion.excel import HEADER, MAX_ROWS, write_thesis_xlsx
+from app.pipeline.ingestion.phyphox import MAX_COLUMNS, write_phyphox
+from app.pipeline.ingestion.xlsx_cells import Workbook
+
+
+def _oracle(path, name, max_row, max_col):
+    wb = openpyxl.load_workbook(path, read_only=True, data_only=True)
+    try:
+        return [tuple(r) for r in wb[name].iter_rows(max_row=max_row, max_col=max_col, values_only=True)]
+    finally:
+        wb.close()
+
+
+def _same(path, max_row, max_col):
+    with Workbook(path) as wb:
+        names = wb.sheetnames
+        assert names == openpyxl.load_workbook(path, read_only=True).sheetnames
+        for name in names:
+            mine, theirs = wb.rows(name, max_row, max_col), _oracle(path, name, max_row, max_col)
+            assert len(mine) == len(theirs), name
+            for a, b in zip(mine, theirs):
+                assert [(type(x), x) for x in a] == [(type(x), x) for x in b], name
+            numbers, others = wb.table(name, max_row, max_col)   # the fast reader: the same values
+            for i, r in enumerate(theirs):
+                for j, v in enumerate(r):
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        assert numbers[i, j] == float(v) and (i, j) not in others, (name, i, j)
+                    elif v is None:
+                        assert (i >= len(numbers) or np.isnan(numbers[i, j])) and (i, j) not in others
+                    else:
+                        assert type(others[(i, j)]) is type(v) and others[(i, j)] == v, (name, i, j)
+                        assert np.isnan(numbers[i, j])
+
+
+def test_thesis_workbook_values_are_openpyxls(tmp_path):
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 3, 0.01)
+    acc = rng.normal(0, 9.81, (t.size, 3))
+    gyr = rng.normal(0, 2, (t.size, 3))
+    tm = np.arange(0, 3, 0.05)
+    mag = rng.normal(0, 40, (tm.size, 3))
+    path = write_thesis_xlsx(tmp_path / "step-muslo-P01-01012024-1.xlsx", (t, acc), gyr, (tm, mag),
+                             extra_sheets=("notas", "notas año"))
+    _same(path, MAX_ROWS + 1, len(HEADER))
+    _same(path, 1, len(HEADER))
+
+
+def test_phyphox_workbook_values_are_openpyxls(tmp_path):
+    rng = np.random.default_rng(8)
+    t = np.arange(0, 2, 0.01)
+    streams = {k: (t, rng.normal(0, 5, (t.size, 3))) for k in ("acc", "gyr", "mag")}
+    path = write_phyphox(tmp_path / "phyphox.xlsx", streams, layout="xlsx")
+    _same(path, MAX_ROWS + 1, MAX_COLUMNS)
+
+
+def test_odd_cells_spanish_and_portuguese_conventions(tmp_path):
+    """Spanish/Portuguese headers ('tiempo', 'año', 'ção'), decimal-comma numbers typed as text ('0,5'), ints,
+    booleans, formulas with cached values, XML-escaped text, blank cells and rows, rows far away and columns
+    beyond the ones read: every value as openpyxl gives it."""
+    wb = openpyxl.Workbook()
+    ws = wb.active
+    ws.title = "Hoja1"
+    ws.append(["tiempo (s)", "eje x (g)", "rotação (deg/s)", "<a & b> \"c\" 'd'", None, "año"])
+    ws.append([0, 0.5, "0,5", True, False, -1.25e-7])
+    ws.append([1, None, "", 3, "  ", 1e300])
+    ws["C6"] = "=A2+A3"
+    ws["P7"] = 99.0
+    ws["A9"] = "1.234,56"
+    ws.cell(row=12, column=2, value=2**40)
+    second = wb.create_sheet("Folha de cálculo")
+    second.append(["Tempo (s)", "Aceleração x (m/s^2)"])
+    second.append([0.001, 9.81])
+    path = tmp_path / "odd.xlsx"
+    wb.save(path)
+    for max_row in (1, 5, 20):
+        for max_col in (3, 13, 20):
+            _same(path, max_row, max_col)
+
+
+@pytest.mark.parametrize("max_row", [3, 50])
+def test_rows_far_away_pad_like_openpyxl(tmp_path, max_row):
+    wb = openpyxl.Workbook()
+    ws = wb.active
+    ws.append(["elapsed (s)", "x"])
+    ws.append([0.0, 1.0])
+    ws.cell(row=10_000, column=1, value=5.0)
+    path = tmp_path / "far.xlsx"
+    wb.save(path)
+    _same(path, max_row, 4)
+
+
+def _with_sheet(path, xml: bytes):
+    """A one-sheet workbook written by openpyxl whose sheet XML is replaced by ``xml``."""
+    import io
+    import zipfile
+
+    wb = openpyxl.Workbook()
+    buf = io.BytesIO()
+    wb.save(buf)
+    src = zipfile.ZipFile(io.BytesIO(buf.getvalue()))
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as out:
+        for info in src.infolist():
+            out.writestr(info.filename, xml if info.filename == "xl/worksheets/sheet1.xml" else src.read(info))
+    return path
+
+
+@pytest.mark.parametrize("cells", [
+    # no references (the slow path), a rich inline string, an error, a str formula result, escapes
+    '<row><c t="inlineStr"><is><r><t>tiem</t></r><r><t>po (s)</t></r></is></c><c t="e"><v>#N/A</v></c>'
+    '<c t="str"><f>A1</f><v>a &amp; b</v></c></row><row><c><v>1.5</v></c><c><v>2</v></c><c t="b"><v>1</v></c></row>',
+    # a namespace prefix, attributes in another order and single quotes (the slow path)
+    '<x:row r="1"><x:c t="n" r="B1"><x:v>3</x:v></x:c></x:row><x:row r="3"><x:c r=\'A3\' s="0"><x:v>-2E-3</x:v>'
+    '</x:c><x:c r="C3" t="inlineStr"><x:is><x:t>ação</x:t></x:is></x:c></x:row>',
+    # the fast path with a gap in the rows and an empty value
+    '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c></row><row r="4"><c r="A4" s="1" t="n">'
+    '<v>0.25</v></c><c r="B4" t="n"></c><c r="D4"><v>7</v></c></row>',
+])
+def test_hand_written_sheets_read_like_openpyxl(tmp_path, cells):
+    prefix = ' xmlns:x="http://schemas.openxmlformats.org/spreadsheetml/2006/main"' if "<x:" in cells else ""
+    tag = "x:" if prefix else ""
+    xml = ('<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
+           f'spreadsheetml/2006/main"{prefix}><{tag}sheetData>{cells}</{tag}sheetData></worksheet>').encode()
+    path = _with_sheet(tmp_path / "hand.xlsx", xml)
+    for max_row in (1, 4, 10):
+        _same(path, max_row, 5)
