@@ -14,6 +14,7 @@ from app.pipeline.ingestion.messages import CATALOGUE as INGESTION, LANGUAGES
 from app.pipeline.ingestion.model import ROLES, Recognition
 from app.pipeline.messages import PIPELINE_CATALOGUE
 from app.pipeline.service_messages import CATALOGUE as SERVICE, _how, item, item_texts, recognised_item
+from app.web.messages import CATALOGUE as WEB
 from reports import i18n
 
 APP = Path(__file__).resolve().parents[3] / "app"
@@ -28,7 +29,7 @@ def test_every_code_the_check_stores_has_three_languages():
     for p in [*(APP / "store").glob("*.py"), *(APP / "web").rglob("*.py"), APP / "pipeline" / "service_messages.py"]:
         text = p.read_text(encoding="utf-8")
         used |= set(re.findall(r"(?:item|render|_failed|Refusal\(\d+,)\s*\(?\s*[\"']([a-z_]+\.[a-z_]+)[\"']", text))
-    tables = {**INGESTION, **PIPELINE_CATALOGUE, **SERVICE}
+    tables = {**INGESTION, **PIPELINE_CATALOGUE, **SERVICE, **WEB}  # the web layer's own refusals (app.web.messages)
     assert "session.recognised" in used and "session.no_files_yet" in used
     missing = sorted(c for c in used if c not in tables or not _complete(tables[c]))
     assert not missing, missing

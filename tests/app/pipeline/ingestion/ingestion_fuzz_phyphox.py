@@ -92,7 +92,9 @@ def phyphox_sensor_dropped(folder, draw):
 def phyphox_flavour(folder, draw):
     """One zip re-exported in another of phyphox's CSV flavours (separator and decimal mark)."""
     p, files = _zip(folder, draw)
-    sep, dec = draw(st.sampled_from([(",", "."), ("\t", "."), (";", ","), ("\t", ",")]))
+    first = files[_tables(files)[0]].split("\n", 1)[0]
+    written = (";", ",") if ";" in first else (",", ".")  # the flavour the session was written in: never the draw
+    sep, dec = draw(st.sampled_from([f for f in [(",", "."), ("\t", "."), (";", ","), ("\t", ",")] if f != written]))
     for n in files:
         lines = files[n].splitlines()
         old = ";" if ";" in lines[0] else ","
