@@ -37,6 +37,8 @@ import threading
 import time
 import urllib.parse
 
+from cryptography.exceptions import InvalidTag
+
 from app.store import webhooks
 from app.web.headers import host_allowed
 from app.web.sealed import unseal
@@ -45,6 +47,8 @@ log = logging.getLogger("chakamo.webhooks")
 TIMEOUT_S = 10.0
 #: the error a clinic sees when no HTTP answer came (the cause is only logged)
 NO_CONNECTION = "could not connect"
+#: the trail's sentence when the secret was sealed under another ``CHAKAMO_SECRET_KEY`` (the key was changed)
+SECRET_UNREADABLE = "secret unreadable: subscribe again"
 
 
 def signature(secret: str, timestamp: int, body: bytes) -> str:
@@ -112,9 +116,15 @@ def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes) -> tuple[int 
     is logged for the operator only (it would tell a clinic about the server's network).  ``key``: the
     ``CHAKAMO_SECRET_KEY`` the subscription's secret is sealed under (:mod:`app.web.sealed`)."""
     body = json.dumps({"id": due.id, **due.payload}, separators=(",", ":")).encode()
+    try:
+        secret = unseal(key, due.secret)
+    except (InvalidTag, ValueError) as exc:  # sealed under another CHAKAMO_SECRET_KEY: an attempt that failed
+        log.warning("webhook delivery %s: its subscription's secret cannot be unsealed (%s); subscribe again",
+                    due.id, type(exc).__name__)
+        return None, SECRET_UNREADABLE
     headers = {"Content-Type": "application/json", "User-Agent": "ChakaMo-Webhooks",
                "X-ChakaMo-Event": due.event, "X-ChakaMo-Delivery": str(due.id),
-               "X-ChakaMo-Signature": signature(unseal(key, due.secret), int(time.time()), body)}
+               "X-ChakaMo-Signature": signature(secret, int(time.time()), body)}
     url = urllib.parse.urlsplit(due.url)
     https = url.scheme.lower() == "https"
     try:

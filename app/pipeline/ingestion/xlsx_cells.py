@@ -39,15 +39,25 @@ _P = rb"(?:[A-Za-z_][\w.-]*:)?"  # an optional namespace prefix
 _SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*/?>")
 _SHEET_DATA_END = re.compile(rb"</" + _P + rb"sheetData\s*>")
 _ROW_END = re.compile(rb"</" + _P + rb"row\s*>|<" + _P + rb"row[^>]*/>")
+
+
+def _inside(tag: bytes) -> bytes:
+    """The content of an element ``tag`` up to its end tag, never crossing another start or end tag of the same
+    name, with possessive quantifiers: linear time.  (A lazy ``.*?</c>`` scanned to the end of the sheet from every
+    unclosed ``<c>``: quadratic in a crafted sheet the size caps allow — review finding.)"""
+    return rb"[^<]*+(?:<(?!/?" + _P + tag + rb"[\s/>])[^<]*+)*+"
+
+
 #: a cell as every writer known writes it (no namespace prefix, ``r`` first, ``s`` and ``t`` only, double quotes):
 #: ``r`` (column letters, row), ``t``, and the ``<v>`` text after an optional ``<f>``
 _FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: s="\d+")?'
-                   rb'(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?(?:<v>([^<]*)</v>)?.*?</c>)', re.S)
-_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])([^>]*?)(?:/>|>(.*?)</" + _P + rb"row\s*>)", re.S)
-_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])([^>]*?)(?:/>|>(.*?)</" + _P + rb"c\s*>)", re.S)
+                   rb'(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?(?:<v>([^<]*)</v>)?' + _inside(rb"c") + rb'</c>)', re.S)
+_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])([^>]*?)(?:/>|>(" + _inside(rb"row") + rb")</" + _P + rb"row\s*>)",
+                  re.S)
+_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])([^>]*?)(?:/>|>(" + _inside(rb"c") + rb")</" + _P + rb"c\s*>)", re.S)
 _ATTR = re.compile(rb"""([\w:.-]+)\s*=\s*(?:"([^"]*)"|'([^']*)')""")
-_V = re.compile(rb"<" + _P + rb"v(?:\s[^>]*)?>(.*?)</" + _P + rb"v\s*>", re.S)
-_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?:\s[^>]*)?(?:/>|>(.*?)</\1\2\s*>)", re.S)
+_V = re.compile(rb"<" + _P + rb"v(?:\s[^>]*)?>(" + _inside(rb"v") + rb")</" + _P + rb"v\s*>", re.S)
+_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?:\s[^>]*)?(?:/>|>(" + _inside(rb"(?:rPh|t)") + rb")</\1\2\s*>)", re.S)
 _ENTITY = re.compile(r"&(#x[0-9A-Fa-f]+|#[0-9]+|lt|gt|amp|quot|apos);")
 _NAMED = {"lt": "<", "gt": ">", "amp": "&", "quot": '"', "apos": "'"}
 
@@ -179,13 +189,16 @@ class Workbook:
         if rows is None:
             data = self._zip.read(self._parts[name])
         else:
-            data = b""
+            buf, found, pos = bytearray(), 0, 0   # row ends counted in each new piece only: linear time
             with self._zip.open(self._parts[name]) as fh:
                 while piece := fh.read(1 << 16):
-                    data += piece
-                    if len(_ROW_END.findall(data)) >= rows or b"sheetData>" in data[-(1 << 16) - 12:] and \
-                            _SHEET_DATA_END.search(data):
+                    buf += piece
+                    for m in _ROW_END.finditer(buf, pos):
+                        found, pos = found + 1, m.end()
+                    pos = max(pos, len(buf) - 256)  # a tag cut by the piece's end is found in the next round
+                    if found >= rows or _SHEET_DATA_END.search(buf, max(0, len(buf) - len(piece) - 64)):
                         break
+            data = bytes(buf)
         start = _SHEET_DATA_START.search(data)
         if start is None or data[start.end() - 2:start.end()] == b"/>":
             return b""

@@ -17,7 +17,7 @@ from web_helpers import make_settings
 
 from app.store import webhooks
 from app.web.sealed import PREFIX, seal, unseal
-from app.web.webhooks import NO_CONNECTION, AddressRefused, resolve, send
+from app.web.webhooks import NO_CONNECTION, SECRET_UNREADABLE, AddressRefused, resolve, send
 
 
 def _client(tmp_path, allowed: str):
@@ -81,6 +81,16 @@ def test_the_trail_says_could_not_connect_never_the_cause():
     assert send(_due(f"http://127.0.0.1:{port}/"), ("127.0.0.1",), KEY) == (None, NO_CONNECTION)
     # refused (not allowed) looks the same as closed: no port scanning through the trail
     assert send(_due(f"http://127.0.0.1:{port}/"), ("*",), KEY) == (None, NO_CONNECTION)
+
+
+def test_a_secret_sealed_under_another_key_is_a_failed_attempt_not_a_jammed_delivery():
+    """After CHAKAMO_SECRET_KEY changes, the delivery is answered as a failed attempt the trail explains (it raised
+    InvalidTag out of the sender's round before: never recorded, claimed again every lease; review finding)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    other = b"another operator key, also 32 characters long"
+    assert send(_due(f"http://127.0.0.1:{port}/"), ("127.0.0.1",), other) == (None, SECRET_UNREADABLE)
 
 
 def test_an_allowed_receiver_gets_the_post_on_the_checked_address():

@@ -131,3 +131,19 @@ def test_hand_written_sheets_read_like_openpyxl(tmp_path, cells):
     path = _with_sheet(tmp_path / "hand.xlsx", xml)
     for max_row in (1, 4, 10):
         _same(path, max_row, 5)
+
+
+def test_unclosed_cells_and_rows_are_read_in_linear_time():
+    """A crafted sheet (within the size caps) of thousands of cells and rows that never close, then filler: no
+    element matches, and each pattern scans the text about once — the lazy ``.*?</c>`` of the first version scanned
+    to the sheet's end from every unclosed start (4000 × 1 MB here: minutes of CPU, holding the interpreter lock in
+    the job's thread; review finding).  No time is asserted: before the fix this test did not finish for minutes."""
+    from app.pipeline.ingestion import xlsx_cells as x
+
+    filler = b"x" * 1_000_000
+    assert x._FAST.findall(b'<c r="A1"><v>1</v>' * 4000 + filler) == []
+    assert x._CELL.findall(b'<c r="A1"><v>1</v>' * 4000 + filler) == []
+    assert x._ROW.findall(b'<row r="1">' * 4000 + filler) == []
+    assert x._V.findall(b"<v>1" * 4000 + filler) == []
+    closed = b'<row r="1"><c r="A1"><v>1</v></c></row>'
+    assert x._FAST.findall(b'<c r="A1"><v>1</v>' * 4000 + closed) == [(b"A1", b"", b"1")]
