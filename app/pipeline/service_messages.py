@@ -331,7 +331,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "análisis {analysis_id} (pipeline {version})",
         "pt": "análise {analysis_id} (pipeline {version})"},
     "request.invalid": {
-        "en": "{fields}: invalid or missing value ({problems}). Correct the request and send it again.",
+        "en": "{fields}: invalid or missing value. Correct the request and send it again.",
         "es": "{fields}: valor no válido o ausente. Corrija la petición y envíela de nuevo.",
         "pt": "{fields}: valor inválido ou ausente. Corrija o pedido e envie-o de novo."},
     "store.unknown_scope": {
