@@ -43,6 +43,25 @@ PROCESS_WAIT_MS = 400_000    # the whole processing job (reports in three langua
 
 
 # ------------------------------------------------------------------------------------- translations
+def open_page(browser, locale: str, height: int = 900, **options):
+    """A fresh browser context in ``locale`` (1280 px wide) with the tests' step timeout, its page, and the list the
+    page's uncaught script errors go to (each test asserts it empty): ``(context, page, errors)``."""
+    context = browser.new_context(locale=locale, viewport={"width": 1280, "height": height}, **options)
+    context.set_default_timeout(WAIT_MS)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    return context, page, errors
+
+
+def log_in(page, server: str, email: str = EMAIL, password: str = PASSWORD) -> None:
+    """Fill and send the login form the app shows at ``#/patients`` before anyone is logged in."""
+    page.goto(f"{server}/#/patients")
+    page.locator("input[name=email]").fill(email)
+    page.locator("input[name=password]").fill(password)
+    page.locator("form.login button[type=submit]").click()
+
+
 def _tables() -> dict[str, dict[str, str]]:
     return {code: json.loads((STATIC / "i18n" / f"{code}.json").read_text(encoding="utf-8")) for code in ("es", "en", "pt")}
 
@@ -359,11 +378,7 @@ def test_errors_are_shown_plainly(browser, server, slow_expect, tmp_path):
     where it happened, and processing stays impossible while the check fails."""
     from playwright.sync_api import expect
 
-    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 900})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "en-US")
     try:
         page.goto(f"{server}/#/patients")
         page.get_by_label("Email").fill(EMAIL)
@@ -411,11 +426,7 @@ def test_account_page_changes_the_password_in_the_users_language(browser, server
     set back at the end (the module's other tests log in with it)."""
     from playwright.sync_api import expect
 
-    context = browser.new_context(locale="es-ES", viewport={"width": 1280, "height": 900})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "es-ES")
     other = "siete búhos pardos al alba"
     try:
         page.goto(f"{server}/#/account")

@@ -7,7 +7,7 @@ trend names its series.  Texts are read from static/i18n/pt.json."""
 from __future__ import annotations
 
 import pytest
-from test_browser_e2e import EMAIL, PASSWORD, PROCESS_WAIT_MS, WAIT_MS, _tables, server, slow_expect  # noqa: F401
+from test_browser_e2e import PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_walk_knees, write_knees_session
 
@@ -29,16 +29,9 @@ def _fmt(x: float) -> str:
 
 def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expect, walk_files):  # noqa: F811
     pt = _tables()["pt"]
-    context = browser.new_context(locale="pt-BR", viewport={"width": 1280, "height": 1000})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "pt-BR", height=1000)
     try:
-        page.goto(f"{server}/#/patients")
-        page.locator("input[name=email]").fill(EMAIL)
-        page.locator("input[name=password]").fill(PASSWORD)
-        page.locator("form.login button[type=submit]").click()
+        log_in(page, server)
         page.locator("select#lang").select_option("pt")
         slow_expect(page.locator("h1")).to_have_text(pt["patients.title"])
         api = f"{server}/api/v1"

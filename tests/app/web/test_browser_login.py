@@ -5,7 +5,7 @@ clinic's name typed in the form's clinic field the user lands in that clinic's p
 
 from __future__ import annotations
 
-from test_browser_e2e import SETTINGS, WAIT_MS, _tables, server, slow_expect  # noqa: F401 — fixtures
+from test_browser_e2e import SETTINGS, _tables, log_in, open_page, server, slow_expect  # noqa: F401 — fixtures
 
 TWO = "two.clinics@clinic.test"
 PASSWORD_A, PASSWORD_B = "amber falcon river stone", "quiet harbour violet maple"
@@ -19,16 +19,9 @@ def test_an_email_with_accounts_in_two_clinics_logs_in_by_naming_the_clinic(brow
         admin_cli.create_clinic(settings, clinic)
         admin_cli.create_user(settings, clinic=clinic, email=TWO, role="clinician", name=clinic, password=password)
     pt = _tables()["pt"]
-    context = browser.new_context(locale="pt-PT", viewport={"width": 1280, "height": 900})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "pt-PT")
     try:
-        page.goto(f"{server}/#/patients")
-        page.locator("input[name=email]").fill(TWO)
-        page.locator("input[name=password]").fill(PASSWORD_B)
-        page.locator("form.login button[type=submit]").click()  # no clinic named: which account is unknown
+        log_in(page, server, TWO, PASSWORD_B)  # no clinic named: which account is unknown
         slow_expect(page.locator("form.login .form-message")).to_contain_text(pt["login.failed"])
         page.locator("input[name=clinic]").fill("Clínica Sul")
         page.locator("form.login button[type=submit]").click()

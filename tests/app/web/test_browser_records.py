@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import hashlib
 
-from test_browser_e2e import EMAIL, PASSWORD, WAIT_MS, _tables, server, slow_expect  # noqa: F401 — fixtures
+from test_browser_e2e import _tables, log_in, open_page, server, slow_expect  # noqa: F401 — fixtures
 
 DATA = b"acc_x (g),acc_y (g),acc_z (g)\n0.0,0.0,1.0\n# browser erasure\n"
 
@@ -15,16 +15,9 @@ DATA = b"acc_x (g),acc_y (g),acc_z (g)\n0.0,0.0,1.0\n# browser erasure\n"
 def test_edit_patient_and_delete_session_and_patient_with_confirmation(browser, server, slow_expect,  # noqa: F811
                                                                         tmp_path_factory):
     es = _tables()["es"]
-    context = browser.new_context(locale="es-ES", viewport={"width": 1280, "height": 900})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "es-ES")
     try:
-        page.goto(f"{server}/#/patients")
-        page.locator("input[name=email]").fill(EMAIL)
-        page.locator("input[name=password]").fill(PASSWORD)
-        page.locator("form.login button[type=submit]").click()
+        log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(es["patients.title"])
         api = f"{server}/api/v1"
         csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}

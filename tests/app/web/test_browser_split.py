@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
-    EMAIL, PASSWORD, PROCESS_WAIT_MS, WAIT_MS, _api_session, server, slow_expect)
+    EMAIL, PASSWORD, PROCESS_WAIT_MS, WAIT_MS, _api_session, open_page, server, slow_expect)
 from test_browser_wizard import _drop
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "pipeline"))
@@ -44,11 +44,7 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         browser, server, continuous_files, slow_expect, tmp_path):  # noqa: F811
     expect = slow_expect
     files, truth = continuous_files
-    context = browser.new_context(locale="es-ES", viewport={"width": 1280, "height": 1000})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "es-ES", height=1000)
     try:
         _login(page, server, "Correo electrónico", "Contraseña", "Entrar")
         expect(page.get_by_role("heading", level=1)).to_have_text("Pacientes")
@@ -186,11 +182,7 @@ def test_a_four_sensor_sessions_cuts_get_one_editor_per_sensor(browser, server, 
         for j, seg in enumerate(("thigh", "shank")):
             write_recording_metabase(folder, f"{words[seg]}-{words[side]}-ML1-13032023-1", f"D4F1A2B3C4{i}{j}",
                                      streams[seg])
-    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "en-US", height=1000)
     try:
         _login(page, server, "Email", "Password", "Log in")
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")

@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
-    EMAIL, PASSWORD, WAIT_MS, _api_session, _no_raw_values, demo_files, server, slow_expect)
+    EMAIL, PASSWORD, _api_session, _no_raw_values, demo_files, open_page, server, slow_expect)
 
 THIGH_MAC, SHANK_MAC = "D4:F1:A2:B3:C4:E5", "E8:C2:B1:A0:F9:D7"   # app.pipeline.ingestion.writers.DEFAULT_MACS
 
@@ -34,11 +34,7 @@ def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow
     for files in demo_files.values():   # the fixture's files carry the MACs this test types
         assert all(THIGH_MAC.replace(":", "") in Path(f).name or SHANK_MAC.replace(":", "") in Path(f).name
                    for f in files)
-    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 900})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "en-US")
     try:
         page.goto(f"{server}/#/patients")
         page.get_by_label("Email").fill(EMAIL)
@@ -97,11 +93,7 @@ def test_one_sensor_on_both_segments_is_flagged_from_the_server(browser, server,
     """No MAC typed: the serials the server stored with the uploads (``sensor_warnings``) still catch the shank's
     sensor recorded on both segments, in the UI's language."""
     expect = slow_expect
-    context = browser.new_context(locale="en-US", viewport={"width": 1280, "height": 900})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    context, page, errors = open_page(browser, "en-US")
     try:
         page.goto(f"{server}/#/patients")
         page.get_by_label("Email").fill(EMAIL)
