@@ -201,8 +201,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             parts.append(f"{where or 'request'}: {err.get('msg', 'invalid')}")
             fields.append(where or "request")
         detail = "; ".join(parts) + ". Correct the request and send it again."
-        params = {"fields": ", ".join(dict.fromkeys(fields)),
-                  "problems": "; ".join(str(e.get("msg", "invalid")) for e in exc.errors()[:3])}
+        params = {"fields": ", ".join(dict.fromkeys(fields))}
         return problem_response(422, detail, instance=request.url.path, errors=jsonable_encoder(exc.errors()),
                                 headers={CODE_HEADER: "request.invalid"},
                                 **refusal_members("request.invalid", params))

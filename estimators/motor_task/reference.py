@@ -137,23 +137,22 @@ def _shown(mean: float, sd: float | None, unit: str) -> Band:
 
 
 _THESIS = dict(
-    kind="single_study",
+    kind="single_study", task="step_up",
+    population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
     source="source thesis (seed 004), §8.7.3–8.7.4, Tables 8.1–8.4",
     transcription="typed by hand from the thesis' tables; one subject's means, shown beside the session's values "
                   "without a band or a flag: one subject's spread over its own cycles is no range of normal")
 
 STEP_UP = {
     0.17: Reference(
-        id="step_up_thesis_17cm", task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
-        conditions="single-leg step-up, 17 cm step", **_THESIS,
+        id="step_up_thesis_17cm", conditions="single-leg step-up, 17 cm step", **_THESIS,
         parameters={"cycle_s": _shown(3.38, 0.01, "s"), "impulse_pct": _shown(34.02, 0.89, "pct"),
                     "extension_pct": _shown(31.66, 2.96, "pct"), "fall_pct": _shown(34.02, 2.07, "pct"),
                     "flexion_rom_deg": _shown(81.96, None, "deg"),
                     "flexion_max_deg": _shown(82.96, None, "deg"),
                     "flexion_min_deg": _shown(0.80, None, "deg")}),
     0.34: Reference(
-        id="step_up_thesis_34cm", task="step_up", population="one subject (the thesis' own measurement), 8 of 10 cycles averaged",
-        conditions="single-leg step-up, 34 cm step", **_THESIS,
+        id="step_up_thesis_34cm", conditions="single-leg step-up, 34 cm step", **_THESIS,
         parameters={"cycle_s": _shown(3.54, 0.07, "s"), "impulse_pct": _shown(33.33, 1.13, "pct"),
                     "extension_pct": _shown(32.77, 2.26, "pct"), "fall_pct": _shown(33.90, 1.13, "pct"),
                     "flexion_rom_deg": _shown(115.16, None, "deg"),
