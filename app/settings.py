@@ -69,6 +69,11 @@ def _default_data_dir() -> Path:
     return Path(user_data_dir("chakamo", appauthor=False))
 
 
+def _names(text: str) -> tuple[str, ...]:
+    """A comma-separated list of host names (or patterns) as lower-case names, blanks dropped."""
+    return tuple(h.strip().lower() for h in text.split(",") if h.strip())
+
+
 class Settings(BaseSettings):
     """Validated settings (see the module docstring for the variables and defaults)."""
 
@@ -158,12 +163,12 @@ class Settings(BaseSettings):
     @property
     def host_patterns(self) -> tuple[str, ...]:
         """:data:`allowed_hosts` as lower-case names (``("*",)``: any)."""
-        return tuple(h.strip().lower() for h in self.allowed_hosts.split(",") if h.strip()) or ("*",)
+        return _names(self.allowed_hosts) or ("*",)
 
     @property
     def webhook_host_patterns(self) -> tuple[str, ...]:
         """:data:`webhook_allowed_hosts` as lower-case names (empty: none allowed)."""
-        return tuple(h.strip().lower() for h in self.webhook_allowed_hosts.split(",") if h.strip())
+        return _names(self.webhook_allowed_hosts)
 
     @model_validator(mode="after")
     def _refuse_insecure(self) -> "Settings":

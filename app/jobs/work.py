@@ -324,34 +324,31 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
         contents = {stored[key]: data for key, data in files.items()}
-        # written and fsynced before the transaction (BlobWriter.seal): under the locks only the renames
+        # written and fsynced before the transaction (BlobWriter.seal): under the locks only the renames; what
+        # a failure leaves unplaced is discarded
         sealed = {}
-        try:
+        with discarding(sealed.values()):
             for key in sorted(contents):
                 sealed[key] = store.sealed(contents[key])
-        except BaseException:
-            for w in sealed.values():
-                w.discard()
-            raise
-        with db.session() as s, discarding(sealed.values()):
-            row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
-            for sha, size in sorted(contents):
-                # the file is placed under its blob's lock, as an upload's: the same bytes may be another
-                # session's artefact being erased right now (app.store.erasure)
-                reserve_blob(s, sha, size)
-                sealed[sha, size].commit()
-            analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
-                                accepted_cycles=int(results["cycles"]["accepted"]),
-                                warnings=len(results["quality"]["warnings"]),
-                                pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
-            analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
-                                  for (name, lang), (sha, size) in stored.items()]
-            s.add(analysis)
-            s.flush()
-            row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
-            row.analysis_id = analysis.id
-            row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
-                                 f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
+            with db.session() as s:
+                row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
+                for sha, size in sorted(contents):
+                    # the file is placed under its blob's lock, as an upload's: the same bytes may be another
+                    # session's artefact being erased right now (app.store.erasure)
+                    reserve_blob(s, sha, size)
+                    sealed[sha, size].commit()
+                analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
+                                    accepted_cycles=int(results["cycles"]["accepted"]),
+                                    warnings=len(results["quality"]["warnings"]),
+                                    pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
+                analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
+                                      for (name, lang), (sha, size) in stored.items()]
+                s.add(analysis)
+                s.flush()
+                row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
+                row.analysis_id = analysis.id
+                row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
+                                     f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
         return "done"
     except Superseded:  # the sweeper gave the job to another run (this one looked lost): that run stands
         log.warning("job %s: attempt %s was taken over by another run; its results are dropped", job_id, attempt)
