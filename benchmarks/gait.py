@@ -258,7 +258,7 @@ def print_table(name: str, rows: list[dict]) -> dict:
           f"{sum(r['detected'] for r in rows)} strides detected, {sum(r['accepted'] for r in rows)} accepted, "
           f"{sum(r['missed'] for r in rows)} true strides (outside turns) missed, "
           f"{sum(r['false'] for r in rows)} false, {sum(r['initiation'] for r in rows)} gait-initiation strides "
-          "(before the truth's first stride; not scored)")
+          "(before the truth's first stride: no event error for them; their cycles are in the means scored, as reported)")
     print(f"  {'event':<18} {'median |err| ms':>15} {'worst |err| ms':>14} {'median signed':>14} {'n':>5}")
     for e, label in (("ic", "initial contact"), ("to", "toe-off"), ("ms", "mid-swing")):
         x = err[e][np.isfinite(err[e])]

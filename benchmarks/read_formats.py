@@ -21,6 +21,7 @@ import json
 import os
 import statistics
 import sys
+import shutil
 import tempfile
 import time
 from collections.abc import Sequence
@@ -127,6 +128,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     session = simulate_session(seed=7, side="right", n_cycles=args.cycles)
     work = Path(tempfile.mkdtemp(prefix="chakamo-read-"))
+    try:
+        return _table(args, formats, session, work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _table(args, formats, session, work: Path) -> int:
     print(f"read + align of a {args.cycles}-cycle session, median of {args.repeats} after warm-up "
           f"(goal ≤ {GOAL_S} s); load average at start {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print(f"{'format':<14} {'files':>5} {'MB':>6} {'task s':>7} {'wall s':>7} {'CPU s':>7} {'load':>5}  goal (CPU)")

@@ -92,11 +92,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimators.knee import STILL_MAX_ACC_SD_M_S2, STILL_MAX_GYR_SD_RAD_S
+from estimators.physics import GRAVITY_M_S2
 from estimators.windows import moving_variance, true_runs
 
 FloatArray = NDArray[np.float64]
 
-GRAVITY_M_S2 = 9.81
 #: the smallest eigenvalue of the information matrix (eq. A4) below which the fit is too poor
 MIN_INFORMATION = 0.3
 #: the gain (scale) model needs this many still poses (six parameters plus redundancy)

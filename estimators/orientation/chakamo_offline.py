@@ -105,12 +105,13 @@ def robust_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_
         return np.zeros(n)
     unwrapped = _unwrapped(target_rad, used)
     block = max(1, int(tau_s / (BLOCKS_PER_TAU * dt_s)))
-    delta = _two_sided_mean(unwrapped, w, math.exp(-block * dt_s / tau_s), block)
+    decay = math.exp(-block * dt_s / tau_s)
+    delta = _two_sided_mean(unwrapped, w, decay, block)
     if width_rad > 0.0:
         c2 = width_rad * width_rad
         for _ in range(iterations):
             r = unwrapped - delta
-            delta = _two_sided_mean(unwrapped, w * (c2 / (c2 + r * r)), math.exp(-block * dt_s / tau_s), block)
+            delta = _two_sided_mean(unwrapped, w * (c2 / (c2 + r * r)), decay, block)
     return delta
 
 

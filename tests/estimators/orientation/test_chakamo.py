@@ -350,4 +350,5 @@ def test_robust_heading_ignores_a_field_turned_about_the_vertical():
     robust = robust_heading(target, weight, 20.0, 0.01, np.radians(5.0))
     assert np.degrees(np.max(np.abs(plain - 0.1))) > 8.0
     assert np.degrees(np.max(np.abs(robust - 0.1))) < 1.0
-    assert np.array_equal(robust_heading(target, weight, 20.0, 0.01, 0.0), plain)
+    # without reweighting, the long two-sided window is the clip's plain mean (turned samples included)
+    assert np.allclose(plain, target.mean(), atol=np.radians(1.0))
