@@ -147,9 +147,7 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         context.close()
 
     # --- the same session in Portuguese: the check, the cuts' state and the warnings
-    context = browser.new_context(locale="pt-BR", viewport={"width": 1280, "height": 1000})
-    context.set_default_timeout(WAIT_MS)
-    page = context.new_page()
+    context, page, errors = open_page(browser, "pt-BR", height=1000)
     try:
         _login(page, server, "Correio eletrónico", "Palavra-passe", "Entrar")
         page.goto(f"{server}/#/sessions/{sid}/wizard")   # opens on step 2 (the session has files)
@@ -160,6 +158,7 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         shown = page.locator("#warnings li.warning[data-code]")
         expect(shown).to_have_count(len(warnings))
         assert shown.all_inner_texts() == [w["message"]["pt"] for w in warnings]
+        assert errors == []   # the Portuguese page's script errors are checked too
     except Exception:
         page.screenshot(path=str(tmp_path / "split-pt.png"), full_page=True)
         raise
