@@ -89,6 +89,15 @@ def test_a_pose_that_moved_is_not_used_to_correct():
     assert (cal.model, cal.note) == ("none", "poses_not_still")
 
 
+def test_a_bias_beyond_any_mems_offset_is_not_applied():
+    """Three orthogonal still poses that read as a 2 m/s² bias (|b| > MAX_BIAS_M_S2, some 20× the BMI160's zero-g
+    offset): the poses say nothing is right, so nothing is corrected and the warning's cause is said."""
+    b = np.array([1.2, -1.2, 1.0])
+    poses = np.array([[0.0, 0.0, 9.81], [0.0, 9.81, 0.0], [9.81, 0.0, 0.0]]) + b
+    cal = fit_still_poses(poses)
+    assert (cal.model, cal.note) == ("none", "implausible_bias")
+
+
 @pytest.mark.parametrize("shape", [(5, 2), (5,)])
 def test_bad_shapes_are_refused(shape):
     with pytest.raises(ValueError, match="shape"):
