@@ -125,7 +125,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
-        db.migrate()
+        db.migrate(settings.sealing_key)
         with db.session() as s:
             if not s.scalar(select(func.count()).select_from(User)):
                 print(FIRST_ADMIN_HINT, file=sys.stderr, flush=True)
