@@ -181,6 +181,16 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "suscríbase de nuevo.",
         "pt": "Não é possível ler o segredo do webhook (a chave do servidor foi alterada); elimine este webhook e "
               "subscreva de novo."},
+    "fhir.not_exportable": {
+        "en": "This analysis was not pushed to the FHIR server: it was superseded, or its stored data cannot be "
+              "expressed in FHIR (GET /fhir/DiagnosticReport/<session id> says why); correct the record and process "
+              "the session again.",
+        "es": "Este análisis no se envió al servidor FHIR: fue reemplazado o sus datos guardados no se pueden "
+              "expresar en FHIR (GET /fhir/DiagnosticReport/<id de la sesión> dice por qué); corrija el registro y "
+              "procese la sesión de nuevo.",
+        "pt": "Esta análise não foi enviada ao servidor FHIR: foi substituída ou os seus dados guardados não podem "
+              "ser expressos em FHIR (GET /fhir/DiagnosticReport/<id da sessão> diz porquê); corrija o registo e "
+              "processe a sessão de novo."},
 }
 
 

@@ -294,12 +294,15 @@ def attempt(due: webhooks.Due, url: str, body: bytes, headers: dict[str, str], p
 
 
 class WebhookSender:
-    """The sender thread (module docstring)."""
+    """The sender thread (module docstring); ``fhir_push``: the FHIR push (:class:`app.web.fhir_push.FhirPush`) whose
+    deliveries it sends too, None when ``CHAKAMO_FHIR_PUSH_URL`` is not set."""
 
     EVERY_S = 1.0
 
-    def __init__(self, db, retry_base_s: float, allowed_hosts: tuple[str, ...], key: bytes) -> None:
+    def __init__(self, db, retry_base_s: float, allowed_hosts: tuple[str, ...], key: bytes, fhir_push=None) -> None:
         self.db, self.retry_base_s, self.allowed_hosts, self.key = db, retry_base_s, allowed_hosts, key
+        self.fhir_push = fhir_push
+        self.kinds = ("webhook", "fhir") if fhir_push is not None else ("webhook",)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -321,22 +324,29 @@ class WebhookSender:
         no other this round (a dead receiver costs a round one timeout, not one per delivery, so it holds no
         other clinic's deliveries up); how many attempts were made."""
         with self.db.sessions() as s:
-            webhooks.plan_deliveries(s)
+            if self.fhir_push is not None:
+                webhooks.ensure_fhir_push(s, self.fhir_push.url)
+            webhooks.plan_deliveries(s, kinds=self.kinds)
         failed: set[int] = set()
         made = 0
         while not self._stop.is_set():
             with self.db.sessions() as s:
-                d = webhooks.claim_due(s, skip=frozenset(failed))
+                d = webhooks.claim_due(s, skip=frozenset(failed), kinds=self.kinds)
             if d is None:
                 break
             made += 1
-            status, error = send(d, self.allowed_hosts, self.key)
+            give_up = False
+            if d.kind == "fhir":
+                status, error, give_up = self.fhir_push.send(self.db, d)
+            else:
+                status, error = send(d, self.allowed_hosts, self.key)
             with self.db.sessions() as s:
-                state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s)
+                state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s,
+                                                give_up=give_up)
             if state != "delivered":
                 failed.add(d.subscription_id)
-                log.warning("webhook delivery %s (%s) attempt %d to %s: %s -> %s", d.id, d.event, d.attempt, d.url,
-                            error or status, state)
+                log.warning("%s delivery %s (%s) attempt %d to %s: %s -> %s", d.kind, d.id, d.event, d.attempt,
+                            d.url, error or status, state)
         return made
 
     def _loop(self) -> None:

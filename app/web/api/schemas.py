@@ -49,6 +49,12 @@ class UserIn(_In):
     password: str = Field(min_length=1, max_length=1000)
 
 
+#: the hospital's own FHIR Patient: ``Patient/<id>`` or its absolute URL (app.web.fhir.PATIENT_REFERENCE)
+_PATIENT_REFERENCE = r"^(https?://\S+/)?Patient/[A-Za-z0-9\-.]{1,64}$"
+_PATIENT_REFERENCE_TEXT = ("the hospital's FHIR Patient: Patient/<id> or its absolute URL (the reports' subject with "
+                           "CHAKAMO_FHIR_PATIENT=reference)")
+
+
 class PatientIn(_In):
     external_id: str = Field(min_length=1, max_length=100)
     side: Side
@@ -58,6 +64,8 @@ class PatientIn(_In):
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
+    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+                                       description=_PATIENT_REFERENCE_TEXT)
 
 
 class PatientPatch(_In):
@@ -72,6 +80,8 @@ class PatientPatch(_In):
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
+    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+                                       description=_PATIENT_REFERENCE_TEXT)
 
 
 #: a FHIR reference to a resource of one type: relative (``Type/id``) or absolute (``https://…/Type/id``)
@@ -172,6 +182,7 @@ class PatientOut(BaseModel):
     created_at: dt.datetime
     version: int
     updated_at: dt.datetime | None
+    fhir_reference: str | None = None
 
 
 class RecordingOut(BaseModel):
@@ -373,7 +384,7 @@ def user_out(u: User) -> dict[str, Any]:
 
 def patient_out(p: Patient) -> dict[str, Any]:
     return {k: getattr(p, k) for k in ("id", "external_id", "side", "name", "birth_date", "sex", "height_cm",
-                                       "mass_kg", "notes", "created_at", "version", "updated_at")}
+                                       "mass_kg", "notes", "created_at", "version", "updated_at", "fhir_reference")}
 
 
 def recording_out(r: Recording) -> dict[str, Any]:

@@ -159,3 +159,17 @@ def test_of_several_answers_the_refused_ones_are_skipped():
     assert usable("ris.hospital.example", ("ris.hospital.example",), answers[:2]) == ("10.0.0.5", "64:ff9b::a00:5")
     with pytest.raises(AddressRefused):
         usable("ris.hospital.example", ("ris.hospital.example",), [])
+
+
+@pytest.mark.parametrize(("code", "status", "needle"), [("webhook.no_connection", None, str(int(DEADLINE_S))),
+                                                         ("webhook.http_status", 503, "503"),
+                                                         ("webhook.secret_unreadable", None, "webhook"),
+                                                         ("fhir.not_exportable", None, "FHIR")])
+def test_the_trail_error_is_a_code_with_its_sentence_in_three_languages(code, status, needle):
+    from app.web.webhooks import trail_error
+
+    error = trail_error(code, status)
+    assert error["code"] == code and set(error["message"]) == {"es", "en", "pt"}
+    assert all(needle in m for m in error["message"].values())
+    assert len(set(error["message"].values())) == 3  # translated, not the English three times
+    assert trail_error("", 200) is None
