@@ -27,7 +27,7 @@ from app.store.analyses import SupersededResults, latest_analysis, pick_analysis
 from app.web import audit
 from app.store.sessions import patient_sessions
 from app.web.api.deps import Admin, DbDep, Reader, StoreDep, scoped_patient, scoped_session
-from app.web.api.webhooks import DeliveryOut, delivery_out
+from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.fhir import FhirExportError, capability_statement, diagnostic_report, search_bundle
 from app.web.fhir_push import export_options, report_inputs
 from estimators import __version__

@@ -34,11 +34,11 @@ from app.store import idempotency, webhooks
 from app.store.models import utcnow
 from app.web import audit
 from app.web.api.deps import Admin, DbDep, Reader, resolve_principal
+from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.headers import host_allowed
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.refusals import Refusal
 from app.store.sealed import seal
-from app.web.webhooks import trail_error
 
 router = APIRouter(tags=["webhooks"])
 #: how long one event stream stays open (the browser reconnects)
@@ -63,27 +63,6 @@ class WebhookOut(BaseModel):
     created_at: dt.datetime
     secret: str | None = Field(None, description="only in the answer of the first POST: sign-checking key, keep "
                                                      "it (a replay of the POST does not show it again)")
-
-
-class TrailError(BaseModel):
-    code: str = Field(description="webhook.no_connection, webhook.http_status or webhook.secret_unreadable")
-    params: dict = Field(description="the values the message names (status, seconds)")
-    message: dict[str, str] = Field(description="the sentence in es, en and pt")
-
-
-class DeliveryOut(BaseModel):
-    id: int
-    event: str
-    job_id: int
-    state: str
-    attempts: int
-    last_status: int | None
-    last_error: str = Field(description="the last failed attempt in English (\"\" when none failed); `error` has its "
-                                        "code and the sentence in es/en/pt")
-    error: TrailError | None = None
-    created_at: dt.datetime
-    delivered_at: dt.datetime | None
-    next_attempt_at: dt.datetime | None
 
 
 def _out(row, secret: str | None = None) -> dict:
@@ -135,15 +114,6 @@ def delete_webhook(webhook_id: int, principal: Admin, db: DbDep, request: Reques
 def webhook_deliveries(webhook_id: int, principal: Admin, db: DbDep):
     """Every delivery of the subscription, newest first, with its attempts (the audit trail)."""
     return [delivery_out(d) for d in webhooks.deliveries(db, principal.clinic_id, webhook_id)]
-
-
-def delivery_out(d) -> dict:
-    """A delivery row as :class:`DeliveryOut` (its error code rendered by :func:`app.web.webhooks.trail_error`)."""
-    error = trail_error(d.last_error, d.last_status)
-    return {"id": d.id, "event": d.event, "job_id": d.job_id, "state": d.state, "attempts": d.attempts,
-            "last_status": d.last_status, "last_error": error["message"]["en"] if error else "", "error": error,
-            "created_at": d.created_at, "delivered_at": d.delivered_at,
-            "next_attempt_at": d.next_attempt_at if d.state == "pending" else None}
 
 
 def _states(request: Request, clinic_id: int, since: dt.datetime) -> list[dict]:
