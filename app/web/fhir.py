@@ -11,7 +11,9 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
   ``_``).  The patient (``patient_mode``, ``CHAKAMO_FHIR_PATIENT``) is either a contained ``#patient`` carrying the
   hospital's ``external_id`` (type ``MR`` of HL7 v2 table 0203, system ``patient_identifier_system`` when the
   hospital's MRN namespace is configured) and ChakaMo's id (system ``{base_url}/patients``), or — for a
-  hospital that owns its Patient resources — a logical reference by that MR identifier, with nothing contained.
+  hospital that owns its Patient resources — a logical reference by that MR identifier, with nothing contained,
+  or (``reference``) the hospital's own ``Patient/<id>`` given with the patient (``fhir_reference``) as
+  ``subject.reference``.  :mod:`app.web.fhir_push` turns the report into a transaction Bundle for a FHIR server.
   The report carries ``id`` = the session id and the identifiers ``{base_url}/sessions`` | session id and, when
   the order gave one, its accession number (type ``ACSN``); ``basedOn`` names the order (a ServiceRequest
   reference) and ``encounter`` the visit, both as the hospital sent them with the session.

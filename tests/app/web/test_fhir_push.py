@@ -213,3 +213,24 @@ def test_a_finished_job_is_pushed_as_a_transaction_retried_and_audited(tmp_path,
         thread.join(timeout=30)
         sock.close()
         fhir.server.shutdown()
+
+
+def test_a_push_the_settings_cannot_keep_safe_is_refused_at_start_up(tmp_path):
+    from web_helpers import make_settings
+
+    from app.settings import Settings, SettingsError
+    from app.web.fhir_push import FhirPush
+
+    common = {"CHAKAMO_FHIR_PUSH_URL": "https://fhir.hospital.example/fhir",
+              "CHAKAMO_PUBLIC_URL": "https://chakamo.hospital.example"}
+    with pytest.raises(SettingsError, match="CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS"):  # its host not listed
+        FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="ris.hospital.example", **common), None)
+    with pytest.raises(SettingsError, match="CHAKAMO_PUBLIC_URL"):  # no namespace for the identifiers
+        FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_URL=common["CHAKAMO_FHIR_PUSH_URL"],
+                               CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="*.hospital.example"), None)
+    push = FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="*.hospital.example", **common), None)
+    assert push.base_url == "https://chakamo.hospital.example/api/v1"
+    with pytest.raises(ValueError, match="https"):  # patient data never over plain http in production
+        Settings(CHAKAMO_ENV="production", CHAKAMO_SECRET_KEY="k" * 40, CHAKAMO_DATA_DIR=tmp_path,
+                 CHAKAMO_FHIR_PUSH_URL="http://fhir.hospital.example/fhir",
+                 CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="fhir.hospital.example")
