@@ -234,3 +234,21 @@ def test_a_push_the_settings_cannot_keep_safe_is_refused_at_start_up(tmp_path):
         Settings(CHAKAMO_ENV="production", CHAKAMO_SECRET_KEY="k" * 40, CHAKAMO_DATA_DIR=tmp_path,
                  CHAKAMO_FHIR_PUSH_URL="http://fhir.hospital.example/fhir",
                  CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="fhir.hospital.example")
+
+
+def test_the_hospitals_patient_reference_is_given_corrected_and_checked_through_the_api(client, settings):
+    from web_helpers import clinic_token
+
+    h = clinic_token(settings, "Hospital Ref")
+    r = client.post("/api/v1/patients", json={"external_id": "REF-1", "side": "left",
+                                              "fhir_reference": "Patient/H-77"}, headers=h)
+    assert r.status_code == 201, r.text
+    pid, version = r.json()["id"], r.json()["version"]
+    assert client.get(f"/api/v1/patients/{pid}", headers=h).json()["fhir_reference"] == "Patient/H-77"
+    bad = client.post("/api/v1/patients", json={"external_id": "REF-2", "side": "left", "fhir_reference": "H-77"},
+                      headers=h)
+    assert bad.status_code == 422
+    r = client.patch(f"/api/v1/patients/{pid}", json={"fhir_reference": "https://fhir.hospital.example/Patient/9"},
+                     headers=h | {"If-Match": f'"{version}"'})
+    assert r.status_code == 200, r.text
+    assert r.json()["fhir_reference"] == "https://fhir.hospital.example/Patient/9"
