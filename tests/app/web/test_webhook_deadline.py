@@ -32,9 +32,11 @@ class Trickler:
     (``len(ANSWER)`` bytes in all); :attr:`sent` counts the bytes the client took before it hung up."""
 
     ANSWER = b"HTTP/1.1 200 OK\r\nX-Slow: " + b"a" * 150 + b"\r\nContent-Length: 0\r\n\r\n"
+    #: a TLS handshake record (type 22, TLS 1.2) announcing 200 bytes, which then come one at a time
+    TLS = b"\x16\x03\x03\x00\xc8" + b"\x02" * 200
 
-    def __init__(self, every_s: float) -> None:
-        self.every_s, self.sent, self.hung_up = every_s, 0, threading.Event()
+    def __init__(self, every_s: float, answer: bytes = ANSWER) -> None:
+        self.every_s, self.answer, self.sent, self.hung_up = every_s, answer, 0, threading.Event()
         self.server = socket.create_server(("127.0.0.1", 0))
         self.port = self.server.getsockname()[1]
         self.thread = threading.Thread(target=self._serve, daemon=True)
@@ -43,11 +45,11 @@ class Trickler:
     def _serve(self) -> None:
         conn, _ = self.server.accept()
         with conn:
-            conn.recv(65536)
+            conn.recv(65536)  # the request (or the TLS ClientHello)
             stop = threading.Event()
-            for i in range(len(self.ANSWER)):
+            for i in range(len(self.answer)):
                 try:
-                    conn.sendall(self.ANSWER[i:i + 1])
+                    conn.sendall(self.answer[i:i + 1])
                 except OSError:
                     break
                 self.sent += 1
@@ -73,6 +75,16 @@ def test_a_trickling_receiver_is_cut_at_the_total_deadline():
     assert status == (None, NO_CONNECTION)
     assert receiver.hung_up.wait(30)
     assert 0 < receiver.sent < len(Trickler.ANSWER)  # the answer had started and was not finished
+
+
+def test_a_trickled_tls_handshake_is_cut_at_the_total_deadline_too():
+    """An https receiver that trickles its handshake (a record announced, its bytes sent one by one) is cut the same
+    way: the watchdog shuts the TLS socket's descriptor, not a TLS close that would wait for the peer."""
+    receiver = Trickler(every_s=0.2, answer=Trickler.TLS)
+    assert send(_due(f"https://127.0.0.1:{receiver.port}/hook"), ("127.0.0.1",), KEY, deadline_s=1.0) \
+        == (None, NO_CONNECTION)
+    assert receiver.hung_up.wait(30)
+    assert 0 < receiver.sent < len(Trickler.TLS)
 
 
 def test_the_default_deadline_is_well_inside_the_lease():
