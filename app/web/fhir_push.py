@@ -47,7 +47,8 @@ from app.web import audit
 from app.web.api.schemas import patient_out
 from app.web.fhir import CODE_SYSTEM, FhirExportError, diagnostic_report, validate_bundle
 from app.web.headers import host_allowed
-from app.web.webhooks import DEADLINE_S, attempt
+from app.web.outbound import DEADLINE_S
+from app.web.webhooks import attempt
 
 log = logging.getLogger("chakamo.fhir_push")
 #: the trail's code of an analysis that cannot be pushed (rendered in es/en/pt, :mod:`app.web.messages`)

@@ -16,8 +16,8 @@ import pytest
 
 from app.store import webhooks
 from app.store.sealed import seal
-from app.web.webhooks import (DEADLINE_S, NO_CONNECTION, AddressRefused, PinnedConnection, embedded_ipv4, resolve,
-                              send, usable)
+from app.web.outbound import DEADLINE_S, AddressRefused, PinnedConnection, embedded_ipv4, resolve, usable
+from app.web.webhooks import NO_CONNECTION, send
 
 KEY = b"an operator's key of at least 32 characters"
 

@@ -17,7 +17,8 @@ from web_helpers import make_settings
 
 from app.store import webhooks
 from app.store.sealed import PREFIX, seal, unseal
-from app.web.webhooks import HTTP_STATUS, NO_CONNECTION, SECRET_UNREADABLE, AddressRefused, resolve, send
+from app.web.outbound import AddressRefused, resolve
+from app.web.webhooks import HTTP_STATUS, NO_CONNECTION, SECRET_UNREADABLE, send
 
 
 def _client(tmp_path, allowed: str):
