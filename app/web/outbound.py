@@ -148,6 +148,8 @@ class PinnedConnection(http.client.HTTPConnection):
         super().__init__(host, port, timeout=TIMEOUT_S)
         self.addresses, self.deadline, self.context = addresses, deadline, context
         self.address: str | None = None
+        #: whether the watchdog shut the socket (an answer read since is cut short, whatever it seems to say)
+        self.cut = False
         self._watchdog: threading.Timer | None = None
 
     def connect(self) -> None:
@@ -172,6 +174,7 @@ class PinnedConnection(http.client.HTTPConnection):
     def _cut(self) -> None:
         """The deadline passed: shut the socket down, so a blocked read returns (``socket.socket``'s own
         ``shutdown``, which an ``SSLSocket`` would otherwise take for a TLS close)."""
+        self.cut = True
         sock = self.sock
         if sock is not None:
             try:
@@ -200,7 +203,10 @@ def post(url: str, body: bytes, headers: dict[str, str], patterns: tuple[str, ..
                             ssl.create_default_context() if https else None)
     try:
         conn.request("POST", (parts.path or "/") + (f"?{parts.query}" if parts.query else ""), body, headers)
-        return conn.getresponse().status
+        status = conn.getresponse().status
+        if conn.cut:  # http.client takes an end of stream inside the headers for their end: a cut status line
+            raise TimeoutError("the answer was cut at the deadline")  # such as "HTTP/1.1 200 OK" is no answer
+        return status
     finally:
         conn.close()
 
