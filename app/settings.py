@@ -27,7 +27,10 @@
 | ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` | none | URI of the hospital's record-number namespace: the FHIR MR identifier's system and ``GET /patients?identifier=system|value`` |
 | ``CHAKAMO_FHIR_IDENTIFIER_BASE`` | ``CHAKAMO_PUBLIC_URL``/api/v1 | namespace of ChakaMo's FHIR identifier systems (``<base>/sessions``, ``<base>/patients``): an http(s) address (a ``urn:`` is refused at start-up) |
 | ``CHAKAMO_FHIR_CODE_SYSTEM`` | ChakaMo's ``urn:uuid:`` code system | URI of the code system of the exported codes |
-| ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it |
+| ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it; ``reference``: by the hospital's own FHIR Patient (the patient's ``fhir_reference``, else by identifier) |
+| ``CHAKAMO_FHIR_PUSH_URL`` | none (no push) | the base of a hospital FHIR R4 server: every finished job's report is POSTed there as a transaction Bundle, retried like a webhook (:mod:`app.web.fhir_push`) |
+| ``CHAKAMO_FHIR_PUSH_TOKEN`` | none | sent as ``Authorization: Bearer <token>`` with each push |
+| ``CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS`` | none | the host names the push may reach, with the webhooks' rules (:mod:`app.web.webhooks`): an internal address only when its name is listed exactly; the push URL's host must match it |
 | ``CHAKAMO_ACCESSION_SYSTEM`` | none | URI of the namespace of the sessions' accession numbers |
 | ``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` | none (webhooks refused) | comma-separated host names a webhook URL may name (``*.hospital.example`` for subdomains, ``*`` any); a name resolving to a loopback, private, link-local or multicast address is refused at send time unless named exactly here (:mod:`app.web.webhooks`) |
 | ``CHAKAMO_WEBHOOK_RETRY_S`` | 10 | first webhook retry's wait, doubling each time (:mod:`app.web.webhooks`) |
@@ -112,7 +115,14 @@ class Settings(BaseSettings):
     fhir_code_system: str | None = Field(None, validation_alias="CHAKAMO_FHIR_CODE_SYSTEM")
     #: how a DiagnosticReport names its patient: ``contained`` (a Patient inside it) or ``identifier`` (a logical
     #: reference by the record number in CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, for a hospital that owns the Patient)
-    fhir_patient: str = Field("contained", pattern="^(contained|identifier)$", validation_alias="CHAKAMO_FHIR_PATIENT")
+    fhir_patient: str = Field("contained", pattern="^(contained|identifier|reference)$",
+                              validation_alias="CHAKAMO_FHIR_PATIENT")
+    #: the base URL of the hospital's FHIR server the reports are pushed to (``app.web.fhir_push``); None: no push
+    fhir_push_url: str | None = Field(None, validation_alias="CHAKAMO_FHIR_PUSH_URL")
+    #: the bearer token of that server (never stored in the database)
+    fhir_push_token: str | None = Field(None, validation_alias="CHAKAMO_FHIR_PUSH_TOKEN")
+    #: the host names the push may reach (the webhooks' rules)
+    fhir_push_allowed_hosts: str = Field("", validation_alias="CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS")
     #: the URI of the namespace of the sessions' accession numbers (the ordering system's), when known
     accession_system: str | None = Field(None, validation_alias="CHAKAMO_ACCESSION_SYSTEM")
     #: the first webhook retry's wait; each next one doubles it (``app.web.webhooks``)
@@ -165,6 +175,28 @@ class Settings(BaseSettings):
         """:data:`allowed_hosts` as lower-case names (``("*",)``: any)."""
         return _names(self.allowed_hosts) or ("*",)
 
+    @field_validator("fhir_push_url", mode="after")
+    @classmethod
+    def _push_url(cls, value: str | None) -> str | None:
+        if value is None or not value.strip():
+            return None
+        value = value.strip().rstrip("/")
+        if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]+(/[\w.\-~/]*)?", value):
+            raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL={value!r} is not an http(s) address; give the FHIR server's "
+                                "base, e.g. https://fhir.hospital.example/fhir")
+        return value
+
+    @property
+    def fhir_push_host_patterns(self) -> tuple[str, ...]:
+        """:data:`fhir_push_allowed_hosts` as lower-case names (empty: none allowed)."""
+        return _names(self.fhir_push_allowed_hosts)
+
+    @property
+    def sealing_key(self) -> bytes | None:
+        """The key stored secrets are sealed under (:mod:`app.store.sealed`): ``CHAKAMO_SECRET_KEY``, the development
+        key in development, None when no key is set in production (a command that needs none)."""
+        return self.key if self.secret_key or self.development else None
+
     @property
     def webhook_host_patterns(self) -> tuple[str, ...]:
         """:data:`webhook_allowed_hosts` as lower-case names (empty: none allowed)."""
@@ -175,6 +207,10 @@ class Settings(BaseSettings):
         if self.job_backend == "celery" and not self.broker_url.startswith(("redis://", "rediss://")):
             raise SettingsError(f"CHAKAMO_BROKER_URL={self.broker_url!r} is not a Redis URL; set it to "
                                 "redis://HOST:6379/0 (the broker the Celery workers read).")
+        if self.fhir_push_url:  # its host is checked against CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS by app.web.fhir_push
+            if not self.development and not self.fhir_push_url.lower().startswith("https://"):
+                raise SettingsError("CHAKAMO_FHIR_PUSH_URL must be https outside development (the reports carry "
+                                    "patient data)")
         if self.env == "production" and _KEY_NEEDED.get():
             if not self.secret_key:
                 raise SettingsError(

@@ -93,7 +93,7 @@ def _database(settings: Settings | None) -> Database:
     except Exception:  # noqa: BLE001 — a new database (no table yet): alembic creates everything
         current = []
     if current != [_head_revision()]:
-        db.migrate()
+        db.migrate(settings.sealing_key)
     return db
 
 

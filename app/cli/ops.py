@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         db = Database(settings.db_url)
         try:
-            db.migrate()
+            db.migrate(settings.sealing_key)
         finally:
             db.dispose()
         print(f"database schema up to date ({db.engine.url.render_as_string(hide_password=True)})")

@@ -90,7 +90,7 @@ def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: s
         raise ValueError(f"unknown filter {filter_name!r}; use one of {', '.join(FILTER_NAMES)}")
     db = Database(settings.db_url)
     try:
-        db.migrate()
+        db.migrate(settings.sealing_key)
         checker = IngestionChecker(db, open_storage(settings), settings.tmp_dir)
         outcomes = [_queue_one(db, checker, sid, filter_name, lang, force) for sid in _candidates(db, since, clinic)]
         job_ids = [o.job_id for o in outcomes if o.status == "queued"]

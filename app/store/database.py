@@ -108,13 +108,16 @@ class Database:
                 db.rollback()
                 raise
 
-    def migrate(self) -> None:
-        """Upgrade the schema to the newest revision (idempotent)."""
+    def migrate(self, sealing_key: bytes | None = None) -> None:
+        """Upgrade the schema to the newest revision (idempotent).  ``sealing_key``: ``CHAKAMO_SECRET_KEY``'s bytes
+        (``Settings.sealing_key``), which migration 0012 seals stored plain secrets under; without it that migration
+        stops when it finds one."""
         from alembic import command
 
         cfg = alembic_config(self.engine)
         with self.engine.begin() as connection:
             cfg.attributes["connection"] = connection
+            cfg.attributes["sealing_key"] = sealing_key
             command.upgrade(cfg, "head")
 
     def dispose(self) -> None:

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import datetime as dt
 
-from sqlalchemy import (JSON, Boolean, Date, DateTime, Float, ForeignKey, Integer, MetaData, String, Text,
-                        TypeDecorator, UniqueConstraint)
+from sqlalchemy import (JSON, Boolean, Date, DateTime, Float, ForeignKey, Index, Integer, MetaData, String, Text,
+                        TypeDecorator, UniqueConstraint, text)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from app.choices import USER_ROLE_NAMES as ROLES  # the one definition of the roles (re-exported here)
@@ -128,6 +128,9 @@ class Patient(Base):
     #: bumped by every correction (PATCH): the ``ETag`` a ``DELETE`` / ``PATCH`` names in ``If-Match``
     version: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    #: the hospital's own FHIR Patient (``Patient/<id>`` or its absolute URL), when it gave one: the exported and
+    #: pushed reports' ``subject.reference`` with ``CHAKAMO_FHIR_PATIENT=reference`` (``app.web.fhir``)
+    fhir_reference: Mapped[str | None] = mapped_column(String(300), nullable=True)
 
 
 class KneeSession(Base):
@@ -343,9 +346,13 @@ class IdempotencyKey(Base):
 class WebhookSubscription(Base):
     """Where a clinic wants to hear that a job finished or failed (``app.store.webhooks``): each delivery is signed
     with HMAC-SHA256 under ``secret`` (shown once, when the subscription is made; stored sealed under
-    ``CHAKAMO_SECRET_KEY``, :mod:`app.web.sealed`)."""
+    ``CHAKAMO_SECRET_KEY``, :mod:`app.store.sealed`).  ``kind`` ``fhir``: the operator's push of the clinic's reports
+    to the hospital's FHIR server (``CHAKAMO_FHIR_PUSH_URL``; at most one per clinic, no secret: the server's token
+    is a setting), made by the sender itself and never listed among the clinic's webhooks."""
 
     __tablename__ = "webhook_subscriptions"
+    __table_args__ = (Index("uq_webhook_subscriptions_fhir_clinic", "clinic_id", unique=True,
+                            sqlite_where=text("kind = 'fhir'"), postgresql_where=text("kind = 'fhir'")),)
     id: Mapped[int] = mapped_column(primary_key=True)
     clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
     url: Mapped[str] = mapped_column(String(2000))
@@ -354,6 +361,8 @@ class WebhookSubscription(Base):
     secret: Mapped[str] = mapped_column(String(100))
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     label: Mapped[str] = mapped_column(String(200), default="")
+    #: ``webhook`` (a clinic's receiver) or ``fhir`` (the FHIR push, ``app.web.fhir_push``)
+    kind: Mapped[str] = mapped_column(String(10), default="webhook", server_default="webhook")
 
 
 class WebhookDelivery(Base):
@@ -373,6 +382,7 @@ class WebhookDelivery(Base):
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     next_attempt_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     last_status: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: the code of the last failed attempt (``app.web.webhooks.TRAIL_CODES``, rendered in es/en/pt); "" when none
     last_error: Mapped[str] = mapped_column(String(300), default="")
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     delivered_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)

@@ -28,7 +28,8 @@ from app.store.models import Analysis, KneeSession, Patient, utcnow
 from app.store.sessions import Page, check_version, delete_sessions, patient_sessions, refuse_while_processing
 
 #: the patient's columns a correction may change
-CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg", "notes")
+CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg", "notes",
+                      "fhir_reference")
 #: those the processing reads or the reports print (a change supersedes the patient's analyses)
 PROCESSED_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg")
 #: open ranges a corrected number must fall in (the API's schema enforces the same at the edge; the operator's

@@ -8,6 +8,11 @@ lease ahead in the same statement that checks it, so two servers never send one 
 attempt only while that lease is still its own (:func:`record_attempt`, a conditional update): a 2xx answer delivers it; otherwise the next attempt waits ``base_s · 2^(n−1)``
 (capped at :data:`MAX_BACKOFF_S`) until :data:`MAX_ATTEMPTS` attempts were made, then the delivery is
 ``failed``.  Every row stays as the audit trail (``GET /webhooks/{id}/deliveries``).
+
+The FHIR push (``app.web.fhir_push``) rides on the same rows: :func:`ensure_fhir_push` gives each clinic one
+subscription of kind ``fhir`` (made when the operator first configures the push, so only jobs ending after that are
+pushed; never listed or deleted among the clinic's webhooks), whose ``job.done`` deliveries are planned, claimed,
+retried and recorded exactly like a webhook's (``GET /fhir/pushes`` is their trail).
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.store.errors import Invalid, NotFound
-from app.store.models import Job, KneeSession, WebhookDelivery, WebhookSubscription, utcnow
+from app.store.models import Clinic, Job, KneeSession, WebhookDelivery, WebhookSubscription, utcnow
 
 #: the events a subscription may ask for: a job's end
 EVENTS = ("job.done", "job.failed")
@@ -29,6 +34,8 @@ MAX_ATTEMPTS = 8
 MAX_BACKOFF_S = 3600.0
 #: how long a claimed attempt keeps other senders away (longer than a send's timeout)
 LEASE_S = 60.0
+#: subscription kinds: a clinic's webhook, the operator's FHIR push
+KINDS = ("webhook", "fhir")
 
 
 def add_subscription(db: Session, clinic_id: int, *, url: str, events: list[str], secret: str,
@@ -44,13 +51,16 @@ def add_subscription(db: Session, clinic_id: int, *, url: str, events: list[str]
 
 
 def subscriptions(db: Session, clinic_id: int) -> list[WebhookSubscription]:
-    return list(db.scalars(select(WebhookSubscription).where(WebhookSubscription.clinic_id == clinic_id)
+    """The clinic's webhooks (not its FHIR push)."""
+    return list(db.scalars(select(WebhookSubscription).where(WebhookSubscription.clinic_id == clinic_id,
+                                                             WebhookSubscription.kind == "webhook")
                            .order_by(WebhookSubscription.id)))
 
 
 def clinic_subscription(db: Session, clinic_id: int, subscription_id: int) -> WebhookSubscription:
+    """The clinic's webhook ``subscription_id`` (:class:`NotFound` for another clinic's or the FHIR push)."""
     row = db.get(WebhookSubscription, subscription_id)
-    if row is None or row.clinic_id != clinic_id:
+    if row is None or row.clinic_id != clinic_id or row.kind != "webhook":
         raise NotFound(None, row.clinic_id if row else None, code="store.no_webhook", webhook_id=subscription_id)
     return row
 
@@ -68,6 +78,30 @@ def deliveries(db: Session, clinic_id: int, subscription_id: int, limit: int = 1
                            .order_by(WebhookDelivery.id.desc()).limit(limit)))
 
 
+def ensure_fhir_push(db: Session, url: str) -> int:
+    """A subscription of kind ``fhir`` to ``job.done`` for every clinic that has none (module docstring); how many
+    were made.  Commits (two servers making one at once: the partial unique index keeps one)."""
+    made = 0
+    have = select(WebhookSubscription.clinic_id).where(WebhookSubscription.kind == "fhir")
+    for clinic_id in db.scalars(select(Clinic.id).where(Clinic.id.not_in(have))).all():
+        db.add(WebhookSubscription(clinic_id=clinic_id, url=url[:2000], events="job.done", secret="", label="FHIR push",
+                                   kind="fhir"))
+        try:
+            db.commit()
+            made += 1
+        except IntegrityError:
+            db.rollback()
+    return made
+
+
+def fhir_pushes(db: Session, clinic_id: int, limit: int = 100) -> list[WebhookDelivery]:
+    """The clinic's FHIR push deliveries, newest first (their trail)."""
+    return list(db.scalars(select(WebhookDelivery).join(WebhookSubscription,
+                                                        WebhookSubscription.id == WebhookDelivery.subscription_id)
+                           .where(WebhookSubscription.clinic_id == clinic_id, WebhookSubscription.kind == "fhir")
+                           .order_by(WebhookDelivery.id.desc()).limit(limit)))
+
+
 def _payload(job: Job, patient_id: int, event: str) -> dict[str, Any]:
     return {"event": event, "job": {"id": job.id, "status": job.status, "session_id": job.session_id,
                                     "patient_id": patient_id, "analysis_id": job.analysis_id,
@@ -77,11 +111,11 @@ def _payload(job: Job, patient_id: int, event: str) -> dict[str, Any]:
                       "results": f"/api/v1/sessions/{job.session_id}/results"}}
 
 
-def plan_deliveries(db: Session, limit: int = 200) -> int:
-    """A pending delivery for every ended job a subscription of its clinic has not got yet (module docstring);
-    how many were made.  Commits."""
+def plan_deliveries(db: Session, limit: int = 200, kinds: tuple[str, ...] = ("webhook",)) -> int:
+    """A pending delivery for every ended job a subscription (of ``kinds``) of its clinic has not got yet (module
+    docstring); how many were made.  Commits."""
     planned = 0
-    for sub in db.scalars(select(WebhookSubscription)).all():
+    for sub in db.scalars(select(WebhookSubscription).where(WebhookSubscription.kind.in_(kinds))).all():
         wanted = [e.split(".", 1)[1] for e in sub.events.split()]
         rows = db.execute(
             select(Job, KneeSession.patient_id).join(KneeSession, KneeSession.id == Job.session_id)
@@ -114,10 +148,14 @@ class Due:
     attempt: int
     lease: dt.datetime
     subscription_id: int
+    #: the subscription's kind (:data:`KINDS`)
+    kind: str = "webhook"
+    clinic_id: int = 0
 
 
-def claim_due(db: Session, now: dt.datetime | None = None, skip: frozenset[int] = frozenset()) -> Due | None:
-    """The pending delivery due first now, not of a subscription in ``skip``, claimed for :data:`LEASE_S`
+def claim_due(db: Session, now: dt.datetime | None = None, skip: frozenset[int] = frozenset(),
+              kinds: tuple[str, ...] = ("webhook",)) -> Due | None:
+    """The pending delivery due first now, of a subscription of ``kinds`` not in ``skip``, claimed for :data:`LEASE_S`
     (module docstring); None when none is due.  One at a time: the lease covers one send (a send's timeout is
     well under it), so it cannot run out while the sender works through a batch.  Commits."""
     now = now or utcnow()
@@ -126,6 +164,8 @@ def claim_due(db: Session, now: dt.datetime | None = None, skip: frozenset[int] 
         query = (select(WebhookDelivery.id, WebhookDelivery.next_attempt_at)
                  .where(WebhookDelivery.state == "pending", WebhookDelivery.next_attempt_at <= now)
                  .order_by(WebhookDelivery.next_attempt_at, WebhookDelivery.id).limit(1))
+        query = query.where(WebhookDelivery.subscription_id.in_(
+            select(WebhookSubscription.id).where(WebhookSubscription.kind.in_(kinds))))
         if skip:
             query = query.where(WebhookDelivery.subscription_id.not_in(skip))
         candidate = db.execute(query).first()
@@ -140,14 +180,15 @@ def claim_due(db: Session, now: dt.datetime | None = None, skip: frozenset[int] 
         if won:
             d = db.get(WebhookDelivery, delivery_id)
             sub = db.get(WebhookSubscription, d.subscription_id)
-            return Due(d.id, sub.url, sub.secret, d.event, dict(d.payload), d.attempts + 1, lease, sub.id)
+            return Due(d.id, sub.url, sub.secret, d.event, dict(d.payload), d.attempts + 1, lease, sub.id, sub.kind,
+                       sub.clinic_id)
         # another server took it meanwhile: the next one
 
 
 def record_attempt(db: Session, due: Due, *, status: int | None, error: str, base_s: float,
-                   now: dt.datetime | None = None) -> str:
-    """Record one attempt of ``due`` (``status``: the receiver's HTTP status, None when none came) when its lease
-    is still ours; the delivery's new state (``lost``: the lease ran out and another sender owns the delivery,
+                   now: dt.datetime | None = None, give_up: bool = False) -> str:
+    """Record one attempt of ``due`` (``status``: the receiver's HTTP status, None when none came; ``give_up``: a
+    failure no retry can mend, the delivery fails now) when its lease is still ours; the delivery's new state (``lost``: the lease ran out and another sender owns the delivery,
     ``deleted``: its subscription was deleted).  Commits."""
     now = now or utcnow()
     d = db.get(WebhookDelivery, due.id)
@@ -157,7 +198,7 @@ def record_attempt(db: Session, due: Due, *, status: int | None, error: str, bas
     values: dict[str, Any] = {"attempts": attempts, "last_status": status, "last_error": error[:300]}
     if status is not None and 200 <= status < 300:
         values |= {"state": "delivered", "delivered_at": now}
-    elif attempts >= MAX_ATTEMPTS:
+    elif attempts >= MAX_ATTEMPTS or give_up:
         values |= {"state": "failed"}
     else:
         values |= {"next_attempt_at": now + dt.timedelta(seconds=min(MAX_BACKOFF_S, base_s * 2 ** (attempts - 1)))}
@@ -179,6 +220,6 @@ def job_states(db: Session, clinic_id: int, since: dt.datetime) -> list[dict[str
              "analysis_id": j.analysis_id} for j in rows]
 
 
-__all__ = ["EVENTS", "LEASE_S", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
+__all__ = ["EVENTS", "KINDS", "LEASE_S", "ensure_fhir_push", "fhir_pushes", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
            "clinic_subscription", "delete_subscription", "deliveries", "job_states", "plan_deliveries", "record_attempt",
            "subscriptions"]

@@ -11,7 +11,9 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
   ``_``).  The patient (``patient_mode``, ``CHAKAMO_FHIR_PATIENT``) is either a contained ``#patient`` carrying the
   hospital's ``external_id`` (type ``MR`` of HL7 v2 table 0203, system ``patient_identifier_system`` when the
   hospital's MRN namespace is configured) and ChakaMo's id (system ``{base_url}/patients``), or — for a
-  hospital that owns its Patient resources — a logical reference by that MR identifier, with nothing contained.
+  hospital that owns its Patient resources — a logical reference by that MR identifier, with nothing contained,
+  or (``reference``) the hospital's own ``Patient/<id>`` given with the patient (``fhir_reference``) as
+  ``subject.reference``.  :mod:`app.web.fhir_push` turns the report into a transaction Bundle for a FHIR server.
   The report carries ``id`` = the session id and the identifiers ``{base_url}/sessions`` | session id and, when
   the order gave one, its accession number (type ``ACSN``); ``basedOn`` names the order (a ServiceRequest
   reference) and ``encounter`` the visit, both as the hospital sent them with the session.
@@ -20,11 +22,15 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
   uninvolved knees' values as components, ``bodySite`` the involved knee; the three angle Observations stay those
   of the top-level (involved) knee.
 - **Codes.**  Category: HL7 v2 table 0074 ``PT`` "Physical Therapy" (report) and observation-category
-  ``exam`` (observations: range of motion is a physical-examination finding).  LOINC has no term for
-  an instrumented 3D knee angle during a motor task (its range-of-motion terms, e.g. 92851-5, are CMS
-  assessment items, not angles; its older per-joint passive/active ROM terms of class H&P.PX, 41xxx, are
-  deprecated — seen for the shoulder's — and no LOINC copy is at hand here to check a knee one: no code is
-  emitted unchecked), so report, observation, component and
+  ``exam`` (observations: range of motion is a physical-examination finding).  No LOINC code is emitted, after
+  looking (2026-12, through the loinc.org term pages and HL7 implementation guides' value sets at hand): LOINC's
+  range-of-motion terms found are CMS assessment items, not angles — 92850-7 / 92851-5 "Range of motion during
+  assessment period [CMS Assessment] Upper / Lower extremity" (HL7 PACIO Personal Functioning and Engagement IG,
+  ValueSet pfe-neuromusculoskeletal-vs) — and its older per-joint passive/active ROM terms (class H&P.PX) are
+  deprecated; for gait, the terms found are of other methods and quantities — 83172-7 "4-Meter Walk Gait Speed
+  Test - computed score [NIH Toolbox]" (m/s, a timed walk; https://loinc.org/83144-6) and 41956-4 "Walking speed
+  24 hour maximum" — while ChakaMo measures no walking speed, and no LOINC term for cadence during an instrumented
+  gait or for a knee angle over a motor-task cycle was found.  So report, observation, component and
   method codes come from ChakaMo's own code system, :data:`CODE_SYSTEM` (a UUID URN: unique without owning a
   domain) or ``CHAKAMO_FHIR_CODE_SYSTEM``; the codes are part of the interface: never change one.
 - **Body site and laterality** (SNOMED CT): 49076000 |Knee joint structure| refined by the attribute
@@ -93,8 +99,11 @@ CODE_SYSTEM = "urn:uuid:ebd20665-cf32-4709-83d2-dabc9acf8b93"
 DECIMALS = 1
 #: warning codes that describe the recordings' technical handling, not the patient (never in ``conclusion``)
 TECHNICAL_WARNINGS = frozenset({"ingestion_note"})
-#: how the report names its patient: a contained Patient, or a logical reference by the hospital's identifier
-PATIENT_MODES = ("contained", "identifier")
+#: how the report names its patient: a contained Patient, a logical reference by the hospital's identifier, or
+#: the hospital's own FHIR Patient (the patient's ``fhir_reference``; by identifier for a patient without one)
+PATIENT_MODES = ("contained", "identifier", "reference")
+#: a reference to the hospital's Patient: relative (``Patient/<id>``) or absolute
+PATIENT_REFERENCE = re.compile(r"^(?:https?://\S+/)?Patient/[A-Za-z0-9\-.]{1,64}$")
 _REFERENCE = re.compile(r"^(?:https?://\S+/)?(ServiceRequest|Encounter)/[A-Za-z0-9\-.]{1,64}$")
 #: the conclusion and narrative's fixed words, per language (the warnings come from reports.warning_text)
 _WORDS = {
@@ -156,7 +165,7 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
     session : ``{"id", "date", "task", "professional", "notes", "created_at"}``; ``date`` (ISO string,
         ``date`` or ``datetime``; ``created_at`` when it is None) becomes ``effectiveDateTime``.
     patient : ``{"id", "external_id", "side", "name", "birth_date", "sex"}``; ``sex`` one of male, female,
-        other, unknown, m, f (any case) or None.
+        other, unknown, m, f (any case) or None; may hold ``fhir_reference`` (the hospital's ``Patient/<id>``).
     results : the session's ``results.json`` as a dict (DESIGN §4).
     pdf : the clinical report in ``lang`` (es, en or pt), put in ``presentedForm``.
     base_url : the namespace of the session and patient identifiers (an absolute URI: ``CHAKAMO_PUBLIC_URL``/api/v1
@@ -164,8 +173,9 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
     issued : when the report was released (timezone-aware; default: now, UTC, whole seconds).
     patient_identifier_system : the URI of the hospital's namespace of ``external_id`` when known.
     code_system : the URI of ChakaMo's code system (default :data:`CODE_SYSTEM`).
-    patient_mode : ``contained`` (a Patient inside the report) or ``identifier`` (``subject`` is a logical
-        reference by the hospital's record number: needs ``patient_identifier_system``).
+    patient_mode : ``contained`` (a Patient inside the report), ``identifier`` (``subject`` is a logical
+        reference by the hospital's record number: needs ``patient_identifier_system``) or ``reference``
+        (``subject.reference`` is the patient's ``fhir_reference``; by identifier for a patient without one).
     session may also hold ``service_request`` and ``encounter`` (FHIR references, ``basedOn`` and ``encounter``)
     and ``accession`` (an identifier of type ACSN, in ``accession_system`` when given).
 
@@ -186,9 +196,13 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         raise FhirExportError(f"base_url must be an absolute http(s) URL such as http://host/api/v1, got {base_url!r}")
     if patient_mode not in PATIENT_MODES:
         raise FhirExportError(f"patient_mode must be one of {', '.join(PATIENT_MODES)}, got {patient_mode!r}")
-    if patient_mode == "identifier" and (not patient_identifier_system or not patient["external_id"]):
+    reference = patient.get("fhir_reference") if patient_mode == "reference" else None
+    if reference and not PATIENT_REFERENCE.fullmatch(str(reference)):
+        raise FhirExportError(f"patient fhir_reference {reference!r} is not a FHIR reference such as Patient/123")
+    if patient_mode != "contained" and not reference and (not patient_identifier_system or not patient["external_id"]):
         raise FhirExportError("the patient can be referred to by identifier only with a record number and "
-                              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set")
+                              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set (or, with CHAKAMO_FHIR_PATIENT=reference, give "
+                              "the patient its fhir_reference)")
     for key in ("service_request", "encounter"):
         ref = session.get(key)
         if ref and not _REFERENCE.fullmatch(str(ref)):
@@ -208,6 +222,9 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
     if patient_mode == "contained":
         contained_patient = [_patient(patient, base_url, patient_identifier_system)]
         subject = {"reference": "#patient"}
+    elif reference:
+        contained_patient = []
+        subject = {"reference": str(reference), "type": "Patient"}
     else:
         contained_patient = []
         subject = {"type": "Patient", "identifier": _mr_identifier(patient, patient_identifier_system)}
@@ -560,6 +577,11 @@ def capability_statement(*, software_version: str, server_url: str | None, date_
     doc = _drop_none(doc)
     _validate_with(doc, R4CapabilityStatement, R4BCapabilityStatement)
     return doc
+
+
+def validate_bundle(doc: dict) -> None:
+    """Check that ``doc`` is a valid FHIR R4 ``Bundle`` with both model packages (:class:`FhirExportError`)."""
+    _validate_with(doc, R4Bundle, R4BBundle)
 
 
 def _validate_with(doc: dict, r4_model, r4b_model) -> None:

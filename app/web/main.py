@@ -54,6 +54,7 @@ from app.web.problems import document_errors, problem_response
 from app.web.messages import CODE_HEADER
 from app.web.refusals import Refusal, members as refusal_members
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
+from app.web.fhir_push import FhirPush
 from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
@@ -125,7 +126,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
-        db.migrate()
+        db.migrate(settings.sealing_key)
         with db.session() as s:
             if not s.scalar(select(func.count()).select_from(User)):
                 print(FIRST_ADMIN_HINT, file=sys.stderr, flush=True)
@@ -137,7 +138,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # app/web/webhooks.py: signed job notifications, on an engine of their own (their rounds never take a
         # connection the requests' pool counts on)
         sender = WebhookSender(Database(settings.db_url), settings.webhook_retry_s,
-                               settings.webhook_host_patterns, settings.key)
+                               settings.webhook_host_patterns, settings.key,
+                               FhirPush(settings, store) if settings.fhir_push_url else None)
         sender.start()
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)

@@ -160,6 +160,37 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "CHAKAMO_WEBHOOK_ALLOWED_HOSTS.",
         "pt": "Este servidor não envia webhooks para {host}; peça ao seu administrador do ChakaMo que o adicione a "
               "CHAKAMO_WEBHOOK_ALLOWED_HOSTS."},
+    # a delivery's last failed attempt (app.web.webhooks.trail_error: webhooks and the FHIR push)
+    "webhook.no_connection": {
+        "en": "No answer from the receiver (it could not be reached, or did not answer within {seconds} s); it is "
+              "retried later: check that the receiver is up and answers quickly.",
+        "es": "Sin respuesta del receptor (no se pudo contactar o no respondió en {seconds} s); se reintentará más "
+              "tarde: compruebe que el receptor está en marcha y responde rápido.",
+        "pt": "Sem resposta do recetor (não foi possível contactá-lo ou não respondeu em {seconds} s); será tentado "
+              "de novo mais tarde: verifique que o recetor está ativo e responde depressa."},
+    "webhook.http_status": {
+        "en": "The receiver answered HTTP {status}; it is retried later: check the receiver's log for why.",
+        "es": "El receptor respondió HTTP {status}; se reintentará más tarde: consulte el registro del receptor "
+              "para saber por qué.",
+        "pt": "O recetor respondeu HTTP {status}; será tentado de novo mais tarde: consulte o registo do recetor "
+              "para saber porquê."},
+    "webhook.secret_unreadable": {
+        "en": "The webhook's secret cannot be read (the server's key was changed); delete this webhook and "
+              "subscribe again.",
+        "es": "No se puede leer el secreto del webhook (se cambió la clave del servidor); elimine este webhook y "
+              "suscríbase de nuevo.",
+        "pt": "Não é possível ler o segredo do webhook (a chave do servidor foi alterada); elimine este webhook e "
+              "subscreva de novo."},
+    "fhir.not_exportable": {
+        "en": "This analysis was not pushed to the FHIR server: it was superseded, or its stored data cannot be "
+              "expressed in FHIR (GET /fhir/DiagnosticReport/<session id> says why); correct the record and process "
+              "the session again.",
+        "es": "Este análisis no se envió al servidor FHIR: fue reemplazado o sus datos guardados no se pueden "
+              "expresar en FHIR (GET /fhir/DiagnosticReport/<id de la sesión> dice por qué); corrija el registro y "
+              "procese la sesión de nuevo.",
+        "pt": "Esta análise não foi enviada ao servidor FHIR: foi substituída ou os seus dados guardados não podem "
+              "ser expressos em FHIR (GET /fhir/DiagnosticReport/<id da sessão> diz porquê); corrija o registo e "
+              "processe a sessão de novo."},
 }
 
 

@@ -9,18 +9,22 @@ Each request is ``POST <url>`` with the JSON body ``{"id": <delivery id>, "event
   the subscription's secret of the bytes ``"<t>." + body``.  A receiver recomputes it over the raw body,
   compares in constant time, and rejects a ``t`` older than a few minutes (a replayed request).
 
-A 2xx answer delivers it; anything else (another status, a timeout, a refused connection) is retried after
-``CHAKAMO_WEBHOOK_RETRY_S · 2^(n−1)`` seconds (at most an hour apart, 8 attempts).  :class:`WebhookSender` runs
-in a daemon thread of every server (started and stopped with the app, on a database engine of its own), every :attr:`WebhookSender.EVERY_S`
-seconds: plan the new deliveries, then send the due ones.  Several servers share the work through the
-database (:func:`app.store.webhooks.claim_due`).  Redirects are not followed (a receiver's address is what the
-admin registered).
+A 2xx answer delivers it; anything else (another status, no answer within :data:`DEADLINE_S`, a refused
+connection) is retried after ``CHAKAMO_WEBHOOK_RETRY_S · 2^(n−1)`` seconds (at most an hour apart, 8 attempts).
+One attempt takes at most :data:`DEADLINE_S` (20 s) in all, however slowly a receiver trickles its answer — well
+inside the 60 s lease that keeps other servers from sending the same attempt (:mod:`app.web.outbound`).
+:class:`WebhookSender` runs in a daemon thread of every server (started and stopped with the app, on a database
+engine of its own), every :attr:`WebhookSender.EVERY_S` seconds: plan the new deliveries, then send the due ones.
+Several servers share the work through the database (:func:`app.store.webhooks.claim_due`).  Redirects are not
+followed (a receiver's address is what the admin registered).  The same machinery pushes reports to a hospital's
+FHIR server (:mod:`app.web.fhir_push`): a delivery of that kind gets its body and headers there.
 
 No internal address is reached (server-side request forgery): a URL's host must match
-``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` (an operator's list; empty: no webhooks), and at send time the name is resolved
-and refused when any address is loopback, private, link-local, multicast or reserved — unless the operator named
-that host exactly — and the connection goes to the checked address (:func:`resolve`).  The trail a clinic reads
-says ``HTTP <status>`` or ``could not connect``, never why (which would map the server's network).
+``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` (an operator's list; empty: no webhooks), and :mod:`app.web.outbound` skips every
+answer of the name that is not public (also hidden in IPv6: NAT64, 6to4, Teredo, ...) unless the operator named the
+host exactly, and connects to a checked address within the total deadline.  The trail a clinic reads is a code
+(:data:`TRAIL_CODES`, in es/en/pt through :func:`trail_error`): the receiver's HTTP status or "no answer", never
+why (which would map the server's network).
 """
 
 from __future__ import annotations
@@ -28,27 +32,26 @@ from __future__ import annotations
 import hashlib
 import hmac
 import http.client
-import ipaddress
 import json
 import logging
-import socket
-import ssl
 import threading
 import time
-import urllib.parse
 
 from cryptography.exceptions import InvalidTag
 
 from app.store import webhooks
-from app.web.headers import host_allowed
-from app.web.sealed import unseal
+from app.web import messages
+from app.store.sealed import unseal
+from app.web.outbound import DEADLINE_S, post
 
 log = logging.getLogger("chakamo.webhooks")
-TIMEOUT_S = 10.0
-#: the error a clinic sees when no HTTP answer came (the cause is only logged)
-NO_CONNECTION = "could not connect"
-#: the trail's sentence when the secret was sealed under another ``CHAKAMO_SECRET_KEY`` (the key was changed)
-SECRET_UNREADABLE = "secret unreadable: subscribe again"
+#: the trail's codes (``last_error``; rendered in es/en/pt from :mod:`app.web.messages` by :func:`trail_error`):
+#: no HTTP answer came in time (the cause is only logged), the receiver answered another status than 2xx, the
+#: secret was sealed under another ``CHAKAMO_SECRET_KEY`` (the key was changed: subscribe again)
+NO_CONNECTION = "webhook.no_connection"
+HTTP_STATUS = "webhook.http_status"
+SECRET_UNREADABLE = "webhook.secret_unreadable"
+TRAIL_CODES = (NO_CONNECTION, HTTP_STATUS, SECRET_UNREADABLE)
 
 
 def signature(secret: str, timestamp: int, body: bytes) -> str:
@@ -57,64 +60,32 @@ def signature(secret: str, timestamp: int, body: bytes) -> str:
     return f"t={timestamp},v1={mac}"
 
 
-def _public(address: str) -> bool:
-    """Whether ``address`` is a public unicast address (not loopback, private, link-local, multicast, reserved
-    or unspecified: RFC 1918, RFC 3927, RFC 4193, RFC 6890's special-purpose registries)."""
-    ip = ipaddress.ip_address(address)
-    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
-        ip = ip.ipv4_mapped
-    return ip.is_global and not ip.is_multicast
+def outcome(status: int | None) -> str:
+    """The trail's code of an attempt answered ``status`` (None: no answer): "" for a 2xx."""
+    if status is None:
+        return NO_CONNECTION
+    return "" if 200 <= status < 300 else HTTP_STATUS
 
 
-def resolve(host: str, port: int, patterns: tuple[str, ...]) -> str:
-    """The address to connect to for ``host``: the first it resolves to, refused (:class:`AddressRefused`) when
-    ``host`` matches none of ``patterns`` (``CHAKAMO_WEBHOOK_ALLOWED_HOSTS``) or resolves to a non-public address
-    and is not named exactly there.  The connection then goes to this address, so a name that resolves
-    differently a moment later (DNS rebinding) cannot send it elsewhere."""
-    name = host.lower()
-    if not host_allowed(name, patterns):
-        raise AddressRefused(f"{host} is not in CHAKAMO_WEBHOOK_ALLOWED_HOSTS")
-    infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
-    if not infos:
-        raise AddressRefused(f"{host} resolves to no address")
-    address = infos[0][4][0]
-    if name not in patterns and not all(_public(i[4][0]) for i in infos):
-        raise AddressRefused(f"{host} resolves to the non-public address {address}")
-    return address
+def trail_error(code: str, status: int | None) -> dict | None:
+    """A delivery's ``last_error`` for the API: ``{"code", "params", "message": {es, en, pt}}`` (None: no error);
+    a code this version does not know (written by a newer one) is shown as it is in every language."""
+    if not code:
+        return None
+    params = {"status": status} if code == HTTP_STATUS else {"seconds": int(DEADLINE_S)} \
+        if code == NO_CONNECTION else {}
+    if code not in messages.CATALOGUE:
+        return {"code": code, "params": params, "message": {lang: code for lang in messages.LANGUAGES}}
+    return {"code": code, "params": params,
+            "message": {lang: messages.render(code, lang, **params) for lang in messages.LANGUAGES}}
 
 
-class AddressRefused(OSError):
-    """The receiver's address is not one webhooks may reach (:func:`resolve`)."""
-
-
-class _PinnedHTTP(http.client.HTTPConnection):
-    """An HTTP connection to a checked address, naming the host in ``Host``."""
-
-    def __init__(self, host: str, port: int, address: str, timeout: float) -> None:
-        super().__init__(host, port, timeout=timeout)
-        self.address = address
-
-    def connect(self) -> None:
-        self.sock = socket.create_connection((self.address, self.port), self.timeout)
-
-
-class _PinnedHTTPS(http.client.HTTPSConnection):
-    """An HTTPS connection to a checked address; the certificate is checked against the host name."""
-
-    def __init__(self, host: str, port: int, address: str, timeout: float) -> None:
-        super().__init__(host, port, timeout=timeout, context=ssl.create_default_context())
-        self.address = address
-
-    def connect(self) -> None:
-        sock = socket.create_connection((self.address, self.port), self.timeout)
-        self.sock = self._context.wrap_socket(sock, server_hostname=self.host)
-
-
-def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes) -> tuple[int | None, str]:
-    """POST one delivery to the address :func:`resolve` allows; ``(status or None, error sentence or "")``.
-    The error a clinic sees is generic (``HTTP <status>`` or :data:`NO_CONNECTION`); why the connection failed
-    is logged for the operator only (it would tell a clinic about the server's network).  ``key``: the
-    ``CHAKAMO_SECRET_KEY`` the subscription's secret is sealed under (:mod:`app.web.sealed`)."""
+def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes,
+         deadline_s: float = DEADLINE_S) -> tuple[int | None, str]:
+    """POST one delivery (:func:`post`); ``(status or None, the trail's code or "")``.  The code a clinic sees is
+    generic (:data:`HTTP_STATUS` or :data:`NO_CONNECTION`); why the connection failed is logged for the operator
+    only (it would tell a clinic about the server's network).  ``key``: the ``CHAKAMO_SECRET_KEY`` the
+    subscription's secret is sealed under (:mod:`app.store.sealed`)."""
     body = json.dumps({"id": due.id, **due.payload}, separators=(",", ":")).encode()
     try:
         secret = unseal(key, due.secret)
@@ -125,30 +96,31 @@ def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes) -> tuple[int 
     headers = {"Content-Type": "application/json", "User-Agent": "ChakaMo-Webhooks",
                "X-ChakaMo-Event": due.event, "X-ChakaMo-Delivery": str(due.id),
                "X-ChakaMo-Signature": signature(secret, int(time.time()), body)}
-    url = urllib.parse.urlsplit(due.url)
-    https = url.scheme.lower() == "https"
+    return attempt(due, due.url, body, headers, patterns, deadline_s)
+
+
+def attempt(due: webhooks.Due, url: str, body: bytes, headers: dict[str, str], patterns: tuple[str, ...],
+            deadline_s: float = DEADLINE_S) -> tuple[int | None, str]:
+    """:func:`post` as one attempt of ``due``: ``(status or None, the trail's code or "")``, the cause of a failed
+    connection logged only."""
     try:
-        port = url.port or (443 if https else 80)
-        address = resolve(url.hostname or "", port, patterns)
-        conn = (_PinnedHTTPS if https else _PinnedHTTP)(url.hostname, port, address, TIMEOUT_S)
-        try:  # redirects are not followed: http.client never does
-            conn.request("POST", (url.path or "/") + (f"?{url.query}" if url.query else ""), body, headers)
-            status = conn.getresponse().status
-        finally:
-            conn.close()
+        status = post(url, body, headers, patterns, deadline_s)
     except (OSError, ValueError, http.client.HTTPException) as exc:
-        log.warning("webhook delivery %s to %s: %s: %s", due.id, due.url, type(exc).__name__, exc)
+        log.warning("delivery %s to %s: %s: %s", due.id, url, type(exc).__name__, exc)
         return None, NO_CONNECTION
-    return status, "" if 200 <= status < 300 else f"HTTP {status}"
+    return status, outcome(status)
 
 
 class WebhookSender:
-    """The sender thread (module docstring)."""
+    """The sender thread (module docstring); ``fhir_push``: the FHIR push (:class:`app.web.fhir_push.FhirPush`) whose
+    deliveries it sends too, None when ``CHAKAMO_FHIR_PUSH_URL`` is not set."""
 
     EVERY_S = 1.0
 
-    def __init__(self, db, retry_base_s: float, allowed_hosts: tuple[str, ...], key: bytes) -> None:
+    def __init__(self, db, retry_base_s: float, allowed_hosts: tuple[str, ...], key: bytes, fhir_push=None) -> None:
         self.db, self.retry_base_s, self.allowed_hosts, self.key = db, retry_base_s, allowed_hosts, key
+        self.fhir_push = fhir_push
+        self.kinds = ("webhook", "fhir") if fhir_push is not None else ("webhook",)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -161,7 +133,7 @@ class WebhookSender:
         """Stop the thread after its current round, then close its database engine."""
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=TIMEOUT_S + 5)
+            self._thread.join(timeout=DEADLINE_S + 5)
             if not self._thread.is_alive():
                 self.db.dispose()
 
@@ -170,22 +142,29 @@ class WebhookSender:
         no other this round (a dead receiver costs a round one timeout, not one per delivery, so it holds no
         other clinic's deliveries up); how many attempts were made."""
         with self.db.sessions() as s:
-            webhooks.plan_deliveries(s)
+            if self.fhir_push is not None:
+                webhooks.ensure_fhir_push(s, self.fhir_push.url)
+            webhooks.plan_deliveries(s, kinds=self.kinds)
         failed: set[int] = set()
         made = 0
         while not self._stop.is_set():
             with self.db.sessions() as s:
-                d = webhooks.claim_due(s, skip=frozenset(failed))
+                d = webhooks.claim_due(s, skip=frozenset(failed), kinds=self.kinds)
             if d is None:
                 break
             made += 1
-            status, error = send(d, self.allowed_hosts, self.key)
+            give_up = False
+            if d.kind == "fhir":
+                status, error, give_up = self.fhir_push.send(self.db, d)
+            else:
+                status, error = send(d, self.allowed_hosts, self.key)
             with self.db.sessions() as s:
-                state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s)
+                state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s,
+                                                give_up=give_up)
             if state != "delivered":
                 failed.add(d.subscription_id)
-                log.warning("webhook delivery %s (%s) attempt %d to %s: %s -> %s", d.id, d.event, d.attempt, d.url,
-                            error or status, state)
+                log.warning("%s delivery %s (%s) attempt %d to %s: %s -> %s", d.kind, d.id, d.event, d.attempt,
+                            d.url, error or status, state)
         return made
 
     def _loop(self) -> None:
@@ -196,4 +175,5 @@ class WebhookSender:
                 log.warning("webhook round failed; retrying", exc_info=True)
 
 
-__all__ = ["NO_CONNECTION", "TIMEOUT_S", "AddressRefused", "WebhookSender", "resolve", "send", "signature"]
+__all__ = ["HTTP_STATUS", "NO_CONNECTION", "SECRET_UNREADABLE", "TRAIL_CODES", "WebhookSender", "attempt", "outcome",
+           "send", "signature", "trail_error"]

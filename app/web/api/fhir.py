@@ -1,6 +1,6 @@
 """``GET /fhir/DiagnosticReport/{session_id}``: the session's latest analysis as a FHIR R4 DiagnosticReport;
 ``GET /fhir/DiagnosticReport?patient=`` a searchset Bundle of a patient's reports; ``GET /fhir/metadata`` the
-CapabilityStatement.
+CapabilityStatement; ``GET /fhir/pushes`` (admin) the trail of the push to the hospital's FHIR server.
 
 The document is built by :func:`app.web.fhir.diagnostic_report` (another module of the project) from the
 session, patient, results.json and the PDF in the analysis' language; ``base_url`` is the namespace of the
@@ -22,12 +22,14 @@ import json
 from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import Response
 
-from app.store.analyses import SupersededResults, artefact, latest_analysis, pick_analysis
+from app.store import webhooks
+from app.store.analyses import SupersededResults, latest_analysis, pick_analysis
 from app.web import audit
 from app.store.sessions import patient_sessions
-from app.web.api.deps import DbDep, Reader, StoreDep, scoped_patient, scoped_session
-from app.web.api.schemas import patient_out
-from app.web.fhir import CODE_SYSTEM, FhirExportError, capability_statement, diagnostic_report, search_bundle
+from app.web.api.deps import Admin, DbDep, Reader, StoreDep, scoped_patient, scoped_session
+from app.web.api.schemas import DeliveryOut, delivery_out
+from app.web.fhir import FhirExportError, capability_statement, diagnostic_report, search_bundle
+from app.web.fhir_push import export_options, report_inputs
 from estimators import __version__
 from app.web.refusals import Refusal
 
@@ -64,21 +66,9 @@ def _export(db, store, request: Request, session, analysis) -> dict:
     """The DiagnosticReport of ``analysis`` of ``session`` (409 with the export's sentence when the stored data
     cannot be expressed)."""
     settings = request.app.state.settings
-    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
-    pdf = store.read(artefact(db, analysis, "report.pdf", analysis.lang).sha256)
-    sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
-            "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
-            "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,
-            "analysis_created_at": analysis.created_at.isoformat(), "filter": analysis.filter,
-            "service_request": session.service_request, "encounter": session.encounter,
-            "accession": session.accession}
-    patient = {k: (v.isoformat() if hasattr(v, "isoformat") else v) for k, v in patient_out(session.patient).items()}
     try:
-        return diagnostic_report(session=sess, patient=patient, results=results, pdf=pdf, lang=analysis.lang,
-                                 base_url=fhir_base_url(request),
-                                 patient_identifier_system=settings.patient_identifier_system,
-                                 code_system=settings.fhir_code_system or CODE_SYSTEM,
-                                 patient_mode=settings.fhir_patient, accession_system=settings.accession_system)
+        return diagnostic_report(**report_inputs(db, store, session, analysis), base_url=fhir_base_url(request),
+                                 **export_options(settings))
     except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
         raise HTTPException(409, f"Session {session.id} cannot be exported to FHIR: {exc}; correct the record and "
                                  "try again.") from None
@@ -128,3 +118,11 @@ def diagnostic_report_route(session_id: int, request: Request, principal: Reader
     doc = _export(db, store, request, session, analysis)
     audit.record(db, request, principal, "export", patient_id=session.patient_id, session_id=session.id)
     return _fhir(doc)
+
+
+@router.get("/pushes", response_model=list[DeliveryOut])
+def fhir_pushes(principal: Admin, db: DbDep):
+    """The trail of the pushes of the clinic's reports to the hospital's FHIR server (``CHAKAMO_FHIR_PUSH_URL``,
+    :mod:`app.web.fhir_push`), newest first: one delivery per finished job, with its attempts, last status and
+    error; empty when the push is not configured."""
+    return [delivery_out(d) for d in webhooks.fhir_pushes(db, principal.clinic_id)]

@@ -18,6 +18,7 @@ from app.choices import (DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER
                          SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
+from app.web.webhooks import trail_error
 
 # every option list comes from app.choices (the one definition the CLI and GET /options use too)
 Lang = Literal[LANGUAGE_NAMES]  # type: ignore[valid-type]
@@ -49,6 +50,12 @@ class UserIn(_In):
     password: str = Field(min_length=1, max_length=1000)
 
 
+#: the hospital's own FHIR Patient: ``Patient/<id>`` or its absolute URL (app.web.fhir.PATIENT_REFERENCE)
+_PATIENT_REFERENCE = r"^(https?://\S+/)?Patient/[A-Za-z0-9\-.]{1,64}$"
+_PATIENT_REFERENCE_TEXT = ("the hospital's FHIR Patient: Patient/<id> or its absolute URL (the reports' subject with "
+                           "CHAKAMO_FHIR_PATIENT=reference)")
+
+
 class PatientIn(_In):
     external_id: str = Field(min_length=1, max_length=100)
     side: Side
@@ -58,6 +65,8 @@ class PatientIn(_In):
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
+    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+                                       description=_PATIENT_REFERENCE_TEXT)
 
 
 class PatientPatch(_In):
@@ -72,6 +81,8 @@ class PatientPatch(_In):
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
+    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+                                       description=_PATIENT_REFERENCE_TEXT)
 
 
 #: a FHIR reference to a resource of one type: relative (``Type/id``) or absolute (``https://…/Type/id``)
@@ -172,6 +183,7 @@ class PatientOut(BaseModel):
     created_at: dt.datetime
     version: int
     updated_at: dt.datetime | None
+    fhir_reference: str | None = None
 
 
 class RecordingOut(BaseModel):
@@ -373,7 +385,7 @@ def user_out(u: User) -> dict[str, Any]:
 
 def patient_out(p: Patient) -> dict[str, Any]:
     return {k: getattr(p, k) for k in ("id", "external_id", "side", "name", "birth_date", "sex", "height_cm",
-                                       "mass_kg", "notes", "created_at", "version", "updated_at")}
+                                       "mass_kg", "notes", "created_at", "version", "updated_at", "fhir_reference")}
 
 
 def recording_out(r: Recording) -> dict[str, Any]:
@@ -449,3 +461,34 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
             "ingestion": ingestion_out(stored_ingestion(s, len(recs)), s.split),
             "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
     return out
+
+
+class TrailError(BaseModel):
+    code: str = Field(description="webhook.no_connection, webhook.http_status, webhook.secret_unreadable or "
+                                  "fhir.not_exportable")
+    params: dict = Field(description="the values the message names (status, seconds)")
+    message: dict[str, str] = Field(description="the sentence in es, en and pt")
+
+
+class DeliveryOut(BaseModel):
+    id: int
+    event: str
+    job_id: int
+    state: str
+    attempts: int
+    last_status: int | None
+    last_error: str = Field(description="the last failed attempt in English (\"\" when none failed); `error` has its "
+                                        "code and the sentence in es/en/pt")
+    error: TrailError | None = None
+    created_at: dt.datetime
+    delivered_at: dt.datetime | None
+    next_attempt_at: dt.datetime | None
+
+
+def delivery_out(d) -> dict:
+    """A delivery row as :class:`DeliveryOut` (its error code rendered by :func:`app.web.webhooks.trail_error`)."""
+    error = trail_error(d.last_error, d.last_status)
+    return {"id": d.id, "event": d.event, "job_id": d.job_id, "state": d.state, "attempts": d.attempts,
+            "last_status": d.last_status, "last_error": error["message"]["en"] if error else "", "error": error,
+            "created_at": d.created_at, "delivered_at": d.delivered_at,
+            "next_attempt_at": d.next_attempt_at if d.state == "pending" else None}

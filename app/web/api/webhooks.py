@@ -34,10 +34,11 @@ from app.store import idempotency, webhooks
 from app.store.models import utcnow
 from app.web import audit
 from app.web.api.deps import Admin, DbDep, Reader, resolve_principal
+from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.headers import host_allowed
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.refusals import Refusal
-from app.web.sealed import seal
+from app.store.sealed import seal
 
 router = APIRouter(tags=["webhooks"])
 #: how long one event stream stays open (the browser reconnects)
@@ -64,19 +65,6 @@ class WebhookOut(BaseModel):
                                                      "it (a replay of the POST does not show it again)")
 
 
-class DeliveryOut(BaseModel):
-    id: int
-    event: str
-    job_id: int
-    state: str
-    attempts: int
-    last_status: int | None
-    last_error: str
-    created_at: dt.datetime
-    delivered_at: dt.datetime | None
-    next_attempt_at: dt.datetime | None
-
-
 def _out(row, secret: str | None = None) -> dict:
     return {"id": row.id, "url": row.url, "events": row.events.split(), "label": row.label,
             "created_at": row.created_at, "secret": secret}
@@ -88,7 +76,7 @@ def _out(row, secret: str | None = None) -> dict:
                                               "not in CHAKAMO_WEBHOOK_ALLOWED_HOSTS"}})
 def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Request):
     """Subscribe ``url`` to the events; the answer's ``secret`` is shown only now (a repeat of this request with
-    its ``Idempotency-Key`` answers the subscription without it); it is stored sealed (:mod:`app.web.sealed`)."""
+    its ``Idempotency-Key`` answers the subscription without it); it is stored sealed (:mod:`app.store.sealed`)."""
     key = key_of(request)
     claimed = idempotency.claim(db, principal.clinic_id, key, request_sha256(request, body), "webhook") if key else None
     if isinstance(claimed, idempotency.Replay):
@@ -125,11 +113,7 @@ def delete_webhook(webhook_id: int, principal: Admin, db: DbDep, request: Reques
 @router.get("/webhooks/{webhook_id}/deliveries", response_model=list[DeliveryOut])
 def webhook_deliveries(webhook_id: int, principal: Admin, db: DbDep):
     """Every delivery of the subscription, newest first, with its attempts (the audit trail)."""
-    rows = webhooks.deliveries(db, principal.clinic_id, webhook_id)
-    return [{"id": d.id, "event": d.event, "job_id": d.job_id, "state": d.state, "attempts": d.attempts,
-             "last_status": d.last_status, "last_error": d.last_error, "created_at": d.created_at,
-             "delivered_at": d.delivered_at, "next_attempt_at": d.next_attempt_at if d.state == "pending" else None}
-            for d in rows]
+    return [delivery_out(d) for d in webhooks.deliveries(db, principal.clinic_id, webhook_id)]
 
 
 def _states(request: Request, clinic_id: int, since: dt.datetime) -> list[dict]:

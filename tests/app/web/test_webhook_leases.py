@@ -18,6 +18,7 @@ import pytest
 from app.store import webhooks
 from app.store.database import Database
 from app.store.models import Clinic, WebhookDelivery, utcnow
+from app.store.sealed import seal
 from app.web.webhooks import WebhookSender
 
 
@@ -34,7 +35,8 @@ def _subscription(db, url: str, deliveries: int) -> int:
         clinic = Clinic(name=f"Clinic {url}")
         s.add(clinic)
         s.flush()
-        sub = webhooks.add_subscription(s, clinic.id, url=url, events=["job.done"], secret="k" * 40)
+        sub = webhooks.add_subscription(s, clinic.id, url=url, events=["job.done"],
+                                        secret=seal(b"k" * 32, "k" * 40))  # stored sealed, as the API does
         for job_id in range(deliveries):
             s.add(WebhookDelivery(subscription_id=sub.id, clinic_id=clinic.id, job_id=job_id, event="job.done",
                                   payload={"event": "job.done"}, state="pending", attempts=0,

@@ -16,8 +16,9 @@ import pytest
 from web_helpers import make_settings
 
 from app.store import webhooks
-from app.web.sealed import PREFIX, seal, unseal
-from app.web.webhooks import NO_CONNECTION, SECRET_UNREADABLE, AddressRefused, resolve, send
+from app.store.sealed import PREFIX, seal, unseal
+from app.web.outbound import AddressRefused, resolve
+from app.web.webhooks import HTTP_STATUS, NO_CONNECTION, SECRET_UNREADABLE, send
 
 
 def _client(tmp_path, allowed: str):
@@ -63,8 +64,8 @@ def test_internal_addresses_are_refused_at_send_time_unless_named_exactly():
             resolve(host, 80, ("*",))  # a wildcard never opens an internal address
     with pytest.raises(AddressRefused):
         resolve("127.0.0.1", 80, ("*.example.org",))
-    assert resolve("127.0.0.1", 80, ("127.0.0.1",)) == "127.0.0.1"  # the operator named it
-    assert resolve("localhost", 80, ("localhost",)) in ("127.0.0.1", "::1")
+    assert resolve("127.0.0.1", 80, ("127.0.0.1",)) == ("127.0.0.1",)  # the operator named it
+    assert set(resolve("localhost", 80, ("localhost",))) <= {"127.0.0.1", "::1"}
 
 
 KEY = b"an operator's key of at least 32 characters"
@@ -110,7 +111,7 @@ def test_an_allowed_receiver_gets_the_post_on_the_checked_address():
     try:
         url = f"http://127.0.0.1:{server.server_address[1]}/hook?x=1"
         assert send(_due(url), ("127.0.0.1",), KEY) == (204, "")
-        assert send(_due(url), ("127.0.0.1",), KEY) == (503, "HTTP 503")
+        assert send(_due(url), ("127.0.0.1",), KEY) == (503, HTTP_STATUS)
         assert got[0][0] == "/hook?x=1" and got[0][1].startswith("127.0.0.1")
     finally:
         server.shutdown()

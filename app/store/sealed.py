@@ -6,8 +6,10 @@ another row's key fails to open instead of opening to garbage.  A sealed value i
 ‖ ciphertext ‖ tag 16 B), without padding: a 43-character webhook secret seals to 99 characters (the column
 holds 100).  AES-GCM rather than Fernet (AES-128-CBC + HMAC, 140 characters for the same secret) for that
 length.  A database copied without the key reveals no secret; rotating ``CHAKAMO_SECRET_KEY`` makes the stored
-ones unreadable (their subscriptions must be made again).  A value without the prefix is a plain one stored
-before sealing and is returned as it is.
+ones unreadable (their subscriptions must be made again).  Secrets stored in plain text before sealing existed
+were sealed by migration 0012 (:func:`seal_plain`), so a value without the prefix is refused (``ValueError``), never
+used as a key.  The module lives in the store because that migration seals with it (the store may not import the
+web layer).
 """
 
 from __future__ import annotations
@@ -35,12 +37,18 @@ def seal(key: bytes, text: str) -> str:
 
 
 def unseal(key: bytes, stored: str) -> str:
-    """The text :func:`seal` stored (``cryptography.exceptions.InvalidTag`` under another key)."""
+    """The text :func:`seal` stored (``cryptography.exceptions.InvalidTag`` under another key; ``ValueError`` for a
+    value that is not sealed)."""
     if not stored.startswith(PREFIX):
-        return stored  # stored before sealing
+        raise ValueError("not a sealed value (no e1: prefix)")
     raw = stored[len(PREFIX):]
     blob = base64.urlsafe_b64decode(raw + "=" * (-len(raw) % 4))
     return _cipher(key).decrypt(blob[:12], blob[12:], None).decode()
 
 
-__all__ = ["PREFIX", "seal", "unseal"]
+def sealed(stored: str) -> bool:
+    """Whether ``stored`` is a value :func:`seal` made (else a plain secret stored before sealing existed)."""
+    return stored.startswith(PREFIX)
+
+
+__all__ = ["PREFIX", "seal", "sealed", "unseal"]
