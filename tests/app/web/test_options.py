@@ -29,8 +29,14 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     r = client.get("/api/v1/options", headers=clinic_token(settings, "C", role="read_only"))
     assert r.status_code == 200, r.text
     body = r.json()
-    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides"}
-    for key, items in body.items():
+    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides",
+                         "sexes", "token_scopes", "audit_actions"}
+    from app.web.audit import ACTIONS
+
+    assert body["sexes"] == list(choices.SEX_NAMES)
+    assert body["token_scopes"] == list(choices.TOKEN_SCOPES) and body["audit_actions"] == list(ACTIONS)
+    for key in choices.OPTION_LISTS:
+        items = body[key]
         assert [i["name"] for i in items] == list(choices.names(choices.OPTION_LISTS[key])), key
         assert sum(i["default"] for i in items) == 1, f"{key}: exactly one default"
         assert all(i["label"] for i in items), key
