@@ -114,3 +114,28 @@ def test_the_heading_chosen_in_a_processing_request_reaches_the_results(client, 
     assert wait_job(client, r.json()["job_id"], h)["status"] == "done"
     results = client.get(f"/api/v1/sessions/{sid}/results", headers=h).json()
     assert results["quality"]["heading"]["mode"] == "constraint" and results["quality"]["heading"]["used"] == "constraint"
+
+
+def test_the_calibration_and_angle_convention_chosen_reach_the_results(client, settings, demo_dir):
+    """``POST /process {"calibration", "angle_convention"}`` (issue 17 §4: the wizard's choices, as ``chakamo process
+    --calibration / --angles``): the job records them, the pipeline runs with them and results.json says so (the
+    functional calibration's segment method, the thesis' angle extraction); an unknown value is refused with the
+    valid ones."""
+    from web_helpers import clinic_token, demo_files, new_session, wait_job
+
+    h = clinic_token(settings, "C")
+    _, sid = new_session(client, h)
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h).status_code == 201
+    r = client.post(f"/api/v1/sessions/{sid}/process", json={"calibration": "magic"}, headers=h)
+    assert r.status_code == 422 and all(repr(x) in r.json()["detail"] for x in choices.CALIBRATION_NAMES), r.text
+    r = client.post(f"/api/v1/sessions/{sid}/process", json={"angle_convention": "xyz"}, headers=h)
+    assert r.status_code == 422 and all(repr(x) in r.json()["detail"] for x in choices.ANGLE_CONVENTION_NAMES), r.text
+    r = client.post(f"/api/v1/sessions/{sid}/process", headers=h,
+                    json={"calibration": "functional", "angle_convention": "thesis_zyx", "lang": "en"})
+    assert r.status_code == 202, r.text
+    job = wait_job(client, r.json()["job_id"], h)
+    assert job["status"] == "done" and (job["calibration"], job["angle_convention"]) == ("functional", "thesis_zyx")
+    results = client.get(f"/api/v1/sessions/{sid}/results", headers=h).json()
+    assert results["angle_method"] == "thesis_zyx"
+    methods = {seg: c["method"] for seg, c in results["calibration"]["segment"].items()}
+    assert methods and all("functional" in m for m in methods.values()), methods
