@@ -63,6 +63,21 @@ export function alertBox(message, kind = "error") {
   return h("div", { class: `notice ${kind}`, role: kind === "error" ? "alert" : "status" }, message);
 }
 
+/** A button that opens (and closes again) the form `makeForm(close)` in `formArea`; aria-expanded follows. */
+export function disclosure(text, formArea, makeForm, attrs = {}) {
+  const button = h("button", { type: "button", "aria-expanded": "false", ...attrs }, text);
+  const close = () => { button.setAttribute("aria-expanded", "false"); clear(formArea); };
+  button.addEventListener("click", () => {
+    const open = button.getAttribute("aria-expanded") === "true";
+    close();
+    if (!open) {
+      button.setAttribute("aria-expanded", "true");
+      formArea.append(makeForm(close));
+    }
+  });
+  return button;
+}
+
 // ------------------------------------------------------------------------------------------ formatting
 const MISSING = "—";
 

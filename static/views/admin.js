@@ -13,7 +13,7 @@
 //   GET /options, so a new action appears here without a change to the UI.
 
 import { api } from "../api.js";
-import { h, clear, field, alertBox, errorText, dateTime, label, parseDecimal, num } from "../dom.js";
+import { h, clear, field, alertBox, errorText, dateTime, label, parseDecimal, num, disclosure } from "../dom.js";
 import { t } from "../i18n.js";
 import { options } from "../options.js";
 import { currentUser } from "../app.js";
@@ -49,15 +49,9 @@ function usersPage() {
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const listArea = h("div", { class: "table-scroll" });
   const formArea = h("div");
-  const newButton = h("button", { type: "button", id: "new-user", "aria-expanded": "false" }, t("admin.user_new"));
-  newButton.addEventListener("click", () => {
-    const open = newButton.getAttribute("aria-expanded") === "true";
-    clear(formArea);
-    newButton.setAttribute("aria-expanded", String(!open));
-    if (!open) formArea.append(newUserForm(() => { clear(formArea); newButton.setAttribute("aria-expanded", "false"); }, load));
-  });
+  const newButton = disclosure(t("admin.user_new"), formArea, (close) => newUserForm(close, load), { id: "new-user" });
 
-  async function load(note) {
+  async function load(note) {   // (hoisted: the form above calls it after a creation)
     let users;
     try {
       users = await api("GET", "/users");
@@ -156,16 +150,8 @@ function tokensPage() {
   const secretArea = h("div");
   const listArea = h("div", { class: "table-scroll" });
   const formArea = h("div");
-  const newButton = h("button", { type: "button", id: "new-token", "aria-expanded": "false" }, t("admin.token_new"));
-  const closeForm = () => { clear(formArea); newButton.setAttribute("aria-expanded", "false"); };
-  newButton.addEventListener("click", () => {
-    const open = newButton.getAttribute("aria-expanded") === "true";
-    closeForm();
-    if (!open) {
-      newButton.setAttribute("aria-expanded", "true");
-      formArea.append(newTokenForm(closeForm, (created) => { showSecret(secretArea, created); load(); }));
-    }
-  });
+  const newButton = disclosure(t("admin.token_new"), formArea,
+    (close) => newTokenForm(close, (created) => { showSecret(secretArea, created); load(); }), { id: "new-token" });
 
   async function load() {
     let rows;

@@ -1,7 +1,7 @@
 // Patients list (search, new patient) and one patient's page (details, sessions, new session, ROM trend).
 
 import { api } from "../api.js";
-import { h, clear, field, alertBox, errorText, date, dateTime, num, label } from "../dom.js";
+import { h, clear, field, alertBox, errorText, date, dateTime, num, label, disclosure } from "../dom.js";
 import { t } from "../i18n.js";
 import { navigate, canEdit, isAdmin, currentUser } from "../app.js";
 import { confirmErase, patientForm, editSessionForm, changeError, textOrNull } from "./records.js";
@@ -16,21 +16,6 @@ export function patientTitle(p) {
 /** A status badge of a session. */
 export function statusBadge(status) {
   return h("span", { class: `badge status-${status}` }, label("status", status));
-}
-
-// A button that opens (and closes again) the form ``makeForm(close)`` in ``formArea``; aria-expanded follows.
-function disclosure(text, formArea, makeForm) {
-  const button = h("button", { type: "button", "aria-expanded": "false" }, text);
-  const close = () => { button.setAttribute("aria-expanded", "false"); clear(formArea); };
-  button.addEventListener("click", () => {
-    const open = button.getAttribute("aria-expanded") === "true";
-    close();
-    if (!open) {
-      button.setAttribute("aria-expanded", "true");
-      formArea.append(makeForm(close));
-    }
-  });
-  return button;
 }
 
 // ------------------------------------------------------------------------------------------- list
