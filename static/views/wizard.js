@@ -249,12 +249,17 @@ function zoneRecordings(ctx, segment, role) {
   });
 }
 
-/** The file names of `recs` the session's failed check names in its error (the file it rejected), or []. */
+/** The file names of `recs` the session's failed check names in its error (the file it rejected, or the recording
+ * label a MetaBase group of files shares: the name before its first "_"), or []. */
 function rejected(ctx, recs) {
   const ingestion = ctx.session.ingestion || {};
   if (ingestion.ok) return [];
   const said = [ingestion.error || "", ...Object.values(ingestion.error_message || {})].join("\n");
-  return recs.map((r) => r.file_name).filter((name) => name && said.includes(name));
+  const named = (name) => {
+    const label = name.split("_")[0];
+    return said.includes(name) || (label !== name && label.length >= 12 && said.includes(label));
+  };
+  return recs.map((r) => r.file_name).filter((name) => name && named(name));
 }
 
 function dropZone(ctx, segment, role) {

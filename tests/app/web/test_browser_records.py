@@ -1,6 +1,6 @@
 """Correcting and erasing in the browser (static/views/records.js), in real Chromium, in Spanish and Portuguese: an admin edits a
 patient, cancels and then confirms a session's deletion in the modal dialog, and erases the patient only after
-typing its identifier.  The texts expected are read from static/i18n/es.json; what the API holds afterwards is
+typing its identifier.  The texts expected are read from static/i18n/<lang>.json; what the API holds afterwards is
 read back through the API, and the stored recording's file is checked gone from disk."""
 
 from __future__ import annotations
