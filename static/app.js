@@ -2,7 +2,7 @@
 //
 // Single page, no build step: plain ES modules served from /static.  Routes (hash, so the server only has
 // to serve index.html): #/login, #/patients, #/patients/7, #/sessions/3/wizard, #/sessions/3[?analysis_id=5],
-// #/account (password change, open sessions).
+// #/account (password change, open sessions), #/admin/users|tokens|audit (admins: views/admin.js).
 // Each route renders into a fresh <section> put in <main>; a view's timers and async answers check that its
 // section is still in the page (isConnected) before touching it, so leaving a page stops its polling.
 // Start: GET /auth/me tells whether the browser session cookie is still valid (then the CSRF token comes
@@ -15,6 +15,7 @@ import { patientsView, patientView } from "./views/patients.js";
 import { wizardView } from "./views/wizard.js";
 import { resultsView } from "./views/results.js";
 import { accountView } from "./views/account.js";
+import { adminView } from "./views/admin.js";
 
 const state = { user: null, wanted: null };
 const main = document.getElementById("main");
@@ -26,11 +27,18 @@ const ROUTES = [
   [/^#\/sessions\/(\d+)\/wizard$/, (m) => wizardView(Number(m[1]))],
   [/^#\/sessions\/(\d+)$/, (m, query) => resultsView(Number(m[1]), query)],
   [/^#\/account$/, () => accountView()],
+  [/^#\/admin\/?$/, () => adminView("users")],
+  [/^#\/admin\/(users|tokens|audit)$/, (m) => adminView(m[1])],
 ];
 
 /** Whether the logged-in user may change data (read_only users only look). */
 export function canEdit() {
   return Boolean(state.user) && state.user.role !== "read_only";
+}
+
+/** The logged-in user (`GET /auth/me`'s user: id, email, name, role, clinic), or null. */
+export function currentUser() {
+  return state.user;
 }
 
 /** Whether the logged-in user is a clinic admin (who may erase patients and sessions). */
@@ -93,6 +101,10 @@ function updateNav() {
   if (!state.user) return;
   const current = (location.hash || "").startsWith("#/patients");
   nav.append(h("a", { href: "#/patients", "aria-current": current ? "page" : null }, t("nav.patients")));
+  if (isAdmin()) {
+    const admin = (location.hash || "").startsWith("#/admin");
+    nav.append(h("a", { href: "#/admin/users", "aria-current": admin ? "page" : null, id: "nav-admin" }, t("nav.admin")));
+  }
   const u = state.user;
   who.append(h("span", { class: "clinic" }, (u.clinic && u.clinic.name) || ""),
     h("span", { class: "user" }, `${u.name || u.email} · ${t(`role.${u.role}`)}`),

@@ -63,6 +63,21 @@ export function alertBox(message, kind = "error") {
   return h("div", { class: `notice ${kind}`, role: kind === "error" ? "alert" : "status" }, message);
 }
 
+/** A button that opens (and closes again) the form `makeForm(close)` in `formArea`; aria-expanded follows. */
+export function disclosure(text, formArea, makeForm, attrs = {}) {
+  const button = h("button", { type: "button", "aria-expanded": "false", ...attrs }, text);
+  const close = () => { button.setAttribute("aria-expanded", "false"); clear(formArea); };
+  button.addEventListener("click", () => {
+    const open = button.getAttribute("aria-expanded") === "true";
+    close();
+    if (!open) {
+      button.setAttribute("aria-expanded", "true");
+      formArea.append(makeForm(close));
+    }
+  });
+  return button;
+}
+
 // ------------------------------------------------------------------------------------------ formatting
 const MISSING = "—";
 
@@ -117,4 +132,21 @@ export function label(prefix, value) {
 export function errorText(err) {
   if (err && err.status === 0) return t("error.network");
   return (err && (err.detail || err.message)) || t("error.unknown");
+}
+
+/**
+ * A decimal number typed by a person, whatever the UI language: "165,5" and "165.5" are both 165.5 (one comma or
+ * one point is the decimal mark; clinical values are never written with thousands separators).  null for an empty
+ * field, NaN for anything else ("1.65.5", "abc"): the caller says so in the UI language.
+ */
+export function parseDecimal(text) {
+  const v = String(text ?? "").trim().replace(/\s+/g, "");
+  if (v === "") return null;
+  return /^[+-]?(\d+([.,]\d*)?|[.,]\d+)$/.test(v) ? Number(v.replace(",", ".")) : Number.NaN;
+}
+
+/** `x` as a person types it in the UI language, all its decimals kept and no grouping ("165,5" in es/pt). */
+export function decimalText(x) {
+  if (x === null || x === undefined || x === "") return "";
+  return new Intl.NumberFormat(lang(), { maximumFractionDigits: 6, useGrouping: false }).format(Number(x));
 }

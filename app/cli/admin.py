@@ -346,22 +346,21 @@ def _close_browser_sessions(s, user_id: int) -> int:
 def list_tokens(settings: Settings | None, *, clinic: str) -> list[dict]:
     """The API tokens of clinic ``clinic``, oldest first, as dicts ``id, label, role, created_at, revoked_at``
     (datetimes in UTC; ``revoked_at`` None while the token works).  Never the token itself."""
-    from sqlalchemy import select
-
-    from app.store.models import ApiToken
+    from app.store import tokens
 
     with _session(settings) as s:
         c = _clinic(s, clinic)
-        rows = s.scalars(select(ApiToken).where(ApiToken.clinic_id == c.id).order_by(ApiToken.id))
         return [{"id": t.id, "label": t.label, "role": t.role, "created_at": t.created_at,
-                 "revoked_at": t.revoked_at, "expires_at": t.expires_at, "scopes": t.scopes} for t in rows]
+                 "revoked_at": t.revoked_at, "expires_at": t.expires_at, "scopes": t.scopes}
+                for t in tokens.clinic_tokens(s, c.id)]
 
 
 def revoke_token(settings: Settings | None, token_id: int) -> dict:
     """Revoke API token ``token_id`` (any clinic); returns ``id, clinic, label, revoked_at, already`` where
     ``already`` is True when it had been revoked before (its first date is kept).  ValueError for an
     unknown id."""
-    from app.store.models import ApiToken, utcnow
+    from app.store import tokens
+    from app.store.models import ApiToken
     from app.web.audit import record_operator
 
     with _session(settings) as s:
@@ -369,9 +368,8 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
         if token is None:
             raise ValueError(f"no API token with id {token_id}; see the ids with `chakamo tokens list "
                              "--clinic NAME`")
-        already = token.revoked_at is not None
+        already = not tokens.revoke(token)
         if not already:
-            token.revoked_at = utcnow()
             record_operator(s, clinic_id=token.clinic_id, action="token_revoke", token_id=token.id,
                             detail=f"token {token.id} revoked")
         return {"id": token.id, "clinic": token.clinic.name, "label": token.label,

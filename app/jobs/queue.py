@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.choices import DEFAULT_HEADING
+from app.choices import DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION, DEFAULT_HEADING
 from app.jobs.work import JobRunner
 from app.pipeline.session import PIPELINE_VERSION
 from app.store.checks import IngestionChecker
@@ -59,12 +59,13 @@ def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: 
 
 def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, lang: str,
             checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False,
-            heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None) -> Job:
+            heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None,
+            calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION) -> Job:
     """Insert (and flush, not commit) a queued job of session ``session_id`` of clinic ``clinic_id`` (module
     docstring for the rules); raises :class:`app.store.errors.NotFound`, :class:`Busy`, :class:`NotReady`
     or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check).  ``side``:
     the side the clinician chose over the files' (:attr:`app.pipeline.session.ProcessOptions.side`), or None;
-    ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's)."""
+    ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's); ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``."""
     what = "process it again"
     session = clinic_session(db, clinic_id, session_id)
     refuse_while_processing(db, session.id, what)
@@ -76,7 +77,7 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
     if unless_current and (done := current_analysis(db, session, filter_name, lang)) is not None:
         raise UpToDate(done)
     job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, heading=heading, side=side,
-              involved=involved, log=list(log_lines), stage="queued", pipeline_version=PIPELINE_VERSION)
+              involved=involved, calibration=calibration, angle_method=angle_method, log=list(log_lines), stage="queued", pipeline_version=PIPELINE_VERSION)
     db.add(job)
     db.flush()
     other = active_job_id(db, session.id, other_than=job.id)

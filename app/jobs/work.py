@@ -314,7 +314,8 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             s.expunge_all()
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
         options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
-                                 side=job.side, involved=job.involved)
+                                 side=job.side, involved=job.involved, calibration=job.calibration,
+                                 angle_method=job.angle_method)
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             loaded = load_knees(folder)
             knees = process_knees(loaded, options, web=True,

@@ -201,6 +201,10 @@ class Job(Base):
     side: Mapped[str | None] = mapped_column(String(5), nullable=True)
     #: the involved knee of a two-knee session (ProcessOptions.involved: the LSI's numerator); None: the patient's
     involved: Mapped[str | None] = mapped_column(String(5), nullable=True)
+    #: the sensor-to-segment calibration asked for (app.choices.CALIBRATIONS; ProcessOptions.calibration)
+    calibration: Mapped[str] = mapped_column(String(20), default="static", server_default="static")
+    #: the knee-angle convention asked for (app.choices.ANGLE_CONVENTIONS; ProcessOptions.angle_method)
+    angle_method: Mapped[str] = mapped_column(String(20), default="grood_suntay", server_default="grood_suntay")
     #: a failed job's message as a catalogue code and its values (app.pipeline.ingestion.messages), for any language
     error_code: Mapped[str | None] = mapped_column(String(60), nullable=True)
     error_params: Mapped[dict | None] = mapped_column(JSON, nullable=True)

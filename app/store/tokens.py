@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Iterable
 
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.choices import TOKEN_SCOPES, USER_ROLE_NAMES
@@ -87,4 +88,34 @@ def rotate_token(db: Session, token_id: int, new_sha256: str, *, grace_hours: fl
     return old, new
 
 
-__all__ = ["MAX_DAYS", "add_token", "expired", "parse_scopes", "rotate_token", "scopes_of"]
+def clinic_tokens(db: Session, clinic_id: int) -> list[ApiToken]:
+    """The clinic's API tokens, oldest first (never the token: only its sha256 is stored)."""
+    return list(db.scalars(select(ApiToken).where(ApiToken.clinic_id == clinic_id).order_by(ApiToken.id)))
+
+
+def clinic_token(db: Session, clinic_id: int, token_id: int) -> ApiToken:
+    """Token ``token_id`` of the clinic; :class:`NotFound` for an unknown id or another clinic's token."""
+    token = db.get(ApiToken, token_id)
+    if token is None or token.clinic_id != clinic_id:
+        raise NotFound(code="store.no_token", token_id=token_id)
+    return token
+
+
+def revoke(token: ApiToken, now: dt.datetime | None = None) -> bool:
+    """Revoke ``token`` (the API answers 401 to it from now on); False when it was revoked already (its first
+    date is kept, so offboarding can run twice)."""
+    if token.revoked_at is not None:
+        return False
+    token.revoked_at = now or utcnow()
+    return True
+
+
+def state(token: ApiToken, now: dt.datetime | None = None) -> str:
+    """``revoked``, ``expired`` or ``active``."""
+    if token.revoked_at is not None:
+        return "revoked"
+    return "expired" if expired(token, now) else "active"
+
+
+__all__ = ["MAX_DAYS", "add_token", "clinic_token", "clinic_tokens", "expired", "parse_scopes", "revoke",
+           "rotate_token", "scopes_of", "state"]

@@ -142,16 +142,17 @@ def _note_item(note: str, folder: Path | None) -> dict[str, Any]:
 def file_facts(loaded) -> dict[str, dict[str, str]]:
     """What the reading found of each stored file of a loaded session: ``devices`` (the sensor serial its content
     or name carries, every format that has one: :attr:`app.pipeline.ingestion.RawRecording.sensor_id`) and
-    ``segments`` (the segment it was recognised as), by file name; stored with the recordings
-    (:func:`app.store.checks.save_ingestion`) for the server's same-sensor check."""
-    devices, segments = {}, {}
-    for (seg, _), rec in loaded.recordings.items():
+    ``segments`` and ``roles`` (the segment and recording it was recognised as), by file name; stored with the
+    recordings (:func:`app.store.checks.save_ingestion`) for the server's same-sensor check and the wizard's zones
+    (a file dropped without a zone is shown in the zone it was recognised for)."""
+    devices, segments, roles = {}, {}, {}
+    for (seg, role), rec in loaded.recordings.items():
         for f in rec.source.get("files", ()):
             name = Path(f).name
-            segments[name] = seg
+            segments[name], roles[name] = seg, role
             if rec.source.get("sensor_id"):
                 devices[name] = str(rec.source["sensor_id"])[:64]
-    return {"devices": devices, "segments": segments}
+    return {"devices": devices, "segments": segments, "roles": roles}
 
 
 def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
@@ -166,7 +167,7 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
     try:
         with materialise(store, tmp_root, session, patient, recordings) as folder:
             knees = load_knees(folder)  # one knee, or both (four sensors)
-            items, splits, devices, segments = [], {}, {}, {}
+            items, splits, devices, segments, roles = [], {}, {}, {}, {}
             for side, loaded in sorted(knees.items()):
                 if len(knees) > 1:
                     items.append(item(f"session.knee.{side}", {}, render(f"session.knee.{side}", {}, "en")))
@@ -177,8 +178,9 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
                 facts = file_facts(loaded)
                 devices.update(facts["devices"])
                 segments.update({name: f"{knee}{seg}" for name, seg in facts["segments"].items()})
+                roles.update(facts["roles"])
             return {"ok": True, "messages": [i["text"] for i in items], "error": None, "items": items,
-                    "error_item": None, "splits": splits, "devices": devices, "segments": segments}
+                    "error_item": None, "splits": splits, "devices": devices, "segments": segments, "roles": roles}
     except IngestionError as exc:
         text = public_message(str(exc), folder)
         return {"ok": False, "messages": [], "error": text, "items": [],

@@ -1,10 +1,10 @@
 // Patients list (search, new patient) and one patient's page (details, sessions, new session, ROM trend).
 
 import { api } from "../api.js";
-import { h, clear, field, alertBox, errorText, date, dateTime, num, label } from "../dom.js";
+import { h, clear, field, alertBox, errorText, date, dateTime, num, label, disclosure } from "../dom.js";
 import { t } from "../i18n.js";
-import { navigate, canEdit, isAdmin } from "../app.js";
-import { confirmErase, editPatientForm, editSessionForm, changeError } from "./records.js";
+import { navigate, canEdit, isAdmin, currentUser } from "../app.js";
+import { confirmErase, patientForm, editSessionForm, changeError, textOrNull } from "./records.js";
 import { options, fillSelect } from "../options.js";
 import { ANGLES, drawTrend, purge } from "../charts.js";
 
@@ -16,31 +16,6 @@ export function patientTitle(p) {
 /** A status badge of a session. */
 export function statusBadge(status) {
   return h("span", { class: `badge status-${status}` }, label("status", status));
-}
-
-function numberOrNull(input) {
-  const v = input.value.trim().replace(",", ".");
-  return v === "" ? null : Number(v);
-}
-
-function textOrNull(input) {
-  const v = input.value.trim();
-  return v === "" ? null : v;
-}
-
-// A button that opens (and closes again) the form ``makeForm(close)`` in ``formArea``; aria-expanded follows.
-function disclosure(text, formArea, makeForm) {
-  const button = h("button", { type: "button", "aria-expanded": "false" }, text);
-  const close = () => { button.setAttribute("aria-expanded", "false"); clear(formArea); };
-  button.addEventListener("click", () => {
-    const open = button.getAttribute("aria-expanded") === "true";
-    close();
-    if (!open) {
-      button.setAttribute("aria-expanded", "true");
-      formArea.append(makeForm(close));
-    }
-  });
-  return button;
 }
 
 // ------------------------------------------------------------------------------------------- list
@@ -95,55 +70,7 @@ function patientsTable(patients, q) {
 }
 
 function newPatientForm(onCancel) {
-  const f = {
-    external_id: h("input", { name: "external_id", required: true, maxlength: 64, autocomplete: "off" }),
-    side: h("select", { name: "side", required: true },
-      h("option", { value: "right" }, label("side", "right")), h("option", { value: "left" }, label("side", "left"))),
-    name: h("input", { name: "name", maxlength: 200, autocomplete: "off" }),
-    birth_date: h("input", { name: "birth_date", type: "date" }),
-    height_cm: h("input", { name: "height_cm", type: "number", min: 30, max: 250, step: "0.1", inputmode: "decimal" }),
-    mass_kg: h("input", { name: "mass_kg", type: "number", min: 2, max: 400, step: "0.1", inputmode: "decimal" }),
-    notes: h("textarea", { name: "notes", rows: 2 }),
-  };
-  const message = h("div", { class: "form-message", "aria-live": "polite" });
-  const submit = h("button", { type: "submit" }, t("patients.create"));
-  const cancel = h("button", { type: "button", class: "secondary", onclick: onCancel }, t("common.cancel"));
-  const form = h("form", { class: "card form-grid", "aria-label": t("patients.new") },
-    h("h2", {}, t("patients.new")),
-    field(t("patient.external_id"), f.external_id, t("patient.external_id_hint"))[0],
-    field(t("patient.side"), f.side, t("patient.side_hint"))[0],
-    field(t("patient.name_optional"), f.name)[0],
-    field(t("patient.birth_date"), f.birth_date)[0],
-    field(t("patient.height_cm"), f.height_cm)[0],
-    field(t("patient.mass_kg"), f.mass_kg)[0],
-    h("div", { class: "wide" }, field(t("patient.notes"), f.notes)[0]),
-    h("div", { class: "wide" }, message),
-    h("div", { class: "actions wide" }, submit, cancel));
-  form.addEventListener("submit", async (e) => {
-    e.preventDefault();
-    clear(message);
-    const body = {
-      external_id: f.external_id.value.trim(), side: f.side.value, name: textOrNull(f.name),
-      birth_date: f.birth_date.value || null, height_cm: numberOrNull(f.height_cm), mass_kg: numberOrNull(f.mass_kg),
-      notes: textOrNull(f.notes),
-    };
-    if (!body.external_id) {
-      message.append(alertBox(t("patients.external_id_required")));
-      f.external_id.focus();
-      return;
-    }
-    submit.disabled = true;
-    try {
-      const patient = await api("POST", "/patients", { json: body });
-      navigate(`#/patients/${patient.id}`);
-    } catch (err) {
-      message.append(alertBox(errorText(err)));
-    } finally {
-      submit.disabled = false;
-    }
-  });
-  queueMicrotask(() => f.external_id.focus());
-  return form;
+  return patientForm(null, onCancel, (patient) => navigate(`#/patients/${patient.id}`));
 }
 
 // ------------------------------------------------------------------------------------------ patient
@@ -161,7 +88,7 @@ export function patientView(id) {
     const formArea = h("div");
     const reload = () => navigate(`#/patients/${id}`);
     const newSession = disclosure(t("sessions.new"), formArea, (close) => newSessionForm(id, close));
-    const edit = disclosure(t("patient.edit"), formArea, (close) => editPatientForm(patient, close, reload));
+    const edit = disclosure(t("patient.edit"), formArea, (close) => patientForm(patient, close, reload));
     const erase = h("button", { type: "button", class: "danger", id: "delete-patient", onclick: () => confirmErase({
       title: t("patient.delete_title"), text: t("patient.delete_text", { id: patient.external_id }),
       expect: patient.external_id,
@@ -189,7 +116,8 @@ export function patientView(id) {
 function patientDetails(p) {
   const rows = [
     [t("patient.external_id"), p.external_id], [t("patient.name"), p.name || "—"], [t("patient.side"), label("side", p.side)],
-    [t("patient.birth_date"), date(p.birth_date)], [t("patient.height_cm"), p.height_cm == null ? "—" : num(p.height_cm, 1)],
+    [t("patient.birth_date"), date(p.birth_date)], [t("patient.sex"), label("sex", p.sex)],
+    [t("patient.height_cm"), p.height_cm == null ? "—" : num(p.height_cm, 1)],
     [t("patient.mass_kg"), p.mass_kg == null ? "—" : num(p.mass_kg, 1)], [t("patient.notes"), p.notes || "—"],
     [t("patient.created_at"), dateTime(p.created_at)],
   ];
@@ -227,13 +155,13 @@ function sessionsTable(sessions, rowActions) {
       h("td", {}, label("task", s.task)),
       h("td", { class: "num" }, String(s.n_recordings ?? 0)),
       h("td", {}, statusBadge(s.status)),
-      h("td", { class: "actions" },
+      h("td", {}, h("div", { class: "row-actions" },
         h("a", { href: `#/sessions/${s.id}/wizard`, class: "button-link secondary small" }, t("sessions.open_wizard")),
         done ? h("a", { href: `#/sessions/${s.id}`, class: "button-link small" }, t("sessions.open_results")) : null,
         canEdit() ? h("button", { type: "button", class: "secondary small", "data-action": "edit-session",
           onclick: () => rowActions.edit(s) }, t("sessions.edit")) : null,
         isAdmin() ? h("button", { type: "button", class: "danger small", "data-action": "delete-session",
-          onclick: () => rowActions.erase(s) }, t("sessions.delete")) : null));
+          onclick: () => rowActions.erase(s) }, t("sessions.delete")) : null)));
   });
   return h("table", { class: "data", id: "sessions-table" },
     h("thead", {}, h("tr", {}, [t("session.date"), t("session.task"), t("session.recordings"), t("session.status"), ""]
@@ -249,7 +177,9 @@ function newSessionForm(patientId, onCancel) {
     task: h("select", { name: "task" }),  // from GET /options (app/choices.py), the tasks the server analyses
     step: h("select", { name: "step_height_m" },
       h("option", { value: "0.17" }, t("session.step_low")), h("option", { value: "0.34" }, t("session.step_high"))),
-    professional: h("input", { name: "professional", maxlength: 200, autocomplete: "name" }),
+    // the logged-in user is who usually records the session: pre-filled, and can be changed
+    professional: h("input", { name: "professional", maxlength: 200, autocomplete: "name",
+      value: (currentUser() || {}).name || (currentUser() || {}).email || "" }),
     notes: h("textarea", { name: "notes", rows: 2 }),
   };
   const message = h("div", { class: "form-message", "aria-live": "polite" });

@@ -8,8 +8,9 @@
 // (the API refuses others with 403 anyway); clinicians may correct.
 
 import { api } from "../api.js";
-import { h, clear, field, alertBox, errorText, label } from "../dom.js";
+import { h, clear, field, alertBox, errorText, label, num, parseDecimal, decimalText } from "../dom.js";
 import { t } from "../i18n.js";
+import { options } from "../options.js";
 
 /** The sentence for a failed correction or erasure (412 and 409 translated; else the server's sentence). */
 export function changeError(err) {
@@ -18,14 +19,10 @@ export function changeError(err) {
   return errorText(err);
 }
 
-function textOrNull(input) {
+/** The trimmed text of `input`, or null when empty. */
+export function textOrNull(input) {
   const v = input.value.trim();
   return v === "" ? null : v;
-}
-
-function numberOrNull(input) {
-  const v = input.value.trim().replace(",", ".");
-  return v === "" ? null : Number(v);
 }
 
 /** `body` without the keys whose value equals `before`'s. */
@@ -34,13 +31,14 @@ function changedOnly(body, before) {
 }
 
 /**
- * A modal confirmation: `title`, `text`, and when `expect` is given an input that must match it.  Resolves
+ * A modal confirmation: `title`, `text`, and when `expect` is given an input that must match it; `confirmText`
+ * names the button (default "delete for good").  Resolves
  * after `onConfirm()` succeeded (the dialog closes), or when cancelled (nothing happens).
  */
-export function confirmErase({ title, text, expect = null, onConfirm }) {
+export function confirmErase({ title, text, expect = null, onConfirm, confirmText = null }) {
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   const typed = expect === null ? null : h("input", { name: "confirm", autocomplete: "off", spellcheck: "false" });
-  const ok = h("button", { type: "submit", class: "danger" }, t("common.delete_for_good"));
+  const ok = h("button", { type: "submit", class: "danger" }, confirmText || t("common.delete_for_good"));
   const cancel = h("button", { type: "button", class: "secondary" }, t("common.cancel"));
   const titleId = `confirm-title-${Date.now()}`;
   const dialog = h("dialog", { class: "confirm card", "aria-labelledby": titleId });
@@ -74,44 +72,93 @@ export function confirmErase({ title, text, expect = null, onConfirm }) {
   return dialog;
 }
 
-/** The patient's edit form (PATCH with If-Match); `onSaved(patient)` after a successful save. */
-export function editPatientForm(patient, onCancel, onSaved) {
+// the API's bounds of a patient's measurements (app/web/api/schemas.py PatientIn: gt / lt)
+const MEASURES = { height_cm: { min: 30, max: 260, example: 165.5 }, mass_kg: { min: 2, max: 400, example: 70.5 } };
+
+/** The value of measurement input `input` (`name` of MEASURES), or an error sentence in the UI language. */
+function measure(input, name, fieldLabel) {
+  const value = parseDecimal(input.value);
+  const { min, max, example } = MEASURES[name];
+  if (value === null) return { value: null };
+  if (Number.isNaN(value)) return { error: t("patient.number_invalid", { field: fieldLabel, example: num(example, 1) }) };
+  if (!(value > min && value < max)) {
+    return { error: t("patient.number_range", { field: fieldLabel, min: num(min, 0), max: num(max, 0) }) };
+  }
+  return { value };
+}
+
+/**
+ * The patient form: a new patient (`patient` null: POST, then `onSaved(patient)`) or a correction (PATCH of the
+ * changed fields with If-Match).  Height and mass are typed as text and read by parseDecimal, so "165,5" and
+ * "165.5" are both 165.5 cm in every UI language (an <input type=number> follows the browser's locale instead);
+ * their refusals are said in the UI language.  The sexes come from GET /options (app/choices.py SEX_NAMES).
+ */
+export function patientForm(patient, onCancel, onSaved) {
+  const editing = Boolean(patient);
+  const p = patient || {};
+  const measureInput = (name) => h("input", { name, inputmode: "decimal", autocomplete: "off", spellcheck: "false",
+    value: decimalText(p[name]) });
   const f = {
-    external_id: h("input", { name: "external_id", required: true, maxlength: 64, autocomplete: "off",
-      value: patient.external_id }),
+    external_id: h("input", { name: "external_id", required: true, maxlength: 100, autocomplete: "off",
+      value: p.external_id || "" }),
     side: h("select", { name: "side", required: true }, ["right", "left"].map((s) =>
-      h("option", { value: s, selected: patient.side === s }, label("side", s)))),
-    name: h("input", { name: "name", maxlength: 200, autocomplete: "off", value: patient.name || "" }),
-    birth_date: h("input", { name: "birth_date", type: "date", value: patient.birth_date || "" }),
-    height_cm: h("input", { name: "height_cm", inputmode: "decimal", value: patient.height_cm ?? "" }),
-    mass_kg: h("input", { name: "mass_kg", inputmode: "decimal", value: patient.mass_kg ?? "" }),
-    notes: h("textarea", { name: "notes", rows: 2 }, patient.notes || ""),
+      h("option", { value: s, selected: p.side === s }, label("side", s)))),
+    name: h("input", { name: "name", maxlength: 200, autocomplete: "off", value: p.name || "" }),
+    birth_date: h("input", { name: "birth_date", type: "date", value: p.birth_date || "" }),
+    sex: h("select", { name: "sex" }, h("option", { value: "" }, "—")),
+    height_cm: measureInput("height_cm"),
+    mass_kg: measureInput("mass_kg"),
+    notes: h("textarea", { name: "notes", rows: 2 }, p.notes || ""),
   };
+  const title = editing ? t("patient.edit") : t("patients.new");
   const message = h("div", { class: "form-message", "aria-live": "polite" });
-  const submit = h("button", { type: "submit" }, t("common.save"));
-  const form = h("form", { class: "card form-grid", id: "edit-patient", "aria-label": t("patient.edit") },
-    h("h2", {}, t("patient.edit")),
-    field(t("patient.external_id"), f.external_id)[0],
-    field(t("patient.side"), f.side)[0],
+  const submit = h("button", { type: "submit", disabled: true }, editing ? t("common.save") : t("patients.create"));
+  const form = h("form", { class: "card form-grid", id: editing ? "edit-patient" : "new-patient", "aria-label": title },
+    h("h2", {}, title),
+    field(t("patient.external_id"), f.external_id, editing ? null : t("patient.external_id_hint"))[0],
+    field(t("patient.side"), f.side, editing ? null : t("patient.side_hint"))[0],
     field(t("patient.name_optional"), f.name)[0],
     field(t("patient.birth_date"), f.birth_date)[0],
-    field(t("patient.height_cm"), f.height_cm)[0],
+    field(t("patient.sex"), f.sex)[0],
+    field(t("patient.height_cm"), f.height_cm, t("patient.decimal_hint", { example: num(165.5, 1) }))[0],
     field(t("patient.mass_kg"), f.mass_kg)[0],
     h("div", { class: "wide" }, field(t("patient.notes"), f.notes)[0]),
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, submit,
       h("button", { type: "button", class: "secondary", onclick: onCancel }, t("common.cancel"))));
+  options().then((opts) => {
+    f.sex.append(...(opts.sexes || []).map((s) => h("option", { value: s, selected: p.sex === s }, label("sex", s))));
+    submit.disabled = false;
+  }).catch((err) => message.append(alertBox(errorText(err))));
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
     clear(message);
-    const body = changedOnly({
+    for (const input of [f.height_cm, f.mass_kg]) input.removeAttribute("aria-invalid");
+    const height = measure(f.height_cm, "height_cm", t("patient.height_cm"));
+    const mass = measure(f.mass_kg, "mass_kg", t("patient.mass_kg"));
+    for (const [m, input] of [[height, f.height_cm], [mass, f.mass_kg]]) {
+      if (m.error) {
+        input.setAttribute("aria-invalid", "true");
+        message.append(alertBox(m.error));
+        input.focus();
+        return;
+      }
+    }
+    if (!f.external_id.value.trim()) {
+      message.append(alertBox(t("patients.external_id_required")));
+      f.external_id.focus();
+      return;
+    }
+    const full = {
       external_id: f.external_id.value.trim(), side: f.side.value, name: textOrNull(f.name),
-      birth_date: f.birth_date.value || null, height_cm: numberOrNull(f.height_cm), mass_kg: numberOrNull(f.mass_kg),
-      notes: textOrNull(f.notes) }, patient);
+      birth_date: f.birth_date.value || null, sex: f.sex.value || null, height_cm: height.value, mass_kg: mass.value,
+      notes: textOrNull(f.notes) };
+    const body = editing ? changedOnly(full, patient) : full;
     if (!Object.keys(body).length) { onCancel(); return; }
     submit.disabled = true;
     try {
-      onSaved(await api("PATCH", `/patients/${patient.id}`, { json: body, ifMatch: patient.version }));
+      onSaved(editing ? await api("PATCH", `/patients/${patient.id}`, { json: body, ifMatch: patient.version })
+        : await api("POST", "/patients", { json: body }));
     } catch (err) {
       message.append(alertBox(changeError(err)));
     } finally {

@@ -141,7 +141,7 @@ function renderShell(ctx) {
       h("a", { href: `#/patients/${patient.id}` }, patientTitle(patient))),
     h("div", { class: "title-row" },
       h("h1", {}, t("wizard.title_session", { date: date(session.date) })),
-      statusBadge(session.status),
+      ctx.badge = statusBadge(session.status),
       hasResults ? h("a", { href: `#/sessions/${session.id}`, class: "button-link secondary" }, t("wizard.see_results")) : null),
     h("p", { class: "lead" }, t(`wizard.lead_${patient.side}`),
       session.step_height_m ? ` ${t("wizard.step_height", { cm: num(session.step_height_m * 100, 0) })}` : ""),
@@ -228,11 +228,38 @@ function uploadStep(ctx) {
   return wrap;
 }
 
+/** The zone ("segment/role") a stored recording belongs in: the one it was uploaded to, else the one the server's
+ * check recognised it as (`ingestion.recognised`, by file name: a bulk drop on "other files" fills the zones; a
+ * continuous recording the check split is the segment's "whole protocol"), else null ("other files"). */
+function zoneOf(ctx, rec) {
+  if (rec.segment && rec.role) return `${rec.segment}/${rec.role}`;
+  const ingestion = ctx.session.ingestion || {};
+  const found = (ingestion.recognised || {})[rec.file_name];
+  if (!found || !SEGMENTS.includes(found.segment)) return null;
+  const split = (ingestion.splits || {})[found.segment];
+  if (split && split.file === rec.file_name) return `${found.segment}/continuous`;
+  return ROLES.includes(found.role) ? `${found.segment}/${found.role}` : null;
+}
+
 function zoneRecordings(ctx, segment, role) {
   const zoneKeys = new Set(SEGMENTS.flatMap((s) => ZONE_ROLES.map((r) => `${s}/${r}`)));
-  return (ctx.session.recordings || []).filter((r) => (segment === null
-    ? !zoneKeys.has(`${r.segment}/${r.role}`)
-    : r.segment === segment && r.role === role));
+  return (ctx.session.recordings || []).filter((r) => {
+    const key = zoneOf(ctx, r);
+    return segment === null ? !zoneKeys.has(key) : key === `${segment}/${role}`;
+  });
+}
+
+/** The file names of `recs` the session's failed check names in its error (the file it rejected, or the recording
+ * label a MetaBase group of files shares: the name before its first "_"), or []. */
+function rejected(ctx, recs) {
+  const ingestion = ctx.session.ingestion || {};
+  if (ingestion.ok) return [];
+  const said = [ingestion.error || "", ...Object.values(ingestion.error_message || {})].join("\n");
+  const named = (name) => {
+    const label = name.split("_")[0];
+    return said.includes(name) || (label !== name && label.length >= 12 && said.includes(label));
+  };
+  return recs.map((r) => r.file_name).filter((name) => name && named(name));
 }
 
 function dropZone(ctx, segment, role) {
@@ -260,7 +287,17 @@ function dropZone(ctx, segment, role) {
   const refreshList = () => {
     clear(list);
     const recs = zoneRecordings(ctx, segment, role);
-    zone.classList.toggle("filled", recs.length > 0);
+    const refused = rejected(ctx, recs);
+    // green ("filled") only for files the check did not reject; a rejected file turns the zone red and says so
+    zone.classList.toggle("filled", recs.length > 0 && !refused.length);
+    zone.classList.toggle("rejected", refused.length > 0);
+    zone.dataset.state = refused.length ? "rejected" : recs.length ? "filled" : "empty";
+    if (refused.length) {
+      clear(status).append(h("div", { class: "notice error rejected-note", role: "alert" },
+        t("wizard.file_rejected", { name: refused.join(", ") })));
+    } else if (status.querySelector(".rejected-note")) {
+      clear(status);
+    }
     for (const rec of recs) {
       const remove = canEdit() ? h("button", { type: "button", class: "link danger",
         "aria-label": t("wizard.remove_file", { name: rec.file_name }) }, "✕") : h("span");
@@ -277,6 +314,7 @@ function dropZone(ctx, segment, role) {
       const stream = /_(Accelerometer|Gyroscope|Magnetometer)_/.exec(rec.file_name || "");   // a MetaBase stream
       list.append(h("li", {}, h("span", { class: "file-name", title: rec.file_name }, rec.file_name),
         stream ? h("span", { class: "tag" }, t(`stream.${stream[1]}`)) : null,
+        segment && !(rec.segment && rec.role) ? h("span", { class: "tag recognised" }, t("wizard.recognised_tag")) : null,
         h("span", { class: "file-size" }, bytes(rec.size_bytes)), remove));
     }
     showMacWarning(recs);
@@ -302,8 +340,12 @@ function dropZone(ctx, segment, role) {
     choose.disabled = true;
     try {
       const answer = await upload(`/sessions/${ctx.sessionId}/recordings`, form, (f) => { bar.value = f; });
-      clear(status).append(h("span", { class: "ok" }, t("wizard.uploaded_n", { n: (answer.recordings || []).length })));
+      clear(status);
       await reloadSession(ctx, answer.ingestion);
+      // "saved" only when the check rejected none of them (refreshList then showed the refusal instead)
+      if (!zone.classList.contains("rejected")) {
+        clear(status).append(h("span", { class: "ok" }, t("wizard.uploaded_n", { n: (answer.recordings || []).length })));
+      }
     } catch (err) {
       clear(status).append(alertBox(errorText(err)));
       showMacWarning(zoneRecordings(ctx, segment, role).map((rec) => rec.file_name || ""));   // nothing stored
@@ -327,6 +369,11 @@ function dropZone(ctx, segment, role) {
 
 async function reloadSession(ctx, ingestion) {
   ctx.session = await api("GET", `/sessions/${ctx.sessionId}`);
+  if (ctx.badge) {   // the badge follows the files (not "no files" after uploads)
+    const badge = statusBadge(ctx.session.status);
+    ctx.badge.replaceWith(badge);
+    ctx.badge = badge;
+  }
   for (const refresh of ctx.zones || []) refresh();
   renderIngestion(ctx, ingestion || ctx.session.ingestion);
 }
@@ -573,6 +620,9 @@ function processStep(ctx) {
   const sideSelect = h("select", { name: "side" });
   // the involved knee of a session of both knees (as `chakamo process --involved`): empty = the patient's side
   const involvedSelect = h("select", { name: "involved" });
+  // the sensor-to-segment calibration and the knee-angle convention (as `chakamo process --calibration / --angles`)
+  const calibrationSelect = h("select", { name: "calibration" });
+  const conventionSelect = h("select", { name: "angle_convention" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
   // enabled once GET /options has filled the menus: a click before that sent no filter (422, seen under load)
   const processButton = h("button", { type: "submit", class: "primary", disabled: true }, t("wizard.process"));
@@ -582,6 +632,8 @@ function processStep(ctx) {
     field(t("wizard.heading"), headingSelect, t("wizard.heading_hint"))[0],
     field(t("wizard.side"), sideSelect, t("wizard.side_hint"))[0],
     field(t("wizard.involved"), involvedSelect, t("wizard.involved_hint"))[0],
+    field(t("wizard.calibration"), calibrationSelect, t("wizard.calibration_hint"))[0],
+    field(t("wizard.angle_convention"), conventionSelect, t("wizard.angle_convention_hint"))[0],
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, processButton));
   if (!ingestion.ok) {
@@ -603,6 +655,8 @@ function processStep(ctx) {
     involvedSelect.prepend(h("option", { value: "", selected: true },
       t("wizard.involved_patient", { side: label("side", ctx.patient.side) })));
     involvedSelect.value = "";
+    fillSelect(calibrationSelect, "calibration", opts.calibrations);
+    fillSelect(conventionSelect, "angle_convention", opts.angle_conventions);
     processButton.disabled = !ingestion.ok || !canEdit() || Boolean(ctx.activeJob);
   }).catch((err) => message.append(alertBox(errorText(err))));
   ctx.progressArea = h("div", { class: "progress-area" });
@@ -612,7 +666,8 @@ function processStep(ctx) {
     processButton.disabled = true;
     try {
       const answer = await api("POST", `/sessions/${ctx.sessionId}/process`, { json: { filter: filter.value, lang: language.value, heading: headingSelect.value,
-        side: sideSelect.value || null, involved: involvedSelect.value || null } });
+        side: sideSelect.value || null, involved: involvedSelect.value || null,
+        calibration: calibrationSelect.value, angle_convention: conventionSelect.value } });
       showProgress(ctx, answer.job_id);
     } catch (err) {
       message.append(alertBox(errorText(err)));
@@ -626,19 +681,30 @@ function processStep(ctx) {
     navButtons(ctx, { back: 2 }));
 }
 
-/** The stage of a job as a sentence ("orientation thigh" → "Orientation of the thigh sensor"). */
-function stageText(stage) {
+// the artefacts the job renders, by the file name its stage carries ("report.pdf es" → the PDF report in Spanish)
+const ARTEFACT_STAGES = { "report.pdf": "stage.report_pdf", "report.html": "stage.report_html",
+  "scene.viser": "stage.scene", "angles.xlsx": "stage.workbooks", "quaternions.xlsx": "stage.workbooks",
+  "timeseries.npz": "stage.store", "results.json": "stage.store" };
+
+/** The stage of a job as a sentence ("orientation thigh" → "Orientation of the thigh sensor"; "report.pdf es" →
+ * "Writing the PDF report (Spanish)"): never a file name; a stage this version does not know reads "Processing". */
+export function stageText(stage) {
   if (!stage) return "";
   const words = String(stage).trim().split(/\s+/);
   // a session of both knees: "left orientation thigh" → "Left · Orientation of the thigh sensor"
   if (words.length > 1 && (words[0] === "left" || words[0] === "right")) {
     return `${label("side", words[0])} · ${stageText(words.slice(1).join(" "))}`;
   }
+  if (ARTEFACT_STAGES[words[0]]) {
+    const language = words[1] ? label("lang", words[1]) : "";
+    const text = t(ARTEFACT_STAGES[words[0]]);
+    return language ? `${text} (${language})` : text;
+  }
   for (const key of [`stage.${words.join("_")}`, `stage.${words[0]}`]) {
     const text = t(key);
     if (text !== key) return text;
   }
-  return String(stage);
+  return t("wizard.processing");
 }
 
 function showProgress(ctx, jobId) {

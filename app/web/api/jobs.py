@@ -39,7 +39,8 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
         name = body.filter or DEFAULT_FILTER  # the schema accepts only app.choices.FILTER_NAMES
         try:
             job = enqueue(db, principal.clinic_id, session_id, filter_name=name, lang=body.lang, checker=checker,
-                          heading=body.heading, side=body.side, involved=body.involved)
+                          heading=body.heading, side=body.side, involved=body.involved,
+                          calibration=body.calibration, angle_method=body.angle_convention)
         except Busy:  # busy with the job a concurrent request with this key just committed?
             db.rollback()
             replay = idempotency.replayed(db, principal.clinic_id, key, fingerprint) if key else None

@@ -2,12 +2,16 @@
 
 The browser builds its menus (filters, tasks, languages, calibrations, angle conventions, sides) from this
 answer, and the CLI's choices and the API's schemas come from the same :mod:`app.choices`, so a filter or a
-task added to its estimator registry appears in every layer at once.
+task added to its estimator registry appears in every layer at once.  Two plain name lists ride along for the
+patient form and the admin pages: ``sexes`` (:data:`app.choices.SEX_NAMES`), ``token_scopes``
+(:data:`app.choices.TOKEN_SCOPES`) and ``audit_actions`` (:data:`app.web.audit.ACTIONS`, the audit log's filter).
 """
 
 from fastapi import APIRouter
 
+from app.choices import SEX_NAMES, TOKEN_SCOPES
 from app.choices import options as option_lists
+from app.web.audit import ACTIONS
 from app.web.api.deps import Reader
 from app.web.api.schemas import OptionsOut
 
@@ -16,4 +20,4 @@ router = APIRouter(tags=["options"])
 
 @router.get("/options", response_model=OptionsOut)
 def options(principal: Reader):
-    return option_lists()
+    return option_lists() | {"sexes": list(SEX_NAMES), "token_scopes": list(TOKEN_SCOPES), "audit_actions": list(ACTIONS)}

@@ -14,7 +14,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.choices import (DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
+from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
+                         DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
                          SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
@@ -27,6 +28,8 @@ RoleName = Literal[USER_ROLE_NAMES]  # type: ignore[valid-type]
 TaskName = Literal[TASK_NAMES]  # type: ignore[valid-type]
 FilterName = Literal[FILTER_NAMES]  # type: ignore[valid-type]
 HeadingName = Literal[HEADING_NAMES]  # type: ignore[valid-type]
+CalibrationName = Literal[CALIBRATION_NAMES]  # type: ignore[valid-type]
+AngleConventionName = Literal[ANGLE_CONVENTION_NAMES]  # type: ignore[valid-type]
 SEXES = SEX_NAMES  # a patient's sex as FHIR's administrative gender takes it (app.choices)
 Sex = Literal[SEXES]  # type: ignore[valid-type]
 
@@ -128,6 +131,11 @@ class ProcessIn(_In):
     #: the involved knee of a two-knee session (as ``chakamo process --involved``): the numerator of the limb
     #: symmetry index in results.json ``symmetry``; None: the patient's side
     involved: Side | None = None
+    #: the sensor-to-segment calibration (as ``chakamo process --calibration``): ``static`` (standing + supine) or
+    #: ``functional`` (standing + the knee's flexion axis on the task)
+    calibration: CalibrationName = DEFAULT_CALIBRATION
+    #: the knee-angle convention (as ``chakamo process --angles``): Grood & Suntay or the thesis' ZYX Euler angles
+    angle_convention: AngleConventionName = DEFAULT_ANGLE_CONVENTION
 
 
 class OptionOut(BaseModel):
@@ -150,6 +158,11 @@ class OptionsOut(BaseModel):
     angle_conventions: list[OptionOut]
     headings: list[OptionOut]
     sides: list[OptionOut]
+    #: a patient's sexes (app.choices.SEX_NAMES), what an API token may be limited to (app.choices.TOKEN_SCOPES)
+    #: and the audit log's actions (app.web.audit)
+    sexes: list[str]
+    token_scopes: list[str]
+    audit_actions: list[str]
 
 
 class ClinicOut(BaseModel):
@@ -210,6 +223,9 @@ class IngestionOut(BaseModel):
     message_texts: list[dict[str, str]] = []
     error_message: dict[str, str] | None = None
     splits: dict[str, dict[str, Any]] = {}
+    #: the segment and role the check recognised each stored file as (``{file name: {"segment", "role"}}``; a
+    #: four-sensor session's segments carry their knee, ``left_thigh``); empty while the check fails
+    recognised: dict[str, dict[str, str | None]] = {}
     #: the cuts the clinician stored (``PUT /sessions/{id}/split``), or None: the automatic split
     confirmed_split: dict[str, Any] | None = None
 
@@ -240,6 +256,9 @@ class JobOut(BaseModel):
     side: str | None = None
     #: the involved knee chosen for a two-knee session (the process request's ``involved``), or null
     involved: str | None = None
+    #: the calibration and angle convention asked for (the process request's ``calibration`` / ``angle_convention``)
+    calibration: str = DEFAULT_CALIBRATION
+    angle_convention: str = DEFAULT_ANGLE_CONVENTION
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -398,6 +417,7 @@ def job_out(j: Job) -> dict[str, Any]:
                                       "error_params", "log", "analysis_id", "filter", "lang", "side", "involved",
                                       "created_at",
                                       "started_at", "finished_at")}
+    out |= {"calibration": j.calibration, "angle_convention": j.angle_method}
     if j.error_code:
         from app.pipeline.messages import message_dict
 
@@ -442,7 +462,9 @@ def ingestion_out(stored: dict[str, Any], confirmed: dict[str, Any] | None = Non
     """The IngestionOut of a stored check (:func:`app.store.checks.ingestion_view`) and the stored cuts."""
     from app.store.checks import ingestion_view
 
-    return ingestion_view(stored) | {"confirmed_split": confirmed}
+    roles = stored.get("roles") or {}
+    recognised = {name: {"segment": seg, "role": roles.get(name)} for name, seg in (stored.get("segments") or {}).items()}
+    return ingestion_view(stored) | {"confirmed_split": confirmed, "recognised": recognised}
 
 
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:

@@ -29,8 +29,14 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     r = client.get("/api/v1/options", headers=clinic_token(settings, "C", role="read_only"))
     assert r.status_code == 200, r.text
     body = r.json()
-    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides"}
-    for key, items in body.items():
+    assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides",
+                         "sexes", "token_scopes", "audit_actions"}
+    from app.web.audit import ACTIONS
+
+    assert body["sexes"] == list(choices.SEX_NAMES)
+    assert body["token_scopes"] == list(choices.TOKEN_SCOPES) and body["audit_actions"] == list(ACTIONS)
+    for key in choices.OPTION_LISTS:
+        items = body[key]
         assert [i["name"] for i in items] == list(choices.names(choices.OPTION_LISTS[key])), key
         assert sum(i["default"] for i in items) == 1, f"{key}: exactly one default"
         assert all(i["label"] for i in items), key
@@ -108,3 +114,28 @@ def test_the_heading_chosen_in_a_processing_request_reaches_the_results(client, 
     assert wait_job(client, r.json()["job_id"], h)["status"] == "done"
     results = client.get(f"/api/v1/sessions/{sid}/results", headers=h).json()
     assert results["quality"]["heading"]["mode"] == "constraint" and results["quality"]["heading"]["used"] == "constraint"
+
+
+def test_the_calibration_and_angle_convention_chosen_reach_the_results(client, settings, demo_dir):
+    """``POST /process {"calibration", "angle_convention"}`` (issue 17 §4: the wizard's choices, as ``chakamo process
+    --calibration / --angles``): the job records them, the pipeline runs with them and results.json says so (the
+    functional calibration's segment method, the thesis' angle extraction); an unknown value is refused with the
+    valid ones."""
+    from web_helpers import clinic_token, demo_files, new_session, wait_job
+
+    h = clinic_token(settings, "C")
+    _, sid = new_session(client, h)
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h).status_code == 201
+    r = client.post(f"/api/v1/sessions/{sid}/process", json={"calibration": "magic"}, headers=h)
+    assert r.status_code == 422 and all(repr(x) in r.json()["detail"] for x in choices.CALIBRATION_NAMES), r.text
+    r = client.post(f"/api/v1/sessions/{sid}/process", json={"angle_convention": "xyz"}, headers=h)
+    assert r.status_code == 422 and all(repr(x) in r.json()["detail"] for x in choices.ANGLE_CONVENTION_NAMES), r.text
+    r = client.post(f"/api/v1/sessions/{sid}/process", headers=h,
+                    json={"calibration": "functional", "angle_convention": "thesis_zyx", "lang": "en"})
+    assert r.status_code == 202, r.text
+    job = wait_job(client, r.json()["job_id"], h)
+    assert job["status"] == "done" and (job["calibration"], job["angle_convention"]) == ("functional", "thesis_zyx")
+    results = client.get(f"/api/v1/sessions/{sid}/results", headers=h).json()
+    assert results["angle_method"] == "thesis_zyx"
+    methods = {seg: c["method"] for seg, c in results["calibration"]["segment"].items()}
+    assert methods and all("functional" in m for m in methods.values()), methods

@@ -1,0 +1,120 @@
+"""The wizard's zones, badge, options and progress labels (static/views/wizard.js) in real Chromium, in Spanish and
+Portuguese, with the demo session's real MetaBase files:
+
+* all 24 files dropped at once on "other files" land in the eight zones the server's check recognised them for
+  (3 each), none stays in "other files", and the session badge says "ready to process" (it stayed "no files");
+* a file the check rejects turns its zone red with the refusal, never green "stored" (screenshot pixels: the zone's
+  border is the error red, not the "filled" green);
+* step 3 offers the calibration and the angle convention of GET /options and sends them: the job that ran says so;
+* every stage the job really went through (its log, written by the server) reads as a sentence, never a file name
+  such as "report.pdf es" or "scene.viser".
+"""
+
+from __future__ import annotations
+
+import io
+import re
+
+import numpy as np
+
+from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
+    PROCESS_WAIT_MS, _api_session, _tables, demo_files, log_in, open_page, server, slow_expect)
+
+FILE_NAME = re.compile(r"\.(pdf|html|viser|xlsx|json|npz|csv)\b", re.I)
+RED, GREEN = (0xB3, 0x26, 0x1E), (0x9F, 0xC5, 0xA1)     # style.css: --bad, .zone.filled's border
+
+
+def _share(img: np.ndarray, colour: tuple[int, int, int]) -> float:
+    return float((np.abs(img.astype(int) - colour).sum(axis=2) < 40).mean())
+
+
+def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, demo_files, slow_expect):  # noqa: F811
+    expect = slow_expect
+    es = _tables()["es"]
+    context, page, errors = open_page(browser, "es-ES")
+    try:
+        log_in(page, server)
+        expect(page.locator("h1")).to_have_text(es["patients.title"])
+        sid = _api_session(context, server, "ZONES-1", "right")
+        page.goto(f"{server}/#/sessions/{sid}/wizard")
+        expect(page.locator(".title-row .badge")).to_have_text(es["status.empty"])
+        page.locator("button.next").click()
+        every = sorted(f for files in demo_files.values() for f in files)
+        assert len(every) == 24
+        page.locator(".zone[data-segment=''] input[type=file]").set_input_files(every)
+        expect(page.locator(".ingestion-box.ok")).to_be_visible()
+        for (seg, role), files in demo_files.items():
+            zone = page.locator(f".zone[data-segment={seg}][data-role={role}]")
+            expect(zone.locator("ul.files li")).to_have_count(3)
+            shown = sorted(zone.locator(".file-name").all_inner_texts())
+            assert shown == sorted(f.rsplit("/", 1)[-1] for f in files), (seg, role)
+            expect(zone).to_have_attribute("data-state", "filled")
+        expect(page.locator(".zone[data-segment=''] ul.files li")).to_have_count(0)
+        expect(page.locator(".title-row .badge")).to_have_text(es["status.ready"])
+
+        # step 3: the two choices of GET /options, in Spanish, sent with the request
+        page.locator("button.next").click()
+        calibration = page.get_by_label(es["wizard.calibration"])
+        expect(calibration.locator("option")).to_have_text([es["calibration.static"], es["calibration.functional"]])
+        expect(page.get_by_label(es["wizard.angle_convention"]).locator("option")).to_have_text(
+            [es["angle_convention.grood_suntay"], es["angle_convention.thesis_zyx"]])
+        calibration.select_option("functional")
+        page.get_by_label(es["wizard.angle_convention"]).select_option("thesis_zyx")
+        page.get_by_role("button", name=es["wizard.process"], exact=True).click()
+        seen = set()
+        job = page.locator("#job")
+        expect(job).to_be_visible()
+        while job.get_attribute("data-status") not in ("done", "failed"):
+            seen.add(page.locator("#job .stage").inner_text())
+            page.wait_for_timeout(50)
+        expect(job).to_have_attribute("data-status", "done", timeout=PROCESS_WAIT_MS)
+        ran = context.request.get(f"{server}/api/v1/sessions/{sid}").json()["jobs"][0]
+        assert (ran["calibration"], ran["angle_convention"]) == ("functional", "thesis_zyx")
+        assert not [s for s in seen if FILE_NAME.search(s)], seen
+
+        # every stage the server wrote in the job's log, as the page words it
+        stages = [line.split(" ", 1)[1] for line in ran["log"] if " " in line and not line.split(" ", 1)[1].startswith("started")]
+        assert any(s.startswith("report.pdf") for s in stages) and "scene.viser" in stages, stages
+        words = page.evaluate("async (stages) => { const w = await import('/static/views/wizard.js');"
+                              " return stages.map((s) => w.stageText(s)); }", stages)
+        bad = [(s, w) for s, w in zip(stages, words) if FILE_NAME.search(w) or not w]
+        assert not bad, bad
+        pdf = dict(zip(stages, words))[next(s for s in stages if s.startswith("report.pdf "))]
+        assert pdf.startswith(es["stage.report_pdf"]), pdf
+        assert errors == []
+    finally:
+        context.close()
+
+
+def test_a_rejected_file_turns_its_zone_red_not_saved(browser, server, slow_expect, tmp_path):  # noqa: F811
+    from PIL import Image
+
+    expect = slow_expect
+    pt = _tables()["pt"]
+    context, page, errors = open_page(browser, "pt-PT")
+    try:
+        log_in(page, server)
+        expect(page.locator("h1")).to_have_text(pt["patients.title"])
+        sid = _api_session(context, server, "ZONES-2", "left")
+        page.goto(f"{server}/#/sessions/{sid}/wizard")
+        page.locator("button.next").click()
+        bad = tmp_path / "step-muslo-ZONES2-01012026-1.csv"
+        bad.write_text("this,is\nnot,a recording\n", encoding="utf-8")
+        zone = page.locator(".zone[data-segment=thigh][data-role=task]")
+        zone.locator("input[type=file]").set_input_files(str(bad))
+        expect(zone.locator("ul.files li")).to_have_count(1)
+        expect(zone).to_have_attribute("data-state", "rejected")
+        expect(zone.locator(".rejected-note")).to_contain_text(bad.name)
+        expect(zone.locator(".zone-status .ok")).to_have_count(0)        # never "stored" in green
+        expect(page.locator(".title-row .badge")).to_have_text(pt["status.incomplete"])
+        img = np.asarray(Image.open(io.BytesIO(zone.screenshot())).convert("RGB"))
+        edge = np.concatenate([img[:3].reshape(-1, 3), img[-3:].reshape(-1, 3)])[None]
+        assert _share(edge, RED) > 0.3 and _share(edge, GREEN) < 0.05, (_share(edge, RED), _share(edge, GREEN))
+
+        # removing it: the zone is empty again, neither red nor green
+        zone.get_by_role("button", name=pt["wizard.remove_file"].replace("{name}", bad.name)).click()
+        expect(zone).to_have_attribute("data-state", "empty")
+        expect(zone.locator(".rejected-note")).to_have_count(0)
+        assert errors == []
+    finally:
+        context.close()
