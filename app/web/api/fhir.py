@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 
-from fastapi import APIRouter, HTTPException, Query, Request
+from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 
 from app.store.analyses import SupersededResults, artefact, latest_analysis, pick_analysis
@@ -29,6 +29,7 @@ from app.web.api.deps import DbDep, Reader, StoreDep, scoped_patient, scoped_ses
 from app.web.api.schemas import patient_out
 from app.web.fhir import CODE_SYSTEM, FhirExportError, capability_statement, diagnostic_report, search_bundle
 from estimators import __version__
+from app.web.messages import refusal
 from app.web.refusals import Refusal
 
 router = APIRouter(prefix="/fhir", tags=["fhir"])
@@ -80,8 +81,7 @@ def _export(db, store, request: Request, session, analysis) -> dict:
                                  code_system=settings.fhir_code_system or CODE_SYSTEM,
                                  patient_mode=settings.fhir_patient, accession_system=settings.accession_system)
     except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
-        raise HTTPException(409, f"Session {session.id} cannot be exported to FHIR: {exc}; correct the record and "
-                                 "try again.") from None
+        raise refusal(request, 409, "request.fhir_not_exportable", session_id=session.id, reason=str(exc)) from None
 
 
 def _fhir(doc: dict) -> Response:
