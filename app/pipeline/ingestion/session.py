@@ -468,13 +468,25 @@ def _read_folder(path: str | os.PathLike):
     return folder, mpath, manifest, entries, _settle_session_clock(raws), notes, ignored
 
 
+def _segment_of(mpath: Path | None, manifest: dict[str, Any], i: int, entry: dict, rec: RawRecording
+                ) -> Recognition | None:
+    """The segment of recording ``rec`` (entry ``i`` of the manifest): ``recordings[i].segment`` of
+    ``session.json``, else the segment ``sensors`` gives its sensor's serial, else the one its name gives."""
+    segment = rec.segment
+    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
+    if rec.sensor_id and rec.sensor_id in sensors:
+        segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
+    if "segment" in entry:
+        segment = _manifest_word(mpath, f"recordings[{i}].segment", entry["segment"], "segment")
+    return segment
+
+
 def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dict], raws: list[RawRecording]
                  ) -> dict[str, list[tuple[int, dict, RawRecording]]] | None:
     """The recordings of each knee, ``{side: [(index, entry, recording)]}``, when the folder holds both knees (both
     sides named, each with a thigh and a shank recording); None for a one-knee folder (files that disagree on the
     side there stay the provenance check's to refuse).  With both sides named, a recording naming none is refused
     (``session.side_unknown``): it cannot be given to either knee."""
-    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     sides: list[str | None] = []
     segs: dict[str, set[str]] = {}
     for i, (e, rec) in enumerate(zip(entries, raws)):
@@ -483,11 +495,7 @@ def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dic
             side = recognise_side(str(e["side"]), "session.json")
             if side is None:
                 raise IngestionError("manifest.bad_side", file=mpath, value=str(e["side"])[:60])
-        segment = rec.segment
-        if rec.sensor_id and rec.sensor_id in sensors:
-            segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
-        if "segment" in e:
-            segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
+        segment = _segment_of(mpath, manifest, i, e, rec)
         sides.append(None if side is None else side.value)
         if side is not None and segment is not None:
             segs.setdefault(side.value, set()).add(segment.value)
@@ -506,16 +514,11 @@ def _assemble(folder: Path, mpath: Path | None, manifest: dict[str, Any], picked
               notes: list[str], ignored: list[dict], expected_fs_hz: float | None, roles: Sequence[str],
               required: Sequence[str] | None) -> Session:
     """One knee's :class:`Session` from its recordings as read (``picked``: index in the manifest, entry, recording)."""
-    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     recs: dict[tuple[str, str], RawRecording] = {}
     continuous: dict[str, list[tuple[RawRecording, str]]] = {}
     unrecognised: list[dict] = []
     for i, e, rec in picked:
-        segment, role = rec.segment, rec.role
-        if rec.sensor_id and rec.sensor_id in sensors:
-            segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
-        if "segment" in e:
-            segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
+        segment, role = _segment_of(mpath, manifest, i, e, rec), rec.role
         if "role" in e:
             role = _manifest_word(mpath, f"recordings[{i}].role", e["role"], "role")
         if segment is not None and (role is None or role.value == CONTINUOUS):  # split below (.split)
