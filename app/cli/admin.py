@@ -44,6 +44,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
+from app.choices import LANGUAGE_NAMES
 from app.choices import USER_ROLE_NAMES as ROLES  # the one definition of the roles (cheap to import)
 
 if TYPE_CHECKING:  # the database stack is imported on use: `chakamo demo` does not pay for it
@@ -108,6 +109,29 @@ def _session(settings: Settings | None) -> Iterator[Session]:
         db.dispose()
 
 
+class CliError(ValueError):
+    """A refusal of these commands: ``code`` of a catalogue (:func:`app.web.refusals.catalogue_of`: the accounts'
+    ``cli.*`` entries, or a domain error's) and its ``params``; ``str()`` is English, :meth:`message` any
+    language (``chakamo`` prints it in ``--lang``: :func:`app.cli.main.main`)."""
+
+    def __init__(self, code: str, **params) -> None:
+        self.code, self.params = code, params
+        super().__init__(self.message("en"))
+
+    def message(self, lang: str) -> str:
+        from app.pipeline.ingestion.messages import render
+        from app.web.refusals import catalogue_of
+
+        return render(self.code, self.params, lang, catalogue_of(self.code))
+
+
+def _say(lang: str | None, code: str, **params) -> str:
+    """Sentence ``code`` of :data:`app.web.messages.CATALOGUE` in ``lang`` (``--lang``; English when not given)."""
+    from app.web.messages import render
+
+    return render(code, lang or "en", **params)
+
+
 def _clinic(s, name: str):
     from sqlalchemy import select
 
@@ -115,8 +139,8 @@ def _clinic(s, name: str):
 
     clinic = s.scalar(select(Clinic).where(Clinic.name == name))
     if clinic is None:
-        known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "none yet"
-        raise ValueError(f"no clinic named {name!r} (known: {known}); create it with `chakamo clinics create`")
+        known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
+        raise CliError("cli.clinic_unknown", name=name, known=known)
     return clinic
 
 
@@ -184,7 +208,7 @@ def create_token(settings: Settings | None, *, clinic: str, label: str = "", rol
             row = tokens.add_token(s, c.id, token_sha256=sha256_hex(token), role=role, label=label,
                                    expires_days=expires_days, scopes=scopes)
         except DomainError as exc:
-            raise ValueError(str(exc)) from None
+            raise (CliError(exc.code, **exc.params) if exc.code else ValueError(str(exc))) from None
         record_operator(s, clinic_id=c.id, action="token_create", token_id=row.id,
                         detail=f"token {row.id} role {role}" + (f" ({label})" if label else "")
                         + (f" scopes {row.scopes}" if row.scopes else "")
@@ -205,7 +229,7 @@ def rotate_token(settings: Settings | None, token_id: int, *, grace_hours: float
         try:
             old, new = tokens.rotate_token(s, token_id, sha256_hex(token), grace_hours=grace_hours)
         except DomainError as exc:
-            raise ValueError(str(exc)) from None
+            raise (CliError(exc.code, **exc.params) if exc.code else ValueError(str(exc))) from None
         record_operator(s, clinic_id=old.clinic_id, action="token_create", token_id=new.id,
                         detail=f"token {new.id} replaces token {old.id} (ends {old.expires_at:%Y-%m-%d %H:%M} UTC)")
         info = {"id": old.id, "new_id": new.id, "clinic": old.clinic.name, "old_expires_at": old.expires_at,
@@ -265,6 +289,9 @@ def add_parsers(sub) -> None:
     t_rotate.add_argument("--grace-hours", type=float, default=24.0, metavar="H",
                           help="hours the old token keeps working (default 24; 0: ends now)")
     _add_account_parsers(users, tokens)
+    for parser in tokens.choices.values():   # create, rotate, list, revoke: their output and errors in --lang
+        parser.add_argument("--lang", choices=LANGUAGE_NAMES, default=None,
+                            help="language of the messages (default: English)")
 
 
 def _read_password(from_stdin: bool) -> str:
@@ -293,15 +320,15 @@ def run(args: argparse.Namespace) -> int:
     elif args.command == "tokens" and args.action == "create":
         token = create_token(None, clinic=args.clinic, label=args.label, role=args.role,
                              expires_days=args.expires_days, scopes=args.scope)
-        print(f"API token for {args.clinic!r} ({args.role}{', ' + args.label if args.label else ''}"
-              f"{', scopes ' + ' '.join(args.scope) if args.scope else ''}"
-              f"{f', expires in {args.expires_days:g} days' if args.expires_days else ''}). It is shown "
-              "only now: store it in the hospital system; send it as 'Authorization: Bearer <token>'.")
+        details = [args.role] + ([args.label] if args.label else []) \
+            + ([_say(args.lang, "cli.token_scopes", scopes=" ".join(args.scope))] if args.scope else []) \
+            + ([_say(args.lang, "cli.token_expires", days=args.expires_days)] if args.expires_days else [])
+        print(_say(args.lang, "cli.token_created", clinic=args.clinic, details=", ".join(details)))
         print(token)
     elif args.command == "tokens" and args.action == "rotate":
         token, info = rotate_token(None, args.token_id, grace_hours=args.grace_hours)
-        print(f"API token {info['new_id']} of {info['clinic']!r} replaces token {info['id']}, which ends "
-              f"{_when(info['old_expires_at'])}. The new token is shown only now:")
+        print(_say(args.lang, "cli.token_rotated", new_id=info["new_id"], clinic=info["clinic"], id=info["id"],
+                   ends=_when(info["old_expires_at"])))
         print(token)
     else:
         return run_account(args)
@@ -366,8 +393,7 @@ def revoke_token(settings: Settings | None, token_id: int) -> dict:
     with _session(settings) as s:
         token = s.get(ApiToken, token_id)
         if token is None:
-            raise ValueError(f"no API token with id {token_id}; see the ids with `chakamo tokens list "
-                             "--clinic NAME`")
+            raise CliError("cli.token_unknown", id=token_id)
         already = not tokens.revoke(token)
         if not already:
             record_operator(s, clinic_id=token.clinic_id, action="token_revoke", token_id=token.id,
@@ -439,19 +465,22 @@ def run_account(args: argparse.Namespace) -> int:
     if args.command == "tokens" and args.action == "list":
         rows = list_tokens(None, clinic=args.clinic)
         if not rows:
-            print(f"no API tokens in {args.clinic!r}; create one with `chakamo tokens create`")
+            print(_say(args.lang, "cli.tokens_none", clinic=args.clinic))
             return 0
-        print(f"{'id':>5}  {'role':<10} {'created':<20} {'revoked':<20} {'expires':<20} {'scopes':<24} label")
+        ident, role, created, revoked, expires, scopes, label, every = \
+            _say(args.lang, "cli.tokens_columns").split("|")
+        print(f"{ident:>5}  {role:<10} {created:<20} {revoked:<20} {expires:<20} {scopes:<24} {label}")
         for r in rows:
             print(f"{r['id']:>5}  {r['role']:<10} {_when(r['created_at']):<20} {_when(r['revoked_at']):<20} "
-                  f"{_when(r['expires_at']):<20} {r['scopes'] or 'all':<24} {r['label']}")
+                  f"{_when(r['expires_at']):<20} {r['scopes'] or every:<24} {r['label']}")
     elif args.command == "tokens" and args.action == "revoke":
         r = revoke_token(None, args.token_id)
-        what = f"API token {r['id']} of {r['clinic']!r}{' (' + r['label'] + ')' if r['label'] else ''}"
+        label = f" ({r['label']})" if r["label"] else ""
         if r["already"]:
-            print(f"{what} was already revoked on {_when(r['revoked_at'])}; nothing changed")
+            print(_say(args.lang, "cli.token_already_revoked", id=r["id"], clinic=r["clinic"], label=label,
+                       when=_when(r["revoked_at"])))
         else:
-            print(f"{what} revoked: the API now answers 401 to it")
+            print(_say(args.lang, "cli.token_revoked", id=r["id"], clinic=r["clinic"], label=label))
     elif args.command == "users" and args.action == "deactivate":
         closed = deactivate_user(None, email=args.email, clinic=args.clinic)
         print(f"user {args.email.strip().lower()} deactivated: logins refused, {closed} browser session(s) closed")

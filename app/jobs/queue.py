@@ -35,10 +35,12 @@ log = logging.getLogger("chakamo.jobs")
 
 
 class NotReady(Conflict):
-    """The session's files do not pass the ingestion check; ``reason`` is the check's sentence (or None)."""
+    """The session's files do not pass the ingestion check; ``reason`` is the check's stored message (its code,
+    params and English text: :func:`app.pipeline.service_messages.item`, rendered in the reader's language; a
+    plain sentence for a check stored before codes were), or None."""
 
-    def __init__(self, reason: str | None) -> None:
-        super().__init__(code="store.not_ready", reason=reason or "no recordings yet")
+    def __init__(self, reason: dict | str | None) -> None:
+        super().__init__(code="store.not_ready", reason=reason or {"code": "session.no_files_yet", "params": {}})
         self.reason = reason
 
 
@@ -66,14 +68,15 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
     or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check).  ``side``:
     the side the clinician chose over the files' (:attr:`app.pipeline.session.ProcessOptions.side`), or None;
     ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's); ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``."""
-    what = "process it again"
+    what = "process"
     session = clinic_session(db, clinic_id, session_id)
     refuse_while_processing(db, session.id, what)
     checker.ensure_fresh(db, session)
     session = clinic_session(db, clinic_id, session_id, lock=True)
     refuse_while_processing(db, session.id, what)
     if not ready(session):
-        raise NotReady(session.ingestion.get("error") if ingestion_fresh(session) else None)
+        stored = session.ingestion if ingestion_fresh(session) else {}
+        raise NotReady(stored.get("error_item") or stored.get("error"))
     if unless_current and (done := current_analysis(db, session, filter_name, lang)) is not None:
         raise UpToDate(done)
     job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, heading=heading, side=side,

@@ -30,6 +30,7 @@ from sqlalchemy import select
 
 from app.choices import FILTER_NAMES
 from app.jobs.queue import NotReady, UpToDate, enqueue
+from app.pipeline.service_messages import render_item
 from app.settings import Settings
 from app.store.blobs import open_storage
 from app.store.checks import IngestionChecker
@@ -78,7 +79,7 @@ def _queue_one(db: Database, checker: IngestionChecker, session_id: int, filter_
     except Busy as busy:  # also one queued by the API at the same moment: that one stands
         return Outcome(**base, status="busy", job_id=busy.job_id, note=f"job {busy.job_id} is queued or running")
     except NotReady as not_ready:
-        return Outcome(**base, status="not ready", note=str(not_ready.reason or "files not checked"))
+        return Outcome(**base, status="not ready", note=render_item(not_ready.reason or "files not checked"))
     except UpToDate as current:
         return Outcome(**base, status="current", note=str(current))
 

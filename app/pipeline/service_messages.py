@@ -258,6 +258,21 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "Session {session_id} is being processed (job {job_id}); {what} when that job has finished.",
         "es": "La sesión {session_id} se está procesando (trabajo {job_id}); {what} cuando ese trabajo haya terminado.",
         "pt": "A sessão {session_id} está sendo processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
+    # what the clinician may do once the job has finished ({what} of store.busy)
+    "store.then.process": {"en": "process it again", "es": "procésela de nuevo", "pt": "processe-a de novo"},
+    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os arquivos"},
+    "store.then.correct": {"en": "correct it", "es": "corríjala", "pt": "corrija-a"},
+    "store.then.delete": {"en": "delete it", "es": "bórrela", "pt": "apague-a"},
+    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague arquivos"},
+    "store.then.move_cuts": {"en": "move the cuts", "es": "mueva los cortes", "pt": "mova os cortes"},
+    "store.then.correct_patient": {"en": "correct the patient", "es": "corrija el paciente",
+                                   "pt": "corrija o paciente"},
+    "store.then.delete_patient": {"en": "delete the patient", "es": "borre el paciente", "pt": "apague o paciente"},
+    # {tail} of store.superseded when the superseded analysis can be asked for by id
+    "store.superseded_tail": {
+        "en": ", or ask for analysis_id={analysis_id} to see the superseded report",
+        "es": ", o pida analysis_id={analysis_id} para ver el informe reemplazado",
+        "pt": ", ou peça analysis_id={analysis_id} para ver o relatório substituído"},
     "store.changed_meanwhile": {
         "en": "{kind} {row_id} was changed by someone else meanwhile (it is now version {version}, you sent {expected}); reload it and try again.",
         "es": "{kind} {row_id} fue cambiado por otra persona mientras tanto (ahora es la versión {version}, usted envió {expected}); recárguelo e inténtelo de nuevo.",
@@ -326,6 +341,31 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "The session's recordings are not ready to process: {reason}",
         "es": "Las grabaciones de la sesión no están listas para procesar: {reason}",
         "pt": "As gravações da sessão não estão prontas para processar: {reason}"},
+    "request.if_match_required": {
+        "en": "This deletion erases the record and everything under it for good; send 'If-Match' with the version "
+              "you saw (the ETag of its GET) or '*' to confirm.",
+        "es": "Esta eliminación borra el registro y todo lo que contiene para siempre; envíe 'If-Match' con la "
+              "versión que vio (la ETag de su GET) o '*' para confirmar.",
+        "pt": "Esta exclusão apaga o registro e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
+              "que viu (a ETag do seu GET) ou '*' para confirmar."},
+    "request.if_match_unreadable": {
+        "en": "If-Match {value!r} is not a version; send the ETag of the GET, e.g. \"3\".",
+        "es": "If-Match {value!r} no es una versión; envíe la ETag del GET, p. ej. \"3\".",
+        "pt": "If-Match {value!r} não é uma versão; envie a ETag do GET, p. ex. \"3\"."},
+    "request.fhir_not_exportable": {
+        "en": "Session {session_id} cannot be exported to FHIR ({reason}); correct the record and try again, or "
+              "tell your ChakaMo administrator.",
+        "es": "La sesión {session_id} no se puede exportar a FHIR ({reason}); corrija el registro y vuelva a "
+              "intentarlo, o avise a su administrador de ChakaMo.",
+        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registro e tente de "
+              "novo, ou avise o seu administrador do ChakaMo."},
+    "request.events_other_clinic": {
+        "en": "This event stream was opened for another clinic than the one you are now logged in to; open it "
+              "again.",
+        "es": "Este flujo de eventos se abrió para otra clínica que aquella en la que ha iniciado sesión ahora; "
+              "ábralo de nuevo.",
+        "pt": "Este fluxo de eventos foi aberto para outra clínica que aquela em que iniciou sessão agora; "
+              "abra-o de novo."},
     "store.up_to_date": {
         "en": "analysis {analysis_id} (pipeline {version})",
         "es": "análisis {analysis_id} (pipeline {version})",

@@ -24,7 +24,7 @@ class SupersededResults(Conflict):
     """The session's latest analysis was computed from recordings or facts that have changed since."""
 
     def __init__(self, session_id: int, analysis: Analysis, readable_by_id: bool = True) -> None:
-        tail = (f", or ask for analysis_id={analysis.id} to see the superseded report" if readable_by_id else "")
+        tail = {"code": "store.superseded_tail", "params": {"analysis_id": analysis.id}} if readable_by_id else ""
         super().__init__(code="store.superseded", session_id=session_id, analysis_id=analysis.id,
                          when=f"{analysis.superseded_at:%Y-%m-%d %H:%M}", tail=tail)
         self.analysis_id = analysis.id

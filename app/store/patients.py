@@ -147,7 +147,7 @@ def correct_patient(db: Session, clinic_id: int, patient_id: int, values: dict[s
     changed = [k for k, v in values.items() if getattr(patient, k) != v]
     if not changed:
         return patient, [], 0
-    session_ids = _refuse_while_any_processing(db, patient.id, "correct the patient")
+    session_ids = _refuse_while_any_processing(db, patient.id, "correct_patient")
     if "external_id" in changed:
         other = db.scalar(select(Patient.id).where(Patient.clinic_id == clinic_id,
                                                    Patient.external_id == values["external_id"],
@@ -176,7 +176,7 @@ def delete_patient(db: Session, clinic_id: int, patient_id: int,
     blobs they named)``."""
     patient = _lock_patient(db, clinic_id, patient_id)
     check_version("Patient", patient.id, patient.version, expected_version)
-    session_ids = _refuse_while_any_processing(db, patient.id, "delete the patient")
+    session_ids = _refuse_while_any_processing(db, patient.id, "delete_patient")
     shas = session_blobs(db, session_ids)
     delete_sessions(db, session_ids)
     db.execute(delete(Patient).where(Patient.id == patient.id))

@@ -61,7 +61,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
     if dupes:
         raise Invalid(code="store.sent_twice", names=", ".join(dupes))
     session = clinic_session(db, clinic_id, session_id, lock=True)
-    refuse_while_processing(db, session.id, "upload the files")
+    refuse_while_processing(db, session.id, "upload")
     have = set(db.scalars(select(Recording.file_name).where(Recording.session_id == session.id)))
     clash = sorted(have & set(names))
     if clash:
@@ -81,7 +81,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
         db.flush()
     except IntegrityError:  # another upload stored the same file name meanwhile
         raise Conflict(code="store.upload_raced", names=", ".join(names)) from None
-    refuse_while_processing(db, session.id, "upload the files")  # a job queued meanwhile (SQLite) wins
+    refuse_while_processing(db, session.id, "upload")  # a job queued meanwhile (SQLite) wins
     return session, rows
 
 
@@ -93,13 +93,13 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
     rec = db.get(Recording, recording_id)
     if rec is None or rec.session_id != session.id:
         raise NotFound(code="store.no_recording", recording_id=recording_id, session_id=session_id)
-    refuse_while_processing(db, session.id, "delete files")
+    refuse_while_processing(db, session.id, "delete_files")
     sha = rec.sha256
     db.delete(rec)
     session.files_version = KneeSession.files_version + 1
     n_superseded = supersede(db, [session.id])
     db.flush()
-    refuse_while_processing(db, session.id, "delete files")
+    refuse_while_processing(db, session.id, "delete_files")
     return session, sha, n_superseded
 
 
@@ -117,12 +117,12 @@ def set_split(db: Session, clinic_id: int, session_id: int, split: dict | None) 
         except IngestionError as exc:
             raise Invalid(code=exc.code, **exc.params) from None
     session = clinic_session(db, clinic_id, session_id, lock=True)
-    refuse_while_processing(db, session.id, "move the cuts")
+    refuse_while_processing(db, session.id, "move_cuts")
     session.split = split or None
     session.files_version = KneeSession.files_version + 1
     n_superseded = supersede(db, [session.id])
     db.flush()
-    refuse_while_processing(db, session.id, "move the cuts")
+    refuse_while_processing(db, session.id, "move_cuts")
     return session, n_superseded
 
 

@@ -46,7 +46,7 @@ class Busy(Conflict):
     """A job of the session is queued or running (``job_id``): its files must not change under it."""
 
     def __init__(self, session_id: int, job_id: int, what: str) -> None:
-        super().__init__(code="store.busy", session_id=session_id, job_id=job_id, what=what)
+        super().__init__(code="store.busy", session_id=session_id, job_id=job_id, what={"code": f"store.then.{what}"})
         self.session_id, self.job_id = session_id, job_id
 
 
@@ -73,7 +73,8 @@ def active_job_id(db: Session, session_id: int, other_than: int | None = None) -
 
 def refuse_while_processing(db: Session, session_id: int, what: str) -> None:
     """:class:`Busy` when a job of session ``session_id`` is queued or running; ``what`` completes its
-    sentence ("… ; upload the files when that job has finished")."""
+    sentence ("… ; upload the files when that job has finished"): the key of a ``store.then.*`` entry of
+    :data:`app.pipeline.service_messages.CATALOGUE` (``"upload"``), rendered in the reader's language."""
     job_id = active_job_id(db, session_id)
     if job_id is not None:
         raise Busy(session_id, job_id, what)
@@ -221,7 +222,7 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
         raise Invalid(code="store.unknown_task", task=str(values["task"]), allowed=", ".join(TASK_NAMES))
     session = clinic_session(db, clinic_id, session_id, lock=True)
     check_version("Session", session.id, session.version, expected_version)
-    refuse_while_processing(db, session.id, "correct it")
+    refuse_while_processing(db, session.id, "correct")
     changed = [k for k, v in values.items() if getattr(session, k) != v]
     n_superseded = 0
     if changed:
@@ -242,7 +243,7 @@ def delete_session(db: Session, clinic_id: int, session_id: int,
     blobs they named)`` for :func:`app.store.erasure.mark` (module docstring)."""
     session = clinic_session(db, clinic_id, session_id, lock=True)
     check_version("Session", session.id, session.version, expected_version)
-    refuse_while_processing(db, session.id, "delete it")
+    refuse_while_processing(db, session.id, "delete")
     patient_id = session.patient_id
     shas = session_blobs(db, [session.id])
     delete_sessions(db, [session.id])

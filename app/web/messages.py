@@ -78,6 +78,48 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "El servidor está ocupado comprobando contraseñas; vuelva a intentarlo en un momento (no se ha cambiado "
               "nada).",
         "pt": "O servidor está ocupado a verificar senhas; tente de novo dentro de momentos (nada foi alterado)."},
+    # ``chakamo tokens`` (app/cli/admin.py), in --lang
+    "cli.token_created": {
+        "en": "API token for {clinic!r} ({details}). It is shown only now: store it in the hospital system; send it "
+              "as 'Authorization: Bearer <token>'.",
+        "es": "Token de API para {clinic!r} ({details}). Solo se muestra ahora: guárdelo en el sistema del hospital; "
+              "envíelo como 'Authorization: Bearer <token>'.",
+        "pt": "Token de API para {clinic!r} ({details}). Só é mostrado agora: guarde-o no sistema do hospital; "
+              "envie-o como 'Authorization: Bearer <token>'."},
+    "cli.token_scopes": {"en": "scopes {scopes}", "es": "ámbitos {scopes}", "pt": "âmbitos {scopes}"},
+    "cli.token_expires": {"en": "expires in {days:g} days", "es": "caduca en {days:g} días",
+                          "pt": "expira em {days:g} dias"},
+    "cli.token_rotated": {
+        "en": "API token {new_id} of {clinic!r} replaces token {id}, which ends {ends}. The new token is shown only "
+              "now:",
+        "es": "El token de API {new_id} de {clinic!r} sustituye al token {id}, que termina el {ends}. El token nuevo "
+              "solo se muestra ahora:",
+        "pt": "O token de API {new_id} de {clinic!r} substitui o token {id}, que termina em {ends}. O token novo só "
+              "é mostrado agora:"},
+    "cli.tokens_none": {
+        "en": "no API tokens in {clinic!r}; create one with `chakamo tokens create`",
+        "es": "no hay tokens de API en {clinic!r}; cree uno con `chakamo tokens create`",
+        "pt": "não há tokens de API em {clinic!r}; crie um com `chakamo tokens create`"},
+    #: the columns of ``chakamo tokens list`` (and the word for "every scope"), separated by "|"
+    "cli.tokens_columns": {"en": "id|role|created|revoked|expires|scopes|label|all",
+                           "es": "id|rol|creado|revocado|caduca|ámbitos|etiqueta|todos",
+                           "pt": "id|papel|criado|revogado|expira|âmbitos|rótulo|todos"},
+    "cli.token_revoked": {
+        "en": "API token {id} of {clinic!r}{label} revoked: the API now answers 401 to it",
+        "es": "Token de API {id} de {clinic!r}{label} revocado: la API ahora le responde 401",
+        "pt": "Token de API {id} de {clinic!r}{label} revogado: a API agora responde 401 a ele"},
+    "cli.token_already_revoked": {
+        "en": "API token {id} of {clinic!r}{label} was already revoked on {when}; nothing changed",
+        "es": "El token de API {id} de {clinic!r}{label} ya se revocó el {when}; no se ha cambiado nada",
+        "pt": "O token de API {id} de {clinic!r}{label} já foi revogado em {when}; nada foi alterado"},
+    "cli.token_unknown": {
+        "en": "no API token with id {id}; see the ids with `chakamo tokens list --clinic NAME`",
+        "es": "no hay ningún token de API con id {id}; vea los ids con `chakamo tokens list --clinic NOMBRE`",
+        "pt": "não há nenhum token de API com id {id}; veja os ids com `chakamo tokens list --clinic NOME`"},
+    "cli.clinic_unknown": {
+        "en": "no clinic named {name!r} (known: {known}); create it with `chakamo clinics create`",
+        "es": "no hay ninguna clínica llamada {name!r} (conocidas: {known}); créela con `chakamo clinics create`",
+        "pt": "não há nenhuma clínica chamada {name!r} (conhecidas: {known}); crie-a com `chakamo clinics create`"},
     "account.browser_only": {
         "en": "This needs a browser login (an API token has no password or sessions); log in with your email.",
         "es": "Esto requiere iniciar sesión en el navegador (un token de API no tiene contraseña ni sesiones); inicie "

@@ -18,9 +18,10 @@ from __future__ import annotations
 import logging
 import re
 
-from fastapi import HTTPException, Request
+from fastapi import Request
 
 from app.store.erasure import erase_pending
+from app.web.messages import refusal
 
 log = logging.getLogger("chakamo.erasure")
 
@@ -45,14 +46,13 @@ def if_match(request: Request, required: bool) -> int | None:
     raw = request.headers.get("if-match")
     if raw is None or not raw.strip():
         if required:
-            raise HTTPException(428, "This deletion erases the record and everything under it for good; send "
-                                     "'If-Match' with the version you saw (the ETag of its GET) or '*' to confirm.")
+            raise refusal(request, 428, "request.if_match_required")
         return None
     if raw.strip() == "*":
         return None
     m = _TAG.match(raw)
     if m is None:
-        raise HTTPException(400, f"If-Match {raw[:40]!r} is not a version; send the ETag of the GET, e.g. \"3\".")
+        raise refusal(request, 400, "request.if_match_unreadable", value=raw[:40])
     return int(m.group(1))
 
 

@@ -47,6 +47,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, TypeVar
 
 from app.choices import USER_ROLE_NAMES
+from app.web.messages import render
 from app.web.passwords import MIN_PASSWORD_LENGTH, check_password_strength
 
 if TYPE_CHECKING:
@@ -72,7 +73,17 @@ _T = TypeVar("_T")
 
 
 class Busy(RuntimeError):
-    """Too many password checks at once; the caller should try again shortly."""
+    """Too many password checks at once; the caller should try again shortly.  ``str()`` is the English of
+    :data:`code` (``password.busy`` of :data:`app.web.messages.CATALOGUE`), :meth:`message` any language: the
+    routes answer it as that refusal (503, in the request's language)."""
+
+    code = "password.busy"
+
+    def __str__(self) -> str:
+        return self.message("en")
+
+    def message(self, lang: str) -> str:
+        return render(self.code, lang)
 
 
 def hashes_admitted() -> int:
@@ -90,7 +101,7 @@ def _submit(work: Callable[..., _T], *args) -> Future:
     global _admitted
     with _admitted_lock:
         if _admitted >= HASH_CONCURRENCY + HASH_QUEUE:
-            raise Busy("the server is busy checking passwords; try again in a moment")
+            raise Busy()
         _admitted += 1
 
     def run():

@@ -121,12 +121,10 @@ def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_
 
 
 def _unwrapped(target_rad: FloatArray, used: BoolArray) -> FloatArray:
-    """The target unwrapped over the used samples (zero elsewhere)."""
-    x = target_rad[used]
-    step = np.diff(x)
-    step -= (2.0 * math.pi) * np.round(step / (2.0 * math.pi))
+    """The target unwrapped (``np.unwrap``: each step between used samples taken into (−π, π]) over the used
+    samples, zero elsewhere."""
     unwrapped = np.zeros(target_rad.shape[0])
-    unwrapped[used] = x[0] + np.concatenate([[0.0], np.cumsum(step)])
+    unwrapped[used] = np.unwrap(target_rad[used])
     return unwrapped
 
 

@@ -18,12 +18,13 @@ Size caps (issue 16, finding 4: a 70 kB crafted workbook unpacked to 18 MB of id
 10–30 s of CPU; the cost of reading grows with rows and cells, about 0.1 ms a row measured here).  An .xlsx
 is a zip archive: before any part is parsed, the archive's directory is read (:func:`check_archive`) and a
 part that would unpack beyond :data:`MAX_SHEET_MB` (a worksheet) or :data:`MAX_PART_MB` (anything else:
-shared strings and styles are parsed whole when the workbook opens), more than :data:`MAX_PARTS` parts or
+the shared strings are parsed whole when a cell needs them), more than :data:`MAX_PARTS` parts or
 more than :data:`MAX_UNPACKED_MB` in all is refused.  ``ZipInfo.file_size`` is a declaration, but Python's
 reader never returns more bytes than it (and checks the CRC at the end), so a lying archive is bounded too.
-Then each worksheet's XML is streamed once through a tag count (:func:`check_sheets`, ~0.03 s a MB:
+Then each sheet's XML is streamed once through a tag count (:func:`open_workbook`, ~0.03 s a MB:
 decompression and :func:`.xlsx_cells.count_tags`, no XML tree, stopped at the caps), and more than :data:`MAX_ROWS`
-rows or :data:`MAX_CELLS` cells is refused before the sheets are parsed; the parse itself is bounded by the
+rows or :data:`MAX_CELLS` cells is refused before the sheets are parsed; the XML so read is the one parsed (one
+decompression per sheet, and one open workbook for the phyphox sniff, the phyphox reader and this one); the parse itself is bounded by the
 same numbers (``max_row``, and the 13 columns of the layout), so a row number far away (``r="1048576"``, filled
 with empty rows up to ``max_row``) or a cell in column XFD cannot blow it up either.  The worst accepted workbook
 cost ~6 s of CPU with openpyxl; the checks of the web application run in a helper process with a time limit.
@@ -35,6 +36,7 @@ import os
 import re
 import zipfile
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -67,10 +69,6 @@ def _openpyxl():
     except ImportError:  # pragma: no cover - dependency declared in pyproject
         raise IngestionError("xlsx.no_openpyxl") from None
     return openpyxl
-
-
-def _first_row(wb: Workbook, name: str) -> tuple:
-    return next(iter(wb.rows(name, max_row=1, max_col=len(HEADER))), ())
 
 
 def _layout_problem(header: list) -> str | None:
@@ -107,52 +105,73 @@ def check_archive(path: Path) -> None:
         raise IngestionError("xlsx.too_big", file=path, member="(all)", size_mb=total // mb, limit_mb=MAX_UNPACKED_MB)
 
 
-def count_rows_cells(path: Path, member: str, stop_rows: int | None = None, stop_cells: int | None = None,
-                     chunk_bytes: int = 1 << 20) -> tuple[int, int]:
-    """(row tags, cell tags) in the archive's ``member``, streamed in pieces of ``chunk_bytes``; the count stops
-    early once past ``stop_rows`` rows or ``stop_cells`` cells.  Each piece is counted up to its last ``>``
-    and the rest carried over: a start tag cannot hold a ``>`` before its end, so none is cut or counted twice."""
+def count_rows_cells(fh: BinaryIO, stop_rows: int | None = None, stop_cells: int | None = None,
+                     chunk_bytes: int = 1 << 20) -> tuple[int, int, bytes | None]:
+    """(row tags, cell tags, the XML read) of the stream ``fh`` (a worksheet), read in pieces of ``chunk_bytes``;
+    the count stops early once past ``stop_rows`` rows or ``stop_cells`` cells, and the XML is then ``None``.
+    Each piece is counted up to its last ``>`` and the rest carried over: a start tag cannot hold a ``>`` before
+    its end, so none is cut or counted twice."""
     rows = cells = 0
     carry = b""
-    with zipfile.ZipFile(path) as z, z.open(member) as fh:
-        while True:
-            piece = fh.read(chunk_bytes)
-            data = carry + piece
-            cut = data.rfind(b">") + 1 if piece else len(data)
-            rows += count_tags(data, b"row", cut)
-            cells += count_tags(data, b"c", cut)
-            carry = data[cut:]
-            if not piece or (stop_rows is not None and rows > stop_rows) or \
-                    (stop_cells is not None and cells > stop_cells):
-                return rows, cells
+    pieces = []
+    while True:
+        piece = fh.read(chunk_bytes)
+        data = carry + piece
+        cut = data.rfind(b">") + 1 if piece else len(data)
+        rows += count_tags(data, b"row", cut)
+        cells += count_tags(data, b"c", cut)
+        carry = data[cut:]
+        if (stop_rows is not None and rows > stop_rows) or (stop_cells is not None and cells > stop_cells):
+            return rows, cells, None
+        if not piece:
+            return rows, cells, b"".join(pieces)
+        pieces.append(piece)
 
 
-def check_sheets(path: Path) -> None:
-    """Refuse a workbook one of whose worksheets holds too many rows or cells (module docstring), counted in
-    its XML before any sheet is parsed."""
-    with zipfile.ZipFile(path) as z:
-        members = [i.filename for i in z.infolist() if i.filename.startswith("xl/worksheets/")
-                   and i.filename.endswith(".xml")]
-    for member in members:
-        rows, cells = count_rows_cells(path, member, stop_rows=MAX_ROWS + 1, stop_cells=MAX_CELLS)
-        if rows > MAX_ROWS + 1:
-            raise IngestionError("xlsx.too_many_rows", file=path, sheet=member, limit=MAX_ROWS,
-                                 minutes=MAX_ROWS // 6000)
-        if cells > MAX_CELLS:
-            raise IngestionError("xlsx.too_many_cells", file=path, sheet=member, cells=cells, limit=MAX_CELLS)
+def open_workbook(path: str | os.PathLike) -> Workbook:
+    """The workbook at ``path``, open, every sheet checked against the caps (module docstring) before any is parsed.
 
-
-def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple[Stream, Stream, Stream, str]:
-    """Read a thesis workbook → ``(acc, gyr, mag, note)`` in project units; ``note`` says which sheet was used.
-
-    Refused before parsing when beyond the size caps (module docstring)."""
+    The archive's directory first (:func:`check_archive`); then each sheet's XML is streamed once through
+    :func:`count_rows_cells` and, when within the caps, handed to the :class:`.xlsx_cells.Workbook`
+    (:meth:`~.xlsx_cells.Workbook.keep`), which parses it from there: a sheet is decompressed once for the caps
+    and the reading.  The caller closes the workbook (a ``with`` block).  A damaged archive or sheet (zip, XML,
+    deflate stream, CRC) is refused as ``xlsx.cannot_open``."""
     path = Path(path)
     check_archive(path)
-    check_sheets(path)
     try:
         wb = Workbook(path)
-    except Exception as exc:  # zip/xml errors of a damaged file
+    except Exception as exc:  # noqa: BLE001 - zip/xml errors of a damaged file
         raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
+    try:
+        for name in wb.sheetnames:
+            with wb.open_part(name) as fh:
+                rows, cells, xml = count_rows_cells(fh, stop_rows=MAX_ROWS + 1, stop_cells=MAX_CELLS)
+            if rows > MAX_ROWS + 1:
+                raise IngestionError("xlsx.too_many_rows", file=path, sheet=wb.part(name), limit=MAX_ROWS,
+                                     minutes=MAX_ROWS // 6000)
+            if cells > MAX_CELLS:
+                raise IngestionError("xlsx.too_many_cells", file=path, sheet=wb.part(name), cells=cells,
+                                     limit=MAX_CELLS)
+            wb.keep(name, xml)
+    except IngestionError:
+        wb.close()
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged sheet (missing part, deflate stream, CRC)
+        wb.close()
+        raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
+    return wb
+
+
+def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None,
+                     wb: Workbook | None = None) -> tuple[Stream, Stream, Stream, str]:
+    """Read a thesis workbook → ``(acc, gyr, mag, note)`` in project units; ``note`` says which sheet was used.
+
+    ``wb``: the workbook already open (:func:`open_workbook`, by the caller that sniffed it; the caller closes
+    it), else it is opened here.  Refused before parsing when beyond the size caps (module docstring)."""
+    path = Path(path)
+    own = wb is None
+    if own:
+        wb = open_workbook(path)
     try:
         names = wb.sheetnames
         if sheet is not None:
@@ -160,22 +179,24 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None) -> tuple
                 raise IngestionError("xlsx.no_such_sheet", file=path, sheet=sheet, sheets=", ".join(names))
             chosen = sheet
         else:
-            good = [n for n in names if _layout_problem(list(_first_row(wb, n))) is None]
+            good = [n for n in names if _layout_problem(list(wb.header(n, len(HEADER)))) is None]
             if len(good) != 1:
                 detail = ""
                 if not good:
-                    detail = f" (sheet {names[0]!r}: {_layout_problem(list(_first_row(wb, names[0]))) or 'empty'})"
+                    problem = _layout_problem(list(wb.header(names[0], len(HEADER))))
+                    detail = f" (sheet {names[0]!r}: {problem or 'empty'})"
                 raise IngestionError("xlsx.no_layout_sheet" if not good else "xlsx.several_layout_sheets",
                                      file=path, sheets=", ".join(good), detail=detail)
             chosen = good[0]
-        header_row = list(_first_row(wb, chosen))
+        header_row = list(wb.header(chosen, len(HEADER)))
         numbers, others = wb.table(chosen, max_row=MAX_ROWS + 1, max_col=len(HEADER))
     except IngestionError:
         raise
-    except Exception as exc:  # noqa: BLE001 - a damaged sheet (deflate stream, CRC, a cell's bad number)
+    except Exception as exc:  # noqa: BLE001 - a damaged sheet (a cell's bad number, a shared string missing)
         raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
     finally:
-        wb.close()
+        if own:
+            wb.close()
     note = Note.of("sheet_chosen_of", sheet=chosen, sheets=str(names)) if len(names) > 1 else \
         Note.of("sheet_chosen", sheet=chosen)
     if len(numbers) < 2:

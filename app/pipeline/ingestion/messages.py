@@ -1016,12 +1016,20 @@ def placeholders(template: str) -> set[str]:
     return {f for _, f, _, _ in string.Formatter().parse(template) if f}
 
 
-def _fill(value: Any, lang: str) -> Any:
+def _fill(value: Any, lang: str, catalogue: Mapping[str, Mapping[str, str]] | None = None) -> Any:
+    """A parameter as it goes into a sentence in ``lang``: a fragment ``{"code", "params"}`` (or a list of them)
+    is rendered in ``lang`` from ``catalogue`` when it holds the code, else from this table; a stored message
+    (:func:`app.pipeline.service_messages.item`) whose code neither holds keeps its English ``text``."""
     if isinstance(value, Mapping) and "code" in value:
-        return render(value["code"], value.get("params", {}), lang)
+        code = value["code"]
+        if catalogue is not None and code in catalogue:
+            return render(code, value.get("params", {}), lang, catalogue)
+        if code not in CATALOGUE and "text" in value:
+            return value["text"]
+        return render(code, value.get("params", {}), lang)
     if isinstance(value, (list, tuple)) and value and all(isinstance(v, Mapping) and "code" in v for v in value):
         sep = ", " if all(str(v["code"]).startswith("word.") for v in value) else " "
-        return sep.join(render(v["code"], v.get("params", {}), lang) for v in value)
+        return sep.join(_fill(v, lang, catalogue) for v in value)
     if isinstance(value, (list, tuple)) and not value:
         return ""
     return value
@@ -1032,11 +1040,11 @@ def render(code: str, params: Mapping[str, Any], lang: str = "en",
     """The message ``code`` in ``lang`` (``es``/``en``/``pt``; others give English), filled from ``params``.
 
     ``catalogue``: another table of the same shape (the pipeline's, :mod:`app.pipeline.messages`); fragments
-    inside the params are still looked up here.  A missing parameter shows as ``{name}`` rather than failing: a
-    message must never hide the error."""
+    inside the params are looked up there first, then here (:func:`_fill`).  A missing parameter shows as
+    ``{name}`` rather than failing: a message must never hide the error."""
     entry = (CATALOGUE if catalogue is None else catalogue)[code]
     template = entry.get(lang) or entry["en"]
-    values = {k: _fill(v, lang) for k, v in params.items()}
+    values = {k: _fill(v, lang, catalogue) for k, v in params.items()}
     try:
         text = template.format_map(values)
     except (KeyError, ValueError, TypeError, IndexError):

@@ -9,7 +9,7 @@ experiments' ``<export>`` sets):
   export is a ``.zip`` with one ``<set name>.csv`` per export set (``Raw Data.csv``) and ``meta/device.csv``,
   ``meta/time.csv`` (``"event","experiment time","system time","system time text"``: the ``START`` row maps the
   experiment's time 0 to Unix seconds); the "minimal" export is the single ``.csv``.  ``meta/device.csv`` names the
-  phone's model; a serial only when it has a unique-id row (:func:`phyphox_device_id`).
+  phone's model; a serial only when it has a unique-id row (:func:`_device_id`).
 * **Excel** (``.xlsx``): one sheet per export set, the header in row 1, numbers below.
 
 Columns, by name (case-insensitive; each set restarts with its own ``Time (s)``)::
@@ -27,9 +27,11 @@ with g".  Time base: Unix seconds when every file is a zip with ``meta/time.csv`
 seconds from each export's start (``elapsed``: the sensors taken to start together).  Units are converted once,
 here (:mod:`.units`); Android's and iOS's phyphox both give the specific force with +9.81 on the up axis.
 
-Size caps (the thesis workbook's, issue 16 finding 4, and a zip bomb's).  An ``.xlsx`` goes through
-:func:`.excel.check_archive` and :func:`.excel.check_sheets` (the same caps, one definition) before its sheets
-are parsed (:mod:`.xlsx_cells`, the thesis reader's cell reader), in the sniff too: a refusal there is the refusal the thesis reader would give, raised once.  Rows are
+Size caps (the thesis workbook's, issue 16 finding 4, and a zip bomb's).  An ``.xlsx`` is opened by
+:func:`.excel.open_workbook` (the same caps, one definition) before its sheets are parsed (:mod:`.xlsx_cells`,
+the thesis reader's cell reader), in the sniff too: a refusal there is the refusal the thesis reader would give,
+raised once.  :func:`.session.read_recording` opens a workbook once and hands it to the sniff and to the reader
+(phyphox's or the thesis'), so its sheets are checked and decompressed once.  Rows are
 read up to :data:`.excel.MAX_ROWS` and :data:`MAX_COLUMNS` columns.  A zip member is refused when its declared
 size passes :data:`MAX_MEMBER_MB`, the members read when they pass :data:`MAX_ZIP_MB` in all, the archive when
 it lists more than :data:`MAX_MEMBERS` entries; a member is read in pieces that stop at its cap, so a declared
@@ -69,7 +71,7 @@ MAX_MEMBERS = 64
 MAX_COLUMNS = 64
 _MB = 1024 * 1024
 
-__all__ = ["looks_like_phyphox", "read_phyphox", "write_phyphox"]
+__all__ = ["looks_like_phyphox", "read_phyphox", "workbook_is_phyphox", "write_phyphox"]
 
 
 def _header_kinds(header: Sequence) -> bool:
@@ -93,9 +95,14 @@ def _tables_zip(z: zipfile.ZipFile) -> list[str]:
             and not n.endswith("/")]
 
 
-def looks_like_phyphox(path: Path) -> bool:
+def workbook_is_phyphox(wb: Workbook) -> bool:
+    """Some sheet of the open workbook ``wb`` has a phyphox header (row 1)."""
+    return any(_header_kinds(wb.header(n, MAX_COLUMNS)) for n in wb.sheetnames)
+
+
+def looks_like_phyphox(path: Path, wb: Workbook | None = None) -> bool:
     """A phyphox export by content: a CSV (or a zip's CSV, or an .xlsx sheet) whose header has ``Time (s)`` and
-    phyphox's sensor column names."""
+    phyphox's sensor column names.  ``wb``: an ``.xlsx`` already open (:func:`.excel.open_workbook`)."""
     suffix = path.suffix.lower()
     try:
         if suffix in (".csv", ".txt"):
@@ -108,16 +115,15 @@ def looks_like_phyphox(path: Path) -> bool:
                         return fh.read(4096).decode("utf-8-sig", "replace")
                 return any(_header_kinds(_first_line(head(n))) for n in _tables_zip(z)[:8])
         if suffix == ".xlsx":
+            if wb is not None:
+                return workbook_is_phyphox(wb)
             try:
-                excel.check_archive(path)  # the caps before openpyxl (module docstring): refused, not sniffed
-                excel.check_sheets(path)
+                with excel.open_workbook(path) as book:  # the caps before any sheet is parsed (module docstring)
+                    return workbook_is_phyphox(book)
             except IngestionError as exc:
                 if exc.code == "xlsx.cannot_open":
                     return False
                 raise
-            with Workbook(path) as wb:
-                return any(_header_kinds(next(iter(wb.rows(n, max_row=1, max_col=MAX_COLUMNS)), ()))
-                           for n in wb.sheetnames)
     except IngestionError:
         raise
     except Exception:  # noqa: BLE001 - sniffing: anything unreadable is simply not phyphox
@@ -143,36 +149,23 @@ def _csv_table(path: Path, text: str, where: str, notes: list) -> tuple[list[str
     return header, table
 
 
-def _xlsx_tables(path: Path) -> list[tuple[str, list[str], np.ndarray]]:
-    excel.check_archive(path)  # the thesis workbook's caps, before any sheet is parsed (module docstring)
-    try:
-        excel.check_sheets(path)
-    except IngestionError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - a damaged sheet's deflate stream or CRC
-        raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
-    try:
-        wb = Workbook(path)
-    except Exception as exc:  # noqa: BLE001 - any damage of the workbook
-        raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
+def _xlsx_tables(path: Path, wb: Workbook) -> list[tuple[str, list[str], np.ndarray]]:
+    """``[(sheet, header, table)]`` of the open workbook's sheets with a phyphox header."""
     out = []
-    try:
-        for name in wb.sheetnames:
-            try:
-                first = next(iter(wb.rows(name, max_row=1, max_col=MAX_COLUMNS)), ())
-                if not _header_kinds(first):
-                    continue
-                numbers, others = wb.table(name, max_row=excel.MAX_ROWS + 1, max_col=MAX_COLUMNS)
-            except Exception as exc:  # noqa: BLE001 - a damaged sheet (deflate stream, CRC, a bad number)
-                raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
-            header = ["" if c is None else str(c) for c in first]
-            table = numbers[1:, :len(header)]
-            for (i, j), v in sorted(others.items()):
-                if i > 0 and j < len(header) and v not in ("", "NaN"):
-                    raise IngestionError("cell.not_number", file=path, row=i + 1, column=header[j], cell=str(v)[:40])
-            out.append((name, header, table))
-    finally:
-        wb.close()
+    for name in wb.sheetnames:
+        try:
+            first = wb.header(name, MAX_COLUMNS)
+            if not _header_kinds(first):
+                continue
+            numbers, others = wb.table(name, max_row=excel.MAX_ROWS + 1, max_col=MAX_COLUMNS)
+        except Exception as exc:  # noqa: BLE001 - a damaged sheet (a bad number, a shared string missing)
+            raise IngestionError("file.unreadable", file=path, reason=str(exc)[:120]) from None
+        header = ["" if c is None else str(c) for c in first]
+        table = numbers[1:, :len(header)]
+        for (i, j), v in sorted(others.items()):
+            if i > 0 and j < len(header) and v not in ("", "NaN"):
+                raise IngestionError("cell.not_number", file=path, row=i + 1, column=header[j], cell=str(v)[:40])
+        out.append((name, header, table))
     return out
 
 
@@ -233,40 +226,35 @@ def _epoch_offset(path: Path, z: zipfile.ZipFile) -> float | None:
 _DEVICE_ID_KEYS = ("uniqueid", "deviceid", "serial", "serialnumber")
 
 
-def phyphox_device_id(paths: Sequence[str | os.PathLike]) -> str | None:
-    """The phone's own identifier from the zips' ``meta/device.csv`` (``"property","value"`` rows), or None.
+def _device_id(path: Path, z: zipfile.ZipFile) -> str | None:
+    """The phone's own identifier from the open zip's ``meta/device.csv`` (``"property","value"`` rows), or None.
 
     Only a property naming one device counts (:data:`_DEVICE_ID_KEYS`): the ``deviceModel`` / ``deviceBrand`` rows
     every export carries name a model, which two phones of a clinic may share, so they are never taken for a
-    serial (the same-sensor check would then call two phones one).  Every zip must give the same id."""
-    ids = set()
-    for p in map(Path, paths):
-        if p.suffix.lower() != ".zip":
-            return None
-        try:
-            with zipfile.ZipFile(p) as z:
-                text = read_member(p, z, "meta/device.csv").decode("utf-8-sig", "replace")
-        except (KeyError, zipfile.BadZipFile, OSError):
-            return None
-        lines = [ln for ln in text.splitlines() if ln.strip()]
-        sep = "\t" if lines and "\t" in lines[0] else ";" if lines and ";" in lines[0] else ","
-        found = None
-        for ln in lines[1:]:
-            cells = [c.strip().strip('"') for c in ln.split(sep)]
-            if len(cells) >= 2 and cells[0].lower().replace(" ", "").replace("_", "") in _DEVICE_ID_KEYS and cells[1]:
-                found = cells[1][:64]
-                break
-        if found is None:
-            return None
-        ids.add(found)
-    return ids.pop() if len(ids) == 1 else None
+    serial (the same-sensor check would then call two phones one)."""
+    try:
+        text = read_member(path, z, "meta/device.csv").decode("utf-8-sig", "replace")
+    except (KeyError, zipfile.BadZipFile, OSError):
+        return None
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    sep = "\t" if lines and "\t" in lines[0] else ";" if lines and ";" in lines[0] else ","
+    for ln in lines[1:]:
+        cells = [c.strip().strip('"') for c in ln.split(sep)]
+        if len(cells) >= 2 and cells[0].lower().replace(" ", "").replace("_", "") in _DEVICE_ID_KEYS and cells[1]:
+            return cells[1][:64]
+    return None
 
 
-def _tables(path: Path, notes: list) -> tuple[list[tuple[str, list[str], np.ndarray]], float | None]:
-    """``([(where, header, table)], epoch offset or None)`` of one export file."""
+def _tables(path: Path, notes: list, wb: Workbook | None = None
+            ) -> tuple[list[tuple[str, list[str], np.ndarray]], float | None, str | None]:
+    """``([(where, header, table)], epoch offset or None, the phone's id or None)`` of one export file; ``wb`` the
+    file's workbook when it is an ``.xlsx`` opened by the caller."""
     suffix = path.suffix.lower()
     if suffix == ".xlsx":
-        return _xlsx_tables(path), None
+        if wb is not None:
+            return _xlsx_tables(path, wb), None, None
+        with excel.open_workbook(path) as book:
+            return _xlsx_tables(path, book), None, None
     if suffix == ".zip":
         try:
             z = zipfile.ZipFile(path)
@@ -284,9 +272,9 @@ def _tables(path: Path, notes: list) -> tuple[list[tuple[str, list[str], np.ndar
                                          reason=str(exc)[:120]) from None
                 if _header_kinds(_first_line(text)):
                     out.append((f"{path.name}/{member}", *_csv_table(path, text, f"{path.name}/{member}", notes)))
-            return out, _epoch_offset(path, z)
+            return out, _epoch_offset(path, z), _device_id(path, z)
     from app.pipeline.ingestion.tables import read_text
-    return [(path.name, *_csv_table(path, read_text(path), path.name, notes))], None
+    return [(path.name, *_csv_table(path, read_text(path), path.name, notes))], None, None
 
 
 def _streams_of(path: Path, where: str, header: list[str], table: np.ndarray) -> dict[str, tuple]:
@@ -332,16 +320,24 @@ def _streams_of(path: Path, where: str, header: list[str], table: np.ndarray) ->
     return out
 
 
-def read_phyphox(paths: Sequence[str | os.PathLike]) -> tuple[Stream, Stream, Stream]:
+def read_phyphox(paths: Sequence[str | os.PathLike], workbooks: dict[Path, Workbook] | None = None
+                 ) -> tuple[Stream, Stream, Stream, str | None]:
     """Read one recording from phyphox exports (one file with the three sensors, or one file per sensor)
-    → ``(acc m/s², gyr rad/s, mag µT)`` (module docstring)."""
+    → ``(acc m/s², gyr rad/s, mag µT, the phone's id or None)`` (module docstring).
+
+    ``workbooks``: the ``.xlsx`` files among ``paths`` already open (:func:`.excel.open_workbook`), by path.
+    The phone's id is the ``meta/device.csv`` unique-id row of the zips (:func:`_device_id`), when every file is
+    a zip and all give the same one."""
     paths = [Path(p) for p in paths]
+    workbooks = workbooks or {}
     notes: list = []
     found: dict[str, tuple] = {}
     offsets = []
+    ids = []
     for p in paths:
-        tables, offset = _tables(p, notes)
+        tables, offset, device = _tables(p, notes, workbooks.get(p))
         offsets.append(offset)
+        ids.append(device)
         for where, header, table in tables:
             for kind, s in _streams_of(p, where, header, table).items():
                 if kind in found:
@@ -361,7 +357,8 @@ def read_phyphox(paths: Sequence[str | os.PathLike]) -> tuple[Stream, Stream, St
         streams.append(Stream(kind=kind, t_s=t, values=v, declared_unit=unit, file=p,
                               time_base="epoch" if epoch else "elapsed",
                               notes=tuple(dict.fromkeys(notes)) if kind == "acc" else ()))
-    return streams[0], streams[1], streams[2]
+    device = ids[0] if ids and ids[0] is not None and len(set(ids)) == 1 else None
+    return streams[0], streams[1], streams[2], device
 
 
 def _java_sci(x: float, decimal: str) -> str:
@@ -383,7 +380,7 @@ def write_phyphox(path: str | os.PathLike, streams: dict, *, layout: str = "zip"
         the minimal export), ``"xlsx"`` (one sheet per set).   separator / decimal : the CSV flavour.
     epoch0_s : Unix seconds of experiment time 0, written to ``meta/time.csv`` (zip layouts).
     old_names : ``Magnetic Field x`` as older app versions spell it.
-    unique_id : a ``uniqueID`` row in ``meta/device.csv`` (:func:`phyphox_device_id`); None: the model only.
+    unique_id : a ``uniqueID`` row in ``meta/device.csv`` (:func:`_device_id`); None: the model only.
     """
     path = Path(path)
     mag = "Magnetic Field" if old_names else "Magnetic field"

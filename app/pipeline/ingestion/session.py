@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from app.pipeline.ingestion.align import align_pair, align_recording, check_rates
-from app.pipeline.ingestion.excel import read_thesis_xlsx
+from app.pipeline.ingestion.excel import open_workbook, read_thesis_xlsx
 from app.pipeline.ingestion.generic import read_generic_csv
 from app.pipeline.ingestion.labels import (AmbiguousLabel, LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
                                   recognise_step_height)
@@ -50,11 +50,12 @@ from app.pipeline.ingestion.model import (ROLES, SEGMENTS, IngestionError, Note,
                                  SessionMetadata)
 from app.pipeline.ingestion.opal import list_sensors, read_opal
 from app.pipeline.ingestion.split import CONTINUOUS, knee_split, left_unsplit, split_session
-from app.pipeline.ingestion.phyphox import phyphox_device_id, looks_like_phyphox, read_phyphox
+from app.pipeline.ingestion.phyphox import looks_like_phyphox, read_phyphox
 from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_sensorlogger
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
 from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
+from app.pipeline.ingestion.xlsx_cells import Workbook
 
 MANIFEST = "session.json"
 #: keys of session.json; the last five are only shown in the reports' patient block, as typed
@@ -90,57 +91,71 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
             raise IngestionError("file.not_found", file=p)
     notes: tuple[str, ...] = ()
     sensor_id = None
-    if all(parse_file_name(p) for p in paths):
-        groups = group_metabase_files(paths)
-        if len(groups) != 1:
-            raise IngestionError("metabase.several_recordings", file=paths[0], count=len(groups),
-                                 labels=", ".join(f"{l} ({t})" for l, _, t in groups) or "-")
-        (label, sensor_id, started), kinds = next(iter(groups.items()))
-        missing = [k for k in ("acc", "gyr", "mag") if k not in kinds]
-        if missing:
-            names = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}
-            raise IngestionError("metabase.stream_missing", file=paths[0].parent, label=label, sensor=sensor_id,
-                                 streams=" / ".join(names[k] for k in missing), hint=hint)
-        streams = [read_metabase_csv(kinds[k], k) for k in ("acc", "gyr", "mag")]
-        acc, gyr, mag = settle_local_time(streams, final=settle)
-        fmt = "metabase"
-        method = "MetaBase label"
-        name = parse_file_name(kinds["acc"])
-        start = start_time(name)
-        facts["started"] = Recognition(start.isoformat(timespec="seconds"), "MetaBase file name",
-                                       name["datetime"])
-        facts["device"] = Recognition(name["device"], "MetaBase file name", name["device"])
-        if name["firmware"]:
-            facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
-    elif all(p.suffix.lower() in (".csv", ".txt", ".zip", ".xlsx") for p in paths) and all(map(looks_like_phyphox, paths)):
-        acc, gyr, mag = read_phyphox(paths)
-        sensor_id = phyphox_device_id(paths)
-        stems = [p.stem for p in paths]
-        label = os.path.commonprefix(stems).strip(" _-") if len(stems) > 1 else stems[0]
-        label, fmt, method = label or stems[0], "phyphox", "file name"
-    elif len(paths) == 1 and paths[0].suffix.lower() == ".xlsx":
-        acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet)
-        rest = {k: v for k, v in note.params.items() if k != "variant"}
-        notes = (Note.of("file_sheet_chosen_of" if "sheets" in rest else "file_sheet_chosen", file=paths[0].name,
-                         **rest),)
-        label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
-    elif len(paths) == 1 and paths[0].suffix.lower() in (".h5", ".hdf5"):
-        acc, gyr, mag, sensor_id, sensor_label = read_opal(paths[0], sensor)
-        label, fmt, method = f"{paths[0].stem} {sensor_label}".strip(), "apdm-opal", "file name"
-    elif len(paths) == 1 and paths[0].suffix.lower() == ".zip":
-        acc, gyr, mag, sensor_id = read_sensorlogger(paths[0])
-        label, fmt, method = paths[0].stem, "sensor-logger", "file name"
-    elif len(paths) == 1 and paths[0].suffix.lower() in (".csv", ".txt"):
-        fmt = sniff(paths[0]) or "generic-csv"
-        if fmt == "xsens":
-            acc, gyr, mag, sensor_id = read_xsens(paths[0])
-        elif fmt == "shimmer":
-            acc, gyr, mag, sensor_id = read_shimmer(paths[0])
+    books: dict[Path, Workbook] = {}
+
+    def book(p: Path) -> Workbook | None:
+        """An ``.xlsx`` opened once (:func:`.excel.open_workbook`: the caps) for the phyphox sniff and the reader."""
+        if p.suffix.lower() != ".xlsx":
+            return None
+        if p not in books:
+            books[p] = open_workbook(p)
+        return books[p]
+
+    try:
+        if all(parse_file_name(p) for p in paths):
+            groups = group_metabase_files(paths)
+            if len(groups) != 1:
+                raise IngestionError("metabase.several_recordings", file=paths[0], count=len(groups),
+                                     labels=", ".join(f"{l} ({t})" for l, _, t in groups) or "-")
+            (label, sensor_id, started), kinds = next(iter(groups.items()))
+            missing = [k for k in ("acc", "gyr", "mag") if k not in kinds]
+            if missing:
+                names = {"acc": "Accelerometer", "gyr": "Gyroscope", "mag": "Magnetometer"}
+                raise IngestionError("metabase.stream_missing", file=paths[0].parent, label=label, sensor=sensor_id,
+                                     streams=" / ".join(names[k] for k in missing), hint=hint)
+            streams = [read_metabase_csv(kinds[k], k) for k in ("acc", "gyr", "mag")]
+            acc, gyr, mag = settle_local_time(streams, final=settle)
+            fmt = "metabase"
+            method = "MetaBase label"
+            name = parse_file_name(kinds["acc"])
+            start = start_time(name)
+            facts["started"] = Recognition(start.isoformat(timespec="seconds"), "MetaBase file name",
+                                           name["datetime"])
+            facts["device"] = Recognition(name["device"], "MetaBase file name", name["device"])
+            if name["firmware"]:
+                facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
+        elif all(p.suffix.lower() in (".csv", ".txt", ".zip", ".xlsx") for p in paths) \
+                and all(looks_like_phyphox(p, book(p)) for p in paths):
+            acc, gyr, mag, sensor_id = read_phyphox(paths, books)
+            stems = [p.stem for p in paths]
+            label = os.path.commonprefix(stems).strip(" _-") if len(stems) > 1 else stems[0]
+            label, fmt, method = label or stems[0], "phyphox", "file name"
+        elif len(paths) == 1 and paths[0].suffix.lower() == ".xlsx":
+            acc, gyr, mag, note = read_thesis_xlsx(paths[0], sheet, book(paths[0]))
+            rest = {k: v for k, v in note.params.items() if k != "variant"}
+            notes = (Note.of("file_sheet_chosen_of" if "sheets" in rest else "file_sheet_chosen", file=paths[0].name,
+                             **rest),)
+            label, fmt, method = paths[0].stem, "thesis-xlsx", "file name"
+        elif len(paths) == 1 and paths[0].suffix.lower() in (".h5", ".hdf5"):
+            acc, gyr, mag, sensor_id, sensor_label = read_opal(paths[0], sensor)
+            label, fmt, method = f"{paths[0].stem} {sensor_label}".strip(), "apdm-opal", "file name"
+        elif len(paths) == 1 and paths[0].suffix.lower() == ".zip":
+            acc, gyr, mag, sensor_id = read_sensorlogger(paths[0])
+            label, fmt, method = paths[0].stem, "sensor-logger", "file name"
+        elif len(paths) == 1 and paths[0].suffix.lower() in (".csv", ".txt"):
+            fmt = sniff(paths[0]) or "generic-csv"
+            if fmt == "xsens":
+                acc, gyr, mag, sensor_id = read_xsens(paths[0])
+            elif fmt == "shimmer":
+                acc, gyr, mag, sensor_id = read_shimmer(paths[0])
+            else:
+                acc, gyr, mag = read_generic_csv(paths[0])
+            label, method = paths[0].stem, "file name"
         else:
-            acc, gyr, mag = read_generic_csv(paths[0])
-        label, method = paths[0].stem, "file name"
-    else:
-        raise IngestionError("recording.bad_file_set", file=paths[0], files=", ".join(p.name for p in paths))
+            raise IngestionError("recording.bad_file_set", file=paths[0], files=", ".join(p.name for p in paths))
+    finally:
+        for wb in books.values():
+            wb.close()
     found = {}
     for name, finder in (("role", recognise_role), ("segment", recognise_segment), ("side", recognise_side),
                          ("step", recognise_step_height)):
@@ -453,13 +468,25 @@ def _read_folder(path: str | os.PathLike):
     return folder, mpath, manifest, entries, _settle_session_clock(raws), notes, ignored
 
 
+def _segment_of(mpath: Path | None, manifest: dict[str, Any], i: int, entry: dict, rec: RawRecording
+                ) -> Recognition | None:
+    """The segment of recording ``rec`` (entry ``i`` of the manifest): ``recordings[i].segment`` of
+    ``session.json``, else the segment ``sensors`` gives its sensor's serial, else the one its name gives."""
+    segment = rec.segment
+    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
+    if rec.sensor_id and rec.sensor_id in sensors:
+        segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
+    if "segment" in entry:
+        segment = _manifest_word(mpath, f"recordings[{i}].segment", entry["segment"], "segment")
+    return segment
+
+
 def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dict], raws: list[RawRecording]
                  ) -> dict[str, list[tuple[int, dict, RawRecording]]] | None:
     """The recordings of each knee, ``{side: [(index, entry, recording)]}``, when the folder holds both knees (both
     sides named, each with a thigh and a shank recording); None for a one-knee folder (files that disagree on the
     side there stay the provenance check's to refuse).  With both sides named, a recording naming none is refused
     (``session.side_unknown``): it cannot be given to either knee."""
-    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     sides: list[str | None] = []
     segs: dict[str, set[str]] = {}
     for i, (e, rec) in enumerate(zip(entries, raws)):
@@ -468,11 +495,7 @@ def _knee_groups(mpath: Path | None, manifest: dict[str, Any], entries: list[dic
             side = recognise_side(str(e["side"]), "session.json")
             if side is None:
                 raise IngestionError("manifest.bad_side", file=mpath, value=str(e["side"])[:60])
-        segment = rec.segment
-        if rec.sensor_id and rec.sensor_id in sensors:
-            segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
-        if "segment" in e:
-            segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
+        segment = _segment_of(mpath, manifest, i, e, rec)
         sides.append(None if side is None else side.value)
         if side is not None and segment is not None:
             segs.setdefault(side.value, set()).add(segment.value)
@@ -491,16 +514,11 @@ def _assemble(folder: Path, mpath: Path | None, manifest: dict[str, Any], picked
               notes: list[str], ignored: list[dict], expected_fs_hz: float | None, roles: Sequence[str],
               required: Sequence[str] | None) -> Session:
     """One knee's :class:`Session` from its recordings as read (``picked``: index in the manifest, entry, recording)."""
-    sensors = {str(k).replace(":", "").upper(): v for k, v in manifest.get("sensors", {}).items()}
     recs: dict[tuple[str, str], RawRecording] = {}
     continuous: dict[str, list[tuple[RawRecording, str]]] = {}
     unrecognised: list[dict] = []
     for i, e, rec in picked:
-        segment, role = rec.segment, rec.role
-        if rec.sensor_id and rec.sensor_id in sensors:
-            segment = _manifest_word(mpath, f"sensors[{rec.sensor_id!r}]", sensors[rec.sensor_id], "segment")
-        if "segment" in e:
-            segment = _manifest_word(mpath, f"recordings[{i}].segment", e["segment"], "segment")
+        segment, role = _segment_of(mpath, manifest, i, e, rec), rec.role
         if "role" in e:
             role = _manifest_word(mpath, f"recordings[{i}].role", e["role"], "role")
         if segment is not None and (role is None or role.value == CONTINUOUS):  # split below (.split)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 
-from fastapi import APIRouter, HTTPException, Query, Request
+from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 
 from app.store import webhooks
@@ -31,6 +31,7 @@ from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.fhir import FhirExportError, capability_statement, diagnostic_report, search_bundle
 from app.web.fhir_push import export_options, report_inputs
 from estimators import __version__
+from app.web.messages import refusal
 from app.web.refusals import Refusal
 
 router = APIRouter(prefix="/fhir", tags=["fhir"])
@@ -70,8 +71,7 @@ def _export(db, store, request: Request, session, analysis) -> dict:
         return diagnostic_report(**report_inputs(db, store, session, analysis), base_url=fhir_base_url(request),
                                  **export_options(settings))
     except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
-        raise HTTPException(409, f"Session {session.id} cannot be exported to FHIR: {exc}; correct the record and "
-                                 "try again.") from None
+        raise refusal(request, 409, "request.fhir_not_exportable", session_id=session.id, reason=str(exc)) from None
 
 
 def _fhir(doc: dict) -> Response:

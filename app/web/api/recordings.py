@@ -223,7 +223,7 @@ def _check_session(request: Request, principal, session_id: int) -> None:
     """404 for another clinic's or an unknown session, 409 while it is being processed (before any byte)."""
     with request.app.state.db.session() as db:
         clinic_session(db, principal.clinic_id, session_id)
-        refuse_while_processing(db, session_id, "upload the files")
+        refuse_while_processing(db, session_id, "upload")
 
 
 def _replayed(db, request: Request, principal, session_id: int, replay: idempotency.Replay) -> Response:

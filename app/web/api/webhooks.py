@@ -37,6 +37,7 @@ from app.web.api.deps import Admin, DbDep, Reader, resolve_principal
 from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.headers import host_allowed
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
+from app.web.messages import refusal
 from app.web.refusals import Refusal
 from app.store.sealed import seal
 
@@ -122,14 +123,17 @@ def _states(request: Request, clinic_id: int, since: dt.datetime) -> list[dict]:
 
 
 def _refused(request: Request, clinic_id: int) -> dict | None:
-    """None while the request's credentials still let it in to ``clinic_id``; else the refusal's body."""
+    """None while the request's credentials still let it in to ``clinic_id``; else the refusal's body (its
+    ``detail`` in the request's language, ``code``, ``params``, ``message`` in es/en/pt)."""
     try:
         with request.app.state.db.session() as db:
             again = resolve_principal(request, db, request.app.state.settings)
+        if again.clinic_id == clinic_id:
+            return None
+        raise refusal(request, 403, "request.events_other_clinic")
     except HTTPException as exc:
         body = exc.body() if isinstance(exc, Refusal) else {"detail": exc.detail}
         return {"status": exc.status_code} | {k: body[k] for k in ("code", "params", "message", "detail") if k in body}
-    return None if again.clinic_id == clinic_id else {"status": 403}
 
 
 @router.get("/events", response_class=StreamingResponse,

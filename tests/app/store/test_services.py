@@ -7,6 +7,8 @@ import datetime as dt
 
 import pytest
 
+from app.pipeline.service_messages import message_dict
+
 
 @pytest.fixture()
 def world(tmp_path):
@@ -91,8 +93,12 @@ def test_enqueue_queues_once_then_refuses_while_busy_and_when_up_to_date(world):
         with pytest.raises(Busy) as busy:
             enqueue(s, ids["a"], ids["session"], filter_name="guo", lang="en", checker=checker)
         assert busy.value.job_id == job.id and "process it again when that job has finished" in str(busy.value)
-        with pytest.raises(Busy, match="upload the files when"):
-            refuse_while_processing(s, ids["session"], "upload the files")
+        with pytest.raises(Busy, match="upload the files when") as upload:
+            refuse_while_processing(s, ids["session"], "upload")
+        for error, es, pt in ((busy.value, "procésela de nuevo cuando", "processe-a de novo quando"),
+                              (upload.value, "suba los archivos cuando", "envie os arquivos quando")):
+            said = message_dict(error.code, error.params)["message"]   # what the API answers, every language
+            assert es in said["es"] and pt in said["pt"] and "process it" not in said["es"] + said["pt"]
         done = s.get(Job, job.id)
         done.status = "done"
         s.add(Analysis(session_id=ids["session"], job_id=job.id, filter="guo", lang="en",
@@ -127,9 +133,51 @@ def test_enqueue_refuses_files_that_are_not_ready_or_not_checked(world):
     with db.session() as s:
         with pytest.raises(NotReady) as stale:
             enqueue(s, ids["a"], ids["session"], filter_name="guo", lang="es", checker=checker)
-        assert stale.value.reason is None and str(stale.value).endswith("no recordings yet")
+        assert stale.value.reason is None and str(stale.value).endswith("No recordings yet; upload the session's files.")
+        said = message_dict(stale.value.code, stale.value.params)["message"]
+        assert said["es"].endswith("Todavía no hay grabaciones; suba los archivos de la sesión.")
+        assert said["pt"].endswith("Ainda não há gravações; envie os arquivos da sessão.")
         with pytest.raises(NotFound):
             enqueue(s, ids["b"], ids["session"], filter_name="guo", lang="es", checker=checker)
+
+
+def test_the_not_ready_refusal_says_the_stored_check_in_the_readers_language(world):
+    """The check stores its refusal as a code and params (``error_item``); the "not ready" refusal carries it and
+    each language renders it (it embedded the English sentence in es and pt)."""
+    from app.jobs.queue import NotReady, enqueue
+    from app.pipeline.ingestion.messages import render as ingestion_render
+    from app.pipeline.service_messages import item
+    from app.store.models import KneeSession
+
+    db, ids, tmp = world
+    checker = _checker(db, tmp)
+    params = {"file": "thigh_task.csv"}
+    stored = item("file.not_found", params, ingestion_render("file.not_found", params, "en"))
+    with db.session() as s:
+        s.get(KneeSession, ids["session"]).ingestion = {"ok": False, "messages": [], "error": stored["text"],
+                                                        "error_item": stored}
+    with db.session() as s:
+        with pytest.raises(NotReady) as bad:
+            enqueue(s, ids["a"], ids["session"], filter_name="guo", lang="es", checker=checker)
+    said = message_dict(bad.value.code, bad.value.params)["message"]
+    assert str(bad.value) == said["en"] == f"The session's recordings are not ready to process: {stored['text']}"
+    for lang in ("es", "pt"):
+        assert said[lang].endswith(ingestion_render("file.not_found", params, lang)) and stored["text"] not in said[lang]
+
+
+def test_superseded_results_say_the_tail_in_the_readers_language():
+    from types import SimpleNamespace
+
+    from app.store.analyses import SupersededResults
+
+    analysis = SimpleNamespace(id=41, superseded_at=dt.datetime(2026, 11, 2, 9, 30))
+    error = SupersededResults(7, analysis)
+    said = message_dict(error.code, error.params)["message"]
+    assert said["en"].endswith("process the session again, or ask for analysis_id=41 to see the superseded report.")
+    assert said["es"].endswith("procese la sesión de nuevo, o pida analysis_id=41 para ver el informe reemplazado.")
+    assert said["pt"].endswith("processe a sessão de novo, ou peça analysis_id=41 para ver o relatório substituído.")
+    plain = SupersededResults(7, analysis, readable_by_id=False)
+    assert message_dict(plain.code, plain.params)["message"]["pt"].endswith("processe a sessão de novo.")
 
 
 def test_session_status_and_shown_check():

@@ -152,10 +152,10 @@ def test_domain_errors_get_their_status_codes_in_one_place():
     from app.web.api.deps import http_error
 
     cases = [(NotFound("No session 3 in your clinic; check the id."), 404), (Conflict("taken"), 409),
-             (Busy(3, 7, "upload the files"), 409), (NotReady("no lying file"), 409), (UpToDate(4), 409),
+             (Busy(3, 7, "upload"), 409), (NotReady("no lying file"), 409), (UpToDate(4), 409),
              (Invalid("a.csv sent twice"), 400), (LimitExceeded("at most 40 files"), 413)]
     for error, status in cases:
         http = http_error(error)
         assert (http.status_code, http.detail) == (status, str(error))
-    assert http_error(Busy(3, 7, "upload the files")).detail == \
+    assert http_error(Busy(3, 7, "upload")).detail == \
         "Session 3 is being processed (job 7); upload the files when that job has finished."

@@ -160,6 +160,14 @@ def test_erasing_a_session_needs_admin_and_if_match_and_removes_every_file(world
     assert c.delete(f"/api/v1/sessions/{sid}", headers=world["b_admin"] | {"If-Match": "*"}).status_code == 404
     r = c.delete(f"/api/v1/sessions/{sid}", headers=adm)
     assert r.status_code == 428 and "If-Match" in r.json()["detail"]
+    for lang, words in (("es", "Esta eliminación borra el registro"), ("pt", "Esta exclusão apaga o registro")):
+        r = c.delete(f"/api/v1/sessions/{sid}", headers=adm | {"Accept-Language": lang})
+        assert r.status_code == 428 and r.json()["code"] == "request.if_match_required"
+        assert r.json()["detail"].startswith(words) and r.json()["message"][lang] == r.json()["detail"]
+    for lang, words in (("es", "If-Match 'v7' no es una versión"), ("pt", "If-Match 'v7' não é uma versão")):
+        r = c.delete(f"/api/v1/sessions/{sid}", headers=adm | {"If-Match": "v7", "Accept-Language": lang})
+        assert r.status_code == 400 and r.json()["code"] == "request.if_match_unreadable"
+        assert r.json()["detail"].startswith(words) and r.json()["params"] == {"value": "v7"}
     assert c.delete(f"/api/v1/sessions/{sid}", headers=adm | {"If-Match": '"7"'}).status_code == 412
     assert _on_disk(world, data)
     version = c.get(f"/api/v1/sessions/{sid}", headers=adm).headers["ETag"]

@@ -76,6 +76,18 @@ def test_configured_export_search_and_metadata(fhir_client, demo_dir):
     assert client.get("/api/v1/fhir/DiagnosticReport", params={"patient": "999999"}, headers=h).status_code == 404
     assert client.get("/api/v1/fhir/DiagnosticReport", params={"patient": "MRN-5"}, headers=h).status_code == 422
 
+    # a configuration the export cannot follow (patients by identifier, no identifier system): 409, in the
+    # reader's language, naming the session and what to do
+    client.app.state.settings = settings.model_copy(update={"patient_identifier_system": None})
+    try:
+        for lang, words in (("es", f"La sesión {sid} no se puede exportar a FHIR"),
+                            ("pt", f"A sessão {sid} não pode ser exportada para FHIR")):
+            r = client.get(f"/api/v1/fhir/DiagnosticReport/{sid}", headers=h | {"Accept-Language": lang})
+            assert r.status_code == 409 and r.json()["code"] == "request.fhir_not_exportable", r.text
+            assert r.json()["detail"].startswith(words) and r.json()["message"][lang] == r.json()["detail"]
+    finally:
+        client.app.state.settings = settings
+
     cap = client.get("/api/v1/fhir/metadata", headers=h).json()
     R4Capability(cap, strict=True)
     R4BCapability.model_validate(cap)

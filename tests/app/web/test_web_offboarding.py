@@ -223,3 +223,40 @@ def test_set_password_keeps_a_deactivated_account_closed(client, settings, user)
     admin_cli.deactivate_user(settings, email=EMAIL)
     assert admin_cli.set_password(settings, email=EMAIL, password=NEW_PASSWORD) == 0
     assert login(client, password=NEW_PASSWORD).status_code == 401
+
+
+@pytest.mark.parametrize("lang, words", [
+    ("es", {"none": "no hay tokens de API en", "created": "Solo se muestra ahora", "header": "creado",
+            "revoked": "revocado: la API ahora le responde 401", "again": "ya se revocó el",
+            "unknown": "no hay ningún token de API con id 999", "clinic": "no hay ninguna clínica llamada 'Nowhere'",
+            "scope": "ámbito desconocido"}),
+    ("pt", {"none": "não há tokens de API em", "created": "Só é mostrado agora", "header": "criado",
+            "revoked": "revogado: a API agora responde 401", "again": "já foi revogado em",
+            "unknown": "não há nenhum token de API com id 999", "clinic": "não há nenhuma clínica chamada 'Nowhere'",
+            "scope": "âmbito desconhecido"}),
+])
+def test_chakamo_tokens_speaks_the_language_of_lang(settings, cli_env, capsys, lang, words):
+    """``chakamo tokens create|rotate|list|revoke --lang es|pt``: every line it prints, and its refusals (its own,
+    and the store's, e.g. an unknown scope), in that language (they were English whatever ``--lang``)."""
+    from app.cli import admin as admin_cli
+    from app.cli.main import main
+
+    admin_cli.create_clinic(settings, CLINIC)
+    assert main(["tokens", "list", "--clinic", CLINIC, "--lang", lang]) == 0
+    assert words["none"] in capsys.readouterr().out
+    assert main(["tokens", "create", "--clinic", CLINIC, "--label", "HIS", "--expires-days", "30", "--lang", lang]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert words["created"] in out[0] and out[-1].startswith("chk_")
+    token_id = admin_cli.list_tokens(settings, clinic=CLINIC)[0]["id"]
+    assert main(["tokens", "rotate", str(token_id), "--lang", lang]) == 0
+    assert f"{token_id}" in capsys.readouterr().out.splitlines()[0]
+    assert main(["tokens", "list", "--clinic", CLINIC, "--lang", lang]) == 0
+    assert words["header"] in capsys.readouterr().out.splitlines()[0]
+    assert main(["tokens", "revoke", str(token_id), "--lang", lang]) == 0
+    assert words["revoked"] in capsys.readouterr().out
+    assert main(["tokens", "revoke", str(token_id), "--lang", lang]) == 0
+    assert words["again"] in capsys.readouterr().out
+    for argv, key in ((["tokens", "revoke", "999"], "unknown"), (["tokens", "list", "--clinic", "Nowhere"], "clinic"),
+                      (["tokens", "create", "--clinic", CLINIC, "--scope", "everything"], "scope")):
+        assert main([*argv, "--lang", lang]) == 2
+        assert words[key] in capsys.readouterr().err, argv

@@ -152,3 +152,29 @@ def test_the_event_stream_ends_when_its_token_is_revoked(app_client, monkeypatch
     assert blocks, r.text
     end = json.loads(blocks[0].split("data: ", 1)[1])
     assert end["status"] == 401 and end["code"] == "auth.token_unknown" and set(end["message"]) == {"es", "en", "pt"}
+
+
+def test_the_event_stream_ends_in_the_readers_language_when_its_caller_is_another_clinics(app_client):
+    """The stream's re-check finds the credentials now let their bearer into another clinic than the one the
+    stream was opened for: its ``event: end`` carries a catalogue refusal (it was a bare ``{"status": 403}``)."""
+    from starlette.requests import Request
+
+    from app.cli import admin as admin_cli
+    from app.web.api import webhooks as events_api
+    from app.web.api.deps import resolve_principal
+
+    client, settings = app_client
+    token = admin_cli.create_token(settings, clinic="Hospital Tokens", label="stream")
+    clinic_id = None
+    for lang, words in (("es", "Este flujo de eventos se abrió para otra clínica"),
+                        ("pt", "Este fluxo de eventos foi aberto para outra clínica")):
+        scope = {"type": "http", "method": "GET", "path": "/api/v1/events", "app": client.app, "query_string": b"",
+                 "headers": [(b"authorization", f"Bearer {token}".encode()), (b"accept-language", lang.encode())]}
+        request = Request(scope)
+        if clinic_id is None:   # the clinic the token lets in, as the stream resolved it when it opened
+            with client.app.state.db.session() as db:
+                clinic_id = resolve_principal(request, db, client.app.state.settings).clinic_id
+        assert events_api._refused(request, clinic_id) is None   # still its own clinic: the stream goes on
+        end = events_api._refused(request, clinic_id + 1000)
+        assert end["status"] == 403 and end["code"] == "request.events_other_clinic"
+        assert end["detail"].startswith(words) and end["message"][lang] == end["detail"]

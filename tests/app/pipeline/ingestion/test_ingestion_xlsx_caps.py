@@ -102,7 +102,8 @@ def test_a_real_workbook_reads_and_the_row_cap_is_exact(tmp_path, monkeypatch):
 
 
 def test_tags_cut_by_a_piece_boundary_are_counted_once(tmp_path):
-    """The streamed count equals a count of the whole XML whatever the piece size."""
+    """The streamed count equals a count of the whole XML whatever the piece size, and the XML it hands on (the one
+    the reader then parses) is the sheet's, whole."""
     p = tmp_path / "count.xlsx"
     _rewrite_sheet(p, _sheet(['<row r="%d"><c r="A%d"><v>%d</v></c><c/></row>' % (i, i, i) for i in range(2, 500)]))
     xml = zipfile.ZipFile(p).read(SHEET)
@@ -110,4 +111,27 @@ def test_tags_cut_by_a_piece_boundary_are_counted_once(tmp_path):
              len(re.findall(rb"<(?:[A-Za-z_][\w.-]*:)?c[\s/>]", xml)))
     assert truth == (499, 13 + 2 * 498)
     for piece in (7, 64, 1000, 1 << 20):
-        assert excel.count_rows_cells(p, SHEET, chunk_bytes=piece) == truth
+        with zipfile.ZipFile(p) as z, z.open(SHEET) as fh:
+            assert excel.count_rows_cells(fh, chunk_bytes=piece) == (*truth, xml)
+
+
+def test_a_workbook_is_opened_and_each_sheet_counted_once_per_read(tmp_path, monkeypatch):
+    """``read_recording`` opens an .xlsx once for the phyphox sniff and the thesis reader, and the XML the caps
+    counted is the XML parsed (issue 14's read goal: each sheet was opened and counted twice, once per reader)."""
+    from app.pipeline.ingestion import xlsx_cells
+    from app.pipeline.ingestion.session import read_recording
+
+    n = 300
+    t = np.arange(n) / 100.0
+    p = write_thesis_xlsx(tmp_path / "standing-muslo-X-01012024-1.xlsx", (t, np.tile([0.0, 0.0, 9.81], (n, 1))),
+                          np.zeros((n, 3)), (t[::5], np.tile([0.0, 20.0, -40.0], (n // 5, 1))),
+                          extra_sheets=("notas",))
+    opened, counted, read = [], [], []
+    init, count, zread = xlsx_cells.Workbook.__init__, excel.count_rows_cells, zipfile.ZipFile.read
+    monkeypatch.setattr(xlsx_cells.Workbook, "__init__", lambda self, path: opened.append(path) or init(self, path))
+    monkeypatch.setattr(excel, "count_rows_cells", lambda *a, **k: counted.append(1) or count(*a, **k))
+    monkeypatch.setattr(zipfile.ZipFile, "read", lambda self, name, *a: read.append(name) or zread(self, name, *a))
+    rec = read_recording([p])
+    assert rec.fmt == "thesis-xlsx" and len(rec.acc.t_s) == n
+    assert opened == [p] and len(counted) == 2   # two sheets, each counted once
+    assert not [m for m in read if m.startswith("xl/worksheets/")]   # and never decompressed again

@@ -119,6 +119,15 @@ def _with_sheet(path, xml: bytes):
     # a namespace prefix, attributes in another order and single quotes (the slow path)
     '<x:row r="1"><x:c t="n" r="B1"><x:v>3</x:v></x:c></x:row><x:row r="3"><x:c r=\'A3\' s="0"><x:v>-2E-3</x:v>'
     '</x:c><x:c r="C3" t="inlineStr"><x:is><x:t>ação</x:t></x:is></x:c></x:row>',
+    # plain numbers below the header as Excel writes them (a style, no type), then a text cell among them: the
+    # header's pattern reads the whole sheet
+    '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c></row><row r="2"><c r="A2" s="1"><v>0.25</v>'
+    '</c><c r="B2" s="1" t="n"><v>-3E-3</v></c></row><row r="3"><c r="A3" t="str"><v>0,5</v></c><c r="B3"><v>4</v>'
+    '</c></row>',
+    # a prefixed cell among plain ones (both are SpreadsheetML cells): it was dropped when the plain ones were all
+    # the patterns counted
+    '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c></row><row r="2"><c r="A2"><v>0.25</v></c>'
+    '<x:c r="B2"><x:v>7</x:v></x:c></row>',
     # the fast path with a gap in the rows and an empty value
     '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c></row><row r="4"><c r="A4" s="1" t="n">'
     '<v>0.25</v></c><c r="B4" t="n"></c><c r="D4"><v>7</v></c></row>',
