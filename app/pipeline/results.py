@@ -27,6 +27,7 @@ from estimators.motor_task.analysis import ROM_STATS
 
 from reports.model import Patient, ReportInput
 
+from app.pipeline.ingestion.provenance import session_facts
 from app.pipeline.knees import KneesOutcome, limb_symmetry
 from app.pipeline.session import SessionOutcome
 
@@ -308,7 +309,9 @@ def results_json(results: dict[str, Any]) -> str:
 
 def session_patient(outcome: SessionOutcome) -> Patient:
     """The patient block: what the names and ``session.json`` said (its optional keys ``name``, ``professional``,
-    ``weight_kg``, ``height_m``, ``observations`` are shown as typed)."""
+    ``weight_kg``, ``height_m``, ``observations``, ``identifier_system``, ``birth_date``, ``sex``, ``clinic`` are shown
+    as typed; the server writes them from its patient and clinic, :func:`app.store.workspace.build_manifest`), and
+    the recordings' own date (:func:`recorded_dates`).  What nothing said stays empty: the reports omit it."""
     meta = outcome.session.metadata
     extra = outcome.session.manifest_data  # parsed and checked once by load_session
 
@@ -319,16 +322,36 @@ def session_patient(outcome: SessionOutcome) -> Patient:
             return None
         return value if math.isfinite(value) else None
 
+    def text(key: str) -> str:
+        return str(extra.get(key) or "")
+
+    record = meta.value("patient_id")
+    first, last = recorded_dates(outcome.session)
     return Patient(
-        name_or_id=str(extra.get("name") or meta.value("patient_id") or ""),
+        name_or_id=str(extra.get("name") or record or ""),
         date=str(meta.value("date") or ""),
-        professional=str(extra.get("professional") or ""),
+        professional=text("professional"),
         side=outcome.side,
         step_height_m=outcome.step_height_m,
         weight_kg=number("weight_kg"),
         height_m=number("height_m"),
-        observations=str(extra.get("observations") or ""),
+        observations=text("observations"),
+        record_number="" if record is None else str(record),
+        record_system=text("identifier_system") if record is not None else "",
+        birth_date=text("birth_date"),
+        sex=text("sex"),
+        clinic=text("clinic"),
+        recorded=first,
+        recorded_last="" if last == first else last,
     )
+
+
+def recorded_dates(session) -> tuple[str, str]:
+    """``(first, last)`` ISO day of the session's recordings, from their own time stamps (the first epoch stamp,
+    else the MetaBase name's start, else the thesis name's date: :func:`app.pipeline.ingestion.provenance.
+    recording_facts`); ``("", "")`` when no recording says it (then no date is printed as the recordings')."""
+    days = sorted({str(f.date.value)[:10] for f in session_facts(session).values() if f.date is not None})
+    return (days[0], days[-1]) if days else ("", "")
 
 
 def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None,
