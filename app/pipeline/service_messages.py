@@ -214,6 +214,30 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "Analysis {analysis_id} has no {name}{in_lang}; process the session again to make it.",
         "es": "El análisis {analysis_id} no tiene {name}{in_lang}; procese la sesión de nuevo para generarlo.",
         "pt": "A análise {analysis_id} não tem {name}{in_lang}; processe a sessão de novo para gerá-lo."},
+    "store.interpretation_empty": {
+        "en": "The interpretation's {field} is empty; write it first.",
+        "es": "El campo {field} de la interpretación está vacío; escríbalo primero.",
+        "pt": "O campo {field} da interpretação está vazio; escreva-o primeiro."},
+    "store.interpretation_too_long": {
+        "en": "The interpretation's {field} is longer than {limit} characters; shorten it.",
+        "es": "El campo {field} de la interpretación supera los {limit} caracteres; acórtelo.",
+        "pt": "O campo {field} da interpretação excede {limit} caracteres; encurte-o."},
+    "store.interpretation_signed": {
+        "en": "The interpretation of analysis {analysis_id} was signed by {by} on {when} UTC and is locked; amend it with a reason instead.",
+        "es": "La interpretación del análisis {analysis_id} la firmó {by} el {when} UTC y está bloqueada; enmiéndela indicando el motivo.",
+        "pt": "A interpretação da análise {analysis_id} foi assinada por {by} em {when} UTC e está bloqueada; emende-a indicando o motivo."},
+    "store.interpretation_not_signed": {
+        "en": "The interpretation of analysis {analysis_id} is not signed yet; save the draft and sign it instead of amending.",
+        "es": "La interpretación del análisis {analysis_id} aún no está firmada; guarde el borrador y fírmelo en lugar de enmendarlo.",
+        "pt": "A interpretação da análise {analysis_id} ainda não está assinada; guarde o rascunho e assine-o em vez de o emendar."},
+    "store.interpretation_needs_person": {
+        "en": "Only a logged-in person can sign or amend an interpretation; an API token cannot. Log in and sign in the browser.",
+        "es": "Solo una persona con sesión iniciada puede firmar o enmendar una interpretación; un token de la API no puede. Inicie sesión y firme en el navegador.",
+        "pt": "Só uma pessoa com sessão iniciada pode assinar ou emendar uma interpretação; um token da API não pode. Inicie sessão e assine no navegador."},
+    "store.interpretation_unchanged": {
+        "en": "The amendment's text is the same as the signed text; change the text or leave it as it is.",
+        "es": "El texto de la enmienda es igual al texto firmado; cambie el texto o déjelo como está.",
+        "pt": "O texto da emenda é igual ao texto assinado; altere o texto ou deixe-o como está."},
     "store.superseded": {
         "en": "The results of session {session_id} were computed from recordings or details that have changed since (analysis {analysis_id}, superseded {when} UTC); process the session again{tail}.",
         "es": "Los resultados de la sesión {session_id} se calcularon con grabaciones o datos que han cambiado desde entonces (análisis {analysis_id}, reemplazado el {when} UTC); procese la sesión de nuevo{tail}.",

@@ -95,6 +95,20 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
     return manifest
 
 
+def uploaded_manifest(store: BlobStore, recordings: Sequence[Recording]) -> dict[str, Any] | None:
+    """The ``session.json`` uploaded among ``recordings`` (parsed, within the manifest caps), or None."""
+    for rec in recordings:
+        if rec.file_name == MANIFEST:
+            try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
+                uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                raise IngestionError("manifest.stored_not_json", file=MANIFEST) from None
+            if not isinstance(uploaded, dict):
+                raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
+            return uploaded
+    return None
+
+
 @contextmanager
 def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
                 recordings: Sequence[Recording], *, clinic: str = "",
@@ -104,17 +118,10 @@ def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient:
     tmp_root.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix=f"session-{session.id}-", dir=tmp_root))
     try:
-        uploaded = None
+        uploaded = uploaded_manifest(store, recordings)
         for rec in recordings:
-            if rec.file_name == MANIFEST:
-                try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
-                    uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
-                except (UnicodeDecodeError, json.JSONDecodeError):
-                    raise IngestionError("manifest.stored_not_json", file=MANIFEST) from None
-                if not isinstance(uploaded, dict):
-                    raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
-                continue
-            store.copy_to(rec.sha256, folder / rec.file_name)
+            if rec.file_name != MANIFEST:
+                store.copy_to(rec.sha256, folder / rec.file_name)
         manifest = build_manifest(session, patient, recordings, uploaded, clinic=clinic,
                                   identifier_system=identifier_system)
         (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, ensure_ascii=False), encoding="utf-8")
@@ -195,4 +202,4 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
         return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None}
 
 
-__all__ = ["NO_RECORDINGS", "build_manifest", "check_ingestion", "file_facts", "materialise", "public_message"]
+__all__ = ["NO_RECORDINGS", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts", "materialise", "public_message"]
