@@ -165,3 +165,18 @@ def test_signed_and_amended_interpretation_is_printed(identified, lang):
     page = render_html(ri)
     for part in (it.text, "Flexión normal.", "error de transcripción"):
         assert part in page
+
+
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_no_raw_ids_and_the_ui_angle_order_in_the_pdf(identified, lang):
+    from reports.model import ANGLES
+    from reports.pdf import render_pdf
+
+    text = " ".join(_pages(render_pdf(replace(identified, language=lang), report_date=REPORT_DATE)))
+    for raw in ("chakamo", "grood_suntay", "thesis_zyx", "step_up", "internal_rotation"):
+        assert raw not in text, (lang, raw)
+    assert t("data.filter.chakamo", lang) in text
+    rom = text[text.index(t("section_rom", lang)):]
+    positions = [rom.index(t(f"angle_{a}", lang)) for a in ANGLES]
+    assert positions == sorted(positions), (lang, positions)
+    assert "0,17 m" not in text and "0.17 m" not in text and "17 cm" in text
