@@ -420,8 +420,8 @@ function interpretationSection(session, analysis) {
 function downloadsSection(sessionId, analysisId) {
   const link = (path, query, text, name) => h("a", { href: apiUrl(`/sessions/${sessionId}/${path}`, { ...query, analysis_id: analysisId }),
     class: "button-link secondary", download: name || true }, text);
-  const pdfs = LANGUAGES.map((code) => link("report.pdf", { lang: code }, t("results.pdf_lang", { lang: t(`lang.${code}`) }),
-    `chakamo-session-${sessionId}-${code}.pdf`));
+  // no name of our own: the server's (the patient's record number and the recordings' date) is kept
+  const pdfs = LANGUAGES.map((code) => link("report.pdf", { lang: code }, t("results.pdf_lang", { lang: t(`lang.${code}`) })));
   const current = pdfs.splice(LANGUAGES.indexOf(lang()), 1)[0];
   current.classList.replace("secondary", "primary");
   return h("section", { class: "card downloads", "aria-labelledby": "h-downloads" },
@@ -429,7 +429,7 @@ function downloadsSection(sessionId, analysisId) {
     h("div", { class: "actions wrap" }, current, ...pdfs,
       link("angles.xlsx", {}, t("results.angles_xlsx")),
       link("quaternions.xlsx", {}, t("results.quaternions_xlsx")),
-      h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId }), class: "button-link secondary",
+      h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId, lang: lang() }), class: "button-link secondary",
         target: "_blank", rel: "noopener" }, t("results.report_html"))));
 }
 
