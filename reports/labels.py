@@ -159,6 +159,8 @@ def session_rows(ri: ReportInput, lang: str) -> list[tuple[str, Any]]:
     cycles = r.get("cycles", {})
     step_m = p.step_height_m if p.step_height_m is not None else get_path(r, "session", "step_height_m")
     step_cm = None if step_m is None else round(100.0 * float(step_m), 1)
+    if step_cm is not None and step_cm == int(step_cm):
+        step_cm = int(step_cm)  # 17, as the PDF prints it (a float would show decimals in the HTML)
     age = age_years(p.birth_date, p.recorded or p.date) if p.birth_date else None
     identity = [
         (tr("data.patient.record", lang), p.record_number),

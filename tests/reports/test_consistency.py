@@ -34,9 +34,15 @@ def test_angle_order_is_the_same_in_the_ui_and_the_reports():
 
 
 def test_one_portuguese_in_the_ui_and_the_reports():
+    """The reports' and the UI's tables, and the messages the server answers (ingestion, pipeline, store, web)."""
+    from app.pipeline.ingestion.messages import CATALOGUE as INGESTION
+    from app.pipeline.messages import PIPELINE_CATALOGUE
+    from app.pipeline.service_messages import CATALOGUE as SERVICE
+    from app.web.messages import CATALOGUE as WEB
     from reports.i18n import table
 
     texts = [v["pt"] for k, v in table().items()] + list(UI["pt"].values())
+    texts += [v["pt"] for cat in (INGESTION, PIPELINE_CATALOGUE, SERVICE, WEB) for v in cat.values()]
     found = sorted({w for text in texts for w in re.findall(r"[\wÀ-ÿ]+", text.lower()) if w in BRAZILIAN})
     assert not found, f"Brazilian forms in the pt tables: {found}"
 

@@ -121,6 +121,7 @@ def test_html_and_excel_headers_carry_the_identity(identified, lang):
     header = " ".join(header.split())
     for part in _expected(lang):
         assert part in header, (lang, part)
+    assert f"<th>{htmllib.escape(t('data.patient.step_height_cm', lang))}</th><td>17</td>" in page  # cm, as the PDF
     with tempfile.TemporaryDirectory() as tmp:
         for writer in (write_angles_xlsx, write_quaternions_xlsx):
             path = Path(tmp) / "w.xlsx"

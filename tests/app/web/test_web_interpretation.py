@@ -168,3 +168,25 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     actions = [(e["action"], e["actor"]) for e in items]
     assert ("sign", "laura@norte.test") in actions and ("amend", "laura@norte.test") in actions
     assert any(a == "update" for a, _ in actions)
+
+    # a corrected printed fact supersedes the analysis: its interpretation can no longer be signed or amended
+    r = client.patch(f"/api/v1/patients/{pid}", json={"sex": "other"}, headers=token)
+    assert r.status_code == 200, r.text
+    r = client.post(f"/api/v1/sessions/{sid}/interpretation/amendments",
+                    json={"text": "otra", "reason": "x", "analysis_id": job["analysis_id"]}, headers=csrf)
+    assert r.status_code == 409, r.text
+    kept = client.get(f"/api/v1/sessions/{sid}/interpretation", params={"analysis_id": job["analysis_id"]},
+                      headers=token).json()
+    assert kept["status"] == "signed" and kept["text"] == new  # kept, for the record
+
+    # erasing the session erases the interpretation and its history with it
+    admin = clinic_token(settings, "Hospital Norte", role="admin")
+    version = client.get(f"/api/v1/sessions/{sid}", headers=admin).headers["ETag"]
+    assert client.delete(f"/api/v1/sessions/{sid}", headers=admin | {"If-Match": version}).status_code == 204
+    from sqlalchemy import func, select
+
+    from app.store.models import Interpretation, InterpretationAmendment
+
+    with client.app.state.db.session() as s:
+        assert s.scalar(select(func.count()).select_from(Interpretation)) == 0
+        assert s.scalar(select(func.count()).select_from(InterpretationAmendment)) == 0
