@@ -258,6 +258,16 @@ def _transient(exc: BaseException) -> bool:
         isinstance(exc, DBAPIError) and exc.connection_invalidated)
 
 
+def _identifier_system() -> str | None:
+    """``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` of this process' settings, for the reports' identity line; None when the
+    settings cannot be read here (the reports then print the record number without its system: never a guess)."""
+    try:
+        return get_settings(require_key=False).patient_identifier_system
+    except Exception:  # noqa: BLE001 — a job must not fail for a label
+        log.exception("the settings could not be read for the identifier system; reports print the number alone")
+        return None
+
+
 def _public_results(results: dict, session_id: int) -> dict:
     """results.json without the server's temporary folder in it (in each knee's part too)."""
     for part in [results, *(results.get("knees") or {}).values()]:
@@ -318,7 +328,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
         options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
                                  side=job.side, involved=job.involved)
-        identifier_system = get_settings(require_key=False).patient_identifier_system
+        identifier_system = _identifier_system()
         # the reports' identity line: the clinic's name and the record numbers' system (issue 17 §3)
         with materialise(store, tmp_root, session, patient, recordings, clinic=clinic_name,
                          identifier_system=identifier_system) as folder:
