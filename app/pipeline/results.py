@@ -349,24 +349,24 @@ def patient_of(manifest: Mapping[str, Any], *, record: Any, date: Any, side: str
             return None
         return value if math.isfinite(value) else None
 
-    def text(key: str) -> str:
+    def typed(key: str) -> str:
         return str(manifest.get(key) or "")
 
     first, last = recorded
     return Patient(
         name_or_id=str(manifest.get("name") or record or ""),
         date=str(date or ""),
-        professional=text("professional"),
+        professional=typed("professional"),
         side=side,
         step_height_m=step_height_m,
         weight_kg=number("weight_kg"),
         height_m=number("height_m"),
-        observations=text("observations"),
+        observations=typed("observations"),
         record_number="" if record is None else str(record),
-        record_system=text("identifier_system") if record is not None else "",
-        birth_date=text("birth_date"),
-        sex=text("sex"),
-        clinic=text("clinic"),
+        record_system=typed("identifier_system") if record is not None else "",
+        birth_date=typed("birth_date"),
+        sex=typed("sex"),
+        clinic=typed("clinic"),
         recorded=first or "",
         recorded_last="" if last == first else (last or ""),
     )

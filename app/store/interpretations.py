@@ -36,7 +36,9 @@ MAX_TEXT_CHARS = 20_000
 def find(db: Session, analysis_id: int, *, lock: bool = False) -> Interpretation | None:
     """The interpretation of ``analysis_id``, or None; ``lock`` holds its row for the transaction."""
     query = select(Interpretation).where(Interpretation.analysis_id == analysis_id)
-    return db.scalar(query.with_for_update() if lock else query)
+    if lock:
+        query = query.with_for_update()
+    return db.scalar(query)
 
 
 def _clean(text: str | None, field: str) -> str:
