@@ -47,7 +47,8 @@ from openpyxl.styles import Font
 from openpyxl.utils import get_column_letter
 
 from reports import knees
-from reports.labels import code_label, cycle_and_phase_per_sample, get_path, phase_names, session_rows, tr
+from reports.labels import (code_label, cycle_and_phase_per_sample, get_path, identity_line, phase_names,
+                            session_rows, tr)
 from reports.model import ANGLES, ReportInput
 
 __all__ = ["write_angles_xlsx", "write_quaternions_xlsx", "neutralise_text"]
@@ -159,6 +160,26 @@ class _Bulk:
         streams = [rows] + [stream for column in per_column for stream in column]
         args = tuple(itertools.chain.from_iterable(zip(*streams)))
         return ("".join(template) * n) % args
+
+
+def _header_text(text: str) -> str:
+    """A text for an Excel page header or footer: ``&`` doubled (a single one starts a code: ``&P`` the page),
+    control characters removed, within Excel's 255 characters a section."""
+    text = neutralise_text(text).replace("\n", " ").replace("&", "&&")
+    return text if len(text) <= 250 else text[:249] + "…"
+
+
+def _stamp_identity(wb: Workbook, ri: ReportInput) -> None:
+    """Every sheet's printed pages carry the patient's identity (issue 17 §3): the header
+    :func:`reports.labels.identity_line` (name or ID, record number with its system, birth date and age, sex,
+    clinic, the recordings' date), the footer "page n of N" (Excel's ``&P``/``&N``)."""
+    identity = _header_text(identity_line(ri.patient, ri.language))
+    for ws in wb.worksheets:
+        if identity:
+            ws.oddHeader.left.text = identity
+            ws.oddHeader.left.size = 8
+        ws.oddFooter.right.text = tr("page_number", ri.language, page="&P", pages="&N")
+        ws.oddFooter.right.size = 8
 
 
 def _save(wb: Workbook, bulk: dict[int, _Bulk], path: str | os.PathLike) -> None:
@@ -309,6 +330,7 @@ def write_angles_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
     if knees.has_comparison(ri.results):
         _comparison_sheet(wb, ri, lang)
     _session_sheet(wb, ri, lang)
+    _stamp_identity(wb, ri)
     _save(wb, bulk, path)
 
 
@@ -341,4 +363,5 @@ def write_quaternions_xlsx(ri: ReportInput, path: str | os.PathLike) -> None:
                      *np.asarray(q, dtype=np.float64).tolist()])
     _append(ws, [])
     _append(ws, [tr("data.quat.note", lang)])
+    _stamp_identity(wb, ri)
     _save(wb, bulk, path)

@@ -8,8 +8,9 @@ stacked panels sharing the x axis, "nice" ticks (1, 2, 2.5, 5 × 10ⁿ), the lan
 
 Public entry points draw into an :class:`fpdf.FPDF` page inside a box ``(x, y, w, h)`` in mm:
 
-* :func:`draw_curves` — mean ± SD over the normalised cycle of flexion-extension, internal-external
-  rotation and abduction-adduction, the mean phase boundaries dashed, the phase names on top;
+* :func:`draw_curves` — mean ± SD over the normalised cycle of flexion-extension, adduction-abduction and
+  internal-external rotation (the one order of every report and the UI), the mean phase boundaries dashed, the
+  phase names on top;
 * :func:`draw_task` — the three angles over the whole task, accepted cycles shaded and numbered,
   rejected ones hatched and numbered in red;
 * :func:`draw_key_poses` — the bones at the key poses (:func:`reports.bones.key_poses`), ~7,000 shaded
@@ -36,8 +37,9 @@ from reports.labels import code_label, phase_names, phase_spans_pct
 from reports.model import ANGLES, ReportInput
 from reports.vector import fill_triangles, stroke_polyline
 
-#: the order angles are shown in (clinical reading order)
-ANGLE_ORDER: tuple[str, ...] = ("flexion", "internal_rotation", "adduction")
+#: the order angles are shown in: the one order of every report and of the UI (results.json ``angles``,
+#: :data:`reports.model.ANGLES`; static/charts.js ``ANGLES``), issue 17 §3
+ANGLE_ORDER: tuple[str, ...] = ANGLES
 
 #: figure heights in mm for the full text width (180 mm on A4 with 15 mm margins)
 CURVES_HEIGHT_MM = 132.0

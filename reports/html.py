@@ -29,9 +29,9 @@ import numpy as np
 
 from reports import i18n, knees
 from reports.figures import reference_keypoints
-from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence, phase_names,
-                            phase_spans_pct, reference_sentence,
-                            session_rows, tr)
+from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence,
+                            identity_items, phase_names, phase_spans_pct, reference_sentence, session_rows, signed_line,
+                            tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
 
@@ -58,6 +58,7 @@ th,td{border-bottom:1px solid #e3e7ee;padding:5px 8px;text-align:left}
 th{background:#eef2f7} td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.rejected td{background:#fdecec} tr.outside td{background:#fff4e0;font-weight:600}
 ul.warnings li{margin:3px 0} .muted{color:#5c677d}
+header p.identity{font-size:.92em} header .muted-h{opacity:.75} p.interp{white-space:pre-wrap}
 footer{font-size:.85em;color:#5c677d;text-align:center;padding:12px}
 """
 
@@ -350,6 +351,27 @@ def _patient_block(ri: ReportInput, lang: str) -> str:
     return f"<table>{''.join(rows)}</table>"
 
 
+def _identity(ri: ReportInput, lang: str) -> str:
+    """The header's identity line: who the report is about (:func:`reports.labels.identity_items`)."""
+    items = identity_items(ri.patient, lang)
+    return " · ".join(f'<span class="id"><span class="muted-h">{_e(k)}:</span> {_e(v)}</span>' for k, v in items)
+
+
+def _interpretation_block(ri: ReportInput, lang: str) -> str:
+    """The clinician's signed interpretation: text, signer, date; "amended" with each amendment and its text."""
+    it = ri.interpretation
+    parts = [f'<p class="warning"><strong>{_e(tr("interp.amended", lang))}</strong></p>'] if it.amendments else []
+    parts.append(f'<p class="interp">{_e(it.text)}</p>')
+    parts.append(f'<p class="muted">{_e(signed_line(lang, "interp.signed", it.signed_by, it.signed_role, it.signed_at))}</p>')
+    if it.amendments:
+        items = "".join(
+            f'<li>{_e(signed_line(lang, "interp.amendment", a.by, a.role, a.at, reason=a.reason))}'
+            f'<br><span class="muted">{_e(tr("interp.previous", lang))}: {_e(a.previous_text)}</span></li>'
+            for a in it.amendments)
+        parts.append(f'<h3>{_e(tr("interp.history", lang))}</h3><ul class="amendments">{items}</ul>')
+    return "".join(parts)
+
+
 def _knees_sections(r: dict[str, Any], lang: str, section) -> str:
     """Both knees' curves overlaid and the LSI table (:mod:`reports.knees`)."""
     note = f'<p class="note">{_e(tr("knees.curves_note", lang, involved=knees.involved_text(r, lang)))}</p>'
@@ -398,6 +420,7 @@ def render_html(ri: ReportInput) -> str:
         *([section("html.section.reference", _reference_block(r, lang))] if r.get("reference") else []),
         section("html.section.cycles", _cycles_table(r, lang)),
         section("html.section.quality", _quality_block(r, lang)),
+        section("interp.section", _interpretation_block(ri, lang)) if ri.interpretation is not None else "",
     ])
     version = get_path(r, "software", "version") or ""
     return (
@@ -406,7 +429,7 @@ def render_html(ri: ReportInput) -> str:
         f"<title>{_e(title)}{' — ' + _e(who) if who else ''}</title><style>{_CSS}</style>"
         f"<script>{plotly_js()}</script></head><body>"
         f"<header><h1>{_e(title)}</h1>"
-        f"<p>{_e(who)}{' · ' + _e(ri.patient.date) if ri.patient.date else ''}</p></header>"
+        f'<p class="identity">{_identity(ri, lang)}</p></header>'
         f"<main>{body}</main><footer>{_e(tr('html.footer', lang, version=version))}</footer>"
         f"{fig_blocks}<script>{draw}</script></body></html>\n"
     )

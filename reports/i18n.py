@@ -13,10 +13,14 @@ markup in them print literally.
 Numbers: :func:`fmt_number` uses a decimal point for ``en`` and a decimal comma for ``es`` and ``pt``
 (no thousands separator: clinical values are small and a separator would be confused with the
 decimal mark).  Missing values (None, NaN, inf) print as an em dash.
+
+Dates: :func:`fmt_date` prints every date of a report in the one format of its language (``date_format``:
+31/12/2026 in es and pt, 2026-12-31 in en), so a page never mixes two formats.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
 import math
 from functools import lru_cache
@@ -133,3 +137,19 @@ def fmt_mean_sd(mean: Any, sd: Any, decimals: int, lang: str) -> str:
         return MISSING
     s = fmt_number(sd, decimals, lang)
     return m if s == MISSING else f"{m} ± {s}"
+
+
+def fmt_date(value: Any, lang: str) -> str:
+    """A date (``datetime.date``/``datetime`` or an ISO ``YYYY-MM-DD...`` text) in the language's ``date_format``;
+    "" when absent; a text that is not an ISO date is returned as typed (never guessed at)."""
+    _check_language(lang)
+    if value is None or value == "":
+        return ""
+    if isinstance(value, _dt.datetime):
+        value = value.date()
+    if not isinstance(value, _dt.date):
+        try:
+            value = _dt.date.fromisoformat(str(value).strip()[:10])
+        except ValueError:
+            return str(value)
+    return value.strftime(t("date_format", lang))

@@ -12,16 +12,18 @@ phases everywhere, not the step-up's.
 
 from __future__ import annotations
 
+import datetime as _dt
 import math
 from typing import Any
 
 import numpy as np
 
 from reports import i18n
-from reports.model import ReportInput
+from reports.model import Patient, ReportInput
 
 __all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_spans_pct",
-           "cycle_and_phase_per_sample", "session_rows"]
+           "cycle_and_phase_per_sample", "session_rows", "age_years", "identity_items", "identity_line",
+           "recorded_text", "filter_label", "angle_method_label", "signed_line"]
 
 _DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
                    ("extension", "countermovement_peak", "far_left"),
@@ -148,25 +150,119 @@ def cycle_and_phase_per_sample(ri: ReportInput) -> tuple[list[int | None], list[
 
 
 def session_rows(ri: ReportInput, lang: str) -> list[tuple[str, Any]]:
-    """``(field, value)`` rows of the patient and session block (Excel sheet, HTML table)."""
+    """``(field, value)`` rows of the patient and session block (Excel sheet, HTML table): the identity every
+    page carries (the known parts: :func:`identity_items`), dates in the language's one format, the step height
+    in cm (as the PDF), the filter and angle convention by their human names."""
     p, r = ri.patient, ri.results
     side = p.side or r.get("side") or ""
     task = r.get("task", "")
     cycles = r.get("cycles", {})
+    step_m = p.step_height_m if p.step_height_m is not None else get_path(r, "session", "step_height_m")
+    step_cm = None if step_m is None else round(100.0 * float(step_m), 1)
+    if step_cm is not None and step_cm == int(step_cm):
+        step_cm = int(step_cm)  # 17, as the PDF prints it (a float would show decimals in the HTML)
+    age = age_years(p.birth_date, p.recorded or p.date) if p.birth_date else None
+    identity = [
+        (tr("data.patient.record", lang), p.record_number),
+        (tr("data.patient.record_system", lang), p.record_system),
+        (tr("data.patient.birth_date", lang), i18n.fmt_date(p.birth_date, lang)),
+        (tr("data.patient.age", lang), age),
+        (tr("data.patient.sex", lang), code_label("id.sex", p.sex, lang) if p.sex else ""),
+        (tr("data.patient.clinic", lang), p.clinic),
+        (tr("data.patient.recorded", lang), recorded_text(p, lang)),
+    ]
     return [
         (tr("data.patient.name_or_id", lang), p.name_or_id),
-        (tr("data.patient.date", lang), p.date),
+        *[(k, v) for k, v in identity if v not in (None, "")],
+        (tr("data.patient.date", lang), i18n.fmt_date(p.date, lang)),
         (tr("data.patient.professional", lang), p.professional),
         (tr("data.patient.side", lang), code_label("data.side", side, lang) if side else ""),
-        (tr("data.patient.step_height_m", lang), p.step_height_m),
+        (tr("data.patient.step_height_cm", lang), step_cm),
         (tr("data.patient.weight_kg", lang), p.weight_kg),
         (tr("data.patient.height_m", lang), p.height_m),
         (tr("data.patient.observations", lang), p.observations),
         (tr("data.session.task", lang), code_label("data.task", task, lang) if task else ""),
-        (tr("data.session.filter", lang), get_path(r, "filter", "name", default="")),
-        (tr("data.session.angle_method", lang), r.get("angle_method", "")),
+        (tr("data.session.filter", lang), filter_label(r, lang)),
+        (tr("data.session.angle_method", lang), angle_method_label(r, lang)),
         (tr("data.session.fs_hz", lang), ri.fs_hz),
         (tr("data.session.cycles_detected", lang), cycles.get("detected")),
         (tr("data.session.cycles_accepted", lang), cycles.get("accepted")),
         (tr("data.session.software", lang), get_path(r, "software", "version", default="")),
     ]
+
+def _iso_date(text: str) -> _dt.date | None:
+    try:
+        return _dt.date.fromisoformat(str(text).strip()[:10])
+    except ValueError:
+        return None
+
+
+def age_years(birth_date: str, on: str) -> int | None:
+    """Whole years from ``birth_date`` to ``on`` (both ISO), the usual civil age (a birthday not yet reached that
+    year does not count; one born on 29 February turns a year older on 1 March in common years); None when either
+    is unknown or ``on`` comes before the birth."""
+    b, d = _iso_date(birth_date), _iso_date(on)
+    if b is None or d is None or d < b:
+        return None
+    return d.year - b.year - ((d.month, d.day) < (b.month, b.day))
+
+
+def recorded_text(p: Patient, lang: str) -> str:
+    """The recordings' date (or first – last day when they span several), in the language's date format."""
+    first, last = i18n.fmt_date(p.recorded, lang), i18n.fmt_date(p.recorded_last, lang)
+    return f"{first} – {last}" if first and last and last != first else first
+
+
+def identity_items(p: Patient, lang: str) -> list[tuple[str, str]]:
+    """``(label, value)`` of who the report is about, the known ones only (nothing unknown is printed, nothing
+    invented): name or ID, record number with its identifier system, birth date with the age at the recordings'
+    date (else at the session's), sex, clinic, and the recordings' date."""
+    items: list[tuple[str, str]] = []
+    if p.name_or_id and p.name_or_id != p.record_number:
+        items.append((tr("id.patient", lang), p.name_or_id))
+    if p.record_number:
+        items.append((tr("id.record", lang), f"{p.record_number} ({p.record_system})" if p.record_system
+                      else p.record_number))
+    if p.birth_date:
+        age = age_years(p.birth_date, p.recorded or p.date)
+        born = i18n.fmt_date(p.birth_date, lang)
+        items.append((tr("id.born", lang), born if age is None else tr("id.born_age", lang, date=born, age=age)))
+    if p.sex:
+        items.append((tr("id.sex", lang), code_label("id.sex", p.sex, lang)))
+    if p.clinic:
+        items.append((tr("id.clinic", lang), p.clinic))
+    recorded = recorded_text(p, lang)
+    if recorded:
+        items.append((tr("id.recorded", lang), recorded))
+    return items
+
+
+def identity_line(p: Patient, lang: str) -> str:
+    """:func:`identity_items` on one line (``label: value · label: value``), for every page's header."""
+    return " · ".join(f"{label}: {value}" for label, value in identity_items(p, lang))
+
+
+def filter_label(results: dict[str, Any], lang: str) -> str:
+    """The orientation filter by its human name (``data.filter.<id>``), never the raw id (issue 17 §3)."""
+    name = get_path(results, "filter", "name", default="")
+    return code_label("data.filter", name, lang) if name else ""
+
+
+def angle_method_label(results: dict[str, Any], lang: str) -> str:
+    """The knee-angle convention by its human name (``data.angle_method.<id>``), never the raw id."""
+    name = results.get("angle_method") or ""
+    return code_label("data.angle_method", name, lang) if name else ""
+
+
+def signed_line(lang: str, key: str, by: str, role: str, at: str, **fields: Any) -> str:
+    """``interp.signed`` / ``interp.amendment``: who (``by``, their role's name), the date in the language's format
+    and the time (UTC) of ``at`` (ISO date-time), and ``fields`` (an amendment's ``reason``)."""
+    try:
+        when = _dt.datetime.fromisoformat(at) if at else None
+    except ValueError:
+        when = None
+    if when is not None and when.tzinfo is not None:
+        when = when.astimezone(_dt.timezone.utc)
+    role_text = i18n.t(f"interp.role.{role}", lang) if i18n.has(f"interp.role.{role}") else role
+    return i18n.t(key, lang, name=by, role=role_text, date=i18n.fmt_date(when, lang) if when else i18n.MISSING,
+                  time=f"{when:%H:%M}" if when else i18n.MISSING, **fields)

@@ -24,8 +24,16 @@ LANGUAGES = ("es", "en", "pt")
 class Patient:
     """Patient and session facts typed by people (shown as text, never evaluated).
 
-    Every field may be empty.  ``name_or_id`` is a name or a pseudonymous ID; ``weight_kg``/``height_m``
-    are numbers or None; ``step_height_m`` the step used (0.17 or 0.34 in the protocol).
+    Every field may be empty (unknown: the reports then leave it out, they never invent it).  ``name_or_id`` is a
+    name or a pseudonymous ID; ``date`` the session's date as typed (ISO); ``weight_kg``/``height_m`` are numbers
+    or None; ``step_height_m`` the step used (0.17 or 0.34 in the protocol).
+
+    The identity every page carries (issue 17 §3): ``record_number`` the hospital's record number (the patient's
+    external id) and ``record_system`` the URI of its identifier namespace; ``birth_date`` (ISO ``YYYY-MM-DD``),
+    ``sex`` (``male``/``female``/``other``/``unknown``, FHIR's administrative gender), ``clinic`` the clinic's name;
+    ``recorded`` the recordings' own date (ISO; from their time stamps, or the thesis file name's date), the first
+    day and, when they span several, ``recorded_last`` the last.  The age printed is the whole years from
+    ``birth_date`` to ``recorded`` (else to ``date``): :func:`reports.labels.age_years`.
     """
 
     name_or_id: str = ""
@@ -36,6 +44,39 @@ class Patient:
     weight_kg: float | None = None
     height_m: float | None = None
     observations: str = ""
+    record_number: str = ""
+    record_system: str = ""
+    birth_date: str = ""
+    sex: str = ""
+    clinic: str = ""
+    recorded: str = ""
+    recorded_last: str = ""
+
+
+@dataclass(frozen=True)
+class Amendment:
+    """One amendment of a signed interpretation: the text it replaced (``previous_text``), by whom (``by``, their
+    role ``role``), when (ISO date-time, UTC) and why (``reason``)."""
+
+    previous_text: str
+    by: str
+    role: str
+    at: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class Interpretation:
+    """The clinician's interpretation of the session and its sign-off, as stored (:mod:`app.store.interpretations`).
+
+    ``text`` the current text; ``signed_by``/``signed_role``/``signed_at`` (ISO date-time, UTC) who signed it first;
+    ``amendments`` oldest first, each keeping the text it replaced.  Only a signed interpretation is printed."""
+
+    text: str
+    signed_by: str
+    signed_role: str
+    signed_at: str
+    amendments: tuple[Amendment, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +103,7 @@ class ReportInput:
     patient: Patient = field(default_factory=Patient)
     language: str = "es"
     knees_series: dict[str, dict[str, FloatArray]] = field(default_factory=dict)
+    interpretation: Interpretation | None = None
 
     def __post_init__(self) -> None:
         if self.language not in LANGUAGES:

@@ -3,9 +3,11 @@
 ``render_pdf(ri) -> bytes``.  Layout, top to bottom (pages break where a block does not fit):
 
 1. header on every page: product, report title, software version (``results["software"]["version"]``)
-   and the report date; footer: patient name/ID and "page n of N";
-2. patient and session: name or ID, session date, professional, side, step height, weight, height,
-   observations (everything typed by people is printed as literal text: no markup, no formulas);
+   and the report date, and under its rule the patient's identity (record number with its identifier system,
+   birth date and age at the recordings' date, sex, clinic, the recordings' date: what is known, nothing
+   invented; :func:`reports.labels.identity_line`); footer: patient name/ID and record number, "page n of N";
+2. patient and session: name or ID, the identity above, session date, professional, side, step height, weight,
+   height, observations (everything typed by people is printed as literal text: no markup, no formulas);
 3. motor task (single-leg step-up, step height, the three phases) and protocol (sensor placement,
    magnetometer ellipsoid calibration, sensor-to-segment calibration from standing and supine postures,
    the orientation filter ``results["filter"]["name"]``, the knee-angle convention);
@@ -20,7 +22,9 @@
    logged);
 7. the whole task over time, accepted cycles shaded and numbered, rejected ones hatched;
 8. quality: magnetometer field and coverage per sensor, cycles accepted / rejected with the reasons,
-   the posture check (angle between standing and supine), every warning; then the signature line.
+   the posture check (angle between standing and supine), every warning; then the clinician's signed
+   interpretation (the text, signer, role, date and time, "amended" with each amendment and the text it
+   replaced: ``ri.interpretation``), or, before one is signed, the lines to sign by hand.
 
 Every text comes from the translation tables through :func:`reports.i18n.t`; numbers through
 :func:`reports.i18n.fmt_number` (decimal comma in es/pt).  Quality warnings are translated by their code
@@ -46,9 +50,10 @@ from typing import Any
 from fpdf.enums import XPos, YPos
 
 from reports import bones, figures, fonts, knees
-from reports.i18n import MISSING, fmt_mean_sd, fmt_number, has, t
-from reports.labels import (calibration_sentence, code_label, get_path, heading_sentence, phase_names,
-                            reference_sentence, tr)
+from reports.i18n import MISSING, fmt_date, fmt_mean_sd, fmt_number, has, t
+from reports.labels import (calibration_sentence, code_label, filter_label, get_path,
+                            heading_sentence, identity_items, identity_line, phase_names, reference_sentence,
+                            signed_line, tr)
 from reports.model import ReportInput
 from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
 from reports.warning_text import warning_text
@@ -83,12 +88,13 @@ def _patient_block(pdf: ReportPDF, ri: ReportInput) -> None:
     height = pdf.tr("value_m", value=pdf.num(p.height_m, "height_m")) if p.height_m is not None else ""
     none = pdf.tr("not_given")
     v = lambda s: s or none  # noqa: E731
-    rows = [
-        [pdf.tr("patient_name"), v(user_text(p.name_or_id)), pdf.tr("session_date"), v(user_text(p.date))],
-        [pdf.tr("professional"), v(user_text(p.professional)), pdf.tr("side"), v(side)],
-        [pdf.tr("step_height"), v(step), pdf.tr("weight"), v(weight)],
-        [pdf.tr("height"), v(height), "", ""],
-    ]
+    pairs = [(pdf.tr("patient_name"), v(user_text(p.name_or_id)))]
+    pairs += [(label, user_text(value)) for label, value in identity_items(p, pdf.lang)
+              if label != pdf.tr("id.patient")]
+    pairs += [(pdf.tr("session_date"), v(fmt_date(user_text(p.date), pdf.lang))),
+              (pdf.tr("professional"), v(user_text(p.professional))), (pdf.tr("side"), v(side)),
+              (pdf.tr("step_height"), v(step)), (pdf.tr("weight"), v(weight)), (pdf.tr("height"), v(height))]
+    rows = [[*pairs[i], *(pairs[i + 1] if i + 1 < len(pairs) else ("", ""))] for i in range(0, len(pairs), 2)]
     pdf.section("section_patient")
     pdf.grid(rows, (22, 28, 22, 28), headings=False, bold_cols=(0, 2))
     obs = user_text(p.observations)
@@ -125,7 +131,7 @@ def _task_and_protocol(pdf: ReportPDF, ri: ReportInput) -> None:
     pdf.labelled(pdf.tr("protocol_sensors_label"), pdf.tr("protocol_sensors"))
     pdf.labelled(pdf.tr("protocol_mag_label"), pdf.tr("protocol_mag"))
     pdf.labelled(pdf.tr("protocol_segment_label"), pdf.tr("protocol_segment"))
-    pdf.labelled(pdf.tr("protocol_filter_label"), str(get_path(r, "filter", "name", default=MISSING)))
+    pdf.labelled(pdf.tr("protocol_filter_label"), filter_label(r, pdf.lang) or MISSING)
     method = str(r.get("angle_method") or "grood_suntay")
     pdf.labelled(pdf.tr("protocol_angles_label"),
                  pdf.tr(f"angle_method_{method}") if has(f"angle_method_{method}") else method)
@@ -354,10 +360,46 @@ def _signature(pdf: ReportPDF) -> None:
     pdf.set_y(y + 6)
 
 
+def _signed_text(lang: str, key: str, by: str, role: str, at: str, **fields: Any) -> str:
+    return user_text(signed_line(lang, key, user_text(by), role, at, **fields))
+
+
+def _interpretation(pdf: ReportPDF, ri: ReportInput) -> None:
+    """The clinician's signed interpretation: the text, who signed it and when, "amended" with each amendment
+    (by whom, when, why) and the text it replaced, oldest first."""
+    it = ri.interpretation
+    pdf.section("interp.section")
+    if it.amendments:
+        pdf.paragraph(pdf.tr("interp.amended"), style="B", color=(170, 60, 0))
+    pdf.paragraph(user_text(it.text))
+    pdf.ln(1.0)
+    pdf.paragraph(_signed_text(pdf.lang, "interp.signed", it.signed_by, it.signed_role, it.signed_at), style="B")
+    if it.amendments:
+        pdf.ln(1.5)
+        pdf.set_font(FONT, "B", 9.5)
+        pdf.cell(0, 5, pdf.tr("interp.history"), new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        for a in it.amendments:
+            pdf.paragraph(_signed_text(pdf.lang, "interp.amendment", a.by, a.role, a.at, reason=user_text(a.reason)),
+                          size=8.5)
+            pdf.paragraph(f"{pdf.tr('interp.previous')}: {user_text(a.previous_text)}", size=8.5, color=GREY)
+            pdf.ln(1.0)
+
+
+def _footer_patient(ri: ReportInput) -> str:
+    """The footer's patient: name or ID, and the record number when it is another text."""
+    p = ri.patient
+    parts = [user_text(p.name_or_id)] + ([user_text(p.record_number)] if p.record_number and
+                                         p.record_number != p.name_or_id else [])
+    return " · ".join(x for x in parts if x)
+
+
 def _data_texts(ri: ReportInput) -> list[str]:
     """Every text the report may print that is not from the translation tables: what people typed and
     the strings of ``results`` (warnings, filter name, codes) — to choose the font cut (:mod:`reports.fonts`)."""
     out = [str(v) for v in vars(ri.patient).values() if v is not None]
+    if ri.interpretation is not None:
+        it = ri.interpretation
+        out += [it.text, it.signed_by] + [x for a in it.amendments for x in (a.previous_text, a.by, a.reason)]
     stack: list[Any] = [ri.results]
     while stack:
         item = stack.pop()
@@ -400,8 +442,12 @@ def render_pdf(ri: ReportInput, *, report_date: _dt.date | None = None, key_pose
         _key_poses(pdf, ri)
     _task_over_time(pdf, ri)
     _quality(pdf, ri)
-    _signature(pdf)
-    pdf.draw_page_chrome(version, report_date.strftime(t("date_format", lang)), user_text(ri.patient.name_or_id))
+    if ri.interpretation is None:
+        _signature(pdf)  # lines to sign by hand
+    else:
+        _interpretation(pdf, ri)
+    pdf.draw_page_chrome(version, fmt_date(report_date, lang), _footer_patient(ri),
+                         user_text(identity_line(ri.patient, lang)))
     return bytes(pdf.output())
 
 

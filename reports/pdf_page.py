@@ -24,7 +24,7 @@ __all__ = ["ReportPDF", "user_text", "DECIMALS", "FONT", "ACCENT", "GREY"]
 FONT = "dejavu"
 
 MARGIN_MM = 15.0
-HEADER_BOTTOM_MM = 26.0     # content starts below the header rule
+HEADER_BOTTOM_MM = 29.5     # content starts below the header rule and the patient's identity (up to two lines)
 FOOTER_TOP_MM = 282.0       # the footer line sits here (A4 is 297 mm high)
 ACCENT = (31, 78, 121)     # headings and rules
 GREY = (90, 90, 90)
@@ -121,8 +121,11 @@ class ReportPDF(FPDF):
             text = text[:-1]
         return text + "…"
 
-    def draw_page_chrome(self, version: str, date_text: str, patient: str) -> None:
-        """Header and footer on every page (after the content, so the page total is known)."""
+    def draw_page_chrome(self, version: str, date_text: str, patient: str, identity: str = "") -> None:
+        """Header and footer on every page (after the content, so the page total is known).  ``identity`` (the
+        patient's record number with its system, birth date and age, sex, clinic, the recordings' date:
+        :func:`reports.labels.identity_line`) is printed under the header's rule of every page, in a smaller
+        size when it is long, so each printed page says whose it is."""
         total = self.pages_count
         self.set_auto_page_break(False)
         for p in range(1, total + 1):
@@ -144,6 +147,17 @@ class ReportPDF(FPDF):
             self.set_draw_color(*ACCENT)
             self.set_line_width(0.5)
             self.line(self.l_margin, 19.0, self.w - self.r_margin, 19.0)
+            if identity:
+                self.set_text_color(0, 0, 0)
+                size = 7.5
+                self.set_font(FONT, "", size)
+                while size > 6.0 and len(self.multi_cell(self.epw, 3.4, identity, dry_run=True,
+                                                          output="LINES")) > 2:
+                    size -= 0.5
+                    self.set_font(FONT, "", size)
+                self.set_xy(self.l_margin, 19.8)
+                self.multi_cell(self.epw, 3.4, identity, align="L", max_line_height=3.4)
+                self.set_text_color(*GREY)
             # footer
             self.set_line_width(0.2)
             self.set_draw_color(*GREY)

@@ -37,6 +37,9 @@ __all__ = ["warning_text"]
 _FIELD = re.compile(r"\{(\w+)(?::([^}]*))?\}")
 
 
+_ISO_DAY = re.compile(r"\d{4}-\d{2}-\d{2}")
+
+
 def _text(key: str, lang: str) -> str | None:
     entry = i18n.table().get(key)
     return None if entry is None else entry[lang]
@@ -57,6 +60,8 @@ def _format(template: str, params: Mapping[str, Any], lang: str) -> str:
             s = format(int(round(x)), spec) if spec.endswith("d") else format(x, spec)
             return s.replace(".", mark)
         word = str(value)
+        if _ISO_DAY.fullmatch(word) and (name == "date" or name.endswith("_date")):
+            return i18n.fmt_date(word, lang)  # one date format per language on a page (issue 17 §3)
         term = _text(f"warning.term.{word.lower()}", lang)
         return word if term is None else term
 

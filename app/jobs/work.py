@@ -60,10 +60,11 @@ from sqlalchemy.exc import TimeoutError as PoolTimeout
 
 from app.store.database import Database
 from app.store.erasure import reserve_blob
-from app.store.models import Analysis, Artefact, Job, KneeSession, Patient, Recording, utcnow
+from app.store.models import Analysis, Artefact, Clinic, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
 from app.pipeline.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
 from app.store.blobs import Storage, discarding
+from app.settings import get_settings
 
 log = logging.getLogger("chakamo.jobs")
 
@@ -257,6 +258,16 @@ def _transient(exc: BaseException) -> bool:
         isinstance(exc, DBAPIError) and exc.connection_invalidated)
 
 
+def _identifier_system() -> str | None:
+    """``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` of this process' settings, for the reports' identity line; None when the
+    settings cannot be read here (the reports then print the record number without its system: never a guess)."""
+    try:
+        return get_settings(require_key=False).patient_identifier_system
+    except Exception:  # noqa: BLE001 — a job must not fail for a label
+        log.exception("the settings could not be read for the identifier system; reports print the number alone")
+        return None
+
+
 def _public_results(results: dict, session_id: int) -> dict:
     """results.json without the server's temporary folder in it (in each knee's part too)."""
     for part in [results, *(results.get("knees") or {}).values()]:
@@ -309,6 +320,8 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             job = s.get(Job, job_id)
             session = s.get(KneeSession, job.session_id)
             patient = s.get(Patient, session.patient_id)
+            clinic = s.get(Clinic, session.clinic_id)
+            clinic_name = clinic.name if clinic is not None else ""
             recordings = list(s.scalars(select(Recording).where(Recording.session_id == session.id)
                                         .order_by(Recording.id)))
             s.expunge_all()
@@ -316,7 +329,10 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
                                  side=job.side, involved=job.involved, calibration=job.calibration,
                                  angle_method=job.angle_method)
-        with materialise(store, tmp_root, session, patient, recordings) as folder:
+        identifier_system = _identifier_system()
+        # the reports' identity line: the clinic's name and the record numbers' system (issue 17 §3)
+        with materialise(store, tmp_root, session, patient, recordings, clinic=clinic_name,
+                         identifier_system=identifier_system) as folder:
             loaded = load_knees(folder)
             knees = process_knees(loaded, options, web=True,
                                   progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))

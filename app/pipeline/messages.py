@@ -58,7 +58,7 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
     "pipeline.magnetometer_calibration": {
         "en": "{segment} magnetometer calibration ({files}): {reason}",
         "es": "calibración del magnetómetro del {segment} ({files}): {reason}",
-        "pt": "calibração do magnetômetro da {segment} ({files}): {reason}"},
+        "pt": "calibração do magnetómetro da {segment} ({files}): {reason}"},
     "pipeline.segment_calibration": {
         "en": "{segment} sensor-to-segment calibration ({files}): {reason}",
         "es": "calibración sensor-segmento del {segment} ({files}): {reason}",
@@ -93,8 +93,8 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
               "las orientaciones horizontales de los sensores llevan el hierro duro de los magnetómetros, que giró "
               "los ejes de la rodilla más de 10° en las pruebas; procese esta sesión con la calibración estática o "
               "grabe el ocho de ambos sensores",
-        "pt": "a calibração funcional precisa da gravação de calibração do magnetômetro (o oito): sem ela as "
-              "orientações horizontais dos sensores carregam o ferro duro dos magnetômetros, que girou os eixos do "
+        "pt": "a calibração funcional precisa da gravação de calibração do magnetómetro (o oito): sem ela as "
+              "orientações horizontais dos sensores carregam o ferro duro dos magnetómetros, que girou os eixos do "
               "joelho mais de 10° nos testes; processe esta sessão com a calibração estática ou grave o oito dos "
               "dois sensores"},
     "pipeline.sensor_turned_round": {
@@ -120,7 +120,7 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{thigh_files} (muslo) y {shank_files} (pierna): {cause}; compruebe qué grabaciones pertenecen a cada "
               "segmento (nombres de archivo o session.json) y cómo se llevaban los sensores.",
         "pt": "{thigh_files} (coxa) e {shank_files} (perna): {cause}; verifique que gravações pertencem a cada "
-              "segmento (nomes dos arquivos ou session.json) e como os sensores foram usados."},
+              "segmento (nomes dos ficheiros ou session.json) e como os sensores foram usados."},
     "pipeline.task_analysis": {
         "en": "motor-task analysis of {files}: {reason}",
         "es": "análisis de la tarea motora de {files}: {reason}",

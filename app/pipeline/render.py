@@ -1,8 +1,8 @@
 """Artefact rendering: every output file of an analysis from one report input, and the warm render process.
 
-:func:`render_all` builds ``results.json`` and ``timeseries.npz`` and renders ``report.pdf`` in every
-language of :data:`reports.i18n.LANGUAGES`, ``angles.xlsx``, ``quaternions.xlsx``, ``report.html`` and
-``scene.viser`` (:func:`render_artefact` is one of them).  With a :class:`RenderPool` (one warm helper
+:func:`render_all` builds ``results.json`` and ``timeseries.npz`` and renders ``report.pdf`` and ``report.html`` in
+every language of :data:`reports.i18n.LANGUAGES`, ``angles.xlsx``, ``quaternions.xlsx`` and ``scene.viser``
+(:func:`render_artefact` is one of them).  With a :class:`RenderPool` (one warm helper
 process, ``CHAKAMO_RENDER_PROCESSES``) the other-language PDFs and angles.xlsx are rendered there while the
 job thread renders the rest; if the process fails, or gives no answer within ``timeout_s``
 (``CHAKAMO_RENDER_TIMEOUT_S``), the job thread renders them itself and a hung process is replaced.
@@ -61,7 +61,7 @@ def render_artefact(ri, name: str, lang: str = "") -> bytes:
     if name == "report.html":
         from reports.html import render_html
 
-        return render_html(ri).encode("utf-8")
+        return render_html(dataclasses.replace(ri, language=lang) if lang else ri).encode("utf-8")
     if name == "scene.viser":
         from reports.scene import scene_bytes
 
@@ -80,7 +80,7 @@ def render_many(ri, keys: list[tuple[str, str]]) -> dict[tuple[str, str], bytes]
 
 def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | None" = None,
                timeout_s: float = RENDER_TIMEOUT_S, knees=None) -> dict[tuple[str, str], bytes]:
-    """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF).
+    """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF or the HTML report).
 
     With a warm :class:`RenderPool`, the two other-language PDFs and angles.xlsx are rendered in the
     render process while this thread renders the rest (the report code holds the GIL: threads would not
@@ -93,10 +93,10 @@ def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | 
     ri = report_input(outcome, results, knees=knees)
     files: dict[tuple[str, str], bytes] = {("results.json", ""): results_json(results).encode("utf-8"),
                                            ("timeseries.npz", ""): timeseries_npz(outcome, knees)}
-    others = [("report.pdf", x) for x in LANGS if x != lang]
+    others = [(name, x) for x in LANGS if x != lang for name in ("report.pdf", "report.html")]
     # about equal halves (measured: a PDF 0.2-0.4 s, angles.xlsx 0.1 s, quaternions.xlsx 0.2 s, html 0.05 s,
     # scene 0.2 s)
-    local = [("report.pdf", lang), ("report.html", ""), ("scene.viser", ""), ("quaternions.xlsx", "")]
+    local = [("report.pdf", lang), ("report.html", lang), ("scene.viser", ""), ("quaternions.xlsx", "")]
     remote = [*others, ("angles.xlsx", "")]
     future = pool.submit(render_many, ri, remote) if pool is not None else None
     if future is None:

@@ -25,8 +25,9 @@ from estimators.jsonable import json_ready
 from estimators.motor_task import ANGLES
 from estimators.motor_task.analysis import ROM_STATS
 
-from reports.model import Patient, ReportInput
+from reports.model import Interpretation, Patient, ReportInput
 
+from app.pipeline.ingestion.provenance import session_facts
 from app.pipeline.knees import KneesOutcome, limb_symmetry
 from app.pipeline.session import SessionOutcome
 
@@ -107,6 +108,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "folder": str(session.folder),
             "patient_id": meta.value("patient_id"),
             "date": meta.value("date"),
+            # the recordings' own first and last day (their time stamps; None when no recording says it)
+            "recorded": dict(zip(("first", "last"), (d or None for d in recorded_dates(session)))),
             "step_height_m": outcome.step_height_m,
             "language": opts.language,
             "task_recording": {"fs_hz": outcome.fs_hz, "duration_s": len(outcome.t_s) / outcome.fs_hz,
@@ -252,6 +255,23 @@ def timeseries_npz_of(ri: ReportInput) -> bytes:
                        ri.knees_series)
 
 
+def report_input_of_files(results: dict[str, Any], npz: bytes, patient: Patient, language: str,
+                          interpretation: Interpretation | None = None) -> ReportInput:
+    """The report input again from an analysis' stored ``results.json`` and ``timeseries.npz`` (the arrays
+    :func:`timeseries_npz` wrote, bit for bit), with ``patient`` and the clinician's signed ``interpretation``:
+    the reports of a stored analysis rendered again with what was added since (issue 17 §3)."""
+    with np.load(io.BytesIO(npz), allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    knees_series = {side: {"t_s": arrays[f"t_s_{side}"], "angles_deg": arrays[f"angles_deg_{side}"]}
+                    for side in ("left", "right") if f"t_s_{side}" in arrays}
+    return ReportInput(
+        results=results, t_s=arrays["t_s"], angles_deg=arrays["angles_deg"],
+        q_earth_sensor={seg: arrays[f"q_earth_sensor_{seg}"] for seg in ("thigh", "shank")},
+        q_earth_segment={seg: arrays[f"q_earth_segment_{seg}"] for seg in ("femur", "tibia")},
+        q_sensor_segment={seg: arrays[f"q_sensor_segment_{seg}"] for seg in ("thigh", "shank")},
+        patient=patient, language=language, knees_series=knees_series, interpretation=interpretation)
+
+
 def _knees_series(knees: KneesOutcome | None) -> dict[str, dict[str, np.ndarray]]:
     """``{side: {"t_s", "angles_deg"}}`` of both knees (``{}`` for one knee)."""
     if knees is None or not knees.bilateral:
@@ -307,28 +327,57 @@ def results_json(results: dict[str, Any]) -> str:
 
 
 def session_patient(outcome: SessionOutcome) -> Patient:
-    """The patient block: what the names and ``session.json`` said (its optional keys ``name``, ``professional``,
-    ``weight_kg``, ``height_m``, ``observations`` are shown as typed)."""
+    """The patient block: what the names and ``session.json`` said (:func:`patient_of`), and the recordings' own
+    date (:func:`recorded_dates`)."""
     meta = outcome.session.metadata
-    extra = outcome.session.manifest_data  # parsed and checked once by load_session
+    return patient_of(outcome.session.manifest_data, record=meta.value("patient_id"), date=meta.value("date"),
+                      side=outcome.side, step_height_m=outcome.step_height_m,
+                      recorded=recorded_dates(outcome.session))
 
+
+def patient_of(manifest: Mapping[str, Any], *, record: Any, date: Any, side: str, step_height_m: float | None,
+               recorded: tuple[str, str]) -> Patient:
+    """The reports' :class:`Patient` from a ``session.json``'s optional keys ``name``, ``professional``,
+    ``weight_kg``, ``height_m``, ``observations``, ``identifier_system``, ``birth_date``, ``sex``, ``clinic`` (shown as
+    typed; the server writes them from its patient and clinic, :func:`app.store.workspace.build_manifest`), the
+    record number ``record`` and session ``date`` the ingestion found, and the recordings' ``(first, last)`` day.
+    What nothing said stays empty: the reports omit it."""
     def number(key: str) -> float | None:
         try:
-            value = float(extra[key])
+            value = float(manifest[key])
         except (KeyError, TypeError, ValueError):
             return None
         return value if math.isfinite(value) else None
 
+    def typed(key: str) -> str:
+        return str(manifest.get(key) or "")
+
+    first, last = recorded
     return Patient(
-        name_or_id=str(extra.get("name") or meta.value("patient_id") or ""),
-        date=str(meta.value("date") or ""),
-        professional=str(extra.get("professional") or ""),
-        side=outcome.side,
-        step_height_m=outcome.step_height_m,
+        name_or_id=str(manifest.get("name") or record or ""),
+        date=str(date or ""),
+        professional=typed("professional"),
+        side=side,
+        step_height_m=step_height_m,
         weight_kg=number("weight_kg"),
         height_m=number("height_m"),
-        observations=str(extra.get("observations") or ""),
+        observations=typed("observations"),
+        record_number="" if record is None else str(record),
+        record_system=typed("identifier_system") if record is not None else "",
+        birth_date=typed("birth_date"),
+        sex=typed("sex"),
+        clinic=typed("clinic"),
+        recorded=first or "",
+        recorded_last="" if last == first else (last or ""),
     )
+
+
+def recorded_dates(session) -> tuple[str, str]:
+    """``(first, last)`` ISO day of the session's recordings, from their own time stamps (the first epoch stamp,
+    else the MetaBase name's start, else the thesis name's date: :func:`app.pipeline.ingestion.provenance.
+    recording_facts`); ``("", "")`` when no recording says it (then no date is printed as the recordings')."""
+    days = sorted({str(f.date.value)[:10] for f in session_facts(session).values() if f.date is not None})
+    return (days[0], days[-1]) if days else ("", "")
 
 
 def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None,

@@ -240,6 +240,43 @@ class Analysis(Base):
     artefacts: Mapped[list["Artefact"]] = relationship(order_by="Artefact.id", cascade="all, delete-orphan")
 
 
+class Interpretation(Base):
+    """The clinician's interpretation of one analysis (issue 17 §3): a draft ``text`` until a clinician signs it
+    (``signed_*``: who, their role then, when); signed, it is locked: changed only by an amendment
+    (:class:`InterpretationAmendment`), which keeps the text it replaced.  :mod:`app.store.interpretations`."""
+
+    __tablename__ = "interpretations"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    clinic_id: Mapped[int] = mapped_column(ForeignKey("clinics.id", ondelete="CASCADE"), index=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id", ondelete="CASCADE"), index=True)
+    analysis_id: Mapped[int] = mapped_column(ForeignKey("analyses.id", ondelete="CASCADE"), unique=True)
+    text: Mapped[str] = mapped_column(Text, default="")
+    #: who last saved the draft (a user's name or email, or an API token's label) and when
+    updated_by: Mapped[str] = mapped_column(String(320), default="")
+    updated_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+    signed_by_user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"), nullable=True)
+    signed_by: Mapped[str | None] = mapped_column(String(320), nullable=True)
+    signed_role: Mapped[str | None] = mapped_column(String(20), nullable=True)
+    signed_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    amendments: Mapped[list["InterpretationAmendment"]] = relationship(
+        order_by="InterpretationAmendment.id", cascade="all, delete-orphan", lazy="selectin")
+
+
+class InterpretationAmendment(Base):
+    """One amendment of a signed interpretation: the text before and after, by whom (user, name, role), when, why."""
+
+    __tablename__ = "interpretation_amendments"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    interpretation_id: Mapped[int] = mapped_column(ForeignKey("interpretations.id", ondelete="CASCADE"), index=True)
+    previous_text: Mapped[str] = mapped_column(Text)
+    text: Mapped[str] = mapped_column(Text)
+    reason: Mapped[str] = mapped_column(Text)
+    user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"), nullable=True)
+    by: Mapped[str] = mapped_column(String(320))
+    role: Mapped[str] = mapped_column(String(20))
+    at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
 class Artefact(Base):
     """One output file of an analysis: ``name`` (results.json, report.pdf, ...) and ``lang`` for the PDFs."""
 

@@ -44,8 +44,11 @@ def _number(x: Any) -> float | None:
 
 
 def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[Recording],
-                   uploaded: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The ``session.json`` of ``session`` (module docstring).
+                   uploaded: dict[str, Any] | None = None, *, clinic: str = "",
+                   identifier_system: str | None = None) -> dict[str, Any]:
+    """The ``session.json`` of ``session`` (module docstring).  ``clinic`` (its name) and ``identifier_system``
+    (the URI of the record numbers' namespace, ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM``) go with the patient's birth
+    date and sex into the reports' identity line (issue 17 §3).
 
     An uploaded manifest may only name this session's stored files, by their bare names: anything else (a
     path, ``..``, a file that was not uploaded) raises :class:`IngestionError`, so a manifest can never make
@@ -67,7 +70,8 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
         "step_height_m": _number(session.step_height_m), "name": patient.name,
         "professional": session.professional, "weight_kg": _number(patient.mass_kg),
         "height_m": None if patient.height_cm is None else patient.height_cm / 100.0,
-        "observations": session.notes,
+        "observations": session.notes, "birth_date": None if patient.birth_date is None else patient.birth_date.isoformat(),
+        "sex": patient.sex, "clinic": clinic, "identifier_system": identifier_system,
     }
     manifest |= {k: v for k, v in facts.items() if v not in (None, "")}
     if session.split:  # the clinician's cuts, confirmed in the wizard (app.store.recordings.set_split)
@@ -91,25 +95,35 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
     return manifest
 
 
+def uploaded_manifest(store: BlobStore, recordings: Sequence[Recording]) -> dict[str, Any] | None:
+    """The ``session.json`` uploaded among ``recordings`` (parsed, within the manifest caps), or None."""
+    for rec in recordings:
+        if rec.file_name == MANIFEST:
+            try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
+                uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                raise IngestionError("manifest.stored_not_json", file=MANIFEST) from None
+            if not isinstance(uploaded, dict):
+                raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
+            return uploaded
+    return None
+
+
 @contextmanager
 def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
-                recordings: Sequence[Recording]) -> Iterator[Path]:
-    """A temporary folder with the session's files and manifest (removed on exit)."""
+                recordings: Sequence[Recording], *, clinic: str = "",
+                identifier_system: str | None = None) -> Iterator[Path]:
+    """A temporary folder with the session's files and manifest (removed on exit; ``clinic`` and
+    ``identifier_system`` as :func:`build_manifest`'s)."""
     tmp_root.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix=f"session-{session.id}-", dir=tmp_root))
     try:
-        uploaded = None
+        uploaded = uploaded_manifest(store, recordings)
         for rec in recordings:
-            if rec.file_name == MANIFEST:
-                try:  # within the manifest caps: too deep or too large is an IngestionError (issue 16, finding 5)
-                    uploaded = parse_manifest(store.read(rec.sha256).decode("utf-8"), MANIFEST)
-                except (UnicodeDecodeError, json.JSONDecodeError):
-                    raise IngestionError("manifest.stored_not_json", file=MANIFEST) from None
-                if not isinstance(uploaded, dict):
-                    raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
-                continue
-            store.copy_to(rec.sha256, folder / rec.file_name)
-        manifest = build_manifest(session, patient, recordings, uploaded)
+            if rec.file_name != MANIFEST:
+                store.copy_to(rec.sha256, folder / rec.file_name)
+        manifest = build_manifest(session, patient, recordings, uploaded, clinic=clinic,
+                                  identifier_system=identifier_system)
         (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, ensure_ascii=False), encoding="utf-8")
         yield folder
     finally:
@@ -190,4 +204,4 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
         return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None}
 
 
-__all__ = ["NO_RECORDINGS", "build_manifest", "check_ingestion", "file_facts", "materialise", "public_message"]
+__all__ = ["NO_RECORDINGS", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts", "materialise", "public_message"]

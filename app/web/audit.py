@@ -31,6 +31,10 @@ route                                                   action        patient / 
 ``GET /sessions/{id}/report.pdf`` … ``scene.viser``     ``download``  patient / session
 ``GET /fhir/DiagnosticReport/{id}``                     ``export``    patient / session
 ``POST /sessions/{id}/process``                         ``process``   patient / session
+``GET /sessions/{id}/interpretation``                   ``view``      patient / session
+``POST /sessions/{id}/interpretation`` (the draft)      ``update``    patient / session
+``POST /sessions/{id}/interpretation/sign``             ``sign``      patient / session
+``POST /sessions/{id}/interpretation/amendments``       ``amend``     patient / session
 ======================================================  ============  ====================================
 
 Security events (OWASP ASVS 7.1.3, 7.2.1, 7.2.2; issue 16 finding 7) — ``status`` holds the answer's code and
@@ -96,7 +100,7 @@ log = logging.getLogger("chakamo.audit")
 ACTIONS: tuple[str, ...] = ("list", "search", "view", "create", "upload", "delete", "download", "export",
                             "process", "update", "login", "login_failed", "login_refused", "logout", "denied",
                             "user_create", "user_change", "password_change", "session_end", "unlock", "token_create",
-                            "token_revoke")
+                            "token_revoke", "sign", "amend")
 #: column widths of :class:`AuditEvent` (longer values are cut, never refused: the read must not fail on them)
 _RESOURCE_CHARS, _CLIENT_CHARS, _ACTOR_CHARS, _DETAIL_CHARS = 300, 64, 320, 300
 

@@ -13,7 +13,7 @@ import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } fro
 import { t, lang, LANGUAGES } from "../i18n.js";
 import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
-import { navigate } from "../app.js";
+import { navigate, canEdit } from "../app.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -99,6 +99,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     r.reference ? referenceSection(r.reference) : null,
     qualitySection(r, warnings),
     compareSection(session, analysis),
+    interpretationSection(session, analysis),
     downloadsSection(session.id, analysis.id),
     sceneSection(session.id, analysis.id));
 
@@ -331,11 +332,96 @@ function calibrationFacts(r) {
     h("p", { class: "hint" }, t("results.calibration_hint")));
 }
 
+/** The clinician's interpretation of this analysis (issue 17 §3): a draft text box, "sign" (the logged-in user,
+ * locked from then on), then "amend" with a required reason; the amendment history keeps each earlier text.
+ * GET/POST /sessions/{id}/interpretation, …/sign, …/amendments; the PDF and HTML reports print the signed text. */
+function interpretationSection(session, analysis) {
+  const base = `/sessions/${session.id}/interpretation`;
+  const query = { analysis_id: analysis.id };
+  const editable = canEdit() && !analysis.superseded_at;
+  const status = h("p", { id: "interp-status", role: "status" });
+  const text = h("textarea", { id: "interp-text", name: "interpretation", rows: "6", maxlength: "20000",
+    "aria-describedby": "interp-status" });
+  const reason = h("input", { id: "interp-reason", name: "reason", type: "text", maxlength: "2000" });
+  const reasonField = h("div", { class: "field", id: "interp-reason-field", hidden: true },
+    h("label", { for: "interp-reason" }, t("interp.reason")), reason);
+  const save = h("button", { type: "button", class: "secondary", id: "interp-save" }, t("interp.save"));
+  const sign = h("button", { type: "button", class: "primary", id: "interp-sign" }, t("interp.sign"));
+  const amend = h("button", { type: "button", class: "secondary", id: "interp-amend" }, t("interp.amend"));
+  const amendSave = h("button", { type: "button", class: "primary", id: "interp-amend-save", hidden: true },
+    t("interp.amend_save"));
+  const out = h("div", { id: "interp-message" });
+  const history = h("ol", { id: "interp-history", class: "history" });
+  const historyBox = h("div", { id: "interp-history-box", hidden: true }, h("h3", {}, t("interp.history")), history);
+
+  // hidden and display together: the style sheet gives buttons a display that would override [hidden]
+  const shown = (el, on) => { el.hidden = !on; el.style.display = on ? "" : "none"; };
+  const show = (it) => {
+    clear(out);
+    text.value = it.text || "";
+    const signed = it.status === "signed";
+    status.textContent = signed
+      ? t("interp.signed_by", { name: it.signed_by, role: label("role", it.signed_role), when: dateTime(it.signed_at) })
+        + (it.amended ? ` · ${t("interp.amended")}` : "")
+      : t(it.status === "draft" ? "interp.draft" : "interp.none");
+    text.readOnly = signed || !editable;
+    shown(save, !signed && editable);
+    shown(sign, !signed && editable);
+    shown(amend, signed && editable);
+    shown(amendSave, false);
+    shown(reasonField, false);
+    reason.value = "";
+    clear(history).append(...(it.amendments || []).map((a) => h("li", {},
+      h("p", {}, t("interp.amendment_by", { name: a.by, role: label("role", a.role), when: dateTime(a.at) })),
+      h("p", {}, h("strong", {}, `${t("interp.reason")}: `), a.reason),
+      h("p", { class: "hint" }, h("strong", {}, `${t("interp.previous")}: `), a.previous_text))));
+    shown(historyBox, (it.amendments || []).length > 0);
+  };
+  const act = async (method, path, json) => {
+    try {
+      show(await api(method, path, { json, query: method === "GET" ? query : undefined }));
+      return true;
+    } catch (err) {
+      clear(out).append(alertBox(errorText(err)));
+      return false;
+    }
+  };
+  save.addEventListener("click", async () => {
+    if (await act("POST", base, { text: text.value, analysis_id: analysis.id })) {
+      out.append(h("p", { class: "notice", role: "status" }, t("interp.saved")));
+    }
+  });
+  sign.addEventListener("click", async () => {
+    if (!text.value.trim()) { clear(out).append(alertBox(t("interp.empty"))); return; }
+    if (!window.confirm(t("interp.sign_confirm"))) return;
+    // the text on screen is what is signed: saved first, then signed
+    if (await act("POST", base, { text: text.value, analysis_id: analysis.id })) {
+      await act("POST", `${base}/sign`, { analysis_id: analysis.id });
+    }
+  });
+  amend.addEventListener("click", () => {
+    text.readOnly = false;
+    shown(reasonField, true);
+    shown(amendSave, true);
+    shown(amend, false);
+    text.focus();
+  });
+  amendSave.addEventListener("click", async () => {
+    if (!reason.value.trim()) { clear(out).append(alertBox(t("interp.reason_needed"))); reason.focus(); return; }
+    await act("POST", `${base}/amendments`, { text: text.value, reason: reason.value, analysis_id: analysis.id });
+  });
+  act("GET", base);
+  return h("section", { class: "card interpretation", id: "interpretation", "aria-labelledby": "h-interp" },
+    h("h2", { id: "h-interp" }, t("interp.title")), h("p", { class: "hint" }, t("interp.hint")), status,
+    h("label", { for: "interp-text" }, t("interp.text")), text, reasonField,
+    h("div", { class: "actions wrap" }, save, sign, amend, amendSave), out, historyBox);
+}
+
 function downloadsSection(sessionId, analysisId) {
   const link = (path, query, text, name) => h("a", { href: apiUrl(`/sessions/${sessionId}/${path}`, { ...query, analysis_id: analysisId }),
     class: "button-link secondary", download: name || true }, text);
-  const pdfs = LANGUAGES.map((code) => link("report.pdf", { lang: code }, t("results.pdf_lang", { lang: t(`lang.${code}`) }),
-    `chakamo-session-${sessionId}-${code}.pdf`));
+  // no name of our own: the server's (the patient's record number and the recordings' date) is kept
+  const pdfs = LANGUAGES.map((code) => link("report.pdf", { lang: code }, t("results.pdf_lang", { lang: t(`lang.${code}`) })));
   const current = pdfs.splice(LANGUAGES.indexOf(lang()), 1)[0];
   current.classList.replace("secondary", "primary");
   return h("section", { class: "card downloads", "aria-labelledby": "h-downloads" },
@@ -343,7 +429,7 @@ function downloadsSection(sessionId, analysisId) {
     h("div", { class: "actions wrap" }, current, ...pdfs,
       link("angles.xlsx", {}, t("results.angles_xlsx")),
       link("quaternions.xlsx", {}, t("results.quaternions_xlsx")),
-      h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId }), class: "button-link secondary",
+      h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId, lang: lang() }), class: "button-link secondary",
         target: "_blank", rel: "noopener" }, t("results.report_html"))));
 }
 

@@ -143,7 +143,7 @@ def test_per_cycle_curves_and_session_sheets(tmp_path):
     values = dict(_sheet_rows(wb["Patient and session"])[1:])
     assert values["Patient (name or ID)"] == "P-001"
     assert values["Side under study"] == "Right"
-    assert values["Step height (m)"] == 0.17
+    assert values["Step height (cm)"] == 17  # one unit of step height in every report (issue 17 §3)
     assert values["Cycles detected"] == 3 and values["Cycles accepted"] == 2
     assert values["Task"] == "Single-leg step-up"
 

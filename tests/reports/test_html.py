@@ -161,7 +161,7 @@ def test_warnings_are_translated_by_code():
     results = {**ri.results, "quality": {**ri.results["quality"], "warnings": [warning]}}
     for lang, expected in (("es", "Muslo, tarea: el giroscopio siguió registrando 1,53 s después del intervalo "
                                   "común (recortado)"),
-                           ("pt", "Coxa, tarefa: o giroscópio continuou registrando 1,53 s após o intervalo comum "
+                           ("pt", "Coxa, tarefa: o giroscópio continuou a registar 1,53 s após o intervalo comum "
                                   "(cortado)"),
                            ("en", warning["message"])):
         page = _without_plotly_js(render_html(replace(ri, results=results, language=lang)))

@@ -256,7 +256,8 @@ def test_golden_numbers_printed_equal_results_json(demo_ri, demo_pdfs, lang):
              rejected=len(c["rejected"])) in text
     assert t("stats_note", lang, n=c["accepted"]) in text
     assert t("header_version", lang, version=r["software"]["version"]) in text
-    assert r["filter"]["name"] in text
+    # the filter by its human name, never the raw id (issue 17 §3)
+    assert f"{t('protocol_filter_label', lang)}: {t('data.filter.' + r['filter']['name'], lang)}" in text
     assert r["quality"]["warnings"]      # the demo has warnings (a stream cut at alignment)
     for w in r["quality"]["warnings"]:   # translated by code; English verbatim
         printed, translated = warning_text(w, lang, r)
@@ -332,7 +333,7 @@ def test_rejected_cycles_missing_sd_and_warnings(lang):
                "pt": "Coxa: A intensidade de campo ajustada é 80,0 µT; o campo terrestre é de 25–65 µT.",
                "en": "x"}[lang]                               # params: numbers formatted here; en prints the message
     assert _flat(printed) in text
-    assert t("side_left", lang) in text and "madgwick" in text and "9.8.7" in text
+    assert t("side_left", lang) in text and t("data.filter.madgwick", lang) in text and "9.8.7" in text
     assert _flat(t("task_description_no_height", lang, leg=t("leg_left", lang))) in text  # no step height
     # one accepted cycle: no SD, the mean alone, rounded as printed (no negative zero)
     assert f" {_expected(60.08, 1, lang)} {_expected(60.04, 1, lang)} {_expected(-0.04, 1, lang)} " in text

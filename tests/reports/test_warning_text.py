@@ -165,7 +165,7 @@ def test_demo_warning_in_spanish_and_portuguese():
                     "role": "task"}}
     assert warning_text(w, "es") == ("Muslo, tarea: el giroscopio siguió registrando 1,53 s después del intervalo "
                                      "común (recortado)", True)
-    assert warning_text(w, "pt") == ("Coxa, tarefa: o giroscópio continuou registrando 1,53 s após o intervalo "
+    assert warning_text(w, "pt") == ("Coxa, tarefa: o giroscópio continuou a registar 1,53 s após o intervalo "
                                      "comum (cortado)", True)
 
 

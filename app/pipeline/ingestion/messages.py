@@ -28,41 +28,41 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "file.unreadable": {
         "en": "{file}: cannot be read ({reason}); check that the file exists and is readable, or copy it again.",
         "es": "{file}: no se puede leer ({reason}); compruebe que el archivo existe y se puede leer, o cópielo de nuevo.",
-        "pt": "{file}: não pode ser lido ({reason}); verifique se o arquivo existe e pode ser lido, ou copie-o de novo."},
+        "pt": "{file}: não pode ser lido ({reason}); verifique se o ficheiro existe e pode ser lido, ou copie-o de novo."},
     "file.nul_bytes": {
         "en": "{file}: the file contains NUL bytes (saved as UTF-16/UTF-32 'Unicode text', or damaged); save it "
               "again as a UTF-8 (or plain) CSV, or export the recording again.",
         "es": "{file}: el archivo contiene bytes NUL (guardado como 'texto Unicode' UTF-16/UTF-32, o dañado); "
               "guárdelo de nuevo como CSV UTF-8 (o simple), o exporte de nuevo la grabación.",
-        "pt": "{file}: o arquivo contém bytes NUL (salvo como 'texto Unicode' UTF-16/UTF-32, ou danificado); "
+        "pt": "{file}: o ficheiro contém bytes NUL (salvo como 'texto Unicode' UTF-16/UTF-32, ou danificado); "
               "salve-o de novo como CSV UTF-8 (ou simples), ou exporte a gravação de novo."},
     "file.not_text": {
         "en": "{file}: not a text CSV file ({reason}); export it again as CSV.",
         "es": "{file}: no es un archivo CSV de texto ({reason}); expórtelo de nuevo como CSV.",
-        "pt": "{file}: não é um arquivo CSV de texto ({reason}); exporte-o de novo como CSV."},
+        "pt": "{file}: não é um ficheiro CSV de texto ({reason}); exporte-o de novo como CSV."},
     "file.damaged_csv": {
         "en": "{file}: not a readable CSV file ({reason}); the file is damaged — export the recording again.",
         "es": "{file}: no es un archivo CSV legible ({reason}); el archivo está dañado: exporte de nuevo la grabación.",
-        "pt": "{file}: não é um arquivo CSV legível ({reason}); o arquivo está danificado: exporte a gravação de novo."},
+        "pt": "{file}: não é um ficheiro CSV legível ({reason}); o ficheiro está danificado: exporte a gravação de novo."},
     "file.empty": {
         "en": "{file}: the file is empty; export the recording again.",
         "es": "{file}: el archivo está vacío; exporte de nuevo la grabación.",
-        "pt": "{file}: o arquivo está vazio; exporte a gravação de novo."},
+        "pt": "{file}: o ficheiro está vazio; exporte a gravação de novo."},
     "file.header_only": {
         "en": "{file}: the file has a header but no data rows; export the recording again.",
         "es": "{file}: el archivo tiene encabezado pero ninguna fila de datos; exporte de nuevo la grabación.",
-        "pt": "{file}: o arquivo tem cabeçalho mas nenhuma linha de dados; exporte a gravação de novo."},
+        "pt": "{file}: o ficheiro tem cabeçalho mas nenhuma linha de dados; exporte a gravação de novo."},
     "file.ragged_row": {
         "en": "{file}: row {row} has {cells} cells but the header has {header_cells}; the file is damaged or has a "
               "stray separator — export it again.",
         "es": "{file}: la fila {row} tiene {cells} celdas pero el encabezado tiene {header_cells}; el archivo está "
               "dañado o tiene un separador de más: expórtelo de nuevo.",
-        "pt": "{file}: a linha {row} tem {cells} células mas o cabeçalho tem {header_cells}; o arquivo está "
+        "pt": "{file}: a linha {row} tem {cells} células mas o cabeçalho tem {header_cells}; o ficheiro está "
               "danificado ou tem um separador a mais: exporte-o de novo."},
     "file.not_found": {
         "en": "{file}: file not found; check the name (or the session.json entry).",
         "es": "{file}: archivo no encontrado; compruebe el nombre (o la entrada de session.json).",
-        "pt": "{file}: arquivo não encontrado; verifique o nome (ou a entrada do session.json)."},
+        "pt": "{file}: ficheiro não encontrado; verifique o nome (ou a entrada do session.json)."},
     "file.axes_units_differ": {
         "en": "{file}: the three axes declare different units ({units}); fix the header so they declare one.",
         "es": "{file}: los tres ejes declaran unidades distintas ({units}); corrija el encabezado para que declaren una.",
@@ -123,9 +123,9 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: no es un archivo de flujo de MetaBase: al encabezado '{header}' le faltan las columnas "
               "'epoch (ms)' o 'elapsed (s)' y 'x-axis/y-axis/z-axis (unidad)'; exporte de nuevo el flujo desde "
               "MetaBase (o renombre el archivo si no es una exportación de flujo).",
-        "pt": "{file}: não é um arquivo de fluxo do MetaBase: ao cabeçalho '{header}' faltam as colunas "
+        "pt": "{file}: não é um ficheiro de fluxo do MetaBase: ao cabeçalho '{header}' faltam as colunas "
               "'epoch (ms)' ou 'elapsed (s)' e 'x-axis/y-axis/z-axis (unidade)'; exporte o fluxo de novo do "
-              "MetaBase (ou renomeie o arquivo se não for uma exportação de fluxo)."},
+              "MetaBase (ou renomeie o ficheiro se não for uma exportação de fluxo)."},
     "metabase.excel_epoch_no_name": {
         "en": "{file}: the '{column}' stamps were rounded by a spreadsheet (e.g. 1.63552E+12) and the file name "
               "no longer carries MetaBase's start time to rebuild them; give the file its MetaBase name again, or "
@@ -133,22 +133,22 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: las marcas '{column}' fueron redondeadas por una hoja de cálculo (p. ej. 1,63552E+12) y el "
               "nombre del archivo ya no lleva la hora de inicio de MetaBase para reconstruirlas; devuelva al "
               "archivo su nombre de MetaBase, o exporte de nuevo la grabación.",
-        "pt": "{file}: as marcas '{column}' foram arredondadas por uma planilha (p. ex. 1,63552E+12) e o nome do "
-              "arquivo já não traz a hora de início do MetaBase para reconstruí-las; devolva ao arquivo o seu nome "
+        "pt": "{file}: as marcas '{column}' foram arredondadas por uma folha de cálculo (p. ex. 1,63552E+12) e o nome do "
+              "ficheiro já não traz a hora de início do MetaBase para reconstruí-las; devolva ao ficheiro o seu nome "
               "do MetaBase, ou exporte a gravação de novo."},
     "metabase.several_recordings": {
         "en": "{file}: these files belong to {count} different MetaBase recordings ({labels}); list one "
               "recording's three files together.",
         "es": "{file}: estos archivos pertenecen a {count} grabaciones distintas de MetaBase ({labels}); liste "
               "juntos los tres archivos de una grabación.",
-        "pt": "{file}: estes arquivos pertencem a {count} gravações diferentes do MetaBase ({labels}); liste "
-              "juntos os três arquivos de uma gravação."},
+        "pt": "{file}: estes ficheiros pertencem a {count} gravações diferentes do MetaBase ({labels}); liste "
+              "juntos os três ficheiros de uma gravação."},
     "metabase.stream_missing": {
         "en": "{file}: recording '{label}' of sensor {sensor} has no {streams} file; export every stream from "
               "MetaBase. {hint}",
         "es": "{file}: la grabación '{label}' del sensor {sensor} no tiene archivo {streams}; exporte todos los "
               "flujos desde MetaBase. {hint}",
-        "pt": "{file}: a gravação '{label}' do sensor {sensor} não tem arquivo {streams}; exporte todos os "
+        "pt": "{file}: a gravação '{label}' do sensor {sensor} não tem ficheiro {streams}; exporte todos os "
               "fluxos do MetaBase. {hint}"},
     "metabase.stream_twice": {
         "en": "{file} and {other} are both the {stream} of recording '{label}' on sensor {sensor}; keep only one "
@@ -166,7 +166,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "o exporte de nuevo el archivo.",
         "pt": "{file}: não há coluna {columns} no cabeçalho; um CSV genérico precisa de time, acc_x..z, gyr_x..z, "
               "mag_x..z, cada uma com a sua unidade, p. ex. 'acc_x (g)': adicione a(s) coluna(s) que faltam ou "
-              "exporte o arquivo de novo."},
+              "exporte o ficheiro de novo."},
     "generic.no_time": {
         "en": "{file}: no time column; add 'time (s)' (or 'epoch (ms)') as the first column.",
         "es": "{file}: no hay columna de tiempo; añada 'time (s)' (o 'epoch (ms)') como primera columna.",
@@ -217,7 +217,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: a la exportación de Consensys le falta {columns} (calibrado, _CAL); expórtela de nuevo con "
               "acelerómetro, giroscopio, magnetómetro y marcas de tiempo Unix activados.",
         "pt": "{file}: à exportação do Consensys falta {columns} (calibrado, _CAL); exporte-a de novo com "
-              "acelerômetro, giroscópio, magnetômetro e marcas de tempo Unix ativados."},
+              "acelerómetro, giroscópio, magnetómetro e marcas de tempo Unix ativados."},
     "shimmer.unit_unknown": {
         "en": "{file}: unit '{unit}' of column {column} is not one ChakaMo knows for a Consensys export; export "
               "it again with calibrated (CAL) data.",
@@ -228,33 +228,33 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "opal.no_h5py": {
         "en": "reading APDM .h5 files needs the 'h5py' package: install ChakaMo again (pip install -e .).",
         "es": "leer archivos .h5 de APDM necesita el paquete 'h5py': instale ChakaMo de nuevo (pip install -e .).",
-        "pt": "ler arquivos .h5 da APDM precisa do pacote 'h5py': instale o ChakaMo de novo (pip install -e .)."},
+        "pt": "ler ficheiros .h5 da APDM precisa do pacote 'h5py': instale o ChakaMo de novo (pip install -e .)."},
     "opal.cannot_open": {
         "en": "{file}: cannot be opened as an HDF5 file ({reason}); copy it again or export it again from "
               "Mobility Lab / Motion Studio.",
         "es": "{file}: no se puede abrir como archivo HDF5 ({reason}); cópielo de nuevo o expórtelo de nuevo "
               "desde Mobility Lab / Motion Studio.",
-        "pt": "{file}: não pode ser aberto como arquivo HDF5 ({reason}); copie-o de novo ou exporte-o de novo do "
+        "pt": "{file}: não pode ser aberto como ficheiro HDF5 ({reason}); copie-o de novo ou exporte-o de novo do "
               "Mobility Lab / Motion Studio."},
     "opal.not_v5": {
         "en": "{file}: not an APDM file of format version 5 (no /Sensors group); export it again from Mobility "
               "Lab / Motion Studio in the current HDF5 format.",
         "es": "{file}: no es un archivo APDM de la versión de formato 5 (sin grupo /Sensors); expórtelo de nuevo "
               "desde Mobility Lab / Motion Studio en el formato HDF5 actual.",
-        "pt": "{file}: não é um arquivo APDM da versão de formato 5 (sem grupo /Sensors); exporte-o de novo do "
+        "pt": "{file}: não é um ficheiro APDM da versão de formato 5 (sem grupo /Sensors); exporte-o de novo do "
               "Mobility Lab / Motion Studio no formato HDF5 atual."},
     "opal.which_sensor": {
         "en": "{file}: the file holds the sensors {sensors}; name the one of each recording in session.json "
               "(\"sensor\" in its recordings entry).",
         "es": "{file}: el archivo contiene los sensores {sensors}; indique el de cada grabación en session.json "
               "(\"sensor\" en su entrada de recordings).",
-        "pt": "{file}: o arquivo contém os sensores {sensors}; indique o de cada gravação no session.json "
+        "pt": "{file}: o ficheiro contém os sensores {sensors}; indique o de cada gravação no session.json "
               "(\"sensor\" na sua entrada de recordings)."},
     "opal.no_such_sensor": {
         "en": "{file}: no sensor '{sensor}' in the file (it holds {sensors}); correct \"sensor\" in session.json.",
         "es": "{file}: no hay sensor '{sensor}' en el archivo (contiene {sensors}); corrija \"sensor\" en "
               "session.json.",
-        "pt": "{file}: não há sensor '{sensor}' no arquivo (contém {sensors}); corrija \"sensor\" no "
+        "pt": "{file}: não há sensor '{sensor}' no ficheiro (contém {sensors}); corrija \"sensor\" no "
               "session.json."},
     "opal.datasets_missing": {
         "en": "{file}: sensor {sensor} has no {datasets} data; export the recording again with accelerometer, "
@@ -262,12 +262,12 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el sensor {sensor} no tiene datos de {datasets}; exporte de nuevo la grabación con "
               "acelerómetro, giroscopio y magnetómetro.",
         "pt": "{file}: o sensor {sensor} não tem dados de {datasets}; exporte a gravação de novo com "
-              "acelerômetro, giroscópio e magnetômetro."},
+              "acelerómetro, giroscópio e magnetómetro."},
     "opal.bad_shape": {
         "en": "{file}: {dataset} has shape {shape}, expected ({n}, 3); the file is damaged — export it again.",
         "es": "{file}: {dataset} tiene forma {shape}, se esperaba ({n}, 3); el archivo está dañado: expórtelo de "
               "nuevo.",
-        "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o arquivo está danificado: exporte-o de "
+        "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o ficheiro está danificado: exporte-o de "
               "novo."},
     "phyphox.linear_acceleration": {
         "en": "{file}: {member} holds '{column}', phyphox's acceleration without gravity, which the sensor "
@@ -305,13 +305,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "giroscopio y magnetómetro: grábelos en un mismo experimento, o liste las tres exportaciones juntas "
               "en session.json (los files de una grabación).",
         "pt": "{file}: à exportação phyphox falta {sensors}; uma gravação precisa de aceleração com g, giroscópio "
-              "e magnetômetro: grave-os numa mesma experiência, ou liste as três exportações juntas no "
+              "e magnetómetro: grave-os numa mesma experiência, ou liste as três exportações juntas no "
               "session.json (os files de uma gravação)."},
     "phone.not_a_zip": {
         "en": "{file}: not a readable zip file ({reason}); export the recording again from Sensor Logger (zip).",
         "es": "{file}: no es un archivo zip legible ({reason}); exporte de nuevo la grabación desde Sensor Logger "
               "(zip).",
-        "pt": "{file}: não é um arquivo zip legível ({reason}); exporte a gravação de novo do Sensor Logger (zip)."},
+        "pt": "{file}: não é um ficheiro zip legível ({reason}); exporte a gravação de novo do Sensor Logger (zip)."},
     "phone.member_unreadable": {
         "en": "{file}: {member} cannot be read ({reason}); export the recording again from Sensor Logger.",
         "es": "{file}: no se puede leer {member} ({reason}); exporte de nuevo la grabación desde Sensor Logger.",
@@ -321,8 +321,8 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "gyroscope and magnetometer enabled, and export as zip.",
         "es": "{file}: a la exportación de Sensor Logger le falta {files}; grabe de nuevo con acelerómetro, "
               "gravedad, giroscopio y magnetómetro activados, y exporte como zip.",
-        "pt": "{file}: à exportação do Sensor Logger falta {files}; grave de novo com acelerômetro, gravidade, "
-              "giroscópio e magnetômetro ativados, e exporte como zip."},
+        "pt": "{file}: à exportação do Sensor Logger falta {files}; grave de novo com acelerómetro, gravidade, "
+              "giroscópio e magnetómetro ativados, e exporte como zip."},
     "phone.columns_missing": {
         "en": "{file}: {member} has no column {columns}; export the recording again from Sensor Logger.",
         "es": "{file}: {member} no tiene la columna {columns}; exporte de nuevo la grabación desde Sensor Logger.",
@@ -333,7 +333,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "save the workbook as CSV.",
         "es": "leer archivos .xlsx necesita el paquete 'openpyxl': instale ChakaMo de nuevo (pip install -e .), "
               "o guarde el libro como CSV.",
-        "pt": "ler arquivos .xlsx precisa do pacote 'openpyxl': instale o ChakaMo de novo (pip install -e .), ou "
+        "pt": "ler ficheiros .xlsx precisa do pacote 'openpyxl': instale o ChakaMo de novo (pip install -e .), ou "
               "salve a pasta de trabalho como CSV."},
     "xlsx.cannot_open": {
         "en": "{file}: cannot be opened as an Excel workbook ({reason}); save it again from Excel as .xlsx.",
@@ -344,49 +344,49 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{file}: no sheet named '{sheet}'; the sheets are {sheets} — correct \"sheet\" in session.json.",
         "es": "{file}: no hay ninguna hoja llamada '{sheet}'; las hojas son {sheets}: corrija \"sheet\" en "
               "session.json.",
-        "pt": "{file}: não há planilha chamada '{sheet}'; as planilhas são {sheets}: corrija \"sheet\" no "
+        "pt": "{file}: não há folha chamada '{sheet}'; as folhas são {sheets}: corrija \"sheet\" no "
               "session.json."},
     "xlsx.no_layout_sheet": {
         "en": "{file}: none of its sheets has the thesis layout (Fig. 8.6: A elapsed, B–D acc, E–G gyro, H "
               "elapsed, I–K mag){detail}. Keep one such sheet, or name it in session.json (\"sheet\").",
         "es": "{file}: ninguna de sus hojas tiene el formato de la tesis (Fig. 8.6: A elapsed, B–D acc, E–G gyro, "
               "H elapsed, I–K mag){detail}. Conserve una hoja así, o nómbrela en session.json (\"sheet\").",
-        "pt": "{file}: nenhuma das suas planilhas tem o formato da tese (Fig. 8.6: A elapsed, B–D acc, E–G gyro, "
-              "H elapsed, I–K mag){detail}. Mantenha uma planilha assim, ou nomeie-a no session.json (\"sheet\")."},
+        "pt": "{file}: nenhuma das suas folhas de cálculo tem o formato da tese (Fig. 8.6: A elapsed, B–D acc, E–G gyro, "
+              "H elapsed, I–K mag){detail}. Mantenha uma folha de cálculo assim, ou nomeie-a no session.json (\"sheet\")."},
     "xlsx.several_layout_sheets": {
         "en": "{file}: several sheets ({sheets}) have the thesis layout (Fig. 8.6){detail}. Keep one such sheet, "
               "or name it in session.json (\"sheet\").",
         "es": "{file}: varias hojas ({sheets}) tienen el formato de la tesis (Fig. 8.6){detail}. Conserve una "
               "sola, o nómbrela en session.json (\"sheet\").",
-        "pt": "{file}: várias planilhas ({sheets}) têm o formato da tese (Fig. 8.6){detail}. Mantenha só uma, "
+        "pt": "{file}: várias folhas de cálculo ({sheets}) têm o formato da tese (Fig. 8.6){detail}. Mantenha só uma, "
               "ou nomeie-a no session.json (\"sheet\")."},
     "xlsx.no_rows": {
         "en": "{file}: sheet '{sheet}' has no data rows; export the recording again.",
         "es": "{file}: la hoja '{sheet}' no tiene filas de datos; exporte de nuevo la grabación.",
-        "pt": "{file}: a planilha '{sheet}' não tem linhas de dados; exporte a gravação de novo."},
+        "pt": "{file}: a folha de cálculo '{sheet}' não tem linhas de dados; exporte a gravação de novo."},
     "xlsx.not_layout": {
         "en": "{file}: sheet '{sheet}' is not in the thesis layout: {problem}; fix row 1 or export the recording "
               "again.",
         "es": "{file}: la hoja '{sheet}' no tiene el formato de la tesis: {problem}; corrija la fila 1 o exporte "
               "de nuevo la grabación.",
-        "pt": "{file}: a planilha '{sheet}' não tem o formato da tese: {problem}; corrija a linha 1 ou exporte a "
+        "pt": "{file}: a folha de cálculo '{sheet}' não tem o formato da tese: {problem}; corrija a linha 1 ou exporte a "
               "gravação de novo."},
     "xlsx.cell_not_number": {
         "en": "{file}: sheet '{sheet}', cell {cell} holds {value}, which is not a number; fix or delete that row.",
         "es": "{file}: hoja '{sheet}', la celda {cell} contiene {value}, que no es un número; corrija o borre esa "
               "fila.",
-        "pt": "{file}: planilha '{sheet}', a célula {cell} contém {value}, que não é um número; corrija ou apague "
+        "pt": "{file}: folha de cálculo '{sheet}', a célula {cell} contém {value}, que não é um número; corrija ou apague "
               "essa linha."},
     "xlsx.cell_infinite": {
         "en": "{file}: sheet '{sheet}', cell {cell} is infinite; fix or delete that row.",
         "es": "{file}: hoja '{sheet}', la celda {cell} es infinita; corrija o borre esa fila.",
-        "pt": "{file}: planilha '{sheet}', a célula {cell} é infinita; corrija ou apague essa linha."},
+        "pt": "{file}: folha de cálculo '{sheet}', a célula {cell} é infinita; corrija ou apague essa linha."},
     "xlsx.cell_huge": {
         "en": "{file}: sheet '{sheet}', cell {cell} holds {value}, beyond any time stamp or reading; fix or delete "
               "that row.",
         "es": "{file}: hoja '{sheet}', la celda {cell} contiene {value}, más que cualquier marca de tiempo o "
               "lectura; corrija o borre esa fila.",
-        "pt": "{file}: planilha '{sheet}', a célula {cell} contém {value}, além de qualquer marca de tempo ou "
+        "pt": "{file}: folha de cálculo '{sheet}', a célula {cell} contém {value}, além de qualquer marca de tempo ou "
               "leitura; corrija ou apague essa linha."},
     "xlsx.unit_unknown": {
         "en": "{file}: unit ({unit}) in row 1 is not one ChakaMo knows for this column (acc g/mg/m/s², gyro "
@@ -398,7 +398,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "xlsx.stream_empty": {
         "en": "{file}: sheet '{sheet}' has no {stream} data; export the recording again.",
         "es": "{file}: la hoja '{sheet}' no tiene datos de {stream}; exporte de nuevo la grabación.",
-        "pt": "{file}: a planilha '{sheet}' não tem dados de {stream}; exporte a gravação de novo."},
+        "pt": "{file}: a folha de cálculo '{sheet}' não tem dados de {stream}; exporte a gravação de novo."},
     # -------------------------------------------------------------------------------------------- units
     "unit.unknown_for_stream": {
         "en": "{file}: unit ({unit}) is not one ChakaMo knows for the {stream} stream; expected {expected}; "
@@ -413,8 +413,8 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: la magnitud típica del acelerómetro es {value} m/s² leída como ({declared}); la gravedad "
               "es 9,81 m/s². {hint} Corrija la unidad en el encabezado de la columna (o exporte de nuevo el "
               "archivo en {declared}).",
-        "pt": "{file}: a magnitude típica do acelerômetro é {value} m/s² lida como ({declared}); a gravidade é "
-              "9,81 m/s². {hint} Corrija a unidade no cabeçalho da coluna (ou exporte o arquivo de novo em "
+        "pt": "{file}: a magnitude típica do acelerómetro é {value} m/s² lida como ({declared}); a gravidade é "
+              "9,81 m/s². {hint} Corrija a unidade no cabeçalho da coluna (ou exporte o ficheiro de novo em "
               "{declared})."},
     "unit.implausible_mag": {
         "en": "{file}: the magnetometer's typical field is {value} µT when read as ({declared}); the earth's "
@@ -423,16 +423,16 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el campo típico del magnetómetro es {value} µT leído como ({declared}); el campo "
               "terrestre es de 25–65 µT. {hint} Corrija la unidad en el encabezado de la columna (o exporte de "
               "nuevo el archivo en {declared}).",
-        "pt": "{file}: o campo típico do magnetômetro é {value} µT lido como ({declared}); o campo da Terra é "
-              "de 25–65 µT. {hint} Corrija a unidade no cabeçalho da coluna (ou exporte o arquivo de novo em "
+        "pt": "{file}: o campo típico do magnetómetro é {value} µT lido como ({declared}); o campo da Terra é "
+              "de 25–65 µT. {hint} Corrija a unidade no cabeçalho da coluna (ou exporte o ficheiro de novo em "
               "{declared})."},
     "unit.implausible_normalised": {
         "en": "{file}: the normalised magnetometer's typical norm is {value}, not about 1; check that the "
               "magnetometer columns are the normalised ones, or correct their unit in the header.",
         "es": "{file}: la norma típica del magnetómetro normalizado es {value}, no cerca de 1; compruebe que las "
               "columnas del magnetómetro son las normalizadas, o corrija su unidad en el encabezado.",
-        "pt": "{file}: a norma típica do magnetômetro normalizado é {value}, não perto de 1; verifique se as "
-              "colunas do magnetômetro são as normalizadas, ou corrija a sua unidade no cabeçalho."},
+        "pt": "{file}: a norma típica do magnetómetro normalizado é {value}, não perto de 1; verifique se as "
+              "colunas do magnetómetro são as normalizadas, ou corrija a sua unidade no cabeçalho."},
     "unit.gyr_beyond_range": {
         "en": "{file}: the gyroscope reaches {value} rad/s when read as ({declared}), beyond any IMU's range "
               "(35 rad/s = 2000 deg/s). {hint} Check the unit in the column header.",
@@ -447,7 +447,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el giroscopio gira unas {ratio} veces menos de lo que el acelerómetro muestra que gira el "
               "sensor; los números parecen rad/s aunque el encabezado declara ({declared}). Corrija la unidad "
               "del encabezado a rad/s.",
-        "pt": "{file}: o giroscópio gira cerca de {ratio} vezes menos do que o acelerômetro mostra o sensor "
+        "pt": "{file}: o giroscópio gira cerca de {ratio} vezes menos do que o acelerómetro mostra o sensor "
               "girar; os números parecem rad/s embora o cabeçalho declare ({declared}). Corrija a unidade do "
               "cabeçalho para rad/s."},
     "unit.gyr_looks_deg": {
@@ -457,7 +457,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el giroscopio gira unas {ratio} veces más de lo que el acelerómetro muestra que gira el "
               "sensor; los números parecen deg/s aunque el encabezado declara ({declared}). Corrija la unidad "
               "del encabezado a deg/s.",
-        "pt": "{file}: o giroscópio gira cerca de {ratio} vezes mais do que o acelerômetro mostra o sensor "
+        "pt": "{file}: o giroscópio gira cerca de {ratio} vezes mais do que o acelerómetro mostra o sensor "
               "girar; os números parecem deg/s embora o cabeçalho declare ({declared}). Corrija a unidade do "
               "cabeçalho para deg/s."},
     # -------------------------------------------------------------------------------------------- rates
@@ -467,7 +467,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el flujo {stream} va a {fs_hz:.1f} Hz, se esperaban {expected_hz:g} Hz (el protocolo "
               "graba acelerómetro y giroscopio a 100 Hz). Grabe de nuevo a {expected_hz:g} Hz.",
         "pt": "{file}: o fluxo {stream} está a {fs_hz:.1f} Hz, esperavam-se {expected_hz:g} Hz (o protocolo "
-              "grava acelerômetro e giroscópio a 100 Hz). Grave de novo a {expected_hz:g} Hz."},
+              "grava acelerómetro e giroscópio a 100 Hz). Grave de novo a {expected_hz:g} Hz."},
     "rate.unexpected_any_rate": {
         "en": "{file}: the {stream} stream runs at {fs_hz:.1f} Hz, expected {expected_hz:g} Hz (the protocol "
               "records accelerometer and gyroscope at 100 Hz, seed 004 §8.4). Record again at {expected_hz:g} Hz, "
@@ -476,21 +476,21 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "graba acelerómetro y giroscopio a 100 Hz). Grabe de nuevo a {expected_hz:g} Hz, o procéselo a la "
               "frecuencia del archivo (en la línea de órdenes: `chakamo process --any-rate`).",
         "pt": "{file}: o fluxo {stream} está a {fs_hz:.1f} Hz, esperavam-se {expected_hz:g} Hz (o protocolo "
-              "grava acelerômetro e giroscópio a 100 Hz). Grave de novo a {expected_hz:g} Hz, ou processe-o na "
-              "frequência do arquivo (na linha de comando: `chakamo process --any-rate`)."},
+              "grava acelerómetro e giroscópio a 100 Hz). Grave de novo a {expected_hz:g} Hz, ou processe-o na "
+              "frequência do ficheiro (na linha de comando: `chakamo process --any-rate`)."},
     "rate.acc_gyr_differ": {
         "en": "{file}: the gyroscope runs at {gyr_hz:.1f} Hz but the accelerometer of recording '{label}' at "
               "{acc_hz:.1f} Hz; record both at the same rate.",
         "es": "{file}: el giroscopio va a {gyr_hz:.1f} Hz pero el acelerómetro de la grabación '{label}' a "
               "{acc_hz:.1f} Hz; grabe ambos a la misma frecuencia.",
-        "pt": "{file}: o giroscópio está a {gyr_hz:.1f} Hz mas o acelerômetro da gravação '{label}' a "
+        "pt": "{file}: o giroscópio está a {gyr_hz:.1f} Hz mas o acelerómetro da gravação '{label}' a "
               "{acc_hz:.1f} Hz; grave ambos na mesma frequência."},
     "rate.mag": {
         "en": "{file}: the magnetometer runs at {fs_hz:.1f} Hz; expected between {min_hz:g} and {max_hz:g} Hz (the "
               "protocol uses 20 Hz). Record again.",
         "es": "{file}: el magnetómetro va a {fs_hz:.1f} Hz; se esperaba entre {min_hz:g} y {max_hz:g} Hz (el "
               "protocolo usa 20 Hz). Grabe de nuevo.",
-        "pt": "{file}: o magnetômetro está a {fs_hz:.1f} Hz; esperava-se entre {min_hz:g} e {max_hz:g} Hz (o "
+        "pt": "{file}: o magnetómetro está a {fs_hz:.1f} Hz; esperava-se entre {min_hz:g} e {max_hz:g} Hz (o "
               "protocolo usa 20 Hz). Grave de novo."},
     # ---------------------------------------------------------------------------------------- alignment
     "align.no_overlap": {
@@ -525,15 +525,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "recording.no_files": {
         "en": "a recording needs its files (none given); list them.",
         "es": "una grabación necesita sus archivos (no se dio ninguno); lístelos.",
-        "pt": "uma gravação precisa dos seus arquivos (nenhum foi dado); liste-os."},
+        "pt": "uma gravação precisa dos seus ficheiros (nenhum foi dado); liste-os."},
     "recording.bad_file_set": {
         "en": "{file}: a recording is three MetaBase stream files, one .xlsx (thesis layout), one .h5 (APDM) or "
               "one .csv/.txt of a supported format; got {files}: list each recording's own files.",
         "es": "{file}: una grabación son tres archivos de flujo de MetaBase, un .xlsx (formato de la tesis), un "
               ".h5 (APDM) o un .csv/.txt de un formato admitido; se recibió {files}: liste los archivos propios de "
               "cada grabación.",
-        "pt": "{file}: uma gravação são três arquivos de fluxo do MetaBase, um .xlsx (formato da tese), um .h5 "
-              "(APDM) ou um .csv/.txt de um formato suportado; recebeu-se {files}: liste os arquivos próprios de "
+        "pt": "{file}: uma gravação são três ficheiros de fluxo do MetaBase, um .xlsx (formato da tese), um .h5 "
+              "(APDM) ou um .csv/.txt de um formato suportado; recebeu-se {files}: liste os ficheiros próprios de "
               "cada gravação."},
     "session.no_folder": {
         "en": "{file}: no such session folder; check the path.",
@@ -546,7 +546,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: no se encontró ninguna grabación; la carpeta tiene {count} archivo(s): {found}. ChakaMo lee "
               "exportaciones de MetaBase, .xlsx de la tesis, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
               "(.zip) y phyphox: compruebe la carpeta, o exporte de nuevo las grabaciones. {hint}",
-        "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} arquivo(s): {found}. O ChakaMo lê "
+        "pt": "{file}: nenhuma gravação encontrada; a pasta tem {count} ficheiro(s): {found}. O ChakaMo lê "
               "exportações do MetaBase, .xlsx da tese, CSV genérico, Xsens, APDM .h5, Shimmer, Sensor Logger "
               "(.zip) e phyphox: verifique a pasta, ou exporte as gravações de novo. {hint}"},
     "split.no_posture": {
@@ -562,7 +562,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "word.recording_group": {  # a fragment of app.pipeline.service_messages "session.recognised"
         "en": "{label} ({n} {format} files)",
         "es": "{label} ({n} archivos {format})",
-        "pt": "{label} ({n} arquivos {format})"},
+        "pt": "{label} ({n} ficheiros {format})"},
     "session.recording_twice": {
         "en": "{file} and {other} are both the {role} recording of the {segment}; keep one (or list the one to use "
               "in session.json).",
@@ -620,15 +620,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "manifest.not_utf8": {
         "en": "{file}: not UTF-8 text; save it again as UTF-8 (or remove the file).",
         "es": "{file}: no es texto UTF-8; guárdelo de nuevo como UTF-8 (o elimine el archivo).",
-        "pt": "{file}: não é texto UTF-8; salve-o de novo como UTF-8 (ou remova o arquivo)."},
+        "pt": "{file}: não é texto UTF-8; salve-o de novo como UTF-8 (ou remova o ficheiro)."},
     "manifest.invalid_json": {
         "en": "{file}: not valid JSON (line {line}, column {col}: {reason}); fix it or remove the file.",
         "es": "{file}: no es JSON válido (línea {line}, columna {col}: {reason}); corríjalo o elimine el archivo.",
-        "pt": "{file}: não é JSON válido (linha {line}, coluna {col}: {reason}); corrija-o ou remova o arquivo."},
+        "pt": "{file}: não é JSON válido (linha {line}, coluna {col}: {reason}); corrija-o ou remova o ficheiro."},
     "manifest.not_object": {
         "en": "{file}: must be a JSON object with keys {keys}; fix it or remove the file.",
         "es": "{file}: debe ser un objeto JSON con las claves {keys}; corríjalo o elimine el archivo.",
-        "pt": "{file}: deve ser um objeto JSON com as chaves {keys}; corrija-o ou remova o arquivo."},
+        "pt": "{file}: deve ser um objeto JSON com as chaves {keys}; corrija-o ou remova o ficheiro."},
     "manifest.unknown_keys": {
         "en": "{file}: unknown keys {unknown}; use only {keys} (remove or rename the others).",
         "es": "{file}: claves desconocidas {unknown}; use solo {keys} (elimine o renombre las demás).",
@@ -646,7 +646,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "ChakaMo find them.",
         "es": "{file}: 'recordings' no lista ninguna grabación; liste los archivos de la sesión, o elimine la "
               "clave para que ChakaMo los encuentre.",
-        "pt": "{file}: 'recordings' não lista nenhuma gravação; liste os arquivos da sessão, ou remova a chave "
+        "pt": "{file}: 'recordings' não lista nenhuma gravação; liste os ficheiros da sessão, ou remova a chave "
               "para o ChakaMo encontrá-los."},
     "manifest.bad_entry": {
         "en": "{file}: recordings[{index}] must be an object with 'files' (a non-empty list of names) and optional "
@@ -660,7 +660,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "recordings by their names in this folder.",
         "es": "{file}: recordings[{index}] lista {name}, que no es un archivo dentro de la carpeta de la sesión; "
               "liste las grabaciones por sus nombres en esta carpeta.",
-        "pt": "{file}: recordings[{index}] lista {name}, que não é um arquivo dentro da pasta da sessão; liste as "
+        "pt": "{file}: recordings[{index}] lista {name}, que não é um ficheiro dentro da pasta da sessão; liste as "
               "gravações pelos seus nomes nesta pasta."},
     # a session.json stored by the web (app.store.workspace): fixed by deleting that recording and uploading anew
     "manifest.stored_not_json": {
@@ -686,15 +686,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "uploaded files' names, or delete that recording.",
         "es": "{file}: el archivo de grabación {name} no es uno de los archivos subidos a esta sesión; liste solo "
               "los nombres de los archivos subidos, o borre esa grabación.",
-        "pt": "{file}: o arquivo de gravação {name} não é um dos arquivos enviados a esta sessão; liste só os "
-              "nomes dos arquivos enviados, ou apague essa gravação."},
+        "pt": "{file}: o ficheiro de gravação {name} não é um dos ficheiros enviados a esta sessão; liste só os "
+              "nomes dos ficheiros enviados, ou apague essa gravação."},
     "manifest.file_twice": {
         "en": "{file}: '{name}' is listed twice (recordings[{first}] and recordings[{second}]); list each file "
               "once.",
         "es": "{file}: '{name}' aparece dos veces (recordings[{first}] y recordings[{second}]); liste cada "
               "archivo una vez.",
         "pt": "{file}: '{name}' aparece duas vezes (recordings[{first}] e recordings[{second}]); liste cada "
-              "arquivo uma vez."},
+              "ficheiro uma vez."},
     "manifest.unknown_segment": {
         "en": "{file}: {where} = '{value}' is not a segment ChakaMo knows; use one of {allowed}.",
         "es": "{file}: {where} = '{value}' no es un segmento que ChakaMo conozca; use uno de {allowed}.",
@@ -741,14 +741,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: su archivo {member} ocuparía {size_mb} MB al descomprimirse, más de los {limit_mb} MB que "
               "puede ocupar la exportación de una grabación; compruebe que es la exportación de una grabación de "
               "esta sesión, o expórtela de nuevo.",
-        "pt": "{file}: o seu arquivo {member} ocuparia {size_mb} MB ao ser descompactado, mais que os {limit_mb} MB "
+        "pt": "{file}: o seu ficheiro {member} ocuparia {size_mb} MB ao ser descompactado, mais que os {limit_mb} MB "
               "que a exportação de uma gravação pode ocupar; verifique se é a exportação de uma gravação desta "
               "sessão, ou exporte-a de novo."},
     "zip.too_many_members": {
         "en": "{file}: the zip holds {count} files (at most {limit}); export the recording again from the app.",
         "es": "{file}: el zip contiene {count} archivos (como mucho {limit}); exporte de nuevo la grabación desde "
               "la aplicación.",
-        "pt": "{file}: o zip contém {count} arquivos (no máximo {limit}); exporte a gravação de novo a partir do "
+        "pt": "{file}: o zip contém {count} ficheiros (no máximo {limit}); exporte a gravação de novo a partir do "
               "aplicativo."},
     "xlsx.too_many_parts": {
         "en": "{file}: the workbook holds {count} parts (at most {limit}); save it again from Excel as .xlsx.",
@@ -761,14 +761,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "split the recording into shorter ones, or export it as CSV.",
         "es": "{file}: la hoja '{sheet}' tiene más de {limit} filas (más de {minutes} minutos a 100 Hz); divida "
               "la grabación en otras más cortas, o expórtela como CSV.",
-        "pt": "{file}: a planilha '{sheet}' tem mais de {limit} linhas (mais de {minutes} minutos a 100 Hz); "
+        "pt": "{file}: a folha de cálculo '{sheet}' tem mais de {limit} linhas (mais de {minutes} minutos a 100 Hz); "
               "divida a gravação em outras mais curtas, ou exporte-a como CSV."},
     "xlsx.too_many_cells": {
         "en": "{file}: sheet '{sheet}' holds {cells} cells (at most {limit}); delete what lies outside the "
               "columns A–M of the thesis layout, or export the recording again.",
         "es": "{file}: la hoja '{sheet}' contiene {cells} celdas (como mucho {limit}); borre lo que está fuera "
               "de las columnas A–M del formato de la tesis, o exporte de nuevo la grabación.",
-        "pt": "{file}: a planilha '{sheet}' contém {cells} células (no máximo {limit}); apague o que está fora "
+        "pt": "{file}: a folha de cálculo '{sheet}' contém {cells} células (no máximo {limit}); apague o que está fora "
               "das colunas A–M do formato da tese, ou exporte a gravação de novo."},
     "manifest.too_large": {
         "en": "{file}: {size_kb} kB, more than the {limit_kb} kB a session.json may take; keep only the keys "
@@ -783,7 +783,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: anidado a más de {limit} niveles; un session.json necesita 4 (el objeto → recordings → "
               "una entrada → files); corríjalo o elimine el archivo.",
         "pt": "{file}: aninhado a mais de {limit} níveis; um session.json precisa de 4 (o objeto → recordings → "
-              "uma entrada → files); corrija-o ou remova o arquivo."},
+              "uma entrada → files); corrija-o ou remova o ficheiro."},
     # ------------------------------------------------------------------------------- provenance checks
     "check.side_mismatch": {
         "en": "{file}: the recording says the {found} leg ({method}) but the patient's knee is the {patient_side}; "
@@ -793,7 +793,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "{patient_side}; la aducción y la rotación cambiarían de signo. Compruebe el lado del paciente o los "
               "archivos; el clínico puede forzarlo.",
         "pt": "{file}: a gravação diz perna {found} ({method}) mas o joelho do paciente é o {patient_side}; a "
-              "adução e a rotação mudariam de sinal. Verifique o lado do paciente ou os arquivos; o clínico pode "
+              "adução e a rotação mudariam de sinal. Verifique o lado do paciente ou os ficheiros; o clínico pode "
               "forçá-lo."},
     "check.date_far": {
         "en": "{file}: recorded on {date}, {days} days from the session date {session_date}; check that it "
@@ -815,7 +815,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el identificador del paciente es {found} ({method}), no {patient_id}; compruebe que los "
               "archivos son de este paciente.",
         "pt": "{file}: o identificador do paciente é {found} ({method}), não {patient_id}; verifique se os "
-              "arquivos são deste paciente."},
+              "ficheiros são deste paciente."},
     "check.sensor_both_segments": {
         "en": "sensor {sensor} recorded the thigh in {thigh_file} and the shank in {shank_file}; check that the "
               "sensors were not swapped between recordings (or correct the names / session.json).",
@@ -827,17 +827,17 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "hint.ignored_csv": {
         "en": "Ignored {file} (not a file of a format ChakaMo reads).",
         "es": "Se ignoró {file} (no es un archivo de un formato que ChakaMo lea).",
-        "pt": "Ignorado {file} (não é um arquivo de um formato que o ChakaMo leia)."},
+        "pt": "Ignorado {file} (não é um ficheiro de um formato que o ChakaMo leia)."},
     "hint.unrecognised": {
         "en": "Files not recognised: {file} ({what} not recognised{why}).",
         "es": "Archivos no reconocidos: {file} ({what} no reconocido{why}).",
-        "pt": "Arquivos não reconhecidos: {file} ({what} não reconhecido{why})."},
+        "pt": "Ficheiros não reconhecidos: {file} ({what} não reconhecido{why})."},
     "hint.naming": {
         "en": "Name files like step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., or list them in {manifest} "
               "with segment and role.",
         "es": "Nombre los archivos como step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., o lístelos en "
               "{manifest} con segmento y papel.",
-        "pt": "Nomeie os arquivos como step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., ou liste-os no "
+        "pt": "Nomeie os ficheiros como step-muslo-ML1-13032023-1.xlsx / standing-pierna-..., ou liste-os no "
               "{manifest} com segmento e papel."},
     "hint.looks_like": {
         "en": "The numbers look like {unit}, not {declared}.",
@@ -859,7 +859,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "Portuguese saved it)",
         "es": "{file}: leído con ';' entre campos y ',' como separador decimal (lo guardó una hoja de cálculo en "
               "español o portugués)",
-        "pt": "{file}: lido com ';' entre campos e ',' como separador decimal (salvo por uma planilha em "
+        "pt": "{file}: lido com ';' entre campos e ',' como separador decimal (salvo por uma folha de cálculo em "
               "espanhol ou português)"},
     "note.truncated_last_row": {
         "en": "{file}: the last row ({row}) was cut short (an interrupted copy or export) and was dropped",
@@ -875,26 +875,26 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "time in the file name ({start}, phone's local time)",
         "es": "{file}: '{column}' fue redondeado por una hoja de cálculo; el tiempo se reconstruyó con "
               "'elapsed (s)' y la hora de inicio del nombre del archivo ({start}, hora local del teléfono)",
-        "pt": "{file}: '{column}' foi arredondado por uma planilha; o tempo foi reconstruído com 'elapsed (s)' "
-              "e a hora de início do nome do arquivo ({start}, hora local do telefone)"},
+        "pt": "{file}: '{column}' foi arredondado por uma folha de cálculo; o tempo foi reconstruído com 'elapsed (s)' "
+              "e a hora de início do nome do ficheiro ({start}, hora local do telefone)"},
     "note.excel_epoch_offset": {
         "en": "{file}: rebuilt time put on UTC with the phone's offset seen in the session's other files "
               "({offset_h:+.2f} h)",
         "es": "{file}: el tiempo reconstruido se pasó a UTC con el desfase del teléfono visto en los demás "
               "archivos de la sesión ({offset_h:+.2f} h)",
-        "pt": "{file}: o tempo reconstruído foi passado a UTC com o desvio do telefone visto nos outros arquivos "
+        "pt": "{file}: o tempo reconstruído foi passado a UTC com o desvio do telefone visto nos outros ficheiros "
               "da sessão ({offset_h:+.2f} h)"},
     "note.excel_epoch_local": {
         "en": "{file}: rebuilt time stays on the phone's local time (no file of the session kept its epoch); "
               "wall-clock times in messages are local",
         "es": "{file}: el tiempo reconstruido queda en la hora local del teléfono (ningún archivo de la sesión "
               "conservó su epoch); las horas de los mensajes son locales",
-        "pt": "{file}: o tempo reconstruído fica na hora local do telefone (nenhum arquivo da sessão manteve o "
+        "pt": "{file}: o tempo reconstruído fica na hora local do telefone (nenhum ficheiro da sessão manteve o "
               "seu epoch); as horas nas mensagens são locais"},
     "note.csv_ignored": {
         "en": "ignored {file} (not a file of a format ChakaMo reads)",
         "es": "se ignoró {file} (no es un archivo de un formato que ChakaMo lea)",
-        "pt": "ignorado {file} (não é um arquivo de um formato que o ChakaMo leia)"},
+        "pt": "ignorado {file} (não é um ficheiro de um formato que o ChakaMo leia)"},
     "note.file_unrecognised": {
         "en": "ignored {file} ({what} not recognised{why})",
         "es": "se ignoró {file} ({what} no reconocido{why})",
@@ -911,8 +911,8 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "calibration is used, without the ellipsoid fit",
         "es": "{file}: no hay grabación en ocho (calibración del magnetómetro): se usa la calibración de fábrica de "
               "los magnetómetros, sin el ajuste del elipsoide",
-        "pt": "{file}: não há gravação em oito (calibração do magnetômetro): usa-se a calibração de fábrica dos "
-              "magnetômetros, sem o ajuste do elipsoide"},
+        "pt": "{file}: não há gravação em oito (calibração do magnetómetro): usa-se a calibração de fábrica dos "
+              "magnetómetros, sem o ajuste do elipsoide"},
     "note.no_lying": {
         "en": "{file}: no supine recording: the segment axes come from standing and the knee's hinge axes on the task",
         "es": "{file}: no hay grabación en decúbito supino: los ejes de los segmentos se toman de la postura de pie y "
@@ -938,7 +938,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "note.names_disagree": {
         "en": "file names disagree on {key}: {values}; used {used}",
         "es": "los nombres de archivo no coinciden en {key}: {values}; se usó {used}",
-        "pt": "os nomes de arquivo não coincidem em {key}: {values}; foi usado {used}"},
+        "pt": "os nomes de ficheiro não coincidem em {key}: {values}; foi usado {used}"},
     "note.csv_decimal_comma": {
         "en": "{file}: read with tabs between fields and ',' as the decimal point",
         "es": "{file}: leído con tabuladores entre campos y ',' como separador decimal",
@@ -984,7 +984,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "vendor calibrated it, so no figure-eight fit in µT applies",
         "es": "{file}: magnetómetro en unidades normalizadas (sin escala en µT; intensidad de campo declarada: "
               "{field}); lo calibró el fabricante, así que no se aplica un ajuste de ocho en µT",
-        "pt": "{file}: magnetômetro em unidades normalizadas (sem escala em µT; intensidade de campo declarada: "
+        "pt": "{file}: magnetómetro em unidades normalizadas (sem escala em µT; intensidade de campo declarada: "
               "{field}); o fabricante o calibrou, então não se aplica um ajuste em oito em µT"},
 }
 
@@ -999,7 +999,7 @@ WORDS = {
     "continuous": {"en": "continuous", "es": "continua", "pt": "contínua"},
     "right": {"en": "right", "es": "derecha", "pt": "direita"},
     # how a segment or role was recognised (Recognition.method), for the session check's lines
-    "how_file_name": {"en": "the file name", "es": "el nombre del archivo", "pt": "o nome do arquivo"},
+    "how_file_name": {"en": "the file name", "es": "el nombre del archivo", "pt": "o nome do ficheiro"},
     "how_metabase_label": {"en": "the MetaBase label", "es": "la etiqueta de MetaBase", "pt": "o rótulo do MetaBase"},
     "how_session_json": {"en": "session.json", "es": "session.json", "pt": "session.json"},
     "how_split": {"en": "the split of the continuous recording", "es": "la división de la grabación continua",

@@ -58,15 +58,19 @@ from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
 from app.pipeline.ingestion.xlsx_cells import Workbook
 
 MANIFEST = "session.json"
-#: keys of session.json; the last five are only shown in the reports' patient block, as typed
+#: keys of session.json; from ``name`` on they are only shown in the reports' patient block and identity line,
+#: as typed (``identifier_system`` is the URI of ``patient_id``'s namespace, ``birth_date`` ISO, ``sex`` one of
+#: male/female/other/unknown, ``clinic`` the clinic's name)
 _MANIFEST_KEYS = {"patient_id", "side", "step_height_m", "date", "sensors", "recordings", "mag_field_ut", "split",
-                  "paired_session", "name", "professional", "weight_kg", "height_m", "observations"}
+                  "paired_session", "name", "professional", "weight_kg", "height_m", "observations",
+                  "identifier_system", "birth_date", "sex", "clinic"}
 _ENTRY_KEYS = {"files", "segment", "role", "sheet", "sensor", "side"}
 #: the type each key must have (a wrong one is refused by _read_manifest, so later code can rely on it)
 _MANIFEST_TYPES = {"patient_id": (str, int), "side": str, "step_height_m": (int, float), "date": str,
                    "mag_field_ut": (int, float), "split": dict, "paired_session": str,
                    "sensors": dict, "recordings": list, "name": str, "professional": str,
-                   "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str}
+                   "weight_kg": (int, float, type(None)), "height_m": (int, float, type(None)), "observations": str,
+                   "identifier_system": str, "birth_date": str, "sex": str, "clinic": str}
 _TYPE_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "an object", list: "a list",
                type(None): "null"}
 

@@ -17,13 +17,13 @@ from fastapi import APIRouter, Depends
 
 def api_router() -> APIRouter:
     """All routers of API v1 under ``/api/v1``, each route wrapped by :func:`.deps.domain_errors`."""
-    from app.web.api import (artefacts, audit, auth, clinics, fhir, jobs, options, patients, recordings, results,
-                             sessions, tokens, users, webhooks)
+    from app.web.api import (artefacts, audit, auth, clinics, fhir, interpretations, jobs, options, patients,
+                             recordings, results, sessions, tokens, users, webhooks)
     from app.web.api.deps import domain_errors
 
     router = APIRouter(prefix="/api/v1", dependencies=[Depends(domain_errors, scope="function")])
-    for module in (auth, options, clinics, users, tokens, patients, sessions, recordings, jobs, results, artefacts, fhir, audit,
-                   webhooks):
+    for module in (auth, options, clinics, users, tokens, patients, sessions, recordings, jobs, results, artefacts,
+                   fhir, audit, webhooks, interpretations):
         router.include_router(module.router)
     return router
 

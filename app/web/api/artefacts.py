@@ -2,8 +2,13 @@
 scene.viser, timeseries.npz (the task's angles and orientations, :func:`app.pipeline.results.timeseries_npz`).
 Checksums are verified on every read (:meth:`app.store.blobs.BlobStore.read`).
 
-Files to keep (PDF, Excel, npz) come as attachments named ``chakamo-session-<id>-<analysis>[-<lang>].<ext>``;
-report.html and scene.viser are served inline (the UI opens the first and viser's client plays the second);
+Files to keep (PDF, Excel, npz) come as attachments named
+``chakamo-<patient reference>-<recordings' date>-s<session>-a<analysis>[-<lang>]-<stem>.<ext>`` (:func:`download_name`:
+the record number, made safe for a file name, and the day the recordings were made, else the session's date, so a
+downloaded file says whose it is and when; issue 17 §3); report.html and scene.viser are served inline under the
+same names (the UI opens the first and viser's client plays the second).  report.pdf and report.html exist in every
+language (``?lang=``; default: the job's; an analysis from before the HTML was made per language has one, in its
+job's language).  With a signed interpretation, both are rendered again with it (:mod:`app.store.signed_reports`).
 report.html carries ``Content-Security-Policy: sandbox allow-scripts; default-src 'none'; …``
 (:data:`app.web.headers.REPORT_HTML_CSP`): it holds text typed by people (patient name, notes), so even if
 escaping failed its scripts could not act as the logged-in user, nor reach the network.  Every download is
@@ -15,12 +20,17 @@ and a file name ending in ``-superseded`` (:mod:`.results`).
 
 from __future__ import annotations
 
+import json
+import re
+import unicodedata
+
 from fastapi import APIRouter, Request
 from fastapi.responses import Response
 
-from app.store.analyses import artefact, pick_analysis
+from app.store.analyses import artefact, find_artefact, pick_analysis
+from app.store.signed_reports import render_signed
 from app.web import audit
-from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
+from app.web.api.deps import DbDep, Reader, SettingsDep, StoreDep, scoped_session
 from app.web.api.schemas import Lang
 from app.web.records import STATUS_HEADER, analysis_status
 from app.web.headers import REPORT_HTML_CSP
@@ -30,22 +40,45 @@ router = APIRouter(prefix="/sessions", tags=["artefacts"],
                                                    "or none has finished yet"}})
 
 
+def _safe(text: str, limit: int = 40) -> str:
+    """``text`` as a file-name part: accents dropped (NFKD), anything but letters, digits, ``.``, ``_`` and ``-``
+    turned into ``_``, at most ``limit`` characters (a header value must be plain ASCII, and no path or quote)."""
+    ascii_text = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", ascii_text).strip("._-")[:limit]
+
+
+def download_name(session, analysis, results: dict, name: str, lang: str, superseded: bool) -> str:
+    """``chakamo-<record number>-<recordings' first day, else the session's date>-s<id>-a<id>[-<lang>]-<stem>
+    [-superseded].<ext>`` (module docstring)."""
+    stem, ext = name.rsplit(".", 1)
+    recorded = ((results.get("session") or {}).get("recorded") or {}).get("first") if isinstance(results, dict) else None
+    day = str(recorded or session.date.isoformat())[:10]
+    ref = _safe(session.patient.external_id or "") or f"patient{session.patient_id}"
+    tail = "-superseded" if superseded else ""
+    return f"chakamo-{ref}-{_safe(day)}-s{session.id}-a{analysis.id}{'-' + lang if lang else ''}-{stem}{tail}.{ext}"
+
+
 def _send(db, store, principal, request: Request, session_id: int, name: str, analysis_id: int | None,
-          lang: str = "", attachment: bool = True) -> Response:
+          lang: str = "", attachment: bool = True, identifier_system: str | None = None) -> Response:
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, analysis_id)
-    if name == "report.pdf" and not lang:
+    if name in ("report.pdf", "report.html") and not lang:
         lang = analysis.lang
-    art = artefact(db, analysis, name, lang)
-    stem, ext = name.rsplit(".", 1)
+    if name == "report.html" and find_artefact(db, analysis.id, name, lang) is None \
+            and lang == analysis.lang and find_artefact(db, analysis.id, name, "") is not None:
+        art = artefact(db, analysis, name, "")  # an analysis from before the HTML was made in every language
+    else:
+        art = artefact(db, analysis, name, lang)
     status = analysis_status(analysis)
-    tail = "-superseded" if status == "superseded" else ""
-    filename = f"chakamo-session-{session.id}-{analysis.id}{'-' + lang if lang else ''}-{stem}{tail}.{ext}"
+    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
+    filename = download_name(session, analysis, results, name, lang, status == "superseded")
     disposition = "attachment" if attachment else "inline"
     headers = {"Content-Disposition": f'{disposition}; filename="{filename}"', STATUS_HEADER: status}  # no-store, nosniff: app/web/headers.py
     if name == "report.html":  # patient-typed text inside: scripts run, but in an opaque origin (no cookie, no API)
         headers["Content-Security-Policy"] = REPORT_HTML_CSP  # app/web/headers.py: sandboxed, no network
-    data = store.read(art.sha256)
+    data = render_signed(db, store, session, analysis, name, lang, identifier_system)
+    if data is None:
+        data = store.read(art.sha256)
     audit.record(db, request, principal, "download", patient_id=session.patient_id, session_id=session.id)
     return Response(data, media_type=art.media_type, headers=headers)
 
@@ -53,9 +86,11 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
 @router.get("/{session_id}/report.pdf", response_class=Response,
             responses={200: {"content": {"application/pdf": {}}}})
 def report_pdf(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
-               lang: Lang | None = None, analysis_id: int | None = None):
-    """The clinical report (default: the language the job was started with)."""
-    return _send(db, store, principal, request, session_id, "report.pdf", analysis_id, lang or "")
+               settings: SettingsDep, lang: Lang | None = None, analysis_id: int | None = None):
+    """The clinical report (default: the language the job was started with), with the clinician's signed
+    interpretation when there is one."""
+    return _send(db, store, principal, request, session_id, "report.pdf", analysis_id, lang or "",
+                 identifier_system=settings.patient_identifier_system)
 
 
 @router.get("/{session_id}/angles.xlsx", response_class=Response)
@@ -72,8 +107,11 @@ def quaternions_xlsx(session_id: int, principal: Reader, db: DbDep, store: Store
 
 @router.get("/{session_id}/report.html", response_class=Response)
 def report_html(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
-                analysis_id: int | None = None):
-    return _send(db, store, principal, request, session_id, "report.html", analysis_id, attachment=False)
+                settings: SettingsDep, lang: Lang | None = None, analysis_id: int | None = None):
+    """The interactive report (default: the language the job was started with), with the clinician's signed
+    interpretation when there is one."""
+    return _send(db, store, principal, request, session_id, "report.html", analysis_id, lang or "", attachment=False,
+                 identifier_system=settings.patient_identifier_system)
 
 
 @router.get("/{session_id}/scene.viser", response_class=Response)

@@ -220,7 +220,7 @@ def _role_why(principal: Principal, role: str) -> str:
 #: (``auth``, ``options``, ``clinics``: who the caller is and the option lists)
 SCOPE_OF_TAG = {"patients": "patients", "sessions": "sessions", "recordings": "recordings", "jobs": "jobs",
                 "results": "results", "artefacts": "results", "fhir": "fhir", "audit": "audit", "users": "users",
-                "tokens": "users", "webhooks": "jobs"}
+                "tokens": "users", "webhooks": "jobs", "interpretation": "results"}
 UNSCOPED_TAGS = frozenset({"auth", "options", "clinics"})
 #: the ``openapi_extra`` member naming a route's own scope where its router's family is not what it touches
 #: (``GET /patients/{id}/trend`` reads results): :func:`route_scope`

@@ -118,7 +118,7 @@ def test_a_stored_check_line_renders_in_each_language():
     assert texts["en"] == line["text"] == ("thigh task: step-muslo.csv — segment from the file name ('muslo'), role "
                                            "from the file name ('step')")
     assert texts["es"].startswith("muslo tarea: step-muslo.csv — segmento según el nombre del archivo")
-    assert texts["pt"].startswith("coxa tarefa: step-muslo.csv — segmento segundo o nome do arquivo")
+    assert texts["pt"].startswith("coxa tarefa: step-muslo.csv — segmento segundo o nome do ficheiro")
     # a note only the reports translate, and a plain sentence stored before codes were
     cut = item(None, {"variant": "stream_cut_after", "stream": "gyr", "seconds": 1.5, "segment": "thigh",
                       "role": "task"}, "thigh task: gyr ran on 1.50 s after the common span (cut)", note=True)

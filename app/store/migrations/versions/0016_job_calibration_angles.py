@@ -12,7 +12,7 @@ import sqlalchemy as sa
 
 
 revision = '0016'
-down_revision = '0012'  # the lead re-chains it after 0015
+down_revision = '0013'  # the lead re-chains it after 0015
 branch_labels = None
 depends_on = None
 

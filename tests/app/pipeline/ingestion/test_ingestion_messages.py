@@ -67,7 +67,7 @@ def test_missing_recordings_in_each_language(folder):
     assert "missing recording(s): standing of the shank" in str(exc)
     assert "falta(n) grabación(es): de pie (pierna)" in exc.message("es")
     assert "falta(m) gravação(ões): em pé (perna)" in exc.message("pt")
-    assert "Nomeie os arquivos" in exc.message("pt") and "Nombre los archivos" in exc.message("es")
+    assert "Nomeie os ficheiros" in exc.message("pt") and "Nombre los archivos" in exc.message("es")
 
 
 def test_no_recordings_says_what_the_folder_holds(tmp_path):
@@ -75,7 +75,7 @@ def test_no_recordings_says_what_the_folder_holds(tmp_path):
     (tmp_path / "photo.jpg").write_bytes(b"\xff\xd8")
     exc = _refusal(tmp_path)
     assert exc.code == "session.no_recordings" and "2 file(s): notes.txt, photo.jpg" in str(exc)
-    assert "2 archivo(s)" in exc.message("es") and "2 arquivo(s)" in exc.message("pt")
+    assert "2 archivo(s)" in exc.message("es") and "2 ficheiro(s)" in exc.message("pt")
 
 
 def test_plain_text_errors_keep_working():
