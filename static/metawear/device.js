@@ -53,6 +53,7 @@ export class MetaWearSensor {
     this.waiting = [];
     this.streaming = false;
     this.wanted = false;
+    this.reconnecting = false;
     this.queue = Promise.resolve();
     this.onNotify = (ev) => this.notified(ev);
     device.addEventListener("gattserverdisconnected", () => this.dropped());
@@ -166,20 +167,28 @@ export class MetaWearSensor {
 
   async dropped() {
     for (const w of this.waiting.splice(0)) w.reject(new SensorError("disconnected"));
-    if (!this.wanted) return;
+    if (!this.wanted || this.reconnecting) return;
+    this.reconnecting = true;
     const wasStreaming = this.streaming;
     this.setState("reconnecting");
-    for (let attempt = 0; attempt < RECONNECT_TRIES && this.wanted; attempt++) {
-      await new Promise((r) => setTimeout(r, RECONNECT_MS));
-      try {
-        await this.connect();
-        if (wasStreaming) {
-          this.handlers.onReconnect?.();
-          await this.start();
+    try {
+      for (let attempt = 0; attempt < RECONNECT_TRIES && this.wanted; attempt++) {
+        await new Promise((r) => setTimeout(r, RECONNECT_MS));
+        try {
+          await this.connect();
+          if (wasStreaming) {
+            this.handlers.onReconnect?.();
+            await this.start();
+          }
+          return;
+        } catch (_) {
+          // out of reach still, or connected without its services yet: start the next attempt from scratch
+          if (this.device.gatt.connected) this.device.gatt.disconnect();
         }
-        return;
-      } catch (_) { /* out of reach still: try again */ }
+      }
+      if (this.wanted) this.setState("lost");
+    } finally {
+      this.reconnecting = false;
     }
-    if (this.wanted) this.setState("lost");
   }
 }

@@ -57,15 +57,18 @@ async function sha256Hex(text) {
   return Array.from(new Uint8Array(digest), (b) => b.toString(16).padStart(2, "0")).join("");
 }
 
-/** The three files of one sensor's step: [{name, text, sha256}]; label names role and segment
+/** The three files of one sensor's step, named as MetaBase names a recording's files (label, serial and the
+ * recording's first stamp shared): [{name, text, sha256}]; label names role and segment
  * (e.g. "task-thigh"), sensor = {serial, firmware}. */
 export async function filesOf(streams, label, sensor) {
   const files = [];
-  for (const stream of ["acc", "gyr", "mag"]) {
+  const kinds = ["acc", "gyr", "mag"].filter((k) => streams[k] && streams[k].epochMs.length > 0);
+  // the three names share the recording's first stamp: the ingestion groups a recording's files by it
+  const startMs = Math.min(...kinds.map((k) => streams[k].epochMs[0]));
+  for (const stream of kinds) {
     const s = streams[stream];
-    if (!s || s.epochMs.length === 0) continue;
     const text = csvText(stream, s.epochMs, s.values);
-    const name = fileName(label, s.epochMs[0], sensor.serial, stream, s.rateHz, sensor.firmware || "unknown");
+    const name = fileName(label, startMs, sensor.serial, stream, s.rateHz, sensor.firmware || "unknown");
     files.push({ name, text, sha256: await sha256Hex(text) });
   }
   return files;

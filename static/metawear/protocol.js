@@ -72,7 +72,12 @@ const MAG_REPETITIONS = Object.freeze({ xy: 9, z: 15 });
  * ranges ±16 g and ±2000 °/s (those of the MetaMotion sensor model in estimators/simulation/spec.py). */
 export const PROTOCOL_CONFIG = Object.freeze({ accHz: 100, gyrHz: 100, magHz: 20, accRangeG: 16, gyrRangeDps: 2000 });
 
-export class ProtocolError extends Error {}
+export class ProtocolError extends Error {
+  constructor(message, code = "protocol") {
+    super(message);
+    this.code = code;
+  }
+}
 
 function pick(table, key, what) {
   if (!(key in table)) throw new ProtocolError(`${what} ${key} is not one the sensor offers (${Object.keys(table).join(", ")})`);
@@ -182,7 +187,7 @@ export function decode(bytes, scale = sensitivities()) {
 export function chipsOf(accInfo, gyrInfo) {
   const acc = ACC_CHIP[accInfo.implementation];
   const gyr = GYRO_CHIP[gyrInfo.implementation];
-  if (!acc) throw new ProtocolError(`accelerometer implementation ${accInfo.implementation} is not a BMI160 or BMI270`);
-  if (!gyr) throw new ProtocolError(`gyroscope implementation ${gyrInfo.implementation} is not a BMI160 or BMI270`);
+  if (!acc) throw new ProtocolError(`accelerometer implementation ${accInfo.implementation} is not a BMI160 or BMI270`, "unsupported_sensor");
+  if (!gyr) throw new ProtocolError(`gyroscope implementation ${gyrInfo.implementation} is not a BMI160 or BMI270`, "unsupported_sensor");
   return { acc, gyr };
 }

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.pipeline.ingestion.metabase import file_name, write_metabase_csv
+from app.pipeline.ingestion.metabase import file_name, write_metabase_csv, write_recording_metabase
 from app.pipeline.ingestion.units import unit_factor
 from metawear_frames import LSB, counts, notifications
 
@@ -135,3 +135,27 @@ def test_no_loss_is_read_where_there_is_none(static_page, session):
     out = _stream_run(static_page, arrival.tolist(), 3, 100.0, [1e18, 1e18])
     assert out["lost"] == 0
     assert [p[1] for p in out["placed"]] == list(range(0, 3 * len(frames), 3))
+
+
+def test_a_recordings_three_files_are_the_ones_metabase_writes(static_page, session, tmp_path):
+    """filesOf: the three files of one sensor's step, names (one shared start: the ingestion groups a recording's
+    files by it) and texts as the project's writer of a whole recording makes them; their SHA-256 is that of the
+    text (what the upload route answers)."""
+    import hashlib
+
+    streams = session.recordings[("shank", "lying")]
+    board, ms = {}, {}
+    for kind, (t_s, values) in streams.items():
+        ms[kind] = np.round(t_s[:300] * 1e3).astype(np.int64)
+        si = counts(kind, values[:300]) / LSB[kind] * unit_factor(kind, {"acc": "g", "gyr": "deg/s", "mag": "uT"}[kind])
+        board[kind] = (si, si / unit_factor(kind, FILE_UNIT[kind]) * (1e6 if kind == "mag" else 1))
+    paths = write_recording_metabase(tmp_path, "lying-shank", "C1D2E3F4A5B6",
+                                     {k: (ms[k] / 1e3, board[k][0]) for k in streams}, firmware="1.7.3")
+    files = static_page.evaluate("""async (streams) => { const f = await import('/metawear/files.js');
+        return f.filesOf(streams, 'lying-shank', {serial: 'C1D2E3F4A5B6', firmware: '1.7.3'}); }""",
+                                 {k: {"epochMs": ms[k].tolist(), "values": board[k][1].tolist(),
+                                      "rateHz": 20.0 if k == "mag" else 100.0} for k in streams})
+    assert sorted(f["name"] for f in files) == sorted(p.name for p in paths)
+    for f in files:
+        text = (tmp_path / f["name"]).read_text(encoding="utf-8")
+        assert f["text"] == text and f["sha256"] == hashlib.sha256(text.encode()).hexdigest()

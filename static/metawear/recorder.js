@@ -1,0 +1,162 @@
+// The recording of one session's protocol from two sensors, without the page: which sensor is on which
+// segment, the step being recorded, its buffered notifications and live checks, and the upload of each step.
+//
+// Steps: the protocol's four recordings (roles mag_calibration, standing, lying, task), each recorded from
+// both sensors at once.  Each notification of a step goes into the IndexedDB buffer (./store.js) with its
+// segment, stream, run (a sensor's run changes when it reconnects) and arrival time; the store is flushed
+// every FLUSH_MS.  At a step's end its files are made from the buffer (./files.js) and uploaded per segment
+// as the upload route takes them (segment and role fields, POST /sessions/{id}/recordings); the answer's
+// sha256 of every file must equal the browser's own before the step's buffer is cleared: that is the
+// acknowledgement.  Anything else leaves the buffer as it is, to upload again (also after a reload).
+//
+// Identification (which sensor is on the thigh): both sensors stream while the clinician moves the thigh; the
+// first sensor whose gyroscope norm, averaged over 0.3 s, passes 60 °/s while the other's stays under 20 °/s
+// is the thigh's.
+
+import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
+import { streamsOf, filesOf } from "./files.js";
+
+export const STEPS = Object.freeze(["mag_calibration", "standing", "lying", "task"]);
+export const SEGMENTS = Object.freeze(["thigh", "shank"]);
+const LABEL = Object.freeze({ mag_calibration: "calibration", standing: "standing", lying: "lying", task: "task" });
+const FLUSH_MS = 250;
+const MOVE_DPS = 60;
+const QUIET_DPS = 20;
+
+class MotionMeter {
+  constructor(n = 30) { this.n = n; this.window = []; }
+  push(dps) {
+    this.window.push(Math.hypot(...dps));
+    if (this.window.length > this.n) this.window.shift();
+    return this.window.reduce((a, b) => a + b, 0) / this.window.length;
+  }
+}
+
+export class Recorder {
+  /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer. */
+  constructor(sessionId, store, send) {
+    this.sessionId = sessionId;
+    this.store = store;
+    this.send = send;
+    this.sensors = {};          // segment → MetaWearSensor (after identification)
+    this.runs = {};             // segment → current run number
+    this.step = null;
+    this.checks = null;
+    this.counts = null;
+    this.listeners = new Set();
+    this.flushTimer = null;
+  }
+
+  changed() {
+    for (const fn of this.listeners) fn();
+  }
+
+  /** Route one sensor's samples here (its segment known). */
+  attach(segment, sensor) {
+    this.sensors[segment] = sensor;
+    this.runs[segment] = this.runs[segment] ?? 0;
+    sensor.handlers.onSamples = (kind, values, arrivalMs, raw) => this.samples(segment, kind, values, arrivalMs, raw);
+    sensor.handlers.onReconnect = () => { this.runs[segment] += 1; this.changed(); };
+  }
+
+  /** Stream both sensors until one is moved alone: resolves to [thigh sensor, shank sensor]. */
+  identify(a, b) {
+    return new Promise((resolve, reject) => {
+      const meters = [new MotionMeter(), new MotionMeter()];
+      const level = [0, 0];
+      const done = async (thigh) => {
+        a.handlers.onSamples = null;
+        b.handlers.onSamples = null;
+        try {
+          await Promise.all([a.stop(), b.stop()]);
+          resolve(thigh === 0 ? [a, b] : [b, a]);
+        } catch (err) { reject(err); }
+      };
+      let decided = false;
+      [a, b].forEach((sensor, i) => {
+        sensor.handlers.onSamples = (kind, values) => {
+          if (kind !== "gyr" || decided) return;
+          for (const v of values) level[i] = meters[i].push(v);
+          if (level[i] > MOVE_DPS && level[1 - i] < QUIET_DPS) {
+            decided = true;
+            done(i);
+          }
+        };
+      });
+      Promise.all([a.start(), b.start()]).catch(reject);
+    });
+  }
+
+  /** Start recording `role` on both sensors (its earlier buffer, if any, is dropped: a redo). */
+  async start(role) {
+    await this.store.clear(this.sessionId, role);
+    this.step = role;
+    this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
+    this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
+      coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
+    this.flushTimer = setInterval(() => this.store.flush().catch(() => { /* kept; retried next time */ }), FLUSH_MS);
+    await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
+    this.changed();
+  }
+
+  samples(segment, kind, values, arrivalMs, raw) {
+    if (!this.step) return;
+    this.store.add({ session: this.sessionId, step: this.step, segment, stream: kind, run: this.runs[segment],
+      arrivalMs, bytes: raw.buffer });
+    this.counts[segment][kind] += values.length;
+    const c = this.checks[segment];
+    for (const v of values) {
+      if (kind === "mag") c.coverage.push(v);
+      else if (kind === "acc") c.stillness.pushAcc(v);
+      else { c.stillness.pushGyr(v); c.cycles.push(v); }
+    }
+  }
+
+  /** The live figures of the step being recorded, per segment. */
+  live() {
+    if (!this.checks) return null;
+    return Object.fromEntries(SEGMENTS.map((s) => {
+      const c = this.checks[s];
+      return [s, { samples: this.counts[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
+        stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
+        state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
+    }));
+  }
+
+  /** Stop the step and upload it; resolves to {role, lost: {segment: samples}, recordings} once acknowledged. */
+  async stop() {
+    const role = this.step;
+    await Promise.all(SEGMENTS.map((s) => this.sensors[s].stop()));
+    clearInterval(this.flushTimer);
+    this.step = null;
+    await this.store.flush();
+    this.changed();
+    return this.upload(role);
+  }
+
+  /** Make a buffered step's files, upload them, and clear the buffer once the server's sha256 match. */
+  async upload(role) {
+    const records = await this.store.step(this.sessionId, role);
+    if (records.length === 0) throw Object.assign(new Error(`no buffered data for ${role}`), { code: "no_data" });
+    const streams = streamsOf(records);
+    const recordings = [];
+    const lost = {};
+    for (const segment of SEGMENTS) {
+      if (!streams[segment]) throw Object.assign(new Error(`no data from the ${segment} sensor for ${role}`), { code: "no_data" });
+      const sensor = this.sensors[segment].info;
+      const files = await filesOf(streams[segment], `${LABEL[role]}-${segment}`, sensor);
+      const answer = await this.send(segment, role, files);
+      const stored = new Map(answer.recordings.map((r) => [r.file_name, r]));
+      for (const f of files) {
+        const r = stored.get(f.name);
+        if (!r || r.sha256 !== f.sha256) {
+          throw Object.assign(new Error(`the server did not acknowledge ${f.name}`), { code: "not_acknowledged" });
+        }
+        recordings.push(r);
+      }
+      lost[segment] = Object.values(streams[segment]).reduce((n, s) => n + s.lost, 0);
+    }
+    await this.store.clear(this.sessionId, role);
+    return { role, lost, recordings };
+  }
+}
