@@ -13,8 +13,9 @@ The clinician's path: connect the two sensors through the browser's chooser (bat
 → "which is the thigh sensor?": the sensor connected SECOND is moved (so the page must reorder them) → the four
 steps, each started, streamed (the shank loses 1 % of its task notifications, and its link drops for 5 s in
 the middle of the task: the page reconnects, re-configures and goes on), stopped and uploaded; each step is
-stored only once the server's sha256 match the browser's; the standing step is cut short and redone (its
-first files deleted from the server) → the link to processing appears.  Every sample the page received is
+stored only once the server's sha256 match the browser's (the network refuses one upload of the lying step
+once: the step stays in the browser's buffer, said so, and "Upload again" sends only the files the server
+lacks); the standing step is cut short and redone (its first files deleted from the server) → the link to processing appears.  Every sample the page received is
 in the stored files, and the buffer is empty.
 
 Then the truth: the files the browser uploaded are read back with the project's MetaBase reader and written
@@ -209,6 +210,17 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # --- the four steps
         sensors = {"thigh": thigh, "shank": shank}
         sent = {}
+        # the network fails the lying step's second upload (the shank's files) once: a fault outside the product
+        flaky = {"role": None, "posts": 0}
+
+        def network(route):
+            if route.request.method == "POST" and flaky["role"] == "lying":
+                flaky["posts"] += 1
+                if flaky["posts"] == 2:
+                    return route.fulfill(status=503, content_type="application/json", body='{"detail": "busy"}')
+            return route.continue_()
+
+        page.route("**/api/v1/sessions/*/recordings", network)
         # standing twice: a first try cut short, then redone (its stored files are replaced)
         for attempt, role in enumerate(("mag_calibration", "standing", "standing", "lying", "task")):
             step = page.locator(f"li.record-step[data-role={role}]")
@@ -229,8 +241,19 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             expect(step.locator("ul.live")).to_contain_text(
                 {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
                  "task": "cycles counted"}[role])
+            flaky["role"] = role
             step.get_by_role("button", name="Stop and upload").click()
             bench.wait(lambda step=step: step.get_attribute("data-status") in ("stored", "unsent"), f"{role} uploaded")
+            if role == "lying":
+                # kept in the browser, said so; uploaded again: the thigh's files already stored are not re-sent
+                assert step.get_attribute("data-status") == "unsent"
+                expect(page.locator(".form-message [role=alert]")).to_contain_text("busy")
+                assert page.evaluate("async () => (await (await import('/static/metawear/store.js'))"
+                                     ".PacketStore.open()).steps(%d)" % sid) == ["lying"]
+                step.get_by_role("button", name="Upload again").click()
+                bench.wait(lambda step=step: step.get_attribute("data-status") != "uploading"
+                           and step.get_attribute("data-status") != "unsent", "lying uploaded again")
+                assert flaky["posts"] == 3
             assert step.get_attribute("data-status") == "stored", page.locator(".form-message").inner_text()
         task_step = page.locator("li.record-step[data-role=task]")
         # the emulated air losses inside the shank's runs are counted (the 5 s gap is between runs, not a loss)
