@@ -159,3 +159,26 @@ def test_a_recordings_three_files_are_the_ones_metabase_writes(static_page, sess
     for f in files:
         text = (tmp_path / f["name"]).read_text(encoding="utf-8")
         assert f["text"] == text and f["sha256"] == hashlib.sha256(text.encode()).hexdigest()
+
+
+def test_the_buffer_outlives_a_reload_and_clears_per_step(static_page):
+    """store.js: records flushed to IndexedDB are there after the page is loaded again (nothing lost before the
+    server acknowledged them); clearing one step leaves the others."""
+    static_page.evaluate("""async () => { const s = await import('/metawear/store.js');
+        const db = await s.PacketStore.open('chakamo-test');
+        for (const step of ['standing', 'task']) for (let k = 0; k < 5; k++)
+            db.add({session: 7, step, segment: 'thigh', stream: 'acc', run: 0, arrivalMs: k,
+                    bytes: Uint8Array.of(3, 0x1c, k).buffer});
+        db.add({session: 8, step: 'task', segment: 'shank', stream: 'mag', run: 0, arrivalMs: 0, bytes: new ArrayBuffer(8)});
+        await db.flush(); }""")
+    static_page.reload()
+    out = static_page.evaluate("""async () => { const s = await import('/metawear/store.js');
+        const db = await s.PacketStore.open('chakamo-test');
+        const before = (await db.steps(7)).sort();
+        const task = await db.step(7, 'task');
+        const cleared = await db.clear(7, 'standing');
+        return {before, task: task.map((r) => [r.arrivalMs, Array.from(new Uint8Array(r.bytes))]), cleared,
+                after: await db.steps(7), other: await db.steps(8)}; }""")
+    assert out["before"] == ["standing", "task"]
+    assert out["task"] == [[k, [3, 0x1C, k]] for k in range(5)]
+    assert out["cleared"] == 5 and out["after"] == ["task"] and out["other"] == ["task"]
