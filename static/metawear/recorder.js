@@ -7,7 +7,8 @@
 // every FLUSH_MS.  At a step's end its files are made from the buffer (./files.js) and uploaded per segment
 // as the upload route takes them (segment and role fields, POST /sessions/{id}/recordings); the answer's
 // sha256 of every file must equal the browser's own before the step's buffer is cleared: that is the
-// acknowledgement.  Anything else leaves the buffer as it is, to upload again (also after a reload).
+// acknowledgement.  Anything else leaves the buffer as it is, to upload again (also after a reload: the serial
+// and firmware of the step's sensors, which its file names carry, are kept in localStorage at its start).
 //
 // Identification (which sensor is on the thigh): both sensors stream while the clinician moves the thigh; the
 // first sensor whose gyroscope norm, averaged over 0.3 s, passes 60 °/s while the other's stays under 20 °/s
@@ -22,6 +23,19 @@ const LABEL = Object.freeze({ mag_calibration: "calibration", standing: "standin
 const FLUSH_MS = 250;
 const MOVE_DPS = 60;
 const QUIET_DPS = 20;
+
+// the serial and firmware of the sensors that recorded a step, for its file names (kept beside its buffer)
+function sensorsKey(sessionId, role) {
+  return `chakamo.record.${sessionId}.${role}`;
+}
+
+function saveSensors(sessionId, role, sensors) {
+  try { localStorage.setItem(sensorsKey(sessionId, role), JSON.stringify(sensors)); } catch (_) { /* storage off */ }
+}
+
+function loadSensors(sessionId, role) {
+  try { return JSON.parse(localStorage.getItem(sensorsKey(sessionId, role))); } catch (_) { return null; }
+}
 
 class MotionMeter {
   constructor(n = 30) { this.n = n; this.window = []; }
@@ -90,6 +104,8 @@ export class Recorder {
   /** Start recording `role` on both sensors (its earlier buffer, if any, is dropped: a redo). */
   async start(role) {
     await this.store.clear(this.sessionId, role);
+    saveSensors(this.sessionId, role, Object.fromEntries(SEGMENTS.map((s) => [s, {
+      serial: this.sensors[s].info.serial, firmware: this.sensors[s].info.firmware }])));
     this.step = role;
     this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
     this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
@@ -139,11 +155,14 @@ export class Recorder {
     const records = await this.store.step(this.sessionId, role);
     if (records.length === 0) throw Object.assign(new Error(`no buffered data for ${role}`), { code: "no_data" });
     const streams = streamsOf(records);
+    // the sensors that recorded the step (saved at its start), not those connected now (after a reload)
+    const sensors = loadSensors(this.sessionId, role)
+      ?? Object.fromEntries(SEGMENTS.map((s) => [s, this.sensors[s]?.info]));
     const recordings = [];
     const lost = {};
     for (const segment of SEGMENTS) {
       if (!streams[segment]) throw Object.assign(new Error(`no data from the ${segment} sensor for ${role}`), { code: "no_data" });
-      const sensor = this.sensors[segment].info;
+      const sensor = sensors[segment];
       const files = await filesOf(streams[segment], `${LABEL[role]}-${segment}`, sensor);
       const answer = await this.send(segment, role, files);
       const stored = new Map(answer.recordings.map((r) => [r.file_name, r]));

@@ -9,6 +9,7 @@
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
 //   match the browser's clears the step's buffer (IndexedDB), so nothing unacknowledged is lost: a failed
 //   upload stays to retry, also after a reload.  "Redo" deletes the step's stored files and records it again.
+//   Closing the page while a step records or waits to be sent asks first; leaving the view lets go of the sensors.
 // 3 Processing is the wizard's (its step 3), linked once the four steps are stored.
 // Everything the user reads is translated (record.* keys); the sensors' own errors are named by code.
 
@@ -177,7 +178,7 @@ export function recordView(sessionId) {
       buttons.push(h("button", { type: "button", class: "stop", onclick: () => finish(role, () => state.recorder.stop()) },
         t("record.stop")));
     } else if (status === "unsent") {
-      buttons.push(h("button", { type: "button", class: "retry", disabled: !ready || state.busy,
+      buttons.push(h("button", { type: "button", class: "retry", disabled: state.busy,
         onclick: () => finish(role, () => state.recorder.upload(role)) }, t("record.retry")));
     }
     if (status !== "recording" && status !== "uploading") {
@@ -213,8 +214,21 @@ export function recordView(sessionId) {
       ? h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button" }, t("record.to_wizard")) : "");
   }
 
+  // leaving the page lets go of the sensors; a step being recorded stays in the buffer, offered on the next visit
+  const leave = (e) => {
+    if (state.active || Object.values(state.status).includes("unsent")) {
+      e.preventDefault();
+      e.returnValue = "";
+    }
+  };
+  window.addEventListener("beforeunload", leave);
   const refresh = setInterval(() => {
-    if (!section.isConnected) { clearInterval(refresh); return; }
+    if (!section.isConnected) {
+      clearInterval(refresh);
+      window.removeEventListener("beforeunload", leave);
+      for (const sensor of state.sensors) sensor.disconnect();
+      return;
+    }
     if (state.active) {
       const item = stepsList.querySelector(`[data-role="${state.active}"] ul.live`);
       if (item) append(clear(item), liveLine(state.active, state.recorder.live()));

@@ -13,9 +13,9 @@ The clinician's path: connect the two sensors through the browser's chooser (bat
 → "which is the thigh sensor?": the sensor connected SECOND is moved (so the page must reorder them) → the four
 steps, each started, streamed (the shank loses 1 % of its task notifications, and its link drops for 5 s in
 the middle of the task: the page reconnects, re-configures and goes on), stopped and uploaded; each step is
-stored only once the server's sha256 match the browser's (the network refuses one upload of the lying step
-once: the step stays in the browser's buffer, said so, and "Upload again" sends only the files the server
-lacks); the standing step is cut short and redone (its first files deleted from the server) → the link to processing appears.  Every sample the page received is
+stored only once the server's sha256 match the browser's (the network refuses one upload of the task step
+once: the step stays in the browser's buffer, said so; the page is closed — it asks first — and opened again,
+and "Upload again", with no sensor connected, sends only the files the server lacks); the standing step is cut short and redone (its first files deleted from the server) → the link to processing appears.  Every sample the page received is
 in the stored files, and the buffer is empty.
 
 Then the truth: the files the browser uploaded are read back with the project's MetaBase reader and written
@@ -210,11 +210,11 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # --- the four steps
         sensors = {"thigh": thigh, "shank": shank}
         sent = {}
-        # the network fails the lying step's second upload (the shank's files) once: a fault outside the product
+        # the network fails the task step's second upload (the shank's files) once: a fault outside the product
         flaky = {"role": None, "posts": 0}
 
         def network(route):
-            if route.request.method == "POST" and flaky["role"] == "lying":
+            if route.request.method == "POST" and flaky["role"] == "task":
                 flaky["posts"] += 1
                 if flaky["posts"] == 2:
                     return route.fulfill(status=503, content_type="application/json", body='{"detail": "busy"}')
@@ -244,15 +244,22 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             flaky["role"] = role
             step.get_by_role("button", name="Stop and upload").click()
             bench.wait(lambda step=step: step.get_attribute("data-status") in ("stored", "unsent"), f"{role} uploaded")
-            if role == "lying":
-                # kept in the browser, said so; uploaded again: the thigh's files already stored are not re-sent
+            if role == "task":
+                # kept in the browser, said so; the page closed (it asks first) and opened again: the step is
+                # offered from the buffer and uploaded again, without the sensors; the thigh's files already
+                # stored are not re-sent
                 assert step.get_attribute("data-status") == "unsent"
                 expect(page.locator(".form-message [role=alert]")).to_contain_text("busy")
                 assert page.evaluate("async () => (await (await import('/static/metawear/store.js'))"
-                                     ".PacketStore.open()).steps(%d)" % sid) == ["lying"]
+                                     ".PacketStore.open()).steps(%d)" % sid) == ["task"]
+                asked = []
+                page.once("dialog", lambda d, asked=asked: (asked.append(d.type), d.accept()))
+                page.reload()
+                assert asked == ["beforeunload"]
+                step = page.locator(f"li.record-step[data-role={role}]")
+                expect(step).to_have_attribute("data-status", "unsent")
                 step.get_by_role("button", name="Upload again").click()
-                bench.wait(lambda step=step: step.get_attribute("data-status") != "uploading"
-                           and step.get_attribute("data-status") != "unsent", "lying uploaded again")
+                expect(step).to_have_attribute("data-status", "stored")
                 assert flaky["posts"] == 3
             assert step.get_attribute("data-status") == "stored", page.locator(".form-message").inner_text()
         task_step = page.locator("li.record-step[data-role=task]")
