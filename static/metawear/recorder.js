@@ -15,6 +15,7 @@
 // is the thigh's.
 
 import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
+import { MeanForce, Tilt, segmentAxes, flexionDeg } from "./preview.js";
 import { streamsOf, filesOf } from "./files.js";
 
 export const STEPS = Object.freeze(["mag_calibration", "standing", "lying", "task"]);
@@ -59,6 +60,8 @@ export class Recorder {
     this.counts = null;
     this.listeners = new Set();
     this.flushTimer = null;
+    this.postures = Object.fromEntries(SEGMENTS.map((s) => [s, {}]));   // segment → role → MeanForce
+    this.tilts = null;
   }
 
   changed() {
@@ -110,6 +113,8 @@ export class Recorder {
     this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
     this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
       coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
+    if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
+    this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
     this.flushTimer = setInterval(() => this.store.flush().catch(() => { /* kept; retried next time */ }), FLUSH_MS);
     await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
     this.changed();
@@ -121,11 +126,34 @@ export class Recorder {
       arrivalMs, bytes: raw.buffer });
     this.counts[segment][kind] += values.length;
     const c = this.checks[segment];
+    const posture = this.postures[segment][this.step];
+    const tilt = this.tilts?.[segment];
     for (const v of values) {
       if (kind === "mag") c.coverage.push(v);
-      else if (kind === "acc") c.stillness.pushAcc(v);
-      else { c.stillness.pushGyr(v); c.cycles.push(v); }
+      else if (kind === "acc") {
+        c.stillness.pushAcc(v);
+        posture?.push(v);
+        tilt?.pushAcc(v);
+      } else {
+        c.stillness.pushGyr(v);
+        c.cycles.push(v);
+        tilt?.pushGyr(v);
+      }
     }
+  }
+
+  /** Knee flexion preview, degrees (./preview.js), once standing and supine were recorded in this visit;
+   * null otherwise and outside the task. */
+  flexion() {
+    if (!this.tilts) return null;
+    const axes = {};
+    for (const s of SEGMENTS) {
+      const standing = this.postures[s].standing?.mean();
+      const lying = this.postures[s].lying?.mean();
+      if (!standing || !lying) return null;
+      axes[s] = segmentAxes(standing, lying);
+    }
+    return flexionDeg(this.tilts, axes);
   }
 
   /** The live figures of the step being recorded, per segment. */

@@ -4,7 +4,8 @@
 // 1 Sensors: connect two (the browser's chooser), each shown with firmware, battery and state; identify
 //   which is on the thigh (the clinician moves the thigh: static/metawear/recorder.js), or swap by hand.
 // 2 Steps: the protocol's four recordings, each from both sensors at once, with its live check (figure-eight:
-//   sphere cells reached; postures: still or moving and the seconds still; task: cycles counted, approximate),
+//   sphere cells reached; postures: still or moving and the seconds still; task: cycles counted, approximate,
+//   and the knee flexion preview, static/metawear/preview.js, once both postures were recorded in this visit),
 //   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
 //   match the browser's clears the step's buffer (IndexedDB), so nothing unacknowledged is lost: a failed
@@ -21,7 +22,7 @@ import { pickSensor, MetaWearSensor } from "../metawear/device.js";
 import { PacketStore } from "../metawear/store.js";
 import { Recorder, STEPS, SEGMENTS } from "../metawear/recorder.js";
 
-const REFRESH_MS = 250;
+const REFRESH_MS = 100;   // the live figures and the flexion preview
 
 async function send(sessionId, segment, role, files) {
   // files already stored with the same content (an earlier attempt answered after all) are not sent again
@@ -49,8 +50,10 @@ function sensorCard(sensor, segment) {
     h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)));
 }
 
-function liveLine(role, live) {
-  return SEGMENTS.map((s) => {
+function liveLine(role, live, flexion) {
+  const preview = role === "task" ? h("li", { class: "preview" }, t("record.preview", {
+    deg: flexion === null ? "—" : num(flexion, 0) })) : null;
+  return [preview, ...SEGMENTS.map((s) => {
     const l = live[s];
     const samples = t("record.samples", { acc: l.samples.acc, gyr: l.samples.gyr, mag: l.samples.mag });
     let check = "";
@@ -59,7 +62,7 @@ function liveLine(role, live) {
     else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0) });
     return h("li", { "data-segment": s }, `${label("segment", s)}: `, h("span", { class: "check" }, check),
       ` · ${samples} · ${t(`record.state.${l.state}`)}`);
-  });
+  })];
 }
 
 export function recordView(sessionId) {
@@ -193,7 +196,7 @@ export function recordView(sessionId) {
       h("p", { class: "hint" }, t(`wizard.role_hint.${role}`)),
       h("p", { class: "step-status" }, t(`record.status.${status}`),
         lost ? ` · ${t("record.lost", { thigh: lost.thigh, shank: lost.shank })}` : ""),
-      live ? h("ul", { class: "live" }, liveLine(role, live)) : null,
+      live ? h("ul", { class: "live" }, liveLine(role, live, state.recorder.flexion())) : null,
       h("div", { class: "actions" }, buttons));
   }
 
@@ -231,7 +234,7 @@ export function recordView(sessionId) {
     }
     if (state.active) {
       const item = stepsList.querySelector(`[data-role="${state.active}"] ul.live`);
-      if (item) append(clear(item), liveLine(state.active, state.recorder.live()));
+      if (item) append(clear(item), liveLine(state.active, state.recorder.live(), state.recorder.flexion()));
     }
   }, REFRESH_MS);
 

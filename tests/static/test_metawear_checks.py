@@ -81,3 +81,44 @@ def test_the_task_cycle_count(static_page, session, seed, n_cycles):
 def test_board_units_of_the_twin_are_the_decoders():
     """The twin's conversion is the one the checks assume: 1 g of specific force reads 1.0."""
     assert np.allclose(board_units("acc", np.array([[0.0, 0.0, 9.80665]])), [[0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize("seed", [9, 4])
+def test_the_knee_flexion_preview_against_the_simulated_truth(static_page, seed):
+    """preview.js on the simulator's decoded samples: axes from the standing and supine recordings, flexion over the
+    task against the true knee flexion (the simulator's Grood & Suntay angle) at each gyroscope sample; the filter's
+    time constant was fixed before this test (1 s), on no data."""
+    from app.pipeline.demo import simulate_session
+
+    session = simulate_session(seed=seed, side="right" if seed == 9 else "left", n_cycles=5)
+    data = {seg: {role: {k: _board(session, seg, role, k) for k in ("acc", "gyr")}
+                  for role in ("standing", "lying", "task")} for seg in ("thigh", "shank")}
+    t_gyr = {seg: session.recordings[(seg, "task")]["gyr"][0] for seg in ("thigh", "shank")}
+    flex = np.asarray(static_page.evaluate("""async (data) => { const p = await import('/metawear/preview.js');
+        const axes = {}, tilts = {};
+        for (const seg of ['thigh', 'shank']) {
+            const stand = new p.MeanForce(), lie = new p.MeanForce();
+            data[seg].standing.acc.forEach((g) => stand.push(g));
+            data[seg].lying.acc.forEach((g) => lie.push(g));
+            axes[seg] = p.segmentAxes(stand.mean(), lie.mean());
+            tilts[seg] = new p.Tilt(100);
+        }
+        const n = Math.min(data.thigh.task.gyr.length, data.shank.task.gyr.length);
+        const out = [];
+        for (let k = 0; k < n; k++) {
+            for (const seg of ['thigh', 'shank']) {
+                if (k < data[seg].task.acc.length) tilts[seg].pushAcc(data[seg].task.acc[k]);
+                tilts[seg].pushGyr(data[seg].task.gyr[k]);
+            }
+            out.push(p.flexionDeg(tilts, axes));
+        }
+        return out; }""", data), dtype=float)
+    # the truth at the thigh's gyroscope times (the simulator's phone clock: task time from the role's start)
+    t = t_gyr["thigh"][:len(flex)] - session.role_epoch_s["task"]
+    motion = session.motion
+    truth = np.rad2deg(motion.knee_angles_at(np.clip(t, motion.t_s[0], motion.t_s[-1]))[:, 0])
+    settled = slice(200, None)                       # the filter's first 2 s
+    rmse = float(np.sqrt(np.mean((flex[settled] - truth[settled]) ** 2)))
+    print(f"seed {seed}: preview flexion RMSE {rmse:.2f} deg over {len(flex)} samples, truth range {np.ptp(truth):.1f} deg")
+    assert rmse < 6.0
+    assert np.corrcoef(flex[settled], truth[settled])[0, 1] > 0.98

@@ -29,6 +29,7 @@ Waits are generous; nothing is timed.
 from __future__ import annotations
 
 import hashlib
+import re
 import shutil
 
 import numpy as np
@@ -241,6 +242,9 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             expect(step.locator("ul.live")).to_contain_text(
                 {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
                  "task": "cycles counted"}[role])
+            if role == "task":
+                # the flexion preview runs (axes from this visit's standing and supine steps)
+                expect(step.locator("ul.live li.preview")).to_have_text(re.compile(r"Knee flexion \(preview\): -?\d+°"))
             flaky["role"] = role
             step.get_by_role("button", name="Stop and upload").click()
             bench.wait(lambda step=step: step.get_attribute("data-status") in ("stored", "unsent"), f"{role} uploaded")
