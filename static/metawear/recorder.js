@@ -12,7 +12,7 @@
 //
 // Identification (which sensor is on the thigh): both sensors stream while the clinician moves the thigh; the
 // first sensor whose gyroscope norm, averaged over 0.3 s, passes 60 °/s while the other's stays under 20 °/s
-// is the thigh's.
+// is the thigh's (none within 30 s: the streams stop and the clinician is asked to try again).
 
 import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
 import { MeanForce, Tilt, segmentAxes, flexionDeg } from "./preview.js";
@@ -24,6 +24,7 @@ const LABEL = Object.freeze({ mag_calibration: "calibration", standing: "standin
 const FLUSH_MS = 250;
 const MOVE_DPS = 60;
 const QUIET_DPS = 20;
+const IDENTIFY_MS = 30000;   // no sensor moved alone by then: the clinician is asked to try again
 
 // the serial and firmware of the sensors that recorded a step, for its file names (kept beside its buffer)
 function sensorsKey(sessionId, role) {
@@ -90,12 +91,21 @@ export class Recorder {
         } catch (err) { reject(err); }
       };
       let decided = false;
+      const timer = setTimeout(async () => {
+        if (decided) return;
+        decided = true;
+        a.handlers.onSamples = null;
+        b.handlers.onSamples = null;
+        await Promise.allSettled([a.stop(), b.stop()]);
+        reject(Object.assign(new Error("no sensor moved alone"), { code: "not_identified" }));
+      }, IDENTIFY_MS);
       [a, b].forEach((sensor, i) => {
         sensor.handlers.onSamples = (kind, values) => {
           if (kind !== "gyr" || decided) return;
           for (const v of values) level[i] = meters[i].push(v);
           if (level[i] > MOVE_DPS && level[1 - i] < QUIET_DPS) {
             decided = true;
+            clearTimeout(timer);
             done(i);
           }
         };
@@ -116,7 +126,16 @@ export class Recorder {
     if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
     this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
     this.flushTimer = setInterval(() => this.store.flush().catch(() => { /* kept; retried next time */ }), FLUSH_MS);
-    await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
+    try {
+      await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
+    } catch (err) {
+      // one sensor did not start: none records, the step stays as it was (its buffer is empty)
+      await Promise.allSettled(SEGMENTS.map((s) => this.sensors[s].stop()));
+      clearInterval(this.flushTimer);
+      this.step = null;
+      await this.store.clear(this.sessionId, role);
+      throw err;
+    }
     this.changed();
   }
 
@@ -170,7 +189,8 @@ export class Recorder {
   /** Stop the step and upload it; resolves to {role, lost: {segment: samples}, recordings} once acknowledged. */
   async stop() {
     const role = this.step;
-    await Promise.all(SEGMENTS.map((s) => this.sensors[s].stop()));
+    // a sensor that cannot be told to stop (out of reach) does not keep the step from being uploaded
+    await Promise.allSettled(SEGMENTS.map((s) => this.sensors[s].stop()));
     clearInterval(this.flushTimer);
     this.step = null;
     await this.store.flush();

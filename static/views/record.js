@@ -9,7 +9,8 @@
 //   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
 //   match the browser's clears the step's buffer (IndexedDB), so nothing unacknowledged is lost: a failed
-//   upload stays to retry, also after a reload.  "Redo" deletes the step's stored files and records it again.
+//   upload stays to retry, also after a reload.  Starting a step deletes the files the server holds for it (a
+//   redo, an earlier half-sent try, files dropped in the wizard for that step) and records it again.
 //   Closing the page while a step records or waits to be sent asks first; leaving the view lets go of the sensors.
 // 3 Processing is the wizard's (its step 3), linked once the four steps are stored.
 // Everything the user reads is translated (record.* keys); the sensors' own errors are named by code.
@@ -87,8 +88,8 @@ export function recordView(sessionId) {
 
   const fail = (err) => {
     // the recorder's own errors carry a code (translated here); the API's are ApiErrors with their sentence
-    const own = err && err.code && err.status === undefined;
-    clear(message).append(alertBox(own ? t(`record.error.${err.code}`) : errorText(err)));
+    const key = err && typeof err.code === "string" && err.status === undefined ? `record.error.${err.code}` : null;
+    clear(message).append(alertBox(key && t(key) !== key ? t(key) : errorText(err)));
   };
 
   const connectButton = h("button", { type: "button", class: "connect" }, t("record.connect"));
@@ -100,7 +101,14 @@ export function recordView(sessionId) {
       const sensor = new MetaWearSensor(device, { onState: () => draw() });
       state.sensors.push(sensor);
       draw();
-      await sensor.connect();
+      try {
+        await sensor.connect();
+      } catch (err) {
+        // not usable: let it go, so that another (or the same, woken) sensor can be connected instead
+        sensor.disconnect();
+        state.sensors = state.sensors.filter((s) => s !== sensor);
+        throw err;
+      }
     } catch (err) {
       if (err && err.name === "NotFoundError") return;     // the chooser was closed
       fail(err);
@@ -136,7 +144,7 @@ export function recordView(sessionId) {
     clear(message);
     state.busy = true;
     try {
-      if (state.status[role] === "stored") await deleteStored(role);
+      await deleteStored(role);     // a take replaces the step's files on the server (a redo, a half-sent try)
       await state.recorder.start(role);
       state.active = role;
       state.status[role] = "recording";
