@@ -222,6 +222,7 @@ function uploadStep(ctx) {
   const wrap = h("div", {},
     h("h2", {}, t("wizard.step2_title")),
     h("p", {}, t("wizard.step2_lead")),
+    canEdit() ? h("p", { class: "record-link" }, h("a", { href: `#/sessions/${ctx.sessionId}/record` }, t("record.link"))) : null,
     groups, other, ctx.ingestionArea, ctx.splitArea,
     navButtons(ctx, { back: 1, next: 3 }));
   renderIngestion(ctx, ctx.session.ingestion);
