@@ -198,6 +198,9 @@ class Job(Base):
     side: Mapped[str | None] = mapped_column(String(5), nullable=True)
     #: the involved knee of a two-knee session (ProcessOptions.involved: the LSI's numerator); None: the patient's
     involved: Mapped[str | None] = mapped_column(String(5), nullable=True)
+    #: the cycles the clinician excluded (ProcessOptions.exclusions: ``[{"cycle", "knee", "reason", "by", "at"}]``); a
+    #: job that has it (an empty list too) supersedes the session's earlier analyses; None: an ordinary processing
+    cycle_exclusions: Mapped[list | None] = mapped_column(JSON, nullable=True)
     #: a failed job's message as a catalogue code and its values (app.pipeline.ingestion.messages), for any language
     error_code: Mapped[str | None] = mapped_column(String(60), nullable=True)
     error_params: Mapped[dict | None] = mapped_column(JSON, nullable=True)

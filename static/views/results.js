@@ -14,6 +14,7 @@ import { t, lang, LANGUAGES } from "../i18n.js";
 import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate } from "../app.js";
+import { cyclesSection, technicalNotes } from "./cycles.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -97,6 +98,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
+    cyclesSection(session, analysis, r),
     qualitySection(r, warnings),
     compareSection(session, analysis),
     downloadsSection(session.id, analysis.id),
@@ -268,8 +270,10 @@ function referenceSection(ref) {
 
 function qualitySection(r, translated) {
   const warnings = ((r.quality || {}).warnings) || [];
-  const texts = Array.isArray(translated) && translated.length === warnings.length ? translated : [];
-  const rejected = ((r.cycles || {}).rejected) || [];
+  const clinical = Array.isArray(translated) ? translated.filter((x) => !x.technical) : [];   // notes: technicalNotes
+  const texts = clinical.length === warnings.length ? clinical : [];
+  // the pipeline's rejections; the clinician's exclusions are in the cycles card (cycles.js)
+  const rejected = (((r.cycles || {}).rejected) || []).filter((c) => c.reason !== "excluded_by_clinician");
   const items = [
     // in the reader's language (GET .../warnings renders each from its code and params, as the reports do, the
     // knee of a two-knee session first: reports.warning_text); the English message when that answer is missing,
@@ -284,7 +288,7 @@ function qualitySection(r, translated) {
     h("h2", { id: "h-quality" }, t("results.quality")),
     items.length ? h("ul", { class: "warnings", id: "warnings" }, items)
       : h("p", { class: "ok-line" }, t("results.no_warnings")),
-    calibrationFacts(r), splitFacts(r));
+    technicalNotes(r, translated), calibrationFacts(r), splitFacts(r));
 }
 
 /** Where one continuous recording per sensor was cut into the protocol's parts (results.json session.split). */

@@ -107,6 +107,15 @@ class SessionIn(_In):
     accession: str | None = Field(None, max_length=100, description="the accession number of the order")
 
 
+class CycleExclusionIn(_In):
+    """One cycle the clinician leaves out: its number as the reports show it (from 1), its knee in a session of
+    both knees (null for the only knee), and why."""
+
+    cycle: int = Field(ge=1, le=10_000)
+    knee: Side | None = None
+    reason: str = Field(default="", max_length=300)
+
+
 class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
@@ -117,6 +126,11 @@ class ProcessIn(_In):
     #: the involved knee of a two-knee session (as ``chakamo process --involved``): the numerator of the limb
     #: symmetry index in results.json ``symmetry``; None: the patient's side
     involved: Side | None = None
+    #: the cycles to leave out, each with the clinician's reason (the results page's per-cycle choice, as ``chakamo
+    #: process --exclude-cycles``); the whole set each time: a cycle not named is included again.  Given (an empty
+    #: list too) the new analysis supersedes the session's earlier ones and records who excluded which cycle and why;
+    #: null: an ordinary processing, no cycle excluded
+    exclude_cycles: list[CycleExclusionIn] | None = Field(default=None, max_length=200)
 
 
 class OptionOut(BaseModel):
@@ -228,6 +242,10 @@ class JobOut(BaseModel):
     side: str | None = None
     #: the involved knee chosen for a two-knee session (the process request's ``involved``), or null
     involved: str | None = None
+    #: the thigh–shank heading asked for
+    heading: str = "auto"
+    #: the cycles the clinician excluded for this job (who, which, why, when), or null (an ordinary processing)
+    cycle_exclusions: list[dict[str, Any]] | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -384,7 +402,7 @@ def recording_out(r: Recording) -> dict[str, Any]:
 def job_out(j: Job) -> dict[str, Any]:
     out = {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "error_code",
                                       "error_params", "log", "analysis_id", "filter", "lang", "side", "involved",
-                                      "created_at",
+                                      "heading", "cycle_exclusions", "created_at",
                                       "started_at", "finished_at")}
     if j.error_code:
         from app.pipeline.messages import message_dict
