@@ -302,6 +302,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
     from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions
     from app.pipeline.exclusions import from_records
     from app.pipeline.results import build_knees_results
+    from app.store.pairing import partner_files
     from app.store.workspace import materialise, public_message
 
     progress = _Progress(db, job_id, attempt)
@@ -313,11 +314,14 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             patient = s.get(Patient, session.patient_id)
             recordings = list(s.scalars(select(Recording).where(Recording.session_id == session.id)
                                         .order_by(Recording.id)))
+            paired = partner_files(s, session)  # the other knee's session, when paired (app.store.pairing)
             s.expunge_all()
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
+        # a paired session's involved knee: the request's, else the patient's side (not the session's own knee)
+        involved = job.involved or (patient.side if paired is not None else None)
         options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
-                                 side=job.side, involved=job.involved, exclusions=from_records(job.cycle_exclusions))
-        with materialise(store, tmp_root, session, patient, recordings) as folder:
+                                 side=job.side, involved=involved, exclusions=from_records(job.cycle_exclusions))
+        with materialise(store, tmp_root, session, patient, recordings, paired) as folder:
             loaded = load_knees(folder)
             knees = process_knees(loaded, options, web=True,
                                   progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))

@@ -159,6 +159,12 @@ class KneeSession(Base):
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     #: the clinician's cuts of the continuous recordings (``session.json`` ``"split"``), or None: the automatic ones
     split: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    #: a one-knee session paired with another of the patient, of the other knee (both knees' view and the limb
+    #: symmetry index, app.store.pairing); None: not paired.  ``knee``: the knee its recordings measure then
+    #: (left/right); None: the patient's side.  No foreign key (a rebuild of this table on SQLite would cascade to
+    #: every recording): a partner since erased reads as no partner
+    paired_session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    knee: Mapped[str | None] = mapped_column(String(5), nullable=True)
     patient: Mapped[Patient] = relationship(lazy="joined")
     recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
                                                           cascade="all, delete-orphan")

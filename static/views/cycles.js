@@ -140,8 +140,14 @@ async function reprocess(session, analysis, job, exclude, button, status) {
     button.disabled = false;
     return;
   }
-  const progress = h("progress", { max: "1", value: "0", id: "cycles-progress" });
-  clear(status).append(h("p", {}, t("cycles.reprocessing")), progress);
+  await followJob(session.id, jobId, status, t("cycles.reprocessing"), () => { button.disabled = false; });
+}
+
+/** Follow job `jobId` in `status` (a progress bar under `text`) and open its analysis when it is done; on failure
+ * show its message in the reader's language and call `failed()`.  Stops when the page is left. */
+export async function followJob(sessionId, jobId, status, text, failed) {
+  const progress = h("progress", { max: "1", value: "0", class: "job-progress" });
+  clear(status).append(h("p", {}, text), progress);
   for (;;) {
     await new Promise((r) => setTimeout(r, 400));
     if (!status.isConnected) return;               // the page was left: stop following
@@ -154,12 +160,12 @@ async function reprocess(session, analysis, job, exclude, button, status) {
     }
     progress.value = j.progress || 0;
     if (j.status === "done") {
-      navigate(`#/sessions/${session.id}?analysis_id=${j.analysis_id}`);
+      navigate(`#/sessions/${sessionId}?analysis_id=${j.analysis_id}`);
       return;
     }
     if (j.status === "failed") {
       clear(status).append(alertBox((j.error_message || {})[lang()] || j.error || t("cycles.failed")));
-      button.disabled = false;
+      failed();
       return;
     }
   }

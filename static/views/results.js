@@ -15,6 +15,7 @@ import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate } from "../app.js";
 import { cyclesSection, technicalNotes } from "./cycles.js";
+import { pairingSection } from "./pairing.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -40,7 +41,8 @@ export function resultsView(sessionId, query) {
     ];
     if (!analyses.length) {
       clear(section).append(...head, h("div", { class: "card" }, h("p", {}, t("results.none")),
-        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))));
+        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))),
+      pairingSection(session, patient));
       return;
     }
     const wanted = Number(query.get("analysis_id"));
@@ -101,6 +103,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     cyclesSection(session, analysis, r),
     qualitySection(r, warnings),
     compareSection(session, analysis),
+    pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
     sceneSection(session.id, analysis.id));
 

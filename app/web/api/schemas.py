@@ -116,6 +116,14 @@ class CycleExclusionIn(_In):
     reason: str = Field(default="", max_length=300)
 
 
+class PairIn(_In):
+    """Pair this one-knee session with another of the patient's, of the other knee (both knees' view and LSI)."""
+
+    session_id: int = Field(ge=1)
+    #: the knee this session's recordings measure (the other session's is the other); null: the patient's side
+    knee: Side | None = None
+
+
 class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
@@ -287,6 +295,10 @@ class SessionOut(SessionSummaryOut):
     ingestion: IngestionOut
     analyses: list[AnalysisOut]
     jobs: list[JobOut]
+    #: the session paired with this one (the other knee: processing either gives both knees and the LSI), or null
+    paired_session_id: int | None = None
+    #: the knee this session's recordings measure when paired (left/right); null: the patient's side
+    knee: str | None = None
 
 
 class UploadOut(BaseModel):
@@ -465,5 +477,6 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
             "recordings": [recording_out(r) for r in recs],
             "sensor_warnings": sensor_warnings(recs, stored_ingestion(s, len(recs)).get("segments")),
             "ingestion": ingestion_out(stored_ingestion(s, len(recs)), s.split),
-            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
+            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs],
+            "paired_session_id": s.paired_session_id, "knee": s.knee}
     return out

@@ -38,6 +38,15 @@ def _wait_job(context, page, api: str, job_id: int) -> dict:
     return job
 
 
+def _next_analysis(page, previous: int) -> int:
+    """Wait until the page opened an analysis other than ``previous`` (the results page follows its job), its id."""
+    for _ in range(PROCESS_WAIT_MS // 250):
+        if "analysis_id=" in page.url and not page.url.endswith(f"analysis_id={previous}"):
+            return int(page.url.split("analysis_id=")[1])
+        page.wait_for_timeout(250)
+    raise AssertionError(f"no new analysis opened: {page.url}")
+
+
 def _grey_pixels(png: bytes) -> int:
     from PIL import Image
 
@@ -92,9 +101,7 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
         page.locator("#exclude-only-2").check()
         page.locator("#reason-only-2").fill("tropezó al subir")
         page.locator("#cycles-reprocess").click()
-        page.wait_for_function(f"location.hash.includes('analysis_id=') && !location.hash.endsWith('={first}')",
-                               timeout=PROCESS_WAIT_MS)
-        second = int(page.evaluate("location.hash").split("analysis_id=")[1])
+        second = _next_analysis(page, first)
         row2 = page.locator("#cycles-table-only tr[data-cycle='2']")
         slow_expect(row2).to_contain_text(es["cycles.excluded"].split(" (")[0])
         slow_expect(row2).to_contain_text("tropezó al subir")
@@ -131,8 +138,7 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
         slow_expect(page.locator("#exclude-only-2")).to_be_checked()
         page.locator("#exclude-only-2").uncheck()
         page.locator("#cycles-reprocess").click()
-        page.wait_for_function(f"location.hash.includes('analysis_id=') && !location.hash.endsWith('={second}')",
-                               timeout=PROCESS_WAIT_MS)
+        _next_analysis(page, second)
         slow_expect(page.locator("#cycles-table-only tr[data-cycle='2']")).to_contain_text(es["cycles.accepted"])
         r3 = context.request.get(f"{api}/sessions/{sid}/results").json()
         assert r3["cycles"]["excluded"] == [] and r3["cycles"]["accepted"] == r["cycles"]["accepted"]

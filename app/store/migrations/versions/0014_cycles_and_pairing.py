@@ -2,6 +2,9 @@
 (``[{"cycle", "knee", "reason", "by", "at"}]``, :class:`app.pipeline.exclusions.CycleExclusion`); null for every
 earlier job and every ordinary processing.  A job that carries it (an empty list too: every cycle re-included)
 supersedes the session's earlier analyses when it stores its own (:mod:`app.jobs.work`).
+Sessions gain ``paired_session_id`` and ``knee``: two one-knee sessions of a patient paired into one of both knees
+(:mod:`app.store.pairing`); null for every earlier session.  Columns are only added (no table rebuild: on SQLite
+a rebuild of ``sessions`` would cascade to its recordings), so the partner's id has no foreign key.
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
 
 Revision ID: 0014
@@ -21,8 +24,14 @@ depends_on = None
 def upgrade() -> None:
     with op.batch_alter_table('jobs', schema=None) as batch_op:
         batch_op.add_column(sa.Column('cycle_exclusions', sa.JSON(), nullable=True))
+    with op.batch_alter_table('sessions', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('paired_session_id', sa.Integer(), nullable=True))
+        batch_op.add_column(sa.Column('knee', sa.String(length=5), nullable=True))
 
 
 def downgrade() -> None:
+    with op.batch_alter_table('sessions', schema=None) as batch_op:
+        batch_op.drop_column('knee')
+        batch_op.drop_column('paired_session_id')
     with op.batch_alter_table('jobs', schema=None) as batch_op:
         batch_op.drop_column('cycle_exclusions')
