@@ -31,11 +31,24 @@ def demo_files(tmp_path_factory):
             if p.suffix == ".csv"]
 
 
-def _wait_job(context, page, api: str, job_id: int) -> dict:
+def processed_session(context, page, base: str, files: list[dict], external_id: str, side: str,
+                      lang: str) -> tuple[int, int]:
+    """A new patient's session with ``files`` uploaded and processed through the API with the logged-in browser's
+    cookie and CSRF token: ``(session id, analysis id)``."""
+    api = f"{base}/api/v1"
+    csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+    pid = context.request.post(f"{api}/patients", data={"external_id": external_id, "side": side},
+                               headers=csrf).json()["id"]
+    sid = context.request.post(f"{api}/patients/{pid}/sessions", data={"step_height_m": 0.17},
+                               headers=csrf).json()["id"]
+    for f in files:
+        r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf, multipart={"files": f})
+        assert r.status == 201, r.text()
+    job_id = context.request.post(f"{api}/sessions/{sid}/process", data={"lang": lang}, headers=csrf).json()["job_id"]
     while (job := context.request.get(f"{api}/jobs/{job_id}").json())["status"] not in ("done", "failed"):
         page.wait_for_timeout(500)
     assert job["status"] == "done", job
-    return job
+    return sid, job["analysis_id"]
 
 
 def _next_analysis(page, previous: int) -> int:
@@ -62,16 +75,7 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
         log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(es["patients.title"])
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
-        pid = context.request.post(f"{api}/patients", data={"external_id": "ES-CYCLES", "side": "right"},
-                                   headers=csrf).json()["id"]
-        sid = context.request.post(f"{api}/patients/{pid}/sessions", data={"step_height_m": 0.17},
-                                   headers=csrf).json()["id"]
-        for f in demo_files:
-            r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf, multipart={"files": f})
-            assert r.status == 201, r.text()
-        job = context.request.post(f"{api}/sessions/{sid}/process", data={"lang": "es"}, headers=csrf).json()
-        first = _wait_job(context, page, api, job["job_id"])["analysis_id"]
+        sid, first = processed_session(context, page, server, demo_files, "ES-CYCLES", "right", "es")
         r = context.request.get(f"{api}/sessions/{sid}/results").json()
         per_cycle = r["cycles"]["per_cycle"]
         assert len(per_cycle) == r["cycles"]["detected"] == N_CYCLES and r["cycles"]["excluded"] == []
