@@ -6,7 +6,7 @@
 //
 // Everything shown comes from results.json (GET /sessions/{id}/results) — the UI computes nothing clinical.
 // The 3D view is an <iframe> of /viser/index.html?playbackPath=<the session's scene.viser URL> (same origin,
-// so the session cookie goes along); WebGL may be software-rendered on clinic PCs, so it is lazy-loaded.
+// so the session cookie goes along), with a jump-to-cycle control: scene.js.
 
 import { api, apiUrl } from "../api.js";
 import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
@@ -16,6 +16,7 @@ import { patientTitle, statusBadge } from "./patients.js";
 import { navigate } from "../app.js";
 import { cyclesSection, technicalNotes } from "./cycles.js";
 import { pairingSection } from "./pairing.js";
+import { sceneSection } from "./scene.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -105,7 +106,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     compareSection(session, analysis),
     pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id));
+    sceneSection(session.id, analysis.id, r));
 
   ANGLES.forEach((a, i) => {
     const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
@@ -352,15 +353,4 @@ function downloadsSection(sessionId, analysisId) {
       link("quaternions.xlsx", {}, t("results.quaternions_xlsx")),
       h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId }), class: "button-link secondary",
         target: "_blank", rel: "noopener" }, t("results.report_html"))));
-}
-
-function sceneSection(sessionId, analysisId) {
-  const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
-  const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
-  const frame = h("iframe", { src, id: "scene-frame", title: t("results.scene_title"), loading: "lazy",
-    allow: "fullscreen" });
-  return h("section", { class: "card scene", "aria-labelledby": "h-scene" },
-    h("h2", { id: "h-scene" }, t("results.scene")), h("p", { class: "hint" }, t("results.scene_hint")),
-    h("div", { class: "scene-box" }, frame),
-    h("p", {}, h("a", { href: src, target: "_blank", rel: "noopener" }, t("results.scene_open"))));
 }
