@@ -22,7 +22,9 @@ Stages (each reported to ``progress(stage, fraction)``):
    core's default, whose offline smoother needs no convergence time, so the first cycle is not lost
    as it was in the thesis);
 5. **knee** — ``q_femur_tibia`` and the clinical (Grood & Suntay) or thesis (ZYX) angles;
-6. **task** — cycles, phases, normalised curves, ROM (:func:`estimators.motor_task.analyse_task`).
+6. **task** — cycles, phases, normalised curves, ROM (:func:`estimators.motor_task.analyse_task`), without the cycles
+   the clinician excluded (``ProcessOptions.exclusions``, :mod:`app.pipeline.exclusions`: reason
+   ``excluded_by_clinician``, no quality warning; ``cycles_rejected`` counts the pipeline's own rejections).
 
 Quality checks gathered on the way (``results["quality"]["warnings"]``): magnetometer coverage and
 residual, postures not still or not distinct, a sensor mounted upside down, a large heading offset

@@ -77,6 +77,20 @@ def test_process_excludes_the_cycles_named_and_says_who_and_why(tmp_path, capsys
     assert [(e["cycle"], e["knee"], e["reason"]) for e in r["cycles"]["excluded"]] == [(2, None, "lost balance")]
     assert {(x["index"], x["reason"]) for x in r["cycles"]["rejected"]} == {(1, "excluded_by_clinician")}
     assert not [w for w in r["quality"]["warnings"] if w["code"] == "cycles_rejected"]
+    # the reports name the clinician's exclusion apart from the pipeline's rejections, and the technical notes apart
+    import shutil
+    import subprocess
+
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "Cycle 2 excluded by the clinician" in html and "lost balance" in html
+    assert '<details class="technical">' in html and r["quality"]["technical_notes"]
+    if shutil.which("pdftotext"):
+        text = " ".join(subprocess.run(["pdftotext", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                                       check=True).stdout.split())
+        assert "Cycle 2 excluded by the clinician" in text and "lost balance" in text
+        assert "4 detected, 3 accepted, 0 rejected." in text
+        notes = text.split("Technical notes on reading the files", 1)
+        assert len(notes) == 2 and "common span" in notes[1] and "common span" not in notes[0]
     capsys.readouterr()
     for bad, words in (("9", "cycle 9 cannot be excluded: 4 cycles were detected"),
                        ("1,2,3,4", "leaves none of the 4 detected"), ("two", "--exclude-cycles: 'two'"),
