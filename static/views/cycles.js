@@ -28,9 +28,9 @@ export function cyclesSection(session, analysis, r) {
   const knees = r.knees && Object.keys(r.knees).length === 2
     ? Object.entries(r.knees).sort().map(([side, k]) => [side, k]) : [[null, r]];
   const job = (session.jobs || []).find((j) => j.id === analysis.job_id) || {};
-  const blocks = knees.map(([side, k]) => kneeBlock(side, k));
-  const status = h("div", { id: "cycles-status", role: "status", "aria-live": "polite" });
   const editable = canEdit() && !analysis.superseded_at;
+  const blocks = knees.map(([side, k]) => kneeBlock(side, k, editable));
+  const status = h("div", { id: "cycles-status", role: "status", "aria-live": "polite" });
   const button = h("button", { type: "button", class: "primary", id: "cycles-reprocess", disabled: true },
     t("cycles.reprocess"));
   const chosen = () => blocks.flatMap((b) => b.chosen());
@@ -43,7 +43,14 @@ export function cyclesSection(session, analysis, r) {
     editable ? h("div", { class: "actions" }, button) : h("p", { class: "hint", id: "cycles-locked" },
       t(analysis.superseded_at ? "cycles.superseded" : "cycles.read_only")),
     status);
-  blocks.forEach((b) => b.draw().catch((err) => b.chart.replaceWith(alertBox(errorText(err)))));
+  // drawn when scrolled near: plotly shares the page's one thread with the 3D view's boot (scene.js)
+  const observer = new IntersectionObserver((entries) => entries.forEach((e) => {
+    if (!e.isIntersecting) return;
+    observer.unobserve(e.target);
+    const b = blocks.find((x) => x.chart === e.target);
+    b.draw().catch((err) => b.chart.replaceWith(alertBox(errorText(err))));
+  }), { rootMargin: "200px" });
+  blocks.forEach((b) => observer.observe(b.chart));
   return section;
 }
 
@@ -61,8 +68,9 @@ function kind(c) {
   return c.accepted ? "accepted" : c.reason === EXCLUDED ? "excluded" : "rejected";
 }
 
-/** One knee's cycles: the curves overlaid, and a table with a tick box and a reason per cycle. */
-function kneeBlock(side, k) {
+/** One knee's cycles: the curves overlaid, and a table with a tick box and a reason per cycle (`editable`: the
+ * user may change data and the analysis is the current one). */
+function kneeBlock(side, k, editable) {
   const cycles = (k.cycles || {}).per_cycle || [];
   const excluded = new Map(((k.cycles || {}).excluded || []).map((e) => [e.cycle, e]));
   const suffix = side || "only";
@@ -72,10 +80,10 @@ function kneeBlock(side, k) {
   const rows = cycles.map((c) => {
     const n = c.index + 1;
     const box = h("input", { type: "checkbox", id: `exclude-${suffix}-${n}`, "data-cycle": String(n),
-      checked: c.reason === EXCLUDED, disabled: !CHOOSABLE(c) || !canEdit() });
+      checked: c.reason === EXCLUDED, disabled: !CHOOSABLE(c) || !editable });
     const reason = h("input", { type: "text", id: `reason-${suffix}-${n}`, maxlength: "300", class: "reason",
       value: (excluded.get(n) || {}).reason || "", placeholder: t("cycles.reason_placeholder"),
-      "aria-label": t("cycles.reason_for", { n }), disabled: !box.checked || !canEdit() });
+      "aria-label": t("cycles.reason_for", { n }), disabled: !box.checked || !editable });
     box.addEventListener("change", () => { reason.disabled = !box.checked; listeners.forEach((f) => f()); });
     reason.addEventListener("input", () => listeners.forEach((f) => f()));
     const range = (((c.rom_deg || {}).flexion) || {}).range;

@@ -87,6 +87,7 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
         table = page.locator("#cycles-table-only")
         slow_expect(table.locator("tbody tr")).to_have_count(N_CYCLES)
         chart = page.locator("#cycles-chart-only")
+        chart.scroll_into_view_if_needed()  # drawn when near the view
         slow_expect(chart.locator(".scatterlayer .trace")).to_have_count(N_CYCLES)
         row2 = table.locator("tr[data-cycle='2']")
         flex2 = per_cycle[1]["rom_deg"]["flexion"]["range"]
@@ -111,6 +112,7 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
         slow_expect(row2).to_contain_text("tropezó al subir")
         slow_expect(row2).to_contain_text("admin@clinic.test")
         slow_expect(page.locator("#exclude-only-2")).to_be_checked()
+        page.locator("#cycles-chart-only").scroll_into_view_if_needed()
         slow_expect(page.locator("#cycles-chart-only .scatterlayer .trace")).to_have_count(N_CYCLES)
         page.wait_for_timeout(500)  # plotly's transition
         assert _grey_pixels(page.locator("#cycles-chart-only").screenshot()) > 50  # the excluded curve, grey
