@@ -18,7 +18,7 @@ engines' sweepers resubmit queued jobs): the caller commits, then calls :func:`h
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -62,12 +62,16 @@ def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: 
 def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, lang: str,
             checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False,
             heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None,
-            calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION) -> Job:
+            calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION,
+            cycle_exclusions: tuple[list[dict], str] | None = None) -> Job:
     """Insert (and flush, not commit) a queued job of session ``session_id`` of clinic ``clinic_id`` (module
     docstring for the rules); raises :class:`app.store.errors.NotFound`, :class:`Busy`, :class:`NotReady`
     or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check).  ``side``:
     the side the clinician chose over the files' (:attr:`app.pipeline.session.ProcessOptions.side`), or None;
-    ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's); ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``."""
+    ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's);
+    ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``;
+    ``cycle_exclusions``: the cycles the clinician excluded (``[{"cycle", "knee", "reason"}]``) and who did, kept
+    on the job with the time (:func:`exclusion_records`), or None."""
     what = "process"
     session = clinic_session(db, clinic_id, session_id)
     refuse_while_processing(db, session.id, what)
@@ -80,13 +84,26 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
     if unless_current and (done := current_analysis(db, session, filter_name, lang)) is not None:
         raise UpToDate(done)
     job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, heading=heading, side=side,
-              involved=involved, calibration=calibration, angle_method=angle_method, log=list(log_lines), stage="queued", pipeline_version=PIPELINE_VERSION)
+              involved=involved, calibration=calibration, angle_method=angle_method, log=list(log_lines),
+              stage="queued",
+              cycle_exclusions=None if cycle_exclusions is None else exclusion_records(*cycle_exclusions),
+              pipeline_version=PIPELINE_VERSION)
     db.add(job)
     db.flush()
     other = active_job_id(db, session.id, other_than=job.id)
     if other is not None:  # another request queued one at the same moment (SQLite has no row locks)
         raise Busy(session.id, other, what)
     return job
+
+
+def exclusion_records(items: Sequence[Mapping], by: str) -> list[dict]:
+    """``Job.cycle_exclusions``: each cycle ``{"cycle", "knee", "reason"}`` of ``items`` recorded as excluded by ``by``
+    now (:class:`app.pipeline.exclusions.CycleExclusion`; one entry per knee and cycle)."""
+    from app.pipeline.exclusions import CycleExclusion, normalised, now_iso
+
+    at = now_iso()
+    return [e.to_dict() for e in normalised(CycleExclusion(int(x["cycle"]), x.get("knee"), x.get("reason") or "", by, at)
+                                            for x in items)]
 
 
 def hand_over(runner: JobRunner, job_id: int) -> None:
@@ -97,4 +114,4 @@ def hand_over(runner: JobRunner, job_id: int) -> None:
         log.warning("job %s queued but not handed to the engine now; the sweeper will", job_id, exc_info=True)
 
 
-__all__ = ["NotReady", "UpToDate", "current_analysis", "enqueue", "hand_over"]
+__all__ = ["NotReady", "UpToDate", "current_analysis", "enqueue", "exclusion_records", "hand_over"]

@@ -238,6 +238,22 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "The amendment's text is the same as the signed text; change the text or leave it as it is.",
         "es": "El texto de la enmienda es igual al texto firmado; cambie el texto o déjelo como está.",
         "pt": "O texto da emenda é igual ao texto assinado; altere o texto ou deixe-o como está."},
+    "store.pair_itself": {
+        "en": "Session {session_id} cannot be paired with itself; choose the patient's session of the other knee.",
+        "es": "La sesión {session_id} no puede emparejarse consigo misma; elija la sesión del paciente de la otra rodilla.",
+        "pt": "A sessão {session_id} não pode ser emparelhada consigo mesma; escolha a sessão do paciente do outro joelho."},
+    "store.pair_other_patient": {
+        "en": "Sessions {session_id} and {other_id} belong to different patients; pair two sessions of one patient.",
+        "es": "Las sesiones {session_id} y {other_id} son de pacientes distintos; empareje dos sesiones del mismo paciente.",
+        "pt": "As sessões {session_id} e {other_id} são de pacientes diferentes; emparelhe duas sessões do mesmo paciente."},
+    "store.pair_both_knees": {
+        "en": "Session {session_id} already holds both knees (four sensors); pair two sessions of one knee each.",
+        "es": "La sesión {session_id} ya contiene ambas rodillas (cuatro sensores); empareje dos sesiones de una rodilla cada una.",
+        "pt": "A sessão {session_id} já contém os dois joelhos (quatro sensores); emparelhe duas sessões de um joelho cada."},
+    "store.pair_bad_knee": {
+        "en": "knee {knee!r} is unknown; use {allowed}.",
+        "es": "la rodilla {knee!r} es desconocida; use {allowed}.",
+        "pt": "o joelho {knee!r} é desconhecido; use {allowed}."},
     "store.superseded": {
         "en": "The results of session {session_id} were computed from recordings or details that have changed since (analysis {analysis_id}, superseded {when} UTC); process the session again{tail}.",
         "es": "Los resultados de la sesión {session_id} se calcularon con grabaciones o datos que han cambiado desde entonces (análisis {analysis_id}, reemplazado el {when} UTC); procese la sesión de nuevo{tail}.",

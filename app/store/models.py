@@ -162,6 +162,12 @@ class KneeSession(Base):
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     #: the clinician's cuts of the continuous recordings (``session.json`` ``"split"``), or None: the automatic ones
     split: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    #: a one-knee session paired with another of the patient, of the other knee (both knees' view and the limb
+    #: symmetry index, app.store.pairing); None: not paired.  ``knee``: the knee its recordings measure then
+    #: (left/right); None: the patient's side.  No foreign key (a rebuild of this table on SQLite would cascade to
+    #: every recording): a partner since erased reads as no partner
+    paired_session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    knee: Mapped[str | None] = mapped_column(String(5), nullable=True)
     patient: Mapped[Patient] = relationship(lazy="joined")
     recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
                                                           cascade="all, delete-orphan")
@@ -205,6 +211,9 @@ class Job(Base):
     calibration: Mapped[str] = mapped_column(String(20), default="static", server_default="static")
     #: the knee-angle convention asked for (app.choices.ANGLE_CONVENTIONS; ProcessOptions.angle_method)
     angle_method: Mapped[str] = mapped_column(String(20), default="grood_suntay", server_default="grood_suntay")
+    #: the cycles the clinician excluded (ProcessOptions.exclusions: ``[{"cycle", "knee", "reason", "by", "at"}]``); a
+    #: job that has it (an empty list too) supersedes the session's earlier analyses; None: an ordinary processing
+    cycle_exclusions: Mapped[list | None] = mapped_column(JSON, nullable=True)
     #: a failed job's message as a catalogue code and its values (app.pipeline.ingestion.messages), for any language
     error_code: Mapped[str | None] = mapped_column(String(60), nullable=True)
     error_params: Mapped[dict | None] = mapped_column(JSON, nullable=True)

@@ -6,7 +6,7 @@
 //
 // Everything shown comes from results.json (GET /sessions/{id}/results) — the UI computes nothing clinical.
 // The 3D view is an <iframe> of /viser/index.html?playbackPath=<the session's scene.viser URL> (same origin,
-// so the session cookie goes along); WebGL may be software-rendered on clinic PCs, so it is lazy-loaded.
+// so the session cookie goes along), with a jump-to-cycle control: scene.js.
 
 import { api, apiUrl } from "../api.js";
 import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
@@ -14,6 +14,9 @@ import { t, lang, LANGUAGES } from "../i18n.js";
 import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate, canEdit } from "../app.js";
+import { cyclesSection, technicalNotes } from "./cycles.js";
+import { pairingSection } from "./pairing.js";
+import { sceneSection } from "./scene.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -39,7 +42,8 @@ export function resultsView(sessionId, query) {
     ];
     if (!analyses.length) {
       clear(section).append(...head, h("div", { class: "card" }, h("p", {}, t("results.none")),
-        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))));
+        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))),
+      pairingSection(session, patient));
       return;
     }
     const wanted = Number(query.get("analysis_id"));
@@ -97,11 +101,13 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
+    cyclesSection(session, analysis, r),
     qualitySection(r, warnings),
     compareSection(session, analysis),
     interpretationSection(session, analysis),
+    pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id));
+    sceneSection(session.id, analysis.id, r));
 
   ANGLES.forEach((a, i) => {
     const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
@@ -269,8 +275,10 @@ function referenceSection(ref) {
 
 function qualitySection(r, translated) {
   const warnings = ((r.quality || {}).warnings) || [];
-  const texts = Array.isArray(translated) && translated.length === warnings.length ? translated : [];
-  const rejected = ((r.cycles || {}).rejected) || [];
+  const clinical = Array.isArray(translated) ? translated.filter((x) => !x.technical) : [];   // notes: technicalNotes
+  const texts = clinical.length === warnings.length ? clinical : [];
+  // the pipeline's rejections; the clinician's exclusions are in the cycles card (cycles.js)
+  const rejected = (((r.cycles || {}).rejected) || []).filter((c) => c.reason !== "excluded_by_clinician");
   const items = [
     // in the reader's language (GET .../warnings renders each from its code and params, as the reports do, the
     // knee of a two-knee session first: reports.warning_text); the English message when that answer is missing,
@@ -285,7 +293,7 @@ function qualitySection(r, translated) {
     h("h2", { id: "h-quality" }, t("results.quality")),
     items.length ? h("ul", { class: "warnings", id: "warnings" }, items)
       : h("p", { class: "ok-line" }, t("results.no_warnings")),
-    calibrationFacts(r), splitFacts(r));
+    technicalNotes(r, translated), calibrationFacts(r), splitFacts(r));
 }
 
 /** Where one continuous recording per sensor was cut into the protocol's parts (results.json session.split). */
@@ -431,15 +439,4 @@ function downloadsSection(sessionId, analysisId) {
       link("quaternions.xlsx", {}, t("results.quaternions_xlsx")),
       h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId, lang: lang() }), class: "button-link secondary",
         target: "_blank", rel: "noopener" }, t("results.report_html"))));
-}
-
-function sceneSection(sessionId, analysisId) {
-  const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
-  const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
-  const frame = h("iframe", { src, id: "scene-frame", title: t("results.scene_title"), loading: "lazy",
-    allow: "fullscreen" });
-  return h("section", { class: "card scene", "aria-labelledby": "h-scene" },
-    h("h2", { id: "h-scene" }, t("results.scene")), h("p", { class: "hint" }, t("results.scene_hint")),
-    h("div", { class: "scene-box" }, frame),
-    h("p", {}, h("a", { href: src, target: "_blank", rel: "noopener" }, t("results.scene_open"))));
 }

@@ -121,6 +121,23 @@ class SessionIn(_In):
     accession: str | None = Field(None, max_length=100, description="the accession number of the order")
 
 
+class CycleExclusionIn(_In):
+    """One cycle the clinician leaves out: its number as the reports show it (from 1), its knee in a session of
+    both knees (null for the only knee), and why."""
+
+    cycle: int = Field(ge=1, le=10_000)
+    knee: Side | None = None
+    reason: str = Field(default="", max_length=300)
+
+
+class PairIn(_In):
+    """Pair this one-knee session with another of the patient's, of the other knee (both knees' view and LSI)."""
+
+    session_id: int = Field(ge=1)
+    #: the knee this session's recordings measure (the other session's is the other); null: the patient's side
+    knee: Side | None = None
+
+
 class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
@@ -136,6 +153,11 @@ class ProcessIn(_In):
     calibration: CalibrationName = DEFAULT_CALIBRATION
     #: the knee-angle convention (as ``chakamo process --angles``): Grood & Suntay or the thesis' ZYX Euler angles
     angle_convention: AngleConventionName = DEFAULT_ANGLE_CONVENTION
+    #: the cycles to leave out, each with the clinician's reason (the results page's per-cycle choice, as ``chakamo
+    #: process --exclude-cycles``); the whole set each time: a cycle not named is included again.  Given (an empty
+    #: list too) the new analysis supersedes the session's earlier ones and records who excluded which cycle and why;
+    #: null: an ordinary processing, no cycle excluded
+    exclude_cycles: list[CycleExclusionIn] | None = Field(default=None, max_length=200)
 
 
 class OptionOut(BaseModel):
@@ -259,6 +281,10 @@ class JobOut(BaseModel):
     #: the calibration and angle convention asked for (the process request's ``calibration`` / ``angle_convention``)
     calibration: str = DEFAULT_CALIBRATION
     angle_convention: str = DEFAULT_ANGLE_CONVENTION
+    #: the thigh–shank heading asked for
+    heading: str = "auto"
+    #: the cycles the clinician excluded for this job (who, which, why, when), or null (an ordinary processing)
+    cycle_exclusions: list[dict[str, Any]] | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -300,6 +326,10 @@ class SessionOut(SessionSummaryOut):
     ingestion: IngestionOut
     analyses: list[AnalysisOut]
     jobs: list[JobOut]
+    #: the session paired with this one (the other knee: processing either gives both knees and the LSI), or null
+    paired_session_id: int | None = None
+    #: the knee this session's recordings measure when paired (left/right); null: the patient's side
+    knee: str | None = None
 
 
 class UploadOut(BaseModel):
@@ -415,7 +445,7 @@ def recording_out(r: Recording) -> dict[str, Any]:
 def job_out(j: Job) -> dict[str, Any]:
     out = {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "error_code",
                                       "error_params", "log", "analysis_id", "filter", "lang", "side", "involved",
-                                      "created_at",
+                                      "heading", "cycle_exclusions", "created_at",
                                       "started_at", "finished_at")}
     out |= {"calibration": j.calibration, "angle_convention": j.angle_method}
     if j.error_code:
@@ -481,7 +511,8 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
             "recordings": [recording_out(r) for r in recs],
             "sensor_warnings": sensor_warnings(recs, stored_ingestion(s, len(recs)).get("segments")),
             "ingestion": ingestion_out(stored_ingestion(s, len(recs)), s.split),
-            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
+            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs],
+            "paired_session_id": s.paired_session_id, "knee": s.knee}
     return out
 
 

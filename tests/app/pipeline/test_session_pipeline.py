@@ -151,10 +151,12 @@ def test_warnings_carry_params_and_translate(right_session, tmp_path):
     warnings = r["quality"]["warnings"]
     mag = [w for w in warnings if w["code"].startswith("MAG_")]
     assert mag and all(w["message"].startswith("Thigh sensor: ") and w["params"]["segment"] == "thigh" for w in mag)
-    notes = [w for w in warnings if w["code"] == "ingestion_note"]
+    notes = r["quality"]["technical_notes"]  # how the files were read: apart from the clinical warnings
+    assert notes and all(w["code"] == "ingestion_note" for w in notes)
+    assert not [w for w in warnings if w["code"] == "ingestion_note"]
     assert {(w["params"]["segment"], w["params"]["role"]) for w in notes if w["params"]["variant"] == "no_epoch"} \
         == {(s, role) for s in ("thigh", "shank") for role in ("mag_calibration", "standing", "lying", "task")}
-    for w in warnings:
+    for w in warnings + notes:
         assert isinstance(w["params"], dict), w
         for lang in ("es", "pt"):
             text, translated = warning_text(w, lang, r)

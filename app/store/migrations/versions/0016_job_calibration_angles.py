@@ -4,7 +4,7 @@ processing request chose in the wizard (``ProcessOptions.calibration`` / ``.angl
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
 
 Revision ID: 0016
-Revises: 0015
+Revises: 0014
 Create Date: 2026-12-02 07:00:00
 """
 from alembic import op
@@ -12,7 +12,7 @@ import sqlalchemy as sa
 
 
 revision = '0016'
-down_revision = '0013'  # the lead re-chains it after 0015
+down_revision = '0014'  # no 0015: the number was reserved for a branch that needed no migration
 branch_labels = None
 depends_on = None
 
