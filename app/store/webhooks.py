@@ -34,8 +34,6 @@ MAX_ATTEMPTS = 8
 MAX_BACKOFF_S = 3600.0
 #: how long a claimed attempt keeps other senders away (longer than a send's timeout)
 LEASE_S = 60.0
-#: subscription kinds: a clinic's webhook, the operator's FHIR push
-KINDS = ("webhook", "fhir")
 
 
 def add_subscription(db: Session, clinic_id: int, *, url: str, events: list[str], secret: str,
@@ -148,7 +146,7 @@ class Due:
     attempt: int
     lease: dt.datetime
     subscription_id: int
-    #: the subscription's kind (:data:`KINDS`)
+    #: the subscription's kind: ``webhook`` (a clinic's) or ``fhir`` (the operator's FHIR push)
     kind: str = "webhook"
     clinic_id: int = 0
 
@@ -220,6 +218,6 @@ def job_states(db: Session, clinic_id: int, since: dt.datetime) -> list[dict[str
              "analysis_id": j.analysis_id} for j in rows]
 
 
-__all__ = ["EVENTS", "KINDS", "LEASE_S", "ensure_fhir_push", "fhir_pushes", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
+__all__ = ["EVENTS", "LEASE_S", "ensure_fhir_push", "fhir_pushes", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
            "clinic_subscription", "delete_subscription", "deliveries", "job_states", "plan_deliveries", "record_attempt",
            "subscriptions"]

@@ -47,7 +47,7 @@ from app.web import audit
 from app.web.api.schemas import patient_out
 from app.web.fhir import CODE_SYSTEM, FhirExportError, diagnostic_report, validate_bundle
 from app.web.headers import host_allowed
-from app.web.outbound import DEADLINE_S
+from app.web.outbound import DEADLINE_S, header_host, plain_host
 from app.web.webhooks import attempt
 
 log = logging.getLogger("chakamo.fhir_push")
@@ -140,7 +140,10 @@ class FhirPush:
         self.url, self.token, self.store = settings.fhir_push_url, settings.fhir_push_token, store
         self.patterns = settings.fhir_push_host_patterns
         host = urllib.parse.urlsplit(self.url or "").hostname or ""
-        if not host_allowed(host, self.patterns):
+        if not plain_host(host):
+            raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL names the host {host!r}, which is not a host name or an IP "
+                                "address")
+        if not host_allowed(header_host(host), self.patterns):
             raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL names the host {host!r}, which CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS "
                                 "does not list; add it there (exactly, if it is an internal address)")
         self.base_url = identifier_base(settings)

@@ -191,6 +191,29 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Esta análise não foi enviada ao servidor FHIR: foi substituída ou os seus dados guardados não podem "
               "ser expressos em FHIR (GET /fhir/DiagnosticReport/<id da sessão> diz porquê); corrija o registo e "
               "processe a sessão de novo."},
+    # a pattern (``*``, ``*.example.org``) or no host at all where the webhook's host goes (app.web.api.webhooks)
+    "webhook.host_invalid": {
+        "en": "The webhook URL {url} does not name one host (a host name or an IP address; {host} is not one); give "
+              "the receiver's own address.",
+        "es": "La URL del webhook {url} no nombra un host (un nombre de host o una dirección IP; {host} no lo es); "
+              "indique la dirección propia del receptor.",
+        "pt": "A URL do webhook {url} não nomeia um host (um nome de host ou um endereço IP; {host} não o é); "
+              "indique o endereço próprio do recetor."},
+    # the last attempt failed and no other follows (state failed; app.web.webhooks.trail_error)
+    "webhook.no_connection.final": {
+        "en": "No answer from the receiver (it could not be reached, or did not answer within {seconds} s) at the "
+              "last attempt; it is not retried: check that the receiver is up and answers quickly.",
+        "es": "Sin respuesta del receptor (no se pudo contactar o no respondió en {seconds} s) en el último "
+              "intento; no se reintentará: compruebe que el receptor está en marcha y responde rápido.",
+        "pt": "Sem resposta do recetor (não foi possível contactá-lo ou não respondeu em {seconds} s) na última "
+              "tentativa; não será tentado de novo: verifique que o recetor está ativo e responde depressa."},
+    "webhook.http_status.final": {
+        "en": "The receiver answered HTTP {status} at the last attempt; it is not retried: check the receiver's log "
+              "for why.",
+        "es": "El receptor respondió HTTP {status} en el último intento; no se reintentará: consulte el registro "
+              "del receptor para saber por qué.",
+        "pt": "O recetor respondeu HTTP {status} na última tentativa; não será tentado de novo: consulte o registo "
+              "do recetor para saber porquê."},
 }
 
 
