@@ -13,9 +13,14 @@ from the analysis' DiagnosticReport (:func:`app.web.fhir.diagnostic_report`, the
 ``GET /fhir/DiagnosticReport/{id}`` answers) by :func:`transaction_bundle`:
 
 - **Patient**: with ``CHAKAMO_FHIR_PATIENT=reference`` and a patient who has a ``fhir_reference``, no entry:
-  every ``subject`` is that reference (the hospital owns the Patient).  Otherwise a conditional create (``POST
-  Patient`` with ``ifNoneExist: identifier=<system>|<value>``, the hospital's record number when its system is
-  configured, else ChakaMo's ``<base>/patients`` id): the server links to the Patient it has, or makes one.
+  every ``subject`` is that reference (the hospital owns the Patient).  With ``identifier`` (or ``reference`` for a
+  patient without one) no entry either: ``subject`` is the conditional reference ``Patient?identifier=<system>|<record
+  number>`` (§3.1.0.11.2), which the server resolves to the one Patient it has, and a record number it does not know
+  (mistyped) fails the transaction instead of making a ghost Patient on a server that owns its Patients.  Only with
+  ``contained`` (ChakaMo holds the patient's data: the operator's choice to have patients created) a conditional
+  create (``POST Patient`` with ``ifNoneExist: identifier=<system>|<value>``, the hospital's record number when its
+  system is configured, else ChakaMo's ``<base>/patients`` id): the server links to the Patient it has, or makes one.
+  System and value are escaped as FHIR search values (:func:`_escaped`: ``A,B`` would search for A or B).
 - **Observations and DiagnosticReport**: ``POST`` with ``ifNoneExist`` on an identifier of the analysis
   (``<base>/analyses`` | ``<analysis id>`` for the report, ``<analysis id>-<observation>`` for each observation),
   so a retry after a lost answer creates nothing twice, while a new analysis of the session is a new report.
@@ -81,8 +86,18 @@ def _urn(base_url: str, analysis_id: int, name: str) -> str:
     return f"urn:uuid:{uuid.uuid5(uuid.NAMESPACE_URL, f'{base_url}/analyses/{analysis_id}/{name}')}"
 
 
+def _escaped(text: str) -> str:
+    """``text`` as a search parameter's value (FHIR R4 §3.1.1.5.11 "Escaping Search Parameters"): ``\\``, ``,``
+    (which separates alternatives: ``A,B`` means A or B), ``$`` and ``|`` preceded by a backslash."""
+    for c in "\\,$|":
+        text = text.replace(c, "\\" + c)
+    return text
+
+
 def _conditional(identifier: dict) -> str:
-    return "identifier=" + urllib.parse.quote(f"{identifier.get('system', '')}|{identifier['value']}", safe="/:")
+    """The search ``identifier=<system>|<value>`` of ``identifier`` (both escaped: :func:`_escaped`), URL-encoded."""
+    token = f"{_escaped(identifier.get('system') or '')}|{_escaped(identifier['value'])}"
+    return "identifier=" + urllib.parse.quote(token, safe="/:")
 
 
 def transaction_bundle(report: dict, *, base_url: str, analysis_id: int) -> dict:
@@ -94,13 +109,15 @@ def transaction_bundle(report: dict, *, base_url: str, analysis_id: int) -> dict
     analyses = f"{base_url.rstrip('/')}/analyses"
     entries: list[dict] = []
     subject = report["subject"]
-    if "patient" in contained or "identifier" in subject:
-        patient = contained.pop("patient", None) or {"resourceType": "Patient", "identifier": [subject["identifier"]]}
+    if "patient" in contained:  # ChakaMo holds the patient's data: created unless the server has them already
+        patient = contained.pop("patient")
         patient.pop("id", None)
         key = next((i for i in patient["identifier"] if i.get("system")), patient["identifier"][0])
         subject = {"reference": _urn(base_url, analysis_id, "patient"), "type": "Patient"}
         entries.append({"fullUrl": subject["reference"], "resource": patient,
                         "request": {"method": "POST", "url": "Patient", "ifNoneExist": _conditional(key)}})
+    elif "identifier" in subject:  # the hospital's Patient, found by its record number; never made up
+        subject = {"reference": "Patient?" + _conditional(subject["identifier"]), "type": "Patient"}
     urns = {}
     for local_id, obs in contained.items():
         obs.pop("id", None)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import threading
+import urllib.parse
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
@@ -57,7 +58,7 @@ def check_transaction(doc: dict) -> dict[str, list[dict]]:
         assert "id" not in e["resource"] and "contained" not in e["resource"]
         by_type.setdefault(e["resource"]["resourceType"], []).append(e["resource"])
         for ref in _references(e["resource"], []):
-            assert ref in full_urls or ref.startswith("Patient/"), ref
+            assert ref in full_urls or ref.startswith(("Patient/", "Patient?identifier=")), ref
     return by_type
 
 
@@ -83,13 +84,54 @@ def test_the_bundle_creates_the_patient_conditionally_and_links_by_urn_uuid(righ
     assert report["contained"][0]["id"] == "patient"  # the export's document is left as it was
 
 
-def test_the_bundle_by_identifier_and_by_the_hospitals_patient(right):  # noqa: F811
+def _search(reference: str) -> tuple[str, str]:
+    """The ``(system, value)`` a FHIR server reads from ``Patient?identifier=...`` (FHIR R4 §3.1.1.5.11: a
+    backslash escapes the next character; an unescaped ``,`` separates alternatives, ``|`` system from value)."""
+    query = urllib.parse.parse_qs(urllib.parse.urlsplit(reference).query, keep_blank_values=True)
+    assert list(query) == ["identifier"] and len(query["identifier"]) == 1
+    text, parts, current, i = query["identifier"][0], [], "", 0
+    while i < len(text):
+        if text[i] == "\\":
+            current, i = current + text[i + 1], i + 2
+            continue
+        assert text[i] not in ",$", f"an unescaped {text[i]!r} in {text!r}"  # an OR of two identifiers
+        if text[i] == "|":
+            parts.append(current)
+            current = ""
+        else:
+            current += text[i]
+        i += 1
+    parts.append(current)
+    assert len(parts) == 2, text
+    return parts[0], parts[1]
+
+
+def test_the_bundle_by_identifier_names_the_hospitals_patient_and_creates_none(right):  # noqa: F811
+    """Identifier mode: the hospital owns its Patients, so the subject is a conditional reference (FHIR R4
+    §3.1.0.11.2): a mistyped record number fails the transaction instead of making a ghost Patient."""
     results, pdf = right
     by_mrn = transaction_bundle(build(results, pdf, patient_mode="identifier", patient_identifier_system=MRN),
                                 base_url=BASE, analysis_id=5)
     by_type = check_transaction(by_mrn)
-    assert by_type["Patient"][0]["identifier"][0]["value"] == "MRN-0042"
-    assert by_mrn["entry"][0]["request"]["ifNoneExist"] == f"identifier={MRN}%7CMRN-0042"
+    assert "Patient" not in by_type
+    subjects = {r["subject"]["reference"] for t in by_type.values() for r in t}
+    assert subjects == {f"Patient?identifier={MRN}%7CMRN-0042"} and _search(subjects.pop()) == (MRN, "MRN-0042")
+
+
+@pytest.mark.parametrize("mrn", ["A,B", "A|B", "A$B", "A\\B"])
+def test_a_record_number_with_a_search_separator_is_escaped(right, mrn):  # noqa: F811
+    """``identifier=sys|A,B`` is a search for A *or* B: the value is escaped before it is URL-encoded."""
+    results, pdf = right
+    doc = transaction_bundle(build(results, pdf, patient_mode="identifier", patient_identifier_system=MRN + ",x",
+                                   patient=patient(external_id=mrn)), base_url=BASE, analysis_id=5)
+    assert _search(doc["entry"][0]["resource"]["subject"]["reference"]) == (MRN + ",x", mrn)
+    created = transaction_bundle(build(results, pdf, patient_identifier_system=MRN, patient=patient(external_id=mrn)),
+                                 base_url=BASE, analysis_id=5)
+    assert _search("Patient?" + created["entry"][0]["request"]["ifNoneExist"]) == (MRN, mrn)
+
+
+def test_the_bundle_by_the_hospitals_patient(right):  # noqa: F811
+    results, pdf = right
 
     report = build(results, pdf, patient_mode="reference", patient=patient(fhir_reference="Patient/H-77"))
     assert report["subject"] == {"reference": "Patient/H-77", "type": "Patient"}
