@@ -1,8 +1,9 @@
 """The push of finished reports to a hospital's FHIR R4 server, as one transaction Bundle per analysis.
 
-When ``CHAKAMO_FHIR_PUSH_URL`` is set, every job that ends ``done`` is pushed: the webhook machinery plans,
+When ``CHAKAMO_FHIR_PUSH_URL`` is set, every job that ends ``done`` in a clinic the operator opted in
+(``CHAKAMO_FHIR_PUSH_CLINICS``: no clinic's reports leave without that) is pushed: the webhook machinery plans,
 claims, retries with back-off and records it (:mod:`app.store.webhooks`: a subscription of kind ``fhir`` per
-clinic; :class:`app.web.webhooks.WebhookSender` hands its deliveries to :meth:`FhirPush.send`), so a push gets the
+opted-in clinic; :class:`app.web.webhooks.WebhookSender` hands its deliveries to :meth:`FhirPush.send`), so a push gets the
 webhooks' lease, total deadline, SSRF rules (its host must match ``CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS``; an internal
 address only when named exactly there), back-off and trail (``GET /fhir/pushes``, codes in es/en/pt).  Each push
 delivered is also an ``export`` event in the audit log (actor ``FHIR push``).
@@ -27,6 +28,15 @@ from the analysis' DiagnosticReport (:func:`app.web.fhir.diagnostic_report`, the
 - **References**: each entry's ``fullUrl`` is a ``urn:uuid:`` (RFC 4122 name-based, version 5, from the analysis
   and the resource: a retry sends the same bundle), and ``subject`` and ``result`` point to those; the server
   replaces them with the ids it assigns (§3.1.0.11.2).
+
+**One record-number namespace, one clinic.**  With ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` set, the server finds
+(or, contained, makes) the Patient by ``<system>|<record number>``; two clinics (tenants) pushing in that one
+namespace would file clinic A's MRN-42 and clinic B's MRN-42 under one hospital Patient.  There is one system per
+server, not per clinic, so the push refuses to start (:class:`app.settings.SettingsError`) with that system set and
+more than one clinic opted in: a second clinic needs a server of its own (its own settings), or the push without
+the hospital's namespace (then each patient is matched by ChakaMo's own ``<base>/patients`` id, unique across
+clinics).  Chosen over a per-clinic system because the settings name one; refusing is the failure that cannot
+mix two patients' reports.
 
 An analysis that cannot be exported (superseded since, or stored data FHIR cannot express) fails its delivery at
 once (``fhir.not_exportable``), without retries.  The bundle is validated with both FHIR model packages before it is
@@ -153,9 +163,19 @@ class FhirPush:
 
     def __init__(self, settings: Settings, store) -> None:
         """Refuses (:class:`app.settings.SettingsError`) a push URL whose host ``CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS``
-        does not list, or without a namespace for the identifiers."""
+        does not list, without a namespace for the identifiers, with no clinic opted in, or with several clinics
+        sharing the hospital's record-number namespace (module docstring)."""
         self.url, self.token, self.store = settings.fhir_push_url, settings.fhir_push_token, store
         self.patterns = settings.fhir_push_host_patterns
+        self.clinics = settings.fhir_push_clinic_names
+        if not self.clinics:
+            raise SettingsError("CHAKAMO_FHIR_PUSH_URL is set but CHAKAMO_FHIR_PUSH_CLINICS names no clinic; list the "
+                                "names of the clinics whose reports may be pushed (comma-separated)")
+        if len(self.clinics) > 1 and settings.patient_identifier_system:
+            raise SettingsError(f"CHAKAMO_FHIR_PUSH_CLINICS names {len(self.clinics)} clinics, but their patients "
+                                "would be matched on the FHIR server by record number in the one namespace "
+                                "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, so the same number in two clinics would become one "
+                                "Patient; opt in one clinic per server, or unset CHAKAMO_PATIENT_IDENTIFIER_SYSTEM")
         host = urllib.parse.urlsplit(self.url or "").hostname or ""
         if not plain_host(host):
             raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL names the host {host!r}, which is not a host name or an IP "

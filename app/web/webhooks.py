@@ -126,6 +126,7 @@ class WebhookSender:
         self.db, self.retry_base_s, self.allowed_hosts, self.key = db, retry_base_s, allowed_hosts, key
         self.fhir_push = fhir_push
         self.kinds = ("webhook", "fhir") if fhir_push is not None else ("webhook",)
+        self._unknown: tuple[str, ...] = ()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -148,7 +149,11 @@ class WebhookSender:
         other clinic's deliveries up); how many attempts were made."""
         with self.db.sessions() as s:
             if self.fhir_push is not None:
-                webhooks.ensure_fhir_push(s, self.fhir_push.url)
+                unknown = webhooks.ensure_fhir_push(s, self.fhir_push.url, self.fhir_push.clinics)
+                if unknown != self._unknown:  # said once, not every round
+                    self._unknown = unknown
+                    if unknown:
+                        log.warning("CHAKAMO_FHIR_PUSH_CLINICS names no clinic called %s", ", ".join(unknown))
             webhooks.plan_deliveries(s, kinds=self.kinds)
         failed: set[int] = set()
         made = 0

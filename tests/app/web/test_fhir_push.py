@@ -210,7 +210,7 @@ def test_a_finished_job_is_pushed_as_a_transaction_retried_and_audited(tmp_path,
     settings = make_settings(tmp_path / "data", CHAKAMO_WEBHOOK_RETRY_S=0.5, CHAKAMO_FHIR_PUSH_URL=fhir.url,
                              CHAKAMO_FHIR_PUSH_TOKEN=TOKEN, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="127.0.0.1",
                              CHAKAMO_PUBLIC_URL="https://chakamo.hospital.test",
-                             CHAKAMO_PATIENT_IDENTIFIER_SYSTEM=MRN, **extra)
+                             CHAKAMO_PATIENT_IDENTIFIER_SYSTEM=MRN, CHAKAMO_FHIR_PUSH_CLINICS="Hospital Push", **extra)
     admin_cli.create_clinic(settings, "Hospital Push")
     token = admin_cli.create_token(settings, clinic="Hospital Push", role="admin")
     sock = _loopback_socket()
@@ -264,11 +264,12 @@ def test_a_push_the_settings_cannot_keep_safe_is_refused_at_start_up(tmp_path):
     from app.web.fhir_push import FhirPush
 
     common = {"CHAKAMO_FHIR_PUSH_URL": "https://fhir.hospital.example/fhir",
-              "CHAKAMO_PUBLIC_URL": "https://chakamo.hospital.example"}
+              "CHAKAMO_PUBLIC_URL": "https://chakamo.hospital.example", "CHAKAMO_FHIR_PUSH_CLINICS": "Hospital"}
     with pytest.raises(SettingsError, match="CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS"):  # its host not listed
         FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="ris.hospital.example", **common), None)
     with pytest.raises(SettingsError, match="CHAKAMO_PUBLIC_URL"):  # no namespace for the identifiers
         FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_URL=common["CHAKAMO_FHIR_PUSH_URL"],
+                               CHAKAMO_FHIR_PUSH_CLINICS="Hospital",
                                CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="*.hospital.example"), None)
     push = FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="*.hospital.example", **common), None)
     assert push.base_url == "https://chakamo.hospital.example/api/v1"
