@@ -38,8 +38,9 @@ the hospital's namespace (then each patient is matched by ChakaMo's own ``<base>
 clinics).  Chosen over a per-clinic system because the settings name one; refusing is the failure that cannot
 mix two patients' reports.
 
-An analysis that cannot be exported (superseded since, or stored data FHIR cannot express) fails its delivery at
-once (``fhir.not_exportable``), without retries.  The bundle is validated with both FHIR model packages before it is
+An analysis that cannot be exported (superseded since, stored data FHIR cannot express, or a stored file missing or
+altered) fails its delivery at once (``fhir.not_exportable``), without retries.  The POST's deadline is what the
+delivery's lease has left after the bundle was built (:func:`app.web.webhooks.time_left`).  The bundle is validated with both FHIR model packages before it is
 sent (:func:`app.web.fhir.validate_bundle`).
 """
 
@@ -201,19 +202,26 @@ class FhirPush:
             report = diagnostic_report(**report_inputs(db, self.store, session, analysis), base_url=self.base_url,
                                        issued=analysis.created_at.replace(microsecond=0), **self.options)
             return transaction_bundle(report, base_url=self.base_url, analysis_id=analysis.id), session
-        except (FhirExportError, LookupError) as exc:
-            log.warning("FHIR push %s: analysis %s cannot be exported: %s",
-                                                           due.id, analysis.id, exc)
+        except (FhirExportError, LookupError, OSError, ValueError) as exc:  # OSError: a blob missing or altered
+            log.warning("FHIR push %s: analysis %s cannot be exported: %s: %s", due.id, analysis.id,
+                        type(exc).__name__, exc)  # (CorruptBlob), ValueError: its results.json no longer JSON
             return None
 
     def send(self, db: Database, due: webhooks.Due, deadline_s: float = DEADLINE_S) -> tuple[int | None, str, bool]:
-        """Push ``due`` (``(status or None, the trail's code or "", give up)``); a delivered push is audited."""
-        with db.session() as s:
-            built = self.bundle(s, due)
-            if built is None:
-                return None, NOT_EXPORTABLE, True
-            bundle, session = built
-            patient_id, session_id = session.patient_id, session.id
+        """Push ``due`` (``(status or None, the trail's code or "", give up)``); a delivered push is audited.  An
+        analysis that cannot be exported gives up at once (:meth:`bundle`); any other failure to build the bundle is
+        a failed attempt, retried like one (it escaped the sender's round before: never recorded, the delivery
+        claimed again every lease)."""
+        try:
+            with db.session() as s:
+                built = self.bundle(s, due)
+                if built is None:
+                    return None, NOT_EXPORTABLE, True
+                bundle, session = built
+                patient_id, session_id = session.patient_id, session.id
+        except Exception:  # noqa: BLE001 — the database away, say: an attempt that failed, counted
+            log.warning("FHIR push %s: its bundle could not be built", due.id, exc_info=True)
+            return None, NOT_EXPORTABLE, False
         headers = {"Content-Type": "application/fhir+json", "Accept": "application/fhir+json",
                    "User-Agent": "ChakaMo-FHIR-push", "X-Request-Id": f"chakamo-delivery-{due.id}"}
         if self.token:

@@ -41,6 +41,7 @@ from cryptography.exceptions import InvalidTag
 
 from app.store import webhooks
 from app.web import messages
+from app.store.models import utcnow
 from app.store.sealed import unseal
 from app.web.outbound import DEADLINE_S, post
 
@@ -55,6 +56,9 @@ SECRET_UNREADABLE = "webhook.secret_unreadable"
 #: the suffix of a code's sentence for a delivery whose last attempt failed for good (state ``failed``: "it is not
 #: retried" where the pending one says "it is retried later")
 FINAL = ".final"
+#: the part of a delivery's lease (:data:`app.store.webhooks.LEASE_S`) an attempt leaves for recording its outcome
+#: (and auditing a push): the POST's deadline is what is left of the lease after the body was built, less this
+RECORD_MARGIN_S = 10.0
 
 
 def signature(secret: str, timestamp: int, body: bytes) -> str:
@@ -104,10 +108,20 @@ def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes,
     return attempt(due, due.url, body, headers, patterns, deadline_s)
 
 
+def time_left(due: webhooks.Due) -> float:
+    """Seconds an attempt of ``due`` may still take: until its lease ends, less :data:`RECORD_MARGIN_S`."""
+    return (due.lease - utcnow()).total_seconds() - RECORD_MARGIN_S
+
+
 def attempt(due: webhooks.Due, url: str, body: bytes, headers: dict[str, str], patterns: tuple[str, ...],
             deadline_s: float = DEADLINE_S) -> tuple[int | None, str]:
-    """:func:`post` as one attempt of ``due``: ``(status or None, the trail's code or "")``, the cause of a failed
-    connection logged only."""
+    """:func:`post` as one attempt of ``due``, within ``deadline_s`` and what is left of its lease
+    (:func:`time_left`: building a FHIR bundle takes some of it; none left, nothing is sent): ``(status or None,
+    the trail's code or "")``, the cause of a failed connection logged only."""
+    deadline_s = min(deadline_s, time_left(due))
+    if deadline_s <= 0:  # another sender may claim it before this attempt could be recorded
+        log.warning("delivery %s: its lease has too little time left for an attempt", due.id)
+        return None, NO_CONNECTION
     try:
         status = post(url, body, headers, patterns, deadline_s)
     except (OSError, ValueError, http.client.HTTPException) as exc:
@@ -186,5 +200,5 @@ class WebhookSender:
                 log.warning("webhook round failed; retrying", exc_info=True)
 
 
-__all__ = ["FINAL", "HTTP_STATUS", "NO_CONNECTION", "SECRET_UNREADABLE", "WebhookSender", "attempt", "outcome",
-           "send", "signature", "trail_error"]
+__all__ = ["FINAL", "HTTP_STATUS", "NO_CONNECTION", "RECORD_MARGIN_S", "SECRET_UNREADABLE", "WebhookSender", "attempt", "outcome",
+           "send", "signature", "time_left", "trail_error"]

@@ -45,7 +45,7 @@ class Receiver:
 
 def _due(url: str, secret: str | None = None) -> webhooks.Due:
     return webhooks.Due(1, url, secret or seal(KEY, "s" * 43), "job.done", {"event": "job.done"}, 1,
-                        dt.datetime.now(), 1)
+                        dt.datetime.now(dt.timezone.utc) + dt.timedelta(seconds=webhooks.LEASE_S), 1)  # as claim_due leases it
 
 
 @pytest.mark.parametrize("pattern", ["*", "*.hospital.example"])
@@ -127,3 +127,20 @@ def test_the_last_failed_attempt_says_it_is_not_retried(code, status):
                                ("pt", "mais tarde", "não será tentado de novo")):
         assert later in pending["message"][lang] and never not in pending["message"][lang]
         assert never in failed["message"][lang] and later not in failed["message"][lang]
+
+
+def test_an_attempt_is_not_made_when_its_lease_cannot_cover_it():
+    """The POST's deadline is what is left of the lease (less the time to record the outcome): a FHIR bundle built
+    slowly, or a claim held too long, must not send an attempt another sender may claim and send again."""
+    from app.web.webhooks import RECORD_MARGIN_S
+
+    receiver = Receiver()
+    try:
+        url = f"http://127.0.0.1:{receiver.port}/hook"
+        late = webhooks.Due(1, url, seal(KEY, "s" * 43), "job.done", {"event": "job.done"}, 1,
+                            utcnow() + dt.timedelta(seconds=RECORD_MARGIN_S / 2), 1)
+        assert send(late, ("127.0.0.1",), KEY) == (None, NO_CONNECTION)
+        assert receiver.got == []
+        assert send(_due(url), ("127.0.0.1",), KEY) == (204, "") and receiver.got == ["/hook"]
+    finally:
+        receiver.server.shutdown()
