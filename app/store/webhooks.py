@@ -14,7 +14,10 @@ opted in one subscription of kind ``fhir`` (made when the clinic is first opted 
 are pushed; never listed or deleted among the clinic's webhooks), whose ``job.done`` deliveries are planned,
 claimed, retried and recorded exactly like a webhook's (``GET /fhir/pushes`` is their trail).  A clinic opted out
 keeps its subscription with no events (nothing planned, nothing claimed: its trail stays); opted in again, its
-subscription starts afresh (only jobs ending after that).
+subscription starts afresh (only jobs ending after that).  A pushed report whose analysis is superseded since
+(:func:`app.store.analyses.supersede`: a recording deleted, a printed fact corrected) gets one more delivery,
+:data:`RETRACTION` (:func:`plan_deliveries`), which marks the hospital's copy entered-in-error; its row carries the
+job's id negated (``job_id = −job``: the unique subscription-and-job pair keeps one retraction per report).
 """
 
 from __future__ import annotations
@@ -25,10 +28,10 @@ from typing import Any
 
 from sqlalchemy import and_, exists, select, update
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, aliased
 
 from app.store.errors import Invalid, NotFound
-from app.store.models import Clinic, Job, KneeSession, WebhookDelivery, WebhookSubscription, utcnow
+from app.store.models import Analysis, Clinic, Job, KneeSession, WebhookDelivery, WebhookSubscription, utcnow
 
 #: the events a subscription may ask for: a job's end
 EVENTS = ("job.done", "job.failed")
@@ -36,6 +39,8 @@ MAX_ATTEMPTS = 8
 MAX_BACKOFF_S = 3600.0
 #: the one event the FHIR push sends (a finished report); an opted-out clinic's subscription has none
 FHIR_EVENT = "job.done"
+#: the FHIR push's delivery retracting a pushed report whose analysis was superseded (module docstring)
+RETRACTION = "analysis.superseded"
 #: how long a claimed attempt keeps other senders away (longer than a send's timeout)
 LEASE_S = 60.0
 
@@ -129,10 +134,38 @@ def _payload(job: Job, patient_id: int, event: str) -> dict[str, Any]:
                       "results": f"/api/v1/sessions/{job.session_id}/results"}}
 
 
-def plan_deliveries(db: Session, limit: int = 200, kinds: tuple[str, ...] = ("webhook",)) -> int:
-    """A pending delivery for every ended job a subscription (of ``kinds``) of its clinic has not got yet (module
-    docstring); how many were made.  Commits."""
+def _plan_retractions(db: Session, limit: int) -> int:
+    """A pending :data:`RETRACTION` for every delivered FHIR push whose analysis is superseded and that has none yet
+    (module docstring); how many were made.  Commits."""
     planned = 0
+    retraction = aliased(WebhookDelivery)
+    rows = db.scalars(
+        select(WebhookDelivery)
+        .join(WebhookSubscription, WebhookSubscription.id == WebhookDelivery.subscription_id)
+        .join(Job, Job.id == WebhookDelivery.job_id).join(Analysis, Analysis.id == Job.analysis_id)
+        .where(WebhookSubscription.kind == "fhir", WebhookSubscription.events != "",
+               WebhookDelivery.event == FHIR_EVENT, WebhookDelivery.state == "delivered",
+               Analysis.superseded_at.is_not(None),
+               ~exists().where(and_(retraction.subscription_id == WebhookDelivery.subscription_id,
+                                    retraction.job_id == -WebhookDelivery.job_id)))
+        .order_by(WebhookDelivery.id).limit(limit)).all()
+    for d in rows:
+        db.add(WebhookDelivery(subscription_id=d.subscription_id, clinic_id=d.clinic_id, job_id=-d.job_id,
+                               event=RETRACTION, payload=dict(d.payload) | {"event": RETRACTION}, state="pending",
+                               attempts=0, next_attempt_at=utcnow(), last_error=""))
+        try:
+            db.commit()
+            planned += 1
+        except IntegrityError:  # another server planned it meanwhile
+            db.rollback()
+    return planned
+
+
+def plan_deliveries(db: Session, limit: int = 200, kinds: tuple[str, ...] = ("webhook",)) -> int:
+    """A pending delivery for every ended job a subscription (of ``kinds``) of its clinic has not got yet, and, for
+    the FHIR push, a retraction of every pushed report superseded since (module docstring); how many were made.
+    Commits."""
+    planned = _plan_retractions(db, limit) if "fhir" in kinds else 0
     for sub in db.scalars(select(WebhookSubscription).where(WebhookSubscription.kind.in_(kinds),
                                                             WebhookSubscription.events != "")).all():
         wanted = [e.split(".", 1)[1] for e in sub.events.split()]
@@ -240,6 +273,6 @@ def job_states(db: Session, clinic_id: int, since: dt.datetime) -> list[dict[str
              "analysis_id": j.analysis_id} for j in rows]
 
 
-__all__ = ["EVENTS", "FHIR_EVENT", "LEASE_S", "ensure_fhir_push", "fhir_pushes", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
+__all__ = ["EVENTS", "FHIR_EVENT", "LEASE_S", "RETRACTION", "ensure_fhir_push", "fhir_pushes", "MAX_ATTEMPTS", "MAX_BACKOFF_S", "Due", "add_subscription", "claim_due",
            "clinic_subscription", "delete_subscription", "deliveries", "job_states", "plan_deliveries", "record_attempt",
            "subscriptions"]

@@ -25,6 +25,9 @@ from the analysis' DiagnosticReport (:func:`app.web.fhir.diagnostic_report`, the
 - **Observations and DiagnosticReport**: ``POST`` with ``ifNoneExist`` on an identifier of the analysis
   (``<base>/analyses`` | ``<analysis id>`` for the report, ``<analysis id>-<observation>`` for each observation),
   so a retry after a lost answer creates nothing twice, while a new analysis of the session is a new report.
+- **Superseded**: a pushed report whose analysis is superseded since (a recording deleted, a printed fact corrected)
+  is retracted by one more delivery (:func:`retraction_bundle`): the same resources ``entered-in-error``, each a
+  conditional update (``PUT DiagnosticReport?identifier=<base>/analyses|<id>``) of what the first push made.
 - **References**: each entry's ``fullUrl`` is a ``urn:uuid:`` (RFC 4122 name-based, version 5, from the analysis
   and the resource: a retry sends the same bundle), and ``subject`` and ``result`` point to those; the server
   replaces them with the ids it assigns (§3.1.0.11.2).
@@ -151,6 +154,22 @@ def transaction_bundle(report: dict, *, base_url: str, analysis_id: int) -> dict
     return bundle
 
 
+def retraction_bundle(bundle: dict) -> dict:
+    """The transaction retracting a pushed report (:data:`app.store.webhooks.RETRACTION`): ``bundle``, the report
+    as it was pushed (:func:`transaction_bundle`), with its DiagnosticReport and Observations ``entered-in-error``
+    (FHIR R4 DiagnosticReport.status, Observation.status: "the report was withdrawn") and each sent as a conditional
+    update on its analysis identifier (``PUT DiagnosticReport?identifier=<base>/analyses|<id>``, §3.1.0.5.5: the
+    one resource the first push made is replaced); the patient's entry as it was (it finds the same Patient)."""
+    out = json.loads(json.dumps(bundle))
+    for entry in out["entry"]:
+        resource = entry["resource"]
+        if resource["resourceType"] in ("DiagnosticReport", "Observation"):
+            resource["status"] = "entered-in-error"
+            entry["request"] = {"method": "PUT", "url": f"{resource['resourceType']}?{entry['request']['ifNoneExist']}"}
+    validate_bundle(out)
+    return out
+
+
 def identifier_base(settings: Settings) -> str | None:
     """The namespace of the pushed identifiers: ``CHAKAMO_FHIR_IDENTIFIER_BASE``, else ``CHAKAMO_PUBLIC_URL``/api/v1
     (as the export route's, but with no request to fall back on); None when neither is set."""
@@ -191,17 +210,20 @@ class FhirPush:
         self.options = export_options(settings)
 
     def bundle(self, db: Session, due: webhooks.Due) -> tuple[dict, KneeSession] | None:
-        """The transaction Bundle of ``due``'s analysis and its session; None when it cannot be exported."""
+        """The transaction Bundle of ``due``'s analysis and its session (its :func:`retraction_bundle` for a
+        :data:`app.store.webhooks.RETRACTION`); None when it cannot be exported (superseded, for a report to push)."""
         job = due.payload["job"]
+        retract = due.event == webhooks.RETRACTION
         session = db.get(KneeSession, job["session_id"])
         analysis = db.get(Analysis, job["analysis_id"]) if job.get("analysis_id") else None
-        if session is None or analysis is None or analysis.superseded_at is not None:
+        if session is None or analysis is None or (analysis.superseded_at is not None) != retract:
             return None
         try:
             # issued: the analysis' time, so that every retry sends the same bundle
             report = diagnostic_report(**report_inputs(db, self.store, session, analysis), base_url=self.base_url,
                                        issued=analysis.created_at.replace(microsecond=0), **self.options)
-            return transaction_bundle(report, base_url=self.base_url, analysis_id=analysis.id), session
+            bundle = transaction_bundle(report, base_url=self.base_url, analysis_id=analysis.id)
+            return (retraction_bundle(bundle) if retract else bundle), session
         except (FhirExportError, LookupError, OSError, ValueError) as exc:  # OSError: a blob missing or altered
             log.warning("FHIR push %s: analysis %s cannot be exported: %s: %s", due.id, analysis.id,
                         type(exc).__name__, exc)  # (CorruptBlob), ValueError: its results.json no longer JSON
@@ -232,9 +254,11 @@ class FhirPush:
             with db.session() as s:
                 audit.record_operator(s, clinic_id=due.clinic_id, action="export", actor="FHIR push",
                                       resource=f"POST {urllib.parse.urlsplit(self.url).hostname}",
-                                      detail=f"analysis {due.payload['job']['analysis_id']}, delivery {due.id}, "
-                                             f"HTTP {status}", patient_id=patient_id, session_id=session_id)
+                                      detail=f"analysis {due.payload['job']['analysis_id']}"
+                                             f"{' retracted' if due.event == webhooks.RETRACTION else ''}, delivery "
+                                             f"{due.id}, HTTP {status}", patient_id=patient_id, session_id=session_id)
         return status, code, False
 
 
-__all__ = ["NOT_EXPORTABLE", "FhirPush", "export_options", "identifier_base", "report_inputs", "transaction_bundle"]
+__all__ = ["NOT_EXPORTABLE", "FhirPush", "export_options", "identifier_base", "report_inputs", "retraction_bundle",
+           "transaction_bundle"]

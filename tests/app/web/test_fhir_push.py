@@ -53,8 +53,12 @@ def check_transaction(doc: dict) -> dict[str, list[dict]]:
     assert all(u.startswith("urn:uuid:") and len(u) == 45 for u in full_urls) and len(full_urls) == len(doc["entry"])
     by_type: dict[str, list[dict]] = {}
     for e in doc["entry"]:
-        assert e["request"]["method"] == "POST" and e["request"]["url"] == e["resource"]["resourceType"]
-        assert e["request"]["ifNoneExist"].startswith("identifier=")
+        if e["request"]["method"] == "PUT":  # a conditional update on the resource's identifier (a retraction)
+            assert e["request"]["url"].startswith(e["resource"]["resourceType"] + "?identifier=")
+            assert e["resource"]["status"] == "entered-in-error"
+        else:
+            assert e["request"]["method"] == "POST" and e["request"]["url"] == e["resource"]["resourceType"]
+            assert e["request"]["ifNoneExist"].startswith("identifier=")
         assert "id" not in e["resource"] and "contained" not in e["resource"]
         by_type.setdefault(e["resource"]["resourceType"], []).append(e["resource"])
         for ref in _references(e["resource"], []):
@@ -250,11 +254,65 @@ def test_a_finished_job_is_pushed_as_a_transaction_retried_and_audited(tmp_path,
         rows = events["events"] if isinstance(events, dict) else events
         assert any(e["actor"] == "FHIR push" and e["session_id"] == sid for e in rows), rows
         assert api.get("/webhooks").json() == []  # the push is not one of the clinic's webhooks
+
+        _a_stored_file_altered_gives_the_push_up(settings, job_id, analysis_id, fhir.url)
+
+        # the session's facts corrected: its analysis is superseded, and the hospital's copy is retracted
+        assert api.patch(f"/sessions/{sid}", json={"step_height_m": 0.18}).status_code == 200
+        retracted = _until(lambda: [d for d in api.get("/fhir/pushes").json()
+                                    if d["event"] == "analysis.superseded" and d["state"] == "delivered"])
+        assert retracted[0]["job_id"] == job_id and len(api.get("/fhir/pushes").json()) == 2
+        assert not fhir.problems, fhir.problems
+        assert len(fhir.got) == 3
+        by_type = check_transaction(fhir.got[-1])
+        entries = {e["resource"]["resourceType"]: e for e in fhir.got[-1]["entry"]}
+        assert entries["DiagnosticReport"]["request"] == {
+            "method": "PUT", "url": f"DiagnosticReport?identifier=https://chakamo.hospital.test/api/v1/analyses%7C"
+                                    f"{analysis_id}"}
+        assert by_type["DiagnosticReport"][0]["identifier"] == dr["identifier"]  # the report the first push made
+        assert {o["status"] for o in by_type["Observation"]} == {"entered-in-error"}
+        assert entries["Patient"]["request"]["method"] == "POST"  # the same Patient, found again
+        events = api.get("/audit", params={"action": "export"}).json()
+        rows = events["events"] if isinstance(events, dict) else events
+        assert any(e["actor"] == "FHIR push" and "retracted" in e["detail"] for e in rows), rows
     finally:
         srv.should_exit = True
         thread.join(timeout=30)
         sock.close()
         fhir.server.shutdown()
+
+
+def _a_stored_file_altered_gives_the_push_up(settings, job_id: int, analysis_id: int, url: str) -> None:
+    """The analysis' PDF altered on disk: the push gives up as not exportable (a CorruptBlob escaped the sender's
+    round before: never counted, the delivery claimed again every lease, for ever)."""
+    import datetime as dt
+
+    from app.store import webhooks
+    from app.store.blobs import open_storage
+    from app.store.database import Database
+    from app.store.models import Analysis, Artefact, WebhookDelivery, utcnow
+    from app.web.fhir_push import NOT_EXPORTABLE, FhirPush
+
+    store, db = open_storage(settings), Database(settings.db_url)
+    try:
+        with db.session() as s:
+            lang = s.get(Analysis, analysis_id).lang  # the PDF the push carries
+            sha = s.query(Artefact).filter_by(analysis_id=analysis_id, name="report.pdf", lang=lang).one().sha256
+            row = s.query(WebhookDelivery).filter_by(job_id=job_id).one()
+            due = webhooks.Due(row.id, url, "", row.event, dict(row.payload), row.attempts + 1,
+                               utcnow() + dt.timedelta(seconds=webhooks.LEASE_S), row.subscription_id, "fhir",
+                               row.clinic_id)
+        path = store.path(sha)
+        original, mode = path.read_bytes(), path.stat().st_mode
+        path.chmod(0o600)
+        path.write_bytes(original[:-8] + b"altered!")
+        try:
+            assert FhirPush(settings, store).send(db, due) == (None, NOT_EXPORTABLE, True)
+        finally:
+            path.write_bytes(original)
+            path.chmod(mode)
+    finally:
+        db.dispose()
 
 
 def test_a_push_the_settings_cannot_keep_safe_is_refused_at_start_up(tmp_path):
