@@ -209,15 +209,16 @@ class FhirPush:
                                 "pushed identifiers' namespace")
         self.options = export_options(settings)
 
-    def bundle(self, db: Session, due: webhooks.Due) -> tuple[dict, KneeSession] | None:
+    def bundle(self, db: Session, due: webhooks.Due) -> tuple[dict, KneeSession] | str:
         """The transaction Bundle of ``due``'s analysis and its session (its :func:`retraction_bundle` for a
-        :data:`app.store.webhooks.RETRACTION`); None when it cannot be exported (superseded, for a report to push)."""
+        :data:`app.store.webhooks.RETRACTION`); the trail's code when it cannot be exported (superseded, for a
+        report to push: :data:`NOT_EXPORTABLE`; else the export's own code when it has one)."""
         job = due.payload["job"]
         retract = due.event == webhooks.RETRACTION
         session = db.get(KneeSession, job["session_id"])
         analysis = db.get(Analysis, job["analysis_id"]) if job.get("analysis_id") else None
         if session is None or analysis is None or (analysis.superseded_at is not None) != retract:
-            return None
+            return NOT_EXPORTABLE
         try:
             # issued: the analysis' time, so that every retry sends the same bundle
             report = diagnostic_report(**report_inputs(db, self.store, session, analysis), base_url=self.base_url,
@@ -227,7 +228,7 @@ class FhirPush:
         except (FhirExportError, LookupError, OSError, ValueError) as exc:  # OSError: a blob missing or altered
             log.warning("FHIR push %s: analysis %s cannot be exported: %s: %s", due.id, analysis.id,
                         type(exc).__name__, exc)  # (CorruptBlob), ValueError: its results.json no longer JSON
-            return None
+            return getattr(exc, "code", None) or NOT_EXPORTABLE
 
     def send(self, db: Database, due: webhooks.Due, deadline_s: float = DEADLINE_S) -> tuple[int | None, str, bool]:
         """Push ``due`` (``(status or None, the trail's code or "", give up)``); a delivered push is audited.  An
@@ -237,8 +238,8 @@ class FhirPush:
         try:
             with db.session() as s:
                 built = self.bundle(s, due)
-                if built is None:
-                    return None, NOT_EXPORTABLE, True
+                if isinstance(built, str):
+                    return None, built, True
                 bundle, session = built
                 patient_id, session_id = session.patient_id, session.id
         except Exception:  # noqa: BLE001 — the database away, say: an attempt that failed, counted

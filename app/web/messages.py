@@ -214,6 +214,26 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "del receptor para saber por qué.",
         "pt": "O recetor respondeu HTTP {status} na última tentativa; não será tentado de novo: consulte o registo "
               "do recetor para saber porquê."},
+    # a report the FHIR export cannot name its patient in (app.web.fhir.FhirExportError.code; the push's trail)
+    "fhir.patient_unreferenced": {
+        "en": "The report cannot name its patient on the FHIR server: the patient has no FHIR reference (Patient/<id>) "
+              "and no record number the server can find; give the patient its FHIR reference, or ask your ChakaMo "
+              "administrator to set CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, then process the session again.",
+        "es": "El informe no puede nombrar a su paciente en el servidor FHIR: el paciente no tiene referencia FHIR "
+              "(Patient/<id>) ni un número de historia que el servidor pueda encontrar; dé al paciente su referencia "
+              "FHIR o pida a su administrador de ChakaMo que configure CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, y procese la "
+              "sesión de nuevo.",
+        "pt": "O relatório não pode nomear o seu paciente no servidor FHIR: o paciente não tem referência FHIR "
+              "(Patient/<id>) nem um número de processo que o servidor possa encontrar; dê ao paciente a sua "
+              "referência FHIR ou peça ao seu administrador do ChakaMo que configure "
+              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, e processe a sessão de novo."},
+    "fhir.patient_reference_invalid": {
+        "en": "The patient's FHIR reference is not a FHIR reference such as Patient/123; correct it in the patient's "
+              "record, then process the session again.",
+        "es": "La referencia FHIR del paciente no es una referencia FHIR como Patient/123; corríjala en la ficha del "
+              "paciente y procese la sesión de nuevo.",
+        "pt": "A referência FHIR do paciente não é uma referência FHIR como Patient/123; corrija-a no registo do "
+              "paciente e processe a sessão de novo."},
 }
 
 

@@ -353,3 +353,21 @@ def test_the_hospitals_patient_reference_is_given_corrected_and_checked_through_
                      headers=h | {"If-Match": f'"{version}"'})
     assert r.status_code == 200, r.text
     assert r.json()["fhir_reference"] == "https://fhir.hospital.example/Patient/9"
+
+
+@pytest.mark.parametrize(("over", "code"), [({}, "fhir.patient_unreferenced"),
+                                            ({"patient": patient(fhir_reference="H-77")},
+                                             "fhir.patient_reference_invalid")])
+def test_a_patient_the_report_cannot_name_is_a_coded_refusal_in_three_languages(right, over, code):  # noqa: F811
+    """The reference mode's refusals a clinic's user causes (and mends in the patient's record) carry a catalogue
+    code, which the push's trail shows in es/en/pt (the English sentence alone reached the trail before)."""
+    from app.web.fhir import FhirExportError
+    from app.web.webhooks import trail_error
+
+    results, pdf = right
+    with pytest.raises(FhirExportError) as refused:
+        build(results, pdf, patient_mode="reference", **over)
+    assert refused.value.code == code
+    error = trail_error(code, None, "failed")
+    assert error["code"] == code and len(set(error["message"].values())) == 3
+    assert all("FHIR" in m for m in error["message"].values())
