@@ -432,7 +432,7 @@ class WebhookDelivery(Base):
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     next_attempt_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     last_status: Mapped[int | None] = mapped_column(Integer, nullable=True)
-    #: the code of the last failed attempt (``app.web.webhooks.TRAIL_CODES``, rendered in es/en/pt); "" when none
+    #: the code of the last failed attempt (``app.web.webhooks``' codes, rendered in es/en/pt); "" when none
     last_error: Mapped[str] = mapped_column(String(300), default="")
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     delivered_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)

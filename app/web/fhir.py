@@ -153,7 +153,13 @@ PATIENT_KEYS = ("id", "external_id", "side", "name", "birth_date", "sex")
 
 
 class FhirExportError(ValueError):
-    """The input cannot be exported (the message says what and how to fix it), or the result is not FHIR R4."""
+    """The input cannot be exported (the message says what and how to fix it), or the result is not FHIR R4;
+    ``code``: the catalogue code of a refusal a clinic's user causes and can mend (``app.web.messages``, es/en/pt:
+    the FHIR push's trail shows it), None for one only a developer or the operator can."""
+
+    def __init__(self, message: str, code: str | None = None) -> None:
+        super().__init__(message)
+        self.code = code
 
 
 def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes, lang: str, base_url: str,
@@ -198,11 +204,12 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         raise FhirExportError(f"patient_mode must be one of {', '.join(PATIENT_MODES)}, got {patient_mode!r}")
     reference = patient.get("fhir_reference") if patient_mode == "reference" else None
     if reference and not PATIENT_REFERENCE.fullmatch(str(reference)):
-        raise FhirExportError(f"patient fhir_reference {reference!r} is not a FHIR reference such as Patient/123")
+        raise FhirExportError(f"patient fhir_reference {reference!r} is not a FHIR reference such as Patient/123",
+                              "fhir.patient_reference_invalid")
     if patient_mode != "contained" and not reference and (not patient_identifier_system or not patient["external_id"]):
         raise FhirExportError("the patient can be referred to by identifier only with a record number and "
                               "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set (or, with CHAKAMO_FHIR_PATIENT=reference, give "
-                              "the patient its fhir_reference)")
+                              "the patient its fhir_reference)", "fhir.patient_unreferenced")
     for key in ("service_request", "encounter"):
         ref = session.get(key)
         if ref and not _REFERENCE.fullmatch(str(ref)):

@@ -233,6 +233,49 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Esta análise não foi enviada ao servidor FHIR: foi substituída ou os seus dados guardados não podem "
               "ser expressos em FHIR (GET /fhir/DiagnosticReport/<id da sessão> diz porquê); corrija o registo e "
               "processe a sessão de novo."},
+    # a pattern (``*``, ``*.example.org``) or no host at all where the webhook's host goes (app.web.api.webhooks)
+    "webhook.host_invalid": {
+        "en": "The webhook URL {url} does not name one host (a host name or an IP address; {host} is not one); give "
+              "the receiver's own address.",
+        "es": "La URL del webhook {url} no nombra un host (un nombre de host o una dirección IP; {host} no lo es); "
+              "indique la dirección propia del receptor.",
+        "pt": "A URL do webhook {url} não nomeia um host (um nome de host ou um endereço IP; {host} não o é); "
+              "indique o endereço próprio do recetor."},
+    # the last attempt failed and no other follows (state failed; app.web.webhooks.trail_error)
+    "webhook.no_connection.final": {
+        "en": "No answer from the receiver (it could not be reached, or did not answer within {seconds} s) at the "
+              "last attempt; it is not retried: check that the receiver is up and answers quickly.",
+        "es": "Sin respuesta del receptor (no se pudo contactar o no respondió en {seconds} s) en el último "
+              "intento; no se reintentará: compruebe que el receptor está en marcha y responde rápido.",
+        "pt": "Sem resposta do recetor (não foi possível contactá-lo ou não respondeu em {seconds} s) na última "
+              "tentativa; não será tentado de novo: verifique que o recetor está ativo e responde depressa."},
+    "webhook.http_status.final": {
+        "en": "The receiver answered HTTP {status} at the last attempt; it is not retried: check the receiver's log "
+              "for why.",
+        "es": "El receptor respondió HTTP {status} en el último intento; no se reintentará: consulte el registro "
+              "del receptor para saber por qué.",
+        "pt": "O recetor respondeu HTTP {status} na última tentativa; não será tentado de novo: consulte o registo "
+              "do recetor para saber porquê."},
+    # a report the FHIR export cannot name its patient in (app.web.fhir.FhirExportError.code; the push's trail)
+    "fhir.patient_unreferenced": {
+        "en": "The report cannot name its patient on the FHIR server: the patient has no FHIR reference (Patient/<id>) "
+              "and no record number the server can find; give the patient its FHIR reference, or ask your ChakaMo "
+              "administrator to set CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, then process the session again.",
+        "es": "El informe no puede nombrar a su paciente en el servidor FHIR: el paciente no tiene referencia FHIR "
+              "(Patient/<id>) ni un número de historia que el servidor pueda encontrar; dé al paciente su referencia "
+              "FHIR o pida a su administrador de ChakaMo que configure CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, y procese la "
+              "sesión de nuevo.",
+        "pt": "O relatório não pode nomear o seu paciente no servidor FHIR: o paciente não tem referência FHIR "
+              "(Patient/<id>) nem um número de processo que o servidor possa encontrar; dê ao paciente a sua "
+              "referência FHIR ou peça ao seu administrador do ChakaMo que configure "
+              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, e processe a sessão de novo."},
+    "fhir.patient_reference_invalid": {
+        "en": "The patient's FHIR reference is not a FHIR reference such as Patient/123; correct it in the patient's "
+              "record, then process the session again.",
+        "es": "La referencia FHIR del paciente no es una referencia FHIR como Patient/123; corríjala en la ficha del "
+              "paciente y procese la sesión de nuevo.",
+        "pt": "A referência FHIR do paciente não é uma referência FHIR como Patient/123; corrija-a no registo do "
+              "paciente e processe a sessão de novo."},
 }
 
 

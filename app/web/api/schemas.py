@@ -19,6 +19,7 @@ from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGL
                          SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
+from app.web.fhir import PATIENT_REFERENCE
 from app.web.webhooks import trail_error
 
 # every option list comes from app.choices (the one definition the CLI and GET /options use too)
@@ -53,8 +54,6 @@ class UserIn(_In):
     password: str = Field(min_length=1, max_length=1000)
 
 
-#: the hospital's own FHIR Patient: ``Patient/<id>`` or its absolute URL (app.web.fhir.PATIENT_REFERENCE)
-_PATIENT_REFERENCE = r"^(https?://\S+/)?Patient/[A-Za-z0-9\-.]{1,64}$"
 _PATIENT_REFERENCE_TEXT = ("the hospital's FHIR Patient: Patient/<id> or its absolute URL (the reports' subject with "
                            "CHAKAMO_FHIR_PATIENT=reference)")
 
@@ -68,7 +67,7 @@ class PatientIn(_In):
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
-    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+    fhir_reference: str | None = Field(None, max_length=300, pattern=PATIENT_REFERENCE.pattern,
                                        description=_PATIENT_REFERENCE_TEXT)
 
 
@@ -84,7 +83,7 @@ class PatientPatch(_In):
     height_cm: float | None = Field(None, gt=30, lt=260)
     mass_kg: float | None = Field(None, gt=2, lt=400)
     notes: str | None = Field(None, max_length=10000)
-    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+    fhir_reference: str | None = Field(None, max_length=300, pattern=PATIENT_REFERENCE.pattern,
                                        description=_PATIENT_REFERENCE_TEXT)
 
 
@@ -540,8 +539,9 @@ class DeliveryOut(BaseModel):
 
 def delivery_out(d) -> dict:
     """A delivery row as :class:`DeliveryOut` (its error code rendered by :func:`app.web.webhooks.trail_error`)."""
-    error = trail_error(d.last_error, d.last_status)
-    return {"id": d.id, "event": d.event, "job_id": d.job_id, "state": d.state, "attempts": d.attempts,
+    error = trail_error(d.last_error, d.last_status, d.state)
+    # job_id: a FHIR retraction's row holds its job's id negated (app.store.webhooks)
+    return {"id": d.id, "event": d.event, "job_id": abs(d.job_id), "state": d.state, "attempts": d.attempts,
             "last_status": d.last_status, "last_error": error["message"]["en"] if error else "", "error": error,
             "created_at": d.created_at, "delivered_at": d.delivered_at,
             "next_attempt_at": d.next_attempt_at if d.state == "pending" else None}
