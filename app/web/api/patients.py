@@ -114,7 +114,7 @@ def erase_patient(patient_id: int, principal: Admin, request: Request) -> Respon
     with request.app.state.db.session() as db:
         scoped_patient(db, principal, patient_id)  # 404 before anything is recorded
         session_ids, shas = patients.delete_patient(db, principal.clinic_id, patient_id, expected)
-        event = audit.record(db, request, principal, "delete", patient_id=patient_id)
+        event = audit.record(db, request, principal, "delete", patient_id=patient_id, now=True)
         ids = erasure.mark(db, shas, reason="patient", actor=event.actor, clinic_id=principal.clinic_id,
                            patient_id=patient_id, audit_event_id=event.id)
     erase_now(request, ids)

@@ -85,7 +85,7 @@ def erase(session_id: int, principal: Admin, request: Request) -> Response:
     expected = if_match(request, required=True)
     with request.app.state.db.session() as db:
         patient_id, shas = delete_session(db, principal.clinic_id, session_id, expected)
-        event = audit.record(db, request, principal, "delete", patient_id=patient_id, session_id=session_id)
+        event = audit.record(db, request, principal, "delete", patient_id=patient_id, session_id=session_id, now=True)
         ids = erasure.mark(db, shas, reason="session", actor=event.actor, clinic_id=principal.clinic_id,
                            patient_id=patient_id, session_id=session_id, audit_event_id=event.id)
     erase_now(request, ids)
