@@ -419,7 +419,9 @@ class WebhookDelivery(Base):
     """One event for one subscription, and every attempt to deliver it: the audit trail of the webhooks."""
 
     __tablename__ = "webhook_deliveries"
-    __table_args__ = (UniqueConstraint("subscription_id", "job_id", name="uq_webhook_delivery_job"),)
+    #: one delivery per subscription, job and event: a job's end, and for the FHIR push its retraction
+    #: (``app.store.webhooks``)
+    __table_args__ = (UniqueConstraint("subscription_id", "job_id", "event", name="uq_webhook_delivery_job"),)
     id: Mapped[int] = mapped_column(primary_key=True)
     subscription_id: Mapped[int] = mapped_column(ForeignKey("webhook_subscriptions.id", ondelete="CASCADE"),
                                                  index=True)

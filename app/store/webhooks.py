@@ -1,7 +1,7 @@
 """Webhooks: a clinic's subscriptions, the deliveries of job events, and their attempts (the audit trail).
 
 When a job of the clinic ends — ``done`` or ``failed`` — every subscription made before it ended and asking
-for that event gets one delivery (:func:`plan_deliveries`; unique per subscription and job, so two servers
+for that event gets one delivery (:func:`plan_deliveries`; unique per subscription, job and event, so two servers
 planning at once make one).  A delivery carries ids and links only, never a patient's data.  The sender
 (:mod:`app.web.webhooks`) claims one due delivery at a time (:func:`claim_due`: its next attempt is pushed a
 lease ahead in the same statement that checks it, so two servers never send one attempt twice) and records each
@@ -16,8 +16,9 @@ claimed, retried and recorded exactly like a webhook's (``GET /fhir/pushes`` is 
 keeps its subscription with no events (nothing planned, nothing claimed: its trail stays); opted in again, its
 subscription starts afresh (only jobs ending after that).  A pushed report whose analysis is superseded since
 (:func:`app.store.analyses.supersede`: a recording deleted, a printed fact corrected) gets one more delivery,
-:data:`RETRACTION` (:func:`plan_deliveries`), which marks the hospital's copy entered-in-error; its row carries the
-job's id negated (``job_id = −job``: the unique subscription-and-job pair keeps one retraction per report).
+:data:`RETRACTION` (:func:`plan_deliveries`), which marks the hospital's copy entered-in-error; its row names the
+same job as the push it retracts, told apart by its event (the unique subscription, job and event keep one retraction
+per report: migration 0017).
 """
 
 from __future__ import annotations
@@ -147,10 +148,10 @@ def _plan_retractions(db: Session, limit: int) -> int:
                WebhookDelivery.event == FHIR_EVENT, WebhookDelivery.state == "delivered",
                Analysis.superseded_at.is_not(None),
                ~exists().where(and_(retraction.subscription_id == WebhookDelivery.subscription_id,
-                                    retraction.job_id == -WebhookDelivery.job_id)))
+                                    retraction.job_id == WebhookDelivery.job_id, retraction.event == RETRACTION)))
         .order_by(WebhookDelivery.id).limit(limit)).all()
     for d in rows:
-        db.add(WebhookDelivery(subscription_id=d.subscription_id, clinic_id=d.clinic_id, job_id=-d.job_id,
+        db.add(WebhookDelivery(subscription_id=d.subscription_id, clinic_id=d.clinic_id, job_id=d.job_id,
                                event=RETRACTION, payload=dict(d.payload) | {"event": RETRACTION}, state="pending",
                                attempts=0, next_attempt_at=utcnow(), last_error=""))
         try:
@@ -173,7 +174,8 @@ def plan_deliveries(db: Session, limit: int = 200, kinds: tuple[str, ...] = ("we
             select(Job, KneeSession.patient_id).join(KneeSession, KneeSession.id == Job.session_id)
             .where(Job.clinic_id == sub.clinic_id, Job.status.in_(wanted), Job.finished_at.is_not(None),
                    Job.finished_at >= sub.created_at,
-                   ~exists().where(and_(WebhookDelivery.subscription_id == sub.id, WebhookDelivery.job_id == Job.id)))
+                   ~exists().where(and_(WebhookDelivery.subscription_id == sub.id, WebhookDelivery.job_id == Job.id,
+                                        WebhookDelivery.event.in_(EVENTS))))
             .order_by(Job.id).limit(limit)).all()
         for job, patient_id in rows:
             event = f"job.{job.status}"

@@ -540,8 +540,7 @@ class DeliveryOut(BaseModel):
 def delivery_out(d) -> dict:
     """A delivery row as :class:`DeliveryOut` (its error code rendered by :func:`app.web.webhooks.trail_error`)."""
     error = trail_error(d.last_error, d.last_status, d.state)
-    # job_id: a FHIR retraction's row holds its job's id negated (app.store.webhooks)
-    return {"id": d.id, "event": d.event, "job_id": abs(d.job_id), "state": d.state, "attempts": d.attempts,
+    return {"id": d.id, "event": d.event, "job_id": d.job_id, "state": d.state, "attempts": d.attempts,
             "last_status": d.last_status, "last_error": error["message"]["en"] if error else "", "error": error,
             "created_at": d.created_at, "delivered_at": d.delivered_at,
             "next_attempt_at": d.next_attempt_at if d.state == "pending" else None}

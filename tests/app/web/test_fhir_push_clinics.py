@@ -88,3 +88,39 @@ def test_the_push_refuses_clinics_that_would_share_one_record_number_namespace(t
     # without the hospital's namespace each patient is matched by ChakaMo's own id, unique across clinics
     two = FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_CLINICS="Hospital A, Clínica B,Hospital A", **common), None)
     assert two.clinics == ("Hospital A", "Clínica B")
+
+
+def test_a_retraction_names_the_job_whose_report_it_retracts(db):
+    """A superseded report's retraction is one more delivery of the same subscription and job, told apart by its
+    event (migration 0017): its row names the job itself (it held the job's id negated before), once per report."""
+    from app.store.analyses import supersede
+    from app.store.models import Analysis, Job
+    from app.store.patients import add_patient
+    from app.store.sessions import add_session
+
+    with db.session() as s:
+        webhooks.ensure_fhir_push(s, URL, ("Hospital A",))
+        sub = s.query(WebhookSubscription).filter_by(kind="fhir").one()
+        pid = add_patient(s, sub.clinic_id, {"external_id": "MRN-1", "side": "right"}).id
+        sid = add_session(s, sub.clinic_id, pid, {}).id
+        job = Job(clinic_id=sub.clinic_id, session_id=sid, status="done", filter="chakamo", finished_at=utcnow())
+        s.add(job)
+        s.flush()
+        analysis = Analysis(session_id=sid, job_id=job.id, filter="chakamo")
+        s.add(analysis)
+        s.flush()
+        job.analysis_id, job_id = analysis.id, job.id
+        s.commit()
+        assert webhooks.plan_deliveries(s, kinds=("fhir",)) == 1
+        pushed = s.query(WebhookDelivery).one()
+        pushed.state = "delivered"
+        s.commit()
+        assert webhooks.plan_deliveries(s, kinds=("fhir",)) == 0  # not superseded: nothing to retract
+
+        assert supersede(s, [sid]) == 1
+        s.commit()
+        assert webhooks.plan_deliveries(s, kinds=("fhir",)) == 1
+        retraction = s.query(WebhookDelivery).filter_by(event=webhooks.RETRACTION).one()
+        assert retraction.job_id == job_id == pushed.job_id and retraction.payload["job"]["id"] == job_id
+        assert webhooks.plan_deliveries(s, kinds=("fhir",)) == 0  # one retraction per report
+        assert s.query(WebhookDelivery).count() == 2
