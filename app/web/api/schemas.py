@@ -272,6 +272,9 @@ class AnalysisOut(BaseModel):
     accepted_cycles: int
     warnings: int
     superseded_at: dt.datetime | None
+    #: the sensor-to-segment calibration and knee-angle convention it was computed with
+    calibration: str = DEFAULT_CALIBRATION
+    angle_method: str = DEFAULT_ANGLE_CONVENTION
 
 
 class SessionSummaryOut(BaseModel):
@@ -318,15 +321,20 @@ class TrendPoint(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     #: the knee ``rom_deg`` describes: the patient's (in a session of both knees too)
     side: str | None = None
     rom_deg: dict[str, Any]
 
 
 class TrendSeries(BaseModel):
-    """One filter and pipeline version among the patient's analyses, and how many sessions it covers."""
+    """One filter, pipeline version, calibration and angle convention among the patient's analyses, and how many
+    sessions it covers."""
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     sessions: int
 
 
@@ -338,9 +346,12 @@ class TrendLeftOut(BaseModel):
 
 
 class TrendOut(BaseModel):
-    """``GET /patients/{id}/trend``: the points of one series (filter and pipeline version) only."""
+    """``GET /patients/{id}/trend``: the points of one series (filter, pipeline version, calibration and angle
+    convention) only."""
     filter: str | None
     pipeline_version: str | None
+    calibration: str | None
+    angle_method: str | None
     points: list[TrendPoint]
     left_out: list[TrendLeftOut]
     series: list[TrendSeries]
@@ -355,6 +366,8 @@ class CompareSide(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     accepted_cycles: int
 
 
@@ -432,7 +445,7 @@ def audit_out(e: AuditEvent) -> dict[str, Any]:
 
 def analysis_out(a: Analysis) -> dict[str, Any]:
     return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings",
-                                       "superseded_at")}
+                                       "superseded_at", "calibration", "angle_method")}
 
 
 def summaries(sessions: list[KneeSession], counts: dict[int, int], latest: dict[int, Job],

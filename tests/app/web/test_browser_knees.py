@@ -79,7 +79,9 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         page.goto(f"{server}/#/patients/{pid}")
         version = context.request.get(f"{api}/patients/{pid}/trend").json()["pipeline_version"]
         slow_expect(page.locator("#trend-series")).to_contain_text(
-            pt["patient.trend_series"].format(filter=pt["filter.chakamo"], version=version))
+            pt["patient.trend_series"].format(filter=pt["filter.chakamo"], version=version,
+                                              angles=pt["angle_convention.grood_suntay"],
+                                              calibration=pt["calibration.static"]))
         assert not errors, errors
     finally:
         context.close()
