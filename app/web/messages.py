@@ -188,6 +188,27 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "`chakamo tokens create --scope ...`.",
         "pt": "A este token de API falta o escopo {scope} (tem {scopes}); crie um token com ele: "
               "`chakamo tokens create --scope ...`."},
+    "auth.grant_beyond_scopes": {
+        "en": "An API token may only hand out the scopes it holds ({scopes}): a token with more, or a user account, "
+              "is created by an administrator logged in to the web app (Administration page) or on the server "
+              "(`chakamo tokens create`, `chakamo users create`).",
+        "es": "Un token de API solo puede conceder los ámbitos que tiene ({scopes}): un token con más, o una cuenta "
+              "de usuario, lo crea un administrador con sesión iniciada en la aplicación web (página de "
+              "Administración) o en el servidor (`chakamo tokens create`, `chakamo users create`).",
+        "pt": "Um token de API só pode conceder os âmbitos que tem ({scopes}): um token com mais, ou uma conta de "
+              "utilizador, é criado por um administrador com sessão iniciada na aplicação web (página de "
+              "Administração) ou no servidor (`chakamo tokens create`, `chakamo users create`)."},
+    "auth.grant_beyond_expiry": {
+        "en": "An API token may only hand out access that ends when it does ({until} UTC) or sooner: a longer-lived "
+              "token, or a user account, is created by an administrator logged in to the web app (Administration "
+              "page) or on the server (`chakamo tokens create`, `chakamo users create`).",
+        "es": "Un token de API solo puede conceder un acceso que termine cuando él ({until} UTC) o antes: un token "
+              "más duradero, o una cuenta de usuario, lo crea un administrador con sesión iniciada en la aplicación "
+              "web (página de Administración) o en el servidor (`chakamo tokens create`, `chakamo users create`).",
+        "pt": "Um token de API só pode conceder um acesso que termine quando ele ({until} UTC) ou antes: um token "
+              "mais duradouro, ou uma conta de utilizador, é criado por um administrador com sessão iniciada na "
+              "aplicação web (página de Administração) ou no servidor (`chakamo tokens create`, "
+              "`chakamo users create`)."},
     # webhooks (app.web.api.webhooks)
     "webhook.url_invalid": {
         "en": "The webhook URL {url} is not an absolute https:// address; give the receiver's full https address.",
