@@ -249,15 +249,24 @@ function zoneRecordings(ctx, segment, role) {
   });
 }
 
-/** The file names of `recs` the session's failed check names in its error (the file it rejected, or the recording
- * label a MetaBase group of files shares: the name before its first "_"), or []. */
+/** Whether `text` names `word` whole: not inside a longer file name ("a.csv" is not named by "data.csv" nor by
+ * "a.csv.bak"): the characters either side are not those of a file name.  `label`: `word` is a MetaBase recording
+ * label, which its files' names continue with "_" ("rec1" is named by "rec1_acc.csv"). */
+export function namesWhole(text, word, label = false) {
+  const escaped = word.replace(/[.*+?^${}()|[\]\\]/g, "\\$&");
+  const after = label ? "($|_|[^\\w.-]|\\.(?![\\w-]))" : "($|[^\\w.-]|\\.(?![\\w-]))";
+  return new RegExp(`(^|[^\\w.-])${escaped}${after}`, "u").test(text);
+}
+
+/** The file names of `recs` the session's failed check names in its error (the file it rejected, whole, or the
+ * recording label a MetaBase group of files shares: the name before its first "_"), or []. */
 function rejected(ctx, recs) {
   const ingestion = ctx.session.ingestion || {};
   if (ingestion.ok) return [];
   const said = [ingestion.error || "", ...Object.values(ingestion.error_message || {})].join("\n");
   const named = (name) => {
     const label = name.split("_")[0];
-    return said.includes(name) || (label !== name && label.length >= 12 && said.includes(label));
+    return namesWhole(said, name) || (label !== name && label.length >= 12 && namesWhole(said, label, true));
   };
   return recs.map((r) => r.file_name).filter((name) => name && named(name));
 }
@@ -681,10 +690,19 @@ function processStep(ctx) {
     navButtons(ctx, { back: 2 }));
 }
 
-// the artefacts the job renders, by the file name its stage carries ("report.pdf es" → the PDF report in Spanish)
+// the artefacts the job renders, by the file name its stage carries ("report.pdf es" → the PDF report in Spanish;
+// app/pipeline/render.py names these stages)
 const ARTEFACT_STAGES = { "report.pdf": "stage.report_pdf", "report.html": "stage.report_html",
-  "scene.viser": "stage.scene", "angles.xlsx": "stage.workbooks", "quaternions.xlsx": "stage.workbooks",
-  "timeseries.npz": "stage.store", "results.json": "stage.store" };
+  "scene.viser": "stage.scene", "angles.xlsx": "stage.workbooks", "quaternions.xlsx": "stage.workbooks" };
+
+/** Language `code` named in the UI's language ("Spanish" in English, "espanhol" in Portuguese), not in its own. */
+function languageName(code) {
+  try {
+    return new Intl.DisplayNames([lang()], { type: "language" }).of(code) || code;
+  } catch {
+    return code;
+  }
+}
 
 /** The stage of a job as a sentence ("orientation thigh" → "Orientation of the thigh sensor"; "report.pdf es" →
  * "Writing the PDF report (Spanish)"): never a file name; a stage this version does not know reads "Processing". */
@@ -696,7 +714,7 @@ export function stageText(stage) {
     return `${label("side", words[0])} · ${stageText(words.slice(1).join(" "))}`;
   }
   if (ARTEFACT_STAGES[words[0]]) {
-    const language = words[1] ? label("lang", words[1]) : "";
+    const language = words[1] ? languageName(words[1]) : "";
     const text = t(ARTEFACT_STAGES[words[0]]);
     return language ? `${text} (${language})` : text;
   }
