@@ -24,38 +24,38 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "Los archivos no se pudieron comprobar en {seconds} s y la comprobación se detuvo; compruebe que "
               "cada archivo es una grabación de esta sesión (se rechaza un archivo hecho para ser lento de leer), "
               "borre el equivocado y súbalo de nuevo.",
-        "pt": "Os arquivos não puderam ser verificados em {seconds} s e a verificação foi interrompida; verifique "
-              "se cada arquivo é uma gravação desta sessão (um arquivo feito para ser lento de ler é recusado), "
+        "pt": "Os ficheiros não puderam ser verificados em {seconds} s e a verificação foi interrompida; verifique "
+              "se cada ficheiro é uma gravação desta sessão (um ficheiro feito para ser lento de ler é recusado), "
               "apague o errado e envie-o de novo."},
     "session.check_stopped": {
         "en": "The files could not be checked: the check stopped unexpectedly; delete the file you added last and "
               "upload it again, and if it happens again tell your ChakaMo administrator.",
         "es": "Los archivos no se pudieron comprobar: la comprobación se detuvo inesperadamente; borre el último "
               "archivo que añadió y súbalo de nuevo, y si vuelve a ocurrir avise a su administrador de ChakaMo.",
-        "pt": "Os arquivos não puderam ser verificados: a verificação parou inesperadamente; apague o último "
-              "arquivo que adicionou e envie-o de novo, e se voltar a acontecer avise o seu administrador do "
+        "pt": "Os ficheiros não puderam ser verificados: a verificação parou inesperadamente; apague o último "
+              "ficheiro que adicionou e envie-o de novo, e se voltar a acontecer avise o seu administrador do "
               "ChakaMo."},
     "session.check_busy": {
         "en": "The files are stored, but the server could not check them within {seconds} s because it is busy "
               "checking other files; open the session again in a moment and they are checked then.",
         "es": "Los archivos están guardados, pero el servidor no pudo comprobarlos en {seconds} s porque está "
               "ocupado comprobando otros archivos; abra la sesión de nuevo en un momento y se comprobarán entonces.",
-        "pt": "Os arquivos estão guardados, mas o servidor não pôde verificá-los em {seconds} s porque está "
-              "ocupado verificando outros arquivos; abra a sessão de novo daqui a pouco e serão verificados então."},
+        "pt": "Os ficheiros estão guardados, mas o servidor não pôde verificá-los em {seconds} s porque está "
+              "ocupado a verificar outros ficheiros; abra a sessão de novo daqui a pouco e serão verificados então."},
     "session.no_files_yet": {
         "en": "No recordings yet; upload the session's files.",
         "es": "Todavía no hay grabaciones; suba los archivos de la sesión.",
-        "pt": "Ainda não há gravações; envie os arquivos da sessão."},
+        "pt": "Ainda não há gravações; envie os ficheiros da sessão."},
     "session.being_checked": {
         "en": "The session's files are being checked; reload in a moment.",
         "es": "Se están comprobando los archivos de la sesión; recargue en un momento.",
-        "pt": "Os arquivos da sessão estão sendo verificados; recarregue daqui a pouco."},
+        "pt": "Os ficheiros da sessão estão a ser verificados; recarregue daqui a pouco."},
     "session.check_deferred": {
         "en": "The files are stored, but the server could not check them now; the check runs again when the "
               "session is opened or processed.",
         "es": "Los archivos están guardados, pero el servidor no pudo comprobarlos ahora; la comprobación se repite "
               "cuando se abra o se procese la sesión.",
-        "pt": "Os arquivos estão guardados, mas o servidor não pôde verificá-los agora; a verificação se repete "
+        "pt": "Os ficheiros estão guardados, mas o servidor não pôde verificá-los agora; a verificação repete-se "
               "quando a sessão for aberta ou processada."},
     "session.knee.left": {"en": "Left knee:", "es": "Rodilla izquierda:", "pt": "Joelho esquerdo:"},
     "session.knee.right": {"en": "Right knee:", "es": "Rodilla derecha:", "pt": "Joelho direito:"},
@@ -92,41 +92,41 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.multipart_malformed": {
         "en": "The multipart body is malformed; send the files with a standard form upload.",
         "es": "El cuerpo multipart está mal formado; envíe los archivos con un formulario estándar.",
-        "pt": "O corpo multipart está malformado; envie os arquivos com um formulário padrão."},
+        "pt": "O corpo multipart está malformado; envie os ficheiros com um formulário padrão."},
     "request.boundary_too_long": {
         "en": "The multipart boundary has {length} characters; a boundary has 1 to 70 (RFC 2046) — send the "
               "files with a standard form upload.",
         "es": "El delimitador multipart tiene {length} caracteres; un delimitador tiene de 1 a 70 (RFC 2046): "
               "envíe los archivos con un formulario estándar.",
         "pt": "O delimitador multipart tem {length} caracteres; um delimitador tem de 1 a 70 (RFC 2046): envie "
-              "os arquivos com um formulário padrão."},
+              "os ficheiros com um formulário padrão."},
     "request.file_name_controls": {
         "en": "File name {name} holds invisible characters that reorder how it is shown (Unicode bidirectional "
               "controls); rename the file (letters, digits, - _ .).",
         "es": "El nombre de archivo {name} contiene caracteres invisibles que cambian el orden en que se muestra "
               "(controles bidireccionales de Unicode); cambie el nombre del archivo (letras, dígitos, - _ .).",
-        "pt": "O nome de arquivo {name} contém caracteres invisíveis que mudam a ordem em que é mostrado "
-              "(controles bidirecionais do Unicode); renomeie o arquivo (letras, dígitos, - _ .)."},
+        "pt": "O nome de ficheiro {name} contém caracteres invisíveis que mudam a ordem em que é mostrado "
+              "(controlos bidirecionais do Unicode); renomeie o ficheiro (letras, dígitos, - _ .)."},
     "request.disk_full": {
         "en": "The server's disk is full, so the files could not be stored and none was recorded. Ask your "
               "ChakaMo administrator to free space, then upload them again.",
         "es": "El disco del servidor está lleno, así que los archivos no se pudieron guardar y no se registró "
               "ninguno. Pida a su administrador de ChakaMo que libere espacio y súbalos de nuevo.",
-        "pt": "O disco do servidor está cheio, por isso os arquivos não puderam ser guardados e nenhum foi "
+        "pt": "O disco do servidor está cheio, por isso os ficheiros não puderam ser guardados e nenhum foi "
               "registrado. Peça ao seu administrador do ChakaMo que libere espaço e envie-os de novo."},
     # ------------------------------------------------------------------------ uploads (app/web/api/recordings.py)
     "request.file_name_unusable": {
         "en": "File name {name} is not usable; rename the file (letters, digits, - _ .).",
         "es": "El nombre de archivo {name} no se puede usar; cambie el nombre del archivo (letras, dígitos, - _ .).",
-        "pt": "O nome de arquivo {name} não pode ser usado; renomeie o arquivo (letras, dígitos, - _ .)."},
+        "pt": "O nome de ficheiro {name} não pode ser usado; renomeie o ficheiro (letras, dígitos, - _ .)."},
     "request.too_many_parts": {
         "en": "Too many parts in one upload; send at most {max_files} files and the fields segment and role.",
         "es": "Demasiadas partes en una subida; envíe como mucho {max_files} archivos y los campos segment y role.",
-        "pt": "Partes demais num envio; envie no máximo {max_files} arquivos e os campos segment e role."},
+        "pt": "Demasiadas partes num envio; envie no máximo {max_files} ficheiros e os campos segment e role."},
     "request.part_header_too_long": {
         "en": "A multipart header is too long; send the files with a standard form upload.",
         "es": "Un encabezado multipart es demasiado largo; envíe los archivos con un formulario estándar.",
-        "pt": "Um cabeçalho multipart é longo demais; envie os arquivos com um formulário padrão."},
+        "pt": "Um cabeçalho multipart é demasiado longo; envie os ficheiros com um formulário padrão."},
     "request.too_many_part_headers": {
         "en": "Too many headers in one multipart part; send a standard form upload.",
         "es": "Demasiados encabezados en una parte multipart; envíe un formulario estándar.",
@@ -136,7 +136,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "fields 'segment' and 'role'.",
         "es": "El campo de formulario {field} no se acepta; envíe los archivos en el campo 'files' y, si quiere, "
               "los campos 'segment' y 'role'.",
-        "pt": "O campo de formulário {field} não é aceito; envie os arquivos no campo 'files' e, se quiser, os "
+        "pt": "O campo de formulário {field} não é aceite; envie os ficheiros no campo 'files' e, se quiser, os "
               "campos 'segment' e 'role'."},
     "request.field_twice": {
         "en": "Form field {field} sent twice; send it once per upload.",
@@ -145,7 +145,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.file_in_other_field": {
         "en": "File sent in form field {field}; send every file in the field 'files'.",
         "es": "Archivo enviado en el campo de formulario {field}; envíe cada archivo en el campo 'files'.",
-        "pt": "Arquivo enviado no campo de formulário {field}; envie cada arquivo no campo 'files'."},
+        "pt": "Ficheiro enviado no campo de formulário {field}; envie cada ficheiro no campo 'files'."},
     "request.file_type": {
         "en": "{file}: files of type {suffix} are not accepted; upload {allowed} files (CSV of MetaBase, Xsens, "
               "Shimmer, phyphox or the generic layout, thesis Excel, zip of Sensor Logger or phyphox, session.json; "
@@ -153,17 +153,17 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: no se aceptan archivos del tipo {suffix}; suba archivos {allowed} (CSV de MetaBase, Xsens, "
               "Shimmer, phyphox o del formato genérico, Excel de la tesis, zip de Sensor Logger o phyphox, "
               "session.json; un archivo .h5 de APDM se lee con la línea de comandos: chakamo process).",
-        "pt": "{file}: arquivos do tipo {suffix} não são aceitos; envie arquivos {allowed} (CSV do MetaBase, Xsens, "
+        "pt": "{file}: ficheiros do tipo {suffix} não são aceites; envie ficheiros {allowed} (CSV do MetaBase, Xsens, "
               "Shimmer, phyphox ou do formato genérico, Excel da tese, zip do Sensor Logger ou phyphox, "
-              "session.json; um arquivo .h5 da APDM é lido pela linha de comando: chakamo process)."},
+              "session.json; um ficheiro .h5 da APDM é lido pela linha de comando: chakamo process)."},
     "request.json_not_manifest": {
         "en": "{file}: the only JSON file a session takes is its {manifest}; rename it.",
         "es": "{file}: el único archivo JSON que admite una sesión es su {manifest}; cámbiele el nombre.",
-        "pt": "{file}: o único arquivo JSON que uma sessão aceita é o seu {manifest}; renomeie-o."},
+        "pt": "{file}: o único ficheiro JSON que uma sessão aceita é o seu {manifest}; renomeie-o."},
     "request.too_many_files": {
         "en": "More than {max_files} files in one upload; send at most {max_files} at a time.",
         "es": "Más de {max_files} archivos en una subida; envíe como mucho {max_files} cada vez.",
-        "pt": "Mais de {max_files} arquivos num envio; envie no máximo {max_files} de cada vez."},
+        "pt": "Mais de {max_files} ficheiros num envio; envie no máximo {max_files} de cada vez."},
     "request.file_too_large": {
         "en": "{file} is larger than the {limit_mb} MB limit; check that it is a recording of this session (or "
               "ask the administrator to raise CHAKAMO_MAX_FILE_MB).",
@@ -174,11 +174,11 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.field_too_long": {
         "en": "Form field {field} is too long; it takes a short word.",
         "es": "El campo de formulario {field} es demasiado largo; admite una palabra corta.",
-        "pt": "O campo de formulário {field} é longo demais; aceita uma palavra curta."},
+        "pt": "O campo de formulário {field} é demasiado longo; aceita uma palavra curta."},
     "request.upload_too_large": {
         "en": "The upload is larger than {max_files} files of {limit_mb} MB; send fewer or smaller files.",
         "es": "La subida ocupa más que {max_files} archivos de {limit_mb} MB; envíe menos archivos o más pequeños.",
-        "pt": "O envio é maior que {max_files} arquivos de {limit_mb} MB; envie menos arquivos ou menores."},
+        "pt": "O envio é maior que {max_files} ficheiros de {limit_mb} MB; envie menos ficheiros ou menores."},
     "request.uploads_busy": {
         "en": "Too many uploads are in progress on this server; try again in a minute.",
         "es": "Hay demasiadas subidas en curso en este servidor; inténtelo de nuevo en un minuto.",
@@ -186,11 +186,11 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.not_multipart": {
         "en": "Send the files as multipart/form-data in the field 'files'.",
         "es": "Envíe los archivos como multipart/form-data en el campo 'files'.",
-        "pt": "Envie os arquivos como multipart/form-data no campo 'files'."},
+        "pt": "Envie os ficheiros como multipart/form-data no campo 'files'."},
     "request.no_file": {
         "en": "No file in the request; send the recordings in the multipart field 'files'.",
         "es": "No hay ningún archivo en la petición; envíe las grabaciones en el campo multipart 'files'.",
-        "pt": "Não há nenhum arquivo na requisição; envie as gravações no campo multipart 'files'."},
+        "pt": "Não há nenhum ficheiro no pedido; envie as gravações no campo multipart 'files'."},
     "request.cursor_invalid": {
         "en": "The cursor is not one this server gave; send the X-Next-Cursor of the previous page, or no cursor "
               "for the first page.",
@@ -229,7 +229,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "store.sent_twice": {
         "en": "{names} sent twice in one upload; send each file once.",
         "es": "{names} enviado dos veces en una misma subida; envíe cada archivo una vez.",
-        "pt": "{names} enviado duas vezes no mesmo envio; envie cada arquivo uma vez."},
+        "pt": "{names} enviado duas vezes no mesmo envio; envie cada ficheiro uma vez."},
     "store.already_uploaded": {
         "en": "{names} already uploaded to this session; delete the earlier recording first to replace it.",
         "es": "{names} ya se subió a esta sesión; borre primero la grabación anterior para reemplazarla.",
@@ -237,11 +237,11 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "store.too_many_files": {
         "en": "A session holds at most {limit} files ({stored} already stored); delete the ones not needed.",
         "es": "Una sesión admite como máximo {limit} archivos ({stored} ya guardados); borre los que no necesite.",
-        "pt": "Uma sessão admite no máximo {limit} arquivos ({stored} já guardados); apague os que não precisa."},
+        "pt": "Uma sessão admite no máximo {limit} ficheiros ({stored} já guardados); apague os que não precisa."},
     "store.upload_raced": {
         "en": "{names}: another upload to this session stored a file of the same name at the same time; reload the session and check its files.",
         "es": "{names}: otra subida a esta sesión guardó un archivo con el mismo nombre al mismo tiempo; recargue la sesión y compruebe sus archivos.",
-        "pt": "{names}: outro envio a esta sessão guardou um arquivo com o mesmo nome ao mesmo tempo; recarregue a sessão e verifique os seus arquivos."},
+        "pt": "{names}: outro envio a esta sessão guardou um ficheiro com o mesmo nome ao mesmo tempo; recarregue a sessão e verifique os seus ficheiros."},
     "store.no_recording": {
         "en": "No recording {recording_id} in session {session_id}; check the ids.",
         "es": "No hay grabación {recording_id} en la sesión {session_id}; compruebe los ids.",
@@ -260,10 +260,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "A sessão {session_id} está sendo processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
     # what the clinician may do once the job has finished ({what} of store.busy)
     "store.then.process": {"en": "process it again", "es": "procésela de nuevo", "pt": "processe-a de novo"},
-    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os arquivos"},
+    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os ficheiros"},
     "store.then.correct": {"en": "correct it", "es": "corríjala", "pt": "corrija-a"},
     "store.then.delete": {"en": "delete it", "es": "bórrela", "pt": "apague-a"},
-    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague arquivos"},
+    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague ficheiros"},
     "store.then.move_cuts": {"en": "move the cuts", "es": "mueva los cortes", "pt": "mova os cortes"},
     "store.then.correct_patient": {"en": "correct the patient", "es": "corrija el paciente",
                                    "pt": "corrija o paciente"},
@@ -276,7 +276,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "store.changed_meanwhile": {
         "en": "{kind} {row_id} was changed by someone else meanwhile (it is now version {version}, you sent {expected}); reload it and try again.",
         "es": "{kind} {row_id} fue cambiado por otra persona mientras tanto (ahora es la versión {version}, usted envió {expected}); recárguelo e inténtelo de nuevo.",
-        "pt": "{kind} {row_id} foi alterado por outra pessoa entretanto (agora é a versão {version}, você enviou {expected}); recarregue-o e tente de novo."},
+        "pt": "{kind} {row_id} foi alterado por outra pessoa entretanto (agora é a versão {version}, enviou {expected}); recarregue-o e tente de novo."},
     "store.not_correctable": {
         "en": "{fields} cannot be corrected; correct {allowed}.",
         "es": "{fields} no se puede corregir; corrija {allowed}.",
@@ -346,7 +346,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "you saw (the ETag of its GET) or '*' to confirm.",
         "es": "Esta eliminación borra el registro y todo lo que contiene para siempre; envíe 'If-Match' con la "
               "versión que vio (la ETag de su GET) o '*' para confirmar.",
-        "pt": "Esta exclusão apaga o registro e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
+        "pt": "Esta eliminação apaga o registo e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
               "que viu (a ETag do seu GET) ou '*' para confirmar."},
     "request.if_match_unreadable": {
         "en": "If-Match {value!r} is not a version; send the ETag of the GET, e.g. \"3\".",
@@ -357,7 +357,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "tell your ChakaMo administrator.",
         "es": "La sesión {session_id} no se puede exportar a FHIR ({reason}); corrija el registro y vuelva a "
               "intentarlo, o avise a su administrador de ChakaMo.",
-        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registro e tente de "
+        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registo e tente de "
               "novo, ou avise o seu administrador do ChakaMo."},
     "request.events_other_clinic": {
         "en": "This event stream was opened for another clinic than the one you are now logged in to; open it "
@@ -387,17 +387,23 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "rol desconocido {role!r}; use uno de {allowed}",
         "pt": "papel desconhecido {role!r}; use um de {allowed}"},
     "store.expiry_out_of_range": {
-        "en": "--expires-days {days} is out of range; give 1 to {limit} days",
-        "es": "--expires-days {days} está fuera de rango; indique de 1 a {limit} días",
-        "pt": "--expires-days {days} está fora do intervalo; indique de 1 a {limit} dias"},
+        "en": "a lifetime of {days} days is out of range; give more than 0 and at most {limit} days",
+        "es": "una validez de {days} días está fuera de rango; indique más de 0 y como mucho {limit} días",
+        "pt": "uma validade de {days} dias está fora do intervalo; indique mais de 0 e no máximo {limit} dias"},
     "store.no_token": {
-        "en": "no API token with id {token_id}; see the ids with `chakamo tokens list --clinic NAME`",
-        "es": "no hay token de API con id {token_id}; vea los ids con `chakamo tokens list --clinic NOMBRE`",
-        "pt": "não há token de API com id {token_id}; veja os ids com `chakamo tokens list --clinic NOME`"},
+        "en": "no API token with id {token_id}; see the ids on the Administration page (API tokens) or with "
+              "`chakamo tokens list --clinic NAME`",
+        "es": "no hay token de API con id {token_id}; vea los ids en la página de Administración (tokens de API) o "
+              "con `chakamo tokens list --clinic NOMBRE`",
+        "pt": "não há token de API com id {token_id}; veja os ids na página de Administração (tokens de API) ou "
+              "com `chakamo tokens list --clinic NOME`"},
     "store.token_dead": {
-        "en": "token {token_id} is revoked or expired; create a new one with `chakamo tokens create`",
-        "es": "el token {token_id} está revocado o caducado; cree uno nuevo con `chakamo tokens create`",
-        "pt": "o token {token_id} está revogado ou expirado; crie um novo com `chakamo tokens create`"},
+        "en": "token {token_id} is revoked or expired; create a new one on the Administration page (API tokens) or "
+              "with `chakamo tokens create`",
+        "es": "el token {token_id} está revocado o caducado; cree uno nuevo en la página de Administración (tokens "
+              "de API) o con `chakamo tokens create`",
+        "pt": "o token {token_id} está revogado ou expirado; crie um novo na página de Administração (tokens de "
+              "API) ou com `chakamo tokens create`"},
     "store.grace_out_of_range": {
         "en": "--grace-hours {hours} is out of range; give 0 to {limit} hours",
         "es": "--grace-hours {hours} está fuera de rango; indique de 0 a {limit} horas",

@@ -19,7 +19,7 @@ from sqlalchemy import delete, func, or_, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.choices import SEX_NAMES, SIDE_NAMES
+from app.choices import MEASURE_RANGES, SEX_NAMES, SIDE_NAMES
 from app.store.analyses import SERIES, find_artefact, supersede
 from app.store.blobs import BlobStore
 from app.store.erasure import session_blobs
@@ -34,7 +34,7 @@ CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "heigh
 PROCESSED_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg")
 #: open ranges a corrected number must fall in (the API's schema enforces the same at the edge; the operator's
 #: CLI reaches the store directly)
-RANGES = {"height_cm": (30.0, 260.0), "mass_kg": (2.0, 400.0)}
+RANGES = MEASURE_RANGES
 
 
 def check_values(values: dict[str, Any], ranges: dict[str, tuple[float, float]],

@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
                          DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
-                         SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
+                         MEASURE_RANGES, SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
 from app.web.webhooks import trail_error
@@ -65,8 +65,8 @@ class PatientIn(_In):
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
     sex: Sex | None = None
-    height_cm: float | None = Field(None, gt=30, lt=260)
-    mass_kg: float | None = Field(None, gt=2, lt=400)
+    height_cm: float | None = Field(None, gt=MEASURE_RANGES["height_cm"][0], lt=MEASURE_RANGES["height_cm"][1])
+    mass_kg: float | None = Field(None, gt=MEASURE_RANGES["mass_kg"][0], lt=MEASURE_RANGES["mass_kg"][1])
     notes: str | None = Field(None, max_length=10000)
     fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
                                        description=_PATIENT_REFERENCE_TEXT)
@@ -81,8 +81,8 @@ class PatientPatch(_In):
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
     sex: Sex | None = None
-    height_cm: float | None = Field(None, gt=30, lt=260)
-    mass_kg: float | None = Field(None, gt=2, lt=400)
+    height_cm: float | None = Field(None, gt=MEASURE_RANGES["height_cm"][0], lt=MEASURE_RANGES["height_cm"][1])
+    mass_kg: float | None = Field(None, gt=MEASURE_RANGES["mass_kg"][0], lt=MEASURE_RANGES["mass_kg"][1])
     notes: str | None = Field(None, max_length=10000)
     fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
                                        description=_PATIENT_REFERENCE_TEXT)
@@ -163,6 +163,10 @@ class OptionsOut(BaseModel):
     sexes: list[str]
     token_scopes: list[str]
     audit_actions: list[str]
+    #: the patient measurements' open intervals (app.choices.MEASURE_RANGES), the user roles, a token's longest life
+    measure_ranges: dict[str, dict[str, float]]
+    roles: list[str]
+    token_max_days: int
 
 
 class ClinicOut(BaseModel):
