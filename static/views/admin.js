@@ -294,7 +294,7 @@ function newTokenForm(onClose, onCreated) {
     const tooLong = days !== null && days > maxDays;
     if (Number.isNaN(days) || (days !== null && days <= 0) || tooLong) {
       f.days.setAttribute("aria-invalid", "true");
-      message.append(alertBox(tooLong ? t("admin.token_days_too_long", { max: num(maxDays, 0) })
+      message.append(alertBox(tooLong ? t("admin.token_days_too_long", { max: String(maxDays) })
         : t("admin.token_days_invalid", { example: num(365, 0) })));
       f.days.focus();
       return;

@@ -324,7 +324,14 @@ function dropZone(ctx, segment, role) {
       list.append(h("li", {}, h("span", { class: "file-name", title: rec.file_name }, rec.file_name),
         stream ? h("span", { class: "tag" }, t(`stream.${stream[1]}`)) : null,
         segment && !(rec.segment && rec.role) ? h("span", { class: "tag recognised" }, t("wizard.recognised_tag")) : null,
+        segment ? null : kneeTag(ctx, rec),
         h("span", { class: "file-size" }, bytes(rec.size_bytes)), remove));
+    }
+    if (!segment) {   // files of a session of both knees: the zones are one knee's, so they stay here, and say so
+      const knees = recs.filter((rec) => kneeTag(ctx, rec)).length;
+      const note = zone.querySelector(".knee-files-note");
+      if (note) note.remove();
+      if (knees) list.after(h("p", { class: "hint knee-files-note" }, t("wizard.knee_files_here", { n: knees })));
     }
     showMacWarning(recs);
   };
@@ -451,6 +458,15 @@ function sec(x) {
 function sensorName(key) {
   const m = /^(left|right)_(thigh|shank)$/.exec(key);
   return m ? `${label("side", m[1])} · ${label("segment", m[2])}` : label("segment", key);
+}
+
+/** A tag naming the knee, sensor and recording the check recognised `rec` as in a session of both knees (the zones
+ * are one knee's, so such a file is listed under "other files"), or null. */
+function kneeTag(ctx, rec) {
+  const found = ((ctx.session.ingestion || {}).recognised || {})[rec.file_name];
+  if (!found || !/^(left|right)_/.test(found.segment || "")) return null;
+  const role = found.role ? ` · ${label("recording", found.role)}` : "";
+  return h("span", { class: "tag recognised knee" }, `${sensorName(found.segment)}${role}`);
 }
 
 /** Thigh before shank (the order of SEGMENTS), the left knee's before the right's. */

@@ -192,7 +192,9 @@ def test_a_refused_role_change_is_undone_and_the_audit_day_is_local(browser, ser
     second = browser.new_context()
     try:
         log_in(page, server, acting, PASSWORD)
+        expect(page.locator("#nav-admin")).to_be_visible()
         page.goto(f"{server}/#/admin/users")
+        expect(page.locator("#users-table")).to_be_visible()
         users = {u["email"]: u for u in context.request.get(f"{server}/api/v1/users").json()}
         row = page.locator(f"#users-table tr[data-user-id='{users[target]['id']}']")
         expect(row.locator("select")).to_have_value("clinician")
