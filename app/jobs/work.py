@@ -361,6 +361,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                     reserve_blob(s, sha, size)
                     sealed[sha, size].commit()
                 analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
+                                    calibration=job.calibration, angle_method=job.angle_method,
                                     accepted_cycles=int(results["cycles"]["accepted"]),
                                     warnings=len(results["quality"]["warnings"]),
                                     pipeline_version=PIPELINE_VERSION, files_version=session.files_version)

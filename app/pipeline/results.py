@@ -61,6 +61,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
                    "overrides": dict(opts.filter_params)},
         "angles": list(ANGLES),
         "angle_method": opts.angle_method,
+        # the sensor-to-segment calibration asked for (ProcessOptions.calibration); "calibration" holds what it made
+        "calibration_method": opts.calibration,
         "cycles": {
             "detected": task["cycles"]["detected"],
             "accepted": task["cycles"]["accepted"],

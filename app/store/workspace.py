@@ -28,6 +28,7 @@ from typing import Any
 
 from app.store.models import KneeSession, Patient, Recording
 from app.pipeline.ingestion import MANIFEST, IngestionError, load_knees
+from app.pipeline.ingestion.labels import recognise_role, recognise_segment
 from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name
 from app.pipeline.ingestion.session import parse_manifest
 from app.pipeline.service_messages import item, recognised_item, render
@@ -227,11 +228,31 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
     except IngestionError as exc:
         text = public_message(str(exc), folder)
         return {"ok": False, "messages": [], "error": text, "items": [],
-                "error_item": item(exc.code, _public(dict(exc.params), folder), text)}
+                "error_item": item(exc.code, _public(dict(exc.params), folder), text), **named_facts(recordings)}
     except (ValueError, OSError) as exc:
         text = public_message(str(exc), folder)
-        return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None}
+        return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None,
+                **named_facts(recordings)}
 
 
-__all__ = ["NO_RECORDINGS", "PAIRED_FOLDER", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts", "materialise",
+def named_facts(recordings: Sequence[Recording]) -> dict[str, dict[str, str]]:
+    """``segments`` and ``roles`` of the files whose names say both (:func:`app.pipeline.ingestion.labels.
+    recognise_segment` / ``recognise_role``), for a check that failed before it recognised anything: the wizard
+    then still shows each such file in its zone (a rejected one red there) instead of under "other files".  A name
+    with two candidate words, or without one of the two, is left out."""
+    segments, roles = {}, {}
+    for r in recordings:
+        if r.file_name == MANIFEST:
+            continue
+        try:
+            seg, role = recognise_segment(r.file_name), recognise_role(r.file_name)
+        except ValueError:  # two words match: the check alone can tell
+            continue
+        if seg is not None and role is not None:
+            segments[r.file_name], roles[r.file_name] = seg.value, role.value
+    return {"segments": segments, "roles": roles}
+
+
+__all__ = ["NO_RECORDINGS", "PAIRED_FOLDER", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts",
+           "materialise", "named_facts",
            "public_message"]

@@ -59,7 +59,8 @@ a role or active flag changed                             ``user_change``    the
 a password changed (self-service, or by the operator)     ``password_change``  the user's
 a browser session ended by its user                       ``session_end``    the user's
 an account's login counters cleared                       ``unlock``         the admin's
-an API token created or revoked (``chakamo tokens``)      ``token_create`` /  actor ``operator`` (the command line)
+an API token created, rotated or revoked                  ``token_create`` /  the admin's; actor ``operator`` for
+                                                          ``token_rotate`` /  ``chakamo tokens`` (the command line)
                                                           ``token_revoke``
 ========================================================  =================  ==========================================
 
@@ -100,7 +101,7 @@ log = logging.getLogger("chakamo.audit")
 ACTIONS: tuple[str, ...] = ("list", "search", "view", "create", "upload", "delete", "download", "export",
                             "process", "update", "login", "login_failed", "login_refused", "logout", "denied",
                             "user_create", "user_change", "password_change", "session_end", "unlock", "token_create",
-                            "token_revoke", "sign", "amend")
+                            "token_rotate", "token_revoke", "sign", "amend")
 #: column widths of :class:`AuditEvent` (longer values are cut, never refused: the read must not fail on them)
 _RESOURCE_CHARS, _CLIENT_CHARS, _ACTOR_CHARS, _DETAIL_CHARS = 300, 64, 320, 300
 

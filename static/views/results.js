@@ -70,7 +70,8 @@ export function resultsView(sessionId, query) {
 function analysisSelector(sessionId, analyses, current) {
   const select = h("select", { id: "analysis", name: "analysis_id" }, analyses.map((a) => h("option",
     { value: String(a.id), selected: a.id === current.id },
-    t("results.analysis_option", { id: a.id, filter: label("filter", a.filter), date: dateTime(a.created_at),
+    t("results.analysis_option", { id: a.id, filter: label("filter", a.filter),
+      angles: label("angle_convention", a.angle_method), date: dateTime(a.created_at),
       cycles: a.accepted_cycles ?? "—" }))));
   select.addEventListener("change", () => navigate(`#/sessions/${sessionId}?analysis_id=${select.value}`));
   return h("div", { class: "card toolbar analysis-picker" },
@@ -83,6 +84,9 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
   const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
     [[t("patient.side"), label("side", r.side || patient.side)],
       [t("results.filter"), label("filter", (r.filter && r.filter.name) || analysis.filter)],
+      // the convention and calibration the numbers were computed with (a ZYX run reads other angles of one knee)
+      [t("wizard.angle_convention"), label("angle_convention", r.angle_method || analysis.angle_method)],
+      [t("wizard.calibration"), label("calibration", r.calibration_method || analysis.calibration)],
       [t("results.cycles"), t("results.cycles_value", { accepted: cycles.accepted ?? "—", detected: cycles.detected ?? "—" })],
       [t("session.step_height"), session.step_height_m ? `${num(session.step_height_m * 100, 0)} cm` : "—"],
       [t("results.software"), (r.software && r.software.version) || "—"]]
@@ -209,7 +213,8 @@ function compareLabel(key) {
 }
 
 function compareTable(c) {
-  const side = (x) => `#${x.session_id} · ${date(x.date)} · ${label("filter", x.filter)} · ${x.pipeline_version}`;
+  const side = (x) => `#${x.session_id} · ${date(x.date)} · ${label("filter", x.filter)} · ${x.pipeline_version} · `
+    + `${label("angle_convention", x.angle_method)} · ${label("calibration", x.calibration)}`;
   const unit = (u) => (u === "deg" ? "°" : ` ${t(`knees.unit.${u}`)}`);
   const cell = (x, u) => (typeof x === "number" ? `${num(x, u === "s" ? 2 : 1)}${unit(u)}` : "—");
   const change = (x, u) => (typeof x === "number" ? `${x > 0 ? "+" : ""}${num(x, u === "s" ? 2 : 1)}${unit(u)}` : "—");

@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
                          DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
-                         SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
+                         MEASURE_RANGES, SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
 from app.web.fhir import PATIENT_REFERENCE
@@ -64,8 +64,8 @@ class PatientIn(_In):
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
     sex: Sex | None = None
-    height_cm: float | None = Field(None, gt=30, lt=260)
-    mass_kg: float | None = Field(None, gt=2, lt=400)
+    height_cm: float | None = Field(None, gt=MEASURE_RANGES["height_cm"][0], lt=MEASURE_RANGES["height_cm"][1])
+    mass_kg: float | None = Field(None, gt=MEASURE_RANGES["mass_kg"][0], lt=MEASURE_RANGES["mass_kg"][1])
     notes: str | None = Field(None, max_length=10000)
     fhir_reference: str | None = Field(None, max_length=300, pattern=PATIENT_REFERENCE.pattern,
                                        description=_PATIENT_REFERENCE_TEXT)
@@ -80,8 +80,8 @@ class PatientPatch(_In):
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
     sex: Sex | None = None
-    height_cm: float | None = Field(None, gt=30, lt=260)
-    mass_kg: float | None = Field(None, gt=2, lt=400)
+    height_cm: float | None = Field(None, gt=MEASURE_RANGES["height_cm"][0], lt=MEASURE_RANGES["height_cm"][1])
+    mass_kg: float | None = Field(None, gt=MEASURE_RANGES["mass_kg"][0], lt=MEASURE_RANGES["mass_kg"][1])
     notes: str | None = Field(None, max_length=10000)
     fhir_reference: str | None = Field(None, max_length=300, pattern=PATIENT_REFERENCE.pattern,
                                        description=_PATIENT_REFERENCE_TEXT)
@@ -184,6 +184,10 @@ class OptionsOut(BaseModel):
     sexes: list[str]
     token_scopes: list[str]
     audit_actions: list[str]
+    #: the patient measurements' open intervals (app.choices.MEASURE_RANGES), the user roles, a token's longest life
+    measure_ranges: dict[str, dict[str, float]]
+    roles: list[str]
+    token_max_days: int
 
 
 class ClinicOut(BaseModel):
@@ -297,6 +301,9 @@ class AnalysisOut(BaseModel):
     accepted_cycles: int
     warnings: int
     superseded_at: dt.datetime | None
+    #: the sensor-to-segment calibration and knee-angle convention it was computed with
+    calibration: str = DEFAULT_CALIBRATION
+    angle_method: str = DEFAULT_ANGLE_CONVENTION
 
 
 class SessionSummaryOut(BaseModel):
@@ -347,15 +354,20 @@ class TrendPoint(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     #: the knee ``rom_deg`` describes: the patient's (in a session of both knees too)
     side: str | None = None
     rom_deg: dict[str, Any]
 
 
 class TrendSeries(BaseModel):
-    """One filter and pipeline version among the patient's analyses, and how many sessions it covers."""
+    """One filter, pipeline version, calibration and angle convention among the patient's analyses, and how many
+    sessions it covers."""
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     sessions: int
 
 
@@ -367,9 +379,12 @@ class TrendLeftOut(BaseModel):
 
 
 class TrendOut(BaseModel):
-    """``GET /patients/{id}/trend``: the points of one series (filter and pipeline version) only."""
+    """``GET /patients/{id}/trend``: the points of one series (filter, pipeline version, calibration and angle
+    convention) only."""
     filter: str | None
     pipeline_version: str | None
+    calibration: str | None
+    angle_method: str | None
     points: list[TrendPoint]
     left_out: list[TrendLeftOut]
     series: list[TrendSeries]
@@ -384,6 +399,8 @@ class CompareSide(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     accepted_cycles: int
 
 
@@ -461,7 +478,7 @@ def audit_out(e: AuditEvent) -> dict[str, Any]:
 
 def analysis_out(a: Analysis) -> dict[str, Any]:
     return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings",
-                                       "superseded_at")}
+                                       "superseded_at", "calibration", "angle_method")}
 
 
 def summaries(sessions: list[KneeSession], counts: dict[int, int], latest: dict[int, Job],
