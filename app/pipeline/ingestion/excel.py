@@ -49,7 +49,8 @@ HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/
           "z-axis (deg/s)", "elapsed (s)", "x-axis (T)", "y-axis (T)", "z-axis (T)", "elapsed (s)",
           "temperature (C)"]
 _GROUPS = {"acc": (0, (1, 2, 3)), "gyr": (0, (4, 5, 6)), "mag": (7, (8, 9, 10))}
-_CELL = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
+_CELL = re.compile(r"(?P<name>[^()]*+)\((?P<unit>[^()]*+)\)")
+
 #: most data rows of a sheet: 10 minutes at 100 Hz (the protocol's recordings last 0.5–1.5 min, seed 004 §8)
 MAX_ROWS = 60_000
 #: most cells of a sheet (the layout's 13 columns fill about 8 a row: acc/gyro every row, mag 1 row in 5)
@@ -61,6 +62,14 @@ MAX_PART_MB = 8
 #: largest unpacked workbook, and most parts in its archive
 MAX_UNPACKED_MB = 128
 MAX_PARTS = 256
+
+
+def _name_unit(text: str) -> tuple[str, str] | None:
+    """``(name, unit)`` of a header cell ``"name (unit)"`` (blanks around the name and the whole cell ignored), or
+    ``None``.  Stripped in Python and matched possessively: linear in the cell's length (a lazy name before
+    ``\\s*\\(`` rescanned a run of blanks from every position: quadratic in a crafted header cell)."""
+    m = _CELL.fullmatch(text.strip())
+    return (m.group("name").rstrip(), m.group("unit")) if m else None
 
 
 def _openpyxl():
@@ -75,12 +84,12 @@ def _layout_problem(header: list) -> str | None:
     """``None`` if ``header`` (row 1) has the Fig. 8.6 layout, else what is wrong."""
     cells = [("" if c is None else str(c)) for c in header[:11]] + [""] * max(0, 11 - len(header))
     for t, axes in _GROUPS.values():
-        m = _CELL.match(cells[t])
-        if not m or m.group("name").lower() not in ("elapsed", "time", "tiempo"):
+        m = _name_unit(cells[t])
+        if not m or m[0].lower() not in ("elapsed", "time", "tiempo"):
             return f"cell {chr(65 + t)}1 is {cells[t]!r}, expected 'elapsed (s)'"
         for a, i in zip("xyz", axes):
-            m = _CELL.match(cells[i])
-            if not m or not m.group("name").lower().startswith(a):
+            m = _name_unit(cells[i])
+            if not m or not m[0].lower().startswith(a):
                 return f"cell {chr(65 + i)}1 is {cells[i]!r}, expected '{a}-axis (unit)'"
     return None
 
@@ -224,8 +233,8 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None,
                              sheet=chosen, cell=f"{chr(65 + j)}{i + 2}", value=f"{table[i, j]:.3g}")
     streams = []
     for kind, (t_col, axes) in _GROUPS.items():
-        units = {_CELL.match(header[i]).group("unit").strip() for i in axes}
-        t_unit = _CELL.match(header[t_col]).group("unit")
+        units = {_name_unit(header[i])[1].strip() for i in axes}
+        t_unit = _name_unit(header[t_col])[1]
         if len(units) != 1:
             raise IngestionError("file.axes_units_differ", file=path, units=", ".join(sorted(units)))
         unit = units.pop()

@@ -36,8 +36,12 @@ import numpy as np
 _MAIN = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
 _REL = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
 _PKG_REL = "{http://schemas.openxmlformats.org/package/2006/relationships}"
-_P = rb"(?:[A-Za-z_][\w.-]*:)?"  # an optional namespace prefix
-_SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*/?>")
+_P = rb"(?:[A-Za-z_][\w.-]*+:)?"  # an optional namespace prefix (``:`` is not in the class: possessive is exact)
+_SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*+/?>")
+#: the attributes of a start tag up to its ``/>`` or ``>``: no ``<`` (XML forbids it in a value) and possessive, so
+#: from an unclosed ``<row `` the scan stops at the next ``<`` and never backtracks (a lazy ``[^>]*?`` scanned to the
+#: next ``>`` from every unclosed start, and ``(?:\s[^>]*)?`` backtracked through it: quadratic, review finding)
+_ATTRS = rb"((?:[^<>/]++|/(?!>))*+)"
 
 
 def _inside(tag: bytes) -> bytes:
@@ -50,19 +54,24 @@ def _inside(tag: bytes) -> bytes:
 #: a cell as every writer known writes it (no namespace prefix, ``r`` first, ``s`` and ``t`` only, double quotes):
 #: ``r`` (column letters, row), ``t``, and the ``<v>`` text after an optional ``<f>``
 _FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: s="\d+")?'
-                   rb'(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?(?:<v>([^<]*)</v>)?' + _inside(rb"c") + rb'</c>)', re.S)
+                   rb'(?:/>|>(?:<f' + _ATTRS[1:-1] + rb'(?:/>|>[^<]*+</f>))?(?:<v>([^<]*+)</v>)?' + _inside(rb"c")
+                   + rb'</c>)', re.S)
 #: a plain number as spreadsheet programs write it (openpyxl ``t="n"``, Excel no ``t`` and a style ``s``): the
 #: reference and a value without blanks (an empty or blank-padded ``<v>`` is left to :data:`_FAST`)
-_NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]+)</v></c>')
+_NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]++)</v></c>')
 #: a cell tag with a namespace prefix (``<x:c r=…>``): neither :data:`_FAST` nor :data:`_NUMBER` sees it
-_PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*:c[\s/>]")
-_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])([^>]*?)(?:/>|>(" + _inside(rb"row") + rb")</" + _P + rb"row\s*>)",
-                  re.S)
-_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])([^>]*?)(?:/>|>(" + _inside(rb"c") + rb")</" + _P + rb"c\s*>)", re.S)
-_ATTR = re.compile(rb"""([\w:.-]+)\s*=\s*(?:"([^"]*)"|'([^']*)')""")
-_V = re.compile(rb"<" + _P + rb"v(?:\s[^>]*)?>(" + _inside(rb"v") + rb")</" + _P + rb"v\s*>", re.S)
-_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?:\s[^>]*)?(?:/>|>(" + _inside(rb"(?:rPh|t)") + rb")</\1\2\s*>)", re.S)
-_ENTITY = re.compile(r"&(#x[0-9A-Fa-f]+|#[0-9]+|lt|gt|amp|quot|apos);")
+_PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*+:c[\s/>]")
+_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"row") + rb")</" + _P
+                  + rb"row\s*+>)", re.S)
+_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"c") + rb")</" + _P + rb"c\s*+>)",
+                   re.S)
+#: one attribute; the look-behind starts a name only at its first character (else every position of one long name
+#: would be a start, each scanning to the name's end: 24 s for 40 kB, review finding)
+_ATTR = re.compile(rb"""(?<![\w:.-])([\w:.-]++)\s*+=\s*+(?:"([^"]*+)"|'([^']*+)')""")
+_V = re.compile(rb"<" + _P + rb"v(?=[\s>])" + _ATTRS + rb">(" + _inside(rb"v") + rb")</" + _P + rb"v\s*+>", re.S)
+_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"(?:rPh|t)") + rb")</\1\2\s*+>)",
+                re.S)
+_ENTITY = re.compile(r"&(#x[0-9A-Fa-f]++|#[0-9]++|lt|gt|amp|quot|apos);")
 _NAMED = {"lt": "<", "gt": ">", "amp": "&", "quot": '"', "apos": "'"}
 
 
@@ -153,7 +162,7 @@ def _inline(body: bytes) -> str:
         if m.group(2) == b"rPh":
             skip_to = m.end()
             continue
-        out.append(_unescape(m.group(3) or b""))
+        out.append(_unescape(m.group(4) or b""))
     return "".join(out)
 
 
@@ -335,7 +344,7 @@ class Workbook:
                     continue
                 inner = cell.group(2) or b""
                 v = _V.search(inner)
-                values[col - 1] = self._value(a.get(b"t", b"n"), v.group(1) if v else b"", inner)
+                values[col - 1] = self._value(a.get(b"t", b"n"), v.group(2) if v else b"", inner)
             out.append(tuple(values))
         if max_row < index:
             out.extend([empty] * (max_row + 1 - counter))

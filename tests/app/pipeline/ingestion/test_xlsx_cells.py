@@ -156,3 +156,36 @@ def test_unclosed_cells_and_rows_are_read_in_linear_time():
     assert x._V.findall(b"<v>1" * 4000 + filler) == []
     closed = b'<row r="1"><c r="A1"><v>1</v></c></row>'
     assert x._FAST.findall(b'<c r="A1"><v>1</v>' * 4000 + closed) == [(b"A1", b"", b"1")]
+    # start tags that never reach their ">": the lazy attributes ([^>]*?) of _ROW/_CELL and the optional
+    # (?:\s[^>]*)? of _V/_T scanned to the sheet's end from each (20 000 x 1 MB: many minutes before the fix)
+    for pattern, tag in ((x._ROW, b"<row "), (x._CELL, b"<c "), (x._V, b"<v "), (x._T, b"<t "),
+                         (x._FAST, b'<c r="A1"><f ')):
+        assert pattern.findall(tag * 20_000 + filler) == [], tag
+    # one attribute name 300 kB long: every position of it was a start scanning to its end (24 s for 40 kB)
+    assert x._attrs(b"r" * 300_000) == {}
+    assert x._attrs(b'a' * 300_000 + b' r="7" t="n"') == {b"r": b"7", b"t": b"n"}
+
+
+def test_a_row_tag_with_a_long_attribute_name_is_refused_in_linear_time(tmp_path):
+    """End to end (review finding): a 5 kB workbook whose sheet is one ``<row r="1" aaaa…/>`` kept
+    ``read_recording`` busy 39 s with a 30 kB name (the header is read before any fast path); 1 MB here."""
+    from app.pipeline.ingestion import IngestionError
+    from app.pipeline.ingestion.session import read_recording
+
+    xml = (b'<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
+           b'spreadsheetml/2006/main"><sheetData><row r="1" ' + b"a" * 1_000_000 + b'/></sheetData></worksheet>')
+    path = _with_sheet(tmp_path / "standing-muslo-X-01012024-1.xlsx", xml)
+    assert path.stat().st_size < 10_000
+    with pytest.raises(IngestionError) as err:
+        read_recording([path])
+    assert err.value.code == "xlsx.no_layout_sheet"
+
+
+def test_a_header_cell_of_blanks_is_matched_in_linear_time():
+    """The header's ``name (unit)`` pattern: a lazy name before ``\\s*\\(`` rescanned a run of blanks from each
+    position (0.09 s for 10 000 blanks, ~15 min for the 1 000 000 here)."""
+    from app.pipeline.ingestion.excel import _layout_problem, _name_unit
+
+    assert _name_unit("a" + " " * 1_000_000 + "b") is None
+    assert _name_unit("  x-axis   (deg/s) ") == ("x-axis", "deg/s")
+    assert "expected 'elapsed (s)'" in _layout_problem(["t" + " " * 1_000_000 + "(s"] + HEADER[1:])
