@@ -63,6 +63,11 @@ _FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: 
 #: a plain number as spreadsheet programs write it (openpyxl ``t="n"``, Excel no ``t`` and a style ``s``): the
 #: reference and a value without blanks (an empty or blank-padded ``<v>`` is left to :data:`_FAST`)
 _NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]++)</v></c>')
+#: a row tag as writers write it (``r`` first), or one of :data:`_FAST`'s / :data:`_NUMBER`'s cells: in one pass the
+#: cells and the rows they lie in
+_ROW_TAG = rb'<row r="(\d{1,9})"[^<>]*+>|'
+_FAST_ROWS = re.compile(_ROW_TAG + _FAST.pattern, re.S)
+_NUMBER_ROWS = re.compile(_ROW_TAG + _NUMBER.pattern)
 #: a cell tag with a namespace prefix (``<x:c r=…>``): neither :data:`_FAST` nor :data:`_NUMBER` sees it
 _PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*+:c[\s/>]")
 _ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"row") + rb")</" + _P
@@ -294,45 +299,64 @@ class Workbook:
         body = self._sheet_data(name)
         cut = body.find(b"</row>") + len(b"</row>")   # the end of row 1 (or of the first row element)
         cut = cut if cut >= len(b"</row>") else len(body)   # (positions, not slices: no copy of the sheet)
-        plain = _NUMBER.findall(body, cut)
-        if len(plain) == body.count(b"<c", cut):        # inside <sheetData> only cells' tags begin so
-            cells = _FAST.findall(body, 0, cut)
-            n_cells = body.count(b"<c", 0, cut)
+        # items: a row tag (its r) or a cell (r, t, v), in the sheet's order; the row tags tie cells to their rows
+        below = np.array(_NUMBER_ROWS.findall(body, cut), dtype=bytes).reshape(-1, 3)
+        if np.count_nonzero(below[:, 0] == b"") == body.count(b"<c", cut):  # inside <sheetData> only cells begin so
+            head = np.array(_FAST_ROWS.findall(body, 0, cut), dtype=bytes).reshape(-1, 4)
+            items = np.concatenate([head, np.stack([below[:, 0], below[:, 1], np.full(len(below), b"n"),
+                                                    below[:, 2]], axis=1)]) if len(below) else head
         else:
-            plain, cells, n_cells = [], _FAST.findall(body), body.count(b"<c")
-        if not (cells or plain) or len(cells) != n_cells or (b":c" in body and _PREFIXED_CELL.search(body)):
-            rows = self.rows(name, max_row, max_col)
-            numbers = np.full((len(rows), max_col), np.nan)
-            others: dict[tuple[int, int], object] = {}
-            for i, r in enumerate(rows):
-                for j, v in enumerate(r):
-                    if isinstance(v, (int, float)) and not isinstance(v, bool):
-                        numbers[i, j] = v
-                    elif v is not None:
-                        others[(i, j)] = v
-            last = max([i for i in range(len(rows)) if any(x is not None for x in rows[i])], default=-1) + 1
-            return numbers[:last], others
-        head_cells = np.array(cells, dtype=bytes).reshape(-1, 3)   # bytes arrays: no object per cell
-        below = np.array(plain, dtype=bytes).reshape(-1, 2)
-        ref = np.concatenate([head_cells[:, 0], below[:, 0]]) if plain else head_cells[:, 0]
-        kind = np.concatenate([head_cells[:, 1], np.full(len(below), b"n")]) if plain else head_cells[:, 1]
-        value = np.concatenate([head_cells[:, 2], below[:, 1]]) if plain else head_cells[:, 2]
-        col, row = _references(ref)
+            items = np.array(_FAST_ROWS.findall(body), dtype=bytes).reshape(-1, 4)
+        del below
+        is_row = items[:, 0] != b""
+        index = np.maximum.accumulate(np.where(is_row, np.arange(len(items)), -1))[~is_row]  # each cell's row tag
+        ref, kind, value = items[~is_row, 1], items[~is_row, 2], items[~is_row, 3]
+        row_of = items[:, 0][is_row].astype(np.int64) if is_row.any() else np.zeros(0, np.int64)
+        col, row = _references(ref) if len(ref) else (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        number = (kind == b"") | (kind == b"n")
+        with np.errstate(invalid="ignore"):
+            floats = np.where(number & (value != b""), value, b"nan").astype(np.float64)
+        # openpyxl's order: a row whose number goes back is skipped, the first of a repeated row kept, a cell placed
+        # by its column in the row it lies in (whatever row its reference names), the last of a repeated column
+        # kept; 'inf'/'nan' refused (int() of them fails).  The sheets spreadsheet programs write have none of these:
+        # anything else is read by rows() (openpyxl's rules one by one).
+        linear = (len(ref) and len(ref) == body.count(b"<c") and np.count_nonzero(is_row) == body.count(b"<row")
+                  and not (b":c" in body and _PREFIXED_CELL.search(body)) and index[0] >= 0
+                  and bool(np.all(np.diff(row_of) > 0)) and np.array_equal(row, row_of[np.searchsorted(
+                      np.flatnonzero(is_row), index)])
+                  and bool(np.all(np.diff(row * 32768 + col) > 0))
+                  and bool(np.isfinite(floats[number & (value != b"")]).all()))
+        if not linear:
+            return self._table_of_rows(name, max_row, max_col)
         beyond = np.nonzero(row > max_row)[0]
         n = int(beyond[0]) if beyond.size else len(row)   # openpyxl stops at the first row beyond max_row
-        col, row, kind, value = col[:n], row[:n], kind[:n], value[:n]
+        col, row, kind, value, number, floats = col[:n], row[:n], kind[:n], value[:n], number[:n], floats[:n]
         keep = (col >= 1) & (col <= max_col) & (row >= 1)
-        number = keep & ((kind == b"") | (kind == b"n")) & (value != b"")
+        number = keep & number & (value != b"")
         n_rows = int(row[keep].max()) if keep.any() else 0
         numbers = np.full((n_rows, max_col), np.nan)
-        numbers[row[number] - 1, col[number] - 1] = value[number].astype(np.float64)
+        numbers[row[number] - 1, col[number] - 1] = floats[number]
         others = {}
         for k in np.nonzero(keep & ~number)[0]:
-            v = self._value(cells[k][1], cells[k][2], _content(body, cells[k][0]) if cells[k][1] == b"inlineStr"
-                            else b"")
+            v = self._value(kind[k], value[k], _content(body, ref[k]) if kind[k] == b"inlineStr" else b"")
             if v is not None:
                 others[(int(row[k]) - 1, int(col[k]) - 1)] = v
         return numbers, others
+
+    def _table_of_rows(self, name: str, max_row: int, max_col: int
+                       ) -> tuple[np.ndarray, dict[tuple[int, int], object]]:
+        """:meth:`table` from :meth:`rows`: one Python value a cell, openpyxl's rules for any sheet."""
+        rows = self.rows(name, max_row, max_col)
+        numbers = np.full((len(rows), max_col), np.nan)
+        others: dict[tuple[int, int], object] = {}
+        for i, r in enumerate(rows):
+            for j, v in enumerate(r):
+                if isinstance(v, (int, float)) and not isinstance(v, bool):
+                    numbers[i, j] = v
+                elif v is not None:
+                    others[(i, j)] = v
+        last = max([i for i in range(len(rows)) if any(x is not None for x in rows[i])], default=-1) + 1
+        return numbers[:last], others
 
     def _value(self, kind: bytes, raw: bytes, inner: bytes):
         """One cell's value by openpyxl's rules (module docstring); ``inner`` the cell's content after its ``<v>``."""

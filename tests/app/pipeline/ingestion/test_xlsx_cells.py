@@ -133,13 +133,59 @@ def _with_sheet(path, xml: bytes):
     '<v>0.25</v></c><c r="B4" t="n"></c><c r="D4"><v>7</v></c></row>',
 ])
 def test_hand_written_sheets_read_like_openpyxl(tmp_path, cells):
-    prefix = ' xmlns:x="http://schemas.openxmlformats.org/spreadsheetml/2006/main"' if "<x:" in cells else ""
-    tag = "x:" if prefix else ""
-    xml = ('<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
-           f'spreadsheetml/2006/main"{prefix}><{tag}sheetData>{cells}</{tag}sheetData></worksheet>').encode()
-    path = _with_sheet(tmp_path / "hand.xlsx", xml)
+    path = _with_sheet(tmp_path / "hand.xlsx", _sheet_xml(cells))
     for max_row in (1, 4, 10):
         _same(path, max_row, 5)
+
+
+def _sheet_xml(cells: str) -> bytes:
+    prefix = ' xmlns:x="http://schemas.openxmlformats.org/spreadsheetml/2006/main"' if "<x:" in cells else ""
+    tag = "x:" if prefix else ""
+    return ('<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
+            f'spreadsheetml/2006/main"{prefix}><{tag}sheetData>{cells}</{tag}sheetData></worksheet>').encode()
+
+
+_HEAD = '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c><c r="B1"><v>9</v></c></row>'
+
+
+@pytest.mark.parametrize("cells", [
+    # a row going back (openpyxl skips it), in the plain part and right after the header
+    _HEAD + '<row r="3"><c r="A3"><v>3</v></c></row><row r="2"><c r="A2"><v>2</v></c><c r="B2"><v>4</v></c></row>'
+    '<row r="4"><c r="A4"><v>5</v></c></row>',
+    '<row r="2"><c r="A2"><v>2</v></c></row>' + _HEAD + '<row r="3"><c r="A3"><v>3</v></c></row>',
+    # a repeated row (openpyxl keeps the first)
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c></row><row r="2"><c r="A2"><v>7</v></c><c r="B2"><v>8</v></c></row>',
+    # a cell whose reference names another row (openpyxl places it by its column in the row it lies in)
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c><c r="B5"><v>6</v></c></row><row r="3"><c r="A3"><v>3</v></c></row>',
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c></row><row r="3"><c r="A7"><v>3</v></c></row>',
+    # a column repeated in a row (openpyxl keeps the last), a number then a text
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c><c r="A2" t="str"><v>x</v></c></row>',
+    # a row without r among rows with r (it follows the previous one)
+    _HEAD + '<row><c r="A2"><v>2</v></c></row><row r="3"><c r="A3"><v>3</v></c></row>',
+    # a value too large for binary64 is inf for openpyxl as for float()
+    _HEAD + '<row r="2"><c r="A2"><v>1e999</v></c><c r="B2"><v>-1E999</v></c></row>',
+])
+def test_the_fast_table_keeps_openpyxls_row_order(tmp_path, cells):
+    """Review finding: the fast path placed each cell by its reference, so rows out of order, a repeated row and a
+    cell naming another row came out otherwise than openpyxl reads them (a row dropped or overwritten)."""
+    path = _with_sheet(tmp_path / "order.xlsx", _sheet_xml(cells))
+    for max_row in (1, 3, 10):
+        _same(path, max_row, 3)
+
+
+@pytest.mark.parametrize("text", ["inf", "-inf", "nan", "NaN", "Infinity"])
+def test_a_number_cell_of_inf_or_nan_is_refused_like_openpyxl(tmp_path, text):
+    """openpyxl refuses ``<v>inf</v>`` in a number cell (``int('inf')``); the fast path took it as ±inf/NaN (a NaN
+    silently empty).  Both readers now raise."""
+    path = _with_sheet(tmp_path / "inf.xlsx", _sheet_xml(_HEAD + f'<row r="2"><c r="A2"><v>1.5</v></c>'
+                                                         f'<c r="B2"><v>{text}</v></c></row>'))
+    with pytest.raises(ValueError):
+        _oracle(path, "Sheet", 10, 3)
+    with Workbook(path) as wb:
+        with pytest.raises(ValueError):
+            wb.table("Sheet", 10, 3)
+        with pytest.raises(ValueError):
+            wb.rows("Sheet", 10, 3)
 
 
 def test_unclosed_cells_and_rows_are_read_in_linear_time():
