@@ -63,11 +63,8 @@ _FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: 
 #: a plain number as spreadsheet programs write it (openpyxl ``t="n"``, Excel no ``t`` and a style ``s``): the
 #: reference and a value without blanks (an empty or blank-padded ``<v>`` is left to :data:`_FAST`)
 _NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]++)</v></c>')
-#: a row tag as writers write it (``r`` first), or one of :data:`_FAST`'s / :data:`_NUMBER`'s cells: in one pass the
-#: cells and the rows they lie in
-_ROW_TAG = rb'<row r="(\d{1,9})"[^<>]*+>|'
-_FAST_ROWS = re.compile(_ROW_TAG + _FAST.pattern, re.S)
-_NUMBER_ROWS = re.compile(_ROW_TAG + _NUMBER.pattern)
+#: a row's number as writers write it (``r`` first)
+_ROW_R = re.compile(rb'<row r="(\d{1,9})"')
 #: a cell tag with a namespace prefix (``<x:c r=…>``): neither :data:`_FAST` nor :data:`_NUMBER` sees it
 _PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*+:c[\s/>]")
 _ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"row") + rb")</" + _P
@@ -165,6 +162,30 @@ def _body(data: bytes | bytearray) -> bytes | bytearray:
         del data[:start.end()]
         return data
     return data[start.end():end]
+
+
+def _in_order(body: bytes | bytearray, row: np.ndarray, col: np.ndarray) -> bool:
+    """Whether the cells of ``body`` (their references' 1-based ``row`` and ``col``, in the sheet's order, one per
+    ``<c`` of ``body``) lie as openpyxl reads them when placed by reference: every row tag carries ``r``, the rows
+    strictly increase, each cell names the row it lies in, and the cells strictly increase (row, then column).
+    openpyxl skips a row whose number goes back, keeps the first of a repeated row and the last of a repeated
+    column, and places a cell by its column in the row it lies in, whatever row its reference names (review
+    finding: the fast path placed them otherwise).  The tags are found in numpy over the bytes (``<`` then ``c``
+    and a blank, or ``row``), and each cell's row tag by a binary search of its position."""
+    key = row * 32768 + col                     # 3 column letters: at most 18 278
+    if len(key) > 1 and not bool(np.all(key[1:] > key[:-1])):
+        return False
+    data = np.frombuffer(body, dtype=np.uint8)
+    lt = np.flatnonzero(data[:-3] == 60)
+    second, third = data[lt + 1], data[lt + 2]
+    cells_at = lt[(second == 99) & ((third == 32) | (third == 47) | (third == 62))]
+    rows_at = lt[(second == 114) & (third == 111) & (data[lt + 3] == 119)]
+    numbers = _ROW_R.findall(body)
+    if len(numbers) != len(rows_at) or len(cells_at) != len(row) or not len(rows_at):
+        return False
+    r = np.array(numbers, dtype=bytes).astype(np.int64)
+    which = np.searchsorted(rows_at, cells_at) - 1
+    return bool(np.all(r[1:] > r[:-1])) and int(which.min(initial=0)) >= 0 and np.array_equal(r[which], row)
 
 
 def _inline(body: bytes) -> str:
@@ -299,43 +320,33 @@ class Workbook:
         body = self._sheet_data(name)
         cut = body.find(b"</row>") + len(b"</row>")   # the end of row 1 (or of the first row element)
         cut = cut if cut >= len(b"</row>") else len(body)   # (positions, not slices: no copy of the sheet)
-        # items: a row tag (its r) or a cell (r, t, v), in the sheet's order; the row tags tie cells to their rows
-        below = np.array(_NUMBER_ROWS.findall(body, cut), dtype=bytes).reshape(-1, 3)
-        if np.count_nonzero(below[:, 0] == b"") == body.count(b"<c", cut):  # inside <sheetData> only cells begin so
-            head = np.array(_FAST_ROWS.findall(body, 0, cut), dtype=bytes).reshape(-1, 4)
-            items = np.concatenate([head, np.stack([below[:, 0], below[:, 1], np.full(len(below), b"n"),
-                                                    below[:, 2]], axis=1)]) if len(below) else head
+        plain = _NUMBER.findall(body, cut)
+        if len(plain) == body.count(b"<c", cut):        # inside <sheetData> only cells' tags begin so
+            cells = _FAST.findall(body, 0, cut)
+            n_cells = body.count(b"<c", 0, cut)
         else:
-            items = np.array(_FAST_ROWS.findall(body), dtype=bytes).reshape(-1, 4)
-        del below
-        is_row = items[:, 0] != b""
-        index = np.maximum.accumulate(np.where(is_row, np.arange(len(items)), -1))[~is_row]  # each cell's row tag
-        ref, kind, value = items[~is_row, 1], items[~is_row, 2], items[~is_row, 3]
-        row_of = items[:, 0][is_row].astype(np.int64) if is_row.any() else np.zeros(0, np.int64)
-        col, row = _references(ref) if len(ref) else (np.zeros(0, np.int64), np.zeros(0, np.int64))
-        number = (kind == b"") | (kind == b"n")
-        with np.errstate(invalid="ignore"):
-            floats = np.where(number & (value != b""), value, b"nan").astype(np.float64)
-        # openpyxl's order: a row whose number goes back is skipped, the first of a repeated row kept, a cell placed
-        # by its column in the row it lies in (whatever row its reference names), the last of a repeated column
-        # kept; 'inf'/'nan' refused (int() of them fails).  The sheets spreadsheet programs write have none of these:
-        # anything else is read by rows() (openpyxl's rules one by one).
-        linear = (len(ref) and len(ref) == body.count(b"<c") and np.count_nonzero(is_row) == body.count(b"<row")
-                  and not (b":c" in body and _PREFIXED_CELL.search(body)) and index[0] >= 0
-                  and bool(np.all(np.diff(row_of) > 0)) and np.array_equal(row, row_of[np.searchsorted(
-                      np.flatnonzero(is_row), index)])
-                  and bool(np.all(np.diff(row * 32768 + col) > 0))
-                  and bool(np.isfinite(floats[number & (value != b"")]).all()))
-        if not linear:
+            plain, cells, n_cells = [], _FAST.findall(body), body.count(b"<c")
+        if not (cells or plain) or len(cells) != n_cells or (b":c" in body and _PREFIXED_CELL.search(body)):
+            return self._table_of_rows(name, max_row, max_col)
+        head_cells = np.array(cells, dtype=bytes).reshape(-1, 3)   # bytes arrays: no object per cell
+        below = np.array(plain, dtype=bytes).reshape(-1, 2)
+        ref = np.concatenate([head_cells[:, 0], below[:, 0]]) if plain else head_cells[:, 0]
+        kind = np.concatenate([head_cells[:, 1], np.full(len(below), b"n")]) if plain else head_cells[:, 1]
+        value = np.concatenate([head_cells[:, 2], below[:, 1]]) if plain else head_cells[:, 2]
+        col, row = _references(ref)
+        if not _in_order(body, row, col):
             return self._table_of_rows(name, max_row, max_col)
         beyond = np.nonzero(row > max_row)[0]
         n = int(beyond[0]) if beyond.size else len(row)   # openpyxl stops at the first row beyond max_row
-        col, row, kind, value, number, floats = col[:n], row[:n], kind[:n], value[:n], number[:n], floats[:n]
+        col, row, kind, value = col[:n], row[:n], kind[:n], value[:n]
         keep = (col >= 1) & (col <= max_col) & (row >= 1)
-        number = keep & number & (value != b"")
+        number = keep & ((kind == b"") | (kind == b"n")) & (value != b"")
+        floats = value[number].astype(np.float64)
+        if not np.isfinite(floats).all():   # 'inf'/'nan' (openpyxl's int() refuses them) or '1e999' (inf)
+            return self._table_of_rows(name, max_row, max_col)
         n_rows = int(row[keep].max()) if keep.any() else 0
         numbers = np.full((n_rows, max_col), np.nan)
-        numbers[row[number] - 1, col[number] - 1] = floats[number]
+        numbers[row[number] - 1, col[number] - 1] = floats
         others = {}
         for k in np.nonzero(keep & ~number)[0]:
             v = self._value(kind[k], value[k], _content(body, ref[k]) if kind[k] == b"inlineStr" else b"")
