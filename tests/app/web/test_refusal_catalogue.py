@@ -48,8 +48,12 @@ def test_every_refusal_code_is_in_a_catalogue_in_three_languages():
             codes.add((where, node.args[1].value))
         if name == "_refuse" and len(node.args) >= 3 and isinstance(getattr(node.args[2], "value", None), str):
             codes.add((where, node.args[2].value))
+        if name == "FhirExportError" and node.args:   # the FHIR export's reasons, quoted by its 409
+            assert isinstance(getattr(node.args[0], "value", None), str), (where, node.lineno)
+            codes.add((where, node.args[0].value))
     # the data layer's refusals (DomainError(code=...)) are checked by tests/app/pipeline/test_check_messages.py
-    assert {c for _, c in codes} >= {"auth.scope_missing", "auth.token_expired", "webhook.url_refused"}
+    assert {c for _, c in codes} >= {"auth.scope_missing", "auth.token_expired", "webhook.url_refused",
+                                     "fhir.no_patient_identifier"}
     missing = [(w, c) for w, c in codes if c not in CODES or set(CODES[c]) != {"es", "en", "pt"}]
     assert not missing, missing
 
