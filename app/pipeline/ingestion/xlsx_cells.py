@@ -63,8 +63,6 @@ _FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: 
 #: a plain number as spreadsheet programs write it (openpyxl ``t="n"``, Excel no ``t`` and a style ``s``): the
 #: reference and a value without blanks (an empty or blank-padded ``<v>`` is left to :data:`_FAST`)
 _NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]++)</v></c>')
-#: a row's number as writers write it (``r`` first)
-_ROW_R = re.compile(rb'<row r="(\d{1,9})"')
 #: a cell tag with a namespace prefix (``<x:c r=…>``): neither :data:`_FAST` nor :data:`_NUMBER` sees it
 _PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*+:c[\s/>]")
 _ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"row") + rb")</" + _P
@@ -176,15 +174,26 @@ def _in_order(body: bytes | bytearray, row: np.ndarray, col: np.ndarray) -> bool
     if len(key) > 1 and not bool(np.all(key[1:] > key[:-1])):
         return False
     data = np.frombuffer(body, dtype=np.uint8)
-    lt = np.flatnonzero(data[:-3] == 60)
-    second, third = data[lt + 1], data[lt + 2]
-    cells_at = lt[(second == 99) & ((third == 32) | (third == 47) | (third == 62))]
-    rows_at = lt[(second == 114) & (third == 111) & (data[lt + 3] == 119)]
-    numbers = _ROW_R.findall(body)
-    if len(numbers) != len(rows_at) or len(cells_at) != len(row) or not len(rows_at):
+    second = data[1:-11]                         # (a tag this close to the end holds no cell of a row)
+    lt = np.flatnonzero((data[:-12] == 60) & ((second == 99) | (second == 114)))   # '<c', '<r'
+    third = data[lt + 2]
+    is_cell = (data[lt + 1] == 99) & ((third == 32) | (third == 47) | (third == 62))
+    is_row = (third == 111) & (data[lt + 3] == 119) & (data[lt + 1] == 114)
+    if np.count_nonzero(is_cell) != len(row) or not is_row.any():
         return False
-    r = np.array(numbers, dtype=bytes).astype(np.int64)
-    which = np.searchsorted(rows_at, cells_at) - 1
+    # each row tag's number, from the bytes after '<row r="' (1-9 digits then '"'; else read by rows())
+    at = lt[is_row] + 8
+    window = data[np.minimum(at[:, None] + np.arange(10), len(data) - 1)].astype(np.int64)
+    digit = (window >= 48) & (window <= 57)
+    width = np.argmin(digit, axis=1)
+    prefix = data[np.minimum(at[:, None] - 4 + np.arange(4), len(data) - 1)]
+    if not (np.all(prefix == np.frombuffer(b' r="', np.uint8)) and np.all(width >= 1)
+            and np.all(window[np.arange(len(at)), width] == 34)):
+        return False
+    r = np.zeros(len(at), dtype=np.int64)
+    for k in range(9):
+        r = np.where(k < width, r * 10 + window[:, k] - 48, r)
+    which = (np.cumsum(is_row) - 1)[is_cell]     # each cell's row tag: the row tags before it, less one
     return bool(np.all(r[1:] > r[:-1])) and int(which.min(initial=0)) >= 0 and np.array_equal(r[which], row)
 
 
