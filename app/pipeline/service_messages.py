@@ -399,6 +399,112 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "intentarlo, o avise a su administrador de ChakaMo.",
         "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registo e tente de "
               "novo, ou avise o seu administrador do ChakaMo."},
+    # the FHIR export's refusals (app.web.fhir.FhirExportError), quoted by request.fhir_not_exportable
+    "fhir.not_a_dict": {
+        "en": "{name} must be a dict with the keys {keys}, got {got}",
+        "es": "{name} debe ser un dict con las claves {keys}, se recibió {got}",
+        "pt": "{name} deve ser um dict com as chaves {keys}, recebeu-se {got}"},
+    "fhir.missing_keys": {
+        "en": "{name} is missing the key(s) {missing}; pass all of {keys} (None where unknown)",
+        "es": "a {name} le faltan la(s) clave(s) {missing}; pase todas las de {keys} (None si se desconoce)",
+        "pt": "a {name} faltam a(s) chave(s) {missing}; passe todas as de {keys} (None se desconhecida)"},
+    "fhir.bad_lang": {
+        "en": "lang must be one of {choices}, got {value}",
+        "es": "lang debe ser uno de {choices}, se recibió {value}",
+        "pt": "lang deve ser um de {choices}, recebeu-se {value}"},
+    "fhir.not_pdf": {
+        "en": "pdf must be the bytes of the PDF report (starting with %PDF-); render the report first",
+        "es": "pdf debe ser los bytes del informe PDF (empezando por %PDF-); genere antes el informe",
+        "pt": "pdf deve ser os bytes do relatório PDF (começando por %PDF-); gere antes o relatório"},
+    "fhir.bad_base_url": {
+        "en": "base_url must be an absolute http(s) URL such as http://host/api/v1, got {value}",
+        "es": "base_url debe ser una URL http(s) absoluta como http://host/api/v1, se recibió {value}",
+        "pt": "base_url deve ser um URL http(s) absoluto como http://host/api/v1, recebeu-se {value}"},
+    "fhir.bad_patient_mode": {
+        "en": "patient_mode must be one of {choices}, got {value}",
+        "es": "patient_mode debe ser uno de {choices}, se recibió {value}",
+        "pt": "patient_mode deve ser um de {choices}, recebeu-se {value}"},
+    "fhir.bad_patient_reference": {
+        "en": "patient fhir_reference {value} is not a FHIR reference such as Patient/123",
+        "es": "la fhir_reference del paciente {value} no es una referencia FHIR como Patient/123",
+        "pt": "a fhir_reference do paciente {value} não é uma referência FHIR como Patient/123"},
+    "fhir.no_patient_identifier": {
+        "en": "the patient can be referred to by identifier only with a record number and "
+              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set (or, with CHAKAMO_FHIR_PATIENT=reference, give the patient its "
+              "fhir_reference)",
+        "es": "solo se puede referir al paciente por identificador con un número de historia y "
+              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM definido (o, con CHAKAMO_FHIR_PATIENT=reference, dé al paciente su "
+              "fhir_reference)",
+        "pt": "só se pode referir o paciente por identificador com um número de processo e "
+              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM definido (ou, com CHAKAMO_FHIR_PATIENT=reference, dê ao paciente a "
+              "sua fhir_reference)"},
+    "fhir.bad_session_reference": {
+        "en": "session {key} {value} is not a FHIR reference such as {example}/123",
+        "es": "{key} de la sesión {value} no es una referencia FHIR como {example}/123",
+        "pt": "{key} da sessão {value} não é uma referência FHIR como {example}/123"},
+    "fhir.results_missing": {
+        "en": "results is missing {path}; pass the session's results.json as written by chakamo process (reprocess "
+              "the session if it predates this key)",
+        "es": "a results le falta {path}; pase el results.json de la sesión tal como lo escribe chakamo process "
+              "(procese de nuevo la sesión si es anterior a esta clave)",
+        "pt": "a results falta {path}; passe o results.json da sessão tal como o escreve chakamo process (processe "
+              "de novo a sessão se for anterior a esta chave)"},
+    "fhir.results_not_a_dict": {
+        "en": "results must be the session's results.json as a dict, got {got}",
+        "es": "results debe ser el results.json de la sesión como dict, se recibió {got}",
+        "pt": "results deve ser o results.json da sessão como dict, recebeu-se {got}"},
+    "fhir.results_side": {
+        "en": "results['side'] must be 'right' or 'left', got {value}",
+        "es": "results['side'] debe ser 'right' o 'left', se recibió {value}",
+        "pt": "results['side'] deve ser 'right' ou 'left', recebeu-se {value}"},
+    "fhir.results_count": {
+        "en": "results['cycles']['{key}'] must be a count (int >= 0), got {value}",
+        "es": "results['cycles']['{key}'] debe ser un recuento (int >= 0), se recibió {value}",
+        "pt": "results['cycles']['{key}'] deve ser uma contagem (int >= 0), recebeu-se {value}"},
+    "fhir.results_warnings": {
+        "en": "results['quality']['warnings'] must be a list of {{'code', 'message'}} objects",
+        "es": "results['quality']['warnings'] debe ser una lista de objetos {{'code', 'message'}}",
+        "pt": "results['quality']['warnings'] deve ser uma lista de objetos {{'code', 'message'}}"},
+    "fhir.results_number": {
+        "en": "results {where} must be a number or null, got {value}",
+        "es": "results {where} debe ser un número o null, se recibió {value}",
+        "pt": "results {where} deve ser um número ou null, recebeu-se {value}"},
+    "fhir.bad_id": {
+        "en": "the {what} {value} cannot be a FHIR id (1-64 of A-Z a-z 0-9 - .)",
+        "es": "{what} {value} no puede ser un id FHIR (de 1 a 64 de A-Z a-z 0-9 - .)",
+        "pt": "{what} {value} não pode ser um id FHIR (de 1 a 64 de A-Z a-z 0-9 - .)"},
+    "fhir.bad_date": {
+        "en": "the {what} {value} is not an ISO date (YYYY-MM-DD) or date-time",
+        "es": "{what} {value} no es una fecha ISO (AAAA-MM-DD) ni una fecha y hora",
+        "pt": "{what} {value} não é uma data ISO (AAAA-MM-DD) nem uma data e hora"},
+    "fhir.date_required": {
+        "en": "the {what} is required: give an ISO date (YYYY-MM-DD), a date or a datetime, got {value}",
+        "es": "{what} es obligatoria: dé una fecha ISO (AAAA-MM-DD), un date o un datetime, se recibió {value}",
+        "pt": "{what} é obrigatória: dê uma data ISO (AAAA-MM-DD), um date ou um datetime, recebeu-se {value}"},
+    "fhir.bad_issued": {
+        "en": "issued must be a timezone-aware datetime, got {value}",
+        "es": "issued debe ser un datetime con zona horaria, se recibió {value}",
+        "pt": "issued deve ser um datetime com fuso horário, recebeu-se {value}"},
+    "fhir.bad_sex": {
+        "en": "patient sex {value} is not one of male, female, other, unknown (or m, f); fix the patient record",
+        "es": "el sexo del paciente {value} no es uno de male, female, other, unknown (o m, f); corrija la ficha del "
+              "paciente",
+        "pt": "o sexo do paciente {value} não é um de male, female, other, unknown (ou m, f); corrija a ficha do "
+              "paciente"},
+    "fhir.not_r4": {
+        "en": "{resource} is not valid FHIR R4 (4.0.1, fhirclient): {detail}",
+        "es": "{resource} no es FHIR R4 válido (4.0.1, fhirclient): {detail}",
+        "pt": "{resource} não é FHIR R4 válido (4.0.1, fhirclient): {detail}"},
+    "fhir.not_r4b": {
+        "en": "{resource} fails FHIR validation (fhir.resources R4B): {detail}",
+        "es": "{resource} no supera la validación FHIR (fhir.resources R4B): {detail}",
+        "pt": "{resource} não passa a validação FHIR (fhir.resources R4B): {detail}"},
+    "fhir.field.session_id": {"en": "session id", "es": "el id de la sesión", "pt": "o id da sessão"},
+    "fhir.field.session_date": {"en": "session date (or created_at when the date is None)",
+                                "es": "la fecha de la sesión (o created_at si la fecha es None)",
+                                "pt": "a data da sessão (ou created_at se a data for None)"},
+    "fhir.field.birth_date": {"en": "patient birth_date", "es": "la fecha de nacimiento del paciente",
+                              "pt": "a data de nascimento do paciente"},
     "request.events_other_clinic": {
         "en": "This event stream was opened for another clinic than the one you are now logged in to; open it "
               "again.",

@@ -32,7 +32,7 @@ from app.store.analyses import supersede
 from app.store.erasure import session_blobs
 from app.store.errors import Conflict, Invalid, NotFound, PreconditionFailed
 from app.store.models import Analysis, Artefact, Job, KneeSession, Recording, utcnow
-from app.pipeline.service_messages import item, render
+from app.pipeline.service_messages import CATALOGUE, item, render
 from app.store.workspace import NO_RECORDINGS
 
 #: the job states during which a session's files must not change
@@ -46,8 +46,18 @@ class Busy(Conflict):
     """A job of the session is queued or running (``job_id``): its files must not change under it."""
 
     def __init__(self, session_id: int, job_id: int, what: str) -> None:
-        super().__init__(code="store.busy", session_id=session_id, job_id=job_id, what={"code": f"store.then.{what}"})
+        super().__init__(code="store.busy", session_id=session_id, job_id=job_id, what={"code": _then(what)})
         self.session_id, self.job_id = session_id, job_id
+
+
+def _then(what: str) -> str:
+    """The catalogue key of ``what`` (``store.then.<what>``); a key the catalogue lacks is a programming error,
+    raised here and at every call of :func:`refuse_while_processing` (busy or not) rather than as a 500 when the
+    refusal is rendered (a 409 become a 500)."""
+    key = f"store.then.{what}"
+    if key not in CATALOGUE:
+        raise ValueError(f"{key!r} is not an entry of app.pipeline.service_messages.CATALOGUE")
+    return key
 
 
 def clinic_session(db: Session, clinic_id: int, session_id: int, lock: bool = False) -> KneeSession:
@@ -75,6 +85,7 @@ def refuse_while_processing(db: Session, session_id: int, what: str) -> None:
     """:class:`Busy` when a job of session ``session_id`` is queued or running; ``what`` completes its
     sentence ("… ; upload the files when that job has finished"): the key of a ``store.then.*`` entry of
     :data:`app.pipeline.service_messages.CATALOGUE` (``"upload"``), rendered in the reader's language."""
+    _then(what)
     job_id = active_job_id(db, session_id)
     if job_id is not None:
         raise Busy(session_id, job_id, what)

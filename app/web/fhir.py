@@ -89,6 +89,7 @@ from fhirclient.models.diagnosticreport import DiagnosticReport as R4DiagnosticR
 from fhirclient.models.fhirabstractbase import FHIRValidationError
 
 from app.choices import TASKS
+from app.pipeline.service_messages import render
 from estimators.motor_task import reference
 from reports.i18n import LANGUAGES, t
 from reports.warning_text import is_technical
@@ -153,13 +154,18 @@ PATIENT_KEYS = ("id", "external_id", "side", "name", "birth_date", "sex")
 
 
 class FhirExportError(ValueError):
-    """The input cannot be exported (the message says what and how to fix it), or the result is not FHIR R4;
-    ``code``: the catalogue code of a refusal a clinic's user causes and can mend (``app.web.messages``, es/en/pt:
-    the FHIR push's trail shows it), None for one only a developer or the operator can."""
+    """The input cannot be exported, or the result is not FHIR R4: :attr:`code` (a ``fhir.*`` entry of
+    :data:`app.pipeline.service_messages.CATALOGUE`, saying what and how to fix it in es/en/pt) and :attr:`params`;
+    ``str()`` is the English text, :attr:`fragment` the ``{"code", "params"}`` a refusal renders in the reader's
+    language (the 409 ``request.fhir_not_exportable`` quoted the English sentence in every language)."""
 
-    def __init__(self, message: str, code: str | None = None) -> None:
-        super().__init__(message)
-        self.code = code
+    def __init__(self, code: str, **params: Any) -> None:
+        self.code, self.params = code, params
+        super().__init__(render(code, params, "en"))
+
+    @property
+    def fragment(self) -> dict[str, Any]:
+        return {"code": self.code, "params": self.params}
 
 
 def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes, lang: str, base_url: str,
@@ -189,37 +195,33 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
     """
     for name, value, keys in (("session", session, SESSION_KEYS), ("patient", patient, PATIENT_KEYS)):
         if not isinstance(value, Mapping):
-            raise FhirExportError(f"{name} must be a dict with the keys {', '.join(keys)}, got {type(value).__name__}")
+            raise FhirExportError("fhir.not_a_dict", name=name, keys=", ".join(keys), got=type(value).__name__)
         missing = [k for k in keys if k not in value]
         if missing:
-            raise FhirExportError(f"{name} is missing the key(s) {', '.join(missing)}; pass all of {', '.join(keys)} "
-                                  "(None where unknown)")
+            raise FhirExportError("fhir.missing_keys", name=name, missing=", ".join(missing), keys=", ".join(keys))
     if lang not in LANGUAGES:
-        raise FhirExportError(f"lang must be one of {', '.join(LANGUAGES)}, got {lang!r}")
+        raise FhirExportError("fhir.bad_lang", choices=", ".join(LANGUAGES), value=repr(lang)[:80])
     if not isinstance(pdf, (bytes, bytearray)) or not bytes(pdf[:5]) == b"%PDF-":
-        raise FhirExportError("pdf must be the bytes of the PDF report (starting with %PDF-); render the report first")
+        raise FhirExportError("fhir.not_pdf")
     if not isinstance(base_url, str) or not re.fullmatch(r"https?://\S+", base_url):
-        raise FhirExportError(f"base_url must be an absolute http(s) URL such as http://host/api/v1, got {base_url!r}")
+        raise FhirExportError("fhir.bad_base_url", value=repr(base_url)[:200])
     if patient_mode not in PATIENT_MODES:
-        raise FhirExportError(f"patient_mode must be one of {', '.join(PATIENT_MODES)}, got {patient_mode!r}")
+        raise FhirExportError("fhir.bad_patient_mode", choices=", ".join(PATIENT_MODES), value=repr(patient_mode)[:80])
     reference = patient.get("fhir_reference") if patient_mode == "reference" else None
     if reference and not PATIENT_REFERENCE.fullmatch(str(reference)):
-        raise FhirExportError(f"patient fhir_reference {reference!r} is not a FHIR reference such as Patient/123",
-                              "fhir.patient_reference_invalid")
+        raise FhirExportError("fhir.bad_patient_reference", value=repr(reference)[:200])
     if patient_mode != "contained" and not reference and (not patient_identifier_system or not patient["external_id"]):
-        raise FhirExportError("the patient can be referred to by identifier only with a record number and "
-                              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set (or, with CHAKAMO_FHIR_PATIENT=reference, give "
-                              "the patient its fhir_reference)", "fhir.patient_unreferenced")
+        raise FhirExportError("fhir.no_patient_identifier")
     for key in ("service_request", "encounter"):
         ref = session.get(key)
         if ref and not _REFERENCE.fullmatch(str(ref)):
-            raise FhirExportError(f"session {key} {ref!r} is not a FHIR reference such as "
-                                  f"{'ServiceRequest' if key == 'service_request' else 'Encounter'}/123")
+            raise FhirExportError("fhir.bad_session_reference", key=key, value=repr(ref)[:200],
+                                  example="ServiceRequest" if key == "service_request" else "Encounter")
     base_url = base_url.rstrip("/")
     r = _results(results)
-    report_id = _fhir_id(session["id"], "session id")
+    report_id = _fhir_id(session["id"], "session_id")
     effective = _date_time(session["date"] if session["date"] is not None else session["created_at"],
-                           "session date (or created_at when the date is None)")
+                           "session_date")
     issued_at = _instant(issued)
     side = r["side"]
     task = _TASK_TEXT.get(r["task"], str(r["task"]).replace("_", " "))
@@ -283,23 +285,22 @@ def _results(results: Any) -> dict[str, Any]:
         node = results
         for key in path.split("."):
             if not isinstance(node, Mapping) or key not in node:
-                raise FhirExportError(f"results is missing {path!r}; pass the session's results.json as written by "
-                                      "chakamo process (reprocess the session if it predates this key)")
+                raise FhirExportError("fhir.results_missing", path=repr(path))
             node = node[key]
         return node
 
     if not isinstance(results, Mapping):
-        raise FhirExportError(f"results must be the session's results.json as a dict, got {type(results).__name__}")
+        raise FhirExportError("fhir.results_not_a_dict", got=type(results).__name__)
     side = need("side")
     if side not in LATERALITY:
-        raise FhirExportError(f"results['side'] must be 'right' or 'left', got {side!r}")
+        raise FhirExportError("fhir.results_side", value=repr(side)[:80])
     # results.json files written before "angle_method" existed hold Grood & Suntay angles
     out = {"side": side, "task": need("task"), "filter": need("filter.name"),
            "angle_method": results.get("angle_method", "grood_suntay"), "rom": {}}
     for key in ("detected", "accepted"):
         n = need(f"cycles.{key}")
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
-            raise FhirExportError(f"results['cycles']['{key}'] must be a count (int >= 0), got {n!r}")
+            raise FhirExportError("fhir.results_count", key=key, value=repr(n)[:80])
         out[key] = n
     for angle in ANGLES:
         for stat in ROM_STATS:
@@ -311,7 +312,7 @@ def _results(results: Any) -> dict[str, Any]:
     out["flexion_range_band"] = band if band.get("interpretation") in _INTERPRETATION_TEXT else None
     warnings = need("quality.warnings")
     if not isinstance(warnings, list) or not all(isinstance(w, Mapping) and "message" in w for w in warnings):
-        raise FhirExportError("results['quality']['warnings'] must be a list of {'code', 'message'} objects")
+        raise FhirExportError("fhir.results_warnings")
     out["warnings"] = [dict(w) for w in warnings if not is_technical(w)]
     return out
 
@@ -320,14 +321,14 @@ def _number(x: Any, where: str) -> float | None:
     if x is None:
         return None
     if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise FhirExportError(f"results {where} must be a number or null, got {x!r}")
+        raise FhirExportError("fhir.results_number", where=where, value=repr(x)[:80])
     return float(x) if math.isfinite(x) else None
 
 
 def _fhir_id(value: Any, what: str) -> str:
     s = str(value)
     if value is None or not _FHIR_ID.fullmatch(s):
-        raise FhirExportError(f"the {what} {value!r} cannot be a FHIR id (1-64 of A-Z a-z 0-9 - .)")
+        raise FhirExportError("fhir.bad_id", what={"code": f"fhir.field.{what}"}, value=repr(value)[:80])
     return s
 
 
@@ -337,21 +338,22 @@ def _date_time(value: Any, what: str) -> str:
         try:
             value = date.fromisoformat(value) if len(value) == 10 else datetime.fromisoformat(value)
         except ValueError:
-            raise FhirExportError(f"the {what} {value!r} is not an ISO date (YYYY-MM-DD) or date-time") from None
+            raise FhirExportError("fhir.bad_date", what={"code": f"fhir.field.{what}"}, value=repr(value)[:80]) \
+                from None
     if isinstance(value, datetime):
         if value.tzinfo is None:
             value = value.replace(tzinfo=timezone.utc)
         return value.isoformat()
     if isinstance(value, date):
         return value.isoformat()
-    raise FhirExportError(f"the {what} is required: give an ISO date (YYYY-MM-DD), a date or a datetime, got {value!r}")
+    raise FhirExportError("fhir.date_required", what={"code": f"fhir.field.{what}"}, value=repr(value)[:80])
 
 
 def _instant(value: datetime | None) -> str:
     if value is None:
         value = datetime.now(timezone.utc).replace(microsecond=0)
     if not isinstance(value, datetime) or value.tzinfo is None:
-        raise FhirExportError(f"issued must be a timezone-aware datetime, got {value!r}")
+        raise FhirExportError("fhir.bad_issued", value=repr(value)[:80])
     return value.isoformat()
 
 
@@ -489,11 +491,10 @@ def _patient(patient: Mapping, base_url: str, identifier_system: str | None) -> 
     if sex not in (None, ""):
         gender = _GENDER.get(str(sex).strip().lower())
         if gender is None:
-            raise FhirExportError(f"patient sex {sex!r} is not one of male, female, other, unknown (or m, f); "
-                                  "fix the patient record")
+            raise FhirExportError("fhir.bad_sex", value=repr(sex)[:80])
     birth = patient["birth_date"]
     if birth not in (None, ""):
-        birth = _date_time(birth, "patient birth_date")[:10]
+        birth = _date_time(birth, "birth_date")[:10]
     return {"resourceType": "Patient", "id": "patient", "identifier": identifiers or None,
             "name": [{"text": str(patient["name"])}] if patient["name"] else None,
             "gender": gender, "birthDate": birth or None}
@@ -595,11 +596,11 @@ def _validate_with(doc: dict, r4_model, r4b_model) -> None:
     try:
         r4_model(doc, strict=True)
     except FHIRValidationError as exc:
-        raise FhirExportError(f"{doc['resourceType']} is not valid FHIR R4 (4.0.1, fhirclient): {exc}") from None
+        raise FhirExportError("fhir.not_r4", resource=doc["resourceType"], detail=str(exc)) from None
     try:
         r4b_model.model_validate(doc)
     except pydantic.ValidationError as exc:
-        raise FhirExportError(f"{doc['resourceType']} fails FHIR validation (fhir.resources R4B): {exc}") from None
+        raise FhirExportError("fhir.not_r4b", resource=doc["resourceType"], detail=str(exc)) from None
 
 
 def validate(doc: dict) -> None:
@@ -611,10 +612,10 @@ def validate(doc: dict) -> None:
     try:
         R4DiagnosticReport(doc, strict=True)
     except FHIRValidationError as exc:
-        raise FhirExportError(f"DiagnosticReport {doc.get('id')!r} is not valid FHIR R4 (4.0.1, fhirclient): "
-                              f"{exc}") from None
+        raise FhirExportError("fhir.not_r4", resource=f"DiagnosticReport {doc.get('id')!r}", detail=str(exc)) \
+            from None
     try:
         R4BDiagnosticReport.model_validate(doc)
     except pydantic.ValidationError as exc:
-        raise FhirExportError(f"DiagnosticReport {doc.get('id')!r} fails FHIR validation (fhir.resources R4B): "
-                              f"{exc}") from None
+        raise FhirExportError("fhir.not_r4b", resource=f"DiagnosticReport {doc.get('id')!r}", detail=str(exc)) \
+            from None

@@ -72,6 +72,10 @@ from app.web.webhooks import attempt
 log = logging.getLogger("chakamo.fhir_push")
 #: the trail's code of an analysis that cannot be pushed (rendered in es/en/pt, :mod:`app.web.messages`)
 NOT_EXPORTABLE = "fhir.not_exportable"
+#: the export refusals a clinic can mend, as the push trail's sentences (``app.web.messages``: what to correct, then
+#: process again); any other refusal of the export is :data:`NOT_EXPORTABLE` there (the operator's log says which)
+TRAIL_CODES = {"fhir.bad_patient_reference": "fhir.patient_reference_invalid",
+               "fhir.no_patient_identifier": "fhir.patient_unreferenced"}
 
 
 def report_inputs(db: Session, store, session: KneeSession, analysis: Analysis) -> dict[str, Any]:
@@ -228,7 +232,7 @@ class FhirPush:
         except (FhirExportError, LookupError, OSError, ValueError) as exc:  # OSError: a blob missing or altered
             log.warning("FHIR push %s: analysis %s cannot be exported: %s: %s", due.id, analysis.id,
                         type(exc).__name__, exc)  # (CorruptBlob), ValueError: its results.json no longer JSON
-            return getattr(exc, "code", None) or NOT_EXPORTABLE
+            return TRAIL_CODES.get(getattr(exc, "code", None), NOT_EXPORTABLE)
 
     def send(self, db: Database, due: webhooks.Due, deadline_s: float = DEADLINE_S) -> tuple[int | None, str, bool]:
         """Push ``due`` (``(status or None, the trail's code or "", give up)``); a delivered push is audited.  An

@@ -18,8 +18,9 @@ Size caps (issue 16, finding 4: a 70 kB crafted workbook unpacked to 18 MB of id
 10–30 s of CPU; the cost of reading grows with rows and cells, about 0.1 ms a row measured here).  An .xlsx
 is a zip archive: before any part is parsed, the archive's directory is read (:func:`check_archive`) and a
 part that would unpack beyond :data:`MAX_SHEET_MB` (a worksheet) or :data:`MAX_PART_MB` (anything else:
-the shared strings are parsed whole when a cell needs them), more than :data:`MAX_PARTS` parts or
-more than :data:`MAX_UNPACKED_MB` in all is refused.  ``ZipInfo.file_size`` is a declaration, but Python's
+the shared strings are parsed whole when a cell needs them: their cap goes by the relationship that names them,
+wherever they lie), more than :data:`MAX_PARTS` parts (or sheet names) or more than :data:`MAX_UNPACKED_MB` in all
+is refused.  ``ZipInfo.file_size`` is a declaration, but Python's
 reader never returns more bytes than it (and checks the CRC at the end), so a lying archive is bounded too.
 Then each sheet's XML is streamed once through a tag count (:func:`open_workbook`, ~0.03 s a MB:
 decompression and :func:`.xlsx_cells.count_tags`, no XML tree, stopped at the caps), and more than :data:`MAX_ROWS`
@@ -49,7 +50,8 @@ HEADER = ["elapsed (s)", "x-axis (g)", "y-axis (g)", "z-axis (g)", "x-axis (deg/
           "z-axis (deg/s)", "elapsed (s)", "x-axis (T)", "y-axis (T)", "z-axis (T)", "elapsed (s)",
           "temperature (C)"]
 _GROUPS = {"acc": (0, (1, 2, 3)), "gyr": (0, (4, 5, 6)), "mag": (7, (8, 9, 10))}
-_CELL = re.compile(r"^\s*(?P<name>[^()]*?)\s*\((?P<unit>[^()]*)\)\s*$")
+_CELL = re.compile(r"(?P<name>[^()]*+)\((?P<unit>[^()]*+)\)")
+
 #: most data rows of a sheet: 10 minutes at 100 Hz (the protocol's recordings last 0.5–1.5 min, seed 004 §8)
 MAX_ROWS = 60_000
 #: most cells of a sheet (the layout's 13 columns fill about 8 a row: acc/gyro every row, mag 1 row in 5)
@@ -61,6 +63,16 @@ MAX_PART_MB = 8
 #: largest unpacked workbook, and most parts in its archive
 MAX_UNPACKED_MB = 128
 MAX_PARTS = 256
+#: shared strings allowed beyond the sheets' cells (a writer may keep a few texts no cell shows any more)
+_STRINGS_SLACK = 1000
+
+
+def _name_unit(text: str) -> tuple[str, str] | None:
+    """``(name, unit)`` of a header cell ``"name (unit)"`` (blanks around the name and the whole cell ignored), or
+    ``None``.  Stripped in Python and matched possessively: linear in the cell's length (a lazy name before
+    ``\\s*\\(`` rescanned a run of blanks from every position: quadratic in a crafted header cell)."""
+    m = _CELL.fullmatch(text.strip())
+    return (m.group("name").rstrip(), m.group("unit")) if m else None
 
 
 def _openpyxl():
@@ -75,12 +87,12 @@ def _layout_problem(header: list) -> str | None:
     """``None`` if ``header`` (row 1) has the Fig. 8.6 layout, else what is wrong."""
     cells = [("" if c is None else str(c)) for c in header[:11]] + [""] * max(0, 11 - len(header))
     for t, axes in _GROUPS.values():
-        m = _CELL.match(cells[t])
-        if not m or m.group("name").lower() not in ("elapsed", "time", "tiempo"):
+        m = _name_unit(cells[t])
+        if not m or m[0].lower() not in ("elapsed", "time", "tiempo"):
             return f"cell {chr(65 + t)}1 is {cells[t]!r}, expected 'elapsed (s)'"
         for a, i in zip("xyz", axes):
-            m = _CELL.match(cells[i])
-            if not m or not m.group("name").lower().startswith(a):
+            m = _name_unit(cells[i])
+            if not m or not m[0].lower().startswith(a):
                 return f"cell {chr(65 + i)}1 is {cells[i]!r}, expected '{a}-axis (unit)'"
     return None
 
@@ -106,53 +118,79 @@ def check_archive(path: Path) -> None:
 
 
 def count_rows_cells(fh: BinaryIO, stop_rows: int | None = None, stop_cells: int | None = None,
-                     chunk_bytes: int = 1 << 20) -> tuple[int, int, bytes | None]:
-    """(row tags, cell tags, the XML read) of the stream ``fh`` (a worksheet), read in pieces of ``chunk_bytes``;
-    the count stops early once past ``stop_rows`` rows or ``stop_cells`` cells, and the XML is then ``None``.
-    Each piece is counted up to its last ``>`` and the rest carried over: a start tag cannot hold a ``>`` before
-    its end, so none is cut or counted twice."""
-    rows = cells = 0
-    carry = b""
-    pieces = []
+                     chunk_bytes: int = 1 << 20) -> tuple[int, int, bytearray | None]:
+    """(row tags, cell tags, the XML read) of the stream ``fh`` (a worksheet), read in pieces of ``chunk_bytes``
+    into one buffer (no list of pieces joined into a second copy); the count stops early once past ``stop_rows``
+    rows or ``stop_cells`` cells, and the XML is then ``None``.  Each piece is counted up to the buffer's last
+    ``>`` and the rest on the next: a start tag cannot hold a ``>`` before its end, so none is cut or counted
+    twice."""
+    rows = cells = done = 0
+    buf = bytearray()
     while True:
         piece = fh.read(chunk_bytes)
-        data = carry + piece
-        cut = data.rfind(b">") + 1 if piece else len(data)
-        rows += count_tags(data, b"row", cut)
-        cells += count_tags(data, b"c", cut)
-        carry = data[cut:]
+        buf += piece
+        cut = max(buf.rfind(b">", done) + 1, done) if piece else len(buf)
+        rows += count_tags(buf, b"row", cut, done)
+        cells += count_tags(buf, b"c", cut, done)
+        done = cut
         if (stop_rows is not None and rows > stop_rows) or (stop_cells is not None and cells > stop_cells):
             return rows, cells, None
         if not piece:
-            return rows, cells, b"".join(pieces)
-        pieces.append(piece)
+            return rows, cells, buf
 
 
 def open_workbook(path: str | os.PathLike) -> Workbook:
     """The workbook at ``path``, open, every sheet checked against the caps (module docstring) before any is parsed.
 
-    The archive's directory first (:func:`check_archive`); then each sheet's XML is streamed once through
-    :func:`count_rows_cells` and, when within the caps, handed to the :class:`.xlsx_cells.Workbook`
+    The archive's directory first (:func:`check_archive`); then the listed sheets (at most :data:`MAX_PARTS`) and
+    the shared strings' size by their role (the relationship's type, wherever the part lies: at most
+    :data:`MAX_PART_MB`); then each part holding a sheet, once however many names list it, is streamed once
+    through :func:`count_rows_cells` and, when within the caps, handed to the :class:`.xlsx_cells.Workbook`
     (:meth:`~.xlsx_cells.Workbook.keep`), which parses it from there: a sheet is decompressed once for the caps
-    and the reading.  The caller closes the workbook (a ``with`` block).  A damaged archive or sheet (zip, XML,
-    deflate stream, CRC) is refused as ``xlsx.cannot_open``."""
+    and the reading.  Kept are sheets up to :data:`MAX_SHEET_MB` in all (one full data sheet; a part beyond is read
+    again if parsed), and all XML read at most :data:`MAX_UNPACKED_MB`.  Last the shared strings: more ``<si>``
+    than the sheets hold cells (each text is some cell's; :data:`_STRINGS_SLACK` more, :data:`MAX_CELLS` at most)
+    is refused before openpyxl parses them (~8 µs a string: 4 MB of ``<si/>`` took 6.8 s, review finding).  The caller closes the workbook (a ``with`` block).  A damaged archive or
+    sheet (zip, XML, deflate stream, CRC) is refused as ``xlsx.cannot_open``."""
     path = Path(path)
     check_archive(path)
     try:
         wb = Workbook(path)
     except Exception as exc:  # noqa: BLE001 - zip/xml errors of a damaged file
         raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
+    mb = 1024 * 1024
     try:
-        for name in wb.sheetnames:
-            with wb.open_part(name) as fh:
+        if wb.listed > MAX_PARTS:
+            raise IngestionError("xlsx.too_many_parts", file=path, count=wb.listed, limit=MAX_PARTS)
+        strings = wb.strings_part
+        if strings is not None and wb.size(strings) > MAX_PART_MB * mb:
+            raise IngestionError("xlsx.too_big", file=path, member=strings, size_mb=wb.size(strings) // mb,
+                                 limit_mb=MAX_PART_MB)
+        total = kept = all_cells = 0
+        for part in wb.parts:
+            with wb.open_member(part) as fh:
                 rows, cells, xml = count_rows_cells(fh, stop_rows=MAX_ROWS + 1, stop_cells=MAX_CELLS)
             if rows > MAX_ROWS + 1:
-                raise IngestionError("xlsx.too_many_rows", file=path, sheet=wb.part(name), limit=MAX_ROWS,
+                raise IngestionError("xlsx.too_many_rows", file=path, sheet=part, limit=MAX_ROWS,
                                      minutes=MAX_ROWS // 6000)
             if cells > MAX_CELLS:
-                raise IngestionError("xlsx.too_many_cells", file=path, sheet=wb.part(name), cells=cells,
-                                     limit=MAX_CELLS)
-            wb.keep(name, xml)
+                raise IngestionError("xlsx.too_many_cells", file=path, sheet=part, cells=cells, limit=MAX_CELLS)
+            total += len(xml)
+            all_cells += cells
+            if total > MAX_UNPACKED_MB * mb:
+                raise IngestionError("xlsx.too_big", file=path, member="(all)", size_mb=total // mb,
+                                     limit_mb=MAX_UNPACKED_MB)
+            if kept + len(xml) <= MAX_SHEET_MB * mb:
+                kept += len(xml)
+                wb.keep(part, xml)
+            del xml
+        if strings is not None:
+            with wb.open_member(strings) as fh:
+                xml = fh.read()
+            n, limit = count_tags(xml, b"si"), min(all_cells + _STRINGS_SLACK, MAX_CELLS)
+            if n > limit:
+                raise IngestionError("xlsx.too_many_strings", file=path, member=strings, count=n, limit=limit)
+            wb.keep_strings(xml)
     except IngestionError:
         wb.close()
         raise
@@ -224,8 +262,8 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None,
                              sheet=chosen, cell=f"{chr(65 + j)}{i + 2}", value=f"{table[i, j]:.3g}")
     streams = []
     for kind, (t_col, axes) in _GROUPS.items():
-        units = {_CELL.match(header[i]).group("unit").strip() for i in axes}
-        t_unit = _CELL.match(header[t_col]).group("unit")
+        units = {_name_unit(header[i])[1].strip() for i in axes}
+        t_unit = _name_unit(header[t_col])[1]
         if len(units) != 1:
             raise IngestionError("file.axes_units_differ", file=path, units=", ".join(sorted(units)))
         unit = units.pop()

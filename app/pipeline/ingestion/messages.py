@@ -770,6 +770,15 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "de las columnas A–M del formato de la tesis, o exporte de nuevo la grabación.",
         "pt": "{file}: a folha de cálculo '{sheet}' contém {cells} células (no máximo {limit}); apague o que está fora "
               "das colunas A–M do formato da tese, ou exporte a gravação de novo."},
+    "xlsx.too_many_strings": {
+        "en": "{file}: its shared texts ({member}) hold {count} entries, more than the {limit} its sheets' cells "
+              "could show; save the workbook again from Excel as .xlsx, or export the recording as CSV.",
+        "es": "{file}: sus textos compartidos ({member}) contienen {count} entradas, más de las {limit} que "
+              "pueden mostrar las celdas de sus hojas; guarde de nuevo el libro desde Excel como .xlsx, o exporte "
+              "la grabación como CSV.",
+        "pt": "{file}: os seus textos partilhados ({member}) contêm {count} entradas, mais que as {limit} que as "
+              "células das suas folhas de cálculo podem mostrar; salve a pasta de trabalho de novo no Excel como "
+              ".xlsx, ou exporte a gravação como CSV."},
     "manifest.too_large": {
         "en": "{file}: {size_kb} kB, more than the {limit_kb} kB a session.json may take; keep only the keys "
               "it documents.",

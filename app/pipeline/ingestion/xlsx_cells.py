@@ -19,12 +19,16 @@ values_only=True)`` (tested with openpyxl as the oracle):
   attribute value of ``<c>``/``<row>`` (no spreadsheet program writes one).
 
 The workbook's size caps must have run before a sheet is parsed: :func:`app.pipeline.ingestion.excel.open_workbook`
-checks the archive, streams each sheet's XML once through its tag count and hands the XML it read to the
+checks the archive, streams each sheet's part once through its tag count and hands the XML it read to the
 :class:`Workbook` (:meth:`Workbook.keep`), so a sheet is decompressed once for the caps and every read after.
+Every pattern here runs in linear time on any input: possessive quantifiers, no ``<`` inside a tag's attributes
+(XML forbids it in a value), attribute names started only at their first character (tested on the unclosed and
+overlong tags that were quadratic).
 """
 
 from __future__ import annotations
 
+import io
 import posixpath
 import re
 import zipfile
@@ -36,8 +40,12 @@ import numpy as np
 _MAIN = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
 _REL = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
 _PKG_REL = "{http://schemas.openxmlformats.org/package/2006/relationships}"
-_P = rb"(?:[A-Za-z_][\w.-]*:)?"  # an optional namespace prefix
-_SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*/?>")
+_P = rb"(?:[A-Za-z_][\w.-]*+:)?"  # an optional namespace prefix (``:`` is not in the class: possessive is exact)
+_SHEET_DATA_START = re.compile(rb"<" + _P + rb"sheetData\s*+/?>")
+#: the attributes of a start tag up to its ``/>`` or ``>``: no ``<`` (XML forbids it in a value) and possessive, so
+#: from an unclosed ``<row `` the scan stops at the next ``<`` and never backtracks (a lazy ``[^>]*?`` scanned to the
+#: next ``>`` from every unclosed start, and ``(?:\s[^>]*)?`` backtracked through it: quadratic, review finding)
+_ATTRS = rb"((?:[^<>/]++|/(?!>))*+)"
 
 
 def _inside(tag: bytes) -> bytes:
@@ -50,19 +58,24 @@ def _inside(tag: bytes) -> bytes:
 #: a cell as every writer known writes it (no namespace prefix, ``r`` first, ``s`` and ``t`` only, double quotes):
 #: ``r`` (column letters, row), ``t``, and the ``<v>`` text after an optional ``<f>``
 _FAST = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="(\w+)")?(?: s="\d+")?'
-                   rb'(?:/>|>(?:<f[^>]*?(?:/>|>[^<]*</f>))?(?:<v>([^<]*)</v>)?' + _inside(rb"c") + rb'</c>)', re.S)
+                   rb'(?:/>|>(?:<f' + _ATTRS[1:-1] + rb'(?:/>|>[^<]*+</f>))?(?:<v>([^<]*+)</v>)?' + _inside(rb"c")
+                   + rb'</c>)', re.S)
 #: a plain number as spreadsheet programs write it (openpyxl ``t="n"``, Excel no ``t`` and a style ``s``): the
 #: reference and a value without blanks (an empty or blank-padded ``<v>`` is left to :data:`_FAST`)
-_NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]+)</v></c>')
+_NUMBER = re.compile(rb'<c r="([A-Z]{1,3}\d{1,9})"(?: s="\d+")?(?: t="n")?(?: s="\d+")?><v>([^<\s]++)</v></c>')
 #: a cell tag with a namespace prefix (``<x:c r=…>``): neither :data:`_FAST` nor :data:`_NUMBER` sees it
-_PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*:c[\s/>]")
-_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])([^>]*?)(?:/>|>(" + _inside(rb"row") + rb")</" + _P + rb"row\s*>)",
-                  re.S)
-_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])([^>]*?)(?:/>|>(" + _inside(rb"c") + rb")</" + _P + rb"c\s*>)", re.S)
-_ATTR = re.compile(rb"""([\w:.-]+)\s*=\s*(?:"([^"]*)"|'([^']*)')""")
-_V = re.compile(rb"<" + _P + rb"v(?:\s[^>]*)?>(" + _inside(rb"v") + rb")</" + _P + rb"v\s*>", re.S)
-_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?:\s[^>]*)?(?:/>|>(" + _inside(rb"(?:rPh|t)") + rb")</\1\2\s*>)", re.S)
-_ENTITY = re.compile(r"&(#x[0-9A-Fa-f]+|#[0-9]+|lt|gt|amp|quot|apos);")
+_PREFIXED_CELL = re.compile(rb"<[A-Za-z_][\w.-]*+:c[\s/>]")
+_ROW = re.compile(rb"<" + _P + rb"row(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"row") + rb")</" + _P
+                  + rb"row\s*+>)", re.S)
+_CELL = re.compile(rb"<" + _P + rb"c(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"c") + rb")</" + _P + rb"c\s*+>)",
+                   re.S)
+#: one attribute; the look-behind starts a name only at its first character (else every position of one long name
+#: would be a start, each scanning to the name's end: 24 s for 40 kB, review finding)
+_ATTR = re.compile(rb"""(?<![\w:.-])([\w:.-]++)\s*+=\s*+(?:"([^"]*+)"|'([^']*+)')""")
+_V = re.compile(rb"<" + _P + rb"v(?=[\s>])" + _ATTRS + rb">(" + _inside(rb"v") + rb")</" + _P + rb"v\s*+>", re.S)
+_T = re.compile(rb"<(" + _P + rb")(rPh|t)(?=[\s/>])" + _ATTRS + rb"(?:/>|>(" + _inside(rb"(?:rPh|t)") + rb")</\1\2\s*+>)",
+                re.S)
+_ENTITY = re.compile(r"&(#x[0-9A-Fa-f]++|#[0-9]++|lt|gt|amp|quot|apos);")
 _NAMED = {"lt": "<", "gt": ">", "amp": "&", "quot": '"', "apos": "'"}
 
 
@@ -85,23 +98,24 @@ def _attrs(raw: bytes) -> dict[bytes, bytes]:
             for m in _ATTR.finditer(raw)}
 
 
-def count_tags(data: bytes, name: bytes, end: int | None = None) -> int:
-    """Start tags ``<name …>`` (with or without a namespace prefix: ``<x:name/>``) in ``data[:end]``, or a few more.
+def count_tags(data: bytes | bytearray, name: bytes, end: int | None = None, start: int = 0) -> int:
+    """Start tags ``<name …>`` (with or without a namespace prefix: ``<x:name/>``) in ``data[start:end]``, or a few
+    more.
 
     One ``bytes.count`` of ``<name`` (a C scan, ~10× faster than a regular expression): it also counts the
     other tags whose name begins so (``<cols>``, ``<col>``, ``<cfRule>``, ``<rowBreaks>``: a few a sheet, none
     inside ``<sheetData>``), so as a cap it is stricter by those few, never looser.  A regular expression
     (exact) only when a ``:name`` occurs (a prefixed tag, or that text in a value)."""
     end = len(data) if end is None else end
-    if data.find(b":" + name, 0, end) >= 0:
-        return len(re.compile(rb"<(?:[A-Za-z_][\w.-]*:)?" + re.escape(name) + rb"[\s/>]").findall(data, 0, end))
-    return data.count(b"<" + name, 0, end)
+    if data.find(b":" + name, start, end) >= 0:
+        return len(re.compile(rb"<" + _P + re.escape(name) + rb"[\s/>]").findall(data, start, end))
+    return data.count(b"<" + name, start, end)
 
 
 def _references(refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """1-based (columns, rows) of an array of cell references (``b"AB12"`` → 28, 12), vectorised over the bytes
     (``[A-Z]{1,3}[0-9]{1,9}``, as :data:`_FAST` matches them)."""
-    width = int(np.strings.str_len(refs).max(initial=1))   # the longest reference present (≤ 12 by the pattern)
+    width = int(np.char.str_len(refs).max(initial=1))   # the longest reference present (≤ 12 by the pattern)
     codes = refs.astype(f"S{width}").view(np.uint8).reshape(-1, width).astype(np.int64)
     col = np.zeros(len(codes), dtype=np.int64)
     row = np.zeros(len(codes), dtype=np.int64)
@@ -133,15 +147,54 @@ def _column(ref: bytes) -> int:
     return n
 
 
-def _body(data: bytes) -> bytes:
-    """The bytes between ``<sheetData>`` and ``</sheetData>`` of a sheet's XML (empty when it has none)."""
+def _body(data: bytes | bytearray) -> bytes | bytearray:
+    """The bytes between ``<sheetData>`` and ``</sheetData>`` of a sheet's XML (empty when it has none).  A
+    ``bytearray`` is cut in place and returned (no second copy of the sheet held beside it: review finding)."""
     start = _SHEET_DATA_START.search(data)
     if start is None or data[start.end() - 2:start.end()] == b"/>":
         return b""
     end = data.rfind(b"sheetData", start.end())
-    if end < 0:
-        return data[start.end():]
-    return data[start.end():data.rfind(b"<", start.end(), end)]
+    end = len(data) if end < 0 else data.rfind(b"<", start.end(), end)
+    if isinstance(data, bytearray):
+        del data[end:]
+        del data[:start.end()]
+        return data
+    return data[start.end():end]
+
+
+def _in_order(body: bytes | bytearray, row: np.ndarray, col: np.ndarray) -> bool:
+    """Whether the cells of ``body`` (their references' 1-based ``row`` and ``col``, in the sheet's order, one per
+    ``<c`` of ``body``) lie as openpyxl reads them when placed by reference: every row tag carries ``r``, the rows
+    strictly increase, each cell names the row it lies in, and the cells strictly increase (row, then column).
+    openpyxl skips a row whose number goes back, keeps the first of a repeated row and the last of a repeated
+    column, and places a cell by its column in the row it lies in, whatever row its reference names (review
+    finding: the fast path placed them otherwise).  The tags are found in numpy over the bytes (``<`` then ``c``
+    and a blank, or ``row``), and each cell's row tag by a binary search of its position."""
+    key = row * 32768 + col                     # 3 column letters: at most 18 278
+    if len(key) > 1 and not bool(np.all(key[1:] > key[:-1])):
+        return False
+    data = np.frombuffer(body, dtype=np.uint8)
+    second = data[1:-11]                         # (a tag this close to the end holds no cell of a row)
+    lt = np.flatnonzero((data[:-12] == 60) & ((second == 99) | (second == 114)))   # '<c', '<r'
+    third = data[lt + 2]
+    is_cell = (data[lt + 1] == 99) & ((third == 32) | (third == 47) | (third == 62))
+    is_row = (third == 111) & (data[lt + 3] == 119) & (data[lt + 1] == 114)
+    if np.count_nonzero(is_cell) != len(row) or not is_row.any():
+        return False
+    # each row tag's number, from the bytes after '<row r="' (1-9 digits then '"'; else read by rows())
+    at = lt[is_row] + 8
+    window = data[np.minimum(at[:, None] + np.arange(10), len(data) - 1)].astype(np.int64)
+    digit = (window >= 48) & (window <= 57)
+    width = np.argmin(digit, axis=1)
+    prefix = data[np.minimum(at[:, None] - 4 + np.arange(4), len(data) - 1)]
+    if not (np.all(prefix == np.frombuffer(b' r="', np.uint8)) and np.all(width >= 1)
+            and np.all(window[np.arange(len(at)), width] == 34)):
+        return False
+    r = np.zeros(len(at), dtype=np.int64)
+    for k in range(9):
+        r = np.where(k < width, r * 10 + window[:, k] - 48, r)
+    which = (np.cumsum(is_row) - 1)[is_cell]     # each cell's row tag: the row tags before it, less one
+    return bool(np.all(r[1:] > r[:-1])) and int(which.min(initial=0)) >= 0 and np.array_equal(r[which], row)
 
 
 def _inline(body: bytes) -> str:
@@ -153,16 +206,17 @@ def _inline(body: bytes) -> str:
         if m.group(2) == b"rPh":
             skip_to = m.end()
             continue
-        out.append(_unescape(m.group(3) or b""))
+        out.append(_unescape(m.group(4) or b""))
     return "".join(out)
 
 
 class Workbook:
     """An open .xlsx: :attr:`sheetnames` in workbook order, :meth:`rows` and :meth:`table` of one sheet.
 
-    A sheet's XML is the one handed over by :meth:`keep` (read once, under the caps), else read from the archive
-    on first use; either way it is kept until :meth:`close`, with each sheet's first row (:meth:`header`).  The
-    shared strings are read on first use (a workbook written by openpyxl has none: its texts are inline)."""
+    Sheets are held by part (the archive member), not by name: several names listing one part share it.  A part's
+    XML is the one handed over by :meth:`keep` (read once, under the caps), else read from the archive when parsed
+    whole and kept until :meth:`close`; each part's first row is kept (:meth:`header`).  The shared strings are
+    parsed on first use (a workbook written by openpyxl has none: its texts are inline)."""
 
     def __init__(self, path: str | Path) -> None:
         self._zip = zipfile.ZipFile(path)
@@ -178,15 +232,22 @@ class Workbook:
                 if rel.get("Type", "").endswith("/sharedStrings"):
                     strings_part = target
             self._parts = {}
+            #: ``<sheet>`` entries of workbook.xml: the caps refuse too many before any is read
+            self.listed = 0
             for sheet in wb.iter(_MAIN + "sheet"):
+                self.listed += 1
                 self._parts[sheet.get("name")] = targets[sheet.get(_REL + "id")]
             self.sheetnames = list(self._parts)
+            #: the archive members holding the sheets, each once (several names may list one part)
+            self.parts = list(dict.fromkeys(self._parts.values()))
             if strings_part is None and "xl/sharedStrings.xml" in names:
                 strings_part = "xl/sharedStrings.xml"
-            self._strings_part = strings_part if strings_part in names else None
+            #: the shared strings' member, by its relationship (its cap goes by this role, not by its path)
+            self.strings_part = strings_part if strings_part in names else None
+            self._strings_xml: bytes | None = None
             self._string_table: list[str] | None = None
-            self._bodies: dict[str, bytes] = {}
-            self._headers: dict[tuple[str, int], tuple] = {}
+            self._bodies: dict[str, bytes | bytearray] = {}   # by part
+            self._headers: dict[tuple[str, int], tuple] = {}  # by (part, max_col)
         except BaseException:
             self._zip.close()
             raise
@@ -205,36 +266,52 @@ class Workbook:
         """The archive member holding sheet ``name``'s XML."""
         return self._parts[name]
 
-    def open_part(self, name: str):
-        """Sheet ``name``'s XML as a stream of bytes (the caps' count reads it so, in pieces)."""
-        return self._zip.open(self._parts[name])
+    def size(self, member: str) -> int:
+        """The unpacked size the archive declares for ``member`` (the reader never returns more)."""
+        return self._zip.getinfo(member).file_size
 
-    def keep(self, name: str, xml: bytes) -> None:
-        """Use ``xml`` (sheet ``name``'s XML, as read for the caps) instead of reading the sheet again."""
-        self._bodies[name] = _body(xml)
+    def open_member(self, member: str):
+        """An archive member (a sheet's XML, the shared strings) as a stream of bytes (the caps read it in pieces)."""
+        return self._zip.open(member)
+
+    def keep(self, part: str, xml: bytes | bytearray) -> None:
+        """Use ``xml`` (the sheet ``part``'s XML, as read for the caps) instead of reading it again (a ``bytearray``
+        is cut to its ``<sheetData>`` in place)."""
+        self._bodies[part] = _body(xml)
+
+    def keep_strings(self, xml: bytes) -> None:
+        """Use ``xml`` (the shared strings, as read for the caps) instead of reading them again."""
+        self._strings_xml = xml
 
     @property
     def _strings(self) -> list[str]:
         if self._string_table is None:
-            self._string_table = []
-            if self._strings_part is not None:
-                from openpyxl.reader.strings import read_string_table
+            from openpyxl.reader.strings import read_string_table
 
-                with self._zip.open(self._strings_part) as fh:
-                    self._string_table = read_string_table(fh)
+            if self._strings_xml is None and self.strings_part is not None:
+                self._strings_xml = self._zip.read(self.strings_part)
+            xml = self._strings_xml
+            table = read_string_table(io.BytesIO(xml)) if xml is not None else []
+            self._string_table, self._strings_xml = table, None   # set once read whole: a failed read stays unread
         return self._string_table
 
-    def _sheet_data(self, name: str) -> bytes:
-        """The bytes between ``<sheetData>`` and ``</sheetData>`` of sheet ``name`` (empty when it has none)."""
-        if name not in self._bodies:
-            self._bodies[name] = _body(self._zip.read(self._parts[name]))
-        return self._bodies[name]
+    def _sheet_data(self, name: str) -> bytes | bytearray:
+        """The bytes between ``<sheetData>`` and ``</sheetData>`` of sheet ``name`` (empty when it has none), kept
+        for the next read of the same part."""
+        part = self._parts[name]
+        if part not in self._bodies:
+            self._bodies[part] = _body(self._zip.read(part))
+        return self._bodies[part]
 
     def header(self, name: str, max_col: int) -> tuple:
-        """Row 1 of sheet ``name`` (``max_col`` values; ``()`` for an empty sheet), read once per workbook."""
-        key = (name, max_col)
+        """Row 1 of sheet ``name`` (``max_col`` values; ``()`` for an empty sheet), read once per part.  A part
+        not kept (:meth:`keep`) is read for it and not kept either: only the sheet parsed whole stays."""
+        key = (self._parts[name], max_col)
         if key not in self._headers:
-            self._headers[key] = next(iter(self.rows(name, max_row=1, max_col=max_col)), ())
+            body = self._bodies.get(key[0])
+            if body is None:
+                body = _body(self._zip.read(key[0]))
+            self._headers[key] = next(iter(self._rows(body, max_row=1, max_col=max_col)), ())
         return self._headers[key]
 
     def table(self, name: str, max_row: int, max_col: int) -> tuple[np.ndarray, dict[tuple[int, int], object]]:
@@ -251,46 +328,55 @@ class Workbook:
         is read through :meth:`rows` instead."""
         body = self._sheet_data(name)
         cut = body.find(b"</row>") + len(b"</row>")   # the end of row 1 (or of the first row element)
-        head, rest = (body[:cut], body[cut:]) if cut >= len(b"</row>") else (body, b"")
-        plain = _NUMBER.findall(rest)
-        if len(plain) == rest.count(b"<c"):             # inside <sheetData> only cells' tags begin so
-            cells = _FAST.findall(head)
-            n_cells = head.count(b"<c")
+        cut = cut if cut >= len(b"</row>") else len(body)   # (positions, not slices: no copy of the sheet)
+        plain = _NUMBER.findall(body, cut)
+        if len(plain) == body.count(b"<c", cut):        # inside <sheetData> only cells' tags begin so
+            cells = _FAST.findall(body, 0, cut)
+            n_cells = body.count(b"<c", 0, cut)
         else:
             plain, cells, n_cells = [], _FAST.findall(body), body.count(b"<c")
         if not (cells or plain) or len(cells) != n_cells or (b":c" in body and _PREFIXED_CELL.search(body)):
-            rows = self.rows(name, max_row, max_col)
-            numbers = np.full((len(rows), max_col), np.nan)
-            others: dict[tuple[int, int], object] = {}
-            for i, r in enumerate(rows):
-                for j, v in enumerate(r):
-                    if isinstance(v, (int, float)) and not isinstance(v, bool):
-                        numbers[i, j] = v
-                    elif v is not None:
-                        others[(i, j)] = v
-            last = max([i for i in range(len(rows)) if any(x is not None for x in rows[i])], default=-1) + 1
-            return numbers[:last], others
+            return self._table_of_rows(name, max_row, max_col)
         head_cells = np.array(cells, dtype=bytes).reshape(-1, 3)   # bytes arrays: no object per cell
         below = np.array(plain, dtype=bytes).reshape(-1, 2)
         ref = np.concatenate([head_cells[:, 0], below[:, 0]]) if plain else head_cells[:, 0]
         kind = np.concatenate([head_cells[:, 1], np.full(len(below), b"n")]) if plain else head_cells[:, 1]
         value = np.concatenate([head_cells[:, 2], below[:, 1]]) if plain else head_cells[:, 2]
         col, row = _references(ref)
+        if not _in_order(body, row, col):
+            return self._table_of_rows(name, max_row, max_col)
         beyond = np.nonzero(row > max_row)[0]
         n = int(beyond[0]) if beyond.size else len(row)   # openpyxl stops at the first row beyond max_row
         col, row, kind, value = col[:n], row[:n], kind[:n], value[:n]
         keep = (col >= 1) & (col <= max_col) & (row >= 1)
         number = keep & ((kind == b"") | (kind == b"n")) & (value != b"")
+        floats = value[number].astype(np.float64)
+        if not np.isfinite(floats).all():   # 'inf'/'nan' (openpyxl's int() refuses them) or '1e999' (inf)
+            return self._table_of_rows(name, max_row, max_col)
         n_rows = int(row[keep].max()) if keep.any() else 0
         numbers = np.full((n_rows, max_col), np.nan)
-        numbers[row[number] - 1, col[number] - 1] = value[number].astype(np.float64)
+        numbers[row[number] - 1, col[number] - 1] = floats
         others = {}
         for k in np.nonzero(keep & ~number)[0]:
-            v = self._value(cells[k][1], cells[k][2], _content(body, cells[k][0]) if cells[k][1] == b"inlineStr"
-                            else b"")
+            v = self._value(kind[k], value[k], _content(body, ref[k]) if kind[k] == b"inlineStr" else b"")
             if v is not None:
                 others[(int(row[k]) - 1, int(col[k]) - 1)] = v
         return numbers, others
+
+    def _table_of_rows(self, name: str, max_row: int, max_col: int
+                       ) -> tuple[np.ndarray, dict[tuple[int, int], object]]:
+        """:meth:`table` from :meth:`rows`: one Python value a cell, openpyxl's rules for any sheet."""
+        rows = self.rows(name, max_row, max_col)
+        numbers = np.full((len(rows), max_col), np.nan)
+        others: dict[tuple[int, int], object] = {}
+        for i, r in enumerate(rows):
+            for j, v in enumerate(r):
+                if isinstance(v, (int, float)) and not isinstance(v, bool):
+                    numbers[i, j] = v
+                elif v is not None:
+                    others[(i, j)] = v
+        last = max([i for i in range(len(rows)) if any(x is not None for x in rows[i])], default=-1) + 1
+        return numbers[:last], others
 
     def _value(self, kind: bytes, raw: bytes, inner: bytes):
         """One cell's value by openpyxl's rules (module docstring); ``inner`` the cell's content after its ``<v>``."""
@@ -309,7 +395,9 @@ class Workbook:
 
     def rows(self, name: str, max_row: int, max_col: int, min_row: int = 1) -> list[tuple]:
         """Rows ``min_row``–``max_row`` of sheet ``name``, each ``max_col`` values (module docstring)."""
-        body = self._sheet_data(name)
+        return self._rows(self._sheet_data(name), max_row, max_col, min_row)
+
+    def _rows(self, body: bytes | bytearray, max_row: int, max_col: int, min_row: int = 1) -> list[tuple]:
         empty = (None,) * max_col
         out: list[tuple] = []
         counter = min_row
@@ -335,7 +423,7 @@ class Workbook:
                     continue
                 inner = cell.group(2) or b""
                 v = _V.search(inner)
-                values[col - 1] = self._value(a.get(b"t", b"n"), v.group(1) if v else b"", inner)
+                values[col - 1] = self._value(a.get(b"t", b"n"), v.group(2) if v else b"", inner)
             out.append(tuple(values))
         if max_row < index:
             out.extend([empty] * (max_row + 1 - counter))

@@ -69,7 +69,7 @@ def _export(db, store, request: Request, session, analysis) -> dict:
         return diagnostic_report(**report_inputs(db, store, session, analysis), base_url=fhir_base_url(request),
                                  **export_options(settings))
     except FhirExportError as exc:  # stored data the export cannot express: say what, the caller can fix it
-        raise refusal(request, 409, "request.fhir_not_exportable", session_id=session.id, reason=str(exc)) from None
+        raise refusal(request, 409, "request.fhir_not_exportable", session_id=session.id, reason=exc.fragment) from None
 
 
 def _fhir(doc: dict) -> Response:

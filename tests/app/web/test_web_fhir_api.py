@@ -80,11 +80,16 @@ def test_configured_export_search_and_metadata(fhir_client, demo_dir):
     # reader's language, naming the session and what to do
     client.app.state.settings = settings.model_copy(update={"patient_identifier_system": None})
     try:
-        for lang, words in (("es", f"La sesión {sid} no se puede exportar a FHIR"),
-                            ("pt", f"A sessão {sid} não pode ser exportada para FHIR")):
+        for lang, words, reason in (("es", f"La sesión {sid} no se puede exportar a FHIR",
+                                     "(solo se puede referir al paciente por identificador"),
+                                    ("pt", f"A sessão {sid} não pode ser exportada para FHIR",
+                                     "(só se pode referir o paciente por identificador")):
             r = client.get(f"/api/v1/fhir/DiagnosticReport/{sid}", headers=h | {"Accept-Language": lang})
             assert r.status_code == 409 and r.json()["code"] == "request.fhir_not_exportable", r.text
             assert r.json()["detail"].startswith(words) and r.json()["message"][lang] == r.json()["detail"]
+            # the export's own reason in the reader's language too (it was the English sentence in every one)
+            assert reason in r.json()["detail"] and "record number" not in r.json()["detail"]
+            assert r.json()["params"]["reason"] == {"code": "fhir.no_patient_identifier", "params": {}}
     finally:
         client.app.state.settings = settings
 

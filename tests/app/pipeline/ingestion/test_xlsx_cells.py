@@ -133,13 +133,59 @@ def _with_sheet(path, xml: bytes):
     '<v>0.25</v></c><c r="B4" t="n"></c><c r="D4"><v>7</v></c></row>',
 ])
 def test_hand_written_sheets_read_like_openpyxl(tmp_path, cells):
-    prefix = ' xmlns:x="http://schemas.openxmlformats.org/spreadsheetml/2006/main"' if "<x:" in cells else ""
-    tag = "x:" if prefix else ""
-    xml = ('<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
-           f'spreadsheetml/2006/main"{prefix}><{tag}sheetData>{cells}</{tag}sheetData></worksheet>').encode()
-    path = _with_sheet(tmp_path / "hand.xlsx", xml)
+    path = _with_sheet(tmp_path / "hand.xlsx", _sheet_xml(cells))
     for max_row in (1, 4, 10):
         _same(path, max_row, 5)
+
+
+def _sheet_xml(cells: str) -> bytes:
+    prefix = ' xmlns:x="http://schemas.openxmlformats.org/spreadsheetml/2006/main"' if "<x:" in cells else ""
+    tag = "x:" if prefix else ""
+    return ('<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
+            f'spreadsheetml/2006/main"{prefix}><{tag}sheetData>{cells}</{tag}sheetData></worksheet>').encode()
+
+
+_HEAD = '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c><c r="B1"><v>9</v></c></row>'
+
+
+@pytest.mark.parametrize("cells", [
+    # a row going back (openpyxl skips it), in the plain part and right after the header
+    _HEAD + '<row r="3"><c r="A3"><v>3</v></c></row><row r="2"><c r="A2"><v>2</v></c><c r="B2"><v>4</v></c></row>'
+    '<row r="4"><c r="A4"><v>5</v></c></row>',
+    '<row r="2"><c r="A2"><v>2</v></c></row>' + _HEAD + '<row r="3"><c r="A3"><v>3</v></c></row>',
+    # a repeated row (openpyxl keeps the first)
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c></row><row r="2"><c r="A2"><v>7</v></c><c r="B2"><v>8</v></c></row>',
+    # a cell whose reference names another row (openpyxl places it by its column in the row it lies in)
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c><c r="B5"><v>6</v></c></row><row r="3"><c r="A3"><v>3</v></c></row>',
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c></row><row r="3"><c r="A7"><v>3</v></c></row>',
+    # a column repeated in a row (openpyxl keeps the last), a number then a text
+    _HEAD + '<row r="2"><c r="A2"><v>2</v></c><c r="A2" t="str"><v>x</v></c></row>',
+    # a row without r among rows with r (it follows the previous one)
+    _HEAD + '<row><c r="A2"><v>2</v></c></row><row r="3"><c r="A3"><v>3</v></c></row>',
+    # a value too large for binary64 is inf for openpyxl as for float()
+    _HEAD + '<row r="2"><c r="A2"><v>1e999</v></c><c r="B2"><v>-1E999</v></c></row>',
+])
+def test_the_fast_table_keeps_openpyxls_row_order(tmp_path, cells):
+    """Review finding: the fast path placed each cell by its reference, so rows out of order, a repeated row and a
+    cell naming another row came out otherwise than openpyxl reads them (a row dropped or overwritten)."""
+    path = _with_sheet(tmp_path / "order.xlsx", _sheet_xml(cells))
+    for max_row in (1, 3, 10):
+        _same(path, max_row, 3)
+
+
+@pytest.mark.parametrize("text", ["inf", "-inf", "nan", "NaN", "Infinity"])
+def test_a_number_cell_of_inf_or_nan_is_refused_like_openpyxl(tmp_path, text):
+    """openpyxl refuses ``<v>inf</v>`` in a number cell (``int('inf')``); the fast path took it as ±inf/NaN (a NaN
+    silently empty).  Both readers now raise."""
+    path = _with_sheet(tmp_path / "inf.xlsx", _sheet_xml(_HEAD + f'<row r="2"><c r="A2"><v>1.5</v></c>'
+                                                         f'<c r="B2"><v>{text}</v></c></row>'))
+    with pytest.raises(ValueError):
+        _oracle(path, "Sheet", 10, 3)
+    with Workbook(path) as wb:
+        with pytest.raises(ValueError):
+            wb.table("Sheet", 10, 3)
+        with pytest.raises(ValueError):
+            wb.rows("Sheet", 10, 3)
 
 
 def test_unclosed_cells_and_rows_are_read_in_linear_time():
@@ -156,3 +202,36 @@ def test_unclosed_cells_and_rows_are_read_in_linear_time():
     assert x._V.findall(b"<v>1" * 4000 + filler) == []
     closed = b'<row r="1"><c r="A1"><v>1</v></c></row>'
     assert x._FAST.findall(b'<c r="A1"><v>1</v>' * 4000 + closed) == [(b"A1", b"", b"1")]
+    # start tags that never reach their ">": the lazy attributes ([^>]*?) of _ROW/_CELL and the optional
+    # (?:\s[^>]*)? of _V/_T scanned to the sheet's end from each (20 000 x 1 MB: many minutes before the fix)
+    for pattern, tag in ((x._ROW, b"<row "), (x._CELL, b"<c "), (x._V, b"<v "), (x._T, b"<t "),
+                         (x._FAST, b'<c r="A1"><f ')):
+        assert pattern.findall(tag * 20_000 + filler) == [], tag
+    # one attribute name 300 kB long: every position of it was a start scanning to its end (24 s for 40 kB)
+    assert x._attrs(b"r" * 300_000) == {}
+    assert x._attrs(b'a' * 300_000 + b' r="7" t="n"') == {b"r": b"7", b"t": b"n"}
+
+
+def test_a_row_tag_with_a_long_attribute_name_is_refused_in_linear_time(tmp_path):
+    """End to end (review finding): a 5 kB workbook whose sheet is one ``<row r="1" aaaa…/>`` kept
+    ``read_recording`` busy 39 s with a 30 kB name (the header is read before any fast path); 1 MB here."""
+    from app.pipeline.ingestion import IngestionError
+    from app.pipeline.ingestion.session import read_recording
+
+    xml = (b'<?xml version="1.0" encoding="UTF-8"?><worksheet xmlns="http://schemas.openxmlformats.org/'
+           b'spreadsheetml/2006/main"><sheetData><row r="1" ' + b"a" * 1_000_000 + b'/></sheetData></worksheet>')
+    path = _with_sheet(tmp_path / "standing-muslo-X-01012024-1.xlsx", xml)
+    assert path.stat().st_size < 10_000
+    with pytest.raises(IngestionError) as err:
+        read_recording([path])
+    assert err.value.code == "xlsx.no_layout_sheet"
+
+
+def test_a_header_cell_of_blanks_is_matched_in_linear_time():
+    """The header's ``name (unit)`` pattern: a lazy name before ``\\s*\\(`` rescanned a run of blanks from each
+    position (0.09 s for 10 000 blanks, ~15 min for the 1 000 000 here)."""
+    from app.pipeline.ingestion.excel import _layout_problem, _name_unit
+
+    assert _name_unit("a" + " " * 1_000_000 + "b") is None
+    assert _name_unit("  x-axis   (deg/s) ") == ("x-axis", "deg/s")
+    assert "expected 'elapsed (s)'" in _layout_problem(["t" + " " * 1_000_000 + "(s"] + HEADER[1:])
