@@ -308,6 +308,8 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "store.then.correct_patient": {"en": "correct the patient", "es": "corrija el paciente",
                                    "pt": "corrija o paciente"},
     "store.then.delete_patient": {"en": "delete the patient", "es": "borre el paciente", "pt": "apague o paciente"},
+    "store.then.pair": {"en": "pair it", "es": "emparéjela", "pt": "emparelhe-a"},
+    "store.then.unpair": {"en": "unpair it", "es": "desempareje la sesión", "pt": "desemparelhe a sessão"},
     # {tail} of store.superseded when the superseded analysis can be asked for by id
     "store.superseded_tail": {
         "en": ", or ask for analysis_id={analysis_id} to see the superseded report",

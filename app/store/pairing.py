@@ -66,7 +66,7 @@ def pair(db: Session, clinic_id: int, session_id: int, other_id: int, knee: str 
     if session.patient_id != other.patient_id:
         raise Conflict(code="store.pair_other_patient", session_id=session_id, other_id=other_id)
     for s in (session, other):
-        refuse_while_processing(db, s.id, "pair it")
+        refuse_while_processing(db, s.id, "pair")
         segments = (s.ingestion or {}).get("segments") or {}
         if any(str(v).startswith(("left_", "right_")) for v in segments.values()):
             raise Conflict(code="store.pair_both_knees", session_id=s.id)
@@ -89,7 +89,7 @@ def unpair(db: Session, clinic_id: int, session_id: int) -> tuple[KneeSession, K
     if session.paired_session_id is None:
         return session, None, 0
     for s in (session, other) if other is not None else (session,):
-        refuse_while_processing(db, s.id, "unpair it")
+        refuse_while_processing(db, s.id, "unpair")
     changed = [session] + ([other] if other is not None and other.paired_session_id == session.id else [])
     for s in changed:
         s.paired_session_id, s.knee = None, None

@@ -362,12 +362,13 @@ def test_a_patient_the_report_cannot_name_is_a_coded_refusal_in_three_languages(
     """The reference mode's refusals a clinic's user causes (and mends in the patient's record) carry a catalogue
     code, which the push's trail shows in es/en/pt (the English sentence alone reached the trail before)."""
     from app.web.fhir import FhirExportError
+    from app.web.fhir_push import TRAIL_CODES
     from app.web.webhooks import trail_error
 
     results, pdf = right
     with pytest.raises(FhirExportError) as refused:
         build(results, pdf, patient_mode="reference", **over)
-    assert refused.value.code == code
+    assert TRAIL_CODES[refused.value.code] == code  # the export's refusal, as the push trail's sentence
     error = trail_error(code, None, "failed")
     assert error["code"] == code and len(set(error["message"].values())) == 3
     assert all("FHIR" in m for m in error["message"].values())
