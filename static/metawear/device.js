@@ -41,8 +41,8 @@ async function stableSerial(id) {
 }
 
 export class MetaWearSensor {
-  /** device: a BluetoothDevice; handlers: onSamples(kind, values, arrivalMs, count), onState(state),
-   * onReconnect() — all optional. */
+  /** device: a BluetoothDevice; handlers: onSamples(kind, values, arrivalMs, raw), onState(state),
+   * onReconnect(), onBadPacket(error) (a notification the board's table cannot decode) — all optional. */
   constructor(device, handlers = {}) {
     this.device = device;
     this.handlers = handlers;
@@ -130,7 +130,7 @@ export class MetaWearSensor {
     const arrivalMs = performance.timeOrigin + ev.timeStamp;
     let answer;
     try {
-      answer = protocol.decode(view, this.scale);
+      answer = protocol.decode(view, this.scale, this.info.chips ?? protocol.BMI160_BOARD);
     } catch (err) {
       this.handlers.onBadPacket?.(err);
       return;
@@ -146,14 +146,14 @@ export class MetaWearSensor {
 
   /** Configure the protocol's rates and ranges and start the three streams. */
   async start() {
-    await this.write([...protocol.configure(this.config, this.info.chips), ...protocol.startStreaming()]);
+    await this.write([...protocol.configure(this.config, this.info.chips), ...protocol.startStreaming(this.info.chips)]);
     this.streaming = true;
     this.setState("streaming");
   }
 
   async stop() {
     this.streaming = false;
-    if (this.device.gatt.connected) await this.write(protocol.stopStreaming());
+    if (this.device.gatt.connected) await this.write(protocol.stopStreaming(this.info.chips ?? protocol.BMI160_BOARD));
     this.setState(this.device.gatt.connected ? "connected" : this.state);
   }
 
