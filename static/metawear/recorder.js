@@ -26,6 +26,11 @@ const MOVE_DPS = 60;
 const QUIET_DPS = 20;
 const IDENTIFY_MS = 30000;   // no sensor moved alone by then: the clinician is asked to try again
 
+/** The label a step's file names start with for one segment (e.g. "task-thigh"): the files this recorder made. */
+export function fileLabel(role, segment) {
+  return `${LABEL[role]}-${segment}`;
+}
+
 // the serial and firmware of the sensors that recorded a step, for its file names (kept beside its buffer)
 function sensorsKey(sessionId, role) {
   return `chakamo.record.${sessionId}.${role}`;
@@ -75,6 +80,8 @@ export class Recorder {
     this.runs[segment] = this.runs[segment] ?? 0;
     sensor.handlers.onSamples = (kind, values, arrivalMs, raw) => this.samples(segment, kind, values, arrivalMs, raw);
     sensor.handlers.onReconnect = () => { this.runs[segment] += 1; this.changed(); };
+    // a notification the board's table cannot decode (its chip misread, a corrupted packet): counted, shown
+    sensor.handlers.onBadPacket = () => { if (this.step) this.bad[segment] += 1; };
   }
 
   /** Stream both sensors until one is moved alone: resolves to [thigh sensor, shank sensor]. */
@@ -114,13 +121,15 @@ export class Recorder {
     });
   }
 
-  /** Start recording `role` on both sensors (its earlier buffer, if any, is dropped: a redo). */
+  /** Start recording `role` on both sensors.  Its earlier buffer, if any, is dropped: the caller asks the
+   * clinician first (an unsent take is the only copy of its samples). */
   async start(role) {
     await this.store.clear(this.sessionId, role);
     saveSensors(this.sessionId, role, Object.fromEntries(SEGMENTS.map((s) => [s, {
-      serial: this.sensors[s].info.serial, firmware: this.sensors[s].info.firmware }])));
+      serial: this.sensors[s].info.serial, firmware: this.sensors[s].info.firmware, chips: this.sensors[s].info.chips }])));
     this.step = role;
     this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
+    this.bad = Object.fromEntries(SEGMENTS.map((s) => [s, 0]));
     this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
       coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
     if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
@@ -180,7 +189,7 @@ export class Recorder {
     if (!this.checks) return null;
     return Object.fromEntries(SEGMENTS.map((s) => {
       const c = this.checks[s];
-      return [s, { samples: this.counts[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
+      return [s, { samples: this.counts[s], bad: this.bad[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
         stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
         state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
     }));
@@ -202,16 +211,16 @@ export class Recorder {
   async upload(role) {
     const records = await this.store.step(this.sessionId, role);
     if (records.length === 0) throw Object.assign(new Error(`no buffered data for ${role}`), { code: "no_data" });
-    const streams = streamsOf(records);
     // the sensors that recorded the step (saved at its start), not those connected now (after a reload)
     const sensors = loadSensors(this.sessionId, role)
       ?? Object.fromEntries(SEGMENTS.map((s) => [s, this.sensors[s]?.info]));
+    const streams = streamsOf(records, undefined, Object.fromEntries(SEGMENTS.map((s) => [s, sensors[s]?.chips])));
     const recordings = [];
     const lost = {};
     for (const segment of SEGMENTS) {
       if (!streams[segment]) throw Object.assign(new Error(`no data from the ${segment} sensor for ${role}`), { code: "no_data" });
       const sensor = sensors[segment];
-      const files = await filesOf(streams[segment], `${LABEL[role]}-${segment}`, sensor);
+      const files = await filesOf(streams[segment], fileLabel(role, segment), sensor);
       const answer = await this.send(segment, role, files);
       const stored = new Map(answer.recordings.map((r) => [r.file_name, r]));
       for (const f of files) {

@@ -9,13 +9,15 @@ notifications, so the packets cross the Web Bluetooth boundary through a documen
 this test's page only).  The streams are a simulated session (:func:`app.pipeline.demo.simulate_session`) framed
 by the protocol's Python twin (``metawear_frames.py``).
 
-The clinician's path: connect the two sensors through the browser's chooser (battery and firmware shown)
+The clinician's path, with a MetaMotion R (BMI160) on the thigh and a MetaMotion S (BMI270) on the shank:
+connect the two sensors through the browser's chooser (battery and firmware shown)
 → "which is the thigh sensor?": the sensor connected SECOND is moved (so the page must reorder them) → the four
 steps, each started, streamed (the shank loses 1 % of its task notifications, and its link drops for 5 s in
 the middle of the task: the page reconnects, re-configures and goes on), stopped and uploaded; each step is
 stored only once the server's sha256 match the browser's (the network refuses one upload of the task step
 once: the step stays in the browser's buffer, said so; the page is closed — it asks first — and opened again,
-and "Upload again", with no sensor connected, sends only the files the server lacks); the standing step is cut short and redone (its first files deleted from the server) → the link to processing appears.  Every sample the page received is
+and "Upload again", with no sensor connected, sends only the files the server lacks); the standing step is cut short and redone (the page asks first, naming the six files it replaces; declined, nothing
+changes; agreed, the first take's files are deleted only once the new take is acknowledged) → the link to processing appears.  Every sample the page received is
 in the stored files, and the buffer is empty.
 
 Then the truth: the files the browser uploaded are read back with the project's MetaBase reader and written
@@ -45,6 +47,8 @@ ARGS = ("--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions
 ROLES = ("mag_calibration", "standing", "lying", "task")
 CHUNK_S = 1.0          # simulated seconds of packets delivered per call
 BLACKOUT_S = 5.0
+#: the boards: the thigh's a MetaMotion R (BMI160), the shank's a MetaMotion S (BMI270, other data registers)
+CHIP = {"thigh": "BMI160", "shank": "BMI270"}
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +76,7 @@ def _streams(simulated, segment, role):
     if role == "mag_calibration" and segment == "shank":
         shift = simulated.recordings[("thigh", role)]["acc"][0][0] - streams["acc"][0][0]
         streams = {k: (t + shift, v) for k, (t, v) in streams.items()}
-    return sensor_notifications(streams)
+    return sensor_notifications(streams, CHIP[segment])
 
 
 def _deliver(bench, sensors, packets, blackout=None, lose_every=None):
@@ -118,6 +122,12 @@ def _deliver(bench, sensors, packets, blackout=None, lose_every=None):
             p.reachable = True
             bench.wait(lambda p=p: p.is_streaming, f"{p.name} streaming again after its reconnection")
     return delivered, {name: sum((len(packets[name][k].payload) - 2) // 6 for k in v) for name, v in lost.items()}
+
+
+def _names(context, base, sid, role) -> set[str]:
+    """The names of the files the server holds for ``role`` in session ``sid``."""
+    session = context.request.get(f"{base}/api/v1/sessions/{sid}").json()
+    return {r["file_name"] for r in session["recordings"] if r["role"] == role}
 
 
 def _stored_files(context, base, sid):
@@ -176,8 +186,8 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
         sid = _api_session(context, server, "BLE-001", "right")
         bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
-        shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64))
-        thigh = bench.add(Peripheral("D4:F1:A2:B3:C4:E5", "MetaWear-S2", firmware="1.5.0"))
+        shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64, chip=CHIP["shank"]))
+        thigh = bench.add(Peripheral("D4:F1:A2:B3:C4:E5", "MetaWear-S2", firmware="1.5.0", chip=CHIP["thigh"]))
         page.goto(f"{server}/#/sessions/{sid}/record")
         expect(page.get_by_role("heading", level=1)).to_have_text("Record with the sensors")
 
@@ -225,11 +235,30 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # standing twice: a first try cut short, then redone (its stored files are replaced)
         for attempt, role in enumerate(("mag_calibration", "standing", "standing", "lying", "task")):
             step = page.locator(f"li.record-step[data-role={role}]")
+            if attempt == 2:
+                # a redo asks first, naming the files it replaces and where they came from; declined: nothing
+                # changes; agreed: the old files stay the step's data until the new take is acknowledged
+                first_take = _names(context, server, sid, role)
+                assert len(first_take) == 6
+                asked = []
+                page.once("dialog", lambda d, asked=asked: (asked.append(d.message), d.dismiss()))
+                step.get_by_role("button", name="Redo").click()
+                bench.wait(lambda asked=asked: asked, "the redo's question")
+                expect(step).to_have_attribute("data-status", "stored")
+                assert len(asked) == 1 and "6 file(s) on the server recorded with the sensors" in asked[0], asked
+                assert all(n in asked[0] for n in first_take) and "uploaded as files" not in asked[0]
+                assert not thigh.is_streaming and _names(context, server, sid, role) == first_take
+                page.once("dialog", lambda d, asked=asked: (asked.append(d.message), d.accept()))
             step.get_by_role("button", name="Redo" if attempt == 2 else "Start").click()
             bench.wait(lambda: thigh.is_streaming and shank.is_streaming, f"{role}: both streaming")
+            if attempt == 2:
+                assert len(asked) == 2 and _names(context, server, sid, role) == first_take
             packets = {seg: _streams(simulated, seg, role) for seg in sensors}
             if attempt == 1:
                 packets = {seg: p[:len(p) // 3] for seg, p in packets.items()}
+            if attempt == 2:
+                # the redo is recorded a moment later than the first take (its files are new files, with new names)
+                packets = {seg: [type(n)(n.arrival_s + 1.0, n.kind, n.payload) for n in p] for seg, p in packets.items()}
             blackout = lose = None
             if role == "task":
                 t0, t1 = packets["shank"][0].arrival_s, packets["shank"][-1].arrival_s
@@ -242,6 +271,8 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             expect(step.locator("ul.live")).to_contain_text(
                 {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
                  "task": "cycles counted"}[role])
+            # every packet of both boards understood (none counted as bad)
+            assert step.locator(".bad-packets").count() == 0, step.locator("ul.live").inner_text()
             if role == "task":
                 # the flexion preview runs (axes from this visit's standing and supine steps)
                 expect(step.locator("ul.live li.preview")).to_have_text(re.compile(r"Knee flexion \(preview\): -?\d+°"))
@@ -266,6 +297,11 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 expect(step).to_have_attribute("data-status", "stored")
                 assert flaky["posts"] == 3
             assert step.get_attribute("data-status") == "stored", page.locator(".form-message").inner_text()
+            if attempt == 2:
+                # the new take acknowledged: the first take's files are gone, the new take's six remain
+                bench.wait(lambda role=role, old=first_take: not _names(context, server, sid, role) & old,
+                           "the first take deleted")
+                assert len(_names(context, server, sid, role)) == 6
         task_step = page.locator("li.record-step[data-role=task]")
         # the emulated air losses inside the shank's runs are counted (the 5 s gap is between runs, not a loss)
         expect(task_step.locator(".step-status")).to_contain_text(f"thigh 0, shank {sent['task'][1]['shank']}")
