@@ -7,9 +7,9 @@
 // characteristic brings every answer and sample.  The time a notification arrived is its event's timeStamp
 // on the page's clock (performance.timeOrigin + timeStamp = epoch ms): ./timeline.js turns those into stamps.
 //
-// A drop (gattserverdisconnected) while the sensor is wanted starts reconnection attempts every
-// RECONNECT_MS; once connected again, a sensor that was streaming is configured and started again and
-// onReconnect tells the recorder to start new runs (the samples of the gap are gone: the sensor streams, it
+// A drop (gattserverdisconnected) ends the sensor's run (onDropped) and, while the sensor is wanted, starts
+// reconnection attempts every RECONNECT_MS; every connection first stops whatever the board still streams;
+// once connected again, a sensor still meant to stream is configured and started again (onReconnect) (the samples of the gap are gone: the sensor streams, it
 // does not log).  The browser hides the sensor's MAC: `serial` is a stand-in of the same shape, the first six
 // bytes of SHA-256(device.id) with the locally-administered bit set (stable for this sensor in this browser
 // profile; never a real MAC).
@@ -42,7 +42,7 @@ async function stableSerial(id) {
 
 export class MetaWearSensor {
   /** device: a BluetoothDevice; handlers: onSamples(kind, values, arrivalMs, raw), onState(state),
-   * onReconnect(), onBadPacket(error) (a notification the board's table cannot decode) — all optional. */
+   * onDropped() (the link dropped while streaming), onReconnect(), onBadPacket(error) (a notification the board's table cannot decode) — all optional. */
   constructor(device, handlers = {}) {
     this.device = device;
     this.handlers = handlers;
@@ -75,6 +75,9 @@ export class MetaWearSensor {
     this.notify.removeEventListener("characteristicvaluechanged", this.onNotify);
     this.notify.addEventListener("characteristicvaluechanged", this.onNotify);
     await this.notify.startNotifications();
+    // a board may still stream from before (a page reloaded, a link dropped mid-step): quiet it first, so that
+    // no sample arrives before this connection asks for it
+    await this.write(protocol.stopStreaming(this.info.chips ?? protocol.BMI160_BOARD));
     if (!this.info.serial) this.info.serial = await stableSerial(this.device.id);
     if (!this.info.firmware) await this.readDeviceInfo(server);
     const acc = await this.ask(protocol.readModuleInfo(protocol.MODULE.ACCELEROMETER),
@@ -167,6 +170,8 @@ export class MetaWearSensor {
 
   async dropped() {
     for (const w of this.waiting.splice(0)) w.reject(new SensorError("disconnected"));
+    // the run ends with the link: whatever arrives from now on belongs to a new run (./timeline.js)
+    if (this.streaming) this.handlers.onDropped?.();
     if (!this.wanted || this.reconnecting) return;
     this.reconnecting = true;
     const wasStreaming = this.streaming;
@@ -176,7 +181,8 @@ export class MetaWearSensor {
         await new Promise((r) => setTimeout(r, RECONNECT_MS));
         try {
           await this.connect();
-          if (wasStreaming) {
+          // streaming still wanted (the step may have been stopped while the sensor was away)
+          if (wasStreaming && this.streaming) {
             this.handlers.onReconnect?.();
             await this.start();
           }

@@ -87,6 +87,7 @@ class Peripheral:
     reachable: bool = True
     answers: list[bytes] = field(default_factory=list)
     connections: int = 0
+    dropped_at: int | None = None     # how many commands it had got when its link last dropped
 
     def command(self, data: bytes) -> None:
         """A command the page wrote: keep it, answer reads, follow the sensors' power."""
@@ -192,6 +193,7 @@ class Bench:
         """The sensor goes out of reach: the link drops and connection attempts fail until it is back."""
         p.reachable = False
         p.streaming.clear()
+        p.dropped_at = len(p.commands)
         self.cdp.send("BluetoothEmulation.simulateGATTDisconnection", {"address": p.address})
         # the emulation forgets a peripheral's services when it disconnects (measured: getPrimaryService then
         # answers NotFoundError); a real sensor keeps its GATT table, so the bench registers it again

@@ -267,6 +267,9 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             sent[role] = _deliver(bench, sensors, packets, blackout, lose)
             if role == "task":
                 assert shank.connections >= 2                      # the page reconnected on its own
+                # and first quieted whatever the board still streamed (stop: acc power off, ...), then started it
+                again = shank.commands[shank.dropped_at:]
+                assert again[0] == bytes((0x03, 0x01, 0x00)) and bytes((0x03, 0x01, 0x01)) in again, again[:3]
             bench.wait(lambda step=step: step.locator("ul.live").count() == 1, f"{role}: live checks")
             expect(step.locator("ul.live")).to_contain_text(
                 {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
