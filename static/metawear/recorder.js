@@ -17,11 +17,13 @@
 import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
 import { MeanForce, Tilt, segmentAxes, flexionDeg } from "./preview.js";
 import { streamsOf, filesOf } from "./files.js";
+import { PROTOCOL_CONFIG } from "./protocol.js";
 
 export const STEPS = Object.freeze(["mag_calibration", "standing", "lying", "task"]);
 export const SEGMENTS = Object.freeze(["thigh", "shank"]);
 const LABEL = Object.freeze({ mag_calibration: "calibration", standing: "standing", lying: "lying", task: "task" });
 const FLUSH_MS = 250;
+const COMPLETE = 0.8;        // the share of span × rate samples each stream of a step must hold
 const MOVE_DPS = 60;
 const QUIET_DPS = 20;
 const IDENTIFY_MS = 30000;   // no sensor moved alone by then: the clinician is asked to try again
@@ -53,6 +55,28 @@ class MotionMeter {
   }
 }
 
+/** Refuse a step whose streams are not all there: each of both sensors' three streams must hold at least
+ * COMPLETE of span × rate samples, span being the step's time from its first to its last notification (any
+ * sensor).  A sensor lost for good, a stream that never started: the step is not uploaded (code "incomplete").
+ * A reconnection's gap of a few seconds in a task stays well above it. */
+function incomplete(records, streams, config = PROTOCOL_CONFIG) {
+  const rates = { acc: config.accHz, gyr: config.gyrHz, mag: config.magHz };
+  let t0 = Infinity;
+  let t1 = -Infinity;
+  for (const r of records) { t0 = Math.min(t0, r.arrivalMs); t1 = Math.max(t1, r.arrivalMs); }
+  const spanS = (t1 - t0) / 1000;
+  for (const segment of SEGMENTS) {
+    for (const stream of ["acc", "gyr", "mag"]) {
+      const n = streams[segment]?.[stream]?.epochMs.length ?? 0;
+      const expected = spanS * rates[stream];
+      if (n === 0 || n < COMPLETE * expected) {
+        throw Object.assign(new Error(`${segment} ${stream}: ${n} of ~${Math.round(expected)} samples`),
+          { code: "incomplete" });
+      }
+    }
+  }
+}
+
 export class Recorder {
   /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer. */
   constructor(sessionId, store, send) {
@@ -79,7 +103,9 @@ export class Recorder {
     this.sensors[segment] = sensor;
     this.runs[segment] = this.runs[segment] ?? 0;
     sensor.handlers.onSamples = (kind, values, arrivalMs, raw) => this.samples(segment, kind, values, arrivalMs, raw);
-    sensor.handlers.onReconnect = () => { this.runs[segment] += 1; this.changed(); };
+    // a new run from the drop on: nothing of the reconnection is stamped on the old run's line
+    sensor.handlers.onDropped = () => { this.runs[segment] += 1; this.changed(); };
+    sensor.handlers.onReconnect = () => this.changed();
     // a notification the board's table cannot decode (its chip misread, a corrupted packet): counted, shown
     sensor.handlers.onBadPacket = () => { if (this.step) this.bad[segment] += 1; };
   }
@@ -215,10 +241,10 @@ export class Recorder {
     const sensors = loadSensors(this.sessionId, role)
       ?? Object.fromEntries(SEGMENTS.map((s) => [s, this.sensors[s]?.info]));
     const streams = streamsOf(records, undefined, Object.fromEntries(SEGMENTS.map((s) => [s, sensors[s]?.chips])));
+    incomplete(records, streams);
     const recordings = [];
     const lost = {};
     for (const segment of SEGMENTS) {
-      if (!streams[segment]) throw Object.assign(new Error(`no data from the ${segment} sensor for ${role}`), { code: "no_data" });
       const sensor = sensors[segment];
       const files = await filesOf(streams[segment], fileLabel(role, segment), sensor);
       const answer = await this.send(segment, role, files);

@@ -222,3 +222,40 @@ def test_a_stalled_link_is_not_a_loss(static_page, session, segment, stall_s, wi
     err -= np.median(err)
     assert np.max(np.abs(err[off == 0])) < 12.0, np.max(np.abs(err[off == 0]))
     assert np.max(np.abs(err)) < 12.0 + 30.0
+
+
+@pytest.mark.parametrize("missing", [None, ("shank", "mag", 1.0), ("thigh", "gyr", 0.5)])
+def test_an_incomplete_step_is_not_uploaded(static_page, session, missing):
+    """Recorder.upload refuses a step one of whose six streams is missing (or holds half of span × rate samples):
+    nothing is sent, the buffer stays; a complete step is sent whole.  The records are the twin's notifications
+    of a simulated lying step in the real IndexedDB buffer; ``send`` stands for the server and answers each file's
+    SHA-256 (its acknowledgement)."""
+    records = []
+    for segment in ("thigh", "shank"):
+        for kind, (t_s, values) in session.recordings[(segment, "lying")].items():
+            frames = notifications(kind, t_s, values)
+            if missing and missing[:2] == (segment, kind):
+                frames = frames[:int(len(frames) * (1 - missing[2]))]
+            records += [{"segment": segment, "stream": kind, "run": 0, "arrivalMs": f.arrival_s * 1e3 + 5.0,
+                         "bytes": list(f.payload)} for f in frames]
+    out = static_page.evaluate("""async (records) => {
+        const s = await import('/metawear/store.js');
+        const { Recorder } = await import('/metawear/recorder.js');
+        const db = await s.PacketStore.open('chakamo-incomplete');
+        await db.clear(9, 'lying');
+        for (const r of records) db.add({...r, session: 9, step: 'lying', bytes: Uint8Array.from(r.bytes).buffer});
+        await db.flush();
+        const sent = [];
+        const send = async (segment, role, files) => {
+            sent.push(segment);
+            return {recordings: files.map((f, id) => ({id, file_name: f.name, sha256: f.sha256}))}; };
+        const rec = new Recorder(9, db, send);
+        rec.sensors = {thigh: {info: {serial: 'D4F1A2B3C4E5', firmware: '1.7.3'}},
+                       shank: {info: {serial: 'C1D2E3F4A5B6', firmware: '1.7.3'}}};
+        let code = null;
+        try { await rec.upload('lying'); } catch (e) { code = e.code; }
+        return {code, sent, left: (await db.step(9, 'lying')).length}; }""", records)
+    if missing is None:
+        assert out == {"code": None, "sent": ["thigh", "shank"], "left": 0}
+    else:
+        assert out == {"code": "incomplete", "sent": [], "left": len(records)}
