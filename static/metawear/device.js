@@ -27,6 +27,18 @@ export class SensorError extends Error {
   }
 }
 
+/** Web Bluetooth's errors (DOMException names, Web Bluetooth spec §4 and §6) → the recorder's codes, whose
+ * sentences the page has in es/en/pt (record.error.<code>); null for an error that is not one of them. */
+export const BLUETOOTH_ERRORS = Object.freeze({
+  NetworkError: "bt_network", SecurityError: "bt_security", NotSupportedError: "bt_not_supported",
+  InvalidStateError: "bt_invalid_state", NotAllowedError: "bt_not_allowed", AbortError: "bt_abort",
+  TimeoutError: "bt_timeout",
+});
+
+export function bluetoothErrorCode(err) {
+  return err && typeof err.name === "string" ? BLUETOOTH_ERRORS[err.name] ?? null : null;
+}
+
 /** The browser's chooser for a MetaWear sensor (must run in a click handler). */
 export async function pickSensor(bluetooth = navigator.bluetooth) {
   if (!bluetooth) throw new SensorError("no_bluetooth");

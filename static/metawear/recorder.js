@@ -160,7 +160,10 @@ export class Recorder {
       coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
     if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
     this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
-    this.flushTimer = setInterval(() => this.store.flush().catch(() => { /* kept; retried next time */ }), FLUSH_MS);
+    // a failed write keeps its records queued and is retried at the next tick; meanwhile it is shown (live)
+    this.bufferError = null;
+    this.flushTimer = setInterval(() => this.store.flush().then(() => { this.bufferError = null; },
+      (err) => { this.bufferError = err; this.changed(); }), FLUSH_MS);
     try {
       await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
     } catch (err) {
@@ -213,12 +216,13 @@ export class Recorder {
   /** The live figures of the step being recorded, per segment. */
   live() {
     if (!this.checks) return null;
-    return Object.fromEntries(SEGMENTS.map((s) => {
+    const live = Object.fromEntries(SEGMENTS.map((s) => {
       const c = this.checks[s];
       return [s, { samples: this.counts[s], bad: this.bad[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
         stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
         state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
     }));
+    return { ...live, bufferError: this.bufferError ? String(this.bufferError.message || this.bufferError) : null };
   }
 
   /** Stop the step and upload it; resolves to {role, lost: {segment: samples}, recordings} once acknowledged. */

@@ -21,7 +21,7 @@ import { api, upload } from "../api.js";
 import { h, append, clear, alertBox, errorText, label, num } from "../dom.js";
 import { t } from "../i18n.js";
 import { canEdit } from "../app.js";
-import { pickSensor, MetaWearSensor } from "../metawear/device.js";
+import { pickSensor, MetaWearSensor, bluetoothErrorCode } from "../metawear/device.js";
 import { PacketStore } from "../metawear/store.js";
 import { Recorder, STEPS, SEGMENTS, fileLabel } from "../metawear/recorder.js";
 
@@ -56,7 +56,8 @@ function sensorCard(sensor, segment) {
 function liveLine(role, live, flexion) {
   const preview = role === "task" ? h("li", { class: "preview" }, t("record.preview", {
     deg: flexion === null ? "—" : num(flexion, 0) })) : null;
-  return [preview, ...SEGMENTS.map((s) => {
+  const stored = live.bufferError ? h("li", { class: "buffer-error" }, t("record.buffer_error")) : null;
+  return [preview, stored, ...SEGMENTS.map((s) => {
     const l = live[s];
     const samples = t("record.samples", { acc: l.samples.acc, gyr: l.samples.gyr, mag: l.samples.mag });
     let check = "";
@@ -91,7 +92,9 @@ export function recordView(sessionId) {
 
   const fail = (err) => {
     // the recorder's own errors carry a code (translated here); the API's are ApiErrors with their sentence
-    const key = err && typeof err.code === "string" && err.status === undefined ? `record.error.${err.code}` : null;
+    const bt = bluetoothErrorCode(err);      // the browser's Bluetooth errors (English DOMException messages)
+    const key = bt ? `record.error.${bt}`
+      : err && typeof err.code === "string" && err.status === undefined ? `record.error.${err.code}` : null;
     clear(message).append(alertBox(key && t(key) !== key ? t(key) : errorText(err)));
   };
 

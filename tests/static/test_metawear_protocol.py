@@ -134,3 +134,19 @@ def test_a_metamotion_s_streams_on_its_own_registers(static_page):
     assert {"030400", "030500", "130400", "130500"} <= set(out["stop"])
     assert out["gyro"] == {"kind": "gyr", "values": [[10.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]}
     assert out["misread"] is True
+
+
+def test_bluetooth_errors_are_said_in_three_languages(static_page):
+    """Web Bluetooth's DOMException names map to the recorder's codes, each a sentence in es/en/pt (the browser's
+    own messages are English only)."""
+    import json
+    from pathlib import Path
+
+    out = static_page.evaluate("""async () => { const d = await import('/metawear/device.js');
+        return {table: d.BLUETOOTH_ERRORS, network: d.bluetoothErrorCode(new DOMException('x', 'NetworkError')),
+                other: d.bluetoothErrorCode(new Error('x'))}; }""")
+    assert out["network"] == "bt_network" and out["other"] is None
+    static = Path(__file__).resolve().parents[2] / "static" / "i18n"
+    for lang in ("es", "en", "pt"):
+        table = json.loads((static / f"{lang}.json").read_text(encoding="utf-8"))
+        assert all(table.get(f"record.error.{code}") for code in out["table"].values()), lang
