@@ -140,6 +140,11 @@ export function recordView(sessionId) {
 
   const swapButton = h("button", { type: "button", class: "secondary swap" }, t("record.swap"));
   swapButton.addEventListener("click", () => {
+    // steps already recorded keep the assignment they were recorded with: swapping now mixes thigh and shank
+    // between steps (wrong angles, silently), so it is asked first, naming them
+    const done = STEPS.filter((r) => ["stored", "unsent"].includes(state.status[r]));
+    if (done.length && !window.confirm(t("record.swap_warning", {
+      steps: done.map((r) => label("recording", r)).join(", ") }))) return;
     const { thigh, shank } = state.recorder.sensors;
     state.recorder.attach("thigh", shank);
     state.recorder.attach("shank", thigh);

@@ -304,6 +304,14 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 expect(step).to_have_attribute("data-status", "stored")
                 assert flaky["posts"] == 3
             assert step.get_attribute("data-status") == "stored", page.locator(".form-message").inner_text()
+            if role == "lying":
+                # swapping thigh and shank after steps were recorded asks first, naming them; declined: unchanged
+                warned = []
+                page.once("dialog", lambda d, warned=warned: (warned.append(d.message), d.dismiss()))
+                page.get_by_role("button", name="Swap thigh and shank").click()
+                bench.wait(lambda warned=warned: warned, "the swap's warning")
+                assert "Magnetometer calibration" in warned[0] and "Standing" in warned[0], warned
+                expect(page.locator("ul.sensors li[data-segment=thigh]")).to_contain_text("MetaWear-S2")
             if attempt == 2:
                 # the new take acknowledged: the first take's files are gone, the new take's six remain
                 bench.wait(lambda role=role, old=first_take: not _names(context, server, sid, role) & old,
@@ -313,6 +321,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # the emulated air losses inside the shank's runs are counted (the 5 s gap is between runs, not a loss)
         expect(task_step.locator(".step-status")).to_contain_text(f"thigh 0, shank {sent['task'][1]['shank']}")
         expect(page.get_by_role("link", name="All four steps stored: process the session")).to_be_visible()
+
         assert page.evaluate("""async () => { const s = await import('/static/metawear/store.js');
             const db = await s.PacketStore.open(); return (await db.steps(%d)).length; }""" % sid) == 0
 
