@@ -3,9 +3,10 @@
 
 A simulated stream (:func:`app.pipeline.demo.simulate_session`: acc m/s², gyr rad/s, mag µT) is converted to the
 board's units (g, °/s, µT), quantised to int16 counts at the protocol's ranges (±16 g: 2048 LSB/g; ±2000 °/s:
-16.4 LSB/(°/s); BMM150: 16 LSB/µT) and framed as ``[module, register, int16 LE …]``: accelerometer module 0x03
-packed register 0x1c (three samples per notification), gyroscope 0x13 packed 0x07, magnetometer 0x15 register
-0x05 (one sample).  Each notification leaves the sensor when its last sample is taken; that true time is its
+16.4 LSB/(°/s); BMM150: 16 LSB/µT) and framed as ``[module, register, int16 LE …]`` with the board's registers
+(MbientLab's register maps): a MetaMotion R (BMI160) sends the accelerometer (module 0x03) on its packed register
+0x1c and the gyroscope (0x13) on 0x07, three samples per notification; a MetaMotion S (BMI270) sends both on
+register 0x05, also packed; the magnetometer (0x15) is register 0x05, one sample, on both.  Each notification leaves the sensor when its last sample is taken; that true time is its
 arrival time here (no air latency).
 """
 
@@ -20,8 +21,13 @@ from estimators.physics import STANDARD_GRAVITY_M_S2
 
 #: LSB per board unit at the protocol's ranges
 LSB = {"acc": 32768 / 16, "gyr": 16.4, "mag": 16.0}
-#: (module, register, samples per notification)
-FRAME = {"acc": (0x03, 0x1C, 3), "gyr": (0x13, 0x07, 3), "mag": (0x15, 0x05, 1)}
+#: per chip: (module, register, samples per notification)
+FRAMES = {
+    "BMI160": {"acc": (0x03, 0x1C, 3), "gyr": (0x13, 0x07, 3), "mag": (0x15, 0x05, 1)},
+    "BMI270": {"acc": (0x03, 0x05, 3), "gyr": (0x13, 0x05, 3), "mag": (0x15, 0x05, 1)},
+}
+#: the module info answers' implementation byte of each chip (accelerometer, gyroscope)
+IMPLEMENTATION = {"BMI160": (1, 0), "BMI270": (4, 1)}
 
 
 def board_units(kind: str, values_si: np.ndarray) -> np.ndarray:
@@ -45,9 +51,10 @@ class Notification:
     payload: bytes
 
 
-def notifications(kind: str, t_s: np.ndarray, values_si: np.ndarray) -> list[Notification]:
-    """The notifications of one stream; a last incomplete packed group is not sent (the board waits for it)."""
-    module, register, per = FRAME[kind]
+def notifications(kind: str, t_s: np.ndarray, values_si: np.ndarray, chip: str = "BMI160") -> list[Notification]:
+    """The notifications of one stream of a board with ``chip``; a last incomplete packed group is not sent (the
+    board waits for it)."""
+    module, register, per = FRAMES[chip][kind]
     raw = counts(kind, values_si)
     out = []
     for start in range(0, len(raw) - per + 1, per):
@@ -56,7 +63,7 @@ def notifications(kind: str, t_s: np.ndarray, values_si: np.ndarray) -> list[Not
     return out
 
 
-def sensor_notifications(streams: dict) -> list[Notification]:
+def sensor_notifications(streams: dict, chip: str = "BMI160") -> list[Notification]:
     """All notifications of one sensor's recording (``{kind: (t_s, values)}``) in arrival order."""
-    every = [n for kind in ("acc", "gyr", "mag") for n in notifications(kind, *streams[kind])]
+    every = [n for kind in ("acc", "gyr", "mag") for n in notifications(kind, *streams[kind], chip=chip)]
     return sorted(every, key=lambda n: n.arrival_s)

@@ -7,9 +7,9 @@
 // characteristic brings every answer and sample.  The time a notification arrived is its event's timeStamp
 // on the page's clock (performance.timeOrigin + timeStamp = epoch ms): ./timeline.js turns those into stamps.
 //
-// A drop (gattserverdisconnected) while the sensor is wanted starts reconnection attempts every
-// RECONNECT_MS; once connected again, a sensor that was streaming is configured and started again and
-// onReconnect tells the recorder to start new runs (the samples of the gap are gone: the sensor streams, it
+// A drop (gattserverdisconnected) ends the sensor's run (onDropped) and, while the sensor is wanted, starts
+// reconnection attempts every RECONNECT_MS; every connection first stops whatever the board still streams;
+// once connected again, a sensor still meant to stream is configured and started again (onReconnect) (the samples of the gap are gone: the sensor streams, it
 // does not log).  The browser hides the sensor's MAC: `serial` is a stand-in of the same shape, the first six
 // bytes of SHA-256(device.id) with the locally-administered bit set (stable for this sensor in this browser
 // profile; never a real MAC).
@@ -27,6 +27,18 @@ export class SensorError extends Error {
   }
 }
 
+/** Web Bluetooth's errors (DOMException names, Web Bluetooth spec §4 and §6) → the recorder's codes, whose
+ * sentences the page has in es/en/pt (record.error.<code>); null for an error that is not one of them. */
+export const BLUETOOTH_ERRORS = Object.freeze({
+  NetworkError: "bt_network", SecurityError: "bt_security", NotSupportedError: "bt_not_supported",
+  InvalidStateError: "bt_invalid_state", NotAllowedError: "bt_not_allowed", AbortError: "bt_abort",
+  TimeoutError: "bt_timeout",
+});
+
+export function bluetoothErrorCode(err) {
+  return err && typeof err.name === "string" ? BLUETOOTH_ERRORS[err.name] ?? null : null;
+}
+
 /** The browser's chooser for a MetaWear sensor (must run in a click handler). */
 export async function pickSensor(bluetooth = navigator.bluetooth) {
   if (!bluetooth) throw new SensorError("no_bluetooth");
@@ -41,8 +53,8 @@ async function stableSerial(id) {
 }
 
 export class MetaWearSensor {
-  /** device: a BluetoothDevice; handlers: onSamples(kind, values, arrivalMs, count), onState(state),
-   * onReconnect() — all optional. */
+  /** device: a BluetoothDevice; handlers: onSamples(kind, values, arrivalMs, raw), onState(state),
+   * onDropped() (the link dropped while streaming), onReconnect(), onBadPacket(error) (a notification the board's table cannot decode) — all optional. */
   constructor(device, handlers = {}) {
     this.device = device;
     this.handlers = handlers;
@@ -75,6 +87,9 @@ export class MetaWearSensor {
     this.notify.removeEventListener("characteristicvaluechanged", this.onNotify);
     this.notify.addEventListener("characteristicvaluechanged", this.onNotify);
     await this.notify.startNotifications();
+    // a board may still stream from before (a page reloaded, a link dropped mid-step): quiet it first, so that
+    // no sample arrives before this connection asks for it
+    await this.write(protocol.stopStreaming(this.info.chips ?? protocol.BMI160_BOARD));
     if (!this.info.serial) this.info.serial = await stableSerial(this.device.id);
     if (!this.info.firmware) await this.readDeviceInfo(server);
     const acc = await this.ask(protocol.readModuleInfo(protocol.MODULE.ACCELEROMETER),
@@ -130,7 +145,7 @@ export class MetaWearSensor {
     const arrivalMs = performance.timeOrigin + ev.timeStamp;
     let answer;
     try {
-      answer = protocol.decode(view, this.scale);
+      answer = protocol.decode(view, this.scale, this.info.chips ?? protocol.BMI160_BOARD);
     } catch (err) {
       this.handlers.onBadPacket?.(err);
       return;
@@ -146,14 +161,14 @@ export class MetaWearSensor {
 
   /** Configure the protocol's rates and ranges and start the three streams. */
   async start() {
-    await this.write([...protocol.configure(this.config, this.info.chips), ...protocol.startStreaming()]);
+    await this.write([...protocol.configure(this.config, this.info.chips), ...protocol.startStreaming(this.info.chips)]);
     this.streaming = true;
     this.setState("streaming");
   }
 
   async stop() {
     this.streaming = false;
-    if (this.device.gatt.connected) await this.write(protocol.stopStreaming());
+    if (this.device.gatt.connected) await this.write(protocol.stopStreaming(this.info.chips ?? protocol.BMI160_BOARD));
     this.setState(this.device.gatt.connected ? "connected" : this.state);
   }
 
@@ -167,6 +182,8 @@ export class MetaWearSensor {
 
   async dropped() {
     for (const w of this.waiting.splice(0)) w.reject(new SensorError("disconnected"));
+    // the run ends with the link: whatever arrives from now on belongs to a new run (./timeline.js)
+    if (this.streaming) this.handlers.onDropped?.();
     if (!this.wanted || this.reconnecting) return;
     this.reconnecting = true;
     const wasStreaming = this.streaming;
@@ -176,7 +193,8 @@ export class MetaWearSensor {
         await new Promise((r) => setTimeout(r, RECONNECT_MS));
         try {
           await this.connect();
-          if (wasStreaming) {
+          // streaming still wanted (the step may have been stopped while the sensor was away)
+          if (wasStreaming && this.streaming) {
             this.handlers.onReconnect?.();
             await this.start();
           }

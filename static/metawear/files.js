@@ -10,10 +10,9 @@ import * as protocol from "./protocol.js";
 import { StreamTimeline, stampMs } from "./timeline.js";
 import { csvText, fileName } from "./csv.js";
 
-const PER_PACKET = Object.freeze({ acc: 3, gyr: 3, mag: 1 });
-
-/** {segment: {stream: {epochMs: [...], values: [[x, y, z], ...], lost, driftPpm}}} of a step's records. */
-export function streamsOf(records, config = protocol.PROTOCOL_CONFIG) {
+/** {segment: {stream: {epochMs: [...], values: [[x, y, z], ...], lost, driftPpm}}} of a step's records;
+ * chips: {segment: the chips of the sensor that recorded it} (their data registers differ, ./protocol.js). */
+export function streamsOf(records, config = protocol.PROTOCOL_CONFIG, chips = {}) {
   const scale = protocol.sensitivities(config);
   const rates = { acc: config.accHz, gyr: config.gyrHz, mag: config.magHz };
   const groups = new Map();
@@ -25,13 +24,14 @@ export function streamsOf(records, config = protocol.PROTOCOL_CONFIG) {
   const out = {};
   for (const [key, recs] of groups) {
     const [segment, stream] = key.split("/");
-    const per = PER_PACKET[stream];
+    const board = chips[segment] ?? protocol.BMI160_BOARD;
+    const per = stream !== "mag" && board.packed?.[stream] ? 3 : 1;      // samples per notification
     const timeline = new StreamTimeline(rates[stream], per);
     let run = recs[0].run;
     const decoded = recs.map((r) => {
       if (r.run !== run) { timeline.newRun(); run = r.run; }
       const [runIndex, k] = timeline.push(r.arrivalMs);
-      return { runIndex, k, values: protocol.decode(new Uint8Array(r.bytes), scale).values };
+      return { runIndex, k, values: protocol.decode(new Uint8Array(r.bytes), scale, board).values };
     });
     const placed = timeline.placement();
     const epochMs = [];

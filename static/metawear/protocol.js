@@ -12,11 +12,20 @@
 //
 // Modules and registers used here
 //   accelerometer 0x03: 0x01 power (1 on, 0 off), 0x02 data interrupt enable ([1, 0] on, [0, 1] off),
-//     0x03 config [ACC_CONF, ACC_RANGE] (the chip's own two registers), 0x04 data (one sample),
-//     0x1c packed data (three samples); module info read [0x03, 0x80] → [0x03, 0x80, implementation, revision]
-//     with implementation 1 = BMI160, 4 = BMI270
-//   gyroscope 0x13: 0x01 power, 0x02 interrupt enable, 0x03 config [GYR_CONF, GYR_RANGE], 0x05 data,
-//     0x07 packed; implementation 0 = BMI160, 1 = BMI270
+//     0x03 config [ACC_CONF, ACC_RANGE] (the chip's own two registers); module info read [0x03, 0x80] →
+//     [0x03, 0x80, implementation, revision] with implementation 1 = BMI160, 4 = BMI270
+//   gyroscope 0x13: 0x01 power, 0x02 interrupt enable, 0x03 config [GYR_CONF, GYR_RANGE];
+//     implementation 0 = BMI160, 1 = BMI270
+//   The data registers depend on the chip (MbientLab's register maps of each board, DATA_REGISTERS below):
+//                       single   packed (three samples)
+//     BMI160 acc        0x04     0x1c        (MetaMotion R / RL)
+//     BMI160 gyro       0x05     0x07
+//     BMI270 acc        0x04     0x05        (MetaMotion S)
+//     BMI270 gyro       0x04     0x05
+//   so one (module, register) means different streams on the two boards (0x13 0x05 is a BMI160's single
+//   gyroscope sample and a BMI270's packed one): a board's packets are decoded with its own table.  Packed
+//   data exists from module revision 1 on (the revision byte of the module info answer); an older module
+//   streams single samples.
 //   magnetometer 0x15 (BMM150): 0x01 power, 0x02 interrupt enable, 0x03 data rate, 0x04 repetitions
 //     [(xy − 1)/2, z − 1], 0x05 data, 0x09 packed
 //   settings 0x11: 0x0c battery state, read → [charge %, voltage mV as uint16]
@@ -48,11 +57,19 @@ export const MODULE = Object.freeze({ ACCELEROMETER: 0x03, SETTINGS: 0x11, GYRO:
 const READ = 0x80;
 const REG = Object.freeze({ POWER: 0x01, INTERRUPT: 0x02, CONFIG: 0x03, MODULE_INFO: 0x00, BATTERY: 0x0c,
   MAG_RATE: 0x03, MAG_REPETITIONS: 0x04 });
-/** Data registers of each stream: [single sample, three packed samples]. */
-const DATA_REG = Object.freeze({ acc: [0x04, 0x1c], gyr: [0x05, 0x07], mag: [0x05, 0x09] });
+/** Data registers of each stream per chip: [single sample, three packed samples] (table in the header). */
+const DATA_REGISTERS = Object.freeze({
+  acc: Object.freeze({ BMI160: [0x04, 0x1c], BMI270: [0x04, 0x05] }),
+  gyr: Object.freeze({ BMI160: [0x05, 0x07], BMI270: [0x04, 0x05] }),
+  mag: Object.freeze({ BMM150: [0x05, 0x09] }),
+});
+/** The module revision from which a module streams packed samples. */
+const PACKED_REVISION = 1;
 const STREAM_MODULE = Object.freeze({ acc: MODULE.ACCELEROMETER, gyr: MODULE.GYRO, mag: MODULE.MAGNETOMETER });
 
 export const ACC_CHIP = Object.freeze({ 1: "BMI160", 4: "BMI270" });
+/** A MetaMotion R's chips (both modules able to pack): the default of the functions below. */
+export const BMI160_BOARD = Object.freeze({ acc: "BMI160", gyr: "BMI160", packed: Object.freeze({ acc: true, gyr: true }) });
 export const GYRO_CHIP = Object.freeze({ 0: "BMI160", 1: "BMI270" });
 const GYRO_CHIP_NAMES = Object.freeze({ BMI160: 0, BMI270: 1 });
 
@@ -104,7 +121,7 @@ export function readBattery() {
 
 /** Commands that set rates and ranges of the three sensors (nothing streams yet).
  * chips: {acc: "BMI160"|"BMI270", gyr: "BMI160"|"BMI270"} from the module info answers. */
-export function configure(config = PROTOCOL_CONFIG, chips = { acc: "BMI160", gyr: "BMI160" }) {
+export function configure(config = PROTOCOL_CONFIG, chips = BMI160_BOARD) {
   const accRanges = pick(ACC_RANGE_CODE, chips.acc, "accelerometer chip");
   pick(GYRO_CHIP_NAMES, chips.gyr, "gyroscope chip");
   const accOdr = pick(BOSCH_ODR, config.accHz, "accelerometer rate (Hz)");
@@ -118,13 +135,21 @@ export function configure(config = PROTOCOL_CONFIG, chips = { acc: "BMI160", gyr
     Uint8Array.of(MODULE.MAGNETOMETER, REG.MAG_RATE, pick(MAG_RATE_CODE, config.magHz, "magnetometer rate (Hz)")),
   ];
 }
+/** The data registers of a board's three streams: {acc, gyr, mag} each [single, packed] register. */
+export function dataRegisters(chips = BMI160_BOARD) {
+  return { acc: pick(DATA_REGISTERS.acc, chips.acc, "accelerometer chip"),
+    gyr: pick(DATA_REGISTERS.gyr, chips.gyr, "gyroscope chip"), mag: DATA_REGISTERS.mag.BMM150 };
+}
+
 /** Commands that subscribe to the three data registers and switch the sensors on (after configure()).
- * packed: acc and gyro send three samples per notification (fewer packets at 100 Hz). */
-export function startStreaming({ packed = true } = {}) {
+ * chips: chipsOf()'s answer; acc and gyro send three samples per notification (fewer packets at 100 Hz)
+ * where the module can (chips.packed), one otherwise. */
+export function startStreaming(chips = BMI160_BOARD) {
+  const regs = dataRegisters(chips);
   const out = [];
   for (const kind of ["acc", "gyr", "mag"]) {
     const module = STREAM_MODULE[kind];
-    const reg = DATA_REG[kind][packed && kind !== "mag" ? 1 : 0];
+    const reg = regs[kind][kind !== "mag" && chips.packed?.[kind] ? 1 : 0];
     out.push(Uint8Array.of(module, reg, 0x01), Uint8Array.of(module, REG.INTERRUPT, 0x01, 0x00),
       Uint8Array.of(module, REG.POWER, 0x01));
   }
@@ -132,34 +157,45 @@ export function startStreaming({ packed = true } = {}) {
 }
 
 /** Commands that stop the three sensors and their notifications (both data registers of each). */
-export function stopStreaming() {
+export function stopStreaming(chips = BMI160_BOARD) {
+  const regs = dataRegisters(chips);
   const out = [];
   for (const kind of ["acc", "gyr", "mag"]) {
     const module = STREAM_MODULE[kind];
     out.push(Uint8Array.of(module, REG.POWER, 0x00), Uint8Array.of(module, REG.INTERRUPT, 0x00, 0x01));
-    for (const reg of DATA_REG[kind]) out.push(Uint8Array.of(module, reg, 0x00));
+    for (const reg of regs[kind]) out.push(Uint8Array.of(module, reg, 0x00));
   }
   return out;
 }
 
 // ------------------------------------------------------------------------------------------ decoder
-const DATA_KIND = new Map();
-for (const [kind, regs] of Object.entries(DATA_REG)) {
-  regs.forEach((reg, packed) => DATA_KIND.set((STREAM_MODULE[kind] << 8) | reg, { kind, samples: packed ? 3 : 1 }));
+const DATA_KINDS = new Map();    // "acc chip/gyro chip" → Map((module << 8) | register → {kind, samples})
+
+function dataKinds(chips) {
+  const key = `${chips.acc}/${chips.gyr}`;
+  if (!DATA_KINDS.has(key)) {
+    const table = new Map();
+    for (const [kind, regs] of Object.entries(dataRegisters(chips))) {
+      regs.forEach((reg, packed) => table.set((STREAM_MODULE[kind] << 8) | reg, { kind, samples: packed ? 3 : 1 }));
+    }
+    DATA_KINDS.set(key, table);
+  }
+  return DATA_KINDS.get(key);
 }
 
 /** One notification → what it says.
  *   samples: {kind: "acc"|"gyr"|"mag", values: [[x, y, z], …]} in g, °/s, µT (one or three samples, in order)
  *   {kind: "module", module, implementation, revision}   {kind: "battery", chargePercent, voltageMv}
  *   {kind: "other", module, register}   anything else the board says (ignored by callers)
- * bytes: DataView, ArrayBuffer or Uint8Array.  A data packet of the wrong length is a ProtocolError. */
-export function decode(bytes, scale = sensitivities()) {
+ * bytes: DataView, ArrayBuffer or Uint8Array; chips: the board's (chipsOf), whose table names its data
+ * registers.  A data packet of the wrong length is a ProtocolError. */
+export function decode(bytes, scale = sensitivities(), chips = BMI160_BOARD) {
   const view = bytes instanceof DataView ? bytes
     : new DataView(bytes.buffer ?? bytes, bytes.byteOffset ?? 0, bytes.byteLength);
   if (view.byteLength < 2) throw new ProtocolError(`notification of ${view.byteLength} byte(s): too short`);
   const module = view.getUint8(0);
   const register = view.getUint8(1);
-  const data = DATA_KIND.get((module << 8) | register);
+  const data = dataKinds(chips).get((module << 8) | register);
   if (data) {
     const expected = 2 + 6 * data.samples;
     if (view.byteLength !== expected) {
@@ -182,12 +218,13 @@ export function decode(bytes, scale = sensitivities()) {
   return { kind: "other", module, register };
 }
 
-/** The chips of a board from its module info answers: {acc, gyr} names, or a ProtocolError for one this
- * recorder does not know (another MetaWear model without BMI160/BMI270). */
+/** The chips of a board from its module info answers: {acc, gyr} names and packed: {acc, gyr} (the module's
+ * revision ≥ PACKED_REVISION), or a ProtocolError for one this recorder does not know (another MetaWear model
+ * without BMI160/BMI270). */
 export function chipsOf(accInfo, gyrInfo) {
   const acc = ACC_CHIP[accInfo.implementation];
   const gyr = GYRO_CHIP[gyrInfo.implementation];
   if (!acc) throw new ProtocolError(`accelerometer implementation ${accInfo.implementation} is not a BMI160 or BMI270`, "unsupported_sensor");
   if (!gyr) throw new ProtocolError(`gyroscope implementation ${gyrInfo.implementation} is not a BMI160 or BMI270`, "unsupported_sensor");
-  return { acc, gyr };
+  return { acc, gyr, packed: { acc: accInfo.revision >= PACKED_REVISION, gyr: gyrInfo.revision >= PACKED_REVISION } };
 }

@@ -17,14 +17,21 @@
 import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
 import { MeanForce, Tilt, segmentAxes, flexionDeg } from "./preview.js";
 import { streamsOf, filesOf } from "./files.js";
+import { PROTOCOL_CONFIG } from "./protocol.js";
 
 export const STEPS = Object.freeze(["mag_calibration", "standing", "lying", "task"]);
 export const SEGMENTS = Object.freeze(["thigh", "shank"]);
 const LABEL = Object.freeze({ mag_calibration: "calibration", standing: "standing", lying: "lying", task: "task" });
 const FLUSH_MS = 250;
+const COMPLETE = 0.8;        // the share of span × rate samples each stream of a step must hold
 const MOVE_DPS = 60;
 const QUIET_DPS = 20;
 const IDENTIFY_MS = 30000;   // no sensor moved alone by then: the clinician is asked to try again
+
+/** The label a step's file names start with for one segment (e.g. "task-thigh"): the files this recorder made. */
+export function fileLabel(role, segment) {
+  return `${LABEL[role]}-${segment}`;
+}
 
 // the serial and firmware of the sensors that recorded a step, for its file names (kept beside its buffer)
 function sensorsKey(sessionId, role) {
@@ -45,6 +52,28 @@ class MotionMeter {
     this.window.push(Math.hypot(...dps));
     if (this.window.length > this.n) this.window.shift();
     return this.window.reduce((a, b) => a + b, 0) / this.window.length;
+  }
+}
+
+/** Refuse a step whose streams are not all there: each of both sensors' three streams must hold at least
+ * COMPLETE of span × rate samples, span being the step's time from its first to its last notification (any
+ * sensor).  A sensor lost for good, a stream that never started: the step is not uploaded (code "incomplete").
+ * A reconnection's gap of a few seconds in a task stays well above it. */
+function incomplete(records, streams, config = PROTOCOL_CONFIG) {
+  const rates = { acc: config.accHz, gyr: config.gyrHz, mag: config.magHz };
+  let t0 = Infinity;
+  let t1 = -Infinity;
+  for (const r of records) { t0 = Math.min(t0, r.arrivalMs); t1 = Math.max(t1, r.arrivalMs); }
+  const spanS = (t1 - t0) / 1000;
+  for (const segment of SEGMENTS) {
+    for (const stream of ["acc", "gyr", "mag"]) {
+      const n = streams[segment]?.[stream]?.epochMs.length ?? 0;
+      const expected = spanS * rates[stream];
+      if (n === 0 || n < COMPLETE * expected) {
+        throw Object.assign(new Error(`${segment} ${stream}: ${n} of ~${Math.round(expected)} samples`),
+          { code: "incomplete" });
+      }
+    }
   }
 }
 
@@ -74,7 +103,11 @@ export class Recorder {
     this.sensors[segment] = sensor;
     this.runs[segment] = this.runs[segment] ?? 0;
     sensor.handlers.onSamples = (kind, values, arrivalMs, raw) => this.samples(segment, kind, values, arrivalMs, raw);
-    sensor.handlers.onReconnect = () => { this.runs[segment] += 1; this.changed(); };
+    // a new run from the drop on: nothing of the reconnection is stamped on the old run's line
+    sensor.handlers.onDropped = () => { this.runs[segment] += 1; this.changed(); };
+    sensor.handlers.onReconnect = () => this.changed();
+    // a notification the board's table cannot decode (its chip misread, a corrupted packet): counted, shown
+    sensor.handlers.onBadPacket = () => { if (this.step) this.bad[segment] += 1; };
   }
 
   /** Stream both sensors until one is moved alone: resolves to [thigh sensor, shank sensor]. */
@@ -114,18 +147,23 @@ export class Recorder {
     });
   }
 
-  /** Start recording `role` on both sensors (its earlier buffer, if any, is dropped: a redo). */
+  /** Start recording `role` on both sensors.  Its earlier buffer, if any, is dropped: the caller asks the
+   * clinician first (an unsent take is the only copy of its samples). */
   async start(role) {
     await this.store.clear(this.sessionId, role);
     saveSensors(this.sessionId, role, Object.fromEntries(SEGMENTS.map((s) => [s, {
-      serial: this.sensors[s].info.serial, firmware: this.sensors[s].info.firmware }])));
+      serial: this.sensors[s].info.serial, firmware: this.sensors[s].info.firmware, chips: this.sensors[s].info.chips }])));
     this.step = role;
     this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
+    this.bad = Object.fromEntries(SEGMENTS.map((s) => [s, 0]));
     this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
       coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
     if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
     this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
-    this.flushTimer = setInterval(() => this.store.flush().catch(() => { /* kept; retried next time */ }), FLUSH_MS);
+    // a failed write keeps its records queued and is retried at the next tick; meanwhile it is shown (live)
+    this.bufferError = null;
+    this.flushTimer = setInterval(() => this.store.flush().then(() => { this.bufferError = null; },
+      (err) => { this.bufferError = err; this.changed(); }), FLUSH_MS);
     try {
       await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
     } catch (err) {
@@ -178,12 +216,13 @@ export class Recorder {
   /** The live figures of the step being recorded, per segment. */
   live() {
     if (!this.checks) return null;
-    return Object.fromEntries(SEGMENTS.map((s) => {
+    const live = Object.fromEntries(SEGMENTS.map((s) => {
       const c = this.checks[s];
-      return [s, { samples: this.counts[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
+      return [s, { samples: this.counts[s], bad: this.bad[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
         stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
         state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
     }));
+    return { ...live, bufferError: this.bufferError ? String(this.bufferError.message || this.bufferError) : null };
   }
 
   /** Stop the step and upload it; resolves to {role, lost: {segment: samples}, recordings} once acknowledged. */
@@ -202,16 +241,16 @@ export class Recorder {
   async upload(role) {
     const records = await this.store.step(this.sessionId, role);
     if (records.length === 0) throw Object.assign(new Error(`no buffered data for ${role}`), { code: "no_data" });
-    const streams = streamsOf(records);
     // the sensors that recorded the step (saved at its start), not those connected now (after a reload)
     const sensors = loadSensors(this.sessionId, role)
       ?? Object.fromEntries(SEGMENTS.map((s) => [s, this.sensors[s]?.info]));
+    const streams = streamsOf(records, undefined, Object.fromEntries(SEGMENTS.map((s) => [s, sensors[s]?.chips])));
+    incomplete(records, streams);
     const recordings = [];
     const lost = {};
     for (const segment of SEGMENTS) {
-      if (!streams[segment]) throw Object.assign(new Error(`no data from the ${segment} sensor for ${role}`), { code: "no_data" });
       const sensor = sensors[segment];
-      const files = await filesOf(streams[segment], `${LABEL[role]}-${segment}`, sensor);
+      const files = await filesOf(streams[segment], fileLabel(role, segment), sensor);
       const answer = await this.send(segment, role, files);
       const stored = new Map(answer.recordings.map((r) => [r.file_name, r]));
       for (const f of files) {

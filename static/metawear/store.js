@@ -83,9 +83,18 @@ export class PacketStore {
   async steps(session) {
     await this.flush();
     const tx = this.db.transaction(STORE, "readonly");
-    const keys = await done(tx.objectStore(STORE).index("step").getAllKeys(
-      IDBKeyRange.bound([session, ""], [session, "\uffff"])));
-    const records = await Promise.all(keys.map((k) => done(tx.objectStore(STORE).get(k))));
-    return [...new Set(records.map((r) => r.step))];
+    // one step per distinct index key [session, step]: no record is read
+    const cursor = tx.objectStore(STORE).index("step")
+      .openKeyCursor(IDBKeyRange.bound([session, ""], [session, "\uffff"]), "nextunique");
+    return new Promise((resolve, reject) => {
+      const out = [];
+      cursor.onerror = () => reject(cursor.error);
+      cursor.onsuccess = () => {
+        const c = cursor.result;
+        if (!c) return resolve(out);
+        out.push(c.key[1]);
+        c.continue();
+      };
+    });
   }
 }

@@ -15,7 +15,9 @@
 // Lost notifications: a lost notification makes every later one of its run look one packet period P = b·(samples
 // per notification) late for good, while a latency burst holds back only a few.  So, with the notifications
 // of a run numbered k = 0, 1, … as if none were lost, the lateness e_k = a_k − a_0 − P·k is taken as its
-// running minimum over the next W = 16 notifications (longer than a burst), s_k = min(e_k … e_{k+W−1}), and
+// running minimum over the next W = 16 notifications (longer than a burst) and every later one that arrived
+// within W packet periods of a_k (so that a stall, the notifications held and handed over together after a gap,
+// is seen to catch up with the line: not a loss), s_k = min(e_k … e_{k+W'−1}), and
 //     m_k = m_{k−1} + max(0, round((s_k − s_{k−1}) / P)),   m_0 = 0                          (T4)
 // notifications were lost before notification k; its first sample is (k + m_k)·(samples per notification).  P
 // starts at the nominal period and is taken once more from the line (T3) through the placed notifications
@@ -50,15 +52,28 @@ export function fitLine(indices, arrivalsMs) {
 
 const WINDOW = 16;   // W of (T4): notifications over which the lateness' minimum is taken
 
+/** The minimum of late[k…] over the window (T4) of notification k: its next W notifications, and beyond them
+ * every notification that arrived within W packet periods of a_k.  After a stall (the link held the
+ * notifications and hands them over together when it recovers: a burst after a gap) the window of a held
+ * notification reaches past the burst to those that arrive on time again, so a stall is no jump (not a loss,
+ * no shift); a loss stays a jump for good.  Without a burst both windows are the same W notifications. */
+function windowMin(late, arrivalsMs, k, spanMs) {
+  let m = late[k];
+  for (let j = k + 1; j < late.length && (j < k + WINDOW || arrivalsMs[j] < arrivalsMs[k] + spanMs); j++) {
+    if (late[j] < m) m = late[j];
+  }
+  return m;
+}
+
 /** The line (T3) through the earliest arrivals: each arrival replaced by the running minimum over the next W
  * notifications of its lateness against a line of slope `msPerSample`, then the least-squares line of those.
  * The minima carry the smallest latency of each window instead of every burst, so the drift they give is
  * steadier than that of the raw arrivals, and the stamps sit nearer the sampling instants. */
-function envelopeLine(indices, arrivalsMs, msPerSample) {
+function envelopeLine(indices, arrivalsMs, msPerSample, spanMs) {
   const late = arrivalsMs.map((a, k) => a - msPerSample * indices[k]);
   // only full windows: a short one at the run's end would lift its minima and tilt the line
   const full = indices.length >= 2 * WINDOW ? indices.length - WINDOW + 1 : indices.length;
-  const floor = late.slice(0, full).map((_, k) => Math.min(...late.slice(k, k + WINDOW)) + msPerSample * indices[k]);
+  const floor = late.slice(0, full).map((_, k) => windowMin(late, arrivalsMs, k, spanMs) + msPerSample * indices[k]);
   return fitLine(indices.slice(0, full), floor);
 }
 
@@ -71,13 +86,13 @@ export function placeRun(arrivalsMs, per, nominalMs) {
   let line = null;
   for (let pass = 0; pass < 2; pass++) {
     const late = arrivalsMs.map((a, k) => a - arrivalsMs[0] - periodMs * k);
-    const floor = late.map((_, k) => Math.min(...late.slice(k, k + WINDOW)));
+    const floor = late.map((_, k) => windowMin(late, arrivalsMs, k, WINDOW * periodMs));
     let lostBefore = 0;
     first = floor.map((s, k) => {
       if (k > 0 && k + WINDOW <= n) lostBefore += Math.max(0, Math.round((s - floor[k - 1]) / periodMs));
       return (k + lostBefore) * per;
     });
-    line = envelopeLine(first.map((i) => i + per - 1), arrivalsMs, periodMs / per);
+    line = envelopeLine(first.map((i) => i + per - 1), arrivalsMs, periodMs / per, WINDOW * periodMs);
     if (!line) break;
     periodMs = line.b * per;
   }

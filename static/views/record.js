@@ -9,8 +9,10 @@
 //   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
 //   match the browser's clears the step's buffer (IndexedDB), so nothing unacknowledged is lost: a failed
-//   upload stays to retry, also after a reload.  Starting a step deletes the files the server holds for it (a
-//   redo, an earlier half-sent try, files dropped in the wizard for that step) and records it again.
+//   upload stays to retry, also after a reload.  Starting a step that already has data (files on the server,
+//   recorded here or dropped in the wizard; an unsent take in this browser) asks first, naming each and where
+//   it came from; the browser's unsent take is dropped only then, and the server's files only once the new
+//   take is acknowledged (until then the old files are the step's data).
 //   Closing the page while a step records or waits to be sent asks first; leaving the view lets go of the sensors.
 // 3 Processing is the wizard's (its step 3), linked once the four steps are stored.
 // Everything the user reads is translated (record.* keys); the sensors' own errors are named by code.
@@ -19,9 +21,9 @@ import { api, upload } from "../api.js";
 import { h, append, clear, alertBox, errorText, label, num } from "../dom.js";
 import { t } from "../i18n.js";
 import { canEdit } from "../app.js";
-import { pickSensor, MetaWearSensor } from "../metawear/device.js";
+import { pickSensor, MetaWearSensor, bluetoothErrorCode } from "../metawear/device.js";
 import { PacketStore } from "../metawear/store.js";
-import { Recorder, STEPS, SEGMENTS } from "../metawear/recorder.js";
+import { Recorder, STEPS, SEGMENTS, fileLabel } from "../metawear/recorder.js";
 
 const REFRESH_MS = 100;   // the live figures and the flexion preview
 
@@ -54,15 +56,17 @@ function sensorCard(sensor, segment) {
 function liveLine(role, live, flexion) {
   const preview = role === "task" ? h("li", { class: "preview" }, t("record.preview", {
     deg: flexion === null ? "—" : num(flexion, 0) })) : null;
-  return [preview, ...SEGMENTS.map((s) => {
+  const stored = live.bufferError ? h("li", { class: "buffer-error" }, t("record.buffer_error")) : null;
+  return [preview, stored, ...SEGMENTS.map((s) => {
     const l = live[s];
     const samples = t("record.samples", { acc: l.samples.acc, gyr: l.samples.gyr, mag: l.samples.mag });
     let check = "";
     if (role === "mag_calibration") check = t("record.coverage", { cells: l.coverage.cells });
     else if (role === "task") check = t("record.cycles", { n: l.cycles });
     else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0) });
+    const bad = l.bad ? h("span", { class: "bad-packets" }, ` · ${t("record.bad_packets", { n: l.bad })}`) : "";
     return h("li", { "data-segment": s }, `${label("segment", s)}: `, h("span", { class: "check" }, check),
-      ` · ${samples} · ${t(`record.state.${l.state}`)}`);
+      ` · ${samples}`, bad, ` · ${t(`record.state.${l.state}`)}`);
   })];
 }
 
@@ -88,7 +92,9 @@ export function recordView(sessionId) {
 
   const fail = (err) => {
     // the recorder's own errors carry a code (translated here); the API's are ApiErrors with their sentence
-    const key = err && typeof err.code === "string" && err.status === undefined ? `record.error.${err.code}` : null;
+    const bt = bluetoothErrorCode(err);      // the browser's Bluetooth errors (English DOMException messages)
+    const key = bt ? `record.error.${bt}`
+      : err && typeof err.code === "string" && err.status === undefined ? `record.error.${err.code}` : null;
     clear(message).append(alertBox(key && t(key) !== key ? t(key) : errorText(err)));
   };
 
@@ -134,18 +140,48 @@ export function recordView(sessionId) {
 
   const swapButton = h("button", { type: "button", class: "secondary swap" }, t("record.swap"));
   swapButton.addEventListener("click", () => {
+    // steps already recorded keep the assignment they were recorded with: swapping now mixes thigh and shank
+    // between steps (wrong angles, silently), so it is asked first, naming them
+    const done = STEPS.filter((r) => ["stored", "unsent"].includes(state.status[r]));
+    if (done.length && !window.confirm(t("record.swap_warning", {
+      steps: done.map((r) => label("recording", r)).join(", ") }))) return;
     const { thigh, shank } = state.recorder.sensors;
     state.recorder.attach("thigh", shank);
     state.recorder.attach("shank", thigh);
     draw();
   });
 
+  // what a new take of `role` replaces: the server's files for it and an unsent take kept in this browser
+  async function replaced(role) {
+    const session = await api("GET", `/sessions/${sessionId}`);
+    const files = (session.recordings || []).filter((r) => r.role === role && SEGMENTS.includes(r.segment));
+    const unsent = (await state.store.steps(sessionId)).includes(role);
+    return { files, unsent };
+  }
+
+  function replaceQuestion(role, { files, unsent }) {
+    const mine = (f) => SEGMENTS.some((s) => f.file_name.startsWith(fileLabel(role, s)));
+    const names = (fs) => fs.map((f) => f.file_name).join(", ");
+    const here = files.filter(mine);
+    const dropped = files.filter((f) => !mine(f));
+    return [t("record.replace.intro", { step: label("recording", role) }),
+      here.length ? t("record.replace.recorded", { n: here.length, names: names(here) }) : null,
+      dropped.length ? t("record.replace.uploaded", { n: dropped.length, names: names(dropped) }) : null,
+      unsent ? t("record.replace.unsent") : null,
+      t("record.replace.when")].filter(Boolean).join("\n");
+  }
+
   async function startStep(role) {
     clear(message);
     state.busy = true;
     try {
-      await deleteStored(role);     // a take replaces the step's files on the server (a redo, a half-sent try)
-      await state.recorder.start(role);
+      const old = await replaced(role);
+      if ((old.files.length || old.unsent) && !window.confirm(replaceQuestion(role, old))) {
+        state.busy = false;
+        draw();
+        return;
+      }
+      await state.recorder.start(role);      // drops the browser's unsent take of this step (agreed above)
       state.active = role;
       state.status[role] = "recording";
     } catch (err) {
@@ -155,12 +191,12 @@ export function recordView(sessionId) {
     draw();
   }
 
-  async function deleteStored(role) {
-    const session = await api("GET", `/sessions/${sessionId}`);
-    for (const r of session.recordings || []) {
-      if (r.role === role && SEGMENTS.includes(r.segment)) await api("DELETE", `/sessions/${sessionId}/recordings/${r.id}`);
-    }
-    state.status[role] = "todo";
+  // once a take is acknowledged, the step's other files on the server (earlier takes, files dropped in the
+  // wizard for it; the clinician agreed when starting the take) are deleted: the new take replaces them
+  async function deleteReplaced(role, kept) {
+    const keep = new Set(kept.map((r) => r.id));
+    const { files } = await replaced(role);
+    for (const r of files) if (!keep.has(r.id)) await api("DELETE", `/sessions/${sessionId}/recordings/${r.id}`);
   }
 
   async function finish(role, action) {
@@ -172,6 +208,8 @@ export function recordView(sessionId) {
       const answer = await action();
       state.status[role] = "stored";
       state.lost = { ...(state.lost || {}), [role]: answer.lost };
+      // the take is stored and its buffer cleared: a failed deletion is said, the take stays stored
+      await deleteReplaced(role, answer.recordings).catch(fail);
     } catch (err) {
       state.status[role] = "unsent";
       fail(err);

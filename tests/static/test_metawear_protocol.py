@@ -37,7 +37,7 @@ def test_the_protocol_setup_commands(static_page):
         const hex = (cs) => cs.map((c) => Array.from(c, (b) => b.toString(16).padStart(2, '0')).join(''));
         return {{bmi160: hex(p.configure(p.PROTOCOL_CONFIG, {{acc: 'BMI160', gyr: 'BMI160'}})),
                 bmi270: hex(p.configure(p.PROTOCOL_CONFIG, {{acc: 'BMI270', gyr: 'BMI270'}})),
-                start: hex(p.startStreaming()), startSingle: hex(p.startStreaming({{packed: false}})),
+                start: hex(p.startStreaming()), startSingle: hex(p.startStreaming({{...p.BMI160_BOARD, packed: {{acc: false, gyr: false}}}})),
                 stop: hex(p.stopStreaming()), battery: hex([p.readBattery()]),
                 info: hex([p.readModuleInfo(p.MODULE.ACCELEROMETER)]),
                 service: p.SERVICE, command: p.COMMAND_CHAR, notify: p.NOTIFY_CHAR}}; }}""")
@@ -63,18 +63,21 @@ def test_a_setting_the_sensor_lacks_is_refused(static_page, change, words):
     assert message is not None and words in message
 
 
-def test_simulated_streams_decode_to_their_counts_and_truth(static_page, session):
+@pytest.mark.parametrize("chip", ["BMI160", "BMI270"])
+def test_simulated_streams_decode_to_their_counts_and_truth(static_page, session, chip):
+    """A MetaMotion R (BMI160) and a MetaMotion S (BMI270), each decoded with its own register table."""
     for segment in ("thigh", "shank"):
         streams = session.recordings[(segment, "task")]
-        frames = sensor_notifications(streams)
-        decoded = static_page.evaluate(f"""async (frames) => {{ {IMPORT}
+        frames = sensor_notifications(streams, chip)
+        decoded = static_page.evaluate(f"""async ([frames, chip]) => {{ {IMPORT}
+            const chips = {{acc: chip, gyr: chip, packed: {{acc: true, gyr: true}}}};
             const out = {{acc: [], gyr: [], mag: []}};
             for (const f of frames) {{
                 const bytes = Uint8Array.from(f.match(/../g), (x) => parseInt(x, 16));
-                const d = p.decode(new DataView(bytes.buffer));
+                const d = p.decode(new DataView(bytes.buffer), p.sensitivities(), chips);
                 out[d.kind].push(...d.values);
             }}
-            return out; }}""", [n.payload.hex() for n in frames])
+            return out; }}""", [[n.payload.hex() for n in frames], chip])
         for kind in ("acc", "gyr", "mag"):
             t_s, values = streams[kind]
             per = 1 if kind == "mag" else 3
@@ -104,7 +107,46 @@ def test_answers_and_bad_packets(static_page):
     assert out["battery"] == {"kind": "battery", "chargePercent": 87, "voltageMv": 0x0F1C}
     assert out["short"]["error"] and "expected 8" in out["short"]["message"]
     assert out["tiny"]["error"] and out["other"] == {"kind": "other", "module": 1, "register": 1}
-    assert out["chips"] == {"acc": "BMI270", "gyr": "BMI270"}
+    # revision 0: a module too old to pack samples
+    assert out["chips"] == {"acc": "BMI270", "gyr": "BMI270", "packed": {"acc": False, "gyr": False}}
     assert "implementation 0" in out["oldChip"]
     # little-endian int16 over 16 LSB/µT: 0x0010 = 1 µT, 0xfff0 = -1 µT, 0x8000 = -2048 µT
     assert out["single"] == {"kind": "mag", "values": [[1.0, -1.0, -2048.0]]}
+
+
+def test_a_metamotion_s_streams_on_its_own_registers(static_page):
+    """The BMI270's data registers (MbientLab's register map: acc and gyro packed on 0x05, single on 0x04), and
+    the modules' revision choosing packed or single samples; a BMI270's packed gyroscope packet (0x13 0x05, 20
+    bytes) read with a BMI160's table is a bad packet (there 0x05 is the single sample), not three samples."""
+    out = static_page.evaluate(f"""async () => {{ {IMPORT}
+        const hex = (cs) => cs.map((c) => Array.from(c, (b) => b.toString(16).padStart(2, '0')).join(''));
+        const s = p.chipsOf({{implementation: 4, revision: 1}}, {{implementation: 1, revision: 1}});
+        const old = p.chipsOf({{implementation: 4, revision: 0}}, {{implementation: 1, revision: 0}});
+        const packet = new Uint8Array(20); packet[0] = 0x13; packet[1] = 0x05; packet[2] = 164;
+        let misread = null;
+        try {{ p.decode(packet); }} catch (e) {{ misread = e instanceof p.ProtocolError; }}
+        return {{chips: s, start: hex(p.startStreaming(s)), startOld: hex(p.startStreaming(old)),
+                stop: hex(p.stopStreaming(s)), gyro: p.decode(packet, p.sensitivities(), s), misread}}; }}""")
+    assert out["chips"] == {"acc": "BMI270", "gyr": "BMI270", "packed": {"acc": True, "gyr": True}}
+    assert out["start"] == ["030501", "03020100", "030101", "130501", "13020100", "130101",
+                            "150501", "15020100", "150101"]
+    assert out["startOld"][0] == "030401" and out["startOld"][3] == "130401"
+    assert {"030400", "030500", "130400", "130500"} <= set(out["stop"])
+    assert out["gyro"] == {"kind": "gyr", "values": [[10.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]}
+    assert out["misread"] is True
+
+
+def test_bluetooth_errors_are_said_in_three_languages(static_page):
+    """Web Bluetooth's DOMException names map to the recorder's codes, each a sentence in es/en/pt (the browser's
+    own messages are English only)."""
+    import json
+    from pathlib import Path
+
+    out = static_page.evaluate("""async () => { const d = await import('/metawear/device.js');
+        return {table: d.BLUETOOTH_ERRORS, network: d.bluetoothErrorCode(new DOMException('x', 'NetworkError')),
+                other: d.bluetoothErrorCode(new Error('x'))}; }""")
+    assert out["network"] == "bt_network" and out["other"] is None
+    static = Path(__file__).resolve().parents[2] / "static" / "i18n"
+    for lang in ("es", "en", "pt"):
+        table = json.loads((static / f"{lang}.json").read_text(encoding="utf-8"))
+        assert all(table.get(f"record.error.{code}") for code in out["table"].values()), lang

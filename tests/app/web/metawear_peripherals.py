@@ -33,7 +33,7 @@ from __future__ import annotations
 import base64
 from dataclasses import dataclass, field
 
-from metawear_frames import Notification
+from metawear_frames import IMPLEMENTATION, Notification
 
 SERVICE = "326a9000-85cb-9195-d9dd-464cfbbae75a"
 COMMAND = "326a9001-85cb-9195-d9dd-464cfbbae75a"
@@ -73,10 +73,12 @@ STAND_IN = """
 
 @dataclass
 class Peripheral:
-    """One emulated MetaMotionR: its GATT ids, the commands it got, its state, its answers waiting."""
+    """One emulated MetaMotion: its GATT ids, the commands it got, its state, its answers waiting.  ``chip``:
+    "BMI160" (a MetaMotion R) or "BMI270" (a MetaMotion S), which its module info answers name."""
 
     address: str
     name: str
+    chip: str = "BMI160"
     firmware: str = "1.7.3"
     battery_percent: int = 87
     ids: dict = field(default_factory=dict)
@@ -85,13 +87,14 @@ class Peripheral:
     reachable: bool = True
     answers: list[bytes] = field(default_factory=list)
     connections: int = 0
+    dropped_at: int | None = None     # how many commands it had got when its link last dropped
 
     def command(self, data: bytes) -> None:
         """A command the page wrote: keep it, answer reads, follow the sensors' power."""
         self.commands.append(data)
         module, register = data[0], data[1]
-        if register == 0x80 and module in (0x03, 0x13):           # module info: a BMI160 board
-            self.answers.append(bytes((module, 0x80, 1 if module == 0x03 else 0, 1)))
+        if register == 0x80 and module in (0x03, 0x13):           # module info: the chip, revision 1
+            self.answers.append(bytes((module, 0x80, IMPLEMENTATION[self.chip][module == 0x13], 1)))
         elif (module, register) == (0x11, 0x8C):                   # battery state: charge %, 3.9 V
             self.answers.append(bytes((0x11, 0x8C, self.battery_percent, 0x3C, 0x0F)))
         elif register == 0x01 and module in (0x03, 0x13, 0x15):    # power on / off
@@ -190,6 +193,7 @@ class Bench:
         """The sensor goes out of reach: the link drops and connection attempts fail until it is back."""
         p.reachable = False
         p.streaming.clear()
+        p.dropped_at = len(p.commands)
         self.cdp.send("BluetoothEmulation.simulateGATTDisconnection", {"address": p.address})
         # the emulation forgets a peripheral's services when it disconnects (measured: getPrimaryService then
         # answers NotFoundError); a real sensor keeps its GATT table, so the bench registers it again
