@@ -23,7 +23,7 @@ from reports.model import Patient, ReportInput
 
 __all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_spans_pct",
            "cycle_and_phase_per_sample", "session_rows", "age_years", "identity_items", "identity_line",
-           "recorded_text", "filter_label", "angle_method_label", "signed_line"]
+           "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line"]
 
 _DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
                    ("extension", "countermovement_peak", "far_left"),
@@ -252,6 +252,18 @@ def angle_method_label(results: dict[str, Any], lang: str) -> str:
     """The knee-angle convention by its human name (``data.angle_method.<id>``), never the raw id."""
     name = results.get("angle_method") or ""
     return code_label("data.angle_method", name, lang) if name else ""
+
+
+def signature_line(lang: str, it) -> str:
+    """Who signed the interpretation ``it`` (:class:`reports.model.Interpretation`) and when; once amended, "First
+    signed by A …; last amended by B on … (reason)" — the text printed above it is the amended one, so the signer
+    is never shown alone under a text they did not sign."""
+    first = signed_line(lang, "interp.signed" if not it.amendments else "interp.first_signed", it.signed_by,
+                        it.signed_role, it.signed_at)
+    if not it.amendments:
+        return first
+    last = it.amendments[-1]
+    return first + "; " + signed_line(lang, "interp.last_amended", last.by, last.role, last.at, reason=last.reason)
 
 
 def signed_line(lang: str, key: str, by: str, role: str, at: str, **fields: Any) -> str:

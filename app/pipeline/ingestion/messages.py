@@ -985,7 +985,16 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: magnetómetro en unidades normalizadas (sin escala en µT; intensidad de campo declarada: "
               "{field}); lo calibró el fabricante, así que no se aplica un ajuste de ocho en µT",
         "pt": "{file}: magnetómetro em unidades normalizadas (sem escala em µT; intensidade de campo declarada: "
-              "{field}); o fabricante o calibrou, então não se aplica um ajuste em oito em µT"},
+              "{field}); o fabricante calibrou-o, por isso não se aplica um ajuste em oito em µT"},
+    # the store's refusal of an interpretation written by someone else meanwhile (app.store.interpretations):
+    # here, the catalogue app.store.errors falls back to, until it moves beside the other store.interpretation_*
+    "store.interpretation_changed": {
+        "en": "The interpretation of analysis {analysis_id} was changed by someone else meanwhile; reload it, read "
+              "it and try again.",
+        "es": "Otra persona ha cambiado la interpretación del análisis {analysis_id} mientras tanto; recárguela, "
+              "léala e inténtelo de nuevo.",
+        "pt": "Outra pessoa alterou a interpretação da análise {analysis_id} entretanto; recarregue-a, leia-a e "
+              "tente de novo."},
 }
 
 #: Segment and role words for the "<segment> <role>:" prefix of a session's notes.
