@@ -208,9 +208,11 @@ def age_years(birth_date: str, on: str) -> int | None:
 
 
 def recorded_text(p: Patient, lang: str) -> str:
-    """The recordings' date (or first – last day when they span several), in the language's date format."""
+    """The recordings' date (or first – last day when they span several), in the language's date format, with
+    " UTC" when it is the UTC day (``recorded_zone``: only UTC time stamps said it), not the local one."""
     first, last = i18n.fmt_date(p.recorded, lang), i18n.fmt_date(p.recorded_last, lang)
-    return f"{first} – {last}" if first and last and last != first else first
+    text = f"{first} – {last}" if first and last and last != first else first
+    return f"{text} {p.recorded_zone}" if text and p.recorded_zone else text
 
 
 def identity_items(p: Patient, lang: str) -> list[tuple[str, str]]:

@@ -62,7 +62,7 @@ def analysis_patient(db: Session, store: Storage, session: KneeSession, analysis
     return patient_of(manifest, record=manifest.get("patient_id"), date=manifest.get("date"),
                       side=str(results.get("side") or session.patient.side or ""),
                       step_height_m=facts.get("step_height_m"),
-                      recorded=(recorded.get("first") or "", recorded.get("last") or ""))
+                      recorded=(recorded.get("first") or "", recorded.get("last") or "", recorded.get("zone") or ""))
 
 
 def store_signed(db: Session, store: Storage, session: KneeSession, analysis: Analysis, row: Interpretation,
