@@ -29,6 +29,8 @@ the interpretations with the analyses (foreign keys ``ON DELETE CASCADE``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from sqlalchemy import select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -114,11 +116,22 @@ def save_draft(db: Session, session: KneeSession, analysis: Analysis, text: str,
     return row
 
 
+#: called with the interpretation as the reports will print it once the write succeeds, before the write: what
+#: must be rendered from it is rendered before the conditional UPDATE takes SQLite's write lock
+Prepare = Callable[[ReportInterpretation], None]
+
+
+def _settled(row: Interpretation, prospective: ReportInterpretation | None, analysis_id: int) -> None:
+    """:class:`Conflict` unless the row as written is what ``prepare`` was shown (nothing slipped in between)."""
+    if prospective is not None and as_report(row) != prospective:
+        raise _changed(analysis_id)
+
+
 def sign(db: Session, session: KneeSession, analysis: Analysis, user: User | None,
-         expected: str | None) -> Interpretation:
+         expected: str | None, *, prepare: Prepare | None = None) -> Interpretation:
     """Sign the saved text of ``analysis`` as ``user`` (name, role, now): locked from then on.  ``expected`` is the
     text the signer read and means to sign: :class:`Conflict` when the saved text differs (saved by someone else
-    meanwhile) or someone signed first."""
+    meanwhile) or someone signed first.  ``prepare`` (:data:`Prepare`) sees the signed interpretation first."""
     _current(session, analysis)
     person, name = _signer(user)
     row = find(db, analysis.id)
@@ -129,18 +142,24 @@ def sign(db: Session, session: KneeSession, analysis: Analysis, user: User | Non
     seen = _normal(expected)
     if seen != row.text:
         raise _changed(analysis.id)
+    now = utcnow()
+    prospective = ReportInterpretation(text=seen, signed_by=name[:320], signed_role=person.role,
+                                       signed_at=now.isoformat(timespec="seconds"))
+    if prepare is not None:
+        prepare(prospective)
     if not _write(db, row, Interpretation.signed_at.is_(None), Interpretation.text == seen,
-                  signed_by_user_id=person.id, signed_by=name[:320], signed_role=person.role, signed_at=utcnow()):
+                  signed_by_user_id=person.id, signed_by=name[:320], signed_role=person.role, signed_at=now):
         raise _signed(row, analysis) if row.signed_at is not None else _changed(analysis.id)
+    _settled(row, prospective if prepare is not None else None, analysis.id)
     return row
 
 
 def amend(db: Session, session: KneeSession, analysis: Analysis, user: User | None, text: str,
-          reason: str, expected: str | None = None) -> Interpretation:
+          reason: str, expected: str | None = None, *, prepare: Prepare | None = None) -> Interpretation:
     """Replace the signed text of ``analysis`` by ``text`` for ``reason``, as ``user``; the earlier text is kept in
     the amendment.  :class:`Conflict` when it is not signed yet (save the draft instead), or when the signed text
     is no longer ``expected`` (the text the amender read, when given) or changed while this ran (another
-    amendment came first)."""
+    amendment came first).  ``prepare`` (:data:`Prepare`) sees the amended interpretation first."""
     _current(session, analysis)
     person, name = _signer(user)
     new, why = _clean(text, "text"), _clean(reason, "reason")
@@ -153,6 +172,13 @@ def amend(db: Session, session: KneeSession, analysis: Analysis, user: User | No
     if new == previous:
         raise Invalid(code="store.interpretation_unchanged")
     now = utcnow()
+    before = as_report(row)
+    prospective = ReportInterpretation(
+        text=new, signed_by=before.signed_by, signed_role=before.signed_role, signed_at=before.signed_at,
+        amendments=(*before.amendments, ReportAmendment(previous_text=previous, by=name[:320], role=person.role,
+                                                        at=now.isoformat(timespec="seconds"), reason=why)))
+    if prepare is not None:
+        prepare(prospective)
     if not _write(db, row, Interpretation.signed_at.is_not(None), Interpretation.text == previous,
                   text=new, updated_by=name[:320], updated_at=now):
         raise _changed(analysis.id)
@@ -160,6 +186,7 @@ def amend(db: Session, session: KneeSession, analysis: Analysis, user: User | No
                                    user_id=person.id, by=name[:320], role=person.role, at=now))
     db.flush()
     db.refresh(row, ["amendments"])
+    _settled(row, prospective if prepare is not None else None, analysis.id)
     return row
 
 
@@ -188,4 +215,4 @@ def as_report(row: Interpretation | None) -> ReportInterpretation | None:
                          for a in row.amendments))
 
 
-__all__ = ["MAX_TEXT_CHARS", "amend", "as_dict", "as_report", "find", "save_draft", "sign"]
+__all__ = ["MAX_TEXT_CHARS", "Prepare", "amend", "as_dict", "as_report", "find", "save_draft", "sign"]

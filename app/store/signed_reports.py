@@ -1,12 +1,13 @@
 """An analysis' reports with the clinician's signed interpretation (issue 17 §3): rendered once, stored, served.
 
 The job renders report.pdf and report.html before anyone has read them, so before any interpretation exists; the
-interpretation is signed (and maybe amended) later.  At the signature and at each amendment,
-:func:`store_signed` renders both reports in every language, from the analysis' own stored ``results.json`` and
+interpretation is signed (and maybe amended) later.  At the signature and at each amendment (:func:`sign`,
+:func:`amend`), :func:`render_signed` renders both reports in every language, from the analysis' own stored ``results.json`` and
 ``timeseries.npz`` (the same numbers, bit for bit: :func:`app.pipeline.results.report_input_of_files`) and its
 ``patient.json`` (the identity block the job printed: :func:`app.pipeline.render.patient_json`, so a patient
 corrected since — which supersedes the analysis — never changes what this analysis' signed report says), with the
-interpretation as it stands then; each file is stored as an artefact of the analysis named
+interpretation as it will stand — before the conditional write, so no lock is held while rendering, and the write
+checks nothing changed in between (:data:`app.store.interpretations.Prepare`); each file is stored as an artefact of the analysis named
 ``signed-<version>-report.pdf`` / ``…-report.html`` (version 0 the signature, n the n-th amendment) and its sha256
 goes into the sign/amend audit event (:func:`audit_detail`).  Every version stays stored: what was signed, and
 every amendment's report, can be shown again byte for byte.
@@ -31,8 +32,9 @@ from app.store import interpretations
 from app.store.analyses import artefact, find_artefact
 from app.store.blobs import Storage
 from app.store.erasure import reserve_blob
-from app.store.models import Analysis, Artefact, Clinic, Interpretation, KneeSession
+from app.store.models import Analysis, Artefact, Clinic, Interpretation, KneeSession, User
 from app.store.workspace import build_manifest
+from reports.model import Interpretation as ReportInterpretation
 from reports.model import Patient
 
 #: the artefacts that print the interpretation
@@ -65,34 +67,57 @@ def analysis_patient(db: Session, store: Storage, session: KneeSession, analysis
                       recorded=(recorded.get("first") or "", recorded.get("last") or "", recorded.get("zone") or ""))
 
 
-def store_signed(db: Session, store: Storage, session: KneeSession, analysis: Analysis, row: Interpretation,
-                 identifier_system: str | None) -> dict[tuple[str, str], str]:
-    """Render and store the signed reports of ``row``'s current version (module docstring): ``{(name, lang):
-    sha256}``.  Each file is placed under its blob's lock (:func:`app.store.erasure.reserve_blob`), as a job's."""
-    signed = interpretations.as_report(row)
-    if signed is None:
-        raise ValueError(f"the interpretation of analysis {analysis.id} is not signed")
-    version = len(signed.amendments)
+def render_signed(db: Session, store: Storage, session: KneeSession, analysis: Analysis,
+                  signed: ReportInterpretation, identifier_system: str | None) -> dict[tuple[str, str], bytes]:
+    """The PDF and HTML of ``analysis`` with ``signed`` in every language, ``{(name, lang): bytes}`` (reads only)."""
     results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
     npz = store.read(artefact(db, analysis, "timeseries.npz").sha256)
     patient = analysis_patient(db, store, session, analysis, identifier_system)
-    out: dict[tuple[str, str], str] = {}
+    files = {}
     for lang in LANGS:
         ri = report_input_of_files(results, npz, patient, lang, signed)
-        for name in SIGNED_ARTEFACTS:
-            data = render_artefact(ri, name, lang)
-            sha, size = hashlib.sha256(data).hexdigest(), len(data)
-            writer = store.sealed(data)
-            try:
-                reserve_blob(db, sha, size)
-                writer.commit()
-            finally:
-                writer.discard()
-            db.add(Artefact(analysis_id=analysis.id, name=signed_name(name, version), lang=lang,
-                            media_type=MEDIA[name], sha256=sha, size_bytes=size))
-            out[name, lang] = sha
+        files.update({(name, lang): render_artefact(ri, name, lang) for name in SIGNED_ARTEFACTS})
+    return files
+
+
+def _store(db: Session, store: Storage, analysis: Analysis, version: int,
+           files: dict[tuple[str, str], bytes]) -> dict[tuple[str, str], str]:
+    """Each of ``files`` placed under its blob's lock (:func:`app.store.erasure.reserve_blob`, as a job's) and named
+    by an artefact ``signed-<version>-<name>`` of ``analysis``: ``{(name, lang): sha256}``."""
+    out: dict[tuple[str, str], str] = {}
+    for (name, lang), data in files.items():
+        sha, size = hashlib.sha256(data).hexdigest(), len(data)
+        writer = store.sealed(data)
+        try:
+            reserve_blob(db, sha, size)
+            writer.commit()
+        finally:
+            writer.discard()
+        db.add(Artefact(analysis_id=analysis.id, name=signed_name(name, version), lang=lang, media_type=MEDIA[name],
+                        sha256=sha, size_bytes=size))
+        out[name, lang] = sha
     db.flush()
     return out
+
+
+def sign(db: Session, store: Storage, session: KneeSession, analysis: Analysis, user: User | None, expected: str,
+         identifier_system: str | None) -> tuple[Interpretation, dict[tuple[str, str], str]]:
+    """:func:`app.store.interpretations.sign` with its reports: rendered before the signature's write (no lock held
+    while rendering), stored after it; the row and ``{(name, lang): sha256}``."""
+    files: dict[tuple[str, str], bytes] = {}
+    row = interpretations.sign(db, session, analysis, user, expected, prepare=lambda signed: files.update(
+        render_signed(db, store, session, analysis, signed, identifier_system)))
+    return row, _store(db, store, analysis, len(row.amendments), files)
+
+
+def amend(db: Session, store: Storage, session: KneeSession, analysis: Analysis, user: User | None, text: str,
+          reason: str, expected: str | None, identifier_system: str | None
+          ) -> tuple[Interpretation, dict[tuple[str, str], str]]:
+    """:func:`app.store.interpretations.amend` with its reports, as :func:`sign`."""
+    files: dict[tuple[str, str], bytes] = {}
+    row = interpretations.amend(db, session, analysis, user, text, reason, expected, prepare=lambda signed: files.update(
+        render_signed(db, store, session, analysis, signed, identifier_system)))
+    return row, _store(db, store, analysis, len(row.amendments), files)
 
 
 def audit_detail(analysis: Analysis, row: Interpretation, stored: dict[tuple[str, str], str]) -> str:
@@ -114,5 +139,5 @@ def signed_artefact(db: Session, analysis: Analysis, name: str, lang: str) -> Ar
     return find_artefact(db, analysis.id, signed_name(name, len(row.amendments)), lang)
 
 
-__all__ = ["PATIENT_JSON", "SIGNED_ARTEFACTS", "analysis_patient", "audit_detail", "signed_artefact",
-           "signed_name", "store_signed"]
+__all__ = ["PATIENT_JSON", "SIGNED_ARTEFACTS", "amend", "analysis_patient", "audit_detail", "render_signed", "sign",
+           "signed_artefact", "signed_name"]

@@ -120,8 +120,8 @@ def sign_interpretation(session_id: int, body: SignIn, principal: Clinician, db:
     then on, and the signed reports are rendered and stored."""
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, body.analysis_id)
-    row = interpretations.sign(db, session, analysis, principal.user, body.text)
-    stored = signed_reports.store_signed(db, store, session, analysis, row, settings.patient_identifier_system)
+    row, stored = signed_reports.sign(db, store, session, analysis, principal.user, body.text,
+                                      settings.patient_identifier_system)
     audit.record(db, request, principal, "sign", patient_id=session.patient_id, session_id=session.id,
                  detail=signed_reports.audit_detail(analysis, row, stored))
     return interpretations.as_dict(row, analysis)
@@ -134,8 +134,8 @@ def amend_interpretation(session_id: int, body: AmendmentIn, principal: Clinicia
     amended reports are rendered and stored."""
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, body.analysis_id)
-    row = interpretations.amend(db, session, analysis, principal.user, body.text, body.reason, body.expected_text)
-    stored = signed_reports.store_signed(db, store, session, analysis, row, settings.patient_identifier_system)
+    row, stored = signed_reports.amend(db, store, session, analysis, principal.user, body.text, body.reason,
+                                       body.expected_text, settings.patient_identifier_system)
     audit.record(db, request, principal, "amend", patient_id=session.patient_id, session_id=session.id,
                  detail=signed_reports.audit_detail(analysis, row, stored))
     return interpretations.as_dict(row, analysis)
