@@ -74,6 +74,12 @@ TOKEN_SCOPE_RESOURCES: tuple[str, ...] = ("patients", "sessions", "recordings", 
                                           "users")
 TOKEN_SCOPES: tuple[str, ...] = tuple(f"{r}:{a}" for r in TOKEN_SCOPE_RESOURCES for a in ("read", "write"))
 
+#: a patient's measurements the product accepts: open intervals ``(low, high)`` (the API's schemas, the store's
+#: check and the patient form, which reads them from ``GET /options``)
+MEASURE_RANGES: dict[str, tuple[float, float]] = {"height_cm": (30.0, 260.0), "mass_kg": (2.0, 400.0)}
+#: an API token's longest lifetime, days (``chakamo tokens create --days``, ``POST /tokens``, the admin page)
+TOKEN_MAX_DAYS = 3650
+
 #: ``chakamo markov --method`` (research: not in GET /options)
 MARKOV_METHODS: tuple[str, ...] = ("auto", "mjls", "kf", "sme", "smea")
 
@@ -114,5 +120,5 @@ def options() -> dict[str, list[dict[str, Any]]]:
 
 __all__ = ["ANGLE_CONVENTIONS", "ANGLE_CONVENTION_NAMES", "CALIBRATIONS", "CALIBRATION_NAMES", "Choice",
            "DEFAULT_ANGLE_CONVENTION", "DEFAULT_CALIBRATION", "DEFAULT_FILTER", "DEFAULT_HEADING", "DEFAULT_LANGUAGE", "DEFAULT_TASK",
-           "FILTERS", "FILTER_NAMES", "HEADINGS", "HEADING_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "MARKOV_METHODS", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
-           "TASK_NAMES", "TOKEN_SCOPES", "TOKEN_SCOPE_RESOURCES", "USER_ROLES", "USER_ROLE_NAMES", "default", "names", "options"]
+           "FILTERS", "FILTER_NAMES", "HEADINGS", "HEADING_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "MARKOV_METHODS", "MEASURE_RANGES", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
+           "TASK_NAMES", "TOKEN_MAX_DAYS", "TOKEN_SCOPES", "TOKEN_SCOPE_RESOURCES", "USER_ROLES", "USER_ROLE_NAMES", "default", "names", "options"]

@@ -29,6 +29,7 @@
 | ``CHAKAMO_FHIR_CODE_SYSTEM`` | ChakaMo's ``urn:uuid:`` code system | URI of the code system of the exported codes |
 | ``CHAKAMO_FHIR_PATIENT`` | ``contained`` | ``identifier``: the DiagnosticReport names its patient by the MR identifier instead of containing it; ``reference``: by the hospital's own FHIR Patient (the patient's ``fhir_reference``, else by identifier) |
 | ``CHAKAMO_FHIR_PUSH_URL`` | none (no push) | the base of a hospital FHIR R4 server: every finished job's report is POSTed there as a transaction Bundle, retried like a webhook (:mod:`app.web.fhir_push`) |
+| ``CHAKAMO_FHIR_PUSH_CLINICS`` | none | comma-separated names of the clinics whose reports are pushed (each clinic opts in; one taken off stops its pushes, its trail kept); with ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` set, one clinic only (record numbers are matched in that one namespace: :mod:`app.web.fhir_push`) |
 | ``CHAKAMO_FHIR_PUSH_TOKEN`` | none | sent as ``Authorization: Bearer <token>`` with each push |
 | ``CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS`` | none | the host names the push may reach, with the webhooks' rules (:mod:`app.web.webhooks`): an internal address only when its name is listed exactly; the push URL's host must match it |
 | ``CHAKAMO_ACCESSION_SYSTEM`` | none | URI of the namespace of the sessions' accession numbers |
@@ -119,6 +120,8 @@ class Settings(BaseSettings):
                               validation_alias="CHAKAMO_FHIR_PATIENT")
     #: the base URL of the hospital's FHIR server the reports are pushed to (``app.web.fhir_push``); None: no push
     fhir_push_url: str | None = Field(None, validation_alias="CHAKAMO_FHIR_PUSH_URL")
+    #: the names of the clinics whose reports are pushed, comma-separated (each opts in; ``app.web.fhir_push``)
+    fhir_push_clinics: str = Field("", validation_alias="CHAKAMO_FHIR_PUSH_CLINICS")
     #: the bearer token of that server (never stored in the database)
     fhir_push_token: str | None = Field(None, validation_alias="CHAKAMO_FHIR_PUSH_TOKEN")
     #: the host names the push may reach (the webhooks' rules)
@@ -190,6 +193,11 @@ class Settings(BaseSettings):
     def fhir_push_host_patterns(self) -> tuple[str, ...]:
         """:data:`fhir_push_allowed_hosts` as lower-case names (empty: none allowed)."""
         return _names(self.fhir_push_allowed_hosts)
+
+    @property
+    def fhir_push_clinic_names(self) -> tuple[str, ...]:
+        """:data:`fhir_push_clinics` as names (as the clinics are named, blanks and repeats dropped)."""
+        return tuple(dict.fromkeys(n.strip() for n in self.fhir_push_clinics.split(",") if n.strip()))
 
     @property
     def sealing_key(self) -> bytes | None:

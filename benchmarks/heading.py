@@ -27,7 +27,7 @@ clean       0.29 / 0.26 / 0.47   0.28 / 0.41 / 0.84   0.29 / 0.26 / 0.47   0 of 
 ==========  ===================  ===================  ===================  =====================
 
 Tuning seeds 0–5 (30°): magnetometer 0.64 / 3.98 / 9.59, constraint 0.27 / 0.44 / 0.93, auto = constraint on 6/6,
-clean auto = magnetometer.  (Those rows are with the 6° bound of then.  With today's step-up bound of 1.5°,
+clean auto = magnetometer.  (Those rows are with the 6° bound of then.  With the step-up bound of 1.5° used before 3°,
 same command, held out: clean auto 0.29 / 0.33 / 0.60 with 3 of 6 switched; 30° auto = constraint on 6 of 6.)
 Other filters, ``--seeds 6-9 --disturb-deg 30 --filter F`` (all held out), auto against
 magnetometer on the disturbed sessions: madgwick 0.95 / 0.47 / 0.86 vs 1.66 / 6.05 / 14.34, guo 0.41 / 0.42 / 0.89 vs

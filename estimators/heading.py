@@ -81,7 +81,7 @@ The choice (:func:`choose_heading`)
 applies (C2), computed on the 6D run when the caller has one (no magnetic influence at all) and otherwise on
 the 9D run; ``auto`` (default) computes the constraint on the 9D run and measures the disagreement
 :math:`D = \max_W |\hat\delta_W|` over the excited windows (the magnetometer's offset is 0 by definition);
-when :math:`D` exceeds ``DISAGREEMENT_BOUND_RAD`` (1.5°) it uses the constraint heading, otherwise the
+when :math:`D` exceeds ``DISAGREEMENT_BOUND_RAD`` (3°) it uses the constraint heading, otherwise the
 magnetometer's, unchanged; beyond ``DISTURBED_BOUND_RAD`` (6°) it also warns ``magnetic_heading_unreliable``
 (a tilt cannot explain that much: see the constants' comments).  The bound and the window length
 are chosen on simulated step-ups (``python -m benchmarks.heading``), numbers in the constants' comments.
@@ -116,7 +116,7 @@ HEADING_MODES = ("auto", "magnetometer", "constraint")
 #: one.  A 20° rotation is milder at the filter's output (its heading follows the field only in part): D 6.6–10.4°
 #: (tune) and 6.5–10.2° (held out), every session switched; 40°: 14.6–18.6° held out.  The margin below a 20°
 #: disturbance is thin (0.5°): milder bends are left to the magnetometers, whose error is then a few degrees.
-DISAGREEMENT_BOUND_RAD = float(np.deg2rad(1.5))
+DISAGREEMENT_BOUND_RAD = float(np.deg2rad(3.0))
 #: (issue 13 §7, ``python -m benchmarks.robustness``) The bound above was 6° until the robustness seeds showed that
 #: the magnetometers' relative heading is off by 2–6° on clean sessions whose accelerometers carry a realistic bias
 #: (BMI160 zero-g offset, simulated N(0, 10 mg) per axis): the bias tilts each filter's vertical by up to ~1°, and the
@@ -127,6 +127,16 @@ DISAGREEMENT_BOUND_RAD = float(np.deg2rad(1.5))
 #: D ≥ 1.9°; the constraint's own worst was 1.91°; D on clean sessions is 1.1–2.4°, so no bound separates a
 #: tilted magnetometer from a sound one: at 1.5° auto switches on 65 of the 100 seeds and no seed's rotation
 #: exceeds 2° (at 2°: 2 seeds, worst 2.16°; at 2.5°: 4, worst 2.98°).  Held-out numbers in the README.
+#: 1.5° → 3° once the accelerometer bias is removed before filtering (``estimators.accelerometer``): the tilt it was
+#: chosen against is gone, and on clean sessions D is the constraint's own hinge bias.  ``python -m
+#: benchmarks.robustness --heading magnetometer|constraint``, tuning seeds 0–11 (chosen there) / held out 100–111:
+#: on the 19 clean sessions (no field turn) the magnetometers' rotation RMSE is 0.11–0.77°, the constraint's
+#: 0.70–1.47° (the magnetometers better on every one), clean D 1.0–2.4° (held out 1.1–2.7°); the turning fields read
+#: D 6.1–23.7° (held out 7.4–27.0°), where the magnetometers' rotation is 3.1–19.7° and the constraint's ≤ 1.3°.  The
+#: smallest bound above every clean tuning D, rounded up: 3°.  Held out, 1.5° → 3°: switched 9 → 3 of 12 (the three
+#: turning fields), rotation mean 0.79 → 0.44°, worst 1.18 → 1.11°; tuning 0.71 → 0.58°, worst 1.47 → 1.32°.
+#: Seeds 12–17 and 112–117 with auto at 3° (not used for the choice): clean D 0.7–3.2° (two clean sessions at 3.1° and
+#: 3.2° switched, rotation 1.32° and 0.83°), every turning field switched, every goal met, worst rotation 1.32°.
 #: Above DISTURBED_BOUND_RAD (the previous bound: the midpoint between clean sessions and a 30° shank field bend,
 #: benchmarks/heading.py) the disagreement is more than a tilt can make: auto warns ``magnetic_heading_unreliable``
 #: and :func:`estimators.diagnosis.diagnose` names a disturbed field; below it the switch is silent (the report

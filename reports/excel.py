@@ -47,7 +47,8 @@ from openpyxl.styles import Font
 from openpyxl.utils import get_column_letter
 
 from reports import knees
-from reports.labels import (code_label, cycle_and_phase_per_sample, get_path, identity_line, phase_names,
+from reports.labels import (EXCLUDED, code_label, cycle_and_phase_per_sample, excluded_lines, get_path, identity_line,
+                            phase_names,
                             session_rows, tr)
 from reports.model import ANGLES, ReportInput
 
@@ -247,10 +248,13 @@ def _cycles_sheet(wb: Workbook, ri: ReportInput, lang: str) -> None:
         _append(ws, ["", tr("data.not_available", lang)])
         return
     messages = {r.get("index"): r.get("message", "") for r in cycles.get("rejected", []) if isinstance(r, dict)}
+    # the clinician's exclusions: their own words, who and when (cycles.excluded, numbered from 1)
+    messages |= {e["cycle"] - 1: line for e, line in zip(cycles.get("excluded") or [], excluded_lines(cycles, lang))}
     for c in per_cycle:
         reason = c.get("reason")
+        status = "data.status.accepted" if c.get("accepted") else "data.status.rejected"
         row = [int(c["index"]) + 1 if c.get("index") is not None else None,
-               tr("data.status.accepted" if c.get("accepted") else "data.status.rejected", lang),
+               tr("data.status.excluded" if reason == EXCLUDED else status, lang),
                code_label("data.reason", reason, lang) if reason else "",
                c.get("start_s"), c.get("end_s")]
         row += [get_path(c, "rom_deg", a, s) for a in ANGLES for s in stats]

@@ -29,9 +29,9 @@ import numpy as np
 
 from reports import i18n, knees
 from reports.figures import reference_keypoints
-from reports.labels import (calibration_sentence, code_label, cycle_and_phase_per_sample, get_path, heading_sentence,
-                            identity_items, phase_names, phase_spans_pct, reference_sentence, session_rows, signature_line, signed_line,
-                            tr)
+from reports.labels import (EXCLUDED, calibration_sentence, code_label, cycle_and_phase_per_sample, excluded_lines,
+                            get_path, heading_sentence, identity_items, phase_names, phase_spans_pct,
+                            reference_sentence, session_rows, signature_line, signed_line, split_rejected, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
 
@@ -56,6 +56,7 @@ h2{font-size:1.15em;margin:0 0 10px;color:#1d3557}
 table{border-collapse:collapse;width:100%;font-size:.92em}
 th,td{border-bottom:1px solid #e3e7ee;padding:5px 8px;text-align:left}
 th{background:#eef2f7} td.num{text-align:right;font-variant-numeric:tabular-nums}
+details.technical{font-size:.8em;color:#555}
 tr.rejected td{background:#fdecec} tr.outside td{background:#fff4e0;font-weight:600}
 ul.warnings li{margin:3px 0} .muted{color:#5c677d}
 header p.identity{font-size:.92em} header .muted-h{opacity:.75} p.interp{white-space:pre-wrap}
@@ -287,7 +288,9 @@ def _cycles_table(r: dict[str, Any], lang: str) -> str:
     for c in per_cycle:
         ok = bool(c.get("accepted"))
         status = tr("data.status.accepted" if ok else "data.status.rejected", lang)
-        if not ok and c.get("reason"):
+        if c.get("reason") == EXCLUDED:
+            status = tr("data.status.excluded", lang)
+        elif not ok and c.get("reason"):
             status += f": {code_label('data.reason', c['reason'], lang)}"
         idx = c.get("index")
         cells = [_e(idx + 1 if isinstance(idx, int) else i18n.MISSING), _e(status), _num(c.get("start_s"), lang, 2),
@@ -300,11 +303,11 @@ def _cycles_table(r: dict[str, Any], lang: str) -> str:
 
 def _quality_block(r: dict[str, Any], lang: str) -> str:
     cycles = r.get("cycles") or {}
-    rejected = cycles.get("rejected") or []
+    rejected, _ = split_rejected(cycles)
     summary = tr("html.cycles_summary", lang, detected=cycles.get("detected", i18n.MISSING),
                  accepted=cycles.get("accepted", i18n.MISSING), rejected=len(rejected))
     parts = [f"<p>{_e(summary)}</p>"]
-    items = []
+    items = [_e(line) for line in excluded_lines(cycles, lang)]  # the clinician's exclusions, then the pipeline's
     for rej in rejected:
         if not isinstance(rej, dict):
             continue
@@ -339,6 +342,10 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
     if not warnings:
         items.append(_e(tr("html.no_warnings", lang)))
     parts.append('<ul class="warnings">' + "".join(f"<li>{i}</li>" for i in items) + "</ul>")
+    notes = get_path(r, "quality", "technical_notes") or []
+    if notes:  # how the files were read: small, folded, apart from the clinical warnings
+        parts.append(f'<details class="technical"><summary>{_e(tr("technical_notes", lang))}</summary><ul>'
+                     + "".join(f"<li>{_e(warning_text(w, lang, r)[0])}</li>" for w in notes) + "</ul></details>")
     return "".join(parts)
 
 

@@ -23,7 +23,8 @@ from reports.model import Patient, ReportInput
 
 __all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_spans_pct",
            "cycle_and_phase_per_sample", "session_rows", "age_years", "identity_items", "identity_line",
-           "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line"]
+           "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line", "split_rejected", "excluded_lines",
+           "EXCLUDED"]
 
 _DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
                    ("extension", "countermovement_peak", "far_left"),
@@ -83,6 +84,28 @@ def calibration_sentence(results: dict[str, Any], lang: str) -> str | None:
     parts += [code_label("calibration.magnetometer", m, lang) for m in p.get("magnetometer") or []]
     parts += [code_label("calibration.accelerometer", m, lang) for m in p.get("accelerometer") or []]
     return "; ".join(parts) + "." if parts else None
+
+
+#: the reason code of a cycle the clinician excluded (estimators.motor_task.EXCLUDED)
+EXCLUDED = "excluded_by_clinician"
+
+
+def split_rejected(cycles: dict[str, Any]) -> tuple[list[dict], list[dict]]:
+    """``results["cycles"]["rejected"]`` as (the pipeline's rejections, the clinician's exclusions)."""
+    rejected = [r for r in cycles.get("rejected") or [] if isinstance(r, dict)]
+    return ([r for r in rejected if r.get("reason") != EXCLUDED], [r for r in rejected if r.get("reason") == EXCLUDED])
+
+
+def excluded_lines(cycles: dict[str, Any], lang: str) -> list[str]:
+    """One sentence per cycle the clinician excluded (``cycles.excluded``): which, by whom, when and why."""
+    out = []
+    for e in cycles.get("excluded") or []:
+        if not isinstance(e, dict):
+            continue
+        reason = str(e.get("reason") or "").strip() or i18n.t("reason_unknown", lang)
+        out.append(i18n.t("cycle_excluded", lang, n=e.get("cycle", i18n.MISSING), by=e.get("by") or i18n.MISSING,
+                          date=str(e.get("at") or "")[:10] or i18n.MISSING, reason=reason))
+    return out
 
 
 def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:

@@ -51,9 +51,9 @@ from fpdf.enums import XPos, YPos
 
 from reports import bones, figures, fonts, knees
 from reports.i18n import MISSING, fmt_date, fmt_mean_sd, fmt_number, has, t
-from reports.labels import (calibration_sentence, code_label, filter_label, get_path,
+from reports.labels import (calibration_sentence, code_label, excluded_lines, filter_label, get_path,
                             heading_sentence, identity_items, identity_line, phase_names, reference_sentence,
-                            signature_line, signed_line, tr)
+                            signature_line, signed_line, split_rejected, tr)
 from reports.model import ReportInput
 from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
 from reports.warning_text import warning_text
@@ -298,7 +298,7 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
 
     # cycles
     cyc = r.get("cycles") or {}
-    rejected = list(cyc.get("rejected") or [])
+    rejected, excluded = split_rejected(cyc)
     pdf.ensure_space(18)
     pdf.paragraph(pdf.tr("quality_cycles"), style="B")
     pdf.paragraph(pdf.tr("cycles_summary", detected=cyc.get("detected", MISSING),
@@ -310,6 +310,8 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
         reason = pdf.tr(f"reason_{code}") if code and has(f"reason_{code}") else (code or pdf.tr("reason_unknown"))
         idx = rej.get("index")
         pdf.paragraph("• " + pdf.tr("cycle_rejected", n=MISSING if idx is None else int(idx) + 1, reason=reason))
+    for text in excluded_lines(cyc, pdf.lang):  # the clinician's, apart from the pipeline's
+        pdf.paragraph("• " + user_text(text))
 
     # posture check
     pdf.ln(1.5)
@@ -328,6 +330,7 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
     pdf.paragraph(pdf.tr("quality_warnings"), style="B")
     if not warnings:
         pdf.paragraph(pdf.tr("no_warnings"))
+        _technical_notes(pdf, r)
         return
     texts = [warning_text(w, pdf.lang, r) for w in warnings]
     note = pdf.tr("warnings_language_note")
@@ -335,6 +338,18 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
         pdf.paragraph(note, size=8, color=GREY)
     for text, _ in texts:
         pdf.paragraph("• " + (user_text(text) or MISSING))
+    _technical_notes(pdf, r)
+
+
+def _technical_notes(pdf: ReportPDF, r: dict[str, Any]) -> None:
+    """The notes on how the files were read (results.json ``quality.technical_notes``), small, after the warnings."""
+    notes = list(get_path(r, "quality", "technical_notes", default=[]) or [])
+    if not notes:
+        return
+    pdf.ensure_space(12)
+    pdf.paragraph(pdf.tr("technical_notes"), style="B", size=8, color=GREY)
+    for w in notes:
+        pdf.paragraph("• " + (user_text(warning_text(w, pdf.lang, r)[0]) or MISSING), size=7, color=GREY)
 
 
 def _pct(pdf: ReportPDF, fraction: Any, kind: str) -> str:

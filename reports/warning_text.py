@@ -18,6 +18,14 @@ the values it states, by name and unrounded.  Reports print them in Spanish, Eng
   puts the knee first, ``warning.knee.<side>`` (``"Rodilla izquierda: "``), in every language, English and the
   English fallback included; its rejected cycles are then that knee's (``results["knees"][side]``).
 
+Clinical warnings and technical notes (:func:`is_technical`, the one classification every layer uses): a note on
+how the files were read — a stream's tail cut to the common span, clock drift, rows missing, a CSV dialect, a file
+ignored, one recording split into the protocol's parts — describes the recording's handling, not the patient, so
+``results.json`` keeps it in ``quality.technical_notes`` apart from ``quality.warnings``; the UI shows it folded
+away, the PDF and HTML in a small section of their own, and FHIR's ``conclusion`` never.  The ingestion notes
+that change how the knee was measured (no figure-eight, no supine or no standing recording: another calibration)
+stay clinical warnings.
+
 Anything that cannot be translated completely — a code (or variant) without an entry, params missing a
 field or holding ``null`` where a number belongs (``results.json`` has no infinity) — is printed in English
 as it was written, never half-translated; the reports then add their "some warnings are in English" note.
@@ -32,7 +40,19 @@ from typing import Any
 
 from reports import i18n
 
-__all__ = ["warning_text"]
+__all__ = ["TECHNICAL_CODES", "is_technical", "warning_text"]
+
+#: warning codes that are technical notes (module docstring), and of those the variants that are clinical
+TECHNICAL_CODES = frozenset({"ingestion_note"})
+_CLINICAL_VARIANTS = frozenset({"no_mag_calibration", "no_lying", "no_standing"})
+
+
+def is_technical(warning: Mapping[str, Any] | Any) -> bool:
+    """Whether ``warning`` (a results.json ``{"code", "params"}`` or a ``QualityWarning``) is a technical note."""
+    code = warning.get("code") if isinstance(warning, Mapping) else getattr(warning, "code", None)
+    params = warning.get("params") if isinstance(warning, Mapping) else getattr(warning, "params", None)
+    variant = params.get("variant") if isinstance(params, Mapping) else None
+    return code in TECHNICAL_CODES and variant not in _CLINICAL_VARIANTS
 
 _FIELD = re.compile(r"\{(\w+)(?::([^}]*))?\}")
 
@@ -68,9 +88,11 @@ def _format(template: str, params: Mapping[str, Any], lang: str) -> str:
     return _FIELD.sub(fill, template)
 
 
-def _cycle_details(results: Mapping[str, Any] | None, lang: str) -> str | None:
-    """``cycle 3: <reason>; cycle 7: <reason>`` from ``results["cycles"]["rejected"]``, translated."""
-    rejected = ((results or {}).get("cycles") or {}).get("rejected")
+def _cycle_details(results: Mapping[str, Any] | None, lang: str) -> tuple[str, int] | None:
+    """``cycle 3: <reason>; cycle 7: <reason>`` from ``results["cycles"]["rejected"]``, translated, and how many
+    (the pipeline's rejections only)."""
+    rejected = [r for r in ((results or {}).get("cycles") or {}).get("rejected") or ()
+                if r.get("reason") != "excluded_by_clinician"]  # the clinician's are no warning (cycles.excluded)
     if not rejected:
         return None
     items = []
@@ -80,7 +102,7 @@ def _cycle_details(results: Mapping[str, Any] | None, lang: str) -> str | None:
             code or i18n.t("reason_unknown", lang))
         items.append(_format(_text("warning.cycle_item", lang) or "{n}: {reason}",
                              {"n": "?" if idx is None else int(idx) + 1, "reason": reason}, lang))
-    return "; ".join(items)
+    return "; ".join(items), len(items)
 
 
 def warning_text(warning: Mapping[str, Any] | str, lang: str, results: Mapping[str, Any] | None = None
@@ -128,9 +150,9 @@ def _warning_text(warning: Mapping[str, Any], lang: str, results: Mapping[str, A
     try:
         if code == "cycles_rejected":
             details = _cycle_details(results, lang)
-            if details is None or int(values["rejected"]) != len((results or {})["cycles"]["rejected"]):
+            if details is None or int(values["rejected"]) != details[1]:
                 return message, False
-            values["details"] = details
+            values["details"] = details[0]
         text = _format(template, values, lang)
         if prefix is not None:
             text = _format(i18n.table()[prefix][lang], values, lang) + text

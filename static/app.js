@@ -1,8 +1,9 @@
 // ChakaMo browser UI: start-up, login, header and hash routing.
 //
 // Single page, no build step: plain ES modules served from /static.  Routes (hash, so the server only has
-// to serve index.html): #/login, #/patients, #/patients/7, #/sessions/3/wizard, #/sessions/3[?analysis_id=5],
-// #/account (password change, open sessions), #/admin/users|tokens|audit (admins: views/admin.js).
+// to serve index.html): #/login, #/patients, #/patients/7, #/sessions/3/wizard, #/sessions/3/record (recording
+// from the sensors over Bluetooth), #/sessions/3[?analysis_id=5], #/account (password change, open sessions),
+// #/admin/users|tokens|audit (admins: views/admin.js).
 // Each route renders into a fresh <section> put in <main>; a view's timers and async answers check that its
 // section is still in the page (isConnected) before touching it, so leaving a page stops its polling.
 // Start: GET /auth/me tells whether the browser session cookie is still valid (then the CSRF token comes
@@ -16,6 +17,7 @@ import { wizardView } from "./views/wizard.js";
 import { resultsView } from "./views/results.js";
 import { accountView } from "./views/account.js";
 import { adminView } from "./views/admin.js";
+import { recordView } from "./views/record.js";
 
 const state = { user: null, wanted: null };
 const main = document.getElementById("main");
@@ -25,6 +27,7 @@ const ROUTES = [
   [/^#\/patients\/?$/, () => patientsView()],
   [/^#\/patients\/(\d+)$/, (m) => patientView(Number(m[1]))],
   [/^#\/sessions\/(\d+)\/wizard$/, (m) => wizardView(Number(m[1]))],
+  [/^#\/sessions\/(\d+)\/record$/, (m) => recordView(Number(m[1]))],
   [/^#\/sessions\/(\d+)$/, (m, query) => resultsView(Number(m[1]), query)],
   [/^#\/account$/, () => accountView()],
   [/^#\/admin\/?$/, () => adminView("users")],

@@ -136,13 +136,17 @@ export function errorText(err) {
 
 /**
  * A decimal number typed by a person, whatever the UI language: "165,5" and "165.5" are both 165.5 (one comma or
- * one point is the decimal mark; clinical values are never written with thousands separators).  null for an empty
- * field, NaN for anything else ("1.65.5", "abc"): the caller says so in the UI language.
+ * one point is the decimal mark).  null for an empty field, NaN for anything else, which the caller says in the UI
+ * language: "1.65.5", "abc", inner spaces ("7 5": 75 or a slip?), and a mark followed by exactly three digits
+ * after a non-zero whole part ("1,655", "1.655"): an English reader means 1655 (a thousands comma), a Spanish or
+ * Portuguese one 1655 as well (a thousands point) or 1.655 — which, cannot be known, and 1000 times off is not a
+ * slip to guess at.  "0,175" (a step in metres) is not ambiguous and is read.
  */
 export function parseDecimal(text) {
-  const v = String(text ?? "").trim().replace(/\s+/g, "");
+  const v = String(text ?? "").trim();
   if (v === "") return null;
-  return /^[+-]?(\d+([.,]\d*)?|[.,]\d+)$/.test(v) ? Number(v.replace(",", ".")) : Number.NaN;
+  if (!/^[+-]?(\d+([.,]\d*)?|[.,]\d+)$/.test(v) || /^[+-]?0*[1-9]\d*[.,]\d{3}$/.test(v)) return Number.NaN;
+  return Number(v.replace(",", "."));
 }
 
 /** `x` as a person types it in the UI language, all its decimals kept and no grouping ("165,5" in es/pt). */

@@ -230,7 +230,7 @@ def rotate_token(settings: Settings | None, token_id: int, *, grace_hours: float
             old, new = tokens.rotate_token(s, token_id, sha256_hex(token), grace_hours=grace_hours)
         except DomainError as exc:
             raise (CliError(exc.code, **exc.params) if exc.code else ValueError(str(exc))) from None
-        record_operator(s, clinic_id=old.clinic_id, action="token_create", token_id=new.id,
+        record_operator(s, clinic_id=old.clinic_id, action="token_rotate", token_id=new.id,
                         detail=f"token {new.id} replaces token {old.id} (ends {old.expires_at:%Y-%m-%d %H:%M} UTC)")
         info = {"id": old.id, "new_id": new.id, "clinic": old.clinic.name, "old_expires_at": old.expires_at,
                 "expires_at": new.expires_at}

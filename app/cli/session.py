@@ -64,6 +64,12 @@ def add_parsers(sub) -> None:
     proc.add_argument("--involved", choices=choices.SIDE_NAMES, default=None,
                       help="the involved knee of a two-knee session, the numerator of the limb symmetry index "
                            "(default: the patient's side in session.json)")
+    proc.add_argument("--exclude-cycles", default="", metavar="N[,N...]",
+                      help="cycles to leave out of the statistics, numbered as the report numbers them (e.g. 3,7; "
+                           "right:3,left:7 in a session of both knees); the report names them as excluded by the "
+                           "clinician, apart from the cycles the pipeline rejected")
+    proc.add_argument("--exclude-reason", default="", metavar="TEXT",
+                      help="why those cycles are excluded (recorded with them, with your user name and the time)")
 
     view = sub.add_parser("view", help="serve the live 3D femur-tibia animation of a processed session")
     view.add_argument("out", type=Path, metavar="OUT_DIR", help="a folder written by chakamo process or demo")
@@ -84,6 +90,25 @@ def _single_threaded_blas() -> None:
 
     for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(name, "1")
+
+
+def _exclusions(args: argparse.Namespace) -> tuple:
+    """``--exclude-cycles`` / ``--exclude-reason`` as :class:`app.pipeline.exclusions.CycleExclusion` s, recorded as
+    excluded by the user running the command (ValueError naming the option when the list is malformed)."""
+    import getpass
+
+    from app.pipeline.exclusions import parse_cli
+
+    if not args.exclude_cycles.strip():
+        return ()
+    try:
+        by = getpass.getuser()
+    except (KeyError, OSError):  # no name for this uid (a container)
+        by = "command line"
+    try:
+        return parse_cli(args.exclude_cycles, reason=args.exclude_reason, by=by)
+    except ValueError as exc:
+        raise ValueError(f"--exclude-cycles: {exc}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -108,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
             options = ProcessOptions(filter_name=args.filter, side=args.side, angle_method=args.angles,
                                      calibration=args.calibration, task=args.task, heading=args.heading,
                                      expected_fs_hz=expected_fs_hz, language=args.lang or choices.DEFAULT_LANGUAGE,
-                                     involved=args.involved)
+                                     involved=args.involved, exclusions=_exclusions(args))
             _, written = process_folder(args.session, args.out, options, progress=_progress, renderer=renderer,
                                         compare_with=args.compare_with)
         for path in written:

@@ -6,8 +6,10 @@ The rules, in order: a session with a queued or running job is refused (:class:`
 a stale ingestion check (files changed since) is redone first, holding no transaction
 (:meth:`app.store.checks.IngestionChecker.ensure_fresh`); then, with the session's row locked, busy is
 checked again and files that do not pass the check are refused (:class:`NotReady`); optionally an analysis
-that already exists for this filter, language, pipeline version and files is refused (:class:`UpToDate`:
-what makes a cohort run idempotent).  After the insert a job queued by a concurrent request (SQLite has no
+that already exists for this filter, language, pipeline version, files and processing choices (:data:`CHOICES`:
+heading, side, involved knee, calibration, angle convention) is refused (:class:`UpToDate`: what makes a cohort
+run idempotent).  :func:`previous_choices` gives the choices a session was last processed with, so a cohort
+run asks for them again instead of the defaults.  After the insert a job queued by a concurrent request (SQLite has no
 row locks) is detected and refused too (``Busy``: the caller's transaction must be rolled back, which
 leaving the ``Database.session`` block by the exception does).
 
@@ -18,7 +20,7 @@ engines' sweepers resubmit queued jobs): the caller commits, then calls :func:`h
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -26,6 +28,7 @@ from sqlalchemy.orm import Session
 from app.choices import DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION, DEFAULT_HEADING
 from app.jobs.work import JobRunner
 from app.pipeline.session import PIPELINE_VERSION
+from app.store.analyses import latest_analysis
 from app.store.checks import IngestionChecker
 from app.store.errors import Conflict
 from app.store.models import Analysis, Job, KneeSession
@@ -44,30 +47,54 @@ class NotReady(Conflict):
         self.reason = reason
 
 
+#: the processing choices a job carries besides filter and language (ProcessOptions' heading, side, involved,
+#: calibration, angle_method): an analysis is current only for the same ones
+CHOICES = ("heading", "side", "involved", "calibration", "angle_method")
+
+
 class UpToDate(Conflict):
-    """An analysis with the same filter and language exists for this pipeline version and these files."""
+    """An analysis with the same filter, language and choices exists for this pipeline version and these files."""
 
     def __init__(self, analysis_id: int) -> None:
         super().__init__(code="store.up_to_date", analysis_id=analysis_id, version=PIPELINE_VERSION)
         self.analysis_id = analysis_id
 
 
-def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: str) -> int | None:
-    """The id of an analysis of ``session``'s current files with this filter, language and pipeline version."""
-    return db.scalar(select(Analysis.id).where(
+def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: str, *,
+                     heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None,
+                     calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION) -> int | None:
+    """The id of an analysis of ``session``'s current files with this filter, language, pipeline version and
+    choices (:data:`CHOICES`, as its job asked for them), or None."""
+    chosen = {"heading": heading, "side": side, "involved": involved, "calibration": calibration,
+              "angle_method": angle_method}
+    return db.scalar(select(Analysis.id).join(Job, Job.id == Analysis.job_id).where(
         Analysis.session_id == session.id, Analysis.filter == filter_name, Analysis.lang == lang,
-        Analysis.pipeline_version == PIPELINE_VERSION, Analysis.files_version == session.files_version))
+        Analysis.pipeline_version == PIPELINE_VERSION, Analysis.files_version == session.files_version,
+        *(getattr(Job, k).is_not_distinct_from(chosen[k]) for k in CHOICES)).limit(1))
+
+
+def previous_choices(db: Session, session_id: int) -> dict[str, str | None]:
+    """The :data:`CHOICES` of the job behind the session's current analysis
+    (:func:`app.store.analyses.latest_analysis`), else of its latest job; empty when it has none (the defaults)."""
+    analysis = latest_analysis(db, session_id)
+    job = db.get(Job, analysis.job_id) if analysis is not None else \
+        db.scalar(select(Job).where(Job.session_id == session_id).order_by(Job.id.desc()).limit(1))
+    return {} if job is None else {k: getattr(job, k) for k in CHOICES}
 
 
 def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, lang: str,
             checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False,
             heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None,
-            calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION) -> Job:
+            calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION,
+            cycle_exclusions: tuple[list[dict], str] | None = None) -> Job:
     """Insert (and flush, not commit) a queued job of session ``session_id`` of clinic ``clinic_id`` (module
     docstring for the rules); raises :class:`app.store.errors.NotFound`, :class:`Busy`, :class:`NotReady`
     or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check).  ``side``:
     the side the clinician chose over the files' (:attr:`app.pipeline.session.ProcessOptions.side`), or None;
-    ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's); ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``."""
+    ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's);
+    ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``;
+    ``cycle_exclusions``: the cycles the clinician excluded (``[{"cycle", "knee", "reason"}]``) and who did, kept
+    on the job with the time (:func:`exclusion_records`), or None."""
     what = "process"
     session = clinic_session(db, clinic_id, session_id)
     refuse_while_processing(db, session.id, what)
@@ -77,16 +104,31 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
     if not ready(session):
         stored = session.ingestion if ingestion_fresh(session) else {}
         raise NotReady(stored.get("error_item") or stored.get("error"))
-    if unless_current and (done := current_analysis(db, session, filter_name, lang)) is not None:
+    if unless_current and (done := current_analysis(db, session, filter_name, lang, heading=heading, side=side,
+                                                    involved=involved, calibration=calibration,
+                                                    angle_method=angle_method)) is not None:
         raise UpToDate(done)
     job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, heading=heading, side=side,
-              involved=involved, calibration=calibration, angle_method=angle_method, log=list(log_lines), stage="queued", pipeline_version=PIPELINE_VERSION)
+              involved=involved, calibration=calibration, angle_method=angle_method, log=list(log_lines),
+              stage="queued",
+              cycle_exclusions=None if cycle_exclusions is None else exclusion_records(*cycle_exclusions),
+              pipeline_version=PIPELINE_VERSION)
     db.add(job)
     db.flush()
     other = active_job_id(db, session.id, other_than=job.id)
     if other is not None:  # another request queued one at the same moment (SQLite has no row locks)
         raise Busy(session.id, other, what)
     return job
+
+
+def exclusion_records(items: Sequence[Mapping], by: str) -> list[dict]:
+    """``Job.cycle_exclusions``: each cycle ``{"cycle", "knee", "reason"}`` of ``items`` recorded as excluded by ``by``
+    now (:class:`app.pipeline.exclusions.CycleExclusion`; one entry per knee and cycle)."""
+    from app.pipeline.exclusions import CycleExclusion, normalised, now_iso
+
+    at = now_iso()
+    return [e.to_dict() for e in normalised(CycleExclusion(int(x["cycle"]), x.get("knee"), x.get("reason") or "", by, at)
+                                            for x in items)]
 
 
 def hand_over(runner: JobRunner, job_id: int) -> None:
@@ -97,4 +139,5 @@ def hand_over(runner: JobRunner, job_id: int) -> None:
         log.warning("job %s queued but not handed to the engine now; the sweeper will", job_id, exc_info=True)
 
 
-__all__ = ["NotReady", "UpToDate", "current_analysis", "enqueue", "hand_over"]
+__all__ = ["CHOICES", "NotReady", "UpToDate", "current_analysis", "enqueue", "exclusion_records", "hand_over",
+           "previous_choices"]

@@ -4,9 +4,10 @@ Which sessions: those whose clinical date is on or after ``since`` (of one clini
 recordings.  Each gets one of these outcomes (:class:`Outcome`), printed as a table by the CLI:
 
 * ``queued`` — a new job (``jobs`` row, ``queued``, carrying :data:`app.pipeline.session.PIPELINE_VERSION`), handed to
-  the engine;
-* ``current`` — an analysis with the same filter and language already exists for this pipeline version and
-  these files (``files_version``): nothing to do.  This is what makes a cohort run idempotent — running the
+  the engine, with the choices the session was last processed with (heading, side, involved knee, calibration,
+  angle convention: :func:`app.jobs.queue.previous_choices`), so ``--force`` never resets a clinician's choice;
+* ``current`` — an analysis with the same filter, language and those choices already exists for this pipeline
+  version and these files (``files_version``): nothing to do.  This is what makes a cohort run idempotent — running the
   same command twice queues nothing the second time — the work being keyed by session, files and pipeline
   version (``--force`` queues it anyway);
 * ``busy`` — a job of the session is queued or running (it is not queued twice);
@@ -29,7 +30,7 @@ from dataclasses import dataclass
 from sqlalchemy import select
 
 from app.choices import FILTER_NAMES
-from app.jobs.queue import NotReady, UpToDate, enqueue
+from app.jobs.queue import NotReady, UpToDate, enqueue, previous_choices
 from app.pipeline.service_messages import render_item
 from app.settings import Settings
 from app.store.blobs import open_storage
@@ -70,11 +71,12 @@ def _queue_one(db: Database, checker: IngestionChecker, session_id: int, filter_
         session = s.get(KneeSession, session_id)
         clinic_id = session.clinic_id
         base = dict(session_id=session.id, patient=session.patient.external_id, date=session.date)
+        choices = previous_choices(s, session_id)
     try:
         with db.session() as s:
             job = enqueue(s, clinic_id, session_id, filter_name=filter_name, lang=lang, checker=checker,
                           log_lines=[f"{utcnow().isoformat(timespec='seconds')} queued by chakamo reprocess"],
-                          unless_current=not force)
+                          unless_current=not force, **choices)
             return Outcome(**base, status="queued", job_id=job.id)
     except Busy as busy:  # also one queued by the API at the same moment: that one stands
         return Outcome(**base, status="busy", job_id=busy.job_id, note=f"job {busy.job_id} is queued or running")

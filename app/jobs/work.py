@@ -59,6 +59,7 @@ from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 
 from app.store.database import Database
+from app.store.analyses import supersede
 from app.store.erasure import reserve_blob
 from app.store.models import Analysis, Artefact, Clinic, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
@@ -310,7 +311,9 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
     from app.pipeline.ingestion import IngestionError, load_knees
     from app.pipeline.knees import process_knees
     from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions
+    from app.pipeline.exclusions import from_records
     from app.pipeline.results import build_knees_results
+    from app.store.pairing import partner_files
     from app.store.workspace import materialise, public_message
 
     progress = _Progress(db, job_id, attempt)
@@ -324,14 +327,17 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             clinic_name = clinic.name if clinic is not None else ""
             recordings = list(s.scalars(select(Recording).where(Recording.session_id == session.id)
                                         .order_by(Recording.id)))
+            paired = partner_files(s, session)  # the other knee's session, when paired (app.store.pairing)
             s.expunge_all()
         progress("read", 0.01, note=f"started (attempt {job.attempts}): filter {job.filter}, language {job.lang}")
+        # a paired session's involved knee: the request's, else the patient's side (not the session's own knee)
+        involved = job.involved or (patient.side if paired is not None else None)
         options = ProcessOptions(filter_name=job.filter, language=job.lang, task=session.task, heading=job.heading,
-                                 side=job.side, involved=job.involved, calibration=job.calibration,
-                                 angle_method=job.angle_method)
+                                 side=job.side, involved=involved, calibration=job.calibration,
+                                 angle_method=job.angle_method, exclusions=from_records(job.cycle_exclusions))
         identifier_system = _identifier_system()
         # the reports' identity line: the clinic's name and the record numbers' system (issue 17 §3)
-        with materialise(store, tmp_root, session, patient, recordings, clinic=clinic_name,
+        with materialise(store, tmp_root, session, patient, recordings, paired, clinic=clinic_name,
                          identifier_system=identifier_system) as folder:
             loaded = load_knees(folder)
             knees = process_knees(loaded, options, web=True,
@@ -355,17 +361,22 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                     reserve_blob(s, sha, size)
                     sealed[sha, size].commit()
                 analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
+                                    calibration=job.calibration, angle_method=job.angle_method,
                                     accepted_cycles=int(results["cycles"]["accepted"]),
                                     warnings=len(results["quality"]["warnings"]),
                                     pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
                 analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
                                       for (name, lang), (sha, size) in stored.items()]
+                # a choice of cycles revises the analysis: the earlier ones stay, for the record, superseded
+                revised = supersede(s, [session.id]) if job.cycle_exclusions is not None else 0
                 s.add(analysis)
                 s.flush()
                 row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()
                 row.analysis_id = analysis.id
                 row.log = [*row.log, f"{utcnow().isoformat(timespec='seconds')} done: analysis {analysis.id}, "
-                                     f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"]
+                                     f"{analysis.accepted_cycles} cycles accepted, {analysis.warnings} warnings"
+                                     + (f"; {revised} earlier analyses superseded (cycles chosen by the clinician)"
+                                        if revised else "")]
         return "done"
     except Superseded:  # the sweeper gave the job to another run (this one looked lost): that run stands
         log.warning("job %s: attempt %s was taken over by another run; its results are dropped", job_id, attempt)

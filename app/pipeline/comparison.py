@@ -4,7 +4,9 @@ Rows ``{"key", "unit", "a", "b", "change"}`` with ``change = b − a`` (``a`` th
 into ``results.json``: ``rom_deg.<angle>.<max|min|range>`` (mean over the accepted cycles, deg),
 ``phases.<phase>.mean_pct``, ``gait.parameters.<name>.mean`` (its unit the name's suffix) and
 ``symmetry.<name>.lsi_pct`` (sessions of both knees).  The two should come from the same orientation filter,
-pipeline version and task, else part of a change is the method's, and describe the same knee (``side``: the
+pipeline version, task, sensor-to-segment calibration and knee-angle convention, else part of a change is the
+method's (at 90° flexion, 5° adduction and 15° internal rotation the thesis' ZYX angles read adduction 10.1° higher
+and rotation 19.8° lower: tests/app/pipeline/test_comparison.py), and describe the same knee (``side``: the
 top level of a two-knee session is its involved knee), else the change is one knee against the other:
 :func:`mismatch` (the one rule, the web's comparisons use it too) says which differ.  Used by the web's ``GET /patients/{id}/compare`` (:mod:`app.store.comparisons`) and by
 ``chakamo process --compare-with``, whose reports then show a comparison section.
@@ -15,15 +17,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from app.choices import DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION
+
 ANGLES = ("flexion", "adduction", "internal_rotation")
 ROM_STATS = ("max", "min", "range")
 #: what two analyses must share to be compared (module docstring)
-COMPARED = ("filter", "pipeline_version", "task", "side")
+COMPARED = ("filter", "pipeline_version", "task", "side", "calibration", "angle_method")
 
 
 def mismatch(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[str]:
     """The facts of :data:`COMPARED` that differ between two analyses (``{"filter", "pipeline_version", "task",
-    "side", ...}`` each); empty when they are comparable."""
+    "side", "calibration", "angle_method", ...}`` each); empty when they are comparable."""
     return [k for k in COMPARED if a.get(k) != b.get(k)]
 
 
@@ -65,12 +69,15 @@ def comparison_rows(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[dict[str
 
 def comparison(earlier: Mapping[str, Any], later: Mapping[str, Any]) -> dict[str, Any]:
     """``results.json`` ``comparison`` of the later analysis against an earlier one: ``{"with": {"date",
-    "patient_id", "filter", "pipeline_version", "task", "side"}, "comparable", "mismatch", "rows"}``."""
+    "patient_id", "filter", "pipeline_version", "task", "side", "calibration", "angle_method"}, "comparable",
+    "mismatch", "rows"}`` (results written before the options were recorded ran with the defaults)."""
     def facts(r: Mapping[str, Any]) -> dict[str, Any]:
         session = r.get("session") or {}
         return {"date": session.get("date"), "patient_id": session.get("patient_id"),
                 "filter": (r.get("filter") or {}).get("name"), "pipeline_version": (r.get("software") or {}).get("version"),
-                "task": r.get("task"), "side": r.get("side")}
+                "task": r.get("task"), "side": r.get("side"),
+                "calibration": r.get("calibration_method", DEFAULT_CALIBRATION),
+                "angle_method": r.get("angle_method", DEFAULT_ANGLE_CONVENTION)}
 
     a, b = facts(earlier), facts(later)
     differ = mismatch(a, b)

@@ -34,6 +34,7 @@ from app.pipeline.ingestion import (
 from app.pipeline.session import ProcessOptions, SessionOutcome
 from app.pipeline.process import process_folder
 from app.pipeline.results import write_outputs
+from reports.warning_text import is_technical
 
 EPOCH0_S = 1_795_341_600.0  # 2026-11-22 10:00 UTC: the phone clock of the simulated session
 STEP_HEIGHT_M = 0.17
@@ -264,6 +265,10 @@ def run_demo(out_dir: Path, *, seed: int = 7, side: str = "right", n_cycles: int
         print(f"  {name:<18} {value:5.2f}°")
     print(f"Cycles: {acc['cycles_found']} of {acc['cycles_true']} true cycles found, {acc['cycles_accepted']} accepted; "
           f"phase boundaries within {acc['phase_boundary_max_error_pct']:.2f} % of the cycle")
+    for w in outcome.warnings:  # the clinical warnings, then the technical notes (reports.warning_text.is_technical)
+        if not is_technical(w):
+            print(f"  warning [{w.code}] {w.message}")
     for w in outcome.warnings:
-        print(f"  warning [{w.code}] {w.message}")
+        if is_technical(w):
+            print(f"  technical note [{w.code}] {w.message}")
     return acc

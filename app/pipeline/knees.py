@@ -24,7 +24,7 @@ value is missing or the uninvolved one is not positive.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from app.pipeline.comparison import at, number
@@ -73,7 +73,8 @@ def process_knees(knees: Mapping[str, Session], options: ProcessOptions | None =
 
     With two knees the side comes from each knee's recordings (``options.side`` would give both the same sign:
     refused); ``options.involved`` (else the session's ``side``: the patient's, in ``session.json``) picks the
-    involved knee.  With one knee, everything is as :func:`process_session`.  ``web``: the caller is the web
+    involved knee.  With one knee, everything is as :func:`process_session`.  ``options.exclusions`` (cycles the
+    clinician excluded) go each to its knee; with two knees each must name one.  ``web``: the caller is the web
     application, whose refusal of ``options.side`` names its form and request fields, not the CLI's options.
     """
     options = options or ProcessOptions()
@@ -83,12 +84,15 @@ def process_knees(knees: Mapping[str, Session], options: ProcessOptions | None =
     if options.side is not None:
         raise PipelineError("pipeline.side_with_two_knees.web" if web else "pipeline.side_with_two_knees",
                             side=options.side)
+    if (nameless := next((e for e in options.exclusions if e.knee is None), None)) is not None:
+        raise PipelineError("pipeline.exclude_no_knee", cycle=nameless.cycle)
     out: dict[str, SessionOutcome] = {}
     for i, (side, session) in enumerate(sorted(knees.items())):
         def part(stage: str, fraction: float, i: int = i, side: str = side) -> None:
             progress(f"{side} {stage}", 0.96 * (i + fraction) / 2.0)
 
-        out[side] = process_session(session, options, progress=part)
+        mine = replace(options, exclusions=tuple(e for e in options.exclusions if e.knee == side))
+        out[side] = process_session(session, mine, progress=part)
     involved = options.involved or _patient_side(knees)
     return KneesOutcome(out, involved)
 

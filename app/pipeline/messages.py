@@ -125,6 +125,33 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
         "en": "motor-task analysis of {files}: {reason}",
         "es": "análisis de la tarea motora de {files}: {reason}",
         "pt": "análise da tarefa motora de {files}: {reason}"},
+    # ------------------------------------------------------------------ cycles the clinician excluded
+    "pipeline.exclude_unknown_cycle": {
+        "en": "cycle {cycle} cannot be excluded: {detected} cycles were detected; choose among cycles 1 to {detected}",
+        "es": "no se puede excluir el ciclo {cycle}: se detectaron {detected} ciclos; elija entre los ciclos 1 y "
+              "{detected}",
+        "pt": "não é possível excluir o ciclo {cycle}: foram detectados {detected} ciclos; escolha entre os ciclos 1 "
+              "e {detected}"},
+    "pipeline.exclude_every_cycle": {
+        "en": "excluding {excluded} cycles leaves none of the {detected} detected in the statistics; keep at least "
+              "one cycle",
+        "es": "al excluir {excluded} ciclos no queda ninguno de los {detected} detectados en la estadística; "
+              "conserve al menos un ciclo",
+        "pt": "ao excluir {excluded} ciclos não resta nenhum dos {detected} detectados na estatística; mantenha pelo "
+              "menos um ciclo"},
+    "pipeline.exclude_other_knee": {
+        "en": "cycle {cycle} is excluded on the {knee} knee, which this session does not hold; name the session's "
+              "knee (or no knee when it holds one)",
+        "es": "el ciclo {cycle} se excluye en la rodilla {knee}, que esta sesión no contiene; indique la rodilla de "
+              "la sesión (o ninguna si solo tiene una)",
+        "pt": "o ciclo {cycle} é excluído no joelho {knee}, que esta sessão não contém; indique o joelho da sessão "
+              "(ou nenhum se ela tiver só um)"},
+    "pipeline.exclude_no_knee": {
+        "en": "the session holds both knees: say on which knee cycle {cycle} is excluded (e.g. right:{cycle})",
+        "es": "la sesión contiene ambas rodillas: indique en qué rodilla se excluye el ciclo {cycle} (p. ej. "
+              "right:{cycle})",
+        "pt": "a sessão contém os dois joelhos: indique em que joelho o ciclo {cycle} é excluído (p. ex. "
+              "right:{cycle})"},
     # ------------------------------------------------------------------ the job runner's own failures
     "job.interrupted": {
         "en": "processing was interrupted {attempts} times; check the server's and the workers' memory and logs, "

@@ -26,6 +26,7 @@ from estimators.motor_task import ANGLES
 from estimators.motor_task.analysis import ROM_STATS
 
 from reports.model import Interpretation, Patient, ReportInput
+from reports.warning_text import is_technical
 
 from app.pipeline.ingestion.provenance import session_facts
 from app.pipeline.knees import KneesOutcome, limb_symmetry
@@ -50,6 +51,7 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
     a = outcome.analysis
     task = a.to_dict()
     opts = outcome.options
+    warnings = [w.to_dict() for w in outcome.warnings]
     session = outcome.session
     meta = session.metadata
     results = {
@@ -59,6 +61,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
                    "overrides": dict(opts.filter_params)},
         "angles": list(ANGLES),
         "angle_method": opts.angle_method,
+        # the sensor-to-segment calibration asked for (ProcessOptions.calibration); "calibration" holds what it made
+        "calibration_method": opts.calibration,
         "cycles": {
             "detected": task["cycles"]["detected"],
             "accepted": task["cycles"]["accepted"],
@@ -69,6 +73,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "events_s": task["cycles"]["events_s"],
             "task_span_s": task["task_span_s"],
             "per_cycle": _per_cycle(outcome),
+            # who excluded which cycle and why (their reason in rejected is excluded_by_clinician)
+            "excluded": [e.to_dict() for e in opts.exclusions],
         },
         "rom_deg": _deg(task["rom_rad"]),
         **({"gait": _gait(task["gait"])} if "gait" in task else {}),
@@ -98,7 +104,9 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "protocol": _protocol_facts(outcome),
         },
         "quality": {
-            "warnings": [w.to_dict() for w in outcome.warnings],
+            # clinical warnings apart from the technical notes on reading the files (reports.warning_text.is_technical)
+            "warnings": [w for w in warnings if not is_technical(w)],
+            "technical_notes": [w for w in warnings if is_technical(w)],
             "magnetic_disturbance_fraction": {seg: f.fraction for seg, f in outcome.field.items()},
             "heading_task": _heading_task(outcome),
             # which thigh–shank heading the knee angles use (--heading), and the figures it was chosen by
@@ -165,19 +173,20 @@ def build_knees_results(knees: KneesOutcome) -> dict[str, Any]:
     per = {side: primary if outcome is knees.primary else build_results(outcome)
            for side, outcome in sorted(knees.knees.items())}
     top = next(side for side, outcome in knees.knees.items() if outcome is knees.primary)
-    quality = {**primary["quality"], "warnings": knees_warnings(per, top)}
+    quality = {**primary["quality"], "warnings": knees_warnings(per, top),
+               "technical_notes": knees_warnings(per, top, "technical_notes")}
     return {**primary, "quality": quality, "involved_side": knees.involved, "knees": per,
             "symmetry": json_ready(limb_symmetry(per, knees.involved))}
 
 
-def knees_warnings(per: Mapping[str, Mapping[str, Any]], first: str) -> list[dict[str, Any]]:
+def knees_warnings(per: Mapping[str, Mapping[str, Any]], first: str, key: str = "warnings") -> list[dict[str, Any]]:
     """Both knees' ``quality.warnings`` as one list, knee ``first`` (the top level's) first: a warning both knees
     raise alike (a session-wide one, as a recording missing from the folder, or the same on both legs) once and as
     it is; every other with ``params["knee"]`` = its knee's side, which the reports, the web and FHIR print as a
     translated prefix (:func:`reports.warning_text.warning_text`).  ``knee``, not ``side``: a warning's ``side``
-    is already the recording's side in ``check.side_mismatch``."""
+    is already the recording's side in ``check.side_mismatch``.  ``key``: ``warnings`` or ``technical_notes``."""
     order = [first, *sorted(side for side in per if side != first)]
-    lists = [list(per[side]["quality"]["warnings"]) for side in order]
+    lists = [list(per[side]["quality"].get(key) or []) for side in order]
     shared = [w for w in lists[0] if all(w in other for other in lists[1:])]
 
     def of(w: Mapping[str, Any], side: str) -> dict[str, Any]:
@@ -221,9 +230,12 @@ def _heading_task(outcome: SessionOutcome) -> dict[str, Any] | None:
 
 
 def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
-    """One entry per detected cycle: accepted or the rejection reason, ROM (deg) and phase durations."""
+    """One entry per detected cycle: accepted or the reason it is not (the pipeline's or ``excluded_by_clinician``),
+    ROM (deg), phase durations and its normalised flexion curve (``flexion_deg``, 0..100 %, None when incomplete),
+    which the results page draws per cycle."""
     a = outcome.analysis
     reasons = {r.index: r.code for r in a.rejected}
+    flexion = np.rad2deg(a.curves_rad[:, :, 0])  # each cycle's normalised flexion (NaN for the incomplete)
     phases = a.task.phase_names
     out = []
     for k in range(a.n_detected):
@@ -235,6 +247,7 @@ def _per_cycle(outcome: SessionOutcome) -> list[dict[str, Any]]:
             "end_s": a.cycles_s[k, 1],
             "rom_deg": {angle: dict(zip(ROM_STATS, np.rad2deg(a.rom_rad[k, i]))) for i, angle in enumerate(ANGLES)},
             "phases": {name: {"s": a.phase_s[k, j], "pct": a.phase_pct[k, j]} for j, name in enumerate(phases)},
+            "flexion_deg": None if not np.all(np.isfinite(flexion[k])) else np.round(flexion[k], 2),
         })
     return out
 

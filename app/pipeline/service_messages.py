@@ -41,7 +41,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "Los archivos están guardados, pero el servidor no pudo comprobarlos en {seconds} s porque está "
               "ocupado comprobando otros archivos; abra la sesión de nuevo en un momento y se comprobarán entonces.",
         "pt": "Os ficheiros estão guardados, mas o servidor não pôde verificá-los em {seconds} s porque está "
-              "ocupado verificando outros ficheiros; abra a sessão de novo daqui a pouco e serão verificados então."},
+              "ocupado a verificar outros ficheiros; abra a sessão de novo daqui a pouco e serão verificados então."},
     "session.no_files_yet": {
         "en": "No recordings yet; upload the session's files.",
         "es": "Todavía no hay grabaciones; suba los archivos de la sesión.",
@@ -49,13 +49,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "session.being_checked": {
         "en": "The session's files are being checked; reload in a moment.",
         "es": "Se están comprobando los archivos de la sesión; recargue en un momento.",
-        "pt": "Os ficheiros da sessão estão sendo verificados; recarregue daqui a pouco."},
+        "pt": "Os ficheiros da sessão estão a ser verificados; recarregue daqui a pouco."},
     "session.check_deferred": {
         "en": "The files are stored, but the server could not check them now; the check runs again when the "
               "session is opened or processed.",
         "es": "Los archivos están guardados, pero el servidor no pudo comprobarlos ahora; la comprobación se repite "
               "cuando se abra o se procese la sesión.",
-        "pt": "Os ficheiros estão guardados, mas o servidor não pôde verificá-los agora; a verificação se repete "
+        "pt": "Os ficheiros estão guardados, mas o servidor não pôde verificá-los agora; a verificação repete-se "
               "quando a sessão for aberta ou processada."},
     "session.knee.left": {"en": "Left knee:", "es": "Rodilla izquierda:", "pt": "Joelho esquerdo:"},
     "session.knee.right": {"en": "Right knee:", "es": "Rodilla derecha:", "pt": "Joelho direito:"},
@@ -106,7 +106,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "El nombre de archivo {name} contiene caracteres invisibles que cambian el orden en que se muestra "
               "(controles bidireccionales de Unicode); cambie el nombre del archivo (letras, dígitos, - _ .).",
         "pt": "O nome de ficheiro {name} contém caracteres invisíveis que mudam a ordem em que é mostrado "
-              "(controles bidirecionais do Unicode); renomeie o ficheiro (letras, dígitos, - _ .)."},
+              "(controlos bidirecionais do Unicode); renomeie o ficheiro (letras, dígitos, - _ .)."},
     "request.disk_full": {
         "en": "The server's disk is full, so the files could not be stored and none was recorded. Ask your "
               "ChakaMo administrator to free space, then upload them again.",
@@ -122,11 +122,11 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.too_many_parts": {
         "en": "Too many parts in one upload; send at most {max_files} files and the fields segment and role.",
         "es": "Demasiadas partes en una subida; envíe como mucho {max_files} archivos y los campos segment y role.",
-        "pt": "Partes demais num envio; envie no máximo {max_files} ficheiros e os campos segment e role."},
+        "pt": "Demasiadas partes num envio; envie no máximo {max_files} ficheiros e os campos segment e role."},
     "request.part_header_too_long": {
         "en": "A multipart header is too long; send the files with a standard form upload.",
         "es": "Un encabezado multipart es demasiado largo; envíe los archivos con un formulario estándar.",
-        "pt": "Um cabeçalho multipart é longo demais; envie os ficheiros com um formulário padrão."},
+        "pt": "Um cabeçalho multipart é demasiado longo; envie os ficheiros com um formulário padrão."},
     "request.too_many_part_headers": {
         "en": "Too many headers in one multipart part; send a standard form upload.",
         "es": "Demasiados encabezados en una parte multipart; envíe un formulario estándar.",
@@ -174,7 +174,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.field_too_long": {
         "en": "Form field {field} is too long; it takes a short word.",
         "es": "El campo de formulario {field} es demasiado largo; admite una palabra corta.",
-        "pt": "O campo de formulário {field} é longo demais; aceita uma palavra curta."},
+        "pt": "O campo de formulário {field} é demasiado longo; aceita uma palavra curta."},
     "request.upload_too_large": {
         "en": "The upload is larger than {max_files} files of {limit_mb} MB; send fewer or smaller files.",
         "es": "La subida ocupa más que {max_files} archivos de {limit_mb} MB; envíe menos archivos o más pequeños.",
@@ -190,7 +190,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "request.no_file": {
         "en": "No file in the request; send the recordings in the multipart field 'files'.",
         "es": "No hay ningún archivo en la petición; envíe las grabaciones en el campo multipart 'files'.",
-        "pt": "Não há nenhum ficheiro na requisição; envie as gravações no campo multipart 'files'."},
+        "pt": "Não há nenhum ficheiro no pedido; envie as gravações no campo multipart 'files'."},
     "request.cursor_invalid": {
         "en": "The cursor is not one this server gave; send the X-Next-Cursor of the previous page, or no cursor "
               "for the first page.",
@@ -238,6 +238,22 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "The amendment's text is the same as the signed text; change the text or leave it as it is.",
         "es": "El texto de la enmienda es igual al texto firmado; cambie el texto o déjelo como está.",
         "pt": "O texto da emenda é igual ao texto assinado; altere o texto ou deixe-o como está."},
+    "store.pair_itself": {
+        "en": "Session {session_id} cannot be paired with itself; choose the patient's session of the other knee.",
+        "es": "La sesión {session_id} no puede emparejarse consigo misma; elija la sesión del paciente de la otra rodilla.",
+        "pt": "A sessão {session_id} não pode ser emparelhada consigo mesma; escolha a sessão do paciente do outro joelho."},
+    "store.pair_other_patient": {
+        "en": "Sessions {session_id} and {other_id} belong to different patients; pair two sessions of one patient.",
+        "es": "Las sesiones {session_id} y {other_id} son de pacientes distintos; empareje dos sesiones del mismo paciente.",
+        "pt": "As sessões {session_id} e {other_id} são de pacientes diferentes; emparelhe duas sessões do mesmo paciente."},
+    "store.pair_both_knees": {
+        "en": "Session {session_id} already holds both knees (four sensors); pair two sessions of one knee each.",
+        "es": "La sesión {session_id} ya contiene ambas rodillas (cuatro sensores); empareje dos sesiones de una rodilla cada una.",
+        "pt": "A sessão {session_id} já contém os dois joelhos (quatro sensores); emparelhe duas sessões de um joelho cada."},
+    "store.pair_bad_knee": {
+        "en": "knee {knee!r} is unknown; use {allowed}.",
+        "es": "la rodilla {knee!r} es desconocida; use {allowed}.",
+        "pt": "o joelho {knee!r} é desconhecido; use {allowed}."},
     "store.superseded": {
         "en": "The results of session {session_id} were computed from recordings or details that have changed since (analysis {analysis_id}, superseded {when} UTC); process the session again{tail}.",
         "es": "Los resultados de la sesión {session_id} se calcularon con grabaciones o datos que han cambiado desde entonces (análisis {analysis_id}, reemplazado el {when} UTC); procese la sesión de nuevo{tail}.",
@@ -284,10 +300,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "A sessão {session_id} está sendo processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
     # what the clinician may do once the job has finished ({what} of store.busy)
     "store.then.process": {"en": "process it again", "es": "procésela de nuevo", "pt": "processe-a de novo"},
-    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os arquivos"},
+    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os ficheiros"},
     "store.then.correct": {"en": "correct it", "es": "corríjala", "pt": "corrija-a"},
     "store.then.delete": {"en": "delete it", "es": "bórrela", "pt": "apague-a"},
-    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague arquivos"},
+    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague ficheiros"},
     "store.then.move_cuts": {"en": "move the cuts", "es": "mueva los cortes", "pt": "mova os cortes"},
     "store.then.correct_patient": {"en": "correct the patient", "es": "corrija el paciente",
                                    "pt": "corrija o paciente"},
@@ -370,7 +386,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "you saw (the ETag of its GET) or '*' to confirm.",
         "es": "Esta eliminación borra el registro y todo lo que contiene para siempre; envíe 'If-Match' con la "
               "versión que vio (la ETag de su GET) o '*' para confirmar.",
-        "pt": "Esta exclusão apaga o registro e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
+        "pt": "Esta eliminação apaga o registo e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
               "que viu (a ETag do seu GET) ou '*' para confirmar."},
     "request.if_match_unreadable": {
         "en": "If-Match {value!r} is not a version; send the ETag of the GET, e.g. \"3\".",
@@ -381,7 +397,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "tell your ChakaMo administrator.",
         "es": "La sesión {session_id} no se puede exportar a FHIR ({reason}); corrija el registro y vuelva a "
               "intentarlo, o avise a su administrador de ChakaMo.",
-        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registro e tente de "
+        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registo e tente de "
               "novo, ou avise o seu administrador do ChakaMo."},
     "request.events_other_clinic": {
         "en": "This event stream was opened for another clinic than the one you are now logged in to; open it "
@@ -411,17 +427,23 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "rol desconocido {role!r}; use uno de {allowed}",
         "pt": "papel desconhecido {role!r}; use um de {allowed}"},
     "store.expiry_out_of_range": {
-        "en": "--expires-days {days} is out of range; give 1 to {limit} days",
-        "es": "--expires-days {days} está fuera de rango; indique de 1 a {limit} días",
-        "pt": "--expires-days {days} está fora do intervalo; indique de 1 a {limit} dias"},
+        "en": "a lifetime of {days} days is out of range; give more than 0 and at most {limit} days",
+        "es": "una validez de {days} días está fuera de rango; indique más de 0 y como mucho {limit} días",
+        "pt": "uma validade de {days} dias está fora do intervalo; indique mais de 0 e no máximo {limit} dias"},
     "store.no_token": {
-        "en": "no API token with id {token_id}; see the ids with `chakamo tokens list --clinic NAME`",
-        "es": "no hay token de API con id {token_id}; vea los ids con `chakamo tokens list --clinic NOMBRE`",
-        "pt": "não há token de API com id {token_id}; veja os ids com `chakamo tokens list --clinic NOME`"},
+        "en": "no API token with id {token_id}; see the ids on the Administration page (API tokens) or with "
+              "`chakamo tokens list --clinic NAME`",
+        "es": "no hay token de API con id {token_id}; vea los ids en la página de Administración (tokens de API) o "
+              "con `chakamo tokens list --clinic NOMBRE`",
+        "pt": "não há token de API com id {token_id}; veja os ids na página de Administração (tokens de API) ou "
+              "com `chakamo tokens list --clinic NOME`"},
     "store.token_dead": {
-        "en": "token {token_id} is revoked or expired; create a new one with `chakamo tokens create`",
-        "es": "el token {token_id} está revocado o caducado; cree uno nuevo con `chakamo tokens create`",
-        "pt": "o token {token_id} está revogado ou expirado; crie um novo com `chakamo tokens create`"},
+        "en": "token {token_id} is revoked or expired; create a new one on the Administration page (API tokens) or "
+              "with `chakamo tokens create`",
+        "es": "el token {token_id} está revocado o caducado; cree uno nuevo en la página de Administración (tokens "
+              "de API) o con `chakamo tokens create`",
+        "pt": "o token {token_id} está revogado ou expirado; crie um novo na página de Administração (tokens de "
+              "API) ou com `chakamo tokens create`"},
     "store.grace_out_of_range": {
         "en": "--grace-hours {hours} is out of range; give 0 to {limit} hours",
         "es": "--grace-hours {hours} está fuera de rango; indique de 0 a {limit} horas",

@@ -22,7 +22,9 @@ Stages (each reported to ``progress(stage, fraction)``):
    core's default, whose offline smoother needs no convergence time, so the first cycle is not lost
    as it was in the thesis);
 5. **knee** — ``q_femur_tibia`` and the clinical (Grood & Suntay) or thesis (ZYX) angles;
-6. **task** — cycles, phases, normalised curves, ROM (:func:`estimators.motor_task.analyse_task`).
+6. **task** — cycles, phases, normalised curves, ROM (:func:`estimators.motor_task.analyse_task`), without the cycles
+   the clinician excluded (``ProcessOptions.exclusions``, :mod:`app.pipeline.exclusions`: reason
+   ``excluded_by_clinician``, no quality warning; ``cycles_rejected`` counts the pipeline's own rejections).
 
 Quality checks gathered on the way (``results["quality"]["warnings"]``): magnetometer coverage and
 residual, postures not still or not distinct, a sensor mounted upside down, a large heading offset
@@ -52,13 +54,14 @@ from estimators.diagnosis import diagnose
 from estimators.disturbance import FieldCheck, field_disturbance
 from estimators.heading import DISAGREEMENT_BOUND_RAD, DISTURBED_BOUND_RAD, HeadingChoice, choose_heading
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
-from estimators.motor_task import EVENTS, TASKS, TaskAnalysis, analyse_task
+from estimators.motor_task import EVENTS, EXCLUDED, TASKS, TaskAnalysis, UnknownCycleError, analyse_task
 from estimators.orientation import make
 from estimators.quality import QualityWarning
 
 from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
                          DEFAULT_FILTER, DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, HEADING_NAMES,
                          LANGUAGE_NAMES, SIDE_NAMES, TASK_NAMES)
+from app.pipeline.exclusions import CycleExclusion
 from app.pipeline.ingestion import SEGMENTS, IngestionError, Note, Session
 
 FloatArray = NDArray[np.float64]
@@ -150,6 +153,8 @@ class ProcessOptions:
     language : report language (``es``/``en``/``pt``), recorded for the reports.
     involved : the involved knee of a two-knee session (``app.choices.SIDES``; None: the patient's side from
         ``session.json``): the numerator of the limb symmetry index (:mod:`app.pipeline.knees`).
+    exclusions : the cycles the clinician excluded (:class:`app.pipeline.exclusions.CycleExclusion`): left out of
+        the statistics with the reason ``excluded_by_clinician`` before the pipeline's own rejection runs.
     """
 
     filter_name: str = DEFAULT_FILTER
@@ -162,6 +167,7 @@ class ProcessOptions:
     expected_fs_hz: float | None = 100.0
     language: str = DEFAULT_LANGUAGE
     involved: str | None = None
+    exclusions: tuple[CycleExclusion, ...] = ()
 
     def __post_init__(self) -> None:
         if self.side is not None and self.side not in SIDE_NAMES:
@@ -336,20 +342,18 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
     warnings += list(diagnosis.warnings)  # the named cause of a heading problem (lost, or a disturbed field)
 
     progress("task", 0.95)
-    try:
-        shank_axis = quat.rotate(segments["shank"].q_sensor_segment, np.array([0.0, 0.0, 1.0]))
-        analysis = analyse_task(angles, thigh.fs_hz, task=options.task, inputs={  # what a task's analysis may use
-            "gyr_shank_rad_s": gyr_task["shank"], "gyr_thigh_rad_s": gyr_task["thigh"], "shank_axis_sensor": shank_axis,
-            "q_earth_thigh": q_es["thigh"], "q_earth_shank": q_es["shank"]})
-    except ValueError as exc:
-        raise PipelineError("pipeline.task_analysis", files=_files(thigh), reason=str(exc)) from None
+    analysis = _analyse(angles, thigh, options, side, {  # what a task's analysis may use
+        "gyr_shank_rad_s": gyr_task["shank"], "gyr_thigh_rad_s": gyr_task["thigh"],
+        "shank_axis_sensor": quat.rotate(segments["shank"].q_sensor_segment, np.array([0.0, 0.0, 1.0])),
+        "q_earth_thigh": q_es["thigh"], "q_earth_shank": q_es["shank"]})
     warnings += list(analysis.warnings)
-    if analysis.rejected:
+    rejected = [r for r in analysis.rejected if r.code != EXCLUDED]  # the pipeline's own: the clinician's are no warning
+    if rejected:
         warnings.append(QualityWarning(
             "cycles_rejected",
-            f"{len(analysis.rejected)} of {analysis.n_detected} cycles were left out of the statistics: "
-            + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in analysis.rejected),
-            {"rejected": len(analysis.rejected), "detected": analysis.n_detected}))
+            f"{len(rejected)} of {analysis.n_detected} cycles were left out of the statistics: "
+            + "; ".join(f"cycle {r.index + 1}: {r.message}" for r in rejected),
+            {"rejected": len(rejected), "detected": analysis.n_detected}))
     heading_task = _task_heading(q_seg, analysis, thigh.fs_hz)
     if heading_task is not None:
         warnings += list(heading_task.warnings)
@@ -359,6 +363,25 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
         q_earth_segment=q_seg, q_femur_tibia=q_ft, mag=mag, segments=segments, field=field, heading=heading,
         analysis=analysis, warnings=tuple(warnings), filter_params=filt.params, heading_task=heading_task,
         heading_choice=choice, acc=acc_cal)
+
+
+def _analyse(angles: FloatArray, thigh, options: ProcessOptions, side: str, inputs: dict) -> TaskAnalysis:
+    """The task's analysis (:func:`estimators.motor_task.analyse_task`) without the cycles the clinician excluded
+    (``options.exclusions`` of this knee: those naming it or no knee; one naming the other knee is refused).
+    Refused too: an exclusion of a cycle that was not detected, or of every cycle the pipeline would keep."""
+    other = [e for e in options.exclusions if e.knee not in (None, side)]
+    if other:
+        raise PipelineError("pipeline.exclude_other_knee", cycle=other[0].cycle, knee={"code": f"word.{other[0].knee}"})
+    exclude = [e.index for e in options.exclusions]
+    try:
+        analysis = analyse_task(angles, thigh.fs_hz, task=options.task, inputs=inputs, exclude=exclude)
+    except UnknownCycleError as exc:
+        raise PipelineError("pipeline.exclude_unknown_cycle", cycle=exc.index + 1, detected=exc.detected) from None
+    except ValueError as exc:
+        raise PipelineError("pipeline.task_analysis", files=_files(thigh), reason=str(exc)) from None
+    if exclude and analysis.n_accepted == 0 and any(r.code == EXCLUDED for r in analysis.rejected):
+        raise PipelineError("pipeline.exclude_every_cycle", excluded=len(exclude), detected=analysis.n_detected)
+    return analysis
 
 
 #: the recordings whose still poses calibrate a sensor's accelerometer (the task's are left out: its rests repeat

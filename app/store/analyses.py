@@ -7,17 +7,29 @@ for the record, and can be read by id; but :func:`pick_analysis` no longer gives
 result: asked for the latest, it raises :class:`SupersededResults` (409, "process the session again") when the
 latest is superseded, so no route serves it as the final report by default.  A newer analysis (the session
 processed again) is current again.
+
+The clinical convention: a session may be processed again with the thesis' ZYX angles only to compare with them
+(they read adduction 10.1° higher and rotation 19.8° lower at 90/5/15°, :mod:`app.pipeline.comparison`).  Such a run
+is read by id; the session's current analysis is its latest in Grood & Suntay
+(:data:`app.choices.DEFAULT_ANGLE_CONVENTION`), the latest of any convention only when it has none
+(:func:`latest_analysis`).  :data:`SERIES` names the columns of the method: analyses differing in one are not
+compared or trended together (:mod:`app.store.comparisons`, :func:`app.store.patients.rom_trend`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
-from sqlalchemy import select, update
+from sqlalchemy import case, select, update
 from sqlalchemy.orm import Session
 
+from app.choices import DEFAULT_ANGLE_CONVENTION
 from app.store.errors import Conflict, NotFound
 from app.store.models import Analysis, Artefact, KneeSession, utcnow
+
+
+#: the analysis columns of the method that made its numbers: two analyses are of one series when all are equal
+SERIES = ("filter", "pipeline_version", "calibration", "angle_method")
 
 
 class SupersededResults(Conflict):
@@ -40,7 +52,11 @@ def supersede(db: Session, session_ids: Iterable[int]) -> int:
 
 
 def latest_analysis(db: Session, session_id: int) -> Analysis | None:
-    return db.scalar(select(Analysis).where(Analysis.session_id == session_id).order_by(Analysis.id.desc()))
+    """The session's current analysis (superseded or not): its latest in the clinical angle convention, else its
+    latest (module docstring); None when it has none."""
+    clinical = case((Analysis.angle_method == DEFAULT_ANGLE_CONVENTION, 0), else_=1)
+    return db.scalar(select(Analysis).where(Analysis.session_id == session_id)
+                     .order_by(clinical, Analysis.id.desc()).limit(1))
 
 
 def pick_analysis(db: Session, session: KneeSession, analysis_id: int | None) -> Analysis:
@@ -74,4 +90,4 @@ def artefact(db: Session, analysis: Analysis, name: str, lang: str = "") -> Arte
     return row
 
 
-__all__ = ["SupersededResults", "artefact", "find_artefact", "latest_analysis", "pick_analysis", "supersede"]
+__all__ = ["SERIES", "SupersededResults", "artefact", "find_artefact", "latest_analysis", "pick_analysis", "supersede"]

@@ -7,12 +7,18 @@ import datetime as dt
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.store.database import add_at_commit
 from app.store.models import AuditEvent
 
 
-def add_event(db: Session, **columns) -> AuditEvent:
-    """Add and flush one :class:`AuditEvent` in ``db``'s transaction (a failing insert raises here)."""
+def add_event(db: Session, *, at_commit: bool = False, **columns) -> AuditEvent:
+    """Add one :class:`AuditEvent` to ``db``'s transaction: flushed now (a failing insert raises here), or with
+    ``at_commit`` written by the commit (:func:`app.store.database.add_at_commit`: a failing insert fails the
+    commit; the event has no id before it)."""
     event = AuditEvent(**columns)
+    if at_commit:
+        add_at_commit(db, event)
+        return event
     db.add(event)
     db.flush()
     return event

@@ -45,6 +45,7 @@ from app.store.blobs import BlobStore
 from app.store.database import Database
 from app.store.models import KneeSession, Recording
 from app.store.sessions import ingestion_fresh
+from app.store.pairing import partner_files
 from app.store.workspace import check_ingestion
 
 log = logging.getLogger("chakamo.uploads")
@@ -207,9 +208,11 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
         session = db.get(KneeSession, session_id)
         version = session.files_version
         patient, recordings = session.patient, list(session.recordings)
+        paired = partner_files(db, session)  # a paired session's check reads both knees (app.store.pairing)
         db.expunge_all()
     try:
-        ingestion = _check_in_slot(gate, pool, store, tmp_dir, session, patient, recordings, timeout_s, wait_s)
+        ingestion = _check_in_slot(gate, pool, store, tmp_dir, session, patient, recordings, timeout_s, wait_s,
+                                   paired)
     except CheckBusy:
         log.warning("ingestion check of session %s not run: no check slot free within %.0f s", session_id, wait_s)
         return _failed("session.check_busy", seconds=round(wait_s))  # not stored: checked again later
@@ -218,13 +221,13 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
 
 
 def _check_in_slot(gate: CheckGate, pool, store: BlobStore, tmp_dir: Path, session: KneeSession, patient,
-                   recordings, timeout_s: float, wait_s: float) -> dict[str, Any]:
+                   recordings, timeout_s: float, wait_s: float, paired=None) -> dict[str, Any]:
     session_id = session.id
     with gate.slot(session.clinic_id, wait_s):
         ran, ingestion = False, None
         if pool is not None:
             try:
-                ran, ingestion = pool.run(check_ingestion, store, tmp_dir, session, patient, recordings,
+                ran, ingestion = pool.run(check_ingestion, store, tmp_dir, session, patient, recordings, paired,
                                           timeout_s=timeout_s, wait_s=wait_s)
             except CheckTimedOut:
                 log.warning("ingestion check of session %s stopped after %.0f s; its helper process was replaced",
@@ -234,7 +237,7 @@ def _check_in_slot(gate: CheckGate, pool, store: BlobStore, tmp_dir: Path, sessi
                 log.error("the helper process died checking session %s; it was replaced", session_id)
                 ran, ingestion = True, _failed("session.check_stopped")
         if not ran:
-            ingestion = check_ingestion(store, tmp_dir, session, patient, recordings)
+            ingestion = check_ingestion(store, tmp_dir, session, patient, recordings, paired)
     return ingestion
 
 

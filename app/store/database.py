@@ -12,6 +12,7 @@ Nothing is created at import time.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -89,6 +90,43 @@ def ensure_blob(db: Session, sha256: str, size_bytes: int) -> None:
                .on_conflict_do_nothing(index_elements=["sha256"]))
 
 
+_AT_COMMIT = "chakamo_add_at_commit"  # the Session.info key of the rows add_at_commit queued
+_at_commit_hooked = False
+_at_commit_lock = threading.Lock()
+
+
+def _add_queued(session: Session) -> None:
+    session.add_all(session.info.pop(_AT_COMMIT, ()))  # before_commit: the commit's own flush writes them
+
+
+def _drop_queued(session: Session, transaction) -> None:
+    if transaction.parent is None:  # the outermost transaction ended without them (rolled back, closed): they go
+        session.info.pop(_AT_COMMIT, None)  # with it, as rows flushed in it would (a savepoint's end keeps them)
+
+
+def add_at_commit(db: Session, row) -> None:
+    """Add ``row`` to ``db`` when ``db`` commits, not before: written by the commit's flush, in the thread that
+    commits; gone if the transaction is rolled back instead (exactly what a row flushed now would do).
+
+    Why: on SQLite a row written now takes the one write lock until the commit.  A request whose route runs on one
+    thread-pool thread and whose commit runs on another (FastAPI: a ``def`` route, then its response's validation
+    on the pool, then the session dependency's exit) would hold that lock while it queues for a pool thread — and
+    when every pool thread is a request waiting for that same lock (a login flood, an upload burst), nobody moves
+    until SQLite's busy timeout (15 s) gives up on the waiters: reads timed out at 30 s (issue 16 finding 2).
+    A row added at commit takes the lock only inside the commit, which holds no pool thread while it waits (the
+    dependency's exit runs without the pool's limit).  Not touched by autoflush: the row is outside the session
+    until then.  The hook is registered on :class:`~sqlalchemy.orm.Session` at the first call (never at import)."""
+    global _at_commit_hooked
+    with _at_commit_lock:
+        if not _at_commit_hooked:
+            event.listen(Session, "before_commit", _add_queued)
+            event.listen(Session, "after_transaction_end", _drop_queued)
+            _at_commit_hooked = True
+    if not db.in_transaction():
+        db.begin()  # the row belongs to a transaction: its end without a commit drops it
+    db.info.setdefault(_AT_COMMIT, []).append(row)
+
+
 class Database:
     """One database: ``engine``, ``sessions()`` (a sessionmaker) and :meth:`session` as a context manager."""
 
@@ -124,4 +162,4 @@ class Database:
         self.engine.dispose()
 
 
-__all__ = ["Base", "Database", "MIGRATIONS_DIR", "alembic_config", "ensure_blob", "make_engine"]
+__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blob", "make_engine"]

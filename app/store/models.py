@@ -18,6 +18,7 @@ from sqlalchemy import (JSON, Boolean, Date, DateTime, Float, ForeignKey, Index,
                         TypeDecorator, UniqueConstraint, text)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
+from app.choices import DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION, DEFAULT_HEADING
 from app.choices import USER_ROLE_NAMES as ROLES  # the one definition of the roles (re-exported here)
 
 JOB_STATES = ("queued", "running", "done", "failed")
@@ -162,6 +163,12 @@ class KneeSession(Base):
     updated_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
     #: the clinician's cuts of the continuous recordings (``session.json`` ``"split"``), or None: the automatic ones
     split: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    #: a one-knee session paired with another of the patient, of the other knee (both knees' view and the limb
+    #: symmetry index, app.store.pairing); None: not paired.  ``knee``: the knee its recordings measure then
+    #: (left/right); None: the patient's side.  No foreign key (a rebuild of this table on SQLite would cascade to
+    #: every recording): a partner since erased reads as no partner
+    paired_session_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    knee: Mapped[str | None] = mapped_column(String(5), nullable=True)
     patient: Mapped[Patient] = relationship(lazy="joined")
     recordings: Mapped[list["Recording"]] = relationship(order_by="Recording.id", back_populates="session",
                                                           cascade="all, delete-orphan")
@@ -196,15 +203,19 @@ class Job(Base):
     filter: Mapped[str] = mapped_column(String(40))
     lang: Mapped[str] = mapped_column(String(2), default="es")
     #: the thigh–shank heading asked for (app.choices.HEADINGS), handed to the pipeline as ProcessOptions.heading
-    heading: Mapped[str] = mapped_column(String(20), default="auto", server_default="auto")
+    heading: Mapped[str] = mapped_column(String(20), default=DEFAULT_HEADING, server_default=DEFAULT_HEADING)
     #: the side the clinician chose over the files' (ProcessOptions.side, kept as a warning); None: the files'
     side: Mapped[str | None] = mapped_column(String(5), nullable=True)
     #: the involved knee of a two-knee session (ProcessOptions.involved: the LSI's numerator); None: the patient's
     involved: Mapped[str | None] = mapped_column(String(5), nullable=True)
     #: the sensor-to-segment calibration asked for (app.choices.CALIBRATIONS; ProcessOptions.calibration)
-    calibration: Mapped[str] = mapped_column(String(20), default="static", server_default="static")
+    calibration: Mapped[str] = mapped_column(String(20), default=DEFAULT_CALIBRATION, server_default=DEFAULT_CALIBRATION)
     #: the knee-angle convention asked for (app.choices.ANGLE_CONVENTIONS; ProcessOptions.angle_method)
-    angle_method: Mapped[str] = mapped_column(String(20), default="grood_suntay", server_default="grood_suntay")
+    angle_method: Mapped[str] = mapped_column(String(20), default=DEFAULT_ANGLE_CONVENTION,
+                                              server_default=DEFAULT_ANGLE_CONVENTION)
+    #: the cycles the clinician excluded (ProcessOptions.exclusions: ``[{"cycle", "knee", "reason", "by", "at"}]``); a
+    #: job that has it (an empty list too) supersedes the session's earlier analyses; None: an ordinary processing
+    cycle_exclusions: Mapped[list | None] = mapped_column(JSON, nullable=True)
     #: a failed job's message as a catalogue code and its values (app.pipeline.ingestion.messages), for any language
     error_code: Mapped[str | None] = mapped_column(String(60), nullable=True)
     error_params: Mapped[dict | None] = mapped_column(JSON, nullable=True)
@@ -234,6 +245,11 @@ class Analysis(Base):
     #: the pipeline version and the session's ``files_version`` this analysis was computed from
     pipeline_version: Mapped[str] = mapped_column(String(40), default="", server_default="")
     files_version: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    #: the calibration and knee-angle convention it was computed with (its job's): two analyses differing in either
+    #: are not compared or trended together, and only a Grood & Suntay one is the session's current result
+    calibration: Mapped[str] = mapped_column(String(20), default=DEFAULT_CALIBRATION, server_default=DEFAULT_CALIBRATION)
+    angle_method: Mapped[str] = mapped_column(String(20), default=DEFAULT_ANGLE_CONVENTION,
+                                              server_default=DEFAULT_ANGLE_CONVENTION)
     #: set when a recording it was computed from was deleted or the facts it printed were corrected
     #: (:func:`app.store.analyses.supersede`): no longer served as the session's final report
     superseded_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)
@@ -410,7 +426,9 @@ class WebhookDelivery(Base):
     """One event for one subscription, and every attempt to deliver it: the audit trail of the webhooks."""
 
     __tablename__ = "webhook_deliveries"
-    __table_args__ = (UniqueConstraint("subscription_id", "job_id", name="uq_webhook_delivery_job"),)
+    #: one delivery per subscription, job and event: a job's end, and for the FHIR push its retraction
+    #: (``app.store.webhooks``)
+    __table_args__ = (UniqueConstraint("subscription_id", "job_id", "event", name="uq_webhook_delivery_job"),)
     id: Mapped[int] = mapped_column(primary_key=True)
     subscription_id: Mapped[int] = mapped_column(ForeignKey("webhook_subscriptions.id", ondelete="CASCADE"),
                                                  index=True)
@@ -423,7 +441,7 @@ class WebhookDelivery(Base):
     attempts: Mapped[int] = mapped_column(Integer, default=0)
     next_attempt_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     last_status: Mapped[int | None] = mapped_column(Integer, nullable=True)
-    #: the code of the last failed attempt (``app.web.webhooks.TRAIL_CODES``, rendered in es/en/pt); "" when none
+    #: the code of the last failed attempt (``app.web.webhooks``' codes, rendered in es/en/pt); "" when none
     last_error: Mapped[str] = mapped_column(String(300), default="")
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime, default=utcnow)
     delivered_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime, nullable=True)

@@ -19,8 +19,8 @@ from sqlalchemy import delete, func, or_, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.choices import SEX_NAMES, SIDE_NAMES
-from app.store.analyses import find_artefact, supersede
+from app.choices import MEASURE_RANGES, SEX_NAMES, SIDE_NAMES
+from app.store.analyses import SERIES, find_artefact, supersede
 from app.store.blobs import BlobStore
 from app.store.erasure import session_blobs
 from app.store.errors import Conflict, Invalid, NotFound
@@ -34,7 +34,7 @@ CORRECTABLE_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "heigh
 PROCESSED_FIELDS = ("external_id", "side", "name", "birth_date", "sex", "height_cm", "mass_kg")
 #: open ranges a corrected number must fall in (the API's schema enforces the same at the edge; the operator's
 #: CLI reaches the store directly)
-RANGES = {"height_cm": (30.0, 260.0), "mass_kg": (2.0, 400.0)}
+RANGES = MEASURE_RANGES
 
 
 def check_values(values: dict[str, Any], ranges: dict[str, tuple[float, float]],
@@ -185,32 +185,37 @@ def delete_patient(db: Session, clinic_id: int, patient_id: int,
 
 
 def rom_trend(db: Session, store: BlobStore, patient_id: int, filter_name: str | None = None,
-              pipeline_version: str | None = None) -> dict[str, Any]:
-    """The ROM per session, oldest first, from analyses of **one series**: the same orientation filter and pipeline
-    version (numbers from two filters or two versions differ by the method, not the patient: one session run
-    once with Madgwick read +1.7° of flexion against its default-filter neighbours).
+              pipeline_version: str | None = None, calibration: str | None = None,
+              angle_method: str | None = None) -> dict[str, Any]:
+    """The ROM per session, oldest first, from analyses of **one series**: the same orientation filter, pipeline
+    version, sensor-to-segment calibration and knee-angle convention (numbers from two methods differ by the method,
+    not the patient: one session run once with Madgwick read +1.7° of flexion against its default-filter
+    neighbours; the thesis' ZYX angles read adduction 10.1° higher and rotation 19.8° lower than Grood & Suntay's at
+    90/5/15°, :mod:`app.pipeline.comparison`).
 
-    The series is ``(filter_name, pipeline_version)`` when given, else the one that covers the most sessions (ties:
-    the one of the newest analysis).  Each session's point is its latest current (not superseded) analysis of that
+    The series is the one matching every key given (``filter_name``, ``pipeline_version``, ``calibration``,
+    ``angle_method``; None: any), of those the one that covers the most sessions (ties: the one of the newest
+    analysis).  Each session's point is its latest current (not superseded) analysis of that
     series, named by ``analysis_id``; sessions without one are listed in ``left_out`` with the series they do have.
-    Returns ``{"filter", "pipeline_version", "points", "left_out", "series"}`` (``series``: every
-    ``{"filter", "pipeline_version", "sessions"}`` the patient's analyses offer, to choose another).
+    Returns ``{"filter", "pipeline_version", "calibration", "angle_method", "points", "left_out", "series"}``
+    (``series``: every ``{"filter", "pipeline_version", "calibration", "angle_method", "sessions"}`` the patient's
+    analyses offer, to choose another).
     A point's ``rom_deg`` is the patient's knee's (``side``): in a session of both knees ``knees[patient side]``,
     whichever knee was chosen as involved for that analysis (the top level), so one series never sets one knee
     against the other."""
     patient_side = db.get(Patient, patient_id).side
     sessions = patient_sessions(db, patient_id, newest_first=False)
-    rows = list(db.execute(select(Analysis.id, Analysis.session_id, Analysis.filter, Analysis.pipeline_version)
+    rows = list(db.execute(select(Analysis.id, Analysis.session_id, *(getattr(Analysis, k) for k in SERIES))
                            .join(KneeSession, KneeSession.id == Analysis.session_id)
                            .where(KneeSession.patient_id == patient_id, Analysis.superseded_at.is_(None))
                            .order_by(Analysis.id)))
-    latest: dict[tuple[str, str], dict[int, int]] = {}  # series → session → its latest analysis there
-    for aid, sid, filt, version in rows:
-        latest.setdefault((filt, version), {})[sid] = aid
+    latest: dict[tuple[str, ...], dict[int, int]] = {}  # series → session → its latest analysis there
+    for aid, sid, *key in rows:
+        latest.setdefault(tuple(key), {})[sid] = aid
     series = sorted(latest, key=lambda k: (len(latest[k]), max(latest[k].values())), reverse=True)
-    chosen = (filter_name, pipeline_version) if filter_name is not None and pipeline_version is not None else \
-        next((k for k in series if (filter_name is None or k[0] == filter_name)
-              and (pipeline_version is None or k[1] == pipeline_version)), (filter_name, pipeline_version))
+    asked = (filter_name, pipeline_version, calibration, angle_method)
+    chosen = next((k for k in series if all(want is None or have == want for have, want in zip(k, asked))), asked)
+    named = dict(zip(SERIES, chosen))
     picked = latest.get(chosen, {})
     points, left_out = [], []
     for s in sessions:
@@ -218,15 +223,14 @@ def rom_trend(db: Session, store: BlobStore, patient_id: int, filter_name: str |
             aid = picked[s.id]
             results = json.loads(store.read(find_artefact(db, aid, "results.json").sha256))
             knee = (results.get("knees") or {}).get(patient_side) or results
-            points.append({"session_id": s.id, "date": s.date, "analysis_id": aid, "filter": chosen[0],
-                           "pipeline_version": chosen[1], "side": knee.get("side"), "rom_deg": knee.get("rom_deg", {})})
+            points.append({"session_id": s.id, "date": s.date, "analysis_id": aid, **named,
+                           "side": knee.get("side"), "rom_deg": knee.get("rom_deg", {})})
         else:
-            have = [{"filter": k[0], "pipeline_version": k[1], "analysis_id": latest[k][s.id]}
-                    for k in series if s.id in latest[k]]
+            have = [{**dict(zip(SERIES, k)), "analysis_id": latest[k][s.id]} for k in series if s.id in latest[k]]
             if have:
                 left_out.append({"session_id": s.id, "date": s.date, "analyses": have})
-    return {"filter": chosen[0], "pipeline_version": chosen[1], "points": points, "left_out": left_out,
-            "series": [{"filter": k[0], "pipeline_version": k[1], "sessions": len(latest[k])} for k in series]}
+    return {**named, "points": points, "left_out": left_out,
+            "series": [{**dict(zip(SERIES, k)), "sessions": len(latest[k])} for k in series]}
 
 
 __all__ = ["CORRECTABLE_FIELDS", "PROCESSED_FIELDS", "RANGES", "check_values", "add_patient", "clinic_patient", "correct_patient",

@@ -7,7 +7,7 @@ another row's key fails to open instead of opening to garbage.  A sealed value i
 holds 100).  AES-GCM rather than Fernet (AES-128-CBC + HMAC, 140 characters for the same secret) for that
 length.  A database copied without the key reveals no secret; rotating ``CHAKAMO_SECRET_KEY`` makes the stored
 ones unreadable (their subscriptions must be made again).  Secrets stored in plain text before sealing existed
-were sealed by migration 0012 (:func:`seal_plain`), so a value without the prefix is refused (``ValueError``), never
+were sealed by migration 0012 (``app/store/migrations/versions/0012_sealed_secrets_fhir_push.py``), so a value without the prefix is refused (``ValueError``), never
 used as a key.  The module lives in the store because that migration seals with it (the store may not import the
 web layer).
 """

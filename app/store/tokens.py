@@ -16,12 +16,12 @@ from collections.abc import Iterable
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.choices import TOKEN_SCOPES, USER_ROLE_NAMES
+from app.choices import TOKEN_MAX_DAYS, TOKEN_SCOPES, USER_ROLE_NAMES
 from app.store.errors import Invalid, NotFound
 from app.store.models import ApiToken, utcnow
 
-#: the longest lifetime a token may be given (ten years)
-MAX_DAYS = 3650
+#: the longest lifetime a token may be given (ten years: app.choices.TOKEN_MAX_DAYS)
+MAX_DAYS = TOKEN_MAX_DAYS
 
 
 def parse_scopes(scopes: Iterable[str] | None) -> str | None:

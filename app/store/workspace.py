@@ -31,6 +31,7 @@ from typing import Any
 
 from app.store.models import KneeSession, Patient, Recording
 from app.pipeline.ingestion import MANIFEST, IngestionError, load_knees
+from app.pipeline.ingestion.labels import recognise_role, recognise_segment
 from app.pipeline.ingestion.metabase import group_metabase_files, parse_file_name
 from app.pipeline.ingestion.session import parse_manifest
 from app.pipeline.service_messages import item, recognised_item, render
@@ -75,7 +76,7 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
             if not isinstance(name, str) or Path(name).name != name or name not in stored:
                 raise IngestionError("manifest.not_uploaded", file=MANIFEST, name=repr(name)[:80])
     facts = {
-        "side": patient.side, "patient_id": patient.external_id, "date": session.date.isoformat(),
+        "side": session.knee or patient.side, "patient_id": patient.external_id, "date": session.date.isoformat(),
         "step_height_m": _number(session.step_height_m), "name": patient.name,
         "professional": session.professional, "weight_kg": _number(patient.mass_kg),
         "height_m": None if patient.height_cm is None else patient.height_cm / 100.0,
@@ -118,31 +119,58 @@ def uploaded_manifest(store: BlobStore, recordings: Sequence[Recording]) -> dict
     return None
 
 
+#: the folder of a paired session's partner, beside the session's own (``session.json`` ``"paired_session"``)
+PAIRED_FOLDER = "paired-session"
+
+
+def _write_session(store: BlobStore, folder: Path, session: KneeSession, patient: Patient,
+                   recordings: Sequence[Recording], extra: dict[str, Any] | None = None, *, clinic: str = "",
+                   identifier_system: str | None = None) -> None:
+    """The session's files and manifest (``extra`` keys added to it; ``clinic`` and ``identifier_system`` as
+    :func:`build_manifest`'s) into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    uploaded = uploaded_manifest(store, recordings)
+    for rec in recordings:
+        if rec.file_name != MANIFEST:
+            store.copy_to(rec.sha256, folder / rec.file_name)
+    manifest = build_manifest(session, patient, recordings, uploaded, clinic=clinic,
+                              identifier_system=identifier_system)
+    manifest.pop("paired_session", None)  # only the database pairs stored sessions
+    manifest |= extra or {}
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, ensure_ascii=False), encoding="utf-8")
+
+
 @contextmanager
 def materialise(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
-                recordings: Sequence[Recording], *, clinic: str = "",
+                recordings: Sequence[Recording],
+                paired: tuple[KneeSession, Sequence[Recording]] | None = None, *, clinic: str = "",
                 identifier_system: str | None = None) -> Iterator[Path]:
     """A temporary folder with the session's files and manifest (removed on exit; ``clinic`` and
-    ``identifier_system`` as :func:`build_manifest`'s)."""
+    ``identifier_system`` as :func:`build_manifest`'s).  ``paired``: the session it is paired with and its
+    recordings (:func:`app.store.pairing.partner_files`): those go into a sibling folder (:data:`PAIRED_FOLDER`)
+    that the manifest names as ``paired_session``, so the ingestion reads both knees."""
     tmp_root.mkdir(parents=True, exist_ok=True)
-    folder = Path(tempfile.mkdtemp(prefix=f"session-{session.id}-", dir=tmp_root))
+    root = Path(tempfile.mkdtemp(prefix=f"session-{session.id}-", dir=tmp_root))
+    folder = root / "session"
     try:
-        uploaded = uploaded_manifest(store, recordings)
-        for rec in recordings:
-            if rec.file_name != MANIFEST:
-                store.copy_to(rec.sha256, folder / rec.file_name)
-        manifest = build_manifest(session, patient, recordings, uploaded, clinic=clinic,
-                                  identifier_system=identifier_system)
-        (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, ensure_ascii=False), encoding="utf-8")
+        extra = None
+        if paired is not None:
+            _write_session(store, root / PAIRED_FOLDER, paired[0], patient, paired[1], clinic=clinic,
+                           identifier_system=identifier_system)
+            extra = {"paired_session": f"../{PAIRED_FOLDER}"}
+        _write_session(store, folder, session, patient, recordings, extra, clinic=clinic,
+                       identifier_system=identifier_system)
         yield folder
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(root, ignore_errors=True)
 
 
 def public_message(text: str, folder: Path | None) -> str:
-    """``text`` without the server's temporary path ``folder``."""
+    """``text`` without the server's temporary path ``folder`` (nor its paired session's)."""
     if folder is None:
         return text
+    paired = str(folder.parent / PAIRED_FOLDER)
+    text = text.replace(paired + "/", "").replace(paired, "the paired session")
     return text.replace(str(folder) + "/", "").replace(str(folder), "the session")
 
 
@@ -179,16 +207,18 @@ def file_facts(loaded) -> dict[str, dict[str, str]]:
 
 
 def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, patient: Patient,
-                    recordings: Sequence[Recording]) -> dict[str, Any]:
+                    recordings: Sequence[Recording],
+                    paired: tuple[KneeSession, Sequence[Recording]] | None = None) -> dict[str, Any]:
     """The contract's Ingestion ``{"ok", "messages", "error"}`` of the session's stored files (English), with
     ``items`` and ``error_item``: the same messages as codes and params (:func:`app.pipeline.service_messages.item`),
     which the API renders in the reader's language; and ``splits``, where each continuous recording was cut
-    (:meth:`app.pipeline.ingestion.split.Split.to_dict`, with its trace), for the wizard to show and move."""
+    (:meth:`app.pipeline.ingestion.split.Split.to_dict`, with its trace), for the wizard to show and move.
+    ``paired``: the partner of a paired session (:func:`materialise`): both knees are checked."""
     if not [r for r in recordings if r.file_name != MANIFEST]:
         return dict(NO_RECORDINGS)
     folder = None
     try:
-        with materialise(store, tmp_root, session, patient, recordings) as folder:
+        with materialise(store, tmp_root, session, patient, recordings, paired) as folder:
             knees = load_knees(folder)  # one knee, or both (four sensors)
             items, splits, devices, segments, roles = [], {}, {}, {}, {}
             for side, loaded in sorted(knees.items()):
@@ -207,10 +237,31 @@ def check_ingestion(store: BlobStore, tmp_root: Path, session: KneeSession, pati
     except IngestionError as exc:
         text = public_message(str(exc), folder)
         return {"ok": False, "messages": [], "error": text, "items": [],
-                "error_item": item(exc.code, _public(dict(exc.params), folder), text)}
+                "error_item": item(exc.code, _public(dict(exc.params), folder), text), **named_facts(recordings)}
     except (ValueError, OSError) as exc:
         text = public_message(str(exc), folder)
-        return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None}
+        return {"ok": False, "messages": [], "error": text, "items": [], "error_item": None,
+                **named_facts(recordings)}
 
 
-__all__ = ["IDENTITY_KEYS", "NO_RECORDINGS", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts", "materialise", "public_message"]
+def named_facts(recordings: Sequence[Recording]) -> dict[str, dict[str, str]]:
+    """``segments`` and ``roles`` of the files whose names say both (:func:`app.pipeline.ingestion.labels.
+    recognise_segment` / ``recognise_role``), for a check that failed before it recognised anything: the wizard
+    then still shows each such file in its zone (a rejected one red there) instead of under "other files".  A name
+    with two candidate words, or without one of the two, is left out."""
+    segments, roles = {}, {}
+    for r in recordings:
+        if r.file_name == MANIFEST:
+            continue
+        try:
+            seg, role = recognise_segment(r.file_name), recognise_role(r.file_name)
+        except ValueError:  # two words match: the check alone can tell
+            continue
+        if seg is not None and role is not None:
+            segments[r.file_name], roles[r.file_name] = seg.value, role.value
+    return {"segments": segments, "roles": roles}
+
+
+__all__ = ["IDENTITY_KEYS", "NO_RECORDINGS", "PAIRED_FOLDER", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts",
+           "materialise", "named_facts",
+           "public_message"]

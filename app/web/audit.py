@@ -5,7 +5,7 @@ the actor (a browser user — its id and email — or an API token — its id an
 (:data:`ACTIONS`), the patient and session concerned, the request's method and path, and the client address.
 
 Same transaction, fail closed.  The event is added to the database session that carries the request's own
-work and flushed at once: it commits together with the response's data (a created patient and its
+work and written by its commit, which comes before the answer: it commits together with the response's data (a created patient and its
 ``create`` event, an upload and its ``upload`` event) or not at all.  For reads this means a read whose
 audit row cannot be written fails (500) instead of disclosing data unrecorded — ASVS 7.1 wants the log
 complete, and an unlogged disclosure of patient data is worse than a refused one; the price is that a full
@@ -59,7 +59,8 @@ a role or active flag changed                             ``user_change``    the
 a password changed (self-service, or by the operator)     ``password_change``  the user's
 a browser session ended by its user                       ``session_end``    the user's
 an account's login counters cleared                       ``unlock``         the admin's
-an API token created or revoked (``chakamo tokens``)      ``token_create`` /  actor ``operator`` (the command line)
+an API token created, rotated or revoked                  ``token_create`` /  the admin's; actor ``operator`` for
+                                                          ``token_rotate`` /  ``chakamo tokens`` (the command line)
                                                           ``token_revoke``
 ========================================================  =================  ==========================================
 
@@ -100,7 +101,7 @@ log = logging.getLogger("chakamo.audit")
 ACTIONS: tuple[str, ...] = ("list", "search", "view", "create", "upload", "delete", "download", "export",
                             "process", "update", "login", "login_failed", "login_refused", "logout", "denied",
                             "user_create", "user_change", "password_change", "session_end", "unlock", "token_create",
-                            "token_revoke", "sign", "amend")
+                            "token_rotate", "token_revoke", "sign", "amend")
 #: column widths of :class:`AuditEvent` (longer values are cut, never refused: the read must not fail on them)
 _RESOURCE_CHARS, _CLIENT_CHARS, _ACTOR_CHARS, _DETAIL_CHARS = 300, 64, 320, 300
 
@@ -128,9 +129,12 @@ def _where(request: "Request | None") -> tuple[str, str]:
 
 
 def record(db: Session, request: "Request", principal: "Principal", action: str, *, patient_id: int | None = None,
-           session_id: int | None = None, status: int | None = None, detail: str = "") -> AuditEvent:
-    """Add (and flush) the audit event of ``principal`` doing ``action`` on the patient/session in ``db``'s
-    transaction — the one that carries the request's work, so both commit together (module docstring).
+           session_id: int | None = None, status: int | None = None, detail: str = "",
+           now: bool = False) -> AuditEvent:
+    """Add the audit event of ``principal`` doing ``action`` on the patient/session in ``db``'s transaction — the
+    one that carries the request's work, so both commit together (module docstring).  The row is written by
+    that commit (:func:`app.store.database.add_at_commit`: on SQLite it then takes the write lock only inside the
+    commit, never while the request waits for a thread), or at once with ``now`` (the caller needs its id).
 
     Call it once the data to be answered has been loaded (so a 404 leaves no event) and after anything
     that rolls ``db`` back (:meth:`app.store.checks.IngestionChecker.ensure_fresh` does).  Raises ``ValueError``
@@ -138,8 +142,9 @@ def record(db: Session, request: "Request", principal: "Principal", action: str,
     _check(action)
     kind, user_id, token_id, label = _actor(db, principal)
     resource, client = _where(request)
-    # flushed at once: a failing insert fails the request here, before any data is answered
-    return add_event(db, clinic_id=principal.clinic_id, actor_kind=kind, user_id=user_id, token_id=token_id,
+    # the request's commit comes before its answer (DbDep): a failing insert fails the request, no data answered
+    return add_event(db, at_commit=not now, clinic_id=principal.clinic_id, actor_kind=kind, user_id=user_id,
+                     token_id=token_id,
                      actor=label[:_ACTOR_CHARS], action=action, patient_id=patient_id, session_id=session_id,
                      resource=resource, client=client, status=status, detail=detail[:_DETAIL_CHARS])
 

@@ -49,7 +49,8 @@ Decisions (each a FHIR choice a hospital integrator will ask about):
   ``referenceRange``.
 - **Texts.**  ``conclusion`` summarises side, task, cycles and the clinical quality warnings in the PDF's
   language (``language`` says which; warnings translated by :func:`reports.warning_text.warning_text`; the
-  technical ingestion notes, :data:`TECHNICAL_WARNINGS`, are left out); the session's notes follow.  R4 ``DiagnosticReport`` has no
+  technical notes, :func:`reports.warning_text.is_technical`, are left out: results.json keeps them apart in
+  ``quality.technical_notes``, and a results.json written before that has them filtered here); the session's notes follow.  R4 ``DiagnosticReport`` has no
   ``note`` element (R5 added it).  The narrative (``text``) repeats the table in XHTML.  The PDF goes in
   ``presentedForm`` with its language, translated title, size and SHA-1 hash (base64, as R4 defines).
 - **Validation, twice.**  The dictionary is built by hand, then parsed by two maintained model
@@ -90,6 +91,7 @@ from fhirclient.models.fhirabstractbase import FHIRValidationError
 from app.choices import TASKS
 from estimators.motor_task import reference
 from reports.i18n import LANGUAGES, t
+from reports.warning_text import is_technical
 
 #: ChakaMo's own code system (report, observation, component and method codes) unless
 #: ``CHAKAMO_FHIR_CODE_SYSTEM`` names another: a UUID URN (RFC 4122 §3), globally unique without a domain, so it
@@ -97,8 +99,6 @@ from reports.i18n import LANGUAGES, t
 CODE_SYSTEM = "urn:uuid:ebd20665-cf32-4709-83d2-dabc9acf8b93"
 #: decimals of the exported angles (the reports print one: sensor-based knee angles are not better than ~1°)
 DECIMALS = 1
-#: warning codes that describe the recordings' technical handling, not the patient (never in ``conclusion``)
-TECHNICAL_WARNINGS = frozenset({"ingestion_note"})
 #: how the report names its patient: a contained Patient, a logical reference by the hospital's identifier, or
 #: the hospital's own FHIR Patient (the patient's ``fhir_reference``; by identifier for a patient without one)
 PATIENT_MODES = ("contained", "identifier", "reference")
@@ -153,7 +153,13 @@ PATIENT_KEYS = ("id", "external_id", "side", "name", "birth_date", "sex")
 
 
 class FhirExportError(ValueError):
-    """The input cannot be exported (the message says what and how to fix it), or the result is not FHIR R4."""
+    """The input cannot be exported (the message says what and how to fix it), or the result is not FHIR R4;
+    ``code``: the catalogue code of a refusal a clinic's user causes and can mend (``app.web.messages``, es/en/pt:
+    the FHIR push's trail shows it), None for one only a developer or the operator can."""
+
+    def __init__(self, message: str, code: str | None = None) -> None:
+        super().__init__(message)
+        self.code = code
 
 
 def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes, lang: str, base_url: str,
@@ -198,11 +204,12 @@ def diagnostic_report(*, session: dict, patient: dict, results: dict, pdf: bytes
         raise FhirExportError(f"patient_mode must be one of {', '.join(PATIENT_MODES)}, got {patient_mode!r}")
     reference = patient.get("fhir_reference") if patient_mode == "reference" else None
     if reference and not PATIENT_REFERENCE.fullmatch(str(reference)):
-        raise FhirExportError(f"patient fhir_reference {reference!r} is not a FHIR reference such as Patient/123")
+        raise FhirExportError(f"patient fhir_reference {reference!r} is not a FHIR reference such as Patient/123",
+                              "fhir.patient_reference_invalid")
     if patient_mode != "contained" and not reference and (not patient_identifier_system or not patient["external_id"]):
         raise FhirExportError("the patient can be referred to by identifier only with a record number and "
                               "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM set (or, with CHAKAMO_FHIR_PATIENT=reference, give "
-                              "the patient its fhir_reference)")
+                              "the patient its fhir_reference)", "fhir.patient_unreferenced")
     for key in ("service_request", "encounter"):
         ref = session.get(key)
         if ref and not _REFERENCE.fullmatch(str(ref)):
@@ -305,7 +312,7 @@ def _results(results: Any) -> dict[str, Any]:
     warnings = need("quality.warnings")
     if not isinstance(warnings, list) or not all(isinstance(w, Mapping) and "message" in w for w in warnings):
         raise FhirExportError("results['quality']['warnings'] must be a list of {'code', 'message'} objects")
-    out["warnings"] = [dict(w) for w in warnings if str(w.get("code", "")) not in TECHNICAL_WARNINGS]
+    out["warnings"] = [dict(w) for w in warnings if not is_technical(w)]
     return out
 
 
@@ -493,7 +500,7 @@ def _patient(patient: Mapping, base_url: str, identifier_system: str | None) -> 
 
 
 def _warning_lines(r: dict, lang: str, results: Mapping) -> list[str]:
-    """The clinical quality warnings in ``lang`` (technical notes left out: :data:`TECHNICAL_WARNINGS`)."""
+    """The clinical quality warnings in ``lang`` (technical notes left out: :func:`reports.warning_text.is_technical`)."""
     from reports.warning_text import warning_text
 
     return [warning_text(w, lang, results)[0] for w in r["warnings"]]

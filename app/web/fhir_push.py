@@ -1,8 +1,9 @@
 """The push of finished reports to a hospital's FHIR R4 server, as one transaction Bundle per analysis.
 
-When ``CHAKAMO_FHIR_PUSH_URL`` is set, every job that ends ``done`` is pushed: the webhook machinery plans,
+When ``CHAKAMO_FHIR_PUSH_URL`` is set, every job that ends ``done`` in a clinic the operator opted in
+(``CHAKAMO_FHIR_PUSH_CLINICS``: no clinic's reports leave without that) is pushed: the webhook machinery plans,
 claims, retries with back-off and records it (:mod:`app.store.webhooks`: a subscription of kind ``fhir`` per
-clinic; :class:`app.web.webhooks.WebhookSender` hands its deliveries to :meth:`FhirPush.send`), so a push gets the
+opted-in clinic; :class:`app.web.webhooks.WebhookSender` hands its deliveries to :meth:`FhirPush.send`), so a push gets the
 webhooks' lease, total deadline, SSRF rules (its host must match ``CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS``; an internal
 address only when named exactly there), back-off and trail (``GET /fhir/pushes``, codes in es/en/pt).  Each push
 delivered is also an ``export`` event in the audit log (actor ``FHIR push``).
@@ -13,18 +14,36 @@ from the analysis' DiagnosticReport (:func:`app.web.fhir.diagnostic_report`, the
 ``GET /fhir/DiagnosticReport/{id}`` answers) by :func:`transaction_bundle`:
 
 - **Patient**: with ``CHAKAMO_FHIR_PATIENT=reference`` and a patient who has a ``fhir_reference``, no entry:
-  every ``subject`` is that reference (the hospital owns the Patient).  Otherwise a conditional create (``POST
-  Patient`` with ``ifNoneExist: identifier=<system>|<value>``, the hospital's record number when its system is
-  configured, else ChakaMo's ``<base>/patients`` id): the server links to the Patient it has, or makes one.
+  every ``subject`` is that reference (the hospital owns the Patient).  With ``identifier`` (or ``reference`` for a
+  patient without one) no entry either: ``subject`` is the conditional reference ``Patient?identifier=<system>|<record
+  number>`` (§3.1.0.11.2), which the server resolves to the one Patient it has, and a record number it does not know
+  (mistyped) fails the transaction instead of making a ghost Patient on a server that owns its Patients.  Only with
+  ``contained`` (ChakaMo holds the patient's data: the operator's choice to have patients created) a conditional
+  create (``POST Patient`` with ``ifNoneExist: identifier=<system>|<value>``, the hospital's record number when its
+  system is configured, else ChakaMo's ``<base>/patients`` id): the server links to the Patient it has, or makes one.
+  System and value are escaped as FHIR search values (:func:`_escaped`: ``A,B`` would search for A or B).
 - **Observations and DiagnosticReport**: ``POST`` with ``ifNoneExist`` on an identifier of the analysis
   (``<base>/analyses`` | ``<analysis id>`` for the report, ``<analysis id>-<observation>`` for each observation),
   so a retry after a lost answer creates nothing twice, while a new analysis of the session is a new report.
+- **Superseded**: a pushed report whose analysis is superseded since (a recording deleted, a printed fact corrected)
+  is retracted by one more delivery (:func:`retraction_bundle`): the same resources ``entered-in-error``, each a
+  conditional update (``PUT DiagnosticReport?identifier=<base>/analyses|<id>``) of what the first push made.
 - **References**: each entry's ``fullUrl`` is a ``urn:uuid:`` (RFC 4122 name-based, version 5, from the analysis
   and the resource: a retry sends the same bundle), and ``subject`` and ``result`` point to those; the server
   replaces them with the ids it assigns (§3.1.0.11.2).
 
-An analysis that cannot be exported (superseded since, or stored data FHIR cannot express) fails its delivery at
-once (``fhir.not_exportable``), without retries.  The bundle is validated with both FHIR model packages before it is
+**One record-number namespace, one clinic.**  With ``CHAKAMO_PATIENT_IDENTIFIER_SYSTEM`` set, the server finds
+(or, contained, makes) the Patient by ``<system>|<record number>``; two clinics (tenants) pushing in that one
+namespace would file clinic A's MRN-42 and clinic B's MRN-42 under one hospital Patient.  There is one system per
+server, not per clinic, so the push refuses to start (:class:`app.settings.SettingsError`) with that system set and
+more than one clinic opted in: a second clinic needs a server of its own (its own settings), or the push without
+the hospital's namespace (then each patient is matched by ChakaMo's own ``<base>/patients`` id, unique across
+clinics).  Chosen over a per-clinic system because the settings name one; refusing is the failure that cannot
+mix two patients' reports.
+
+An analysis that cannot be exported (superseded since, stored data FHIR cannot express, or a stored file missing or
+altered) fails its delivery at once (``fhir.not_exportable``), without retries.  The POST's deadline is what the
+delivery's lease has left after the bundle was built (:func:`app.web.webhooks.time_left`).  The bundle is validated with both FHIR model packages before it is
 sent (:func:`app.web.fhir.validate_bundle`).
 """
 
@@ -48,7 +67,7 @@ from app.web import audit
 from app.web.api.schemas import patient_out
 from app.web.fhir import CODE_SYSTEM, FhirExportError, diagnostic_report, validate_bundle
 from app.web.headers import host_allowed
-from app.web.outbound import DEADLINE_S
+from app.web.outbound import DEADLINE_S, header_host, plain_host
 from app.web.webhooks import attempt
 
 log = logging.getLogger("chakamo.fhir_push")
@@ -86,8 +105,18 @@ def _urn(base_url: str, analysis_id: int, name: str) -> str:
     return f"urn:uuid:{uuid.uuid5(uuid.NAMESPACE_URL, f'{base_url}/analyses/{analysis_id}/{name}')}"
 
 
+def _escaped(text: str) -> str:
+    """``text`` as a search parameter's value (FHIR R4 §3.1.1.5.11 "Escaping Search Parameters"): ``\\``, ``,``
+    (which separates alternatives: ``A,B`` means A or B), ``$`` and ``|`` preceded by a backslash."""
+    for c in "\\,$|":
+        text = text.replace(c, "\\" + c)
+    return text
+
+
 def _conditional(identifier: dict) -> str:
-    return "identifier=" + urllib.parse.quote(f"{identifier.get('system', '')}|{identifier['value']}", safe="/:")
+    """The search ``identifier=<system>|<value>`` of ``identifier`` (both escaped: :func:`_escaped`), URL-encoded."""
+    token = f"{_escaped(identifier.get('system') or '')}|{_escaped(identifier['value'])}"
+    return "identifier=" + urllib.parse.quote(token, safe="/:")
 
 
 def transaction_bundle(report: dict, *, base_url: str, analysis_id: int) -> dict:
@@ -99,13 +128,15 @@ def transaction_bundle(report: dict, *, base_url: str, analysis_id: int) -> dict
     analyses = f"{base_url.rstrip('/')}/analyses"
     entries: list[dict] = []
     subject = report["subject"]
-    if "patient" in contained or "identifier" in subject:
-        patient = contained.pop("patient", None) or {"resourceType": "Patient", "identifier": [subject["identifier"]]}
+    if "patient" in contained:  # ChakaMo holds the patient's data: created unless the server has them already
+        patient = contained.pop("patient")
         patient.pop("id", None)
         key = next((i for i in patient["identifier"] if i.get("system")), patient["identifier"][0])
         subject = {"reference": _urn(base_url, analysis_id, "patient"), "type": "Patient"}
         entries.append({"fullUrl": subject["reference"], "resource": patient,
                         "request": {"method": "POST", "url": "Patient", "ifNoneExist": _conditional(key)}})
+    elif "identifier" in subject:  # the hospital's Patient, found by its record number; never made up
+        subject = {"reference": "Patient?" + _conditional(subject["identifier"]), "type": "Patient"}
     urns = {}
     for local_id, obs in contained.items():
         obs.pop("id", None)
@@ -128,6 +159,22 @@ def transaction_bundle(report: dict, *, base_url: str, analysis_id: int) -> dict
     return bundle
 
 
+def retraction_bundle(bundle: dict) -> dict:
+    """The transaction retracting a pushed report (:data:`app.store.webhooks.RETRACTION`): ``bundle``, the report
+    as it was pushed (:func:`transaction_bundle`), with its DiagnosticReport and Observations ``entered-in-error``
+    (FHIR R4 DiagnosticReport.status, Observation.status: "the report was withdrawn") and each sent as a conditional
+    update on its analysis identifier (``PUT DiagnosticReport?identifier=<base>/analyses|<id>``, §3.1.0.5.5: the
+    one resource the first push made is replaced); the patient's entry as it was (it finds the same Patient)."""
+    out = json.loads(json.dumps(bundle))
+    for entry in out["entry"]:
+        resource = entry["resource"]
+        if resource["resourceType"] in ("DiagnosticReport", "Observation"):
+            resource["status"] = "entered-in-error"
+            entry["request"] = {"method": "PUT", "url": f"{resource['resourceType']}?{entry['request']['ifNoneExist']}"}
+    validate_bundle(out)
+    return out
+
+
 def identifier_base(settings: Settings) -> str | None:
     """The namespace of the pushed identifiers: ``CHAKAMO_FHIR_IDENTIFIER_BASE``, else ``CHAKAMO_PUBLIC_URL``/api/v1
     (as the export route's, but with no request to fall back on); None when neither is set."""
@@ -141,11 +188,24 @@ class FhirPush:
 
     def __init__(self, settings: Settings, store) -> None:
         """Refuses (:class:`app.settings.SettingsError`) a push URL whose host ``CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS``
-        does not list, or without a namespace for the identifiers."""
+        does not list, without a namespace for the identifiers, with no clinic opted in, or with several clinics
+        sharing the hospital's record-number namespace (module docstring)."""
         self.url, self.token, self.store = settings.fhir_push_url, settings.fhir_push_token, store
         self.patterns = settings.fhir_push_host_patterns
+        self.clinics = settings.fhir_push_clinic_names
+        if not self.clinics:
+            raise SettingsError("CHAKAMO_FHIR_PUSH_URL is set but CHAKAMO_FHIR_PUSH_CLINICS names no clinic; list the "
+                                "names of the clinics whose reports may be pushed (comma-separated)")
+        if len(self.clinics) > 1 and settings.patient_identifier_system:
+            raise SettingsError(f"CHAKAMO_FHIR_PUSH_CLINICS names {len(self.clinics)} clinics, but their patients "
+                                "would be matched on the FHIR server by record number in the one namespace "
+                                "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, so the same number in two clinics would become one "
+                                "Patient; opt in one clinic per server, or unset CHAKAMO_PATIENT_IDENTIFIER_SYSTEM")
         host = urllib.parse.urlsplit(self.url or "").hostname or ""
-        if not host_allowed(host, self.patterns):
+        if not plain_host(host):
+            raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL names the host {host!r}, which is not a host name or an IP "
+                                "address")
+        if not host_allowed(header_host(host), self.patterns):
             raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL names the host {host!r}, which CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS "
                                 "does not list; add it there (exactly, if it is an internal address)")
         self.base_url = identifier_base(settings)
@@ -154,31 +214,42 @@ class FhirPush:
                                 "pushed identifiers' namespace")
         self.options = export_options(settings)
 
-    def bundle(self, db: Session, due: webhooks.Due) -> tuple[dict, KneeSession] | None:
-        """The transaction Bundle of ``due``'s analysis and its session; None when it cannot be exported."""
+    def bundle(self, db: Session, due: webhooks.Due) -> tuple[dict, KneeSession] | str:
+        """The transaction Bundle of ``due``'s analysis and its session (its :func:`retraction_bundle` for a
+        :data:`app.store.webhooks.RETRACTION`); the trail's code when it cannot be exported (superseded, for a
+        report to push: :data:`NOT_EXPORTABLE`; else the export's own code when it has one)."""
         job = due.payload["job"]
+        retract = due.event == webhooks.RETRACTION
         session = db.get(KneeSession, job["session_id"])
         analysis = db.get(Analysis, job["analysis_id"]) if job.get("analysis_id") else None
-        if session is None or analysis is None or analysis.superseded_at is not None:
-            return None
+        if session is None or analysis is None or (analysis.superseded_at is not None) != retract:
+            return NOT_EXPORTABLE
         try:
             # issued: the analysis' time, so that every retry sends the same bundle
             report = diagnostic_report(**report_inputs(db, self.store, session, analysis), base_url=self.base_url,
                                        issued=analysis.created_at.replace(microsecond=0), **self.options)
-            return transaction_bundle(report, base_url=self.base_url, analysis_id=analysis.id), session
-        except (FhirExportError, LookupError) as exc:
-            log.warning("FHIR push %s: analysis %s cannot be exported: %s",
-                                                           due.id, analysis.id, exc)
-            return None
+            bundle = transaction_bundle(report, base_url=self.base_url, analysis_id=analysis.id)
+            return (retraction_bundle(bundle) if retract else bundle), session
+        except (FhirExportError, LookupError, OSError, ValueError) as exc:  # OSError: a blob missing or altered
+            log.warning("FHIR push %s: analysis %s cannot be exported: %s: %s", due.id, analysis.id,
+                        type(exc).__name__, exc)  # (CorruptBlob), ValueError: its results.json no longer JSON
+            return getattr(exc, "code", None) or NOT_EXPORTABLE
 
     def send(self, db: Database, due: webhooks.Due, deadline_s: float = DEADLINE_S) -> tuple[int | None, str, bool]:
-        """Push ``due`` (``(status or None, the trail's code or "", give up)``); a delivered push is audited."""
-        with db.session() as s:
-            built = self.bundle(s, due)
-            if built is None:
-                return None, NOT_EXPORTABLE, True
-            bundle, session = built
-            patient_id, session_id = session.patient_id, session.id
+        """Push ``due`` (``(status or None, the trail's code or "", give up)``); a delivered push is audited.  An
+        analysis that cannot be exported gives up at once (:meth:`bundle`); any other failure to build the bundle is
+        a failed attempt, retried like one (it escaped the sender's round before: never recorded, the delivery
+        claimed again every lease)."""
+        try:
+            with db.session() as s:
+                built = self.bundle(s, due)
+                if isinstance(built, str):
+                    return None, built, True
+                bundle, session = built
+                patient_id, session_id = session.patient_id, session.id
+        except Exception:  # noqa: BLE001 — the database away, say: an attempt that failed, counted
+            log.warning("FHIR push %s: its bundle could not be built", due.id, exc_info=True)
+            return None, NOT_EXPORTABLE, False
         headers = {"Content-Type": "application/fhir+json", "Accept": "application/fhir+json",
                    "User-Agent": "ChakaMo-FHIR-push", "X-Request-Id": f"chakamo-delivery-{due.id}"}
         if self.token:
@@ -189,9 +260,11 @@ class FhirPush:
             with db.session() as s:
                 audit.record_operator(s, clinic_id=due.clinic_id, action="export", actor="FHIR push",
                                       resource=f"POST {urllib.parse.urlsplit(self.url).hostname}",
-                                      detail=f"analysis {due.payload['job']['analysis_id']}, delivery {due.id}, "
-                                             f"HTTP {status}", patient_id=patient_id, session_id=session_id)
+                                      detail=f"analysis {due.payload['job']['analysis_id']}"
+                                             f"{' retracted' if due.event == webhooks.RETRACTION else ''}, delivery "
+                                             f"{due.id}, HTTP {status}", patient_id=patient_id, session_id=session_id)
         return status, code, False
 
 
-__all__ = ["NOT_EXPORTABLE", "FhirPush", "export_options", "identifier_base", "report_inputs", "transaction_bundle"]
+__all__ = ["NOT_EXPORTABLE", "FhirPush", "export_options", "identifier_base", "report_inputs", "retraction_bundle",
+           "transaction_bundle"]

@@ -27,7 +27,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "name); try again or ask your clinic admin to reset it.",
         "es": "Correo o contraseña incorrectos (si su correo tiene cuentas en varias clínicas, indique también el "
               "nombre de la clínica); inténtelo de nuevo o pida al administrador de su clínica que la restablezca.",
-        "pt": "E-mail ou senha incorretos (se o seu e-mail tem contas em várias clínicas, indique também o nome da "
+        "pt": "E-mail ou palavra-passe incorretos (se o seu e-mail tem contas em várias clínicas, indique também o nome da "
               "clínica); tente de novo ou peça ao administrador da sua clínica que a redefina."},
     "login.throttled": {
         "en": "Too many failed logins for this email or from this computer; wait {seconds} s and try again, or ask "
@@ -49,35 +49,35 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "easy to remember).",
         "es": "La contraseña debe tener al menos {min} caracteres; elija una más larga (una frase de varias palabras "
               "es fácil de recordar).",
-        "pt": "A senha deve ter pelo menos {min} caracteres; escolha uma mais longa (uma frase de várias palavras é "
+        "pt": "A palavra-passe deve ter pelo menos {min} caracteres; escolha uma mais longa (uma frase de várias palavras é "
               "fácil de lembrar)."},
     "password.pattern": {
         "en": "The password is a simple pattern (a repeated character or group, or a run of the keyboard, the "
               "alphabet or the digits); choose one that is hard to guess.",
         "es": "La contraseña es un patrón simple (un carácter o grupo repetido, o una serie del teclado, del alfabeto "
               "o de los dígitos); elija una difícil de adivinar.",
-        "pt": "A senha é um padrão simples (um carácter ou grupo repetido, ou uma sequência do teclado, do alfabeto "
+        "pt": "A palavra-passe é um padrão simples (um carácter ou grupo repetido, ou uma sequência do teclado, do alfabeto "
               "ou dos dígitos); escolha uma difícil de adivinhar."},
     "password.common": {
         "en": "The password is one of the most common passwords (or one with a few digits or symbols added); choose "
               "one that is hard to guess.",
         "es": "La contraseña es una de las más comunes (o una con algunos dígitos o símbolos añadidos); elija una "
               "difícil de adivinar.",
-        "pt": "A senha é uma das mais comuns (ou uma com alguns dígitos ou símbolos acrescentados); escolha uma "
+        "pt": "A palavra-passe é uma das mais comuns (ou uma com alguns dígitos ou símbolos acrescentados); escolha uma "
               "difícil de adivinhar."},
     "password.personal": {
         "en": "The password contains your email or your name; choose one that does not.",
         "es": "La contraseña contiene su correo o su nombre; elija una que no los contenga.",
-        "pt": "A senha contém o seu e-mail ou o seu nome; escolha uma que não os contenha."},
+        "pt": "A palavra-passe contém o seu e-mail ou o seu nome; escolha uma que não os contenha."},
     "password.wrong_current": {
         "en": "The current password is wrong; type it again (nothing was changed).",
         "es": "La contraseña actual no es correcta; escríbala de nuevo (no se ha cambiado nada).",
-        "pt": "A senha atual não está correta; escreva-a de novo (nada foi alterado)."},
+        "pt": "A palavra-passe atual não está correta; escreva-a de novo (nada foi alterado)."},
     "password.busy": {
         "en": "The server is busy checking passwords; try again in a moment (nothing was changed).",
         "es": "El servidor está ocupado comprobando contraseñas; vuelva a intentarlo en un momento (no se ha cambiado "
               "nada).",
-        "pt": "O servidor está ocupado a verificar senhas; tente de novo dentro de momentos (nada foi alterado)."},
+        "pt": "O servidor está ocupado a verificar palavras-passe; tente de novo dentro de momentos (nada foi alterado)."},
     # ``chakamo tokens`` (app/cli/admin.py), in --lang
     "cli.token_created": {
         "en": "API token for {clinic!r} ({details}). It is shown only now: store it in the hospital system; send it "
@@ -124,7 +124,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "This needs a browser login (an API token has no password or sessions); log in with your email.",
         "es": "Esto requiere iniciar sesión en el navegador (un token de API no tiene contraseña ni sesiones); inicie "
               "sesión con su correo.",
-        "pt": "Isto requer um início de sessão no navegador (um token de API não tem senha nem sessões); inicie "
+        "pt": "Isto requer um início de sessão no navegador (um token de API não tem palavra-passe nem sessões); inicie "
               "sessão com o seu e-mail."},
     "account.no_user": {
         "en": "No user {id} in your clinic; check the id.",
@@ -149,20 +149,26 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "O e-mail {email} já tem uma conta na sua clínica; use outro e-mail ou altere essa conta."},
     # API tokens and logins presented but refused (app.web.api.deps)
     "auth.bearer_malformed": {
-        "en": "The Authorization header must be 'Bearer <token>'; create a token with `chakamo tokens create`.",
-        "es": "La cabecera Authorization debe ser 'Bearer <token>'; cree un token con `chakamo tokens create`.",
-        "pt": "O cabeçalho Authorization deve ser 'Bearer <token>'; crie um token com `chakamo tokens create`."},
+        "en": "The Authorization header must be 'Bearer <token>'; an administrator creates tokens on the "
+              "Administration page (API tokens) or with `chakamo tokens create`.",
+        "es": "La cabecera Authorization debe ser 'Bearer <token>'; un administrador crea tokens en la página de "
+              "Administración (tokens de API) o con `chakamo tokens create`.",
+        "pt": "O cabeçalho Authorization deve ser 'Bearer <token>'; um administrador cria tokens na página de "
+              "Administração (tokens de API) ou com `chakamo tokens create`."},
     "auth.token_unknown": {
-        "en": "Unknown or revoked API token; check it or create a new one with `chakamo tokens create`.",
-        "es": "Token de API desconocido o revocado; compruébelo o cree uno nuevo con `chakamo tokens create`.",
-        "pt": "Token de API desconhecido ou revogado; verifique-o ou crie um novo com `chakamo tokens create`."},
+        "en": "Unknown or revoked API token; check it, or ask an administrator for a new one (Administration page, "
+              "API tokens; or `chakamo tokens create`).",
+        "es": "Token de API desconocido o revocado; compruébelo o pida uno nuevo a un administrador (página de "
+              "Administración, tokens de API; o `chakamo tokens create`).",
+        "pt": "Token de API desconhecido ou revogado; verifique-o ou peça um novo a um administrador (página de "
+              "Administração, tokens de API; ou `chakamo tokens create`)."},
     "auth.token_expired": {
-        "en": "This API token has expired; use its successor (`chakamo tokens rotate`) or create a new one with "
-              "`chakamo tokens create`.",
-        "es": "Este token de API ha caducado; use su sucesor (`chakamo tokens rotate`) o cree uno nuevo con "
-              "`chakamo tokens create`.",
-        "pt": "Este token de API expirou; use o seu sucessor (`chakamo tokens rotate`) ou crie um novo com "
-              "`chakamo tokens create`."},
+        "en": "This API token has expired; use its successor or a new one (an administrator rotates or creates "
+              "tokens on the Administration page, API tokens; or `chakamo tokens rotate` / `create`).",
+        "es": "Este token de API ha caducado; use su sucesor o uno nuevo (un administrador renueva o crea tokens en "
+              "la página de Administración, tokens de API; o `chakamo tokens rotate` / `create`).",
+        "pt": "Este token de API expirou; use o seu sucessor ou um novo (um administrador renova ou cria tokens na "
+              "página de Administração, tokens de API; ou `chakamo tokens rotate` / `create`)."},
     "auth.not_logged_in": {
         "en": "Not logged in; log in, or send 'Authorization: Bearer <token>'.",
         "es": "No ha iniciado sesión; inicie sesión o envíe 'Authorization: Bearer <token>'.",
@@ -182,12 +188,33 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "Esto necesita el rol {role} (el suyo es {yours}); pídalo a un administrador de la clínica.",
         "pt": "Isto precisa do papel {role} (o seu é {yours}); peça a um administrador da clínica."},
     "auth.scope_missing": {
-        "en": "This API token lacks the scope {scope} (it has {scopes}); create a token with it: "
-              "`chakamo tokens create --scope ...`.",
-        "es": "A este token de API le falta el ámbito {scope} (tiene {scopes}); cree un token con él: "
-              "`chakamo tokens create --scope ...`.",
-        "pt": "A este token de API falta o escopo {scope} (tem {scopes}); crie um token com ele: "
-              "`chakamo tokens create --scope ...`."},
+        "en": "This API token lacks the scope {scope} (it has {scopes}); an administrator creates a token with it "
+              "on the Administration page (API tokens) or with `chakamo tokens create --scope ...`.",
+        "es": "A este token de API le falta el ámbito {scope} (tiene {scopes}); un administrador crea un token con "
+              "él en la página de Administración (tokens de API) o con `chakamo tokens create --scope ...`.",
+        "pt": "A este token de API falta o âmbito {scope} (tem {scopes}); um administrador cria um token com ele "
+              "na página de Administração (tokens de API) ou com `chakamo tokens create --scope ...`."},
+    "auth.grant_beyond_scopes": {
+        "en": "An API token may only hand out the scopes it holds ({scopes}): a token with more, or a user account, "
+              "is created by an administrator logged in to the web app (Administration page) or on the server "
+              "(`chakamo tokens create`, `chakamo users create`).",
+        "es": "Un token de API solo puede conceder los ámbitos que tiene ({scopes}): un token con más, o una cuenta "
+              "de usuario, lo crea un administrador con sesión iniciada en la aplicación web (página de "
+              "Administración) o en el servidor (`chakamo tokens create`, `chakamo users create`).",
+        "pt": "Um token de API só pode conceder os âmbitos que tem ({scopes}): um token com mais, ou uma conta de "
+              "utilizador, é criado por um administrador com sessão iniciada na aplicação web (página de "
+              "Administração) ou no servidor (`chakamo tokens create`, `chakamo users create`)."},
+    "auth.grant_beyond_expiry": {
+        "en": "An API token may only hand out access that ends when it does ({until} UTC) or sooner: a longer-lived "
+              "token, or a user account, is created by an administrator logged in to the web app (Administration "
+              "page) or on the server (`chakamo tokens create`, `chakamo users create`).",
+        "es": "Un token de API solo puede conceder un acceso que termine cuando él ({until} UTC) o antes: un token "
+              "más duradero, o una cuenta de usuario, lo crea un administrador con sesión iniciada en la aplicación "
+              "web (página de Administración) o en el servidor (`chakamo tokens create`, `chakamo users create`).",
+        "pt": "Um token de API só pode conceder um acesso que termine quando ele ({until} UTC) ou antes: um token "
+              "mais duradouro, ou uma conta de utilizador, é criado por um administrador com sessão iniciada na "
+              "aplicação web (página de Administração) ou no servidor (`chakamo tokens create`, "
+              "`chakamo users create`)."},
     # webhooks (app.web.api.webhooks)
     "webhook.url_invalid": {
         "en": "The webhook URL {url} is not an absolute https:// address; give the receiver's full https address.",
@@ -233,6 +260,49 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "Esta análise não foi enviada ao servidor FHIR: foi substituída ou os seus dados guardados não podem "
               "ser expressos em FHIR (GET /fhir/DiagnosticReport/<id da sessão> diz porquê); corrija o registo e "
               "processe a sessão de novo."},
+    # a pattern (``*``, ``*.example.org``) or no host at all where the webhook's host goes (app.web.api.webhooks)
+    "webhook.host_invalid": {
+        "en": "The webhook URL {url} does not name one host (a host name or an IP address; {host} is not one); give "
+              "the receiver's own address.",
+        "es": "La URL del webhook {url} no nombra un host (un nombre de host o una dirección IP; {host} no lo es); "
+              "indique la dirección propia del receptor.",
+        "pt": "A URL do webhook {url} não nomeia um host (um nome de host ou um endereço IP; {host} não o é); "
+              "indique o endereço próprio do recetor."},
+    # the last attempt failed and no other follows (state failed; app.web.webhooks.trail_error)
+    "webhook.no_connection.final": {
+        "en": "No answer from the receiver (it could not be reached, or did not answer within {seconds} s) at the "
+              "last attempt; it is not retried: check that the receiver is up and answers quickly.",
+        "es": "Sin respuesta del receptor (no se pudo contactar o no respondió en {seconds} s) en el último "
+              "intento; no se reintentará: compruebe que el receptor está en marcha y responde rápido.",
+        "pt": "Sem resposta do recetor (não foi possível contactá-lo ou não respondeu em {seconds} s) na última "
+              "tentativa; não será tentado de novo: verifique que o recetor está ativo e responde depressa."},
+    "webhook.http_status.final": {
+        "en": "The receiver answered HTTP {status} at the last attempt; it is not retried: check the receiver's log "
+              "for why.",
+        "es": "El receptor respondió HTTP {status} en el último intento; no se reintentará: consulte el registro "
+              "del receptor para saber por qué.",
+        "pt": "O recetor respondeu HTTP {status} na última tentativa; não será tentado de novo: consulte o registo "
+              "do recetor para saber porquê."},
+    # a report the FHIR export cannot name its patient in (app.web.fhir.FhirExportError.code; the push's trail)
+    "fhir.patient_unreferenced": {
+        "en": "The report cannot name its patient on the FHIR server: the patient has no FHIR reference (Patient/<id>) "
+              "and no record number the server can find; give the patient its FHIR reference, or ask your ChakaMo "
+              "administrator to set CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, then process the session again.",
+        "es": "El informe no puede nombrar a su paciente en el servidor FHIR: el paciente no tiene referencia FHIR "
+              "(Patient/<id>) ni un número de historia que el servidor pueda encontrar; dé al paciente su referencia "
+              "FHIR o pida a su administrador de ChakaMo que configure CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, y procese la "
+              "sesión de nuevo.",
+        "pt": "O relatório não pode nomear o seu paciente no servidor FHIR: o paciente não tem referência FHIR "
+              "(Patient/<id>) nem um número de processo que o servidor possa encontrar; dê ao paciente a sua "
+              "referência FHIR ou peça ao seu administrador do ChakaMo que configure "
+              "CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, e processe a sessão de novo."},
+    "fhir.patient_reference_invalid": {
+        "en": "The patient's FHIR reference is not a FHIR reference such as Patient/123; correct it in the patient's "
+              "record, then process the session again.",
+        "es": "La referencia FHIR del paciente no es una referencia FHIR como Patient/123; corríjala en la ficha del "
+              "paciente y procese la sesión de nuevo.",
+        "pt": "A referência FHIR do paciente não é uma referência FHIR como Patient/123; corrija-a no registo do "
+              "paciente e processe a sessão de novo."},
 }
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import http.client
 import ipaddress
+import re
 import socket
 import ssl
 import threading
@@ -79,15 +80,39 @@ def _public(address: str) -> bool:
     return ip.is_global and not ip.is_multicast and all(v4.is_global and not v4.is_multicast for v4 in inner)
 
 
+#: a DNS name as RFC 1123 §2.1 has it: dot-separated labels of letters, digits and inner hyphens, 1-63 characters
+#: each, at most 253 in all (an optional final dot)
+_DNS_NAME = re.compile(r"(?=.{1,253}\.?$)[a-z0-9](?:[a-z0-9-]{0,61}[a-z0-9])?(?:\.[a-z0-9](?:[a-z0-9-]{0,61}[a-z0-9])?)*\.?")
+
+
+def plain_host(host: str) -> bool:
+    """Whether ``host`` (a URL's host, IPv6 without brackets) is a DNS name (:data:`_DNS_NAME`) or an IP address
+    literal: ``*``, ``*.hospital.example``, an empty name or one with ``%``, ``_`` or spaces is none of these (a
+    resolver may still answer for it, so a host pattern must never be taken for a host)."""
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return _DNS_NAME.fullmatch(host.lower()) is not None
+
+
+def named_exactly(host: str, patterns: tuple[str, ...]) -> bool:
+    """Whether the operator named ``host`` itself among ``patterns`` (a pattern with ``*`` names no host)."""
+    name = host.lower()
+    return plain_host(name) and any(p == name and "*" not in p for p in patterns)
+
+
 def usable(host: str, patterns: tuple[str, ...], addresses: list[str]) -> tuple[str, ...]:
     """Of the addresses ``host`` resolved to (in the resolver's order, repeats dropped), those a send may connect
-    to: all of them when the operator named ``host`` exactly in ``patterns``, else only the public ones
-    (:func:`_public`); :class:`AddressRefused` when none is left."""
-    name = host.lower()
+    to: all of them when the operator named ``host`` exactly in ``patterns`` (:func:`named_exactly`), else only the
+    public ones (:func:`_public`); :class:`AddressRefused` for a host that is not a DNS name or an IP literal
+    (:func:`plain_host`: ``*`` is a pattern, not a host) or when none is left."""
+    if not plain_host(host):
+        raise AddressRefused(f"{host!r} is not a host name or an IP address")
     unique = list(dict.fromkeys(addresses))
     if not unique:
         raise AddressRefused(f"{host} resolves to no address")
-    ok = tuple(unique) if name in patterns else tuple(a for a in unique if _public(a))
+    ok = tuple(unique) if named_exactly(host, patterns) else tuple(a for a in unique if _public(a))
     if not ok:
         raise AddressRefused(f"{host} resolves only to non-public addresses ({', '.join(unique[:4])})")
     return ok
@@ -120,9 +145,17 @@ def resolve(host: str, port: int, patterns: tuple[str, ...], timeout_s: float = 
     non-public ones skipped unless the operator named ``host`` exactly).  The connection then goes to one of these
     checked addresses (:class:`PinnedConnection`), so a name that resolves differently a moment later (DNS
     rebinding) cannot send it elsewhere."""
-    if not host_allowed(host.lower(), patterns):
+    if not plain_host(host):  # before any lookup: a resolver may answer for "*"
+        raise AddressRefused(f"{host!r} is not a host name or an IP address")
+    if not host_allowed(header_host(host), patterns):
         raise AddressRefused(f"{host} is not among the allowed hosts {', '.join(patterns) or '(none)'}")
     return usable(host, patterns, _lookup(host, port, timeout_s))
+
+
+def header_host(host: str) -> str:
+    """``host`` as :func:`app.web.headers.host_allowed` reads it (a ``Host`` header): an IPv6 literal bracketed,
+    so that its last group is not taken for a port."""
+    return f"[{host}]" if ":" in host else host.lower()
 
 
 class AddressRefused(OSError):
@@ -211,5 +244,5 @@ def post(url: str, body: bytes, headers: dict[str, str], patterns: tuple[str, ..
         conn.close()
 
 
-__all__ = ["DEADLINE_S", "TIMEOUT_S", "AddressRefused", "PinnedConnection", "embedded_ipv4", "post", "resolve",
-           "usable"]
+__all__ = ["DEADLINE_S", "TIMEOUT_S", "AddressRefused", "PinnedConnection", "embedded_ipv4", "header_host", "named_exactly", "plain_host",
+           "post", "resolve", "usable"]

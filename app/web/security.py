@@ -91,16 +91,21 @@ def hashes_admitted() -> int:
     return _admitted
 
 
+def hash_capacity() -> int:
+    """How many password hashes may run or wait at once: :data:`HASH_CONCURRENCY` + :data:`HASH_QUEUE`."""
+    return HASH_CONCURRENCY + HASH_QUEUE
+
+
 def hash_queue_full() -> bool:
     """True when a new hash would get :class:`Busy` (every thread and queue place taken)."""
-    return _admitted >= HASH_CONCURRENCY + HASH_QUEUE
+    return _admitted >= hash_capacity()
 
 
 def _submit(work: Callable[..., _T], *args) -> Future:
     """``work(*args)`` on :data:`_hash_pool`, or :class:`Busy` at once when the pool and its queue are full."""
     global _admitted
     with _admitted_lock:
-        if _admitted >= HASH_CONCURRENCY + HASH_QUEUE:
+        if _admitted >= hash_capacity():
             raise Busy()
         _admitted += 1
 
@@ -237,5 +242,5 @@ def csrf_ok(key: bytes, session_id: str, header_value: str | None) -> bool:
 
 __all__ = ["ARGON2_MEMORY_KIB", "ARGON2_PARALLELISM", "ARGON2_TIME_COST", "HASH_CONCURRENCY", "HASH_QUEUE",
            "MIN_PASSWORD_LENGTH", "ROLES", "ROLE_RANK", "Busy", "check_password_strength", "csrf_ok", "csrf_token",
-           "hash_password", "hash_password_async", "hash_queue_full", "hashes_admitted", "needs_rehash", "new_session_id", "new_token",
+           "hash_capacity", "hash_password", "hash_password_async", "hash_queue_full", "hashes_admitted", "needs_rehash", "new_session_id", "new_token",
            "sha256_hex", "verify_password", "verify_password_async"]

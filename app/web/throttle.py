@@ -34,17 +34,26 @@ database the embedded default (SQLite) and the scaled-out deployment (PostgreSQL
 moving/fixed windows count hits but do not express "the next attempt waits ``d(n)``".  The counter is one
 ``UPDATE … WHERE next_s <= now`` per key, which both databases run atomically.
 
-**Concurrent logins per address** (:class:`InFlight`): at most ``max_in_flight`` logins of one client address
-are inside the server at once (in memory, per server process); one more is answered 429 at once, before any
-database work — one machine cannot fill the hashing queue (:mod:`app.web.security`) that everybody shares.
+**Concurrent logins per address and per server** (:class:`InFlight`): at most ``max_in_flight`` logins of one
+client address are inside the server at once (in memory, per server process); one more is answered 429 at once,
+before any database work — one machine cannot fill the hashing queue (:mod:`app.web.security`) that everybody
+shares.  And at most as many logins as that queue holds (:func:`app.web.security.hash_capacity`: 5 on two cores)
+are inside the server at once from all addresses together; one more is answered 503 at once, also before any
+database work.  A login's reservation is a database write, and it runs on one of the ~40 request threads: when
+only the hashes were counted, a flood from many addresses (each under its own cap) sent every login in, each held
+a request thread while it waited for SQLite's one write lock — whose busy-wait is unfair: with 40 writers a few
+wait seconds while newcomers pass — and a clinician's reads queued behind them for a thread (issue 16 finding 2:
+reads timed out at 30 s under 120 parallel logins from 120 addresses; py-spy showed ~38 request threads waiting
+in the reservation's ``INSERT``).  More logins inside than the hashing queue holds would only wait there or get
+503 after their write, so the bound costs an honest login nothing.
 
 **Without a client address** (uvicorn on a unix socket, behind a proxy that does not pass the browser's
 address): clients cannot be told apart, so nothing is kept per address — no ``ip:`` or ``pair:`` counter and no
-in-flight cap.  Keying them all under one shared "address" would let any one client hold every login of the
+per-address in-flight cap (the server's cap holds).  Keying them all under one shared "address" would let any one client hold every login of the
 server (4 in flight) and push every email's ``pair:`` counter into its delay for everybody (the lock-out of
-finding 10a again).  What still holds: the ``email:``/``account:`` counters and the hashing queue's bound (503
-when full).  Deployments behind a proxy should pass the address (``chakamo serve --proxy-headers``).
-:class:`LoginGate`, an ASGI middleware, gives these refusals (and the 503 of a full hashing queue) before the
+finding 10a again).  What still holds: the ``email:``/``account:`` counters, the server's in-flight cap and the
+hashing queue's bound (503 when full).  Deployments behind a proxy should pass the address (``chakamo serve --proxy-headers``).
+:class:`LoginGate`, an ASGI middleware, gives these refusals (429 per address, 503 per server) before the
 request reaches the framework — no routing, no body parsing, no dependency: a flood of them costs the event
 loop that also answers everybody's reads as little as an answer can.
 """
@@ -62,6 +71,7 @@ from sqlalchemy.orm import Session
 
 from app.store import accounts
 from app.store.database import Database
+from app.web.security import hash_capacity, hash_queue_full
 
 
 @dataclass(frozen=True)
@@ -171,25 +181,44 @@ class LoginThrottle:
 
 
 class InFlight:
-    """Logins of each client address inside this server right now, at most ``throttle.policy.max_in_flight``
-    (read at each login, so a changed policy applies at once; thread-safe)."""
+    """Logins inside this server right now: of each client address at most ``throttle.policy.max_in_flight``, of
+    all together at most :func:`app.web.security.hash_capacity` (both read at each login, so a changed policy
+    applies at once; thread-safe)."""
+
+    #: the refusal codes of :meth:`enter`
+    PER_ADDRESS, SERVER = "login.too_many_at_once", "login.busy"
 
     def __init__(self, throttle: LoginThrottle) -> None:
         self.throttle = throttle
         self._counts: dict[str, int] = {}
+        self._total = 0
         self._lock = threading.Lock()
 
-    def enter(self, ip: str) -> bool:
-        """Count one more login of ``ip``; False (nothing counted) when it already has the most allowed."""
-        with self._lock:
-            n = self._counts.get(ip, 0)
-            if n >= self.throttle.policy.max_in_flight:
-                return False
-            self._counts[ip] = n + 1
-            return True
+    @property
+    def total(self) -> int:
+        """Logins inside this server now, from all addresses."""
+        return self._total
 
-    def leave(self, ip: str) -> None:
+    def enter(self, ip: str | None) -> str | None:
+        """Count one more login of ``ip`` (None: no address, counted only in the total); None when counted, else
+        why not (nothing counted): :attr:`PER_ADDRESS` when ``ip`` has the most allowed, :attr:`SERVER` when the
+        server has."""
         with self._lock:
+            n = self._counts.get(ip, 0) if ip else 0
+            if ip and n >= self.throttle.policy.max_in_flight:
+                return self.PER_ADDRESS
+            if self._total >= hash_capacity():
+                return self.SERVER
+            if ip:
+                self._counts[ip] = n + 1
+            self._total += 1
+            return None
+
+    def leave(self, ip: str | None) -> None:
+        with self._lock:
+            self._total -= 1
+            if not ip:
+                return
             n = self._counts.get(ip, 0) - 1
             if n > 0:
                 self._counts[ip] = n
@@ -206,8 +235,8 @@ async def receive_nothing() -> dict:
 
 class LoginGate:
     """ASGI middleware in front of ``POST /api/v1/auth/login`` (module docstring): counts the request in ``InFlight``
-    for as long as it is inside the app, and answers 429 (too many at once from this address) or 503 (hashing
-    queue full) itself, in the request's language, with ``Retry-After`` and the code header."""
+    for as long as it is inside the app, and answers 429 (too many at once from this address) or 503 (as many
+    logins inside the server as the hashing queue holds, or that queue full) itself, in the request's language, with ``Retry-After`` and the code header."""
 
     PATH = "/api/v1/auth/login"
 
@@ -227,20 +256,21 @@ class LoginGate:
         if scope["type"] != "http" or scope["path"] != self.PATH or scope["method"] != "POST":
             await self.app(scope, receive, send)
             return
-        from app.web.security import hash_queue_full
-
         ip = client_key((scope.get("client") or (None,))[0])  # None: no address, no per-address cap (docstring)
-        if ip and not self.in_flight.enter(ip):
-            await self._refuse(scope, send, 429, "login.too_many_at_once", 1)
+        refused = self.in_flight.enter(ip)
+        if refused == InFlight.PER_ADDRESS:
+            await self._refuse(scope, send, 429, refused, 1)
+            return
+        if refused == InFlight.SERVER:
+            await self._refuse(scope, send, 503, refused, 2)
             return
         try:
-            if hash_queue_full():
+            if hash_queue_full():  # taken by other hashes (password changes, new users)
                 await self._refuse(scope, send, 503, "login.busy", 2)
                 return
             await self.app(scope, receive, send)
         finally:
-            if ip:
-                self.in_flight.leave(ip)
+            self.in_flight.leave(ip)
 
 
 __all__ = ["InFlight", "LoginGate", "LoginThrottle", "ThrottlePolicy", "account_key", "client_key"]

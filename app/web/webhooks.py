@@ -23,7 +23,7 @@ No internal address is reached (server-side request forgery): a URL's host must 
 ``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` (an operator's list; empty: no webhooks), and :mod:`app.web.outbound` skips every
 answer of the name that is not public (also hidden in IPv6: NAT64, 6to4, Teredo, ...) unless the operator named the
 host exactly, and connects to a checked address within the total deadline.  The trail a clinic reads is a code
-(:data:`TRAIL_CODES`, in es/en/pt through :func:`trail_error`): the receiver's HTTP status or "no answer", never
+(:data:`NO_CONNECTION`, :data:`HTTP_STATUS`, :data:`SECRET_UNREADABLE`; in es/en/pt through :func:`trail_error`): the receiver's HTTP status or "no answer", never
 why (which would map the server's network).
 """
 
@@ -41,17 +41,24 @@ from cryptography.exceptions import InvalidTag
 
 from app.store import webhooks
 from app.web import messages
+from app.store.models import utcnow
 from app.store.sealed import unseal
 from app.web.outbound import DEADLINE_S, post
 
 log = logging.getLogger("chakamo.webhooks")
 #: the trail's codes (``last_error``; rendered in es/en/pt from :mod:`app.web.messages` by :func:`trail_error`):
 #: no HTTP answer came in time (the cause is only logged), the receiver answered another status than 2xx, the
-#: secret was sealed under another ``CHAKAMO_SECRET_KEY`` (the key was changed: subscribe again)
+#: secret was sealed under another ``CHAKAMO_SECRET_KEY`` (the key was changed: subscribe again; no retry can mend it,
+#: so the delivery fails at once)
 NO_CONNECTION = "webhook.no_connection"
 HTTP_STATUS = "webhook.http_status"
 SECRET_UNREADABLE = "webhook.secret_unreadable"
-TRAIL_CODES = (NO_CONNECTION, HTTP_STATUS, SECRET_UNREADABLE)
+#: the suffix of a code's sentence for a delivery whose last attempt failed for good (state ``failed``: "it is not
+#: retried" where the pending one says "it is retried later")
+FINAL = ".final"
+#: the part of a delivery's lease (:data:`app.store.webhooks.LEASE_S`) an attempt leaves for recording its outcome
+#: (and auditing a push): the POST's deadline is what is left of the lease after the body was built, less this
+RECORD_MARGIN_S = 10.0
 
 
 def signature(secret: str, timestamp: int, body: bytes) -> str:
@@ -67,17 +74,19 @@ def outcome(status: int | None) -> str:
     return "" if 200 <= status < 300 else HTTP_STATUS
 
 
-def trail_error(code: str, status: int | None) -> dict | None:
+def trail_error(code: str, status: int | None, state: str = "pending") -> dict | None:
     """A delivery's ``last_error`` for the API: ``{"code", "params", "message": {es, en, pt}}`` (None: no error);
-    a code this version does not know (written by a newer one) is shown as it is in every language."""
+    for a delivery in ``state`` ``failed`` the code's final sentence (:data:`FINAL`) when it has one; a code this
+    version does not know (written by a newer one) is shown as it is in every language."""
     if not code:
         return None
     params = {"status": status} if code == HTTP_STATUS else {"seconds": int(DEADLINE_S)} \
         if code == NO_CONNECTION else {}
     if code not in messages.CATALOGUE:
         return {"code": code, "params": params, "message": {lang: code for lang in messages.LANGUAGES}}
+    sentence = code + FINAL if state == "failed" and code + FINAL in messages.CATALOGUE else code
     return {"code": code, "params": params,
-            "message": {lang: messages.render(code, lang, **params) for lang in messages.LANGUAGES}}
+            "message": {lang: messages.render(sentence, lang, **params) for lang in messages.LANGUAGES}}
 
 
 def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes,
@@ -99,10 +108,20 @@ def send(due: webhooks.Due, patterns: tuple[str, ...], key: bytes,
     return attempt(due, due.url, body, headers, patterns, deadline_s)
 
 
+def time_left(due: webhooks.Due) -> float:
+    """Seconds an attempt of ``due`` may still take: until its lease ends, less :data:`RECORD_MARGIN_S`."""
+    return (due.lease - utcnow()).total_seconds() - RECORD_MARGIN_S
+
+
 def attempt(due: webhooks.Due, url: str, body: bytes, headers: dict[str, str], patterns: tuple[str, ...],
             deadline_s: float = DEADLINE_S) -> tuple[int | None, str]:
-    """:func:`post` as one attempt of ``due``: ``(status or None, the trail's code or "")``, the cause of a failed
-    connection logged only."""
+    """:func:`post` as one attempt of ``due``, within ``deadline_s`` and what is left of its lease
+    (:func:`time_left`: building a FHIR bundle takes some of it; none left, nothing is sent): ``(status or None,
+    the trail's code or "")``, the cause of a failed connection logged only."""
+    deadline_s = min(deadline_s, time_left(due))
+    if deadline_s <= 0:  # another sender may claim it before this attempt could be recorded
+        log.warning("delivery %s: its lease has too little time left for an attempt", due.id)
+        return None, NO_CONNECTION
     try:
         status = post(url, body, headers, patterns, deadline_s)
     except (OSError, ValueError, http.client.HTTPException) as exc:
@@ -121,6 +140,7 @@ class WebhookSender:
         self.db, self.retry_base_s, self.allowed_hosts, self.key = db, retry_base_s, allowed_hosts, key
         self.fhir_push = fhir_push
         self.kinds = ("webhook", "fhir") if fhir_push is not None else ("webhook",)
+        self._unknown: tuple[str, ...] = ()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -143,7 +163,11 @@ class WebhookSender:
         other clinic's deliveries up); how many attempts were made."""
         with self.db.sessions() as s:
             if self.fhir_push is not None:
-                webhooks.ensure_fhir_push(s, self.fhir_push.url)
+                unknown = webhooks.ensure_fhir_push(s, self.fhir_push.url, self.fhir_push.clinics)
+                if unknown != self._unknown:  # said once, not every round
+                    self._unknown = unknown
+                    if unknown:
+                        log.warning("CHAKAMO_FHIR_PUSH_CLINICS names no clinic called %s", ", ".join(unknown))
             webhooks.plan_deliveries(s, kinds=self.kinds)
         failed: set[int] = set()
         made = 0
@@ -158,6 +182,7 @@ class WebhookSender:
                 status, error, give_up = self.fhir_push.send(self.db, d)
             else:
                 status, error = send(d, self.allowed_hosts, self.key)
+                give_up = error == SECRET_UNREADABLE  # another key: no retry opens it
             with self.db.sessions() as s:
                 state = webhooks.record_attempt(s, d, status=status, error=error, base_s=self.retry_base_s,
                                                 give_up=give_up)
@@ -175,5 +200,5 @@ class WebhookSender:
                 log.warning("webhook round failed; retrying", exc_info=True)
 
 
-__all__ = ["HTTP_STATUS", "NO_CONNECTION", "SECRET_UNREADABLE", "TRAIL_CODES", "WebhookSender", "attempt", "outcome",
-           "send", "signature", "trail_error"]
+__all__ = ["FINAL", "HTTP_STATUS", "NO_CONNECTION", "RECORD_MARGIN_S", "SECRET_UNREADABLE", "WebhookSender", "attempt", "outcome",
+           "send", "signature", "time_left", "trail_error"]

@@ -124,6 +124,7 @@ ANGLES: tuple[str, ...] = ("flexion", "adduction", "internal_rotation")
 # loads neither numpy nor scipy: the analysis (numpy, scipy.signal) only when it is called.
 _LAZY = {
     "QualityWarning": "estimators.motor_task.analysis", "RejectedCycle": "estimators.motor_task.analysis",
+    "EXCLUDED": "estimators.motor_task.analysis", "UnknownCycleError": "estimators.motor_task.analysis",
     "TaskAnalysis": "estimators.motor_task.analysis", "analyse_task": "estimators.motor_task.analysis",
     "normalise_cycles": "estimators.motor_task.analysis", "reject_cycles": "estimators.motor_task.analysis",
     "TASKS": "estimators.motor_task.tasks", "get_task": "estimators.motor_task.tasks",
@@ -142,6 +143,7 @@ def __getattr__(name: str):
 __all__ = [
     "ANGLES",
     "EVENTS",
+    "EXCLUDED",
     "TASKS",
     "TASK_INFO",
     "TASK_NAMES",
@@ -152,6 +154,7 @@ __all__ = [
     "TaskAnalysis",
     "TaskInfo",
     "TaskSpec",
+    "UnknownCycleError",
     "analyse_task",
     "get_task",
     "normalise_cycles",

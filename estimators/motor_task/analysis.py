@@ -22,6 +22,16 @@ from estimators.quality import QualityWarning
 FloatArray = NDArray[np.float64]
 
 ROM_STATS: tuple[str, ...] = ("max", "min", "range")
+#: the reason code of a cycle the clinician excluded (every other code is the pipeline's own rejection)
+EXCLUDED = "excluded_by_clinician"
+
+
+class UnknownCycleError(ValueError):
+    """An exclusion names a cycle that was not detected: ``index`` (0-based) of ``detected`` cycles."""
+
+    def __init__(self, index: int, detected: int) -> None:
+        super().__init__(f"cycle {index + 1} cannot be excluded: {detected} cycle(s) were detected")
+        self.index, self.detected = index, detected
 
 
 @dataclass(frozen=True)
@@ -29,7 +39,9 @@ class RejectedCycle:
     """A detected cycle left out of the statistics.
 
     index : position among the detected cycles (0-based).   code : ``incomplete_start``, ``incomplete_end``,
-    ``unmeasurable``, ``small_excursion`` or ``rmse``.   message : a sentence for people.
+    ``unmeasurable``, ``small_excursion``, ``rmse`` (the pipeline's reasons; gait adds ``turn`` and
+    ``stride_time``) or :data:`EXCLUDED` (the clinician left it out: :func:`reject_cycles`' ``exclude``).
+    message : a sentence for people.
     rmse_rad : (3,) RMSE of the normalised cycle to the mean of the accepted ones when it was rejected
     (``code == "rmse"``), rad; None otherwise.   iteration : rejection round (1-based; 0 for detection).
     """
@@ -185,14 +197,25 @@ def register_cycles(angles: FloatArray, events: FloatArray, complete: NDArray[np
     return out
 
 
-def reject_cycles(curves: FloatArray, candidates: NDArray[np.bool_], p: MotorTaskParams
+def reject_cycles(curves: FloatArray, candidates: NDArray[np.bool_], p: MotorTaskParams, exclude=()
                   ) -> tuple[NDArray[np.bool_], list[RejectedCycle], bool]:
     """Iterative rejection (thesis ``media_ciclos``, eq. C2): while the worst accepted cycle's RMSE to the mean
     of the accepted ones exceeds its angle's threshold, reject it and recompute the mean.  Stops before fewer
-    than ``min_accepted_cycles`` would remain (third value True then)."""
+    than ``min_accepted_cycles`` would remain (third value True then).
+
+    exclude : 0-based indices of detected cycles the clinician left out.  They leave the candidates first (reason
+        :data:`EXCLUDED`, iteration 0), so the RMSE rejection is computed on the cycles the clinician kept: one
+        mechanism, one list of reasons.  An excluded cycle that was no candidate (incomplete, a turn...) keeps the
+        pipeline's reason.  :class:`UnknownCycleError` for an index outside the detected cycles."""
     acc = candidates.copy()
     thr = np.array([np.inf if x is None else x for x in p.rejection_rmse_rad])
     out: list[RejectedCycle] = []
+    for i in sorted({int(i) for i in exclude}):
+        if not 0 <= i < len(acc):
+            raise UnknownCycleError(i, len(acc))
+        if acc[i]:
+            out.append(RejectedCycle(i, EXCLUDED, "excluded by the clinician"))
+            acc[i] = False
     it = 0
     while True:
         idx = np.flatnonzero(acc)
@@ -236,7 +259,8 @@ def checked_inputs(angles_rad: ArrayLike, fs_hz: float, params: MotorTaskParams
 
 def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = "step_up",
                  params: MotorTaskParams | None = None, t0_s: float = 0.0,
-                 inputs: Mapping[str, Any] | None = None, fit_flexion_rad: ArrayLike | None = None) -> TaskAnalysis:
+                 inputs: Mapping[str, Any] | None = None, fit_flexion_rad: ArrayLike | None = None,
+                 exclude=()) -> TaskAnalysis:
     """Cycles, phases, normalised mean ± SD curves and ranges of motion of a repetitive knee task.
 
     angles_rad : (N, 3) knee angles (flexion, adduction, internal rotation), rad, clinical signs, on a uniform
@@ -251,6 +275,8 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
     fit_flexion_rad : (N,) flexion for the least-squares event fits D5b/D5c instead of ``angles_rad[:, 0]``
         (the step-up's D7 flexion, :func:`~estimators.motor_task.detection.gyroscope_flexion`); the search
         (D1–D4), the curves and the ranges of motion keep the angles.
+    exclude : 0-based indices of the detected cycles the clinician excluded (:func:`reject_cycles`); every task,
+        its own ``analyse`` included, takes them.
     Returns a :class:`TaskAnalysis`.  Raises ValueError for a wrong shape, rate or non-finite angles.
     """
     if isinstance(task, str):  # a registered task: its own analysis or default parameters, if it has them
@@ -260,7 +286,7 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
         if own is not None:
             wanted = inspect.signature(own).parameters
             extra = {k: v for k, v in (inputs or {}).items() if k in wanted and k not in ("params", "t0_s")}
-            return own(angles_rad, fs_hz, params=params, t0_s=t0_s, **extra)
+            return own(angles_rad, fs_hz, params=params, t0_s=t0_s, exclude=exclude, **extra)
         if params is None:
             params = getattr(mod, "PARAMS", None)
     else:
@@ -296,7 +322,7 @@ def analyse_task(angles_rad: ArrayLike, fs_hz: float, *, task: str | TaskSpec = 
     curves = normalise_cycles(a, spans, n_pts)
     # C2 compares cycles registered on their events, so that natural cycle-to-cycle timing variability
     # (phase proportions SD 1–3 %, seed 004 Tables 8.1/8.3) is not mistaken for a bad cycle
-    accepted, rej, stopped = reject_cycles(register_cycles(a, ev, complete, n_pts), complete, p)
+    accepted, rej, stopped = reject_cycles(register_cycles(a, ev, complete, n_pts), complete, p, exclude)
     rejected += rej
     if stopped:
         warnings.append(QualityWarning("MOTOR_TASK_REJECTION_STOPPED",

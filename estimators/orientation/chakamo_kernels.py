@@ -62,8 +62,8 @@ STATE_SIZE = 92
 # --- coefficient indices
 (C_DT, C_B0, C_B1, C_B2, C_A1, C_A2, C_NINIT, C_KREST, C_THG2, C_THA2, C_RESTMIN, C_RREST, C_RMOT,
  C_QBIAS, C_CLIP, C_RESTON, C_MOTON, C_KMAG, C_KREF, C_NORMTH, C_DIPTH, C_NEWS, C_MAXREJ, C_REJON,
- C_KCAND, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG) = range(33)
-COEFF_SIZE = 33
+ C_KCAND, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG, C_MAGGATE) = range(34)
+COEFF_SIZE = 34
 
 # --- auxiliary per-sample outputs (columns of ``aux``)
 A_BIAS, A_P, A_REST, A_MAGUSED, A_MAGNEAR = 0, 3, 9, 10, 11
@@ -292,7 +292,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                     for i in range(3):
                         s[S_MLP + i] = rz[i] if steady else s[S_MLP + i] + km * (rz[i] - s[S_MLP + i])
                     s[S_MLP + 3] = uz if steady else s[S_MLP + 3] + km * (uz - s[S_MLP + 3])
-                    if not steady and s[S_REST] < 0.5:
+                    if not steady and s[S_REST] < 0.5 and abs(err) < c[C_MAGGATE]:
                         clip = c[C_CLIP]
                         innov = (err / c[C_TAUMAG] - s[S_MLP + 3] + s[S_MLP] * s[S_BIAS]
                                  + s[S_MLP + 1] * s[S_BIAS + 1] + s[S_MLP + 2] * s[S_BIAS + 2])
@@ -426,20 +426,101 @@ def _sym_inv(a00, a01, a02, a11, a12, a22):
 
 @njit(cache=True)
 def smooth_bias_batch(b_f, p_f, b_b, p_b):
-    """Information-weighted mean of forward and backward bias estimates (eq. 13); ``p_*`` are ``(N, 6)``."""
+    r"""Information-weighted mean of forward and backward bias estimates (eq. 13); ``p_*`` are ``(N, 6)``.
+
+    In the covariance form :math:`\hat b_s = \hat b_f + P_f (P_f + P_b)^{-1} (\hat b_b - \hat b_f)`, equal to (13)
+    (:math:`(P_f^{-1} + P_b^{-1})^{-1} = P_f (P_f + P_b)^{-1} P_b`) with one 3×3 inverse per sample instead of three.
+    """
     n = b_f.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        f = _sym_inv(p_f[k, 0], p_f[k, 1], p_f[k, 2], p_f[k, 3], p_f[k, 4], p_f[k, 5])
-        g = _sym_inv(p_b[k, 0], p_b[k, 1], p_b[k, 2], p_b[k, 3], p_b[k, 4], p_b[k, 5])
-        r0 = f[0] * b_f[k, 0] + f[1] * b_f[k, 1] + f[2] * b_f[k, 2] \
-            + g[0] * b_b[k, 0] + g[1] * b_b[k, 1] + g[2] * b_b[k, 2]
-        r1 = f[1] * b_f[k, 0] + f[3] * b_f[k, 1] + f[4] * b_f[k, 2] \
-            + g[1] * b_b[k, 0] + g[3] * b_b[k, 1] + g[4] * b_b[k, 2]
-        r2 = f[2] * b_f[k, 0] + f[4] * b_f[k, 1] + f[5] * b_f[k, 2] \
-            + g[2] * b_b[k, 0] + g[4] * b_b[k, 1] + g[5] * b_b[k, 2]
-        s = _sym_inv(f[0] + g[0], f[1] + g[1], f[2] + g[2], f[3] + g[3], f[4] + g[4], f[5] + g[5])
-        out[k, 0] = s[0] * r0 + s[1] * r1 + s[2] * r2
-        out[k, 1] = s[1] * r0 + s[3] * r1 + s[4] * r2
-        out[k, 2] = s[2] * r0 + s[4] * r1 + s[5] * r2
+        f0, f1, f2, f3, f4, f5 = p_f[k, 0], p_f[k, 1], p_f[k, 2], p_f[k, 3], p_f[k, 4], p_f[k, 5]
+        s = _sym_inv(f0 + p_b[k, 0], f1 + p_b[k, 1], f2 + p_b[k, 2], f3 + p_b[k, 3], f4 + p_b[k, 4], f5 + p_b[k, 5])
+        d0, d1, d2 = b_b[k, 0] - b_f[k, 0], b_b[k, 1] - b_f[k, 1], b_b[k, 2] - b_f[k, 2]
+        r0 = s[0] * d0 + s[1] * d1 + s[2] * d2
+        r1 = s[1] * d0 + s[3] * d1 + s[4] * d2
+        r2 = s[2] * d0 + s[4] * d1 + s[5] * d2
+        out[k, 0] = b_f[k, 0] + f0 * r0 + f1 * r1 + f2 * r2
+        out[k, 1] = b_f[k, 1] + f1 * r0 + f3 * r1 + f4 * r2
+        out[k, 2] = b_f[k, 2] + f2 * r0 + f4 * r1 + f5 * r2
     return out
+
+
+# =====================================================================================
+# offline: robust heading (14-15b)
+# =====================================================================================
+@njit(cache=True)
+def _two_sided_block_mean(x, w, decay, block, num, den, out):
+    """(14) on blocks of ``block`` samples (``decay`` per block), linear between valid block centres into ``out``.
+
+    ``num``, ``den`` are scratch ``(nb,)``; the twin of ``chakamo_offline._two_sided_mean``.
+    """
+    n = x.shape[0]
+    nb = num.shape[0]
+    for b in range(nb):
+        sn, sd = 0.0, 0.0
+        for i in range(b * block, min(n, (b + 1) * block)):
+            sn += w[i] * x[i]
+            sd += w[i]
+        num[b], den[b] = sn, sd
+    fn, fd = 0.0, 0.0  # forward pass of 1/(1 - decay z^-1), stored; then the backward pass adds its own
+    fwd_n, fwd_d = np.empty(nb), np.empty(nb)
+    for b in range(nb):
+        fn = num[b] + decay * fn
+        fd = den[b] + decay * fd
+        fwd_n[b], fwd_d[b] = fn, fd
+    bn, bd = 0.0, 0.0
+    for b in range(nb - 1, -1, -1):
+        bn = num[b] + decay * bn
+        bd = den[b] + decay * bd
+        tn, td = fwd_n[b] + bn - num[b], fwd_d[b] + bd - den[b]
+        num[b] = tn / td if td > 1e-200 else np.nan  # gaps longer than ~700 τ: no value, interpolated over
+    half = 0.5 * (min(block, n) - 1)
+    prev = -1  # last valid block at or before the sample's centre
+    nxt = 0
+    while nxt < nb and num[nxt] != num[nxt]:
+        nxt += 1
+    for i in range(n):
+        while nxt < nb and nxt * block + half <= i:
+            prev = nxt
+            nxt += 1
+            while nxt < nb and num[nxt] != num[nxt]:
+                nxt += 1
+        if prev < 0:
+            out[i] = num[nxt]
+        elif nxt >= nb:
+            out[i] = num[prev]
+        else:
+            c0 = prev * block + half
+            out[i] = num[prev] + (num[nxt] - num[prev]) * (i - c0) / (nxt * block + half - c0)
+
+
+@njit(cache=True)
+def robust_heading_batch(target, weight, decay, block, c2, iterations):
+    """Compiled twin of ``chakamo_offline.robust_heading`` (same blocks, decay per block and Cauchy passes)."""
+    n = target.shape[0]
+    x = np.zeros(n)
+    last, acc, first = 0.0, 0.0, True
+    for i in range(n):  # the target unwrapped over the used samples (zero elsewhere)
+        if weight[i] > 0.0:
+            if first:
+                acc, first = target[i], False
+            else:
+                d = target[i] - last
+                acc += d - 2.0 * math.pi * round(d / (2.0 * math.pi))
+            last = target[i]
+            x[i] = acc
+    delta = np.zeros(n)
+    if first:
+        return delta
+    nb = -(-n // block)
+    num, den = np.empty(nb), np.empty(nb)
+    _two_sided_block_mean(x, weight, decay, block, num, den, delta)
+    if c2 > 0.0:
+        w = np.empty(n)
+        for _ in range(iterations):
+            for i in range(n):
+                r = x[i] - delta[i]
+                w[i] = weight[i] * (c2 / (c2 + r * r))
+            _two_sided_block_mean(x, w, decay, block, num, den, delta)
+    return delta

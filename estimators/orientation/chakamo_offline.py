@@ -104,8 +104,7 @@ def robust_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_
     if not used.any():
         return np.zeros(n)
     unwrapped = _unwrapped(target_rad, used)
-    block = max(1, int(tau_s / (BLOCKS_PER_TAU * dt_s)))
-    decay = math.exp(-block * dt_s / tau_s)
+    block, decay = heading_blocks(tau_s, dt_s)
     delta = _two_sided_mean(unwrapped, w, decay, block)
     if width_rad > 0.0:
         c2 = width_rad * width_rad
@@ -113,6 +112,12 @@ def robust_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_
             r = unwrapped - delta
             delta = _two_sided_mean(unwrapped, w * (c2 / (c2 + r * r)), decay, block)
     return delta
+
+
+def heading_blocks(tau_s: float, dt_s: float) -> tuple[int, float]:
+    """Samples per block of the kernel sums of (14) (``τ/100``, at least one) and the kernel's decay per block."""
+    block = max(1, int(tau_s / (BLOCKS_PER_TAU * dt_s)))
+    return block, math.exp(-block * dt_s / tau_s)
 
 
 def smooth_heading(target_rad: FloatArray, weight: FloatArray, tau_s: float, dt_s: float) -> FloatArray:

@@ -12,7 +12,7 @@ import numpy as np
 from estimators import quaternion as quat
 from estimators.orientation.chakamo_kernels import (
     AUX_SIZE, A_BIAS, A_MAGNEAR, A_MAGUSED, A_P, A_REST, C_A1, C_A2, C_B0, C_B1, C_B2, C_CLIP, C_DIPTH, C_DT, C_KCAND,
-    C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
+    C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAGGATE, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
     C_NORMTH, C_P0, C_QBIAS, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
     C_THA2, C_THG2, S_ALP, S_AREST, S_BIAS, S_DELTA, S_GREST, S_LP, S_MCANDD, S_MCANDN, S_MDIST, S_MLP,
     S_MREFD, S_MREFN, S_MREFOK, S_NACC, S_NMAG, S_P, S_Q, S_QEI, S_QIS, S_REST, S_RLP, S_RLPOUT, S_TCAND,
@@ -142,7 +142,7 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                     x = np.append(r_es[2], r_es[2] @ b_used)  # E' z axis in sensor coordinates, its bias term
                     steady = s[S_NMAG] < c[C_NMAGINIT]
                     s[S_MLP:S_MLP + 4] = x if steady else s[S_MLP:S_MLP + 4] + c[C_KMAG] * (x - s[S_MLP:S_MLP + 4])
-                    if not steady and s[S_REST] < 0.5:
+                    if not steady and s[S_REST] < 0.5 and abs(err) < c[C_MAGGATE]:
                         m_z, v_z = s[S_MLP:S_MLP + 3], s[S_MLP + 3]
                         b = s[S_BIAS:S_BIAS + 3].copy()
                         p = _unpack_p(s)

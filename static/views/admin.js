@@ -39,9 +39,20 @@ export function adminView(page) {
   return section;
 }
 
+/** A select of the roles (GET /options `roles`, app/choices.py USER_ROLES), `selected` chosen. */
 function roleSelect(name, selected) {
-  return h("select", { name }, ["admin", "clinician", "read_only"].map((r) =>
-    h("option", { value: r, selected: r === selected }, t(`role.${r}`))));
+  const select = h("select", { name }, h("option", { value: selected, selected: true }, label("role", selected)));
+  options().then((opts) => {
+    clear(select).append(...(opts.roles || [selected]).map((r) =>
+      h("option", { value: r, selected: r === selected }, label("role", r))));
+  }).catch(() => {});   // the select keeps the current role; the page's other calls say what failed
+  return select;
+}
+
+/** A token scope in words of the UI language: "Patients — read" for `patients:read`. */
+export function scopeLabel(scope) {
+  const [resource, action] = String(scope).split(":");
+  return `${label("scope_resource", resource)} — ${label("scope_action", action)}`;
 }
 
 // ------------------------------------------------------------------------------------------------- users
@@ -70,12 +81,13 @@ function usersPage() {
 
 function usersTable(users, message, reload) {
   const me = (currentUser() || {}).id;
-  const act = async (fn, done) => {
+  const act = async (fn, done, undo) => {
     clear(message);
     try {
       await fn();
       reload(done);
     } catch (err) {
+      if (undo) undo();   // a refused change leaves the control as it is stored
       message.append(alertBox(errorText(err)));
     }
   };
@@ -85,7 +97,7 @@ function usersTable(users, message, reload) {
     role.setAttribute("aria-label", t("admin.user_role_of", { name: u.name || u.email }));
     role.disabled = self;
     role.addEventListener("change", () => act(() => api("PATCH", `/users/${u.id}`, { json: { role: role.value } }),
-      t("admin.user_changed", { name: u.name || u.email })));
+      t("admin.user_changed", { name: u.name || u.email }), () => { role.value = u.role; }));
     const toggle = self ? null : h("button", { type: "button", class: u.active ? "danger small" : "secondary small",
       "data-action": u.active ? "disable" : "enable" }, u.active ? t("admin.user_disable") : t("admin.user_enable"));
     if (toggle) {
@@ -142,6 +154,17 @@ function newUserForm(onClose, reload) {
   });
   queueMicrotask(() => f.email.focus());
   return form;
+}
+
+/**
+ * The instant the audit filter's day starts where the admin is: local midnight of `day` ("YYYY-MM-DD") as an ISO
+ * time in UTC ("2026-12-01T23:00:00.000Z" in Madrid's winter).  A naive "T00:00:00" was read by the server as UTC
+ * midnight, an hour or two off the day the admin picked.  "" for no day.
+ */
+export function sinceInstant(day) {
+  if (!day) return "";
+  const [y, m, d] = day.split("-").map(Number);
+  return new Date(y, m - 1, d).toISOString();
 }
 
 // ------------------------------------------------------------------------------------------------ tokens
@@ -225,7 +248,8 @@ function tokensTable(rows, message, secretArea, reload) {
       h("td", { class: "num" }, String(tok.id)),
       h("td", { class: "break" }, tok.label || "—"),
       h("td", {}, t(`role.${tok.role}`)),
-      h("td", { class: "break" }, tok.scopes ? tok.scopes.join(" ") : t("admin.token_all_scopes")),
+      h("td", { class: "break" }, tok.scopes ? h("ul", { class: "plain" }, tok.scopes.map((s) =>
+        h("li", { title: s }, scopeLabel(s)))) : t("admin.token_all_scopes")),
       h("td", {}, dateTime(tok.created_at)),
       h("td", {}, tok.expires_at ? dateTime(tok.expires_at) : t("admin.token_never")),
       h("td", {}, tokenState(tok)),
@@ -256,18 +280,22 @@ function newTokenForm(onClose, onCreated) {
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, submit, h("button", { type: "button", class: "secondary", onclick: onClose },
       t("common.cancel"))));
+  let maxDays;   // GET /options token_max_days (app/choices.py TOKEN_MAX_DAYS; the submit button waits for it)
   options().then((opts) => {
-    scopeBoxes.append(...(opts.token_scopes || []).map((s) => h("label", { class: "radio" },
-      h("input", { type: "checkbox", name: "scope", value: s }), s)));
+    scopeBoxes.append(...(opts.token_scopes || []).map((s) => h("label", { class: "radio", title: s },
+      h("input", { type: "checkbox", name: "scope", value: s }), scopeLabel(s))));
+    maxDays = opts.token_max_days;
     submit.disabled = false;
   }).catch((err) => message.append(alertBox(errorText(err))));
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
     clear(message);
     const days = parseDecimal(f.days.value);
-    if (Number.isNaN(days) || (days !== null && days <= 0)) {
+    const tooLong = days !== null && days > maxDays;
+    if (Number.isNaN(days) || (days !== null && days <= 0) || tooLong) {
       f.days.setAttribute("aria-invalid", "true");
-      message.append(alertBox(t("admin.token_days_invalid", { example: num(365, 0) })));
+      message.append(alertBox(tooLong ? t("admin.token_days_too_long", { max: String(maxDays) })
+        : t("admin.token_days_invalid", { example: num(365, 0) })));
       f.days.focus();
       return;
     }
@@ -327,7 +355,7 @@ function auditPage() {
     let events;
     try {
       events = await api("GET", "/audit", { query: { action: f.action.value, user_id: f.user.value, patient_id: patient,
-        since: f.since.value ? `${f.since.value}T00:00:00` : "", before_id: beforeId, limit: AUDIT_PAGE } });
+        since: sinceInstant(f.since.value), before_id: beforeId, limit: AUDIT_PAGE } });
     } catch (err) {
       message.append(alertBox(errorText(err)));
       return;

@@ -236,7 +236,8 @@ async function loadTrend(patientId, area, section) {
   const chart = h("div", { class: "chart", id: "trend-chart", role: "img", "aria-label": t("patient.trend_alt") });
   // one series only (GET /trend: one filter and pipeline version); sessions analysed otherwise are named, not mixed in
   const series = h("p", { class: "hint", id: "trend-series" },
-    t("patient.trend_series", { filter: label("filter", trend.filter), version: trend.pipeline_version }));
+    t("patient.trend_series", { filter: label("filter", trend.filter), version: trend.pipeline_version,
+      angles: label("angle_convention", trend.angle_method), calibration: label("calibration", trend.calibration) }));
   const leftOut = (trend.left_out || []).length ? h("p", { class: "hint", id: "trend-left-out" }, t("patient.trend_left_out",
     { sessions: trend.left_out.map((x) => `#${x.session_id} (${date(x.date)})`).join(", ") })) : "";
   area.append(h("p", { class: "hint" }, t("patient.trend_hint")), series, leftOut, chart, trendTable(points));

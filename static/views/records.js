@@ -72,13 +72,18 @@ export function confirmErase({ title, text, expect = null, onConfirm, confirmTex
   return dialog;
 }
 
-// the API's bounds of a patient's measurements (app/web/api/schemas.py PatientIn: gt / lt)
-const MEASURES = { height_cm: { min: 30, max: 260, example: 165.5 }, mass_kg: { min: 2, max: 400, example: 70.5 } };
+// an example of each measurement for the messages; the bounds are the API's (GET /options measure_ranges, from
+// app/choices.py MEASURE_RANGES: open intervals)
+const EXAMPLES = { height_cm: 165.5, mass_kg: 70.5 };
 
-/** The value of measurement input `input` (`name` of MEASURES), or an error sentence in the UI language. */
-function measure(input, name, fieldLabel) {
+/**
+ * The value of measurement input `input` (`name` of EXAMPLES) within `range` ({min, max}, both excluded), or an
+ * error sentence in the UI language.
+ */
+function measure(input, name, fieldLabel, range) {
   const value = parseDecimal(input.value);
-  const { min, max, example } = MEASURES[name];
+  const { min, max } = range;
+  const example = EXAMPLES[name];
   if (value === null) return { value: null };
   if (Number.isNaN(value)) return { error: t("patient.number_invalid", { field: fieldLabel, example: num(example, 1) }) };
   if (!(value > min && value < max)) {
@@ -126,16 +131,18 @@ export function patientForm(patient, onCancel, onSaved) {
     h("div", { class: "wide" }, message),
     h("div", { class: "actions wide" }, submit,
       h("button", { type: "button", class: "secondary", onclick: onCancel }, t("common.cancel"))));
+  let ranges;   // GET /options measure_ranges (the submit button waits for them)
   options().then((opts) => {
     f.sex.append(...(opts.sexes || []).map((s) => h("option", { value: s, selected: p.sex === s }, label("sex", s))));
+    ranges = opts.measure_ranges;
     submit.disabled = false;
   }).catch((err) => message.append(alertBox(errorText(err))));
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
     clear(message);
     for (const input of [f.height_cm, f.mass_kg]) input.removeAttribute("aria-invalid");
-    const height = measure(f.height_cm, "height_cm", t("patient.height_cm"));
-    const mass = measure(f.mass_kg, "mass_kg", t("patient.mass_kg"));
+    const height = measure(f.height_cm, "height_cm", t("patient.height_cm"), ranges.height_cm);
+    const mass = measure(f.mass_kg, "mass_kg", t("patient.mass_kg"), ranges.mass_kg);
     for (const [m, input] of [[height, f.height_cm], [mass, f.mass_kg]]) {
       if (m.error) {
         input.setAttribute("aria-invalid", "true");

@@ -6,7 +6,7 @@
 //
 // Everything shown comes from results.json (GET /sessions/{id}/results) — the UI computes nothing clinical.
 // The 3D view is an <iframe> of /viser/index.html?playbackPath=<the session's scene.viser URL> (same origin,
-// so the session cookie goes along); WebGL may be software-rendered on clinic PCs, so it is lazy-loaded.
+// so the session cookie goes along), with a jump-to-cycle control: scene.js.
 
 import { api, apiUrl } from "../api.js";
 import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
@@ -14,6 +14,9 @@ import { t, lang, LANGUAGES } from "../i18n.js";
 import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate, canEdit } from "../app.js";
+import { cyclesSection, technicalNotes } from "./cycles.js";
+import { pairingSection } from "./pairing.js";
+import { sceneSection } from "./scene.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -39,7 +42,8 @@ export function resultsView(sessionId, query) {
     ];
     if (!analyses.length) {
       clear(section).append(...head, h("div", { class: "card" }, h("p", {}, t("results.none")),
-        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))));
+        h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("results.open_wizard"))),
+      pairingSection(session, patient));
       return;
     }
     const wanted = Number(query.get("analysis_id"));
@@ -66,7 +70,8 @@ export function resultsView(sessionId, query) {
 function analysisSelector(sessionId, analyses, current) {
   const select = h("select", { id: "analysis", name: "analysis_id" }, analyses.map((a) => h("option",
     { value: String(a.id), selected: a.id === current.id },
-    t("results.analysis_option", { id: a.id, filter: label("filter", a.filter), date: dateTime(a.created_at),
+    t("results.analysis_option", { id: a.id, filter: label("filter", a.filter),
+      angles: label("angle_convention", a.angle_method), date: dateTime(a.created_at),
       cycles: a.accepted_cycles ?? "—" }))));
   select.addEventListener("change", () => navigate(`#/sessions/${sessionId}?analysis_id=${select.value}`));
   return h("div", { class: "card toolbar analysis-picker" },
@@ -79,6 +84,9 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
   const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
     [[t("patient.side"), label("side", r.side || patient.side)],
       [t("results.filter"), label("filter", (r.filter && r.filter.name) || analysis.filter)],
+      // the convention and calibration the numbers were computed with (a ZYX run reads other angles of one knee)
+      [t("wizard.angle_convention"), label("angle_convention", r.angle_method || analysis.angle_method)],
+      [t("wizard.calibration"), label("calibration", r.calibration_method || analysis.calibration)],
       [t("results.cycles"), t("results.cycles_value", { accepted: cycles.accepted ?? "—", detected: cycles.detected ?? "—" })],
       [t("session.step_height"), session.step_height_m ? `${num(session.step_height_m * 100, 0)} cm` : "—"],
       [t("results.software"), (r.software && r.software.version) || "—"]]
@@ -97,11 +105,13 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
+    cyclesSection(session, analysis, r),
     qualitySection(r, warnings),
     compareSection(session, analysis),
     interpretationSection(session, analysis),
+    pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id));
+    sceneSection(session.id, analysis.id, r));
 
   ANGLES.forEach((a, i) => {
     const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
@@ -203,7 +213,8 @@ function compareLabel(key) {
 }
 
 function compareTable(c) {
-  const side = (x) => `#${x.session_id} · ${date(x.date)} · ${label("filter", x.filter)} · ${x.pipeline_version}`;
+  const side = (x) => `#${x.session_id} · ${date(x.date)} · ${label("filter", x.filter)} · ${x.pipeline_version} · `
+    + `${label("angle_convention", x.angle_method)} · ${label("calibration", x.calibration)}`;
   const unit = (u) => (u === "deg" ? "°" : ` ${t(`knees.unit.${u}`)}`);
   const cell = (x, u) => (typeof x === "number" ? `${num(x, u === "s" ? 2 : 1)}${unit(u)}` : "—");
   const change = (x, u) => (typeof x === "number" ? `${x > 0 ? "+" : ""}${num(x, u === "s" ? 2 : 1)}${unit(u)}` : "—");
@@ -269,8 +280,10 @@ function referenceSection(ref) {
 
 function qualitySection(r, translated) {
   const warnings = ((r.quality || {}).warnings) || [];
-  const texts = Array.isArray(translated) && translated.length === warnings.length ? translated : [];
-  const rejected = ((r.cycles || {}).rejected) || [];
+  const clinical = Array.isArray(translated) ? translated.filter((x) => !x.technical) : [];   // notes: technicalNotes
+  const texts = clinical.length === warnings.length ? clinical : [];
+  // the pipeline's rejections; the clinician's exclusions are in the cycles card (cycles.js)
+  const rejected = (((r.cycles || {}).rejected) || []).filter((c) => c.reason !== "excluded_by_clinician");
   const items = [
     // in the reader's language (GET .../warnings renders each from its code and params, as the reports do, the
     // knee of a two-knee session first: reports.warning_text); the English message when that answer is missing,
@@ -285,7 +298,7 @@ function qualitySection(r, translated) {
     h("h2", { id: "h-quality" }, t("results.quality")),
     items.length ? h("ul", { class: "warnings", id: "warnings" }, items)
       : h("p", { class: "ok-line" }, t("results.no_warnings")),
-    calibrationFacts(r), splitFacts(r));
+    technicalNotes(r, translated), calibrationFacts(r), splitFacts(r));
 }
 
 /** Where one continuous recording per sensor was cut into the protocol's parts (results.json session.split). */
@@ -435,15 +448,4 @@ function downloadsSection(sessionId, analysisId) {
       link("quaternions.xlsx", {}, t("results.quaternions_xlsx")),
       h("a", { href: apiUrl(`/sessions/${sessionId}/report.html`, { analysis_id: analysisId, lang: lang() }), class: "button-link secondary",
         target: "_blank", rel: "noopener" }, t("results.report_html"))));
-}
-
-function sceneSection(sessionId, analysisId) {
-  const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
-  const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
-  const frame = h("iframe", { src, id: "scene-frame", title: t("results.scene_title"), loading: "lazy",
-    allow: "fullscreen" });
-  return h("section", { class: "card scene", "aria-labelledby": "h-scene" },
-    h("h2", { id: "h-scene" }, t("results.scene")), h("p", { class: "hint" }, t("results.scene_hint")),
-    h("div", { class: "scene-box" }, frame),
-    h("p", {}, h("a", { href: src, target: "_blank", rel: "noopener" }, t("results.scene_open"))));
 }

@@ -222,6 +222,7 @@ function uploadStep(ctx) {
   const wrap = h("div", {},
     h("h2", {}, t("wizard.step2_title")),
     h("p", {}, t("wizard.step2_lead")),
+    canEdit() ? h("p", { class: "record-link" }, h("a", { href: `#/sessions/${ctx.sessionId}/record` }, t("record.link"))) : null,
     groups, other, ctx.ingestionArea, ctx.splitArea,
     navButtons(ctx, { back: 1, next: 3 }));
   renderIngestion(ctx, ctx.session.ingestion);
@@ -249,15 +250,24 @@ function zoneRecordings(ctx, segment, role) {
   });
 }
 
-/** The file names of `recs` the session's failed check names in its error (the file it rejected, or the recording
- * label a MetaBase group of files shares: the name before its first "_"), or []. */
+/** Whether `text` names `word` whole: not inside a longer file name ("a.csv" is not named by "data.csv" nor by
+ * "a.csv.bak"): the characters either side are not those of a file name.  `label`: `word` is a MetaBase recording
+ * label, which its files' names continue with "_" ("rec1" is named by "rec1_acc.csv"). */
+export function namesWhole(text, word, label = false) {
+  const escaped = word.replace(/[.*+?^${}()|[\]\\]/g, "\\$&");
+  const after = label ? "($|_|[^\\w.-]|\\.(?![\\w-]))" : "($|[^\\w.-]|\\.(?![\\w-]))";
+  return new RegExp(`(^|[^\\w.-])${escaped}${after}`, "u").test(text);
+}
+
+/** The file names of `recs` the session's failed check names in its error (the file it rejected, whole, or the
+ * recording label a MetaBase group of files shares: the name before its first "_"), or []. */
 function rejected(ctx, recs) {
   const ingestion = ctx.session.ingestion || {};
   if (ingestion.ok) return [];
   const said = [ingestion.error || "", ...Object.values(ingestion.error_message || {})].join("\n");
   const named = (name) => {
     const label = name.split("_")[0];
-    return said.includes(name) || (label !== name && label.length >= 12 && said.includes(label));
+    return namesWhole(said, name) || (label !== name && label.length >= 12 && namesWhole(said, label, true));
   };
   return recs.map((r) => r.file_name).filter((name) => name && named(name));
 }
@@ -315,7 +325,14 @@ function dropZone(ctx, segment, role) {
       list.append(h("li", {}, h("span", { class: "file-name", title: rec.file_name }, rec.file_name),
         stream ? h("span", { class: "tag" }, t(`stream.${stream[1]}`)) : null,
         segment && !(rec.segment && rec.role) ? h("span", { class: "tag recognised" }, t("wizard.recognised_tag")) : null,
+        segment ? null : kneeTag(ctx, rec),
         h("span", { class: "file-size" }, bytes(rec.size_bytes)), remove));
+    }
+    if (!segment) {   // files of a session of both knees: the zones are one knee's, so they stay here, and say so
+      const knees = recs.filter((rec) => kneeTag(ctx, rec)).length;
+      const note = zone.querySelector(".knee-files-note");
+      if (note) note.remove();
+      if (knees) list.after(h("p", { class: "hint knee-files-note" }, t("wizard.knee_files_here", { n: knees })));
     }
     showMacWarning(recs);
   };
@@ -442,6 +459,15 @@ function sec(x) {
 function sensorName(key) {
   const m = /^(left|right)_(thigh|shank)$/.exec(key);
   return m ? `${label("side", m[1])} · ${label("segment", m[2])}` : label("segment", key);
+}
+
+/** A tag naming the knee, sensor and recording the check recognised `rec` as in a session of both knees (the zones
+ * are one knee's, so such a file is listed under "other files"), or null. */
+function kneeTag(ctx, rec) {
+  const found = ((ctx.session.ingestion || {}).recognised || {})[rec.file_name];
+  if (!found || !/^(left|right)_/.test(found.segment || "")) return null;
+  const role = found.role ? ` · ${label("recording", found.role)}` : "";
+  return h("span", { class: "tag recognised knee" }, `${sensorName(found.segment)}${role}`);
 }
 
 /** Thigh before shank (the order of SEGMENTS), the left knee's before the right's. */
@@ -681,10 +707,19 @@ function processStep(ctx) {
     navButtons(ctx, { back: 2 }));
 }
 
-// the artefacts the job renders, by the file name its stage carries ("report.pdf es" → the PDF report in Spanish)
+// the artefacts the job renders, by the file name its stage carries ("report.pdf es" → the PDF report in Spanish;
+// app/pipeline/render.py names these stages)
 const ARTEFACT_STAGES = { "report.pdf": "stage.report_pdf", "report.html": "stage.report_html",
-  "scene.viser": "stage.scene", "angles.xlsx": "stage.workbooks", "quaternions.xlsx": "stage.workbooks",
-  "timeseries.npz": "stage.store", "results.json": "stage.store" };
+  "scene.viser": "stage.scene", "angles.xlsx": "stage.workbooks", "quaternions.xlsx": "stage.workbooks" };
+
+/** Language `code` named in the UI's language ("Spanish" in English, "espanhol" in Portuguese), not in its own. */
+function languageName(code) {
+  try {
+    return new Intl.DisplayNames([lang()], { type: "language" }).of(code) || code;
+  } catch {
+    return code;
+  }
+}
 
 /** The stage of a job as a sentence ("orientation thigh" → "Orientation of the thigh sensor"; "report.pdf es" →
  * "Writing the PDF report (Spanish)"): never a file name; a stage this version does not know reads "Processing". */
@@ -696,7 +731,7 @@ export function stageText(stage) {
     return `${label("side", words[0])} · ${stageText(words.slice(1).join(" "))}`;
   }
   if (ARTEFACT_STAGES[words[0]]) {
-    const language = words[1] ? label("lang", words[1]) : "";
+    const language = words[1] ? languageName(words[1]) : "";
     const text = t(ARTEFACT_STAGES[words[0]]);
     return language ? `${text} (${language})` : text;
   }

@@ -213,7 +213,7 @@ def test_step_up_segmentation_on_varied_motions(shape, h, side, pauses, rest0, r
 
 
 def test_only_the_step_up_uses_the_tilt_heading_bound():
-    """The 1.5° auto-heading bound was chosen and held out on step-ups only (benchmarks.robustness); every other
+    """The 3° auto-heading bound was chosen and held out on step-ups only (benchmarks.robustness); every other
     task keeps the 6° disturbed-field bound until its own motion is measured (review: on simulated walking the
     tilt bound switched clean sessions for a worse rotation)."""
     import pytest

@@ -258,8 +258,8 @@ def test_golden_numbers_printed_equal_results_json(demo_ri, demo_pdfs, lang):
     assert t("header_version", lang, version=r["software"]["version"]) in text
     # the filter by its human name, never the raw id (issue 17 §3)
     assert f"{t('protocol_filter_label', lang)}: {t('data.filter.' + r['filter']['name'], lang)}" in text
-    assert r["quality"]["warnings"]      # the demo has warnings (a stream cut at alignment)
-    for w in r["quality"]["warnings"]:   # translated by code; English verbatim
+    assert r["quality"]["technical_notes"]      # the demo has technical notes (a stream cut at alignment)
+    for w in r["quality"]["warnings"] + r["quality"]["technical_notes"]:   # translated by code; English verbatim
         printed, translated = warning_text(w, lang, r)
         assert translated and _flat(printed) in text
         assert (_flat(w["message"]) in text) == (lang == "en")
@@ -269,7 +269,7 @@ def test_golden_numbers_printed_equal_results_json(demo_ri, demo_pdfs, lang):
 @pytest.mark.parametrize("lang", ["es", "pt"])
 def test_demo_warnings_print_without_english(demo_ri, demo_pdfs, lang):
     text = _flat(_text(demo_pdfs[lang]))
-    warnings = demo_ri.results["quality"]["warnings"]
+    warnings = demo_ri.results["quality"]["warnings"] + demo_ri.results["quality"]["technical_notes"]
     assert warnings
     for w in warnings:
         assert _flat(w["message"]) not in text

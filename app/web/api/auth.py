@@ -9,8 +9,9 @@ connection's peer: behind a reverse proxy run uvicorn with ``--proxy-headers`` s
 Login, in order (issue 16 findings 1, 2, 10a; :mod:`app.web.throttle`, :mod:`app.web.security`):
 
 1. more than :attr:`~app.web.throttle.ThrottlePolicy.max_in_flight` logins of this address inside the server →
-   429 at once; the hashing queue full → 503 at once (both with ``Retry-After``, no database work; answered by
-   the ASGI middleware :class:`app.web.throttle.LoginGate` before the request reaches this route);
+   429 at once; as many logins inside the server as the hashing queue holds, or that queue full → 503 at once
+   (both with ``Retry-After``, no database work and no request thread taken; answered by the ASGI middleware
+   :class:`app.web.throttle.LoginGate` before the request reaches this route);
 2. an attempt is reserved on the email's and the address's counters, atomically in the database, *before*
    the password is checked; a counter still in its progressive delay → 429 with ``Retry-After``, no check,
    recorded as ``login_refused`` — for an unknown email too (in no clinic), so that a refusal costs the same
@@ -131,7 +132,7 @@ def _finish(request: Request, response: Response, email: str, clinic: str | None
 async def login(body: LoginIn, request: Request, response: Response):
     """Check email and password; set the session cookie; return the user and the CSRF token (module docstring)."""
     email, ip = body.email.lower(), _address(request)
-    # step 1 (the per-address cap, a full hashing queue) is app.web.throttle.LoginGate, before this route
+    # step 1 (the per-address and per-server caps, a full hashing queue) is app.web.throttle.LoginGate
     wait_s, found = await run_in_threadpool(_begin, request, email, body.clinic, ip)
     if wait_s:
         raise refusal(request, 429, "login.throttled", headers={"Retry-After": f"{wait_s:.0f}"},

@@ -33,7 +33,8 @@ been rolled back by then, as for an ``HTTPException`` raised by the route itself
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import datetime as dt
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -141,6 +142,8 @@ class Principal:
     csrf_token: str | None = None
     #: an API token's scopes (None: every scope of its role; browser sessions have no scopes)
     scopes: frozenset[str] | None = None
+    #: when the caller's API token ends (None: never, and for browser sessions)
+    token_expires_at: dt.datetime | None = None
 
 
 #: declares the bearer scheme in OpenAPI (the /docs "Authorize" button); the header is parsed below
@@ -178,7 +181,7 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
             raise _refuse(request, 401, "auth.token_expired", "expired API token",
                           clinic_id=row.clinic_id, headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
         principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
-                              token_id=row.id, scopes=tokens.scopes_of(row))
+                              token_id=row.id, scopes=tokens.scopes_of(row), token_expires_at=row.expires_at)
         request.state.principal = principal
         return principal
     sid = request.cookies.get(COOKIE)
@@ -262,6 +265,24 @@ def _scope_refusal(request: Request, principal: Principal) -> HTTPException | No
     return Refusal(403, "auth.scope_missing", scope=scope, scopes=" ".join(sorted(principal.scopes)))
 
 
+def refuse_grant_beyond(request: Request, principal: Principal, *, scopes: Iterable[str] | None,
+                        expires_at: dt.datetime | None) -> None:
+    """403 (recorded) when an API-token caller would hand out more than it holds: a token (created or rotated) with
+    a scope it lacks (``scopes`` None: every scope) or ending after it (``expires_at`` None: never), or a user
+    account, which holds its role with every scope and no end (pass None, None).  A token never outgrows the token
+    that made it, so a scoped or expiring admin token cannot mint an unlimited one; a browser session (a person
+    who logged in) and ``chakamo`` on the server are not limited by this rule."""
+    if principal.via != "bearer":
+        return
+    if principal.scopes is not None and (scopes is None or not set(scopes) <= principal.scopes):
+        record_refusal(request.app.state.db, request, 403, "grant beyond the token's scopes", principal=principal)
+        raise Refusal(403, "auth.grant_beyond_scopes", scopes=" ".join(sorted(principal.scopes)))
+    end = principal.token_expires_at
+    if end is not None and (expires_at is None or expires_at > end):
+        record_refusal(request.app.state.db, request, 403, "grant beyond the token's expiry", principal=principal)
+        raise Refusal(403, "auth.grant_beyond_expiry", until=f"{end:%Y-%m-%d %H:%M}")
+
+
 def get_upload_principal(request: Request, _doc=Depends(_bearer_doc)) -> Principal:
     """The caller of an upload, at least clinician: looked up in a short session closed before the body is
     read (module docstring)."""
@@ -319,5 +340,5 @@ def scoped_job(db: Session, principal: Principal, job_id: int) -> Job:
 __all__ = ["COOKIE", "CSRF_HEADER", "STATUS_OF", "Admin", "CheckerDep", "Clinician", "DbDep", "Principal",
            "PrincipalDep", "Reader", "RunnerDep", "SettingsDep", "StoreDep", "UploadClinician", "checker_of",
            "domain_errors", "get_checker", "get_db", "get_principal", "get_runner", "get_settings_dep", "get_store",
-           "get_upload_principal", "http_error", "needed_scope", "require", "route_scope", "resolve_principal", "scoped_job", "scoped_patient",
+           "get_upload_principal", "http_error", "needed_scope", "refuse_grant_beyond", "require", "route_scope", "resolve_principal", "scoped_job", "scoped_patient",
            "scoped_session"]

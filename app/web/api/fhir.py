@@ -29,7 +29,7 @@ from app.store.sessions import patient_sessions
 from app.web.api.deps import Admin, DbDep, Reader, StoreDep, scoped_patient, scoped_session
 from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.fhir import FhirExportError, capability_statement, diagnostic_report, search_bundle
-from app.web.fhir_push import export_options, report_inputs
+from app.web.fhir_push import export_options, identifier_base, report_inputs
 from estimators import __version__
 from app.web.messages import refusal
 from app.web.refusals import Refusal
@@ -42,10 +42,8 @@ def fhir_base_url(request: Request) -> str:
     in development only, this request's address; else 503.  A request's ``Host`` never names identifiers in
     production (issue 16, finding 10d; issue 17)."""
     settings = request.app.state.settings
-    if settings.fhir_identifier_base:
-        return settings.fhir_identifier_base.rstrip("/")
-    if settings.public_url:
-        return settings.public_url + "/api/v1"
+    if (base := identifier_base(settings)) is not None:
+        return base
     if settings.development:
         return str(request.base_url).rstrip("/") + "/api/v1"
     raise Refusal(503, "request.public_url_missing")

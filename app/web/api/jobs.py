@@ -40,7 +40,8 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
         try:
             job = enqueue(db, principal.clinic_id, session_id, filter_name=name, lang=body.lang, checker=checker,
                           heading=body.heading, side=body.side, involved=body.involved,
-                          calibration=body.calibration, angle_method=body.angle_convention)
+                          calibration=body.calibration, angle_method=body.angle_convention,
+                          cycle_exclusions=_exclusions(body, principal))
         except Busy:  # busy with the job a concurrent request with this key just committed?
             db.rollback()
             replay = idempotency.replayed(db, principal.clinic_id, key, fingerprint) if key else None
@@ -56,10 +57,27 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
         job = scoped_job(db, principal, replay.resource_ids[0])
         return answer({"job_id": job.id}, replay.status, f"/api/v1/jobs/{job.id}", replayed=True)
     session = scoped_session(db, principal, session_id)  # the row enqueue loaded (no new query)
-    audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id)
+    audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id,
+                 detail=_exclusions_detail(job.cycle_exclusions))
     db.commit()  # committed before the runner can look for it
     hand_over(runner, job.id)
     return answer({"job_id": job.id}, 202, f"/api/v1/jobs/{job.id}")
+
+
+def _exclusions(body: ProcessIn, principal) -> tuple[list[dict], str] | None:
+    """The request's cycle exclusions and who asks (the user's email, or the API token); None when it named none."""
+    if body.exclude_cycles is None:
+        return None
+    by = principal.user.email if principal.user is not None else f"token {principal.token_id}"
+    return [x.model_dump() for x in body.exclude_cycles], by
+
+
+def _exclusions_detail(exclusions: list[dict] | None) -> str:
+    """The audit event's detail of a processing that changes which cycles count."""
+    if exclusions is None:
+        return ""
+    named = ", ".join(f"{e['knee'] + ':' if e['knee'] else ''}{e['cycle']} ({e['reason'] or '-'})" for e in exclusions)
+    return f"cycles excluded: {named or 'none (all included again)'}; earlier analyses superseded when it is done"
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut)

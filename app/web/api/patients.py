@@ -29,7 +29,7 @@ from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request
 from app.web.paging import MAX_LIMIT, PAGE_HEADERS, decode_cursor, identifier_value, page_headers
 from app.web.refusals import Refusal
 from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
-from app.web.api.schemas import (CompareOut, PatientIn, PatientOut, PatientPatch, SessionIn, SessionOut,
+from app.web.api.schemas import (AngleConventionName, CalibrationName, CompareOut, PatientIn, PatientOut, PatientPatch, SessionIn, SessionOut,
                                  SessionSummaryOut, TrendOut, patient_out, session_out, summaries)
 
 router = APIRouter(prefix="/patients", tags=["patients"])
@@ -114,7 +114,7 @@ def erase_patient(patient_id: int, principal: Admin, request: Request) -> Respon
     with request.app.state.db.session() as db:
         scoped_patient(db, principal, patient_id)  # 404 before anything is recorded
         session_ids, shas = patients.delete_patient(db, principal.clinic_id, patient_id, expected)
-        event = audit.record(db, request, principal, "delete", patient_id=patient_id)
+        event = audit.record(db, request, principal, "delete", patient_id=patient_id, now=True)
         ids = erasure.mark(db, shas, reason="patient", actor=event.actor, clinic_id=principal.clinic_id,
                            patient_id=patient_id, audit_event_id=event.id)
     erase_now(request, ids)
@@ -165,11 +165,13 @@ def create_session(patient_id: int, body: SessionIn, principal: Clinician, db: D
 @router.get("/{patient_id}/trend", response_model=TrendOut, openapi_extra=route_scope("results:read"))
 def patient_trend(patient_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
                   filter: str | None = Query(None, max_length=40),
-                  pipeline_version: str | None = Query(None, max_length=40)):
-    """ROM per session, oldest first, from analyses of one filter and pipeline version (by default the series that
-    covers the most sessions); each point names its analysis, ``left_out`` the sessions without one."""
+                  pipeline_version: str | None = Query(None, max_length=40),
+                  calibration: CalibrationName | None = None, angle_method: AngleConventionName | None = None):
+    """ROM per session, oldest first, from analyses of one filter, pipeline version, calibration and angle
+    convention (by default the series that covers the most sessions); each point names its analysis, ``left_out``
+    the sessions without one."""
     scoped_patient(db, principal, patient_id)
-    trend = patients.rom_trend(db, store, patient_id, filter, pipeline_version)
+    trend = patients.rom_trend(db, store, patient_id, filter, pipeline_version, calibration, angle_method)
     audit.record(db, request, principal, "view", patient_id=patient_id)
     return trend
 
@@ -180,7 +182,8 @@ def compare_sessions(patient_id: int, principal: Reader, db: DbDep, store: Store
                      b: int = Query(..., description="the later session"),
                      a_analysis: int | None = None, b_analysis: int | None = None):
     """Two sessions of the patient side by side: each one's analysis and every number both hold, with the change
-    ``b − a``; ``comparable`` is false when the analyses differ in filter, pipeline version or task."""
+    ``b − a``; ``comparable`` is false when the analyses differ in filter, pipeline version, task, knee,
+    calibration or angle convention."""
     scoped_patient(db, principal, patient_id)
     out = comparisons.compare_sessions(db, store, principal.clinic_id, patient_id, a, b, a_analysis, b_analysis)
     audit.record(db, request, principal, "view", patient_id=patient_id)

@@ -393,7 +393,7 @@ def _delete(request: Request, principal, session_id: int, recording_id: int) -> 
     """Delete the recording, supersede the session's analyses, mark its blob, record the event: one transaction."""
     with request.app.state.db.session() as db:
         session, sha, _ = recordings.delete_recording(db, principal.clinic_id, session_id, recording_id)
-        event = audit.record(db, request, principal, "delete", patient_id=session.patient_id, session_id=session.id)
+        event = audit.record(db, request, principal, "delete", patient_id=session.patient_id, session_id=session.id, now=True)
         return erasure.mark(db, [sha], reason="recording", actor=event.actor, clinic_id=principal.clinic_id,
                             patient_id=session.patient_id, session_id=session.id, audit_event_id=event.id)
 

@@ -44,14 +44,19 @@ def get_results(session_id: int, principal: Reader, db: DbDep, store: StoreDep, 
                                                  409: {"description": "the latest analysis is superseded"}})
 def get_warnings(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
                  analysis_id: int | None = None) -> list[dict]:
-    """``[{"code", "params", "message": {"es", "en", "pt"}}]``: results.json ``quality.warnings`` in each language."""
+    """``[{"code", "params", "message": {"es", "en", "pt"}, "technical"}]``: results.json ``quality.warnings`` in each
+    language (``technical`` false), then its ``quality.technical_notes`` (true: how the files were read, which the
+    results page folds away; :func:`reports.warning_text.is_technical`, which also sorts a results.json written
+    before the two lists were kept apart)."""
     from reports.i18n import LANGUAGES as REPORT_LANGUAGES
-    from reports.warning_text import warning_text
+    from reports.warning_text import is_technical, warning_text
 
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, analysis_id)
     results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
     audit.record(db, request, principal, "view", patient_id=session.patient_id, session_id=session.id)
-    return [{"code": w.get("code"), "params": w.get("params") or {},
+    quality = results.get("quality") or {}
+    every = [w for w in [*(quality.get("warnings") or []), *(quality.get("technical_notes") or [])] if isinstance(w, dict)]
+    return [{"code": w.get("code"), "params": w.get("params") or {}, "technical": technical,
              "message": {lang: warning_text(w, lang, results)[0] for lang in REPORT_LANGUAGES}}
-            for w in (results.get("quality") or {}).get("warnings") or [] if isinstance(w, dict)]
+            for technical in (False, True) for w in every if is_technical(w) == technical]

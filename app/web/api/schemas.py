@@ -16,9 +16,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.choices import (ANGLE_CONVENTION_NAMES, CALIBRATION_NAMES, DEFAULT_ANGLE_CONVENTION, DEFAULT_CALIBRATION,
                          DEFAULT_HEADING, DEFAULT_LANGUAGE, DEFAULT_TASK, FILTER_NAMES, HEADING_NAMES, LANGUAGE_NAMES,
-                         SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
+                         MEASURE_RANGES, SEX_NAMES, SIDE_NAMES, TASK_NAMES, USER_ROLE_NAMES)
 from app.store.models import Analysis, AuditEvent, Job, KneeSession, Patient, Recording, User
 from app.store.sessions import ready, session_status, stored_ingestion
+from app.web.fhir import PATIENT_REFERENCE
 from app.web.webhooks import trail_error
 
 # every option list comes from app.choices (the one definition the CLI and GET /options use too)
@@ -53,8 +54,6 @@ class UserIn(_In):
     password: str = Field(min_length=1, max_length=1000)
 
 
-#: the hospital's own FHIR Patient: ``Patient/<id>`` or its absolute URL (app.web.fhir.PATIENT_REFERENCE)
-_PATIENT_REFERENCE = r"^(https?://\S+/)?Patient/[A-Za-z0-9\-.]{1,64}$"
 _PATIENT_REFERENCE_TEXT = ("the hospital's FHIR Patient: Patient/<id> or its absolute URL (the reports' subject with "
                            "CHAKAMO_FHIR_PATIENT=reference)")
 
@@ -65,10 +64,10 @@ class PatientIn(_In):
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
     sex: Sex | None = None
-    height_cm: float | None = Field(None, gt=30, lt=260)
-    mass_kg: float | None = Field(None, gt=2, lt=400)
+    height_cm: float | None = Field(None, gt=MEASURE_RANGES["height_cm"][0], lt=MEASURE_RANGES["height_cm"][1])
+    mass_kg: float | None = Field(None, gt=MEASURE_RANGES["mass_kg"][0], lt=MEASURE_RANGES["mass_kg"][1])
     notes: str | None = Field(None, max_length=10000)
-    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+    fhir_reference: str | None = Field(None, max_length=300, pattern=PATIENT_REFERENCE.pattern,
                                        description=_PATIENT_REFERENCE_TEXT)
 
 
@@ -81,10 +80,10 @@ class PatientPatch(_In):
     name: str | None = Field(None, max_length=200)
     birth_date: dt.date | None = None
     sex: Sex | None = None
-    height_cm: float | None = Field(None, gt=30, lt=260)
-    mass_kg: float | None = Field(None, gt=2, lt=400)
+    height_cm: float | None = Field(None, gt=MEASURE_RANGES["height_cm"][0], lt=MEASURE_RANGES["height_cm"][1])
+    mass_kg: float | None = Field(None, gt=MEASURE_RANGES["mass_kg"][0], lt=MEASURE_RANGES["mass_kg"][1])
     notes: str | None = Field(None, max_length=10000)
-    fhir_reference: str | None = Field(None, max_length=300, pattern=_PATIENT_REFERENCE,
+    fhir_reference: str | None = Field(None, max_length=300, pattern=PATIENT_REFERENCE.pattern,
                                        description=_PATIENT_REFERENCE_TEXT)
 
 
@@ -121,6 +120,23 @@ class SessionIn(_In):
     accession: str | None = Field(None, max_length=100, description="the accession number of the order")
 
 
+class CycleExclusionIn(_In):
+    """One cycle the clinician leaves out: its number as the reports show it (from 1), its knee in a session of
+    both knees (null for the only knee), and why."""
+
+    cycle: int = Field(ge=1, le=10_000)
+    knee: Side | None = None
+    reason: str = Field(default="", max_length=300)
+
+
+class PairIn(_In):
+    """Pair this one-knee session with another of the patient's, of the other knee (both knees' view and LSI)."""
+
+    session_id: int = Field(ge=1)
+    #: the knee this session's recordings measure (the other session's is the other); null: the patient's side
+    knee: Side | None = None
+
+
 class ProcessIn(_In):
     filter: FilterName | None = None
     lang: Lang = DEFAULT_LANGUAGE
@@ -136,6 +152,11 @@ class ProcessIn(_In):
     calibration: CalibrationName = DEFAULT_CALIBRATION
     #: the knee-angle convention (as ``chakamo process --angles``): Grood & Suntay or the thesis' ZYX Euler angles
     angle_convention: AngleConventionName = DEFAULT_ANGLE_CONVENTION
+    #: the cycles to leave out, each with the clinician's reason (the results page's per-cycle choice, as ``chakamo
+    #: process --exclude-cycles``); the whole set each time: a cycle not named is included again.  Given (an empty
+    #: list too) the new analysis supersedes the session's earlier ones and records who excluded which cycle and why;
+    #: null: an ordinary processing, no cycle excluded
+    exclude_cycles: list[CycleExclusionIn] | None = Field(default=None, max_length=200)
 
 
 class OptionOut(BaseModel):
@@ -163,6 +184,10 @@ class OptionsOut(BaseModel):
     sexes: list[str]
     token_scopes: list[str]
     audit_actions: list[str]
+    #: the patient measurements' open intervals (app.choices.MEASURE_RANGES), the user roles, a token's longest life
+    measure_ranges: dict[str, dict[str, float]]
+    roles: list[str]
+    token_max_days: int
 
 
 class ClinicOut(BaseModel):
@@ -259,6 +284,10 @@ class JobOut(BaseModel):
     #: the calibration and angle convention asked for (the process request's ``calibration`` / ``angle_convention``)
     calibration: str = DEFAULT_CALIBRATION
     angle_convention: str = DEFAULT_ANGLE_CONVENTION
+    #: the thigh–shank heading asked for
+    heading: str = "auto"
+    #: the cycles the clinician excluded for this job (who, which, why, when), or null (an ordinary processing)
+    cycle_exclusions: list[dict[str, Any]] | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
@@ -272,6 +301,9 @@ class AnalysisOut(BaseModel):
     accepted_cycles: int
     warnings: int
     superseded_at: dt.datetime | None
+    #: the sensor-to-segment calibration and knee-angle convention it was computed with
+    calibration: str = DEFAULT_CALIBRATION
+    angle_method: str = DEFAULT_ANGLE_CONVENTION
 
 
 class SessionSummaryOut(BaseModel):
@@ -300,6 +332,10 @@ class SessionOut(SessionSummaryOut):
     ingestion: IngestionOut
     analyses: list[AnalysisOut]
     jobs: list[JobOut]
+    #: the session paired with this one (the other knee: processing either gives both knees and the LSI), or null
+    paired_session_id: int | None = None
+    #: the knee this session's recordings measure when paired (left/right); null: the patient's side
+    knee: str | None = None
 
 
 class UploadOut(BaseModel):
@@ -318,15 +354,20 @@ class TrendPoint(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     #: the knee ``rom_deg`` describes: the patient's (in a session of both knees too)
     side: str | None = None
     rom_deg: dict[str, Any]
 
 
 class TrendSeries(BaseModel):
-    """One filter and pipeline version among the patient's analyses, and how many sessions it covers."""
+    """One filter, pipeline version, calibration and angle convention among the patient's analyses, and how many
+    sessions it covers."""
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     sessions: int
 
 
@@ -338,9 +379,12 @@ class TrendLeftOut(BaseModel):
 
 
 class TrendOut(BaseModel):
-    """``GET /patients/{id}/trend``: the points of one series (filter and pipeline version) only."""
+    """``GET /patients/{id}/trend``: the points of one series (filter, pipeline version, calibration and angle
+    convention) only."""
     filter: str | None
     pipeline_version: str | None
+    calibration: str | None
+    angle_method: str | None
     points: list[TrendPoint]
     left_out: list[TrendLeftOut]
     series: list[TrendSeries]
@@ -355,6 +399,8 @@ class CompareSide(BaseModel):
     analysis_id: int
     filter: str
     pipeline_version: str
+    calibration: str
+    angle_method: str
     accepted_cycles: int
 
 
@@ -415,7 +461,7 @@ def recording_out(r: Recording) -> dict[str, Any]:
 def job_out(j: Job) -> dict[str, Any]:
     out = {k: getattr(j, k) for k in ("id", "session_id", "status", "progress", "stage", "error", "error_code",
                                       "error_params", "log", "analysis_id", "filter", "lang", "side", "involved",
-                                      "created_at",
+                                      "heading", "cycle_exclusions", "created_at",
                                       "started_at", "finished_at")}
     out |= {"calibration": j.calibration, "angle_convention": j.angle_method}
     if j.error_code:
@@ -432,7 +478,7 @@ def audit_out(e: AuditEvent) -> dict[str, Any]:
 
 def analysis_out(a: Analysis) -> dict[str, Any]:
     return {k: getattr(a, k) for k in ("id", "job_id", "filter", "created_at", "accepted_cycles", "warnings",
-                                       "superseded_at")}
+                                       "superseded_at", "calibration", "angle_method")}
 
 
 def summaries(sessions: list[KneeSession], counts: dict[int, int], latest: dict[int, Job],
@@ -481,7 +527,8 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
             "recordings": [recording_out(r) for r in recs],
             "sensor_warnings": sensor_warnings(recs, stored_ingestion(s, len(recs)).get("segments")),
             "ingestion": ingestion_out(stored_ingestion(s, len(recs)), s.split),
-            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs]}
+            "analyses": [analysis_out(a) for a in analyses], "jobs": [job_out(j) for j in jobs],
+            "paired_session_id": s.paired_session_id, "knee": s.knee}
     return out
 
 
@@ -509,7 +556,7 @@ class DeliveryOut(BaseModel):
 
 def delivery_out(d) -> dict:
     """A delivery row as :class:`DeliveryOut` (its error code rendered by :func:`app.web.webhooks.trail_error`)."""
-    error = trail_error(d.last_error, d.last_status)
+    error = trail_error(d.last_error, d.last_status, d.state)
     return {"id": d.id, "event": d.event, "job_id": d.job_id, "state": d.state, "attempts": d.attempts,
             "last_status": d.last_status, "last_error": error["message"]["en"] if error else "", "error": error,
             "created_at": d.created_at, "delivered_at": d.delivered_at,

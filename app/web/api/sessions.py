@@ -9,18 +9,21 @@ also the audit of the recordings list.
 Correction and erasure, as for patients (:mod:`.patients`, :mod:`app.web.records`): ``PATCH /sessions/{id}``
 (clinician) corrects the session's facts — every one goes into its manifest, so a change supersedes its
 analyses and redoes its ingestion check; ``DELETE /sessions/{id}`` (admin; ``If-Match`` required) erases the
-session with its recordings, jobs, analyses, reports and the stored files no other row names.  Both answer 409
+session with its recordings, jobs, analyses, reports and the stored files no other row names.
+``POST /sessions/{id}/pair`` / ``DELETE /sessions/{id}/pair`` (clinician) pair two one-knee sessions of a patient
+into one of both knees, or undo it (:mod:`app.store.pairing`; both audited ``update``).  Both answer 409
 while a job of the session is queued or running, and are audited (``update`` / ``delete``).
 """
 
 from fastapi import APIRouter, Request, Response
 
 from app.store import erasure
+from app.store.pairing import pair, unpair
 from app.store.sessions import correct_session, delete_session, session_analyses, session_jobs
 from app.web import audit
 from app.web.api.deps import Admin, CheckerDep, Clinician, DbDep, Reader, scoped_session
 from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
-from app.web.api.schemas import SessionOut, SessionPatch, session_out
+from app.web.api.schemas import PairIn, SessionOut, SessionPatch, session_out
 
 router = APIRouter(prefix="/sessions", tags=["sessions"])
 
@@ -49,6 +52,32 @@ def correct(session_id: int, body: SessionPatch, principal: Clinician, db: DbDep
     return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
 
 
+@router.post("/{session_id}/pair", response_model=SessionOut, responses=ERRORS)
+def pair_sessions(session_id: int, body: PairIn, principal: Clinician, db: DbDep, request: Request,
+                  response: Response):
+    """Pair this one-knee session with ``session_id`` of the body, another of the patient's of the other knee
+    (:mod:`app.store.pairing`): processing either then gives both knees overlaid and the limb symmetry index.  Both
+    sessions' analyses are superseded (process again); 409 for another patient's session, the session itself, one
+    that holds both knees already, or while a job of either is queued or running.  Audited (``update``) on both."""
+    session, other, _ = pair(db, principal.clinic_id, session_id, body.session_id, body.knee)
+    for s in (session, other):
+        audit.record(db, request, principal, "update", patient_id=s.patient_id, session_id=s.id,
+                     detail=f"paired with session {s.paired_session_id}, {s.knee} knee")
+    response.headers["ETag"] = etag(session.version)
+    return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
+
+
+@router.delete("/{session_id}/pair", response_model=SessionOut, responses=ERRORS)
+def unpair_sessions(session_id: int, principal: Clinician, db: DbDep, request: Request, response: Response):
+    """Undo the pairing (both sessions one knee each again; their analyses superseded).  Audited (``update``)."""
+    session, other, n = unpair(db, principal.clinic_id, session_id)
+    if other is not None or n:
+        audit.record(db, request, principal, "update", patient_id=session.patient_id, session_id=session.id,
+                     detail="pairing undone" + (f" (was session {other.id})" if other is not None else ""))
+    response.headers["ETag"] = etag(session.version)
+    return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
+
+
 @router.delete("/{session_id}", status_code=204, responses=DELETE_ERRORS)
 def erase(session_id: int, principal: Admin, request: Request) -> Response:
     """Erase the session with its recordings, jobs, analyses and reports (admin; ``If-Match`` required).  Stored
@@ -56,7 +85,7 @@ def erase(session_id: int, principal: Admin, request: Request) -> Response:
     expected = if_match(request, required=True)
     with request.app.state.db.session() as db:
         patient_id, shas = delete_session(db, principal.clinic_id, session_id, expected)
-        event = audit.record(db, request, principal, "delete", patient_id=patient_id, session_id=session_id)
+        event = audit.record(db, request, principal, "delete", patient_id=patient_id, session_id=session_id, now=True)
         ids = erasure.mark(db, shas, reason="session", actor=event.actor, clinic_id=principal.clinic_id,
                            patient_id=patient_id, session_id=session_id, audit_event_id=event.id)
     erase_now(request, ids)

@@ -10,7 +10,12 @@
 * ``POST /tokens/{id}/revoke`` ends it at once (401 from then on); revoking a revoked token changes nothing.
 
 Another clinic's token is 404 like an unknown id.  Every creation, rotation and revocation is audited
-(``token_create`` / ``token_revoke``, :mod:`app.web.audit`) in the transaction that makes it.
+(``token_create`` / ``token_rotate`` / ``token_revoke``, :mod:`app.web.audit`) in the transaction that makes it.
+
+A token never outgrows the token that made it (:func:`app.web.api.deps.refuse_grant_beyond`): an admin calling
+with an API token creates or rotates only tokens whose scopes are among its own and which end no later than it
+(403 otherwise; a token rotating itself is refused when it has an end, as its successor would end later).  An
+admin logged in to the browser, or ``chakamo tokens`` on the server, is not limited so.
 """
 
 from __future__ import annotations
@@ -23,7 +28,8 @@ from pydantic import BaseModel, Field
 
 from app.choices import TOKEN_SCOPES
 from app.store import tokens
-from app.web.api.deps import Admin, DbDep
+from app.store.models import utcnow
+from app.web.api.deps import Admin, DbDep, refuse_grant_beyond
 from app.web.api.schemas import RoleName, _In
 from app.web.audit import record
 from app.web.security import new_token, sha256_hex
@@ -82,9 +88,12 @@ def list_tokens(principal: Admin, db: DbDep):
 @router.post("", response_model=TokenCreatedOut, status_code=201)
 def create_token(body: TokenIn, request: Request, principal: Admin, db: DbDep):
     """A new token of the caller's clinic; the answer's ``token`` is the only copy in clear."""
+    now = utcnow()
+    refuse_grant_beyond(request, principal, scopes=body.scopes, expires_at=None if body.expires_days is None
+                        else now + dt.timedelta(days=body.expires_days))
     secret = new_token()
     row = tokens.add_token(db, principal.clinic_id, token_sha256=sha256_hex(secret), role=body.role, label=body.label,
-                           expires_days=body.expires_days, scopes=body.scopes)
+                           expires_days=body.expires_days, scopes=body.scopes, now=now)
     record(db, request, principal, "token_create", status=201,
            detail=f"token {row.id} role {row.role}" + (f" scopes {row.scopes}" if row.scopes else ""))
     return {**_out(row), "token": secret}
@@ -94,10 +103,13 @@ def create_token(body: TokenIn, request: Request, principal: Admin, db: DbDep):
 def rotate_token(token_id: int, request: Request, principal: Admin, db: DbDep, body: RotateIn | None = None):
     """The successor of token ``token_id`` (in clear, once) and the old one ending after the grace period."""
     body = body or RotateIn()
-    tokens.clinic_token(db, principal.clinic_id, token_id)  # 404 for another clinic's
+    old = tokens.clinic_token(db, principal.clinic_id, token_id)  # 404 for another clinic's
+    now = utcnow()
+    refuse_grant_beyond(request, principal, scopes=tokens.scopes_of(old), expires_at=None if old.expires_at is None
+                        else now + (old.expires_at - old.created_at))  # the successor's (rotate_token)
     secret = new_token()
-    old, new = tokens.rotate_token(db, token_id, sha256_hex(secret), grace_hours=body.grace_hours)
-    record(db, request, principal, "token_create", status=200,
+    old, new = tokens.rotate_token(db, token_id, sha256_hex(secret), grace_hours=body.grace_hours, now=now)
+    record(db, request, principal, "token_rotate", status=200,
            detail=f"token {new.id} replaces token {old.id} (ends {old.expires_at:%Y-%m-%d %H:%M} UTC)")
     return {"old": _out(old), "new": {**_out(new), "token": secret}}
 

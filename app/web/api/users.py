@@ -7,6 +7,10 @@
   by failed logins — theirs or someone else's — can log in again at once.  It clears the email's counters and
   this clinic's account counter, never the counter of the same email's account in another clinic.
 
+Only a caller holding what an account holds manages accounts: a browser session, or an API token with no scopes
+and no end (:func:`app.web.api.deps.refuse_grant_beyond`; 403 for a scoped or expiring token, whose holder would
+otherwise make itself an unlimited admin account).
+
 Accounts are per clinic (issue 16 finding 10b): an email is unique within its clinic, and the same person may
 have an account in several clinics (logging in names the clinic then: :mod:`app.web.api.auth`).  A new
 account's email is refused (409, ``account.email_unavailable``) only when the caller's own clinic already has
@@ -25,7 +29,7 @@ from starlette.concurrency import run_in_threadpool
 
 from app.store import accounts
 from app.store.errors import Conflict
-from app.web.api.deps import Admin, DbDep
+from app.web.api.deps import Admin, DbDep, refuse_grant_beyond
 from app.web.api.schemas import RoleName, UserIn, UserOut, _In, user_out
 from app.web.audit import record
 from app.web.messages import refusal
@@ -62,6 +66,7 @@ def list_users(principal: Admin, db: DbDep):
 @router.post("", response_model=UserOut, status_code=201)
 async def create_user(body: UserIn, request: Request, principal: Admin):
     """A new user of the caller's clinic (module docstring for the refusals)."""
+    await run_in_threadpool(refuse_grant_beyond, request, principal, scopes=None, expires_at=None)
     email = body.email.lower()
     try:
         check_password_strength(body.password, email=email, name=body.name)
@@ -102,6 +107,7 @@ def _user_of_clinic(request: Request, principal: Admin, db: DbDep, user_id: int)
 def change_user(user_id: int, body: UserPatchIn, request: Request, principal: Admin, db: DbDep):
     """Change a user's role or active flag (not one's own); deactivation ends their browser sessions."""
     user = _user_of_clinic(request, principal, db, user_id)
+    refuse_grant_beyond(request, principal, scopes=None, expires_at=None)  # an account's role has no scopes nor end
     if principal.user is not None and principal.user.id == user.id and \
             (body.role not in (None, user.role) or body.active is False):
         raise refusal(request, 400, "account.not_yourself")
@@ -124,6 +130,7 @@ def change_user(user_id: int, body: UserPatchIn, request: Request, principal: Ad
 def unlock_user(user_id: int, request: Request, principal: Admin, db: DbDep):
     """Clear the user's login counters: they can log in again at once (module docstring)."""
     user = _user_of_clinic(request, principal, db, user_id)
+    refuse_grant_beyond(request, principal, scopes=None, expires_at=None)  # gives an account its logins back
     cleared = LoginThrottle.unlock(db, user.email, user.clinic.name)
     record(db, request, principal, "unlock", status=200, detail=f"user {user.id}: {cleared} counter(s) cleared")
     return {"cleared": cleared}

@@ -36,6 +36,7 @@ from app.web import audit
 from app.web.api.deps import Admin, DbDep, Reader, resolve_principal
 from app.web.api.schemas import DeliveryOut, delivery_out
 from app.web.headers import host_allowed
+from app.web.outbound import header_host, plain_host
 from app.web.idempotency import KEY_PARAMETER, LOCATION, answer, key_of, request_sha256
 from app.web.messages import refusal
 from app.web.refusals import Refusal
@@ -87,8 +88,13 @@ def create_webhook(body: WebhookIn, principal: Admin, db: DbDep, request: Reques
     settings = request.app.state.settings
     if not _URL.fullmatch(url) or (not settings.development and not url.lower().startswith("https://")):
         raise Refusal(400, "webhook.url_invalid", url=repr(url[:80]))
-    host = urllib.parse.urlsplit(url).hostname or ""
-    if not host_allowed(host, settings.webhook_host_patterns):  # the sender checks the address again
+    try:
+        host = urllib.parse.urlsplit(url).hostname or ""
+    except ValueError:  # a bracketed host that is no IPv6 address
+        raise Refusal(400, "webhook.url_invalid", url=repr(url[:80])) from None
+    if not plain_host(host):  # "*" or "*.example.org": a pattern, not a host (a resolver may still answer)
+        raise Refusal(400, "webhook.host_invalid", url=repr(url[:80]), host=repr(host[:80]))
+    if not host_allowed(header_host(host), settings.webhook_host_patterns):  # the sender checks the address again
         raise Refusal(400, "webhook.url_refused", host=repr(host[:80]))
     secret = secrets.token_urlsafe(32)
     row = webhooks.add_subscription(db, principal.clinic_id, url=url, events=body.events,

@@ -169,7 +169,7 @@ def _stride_parameters(flex, ic, to, ic2, fs_hz):
 
 def analyse(angles_rad, fs_hz: float, *, params: MotorTaskParams | None = None, t0_s: float = 0.0,
             gyr_shank_rad_s=None, shank_axis_sensor=None, q_earth_thigh=None, gyr_thigh_rad_s=None,
-            q_earth_shank=None, event_params: GaitEventParams | None = None):
+            q_earth_shank=None, event_params: GaitEventParams | None = None, exclude=()):
     """Strides, gait events, stance/swing, mean ± SD curves and gait parameters of a walking recording.
 
     angles_rad : (N, 3) knee angles (flexion, adduction, internal rotation), rad, clinical signs, uniform grid.
@@ -184,6 +184,8 @@ def analyse(angles_rad, fs_hz: float, *, params: MotorTaskParams | None = None, 
         for the turns (T1); either segment is enough (the shank uses ``gyr_shank_rad_s``); without any, turns
         are not checked (warning ``GAIT_TURNS_NOT_CHECKED``).
     event_params : :class:`GaitEventParams`.
+    exclude : 0-based indices of the strides the clinician excluded
+        (:func:`~estimators.motor_task.analysis.reject_cycles`).
     Returns a ``GaitAnalysis`` (a :class:`~estimators.motor_task.analysis.TaskAnalysis` with ``gait``).
     """
     import numpy as np
@@ -270,7 +272,7 @@ def analyse(angles_rad, fs_hz: float, *, params: MotorTaskParams | None = None, 
     reg_ev = ev.copy()
     if not np.all(np.isfinite(reg_ev[complete, 3])):
         reg_ev[:, 3] = np.nan
-    accepted, rej, stopped = reject_cycles(register_cycles(a, reg_ev, complete, n_pts), complete, p)
+    accepted, rej, stopped = reject_cycles(register_cycles(a, reg_ev, complete, n_pts), complete, p, exclude)
     rejected += rej
     if stopped:
         warnings.append(QualityWarning("MOTOR_TASK_REJECTION_STOPPED",

@@ -60,3 +60,41 @@ def test_a_file_problem_is_told_in_the_language_asked_for(lang, expected, tmp_pa
     assert main(["process", str(tmp_path / "nope"), "--out", str(tmp_path / "out"), "--lang", lang]) == 2
     err = capsys.readouterr().err
     assert render("session.no_folder", {"file": tmp_path / "nope"}, lang) in err and expected in err, err
+
+
+def test_process_excludes_the_cycles_named_and_says_who_and_why(tmp_path, capsys):
+    """``--exclude-cycles``: the cycles leave the statistics with the clinician's reason, not as the pipeline's
+    rejections; a cycle that was not detected, every cycle, or a malformed list is refused, nothing written."""
+    from app.pipeline.demo import write_session
+
+    session = tmp_path / "session"
+    write_session(session, simulate_session(seed=7, side="right", n_cycles=4))
+    out = tmp_path / "out"
+    assert main(["process", str(session), "--out", str(out), "--exclude-cycles", "2", "--exclude-reason",
+                 "lost balance", "--lang", "en"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert r["cycles"]["detected"] == 4 and r["cycles"]["accepted"] == 3 and 1 not in r["cycles"]["accepted_indices"]
+    assert [(e["cycle"], e["knee"], e["reason"]) for e in r["cycles"]["excluded"]] == [(2, None, "lost balance")]
+    assert {(x["index"], x["reason"]) for x in r["cycles"]["rejected"]} == {(1, "excluded_by_clinician")}
+    assert not [w for w in r["quality"]["warnings"] if w["code"] == "cycles_rejected"]
+    # the reports name the clinician's exclusion apart from the pipeline's rejections, and the technical notes apart
+    import shutil
+    import subprocess
+
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "Cycle 2 excluded by the clinician" in html and "lost balance" in html
+    assert '<details class="technical">' in html and r["quality"]["technical_notes"]
+    if shutil.which("pdftotext"):
+        text = " ".join(subprocess.run(["pdftotext", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                                       check=True).stdout.split())
+        assert "Cycle 2 excluded by the clinician" in text and "lost balance" in text
+        assert "4 detected, 3 accepted, 0 rejected." in text
+        notes = text.split("Technical notes on reading the files", 1)
+        assert len(notes) == 2 and "common span" in notes[1] and "common span" not in notes[0]
+    capsys.readouterr()
+    for bad, words in (("9", "cycle 9 cannot be excluded: 4 cycles were detected"),
+                       ("1,2,3,4", "leaves none of the 4 detected"), ("two", "--exclude-cycles: 'two'"),
+                       ("left:2", "the left knee")):
+        assert main(["process", str(session), "--out", str(tmp_path / "bad"), "--exclude-cycles", bad]) == 2
+        assert words in capsys.readouterr().err.strip().splitlines()[-1], bad
+        assert not (tmp_path / "bad").exists()

@@ -80,7 +80,7 @@ def test_processed_like_four_recordings_and_written_to_results(tmp_path, continu
     assert set(split) == {"thigh", "shank"} and set(split["thigh"]["spans_s"]) == set(truth["thigh"])
     assert results["calibration"]["protocol"]["segment"] == "static"
     assert results["calibration"]["protocol"]["magnetometer"] == ["ellipsoid"]
-    assert any(w["params"].get("variant") == "recording_split" for w in results["quality"]["warnings"])
+    assert any(w["params"].get("variant") == "recording_split" for w in results["quality"]["technical_notes"])
     assert results["cycles"]["accepted"] == len(motion.cycles_s)
     # the knee angles against the truth: the task grid on the phone clock → the motion's own time
     t_motion = outcome.t0_s + outcome.t_s - EPOCH0_S - truth["thigh"]["task"][0]

@@ -124,8 +124,13 @@ def test_the_other_knees_warnings_reach_the_top_level_with_its_knee(walk, tmp_pa
     assert r["involved_side"] == "left"
     right_only = [w for w in r["knees"]["right"]["quality"]["warnings"]
                   if w not in r["knees"]["left"]["quality"]["warnings"]]
-    assert {w["code"] for w in right_only} == {"ingestion_note", "magnetic_disturbance"}
-    clinical = [w for w in right_only if w["code"] != "ingestion_note"]  # FHIR's conclusion leaves notes out
+    clinical = right_only  # the stream cut is a technical note, kept apart (and out of FHIR's conclusion)
+    assert {w["code"] for w in right_only} == {"magnetic_disturbance"}
+    notes_right = [w for w in r["knees"]["right"]["quality"]["technical_notes"]
+                   if w not in r["knees"]["left"]["quality"]["technical_notes"]]
+    assert {w["code"] for w in notes_right} == {"ingestion_note"}
+    assert [w for w in r["quality"]["technical_notes"] if (w["params"] or {}).get("knee") == "right"] == \
+        [{**w, "params": {**w["params"], "knee": "right"}} for w in notes_right]
     top = r["quality"]["warnings"]
     assert [w for w in top if (w["params"] or {}).get("knee") == "right"] == \
         [{**w, "params": {**w["params"], "knee": "right"}} for w in right_only]

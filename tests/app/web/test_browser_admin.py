@@ -87,6 +87,9 @@ def test_admin_manages_users_tokens_and_reads_the_audit_log(browser, server, slo
         page.get_by_role("button", name=pt["admin.token_new"]).click()
         form = page.locator("#new-token-form")
         form.get_by_label(pt["admin.token_label"]).fill("PACS do hospital")
+        form.get_by_label(pt["admin.token_days"]).fill("4000")            # beyond ten years: said before sending
+        form.get_by_role("button", name=pt["admin.token_create"]).click()
+        expect(form.locator("[role=alert]")).to_have_text(pt["admin.token_days_too_long"].replace("{max}", "3650"))
         form.get_by_label(pt["admin.token_days"]).fill("12,5")            # a decimal comma in Portuguese
         form.locator("input[type=checkbox][value='patients:read']").check()
         form.get_by_role("button", name=pt["admin.token_create"]).click()
@@ -99,6 +102,9 @@ def test_admin_manages_users_tokens_and_reads_the_audit_log(browser, server, slo
         assert listed["scopes"] == ["patients:read"] and listed["expires_at"]
         page.reload()                                                    # shown once: gone when the page is drawn again
         expect(page.locator(f"#tokens-table tr[data-token-id='{listed['id']}']")).to_be_visible()
+        # its scope in words, not the raw id
+        expect(page.locator(f"#tokens-table tr[data-token-id='{listed['id']}']")).to_contain_text(
+            f"{pt['scope_resource.patients']} — {pt['scope_action.read']}")
         expect(page.locator("#token-secret")).to_have_count(0)
 
         page.locator(f"#tokens-table tr[data-token-id='{listed['id']}'] [data-action=rotate]").click()
@@ -168,4 +174,48 @@ def test_a_clinician_sees_no_admin_pages(browser, server, slow_expect):  # noqa:
         assert context.request.get(f"{server}/api/v1/tokens").status == 403
         assert json.dumps(errors) == "[]"
     finally:
+        context.close()
+
+
+def test_a_refused_role_change_is_undone_and_the_audit_day_is_local(browser, server, slow_expect):  # noqa: F811
+    """A role change the server refuses (the acting admin was demoted meanwhile by another admin: 403) leaves the
+    select showing the stored role, not the refused one; the audit log's "since" day is the admin's local day
+    (Europe/Madrid: 2026-12-01 starts at 2026-11-30T23:00Z), not UTC midnight."""
+    from app.cli import admin as admin_cli
+
+    expect = slow_expect
+    acting, other, target = "admin.degradado@clinic.test", "otra.admin@clinic.test", "objetivo@clinic.test"
+    for email, role in ((acting, "admin"), (other, "admin"), (target, "clinician")):
+        admin_cli.create_user(SETTINGS[server], clinic="Clínica E2E", email=email, role=role, name=email.split("@")[0],
+                              password=PASSWORD)
+    context, page, errors = open_page(browser, "es-ES", timezone_id="Europe/Madrid")
+    second = browser.new_context()
+    try:
+        log_in(page, server, acting, PASSWORD)
+        expect(page.locator("#nav-admin")).to_be_visible()
+        page.goto(f"{server}/#/admin/users")
+        expect(page.locator("#users-table")).to_be_visible()
+        users = {u["email"]: u for u in context.request.get(f"{server}/api/v1/users").json()}
+        row = page.locator(f"#users-table tr[data-user-id='{users[target]['id']}']")
+        expect(row.locator("select")).to_have_value("clinician")
+        # the other admin demotes the acting one (a real refusal follows: 403, the admin role is needed)
+        other_page = second.new_page()
+        log_in(other_page, server, other, PASSWORD)
+        expect(other_page.locator("#nav-admin")).to_be_visible()
+        csrf = {"X-CSRF-Token": second.request.get(f"{server}/api/v1/auth/me").json()["csrf_token"]}
+        r = second.request.patch(f"{server}/api/v1/users/{users[acting]['id']}", data={"role": "clinician"},
+                                 headers=csrf)
+        assert r.status == 200, r.text()
+        row.locator("select").select_option("admin")
+        expect(page.locator("[role=alert]").first).to_be_visible()
+        expect(row.locator("select")).to_have_value("clinician")      # the stored role, not the refused one
+        assert {u["email"]: u for u in second.request.get(f"{server}/api/v1/users").json()}[target]["role"] == \
+            "clinician"
+        got = page.evaluate("""async () => (await import('/static/views/admin.js')).sinceInstant('2026-12-01')""")
+        assert got == "2026-11-30T23:00:00.000Z"
+        assert page.evaluate("""async () => (await import('/static/views/admin.js')).sinceInstant('2026-07-01')""") \
+            == "2026-06-30T22:00:00.000Z"                                # summer time
+        assert json.dumps(errors) == "[]"
+    finally:
+        second.close()
         context.close()

@@ -50,6 +50,14 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         # the second session through the API; the first from the wizard, the left knee chosen as involved
         job = context.request.post(f"{api}/sessions/{after}/process", data={"involved": "left"}, headers=csrf).json()
         page.goto(f"{server}/#/sessions/{before}/wizard")
+        # the zones are one knee's: the four sensors' files stay under "other files", each tagged with the knee,
+        # sensor and recording the check recognised, and a note says why
+        other = page.locator(".zone[data-segment='']")
+        slow_expect(other.locator(".knee-files-note")).to_contain_text(
+            pt["wizard.knee_files_here"].split("{n}", 1)[1].split(":")[0].strip())
+        tags = other.locator(".tag.knee")
+        slow_expect(tags.first).to_be_visible()
+        assert tags.count() == len(walk_files[0]), (tags.count(), len(walk_files[0]))
         page.locator("button.next").click()  # the wizard opens at step 2 (the files are there): on to step 3
         involved = page.locator("select[name=involved]")
         slow_expect(involved.locator("option")).to_have_count(3)  # the patient's, right, left
@@ -79,7 +87,9 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         page.goto(f"{server}/#/patients/{pid}")
         version = context.request.get(f"{api}/patients/{pid}/trend").json()["pipeline_version"]
         slow_expect(page.locator("#trend-series")).to_contain_text(
-            pt["patient.trend_series"].format(filter=pt["filter.chakamo"], version=version))
+            pt["patient.trend_series"].format(filter=pt["filter.chakamo"], version=version,
+                                              angles=pt["angle_convention.grood_suntay"],
+                                              calibration=pt["calibration.static"]))
         assert not errors, errors
     finally:
         context.close()

@@ -8,8 +8,9 @@ session, the account, and the three admin pages — the checks are facts of the 
 * ``document.documentElement.scrollWidth <= innerWidth`` (no sideways scroll);
 * the full-page screenshot is exactly the viewport's width (Chromium widens it to the scroll width) and is not
   blank: the header's navy band fills its top rows, and the page below it has more than one colour;
-* nothing of the header (brand, menu, user, language) and no button of the sessions table, no ROM-table cell, lies
-  outside the viewport or outside its card (bounding boxes).
+* nothing of the header (brand, menu, user, language), no button of the sessions table, no cell or button of the
+  ROM, users and tokens tables lies outside the viewport or outside its card (bounding boxes); the tokens table
+  is drawn with a token in it (the fixture creates one).
 """
 
 from __future__ import annotations
@@ -60,6 +61,11 @@ def processed(browser, server, demo_files):  # noqa: F811
             time.sleep(0.5)
         assert state["status"] == "done", state
         context.request.post(f"{api}/patients/{pid}/sessions", data={}, headers=csrf)
+        # a token with a long label, every scope and an end, so the tokens table is drawn (and widest)
+        r = context.request.post(f"{api}/tokens", headers=csrf, data={
+            "label": "Sistema de información hospitalaria (RIS/PACS)", "role": "read_only", "expires_days": 365,
+            "scopes": ["patients:read", "sessions:read", "results:read", "fhir:read", "audit:read"]})
+        assert r.status == 201, r.text()
         return pid, sid
     finally:
         context.close()
@@ -76,7 +82,7 @@ def _pages(pid: int, sid: int):
         ("results", f"#/sessions/{sid}", None, "#rom-table"),
         ("account", "#/account", None, "#session-list li"),
         ("admin-users", "#/admin/users", None, "#users-table"),
-        ("admin-tokens", "#/admin/tokens", None, ".admin .card"),
+        ("admin-tokens", "#/admin/tokens", None, "#tokens-table td"),
         ("admin-audit", "#/admin/audit", None, "#audit-table"),
     ]
 
@@ -93,7 +99,8 @@ def _check_drawn(page, width: int, what: str) -> None:
     body = img[int(header["height"]):]
     assert len(np.unique(body.reshape(-1, 3)[::97], axis=0)) > 8, f"{what}: a blank page"
     outside = page.evaluate("""(w) => [...document.querySelectorAll(
-        'header.topbar *, #sessions-table button, #sessions-table a, #rom-table td, #rom-table th')]
+        'header.topbar *, #sessions-table button, #sessions-table a, #rom-table td, #rom-table th, ' +
+        '#tokens-table td, #tokens-table button, #users-table td, #users-table button')]
       .filter((e) => e.getClientRects().length)
       .filter((e) => { const r = e.getBoundingClientRect(); const card = e.closest('.card');
         const c = card ? card.getBoundingClientRect() : { left: 0, right: w };

@@ -71,3 +71,21 @@ def test_decimals_sex_and_professional_in_every_language(browser, server, slow_e
         assert errors == []
     finally:
         context.close()
+
+
+def test_parse_decimal_refuses_what_cannot_be_read_for_sure(browser, server):  # noqa: F811
+    """static/dom.js parseDecimal in real Chromium: one comma or point is the decimal mark; inner spaces ("7 5" was
+    read as 75) and a mark before exactly three digits after a non-zero whole part ("1,655": 1655 to an English
+    reader, 1.655 or 1655 to a Spanish one) are refused (NaN), the caller saying so in the UI's language."""
+    context, page, errors = open_page(browser, "es-ES")
+    try:
+        page.goto(f"{server}/")
+        got = page.evaluate("""async (cases) => { const { parseDecimal } = await import('/static/dom.js');
+            return cases.map((c) => { const v = parseDecimal(c); return Number.isNaN(v) ? 'NaN' : v; }); }""",
+                            ["165,5", "165.5", " 62.25 ", "", "7 5", "1 655", "1,655", "1.655", "-2,500", "0,175",
+                             ".5", "12,5", "1,6555", "16,5,5", "abc"])
+        assert got == [165.5, 165.5, 62.25, None, "NaN", "NaN", "NaN", "NaN", "NaN", 0.175,
+                       0.5, 12.5, 1.6555, "NaN", "NaN"]
+        assert errors == []
+    finally:
+        context.close()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import io
 import re
+import time
 
 import numpy as np
 
@@ -64,7 +65,9 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
         seen = set()
         job = page.locator("#job")
         expect(job).to_be_visible()
+        deadline = time.monotonic() + PROCESS_WAIT_MS / 1000   # a job that never ends fails the test, not hangs it
         while job.get_attribute("data-status") not in ("done", "failed"):
+            assert time.monotonic() < deadline, f"the job did not end in {PROCESS_WAIT_MS / 1000:.0f} s: {seen}"
             seen.add(page.locator("#job .stage").inner_text())
             page.wait_for_timeout(50)
         expect(job).to_have_attribute("data-status", "done", timeout=PROCESS_WAIT_MS)
@@ -81,6 +84,10 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
         assert not bad, bad
         pdf = dict(zip(stages, words))[next(s for s in stages if s.startswith("report.pdf "))]
         assert pdf.startswith(es["stage.report_pdf"]), pdf
+        # the report's language named in the UI's (Spanish) words, not in its own ("English", "Português")
+        named = page.evaluate("async () => { const w = await import('/static/views/wizard.js');"
+                              " return ['report.pdf en', 'report.pdf pt'].map((s) => w.stageText(s)); }")
+        assert named == [f"{es['stage.report_pdf']} (inglés)", f"{es['stage.report_pdf']} (portugués)"], named
         assert errors == []
     finally:
         context.close()
@@ -115,6 +122,24 @@ def test_a_rejected_file_turns_its_zone_red_not_saved(browser, server, slow_expe
         zone.get_by_role("button", name=pt["wizard.remove_file"].replace("{name}", bad.name)).click()
         expect(zone).to_have_attribute("data-state", "empty")
         expect(zone.locator(".rejected-note")).to_have_count(0)
+        assert errors == []
+    finally:
+        context.close()
+
+
+def test_a_zone_is_rejected_only_for_its_whole_file_name(browser, server):  # noqa: F811
+    """static/views/wizard.js namesWhole in real Chromium: the check's refusal names a file whole ("a.csv" was
+    marked rejected by a sentence naming "data.csv"), or the MetaBase recording label its files share."""
+    context, page, errors = open_page(browser, "es-ES")
+    try:
+        page.goto(f"{server}/")
+        said = "data.csv: no es un registro; step-muslo-ABC123_2026 y notas.csv.bak, (b.csv)."
+        got = page.evaluate("""async ([said, cases]) => { const w = await import('/static/views/wizard.js');
+            return cases.map(([word, label]) => w.namesWhole(said, word, label)); }""",
+                            [said, [["a.csv", False], ["data.csv", False], ["ata.csv", False], ["notas.csv", False],
+                                    ["b.csv", False], ["step-muslo-ABC123", True], ["muslo-ABC123", True],
+                                    ["step-muslo-ABC12", True]]])
+        assert got == [False, True, False, False, True, True, False, False]
         assert errors == []
     finally:
         context.close()

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import threading
+import urllib.parse
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
@@ -52,12 +53,16 @@ def check_transaction(doc: dict) -> dict[str, list[dict]]:
     assert all(u.startswith("urn:uuid:") and len(u) == 45 for u in full_urls) and len(full_urls) == len(doc["entry"])
     by_type: dict[str, list[dict]] = {}
     for e in doc["entry"]:
-        assert e["request"]["method"] == "POST" and e["request"]["url"] == e["resource"]["resourceType"]
-        assert e["request"]["ifNoneExist"].startswith("identifier=")
+        if e["request"]["method"] == "PUT":  # a conditional update on the resource's identifier (a retraction)
+            assert e["request"]["url"].startswith(e["resource"]["resourceType"] + "?identifier=")
+            assert e["resource"]["status"] == "entered-in-error"
+        else:
+            assert e["request"]["method"] == "POST" and e["request"]["url"] == e["resource"]["resourceType"]
+            assert e["request"]["ifNoneExist"].startswith("identifier=")
         assert "id" not in e["resource"] and "contained" not in e["resource"]
         by_type.setdefault(e["resource"]["resourceType"], []).append(e["resource"])
         for ref in _references(e["resource"], []):
-            assert ref in full_urls or ref.startswith("Patient/"), ref
+            assert ref in full_urls or ref.startswith(("Patient/", "Patient?identifier=")), ref
     return by_type
 
 
@@ -83,13 +88,54 @@ def test_the_bundle_creates_the_patient_conditionally_and_links_by_urn_uuid(righ
     assert report["contained"][0]["id"] == "patient"  # the export's document is left as it was
 
 
-def test_the_bundle_by_identifier_and_by_the_hospitals_patient(right):  # noqa: F811
+def _search(reference: str) -> tuple[str, str]:
+    """The ``(system, value)`` a FHIR server reads from ``Patient?identifier=...`` (FHIR R4 §3.1.1.5.11: a
+    backslash escapes the next character; an unescaped ``,`` separates alternatives, ``|`` system from value)."""
+    query = urllib.parse.parse_qs(urllib.parse.urlsplit(reference).query, keep_blank_values=True)
+    assert list(query) == ["identifier"] and len(query["identifier"]) == 1
+    text, parts, current, i = query["identifier"][0], [], "", 0
+    while i < len(text):
+        if text[i] == "\\":
+            current, i = current + text[i + 1], i + 2
+            continue
+        assert text[i] not in ",$", f"an unescaped {text[i]!r} in {text!r}"  # an OR of two identifiers
+        if text[i] == "|":
+            parts.append(current)
+            current = ""
+        else:
+            current += text[i]
+        i += 1
+    parts.append(current)
+    assert len(parts) == 2, text
+    return parts[0], parts[1]
+
+
+def test_the_bundle_by_identifier_names_the_hospitals_patient_and_creates_none(right):  # noqa: F811
+    """Identifier mode: the hospital owns its Patients, so the subject is a conditional reference (FHIR R4
+    §3.1.0.11.2): a mistyped record number fails the transaction instead of making a ghost Patient."""
     results, pdf = right
     by_mrn = transaction_bundle(build(results, pdf, patient_mode="identifier", patient_identifier_system=MRN),
                                 base_url=BASE, analysis_id=5)
     by_type = check_transaction(by_mrn)
-    assert by_type["Patient"][0]["identifier"][0]["value"] == "MRN-0042"
-    assert by_mrn["entry"][0]["request"]["ifNoneExist"] == f"identifier={MRN}%7CMRN-0042"
+    assert "Patient" not in by_type
+    subjects = {r["subject"]["reference"] for t in by_type.values() for r in t}
+    assert subjects == {f"Patient?identifier={MRN}%7CMRN-0042"} and _search(subjects.pop()) == (MRN, "MRN-0042")
+
+
+@pytest.mark.parametrize("mrn", ["A,B", "A|B", "A$B", "A\\B"])
+def test_a_record_number_with_a_search_separator_is_escaped(right, mrn):  # noqa: F811
+    """``identifier=sys|A,B`` is a search for A *or* B: the value is escaped before it is URL-encoded."""
+    results, pdf = right
+    doc = transaction_bundle(build(results, pdf, patient_mode="identifier", patient_identifier_system=MRN + ",x",
+                                   patient=patient(external_id=mrn)), base_url=BASE, analysis_id=5)
+    assert _search(doc["entry"][0]["resource"]["subject"]["reference"]) == (MRN + ",x", mrn)
+    created = transaction_bundle(build(results, pdf, patient_identifier_system=MRN, patient=patient(external_id=mrn)),
+                                 base_url=BASE, analysis_id=5)
+    assert _search("Patient?" + created["entry"][0]["request"]["ifNoneExist"]) == (MRN, mrn)
+
+
+def test_the_bundle_by_the_hospitals_patient(right):  # noqa: F811
+    results, pdf = right
 
     report = build(results, pdf, patient_mode="reference", patient=patient(fhir_reference="Patient/H-77"))
     assert report["subject"] == {"reference": "Patient/H-77", "type": "Patient"}
@@ -168,7 +214,7 @@ def test_a_finished_job_is_pushed_as_a_transaction_retried_and_audited(tmp_path,
     settings = make_settings(tmp_path / "data", CHAKAMO_WEBHOOK_RETRY_S=0.5, CHAKAMO_FHIR_PUSH_URL=fhir.url,
                              CHAKAMO_FHIR_PUSH_TOKEN=TOKEN, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="127.0.0.1",
                              CHAKAMO_PUBLIC_URL="https://chakamo.hospital.test",
-                             CHAKAMO_PATIENT_IDENTIFIER_SYSTEM=MRN, **extra)
+                             CHAKAMO_PATIENT_IDENTIFIER_SYSTEM=MRN, CHAKAMO_FHIR_PUSH_CLINICS="Hospital Push", **extra)
     admin_cli.create_clinic(settings, "Hospital Push")
     token = admin_cli.create_token(settings, clinic="Hospital Push", role="admin")
     sock = _loopback_socket()
@@ -208,11 +254,65 @@ def test_a_finished_job_is_pushed_as_a_transaction_retried_and_audited(tmp_path,
         rows = events["events"] if isinstance(events, dict) else events
         assert any(e["actor"] == "FHIR push" and e["session_id"] == sid for e in rows), rows
         assert api.get("/webhooks").json() == []  # the push is not one of the clinic's webhooks
+
+        _a_stored_file_altered_gives_the_push_up(settings, job_id, analysis_id, fhir.url)
+
+        # the session's facts corrected: its analysis is superseded, and the hospital's copy is retracted
+        assert api.patch(f"/sessions/{sid}", json={"step_height_m": 0.18}).status_code == 200
+        retracted = _until(lambda: [d for d in api.get("/fhir/pushes").json()
+                                    if d["event"] == "analysis.superseded" and d["state"] == "delivered"])
+        assert retracted[0]["job_id"] == job_id and len(api.get("/fhir/pushes").json()) == 2
+        assert not fhir.problems, fhir.problems
+        assert len(fhir.got) == 3
+        by_type = check_transaction(fhir.got[-1])
+        entries = {e["resource"]["resourceType"]: e for e in fhir.got[-1]["entry"]}
+        assert entries["DiagnosticReport"]["request"] == {
+            "method": "PUT", "url": f"DiagnosticReport?identifier=https://chakamo.hospital.test/api/v1/analyses%7C"
+                                    f"{analysis_id}"}
+        assert by_type["DiagnosticReport"][0]["identifier"] == dr["identifier"]  # the report the first push made
+        assert {o["status"] for o in by_type["Observation"]} == {"entered-in-error"}
+        assert entries["Patient"]["request"]["method"] == "POST"  # the same Patient, found again
+        events = api.get("/audit", params={"action": "export"}).json()
+        rows = events["events"] if isinstance(events, dict) else events
+        assert any(e["actor"] == "FHIR push" and "retracted" in e["detail"] for e in rows), rows
     finally:
         srv.should_exit = True
         thread.join(timeout=30)
         sock.close()
         fhir.server.shutdown()
+
+
+def _a_stored_file_altered_gives_the_push_up(settings, job_id: int, analysis_id: int, url: str) -> None:
+    """The analysis' PDF altered on disk: the push gives up as not exportable (a CorruptBlob escaped the sender's
+    round before: never counted, the delivery claimed again every lease, for ever)."""
+    import datetime as dt
+
+    from app.store import webhooks
+    from app.store.blobs import open_storage
+    from app.store.database import Database
+    from app.store.models import Analysis, Artefact, WebhookDelivery, utcnow
+    from app.web.fhir_push import NOT_EXPORTABLE, FhirPush
+
+    store, db = open_storage(settings), Database(settings.db_url)
+    try:
+        with db.session() as s:
+            lang = s.get(Analysis, analysis_id).lang  # the PDF the push carries
+            sha = s.query(Artefact).filter_by(analysis_id=analysis_id, name="report.pdf", lang=lang).one().sha256
+            row = s.query(WebhookDelivery).filter_by(job_id=job_id).one()
+            due = webhooks.Due(row.id, url, "", row.event, dict(row.payload), row.attempts + 1,
+                               utcnow() + dt.timedelta(seconds=webhooks.LEASE_S), row.subscription_id, "fhir",
+                               row.clinic_id)
+        path = store.path(sha)
+        original, mode = path.read_bytes(), path.stat().st_mode
+        path.chmod(0o600)
+        path.write_bytes(original[:-8] + b"altered!")
+        try:
+            assert FhirPush(settings, store).send(db, due) == (None, NOT_EXPORTABLE, True)
+        finally:
+            path.write_bytes(original)
+            path.chmod(mode)
+    finally:
+        db.dispose()
 
 
 def test_a_push_the_settings_cannot_keep_safe_is_refused_at_start_up(tmp_path):
@@ -222,11 +322,12 @@ def test_a_push_the_settings_cannot_keep_safe_is_refused_at_start_up(tmp_path):
     from app.web.fhir_push import FhirPush
 
     common = {"CHAKAMO_FHIR_PUSH_URL": "https://fhir.hospital.example/fhir",
-              "CHAKAMO_PUBLIC_URL": "https://chakamo.hospital.example"}
+              "CHAKAMO_PUBLIC_URL": "https://chakamo.hospital.example", "CHAKAMO_FHIR_PUSH_CLINICS": "Hospital"}
     with pytest.raises(SettingsError, match="CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS"):  # its host not listed
         FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="ris.hospital.example", **common), None)
     with pytest.raises(SettingsError, match="CHAKAMO_PUBLIC_URL"):  # no namespace for the identifiers
         FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_URL=common["CHAKAMO_FHIR_PUSH_URL"],
+                               CHAKAMO_FHIR_PUSH_CLINICS="Hospital",
                                CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="*.hospital.example"), None)
     push = FhirPush(make_settings(tmp_path, CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS="*.hospital.example", **common), None)
     assert push.base_url == "https://chakamo.hospital.example/api/v1"
@@ -252,3 +353,21 @@ def test_the_hospitals_patient_reference_is_given_corrected_and_checked_through_
                      headers=h | {"If-Match": f'"{version}"'})
     assert r.status_code == 200, r.text
     assert r.json()["fhir_reference"] == "https://fhir.hospital.example/Patient/9"
+
+
+@pytest.mark.parametrize(("over", "code"), [({}, "fhir.patient_unreferenced"),
+                                            ({"patient": patient(fhir_reference="H-77")},
+                                             "fhir.patient_reference_invalid")])
+def test_a_patient_the_report_cannot_name_is_a_coded_refusal_in_three_languages(right, over, code):  # noqa: F811
+    """The reference mode's refusals a clinic's user causes (and mends in the patient's record) carry a catalogue
+    code, which the push's trail shows in es/en/pt (the English sentence alone reached the trail before)."""
+    from app.web.fhir import FhirExportError
+    from app.web.webhooks import trail_error
+
+    results, pdf = right
+    with pytest.raises(FhirExportError) as refused:
+        build(results, pdf, patient_mode="reference", **over)
+    assert refused.value.code == code
+    error = trail_error(code, None, "failed")
+    assert error["code"] == code and len(set(error["message"].values())) == 3
+    assert all("FHIR" in m for m in error["message"].values())

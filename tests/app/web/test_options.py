@@ -30,8 +30,12 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     assert r.status_code == 200, r.text
     body = r.json()
     assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides",
-                         "sexes", "token_scopes", "audit_actions"}
+                         "sexes", "token_scopes", "audit_actions", "measure_ranges", "roles", "token_max_days"}
     from app.web.audit import ACTIONS
+
+    # one definition each (app.choices), which the patient form and the admin pages read from here
+    assert body["measure_ranges"] == {k: {"min": lo, "max": hi} for k, (lo, hi) in choices.MEASURE_RANGES.items()}
+    assert body["roles"] == list(choices.USER_ROLE_NAMES) and body["token_max_days"] == choices.TOKEN_MAX_DAYS
 
     assert body["sexes"] == list(choices.SEX_NAMES)
     assert body["token_scopes"] == list(choices.TOKEN_SCOPES) and body["audit_actions"] == list(ACTIONS)

@@ -77,7 +77,7 @@ def test_an_admin_cannot_create_a_user_with_a_weak_password_and_reads_why_in_spa
         assert r.status_code == 422 and "contraseña" in r.json()["detail"], r.text
     r = admin.post("/api/v1/users", json={"email": "x@clinic.test", "role": "clinician", "password": "password1234"},
                    headers={"Accept-Language": "pt-BR"})
-    assert r.status_code == 422 and "senha" in r.json()["detail"]
+    assert r.status_code == 422 and "palavra-passe" in r.json()["detail"]
 
 
 def test_password_change_ends_the_other_sessions_only(client, world):

@@ -281,6 +281,44 @@ def _fail_closed(settings, create_trigger: list[str]) -> None:
             assert s.scalar(text("SELECT count(*) FROM patients WHERE external_id = 'X-2'")) == 0
 
 
+def test_a_read_writes_its_event_only_inside_its_commit(tmp_path):
+    """Issue 16 finding 2: an audited read takes the database's write lock only inside its commit.  Before, its
+    event was flushed in the route (the lock taken there); FastAPI then validates a ``def`` route's answer on a
+    thread-pool thread it must queue for, and commits after that, so the read held SQLite's one write lock while
+    it queued for a pool thread — and when every pool thread was a request waiting for that lock (a flood of
+    logins), nothing moved until SQLite's busy timeout: reads timed out at 30 s.  Observed on the real engine's
+    events: each audit ``INSERT`` runs inside ``Session.commit`` (the dependency's exit, which waits for no
+    pool thread)."""
+    import traceback
+
+    from fastapi.testclient import TestClient
+    from sqlalchemy import event
+    from sqlalchemy.orm import Session
+
+    from app.cli import admin as admin_cli
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data")
+    admin_cli.create_clinic(settings, "Locks")
+    h = {"Authorization": f"Bearer {admin_cli.create_token(settings, clinic='Locks')}"}
+    with TestClient(create_app(settings)) as c:
+        pid = c.post("/api/v1/patients", json={"external_id": "LOCK-1", "side": "right"}, headers=h).json()["id"]
+        engine, inserts = c.app.state.db.engine, []
+
+        def on_execute(conn, cursor, statement, *args):
+            if statement.lstrip().upper().startswith("INSERT INTO AUDIT_EVENTS"):
+                inserts.append(any(f.name == Session.commit.__name__ and f.filename.endswith("orm/session.py")
+                                   for f in traceback.extract_stack()))
+
+        event.listen(engine, "before_cursor_execute", on_execute)
+        try:
+            for url in (f"/api/v1/patients/{pid}", "/api/v1/patients", f"/api/v1/patients/{pid}/sessions"):
+                assert c.get(url, headers=h).status_code == 200
+        finally:
+            event.remove(engine, "before_cursor_execute", on_execute)
+    assert inserts == [True] * 3, inserts
+
+
 def test_a_read_whose_event_cannot_be_written_fails(tmp_path):
     _fail_closed(make_settings(tmp_path / "data"),
                  ["CREATE TRIGGER no_audit BEFORE INSERT ON audit_events BEGIN SELECT RAISE(ABORT, 'disk full'); END"])

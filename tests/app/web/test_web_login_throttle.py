@@ -212,6 +212,53 @@ def test_waiting_logins_hold_no_request_thread(client, settings, accounts):
             f.result()
 
 
+@contextmanager
+def _writes_held(db):
+    """The login counters' table locked against writes by another connection until the block ends (a writer
+    holding SQLite's one write lock; on PostgreSQL an EXCLUSIVE table lock, plain reads still pass)."""
+    raw = db.engine.raw_connection()
+    try:
+        cursor = raw.cursor()
+        if db.engine.dialect.name == "sqlite":
+            cursor.execute("BEGIN IMMEDIATE")
+        else:
+            cursor.execute("LOCK TABLE login_attempts IN EXCLUSIVE MODE")
+        yield
+    finally:
+        raw.rollback()
+        raw.close()
+
+
+def test_logins_beyond_the_servers_capacity_are_refused_at_once(client, accounts):
+    """Finding 2 with many addresses (the per-address cap refuses nobody): at most as many logins as the hashing
+    pool holds are inside the server at once — the next are answered 503 at once, while those inside still wait
+    for the database.  (Before: the gate counted only hashes, so every login of a flood went in, each held a
+    request thread waiting for SQLite's write lock to reserve its attempt, and a clinician's reads waited behind
+    them for a thread: reads timed out at 30 s under 120 parallel logins from 120 addresses.)"""
+    from app.web import security
+
+    _slow(client.app, free_per_address=1000)
+    capacity = security.HASH_CONCURRENCY + security.HASH_QUEUE
+    extra = 3
+    with ThreadPoolExecutor(capacity + extra) as pool, _writes_held(client.app.state.db):
+        def one(i):
+            with _client(client.app, f"198.51.100.{10 + i}") as c:  # one address each
+                return c.post("/api/v1/auth/login", json={"email": f"flood{i}@clinic.test", "password": "wrong!"})
+
+        logins = [pool.submit(one, i) for i in range(capacity + extra)]
+        deadline = 200  # 10 s, within SQLite's busy timeout (15 s)
+        while sum(f.done() for f in logins) < extra and deadline:
+            threading.Event().wait(0.05)
+            deadline -= 1
+        refused = [f.result() for f in logins if f.done()]
+        assert len(refused) == extra and {(r.status_code, r.headers["x-chakamo-code"]) for r in refused} \
+            == {(503, "login.busy")}, [r.status_code for r in refused]
+        assert "retry-after" in refused[0].headers
+        inside = [f for f in logins if not f.done()]
+        assert len(inside) == capacity  # still waiting for the database, each counted
+    assert {f.result().status_code for f in inside} == {401}
+
+
 def test_a_clinic_behind_one_address_is_not_slowed_by_its_own_successes(client, accounts):
     """Review finding: once an address had used its free failures, each *successful* login behind it doubled the
     address's delay (the refund gave the attempt back but kept the doubled delay), so a clinic behind one NAT

@@ -72,7 +72,7 @@ KEY = b"an operator's key of at least 32 characters"
 
 
 def _due(url: str) -> webhooks.Due:
-    return webhooks.Due(1, url, seal(KEY, "s" * 43), "job.done", {"event": "job.done"}, 1, dt.datetime.now(), 1)
+    return webhooks.Due(1, url, seal(KEY, "s" * 43), "job.done", {"event": "job.done"}, 1, dt.datetime.now(dt.timezone.utc) + dt.timedelta(seconds=webhooks.LEASE_S), 1)  # as claim_due leases it
 
 
 def test_the_trail_says_could_not_connect_never_the_cause():

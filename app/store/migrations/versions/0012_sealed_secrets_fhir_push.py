@@ -8,7 +8,8 @@ Patient).
 
 Sealing needs the key: :meth:`app.store.database.Database.migrate` passes it as the config attribute
 ``sealing_key``.  Without it and with a plain secret stored, the upgrade stops with a sentence saying so (nothing is
-changed): a secret sealed under another key could never be opened again.  The downgrade keeps the secrets sealed
+changed): a secret sealed under another key could never be opened again.  With a key given, when secrets are
+sealed already and none of them opens under it, the key is not the server's: the upgrade stops too.  The downgrade keeps the secrets sealed
 (the code of 0011 reads sealed secrets too), turns the codes back into sentences and drops the FHIR push's
 subscriptions with their deliveries (their trail is lost).
 Checked against the models by tests/app/store/test_db.py (SQLite) and test_web_postgres.py (PostgreSQL).
@@ -20,7 +21,9 @@ Create Date: 2026-12-02 07:20:00
 from alembic import context, op
 import sqlalchemy as sa
 
-from app.store.sealed import seal, sealed
+from cryptography.exceptions import InvalidTag
+
+from app.store.sealed import seal, sealed, unseal
 
 
 revision = '0012'
@@ -32,6 +35,15 @@ _SENTENCES = {"could not connect": "webhook.no_connection",
               "secret unreadable: subscribe again": "webhook.secret_unreadable"}
 
 
+def _opens(key: bytes, stored: str) -> bool:
+    """Whether ``stored`` (sealed) opens under ``key``."""
+    try:
+        unseal(key, stored)
+    except (InvalidTag, ValueError):
+        return False
+    return True
+
+
 def upgrade() -> None:
     bind = op.get_bind()
     subscriptions = sa.table("webhook_subscriptions", sa.column("id", sa.Integer), sa.column("secret", sa.String))
@@ -41,6 +53,12 @@ def upgrade() -> None:
         raise RuntimeError(f"{len(plain)} webhook secret(s) are stored in plain text and migration 0012 seals them "
                            "under CHAKAMO_SECRET_KEY, which is not set here; set CHAKAMO_SECRET_KEY to the server's "
                            "key and run the command again (nothing was changed)")
+    opened = [s for _, s in bind.execute(sa.select(subscriptions.c.id, subscriptions.c.secret)) if sealed(s)]
+    if plain and opened and not any(_opens(key, s) for s in opened):
+        raise RuntimeError(f"none of the {len(opened)} webhook secret(s) already sealed opens under the "
+                           "CHAKAMO_SECRET_KEY given here, so it is not the server's key, and migration 0012 would "
+                           f"seal {len(plain)} plain secret(s) under it for good; set CHAKAMO_SECRET_KEY to the "
+                           "server's key and run the command again (nothing was changed)")
     for row_id, secret in plain:
         bind.execute(subscriptions.update().where(subscriptions.c.id == row_id).values(secret=seal(key, secret)))
 

@@ -1,0 +1,229 @@
+// The recording of one session's protocol from two sensors, without the page: which sensor is on which
+// segment, the step being recorded, its buffered notifications and live checks, and the upload of each step.
+//
+// Steps: the protocol's four recordings (roles mag_calibration, standing, lying, task), each recorded from
+// both sensors at once.  Each notification of a step goes into the IndexedDB buffer (./store.js) with its
+// segment, stream, run (a sensor's run changes when it reconnects) and arrival time; the store is flushed
+// every FLUSH_MS.  At a step's end its files are made from the buffer (./files.js) and uploaded per segment
+// as the upload route takes them (segment and role fields, POST /sessions/{id}/recordings); the answer's
+// sha256 of every file must equal the browser's own before the step's buffer is cleared: that is the
+// acknowledgement.  Anything else leaves the buffer as it is, to upload again (also after a reload: the serial
+// and firmware of the step's sensors, which its file names carry, are kept in localStorage at its start).
+//
+// Identification (which sensor is on the thigh): both sensors stream while the clinician moves the thigh; the
+// first sensor whose gyroscope norm, averaged over 0.3 s, passes 60 °/s while the other's stays under 20 °/s
+// is the thigh's (none within 30 s: the streams stop and the clinician is asked to try again).
+
+import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
+import { MeanForce, Tilt, segmentAxes, flexionDeg } from "./preview.js";
+import { streamsOf, filesOf } from "./files.js";
+
+export const STEPS = Object.freeze(["mag_calibration", "standing", "lying", "task"]);
+export const SEGMENTS = Object.freeze(["thigh", "shank"]);
+const LABEL = Object.freeze({ mag_calibration: "calibration", standing: "standing", lying: "lying", task: "task" });
+const FLUSH_MS = 250;
+const MOVE_DPS = 60;
+const QUIET_DPS = 20;
+const IDENTIFY_MS = 30000;   // no sensor moved alone by then: the clinician is asked to try again
+
+// the serial and firmware of the sensors that recorded a step, for its file names (kept beside its buffer)
+function sensorsKey(sessionId, role) {
+  return `chakamo.record.${sessionId}.${role}`;
+}
+
+function saveSensors(sessionId, role, sensors) {
+  try { localStorage.setItem(sensorsKey(sessionId, role), JSON.stringify(sensors)); } catch (_) { /* storage off */ }
+}
+
+function loadSensors(sessionId, role) {
+  try { return JSON.parse(localStorage.getItem(sensorsKey(sessionId, role))); } catch (_) { return null; }
+}
+
+class MotionMeter {
+  constructor(n = 30) { this.n = n; this.window = []; }
+  push(dps) {
+    this.window.push(Math.hypot(...dps));
+    if (this.window.length > this.n) this.window.shift();
+    return this.window.reduce((a, b) => a + b, 0) / this.window.length;
+  }
+}
+
+export class Recorder {
+  /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer. */
+  constructor(sessionId, store, send) {
+    this.sessionId = sessionId;
+    this.store = store;
+    this.send = send;
+    this.sensors = {};          // segment → MetaWearSensor (after identification)
+    this.runs = {};             // segment → current run number
+    this.step = null;
+    this.checks = null;
+    this.counts = null;
+    this.listeners = new Set();
+    this.flushTimer = null;
+    this.postures = Object.fromEntries(SEGMENTS.map((s) => [s, {}]));   // segment → role → MeanForce
+    this.tilts = null;
+  }
+
+  changed() {
+    for (const fn of this.listeners) fn();
+  }
+
+  /** Route one sensor's samples here (its segment known). */
+  attach(segment, sensor) {
+    this.sensors[segment] = sensor;
+    this.runs[segment] = this.runs[segment] ?? 0;
+    sensor.handlers.onSamples = (kind, values, arrivalMs, raw) => this.samples(segment, kind, values, arrivalMs, raw);
+    sensor.handlers.onReconnect = () => { this.runs[segment] += 1; this.changed(); };
+  }
+
+  /** Stream both sensors until one is moved alone: resolves to [thigh sensor, shank sensor]. */
+  identify(a, b) {
+    return new Promise((resolve, reject) => {
+      const meters = [new MotionMeter(), new MotionMeter()];
+      const level = [0, 0];
+      const done = async (thigh) => {
+        a.handlers.onSamples = null;
+        b.handlers.onSamples = null;
+        try {
+          await Promise.all([a.stop(), b.stop()]);
+          resolve(thigh === 0 ? [a, b] : [b, a]);
+        } catch (err) { reject(err); }
+      };
+      let decided = false;
+      const timer = setTimeout(async () => {
+        if (decided) return;
+        decided = true;
+        a.handlers.onSamples = null;
+        b.handlers.onSamples = null;
+        await Promise.allSettled([a.stop(), b.stop()]);
+        reject(Object.assign(new Error("no sensor moved alone"), { code: "not_identified" }));
+      }, IDENTIFY_MS);
+      [a, b].forEach((sensor, i) => {
+        sensor.handlers.onSamples = (kind, values) => {
+          if (kind !== "gyr" || decided) return;
+          for (const v of values) level[i] = meters[i].push(v);
+          if (level[i] > MOVE_DPS && level[1 - i] < QUIET_DPS) {
+            decided = true;
+            clearTimeout(timer);
+            done(i);
+          }
+        };
+      });
+      Promise.all([a.start(), b.start()]).catch(reject);
+    });
+  }
+
+  /** Start recording `role` on both sensors (its earlier buffer, if any, is dropped: a redo). */
+  async start(role) {
+    await this.store.clear(this.sessionId, role);
+    saveSensors(this.sessionId, role, Object.fromEntries(SEGMENTS.map((s) => [s, {
+      serial: this.sensors[s].info.serial, firmware: this.sensors[s].info.firmware }])));
+    this.step = role;
+    this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
+    this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
+      coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
+    if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
+    this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
+    this.flushTimer = setInterval(() => this.store.flush().catch(() => { /* kept; retried next time */ }), FLUSH_MS);
+    try {
+      await Promise.all(SEGMENTS.map((s) => this.sensors[s].start()));
+    } catch (err) {
+      // one sensor did not start: none records, the step stays as it was (its buffer is empty)
+      await Promise.allSettled(SEGMENTS.map((s) => this.sensors[s].stop()));
+      clearInterval(this.flushTimer);
+      this.step = null;
+      await this.store.clear(this.sessionId, role);
+      throw err;
+    }
+    this.changed();
+  }
+
+  samples(segment, kind, values, arrivalMs, raw) {
+    if (!this.step) return;
+    this.store.add({ session: this.sessionId, step: this.step, segment, stream: kind, run: this.runs[segment],
+      arrivalMs, bytes: raw.buffer });
+    this.counts[segment][kind] += values.length;
+    const c = this.checks[segment];
+    const posture = this.postures[segment][this.step];
+    const tilt = this.tilts?.[segment];
+    for (const v of values) {
+      if (kind === "mag") c.coverage.push(v);
+      else if (kind === "acc") {
+        c.stillness.pushAcc(v);
+        posture?.push(v);
+        tilt?.pushAcc(v);
+      } else {
+        c.stillness.pushGyr(v);
+        c.cycles.push(v);
+        tilt?.pushGyr(v);
+      }
+    }
+  }
+
+  /** Knee flexion preview, degrees (./preview.js), once standing and supine were recorded in this visit;
+   * null otherwise and outside the task. */
+  flexion() {
+    if (!this.tilts) return null;
+    const axes = {};
+    for (const s of SEGMENTS) {
+      const standing = this.postures[s].standing?.mean();
+      const lying = this.postures[s].lying?.mean();
+      if (!standing || !lying) return null;
+      axes[s] = segmentAxes(standing, lying);
+    }
+    return flexionDeg(this.tilts, axes);
+  }
+
+  /** The live figures of the step being recorded, per segment. */
+  live() {
+    if (!this.checks) return null;
+    return Object.fromEntries(SEGMENTS.map((s) => {
+      const c = this.checks[s];
+      return [s, { samples: this.counts[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
+        stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
+        state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
+    }));
+  }
+
+  /** Stop the step and upload it; resolves to {role, lost: {segment: samples}, recordings} once acknowledged. */
+  async stop() {
+    const role = this.step;
+    // a sensor that cannot be told to stop (out of reach) does not keep the step from being uploaded
+    await Promise.allSettled(SEGMENTS.map((s) => this.sensors[s].stop()));
+    clearInterval(this.flushTimer);
+    this.step = null;
+    await this.store.flush();
+    this.changed();
+    return this.upload(role);
+  }
+
+  /** Make a buffered step's files, upload them, and clear the buffer once the server's sha256 match. */
+  async upload(role) {
+    const records = await this.store.step(this.sessionId, role);
+    if (records.length === 0) throw Object.assign(new Error(`no buffered data for ${role}`), { code: "no_data" });
+    const streams = streamsOf(records);
+    // the sensors that recorded the step (saved at its start), not those connected now (after a reload)
+    const sensors = loadSensors(this.sessionId, role)
+      ?? Object.fromEntries(SEGMENTS.map((s) => [s, this.sensors[s]?.info]));
+    const recordings = [];
+    const lost = {};
+    for (const segment of SEGMENTS) {
+      if (!streams[segment]) throw Object.assign(new Error(`no data from the ${segment} sensor for ${role}`), { code: "no_data" });
+      const sensor = sensors[segment];
+      const files = await filesOf(streams[segment], `${LABEL[role]}-${segment}`, sensor);
+      const answer = await this.send(segment, role, files);
+      const stored = new Map(answer.recordings.map((r) => [r.file_name, r]));
+      for (const f of files) {
+        const r = stored.get(f.name);
+        if (!r || r.sha256 !== f.sha256) {
+          throw Object.assign(new Error(`the server did not acknowledge ${f.name}`), { code: "not_acknowledged" });
+        }
+        recordings.push(r);
+      }
+      lost[segment] = Object.values(streams[segment]).reduce((n, s) => n + s.lost, 0);
+    }
+    await this.store.clear(this.sessionId, role);
+    return { role, lost, recordings };
+  }
+}

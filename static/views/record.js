@@ -1,0 +1,268 @@
+// Recording mode: the protocol recorded straight from two MetaMotion sensors over Web Bluetooth
+// (#/sessions/3/record), instead of exporting files from the vendor's app and dropping them in the wizard.
+//
+// 1 Sensors: connect two (the browser's chooser), each shown with firmware, battery and state; identify
+//   which is on the thigh (the clinician moves the thigh: static/metawear/recorder.js), or swap by hand.
+// 2 Steps: the protocol's four recordings, each from both sensors at once, with its live check (figure-eight:
+//   sphere cells reached; postures: still or moving and the seconds still; task: cycles counted, approximate,
+//   and the knee flexion preview, static/metawear/preview.js, once both postures were recorded in this visit),
+//   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
+//   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
+//   match the browser's clears the step's buffer (IndexedDB), so nothing unacknowledged is lost: a failed
+//   upload stays to retry, also after a reload.  Starting a step deletes the files the server holds for it (a
+//   redo, an earlier half-sent try, files dropped in the wizard for that step) and records it again.
+//   Closing the page while a step records or waits to be sent asks first; leaving the view lets go of the sensors.
+// 3 Processing is the wizard's (its step 3), linked once the four steps are stored.
+// Everything the user reads is translated (record.* keys); the sensors' own errors are named by code.
+
+import { api, upload } from "../api.js";
+import { h, append, clear, alertBox, errorText, label, num } from "../dom.js";
+import { t } from "../i18n.js";
+import { canEdit } from "../app.js";
+import { pickSensor, MetaWearSensor } from "../metawear/device.js";
+import { PacketStore } from "../metawear/store.js";
+import { Recorder, STEPS, SEGMENTS } from "../metawear/recorder.js";
+
+const REFRESH_MS = 100;   // the live figures and the flexion preview
+
+async function send(sessionId, segment, role, files) {
+  // files already stored with the same content (an earlier attempt answered after all) are not sent again
+  const session = await api("GET", `/sessions/${sessionId}`);
+  const have = new Map((session.recordings || []).map((r) => [r.file_name, r]));
+  const missing = files.filter((f) => have.get(f.name)?.sha256 !== f.sha256);
+  const recordings = files.map((f) => have.get(f.name)).filter((r) => r && !missing.some((m) => m.name === r.file_name));
+  if (missing.length) {
+    const form = new FormData();
+    form.append("segment", segment);
+    form.append("role", role);
+    for (const f of missing) form.append("files", new Blob([f.text], { type: "text/csv" }), f.name);
+    const answer = await upload(`/sessions/${sessionId}/recordings`, form);
+    recordings.push(...answer.recordings);
+  }
+  return { recordings };
+}
+
+function sensorCard(sensor, segment) {
+  const i = sensor.info;
+  return h("li", { class: "card sensor", "data-segment": segment || null },
+    h("h3", {}, segment ? `${label("segment", segment)} — ${i.name}` : i.name),
+    h("p", {}, t("record.sensor_line", { serial: i.serial || "—", firmware: i.firmware || "—",
+      battery: i.battery ? num(i.battery.chargePercent, 0) : "—" })),
+    h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)));
+}
+
+function liveLine(role, live, flexion) {
+  const preview = role === "task" ? h("li", { class: "preview" }, t("record.preview", {
+    deg: flexion === null ? "—" : num(flexion, 0) })) : null;
+  return [preview, ...SEGMENTS.map((s) => {
+    const l = live[s];
+    const samples = t("record.samples", { acc: l.samples.acc, gyr: l.samples.gyr, mag: l.samples.mag });
+    let check = "";
+    if (role === "mag_calibration") check = t("record.coverage", { cells: l.coverage.cells });
+    else if (role === "task") check = t("record.cycles", { n: l.cycles });
+    else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0) });
+    return h("li", { "data-segment": s }, `${label("segment", s)}: `, h("span", { class: "check" }, check),
+      ` · ${samples} · ${t(`record.state.${l.state}`)}`);
+  })];
+}
+
+export function recordView(sessionId) {
+  const section = h("section", { class: "view record" });
+  const message = h("div", { class: "form-message", "aria-live": "polite" });
+  const sensorsList = h("ul", { class: "sensors" });
+  const identifyArea = h("div", { class: "identify" });
+  const stepsList = h("ol", { class: "record-steps" });
+  const done = h("p", { class: "record-done" });
+  const state = { sensors: [], recorder: null, store: null, status: {}, active: null, busy: false };
+  for (const role of STEPS) state.status[role] = "todo";
+
+  section.append(h("h1", {}, t("record.title")), h("p", { class: "lead" }, t("record.lead")), message);
+  if (!canEdit()) {
+    section.append(alertBox(t("record.read_only"), "info"));
+    return section;
+  }
+  if (!navigator.bluetooth) {
+    section.append(alertBox(t("record.no_bluetooth")));
+    return section;
+  }
+
+  const fail = (err) => {
+    // the recorder's own errors carry a code (translated here); the API's are ApiErrors with their sentence
+    const key = err && typeof err.code === "string" && err.status === undefined ? `record.error.${err.code}` : null;
+    clear(message).append(alertBox(key && t(key) !== key ? t(key) : errorText(err)));
+  };
+
+  const connectButton = h("button", { type: "button", class: "connect" }, t("record.connect"));
+  connectButton.addEventListener("click", async () => {
+    clear(message);
+    try {
+      const device = await pickSensor();
+      if (state.sensors.some((s) => s.device.id === device.id)) throw Object.assign(new Error(), { code: "same_sensor" });
+      const sensor = new MetaWearSensor(device, { onState: () => draw() });
+      state.sensors.push(sensor);
+      draw();
+      try {
+        await sensor.connect();
+      } catch (err) {
+        // not usable: let it go, so that another (or the same, woken) sensor can be connected instead
+        sensor.disconnect();
+        state.sensors = state.sensors.filter((s) => s !== sensor);
+        throw err;
+      }
+    } catch (err) {
+      if (err && err.name === "NotFoundError") return;     // the chooser was closed
+      fail(err);
+    }
+    draw();
+  });
+
+  const identifyButton = h("button", { type: "button", class: "identify" }, t("record.identify"));
+  identifyButton.addEventListener("click", async () => {
+    clear(message).append(alertBox(t("record.move_thigh"), "info"));
+    identifyButton.disabled = true;
+    try {
+      const [thigh, shank] = await state.recorder.identify(...state.sensors);
+      state.recorder.attach("thigh", thigh);
+      state.recorder.attach("shank", shank);
+      clear(message);
+    } catch (err) {
+      fail(err);
+    }
+    identifyButton.disabled = false;
+    draw();
+  });
+
+  const swapButton = h("button", { type: "button", class: "secondary swap" }, t("record.swap"));
+  swapButton.addEventListener("click", () => {
+    const { thigh, shank } = state.recorder.sensors;
+    state.recorder.attach("thigh", shank);
+    state.recorder.attach("shank", thigh);
+    draw();
+  });
+
+  async function startStep(role) {
+    clear(message);
+    state.busy = true;
+    try {
+      await deleteStored(role);     // a take replaces the step's files on the server (a redo, a half-sent try)
+      await state.recorder.start(role);
+      state.active = role;
+      state.status[role] = "recording";
+    } catch (err) {
+      fail(err);
+    }
+    state.busy = false;
+    draw();
+  }
+
+  async function deleteStored(role) {
+    const session = await api("GET", `/sessions/${sessionId}`);
+    for (const r of session.recordings || []) {
+      if (r.role === role && SEGMENTS.includes(r.segment)) await api("DELETE", `/sessions/${sessionId}/recordings/${r.id}`);
+    }
+    state.status[role] = "todo";
+  }
+
+  async function finish(role, action) {
+    clear(message);
+    state.busy = true;
+    state.status[role] = "uploading";
+    draw();
+    try {
+      const answer = await action();
+      state.status[role] = "stored";
+      state.lost = { ...(state.lost || {}), [role]: answer.lost };
+    } catch (err) {
+      state.status[role] = "unsent";
+      fail(err);
+    }
+    state.active = null;
+    state.busy = false;
+    draw();
+  }
+
+  function stepItem(role) {
+    const status = state.status[role];
+    const buttons = [];
+    const ready = Boolean(state.recorder?.sensors.thigh && state.recorder?.sensors.shank);
+    if (status === "recording") {
+      buttons.push(h("button", { type: "button", class: "stop", onclick: () => finish(role, () => state.recorder.stop()) },
+        t("record.stop")));
+    } else if (status === "unsent") {
+      buttons.push(h("button", { type: "button", class: "retry", disabled: state.busy,
+        onclick: () => finish(role, () => state.recorder.upload(role)) }, t("record.retry")));
+    }
+    if (status !== "recording" && status !== "uploading") {
+      buttons.push(h("button", { type: "button", class: status === "todo" ? "start" : "secondary redo",
+        disabled: !ready || state.busy || Boolean(state.active), onclick: () => startStep(role) },
+      t(status === "todo" ? "record.start" : "record.redo")));
+    }
+    const live = status === "recording" ? state.recorder.live() : null;
+    const lost = state.lost?.[role];
+    return h("li", { class: "card record-step", "data-role": role, "data-status": status },
+      h("h3", {}, label("recording", role)),
+      h("p", { class: "hint" }, t(`wizard.role_hint.${role}`)),
+      h("p", { class: "step-status" }, t(`record.status.${status}`),
+        lost ? ` · ${t("record.lost", { thigh: lost.thigh, shank: lost.shank })}` : ""),
+      live ? h("ul", { class: "live" }, liveLine(role, live, state.recorder.flexion())) : null,
+      h("div", { class: "actions" }, buttons));
+  }
+
+  function draw() {
+    if (!section.isConnected && state.drawn) return;
+    state.drawn = true;
+    const attached = state.recorder ? SEGMENTS.map((s) => state.recorder.sensors[s]).filter(Boolean) : [];
+    clear(sensorsList).append(...(attached.length === 2
+      ? SEGMENTS.map((s) => sensorCard(state.recorder.sensors[s], s))
+      : state.sensors.map((s) => sensorCard(s, null))));
+    connectButton.disabled = state.sensors.length >= 2;
+    const connected = state.sensors.length === 2 && state.sensors.every((s) => s.state === "connected");
+    clear(identifyArea).append(...(attached.length < 2 ? [identifyButton] : []),
+      ...(attached.length === 2 && !state.active ? [swapButton] : []));
+    identifyButton.hidden = !connected;
+    clear(stepsList).append(...STEPS.map(stepItem));
+    clear(done).append(STEPS.every((r) => state.status[r] === "stored")
+      ? h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button" }, t("record.to_wizard")) : "");
+  }
+
+  // leaving the page lets go of the sensors; a step being recorded stays in the buffer, offered on the next visit
+  const leave = (e) => {
+    if (state.active || Object.values(state.status).includes("unsent")) {
+      e.preventDefault();
+      e.returnValue = "";
+    }
+  };
+  window.addEventListener("beforeunload", leave);
+  const refresh = setInterval(() => {
+    if (!section.isConnected) {
+      clearInterval(refresh);
+      window.removeEventListener("beforeunload", leave);
+      for (const sensor of state.sensors) sensor.disconnect();
+      return;
+    }
+    if (state.active) {
+      const item = stepsList.querySelector(`[data-role="${state.active}"] ul.live`);
+      if (item) append(clear(item), liveLine(state.active, state.recorder.live(), state.recorder.flexion()));
+    }
+  }, REFRESH_MS);
+
+  section.append(
+    h("div", { class: "card" }, h("h2", {}, t("record.sensors_title")), sensorsList,
+      h("div", { class: "actions" }, connectButton), identifyArea),
+    h("div", {}, h("h2", {}, t("record.steps_title")), stepsList), done);
+
+  PacketStore.open().then(async (store) => {
+    state.store = store;
+    state.recorder = new Recorder(sessionId, store, (segment, role, files) => send(sessionId, segment, role, files));
+    // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified)
+    for (const role of await store.steps(sessionId)) state.status[role] = "unsent";
+    const session = await api("GET", `/sessions/${sessionId}`);
+    for (const role of STEPS) {
+      const stored = (session.recordings || []).filter((r) => r.role === role && SEGMENTS.includes(r.segment));
+      if (state.status[role] === "todo" && stored.length >= 2 * 3) state.status[role] = "stored";
+    }
+    draw();
+  }).catch(fail);
+  draw();
+  return section;
+}

@@ -1,0 +1,314 @@
+"""Recording mode end to end: two emulated MetaMotion sensors stream a simulated session through the page into the
+real app, and the session recorded in the browser gives the results of the same samples uploaded as files.
+
+Set-up: the real app under uvicorn (``server`` of ``test_browser_e2e.py``); Debian's Chromium launched with
+``--enable-experimental-web-platform-features`` (Linux Chromium exposes ``navigator.bluetooth`` only so);
+Chromium's DevTools ``BluetoothEmulation`` drives two peripherals that speak the MetaWear protocol
+(``metawear_peripherals.py``, whose docstring records what the emulation can and cannot do: it cannot send
+notifications, so the packets cross the Web Bluetooth boundary through a documented stand-in installed in
+this test's page only).  The streams are a simulated session (:func:`app.pipeline.demo.simulate_session`) framed
+by the protocol's Python twin (``metawear_frames.py``).
+
+The clinician's path: connect the two sensors through the browser's chooser (battery and firmware shown)
+→ "which is the thigh sensor?": the sensor connected SECOND is moved (so the page must reorder them) → the four
+steps, each started, streamed (the shank loses 1 % of its task notifications, and its link drops for 5 s in
+the middle of the task: the page reconnects, re-configures and goes on), stopped and uploaded; each step is
+stored only once the server's sha256 match the browser's (the network refuses one upload of the task step
+once: the step stays in the browser's buffer, said so; the page is closed — it asks first — and opened again,
+and "Upload again", with no sensor connected, sends only the files the server lacks); the standing step is cut short and redone (its first files deleted from the server) → the link to processing appears.  Every sample the page received is
+in the stored files, and the buffer is empty.
+
+Then the truth: the files the browser uploaded are read back with the project's MetaBase reader and written
+again with its writer (the same samples as files; equal to the browser's text), uploaded to a second
+session; both sessions are processed by the app's job: results.json are equal but for the session's identity
+(patient and folder; results.json carries no clock time), and the recorded session finds the simulated cycles
+but the one or two the 5 s gap falls in, and their flexion range within 5°.
+Waits are generous; nothing is timed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import shutil
+
+import numpy as np
+import pytest
+
+from metawear_frames import sensor_notifications
+from metawear_peripherals import STAND_IN, Bench, Peripheral
+from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
+    PROCESS_WAIT_MS, SETTINGS, WAIT_MS, _api_session, log_in, server, slow_expect)
+
+ARGS = ("--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions",
+        "--enable-experimental-web-platform-features")
+ROLES = ("mag_calibration", "standing", "lying", "task")
+CHUNK_S = 1.0          # simulated seconds of packets delivered per call
+BLACKOUT_S = 5.0
+
+
+@pytest.fixture(scope="module")
+def bt_browser(browser):
+    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not)."""
+    chromium = shutil.which("chromium")
+    b = browser.browser_type.launch(executable_path=chromium, headless=True, args=list(ARGS))
+    try:
+        yield b
+    finally:
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    from app.pipeline.demo import simulate_session
+
+    return simulate_session(seed=7, side="right", n_cycles=8)
+
+
+def _streams(simulated, segment, role):
+    """A step's packets of one sensor; the shank's figure-eight moved onto the thigh's (both sensors record
+    each step at once in the browser, while the simulator did them 80 s apart)."""
+    streams = simulated.recordings[(segment, role)]
+    if role == "mag_calibration" and segment == "shank":
+        shift = simulated.recordings[("thigh", role)]["acc"][0][0] - streams["acc"][0][0]
+        streams = {k: (t + shift, v) for k, (t, v) in streams.items()}
+    return sensor_notifications(streams)
+
+
+def _deliver(bench, sensors, packets, blackout=None, lose_every=None):
+    """Deliver both sensors' packets in arrival order, CHUNK_S at a time.  ``blackout = (sensor, t0_s)``: that
+    sensor's link drops at t0_s and is back BLACKOUT_S later (its packets in between never arrive; delivery
+    waits until the page has it streaming again).  ``lose_every = (sensor, n)``: every n-th packet of that
+    sensor is lost in the air.  Returns the samples delivered and the samples lost per sensor."""
+    delivered = {name: 0 for name in sensors}
+    lost = {name: set() for name in sensors}
+    if lose_every:
+        # not within 1 s of a run's end or start (a loss needs 16 notifications of its stream after it)
+        name, n = lose_every
+        edges = [packets[name][0].arrival_s, packets[name][-1].arrival_s]
+        if blackout:
+            edges += [blackout[1], blackout[1] + BLACKOUT_S]
+        gap = (blackout[1], blackout[1] + BLACKOUT_S) if blackout else (np.inf, np.inf)
+        lost[name] = {k for k in range(n, len(packets[name]), n)
+                      if min(abs(packets[name][k].arrival_s - e) for e in edges) > 1.0
+                      and not gap[0] <= packets[name][k].arrival_s < gap[1]}
+    start = min(p[0].arrival_s for p in packets.values())
+    end = max(p[-1].arrival_s for p in packets.values())
+    dropped = False
+    t = start
+    while t <= end:
+        t_next = t + CHUNK_S
+        if blackout and not dropped and t_next > blackout[1]:
+            t_next = blackout[1]
+        for name, p in sensors.items():
+            chunk = [(k, n) for k, n in enumerate(packets[name]) if t <= n.arrival_s < t_next and k not in lost[name]]
+            if blackout and name == blackout[0]:
+                chunk = [(k, n) for k, n in chunk if not (blackout[1] <= n.arrival_s < blackout[1] + BLACKOUT_S)]
+            if chunk:
+                bench.notify(p, [n for _, n in chunk])
+                delivered[name] += sum((len(n.payload) - 2) // 6 for _, n in chunk)
+        bench.pump()
+        t = t_next
+        if blackout and not dropped and t >= blackout[1]:
+            bench.disconnect(sensors[blackout[0]])
+            dropped = True
+            bench.pump()
+        if blackout and dropped and sensors[blackout[0]].reachable is False and t >= blackout[1] + BLACKOUT_S:
+            p = sensors[blackout[0]]
+            p.reachable = True
+            bench.wait(lambda p=p: p.is_streaming, f"{p.name} streaming again after its reconnection")
+    return delivered, {name: sum((len(packets[name][k].payload) - 2) // 6 for k in v) for name, v in lost.items()}
+
+
+def _stored_files(context, base, sid):
+    """The files the server stored for session ``sid``, read from its blob store: {(segment, role): [(name, bytes)]}."""
+    from app.store.blobs import BlobStore
+
+    store = BlobStore(SETTINGS[base].blob_dir)
+    session = context.request.get(f"{base}/api/v1/sessions/{sid}").json()
+    out: dict = {}
+    for r in session["recordings"]:
+        data = store.read(r["sha256"])
+        assert hashlib.sha256(data).hexdigest() == r["sha256"]
+        out.setdefault((r["segment"], r["role"]), []).append((r["file_name"], data))
+    return out
+
+
+def _process(context, base, sid) -> dict:
+    api = f"{base}/api/v1"
+    csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+    r = context.request.post(f"{api}/sessions/{sid}/process", data={"lang": "en"}, headers=csrf)
+    assert r.status == 202, r.text()
+    job_id = r.json()["job_id"]
+    page = context.pages[0]
+    for _ in range(PROCESS_WAIT_MS // 500):
+        job = context.request.get(f"{api}/jobs/{job_id}").json()
+        if job["status"] in ("done", "failed"):
+            break
+        page.wait_for_timeout(500)
+    assert job["status"] == "done", job
+    r = context.request.get(f"{api}/sessions/{sid}/results")
+    assert r.status == 200, r.text()
+    return r.json()
+
+
+def _differences(a, b, path=""):
+    """Paths where two JSON values differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [d for k in sorted(set(a) | set(b)) for d in _differences(a.get(k), b.get(k), f"{path}.{k}")]
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
+    return [] if a == b else [path]
+
+
+def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
+    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv
+
+    expect = slow_expect
+    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000})
+    context.set_default_timeout(WAIT_MS)
+    context.add_init_script(STAND_IN)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        log_in(page, server)
+        expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        sid = _api_session(context, server, "BLE-001", "right")
+        bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
+        shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64))
+        thigh = bench.add(Peripheral("D4:F1:A2:B3:C4:E5", "MetaWear-S2", firmware="1.5.0"))
+        page.goto(f"{server}/#/sessions/{sid}/record")
+        expect(page.get_by_role("heading", level=1)).to_have_text("Record with the sensors")
+
+        # --- two sensors through the browser's chooser; battery and firmware read from each
+        for k, p in enumerate((shank, thigh), start=1):
+            bench.choose = p.address
+            page.get_by_role("button", name="Connect a sensor").click()
+            bench.wait(lambda k=k: page.locator(".sensor-state[data-state=connected]").count() == k, f"{p.name} connected")
+        cards = page.locator("ul.sensors li")
+        expect(cards.nth(0)).to_contain_text("MetaWear-S1")
+        expect(cards.nth(0)).to_contain_text("battery 64 %")
+        expect(cards.nth(1)).to_contain_text("firmware 1.5.0")
+        expect(page.get_by_role("button", name="Connect a sensor")).to_be_disabled()
+
+        # --- the thigh is the sensor that moves (connected second: the page must reorder)
+        page.get_by_role("button", name="Which is the thigh sensor?").click()
+        bench.wait(lambda: thigh.is_streaming and shank.is_streaming, "both sensors streaming to identify")
+        moving = [n for n in _streams(simulated, "thigh", "task") if n.arrival_s > simulated.role_epoch_s["task"] + 3]
+        still = _streams(simulated, "shank", "standing")
+        offset = still[0].arrival_s - moving[0].arrival_s
+        for i in range(0, 600, 30):
+            bench.notify(thigh, [type(n)(n.arrival_s + offset, n.kind, n.payload) for n in moving[i:i + 30]])
+            bench.notify(shank, still[i:i + 30])
+            bench.pump()
+            if not thigh.is_streaming:
+                break
+        bench.wait(lambda: page.locator("ul.sensors li[data-segment]").count() == 2, "the sensors identified")
+        expect(page.locator("ul.sensors li[data-segment=thigh]")).to_contain_text("MetaWear-S2")
+        expect(page.locator("ul.sensors li[data-segment=shank]")).to_contain_text("MetaWear-S1")
+
+        # --- the four steps
+        sensors = {"thigh": thigh, "shank": shank}
+        sent = {}
+        # the network fails the task step's second upload (the shank's files) once: a fault outside the product
+        flaky = {"role": None, "posts": 0}
+
+        def network(route):
+            if route.request.method == "POST" and flaky["role"] == "task":
+                flaky["posts"] += 1
+                if flaky["posts"] == 2:
+                    return route.fulfill(status=503, content_type="application/json", body='{"detail": "busy"}')
+            return route.continue_()
+
+        page.route("**/api/v1/sessions/*/recordings", network)
+        # standing twice: a first try cut short, then redone (its stored files are replaced)
+        for attempt, role in enumerate(("mag_calibration", "standing", "standing", "lying", "task")):
+            step = page.locator(f"li.record-step[data-role={role}]")
+            step.get_by_role("button", name="Redo" if attempt == 2 else "Start").click()
+            bench.wait(lambda: thigh.is_streaming and shank.is_streaming, f"{role}: both streaming")
+            packets = {seg: _streams(simulated, seg, role) for seg in sensors}
+            if attempt == 1:
+                packets = {seg: p[:len(p) // 3] for seg, p in packets.items()}
+            blackout = lose = None
+            if role == "task":
+                t0, t1 = packets["shank"][0].arrival_s, packets["shank"][-1].arrival_s
+                blackout = ("shank", t0 + 0.5 * (t1 - t0))
+                lose = ("shank", 100)
+            sent[role] = _deliver(bench, sensors, packets, blackout, lose)
+            if role == "task":
+                assert shank.connections >= 2                      # the page reconnected on its own
+            bench.wait(lambda step=step: step.locator("ul.live").count() == 1, f"{role}: live checks")
+            expect(step.locator("ul.live")).to_contain_text(
+                {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
+                 "task": "cycles counted"}[role])
+            if role == "task":
+                # the flexion preview runs (axes from this visit's standing and supine steps)
+                expect(step.locator("ul.live li.preview")).to_have_text(re.compile(r"Knee flexion \(preview\): -?\d+°"))
+            flaky["role"] = role
+            step.get_by_role("button", name="Stop and upload").click()
+            bench.wait(lambda step=step: step.get_attribute("data-status") in ("stored", "unsent"), f"{role} uploaded")
+            if role == "task":
+                # kept in the browser, said so; the page closed (it asks first) and opened again: the step is
+                # offered from the buffer and uploaded again, without the sensors; the thigh's files already
+                # stored are not re-sent
+                assert step.get_attribute("data-status") == "unsent"
+                expect(page.locator(".form-message [role=alert]")).to_contain_text("busy")
+                assert page.evaluate("async () => (await (await import('/static/metawear/store.js'))"
+                                     ".PacketStore.open()).steps(%d)" % sid) == ["task"]
+                asked = []
+                page.once("dialog", lambda d, asked=asked: (asked.append(d.type), d.accept()))
+                page.reload()
+                assert asked == ["beforeunload"]
+                step = page.locator(f"li.record-step[data-role={role}]")
+                expect(step).to_have_attribute("data-status", "unsent")
+                step.get_by_role("button", name="Upload again").click()
+                expect(step).to_have_attribute("data-status", "stored")
+                assert flaky["posts"] == 3
+            assert step.get_attribute("data-status") == "stored", page.locator(".form-message").inner_text()
+        task_step = page.locator("li.record-step[data-role=task]")
+        # the emulated air losses inside the shank's runs are counted (the 5 s gap is between runs, not a loss)
+        expect(task_step.locator(".step-status")).to_contain_text(f"thigh 0, shank {sent['task'][1]['shank']}")
+        expect(page.get_by_role("link", name="All four steps stored: process the session")).to_be_visible()
+        assert page.evaluate("""async () => { const s = await import('/static/metawear/store.js');
+            const db = await s.PacketStore.open(); return (await db.steps(%d)).length; }""" % sid) == 0
+
+        # --- the same samples as files: read back and written by the project's MetaBase reader and writer
+        files = _stored_files(context, server, sid)
+        assert sorted(files) == sorted((s, r) for s in sensors for r in ROLES)
+        for (seg, role), parts in files.items():
+            # every sample the page received is in the stored files (the redone standing's second take only)
+            rows = sum(data.count(b"\n") - 1 for _, data in parts)
+            assert rows == sent[role][0][seg], (seg, role, rows, sent[role][0][seg])
+        sid2 = _api_session(context, server, "BLE-002", "right")
+        api = f"{server}/api/v1"
+        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        again = tmp_path / "again"
+        again.mkdir()
+        for (seg, role), parts in files.items():
+            assert len(parts) == 3
+            for name, data in parts:
+                (tmp_path / name).write_bytes(data)
+                stream = read_metabase_csv(tmp_path / name)
+                rewritten = write_metabase_csv(again / name, stream.kind, np.round(stream.t_s * 1e3).astype(np.int64),
+                                               stream.values).read_bytes()
+                assert rewritten == data, name                     # the browser wrote the writer's file
+                r = context.request.post(f"{api}/sessions/{sid2}/recordings", headers=csrf, multipart={
+                    "segment": seg, "role": role, "files": {"name": name, "mimeType": "text/csv", "buffer": rewritten}})
+                assert r.status == 201, r.text()
+
+        recorded = _process(context, server, sid)
+        uploaded = _process(context, server, sid2)
+        # equal but for the session's identity (another patient, another folder); results.json holds no clock time
+        assert set(_differences(recorded, uploaded)) <= {".session.folder", ".session.patient_id"}
+        # and against the simulator's truth: the cycles, and the flexion range over them
+        truth = simulated.motion
+        # (the shank's 5 s without data costs the one or two cycles it falls in)
+        assert len(truth.cycles_s) - 2 <= recorded["cycles"]["detected"] <= len(truth.cycles_s), recorded["cycles"]
+        true_range = np.mean([np.ptp(np.rad2deg(truth.knee_angles_at(np.linspace(a, b, 400))[:, 0]))
+                              for a, b in truth.cycles_s])
+        assert abs(recorded["rom_deg"]["flexion"]["range"]["mean"] - true_range) < 5.0, (
+            recorded["rom_deg"]["flexion"]["range"], true_range)
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors: {errors}"
