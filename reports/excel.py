@@ -165,9 +165,14 @@ class _Bulk:
 
 def _header_text(text: str) -> str:
     """A text for an Excel page header or footer: ``&`` doubled (a single one starts a code: ``&P`` the page),
-    control characters removed, within Excel's 255 characters a section."""
-    text = neutralise_text(text).replace("\n", " ").replace("&", "&&")
-    return text if len(text) <= 250 else text[:249] + "…"
+    control characters removed, within Excel's 255 characters a section: cut (with "…") before the doubling, so a
+    cut never leaves a lone ``&`` (which would swallow the "…" as a code)."""
+    text = neutralise_text(text).replace("\n", " ")
+    if len(text.replace("&", "&&")) > 250:
+        while len(text.replace("&", "&&")) > 249:
+            text = text[:-1]
+        text += "…"
+    return text.replace("&", "&&")
 
 
 def _stamp_identity(wb: Workbook, ri: ReportInput) -> None:

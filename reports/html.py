@@ -31,7 +31,7 @@ from reports import i18n, knees
 from reports.figures import reference_keypoints
 from reports.labels import (EXCLUDED, calibration_sentence, code_label, cycle_and_phase_per_sample, excluded_lines,
                             get_path, heading_sentence, identity_items, phase_names, phase_spans_pct,
-                            reference_sentence, session_rows, signed_line, split_rejected, tr)
+                            reference_sentence, session_rows, signature_line, signed_line, split_rejected, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
 
@@ -369,7 +369,7 @@ def _interpretation_block(ri: ReportInput, lang: str) -> str:
     it = ri.interpretation
     parts = [f'<p class="warning"><strong>{_e(tr("interp.amended", lang))}</strong></p>'] if it.amendments else []
     parts.append(f'<p class="interp">{_e(it.text)}</p>')
-    parts.append(f'<p class="muted">{_e(signed_line(lang, "interp.signed", it.signed_by, it.signed_role, it.signed_at))}</p>')
+    parts.append(f'<p class="muted">{_e(signature_line(lang, it))}</p>')
     if it.amendments:
         items = "".join(
             f'<li>{_e(signed_line(lang, "interp.amendment", a.by, a.role, a.at, reason=a.reason))}'

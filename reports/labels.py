@@ -23,7 +23,7 @@ from reports.model import Patient, ReportInput
 
 __all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_spans_pct",
            "cycle_and_phase_per_sample", "session_rows", "age_years", "identity_items", "identity_line",
-           "recorded_text", "filter_label", "angle_method_label", "signed_line", "split_rejected", "excluded_lines",
+           "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line", "split_rejected", "excluded_lines",
            "EXCLUDED"]
 
 _DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
@@ -231,9 +231,11 @@ def age_years(birth_date: str, on: str) -> int | None:
 
 
 def recorded_text(p: Patient, lang: str) -> str:
-    """The recordings' date (or first – last day when they span several), in the language's date format."""
+    """The recordings' date (or first – last day when they span several), in the language's date format, with
+    " UTC" when it is the UTC day (``recorded_zone``: only UTC time stamps said it), not the local one."""
     first, last = i18n.fmt_date(p.recorded, lang), i18n.fmt_date(p.recorded_last, lang)
-    return f"{first} – {last}" if first and last and last != first else first
+    text = f"{first} – {last}" if first and last and last != first else first
+    return f"{text} {p.recorded_zone}" if text and p.recorded_zone else text
 
 
 def identity_items(p: Patient, lang: str) -> list[tuple[str, str]]:
@@ -275,6 +277,18 @@ def angle_method_label(results: dict[str, Any], lang: str) -> str:
     """The knee-angle convention by its human name (``data.angle_method.<id>``), never the raw id."""
     name = results.get("angle_method") or ""
     return code_label("data.angle_method", name, lang) if name else ""
+
+
+def signature_line(lang: str, it) -> str:
+    """Who signed the interpretation ``it`` (:class:`reports.model.Interpretation`) and when; once amended, "First
+    signed by A …; last amended by B on … (reason)" — the text printed above it is the amended one, so the signer
+    is never shown alone under a text they did not sign."""
+    first = signed_line(lang, "interp.signed" if not it.amendments else "interp.first_signed", it.signed_by,
+                        it.signed_role, it.signed_at)
+    if not it.amendments:
+        return first
+    last = it.amendments[-1]
+    return first + "; " + signed_line(lang, "interp.last_amended", last.by, last.role, last.at, reason=last.reason)
 
 
 def signed_line(lang: str, key: str, by: str, role: str, at: str, **fields: Any) -> str:

@@ -51,6 +51,8 @@ class Patient:
     clinic: str = ""
     recorded: str = ""
     recorded_last: str = ""
+    #: ``""`` when ``recorded`` is the recordings' local day, ``"UTC"`` when only UTC time stamps gave it
+    recorded_zone: str = ""
 
 
 @dataclass(frozen=True)

@@ -53,7 +53,7 @@ from reports import bones, figures, fonts, knees
 from reports.i18n import MISSING, fmt_date, fmt_mean_sd, fmt_number, has, t
 from reports.labels import (calibration_sentence, code_label, excluded_lines, filter_label, get_path,
                             heading_sentence, identity_items, identity_line, phase_names, reference_sentence,
-                            signed_line, split_rejected, tr)
+                            signature_line, signed_line, split_rejected, tr)
 from reports.model import ReportInput
 from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
 from reports.warning_text import warning_text
@@ -388,7 +388,7 @@ def _interpretation(pdf: ReportPDF, ri: ReportInput) -> None:
         pdf.paragraph(pdf.tr("interp.amended"), style="B", color=(170, 60, 0))
     pdf.paragraph(user_text(it.text))
     pdf.ln(1.0)
-    pdf.paragraph(_signed_text(pdf.lang, "interp.signed", it.signed_by, it.signed_role, it.signed_at), style="B")
+    pdf.paragraph(user_text(signature_line(pdf.lang, it)), style="B")
     if it.amendments:
         pdf.ln(1.5)
         pdf.set_font(FONT, "B", 9.5)

@@ -121,6 +121,16 @@ class ReportPDF(FPDF):
             text = text[:-1]
         return text + "…"
 
+    def two_lines(self, text: str) -> str:
+        """``text`` as :meth:`multi_cell` wraps it over the page's width, cut with an ellipsis at the end of the
+        second line when it needs more (the header's identity above :data:`HEADER_BOTTOM_MM`, however long the
+        clinic's name: never over the page's content)."""
+        lines = self.multi_cell(self.epw, 3.4, text, dry_run=True, output="LINES")
+        if len(lines) <= 2:
+            return text
+        rest = " ".join(line.strip() for line in lines[1:])
+        return lines[0].rstrip() + " " + self.fit(rest, self.epw - 2.0)
+
     def draw_page_chrome(self, version: str, date_text: str, patient: str, identity: str = "") -> None:
         """Header and footer on every page (after the content, so the page total is known).  ``identity`` (the
         patient's record number with its system, birth date and age, sex, clinic, the recordings' date:
@@ -155,6 +165,7 @@ class ReportPDF(FPDF):
                                                           output="LINES")) > 2:
                     size -= 0.5
                     self.set_font(FONT, "", size)
+                identity = self.two_lines(identity)
                 self.set_xy(self.l_margin, 19.8)
                 self.multi_cell(self.epw, 3.4, identity, align="L", max_line_height=3.4)
                 self.set_text_color(*GREY)

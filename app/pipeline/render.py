@@ -37,6 +37,7 @@ MEDIA = {
     "report.html": "text/html; charset=utf-8",
     "scene.viser": "application/octet-stream",
     "timeseries.npz": "application/octet-stream",
+    "patient.json": "application/json",
 }
 #: share of the progress bar taken by the pipeline; the rest is the reports
 PIPELINE_SHARE = 0.6
@@ -78,6 +79,15 @@ def render_many(ri, keys: list[tuple[str, str]]) -> dict[tuple[str, str], bytes]
     return {key: render_artefact(ri, *key) for key in keys}
 
 
+def patient_json(patient) -> bytes:
+    """``patient.json``: the identity block the job's reports printed (:class:`reports.model.Patient`, every field),
+    kept with the analysis so its reports can be rendered again later (a signed interpretation) with the identity
+    the job used, never the patient's data as corrected since (:mod:`app.store.signed_reports`)."""
+    import json
+
+    return json.dumps(dataclasses.asdict(patient), ensure_ascii=False, sort_keys=True).encode("utf-8")
+
+
 def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | None" = None,
                timeout_s: float = RENDER_TIMEOUT_S, knees=None) -> dict[tuple[str, str], bytes]:
     """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF or the HTML report).
@@ -92,7 +102,8 @@ def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | 
 
     ri = report_input(outcome, results, knees=knees)
     files: dict[tuple[str, str], bytes] = {("results.json", ""): results_json(results).encode("utf-8"),
-                                           ("timeseries.npz", ""): timeseries_npz(outcome, knees)}
+                                           ("timeseries.npz", ""): timeseries_npz(outcome, knees),
+                                           ("patient.json", ""): patient_json(ri.patient)}
     others = [(name, x) for x in LANGS if x != lang for name in ("report.pdf", "report.html")]
     # about equal halves (measured: a PDF 0.2-0.4 s, angles.xlsx 0.1 s, quaternions.xlsx 0.2 s, html 0.05 s,
     # scene 0.2 s)
@@ -507,6 +518,6 @@ def warm_up(processing: bool = True) -> None:
         log.exception("warm-up run of the orientation filter failed")
 
 
-__all__ = ["BACKGROUND_NICE", "FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S",
+__all__ = ["BACKGROUND_NICE", "FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "patient_json", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S",
            "ForkedRenderers", "RenderPool", "collect", "lower_priority", "preload_renderers", "render_all", "render_artefact",
            "render_many", "render_named", "warm_up"]

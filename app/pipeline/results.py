@@ -116,8 +116,8 @@ def build_results(outcome: SessionOutcome) -> dict[str, Any]:
             "folder": str(session.folder),
             "patient_id": meta.value("patient_id"),
             "date": meta.value("date"),
-            # the recordings' own first and last day (their time stamps; None when no recording says it)
-            "recorded": dict(zip(("first", "last"), (d or None for d in recorded_dates(session)))),
+            # the recordings' own first and last day (local, else UTC: "zone"; None when no recording says it)
+            "recorded": dict(zip(("first", "last", "zone"), (d or None for d in recorded_dates(session)))),
             "step_height_m": outcome.step_height_m,
             "language": opts.language,
             "task_recording": {"fs_hz": outcome.fs_hz, "duration_s": len(outcome.t_s) / outcome.fs_hz,
@@ -349,11 +349,12 @@ def session_patient(outcome: SessionOutcome) -> Patient:
 
 
 def patient_of(manifest: Mapping[str, Any], *, record: Any, date: Any, side: str, step_height_m: float | None,
-               recorded: tuple[str, str]) -> Patient:
+               recorded: tuple[str, ...]) -> Patient:
     """The reports' :class:`Patient` from a ``session.json``'s optional keys ``name``, ``professional``,
     ``weight_kg``, ``height_m``, ``observations``, ``identifier_system``, ``birth_date``, ``sex``, ``clinic`` (shown as
     typed; the server writes them from its patient and clinic, :func:`app.store.workspace.build_manifest`), the
-    record number ``record`` and session ``date`` the ingestion found, and the recordings' ``(first, last)`` day.
+    record number ``record`` and session ``date`` the ingestion found, and the recordings' ``(first, last[, zone])``
+    day (:func:`recorded_dates`).
     What nothing said stays empty: the reports omit it."""
     def number(key: str) -> float | None:
         try:
@@ -365,7 +366,7 @@ def patient_of(manifest: Mapping[str, Any], *, record: Any, date: Any, side: str
     def typed(key: str) -> str:
         return str(manifest.get(key) or "")
 
-    first, last = recorded
+    first, last, zone = (*recorded, "")[:3]
     return Patient(
         name_or_id=str(manifest.get("name") or record or ""),
         date=str(date or ""),
@@ -382,15 +383,28 @@ def patient_of(manifest: Mapping[str, Any], *, record: Any, date: Any, side: str
         clinic=typed("clinic"),
         recorded=first or "",
         recorded_last="" if last == first else (last or ""),
+        recorded_zone=(zone or "") if first else "",
     )
 
 
-def recorded_dates(session) -> tuple[str, str]:
-    """``(first, last)`` ISO day of the session's recordings, from their own time stamps (the first epoch stamp,
-    else the MetaBase name's start, else the thesis name's date: :func:`app.pipeline.ingestion.provenance.
-    recording_facts`); ``("", "")`` when no recording says it (then no date is printed as the recordings')."""
-    days = sorted({str(f.date.value)[:10] for f in session_facts(session).values() if f.date is not None})
-    return (days[0], days[-1]) if days else ("", "")
+def recorded_dates(session) -> tuple[str, str, str]:
+    """``(first, last, zone)``: the ISO days of the session's recordings, from their own clocks.  A format that gives
+    the local date-time (MetaBase's file name, the thesis name's date) gives the recording's local day, ``zone``
+    ``""``; when only epoch time stamps say it (UTC by definition: :func:`app.pipeline.ingestion.provenance.
+    recording_facts`), the UTC day, ``zone`` ``"UTC"`` (printed beside it: a recording made at 00:30 local time
+    east of Greenwich has the previous UTC day).  Local days win when some recordings give one.
+    ``("", "", "")`` when no recording says it (then no date is printed as the recordings')."""
+    local, utc = set(), set()
+    for key, f in session_facts(session).items():
+        given = session.raw[key].extras.get("started")  # the format's local start (MetaBase's file name)
+        if given is not None:
+            local.add(str(given.value)[:10])
+        elif f.started is not None and f.started.method == "time stamps":
+            utc.add(str(f.started.value)[:10])
+        elif f.date is not None:
+            local.add(str(f.date.value)[:10])
+    days, zone = (sorted(local), "") if local else (sorted(utc), "UTC" if utc else "")
+    return (days[0], days[-1], zone) if days else ("", "", "")
 
 
 def report_input(outcome: SessionOutcome, results: dict[str, Any], patient: Patient | None = None,

@@ -11,7 +11,10 @@ that :mod:`app.pipeline.ingestion.session` documents:
 * ``recordings`` only when an upload declared a segment or role: every file is then listed (MetaBase streams
   grouped into their recording), with the declared segment/role — the rest is still recognised from names;
 * ``split``: the cuts the clinician confirmed or moved in the wizard (``KneeSession.split``);
-* a ``session.json`` uploaded with the recordings is the base; the database's facts win over its keys.
+* a ``session.json`` uploaded with the recordings is the base; the database's facts win over its keys, and its
+  identity and person keys (:data:`IDENTITY_KEYS`: name, record number, birth date, sex, clinic, identifier
+  system, professional, weight, height, observations) are dropped: in the web path the database is the only
+  source of who the report is about, so a file's identity is never printed, even where the database has none.
 
 :func:`check_ingestion` runs the ingestion on that folder and returns the contract's Ingestion object.
 """
@@ -40,6 +43,12 @@ NO_RECORDINGS: dict[str, Any] = {"ok": False, "messages": [], "error": render("s
                                   "error_item": item("session.no_files_yet", {}, render("session.no_files_yet", {}))}
 
 
+#: the keys of an uploaded session.json the server never passes on (module docstring): the reports' identity and
+#: person facts come from the database alone
+IDENTITY_KEYS = ("patient_id", "name", "birth_date", "sex", "clinic", "identifier_system", "professional",
+                 "weight_kg", "height_m", "observations")
+
+
 def _number(x: Any) -> float | None:
     return None if x is None else float(x)
 
@@ -56,7 +65,7 @@ def build_manifest(session: KneeSession, patient: Patient, recordings: Sequence[
     the ingestion read a file outside the session's own folder."""
     if uploaded is not None and not isinstance(uploaded, dict):
         raise IngestionError("manifest.stored_not_object", file=MANIFEST, kind=type(uploaded).__name__)
-    manifest: dict[str, Any] = dict(uploaded or {})
+    manifest: dict[str, Any] = {k: v for k, v in (uploaded or {}).items() if k not in IDENTITY_KEYS}
     stored = {r.file_name for r in recordings if r.file_name != MANIFEST}
     listed = manifest.get("recordings") or []
     if not isinstance(listed, list):
@@ -253,6 +262,6 @@ def named_facts(recordings: Sequence[Recording]) -> dict[str, dict[str, str]]:
     return {"segments": segments, "roles": roles}
 
 
-__all__ = ["NO_RECORDINGS", "PAIRED_FOLDER", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts",
+__all__ = ["IDENTITY_KEYS", "NO_RECORDINGS", "PAIRED_FOLDER", "build_manifest", "uploaded_manifest", "check_ingestion", "file_facts",
            "materialise", "named_facts",
            "public_message"]

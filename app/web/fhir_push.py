@@ -60,6 +60,7 @@ from sqlalchemy.orm import Session
 from app.settings import Settings, SettingsError
 from app.store import webhooks
 from app.store.analyses import artefact
+from app.store.signed_reports import signed_artefact
 from app.store.database import Database
 from app.store.models import Analysis, KneeSession
 from app.web import audit
@@ -80,9 +81,13 @@ TRAIL_CODES = {"fhir.bad_patient_reference": "fhir.patient_reference_invalid",
 
 def report_inputs(db: Session, store, session: KneeSession, analysis: Analysis) -> dict[str, Any]:
     """The keyword arguments of :func:`app.web.fhir.diagnostic_report` that come from the stored session, its
-    patient and the analysis' ``results.json`` and PDF (in the analysis' language)."""
+    patient and the analysis' ``results.json`` and PDF (in the analysis' language): the signed one stored at the
+    signature or last amendment when the interpretation is signed (:func:`app.store.signed_reports.signed_artefact`),
+    else the job's."""
     results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
-    pdf = store.read(artefact(db, analysis, "report.pdf", analysis.lang).sha256)
+    pdf_row = signed_artefact(db, analysis, "report.pdf", analysis.lang) or artefact(db, analysis, "report.pdf",
+                                                                                      analysis.lang)
+    pdf = store.read(pdf_row.sha256)
     sess = {"id": session.id, "patient_id": session.patient_id, "date": session.date.isoformat(),
             "task": session.task, "step_height_m": session.step_height_m, "professional": session.professional,
             "notes": session.notes, "created_at": session.created_at.isoformat(), "analysis_id": analysis.id,

@@ -369,9 +369,11 @@ function interpretationSection(session, analysis) {
 
   // hidden and display together: the style sheet gives buttons a display that would override [hidden]
   const shown = (el, on) => { el.hidden = !on; el.style.display = on ? "" : "none"; };
+  let current = "";  // the text as the server last answered it: what a signature or an amendment refers to
   const show = (it) => {
     clear(out);
     text.value = it.text || "";
+    current = it.text || "";
     const signed = it.status === "signed";
     status.textContent = signed
       ? t("interp.signed_by", { name: it.signed_by, role: label("role", it.signed_role), when: dateTime(it.signed_at) })
@@ -407,9 +409,10 @@ function interpretationSection(session, analysis) {
   sign.addEventListener("click", async () => {
     if (!text.value.trim()) { clear(out).append(alertBox(t("interp.empty"))); return; }
     if (!window.confirm(t("interp.sign_confirm"))) return;
-    // the text on screen is what is signed: saved first, then signed
+    // the text on screen is what is signed: saved first, then signed naming that text (409, nothing signed, if
+    // someone else saved another text in between)
     if (await act("POST", base, { text: text.value, analysis_id: analysis.id })) {
-      await act("POST", `${base}/sign`, { analysis_id: analysis.id });
+      await act("POST", `${base}/sign`, { text: current, analysis_id: analysis.id });
     }
   });
   amend.addEventListener("click", () => {
@@ -421,7 +424,8 @@ function interpretationSection(session, analysis) {
   });
   amendSave.addEventListener("click", async () => {
     if (!reason.value.trim()) { clear(out).append(alertBox(t("interp.reason_needed"))); reason.focus(); return; }
-    await act("POST", `${base}/amendments`, { text: text.value, reason: reason.value, analysis_id: analysis.id });
+    await act("POST", `${base}/amendments`, { text: text.value, reason: reason.value, expected_text: current,
+      analysis_id: analysis.id });
   });
   act("GET", base);
   return h("section", { class: "card interpretation", id: "interpretation", "aria-labelledby": "h-interp" },

@@ -148,7 +148,9 @@ def test_nothing_unknown_is_printed(anonymous):
 @pytest.mark.parametrize("lang", LANGUAGES)
 def test_signed_and_amended_interpretation_is_printed(identified, lang):
     from reports.html import render_html
-    from reports.labels import signed_line
+    import html as htmllib
+
+    from reports.labels import signature_line, signed_line
     from reports.pdf import render_pdf
 
     it = Interpretation(text="Flexión limitada respecto a la referencia; revisar en 6 semanas.",
@@ -158,14 +160,59 @@ def test_signed_and_amended_interpretation_is_printed(identified, lang):
                                               reason="error de transcripción"),))
     ri = replace(identified, language=lang, interpretation=it)
     text = " ".join(_pages(render_pdf(ri, report_date=REPORT_DATE)))
-    signed = signed_line(lang, "interp.signed", "Dra. Laura Pérez", "clinician", "2026-12-02T09:15:00+00:00")
-    for part in (t("interp.section", lang), it.text, signed, t("interp.amended", lang), "Flexión normal.",
-                 "error de transcripción", "09:15", "10:05"):
+    # the amended text is not printed under "Signed by A" alone: first signed by A; last amended by B (reason)
+    first = signed_line(lang, "interp.first_signed", "Dra. Laura Pérez", "clinician", "2026-12-02T09:15:00+00:00")
+    last = signed_line(lang, "interp.last_amended", "Dra. Laura Pérez", "clinician", "2026-12-02T10:05:00+00:00",
+                       reason="error de transcripción")
+    assert signature_line(lang, it) == f"{first}; {last}"
+    for part in (t("interp.section", lang), it.text, f"{first}; {last}", t("interp.amended", lang),
+                 "Flexión normal.", "error de transcripción", "09:15", "10:05"):
         assert part in text, (lang, part)
+    alone = signed_line(lang, "interp.signed", "Dra. Laura Pérez", "clinician", "2026-12-02T09:15:00+00:00")
+    assert alone not in text
     assert t("signature", lang) not in text  # the hand-signature lines give way to the electronic sign-off
     page = render_html(ri)
-    for part in (it.text, "Flexión normal.", "error de transcripción"):
-        assert part in page
+    for part in (it.text, "Flexión normal.", "error de transcripción", first, last):
+        assert htmllib.escape(part, quote=False) in page or part in page, part
+    # never amended: "Signed by A" as before
+    assert signature_line(lang, replace(it, amendments=())) == alone
+
+
+@pytest.mark.parametrize("lang", ["en", "pt"])
+def test_a_long_clinic_name_is_cut_in_the_header_never_over_the_content(identified, lang):
+    """The identity under the header's rule takes at most two lines at the smallest size (6 pt): a clinic's name
+    that would need more is cut with "…" (read back with poppler: no word of the header below the content's top,
+    :data:`reports.pdf_page.HEADER_BOTTOM_MM`)."""
+    import re
+
+    from reports.pdf import render_pdf
+    from reports.pdf_page import HEADER_BOTTOM_MM
+
+    clinic = "Hospital Universitario " + " ".join(f"Zzclinic{i}" for i in range(60))
+    ri = replace(identified, language=lang, patient=replace(identified.patient, clinic=clinic))
+    pdf = render_pdf(ri, report_date=REPORT_DATE)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "r.pdf"
+        path.write_bytes(pdf)
+        xml = subprocess.run(["pdftotext", "-f", "1", "-l", "1", "-bbox", str(path), "-"], check=True,
+                             capture_output=True, text=True).stdout
+    words = re.findall(r'<word xMin="[\d.]+" yMin="([\d.]+)" xMax="[\d.]+" yMax="([\d.]+)">([^<]*)</word>', xml)
+    # the header's words: the top of the page (the patient table further down prints the whole name)
+    clinic_words = [(float(y1), w) for _, y1, w in words if w.startswith("Zzclinic") and float(y1) < 150.0]
+    assert clinic_words and max(y for y, _ in clinic_words) <= HEADER_BOTTOM_MM * 72 / 25.4, clinic_words[-3:]
+    assert any("…" in w for y, _, w in words if float(y) < 150.0)
+    assert len(clinic_words) < 60  # cut
+
+
+def test_an_excel_header_cut_leaves_no_lone_ampersand():
+    """A cut within Excel's 250 characters never leaves a single ``&`` before "…" (it would start a code)."""
+    from reports.excel import _header_text
+
+    for text in ("&" * 300, "a" + "&" * 300, "x" * 248 + "&&&"):
+        out = _header_text(text)
+        assert len(out) <= 250 and out.endswith("…"), out[-5:]
+        assert "&" not in out.replace("&&", ""), out[-5:]
+        assert out[:-1].replace("&&", "&") == text[:len(out[:-1].replace("&&", "&"))]
 
 
 @pytest.mark.parametrize("lang", LANGUAGES)

@@ -34,8 +34,8 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "again as a UTF-8 (or plain) CSV, or export the recording again.",
         "es": "{file}: el archivo contiene bytes NUL (guardado como 'texto Unicode' UTF-16/UTF-32, o dañado); "
               "guárdelo de nuevo como CSV UTF-8 (o simple), o exporte de nuevo la grabación.",
-        "pt": "{file}: o ficheiro contém bytes NUL (salvo como 'texto Unicode' UTF-16/UTF-32, ou danificado); "
-              "salve-o de novo como CSV UTF-8 (ou simples), ou exporte a gravação de novo."},
+        "pt": "{file}: o ficheiro contém bytes NUL (guardado como 'texto Unicode' UTF-16/UTF-32, ou danificado); "
+              "guarde-o de novo como CSV UTF-8 (ou simples), ou exporte a gravação de novo."},
     "file.not_text": {
         "en": "{file}: not a text CSV file ({reason}); export it again as CSV.",
         "es": "{file}: no es un archivo CSV de texto ({reason}); expórtelo de nuevo como CSV.",
@@ -334,11 +334,11 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "leer archivos .xlsx necesita el paquete 'openpyxl': instale ChakaMo de nuevo (pip install -e .), "
               "o guarde el libro como CSV.",
         "pt": "ler ficheiros .xlsx precisa do pacote 'openpyxl': instale o ChakaMo de novo (pip install -e .), ou "
-              "salve a pasta de trabalho como CSV."},
+              "guarde o livro como CSV."},
     "xlsx.cannot_open": {
         "en": "{file}: cannot be opened as an Excel workbook ({reason}); save it again from Excel as .xlsx.",
         "es": "{file}: no se puede abrir como libro de Excel ({reason}); guárdelo de nuevo desde Excel como .xlsx.",
-        "pt": "{file}: não pode ser aberto como pasta de trabalho do Excel ({reason}); salve-o de novo no Excel "
+        "pt": "{file}: não pode ser aberto como livro do Excel ({reason}); guarde-o de novo no Excel "
               "como .xlsx."},
     "xlsx.no_such_sheet": {
         "en": "{file}: no sheet named '{sheet}'; the sheets are {sheets} — correct \"sheet\" in session.json.",
@@ -620,7 +620,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "manifest.not_utf8": {
         "en": "{file}: not UTF-8 text; save it again as UTF-8 (or remove the file).",
         "es": "{file}: no es texto UTF-8; guárdelo de nuevo como UTF-8 (o elimine el archivo).",
-        "pt": "{file}: não é texto UTF-8; salve-o de novo como UTF-8 (ou remova o ficheiro)."},
+        "pt": "{file}: não é texto UTF-8; guarde-o de novo como UTF-8 (ou remova o ficheiro)."},
     "manifest.invalid_json": {
         "en": "{file}: not valid JSON (line {line}, column {col}: {reason}); fix it or remove the file.",
         "es": "{file}: no es JSON válido (línea {line}, columna {col}: {reason}); corríjalo o elimine el archivo.",
@@ -732,8 +732,8 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "puede ocupar el libro de una grabación; compruebe que es una grabación de esta sesión, o guárdelo "
               "como CSV.",
         "pt": "{file}: a sua parte {member} ocuparia {size_mb} MB ao ser descompactada, mais que os {limit_mb} MB "
-              "que a pasta de trabalho de uma gravação pode ocupar; verifique se é uma gravação desta sessão, ou "
-              "salve-a como CSV."},
+              "que o livro de uma gravação pode ocupar; verifique se é uma gravação desta sessão, ou "
+              "guarde-o como CSV."},
     "zip.too_big": {
         "en": "{file}: its file {member} would take {size_mb} MB once unpacked, more than the {limit_mb} MB a "
               "recording's export may take; check that it is the export of a recording of this session, or export "
@@ -749,12 +749,12 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: el zip contiene {count} archivos (como mucho {limit}); exporte de nuevo la grabación desde "
               "la aplicación.",
         "pt": "{file}: o zip contém {count} ficheiros (no máximo {limit}); exporte a gravação de novo a partir do "
-              "aplicativo."},
+              "aplicação."},
     "xlsx.too_many_parts": {
         "en": "{file}: the workbook holds {count} parts (at most {limit}); save it again from Excel as .xlsx.",
         "es": "{file}: el libro contiene {count} partes (como mucho {limit}); guárdelo de nuevo desde Excel "
               "como .xlsx.",
-        "pt": "{file}: a pasta de trabalho contém {count} partes (no máximo {limit}); salve-a de novo no Excel "
+        "pt": "{file}: o livro contém {count} partes (no máximo {limit}); guarde-o de novo no Excel "
               "como .xlsx."},
     "xlsx.too_many_rows": {
         "en": "{file}: sheet '{sheet}' has more than {limit} rows (more than {minutes} minutes at 100 Hz); "
@@ -868,7 +868,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "Portuguese saved it)",
         "es": "{file}: leído con ';' entre campos y ',' como separador decimal (lo guardó una hoja de cálculo en "
               "español o portugués)",
-        "pt": "{file}: lido com ';' entre campos e ',' como separador decimal (salvo por uma folha de cálculo em "
+        "pt": "{file}: lido com ';' entre campos e ',' como separador decimal (guardado por uma folha de cálculo em "
               "espanhol ou português)"},
     "note.truncated_last_row": {
         "en": "{file}: the last row ({row}) was cut short (an interrupted copy or export) and was dropped",
@@ -994,7 +994,16 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "{file}: magnetómetro en unidades normalizadas (sin escala en µT; intensidad de campo declarada: "
               "{field}); lo calibró el fabricante, así que no se aplica un ajuste de ocho en µT",
         "pt": "{file}: magnetómetro em unidades normalizadas (sem escala em µT; intensidade de campo declarada: "
-              "{field}); o fabricante o calibrou, então não se aplica um ajuste em oito em µT"},
+              "{field}); o fabricante calibrou-o, por isso não se aplica um ajuste em oito em µT"},
+    # the store's refusal of an interpretation written by someone else meanwhile (app.store.interpretations):
+    # here, the catalogue app.store.errors falls back to, until it moves beside the other store.interpretation_*
+    "store.interpretation_changed": {
+        "en": "The interpretation of analysis {analysis_id} was changed by someone else meanwhile; reload it, read "
+              "it and try again.",
+        "es": "Otra persona ha cambiado la interpretación del análisis {analysis_id} mientras tanto; recárguela, "
+              "léala e inténtelo de nuevo.",
+        "pt": "Outra pessoa alterou a interpretação da análise {analysis_id} entretanto; recarregue-a, leia-a e "
+              "tente de novo."},
 }
 
 #: Segment and role words for the "<segment> <role>:" prefix of a session's notes.

@@ -8,7 +8,10 @@ the record number, made safe for a file name, and the day the recordings were ma
 downloaded file says whose it is and when; issue 17 §3); report.html and scene.viser are served inline under the
 same names (the UI opens the first and viser's client plays the second).  report.pdf and report.html exist in every
 language (``?lang=``; default: the job's; an analysis from before the HTML was made per language has one, in its
-job's language).  With a signed interpretation, both are rendered again with it (:mod:`app.store.signed_reports`).
+job's language).  With a signed interpretation, both are the signed files stored at the signature or the last
+amendment (:func:`app.store.signed_reports.signed_artefact`): served as stored, never rendered per request.
+The file name's recordings' date comes from the analysis' small ``patient.json`` (the identity block the job
+printed), not from its results.json.
 report.html carries ``Content-Security-Policy: sandbox allow-scripts; default-src 'none'; …``
 (:data:`app.web.headers.REPORT_HTML_CSP`): it holds text typed by people (patient name, notes), so even if
 escaping failed its scripts could not act as the logged-in user, nor reach the network.  Every download is
@@ -28,9 +31,9 @@ from fastapi import APIRouter, Request
 from fastapi.responses import Response
 
 from app.store.analyses import artefact, find_artefact, pick_analysis
-from app.store.signed_reports import render_signed
+from app.store.signed_reports import PATIENT_JSON, signed_artefact
 from app.web import audit
-from app.web.api.deps import DbDep, Reader, SettingsDep, StoreDep, scoped_session
+from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.web.api.schemas import Lang
 from app.web.records import STATUS_HEADER, analysis_status
 from app.web.headers import REPORT_HTML_CSP
@@ -47,11 +50,20 @@ def _safe(text: str, limit: int = 40) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", ascii_text).strip("._-")[:limit]
 
 
-def download_name(session, analysis, results: dict, name: str, lang: str, superseded: bool) -> str:
-    """``chakamo-<record number>-<recordings' first day, else the session's date>-s<id>-a<id>[-<lang>]-<stem>
-    [-superseded].<ext>`` (module docstring)."""
+def recorded_day(db, store, analysis) -> str:
+    """The recordings' first day the analysis' reports printed (its ``patient.json``; for an analysis stored before
+    that file, its results.json), or ``""``."""
+    small = find_artefact(db, analysis.id, PATIENT_JSON)
+    if small is not None:
+        return str(json.loads(store.read(small.sha256)).get("recorded") or "")
+    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
+    return str(((results.get("session") or {}).get("recorded") or {}).get("first") or "")
+
+
+def download_name(session, analysis, recorded: str, name: str, lang: str, superseded: bool) -> str:
+    """``chakamo-<record number>-<recordings' first day ``recorded``, else the session's date>-s<id>-a<id>[-<lang>]-
+    <stem>[-superseded].<ext>`` (module docstring)."""
     stem, ext = name.rsplit(".", 1)
-    recorded = ((results.get("session") or {}).get("recorded") or {}).get("first") if isinstance(results, dict) else None
     day = str(recorded or session.date.isoformat())[:10]
     ref = _safe(session.patient.external_id or "") or f"patient{session.patient_id}"
     tail = "-superseded" if superseded else ""
@@ -59,7 +71,7 @@ def download_name(session, analysis, results: dict, name: str, lang: str, supers
 
 
 def _send(db, store, principal, request: Request, session_id: int, name: str, analysis_id: int | None,
-          lang: str = "", attachment: bool = True, identifier_system: str | None = None) -> Response:
+          lang: str = "", attachment: bool = True) -> Response:
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, analysis_id)
     if name in ("report.pdf", "report.html") and not lang:
@@ -68,17 +80,14 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
             and lang == analysis.lang and find_artefact(db, analysis.id, name, "") is not None:
         art = artefact(db, analysis, name, "")  # an analysis from before the HTML was made in every language
     else:
-        art = artefact(db, analysis, name, lang)
+        art = signed_artefact(db, analysis, name, lang) or artefact(db, analysis, name, lang)
     status = analysis_status(analysis)
-    results = json.loads(store.read(artefact(db, analysis, "results.json").sha256))
-    filename = download_name(session, analysis, results, name, lang, status == "superseded")
+    filename = download_name(session, analysis, recorded_day(db, store, analysis), name, lang, status == "superseded")
     disposition = "attachment" if attachment else "inline"
     headers = {"Content-Disposition": f'{disposition}; filename="{filename}"', STATUS_HEADER: status}  # no-store, nosniff: app/web/headers.py
     if name == "report.html":  # patient-typed text inside: scripts run, but in an opaque origin (no cookie, no API)
         headers["Content-Security-Policy"] = REPORT_HTML_CSP  # app/web/headers.py: sandboxed, no network
-    data = render_signed(db, store, session, analysis, name, lang, identifier_system)
-    if data is None:
-        data = store.read(art.sha256)
+    data = store.read(art.sha256)
     audit.record(db, request, principal, "download", patient_id=session.patient_id, session_id=session.id)
     return Response(data, media_type=art.media_type, headers=headers)
 
@@ -86,11 +95,10 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
 @router.get("/{session_id}/report.pdf", response_class=Response,
             responses={200: {"content": {"application/pdf": {}}}})
 def report_pdf(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
-               settings: SettingsDep, lang: Lang | None = None, analysis_id: int | None = None):
+               lang: Lang | None = None, analysis_id: int | None = None):
     """The clinical report (default: the language the job was started with), with the clinician's signed
     interpretation when there is one."""
-    return _send(db, store, principal, request, session_id, "report.pdf", analysis_id, lang or "",
-                 identifier_system=settings.patient_identifier_system)
+    return _send(db, store, principal, request, session_id, "report.pdf", analysis_id, lang or "")
 
 
 @router.get("/{session_id}/angles.xlsx", response_class=Response)
@@ -107,11 +115,10 @@ def quaternions_xlsx(session_id: int, principal: Reader, db: DbDep, store: Store
 
 @router.get("/{session_id}/report.html", response_class=Response)
 def report_html(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
-                settings: SettingsDep, lang: Lang | None = None, analysis_id: int | None = None):
+                lang: Lang | None = None, analysis_id: int | None = None):
     """The interactive report (default: the language the job was started with), with the clinician's signed
     interpretation when there is one."""
-    return _send(db, store, principal, request, session_id, "report.html", analysis_id, lang or "", attachment=False,
-                 identifier_system=settings.patient_identifier_system)
+    return _send(db, store, principal, request, session_id, "report.html", analysis_id, lang or "", attachment=False)
 
 
 @router.get("/{session_id}/scene.viser", response_class=Response)

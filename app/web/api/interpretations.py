@@ -5,13 +5,18 @@
   results): ``status`` ``none`` | ``draft`` | ``signed``, the text, who signed it (name, role, time), whether it was
   amended and each amendment (by whom, when, why, the text it replaced);
 * ``POST`` ``{"text"}`` (clinician): save the draft; 409 once signed (locked);
-* ``POST …/sign`` (clinician, a logged-in person: an API token cannot sign): sign the saved text;
-* ``POST …/amendments`` ``{"text", "reason"}`` (clinician, a person): replace the signed text, the reason
-  required, the earlier text kept.
+* ``POST …/sign`` ``{"text"}`` (clinician, a logged-in person: an API token cannot sign): sign the saved text,
+  which must be ``text`` (what the signer read): 409 when someone else saved another text meanwhile;
+* ``POST …/amendments`` ``{"text", "reason", "expected_text"?}`` (clinician, a person): replace the signed text,
+  the reason required, the earlier text kept; 409 when the signed text is no longer ``expected_text``.
+
+A signature and each amendment render the PDF and HTML reports with the interpretation once, in every language,
+and store them with the analysis (:mod:`app.store.signed_reports`); their sha256 goes into the audit event.
 
 Every call is scoped to the caller's clinic (another clinic's session answers 404) and audited: ``view`` for the
-read, ``update`` for a draft, ``sign`` and ``amend``.  The PDF and HTML reports print the signed interpretation
-(:mod:`app.store.signed_reports`).
+read, ``update`` for a draft, ``sign`` and ``amend``.  Who may sign: the ``clinician`` role's dependency, which an
+administrator also passes (an administrator of a clinic is one of its clinicians — the signature then prints their
+role, "administrator", beside their name); a read-only account and an API token may not.
 """
 
 from __future__ import annotations
@@ -21,11 +26,11 @@ import datetime as dt
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.store import interpretations
+from app.store import interpretations, signed_reports
 from app.store.analyses import pick_analysis
 from app.store.interpretations import MAX_TEXT_CHARS
 from app.web import audit
-from app.web.api.deps import Clinician, DbDep, Reader, scoped_session
+from app.web.api.deps import Clinician, DbDep, Reader, SettingsDep, StoreDep, scoped_session
 from app.web.records import ERRORS
 
 router = APIRouter(prefix="/sessions", tags=["interpretation"])
@@ -44,12 +49,16 @@ class InterpretationIn(_In):
 
 
 class SignIn(_In):
+    #: the text the signer read and signs (409 when the saved text is another: saved by someone else meanwhile)
+    text: str = Field(max_length=MAX_TEXT_CHARS)
     analysis_id: int | None = None
 
 
 class AmendmentIn(_In):
     text: str = Field(min_length=1, max_length=MAX_TEXT_CHARS)
     reason: str = Field(min_length=1, max_length=MAX_TEXT_CHARS)
+    #: the signed text the amender read (409 when another amendment replaced it meanwhile)
+    expected_text: str | None = Field(default=None, max_length=MAX_TEXT_CHARS)
     analysis_id: int | None = None
 
 
@@ -105,23 +114,28 @@ def save_interpretation(session_id: int, body: InterpretationIn, principal: Clin
 
 
 @router.post("/{session_id}/interpretation/sign", response_model=InterpretationOut, responses=_ERRORS)
-def sign_interpretation(session_id: int, principal: Clinician, db: DbDep, request: Request,
-                        body: SignIn | None = None):
-    """Sign the saved text as the logged-in user (name, role, time); it is locked from then on."""
+def sign_interpretation(session_id: int, body: SignIn, principal: Clinician, db: DbDep, store: StoreDep,
+                        settings: SettingsDep, request: Request):
+    """Sign the saved text (which must be ``text``) as the logged-in user (name, role, time); it is locked from
+    then on, and the signed reports are rendered and stored."""
     session = scoped_session(db, principal, session_id)
-    analysis = pick_analysis(db, session, body.analysis_id if body else None)
-    row = interpretations.sign(db, session, analysis, principal.user)
+    analysis = pick_analysis(db, session, body.analysis_id)
+    row, stored = signed_reports.sign(db, store, session, analysis, principal.user, body.text,
+                                      settings.patient_identifier_system)
     audit.record(db, request, principal, "sign", patient_id=session.patient_id, session_id=session.id,
-                 detail=f"interpretation of analysis {analysis.id}")
+                 detail=signed_reports.audit_detail(analysis, row, stored))
     return interpretations.as_dict(row, analysis)
 
 
 @router.post("/{session_id}/interpretation/amendments", response_model=InterpretationOut, responses=_ERRORS)
-def amend_interpretation(session_id: int, body: AmendmentIn, principal: Clinician, db: DbDep, request: Request):
-    """Amend the signed text: the new text and the reason; the earlier text is kept in the history."""
+def amend_interpretation(session_id: int, body: AmendmentIn, principal: Clinician, db: DbDep, store: StoreDep,
+                         settings: SettingsDep, request: Request):
+    """Amend the signed text: the new text and the reason; the earlier text is kept in the history, and the
+    amended reports are rendered and stored."""
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, body.analysis_id)
-    row = interpretations.amend(db, session, analysis, principal.user, body.text, body.reason)
+    row, stored = signed_reports.amend(db, store, session, analysis, principal.user, body.text, body.reason,
+                                       body.expected_text, settings.patient_identifier_system)
     audit.record(db, request, principal, "amend", patient_id=session.patient_id, session_id=session.id,
-                 detail=f"interpretation of analysis {analysis.id}")
+                 detail=signed_reports.audit_detail(analysis, row, stored))
     return interpretations.as_dict(row, analysis)

@@ -33,7 +33,7 @@ def test_reports_from_the_stored_files_equal_the_jobs():
     patient = patient_of(outcome.session.manifest_data, record=stored["session"]["patient_id"],
                          date=stored["session"]["date"], side=stored["side"],
                          step_height_m=stored["session"]["step_height_m"],
-                         recorded=(recorded["first"] or "", recorded["last"] or ""))
+                         recorded=(recorded["first"] or "", recorded["last"] or "", recorded["zone"] or ""))
     assert patient == ri.patient
     again = report_input_of_files(stored, npz, patient, ri.language)
     assert np.array_equal(again.t_s, ri.t_s) and np.array_equal(again.angles_deg, ri.angles_deg)

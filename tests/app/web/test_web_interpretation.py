@@ -119,33 +119,53 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     text = "Flexión máxima reducida respecto a la referencia; revisar en 6 semanas."
     r = client.post(f"/api/v1/sessions/{sid}/interpretation", json={"text": text}, headers=token)
     assert r.status_code == 200 and r.json()["status"] == "draft", r.text
+    unsigned_pdf = client.get(f"/api/v1/sessions/{sid}/report.pdf", headers=token).content
     # an API token cannot sign: a signature names a person
-    r = client.post(f"/api/v1/sessions/{sid}/interpretation/sign", headers=token)
+    r = client.post(f"/api/v1/sessions/{sid}/interpretation/sign", json={"text": text}, headers=token)
     assert r.status_code == 400, r.text
 
     # a read-only user cannot sign
     ro = _login(client, "ro@norte.test")
-    assert client.post(f"/api/v1/sessions/{sid}/interpretation/sign", headers=ro).status_code == 403
+    assert client.post(f"/api/v1/sessions/{sid}/interpretation/sign", json={"text": text},
+                       headers=ro).status_code == 403
     client.post("/api/v1/auth/logout", headers=ro)
 
     csrf = _login(client, "laura@norte.test")
+    # the signer names the text they read: another text saved meanwhile (here by the token) is not signed unseen
+    assert client.post(f"/api/v1/sessions/{sid}/interpretation", json={"text": text + " (token)"},
+                       headers=token).status_code == 200
+    r = client.post(f"/api/v1/sessions/{sid}/interpretation/sign", json={"text": text}, headers=csrf)
+    assert r.status_code == 409 and r.headers["X-ChakaMo-Code"] == "store.interpretation_changed", r.text
+    assert client.get(f"/api/v1/sessions/{sid}/interpretation", headers=token).json()["status"] == "draft"
+    assert client.post(f"/api/v1/sessions/{sid}/interpretation/sign", headers=csrf).status_code == 422  # no text
+    assert client.post(f"/api/v1/sessions/{sid}/interpretation", json={"text": text},
+                       headers=csrf).status_code == 200
     before = dt.datetime.now(dt.timezone.utc).replace(microsecond=0)
-    r = client.post(f"/api/v1/sessions/{sid}/interpretation/sign", headers=csrf)
+    r = client.post(f"/api/v1/sessions/{sid}/interpretation/sign", json={"text": text}, headers=csrf)
     assert r.status_code == 200, r.text
     signed = r.json()
     assert signed["status"] == "signed" and signed["signed_by"] == "Dra. Laura Pérez"
     assert signed["signed_role"] == "clinician"
     assert dt.datetime.fromisoformat(signed["signed_at"]) >= before
     # locked: a second signature and a draft save are refused
-    assert client.post(f"/api/v1/sessions/{sid}/interpretation/sign", headers=csrf).status_code == 409
+    assert client.post(f"/api/v1/sessions/{sid}/interpretation/sign", json={"text": text},
+                       headers=csrf).status_code == 409
     assert client.post(f"/api/v1/sessions/{sid}/interpretation", json={"text": "otra"},
                        headers=csrf).status_code == 409
+    # the signed report is rendered once and stored: the same bytes at every download, not the job's file
+    signed_pdf = client.get(f"/api/v1/sessions/{sid}/report.pdf", headers=csrf).content
+    assert signed_pdf != unsigned_pdf
+    assert client.get(f"/api/v1/sessions/{sid}/report.pdf", headers=csrf).content == signed_pdf
+    # an amendment must name the signed text it replaces when it says one: another is refused
+    r = client.post(f"/api/v1/sessions/{sid}/interpretation/amendments",
+                    json={"text": "nuevo", "reason": "r", "expected_text": "otro texto"}, headers=csrf)
+    assert r.status_code == 409, r.text
     # an amendment needs a reason, and keeps the earlier text
     assert client.post(f"/api/v1/sessions/{sid}/interpretation/amendments", json={"text": "nuevo", "reason": ""},
                        headers=csrf).status_code == 422
     new = "Flexión máxima reducida; revisar en 4 semanas."
     r = client.post(f"/api/v1/sessions/{sid}/interpretation/amendments",
-                    json={"text": new, "reason": "plazo corregido"}, headers=csrf)
+                    json={"text": new, "reason": "plazo corregido", "expected_text": text}, headers=csrf)
     assert r.status_code == 200, r.text
     body = r.json()
     assert body["text"] == new and body["amended"] and body["amendments"][0]["previous_text"] == text
@@ -160,6 +180,21 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
             assert part in words, (lang, part)
     r = client.get(f"/api/v1/sessions/{sid}/report.html", params={"lang": "en"}, headers=csrf)
     assert new in r.text and "plazo corregido" in r.text and t("interp.amended", "en") in r.text
+    # the amended text is not printed under the first signer alone: first signed, last amended, with the reason
+    words = " ".join(_pdf_pages(client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"lang": "en"},
+                                           headers=csrf).content))
+    assert "First signed by Dra. Laura Pérez (clinician) on" in words
+    assert "last amended by Dra. Laura Pérez (clinician) on" in words and "UTC (plazo corregido)" in words
+    assert "First signed by" in r.text and "last amended by" in r.text
+    amended_pdf = client.get(f"/api/v1/sessions/{sid}/report.pdf", headers=csrf).content
+    assert amended_pdf != signed_pdf
+    # the FHIR DiagnosticReport carries the signed (amended) PDF, not the job's unsigned one
+    import base64
+
+    doc = client.get(f"/api/v1/fhir/DiagnosticReport/{sid}", headers=token).json()
+    report = doc if doc.get("resourceType") == "DiagnosticReport" else next(
+        e["resource"] for e in doc["entry"] if e["resource"]["resourceType"] == "DiagnosticReport")
+    assert base64.b64decode(report["presentedForm"][0]["data"]) == amended_pdf
 
     # audited: sign and amend, by the user
     events = client.get("/api/v1/audit", params={"session_id": sid}, headers=clinic_token(settings, "Hospital Norte",
@@ -168,6 +203,12 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     actions = [(e["action"], e["actor"]) for e in items]
     assert ("sign", "laura@norte.test") in actions and ("amend", "laura@norte.test") in actions
     assert any(a == "update" for a, _ in actions)
+    # the audit names what was signed: the sha256 of the stored signed PDF (the job's language, es)
+    import hashlib
+
+    details = {e["action"]: e.get("detail", "") for e in items if e["action"] in ("sign", "amend")}
+    assert hashlib.sha256(signed_pdf).hexdigest() in details["sign"], details
+    assert hashlib.sha256(amended_pdf).hexdigest() in details["amend"], details
 
     # a corrected printed fact supersedes the analysis: its interpretation can no longer be signed or amended
     r = client.patch(f"/api/v1/patients/{pid}", json={"sex": "other"}, headers=token)
@@ -178,6 +219,14 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     kept = client.get(f"/api/v1/sessions/{sid}/interpretation", params={"analysis_id": job["analysis_id"]},
                       headers=token).json()
     assert kept["status"] == "signed" and kept["text"] == new  # kept, for the record
+    # and its signed report is the one stored: the identity the job printed (female), never the corrected one
+    r = client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"analysis_id": job["analysis_id"], "lang": "en"},
+                   headers=token)
+    assert r.status_code == 200
+    words = " ".join(_pdf_pages(r.content))
+    assert "Sex: female" in words and "Sex: other" not in words
+    assert client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"analysis_id": job["analysis_id"]},
+                      headers=token).content == amended_pdf
 
     # erasing the session erases the interpretation and its history with it
     admin = clinic_token(settings, "Hospital Norte", role="admin")

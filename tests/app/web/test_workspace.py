@@ -31,3 +31,16 @@ def test_a_good_manifest_keeps_its_keys_and_gains_the_sessions_facts():
 
     out = build_manifest(*_rows(), uploaded={"recordings": [{"files": ["standing-muslo.xlsx"]}], "note": "x"})
     assert out["note"] == "x" and out["side"] == "left" and out["patient_id"] == "W-1" and out["date"] == "2026-12-01"
+
+
+def test_an_uploaded_manifest_never_supplies_the_identity_the_database_lacks():
+    """The database is the only source of who the report is about: a session.json's name, birth date, sex,
+    clinic... are dropped even where the database has none (the patient here has no name, birth date or sex)."""
+    from app.store.workspace import IDENTITY_KEYS, build_manifest
+
+    uploaded = {"recordings": [{"files": ["standing-muslo.xlsx"]}], "name": "Someone Else", "birth_date": "1950-01-01",
+                "sex": "male", "clinic": "Elsewhere", "identifier_system": "urn:x", "professional": "Dr. X",
+                "weight_kg": 90, "height_m": 1.9, "observations": "from the file", "patient_id": "FILE-9"}
+    out = build_manifest(*_rows(), uploaded=uploaded)
+    assert out["patient_id"] == "W-1"  # the database's
+    assert not {k for k in IDENTITY_KEYS if k != "patient_id"} & set(out), out
