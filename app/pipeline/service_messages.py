@@ -113,7 +113,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "El disco del servidor está lleno, así que los archivos no se pudieron guardar y no se registró "
               "ninguno. Pida a su administrador de ChakaMo que libere espacio y súbalos de nuevo.",
         "pt": "O disco do servidor está cheio, por isso os ficheiros não puderam ser guardados e nenhum foi "
-              "registrado. Peça ao seu administrador do ChakaMo que libere espaço e envie-os de novo."},
+              "registado. Peça ao seu administrador do ChakaMo que liberte espaço e envie-os de novo."},
     # ------------------------------------------------------------------------ uploads (app/web/api/recordings.py)
     "request.file_name_unusable": {
         "en": "File name {name} is not usable; rename the file (letters, digits, - _ .).",
@@ -234,6 +234,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "Only a logged-in person can sign or amend an interpretation; an API token cannot. Log in and sign in the browser.",
         "es": "Solo una persona con sesión iniciada puede firmar o enmendar una interpretación; un token de la API no puede. Inicie sesión y firme en el navegador.",
         "pt": "Só uma pessoa com sessão iniciada pode assinar ou emendar uma interpretação; um token da API não pode. Inicie sessão e assine no navegador."},
+    "store.interpretation_changed": {
+        "en": "The interpretation of analysis {analysis_id} was changed by someone else meanwhile; reload it, read "
+              "it and try again.",
+        "es": "Otra persona ha cambiado la interpretación del análisis {analysis_id} mientras tanto; recárguela, "
+              "léala e inténtelo de nuevo.",
+        "pt": "Outra pessoa alterou a interpretação da análise {analysis_id} entretanto; recarregue-a, leia-a e "
+              "tente de novo."},
     "store.interpretation_unchanged": {
         "en": "The amendment's text is the same as the signed text; change the text or leave it as it is.",
         "es": "El texto de la enmienda es igual al texto firmado; cambie el texto o déjelo como está.",

@@ -777,7 +777,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "pueden mostrar las celdas de sus hojas; guarde de nuevo el libro desde Excel como .xlsx, o exporte "
               "la grabación como CSV.",
         "pt": "{file}: os seus textos partilhados ({member}) contêm {count} entradas, mais que as {limit} que as "
-              "células das suas folhas de cálculo podem mostrar; salve a pasta de trabalho de novo no Excel como "
+              "células das suas folhas de cálculo podem mostrar; guarde o livro de novo no Excel como "
               ".xlsx, ou exporte a gravação como CSV."},
     "manifest.too_large": {
         "en": "{file}: {size_kb} kB, more than the {limit_kb} kB a session.json may take; keep only the keys "
@@ -997,13 +997,6 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "{field}); o fabricante calibrou-o, por isso não se aplica um ajuste em oito em µT"},
     # the store's refusal of an interpretation written by someone else meanwhile (app.store.interpretations):
     # here, the catalogue app.store.errors falls back to, until it moves beside the other store.interpretation_*
-    "store.interpretation_changed": {
-        "en": "The interpretation of analysis {analysis_id} was changed by someone else meanwhile; reload it, read "
-              "it and try again.",
-        "es": "Otra persona ha cambiado la interpretación del análisis {analysis_id} mientras tanto; recárguela, "
-              "léala e inténtelo de nuevo.",
-        "pt": "Outra pessoa alterou a interpretação da análise {analysis_id} entretanto; recarregue-a, leia-a e "
-              "tente de novo."},
 }
 
 #: Segment and role words for the "<segment> <role>:" prefix of a session's notes.
