@@ -133,8 +133,9 @@ class PairIn(_In):
     """Pair this one-knee session with another of the patient's, of the other knee (both knees' view and LSI)."""
 
     session_id: int = Field(ge=1)
-    #: the knee this session's recordings measure (the other session's is the other); null: the patient's side
-    knee: Side | None = None
+    #: the knee this session's recordings measure (the other session's is the other): required, never defaulted
+    #: (a default could swap the knees); checked against the side the session's file names say, when they say one
+    knee: Side
 
 
 class ProcessIn(_In):
@@ -331,6 +332,12 @@ class SessionOut(SessionSummaryOut):
     knee: str | None = None
 
 
+class PairOut(SessionOut):
+    #: what the clinician should know about the pairing (sessions of different dates): ``{"code", "params",
+    #: "message": {lang: text}}`` each
+    warnings: list[dict[str, Any]] = []
+
+
 class UploadOut(BaseModel):
     recordings: list[RecordingOut]
     ingestion: IngestionOut
@@ -494,6 +501,13 @@ def ingestion_out(stored: dict[str, Any], confirmed: dict[str, Any] | None = Non
     roles = stored.get("roles") or {}
     recognised = {name: {"segment": seg, "role": roles.get(name)} for name, seg in (stored.get("segments") or {}).items()}
     return ingestion_view(stored) | {"confirmed_split": confirmed, "recognised": recognised}
+
+
+def pair_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis], warnings: list[dict]) -> dict[str, Any]:
+    """:func:`session_out` with the pairing's warnings (``{"code", "params"}``, app.store.pairing) in es/en/pt."""
+    from app.pipeline.service_messages import message_dict
+
+    return {**session_out(s, jobs, analyses), "warnings": [message_dict(w["code"], w["params"]) for w in warnings]}
 
 
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:
