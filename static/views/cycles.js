@@ -2,8 +2,8 @@
 // curve (results.json cycles.per_cycle[].flexion_deg) and numbers, accepted, rejected by the pipeline (with its
 // reason) or excluded by the clinician (who, when, why: cycles.excluded) — and the clinician's choice of cycles.
 //
-// Excluding or including cycles asks for the analysis again (POST /sessions/{id}/process with the analysis' own
-// filter, language, heading, side and involved knee, plus `exclude_cycles`: the whole set, so a cycle left
+// Excluding or including cycles asks for the analysis again (POST /sessions/{id}/process with the analysis' id,
+// `based_on_analysis_id`, whose options the server copies, plus `exclude_cycles`: the whole set, so a cycle left
 // unticked is included again).  The server records who excluded which cycle and why on the new analysis, which
 // supersedes the earlier ones (kept, for the record; the audit log names the request).  The page follows the job
 // (GET /jobs/{id}) and opens the new analysis when it is done.  Cycles the pipeline could not measure
@@ -138,8 +138,9 @@ function kneeBlock(side, k, editable) {
 async function reprocess(session, analysis, job, exclude, button, status) {
   button.disabled = true;
   clear(status).append(h("p", { class: "loading" }, t("cycles.reprocessing")));
-  const body = { filter: analysis.filter, lang: job.lang || lang(), heading: job.heading || "auto",
-    side: job.side || null, involved: job.involved || null, exclude_cycles: exclude };
+  // the server copies the analysis' own options (filter, heading, side, involved knee, calibration, angle
+  // convention) and refuses (409) when it is no longer the session's current analysis
+  const body = { lang: job.lang || lang(), based_on_analysis_id: analysis.id, exclude_cycles: exclude };
   let jobId;
   try {
     jobId = (await api("POST", `/sessions/${session.id}/process`, { json: body })).job_id;

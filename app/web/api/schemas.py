@@ -158,6 +158,10 @@ class ProcessIn(_In):
     #: list too) the new analysis supersedes the session's earlier ones and records who excluded which cycle and why;
     #: null: an ordinary processing, no cycle excluded
     exclude_cycles: list[CycleExclusionIn] | None = Field(default=None, max_length=200)
+    #: required with ``exclude_cycles``: the analysis the cycles were chosen on.  409 unless it is the session's
+    #: current analysis (latest, not superseded, of the current files and pipeline version); its options (filter,
+    #: heading, side, involved knee, calibration, angle convention) are copied and the request's are ignored
+    based_on_analysis_id: int | None = Field(default=None, ge=1)
 
 
 class OptionOut(BaseModel):
