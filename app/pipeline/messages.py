@@ -126,18 +126,25 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
         "es": "análisis de la tarea motora de {files}: {reason}",
         "pt": "análise da tarefa motora de {files}: {reason}"},
     # ------------------------------------------------------------------ cycles the clinician excluded
+    "pipeline.exclude_rejected_cycle": {
+        "en": "cycle {cycle} cannot be excluded: the pipeline already left it out (its reason stands); choose among the "
+              "cycles it measured",
+        "es": "no se puede excluir el ciclo {cycle}: el proceso ya lo dejó fuera (se mantiene su motivo); elija entre "
+              "los ciclos que midió",
+        "pt": "não é possível excluir o ciclo {cycle}: o processamento já o deixou de fora (mantém-se o seu motivo); "
+              "escolha entre os ciclos que mediu"},
     "pipeline.exclude_unknown_cycle": {
         "en": "cycle {cycle} cannot be excluded: {detected} cycles were detected; choose among cycles 1 to {detected}",
         "es": "no se puede excluir el ciclo {cycle}: se detectaron {detected} ciclos; elija entre los ciclos 1 y "
               "{detected}",
-        "pt": "não é possível excluir o ciclo {cycle}: foram detectados {detected} ciclos; escolha entre os ciclos 1 "
+        "pt": "não é possível excluir o ciclo {cycle}: foram detetados {detected} ciclos; escolha entre os ciclos 1 "
               "e {detected}"},
     "pipeline.exclude_every_cycle": {
         "en": "excluding {excluded} cycles leaves none of the {detected} detected in the statistics; keep at least "
               "one cycle",
         "es": "al excluir {excluded} ciclos no queda ninguno de los {detected} detectados en la estadística; "
               "conserve al menos un ciclo",
-        "pt": "ao excluir {excluded} ciclos não resta nenhum dos {detected} detectados na estatística; mantenha pelo "
+        "pt": "ao excluir {excluded} ciclos não resta nenhum dos {detected} detetados na estatística; mantenha pelo "
               "menos um ciclo"},
     "pipeline.exclude_other_knee": {
         "en": "cycle {cycle} is excluded on the {knee} knee, which this session does not hold; name the session's "
