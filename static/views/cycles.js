@@ -182,11 +182,10 @@ export async function followJob(sessionId, jobId, status, text, failed) {
 
 /** The technical notes on reading the files, folded away; `texts` the server's translations (GET .../warnings). */
 export function technicalNotes(r, texts) {
-  const notes = ((r.quality || {}).technical_notes) || [];
+  // the server's classification when it answered (an older results.json kept the notes among the warnings)
+  const notes = Array.isArray(texts) ? texts.filter((x) => x.technical) : (((r.quality || {}).technical_notes) || []);
   if (!notes.length) return null;
-  const translated = (texts || []).filter((x) => x.technical);
-  const items = notes.map((w, i) => h("li", { "data-code": w.code },
-    ((translated[i] || {}).message || {})[lang()] || w.message || w.code));
+  const items = notes.map((w) => h("li", { "data-code": w.code }, ((w.message || {})[lang()]) || w.message || w.code));
   return h("details", { class: "technical-notes", id: "technical-notes" },
     h("summary", {}, t("results.technical_notes", { n: notes.length })),
     h("p", { class: "hint" }, t("results.technical_notes_hint")), h("ul", {}, items));
