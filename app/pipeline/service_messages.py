@@ -320,12 +320,12 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "A sessão {session_id} está sendo processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
     # what the clinician may do once the job has finished ({what} of store.busy)
     "store.then.process": {"en": "process it again", "es": "procésela de nuevo", "pt": "processe-a de novo"},
-    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os arquivos"},
+    "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os ficheiros"},
     "store.then.correct": {"en": "correct it", "es": "corríjala", "pt": "corrija-a"},
     "store.then.pair": {"en": "pair it", "es": "emparéjela", "pt": "emparelhe-a"},
     "store.then.unpair": {"en": "undo the pairing", "es": "deshaga el emparejamiento", "pt": "desfaça o emparelhamento"},
     "store.then.delete": {"en": "delete it", "es": "bórrela", "pt": "apague-a"},
-    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague arquivos"},
+    "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague ficheiros"},
     "store.then.move_cuts": {"en": "move the cuts", "es": "mueva los cortes", "pt": "mova os cortes"},
     "store.then.correct_patient": {"en": "correct the patient", "es": "corrija el paciente",
                                    "pt": "corrija o paciente"},
@@ -408,7 +408,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "you saw (the ETag of its GET) or '*' to confirm.",
         "es": "Esta eliminación borra el registro y todo lo que contiene para siempre; envíe 'If-Match' con la "
               "versión que vio (la ETag de su GET) o '*' para confirmar.",
-        "pt": "Esta exclusão apaga o registro e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
+        "pt": "Esta exclusão apaga o registo e tudo o que ele contém para sempre; envie 'If-Match' com a versão "
               "que viu (a ETag do seu GET) ou '*' para confirmar."},
     "request.if_match_unreadable": {
         "en": "If-Match {value!r} is not a version; send the ETag of the GET, e.g. \"3\".",
@@ -419,7 +419,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "tell your ChakaMo administrator.",
         "es": "La sesión {session_id} no se puede exportar a FHIR ({reason}); corrija el registro y vuelva a "
               "intentarlo, o avise a su administrador de ChakaMo.",
-        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registro e tente de "
+        "pt": "A sessão {session_id} não pode ser exportada para FHIR ({reason}); corrija o registo e tente de "
               "novo, ou avise o seu administrador do ChakaMo."},
     "request.events_other_clinic": {
         "en": "This event stream was opened for another clinic than the one you are now logged in to; open it "

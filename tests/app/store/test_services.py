@@ -96,7 +96,7 @@ def test_enqueue_queues_once_then_refuses_while_busy_and_when_up_to_date(world):
         with pytest.raises(Busy, match="upload the files when") as upload:
             refuse_while_processing(s, ids["session"], "upload")
         for error, es, pt in ((busy.value, "procésela de nuevo cuando", "processe-a de novo quando"),
-                              (upload.value, "suba los archivos cuando", "envie os arquivos quando")):
+                              (upload.value, "suba los archivos cuando", "envie os ficheiros quando")):
             said = message_dict(error.code, error.params)["message"]   # what the API answers, every language
             assert es in said["es"] and pt in said["pt"] and "process it" not in said["es"] + said["pt"]
         done = s.get(Job, job.id)
@@ -136,7 +136,7 @@ def test_enqueue_refuses_files_that_are_not_ready_or_not_checked(world):
         assert stale.value.reason is None and str(stale.value).endswith("No recordings yet; upload the session's files.")
         said = message_dict(stale.value.code, stale.value.params)["message"]
         assert said["es"].endswith("Todavía no hay grabaciones; suba los archivos de la sesión.")
-        assert said["pt"].endswith("Ainda não há gravações; envie os arquivos da sessão.")
+        assert said["pt"].endswith("Ainda não há gravações; envie os ficheiros da sessão.")
         with pytest.raises(NotFound):
             enqueue(s, ids["b"], ids["session"], filter_name="guo", lang="es", checker=checker)
 

@@ -160,7 +160,7 @@ def test_erasing_a_session_needs_admin_and_if_match_and_removes_every_file(world
     assert c.delete(f"/api/v1/sessions/{sid}", headers=world["b_admin"] | {"If-Match": "*"}).status_code == 404
     r = c.delete(f"/api/v1/sessions/{sid}", headers=adm)
     assert r.status_code == 428 and "If-Match" in r.json()["detail"]
-    for lang, words in (("es", "Esta eliminación borra el registro"), ("pt", "Esta exclusão apaga o registro")):
+    for lang, words in (("es", "Esta eliminación borra el registro"), ("pt", "Esta exclusão apaga o registo")):
         r = c.delete(f"/api/v1/sessions/{sid}", headers=adm | {"Accept-Language": lang})
         assert r.status_code == 428 and r.json()["code"] == "request.if_match_required"
         assert r.json()["detail"].startswith(words) and r.json()["message"][lang] == r.json()["detail"]
