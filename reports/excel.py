@@ -47,7 +47,7 @@ from openpyxl.styles import Font
 from openpyxl.utils import get_column_letter
 
 from reports import knees
-from reports.labels import (EXCLUDED, code_label, cycle_and_phase_per_sample, excluded_lines, get_path, identity_line,
+from reports.labels import (EXCLUDED, all_excluded_lines, code_label, cycle_and_phase_per_sample, excluded_lines, get_path, identity_line,
                             phase_names,
                             session_rows, tr)
 from reports.model import ANGLES, ReportInput
@@ -300,6 +300,11 @@ def _knees_sheets(wb: Workbook, ri: ReportInput, lang: str) -> None:
     pct = np.linspace(0.0, 100.0, n) if n > 1 else np.zeros(n)
     for i in range(n):
         _append(ws, [float(pct[i])] + [c[i] if i < len(c) else None for c in cols])
+    excluded = all_excluded_lines(ri.results, lang)  # both knees' (the cycles sheet is the primary knee's)
+    if excluded:
+        _append(ws, [])
+        for line in excluded:
+            _append(ws, [line])
     ws = wb.create_sheet(_sheet_title(tr("lsi.sheet", lang)))
     rows = knees.lsi_rows(ri.results, lang)
     if rows is None:

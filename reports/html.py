@@ -29,7 +29,7 @@ import numpy as np
 
 from reports import i18n, knees
 from reports.figures import reference_keypoints
-from reports.labels import (EXCLUDED, calibration_sentence, code_label, cycle_and_phase_per_sample, excluded_lines,
+from reports.labels import (EXCLUDED, all_excluded_lines, calibration_sentence, code_label, cycle_and_phase_per_sample,
                             get_path, heading_sentence, identity_items, phase_names, phase_spans_pct,
                             reference_sentence, session_rows, signature_line, signed_line, split_rejected, tr)
 from reports.warning_text import warning_text
@@ -307,7 +307,8 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
     summary = tr("html.cycles_summary", lang, detected=cycles.get("detected", i18n.MISSING),
                  accepted=cycles.get("accepted", i18n.MISSING), rejected=len(rejected))
     parts = [f"<p>{_e(summary)}</p>"]
-    items = [_e(line) for line in excluded_lines(cycles, lang)]  # the clinician's exclusions, then the pipeline's
+    # the clinician's exclusions (every knee's), then the pipeline's
+    items = [_e(line) for line in all_excluded_lines(r, lang)]
     for rej in rejected:
         if not isinstance(rej, dict):
             continue

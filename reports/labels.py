@@ -108,6 +108,19 @@ def excluded_lines(cycles: dict[str, Any], lang: str) -> list[str]:
     return out
 
 
+def all_excluded_lines(results: dict[str, Any], lang: str) -> list[str]:
+    """:func:`excluded_lines` of every knee: a two-knee session's (``results["knees"]``) each with its knee first
+    (``warning.knee.<side>``, as the warnings), else the only knee's."""
+    knees = results.get("knees")
+    if not isinstance(knees, dict) or not knees:
+        return excluded_lines(results.get("cycles") or {}, lang)
+    out = []
+    for side in sorted(knees):
+        prefix = (i18n.table().get(f"warning.knee.{side}") or {}).get(lang, f"{side}: ")
+        out += [prefix + line for line in excluded_lines((knees[side] or {}).get("cycles") or {}, lang)]
+    return out
+
+
 def phase_specs(results: dict[str, Any]) -> tuple[tuple[str, str, str], ...]:
     """``(phase, start event, end event)`` of the session's task (:data:`estimators.motor_task.tasks.TASKS`).
 

@@ -51,7 +51,7 @@ from fpdf.enums import XPos, YPos
 
 from reports import bones, figures, fonts, knees
 from reports.i18n import MISSING, fmt_date, fmt_mean_sd, fmt_number, has, t
-from reports.labels import (calibration_sentence, code_label, excluded_lines, filter_label, get_path,
+from reports.labels import (all_excluded_lines, calibration_sentence, code_label, filter_label, get_path,
                             heading_sentence, identity_items, identity_line, phase_names, reference_sentence,
                             signature_line, signed_line, split_rejected, tr)
 from reports.model import ReportInput
@@ -310,7 +310,7 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
         reason = pdf.tr(f"reason_{code}") if code and has(f"reason_{code}") else (code or pdf.tr("reason_unknown"))
         idx = rej.get("index")
         pdf.paragraph("• " + pdf.tr("cycle_rejected", n=MISSING if idx is None else int(idx) + 1, reason=reason))
-    for text in excluded_lines(cyc, pdf.lang):  # the clinician's, apart from the pipeline's
+    for text in all_excluded_lines(r, pdf.lang):  # the clinician's (every knee's), apart from the pipeline's
         pdf.paragraph("• " + user_text(text))
 
     # posture check

@@ -19,12 +19,14 @@ the values it states, by name and unrounded.  Reports print them in Spanish, Eng
   English fallback included; its rejected cycles are then that knee's (``results["knees"][side]``).
 
 Clinical warnings and technical notes (:func:`is_technical`, the one classification every layer uses): a note on
-how the files were read — a stream's tail cut to the common span, clock drift, rows missing, a CSV dialect, a file
-ignored, one recording split into the protocol's parts — describes the recording's handling, not the patient, so
+how the files were read — a stream's tail cut to the common span, clock drift, a CSV dialect, a file ignored, one
+recording split into the protocol's parts (:data:`TECHNICAL_VARIANTS`, listed one by one) — describes the
+recording's handling, not the patient, so
 ``results.json`` keeps it in ``quality.technical_notes`` apart from ``quality.warnings``; the UI shows it folded
 away, the PDF and HTML in a small section of their own, and FHIR's ``conclusion`` never.  The ingestion notes
-that change how the knee was measured (no figure-eight, no supine or no standing recording: another calibration)
-stay clinical warnings.
+that change how the knee was measured (no figure-eight, no supine or no standing recording: another calibration),
+file names that disagree, rows missing and streams without epoch time stamps stay clinical warnings
+(:data:`CLINICAL_VARIANTS`), and so does any variant not listed.
 
 Anything that cannot be translated completely — a code (or variant) without an entry, params missing a
 field or holding ``null`` where a number belongs (``results.json`` has no infinity) — is printed in English
@@ -40,11 +42,26 @@ from typing import Any
 
 from reports import i18n
 
-__all__ = ["TECHNICAL_CODES", "is_technical", "warning_text"]
+__all__ = ["CLINICAL_VARIANTS", "TECHNICAL_CODES", "TECHNICAL_VARIANTS", "is_technical", "warning_text"]
 
-#: warning codes that are technical notes (module docstring), and of those the variants that are clinical
+#: warning codes whose variants may be technical notes (module docstring)
 TECHNICAL_CODES = frozenset({"ingestion_note"})
-_CLINICAL_VARIANTS = frozenset({"no_mag_calibration", "no_lying", "no_standing"})
+#: the ingestion notes on how the files were read (``params["variant"]`` of an ``ingestion_note``): listed one by
+#: one, so that a note nobody classified stays a clinical warning, shown to the clinician (tests/reports check
+#: that every variant the ingestion can write is in exactly one of the two sets)
+TECHNICAL_VARIANTS = frozenset({
+    "stream_cut_after", "stream_cut_before", "clock_drift",  # align: streams cut to their common span, drift
+    "csv_decimal_comma", "csv_semicolon", "csv_ignored",  # a CSV dialect, a file left out
+    "sheet_chosen", "sheet_chosen_of", "file_sheet_chosen", "file_sheet_chosen_of",  # which sheet was read
+    "excel_epoch_local", "excel_epoch_offset", "excel_epoch_rebuilt",  # spreadsheet time stamps
+    "duplicate_rows", "truncated_last_row", "file_unrecognised",  # rows and files repaired or ignored
+    "mag_normalised", "phone_ios_frames",  # units and frames of a phone's or a sensor's export
+    "recording_split",  # one continuous recording split into the protocol's parts
+})
+#: the ingestion notes that are clinical warnings: the knee was measured otherwise (another calibration), the files
+#: disagree about whom or what they record, or the streams' timing is uncertain (rows missing, no epoch)
+CLINICAL_VARIANTS = frozenset({"no_mag_calibration", "no_lying", "no_standing", "recording_split_no_fig8",
+                               "names_disagree", "rows_missing", "no_epoch", None})
 
 
 def is_technical(warning: Mapping[str, Any] | Any) -> bool:
@@ -52,7 +69,7 @@ def is_technical(warning: Mapping[str, Any] | Any) -> bool:
     code = warning.get("code") if isinstance(warning, Mapping) else getattr(warning, "code", None)
     params = warning.get("params") if isinstance(warning, Mapping) else getattr(warning, "params", None)
     variant = params.get("variant") if isinstance(params, Mapping) else None
-    return code in TECHNICAL_CODES and variant not in _CLINICAL_VARIANTS
+    return code in TECHNICAL_CODES and variant in TECHNICAL_VARIANTS
 
 _FIELD = re.compile(r"\{(\w+)(?::([^}]*))?\}")
 

@@ -13,6 +13,15 @@ run asks for them again instead of the defaults.  After the insert a job queued 
 row locks) is detected and refused too (``Busy``: the caller's transaction must be rolled back, which
 leaving the ``Database.session`` block by the exception does).
 
+Cycle exclusions (the clinician's choice of cycles, :mod:`app.pipeline.exclusions`) are tied to the analysis they
+were chosen on: a request that names them must name that analysis (``based_on``), the session's current one (its
+latest, not superseded, of the current files and pipeline version; else :class:`StaleChoice`, 409), and the new
+job takes that analysis' options (filter, heading, side, involved knee, calibration, angle convention) whatever the
+request says; an entry unchanged since that analysis keeps who excluded it and when.  An ordinary processing of a
+session whose current analysis has exclusions carries them over (they still name the same detected cycles: same
+files and pipeline), so that re-running never silently includes a cycle the clinician left out; when the files,
+facts or pipeline changed since, they are not carried over (the cycles may be others) and the job's log says so.
+
 The job row must be committed before the engine hears of it, so a crash between the two loses nothing (the
 engines' sweepers resubmit queued jobs): the caller commits, then calls :func:`hand_over`.
 """
@@ -30,7 +39,7 @@ from app.jobs.work import JobRunner
 from app.pipeline.session import PIPELINE_VERSION
 from app.store.analyses import latest_analysis
 from app.store.checks import IngestionChecker
-from app.store.errors import Conflict
+from app.store.errors import Conflict, Invalid
 from app.store.models import Analysis, Job, KneeSession
 from app.store.sessions import Busy, active_job_id, clinic_session, ingestion_fresh, ready, refuse_while_processing
 
@@ -60,6 +69,25 @@ class UpToDate(Conflict):
         self.analysis_id = analysis_id
 
 
+class StaleChoice(Conflict):
+    """Cycles chosen on an analysis that is not the session's current one (a newer one, files or facts changed)."""
+
+    def __init__(self, analysis_id: int, session_id: int) -> None:
+        super().__init__(code="store.exclusions_stale", analysis_id=analysis_id, session_id=session_id)
+
+
+def _current_choice(db: Session, session: KneeSession) -> tuple[Analysis | None, Job | None]:
+    """The session's latest analysis and its job when that analysis is current (not superseded, of the current
+    files and pipeline version: its cycle numbers still name the same detected cycles), else ``(latest, None)``."""
+    latest = latest_analysis(db, session.id)
+    if latest is None or latest.job_id is None:
+        return latest, None
+    if (latest.superseded_at is not None or latest.files_version != session.files_version
+            or latest.pipeline_version != PIPELINE_VERSION):
+        return latest, None
+    return latest, db.get(Job, latest.job_id)
+
+
 def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: str, *,
                      heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None,
                      calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION) -> int | None:
@@ -86,7 +114,7 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
             checker: IngestionChecker, log_lines: Sequence[str] = (), unless_current: bool = False,
             heading: str = DEFAULT_HEADING, side: str | None = None, involved: str | None = None,
             calibration: str = DEFAULT_CALIBRATION, angle_method: str = DEFAULT_ANGLE_CONVENTION,
-            cycle_exclusions: tuple[list[dict], str] | None = None) -> Job:
+            cycle_exclusions: tuple[list[dict], str] | None = None, based_on: int | None = None) -> Job:
     """Insert (and flush, not commit) a queued job of session ``session_id`` of clinic ``clinic_id`` (module
     docstring for the rules); raises :class:`app.store.errors.NotFound`, :class:`Busy`, :class:`NotReady`
     or (with ``unless_current``) :class:`UpToDate`.  ``db`` may be rolled back on the way (the check).  ``side``:
@@ -94,7 +122,10 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
     ``involved``: the involved knee of a two-knee session (``ProcessOptions.involved``), or None (the patient's);
     ``calibration`` / ``angle_method``: ``ProcessOptions.calibration`` / ``.angle_method``;
     ``cycle_exclusions``: the cycles the clinician excluded (``[{"cycle", "knee", "reason"}]``) and who did, kept
-    on the job with the time (:func:`exclusion_records`), or None."""
+    on the job with the time (:func:`exclusion_records`), or None; ``based_on``: the analysis they were chosen on,
+    required with them (module docstring: :class:`StaleChoice`)."""
+    if cycle_exclusions is not None and based_on is None:
+        raise Invalid(code="store.exclusions_need_base")
     what = "process"
     session = clinic_session(db, clinic_id, session_id)
     refuse_while_processing(db, session.id, what)
@@ -108,10 +139,24 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
                                                     involved=involved, calibration=calibration,
                                                     angle_method=angle_method)) is not None:
         raise UpToDate(done)
+    latest, base = _current_choice(db, session)
+    records, notes = None, []
+    if cycle_exclusions is not None:
+        if latest is None or base is None or latest.id != based_on:
+            raise StaleChoice(based_on, session.id)
+        filter_name, heading, side, involved = base.filter, base.heading, base.side, base.involved
+        calibration, angle_method = base.calibration, base.angle_method
+        records = exclusion_records(*cycle_exclusions, earlier=base.cycle_exclusions)
+    elif base is not None and base.cycle_exclusions:
+        records = [dict(e) for e in base.cycle_exclusions]
+        notes.append(f"cycles excluded on analysis {latest.id} carried over: {_named(records)}")
+    elif latest is not None and latest.job_id is not None and (was := db.get(Job, latest.job_id)).cycle_exclusions:
+        notes.append(f"cycles excluded on analysis {latest.id} ({_named(was.cycle_exclusions)}) not carried over: "
+                     "the files, facts or pipeline changed since; choose them again on the new analysis")
     job = Job(clinic_id=session.clinic_id, session_id=session.id, filter=filter_name, lang=lang, heading=heading, side=side,
-              involved=involved, calibration=calibration, angle_method=angle_method, log=list(log_lines),
+              involved=involved, calibration=calibration, angle_method=angle_method, log=[*log_lines, *notes],
               stage="queued",
-              cycle_exclusions=None if cycle_exclusions is None else exclusion_records(*cycle_exclusions),
+              cycle_exclusions=records,
               pipeline_version=PIPELINE_VERSION)
     db.add(job)
     db.flush()
@@ -121,14 +166,24 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
     return job
 
 
-def exclusion_records(items: Sequence[Mapping], by: str) -> list[dict]:
+def exclusion_records(items: Sequence[Mapping], by: str, earlier: Sequence[Mapping] | None = None) -> list[dict]:
     """``Job.cycle_exclusions``: each cycle ``{"cycle", "knee", "reason"}`` of ``items`` recorded as excluded by ``by``
-    now (:class:`app.pipeline.exclusions.CycleExclusion`; one entry per knee and cycle)."""
+    now (:class:`app.pipeline.exclusions.CycleExclusion`; one entry per knee and cycle); an entry of ``earlier``
+    (the base analysis' job) with the same cycle, knee and reason keeps its own ``by`` and ``at``."""
     from app.pipeline.exclusions import CycleExclusion, normalised, now_iso
 
     at = now_iso()
-    return [e.to_dict() for e in normalised(CycleExclusion(int(x["cycle"]), x.get("knee"), x.get("reason") or "", by, at)
-                                            for x in items)]
+    kept = {(int(e["cycle"]), e.get("knee"), (e.get("reason") or "").strip()): e for e in earlier or ()}
+    out = []
+    for x in items:
+        c = CycleExclusion(int(x["cycle"]), x.get("knee"), x.get("reason") or "", by, at)
+        e = kept.get((c.cycle, c.knee, c.reason))
+        out.append(CycleExclusion(c.cycle, c.knee, c.reason, e["by"], e["at"]) if e else c)
+    return [e.to_dict() for e in normalised(out)]
+
+
+def _named(records: Sequence[Mapping]) -> str:
+    return ", ".join(f"{e['knee'] + ':' if e.get('knee') else ''}{e['cycle']}" for e in records) or "none"
 
 
 def hand_over(runner: JobRunner, job_id: int) -> None:
@@ -139,5 +194,5 @@ def hand_over(runner: JobRunner, job_id: int) -> None:
         log.warning("job %s queued but not handed to the engine now; the sweeper will", job_id, exc_info=True)
 
 
-__all__ = ["CHOICES", "NotReady", "UpToDate", "current_analysis", "enqueue", "exclusion_records", "hand_over",
-           "previous_choices"]
+__all__ = ["CHOICES", "NotReady", "StaleChoice", "UpToDate", "current_analysis", "enqueue", "exclusion_records",
+           "hand_over", "previous_choices"]

@@ -269,11 +269,14 @@ def _identifier_system() -> str | None:
         return None
 
 
-def _public_results(results: dict, session_id: int) -> dict:
-    """results.json without the server's temporary folder in it (in each knee's part too)."""
+def _public_results(results: dict, session_id: int, paired_id: int | None = None) -> dict:
+    """results.json without the server's temporary folder in it (in each knee's part too); a paired session's
+    provenance names its partner (``session.paired_session_id``: the session the other knee's files came from)."""
     for part in [results, *(results.get("knees") or {}).values()]:
         sess = part.get("session", {})
         sess["folder"] = f"session {session_id}"
+        if paired_id is not None:
+            sess["paired_session_id"] = paired_id
         for src in sess.get("recognised", {}).values():
             if isinstance(src, dict) and "files" in src:
                 src["files"] = [Path(f).name for f in src["files"]]
@@ -342,7 +345,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             loaded = load_knees(folder)
             knees = process_knees(loaded, options, web=True,
                                   progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
-        results = _public_results(build_knees_results(knees), session.id)
+        results = _public_results(build_knees_results(knees), session.id, paired[0].id if paired else None)
         files = render_all(knees.primary, results, job.lang, progress, pool, render_timeout_s, knees=knees)
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
@@ -367,8 +370,10 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                     pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
                 analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
                                       for (name, lang), (sha, size) in stored.items()]
-                # a choice of cycles revises the analysis: the earlier ones stay, for the record, superseded
-                revised = supersede(s, [session.id]) if job.cycle_exclusions is not None else 0
+                # a choice of cycles revises the analysis: the earlier ones stay, for the record, superseded; a
+                # paired session's partner reports the same two knees, so its analyses are superseded too
+                revised = supersede(s, [session.id] + ([paired[0].id] if paired else [])) \
+                    if job.cycle_exclusions is not None else 0
                 s.add(analysis)
                 s.flush()
                 row.status, row.stage, row.progress, row.finished_at = "done", "done", 1.0, utcnow()

@@ -126,6 +126,13 @@ PIPELINE_CATALOGUE: dict[str, dict[str, str]] = {
         "es": "análisis de la tarea motora de {files}: {reason}",
         "pt": "análise da tarefa motora de {files}: {reason}"},
     # ------------------------------------------------------------------ cycles the clinician excluded
+    "pipeline.exclude_rejected_cycle": {
+        "en": "cycle {cycle} cannot be excluded: the pipeline already left it out (its reason stands); choose among the "
+              "cycles it measured",
+        "es": "no se puede excluir el ciclo {cycle}: el proceso ya lo dejó fuera (se mantiene su motivo); elija entre "
+              "los ciclos que midió",
+        "pt": "não é possível excluir o ciclo {cycle}: o processamento já o deixou de fora (mantém-se o seu motivo); "
+              "escolha entre os ciclos que mediu"},
     "pipeline.exclude_unknown_cycle": {
         "en": "cycle {cycle} cannot be excluded: {detected} cycles were detected; choose among cycles 1 to {detected}",
         "es": "no se puede excluir el ciclo {cycle}: se detectaron {detected} ciclos; elija entre los ciclos 1 y "

@@ -245,6 +245,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "The amendment's text is the same as the signed text; change the text or leave it as it is.",
         "es": "El texto de la enmienda es igual al texto firmado; cambie el texto o déjelo como está.",
         "pt": "O texto da emenda é igual ao texto assinado; altere o texto ou deixe-o como está."},
+    "store.exclusions_need_base": {
+        "en": "Name the analysis the cycles were chosen on (based_on_analysis_id) with exclude_cycles.",
+        "es": "Indique el análisis sobre el que se eligieron los ciclos (based_on_analysis_id) junto con exclude_cycles.",
+        "pt": "Indique a análise sobre a qual os ciclos foram escolhidos (based_on_analysis_id) juntamente com exclude_cycles."},
+    "store.exclusions_stale": {
+        "en": "The cycles were chosen on analysis {analysis_id}, which is no longer the current analysis of session {session_id} (a newer one, or its files or details changed); open the current analysis and choose the cycles again.",
+        "es": "Los ciclos se eligieron sobre el análisis {analysis_id}, que ya no es el análisis vigente de la sesión {session_id} (hay uno más reciente, o cambiaron sus ficheros o datos); abra el análisis vigente y elija los ciclos de nuevo.",
+        "pt": "Os ciclos foram escolhidos na análise {analysis_id}, que já não é a análise em vigor da sessão {session_id} (há uma mais recente, ou mudaram os seus ficheiros ou dados); abra a análise em vigor e escolha os ciclos de novo."},
     "store.pair_itself": {
         "en": "Session {session_id} cannot be paired with itself; choose the patient's session of the other knee.",
         "es": "La sesión {session_id} no puede emparejarse consigo misma; elija la sesión del paciente de la otra rodilla.",
@@ -257,6 +265,18 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "Session {session_id} already holds both knees (four sensors); pair two sessions of one knee each.",
         "es": "La sesión {session_id} ya contiene ambas rodillas (cuatro sensores); empareje dos sesiones de una rodilla cada una.",
         "pt": "A sessão {session_id} já contém os dois joelhos (quatro sensores); emparelhe duas sessões de um joelho cada."},
+    "store.pair_other_task": {
+        "en": "Sessions {session_id} ({task}) and {other_id} ({other_task}) record different tasks; pair two sessions of the same task.",
+        "es": "Las sesiones {session_id} ({task}) y {other_id} ({other_task}) registran tareas distintas; empareje dos sesiones de la misma tarea.",
+        "pt": "As sessões {session_id} ({task}) e {other_id} ({other_task}) registam tarefas diferentes; emparelhe duas sessões da mesma tarefa."},
+    "store.pair_knee_mismatch": {
+        "en": "Session {session_id} would record the {knee} knee, but its file names say {files}; choose the knee the files record.",
+        "es": "La sesión {session_id} registraría la rodilla {knee}, pero los nombres de sus ficheros dicen {files}; elija la rodilla que registran los ficheros.",
+        "pt": "A sessão {session_id} registaria o joelho {knee}, mas os nomes dos seus ficheiros dizem {files}; escolha o joelho que os ficheiros registam."},
+    "store.pair_other_date": {
+        "en": "Paired although recorded on different dates (session {session_id}: {date}, session {other_id}: {other_date}); the limb symmetry index compares knees measured on different days.",
+        "es": "Emparejadas aunque se registraron en fechas distintas (sesión {session_id}: {date}, sesión {other_id}: {other_date}); el índice de simetría compara rodillas medidas en días distintos.",
+        "pt": "Emparelhadas embora registadas em datas diferentes (sessão {session_id}: {date}, sessão {other_id}: {other_date}); o índice de simetria compara joelhos medidos em dias diferentes."},
     "store.pair_bad_knee": {
         "en": "knee {knee!r} is unknown; use {allowed}.",
         "es": "la rodilla {knee!r} es desconocida; use {allowed}.",
@@ -309,14 +329,14 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "store.then.process": {"en": "process it again", "es": "procésela de nuevo", "pt": "processe-a de novo"},
     "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os ficheiros"},
     "store.then.correct": {"en": "correct it", "es": "corríjala", "pt": "corrija-a"},
+    "store.then.pair": {"en": "pair it", "es": "emparéjela", "pt": "emparelhe-a"},
+    "store.then.unpair": {"en": "undo the pairing", "es": "deshaga el emparejamiento", "pt": "desfaça o emparelhamento"},
     "store.then.delete": {"en": "delete it", "es": "bórrela", "pt": "apague-a"},
     "store.then.delete_files": {"en": "delete files", "es": "borre archivos", "pt": "apague ficheiros"},
     "store.then.move_cuts": {"en": "move the cuts", "es": "mueva los cortes", "pt": "mova os cortes"},
     "store.then.correct_patient": {"en": "correct the patient", "es": "corrija el paciente",
                                    "pt": "corrija o paciente"},
     "store.then.delete_patient": {"en": "delete the patient", "es": "borre el paciente", "pt": "apague o paciente"},
-    "store.then.pair": {"en": "pair it", "es": "emparéjela", "pt": "emparelhe-a"},
-    "store.then.unpair": {"en": "unpair it", "es": "desempareje la sesión", "pt": "desemparelhe a sessão"},
     # {tail} of store.superseded when the superseded analysis can be asked for by id
     "store.superseded_tail": {
         "en": ", or ask for analysis_id={analysis_id} to see the superseded report",

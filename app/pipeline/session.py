@@ -54,7 +54,8 @@ from estimators.diagnosis import diagnose
 from estimators.disturbance import FieldCheck, field_disturbance
 from estimators.heading import DISAGREEMENT_BOUND_RAD, DISTURBED_BOUND_RAD, HeadingChoice, choose_heading
 from estimators.magnetometer import MagCalibration, fit_ellipsoid
-from estimators.motor_task import EVENTS, EXCLUDED, TASKS, TaskAnalysis, UnknownCycleError, analyse_task
+from estimators.motor_task import (EVENTS, EXCLUDED, TASKS, NotCandidateError, TaskAnalysis, UnknownCycleError,
+                                   analyse_task)
 from estimators.orientation import make
 from estimators.quality import QualityWarning
 
@@ -368,7 +369,8 @@ def process_session(session: Session, options: ProcessOptions | None = None, *,
 def _analyse(angles: FloatArray, thigh, options: ProcessOptions, side: str, inputs: dict) -> TaskAnalysis:
     """The task's analysis (:func:`estimators.motor_task.analyse_task`) without the cycles the clinician excluded
     (``options.exclusions`` of this knee: those naming it or no knee; one naming the other knee is refused).
-    Refused too: an exclusion of a cycle that was not detected, or of every cycle the pipeline would keep."""
+    Refused too: an exclusion of a cycle that was not detected, of one the pipeline left out already (incomplete, a
+    turn...), or of every cycle the pipeline would keep."""
     other = [e for e in options.exclusions if e.knee not in (None, side)]
     if other:
         raise PipelineError("pipeline.exclude_other_knee", cycle=other[0].cycle, knee={"code": f"word.{other[0].knee}"})
@@ -377,6 +379,8 @@ def _analyse(angles: FloatArray, thigh, options: ProcessOptions, side: str, inpu
         analysis = analyse_task(angles, thigh.fs_hz, task=options.task, inputs=inputs, exclude=exclude)
     except UnknownCycleError as exc:
         raise PipelineError("pipeline.exclude_unknown_cycle", cycle=exc.index + 1, detected=exc.detected) from None
+    except NotCandidateError as exc:
+        raise PipelineError("pipeline.exclude_rejected_cycle", cycle=exc.index + 1) from None
     except ValueError as exc:
         raise PipelineError("pipeline.task_analysis", files=_files(thigh), reason=str(exc)) from None
     if exclude and analysis.n_accepted == 0 and any(r.code == EXCLUDED for r in analysis.rejected):

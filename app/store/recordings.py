@@ -14,7 +14,8 @@ the eraser, which takes the same lock, never unlinks a file an upload is about t
 Both refuse while a job of the session is queued or running (:class:`app.store.sessions.Busy`), checked
 before and, for SQLite's concurrent writers, again after the change; both bump the session's
 ``files_version`` in the same transaction, which makes its stored ingestion check stale
-(:mod:`app.store.checks`).  Two uploads racing for the same file name: one wins, the other gets
+(:mod:`app.store.checks`), and do the same to a paired session's partner, which reads these files too
+(:func:`app.store.sessions.files_changed`).  Two uploads racing for the same file name: one wins, the other gets
 :class:`Conflict` (the database's unique constraint decides).
 
 The upload labels the ingestion understands are re-exported here for the API (:data:`SEGMENTS`,
@@ -36,7 +37,7 @@ from app.store.analyses import supersede
 from app.store.erasure import reserve_blob
 from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
 from app.store.models import KneeSession, Recording
-from app.store.sessions import clinic_session, refuse_while_processing
+from app.store.sessions import clinic_session, files_changed, refuse_while_processing
 
 #: the roles an upload may declare: the protocol's four, or one recording of the whole protocol (split on reading)
 UPLOAD_ROLES = (*ROLES, CONTINUOUS)
@@ -77,6 +78,7 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
                               segment=segment, role=role, device=sensor_of_file_name(name)))
     db.add_all(rows)
     session.files_version = KneeSession.files_version + 1
+    files_changed(db, session, "upload")  # a paired session reads these files too
     try:
         db.flush()
     except IntegrityError:  # another upload stored the same file name meanwhile
@@ -97,7 +99,7 @@ def delete_recording(db: Session, clinic_id: int, session_id: int, recording_id:
     sha = rec.sha256
     db.delete(rec)
     session.files_version = KneeSession.files_version + 1
-    n_superseded = supersede(db, [session.id])
+    n_superseded = supersede(db, [session.id]) + files_changed(db, session, "delete_files")
     db.flush()
     refuse_while_processing(db, session.id, "delete_files")
     return session, sha, n_superseded
@@ -120,7 +122,7 @@ def set_split(db: Session, clinic_id: int, session_id: int, split: dict | None) 
     refuse_while_processing(db, session.id, "move_cuts")
     session.split = split or None
     session.files_version = KneeSession.files_version + 1
-    n_superseded = supersede(db, [session.id])
+    n_superseded = supersede(db, [session.id]) + files_changed(db, session, "move_cuts")
     db.flush()
     refuse_while_processing(db, session.id, "move_cuts")
     return session, n_superseded

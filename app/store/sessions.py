@@ -16,6 +16,11 @@ also bumps ``files_version`` (the ingestion check is redone, ``chakamo reprocess
 and supersedes the session's analyses.  Erasing a session deletes it with its recordings, jobs, analyses and
 artefacts (the database's cascades) and returns the blobs they named, which the caller marks for erasure
 (:mod:`app.store.erasure`) in the same transaction.
+
+A paired session (:mod:`app.store.pairing`) reads its partner's files and facts too, so every change that makes
+one session's check stale and its analyses superseded does the same to its partner (:func:`files_changed`), and
+refuses while a job of either is active.  Erasing a session unpairs its partner the same way (the partner's id has
+no foreign key and SQLite reuses ids: a pairing left behind would pair it with a new, unrelated session).
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import delete, func, select
+from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
 from app.choices import TASK_NAMES
@@ -207,6 +212,47 @@ PROCESSED_FIELDS = ("date", "task", "step_height_m", "professional", "notes")
 ORDER_FIELDS = ("service_request", "encounter", "accession")
 
 
+def partner_of(db: Session, session: KneeSession) -> KneeSession | None:
+    """The session ``session`` is paired with: one of the same clinic and patient whose pairing points back at
+    ``session``; else None (a pairing broken on one side is no pairing)."""
+    if session.paired_session_id is None:
+        return None
+    other = db.get(KneeSession, session.paired_session_id)
+    if other is None or (other.clinic_id, other.patient_id, other.paired_session_id) != (
+            session.clinic_id, session.patient_id, session.id):
+        return None
+    return other
+
+
+def bump(db: Session, session_ids: list[int], *, files: bool = True) -> int:
+    """Mark ``session_ids`` changed in SQL (``version`` and, with ``files``, ``files_version`` incremented by the
+    database, not from values read earlier) and supersede their analyses; returns how many were superseded."""
+    if not session_ids:
+        return 0
+    values: dict[str, Any] = {"version": KneeSession.version + 1, "updated_at": utcnow()}
+    if files:
+        values["files_version"] = KneeSession.files_version + 1
+    db.execute(update(KneeSession).where(KneeSession.id.in_(session_ids)).values(**values)
+               .execution_options(synchronize_session=False))
+    n = supersede(db, session_ids)
+    for s in db.identity_map.values():  # read again on next access
+        if isinstance(s, KneeSession) and s.id in session_ids:
+            db.expire(s, ["version", "files_version", "updated_at"])
+    return n
+
+
+def files_changed(db: Session, session: KneeSession, what: str) -> int:
+    """``session``'s files or facts changed: its partner's too (module docstring).  Refuses (:class:`Busy`, ``what``
+    as for :func:`refuse_while_processing`) while the partner is being processed; bumps the partner's
+    ``files_version`` and supersedes its analyses; returns how many of the partner's were superseded (the caller
+    bumps ``session`` itself)."""
+    other = partner_of(db, session)
+    if other is None:
+        return 0
+    refuse_while_processing(db, other.id, what)
+    return bump(db, [other.id], files=True)
+
+
 def check_version(kind: str, row_id: int, version: int, expected: int | None) -> None:
     """:class:`PreconditionFailed` when the caller's ``If-Match`` version ``expected`` is not ``version``."""
     if expected is not None and expected != version:
@@ -243,7 +289,7 @@ def correct_session(db: Session, clinic_id: int, session_id: int, values: dict[s
         session.updated_at = utcnow()
         if set(changed) & set(PROCESSED_FIELDS):
             session.files_version = session.files_version + 1  # the manifest changed: the check is redone
-            n_superseded = supersede(db, [session.id])
+            n_superseded = supersede(db, [session.id]) + files_changed(db, session, "correct")
         db.flush()
     return session, changed, n_superseded
 
@@ -256,6 +302,9 @@ def delete_session(db: Session, clinic_id: int, session_id: int,
     check_version("Session", session.id, session.version, expected_version)
     refuse_while_processing(db, session.id, "delete")
     patient_id = session.patient_id
+    other = partner_of(db, session)
+    if other is not None:
+        refuse_while_processing(db, other.id, "delete")
     shas = session_blobs(db, [session.id])
     delete_sessions(db, [session.id])
     return patient_id, shas
@@ -265,6 +314,14 @@ def delete_sessions(db: Session, session_ids: list[int]) -> None:
     """Delete ``session_ids`` and everything under them (the caller has checked them and read their blobs)."""
     if not session_ids:
         return
+    # their partners are unpaired (module docstring): checks redone, analyses superseded
+    partners = list(db.scalars(select(KneeSession.id).where(KneeSession.paired_session_id.in_(session_ids),
+                                                            KneeSession.id.not_in(session_ids))
+                               .order_by(KneeSession.id).with_for_update()))
+    if partners:
+        db.execute(update(KneeSession).where(KneeSession.id.in_(partners))
+                   .values(paired_session_id=None, knee=None).execution_options(synchronize_session=False))
+        bump(db, partners, files=True)
     # jobs first (analyses point at them), then the sessions: the cascades take recordings, analyses, artefacts
     db.execute(delete(Job).where(Job.session_id.in_(session_ids)))
     db.execute(delete(Recording).where(Recording.session_id.in_(session_ids)))
@@ -275,6 +332,6 @@ def delete_sessions(db: Session, session_ids: list[int]) -> None:
     db.expire_all()
 
 
-__all__ = ["ACTIVE", "ORDER_FIELDS", "Page", "list_patient_sessions", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "clinic_job", "clinic_session",
+__all__ = ["ACTIVE", "ORDER_FIELDS", "Page", "list_patient_sessions", "PROCESSED_FIELDS", "check_version", "correct_session", "delete_session", "delete_sessions", "BEING_CHECKED", "Busy", "active_job_id", "add_session", "bump", "files_changed", "partner_of", "clinic_job", "clinic_session",
            "ingestion_fresh", "patient_sessions", "ready", "refuse_while_processing", "session_analyses",
            "session_jobs", "session_status", "stored_ingestion", "summary_facts"]

@@ -125,6 +125,7 @@ ANGLES: tuple[str, ...] = ("flexion", "adduction", "internal_rotation")
 _LAZY = {
     "QualityWarning": "estimators.motor_task.analysis", "RejectedCycle": "estimators.motor_task.analysis",
     "EXCLUDED": "estimators.motor_task.analysis", "UnknownCycleError": "estimators.motor_task.analysis",
+    "NotCandidateError": "estimators.motor_task.analysis",
     "TaskAnalysis": "estimators.motor_task.analysis", "analyse_task": "estimators.motor_task.analysis",
     "normalise_cycles": "estimators.motor_task.analysis", "reject_cycles": "estimators.motor_task.analysis",
     "TASKS": "estimators.motor_task.tasks", "get_task": "estimators.motor_task.tasks",
@@ -155,6 +156,7 @@ __all__ = [
     "TaskInfo",
     "TaskSpec",
     "UnknownCycleError",
+    "NotCandidateError",
     "analyse_task",
     "get_task",
     "normalise_cycles",

@@ -34,6 +34,15 @@ class UnknownCycleError(ValueError):
         self.index, self.detected = index, detected
 
 
+class NotCandidateError(ValueError):
+    """An exclusion names a cycle the pipeline itself left out before any choice (incomplete, a turn...): there is
+    nothing to exclude, and recording the clinician's exclusion beside the pipeline's reason would give it two."""
+
+    def __init__(self, index: int) -> None:
+        super().__init__(f"cycle {index + 1} cannot be excluded: the pipeline already left it out")
+        self.index = index
+
+
 @dataclass(frozen=True)
 class RejectedCycle:
     """A detected cycle left out of the statistics.
@@ -205,17 +214,19 @@ def reject_cycles(curves: FloatArray, candidates: NDArray[np.bool_], p: MotorTas
 
     exclude : 0-based indices of detected cycles the clinician left out.  They leave the candidates first (reason
         :data:`EXCLUDED`, iteration 0), so the RMSE rejection is computed on the cycles the clinician kept: one
-        mechanism, one list of reasons.  An excluded cycle that was no candidate (incomplete, a turn...) keeps the
-        pipeline's reason.  :class:`UnknownCycleError` for an index outside the detected cycles."""
+        mechanism, one list of reasons.  :class:`UnknownCycleError` for an index outside the detected cycles,
+        :class:`NotCandidateError` for a cycle that was no candidate (incomplete, a turn...: the pipeline's reason
+        stands, one reason per cycle)."""
     acc = candidates.copy()
     thr = np.array([np.inf if x is None else x for x in p.rejection_rmse_rad])
     out: list[RejectedCycle] = []
     for i in sorted({int(i) for i in exclude}):
         if not 0 <= i < len(acc):
             raise UnknownCycleError(i, len(acc))
-        if acc[i]:
-            out.append(RejectedCycle(i, EXCLUDED, "excluded by the clinician"))
-            acc[i] = False
+        if not acc[i]:
+            raise NotCandidateError(i)
+        out.append(RejectedCycle(i, EXCLUDED, "excluded by the clinician"))
+        acc[i] = False
     it = 0
     while True:
         idx = np.flatnonzero(acc)

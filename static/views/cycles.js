@@ -2,8 +2,8 @@
 // curve (results.json cycles.per_cycle[].flexion_deg) and numbers, accepted, rejected by the pipeline (with its
 // reason) or excluded by the clinician (who, when, why: cycles.excluded) — and the clinician's choice of cycles.
 //
-// Excluding or including cycles asks for the analysis again (POST /sessions/{id}/process with the analysis' own
-// filter, language, heading, side and involved knee, plus `exclude_cycles`: the whole set, so a cycle left
+// Excluding or including cycles asks for the analysis again (POST /sessions/{id}/process with the analysis' id,
+// `based_on_analysis_id`, whose options the server copies, plus `exclude_cycles`: the whole set, so a cycle left
 // unticked is included again).  The server records who excluded which cycle and why on the new analysis, which
 // supersedes the earlier ones (kept, for the record; the audit log names the request).  The page follows the job
 // (GET /jobs/{id}) and opens the new analysis when it is done.  Cycles the pipeline could not measure
@@ -138,8 +138,9 @@ function kneeBlock(side, k, editable) {
 async function reprocess(session, analysis, job, exclude, button, status) {
   button.disabled = true;
   clear(status).append(h("p", { class: "loading" }, t("cycles.reprocessing")));
-  const body = { filter: analysis.filter, lang: job.lang || lang(), heading: job.heading || "auto",
-    side: job.side || null, involved: job.involved || null, exclude_cycles: exclude };
+  // the server copies the analysis' own options (filter, heading, side, involved knee, calibration, angle
+  // convention) and refuses (409) when it is no longer the session's current analysis
+  const body = { lang: job.lang || lang(), based_on_analysis_id: analysis.id, exclude_cycles: exclude };
   let jobId;
   try {
     jobId = (await api("POST", `/sessions/${session.id}/process`, { json: body })).job_id;
@@ -181,11 +182,10 @@ export async function followJob(sessionId, jobId, status, text, failed) {
 
 /** The technical notes on reading the files, folded away; `texts` the server's translations (GET .../warnings). */
 export function technicalNotes(r, texts) {
-  const notes = ((r.quality || {}).technical_notes) || [];
+  // the server's classification when it answered (an older results.json kept the notes among the warnings)
+  const notes = Array.isArray(texts) ? texts.filter((x) => x.technical) : (((r.quality || {}).technical_notes) || []);
   if (!notes.length) return null;
-  const translated = (texts || []).filter((x) => x.technical);
-  const items = notes.map((w, i) => h("li", { "data-code": w.code },
-    ((translated[i] || {}).message || {})[lang()] || w.message || w.code));
+  const items = notes.map((w) => h("li", { "data-code": w.code }, ((w.message || {})[lang()]) || w.message || w.code));
   return h("details", { class: "technical-notes", id: "technical-notes" },
     h("summary", {}, t("results.technical_notes", { n: notes.length })),
     h("p", { class: "hint" }, t("results.technical_notes_hint")), h("ul", {}, items));

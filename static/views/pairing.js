@@ -34,6 +34,10 @@ function paired(body, status, session, sessions) {
   const other = sessions.find((s) => s.id === session.paired_session_id);
   const otherText = other ? t("compare.option", { id: other.id, date: date(other.date) }) : `#${session.paired_session_id}`;
   body.append(h("p", { id: "pair-state" }, t("pair.state", { other: otherText, knee: t(`pair.knee.${session.knee}`) })));
+  // the pairing's warnings (sessions of different dates), handed over by the request that paired them
+  const warnings = JSON.parse(sessionStorage.getItem("pair-warnings") || "[]");
+  sessionStorage.removeItem("pair-warnings");
+  for (const w of warnings) body.append(h("p", { class: "warning pair-warning" }, w.message[lang()] || w.message.en));
   if (!canEdit()) return;
   const process = h("button", { type: "button", class: "primary", id: "pair-process" }, t("pair.process"));
   const undo = h("button", { type: "button", class: "secondary", id: "pair-undo" }, t("pair.undo"));
@@ -69,14 +73,19 @@ function unpaired(body, status, session, patient, sessions) {
   if (!canEdit()) return;
   const select = h("select", { id: "pair-with", name: "pair_with" }, h("option", { value: "" }, t("pair.choose")),
     candidates.map((s) => h("option", { value: String(s.id) }, t("compare.option", { id: s.id, date: date(s.date) }))));
-  const knee = h("select", { id: "pair-knee", name: "knee" }, ["right", "left"].map((side) =>
-    h("option", { value: side, selected: side === patient.side }, t(`pair.knee.${side}`))));
+  // no default knee: a preselected one, left unchanged by mistake, would swap the knees (the server checks the
+  // choice against the side the file names say, when they say one)
+  const knee = h("select", { id: "pair-knee", name: "knee" }, h("option", { value: "" }, t("pair.choose_knee")),
+    ["right", "left"].map((side) => h("option", { value: side }, t(`pair.knee.${side}`))));
   const button = h("button", { type: "button", class: "primary", id: "pair-button", disabled: true }, t("pair.pair"));
-  select.addEventListener("change", () => { button.disabled = !select.value; });
+  const enable = () => { button.disabled = !select.value || !knee.value; };
+  select.addEventListener("change", enable);
+  knee.addEventListener("change", enable);
   button.addEventListener("click", async () => {
     button.disabled = true;
     try {
-      await api("POST", `/sessions/${session.id}/pair`, { json: { session_id: Number(select.value), knee: knee.value } });
+      const paired = await api("POST", `/sessions/${session.id}/pair`, { json: { session_id: Number(select.value), knee: knee.value } });
+      if (paired.warnings && paired.warnings.length) sessionStorage.setItem("pair-warnings", JSON.stringify(paired.warnings));
       navigate(`#/sessions/${session.id}`);
     } catch (err) {
       clear(status).append(alertBox(errorText(err)));

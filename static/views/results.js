@@ -279,9 +279,12 @@ function referenceSection(ref) {
 }
 
 function qualitySection(r, translated) {
-  const warnings = ((r.quality || {}).warnings) || [];
-  const clinical = Array.isArray(translated) ? translated.filter((x) => !x.technical) : [];   // notes: technicalNotes
-  const texts = clinical.length === warnings.length ? clinical : [];
+  // the server's list when it answered: it sorts clinical warnings from technical notes by one rule (reports.
+  // warning_text.is_technical), also in a results.json written before the two lists were kept apart, whose
+  // quality.warnings still holds the notes (matching the two lists by position fell back to English there)
+  const served = Array.isArray(translated);
+  const warnings = served ? translated.filter((x) => !x.technical) : (((r.quality || {}).warnings) || []);
+  const texts = served ? warnings : [];
   // the pipeline's rejections; the clinician's exclusions are in the cycles card (cycles.js)
   const rejected = (((r.cycles || {}).rejected) || []).filter((c) => c.reason !== "excluded_by_clinician");
   const items = [

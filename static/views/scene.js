@@ -28,18 +28,28 @@ function timeField(frame) {
   }
 }
 
-/** Seek the client in `frame` to `seconds` and play from there. */
+const PLAYING_CHECK_MS = 600;                        // time for a playing client to move its time field on
+const READY_TIMEOUT_MS = 120000;                     // no playback bar by then: the scene did not load
+
+/** Seek the client in `frame` to `seconds` and play from there.  Its one button toggles play and pause, and
+ * whether the seek paused it depends on its state, so the state is read, not assumed: if the time field has not
+ * moved on shortly after pressing play, the client is paused and the button is pressed once more. */
 function seek(frame, seconds) {
   const input = timeField(frame);
   if (!input) return false;
   const setter = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, "value").set;
   input.focus();
   setter.call(input, seconds.toFixed(2));
-  input.dispatchEvent(new Event("input", { bubbles: true }));   // the client seeks, and pauses there
+  input.dispatchEvent(new Event("input", { bubbles: true }));   // the client seeks there
   input.blur();
   const bar = input.closest(".mantine-Paper-root");
   const play = bar ? bar.querySelector("button") : null;        // its first button: play / pause
-  if (play) play.click();
+  if (!play) return true;
+  play.click();
+  setTimeout(() => {
+    const now = timeField(frame);
+    if (now && Number(now.value) === Number(seconds.toFixed(2))) play.click();   // still paused: press again
+  }, PLAYING_CHECK_MS);
   return true;
 }
 
@@ -62,7 +72,9 @@ export function sceneSection(sessionId, analysisId, r) {
     if (jump.value !== "") seek(frame, Number(jump.value));
   });
   const box = h("div", { class: "scene-box" }, frame, loading);
-  // "loading" until the recording plays (its playback bar exists); then the jump control works
+  // "loading" until the recording plays (its playback bar exists); then the jump control works.  The poll stops
+  // then, when the page is left, or after READY_TIMEOUT_MS with an error in the box (scene.viser did not load)
+  const started = Date.now();
   const ready = setInterval(() => {
     if (!frame.isConnected) { clearInterval(ready); return; }
     if (timeField(frame)) {
@@ -70,6 +82,11 @@ export function sceneSection(sessionId, analysisId, r) {
       loading.remove();
       jump.disabled = false;
       box.dataset.ready = "true";
+    } else if (Date.now() - started > READY_TIMEOUT_MS) {
+      clearInterval(ready);
+      loading.textContent = t("scene.failed");
+      loading.classList.add("error");
+      box.dataset.ready = "failed";
     }
   }, 100);
   return h("section", { class: "card scene", "aria-labelledby": "h-scene" },

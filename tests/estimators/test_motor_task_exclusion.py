@@ -15,7 +15,8 @@ from test_gait_task import _analyse as _analyse_gait
 from test_gait_task import _leg
 from test_motor_task import FS_HZ, _noise_drift, _step_up
 
-from estimators.motor_task import EXCLUDED, MotorTaskParams, UnknownCycleError, analyse_task, reject_cycles
+from estimators.motor_task import (EXCLUDED, MotorTaskParams, NotCandidateError, UnknownCycleError, analyse_task,
+                                   reject_cycles)
 
 DEG = np.pi / 180.0
 
@@ -62,10 +63,11 @@ def test_the_rmse_rejection_runs_on_the_cycles_the_clinician_kept():
     acc, rej, _ = reject_cycles(curves, np.ones(8, bool), MotorTaskParams(), exclude=[6])
     assert [(r.index, r.code, r.iteration) for r in rej] == [(6, EXCLUDED, 0), (7, "rmse", 1)]
     assert rej[1].rmse_rad[0] == pytest.approx((12 - 12 / 7) * DEG)
-    # a cycle that was no candidate keeps the pipeline's reason: nothing to exclude
+    # a cycle that was no candidate keeps the pipeline's reason: excluding it is refused (one reason per cycle)
     candidates = np.array([True] * 7 + [False])
-    acc, rej, _ = reject_cycles(curves[:, :, :], candidates, MotorTaskParams(), exclude=[7])
-    assert not any(r.code == EXCLUDED for r in rej) and not acc[7]
+    with pytest.raises(NotCandidateError) as err:
+        reject_cycles(curves[:, :, :], candidates, MotorTaskParams(), exclude=[7])
+    assert err.value.index == 7
 
 
 def test_a_stride_is_excluded_from_the_gait_parameters():

@@ -223,3 +223,29 @@ def test_every_warning_text_is_well_formed():
         for _name, spec in specs["en"]:
             if spec:
                 format(1.5 if not spec.endswith("d") else 1, spec)    # a valid number format
+
+
+def test_every_ingestion_note_variant_is_classified_on_purpose():
+    """Each note the ingestion can write (its catalogue's ``note.*`` entries and the variants written as literals,
+    e.g. align's stream cuts) is in exactly one of is_technical's two lists: a new variant fails here until someone
+    decides whether the clinician must see it among the warnings.  An unlisted variant is a clinical warning."""
+    import re
+    from pathlib import Path
+
+    from app.pipeline.ingestion.messages import CATALOGUE
+    from reports.warning_text import CLINICAL_VARIANTS, TECHNICAL_VARIANTS, is_technical
+
+    root = Path(__file__).resolve().parents[2] / "app" / "pipeline"
+    variants = {code.removeprefix("note.") for code in CATALOGUE if code.startswith("note.")}
+    for path in root.rglob("*.py"):
+        variants |= set(re.findall(r'"variant":\s*"(\w+)"', path.read_text(encoding="utf-8")))
+    variants -= {"task", "kept"}  # the pipeline's own calibration/heading params, not ingestion notes
+    assert {"stream_cut_after", "stream_cut_before", "clock_drift", "rows_missing", "no_epoch"} <= variants
+    assert not TECHNICAL_VARIANTS & CLINICAL_VARIANTS
+    assert variants - TECHNICAL_VARIANTS - CLINICAL_VARIANTS == set()
+    for v in variants:
+        assert is_technical({"code": "ingestion_note", "params": {"variant": v}}) == (v in TECHNICAL_VARIANTS)
+    assert not is_technical({"code": "ingestion_note", "params": {"variant": "a_new_one"}})
+    assert not is_technical({"code": "ingestion_note", "params": {"file": "x.csv", "ambiguous": "left right"}})
+    for v in ("names_disagree", "rows_missing", "no_epoch"):
+        assert not is_technical({"code": "ingestion_note", "params": {"variant": v}})

@@ -41,7 +41,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
             job = enqueue(db, principal.clinic_id, session_id, filter_name=name, lang=body.lang, checker=checker,
                           heading=body.heading, side=body.side, involved=body.involved,
                           calibration=body.calibration, angle_method=body.angle_convention,
-                          cycle_exclusions=_exclusions(body, principal))
+                          cycle_exclusions=_exclusions(body, principal), based_on=body.based_on_analysis_id)
         except Busy:  # busy with the job a concurrent request with this key just committed?
             db.rollback()
             replay = idempotency.replayed(db, principal.clinic_id, key, fingerprint) if key else None
@@ -58,7 +58,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
         return answer({"job_id": job.id}, replay.status, f"/api/v1/jobs/{job.id}", replayed=True)
     session = scoped_session(db, principal, session_id)  # the row enqueue loaded (no new query)
     audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id,
-                 detail=_exclusions_detail(job.cycle_exclusions))
+                 detail=_exclusions_detail(job))
     db.commit()  # committed before the runner can look for it
     hand_over(runner, job.id)
     return answer({"job_id": job.id}, 202, f"/api/v1/jobs/{job.id}")
@@ -72,12 +72,15 @@ def _exclusions(body: ProcessIn, principal) -> tuple[list[dict], str] | None:
     return [x.model_dump() for x in body.exclude_cycles], by
 
 
-def _exclusions_detail(exclusions: list[dict] | None) -> str:
-    """The audit event's detail of a processing that changes which cycles count."""
-    if exclusions is None:
+def _exclusions_detail(job) -> str:
+    """The audit event's short detail of a processing that changes which cycles count (the reasons are the job's:
+    ``GET /jobs/{id}`` ``cycle_exclusions``)."""
+    if job.cycle_exclusions is None:
         return ""
-    named = ", ".join(f"{e['knee'] + ':' if e['knee'] else ''}{e['cycle']} ({e['reason'] or '-'})" for e in exclusions)
-    return f"cycles excluded: {named or 'none (all included again)'}; earlier analyses superseded when it is done"
+    named = ", ".join(f"{e['knee'] + ':' if e['knee'] else ''}{e['cycle']}" for e in job.cycle_exclusions)
+    if len(named) > 120:
+        named = f"{len(job.cycle_exclusions)} cycles"
+    return f"job {job.id}: cycles excluded: {named or 'none (all included again)'}; reasons on the job"
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut)

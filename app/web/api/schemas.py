@@ -133,8 +133,9 @@ class PairIn(_In):
     """Pair this one-knee session with another of the patient's, of the other knee (both knees' view and LSI)."""
 
     session_id: int = Field(ge=1)
-    #: the knee this session's recordings measure (the other session's is the other); null: the patient's side
-    knee: Side | None = None
+    #: the knee this session's recordings measure (the other session's is the other): required, never defaulted
+    #: (a default could swap the knees); checked against the side the session's file names say, when they say one
+    knee: Side
 
 
 class ProcessIn(_In):
@@ -157,6 +158,10 @@ class ProcessIn(_In):
     #: list too) the new analysis supersedes the session's earlier ones and records who excluded which cycle and why;
     #: null: an ordinary processing, no cycle excluded
     exclude_cycles: list[CycleExclusionIn] | None = Field(default=None, max_length=200)
+    #: required with ``exclude_cycles``: the analysis the cycles were chosen on.  409 unless it is the session's
+    #: current analysis (latest, not superseded, of the current files and pipeline version); its options (filter,
+    #: heading, side, involved knee, calibration, angle convention) are copied and the request's are ignored
+    based_on_analysis_id: int | None = Field(default=None, ge=1)
 
 
 class OptionOut(BaseModel):
@@ -338,6 +343,12 @@ class SessionOut(SessionSummaryOut):
     knee: str | None = None
 
 
+class PairOut(SessionOut):
+    #: what the clinician should know about the pairing (sessions of different dates): ``{"code", "params",
+    #: "message": {lang: text}}`` each
+    warnings: list[dict[str, Any]] = []
+
+
 class UploadOut(BaseModel):
     recordings: list[RecordingOut]
     ingestion: IngestionOut
@@ -511,6 +522,13 @@ def ingestion_out(stored: dict[str, Any], confirmed: dict[str, Any] | None = Non
     roles = stored.get("roles") or {}
     recognised = {name: {"segment": seg, "role": roles.get(name)} for name, seg in (stored.get("segments") or {}).items()}
     return ingestion_view(stored) | {"confirmed_split": confirmed, "recognised": recognised}
+
+
+def pair_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis], warnings: list[dict]) -> dict[str, Any]:
+    """:func:`session_out` with the pairing's warnings (``{"code", "params"}``, app.store.pairing) in es/en/pt."""
+    from app.pipeline.service_messages import message_dict
+
+    return {**session_out(s, jobs, analyses), "warnings": [message_dict(w["code"], w["params"]) for w in warnings]}
 
 
 def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> dict[str, Any]:

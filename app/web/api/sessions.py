@@ -23,7 +23,7 @@ from app.store.sessions import correct_session, delete_session, session_analyses
 from app.web import audit
 from app.web.api.deps import Admin, CheckerDep, Clinician, DbDep, Reader, scoped_session
 from app.web.records import DELETE_ERRORS, ERRORS, erase_now, etag, if_match
-from app.web.api.schemas import PairIn, SessionOut, SessionPatch, session_out
+from app.web.api.schemas import PairIn, PairOut, SessionOut, SessionPatch, pair_out, session_out
 
 router = APIRouter(prefix="/sessions", tags=["sessions"])
 
@@ -52,28 +52,38 @@ def correct(session_id: int, body: SessionPatch, principal: Clinician, db: DbDep
     return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
 
 
-@router.post("/{session_id}/pair", response_model=SessionOut, responses=ERRORS)
+@router.post("/{session_id}/pair", response_model=PairOut, responses=ERRORS)
 def pair_sessions(session_id: int, body: PairIn, principal: Clinician, db: DbDep, request: Request,
                   response: Response):
-    """Pair this one-knee session with ``session_id`` of the body, another of the patient's of the other knee
-    (:mod:`app.store.pairing`): processing either then gives both knees overlaid and the limb symmetry index.  Both
-    sessions' analyses are superseded (process again); 409 for another patient's session, the session itself, one
-    that holds both knees already, or while a job of either is queued or running.  Audited (``update``) on both."""
-    session, other, _ = pair(db, principal.clinic_id, session_id, body.session_id, body.knee)
+    """Pair this one-knee session (its knee ``knee``, required) with ``session_id`` of the body, another of the
+    patient's of the other knee and the same task (:mod:`app.store.pairing`): processing either then gives both
+    knees overlaid and the limb symmetry index.  Both sessions' analyses are superseded (process again), and a
+    former partner of either is unpaired; 409 for another patient's or task's session, the session itself, one that
+    holds both knees already, a knee its file names contradict, or while a job of any of them is queued or running.
+    Sessions of different dates are paired with a warning (``warnings``).  Audited (``update``) on every session
+    changed."""
+    session, other, previous, warnings = pair(db, principal.clinic_id, session_id, body.session_id, body.knee)
     for s in (session, other):
         audit.record(db, request, principal, "update", patient_id=s.patient_id, session_id=s.id,
                      detail=f"paired with session {s.paired_session_id}, {s.knee} knee")
+    for s in previous:
+        audit.record(db, request, principal, "update", patient_id=s.patient_id, session_id=s.id,
+                     detail=f"pairing undone (sessions {session.id} and {other.id} paired instead)")
     response.headers["ETag"] = etag(session.version)
-    return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
+    return pair_out(session, session_jobs(db, session.id), session_analyses(db, session.id), warnings)
 
 
 @router.delete("/{session_id}/pair", response_model=SessionOut, responses=ERRORS)
 def unpair_sessions(session_id: int, principal: Clinician, db: DbDep, request: Request, response: Response):
-    """Undo the pairing (both sessions one knee each again; their analyses superseded).  Audited (``update``)."""
+    """Undo the pairing (both sessions one knee each again; their analyses superseded).  Audited (``update``) on
+    both sessions."""
     session, other, n = unpair(db, principal.clinic_id, session_id)
     if other is not None or n:
         audit.record(db, request, principal, "update", patient_id=session.patient_id, session_id=session.id,
                      detail="pairing undone" + (f" (was session {other.id})" if other is not None else ""))
+    if other is not None:
+        audit.record(db, request, principal, "update", patient_id=other.patient_id, session_id=other.id,
+                     detail=f"pairing undone (was session {session.id})")
     response.headers["ETag"] = etag(session.version)
     return session_out(session, session_jobs(db, session.id), session_analyses(db, session.id))
 

@@ -294,3 +294,26 @@ def test_comparing_with_something_else_is_refused_and_a_method_change_is_said(cl
     c = comparison(other, r)
     assert not c["comparable"] and c["mismatch"] == ["filter"]
     assert all(row["change"] == 0.0 for row in c["rows"] if row["change"] is not None)
+
+
+def test_the_reports_show_the_other_knees_exclusions(walk, tmp_path):
+    """A cycle of the uninvolved (right) knee excluded: the PDF, the HTML and the workbook name it with its knee
+    (they printed only the involved knee's exclusions)."""
+    import subprocess
+
+    import openpyxl
+
+    out = tmp_path / "out"
+    assert main(["process", str(walk[0]), "--out", str(out), "--task", "gait", "--lang", "es",
+                 "--exclude-cycles", "right:3", "--exclude-reason", "tropezó"]) == 0
+    r = json.loads((out / "results.json").read_text())
+    assert [e["cycle"] for e in r["knees"]["right"]["cycles"]["excluded"]] == [3]
+    assert r["cycles"]["excluded"] == []  # the top level is the involved (left) knee
+    line = "Rodilla derecha: Ciclo 3 excluido por el clínico"
+    text = subprocess.run(["pdftotext", "-layout", str(out / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert line in " ".join(text.split()) and "tropezó" in text
+    assert line in (out / "report.html").read_text()
+    wb = openpyxl.load_workbook(out / "angles.xlsx", read_only=True)
+    cells = [c for ws in wb.worksheets for row in ws.iter_rows(values_only=True) for c in row if isinstance(c, str)]
+    assert any(c.startswith(line) for c in cells)

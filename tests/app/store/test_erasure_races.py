@@ -78,7 +78,7 @@ def test_a_job_whose_artefact_equals_content_being_erased_keeps_its_file(env, mo
     monkeypatch.setattr(knees, "process_knees", lambda loaded, options, progress, web=False: types.SimpleNamespace(primary=None))
     monkeypatch.setattr(results, "build_knees_results", lambda outcome: {"cycles": {"accepted": 3},
                                                                           "quality": {"warnings": []}})
-    monkeypatch.setattr(work, "_public_results", lambda res, sid: res)
+    monkeypatch.setattr(work, "_public_results", lambda res, sid, paired_id=None: res)
     monkeypatch.setattr(work, "render_all", lambda *a, **k: {("quaternions.xlsx", None): DATA})
     owned = work._owned
 

@@ -132,8 +132,11 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
             "x-analysis-status"] == "superseded"
         events = context.request.get(f"{api}/audit", params={"limit": 50}).json()
         items = events["items"] if isinstance(events, dict) else events
-        assert any(e["action"] == "process" and "cycles excluded: 2 (tropezó al subir)" in (e["detail"] or "")
+        job = next(j for j in session["jobs"] if j["analysis_id"] == second)
+        # the audit names the job and the cycles; the reasons are the job's (an audit detail is short)
+        assert any(e["action"] == "process" and f"job {job['id']}: cycles excluded: 2;" in (e["detail"] or "")
                    for e in items), items
+        assert [(e["cycle"], e["reason"]) for e in job["cycle_exclusions"]] == [(2, "tropezó al subir")]
 
         # the old analysis: its cycles cannot be chosen any more
         page.goto(f"{server}/#/sessions/{sid}?analysis_id={first}")

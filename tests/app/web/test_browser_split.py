@@ -130,14 +130,18 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
         expect(row).to_contain_text(f"{dragged:.1f}".replace(".", ","))
         results = context.request.get(f"{server}/api/v1/sessions/{sid}/results").json()
         assert results["session"]["split"]["thigh"]["spans_s"]["standing"] == moved
-        warnings = context.request.get(f"{server}/api/v1/sessions/{sid}/warnings").json()
+        served = context.request.get(f"{server}/api/v1/sessions/{sid}/warnings").json()
+        assert any(w["technical"] for w in served), "a continuous session has at least its split notes"
+        warnings = [w for w in served if not w["technical"]]  # the split notes are technical: folded away apart
         assert [w["code"] for w in warnings] == [w["code"] for w in results["quality"]["warnings"]]
-        assert warnings, "a continuous session has at least its split notes"
+        assert [w["code"] for w in served if w["technical"]] == [w["code"] for w in results["quality"]["technical_notes"]]
         shown = page.locator("#warnings li.warning[data-code]")
         expect(shown).to_have_count(len(warnings))
         texts = shown.all_inner_texts()
         assert texts == [w["message"]["es"] for w in warnings]
-        assert any(w["message"]["es"] != w["message"]["en"] for w in warnings)
+        notes = page.locator("#technical-notes li[data-code]")
+        assert notes.all_text_contents() == [w["message"]["es"] for w in served if w["technical"]]  # folded: text
+        assert any(w["message"]["es"] != w["message"]["en"] for w in served)
         assert not any("one continuous recording" in t for t in texts), texts
         assert errors == []
     except Exception:

@@ -67,6 +67,14 @@ def test_two_one_knee_sessions_paired_give_both_knees_and_the_lsi(client, settin
     assert _lsi(from_left, "swing_peak_flexion") == pytest.approx(80.0, abs=4.0)
     assert _lsi(from_left, "swing_peak_flexion") == pytest.approx(10_000.0 / _lsi(both, "swing_peak_flexion"))
 
+    assert from_left["session"]["paired_session_id"] == right  # provenance: where the other knee's files came from
+
+    # a choice of cycles on one side changes what both sessions' reports would say: the partner's is superseded too
+    current = client.get(f"/api/v1/sessions/{left}", headers=h).json()["analyses"][0]["id"]
+    assert client.get(f"/api/v1/sessions/{right}/results", headers=h).status_code == 200
+    _process(client, h, left, based_on_analysis_id=current, exclude_cycles=[{"cycle": 2, "knee": "left"}])
+    assert client.get(f"/api/v1/sessions/{right}/results", headers=h).status_code == 409
+
     admin = clinic_token(settings, "Pairs", role="admin")
     events = client.get("/api/v1/audit", params={"limit": 50}, headers=admin).json()
     assert {(e["session_id"], e["detail"]) for e in events if e["action"] == "update"} >= {
@@ -74,6 +82,9 @@ def test_two_one_knee_sessions_paired_give_both_knees_and_the_lsi(client, settin
 
     r = client.delete(f"/api/v1/sessions/{left}/pair", headers=h)
     assert r.status_code == 200 and r.json()["paired_session_id"] is None and r.json()["knee"] is None
+    events = client.get("/api/v1/audit", params={"limit": 50}, headers=admin).json()
+    assert {(e["session_id"], e["detail"]) for e in events if e["action"] == "update"} >= {
+        (left, f"pairing undone (was session {right})"), (right, f"pairing undone (was session {left})")}
     assert client.get(f"/api/v1/sessions/{right}", headers=h).json()["paired_session_id"] is None
     assert "knees" not in _process(client, h, right)
 
@@ -83,11 +94,13 @@ def test_pairing_refusals(client, settings, knee_files):
     p1 = client.post("/api/v1/patients", json={"external_id": "P-2", "side": "left"}, headers=h).json()["id"]
     p2 = client.post("/api/v1/patients", json={"external_id": "P-3", "side": "left"}, headers=h).json()["id"]
     a, b = _session(client, h, p1, knee_files["left"]), _session(client, h, p2, knee_files["right"])
-    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b}, headers=h)
+    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b, "knee": "left"}, headers=h)
     assert r.status_code == 409 and r.json()["code"] == "store.pair_other_patient"
-    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": a}, headers=h)
+    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": a, "knee": "left"}, headers=h)
     assert r.status_code == 409 and r.json()["code"] == "store.pair_itself"
-    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b}, headers={**h, "Accept-Language": "es"})
+    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b, "knee": "left"}, headers={**h, "Accept-Language": "es"})
     assert "pacientes distintos" in r.json()["message"]["es"]
+    r = client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b}, headers=h)
+    assert r.status_code == 422  # no knee: none is assumed (a default could swap the knees)
     other = clinic_token(settings, "Another clinic")
-    assert client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b}, headers=other).status_code == 404
+    assert client.post(f"/api/v1/sessions/{a}/pair", json={"session_id": b, "knee": "left"}, headers=other).status_code == 404
