@@ -438,7 +438,7 @@ SPLITS: dict[str, tuple[str, ...]] = {"A": ("02", "10", "18", "24", "30"), "B": 
 #: the main parameters of each method and the values tried (the defaults are among them)
 GRIDS: dict[str, dict[str, tuple[Any, ...]]] = {
     "chakamo": {"offline_tau_mag_s": (10.0, 20.0, 40.0),
-                "bias_sigma_motion_rad_s": (0.1 * _DEG, 0.2 * _DEG, 0.4 * _DEG, 0.8 * _DEG),
+                "bias_sigma_motion_rad_s": (0.1 * _DEG, 0.2 * _DEG, 0.4 * _DEG, 0.8 * _DEG, 1.6 * _DEG),
                 "offline_mag_bias": (False, True)},
     "guo": {"acc_noise_rad": (0.1, 0.2, 0.4), "mag_noise_rad": (0.075, 0.15, 0.3)},
     "madgwick": {"beta_rad_s": (0.02, 0.03, 0.05, 0.1)},
