@@ -117,6 +117,13 @@ The causal filter runs forward, and backward in time (samples reversed, gyroscop
    (0.11 °/s, flat at rest, the same with the motion bias (8) off: a drift seen only in motion) while the field is
    rejected for 55 s of it; (12b) measures that drift in the clean motion after the magnet, the backward pass
    carries it into the gap and (13) combines it: trial 35 1.69° → 0.98°, 32 (magnet at 1 cm) 1.66° → 1.15°.
+   *Designed on half B*: the design looked at trials 32 and 35 (both in half B of the held-out split).  On half A
+   it barely moves a trial (defaults, 9D total RMSE off → on: 02 0.74 → 0.75°, 10 1.55 → 1.53°, 18 0.89 → 0.90°,
+   24 0.83 → 0.81°, 30 1.46 → 1.44°; mean 1.094 → 1.086°).  The held-out grid of ``benchmarks.broad`` includes
+   the switch, so each tuning half chooses it: both choose it on, half A by that small margin only.
+   *Known cost*: a field that turns slowly within the thresholds of (11) is partly learnt as bias (the gate
+   below is a constant, not the covariance; after a rejection gap the lag model overstates the bias): the
+   session pipeline's slowly turning field test keeps its guarantee only with ``offline_mag_bias=False``.
    In the causal filter (12b) hurts BROAD (9D 1.50/2.90 → 1.74/2.97 undisturbed/disturbed means, gated): there the
    heading correction (10) already follows a drift, and a field inhomogeneity read as bias turns the output at
    once.                                                                                      (13a)
@@ -168,9 +175,10 @@ the tests (held out: seeds 6–11, BROAD, ``benchmarks.heading``): ``offline_mag
 ``offline_heading_width_rad``; the others are VQF's published defaults where the concepts correspond.  Weak spot: trial 35 (magnet attached at 4 cm)
 in the causal 9D filter (≈ 55 s of field rejection, gyroscope heading drift); offline it is fixed by (13a).
 
-Held out (``python -m benchmarks.broad``, parameters chosen on one half of the ten trials, scored on the
-other; undisturbed / disturbed total RMSE, °), before → after (13a): 9D A→B 1.08/3.21 → 1.11/2.78 (offline VQF
-2.26/3.18), B→A 0.98/1.70 → 1.06/1.12 (VQF 1.26/2.73); all ten 1.07/2.37 → 1.08/2.13.  6D is unchanged by it.
+Held out (``python -m benchmarks.broad``, parameters, ``offline_mag_bias`` among them, chosen on one half of the
+ten trials, scored on the other; undisturbed / disturbed total RMSE, °): 9D A→B 1.11/2.77 (offline VQF
+2.26/3.18), B→A 1.06/1.12 (VQF 1.26/2.73); these defaults' own numbers on all ten 1.08/2.13 (1.07/2.37 without
+(13a)).  6D is unchanged by it.
 
 References
 ----------

@@ -480,6 +480,9 @@ def _two_sided_block_mean(x, w, decay, block, num, den, out):
     nxt = 0
     while nxt < nb and num[nxt] != num[nxt]:
         nxt += 1
+    if nxt >= nb:  # no valid block (every weight below ~1e-200): no heading information, as with no weight at all
+        out[:] = 0.0
+        return
     for i in range(n):
         while nxt < nb and nxt * block + half <= i:
             prev = nxt

@@ -150,6 +150,8 @@ def _two_sided_mean(unwrapped: FloatArray, w: FloatArray, decay: float, block: i
 
     num, den = two_sided(sums[0]), two_sided(sums[1])
     ok = den > 1e-200  # gaps longer than ~700 τ: hold the nearest smoothed value
+    if not ok.any():  # every weight below ~1e-200: no heading information, as with no weight at all
+        return np.zeros(n)
     if not ok.all() or nb * block > n:  # the general form: linear between the (valid) block centres
         centre = np.arange(nb) * block + 0.5 * (min(block, n) - 1)
         return np.interp(np.arange(n), centre[ok], num[ok] / den[ok])

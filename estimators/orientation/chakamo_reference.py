@@ -209,7 +209,9 @@ def strapdown_reference(gyr, bias, q0, dt):
 
 
 def smooth_bias_reference(b_f, p_f, b_b, p_b):
-    """Numpy twin of :func:`smooth_bias_batch`."""
+    r"""Numpy twin of :func:`smooth_bias_batch`: (13) as written, in information form,
+    :math:`\hat b_s = (P_f^{-1} + P_b^{-1})^{-1}(P_f^{-1}\hat b_f + P_b^{-1}\hat b_b)` — an independent check of the
+    kernel's covariance form :math:`\hat b_f + P_f (P_f + P_b)^{-1}(\hat b_b - \hat b_f)` (same value)."""
     i_f = np.linalg.inv(_sym_reference(p_f))
     i_b = np.linalg.inv(_sym_reference(p_b))
     rhs = np.einsum("nij,nj->ni", i_f, b_f) + np.einsum("nij,nj->ni", i_b, b_b)

@@ -358,9 +358,11 @@ def test_robust_heading_ignores_a_field_turned_about_the_vertical():
 
 @pytest.mark.parametrize("n, tau_s, dt_s, width_deg", [(60000, 20.0, 0.01, 5.0), (12345, 20.0, 0.01, 5.0),
                                                        (5000, 1.0, 0.01, 0.0), (1000, 20.0, 0.0035, 6.0),
-                                                       (7, 20.0, 0.01, 5.0)])
+                                                       (7, 20.0, 0.01, 5.0), (20000, 0.05, 0.01, 5.0),
+                                                       (3000, 0.05, 0.01, 0.0)])
 def test_robust_heading_kernel_equals_numpy(n, tau_s, dt_s, width_deg):
-    """The compiled (14-15b) equals its numpy twin: partial last blocks, long gaps (invalid blocks), wrapping."""
+    """The compiled (14-15b) equals its numpy twin: partial last blocks, long gaps (invalid blocks: τ = 0.05 s,
+    dt = 0.01 s, a 60 s gap), no valid block, wrapping."""
     rng = np.random.default_rng(n)
     target = np.cumsum(rng.normal(0.0, 0.05, n))
     target = (target + np.pi) % (2.0 * np.pi) - np.pi
@@ -369,6 +371,8 @@ def test_robust_heading_kernel_equals_numpy(n, tau_s, dt_s, width_deg):
     if n == 12345:  # two short islands of field in a long recording: blocks with no weight
         weight[:] = 0.0
         weight[100:200], weight[9000:9100] = 1.0, 0.5
+    if n == 3000:  # no valid block at all (every weight underflows the kernel sums): zeros, as with no weight
+        weight[:] = 1e-250
     block, decay = heading_blocks(tau_s, dt_s)
     fast = kern.robust_heading_batch(target, weight, decay, block, np.radians(width_deg) ** 2, ROBUST_ITERATIONS)
     assert np.allclose(fast, robust_heading(target, weight, tau_s, dt_s, np.radians(width_deg)), rtol=0.0, atol=1e-9)
