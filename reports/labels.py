@@ -23,7 +23,8 @@ from reports.model import Patient, ReportInput
 
 __all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_spans_pct",
            "cycle_and_phase_per_sample", "session_rows", "age_years", "identity_items", "identity_line",
-           "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line", "split_rejected", "excluded_lines",
+           "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line", "split_rejected",
+           "excluded_lines", "all_excluded_lines", "calibration_sentence", "heading_sentence", "reference_sentence",
            "EXCLUDED"]
 
 _DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),

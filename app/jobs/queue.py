@@ -76,16 +76,24 @@ class StaleChoice(Conflict):
         super().__init__(code="store.exclusions_stale", analysis_id=analysis_id, session_id=session_id)
 
 
-def _current_choice(db: Session, session: KneeSession) -> tuple[Analysis | None, Job | None]:
-    """The session's latest analysis and its job when that analysis is current (not superseded, of the current
-    files and pipeline version: its cycle numbers still name the same detected cycles), else ``(latest, None)``."""
-    latest = latest_analysis(db, session.id)
-    if latest is None or latest.job_id is None:
-        return latest, None
-    if (latest.superseded_at is not None or latest.files_version != session.files_version
-            or latest.pipeline_version != PIPELINE_VERSION):
-        return latest, None
-    return latest, db.get(Job, latest.job_id)
+def _current_choice(db: Session, session: KneeSession,
+                    based_on: int | None = None) -> tuple[Analysis | None, Job | None]:
+    """The analysis cycles are chosen on and its job when that analysis is current (not superseded, of the current
+    files and pipeline version: its cycle numbers still name the same detected cycles), else ``(analysis, None)``.
+    ``based_on``: the analysis the clinician chose on (any of the session's conventions: a ZYX analysis is as
+    current as the Grood & Suntay one of the same files); None: the session's latest
+    (:func:`app.store.analyses.latest_analysis`), whose exclusions an ordinary processing may carry over."""
+    if based_on is not None:
+        chosen = db.get(Analysis, based_on)
+        chosen = chosen if chosen is not None and chosen.session_id == session.id else None
+    else:
+        chosen = latest_analysis(db, session.id)
+    if chosen is None or chosen.job_id is None:
+        return chosen, None
+    if (chosen.superseded_at is not None or chosen.files_version != session.files_version
+            or chosen.pipeline_version != PIPELINE_VERSION):
+        return chosen, None
+    return chosen, db.get(Job, chosen.job_id)
 
 
 def current_analysis(db: Session, session: KneeSession, filter_name: str, lang: str, *,
@@ -139,10 +147,10 @@ def enqueue(db: Session, clinic_id: int, session_id: int, *, filter_name: str, l
                                                     involved=involved, calibration=calibration,
                                                     angle_method=angle_method)) is not None:
         raise UpToDate(done)
-    latest, base = _current_choice(db, session)
+    latest, base = _current_choice(db, session, based_on if cycle_exclusions is not None else None)
     records, notes = None, []
     if cycle_exclusions is not None:
-        if latest is None or base is None or latest.id != based_on:
+        if latest is None or base is None:
             raise StaleChoice(based_on, session.id)
         filter_name, heading, side, involved = base.filter, base.heading, base.side, base.involved
         calibration, angle_method = base.calibration, base.angle_method

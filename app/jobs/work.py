@@ -370,9 +370,11 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                     pipeline_version=PIPELINE_VERSION, files_version=session.files_version)
                 analysis.artefacts = [Artefact(name=name, lang=lang, media_type=MEDIA[name], sha256=sha, size_bytes=size)
                                       for (name, lang), (sha, size) in stored.items()]
-                # a choice of cycles revises the analysis: the earlier ones stay, for the record, superseded; a
-                # paired session's partner reports the same two knees, so its analyses are superseded too
-                revised = supersede(s, [session.id] + ([paired[0].id] if paired else [])) \
+                # a choice of cycles revises the analysis: the earlier ones of its calibration and convention stay,
+                # for the record, superseded (another convention's view of the files is left current); a paired
+                # session's partner reports the same two knees, so its analyses are superseded too
+                revised = supersede(s, [session.id] + ([paired[0].id] if paired else []),
+                                    calibration=job.calibration, angle_method=job.angle_method) \
                     if job.cycle_exclusions is not None else 0
                 s.add(analysis)
                 s.flush()

@@ -42,12 +42,17 @@ class SupersededResults(Conflict):
         self.analysis_id = analysis.id
 
 
-def supersede(db: Session, session_ids: Iterable[int]) -> int:
-    """Mark every analysis of ``session_ids`` not yet superseded as superseded now; returns how many."""
+def supersede(db: Session, session_ids: Iterable[int], *, calibration: str | None = None,
+              angle_method: str | None = None) -> int:
+    """Mark every analysis of ``session_ids`` not yet superseded as superseded now; returns how many.
+    ``calibration`` / ``angle_method``: only the analyses made with these (a choice of cycles revises the analyses
+    of its own convention, not a ZYX or functional-calibration view of the same files)."""
     ids = list(session_ids)
     if not ids:
         return 0
-    return db.execute(update(Analysis).where(Analysis.session_id.in_(ids), Analysis.superseded_at.is_(None))
+    same = [getattr(Analysis, k) == v for k, v in (("calibration", calibration), ("angle_method", angle_method))
+            if v is not None]
+    return db.execute(update(Analysis).where(Analysis.session_id.in_(ids), Analysis.superseded_at.is_(None), *same)
                       .values(superseded_at=utcnow())).rowcount or 0
 
 

@@ -5,7 +5,8 @@ session is queued or running a new request answers 409 (checked before and, for 
 again after inserting); a stale ingestion check (files changed since) is redone before deciding (409 when it
 is not ok).  The job row is committed before the runner hears of it, so a crash between the two loses nothing
 (the runner's start-up resubmits queued jobs).  Every analysis is kept: processing again (e.g. with another
-filter) adds one.
+filter) adds one; a choice of cycles (``exclude_cycles``) marks the earlier analyses of its own calibration and
+angle convention superseded (they stay readable by id).
 """
 
 from fastapi import APIRouter, Request
@@ -58,7 +59,7 @@ def process(session_id: int, principal: Clinician, db: DbDep, runner: RunnerDep,
         return answer({"job_id": job.id}, replay.status, f"/api/v1/jobs/{job.id}", replayed=True)
     session = scoped_session(db, principal, session_id)  # the row enqueue loaded (no new query)
     audit.record(db, request, principal, "process", patient_id=session.patient_id, session_id=session.id,
-                 detail=_exclusions_detail(job))
+                 detail=_exclusions_detail(job, chosen=body.exclude_cycles is not None))
     db.commit()  # committed before the runner can look for it
     hand_over(runner, job.id)
     return answer({"job_id": job.id}, 202, f"/api/v1/jobs/{job.id}")
@@ -72,11 +73,14 @@ def _exclusions(body: ProcessIn, principal) -> tuple[list[dict], str] | None:
     return [x.model_dump() for x in body.exclude_cycles], by
 
 
-def _exclusions_detail(job) -> str:
+def _exclusions_detail(job, chosen: bool) -> str:
     """The audit event's short detail of a processing that changes which cycles count (the reasons are the job's:
-    ``GET /jobs/{id}`` ``cycle_exclusions``)."""
+    ``GET /jobs/{id}`` ``cycle_exclusions``); ``chosen``: the request named them (else they were carried over from
+    the analysis before, a choice audited when it was made)."""
     if job.cycle_exclusions is None:
         return ""
+    if not chosen:
+        return f"job {job.id}: the cycles excluded before are carried over"
     named = ", ".join(f"{e['knee'] + ':' if e['knee'] else ''}{e['cycle']}" for e in job.cycle_exclusions)
     if len(named) > 120:
         named = f"{len(job.cycle_exclusions)} cycles"

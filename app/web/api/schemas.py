@@ -155,8 +155,9 @@ class ProcessIn(_In):
     angle_convention: AngleConventionName = DEFAULT_ANGLE_CONVENTION
     #: the cycles to leave out, each with the clinician's reason (the results page's per-cycle choice, as ``chakamo
     #: process --exclude-cycles``); the whole set each time: a cycle not named is included again.  Given (an empty
-    #: list too) the new analysis supersedes the session's earlier ones and records who excluded which cycle and why;
-    #: null: an ordinary processing, no cycle excluded
+    #: list too) the new analysis supersedes the session's earlier ones of the same calibration and angle convention
+    #: and records who excluded which cycle and why; null: an ordinary processing, which keeps the current
+    #: analysis' exclusions (of the same files and pipeline version)
     exclude_cycles: list[CycleExclusionIn] | None = Field(default=None, max_length=200)
     #: required with ``exclude_cycles``: the analysis the cycles were chosen on.  409 unless it is the session's
     #: current analysis (latest, not superseded, of the current files and pipeline version); its options (filter,
@@ -291,7 +292,8 @@ class JobOut(BaseModel):
     angle_convention: str = DEFAULT_ANGLE_CONVENTION
     #: the thigh–shank heading asked for
     heading: str = "auto"
-    #: the cycles the clinician excluded for this job (who, which, why, when), or null (an ordinary processing)
+    #: the cycles the clinician excluded for this job (who, which, why, when; chosen with it, or carried over from the
+    #: current analysis), or null
     cycle_exclusions: list[dict[str, Any]] | None = None
     created_at: dt.datetime
     started_at: dt.datetime | None
@@ -551,8 +553,8 @@ def session_out(s: KneeSession, jobs: list[Job], analyses: list[Analysis]) -> di
 
 
 class TrailError(BaseModel):
-    code: str = Field(description="webhook.no_connection, webhook.http_status, webhook.secret_unreadable or "
-                                  "fhir.not_exportable")
+    code: str = Field(description="webhook.no_connection, webhook.http_status, webhook.secret_unreadable, "
+                                  "fhir.not_exportable, fhir.patient_reference_invalid or fhir.patient_unreferenced")
     params: dict = Field(description="the values the message names (status, seconds)")
     message: dict[str, str] = Field(description="the sentence in es, en and pt")
 

@@ -61,3 +61,27 @@ def test_a_choice_of_cycles_keeps_the_analysis_options_and_is_tied_to_it(client,
     fresh = _done(client, h, sid, {"lang": "en"})
     assert fresh["cycle_exclusions"] is None
     assert any("not carried over" in line for line in fresh["log"])
+
+
+def test_another_convention_neither_supersedes_nor_blocks_a_choice_of_cycles(client, settings, demo_dir):
+    """A ZYX run after cycles were chosen on the Grood & Suntay analysis leaves that analysis current (it supersedes
+    only analyses of its own calibration and convention), and cycles may be chosen on the ZYX analysis itself,
+    though the session's current result is the Grood & Suntay one (review of the merged branches: the ZYX run
+    superseded it, the results answered 409, and a choice on the newest analysis was refused as stale)."""
+    h = clinic_token(settings, "Cycle choice conventions")
+    _, sid = new_session(client, h, "CC-2")
+    assert client.post(f"/api/v1/sessions/{sid}/recordings", files=demo_files(demo_dir), headers=h).status_code == 201
+    clinical = _done(client, h, sid, {"lang": "en"})
+    chosen = _done(client, h, sid, {"lang": "en", "based_on_analysis_id": clinical["analysis_id"],
+                                    "exclude_cycles": [{"cycle": 2, "reason": "stumbled"}]})
+    zyx = _done(client, h, sid, {"lang": "en", "angle_convention": "thesis_zyx"})
+    results = client.get(f"/api/v1/sessions/{sid}/results", headers=h)
+    assert results.status_code == 200, results.text
+    assert results.json()["angle_method"] == "grood_suntay"
+    assert client.get(f"/api/v1/sessions/{sid}/results", params={"analysis_id": chosen["analysis_id"]},
+                      headers=h).status_code == 200
+    on_zyx = _done(client, h, sid, {"lang": "en", "based_on_analysis_id": zyx["analysis_id"],
+                                    "exclude_cycles": [{"cycle": 3, "reason": "talked"}]})
+    assert on_zyx["angle_convention"] == "thesis_zyx"
+    after = client.get(f"/api/v1/sessions/{sid}/results", headers=h)
+    assert after.status_code == 200 and sorted(e["cycle"] for e in after.json()["cycles"]["excluded"]) == [2]
