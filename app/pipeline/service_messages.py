@@ -87,7 +87,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "small JSON bodies — send less.",
         "es": "El cuerpo de la petición ocupa más de {limit_kb} kB; las peticiones que no son subidas de "
               "grabaciones llevan cuerpos JSON pequeños: envíe menos.",
-        "pt": "O corpo da requisição ocupa mais de {limit_kb} kB; as requisições que não são envios de gravações "
+        "pt": "O corpo do pedido ocupa mais de {limit_kb} kB; os pedidos que não são envios de gravações "
               "levam corpos JSON pequenos: envie menos."},
     "request.multipart_malformed": {
         "en": "The multipart body is malformed; send the files with a standard form upload.",
@@ -324,7 +324,7 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "store.busy": {
         "en": "Session {session_id} is being processed (job {job_id}); {what} when that job has finished.",
         "es": "La sesión {session_id} se está procesando (trabajo {job_id}); {what} cuando ese trabajo haya terminado.",
-        "pt": "A sessão {session_id} está sendo processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
+        "pt": "A sessão {session_id} está a ser processada (tarefa {job_id}); {what} quando essa tarefa tiver terminado."},
     # what the clinician may do once the job has finished ({what} of store.busy)
     "store.then.process": {"en": "process it again", "es": "procésela de nuevo", "pt": "processe-a de novo"},
     "store.then.upload": {"en": "upload the files", "es": "suba los archivos", "pt": "envie os ficheiros"},

@@ -21,9 +21,9 @@ UI = {lang: json.loads((ROOT / "static" / "i18n" / f"{lang}.json").read_text(enc
 BRAZILIAN = ("registro", "registros", "arquivo", "arquivos", "planilha", "aceitos", "acelerômetro", "magnetômetro",
              "magnetômetros", "detectados", "conexão", "eletrônicos", "fêmur", "você", "usuário", "usuários", "tela",
              "senha", "senhas", "salvar", "salve", "salvo", "salvos", "salva", "registre", "registrado", "registrada",
-             "libere", "aplicativo")
+             "libere", "aplicativo", "requisição", "requisições")
 #: Brazilian phrases (several words)
-BRAZILIAN_PHRASES = ("pasta de trabalho",)
+BRAZILIAN_PHRASES = ("pasta de trabalho", "está sendo", "estão sendo")
 
 
 def _pt_texts(source: str) -> list[str]:
