@@ -15,7 +15,7 @@ import io
 
 import numpy as np
 import pytest
-from test_browser_e2e import PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
+from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_session, write_session
 
@@ -36,7 +36,7 @@ def processed_session(context, page, base: str, files: list[dict], external_id: 
     """A new patient's session with ``files`` uploaded and processed through the API with the logged-in browser's
     cookie and CSRF token: ``(session id, analysis id)``."""
     api = f"{base}/api/v1"
-    csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+    csrf = csrf_header(context, api)
     pid = context.request.post(f"{api}/patients", data={"external_id": external_id, "side": side},
                                headers=csrf).json()["id"]
     sid = context.request.post(f"{api}/patients/{pid}/sessions", data={"step_height_m": 0.17},

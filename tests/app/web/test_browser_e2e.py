@@ -62,6 +62,12 @@ def log_in(page, server: str, email: str = EMAIL, password: str = PASSWORD) -> N
     page.locator("form.login button[type=submit]").click()
 
 
+def csrf_header(context, api: str) -> dict[str, str]:
+    """The logged-in browser context's CSRF header for the API at ``api`` (``…/api/v1``), for calls the test makes
+    through ``context.request`` beside the page."""
+    return {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+
+
 def _tables() -> dict[str, dict[str, str]]:
     return {code: json.loads((STATIC / "i18n" / f"{code}.json").read_text(encoding="utf-8")) for code in ("es", "en", "pt")}
 
@@ -209,7 +215,7 @@ def _api_session(context, server: str, external_id: str, side: str) -> int:
     """A new patient and an empty session of it made through the API with the logged-in browser's cookie and
     CSRF token; returns the session id."""
     api = f"{server}/api/v1"
-    csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+    csrf = csrf_header(context, api)
     r = context.request.post(f"{api}/patients", data={"external_id": external_id, "side": side}, headers=csrf)
     assert r.status == 201, r.text()
     r = context.request.post(f"{api}/patients/{r.json()['id']}/sessions", data={}, headers=csrf)

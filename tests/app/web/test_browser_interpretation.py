@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_browser_e2e import SETTINGS, _tables, demo_files, log_in, open_page, server, slow_expect  # noqa: F401
+from test_browser_e2e import csrf_header, SETTINGS, _tables, demo_files, log_in, open_page, server, slow_expect  # noqa: F401
 
 CLINICIAN, PASSWORD = "clinica@clinic.test", "another long enough password"
 
@@ -45,7 +45,7 @@ def test_clinician_signs_and_amends_in_the_browser(browser, server, demo_files, 
         page.locator("select#lang").select_option("es")
         slow_expect(page.locator("h1")).to_have_text(es["patients.title"])
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         pid = context.request.post(f"{api}/patients", data={"external_id": "HC-SIGN", "side": "right"},
                                    headers=csrf).json()["id"]
         sid = context.request.post(f"{api}/patients/{pid}/sessions", data={"step_height_m": 0.17},

@@ -7,7 +7,7 @@ trend names its series.  Texts are read from static/i18n/pt.json."""
 from __future__ import annotations
 
 import pytest
-from test_browser_e2e import PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
+from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_walk_knees, write_knees_session
 
@@ -35,7 +35,7 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         page.locator("select#lang").select_option("pt")
         slow_expect(page.locator("h1")).to_have_text(pt["patients.title"])
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         pid = context.request.post(f"{api}/patients", data={"external_id": "BR-KNEES", "side": "right"},
                                    headers=csrf).json()["id"]
         sids = []

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
+    csrf_header,
     demo_files, log_in, open_page, server, slow_expect)
 
 NAVY = (0x1D, 0x35, 0x57)
@@ -43,7 +44,7 @@ def processed(browser, server, demo_files):  # noqa: F811
         log_in(page, server)
         page.wait_for_selector("#nav a")
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         pid = context.request.post(f"{api}/patients", headers=csrf, data={
             "external_id": "LAYOUT-0001-ABCDEFGH", "side": "right",
             "name": "María de los Ángeles Fernández-Castellanos de la Torre"}).json()["id"]

@@ -9,7 +9,7 @@ the patient's side, left, is involved).  Undoing the pairing from the card leave
 from __future__ import annotations
 
 import pytest
-from test_browser_e2e import PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
+from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_walk_knees, write_knees_session
 
@@ -31,7 +31,7 @@ def test_pair_two_sessions_and_see_both_knees(browser, server, slow_expect, knee
         page.locator("select#lang").select_option("pt")
         slow_expect(page.locator("h1")).to_have_text(pt["patients.title"])
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         pid = context.request.post(f"{api}/patients", data={"external_id": "PT-PAIR", "side": "left"},
                                    headers=csrf).json()["id"]
         sids = {}

@@ -41,6 +41,7 @@ import pytest
 from metawear_frames import LSB, counts, sensor_notifications
 from metawear_peripherals import STAND_IN, Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
+    csrf_header,
     PROCESS_WAIT_MS, SETTINGS, WAIT_MS, _api_session, log_in, server, slow_expect)
 
 ARGS = ("--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions",
@@ -159,7 +160,7 @@ def _stored_files(context, base, sid):
 
 def _process(context, base, sid) -> dict:
     api = f"{base}/api/v1"
-    csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+    csrf = csrf_header(context, api)
     r = context.request.post(f"{api}/sessions/{sid}/process", data={"lang": "en"}, headers=csrf)
     assert r.status == 202, r.text()
     job_id = r.json()["job_id"]
@@ -347,7 +348,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # true clock, none lost, no gap) written by the project's MetaBase writer, uploaded to a second session
         sid2 = _api_session(context, server, "BLE-002", "right")
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         truth_dir = tmp_path / "truth"
         truth_dir.mkdir()
         for seg in sensors:

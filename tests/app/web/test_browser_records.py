@@ -9,7 +9,7 @@ import hashlib
 
 import pytest
 
-from test_browser_e2e import _tables, log_in, open_page, server, slow_expect  # noqa: F401 — fixtures
+from test_browser_e2e import csrf_header, _tables, log_in, open_page, server, slow_expect  # noqa: F401 — fixtures
 
 DATA = b"acc_x (g),acc_y (g),acc_z (g)\n0.0,0.0,1.0\n# browser erasure\n"
 
@@ -23,7 +23,7 @@ def test_edit_patient_and_delete_session_and_patient_with_confirmation(browser, 
         log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(tr["patients.title"])
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         pid = context.request.post(f"{api}/patients", data={"external_id": "BR-ERASE", "side": "left"},
                                    headers=csrf).json()["id"]
         sid = context.request.post(f"{api}/patients/{pid}/sessions", data={}, headers=csrf).json()["id"]

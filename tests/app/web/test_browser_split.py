@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
+    csrf_header,
     EMAIL, PASSWORD, PROCESS_WAIT_MS, WAIT_MS, _api_session, open_page, server, slow_expect)
 from test_browser_wizard import _drop
 
@@ -191,7 +192,7 @@ def test_a_four_sensor_sessions_cuts_get_one_editor_per_sensor(browser, server, 
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
         sid = _api_session(context, server, "E2E-SPLIT-KNEES", "right")
         api = f"{server}/api/v1"
-        csrf = {"X-CSRF-Token": context.request.get(f"{api}/auth/me").json()["csrf_token"]}
+        csrf = csrf_header(context, api)
         for side in ("left", "right"):
             for seg in ("thigh", "shank"):
                 files = sorted(folder.glob(f"{words[seg]}-{words[side]}-*.csv"))
