@@ -24,6 +24,7 @@ import pytest
 
 from reports.i18n import LANGUAGES, t
 from reports.model import Amendment, Interpretation, ReportInput
+from pdf_pages import pdf_pages
 
 pytestmark = pytest.mark.skipif(shutil.which("pdftotext") is None, reason="poppler's pdftotext not installed")
 
@@ -57,15 +58,6 @@ def anonymous() -> ReportInput:
     return _ri({})
 
 
-def _pages(pdf: bytes) -> list[str]:
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "r.pdf"
-        path.write_bytes(pdf)
-        info = subprocess.run(["pdfinfo", str(path)], check=True, capture_output=True, text=True).stdout
-        n = int(next(line.split()[-1] for line in info.splitlines() if line.startswith("Pages:")))
-        return [" ".join(subprocess.run(["pdftotext", "-f", str(p), "-l", str(p), "-enc", "UTF-8", str(path), "-"],
-                                        check=True, capture_output=True, text=True).stdout.split())
-                for p in range(1, n + 1)]
 
 
 def _expected(lang: str) -> list[str]:
@@ -90,7 +82,7 @@ def test_the_recordings_date_is_their_time_stamps_day(identified):
 def test_every_pdf_page_carries_the_identity(identified, lang):
     from reports.pdf import render_pdf
 
-    pages = _pages(render_pdf(replace(identified, language=lang), report_date=REPORT_DATE))
+    pages = pdf_pages(render_pdf(replace(identified, language=lang), report_date=REPORT_DATE))
     assert len(pages) >= 3
     for i, text in enumerate(pages):
         for part in _expected(lang):
@@ -139,7 +131,7 @@ def test_nothing_unknown_is_printed(anonymous):
 
     p = anonymous.patient
     assert (p.birth_date, p.sex, p.clinic, p.record_system) == ("", "", "", "")
-    text = " ".join(_pages(render_pdf(replace(anonymous, language="en"), report_date=REPORT_DATE)))
+    text = " ".join(pdf_pages(render_pdf(replace(anonymous, language="en"), report_date=REPORT_DATE)))
     for key in ("id.born", "id.sex", "id.clinic"):
         assert f"{t(key, 'en')}:" not in text
     assert f"{t('id.record', 'en')}: DEMO-001 ·" in text  # no "()" for an unknown system
@@ -159,7 +151,7 @@ def test_signed_and_amended_interpretation_is_printed(identified, lang):
                                               role="clinician", at="2026-12-02T10:05:00+00:00",
                                               reason="error de transcripción"),))
     ri = replace(identified, language=lang, interpretation=it)
-    text = " ".join(_pages(render_pdf(ri, report_date=REPORT_DATE)))
+    text = " ".join(pdf_pages(render_pdf(ri, report_date=REPORT_DATE)))
     # the amended text is not printed under "Signed by A" alone: first signed by A; last amended by B (reason)
     first = signed_line(lang, "interp.first_signed", "Dra. Laura Pérez", "clinician", "2026-12-02T09:15:00+00:00")
     last = signed_line(lang, "interp.last_amended", "Dra. Laura Pérez", "clinician", "2026-12-02T10:05:00+00:00",
@@ -220,7 +212,7 @@ def test_no_raw_ids_and_the_ui_angle_order_in_the_pdf(identified, lang):
     from reports.model import ANGLES
     from reports.pdf import render_pdf
 
-    text = " ".join(_pages(render_pdf(replace(identified, language=lang), report_date=REPORT_DATE)))
+    text = " ".join(pdf_pages(render_pdf(replace(identified, language=lang), report_date=REPORT_DATE)))
     for raw in ("chakamo", "grood_suntay", "thesis_zyx", "step_up", "internal_rotation"):
         assert raw not in text, (lang, raw)
     assert t("data.filter.chakamo", lang) in text

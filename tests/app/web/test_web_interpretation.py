@@ -11,13 +11,11 @@ from __future__ import annotations
 
 import datetime as dt
 import shutil
-import subprocess
-import tempfile
-from pathlib import Path
 
 import pytest
 
 from web_helpers import clinic_token, demo_files, wait_job
+from pdf_pages import pdf_pages
 
 PASSWORD = "a long enough password"
 SYSTEM = "urn:oid:2.16.724.4.9.20.90"
@@ -49,15 +47,6 @@ def _fresh_settings_cache():
     get_settings.cache_clear()
 
 
-def _pdf_pages(pdf: bytes) -> list[str]:
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "r.pdf"
-        path.write_bytes(pdf)
-        info = subprocess.run(["pdfinfo", str(path)], check=True, capture_output=True, text=True).stdout
-        n = int(next(line.split()[-1] for line in info.splitlines() if line.startswith("Pages:")))
-        return [" ".join(subprocess.run(["pdftotext", "-f", str(p), "-l", str(p), "-enc", "UTF-8", str(path), "-"],
-                                        check=True, capture_output=True, text=True).stdout.split())
-                for p in range(1, n + 1)]
 
 
 def _login(client, email: str) -> dict:
@@ -97,7 +86,7 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     assert r.status_code == 200
     assert 'filename="chakamo-HC-0042-2026-11-22-s' in r.headers["content-disposition"]
     assert r.headers["content-disposition"].endswith('-en-report.pdf"')
-    pages = _pdf_pages(r.content)
+    pages = pdf_pages(r.content)
     for text in pages:
         for part in (f"Record no.: HC-0042 ({SYSTEM})", "Born: 1960-11-23 (age 65)", "Sex: female",
                      "Clinic: Hospital Norte", "Recorded on: 2026-11-22", "Ana Sánchez"):
@@ -174,14 +163,14 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     # the reports print it: text, signer, "amended", the history with the earlier text
     for lang in ("es", "pt"):
         r = client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"lang": lang}, headers=csrf)
-        words = " ".join(_pdf_pages(r.content))
+        words = " ".join(pdf_pages(r.content))
         for part in (t("interp.section", lang), new, "Dra. Laura Pérez", t("interp.amended", lang), text,
                      "plazo corregido", t("id.clinic", lang) + ": Hospital Norte"):
             assert part in words, (lang, part)
     r = client.get(f"/api/v1/sessions/{sid}/report.html", params={"lang": "en"}, headers=csrf)
     assert new in r.text and "plazo corregido" in r.text and t("interp.amended", "en") in r.text
     # the amended text is not printed under the first signer alone: first signed, last amended, with the reason
-    words = " ".join(_pdf_pages(client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"lang": "en"},
+    words = " ".join(pdf_pages(client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"lang": "en"},
                                            headers=csrf).content))
     assert "First signed by Dra. Laura Pérez (clinician) on" in words
     assert "last amended by Dra. Laura Pérez (clinician) on" in words and "UTC (plazo corregido)" in words
@@ -223,7 +212,7 @@ def test_identity_sign_off_and_amendment(client, settings, demo_dir):
     r = client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"analysis_id": job["analysis_id"], "lang": "en"},
                    headers=token)
     assert r.status_code == 200
-    words = " ".join(_pdf_pages(r.content))
+    words = " ".join(pdf_pages(r.content))
     assert "Sex: female" in words and "Sex: other" not in words
     assert client.get(f"/api/v1/sessions/{sid}/report.pdf", params={"analysis_id": job["analysis_id"]},
                       headers=token).content == amended_pdf
