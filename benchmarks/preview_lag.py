@@ -19,12 +19,15 @@ Delivery and measurement happen inside the page, on one clock (``performance.now
 packet through the stand-in when due, stamped with its arrival time (a busy page dispatches late, and the lateness
 counts as lag); an init script watches the preview's text (a MutationObserver: the DOM time) and stamps the next
 animation frame (``requestAnimationFrame``: the frame that shows it).  The lag of switch j: the first frame after
-its arrival whose preview is on the new side of the midpoint, minus the arrival.
+its arrival whose preview is on the new side of the midpoint, minus the arrival.  The frame stamp is an upper bound
+by one frame (~17 ms) when the page writes the text inside an animation frame callback (today's page): the probe's
+``requestAnimationFrame``, asked from there, runs in the frame after the one that paints it.
 
 Printed: median, p95 and max over the switches, for the packet's handing to the page (the pacer's lateness: a
 loaded machine's, which delays a real notification's event just as well), the DOM update and the frame; the
 page's long tasks (over 50 ms, PerformanceObserver "longtask"); the load average and the CPU time of this process; ``--seconds`` of task per run, ``--repeats`` runs (each a fresh browser, page and session).
-Usage: ``python -m benchmarks.preview_lag [--seconds 60] [--repeats 1]``.
+``--before COMMIT`` serves that commit's ``static/views/record.js`` (Playwright's routing) for an old-vs-new pair.
+Usage: ``python -m benchmarks.preview_lag [--seconds 60] [--repeats 1] [--before COMMIT]``.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import math
 import os
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -185,6 +189,11 @@ def one_run(browser, base: str, token: str, run: int, args) -> dict:
     context.set_default_timeout(180_000)
     context.add_init_script(STAND_IN)
     context.add_init_script(PROBE)
+    if args.before:
+        old_js = subprocess.run(["git", "-C", str(ROOT), "show", f"{args.before}:static/views/record.js"],
+                                capture_output=True, check=True).stdout
+        context.route("**/static/views/record.js", lambda route: route.fulfill(
+            body=old_js, content_type="text/javascript; charset=utf-8"))
     page = context.new_page()
     try:
         page.goto(f"{base}/#/patients")
@@ -275,6 +284,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--step-deg", type=float, default=40.0)
     parser.add_argument("--interval-ms", type=float, default=15.0, help="BLE connection interval")
     parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--before", default=None, metavar="COMMIT",
+                        help="serve that commit's static/views/record.js instead of today's (an old-vs-new pair)")
     args = parser.parse_args(argv)
     chromium = shutil.which("chromium")
     if chromium is None:
@@ -302,7 +313,7 @@ def main(argv: list[str] | None = None) -> int:
         stop()
         shutil.rmtree(tmp, ignore_errors=True)
     load1 = os.getloadavg()
-    print(f"Live flexion preview lag, headless Chromium, {args.repeats} run(s) of {args.seconds:.0f} s of task, a "
+    print(f"Live flexion preview lag ({'record.js of ' + args.before if args.before else 'today'}), headless Chromium, {args.repeats} run(s) of {args.seconds:.0f} s of task, a "
           f"{args.step_deg:.0f}° switch every {args.hold_s[0]}–{args.hold_s[1]} s, BLE interval {args.interval_ms:.1f} ms")
     print(f"load average before {load0[0]:.1f} / {load0[1]:.1f} / {load0[2]:.1f}, after {load1[0]:.1f} / "
           f"{load1[1]:.1f} / {load1[2]:.1f} on {os.cpu_count()} CPUs; CPU time of this process (server, bench) "
