@@ -159,6 +159,12 @@ export class MetaWearSensor {
     if (i >= 0) this.waiting.splice(i, 1)[0].resolve(answer);
   }
 
+  /** Blink the sensor's LED (protocol.blinkLed): shows the clinician which physical sensor this one is. */
+  async blink(colour = "green") {
+    if (!this.device.gatt.connected) throw new SensorError("disconnected");
+    await this.write(protocol.blinkLed(colour));
+  }
+
   /** Configure the protocol's rates and ranges and start the three streams. */
   async start() {
     await this.write([...protocol.configure(this.config, this.info.chips), ...protocol.startStreaming(this.info.chips)]);

@@ -78,8 +78,13 @@ function incomplete(records, streams, config = PROTOCOL_CONFIG) {
 }
 
 export class Recorder {
-  /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer. */
-  constructor(sessionId, store, send) {
+  /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer; liveChecks: the
+   * thresholds of the live checks as the server serves them (GET /options "live_checks", ./checks.js). */
+  constructor(sessionId, store, send, liveChecks) {
+    if (!liveChecks?.stillness || !liveChecks.coverage || !liveChecks.cycles) {
+      throw new Error("the live checks' thresholds (GET /options live_checks) are missing");
+    }
+    this.limits = liveChecks;
     this.sessionId = sessionId;
     this.store = store;
     this.send = send;
@@ -156,8 +161,10 @@ export class Recorder {
     this.step = role;
     this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
     this.bad = Object.fromEntries(SEGMENTS.map((s) => [s, 0]));
+    const fs = PROTOCOL_CONFIG.gyrHz;
     this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
-      coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
+      coverage: new SphereCoverage(this.limits.coverage), stillness: new Stillness(fs, this.limits.stillness),
+      cycles: new CycleCounter(fs, this.limits.cycles) }]));
     if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
     this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
     // a failed write keeps its records queued and is retried at the next tick; meanwhile it is shown (live)
@@ -219,7 +226,7 @@ export class Recorder {
     const live = Object.fromEntries(SEGMENTS.map((s) => {
       const c = this.checks[s];
       return [s, { samples: this.counts[s], bad: this.bad[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
-        stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
+        stillS: c.stillness.stillSeconds(), stillNeedS: c.stillness.windowS, cycles: c.cycles.cycles,
         state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
     }));
     return { ...live, bufferError: this.bufferError ? String(this.bufferError.message || this.bufferError) : null };

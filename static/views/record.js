@@ -1,10 +1,12 @@
 // Recording mode: the protocol recorded straight from two MetaMotion sensors over Web Bluetooth
 // (#/sessions/3/record), instead of exporting files from the vendor's app and dropping them in the wizard.
 //
-// 1 Sensors: connect two (the browser's chooser), each shown with firmware, battery and state; identify
+// 1 Sensors: connect two (the browser's chooser), each shown with firmware, battery and state and a button that
+//   blinks its LED (which physical sensor is which); identify
 //   which is on the thigh (the clinician moves the thigh: static/metawear/recorder.js), or swap by hand.
 // 2 Steps: the protocol's four recordings, each from both sensors at once, with its live check (figure-eight:
-//   sphere cells reached; postures: still or moving and the seconds still; task: cycles counted, approximate,
+//   sphere cells reached of those the pipeline needs; postures: still or moving, the seconds still and the still
+//   window the pipeline needs; task: cycles counted, approximate; thresholds served by GET /options live_checks;
 //   and the knee flexion preview, static/metawear/preview.js, once both postures were recorded in this visit),
 //   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
@@ -21,11 +23,13 @@ import { api, upload } from "../api.js";
 import { h, append, clear, alertBox, errorText, label, num } from "../dom.js";
 import { t } from "../i18n.js";
 import { canEdit } from "../app.js";
+import { options } from "../options.js";
 import { pickSensor, MetaWearSensor, bluetoothErrorCode } from "../metawear/device.js";
 import { PacketStore } from "../metawear/store.js";
 import { Recorder, STEPS, SEGMENTS, fileLabel } from "../metawear/recorder.js";
+import { CELL_COUNT } from "../metawear/checks.js";
 
-const REFRESH_MS = 100;   // the live figures and the flexion preview
+const REFRESH_MS = 100;   // the live figures (the flexion preview follows every animation frame: previewFrame)
 
 async function send(sessionId, segment, role, files) {
   // files already stored with the same content (an earlier attempt answered after all) are not sent again
@@ -44,13 +48,17 @@ async function send(sessionId, segment, role, files) {
   return { recordings };
 }
 
-function sensorCard(sensor, segment) {
+function sensorCard(sensor, segment, fail) {
   const i = sensor.info;
+  // the sensor's LED blinks: which physical sensor this card is (before strapping it, or to check the assignment)
+  const blink = h("button", { type: "button", class: "secondary blink", disabled: sensor.state !== "connected"
+    && sensor.state !== "streaming" }, t("record.blink"));
+  blink.addEventListener("click", () => sensor.blink().catch(fail));
   return h("li", { class: "card sensor", "data-segment": segment || null },
     h("h3", {}, segment ? `${label("segment", segment)} — ${i.name}` : i.name),
     h("p", {}, t("record.sensor_line", { serial: i.serial || "—", firmware: i.firmware || "—",
       battery: i.battery ? num(i.battery.chargePercent, 0) : "—" })),
-    h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)));
+    h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)), blink);
 }
 
 function liveLine(role, live, flexion) {
@@ -61,9 +69,10 @@ function liveLine(role, live, flexion) {
     const l = live[s];
     const samples = t("record.samples", { acc: l.samples.acc, gyr: l.samples.gyr, mag: l.samples.mag });
     let check = "";
-    if (role === "mag_calibration") check = t("record.coverage", { cells: l.coverage.cells });
-    else if (role === "task") check = t("record.cycles", { n: l.cycles });
-    else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0) });
+    if (role === "mag_calibration") {
+      check = t("record.coverage", { cells: l.coverage.cells, total: CELL_COUNT, need: l.coverage.need });
+    } else if (role === "task") check = t("record.cycles", { n: l.cycles });
+    else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0), need: num(l.stillNeedS, 0) });
     const bad = l.bad ? h("span", { class: "bad-packets" }, ` · ${t("record.bad_packets", { n: l.bad })}`) : "";
     return h("li", { "data-segment": s }, `${label("segment", s)}: `, h("span", { class: "check" }, check),
       ` · ${samples}`, bad, ` · ${t(`record.state.${l.state}`)}`);
@@ -251,8 +260,8 @@ export function recordView(sessionId) {
     state.drawn = true;
     const attached = state.recorder ? SEGMENTS.map((s) => state.recorder.sensors[s]).filter(Boolean) : [];
     clear(sensorsList).append(...(attached.length === 2
-      ? SEGMENTS.map((s) => sensorCard(state.recorder.sensors[s], s))
-      : state.sensors.map((s) => sensorCard(s, null))));
+      ? SEGMENTS.map((s) => sensorCard(state.recorder.sensors[s], s, fail))
+      : state.sensors.map((s) => sensorCard(s, null, fail))));
     connectButton.disabled = state.sensors.length >= 2;
     const connected = state.sensors.length === 2 && state.sensors.every((s) => s.state === "connected");
     clear(identifyArea).append(...(attached.length < 2 ? [identifyButton] : []),
@@ -283,6 +292,19 @@ export function recordView(sessionId) {
       if (item) append(clear(item), liveLine(state.active, state.recorder.live(), state.recorder.flexion()));
     }
   }, REFRESH_MS);
+  // the flexion preview's text, every animation frame in which it changed: it shows the newest samples one frame
+  // after they arrive instead of waiting up to REFRESH_MS (benchmarks/preview_lag.py measures it)
+  const previewFrame = () => {
+    if (!section.isConnected) return;
+    if (state.active === "task") {
+      const li = stepsList.querySelector('[data-role="task"] ul.live li.preview');
+      const flexion = state.recorder.flexion();
+      const text = t("record.preview", { deg: flexion === null ? "—" : num(flexion, 0) });
+      if (li && li.textContent !== text) li.textContent = text;
+    }
+    requestAnimationFrame(previewFrame);
+  };
+  requestAnimationFrame(previewFrame);
 
   section.append(
     h("div", { class: "card" }, h("h2", {}, t("record.sensors_title")), sensorsList,
@@ -291,7 +313,10 @@ export function recordView(sessionId) {
 
   PacketStore.open().then(async (store) => {
     state.store = store;
-    state.recorder = new Recorder(sessionId, store, (segment, role, files) => send(sessionId, segment, role, files));
+    // the live checks' thresholds are the server's (app/choices.py live_checks: the pipeline's own)
+    const served = await options();
+    state.recorder = new Recorder(sessionId, store, (segment, role, files) => send(sessionId, segment, role, files),
+      served.live_checks);
     // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified)
     for (const role of await store.steps(sessionId)) state.status[role] = "unsent";
     const session = await api("GET", `/sessions/${sessionId}`);

@@ -1,16 +1,20 @@
 """``static/metawear/checks.js`` (the recorder's live checks) in Chromium on the simulator's recordings, whose
 truth is known: the figure-eight's sphere coverage against the pipeline's own (estimators.magnetometer on the
 same samples), stillness on the postures and not during the task, and the step-up's cycle count against the
-simulated number of cycles.  The stillness thresholds are estimators.knee's."""
+simulated number of cycles.  Every check runs with the thresholds the server serves (app.choices.live_checks, in
+GET /options), whose stillness and coverage values are the pipeline's own."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from estimators import knee
+from app.choices import live_checks
+from estimators import knee, magnetometer
 from estimators.magnetometer import fit_ellipsoid
 from metawear_frames import LSB, board_units, counts
+
+LIMITS = live_checks()
 
 
 @pytest.fixture(scope="module")
@@ -27,14 +31,47 @@ def _board(session, segment, role, kind):
 
 
 def _coverage(page, mag):
-    return page.evaluate("""async (mag) => { const c = await import('/metawear/checks.js');
-        const s = new c.SphereCoverage(); for (const m of mag) s.push(m); return s.coverage(); }""", mag)
+    return page.evaluate("""async ([mag, limits]) => { const c = await import('/metawear/checks.js');
+        const s = new c.SphereCoverage(limits); for (const m of mag) s.push(m); return s.coverage(); }""",
+                         [mag, LIMITS["coverage"]])
 
 
-def test_thresholds_are_the_pipelines(static_page):
-    js = static_page.evaluate("""async () => { const c = await import('/metawear/checks.js');
-        return [c.STILL_MAX_GYR_SD_RAD_S, c.STILL_MAX_ACC_SD_M_S2]; }""")
-    assert js == [knee.STILL_MAX_GYR_SD_RAD_S, knee.STILL_MAX_ACC_SD_M_S2]
+def test_served_thresholds_are_the_pipelines(static_page):
+    """The stillness and coverage values served are the pipeline's (its still window, its limits, its cells)."""
+    params = knee.CalibrationParams()
+    assert LIMITS["stillness"] == {"window_s": params.window_s, "max_gyr_sd_rad_s": knee.STILL_MAX_GYR_SD_RAD_S,
+                                   "max_acc_sd_m_s2": knee.STILL_MAX_ACC_SD_M_S2}
+    assert LIMITS["stillness"]["window_s"] == 5.0
+    assert LIMITS["coverage"]["min_cell_samples"] == magnetometer.MIN_CELL_SAMPLES
+    assert LIMITS["coverage"]["complete_fraction"] == magnetometer.COVERAGE_WARN
+    # the browser's cells are the pipeline's 20: the fitted quality's cells / fraction
+    d = np.random.default_rng(0).normal(size=(600, 3))
+    q = fit_ellipsoid(45.0 * d / np.linalg.norm(d, axis=1, keepdims=True) + [10.0, -5.0, 3.0]).quality
+    cells = static_page.evaluate("async () => (await import('/metawear/checks.js')).CELL_COUNT")
+    assert cells == round(q.coverage_cells / q.coverage_fraction) == 20
+
+
+def test_checks_refuse_to_run_without_served_thresholds(static_page):
+    """The recorder takes no default: without GET /options' live_checks it refuses to start (nothing is guessed)."""
+    msg = static_page.evaluate("""async () => { const r = await import('/metawear/recorder.js');
+        try { new r.Recorder(1, null, null, undefined); return 'made'; } catch (e) { return e.message; } }""")
+    assert "live_checks" in msg
+
+
+def test_the_stillness_window_is_the_pipelines_judgement(static_page, session):
+    """Live "still" on the last window is the pipeline's condition (estimators.knee.stillest_window's SD over its
+    window, ddof 1): on the task's samples, the live SD-based flag equals the pipeline's per-window verdict."""
+    acc = _board(session, "thigh", "task", "acc")
+    gyr = _board(session, "thigh", "task", "gyr")
+    n = min(len(acc), len(gyr), 1500)
+    flags = np.asarray(_stillness(static_page, acc[:n], gyr[:n]))
+    w = int(round(LIMITS["stillness"]["window_s"] * 100))
+    a = np.asarray(acc[:n]) * 9.80665
+    g = np.deg2rad(np.asarray(gyr[:n]))
+    for end in range(w, n, 37):
+        sd_a = np.sqrt(a[end - w:end].var(axis=0, ddof=1).sum())
+        sd_g = np.sqrt(g[end - w:end].var(axis=0, ddof=1).sum())
+        assert flags[end - 1] == (sd_g <= knee.STILL_MAX_GYR_SD_RAD_S and sd_a <= knee.STILL_MAX_ACC_SD_M_S2), end
 
 
 @pytest.mark.parametrize("segment", ["thigh", "shank"])
@@ -49,20 +86,20 @@ def test_figure_eight_coverage_is_near_the_pipelines(static_page, session, segme
 
 
 def _stillness(page, acc, gyr):
-    return page.evaluate("""async ([acc, gyr]) => { const c = await import('/metawear/checks.js');
-        const s = new c.Stillness(100); const flags = [];
+    return page.evaluate("""async ([acc, gyr, limits]) => { const c = await import('/metawear/checks.js');
+        const s = new c.Stillness(100, limits); const flags = [];
         for (let i = 0; i < Math.min(acc.length, gyr.length); i++) {
             s.pushAcc(acc[i]); s.pushGyr(gyr[i]); flags.push(s.still()); }
-        return flags; }""", [acc, gyr])
+        return flags; }""", [acc, gyr, LIMITS["stillness"]])
 
 
 @pytest.mark.parametrize("segment", ["thigh", "shank"])
 def test_postures_are_still_and_the_task_is_not(static_page, session, segment):
     for role in ("standing", "lying"):
         flags = np.asarray(_stillness(static_page, _board(session, segment, role, "acc"), _board(session, segment, role, "gyr")))
-        assert flags[50:].mean() > 0.95, (role, flags[50:].mean())
+        assert flags[500:].mean() > 0.95, (role, flags[500:].mean())      # after the first 5 s window
     task = np.asarray(_stillness(static_page, _board(session, segment, "task", "acc"), _board(session, segment, "task", "gyr")))
-    assert task[50:].mean() < 0.6
+    assert task[500:].mean() < 0.6
 
 
 @pytest.mark.parametrize("seed, n_cycles", [(9, 6), (4, 10)])
@@ -73,8 +110,9 @@ def test_the_task_cycle_count(static_page, session, seed, n_cycles):
         session = simulate_session(seed=seed, side="left", n_cycles=n_cycles)
     for segment in ("thigh", "shank"):
         gyr = _board(session, segment, "task", "gyr")
-        n = static_page.evaluate("""async (gyr) => { const c = await import('/metawear/checks.js');
-            const k = new c.CycleCounter(100); for (const g of gyr) k.push(g); return k.cycles; }""", gyr)
+        n = static_page.evaluate("""async ([gyr, limits]) => { const c = await import('/metawear/checks.js');
+            const k = new c.CycleCounter(100, limits); for (const g of gyr) k.push(g); return k.cycles; }""",
+                                 [gyr, LIMITS["cycles"]])
         assert n == len(session.motion.cycles_s), (segment, n, len(session.motion.cycles_s))
 
 

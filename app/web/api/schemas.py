@@ -194,6 +194,8 @@ class OptionsOut(BaseModel):
     measure_ranges: dict[str, dict[str, float]]
     roles: list[str]
     token_max_days: int
+    #: the recording page's live checks' thresholds (app.choices.live_checks): {"stillness": {...}, ...}
+    live_checks: dict[str, dict[str, float]]
 
 
 class ClinicOut(BaseModel):

@@ -10,7 +10,7 @@ this test's page only).  The streams are a simulated session (:func:`app.pipelin
 by the protocol's Python twin (``metawear_frames.py``).
 
 The clinician's path, with a MetaMotion R (BMI160) on the thigh and a MetaMotion S (BMI270) on the shank:
-connect the two sensors through the browser's chooser (battery and firmware shown)
+connect the two sensors through the browser's chooser (battery and firmware shown; one blinks its LED when asked)
 → "which is the thigh sensor?": the sensor connected SECOND is moved (so the page must reorder them) → the four
 steps, each started, streamed (the shank loses 1 % of its task notifications, and its link drops for 5 s in
 the middle of the task: the page reconnects, re-configures and goes on), stopped and uploaded; each step is
@@ -38,7 +38,8 @@ import shutil
 import numpy as np
 import pytest
 
-from metawear_frames import LSB, counts, sensor_notifications
+from app.choices import live_checks
+from metawear_frames import LED_PLAY, LED_STOP_AND_CLEAR, LSB, counts, led_pattern, sensor_notifications
 from metawear_peripherals import STAND_IN, Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
@@ -51,6 +52,10 @@ CHUNK_S = 1.0          # simulated seconds of packets delivered per call
 BLACKOUT_S = 5.0
 #: the boards: the thigh's a MetaMotion R (BMI160), the shank's a MetaMotion S (BMI270, other data registers)
 CHIP = {"thigh": "BMI160", "shank": "BMI270"}
+#: the browser's time zone (UTC+14 all year, no daylight saving) and the local day of the simulated session there
+TIMEZONE, UTC_OFFSET_H, LOCAL_DAY = "Pacific/Kiritimati", 14.0, "2026-11-23"
+#: the still window GET /options is made to serve in this test (the pipeline's is 5 s)
+SERVED_WINDOW_S = 4.0
 
 
 @pytest.fixture(scope="module")
@@ -180,7 +185,10 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
     from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
 
     expect = slow_expect
-    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000})
+    # the browser 14 h east of Greenwich: the simulated session (2026-11-22 from 10:00 UTC) is recorded on the
+    # 23rd there, the day MetaBase would name its files with and the report must print as the recordings' date
+    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000},
+                                     timezone_id=TIMEZONE)
     context.set_default_timeout(WAIT_MS)
     context.add_init_script(STAND_IN)
     page = context.new_page()
@@ -193,6 +201,18 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
         shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64, chip=CHIP["shank"]))
         thigh = bench.add(Peripheral("D4:F1:A2:B3:C4:E5", "MetaWear-S2", firmware="1.5.0", chip=CHIP["thigh"]))
+        # the live checks take their thresholds from GET /options (app.choices.live_checks): served with another
+        # still window here, the page must say that one (the real answer holds the pipeline's 5 s)
+        served = {}
+
+        def options(route):
+            answer = route.fetch()
+            body = answer.json()
+            served["real"] = answer.json()["live_checks"]      # parsed again: the server's, untouched
+            body["live_checks"]["stillness"]["window_s"] = SERVED_WINDOW_S
+            route.fulfill(json=body)
+
+        context.route("**/api/v1/options", options)
         page.goto(f"{server}/#/sessions/{sid}/record")
         expect(page.get_by_role("heading", level=1)).to_have_text("Record with the sensors")
 
@@ -206,6 +226,13 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         expect(cards.nth(0)).to_contain_text("battery 64 %")
         expect(cards.nth(1)).to_contain_text("firmware 1.5.0")
         expect(page.get_by_role("button", name="Connect a sensor")).to_be_disabled()
+        # which physical sensor is which: its card's button blinks that board's LED (the emulated board gets the
+        # LED module's commands: stop and clear, the pattern, play), and only that board's
+        before = (len(shank.commands), len(thigh.commands))
+        cards.nth(0).get_by_role("button", name="Blink its light").click()
+        blink = [LED_STOP_AND_CLEAR, led_pattern("green", 31, 0, 0, 200, 0, 500, 0, 6), LED_PLAY]
+        bench.wait(lambda: shank.commands[before[0]:] == blink, "the shank's LED blinking")
+        assert len(thigh.commands) == before[1]
 
         # --- the thigh is the sensor that moves (connected second: the page must reorder)
         page.get_by_role("button", name="Which is the thigh sensor?").click()
@@ -279,6 +306,13 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             expect(step.locator("ul.live")).to_contain_text(
                 {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
                  "task": "cycles counted"}[role])
+            if role in ("standing", "lying"):
+                # the served still window, not a number of the page's own
+                expect(step.locator("ul.live li[data-segment=thigh] .check")).to_contain_text(
+                    f"{SERVED_WINDOW_S:.0f} s in a row needed")
+                assert served["real"] == live_checks()
+            if role == "mag_calibration":
+                expect(step.locator("ul.live li[data-segment=thigh] .check")).to_contain_text("(15 needed)")
             # every packet of both boards understood (none counted as bad)
             assert step.locator(".bad-packets").count() == 0, step.locator("ul.live").inner_text()
             if role == "task":
@@ -341,7 +375,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 (tmp_path / name).write_bytes(data)
                 stream = read_metabase_csv(tmp_path / name)
                 rewritten = write_metabase_csv(again / name, stream.kind, np.round(stream.t_s * 1e3).astype(np.int64),
-                                               stream.values).read_bytes()
+                                               stream.values, utc_offset_h=UTC_OFFSET_H).read_bytes()
                 assert rewritten == data, name                     # the browser wrote the writer's file
 
         # --- the truth as files: the simulator's samples (quantised as the boards send them, on the simulator's
@@ -363,6 +397,11 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
 
         recorded = _process(context, server, sid)
         uploaded = _process(context, server, sid2)
+        # the browser named its files with its local time, as MetaBase does: the recordings' date is the local day
+        # (the truth files, written at UTC+0, give the UTC day: 2026-11-22)
+        assert recorded["session"]["recorded"] == {"first": LOCAL_DAY, "last": LOCAL_DAY, "zone": None}, (
+            recorded["session"]["recorded"])
+        assert uploaded["session"]["recorded"]["first"] == "2026-11-22"
         # the recorded session against the simulator's own samples: its stamps are rebuilt from arrival times
         # (within 12 ms of the true clock, tests/static/test_metawear_recording.py) and it lacks the shank's 5 s
         # gap and 1 % of its task packets, so: the cycles of the gap missing (at most two), and the mean flexion

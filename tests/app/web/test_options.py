@@ -30,7 +30,8 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     assert r.status_code == 200, r.text
     body = r.json()
     assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides",
-                         "sexes", "token_scopes", "audit_actions", "measure_ranges", "roles", "token_max_days"}
+                         "sexes", "token_scopes", "audit_actions", "measure_ranges", "roles", "token_max_days",
+                         "live_checks"}
     from app.web.audit import ACTIONS
 
     # one definition each (app.choices), which the patient form and the admin pages read from here
@@ -38,6 +39,8 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     assert body["roles"] == list(choices.USER_ROLE_NAMES) and body["token_max_days"] == choices.TOKEN_MAX_DAYS
 
     assert body["sexes"] == list(choices.SEX_NAMES)
+    # the recording page's live checks read their thresholds from here: the pipeline's still window of 5 s
+    assert body["live_checks"] == choices.live_checks() and body["live_checks"]["stillness"]["window_s"] == 5.0
     assert body["token_scopes"] == list(choices.TOKEN_SCOPES) and body["audit_actions"] == list(ACTIONS)
     for key in choices.OPTION_LISTS:
         items = body[key]
