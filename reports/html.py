@@ -61,6 +61,8 @@ tr.rejected td{background:#fdecec} tr.outside td{background:#fff4e0;font-weight:
 ul.warnings li{margin:3px 0} .muted{color:#5c677d}
 header p.identity{font-size:.92em} header .muted-h{opacity:.75} p.interp{white-space:pre-wrap}
 footer{font-size:.85em;color:#5c677d;text-align:center;padding:12px}
+section{overflow-x:auto}
+@media (max-width:820px){main{padding:12px} section{padding:12px} th,td{padding:4px 5px}}
 """
 
 
