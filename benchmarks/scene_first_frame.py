@@ -183,7 +183,8 @@ def trace_summary(path: Path, min_ms: float = 50.0) -> list[str]:
     lines = [f"first bone frame at {(marks['first-bone'] - t0) / 1000:.0f} ms" if "first-bone" in marks else ""]
     for key in (k for k, v in names.items() if v == "CrRendererMain"):
         spans = [e for e in events if (e["pid"], e["tid"]) == key and e.get("ph") == "X"]
-        for task in sorted((e for e in spans if e.get("name") == "RunTask" and e.get("dur", 0) >= min_ms * 1000),
+        for task in sorted((e for e in spans if e.get("name") in ("RunTask", "ThreadControllerImpl::RunTask")
+                            and e.get("dur", 0) >= min_ms * 1000),
                            key=lambda e: e["ts"]):
             inner = sorted((e for e in spans if e is not task and task["ts"] <= e["ts"] and
                             e["ts"] + e.get("dur", 0) <= task["ts"] + task["dur"] and e.get("dur", 0) >= 10_000),
