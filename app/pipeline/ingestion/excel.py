@@ -11,8 +11,7 @@ File names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-{ddm
 The time base is elapsed seconds (no epoch): the two sensors' recordings are assumed to start together.
 A workbook with several sheets: the one sheet whose header has this layout is used (and the choice is
 noted); none or several such sheets is refused.  The cells are read by :mod:`.xlsx_cells` (the sheet XML
-matched by regular expressions, openpyxl's values: ~0.1 s of CPU for a 10-cycle session's eight workbooks where
-openpyxl took 1.6 s); ``openpyxl`` reads the shared strings and writes the test workbooks.
+matched by regular expressions, the data rows by numpy over the bytes: :mod:`.xlsx_scan`; openpyxl's values); ``openpyxl`` reads the shared strings and writes the test workbooks.
 
 Size caps (issue 16, finding 4: a 70 kB crafted workbook unpacked to 18 MB of identical rows and cost
 10–30 s of CPU; the cost of reading grows with rows and cells, about 0.1 ms a row measured here).  An .xlsx
