@@ -199,6 +199,38 @@ def open_workbook(path: str | os.PathLike) -> Workbook:
     return wb
 
 
+class OneWorkbook:
+    """The ``.xlsx`` files of one recording, opened (:func:`open_workbook`: the caps) one at a time: called with a
+    path, the workbook of that path, open; opening another closes the one before (its sheets' XML, up to
+    :data:`MAX_SHEET_MB`, is dropped with it), so a phyphox set of several workbooks holds one in memory, and the
+    sniff and the reader of the same file share one opening.  ``None`` for a path that is not an ``.xlsx``.
+    :meth:`close` (or a ``with`` block) closes the last one."""
+
+    def __init__(self) -> None:
+        self._path: Path | None = None
+        self._wb: Workbook | None = None
+
+    def __call__(self, path: Path) -> Workbook | None:
+        path = Path(path)
+        if path.suffix.lower() != ".xlsx":
+            return None
+        if path != self._path:
+            self.close()
+            self._wb, self._path = open_workbook(path), path
+        return self._wb
+
+    def close(self) -> None:
+        if self._wb is not None:
+            self._wb.close()
+        self._wb = self._path = None
+
+    def __enter__(self) -> OneWorkbook:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None,
                      wb: Workbook | None = None) -> tuple[Stream, Stream, Stream, str]:
     """Read a thesis workbook → ``(acc, gyr, mag, note)`` in project units; ``note`` says which sheet was used.
