@@ -82,7 +82,8 @@ export class Recorder {
    * thresholds of the live checks as the server serves them (GET /options "live_checks", ./checks.js). */
   constructor(sessionId, store, send, liveChecks) {
     if (!liveChecks?.stillness || !liveChecks.coverage || !liveChecks.cycles) {
-      throw new Error("the live checks' thresholds (GET /options live_checks) are missing");
+      throw Object.assign(new Error("the live checks' thresholds (GET /options live_checks) are missing"),
+        { code: "live_checks_missing" });
     }
     this.limits = liveChecks;
     this.sessionId = sessionId;

@@ -54,8 +54,8 @@ def test_served_thresholds_are_the_pipelines(static_page):
 def test_checks_refuse_to_run_without_served_thresholds(static_page):
     """The recorder takes no default: without GET /options' live_checks it refuses to start (nothing is guessed)."""
     msg = static_page.evaluate("""async () => { const r = await import('/metawear/recorder.js');
-        try { new r.Recorder(1, null, null, undefined); return 'made'; } catch (e) { return e.message; } }""")
-    assert "live_checks" in msg
+        try { new r.Recorder(1, null, null, undefined); return 'made'; } catch (e) { return [e.code, e.message]; } }""")
+    assert msg[0] == "live_checks_missing" and "live_checks" in msg[1]          # the page says it by its code
 
 
 #: the pipeline's still limits as its docstring states them (estimators.knee.CalibrationParams: 0.05 rad/s, 0.3 m/s²)
