@@ -34,6 +34,7 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -63,9 +64,10 @@ SERVED_REAL = {"stillness": {"window_s": 5.0, "max_gyr_sd_rad_s": 0.05, "max_acc
                "cycles": {"average_s": 0.3, "rise_rad_s": pytest.approx(np.pi / 3), "fall_rad_s": pytest.approx(np.pi / 9)}}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def bt_browser(browser):
-    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not)."""
+    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not); one per test:
+    its Bluetooth emulation can be enabled only once."""
     chromium = shutil.which("chromium")
     b = browser.browser_type.launch(executable_path=chromium, headless=True, args=list(ARGS))
     try:
@@ -186,22 +188,32 @@ def _process(context, base, sid) -> dict:
     return r.json()
 
 
-def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
-    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
-
-    expect = slow_expect
-    # the browser 14 h east of Greenwich: the simulated session (2026-11-22 from 10:00 UTC) is recorded on the
-    # 23rd there, the day MetaBase would name its files with and the report must print as the recordings' date
-    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000},
-                                     timezone_id=TIMEZONE)
+@contextmanager
+def _logged_in(bt_browser, base, expect, **context_options):
+    """A context of the Bluetooth Chromium (the notification stand-in installed), logged in on the patients' page:
+    (context, page); closed at the end, and any JavaScript error of the page fails the test."""
+    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000}, **context_options)
     context.set_default_timeout(WAIT_MS)
     context.add_init_script(STAND_IN)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     try:
-        log_in(page, server)
+        log_in(page, base)
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        yield context, page
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
+    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
+
+    expect = slow_expect
+    # the browser 14 h east of Greenwich: the simulated session (2026-11-22 from 10:00 UTC) is recorded on the
+    # 23rd there, the day MetaBase would name its files with and the report must print as the recordings' date
+    with _logged_in(bt_browser, server, expect, timezone_id=TIMEZONE) as (context, page):
         sid = _api_session(context, server, "BLE-001", "right")
         bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
         shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64, chip=CHIP["shank"]))
@@ -423,9 +435,6 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                               for a, b in truth.cycles_s])
         assert abs(recorded["rom_deg"]["flexion"]["range"]["mean"] - true_range) < 5.0, (
             recorded["rom_deg"]["flexion"]["range"], true_range)
-    finally:
-        context.close()
-    assert not errors, f"JavaScript errors: {errors}"
 
 
 def test_the_page_says_when_the_options_cannot_be_read(bt_browser, server, slow_expect):  # noqa: F811
@@ -434,15 +443,7 @@ def test_the_page_says_when_the_options_cannot_be_read(bt_browser, server, slow_
     sensor?" and "Upload again" stay disabled until the recorder exists; asked again with the server answering,
     recording is possible."""
     expect = slow_expect
-    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000})
-    context.set_default_timeout(WAIT_MS)
-    context.add_init_script(STAND_IN)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    try:
-        log_in(page, server)
-        expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+    with _logged_in(bt_browser, server, expect) as (context, page):
         sid = _api_session(context, server, "BLE-003", "right")
         # a take of the lying step left in this browser's buffer by an earlier visit, never acknowledged
         assert page.evaluate("""async (sid) => { const s = await import('/static/metawear/store.js');
@@ -490,6 +491,3 @@ def test_the_page_says_when_the_options_cannot_be_read(bt_browser, server, slow_
         expect(alert).to_have_count(0)
         expect(identify).to_be_enabled()
         expect(lying.get_by_role("button", name="Upload again")).to_be_enabled()
-    finally:
-        context.close()
-    assert not errors, f"JavaScript errors: {errors}"
