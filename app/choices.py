@@ -132,7 +132,7 @@ def options() -> dict[str, list[dict[str, Any]]]:
     return out
 
 
-def live_checks() -> dict[str, dict[str, float]]:
+def live_checks() -> dict[str, dict[str, float | int]]:
     """The thresholds of the recording page's live checks (``static/metawear/checks.js``), served in
     ``GET /options`` as ``live_checks`` so that the browser holds no copy of a number the pipeline judges by:
 

@@ -180,6 +180,22 @@ def _session(base: str, token: str, external_id: str) -> int:
         return c.post(f"/patients/{pid}/sessions", json={}).json()["id"]
 
 
+def old_record_js(commit: str) -> bytes:
+    """``static/views/record.js`` of ``commit``, served with today's other modules.  A record.js older than 913bbb8
+    does not hand the live checks' thresholds of GET /options to the Recorder, which today's recorder.js requires:
+    its page never makes a recorder and the run would wait for the sensors' identification forever, so it is
+    refused (SystemExit with the reason), as is a commit git does not know."""
+    done = subprocess.run(["git", "-C", str(ROOT), "show", f"{commit}:static/views/record.js"], capture_output=True)
+    if done.returncode != 0:
+        raise SystemExit(f"--before {commit}: git has no static/views/record.js at that commit "
+                         f"({done.stderr.decode(errors='replace').strip()})")
+    if b"live_checks" not in done.stdout:
+        raise SystemExit(f"--before {commit}: its record.js predates 913bbb8 (it does not pass GET /options' "
+                         "live_checks to the Recorder, which today's recorder.js requires, so the page never records "
+                         "and the run would wait forever); compare with 913bbb8 or a later commit")
+    return done.stdout
+
+
 def one_run(browser, base: str, token: str, run: int, args) -> dict:
     """One fresh page and session through the postures to a paced task: the switches' lags (``dom``, ``frame``, ms),
     how late the pacer handed each switch's packet to the page (``late``, ms: the machine's, not the page's), the
@@ -189,11 +205,9 @@ def one_run(browser, base: str, token: str, run: int, args) -> dict:
     context.set_default_timeout(180_000)
     context.add_init_script(STAND_IN)
     context.add_init_script(PROBE)
-    if args.before:
-        old_js = subprocess.run(["git", "-C", str(ROOT), "show", f"{args.before}:static/views/record.js"],
-                                capture_output=True, check=True).stdout
+    if args.old_js is not None:
         context.route("**/static/views/record.js", lambda route: route.fulfill(
-            body=old_js, content_type="text/javascript; charset=utf-8"))
+            body=args.old_js, content_type="text/javascript; charset=utf-8"))
     page = context.new_page()
     try:
         page.goto(f"{base}/#/patients")
@@ -287,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--before", default=None, metavar="COMMIT",
                         help="serve that commit's static/views/record.js instead of today's (an old-vs-new pair)")
     args = parser.parse_args(argv)
+    args.old_js = old_record_js(args.before) if args.before else None
     chromium = shutil.which("chromium")
     if chromium is None:
         print("chromium not installed: nothing measured")

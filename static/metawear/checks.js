@@ -53,7 +53,7 @@ export class SphereCoverage {
     }
   }
 
-  /** {cells reached, fraction of the 20, complete: fraction ≥ the pipeline's complete_fraction, need: cells needed}. */
+  /** {cells reached, fraction of the 20, need: the cells the pipeline's complete_fraction needs}. */
   coverage() {
     const centre = this.lo.map((l, i) => (l + this.hi[i]) / 2);
     const counts = new Array(CELLS.length).fill(0);
@@ -71,35 +71,60 @@ export class SphereCoverage {
     }
     const cells = counts.filter((n) => n >= this.minCellSamples).length;
     const fraction = cells / CELLS.length;
-    return { cells, fraction, complete: fraction >= this.completeFraction,
-      need: Math.ceil(this.completeFraction * CELLS.length - 1e-9) };
+    return { cells, fraction, need: Math.ceil(this.completeFraction * CELLS.length - 1e-9) };
   }
 }
 
-/** The last n samples of a stream and their total SD (ddof 1): √(Σ_axes Σ_k (v_k − v̄)² / (n − 1)). */
+/** The last n samples of a stream and their total SD (ddof 1): √(Σ_axes Σ_k (v_k − v̄)² / (n − 1)), in O(1) per
+ * sample: a ring of the samples and running sums of d = v − r and d² about a reference r, so that
+ * Σ_k (v_k − v̄)² = Σ d² − (Σ d)² / m (m samples).  r is a sample of the window, near its mean, which keeps the
+ * subtraction from cancelling (gravity's 9.8 m/s² under an SD of 0.3); the sums are summed afresh from the ring
+ * every n samples (and r moved to the newest sample), so rounding never accumulates: O(n) once per n samples. */
 class Window {
   constructor(n) {
     this.n = n;
-    this.values = [];
+    this.ring = new Array(n);
+    this.next = 0;            // where the next sample goes (the oldest one once full)
+    this.m = 0;
+    this.ref = null;
+    this.s1 = [0, 0, 0];
+    this.s2 = [0, 0, 0];
+    this.sinceSummed = 0;
   }
 
   push(v) {
-    this.values.push(v);
-    if (this.values.length > this.n) this.values.shift();
+    if (this.ref === null) this.ref = v.slice();
+    if (this.m === this.n) this.add(this.ring[this.next], -1);
+    else this.m += 1;
+    this.ring[this.next] = v;
+    this.next = (this.next + 1) % this.n;
+    this.add(v, 1);
+    this.sinceSummed += 1;
+    if (this.sinceSummed >= this.n) this.sumAfresh(v);
   }
 
-  full() { return this.values.length >= this.n; }
+  add(v, sign) {
+    for (let i = 0; i < 3; i++) {
+      const d = v[i] - this.ref[i];
+      this.s1[i] += sign * d;
+      this.s2[i] += sign * d * d;
+    }
+  }
+
+  sumAfresh(ref) {
+    this.ref = ref.slice();
+    this.s1 = [0, 0, 0];
+    this.s2 = [0, 0, 0];
+    for (let k = 0; k < this.m; k++) this.add(this.ring[k], 1);
+    this.sinceSummed = 0;
+  }
+
+  full() { return this.m >= this.n; }
 
   totalSd() {
-    const m = this.values.length;
     let sum = 0;
-    for (let i = 0; i < 3; i++) {
-      let mean = 0;
-      for (const v of this.values) mean += v[i];
-      mean /= m;
-      for (const v of this.values) sum += (v[i] - mean) ** 2;
-    }
-    return Math.sqrt(sum / (m - 1));
+    for (let i = 0; i < 3; i++) sum += Math.max(this.s2[i] - this.s1[i] * this.s1[i] / this.m, 0);
+    return Math.sqrt(sum / (this.m - 1));
   }
 }
 

@@ -1,17 +1,22 @@
 // Recorded streams as MetaBase CSV files: the documented format the ingestion reads (app/pipeline/ingestion/
-// metabase.py), written character for character as its writer does, so a recording made in the browser is
-// the same file a MetaBase export of the same samples gives.
+// metabase.py), written character for character as the project's own writer (write_metabase_csv) writes it at
+// the start's UTC offset (tests/static/test_metawear_recording.py compares the two).  That is not necessarily
+// what MetaBase itself would write for the same samples: see "Local time" below.
 //
 // Name   {label}_MetaWear_{YYYY-MM-DDTHH.MM.SS.mmm}_{MAC}_{Accelerometer|Gyroscope|Magnetometer}_{rate:.3f}Hz_{firmware}.csv
 //        (time of the first sample in the browser's local time, as MetaBase names a file with the phone's
 //        local time: the server reads the name's date as the recording's local day, the report's
 //        "recordings' date", app/pipeline/results.py recorded_dates)
-// Header epoch (ms),time (+01:00),elapsed (s),x-axis (g),y-axis (g),z-axis (g)   (the local UTC offset)
+// Header epoch (ms),time (+01:00),elapsed (s),x-axis (g),y-axis (g),z-axis (g)
 // Rows   integer epoch ms (UTC), its local time, seconds since the first row with 3 decimals, the values with
 //        3 decimals (g, deg/s) or 9 (T: the magnetometer's µT / 1e6, as MetaBase exports tesla).
-// The local offset is the browser's at the recording's first sample, for the name and every row (one zone
-// label in the header, as the Python writer's utc_offset_h; a recording across a daylight-saving change
-// keeps its start's offset; the epoch column, the time base the server reads, is UTC regardless).
+// Local time: the browser's UTC offset at the recording's first sample, for the name, the header's zone label
+// and every row; a recording across a daylight-saving change keeps its start's offset to its end.  Real
+// MetaBase exports differ in two ways this file does not copy: their header's zone label carries no meaning
+// (the exports in the project's data say "time (-13:00)" above rows written at UTC−4), and MetaBase formats
+// each row with the phone's local time of that moment, so its rows' offset would change at a daylight-saving
+// change (none of those exports spans one).  The server reads neither the label nor the time column: the
+// epoch column (UTC) is the time base, the name's date the local day.
 // Numbers are formatted as Python's f"{x:.nf}" does: the exact binary value rounded, a tie (x · 2^(n+1) an odd
 // integer, the only way a binary number ends in a 5 right after the n-th decimal) to the even digit.
 

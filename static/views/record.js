@@ -61,9 +61,13 @@ function sensorCard(sensor, segment, fail) {
     h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)), blink);
 }
 
+// the flexion preview's text (the live list's line and previewFrame's every-frame update)
+function previewText(flexion) {
+  return t("record.preview", { deg: flexion === null ? "—" : num(flexion, 0) });
+}
+
 function liveLine(role, live, flexion) {
-  const preview = role === "task" ? h("li", { class: "preview" }, t("record.preview", {
-    deg: flexion === null ? "—" : num(flexion, 0) })) : null;
+  const preview = role === "task" ? h("li", { class: "preview" }, previewText(flexion)) : null;
   const stored = live.bufferError ? h("li", { class: "buffer-error" }, t("record.buffer_error")) : null;
   return [preview, stored, ...SEGMENTS.map((s) => {
     const l = live[s];
@@ -82,6 +86,7 @@ function liveLine(role, live, flexion) {
 export function recordView(sessionId) {
   const section = h("section", { class: "view record" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
+  const optionsMessage = h("div", { class: "options-message", "aria-live": "polite" });   // until the recorder exists
   const sensorsList = h("ul", { class: "sensors" });
   const identifyArea = h("div", { class: "identify" });
   const stepsList = h("ol", { class: "record-steps" });
@@ -89,7 +94,7 @@ export function recordView(sessionId) {
   const state = { sensors: [], recorder: null, store: null, status: {}, active: null, busy: false };
   for (const role of STEPS) state.status[role] = "todo";
 
-  section.append(h("h1", {}, t("record.title")), h("p", { class: "lead" }, t("record.lead")), message);
+  section.append(h("h1", {}, t("record.title")), h("p", { class: "lead" }, t("record.lead")), optionsMessage, message);
   if (!canEdit()) {
     section.append(alertBox(t("record.read_only"), "info"));
     return section;
@@ -132,8 +137,10 @@ export function recordView(sessionId) {
   });
 
   const identifyButton = h("button", { type: "button", class: "identify" }, t("record.identify"));
+  let identifying = false;
   identifyButton.addEventListener("click", async () => {
     clear(message).append(alertBox(t("record.move_thigh"), "info"));
+    identifying = true;
     identifyButton.disabled = true;
     try {
       const [thigh, shank] = await state.recorder.identify(...state.sensors);
@@ -143,7 +150,7 @@ export function recordView(sessionId) {
     } catch (err) {
       fail(err);
     }
-    identifyButton.disabled = false;
+    identifying = false;
     draw();
   });
 
@@ -236,7 +243,7 @@ export function recordView(sessionId) {
       buttons.push(h("button", { type: "button", class: "stop", onclick: () => finish(role, () => state.recorder.stop()) },
         t("record.stop")));
     } else if (status === "unsent") {
-      buttons.push(h("button", { type: "button", class: "retry", disabled: state.busy,
+      buttons.push(h("button", { type: "button", class: "retry", disabled: state.busy || !state.recorder,
         onclick: () => finish(role, () => state.recorder.upload(role)) }, t("record.retry")));
     }
     if (status !== "recording" && status !== "uploading") {
@@ -267,6 +274,7 @@ export function recordView(sessionId) {
     clear(identifyArea).append(...(attached.length < 2 ? [identifyButton] : []),
       ...(attached.length === 2 && !state.active ? [swapButton] : []));
     identifyButton.hidden = !connected;
+    identifyButton.disabled = !state.recorder || identifying;
     clear(stepsList).append(...STEPS.map(stepItem));
     clear(done).append(STEPS.every((r) => state.status[r] === "stored")
       ? h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button" }, t("record.to_wizard")) : "");
@@ -298,8 +306,7 @@ export function recordView(sessionId) {
     if (!section.isConnected) return;
     if (state.active === "task") {
       const li = stepsList.querySelector('[data-role="task"] ul.live li.preview');
-      const flexion = state.recorder.flexion();
-      const text = t("record.preview", { deg: flexion === null ? "—" : num(flexion, 0) });
+      const text = previewText(state.recorder.flexion());
       if (li && li.textContent !== text) li.textContent = text;
     }
     requestAnimationFrame(previewFrame);
@@ -311,20 +318,35 @@ export function recordView(sessionId) {
       h("div", { class: "actions" }, connectButton), identifyArea),
     h("div", {}, h("h2", {}, t("record.steps_title")), stepsList), done);
 
+  // the recorder needs the live checks' thresholds, the server's (app/choices.py live_checks: the pipeline's own);
+  // without them nothing can be recorded or uploaded: said, with a button that asks the server again
+  async function makeRecorder(again = false) {
+    try {
+      const served = await options(again);
+      state.recorder = new Recorder(sessionId, state.store,
+        (segment, role, files) => send(sessionId, segment, role, files), served.live_checks);
+      clear(optionsMessage);
+    } catch (err) {
+      const again = h("button", { type: "button", class: "secondary options-retry" }, t("record.options_retry"));
+      again.addEventListener("click", () => { again.disabled = true; makeRecorder(true); });
+      const key = err && err.code === "live_checks_missing" ? "record.error.live_checks_missing" : "record.error.options";
+      clear(optionsMessage).append(alertBox(t(key)), again);
+    }
+    draw();
+  }
+
   PacketStore.open().then(async (store) => {
     state.store = store;
-    // the live checks' thresholds are the server's (app/choices.py live_checks: the pipeline's own)
-    const served = await options();
-    state.recorder = new Recorder(sessionId, store, (segment, role, files) => send(sessionId, segment, role, files),
-      served.live_checks);
-    // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified)
-    for (const role of await store.steps(sessionId)) state.status[role] = "unsent";
-    const session = await api("GET", `/sessions/${sessionId}`);
+    // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified),
+    // listed whether or not the options can be read
+    const [buffered, session] = await Promise.all([store.steps(sessionId), api("GET", `/sessions/${sessionId}`)]);
+    for (const role of buffered) state.status[role] = "unsent";
     for (const role of STEPS) {
       const stored = (session.recordings || []).filter((r) => r.role === role && SEGMENTS.includes(r.segment));
       if (state.status[role] === "todo" && stored.length >= 2 * 3) state.status[role] = "stored";
     }
     draw();
+    await makeRecorder();
   }).catch(fail);
   draw();
   return section;

@@ -170,3 +170,23 @@ def test_the_led_blink_commands(static_page):
     assert out["slow"][1] == led_pattern("blue", 31, 0, 0, 1000, 0, 2000, 0, 255).hex()
     assert out["stop"] == [LED_STOP_AND_CLEAR.hex()]
     assert "purple" in out["colour"] and "32" in out["bright"] and "70000" in out["long"]
+
+
+def test_a_failed_write_does_not_block_the_later_ones(static_page):
+    """One write the board refuses (a blink while the link is busy) fails for its caller only: the next writes on
+    that sensor (configure and start, a reconnection's stop) still go out, in order.  The GATT characteristic is
+    the browser's boundary, played here by an object whose first write rejects as Web Bluetooth's do."""
+    out = static_page.evaluate("""async () => { const d = await import('/metawear/device.js');
+        const device = { name: 'MetaWear', id: 'x', addEventListener() {}, gatt: { connected: true } };
+        const sensor = new d.MetaWearSensor(device);
+        const written = [];
+        let calls = 0;
+        sensor.command = { async writeValueWithResponse(c) {
+            calls += 1;
+            if (calls === 1) throw new DOMException('GATT operation failed', 'NetworkError');
+            written.push(Array.from(c)); } };
+        const first = await sensor.write([new Uint8Array([1])]).then(() => 'ok', (e) => e.name);
+        const second = await sensor.write([new Uint8Array([2]), new Uint8Array([3])]).then(() => 'ok', (e) => e.name);
+        const third = await sensor.write([new Uint8Array([4])]).then(() => 'ok', (e) => e.name);
+        return { first, second, third, written }; }""")
+    assert out == {"first": "NetworkError", "second": "ok", "third": "ok", "written": [[2], [3], [4]]}

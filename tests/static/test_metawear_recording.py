@@ -303,3 +303,29 @@ def test_an_incomplete_step_is_not_uploaded(static_page, session, missing):
         assert out == {"code": None, "sent": ["thigh", "shank"], "left": 0}
     else:
         assert out == {"code": "incomplete", "sent": [], "left": len(records)}
+
+
+@pytest.mark.parametrize("zoned_page", ["Europe/Madrid"], indirect=True)
+def test_a_recording_across_a_daylight_saving_change_keeps_its_starts_offset(zoned_page, tmp_path):
+    """Madrid leaves summer time (UTC+2) for UTC+1 at 2026-10-25 01:00 UTC: a stream recorded from 00:59:58 to
+    01:00:02 UTC is named and written at its start's +02:00 for every row (the project's writer at that offset),
+    while its epoch column stays UTC; what the browser itself says after the change is +01:00."""
+    from app.pipeline.ingestion.metabase import write_metabase_csv
+
+    change_ms = 1792890000000                      # 2026-10-25T01:00:00Z
+    ms = [change_ms - 2000, change_ms - 1000, change_ms, change_ms + 1000, change_ms + 2000]
+    values = [[0.0, 0.0, 1.0]] * len(ms)
+    out = zoned_page.evaluate("""async ([ms, values]) => { const c = await import('/metawear/csv.js');
+        return { text: c.csvText('acc', ms, values), name: c.fileName('standing-thigh', ms[0], 'D4F1A2B3C4E5', 'acc',
+                 100, '1.7.3'), before: c.utcOffsetMin(ms[0]), after: c.utcOffsetMin(ms[4]) }; }""", [ms, values])
+    assert (out["before"], out["after"]) == (120, 60)
+    lines = out["text"].splitlines()
+    assert lines[0].startswith("epoch (ms),time (+02:00),")
+    assert [r.split(",")[1] for r in lines[1:]] == ["2026-10-25T02:59:58.000", "2026-10-25T02:59:59.000",
+                                                      "2026-10-25T03:00:00.000", "2026-10-25T03:00:01.000",
+                                                      "2026-10-25T03:00:02.000"]
+    assert [int(r.split(",")[0]) for r in lines[1:]] == ms
+    assert out["name"] == "standing-thigh_MetaWear_2026-10-25T02.59.58.000_D4F1A2B3C4E5_Accelerometer_100.000Hz_1.7.3.csv"
+    python = write_metabase_csv(tmp_path / "a.csv", "acc", np.asarray(ms), np.asarray(values) * 9.80665,
+                                utc_offset_h=2.0).read_text(encoding="utf-8")
+    assert out["text"] == python

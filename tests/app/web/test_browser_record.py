@@ -34,11 +34,11 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
 
-from app.choices import live_checks
 from metawear_frames import LED_PLAY, LED_STOP_AND_CLEAR, LSB, counts, led_pattern, sensor_notifications
 from metawear_peripherals import STAND_IN, Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
@@ -56,11 +56,18 @@ CHIP = {"thigh": "BMI160", "shank": "BMI270"}
 TIMEZONE, UTC_OFFSET_H, LOCAL_DAY = "Pacific/Kiritimati", 14.0, "2026-11-23"
 #: the still window GET /options is made to serve in this test (the pipeline's is 5 s)
 SERVED_WINDOW_S = 4.0
+#: what GET /options really serves as live_checks: the pipeline's still window and limits as its docstrings state them
+#: (estimators.knee: 5 s, 0.05 rad/s, 0.3 m/s²), its 3 samples per cell and warning below 75 % of the 20 cells
+#: (estimators.magnetometer), and the live-only values of app/choices.py (15 µT; 0.3 s, 60 °/s, 20 °/s)
+SERVED_REAL = {"stillness": {"window_s": 5.0, "max_gyr_sd_rad_s": 0.05, "max_acc_sd_m_s2": 0.3},
+               "coverage": {"min_cell_samples": 3, "complete_fraction": 0.75, "min_field_ut": 15.0},
+               "cycles": {"average_s": 0.3, "rise_rad_s": pytest.approx(np.pi / 3), "fall_rad_s": pytest.approx(np.pi / 9)}}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def bt_browser(browser):
-    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not)."""
+    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not); one per test:
+    its Bluetooth emulation can be enabled only once."""
     chromium = shutil.which("chromium")
     b = browser.browser_type.launch(executable_path=chromium, headless=True, args=list(ARGS))
     try:
@@ -181,22 +188,32 @@ def _process(context, base, sid) -> dict:
     return r.json()
 
 
-def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
-    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
-
-    expect = slow_expect
-    # the browser 14 h east of Greenwich: the simulated session (2026-11-22 from 10:00 UTC) is recorded on the
-    # 23rd there, the day MetaBase would name its files with and the report must print as the recordings' date
-    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000},
-                                     timezone_id=TIMEZONE)
+@contextmanager
+def _logged_in(bt_browser, base, expect, **context_options):
+    """A context of the Bluetooth Chromium (the notification stand-in installed), logged in on the patients' page:
+    (context, page); closed at the end, and any JavaScript error of the page fails the test."""
+    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000}, **context_options)
     context.set_default_timeout(WAIT_MS)
     context.add_init_script(STAND_IN)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     try:
-        log_in(page, server)
+        log_in(page, base)
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        yield context, page
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
+    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
+
+    expect = slow_expect
+    # the browser 14 h east of Greenwich: the simulated session (2026-11-22 from 10:00 UTC) is recorded on the
+    # 23rd there, the day MetaBase would name its files with and the report must print as the recordings' date
+    with _logged_in(bt_browser, server, expect, timezone_id=TIMEZONE) as (context, page):
         sid = _api_session(context, server, "BLE-001", "right")
         bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
         shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64, chip=CHIP["shank"]))
@@ -310,7 +327,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 # the served still window, not a number of the page's own
                 expect(step.locator("ul.live li[data-segment=thigh] .check")).to_contain_text(
                     f"{SERVED_WINDOW_S:.0f} s in a row needed")
-                assert served["real"] == live_checks()
+                assert served["real"] == SERVED_REAL
             if role == "mag_calibration":
                 expect(step.locator("ul.live li[data-segment=thigh] .check")).to_contain_text("(15 needed)")
             # every packet of both boards understood (none counted as bad)
@@ -418,6 +435,59 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                               for a, b in truth.cycles_s])
         assert abs(recorded["rom_deg"]["flexion"]["range"]["mean"] - true_range) < 5.0, (
             recorded["rom_deg"]["flexion"]["range"], true_range)
-    finally:
-        context.close()
-    assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_the_page_says_when_the_options_cannot_be_read(bt_browser, server, slow_expect):  # noqa: F811
+    """GET /options failing (or answering without live_checks): the takes buffered by an earlier visit are still
+    listed, the page says why nothing can be recorded (translated) and offers to ask again; "Which is the thigh
+    sensor?" and "Upload again" stay disabled until the recorder exists; asked again with the server answering,
+    recording is possible."""
+    expect = slow_expect
+    with _logged_in(bt_browser, server, expect) as (context, page):
+        sid = _api_session(context, server, "BLE-003", "right")
+        # a take of the lying step left in this browser's buffer by an earlier visit, never acknowledged
+        assert page.evaluate("""async (sid) => { const s = await import('/static/metawear/store.js');
+            const db = await s.PacketStore.open();
+            db.add({ session: sid, step: 'lying', segment: 'thigh', stream: 'acc', run: 0, arrivalMs: 1,
+                     bytes: new Uint8Array([3, 4, 1, 2, 3, 4, 5, 6]).buffer });
+            await db.flush(); return db.steps(sid); }""", sid) == ["lying"]
+        answer = {"mode": "fail"}
+
+        def options(route):
+            if answer["mode"] == "fail":
+                return route.fulfill(status=503, content_type="application/json", body='{"detail": "busy"}')
+            body = route.fetch().json()
+            if answer["mode"] == "without":
+                del body["live_checks"]
+            return route.fulfill(json=body)
+
+        context.route("**/api/v1/options", options)
+        page.goto(f"{server}/#/sessions/{sid}/record")
+        expect(page.get_by_role("heading", level=1)).to_have_text("Record with the sensors")
+        alert = page.locator(".options-message [role=alert]")
+        expect(alert).to_have_text("The recording settings could not be read from the server, so nothing can be "
+                                   "recorded or uploaded yet. Check the connection and try again.")
+        lying = page.locator("li.record-step[data-role=lying]")
+        expect(lying).to_have_attribute("data-status", "unsent")
+        expect(lying.get_by_role("button", name="Upload again")).to_be_disabled()
+
+        bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
+        for k, address in enumerate(("C1:D2:E3:F4:A5:B6", "D4:F1:A2:B3:C4:E5"), start=1):
+            bench.add(Peripheral(address, f"MetaWear-{k}"))
+            bench.choose = address
+            page.get_by_role("button", name="Connect a sensor").click()
+            bench.wait(lambda k=k: page.locator(".sensor-state[data-state=connected]").count() == k, f"sensor {k}")
+        identify = page.get_by_role("button", name="Which is the thigh sensor?")
+        expect(identify).to_be_visible()
+        expect(identify).to_be_disabled()
+
+        answer["mode"] = "without"
+        page.get_by_role("button", name="Try again").click()
+        expect(alert).to_contain_text("lacks the live checks' thresholds")
+        expect(identify).to_be_disabled()
+
+        answer["mode"] = "real"
+        page.get_by_role("button", name="Try again").click()
+        expect(alert).to_have_count(0)
+        expect(identify).to_be_enabled()
+        expect(lying.get_by_role("button", name="Upload again")).to_be_enabled()
