@@ -62,7 +62,7 @@ def _check_apdm(path: Path, f) -> None:
         return
     if "FileFormatVersion" in f.attrs:
         raise IngestionError("opal.not_v5", file=path)
-    names = sorted(f.keys())
+    names = [n if len(n) <= 40 else n[:39] + "…" for n in sorted(f.keys())[:9]]   # a message, not a dump
     held = ", ".join(names[:8]) + (", …" if len(names) > 8 else "") if names else "-"
     raise IngestionError("opal.not_apdm", file=path, datasets=held)
 

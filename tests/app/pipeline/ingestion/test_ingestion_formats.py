@@ -245,3 +245,22 @@ def test_sensor_logger_zip_without_gyroscope_is_refused(tmp_path, sim_session):
         read_recording([q])
     assert exc.value.code == "phone.files_missing" and "Gyroscope.csv" in str(exc.value)
     assert "grabe de nuevo" in exc.value.message("es")
+
+
+def test_the_names_an_hdf5_file_holds_are_cut_in_its_refusal(tmp_path):
+    """A review: one dataset named with 5 000 characters made a 5 334-character refusal.  Each name is cut at 40
+    characters and the list at eight names, as ``opal.cannot_open`` cuts its reason."""
+    import h5py
+
+    path = tmp_path / "long.hdf5"
+    with h5py.File(path, "w") as f:
+        f["a" * 5000] = np.zeros(2)
+        for k in range(12):
+            f[f"d{k:02d}"] = np.zeros(2)
+    with pytest.raises(IngestionError) as exc:
+        read_recording([path])
+    assert exc.value.code == "opal.not_apdm"
+    for lang in ("es", "en", "pt"):
+        text = exc.value.message(lang)
+        assert len(text) < 600 and "a" * 39 + "…, d00, d01" in text and "a" * 41 not in text, text
+        assert "d06, …" in text and "d07" not in text, text

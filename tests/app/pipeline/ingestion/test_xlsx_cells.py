@@ -364,3 +364,23 @@ def test_the_scan_is_linear_on_crafted_sheets():
     assert plain_cells(b'<row r="2">' + forms + b"</row>") is None    # more distinct texts than read
     many = b"".join(b'<row r="%d"><c r="A%d" s="1"><v>%d</v></c></row>' % (i, i, i) for i in range(2, 100_000))
     assert plain_cells(many)[2][-1] == 99_999.0
+
+
+def test_a_sheet_of_foreign_tags_is_refused_before_its_tags_are_counted_in_arrays():
+    """A review's crafted sheet: 31 M ``<>`` pairs (66 kB zipped, within the 64 MB sheet cap) made the scan hold
+    one int64 position per ``<`` and ``>`` and their differences, about 1 GB, before it found them foreign.  Now
+    the byte counts refuse it first; a plain sheet's memory stays that of its cells."""
+    import tracemalloc
+
+    from app.pipeline.ingestion.xlsx_scan import plain_cells
+
+    body = b'<row r="2"><c r="A2"><v>1</v></c></row>' + b"<>" * 4_000_000
+    tracemalloc.start()
+    try:
+        assert plain_cells(body) is None
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < len(body) // 4, peak        # was about 16 × len(body)
+    plain = b"".join(b'<row r="%d"><c r="A%d"><v>%d</v></c></row>' % (i, i, i) for i in range(2, 1002))
+    assert plain_cells(plain)[2][-1] == 1001.0
