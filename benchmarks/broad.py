@@ -441,7 +441,7 @@ SPLITS: dict[str, tuple[str, ...]] = {"A": ("02", "10", "18", "24", "30"), "B": 
 GRIDS: dict[str, dict[str, tuple[Any, ...]]] = {
     "chakamo": {"offline_tau_mag_s": (10.0, 20.0, 40.0),
                 "bias_sigma_motion_rad_s": (0.1 * _DEG, 0.2 * _DEG, 0.4 * _DEG, 0.8 * _DEG, 1.6 * _DEG),
-                "offline_mag_bias": (False, True), "offline_impact_acc_th_m_s2": (40.0, float("inf"))},
+                "offline_mag_bias": (False, True), "offline_impact_acc_th_m_s2": (30.0, 40.0, 60.0, float("inf"))},
     "guo": {"acc_noise_rad": (0.1, 0.2, 0.4), "mag_noise_rad": (0.075, 0.15, 0.3)},
     "madgwick": {"beta_rad_s": (0.02, 0.03, 0.05, 0.1)},
     "valenti_cf": {"tau_acc_s": (-0.01 / np.log1p(-0.01), 2.0, 5.0), "tau_mag_s": (5.0, 8.0, 10.0, 20.0)},
