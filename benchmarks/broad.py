@@ -66,8 +66,8 @@ half A = trials 02 10 18 24 30, half B = 07 15 27 32 35 (undisturbed 02–18 / d
 RMSE over the tuning half, per mode (keys that act only on the field, ``NINE_D_ONLY``, are not
 varied in 6D).  ``chakamo``'s grid includes ``offline_mag_bias`` (on/off): the feature's design looked at
 trials 32 and 35 (half B), so each tuning half must choose it for the held-out score to be evidence; likewise
-``offline_impact_acc_th_m_s2`` (40 m/s² or never, the pause of the motion bias after an impact), designed on trial 24
-(half A).  The table prints, per mode and split, the chosen values, the
+``offline_impact_acc_th_m_s2`` (30, 40, 60 m/s² or never, the pause of the motion bias after an isolated impact, off
+by default), designed on trial 24 (half A).  The table prints, per mode and split, the chosen values, the
 tuned-half score and the held-out half's undisturbed / disturbed means, beside VQF offline and online
 on the same held-out trials.
 
