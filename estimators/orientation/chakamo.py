@@ -82,8 +82,8 @@ Causal filter (one sample, ``dt = 1/fs``)
    taps come within 3 τ_acc of each other, so the isolated form leaves it at 0.92°; (ii) pausing at every
    impact also pauses the offline passes for most of a walk (heel strikes of 4–6.5 g off 1 g, no threshold
    separates them from the taps): ``benchmarks.walking`` knee RMSE 1.38° → 1.42° (6D), 1.37° → 1.41° (9D);
-   the isolated form still costs 1.38° → 1.41° and 1.37° → 1.40° (the first and last strike of each 5–15 s
-   clip pause the passes until the next); (iii) the threshold's held-out choice rests on one trial at one value:
+   the isolated form still costs 1.38° → 1.41° and 1.37° → 1.40° (presumably the first and last strike of
+   each 5–15 s clip, which pause the passes until the next; not measured separately); (iii) the threshold's held-out choice rests on one trial at one value:
    half B chooses 40 m/s² in 6D by trial 15 alone (isolated form: 1.317°, 1.300°, 1.318° at 30, 40, 60 m/s², 1.318°
    off) and scores B→A 3.07°, as off (VQF 6D 3.00°: not met).  See the README for the numbers.  In the offline
    passes the pauses of an isolated impact do not overlap (the forward pass pauses after it, the backward pass
