@@ -1,4 +1,4 @@
-r"""Guo, Wu, Wang, Qian (2017): MARG orientation with a fast Kalman filter (ChakaMo's clinical default).
+r"""Guo, Wu, Wang, Qian (2017): MARG orientation with a fast Kalman filter (a published comparator; the default is ``chakamo``).
 
 S. Guo, J. Wu, Z. Wang, J. Qian, "Novel MARG-sensor orientation estimation algorithm using fast
 Kalman filter", *Journal of Sensors* 2017, 8542153.  Equation numbers (5.xx) are those of the
@@ -245,12 +245,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.orientation import acc_lowpass
-from estimators.orientation.base import ALIGNED_STD_RAD, Alignment, ImuInput, OrientationMethod, check_parameter
+from estimators.orientation.base import (
+    ALIGNED_STD_RAD,
+    INIT_WINDOW_S,
+    Alignment,
+    ImuInput,
+    OrientationMethod,
+    check_parameter,
+    initial_alignment,
+)
 from estimators.orientation.guo_kernels import FREE_VAR_RAD2, G_M_S2, MIN_FIELD_COS, guo_batch
 
 FloatArray = np.ndarray
 
-STATE_SIZE = 47 + acc_lowpass.SIZE  # the filter's 47 entries, then the accelerometer stage's block
+STATE_SIZE = 50 + acc_lowpass.SIZE  # the filter's 50 entries, then the accelerometer stage's block
 
 
 @dataclass(frozen=True)
@@ -466,13 +474,29 @@ def _reference_step(state: FloatArray, acc, gyr, mag, acc_ok: bool, gyr_ok: bool
         paper = p.measurement == "triad"
         if (np.linalg.norm(np.cross(m_unit, a)) if paper else l_h) > MIN_FIELD_COS:
             m_norm = np.linalg.norm(mag)
-            if new[20] <= 0.0:
-                new[20], new[21] = m_norm, a @ m_unit  # the dynamic dip m_D = â·m̂ of (5.38), not the state
+            m_d = a @ m_unit  # the dynamic dip m_D = â·m̂ of (5.38): needs no attitude
+            if new[20] <= 0.0:  # no field in the alignment window: the first field sample (deviation 10)
+                new[20], new[21] = m_norm, m_d
+            # deviation 15: a young reference gives way to a data dip that has held longer
+            near = (lambda x: x * x / p.mag_dip_tol**2 < 1.0) if math.isfinite(p.mag_dip_tol) else (lambda x: True)
+            if new[48] > 0.0 and near(m_d - new[47]):
+                new[48] += dt_s
+                new[47] += max(min(dt_s / p.mag_ref_tau_s, 1.0), dt_s / new[48]) * (m_d - new[47])
+            else:
+                new[47], new[48] = m_d, dt_s
+            if near(m_d - new[21]):
+                new[49] += dt_s
+            elif new[49] < p.mag_ref_tau_s and new[48] > new[49]:
+                new[21], new[49] = new[47], new[48]
+                k3 = psi[:, 2]  # the heading was confirmed against a wrong field: re-open its variance
+                sigma7[:4, :4] += 0.25 * p.init_noise_rad**2 * np.outer(k3, k3)
+                sigma_pred = sigma7[:4, :4]
+            head_sd = 2.0 * np.sqrt(max(psi[:, 2] @ sigma_pred @ psi[:, 2], 0.0))  # heading bound (deviation 15)
             rel = (m_norm - new[20]) / new[20]
             heading = np.arctan2(l_earth[0], l_earth[1])  # heading innovation
             var_mag = (p.mag_noise_rad**2
                        * (1.0 + (rel / p.mag_norm_tol) ** 2 + ((l_earth[2] - new[21]) / p.mag_dip_tol) ** 2)
-                       * max(1.0, abs(heading) / p.mag_innov_tol_rad))
+                       * max(1.0, abs(heading) / max(p.mag_innov_tol_rad, head_sd)))
             alpha = min(dt_s / p.mag_ref_tau_s, 1.0)
             new[20] += alpha * (m_norm - new[20])
             new[21] += alpha * (l_earth[2] - new[21])
@@ -494,6 +518,16 @@ def _reference_step(state: FloatArray, acc, gyr, mag, acc_ok: bool, gyr_ok: bool
     new[22:25] += p.acc_noise_rad**2 / var_acc * x_new[4:]  # robust weight of the bias step
     sigma_new = sigma7 - gain @ sigma7[:4, :]
     return store(q_new / np.linalg.norm(q_new), 0.5 * (sigma_new + sigma_new.T))
+
+
+def _seed_field_references(state: FloatArray, alignment: Alignment) -> None:
+    """Norm and dip references (state 20, 21) from the window's mean field and gravity (deviation 10)."""
+    if alignment.mag_mean is None:
+        return  # 6D, or no field sample: the first field sample seeds them in the kernel
+    g = alignment.acc_mean / np.linalg.norm(alignment.acc_mean)
+    m = alignment.mag_mean / np.linalg.norm(alignment.mag_mean)
+    if np.linalg.norm(np.cross(m, g)) > MIN_FIELD_COS:
+        state[20], state[21] = alignment.mag_norm_mean, float(g @ m)
 
 
 # ====================================================================== method class
@@ -519,6 +553,23 @@ class Guo(OrientationMethod):
         state = self._state_from_quaternion(alignment.q, data)
         std = min(self.params.init_noise_rad, ALIGNED_STD_RAD)
         state[4:20] = (0.25 * std**2 * np.eye(4)).ravel()
+        _seed_field_references(state, alignment)
+        return state
+
+    def _initial_state_for(self, data: ImuInput, q0, window_s: float = INIT_WINDOW_S) -> FloatArray:
+        """A start given as ``q0`` still reads the alignment window for the field references and the stage.
+
+        The dip reference (deviation 10) and the accelerometer stage (deviation 14) need no attitude, only the
+        window's motion-compensated gravity and field; seeded from sample 0 alone, a heel strike there
+        (or the raw sample's body acceleration) misled them.
+        """
+        state = super()._initial_state_for(data, q0, window_s)
+        if q0 is not None:
+            alignment = initial_alignment(data, window_s=window_s, regression=self.align_by_regression)
+            _seed_field_references(state, alignment)
+            if self._lowpass_on:
+                state[-acc_lowpass.SIZE:] = acc_lowpass.initial_block(
+                    alignment.acc_mean, self._lowpass_coefficients(data.fs_hz), alignment.velocity_start, data.dt_s)
         return state
 
     def _kernel_args(self, data: ImuInput) -> tuple:
@@ -529,7 +580,7 @@ class Guo(OrientationMethod):
                 p.acc_norm_tol_m_s2**-2, p.acc_innov_tol_rad, p.mag_norm_tol**-2, p.mag_dip_tol**-2,
                 p.mag_innov_tol_rad, min(data.dt_s / p.mag_ref_tau_s, 1.0),
                 min(data.dt_s / p.bias_tau_s, 1.0), p.rest_gyr_tol_rad_s, p.rest_acc_tol_m_s2, p.rest_min_s,
-                p.measurement == "triad", p.bias_walk_rad_s15**2)
+                p.measurement == "triad", p.bias_walk_rad_s15**2, p.mag_ref_tau_s, p.init_noise_rad**2)
 
     def _lowpass_args(self, data: ImuInput) -> tuple[FloatArray, int]:
         """Coefficients and state offset of the accelerometer stage (offset −1: off)."""
