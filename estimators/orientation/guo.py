@@ -491,12 +491,11 @@ def _reference_step(state: FloatArray, acc, gyr, mag, acc_ok: bool, gyr_ok: bool
                 k3 = psi[:, 2]  # the heading was confirmed against a wrong field: re-open its variance
                 sigma7[:4, :4] += 0.25 * p.init_noise_rad**2 * np.outer(k3, k3)
                 sigma_pred = sigma7[:4, :4]
-            head_sd = 2.0 * np.sqrt(max(psi[:, 2] @ sigma_pred @ psi[:, 2], 0.0))  # heading bound (deviation 15)
             rel = (m_norm - new[20]) / new[20]
             heading = np.arctan2(l_earth[0], l_earth[1])  # heading innovation
             var_mag = (p.mag_noise_rad**2
                        * (1.0 + (rel / p.mag_norm_tol) ** 2 + ((l_earth[2] - new[21]) / p.mag_dip_tol) ** 2)
-                       * max(1.0, abs(heading) / max(p.mag_innov_tol_rad, head_sd)))
+                       * max(1.0, abs(heading) / p.mag_innov_tol_rad))
             alpha = min(dt_s / p.mag_ref_tau_s, 1.0)
             new[20] += alpha * (m_norm - new[20])
             new[21] += alpha * (l_earth[2] - new[21])
@@ -520,7 +519,7 @@ def _reference_step(state: FloatArray, acc, gyr, mag, acc_ok: bool, gyr_ok: bool
     return store(q_new / np.linalg.norm(q_new), 0.5 * (sigma_new + sigma_new.T))
 
 
-def _seed_field_references(state: FloatArray, alignment: Alignment) -> None:
+def _seed_field_references(state: FloatArray, alignment: Alignment, dt_s: float) -> None:
     """Norm and dip references (state 20, 21) from the window's mean field and gravity (deviation 10)."""
     if alignment.mag_mean is None:
         return  # 6D, or no field sample: the first field sample seeds them in the kernel
@@ -528,6 +527,7 @@ def _seed_field_references(state: FloatArray, alignment: Alignment) -> None:
     m = alignment.mag_mean / np.linalg.norm(alignment.mag_mean)
     if np.linalg.norm(np.cross(m, g)) > MIN_FIELD_COS:
         state[20], state[21] = alignment.mag_norm_mean, float(g @ m)
+        state[49] = alignment.n_mag * dt_s  # the window's field rows are its support (deviation 15)
 
 
 # ====================================================================== method class
@@ -553,7 +553,7 @@ class Guo(OrientationMethod):
         state = self._state_from_quaternion(alignment.q, data)
         std = min(self.params.init_noise_rad, ALIGNED_STD_RAD)
         state[4:20] = (0.25 * std**2 * np.eye(4)).ravel()
-        _seed_field_references(state, alignment)
+        _seed_field_references(state, alignment, data.dt_s)
         return state
 
     def _initial_state_for(self, data: ImuInput, q0, window_s: float = INIT_WINDOW_S) -> FloatArray:
@@ -566,7 +566,7 @@ class Guo(OrientationMethod):
         state = super()._initial_state_for(data, q0, window_s)
         if q0 is not None:
             alignment = initial_alignment(data, window_s=window_s, regression=self.align_by_regression)
-            _seed_field_references(state, alignment)
+            _seed_field_references(state, alignment, data.dt_s)
             if self._lowpass_on:
                 state[-acc_lowpass.SIZE:] = acc_lowpass.initial_block(
                     alignment.acc_mean, self._lowpass_coefficients(data.fs_hz), alignment.velocity_start, data.dt_s)

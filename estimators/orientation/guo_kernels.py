@@ -304,12 +304,8 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
             ddip = lz - state[21]
             vm = var_mag * (1.0 + rel * rel * inv_norm_tol2 + ddip * ddip * inv_dip_tol2)
             # heading innovation |atan2(l_x, l_y)|: within the tolerance when |l_x| ≤ tol · l_y (tan t ≥ t)
-            # Huber bound ≥ the predicted heading std 2√(c₃ᵀΣ⁻c₃) (deviation 15, as 13 for the tilt)
-            c3 = (-p3, -p2, p1, p0)
-            tol_h = max(mag_innov_tol, 2.0 * math.sqrt(max(_dot4(c3, (_dot4(R0, c3), _dot4(R1, c3), _dot4(R2, c3),
-                                                                      _dot4(R3, c3))), 0.0)))
-            if not (ly > 0.0 and abs(lx) <= tol_h * ly):
-                vm *= max(1.0, abs(math.atan2(lx, ly)) / tol_h)
+            if not (ly > 0.0 and abs(lx) <= mag_innov_tol * ly):
+                vm *= max(1.0, abs(math.atan2(lx, ly)) / mag_innov_tol)
             state[20] += ref_alpha * (mn - state[20])
             state[21] += ref_alpha * (lz - state[21])
             if paper_triad:
