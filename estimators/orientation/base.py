@@ -31,6 +31,8 @@ Missing and saturated samples (documented handling, not errors)
 * Samples whose absolute value on any axis reaches ``acc_range_m_s2`` / ``gyr_range_rad_s``
   (when those ranges are given) are *saturated*: a saturated accelerometer row is treated as
   missing; a saturated gyroscope row is still integrated (nothing better is known) and flagged.
+* An accelerometer or field row that is all zero, or so small that its squared norm underflows (norm below
+  ≈ 1e-154), has no direction: it does not correct (like a missing row) but is not flagged.
 * Every such sample is reported in ``flags_``.
 
 Everything else a user can get wrong raises ``ValueError`` naming the problem: wrong shapes,
@@ -233,7 +235,7 @@ def validate_imu(
 
 
 def _no_direction(arr: FloatArray) -> BoolArray:
-    """Rows without a usable direction: zero, or so small that the kernels' 1/‖·‖ would overflow (NaN rows: False)."""
+    """Rows without a direction: zero, or so small that a kernel's 1/‖·‖ overflows (NaN rows: False)."""
     with np.errstate(under="ignore"):
         return np.einsum("ij,ij->i", arr, arr) < np.finfo(np.float64).tiny
 

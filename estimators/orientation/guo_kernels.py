@@ -290,7 +290,7 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
                 state[20] = mn
                 state[21] = mD
             if _give_way(state, mD, dt_s, ref_alpha, inv_dip_tol2, young_s):
-                # the heading was confirmed against a wrong field: Σ⁻ += ¼ σ₀² k₃ k₃ᵀ, k₃ = k⊗q⁻ (deviation 15)
+                # heading confirmed on a wrong field: Σ⁻ += ¼σ₀² k₃k₃ᵀ, k₃ = k⊗q⁻ (deviation 15)
                 k0 = -p3; k1 = -p2; k2 = p1; k3 = p0
                 w = 0.25 * var_init
                 s00 += w * k0 * k0; s01 += w * k0 * k1; s02 += w * k0 * k2; s03 += w * k0 * k3
@@ -412,8 +412,8 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
 @njit(cache=True, fastmath={"contract"})
 def guo_batch(acc, gyr, mag, acc_ok, gyr_ok, mag_ok, dt_s, var_gyr, var_acc, var_mag,
               inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
-              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, young_s, var_init, state0, lp_coeffs,
-              lp_offset):
+              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, young_s, var_init,
+              state0, lp_coeffs, lp_offset):
     """Run :func:`guo_step` over ``(N, 3)`` inputs (6D: ``mag_ok`` all false, ``mag`` zeros).
 
     With ``lp_offset`` ≥ 0 each accelerometer row first passes the motion-compensated stage
