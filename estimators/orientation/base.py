@@ -31,6 +31,8 @@ Missing and saturated samples (documented handling, not errors)
 * Samples whose absolute value on any axis reaches ``acc_range_m_s2`` / ``gyr_range_rad_s``
   (when those ranges are given) are *saturated*: a saturated accelerometer row is treated as
   missing; a saturated gyroscope row is still integrated (nothing better is known) and flagged.
+* An accelerometer or field row that is all zero, or so small that its squared norm underflows (norm below
+  ≈ 1e-154), has no direction: it does not correct (like a missing row) but is not flagged.
 * Every such sample is reported in ``flags_``.
 
 Everything else a user can get wrong raises ``ValueError`` naming the problem: wrong shapes,
@@ -207,12 +209,13 @@ def validate_imu(
     mag_missing = np.isnan(mag_arr).any(axis=1) if mag_arr is not None else np.zeros(n, dtype=bool)
     acc_saturated = _saturated(acc_arr, acc_range_m_s2, "acc_range_m_s2")
     gyr_saturated = _saturated(gyr_arr, gyr_range_rad_s, "gyr_range_rad_s")
-    acc_zero = np.all(acc_arr == 0.0, axis=1)  # free fall or a zero-filled gap: no direction
+    # free fall, a zero-filled gap or a row whose squared norm underflows (‖·‖ < 1e-154): no direction
+    acc_zero = _no_direction(acc_arr)
     acc_ok = ~(acc_missing | acc_saturated | acc_zero)
     if require_valid_acc and not acc_ok.any():
         raise ValueError("acc has no valid sample (all missing, saturated or zero): orientation cannot be aligned")
     # 6D: no field sample may correct (9D with every field sample missing); flags.mag_missing stays False
-    mag_ok = ~(mag_missing | np.all(mag_arr == 0.0, axis=1)) if mag_arr is not None else np.zeros(n, dtype=bool)
+    mag_ok = ~(mag_missing | _no_direction(mag_arr)) if mag_arr is not None else np.zeros(n, dtype=bool)
 
     def finite(arr: FloatArray, bad: BoolArray) -> FloatArray:
         if bad.any():
@@ -229,6 +232,12 @@ def validate_imu(
         fs_hz=fs,
         flags=SampleFlags(acc_missing, gyr_missing, mag_missing, acc_saturated, gyr_saturated),
     )
+
+
+def _no_direction(arr: FloatArray) -> BoolArray:
+    """Rows without a direction: zero, or so small that a kernel's 1/‖·‖ overflows (NaN rows: False)."""
+    with np.errstate(under="ignore"):
+        return np.einsum("ij,ij->i", arr, arr) < np.finfo(np.float64).tiny
 
 
 def _saturated(arr: FloatArray, range_: float | None, name: str) -> BoolArray:

@@ -102,9 +102,35 @@ def _store(state, q0, q1, q2, q3, s0, s1, s2, s3, m0, m1, m2, m3, e):
 
 
 @njit(cache=True, fastmath={"contract"})
+def _give_way(state, m_d, dt_s, ref_alpha, inv_dip_tol2, young_s):
+    """Deviation 15: a young dip reference gives way to a data dip m_D = â·m̂ that has held longer.
+
+    ``state[47]``: candidate m_D (running mean of the current run), ``state[48]``: how long it has held (s,
+    0: none), ``state[49]``: the reference's support (s of samples whose m_D was within the tolerance).
+    Returns True when the reference gave way (the caller re-opens the heading variance).
+    """
+    dc = m_d - state[47]
+    if state[48] > 0.0 and dc * dc * inv_dip_tol2 < 1.0:  # the candidate holds: running mean, then τ
+        state[48] += dt_s
+        state[47] += max(ref_alpha, dt_s / state[48]) * dc
+    else:  # a new candidate starts here
+        state[47] = m_d
+        state[48] = dt_s
+    dr = m_d - state[21]
+    if dr * dr * inv_dip_tol2 < 1.0:
+        state[49] += dt_s
+    elif state[49] < young_s and state[48] > state[49]:
+        state[21] = state[47]
+        state[49] = state[48]
+        return True
+    return False
+
+
+@njit(cache=True, fastmath={"contract"})
 def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, dt_s,
              var_gyr, var_acc, var_mag, inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2,
-             mag_innov_tol, ref_alpha, bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk):
+             mag_innov_tol, ref_alpha, bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk,
+             young_s, var_init):
     """One sample in place on ``state`` (STATE_SIZE,).
 
     The 28 distinct covariance entries are read once into locals (tuples: rows of the symmetric
@@ -260,9 +286,20 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
             lh = math.sqrt(lx * lx + ly * ly)
         if (mN if paper_triad else lh) > MIN_FIELD_COS:
             # disturbance: field norm and dip against tracked references, heading innovation
-            if state[20] <= 0.0:  # first field sample: the references start from the data (deviation 10)
+            if state[20] <= 0.0:  # no field in the alignment window: the first field sample (deviation 10)
                 state[20] = mn
                 state[21] = mD
+            if _give_way(state, mD, dt_s, ref_alpha, inv_dip_tol2, young_s):
+                # heading confirmed on a wrong field: Σ⁻ += ¼σ₀² k₃k₃ᵀ, k₃ = k⊗q⁻ (deviation 15)
+                k0 = -p3; k1 = -p2; k2 = p1; k3 = p0
+                w = 0.25 * var_init
+                s00 += w * k0 * k0; s01 += w * k0 * k1; s02 += w * k0 * k2; s03 += w * k0 * k3
+                s11 += w * k1 * k1; s12 += w * k1 * k2; s13 += w * k1 * k3
+                s22 += w * k2 * k2; s23 += w * k2 * k3; s33 += w * k3 * k3
+                R0 = (s00, s01, s02, s03)
+                R1 = (s01, s11, s12, s13)
+                R2 = (s02, s12, s22, s23)
+                R3 = (s03, s13, s23, s33)
             rel = (mn - state[20]) / state[20]
             ddip = lz - state[21]
             vm = var_mag * (1.0 + rel * rel * inv_norm_tol2 + ddip * ddip * inv_dip_tol2)
@@ -375,7 +412,8 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
 @njit(cache=True, fastmath={"contract"})
 def guo_batch(acc, gyr, mag, acc_ok, gyr_ok, mag_ok, dt_s, var_gyr, var_acc, var_mag,
               inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
-              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, state0, lp_coeffs, lp_offset):
+              bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, young_s, var_init,
+              state0, lp_coeffs, lp_offset):
     """Run :func:`guo_step` over ``(N, 3)`` inputs (6D: ``mag_ok`` all false, ``mag`` zeros).
 
     With ``lp_offset`` ≥ 0 each accelerometer row first passes the motion-compensated stage
@@ -396,7 +434,7 @@ def guo_batch(acc, gyr, mag, acc_ok, gyr_ok, mag_ok, dt_s, var_gyr, var_acc, var
         guo_step(state, ax, ay, az, gyr[k, 0], gyr[k, 1], gyr[k, 2],
                  mag[k, 0], mag[k, 1], mag[k, 2], acc_ok[k], gyr_ok[k], mag_ok[k], dt_s, var_gyr, var_acc,
                  var_mag, inv_acc_tol2, acc_innov_tol, inv_norm_tol2, inv_dip_tol2, mag_innov_tol, ref_alpha,
-                 bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk)
+                 bias_alpha, rest_gyr, rest_acc, rest_min_s, paper_triad, var_bias_walk, young_s, var_init)
         for j in range(4):
             out[k, j] = state[j]
     return out, state
