@@ -151,6 +151,31 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "huérfano(s) eliminado(s)",
         "pt": "{erased} ficheiro(s) guardado(s) apagado(s), {kept} mantido(s) (ainda referenciados), {swept} "
               "órfão(s) eliminado(s)"},
+    # ``chakamo process``'s progress lines on stderr (app/cli/session.py), in --lang: the pipeline's stage names
+    "cli.progress": {"en": "[{percent:3.0f} %] {stage}", "es": "[{percent:3.0f} %] {stage}",
+                     "pt": "[{percent:3.0f} %] {stage}"},
+    "cli.stage_read": {"en": "read", "es": "lectura", "pt": "leitura"},
+    "cli.stage_accelerometer": {"en": "accelerometer", "es": "acelerómetro", "pt": "acelerómetro"},
+    "cli.stage_magnetometer": {"en": "magnetometer", "es": "magnetómetro", "pt": "magnetómetro"},
+    "cli.stage_segments": {"en": "segments", "es": "segmentos", "pt": "segmentos"},
+    "cli.stage_knee": {"en": "knee", "es": "rodilla", "pt": "joelho"},
+    "cli.stage_task": {"en": "task", "es": "tarea", "pt": "tarefa"},
+    "cli.stage_reports": {"en": "reports", "es": "informes", "pt": "relatórios"},
+    "cli.stage_render": {"en": "reports (render process)", "es": "informes (proceso de dibujo)",
+                         "pt": "relatórios (processo de desenho)"},
+    "cli.stage_write": {"en": "write", "es": "escritura", "pt": "escrita"},
+    "cli.stage_done": {"en": "done", "es": "terminado", "pt": "concluído"},
+    "cli.stage_right": {"en": "{stage} (right knee)", "es": "{stage} (rodilla derecha)",
+                        "pt": "{stage} (joelho direito)"},
+    "cli.stage_left": {"en": "{stage} (left knee)", "es": "{stage} (rodilla izquierda)",
+                       "pt": "{stage} (joelho esquerdo)"},
+    "cli.exclude_cycles": {
+        "en": "--exclude-cycles: {item!r} is not a cycle number (e.g. 3) or knee:number (e.g. right:3); correct the "
+              "list",
+        "es": "--exclude-cycles: {item!r} no es un número de ciclo (p. ej. 3) ni rodilla:número (p. ej. right:3); "
+              "corrija la lista",
+        "pt": "--exclude-cycles: {item!r} não é um número de ciclo (p. ex. 3) nem joelho:número (p. ex. right:3); "
+              "corrija a lista"},
     # ``chakamo tokens`` (app/cli/admin.py), in --lang
     "cli.token_created": {
         "en": "API token for {clinic!r} ({details}). It is shown only now: store it in the hospital system; send it "
