@@ -182,6 +182,7 @@ def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang
 
         with pytest.raises(CliError) as exc:   # the data layer's own refusal, by its catalogue code
             correct(None, "patient", clinic="Ret", row_id=pid, sets=["side=up"])
+        assert exc.value.code == "store.unknown_value" and (lang == "en") == (exc.value.message(lang) == str(exc.value))
         assert exc.value.message(lang) in said([*fix, "--set", "side=up"], 2)
         assert words["confirm"] in said(["sessions", "erase", "--clinic", "Ret", str(sid), "--confirm", "X"], 2)
         assert words["off"] in said(["retention"], 2)
