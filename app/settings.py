@@ -58,9 +58,10 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 #: the development key: public, so refused outside development
 DEV_SECRET_KEY = "chakamo-development-key-not-secret-do-not-use-in-production"
 #: file types an upload may carry: CSV (MetaBase, generic, Xsens, Shimmer, phyphox), Excel (thesis, phyphox), zip (Sensor
-#: Logger, phyphox; read within app.pipeline.ingestion.phyphox's zip caps) and session.json.  Not APDM's .h5: HDF5
-#: has no size caps yet (a compressed dataset may declare any size), so it is read by the command line only
-ALLOWED_SUFFIXES = (".csv", ".xlsx", ".json", ".zip")
+#: Logger, phyphox; read within app.pipeline.ingestion.phyphox's zip caps), APDM Opal .h5 (read within
+#: app.pipeline.ingestion.opal's declared-size caps; any other HDF5 is refused by the check as opal.not_apdm) and
+#: session.json
+ALLOWED_SUFFIXES = (".csv", ".xlsx", ".json", ".zip", ".h5")
 
 
 class SettingsError(ValueError):

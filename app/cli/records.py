@@ -20,7 +20,8 @@ Every change is audited as the operator (actor kind ``operator``, "chakamo CLI (
 :func:`app.web.audit.record_operator`, in the transaction that makes it; the erasures leave their
 ``blob_erasures`` records (hash, size, when; never the content).  The same rules as the API apply (the data
 layer's functions are the same): refused while a job of the session is queued or running, another clinic's ids
-are unknown.  Errors are ``ValueError`` with one sentence (the CLI prints it, exit status 2).
+are unknown.  Errors are ``ValueError`` with one sentence (:class:`app.cli.admin.CliError`: a catalogue entry; the CLI prints it
+in ``--lang``, exit status 2); what the commands print is in ``--lang`` too (English when not given).
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ import argparse
 import datetime as dt
 import getpass
 from typing import TYPE_CHECKING, Any
+
+from app.choices import LANGUAGE_NAMES
+from app.cli.admin import CliError, _say
 
 if TYPE_CHECKING:
     from app.settings import Settings
@@ -57,9 +61,9 @@ def _parse_sets(pairs: list[str], fields: tuple[str, ...]) -> dict[str, Any]:
         key, sep, value = pair.partition("=")
         key, value = key.strip(), value.strip()
         if not sep or not key:
-            raise ValueError(f"--set {pair!r} is not FIELD=VALUE; e.g. --set name=\"Ana Pérez\"")
+            raise CliError("cli.set_not_pair", pair=pair)
         if key not in fields:
-            raise ValueError(f"{key} cannot be corrected; correct {', '.join(fields)}")
+            raise CliError("cli.set_field", field=key, fields=", ".join(fields))
         try:
             if not value:
                 values[key] = None
@@ -70,21 +74,24 @@ def _parse_sets(pairs: list[str], fields: tuple[str, ...]) -> dict[str, Any]:
             else:
                 values[key] = value
         except ValueError:
-            raise ValueError(f"{key}={value!r} is not a {'date (YYYY-MM-DD)' if key in _DATES else 'number'}; "
-                             "correct the value") from None
+            raise CliError("cli.set_not_date" if key in _DATES else "cli.set_not_number", field=key,
+                           value=value) from None
     if not values:
-        raise ValueError("nothing to correct; give at least one --set FIELD=VALUE")
+        raise CliError("cli.set_nothing")
     return values
 
 
 def _domain(call):
-    """Run ``call`` turning the data layer's refusals into ``ValueError`` (their sentence)."""
+    """Run ``call`` turning the data layer's refusals into :class:`CliError` (their catalogue entry, printed in
+    ``--lang``; a refusal without a code keeps its English sentence)."""
     from app.store.errors import DomainError
 
     try:
         return call()
     except DomainError as exc:
-        raise ValueError(exc.detail) from None
+        if exc.code is None:
+            raise ValueError(exc.detail) from None
+        raise CliError(exc.code, **exc.params) from None
 
 
 def _clinic_id(db, clinic: str) -> int:
@@ -134,8 +141,7 @@ def erase(settings: Settings | None, kind: str, *, clinic: str, row_id: int, con
             else:
                 external_id = _domain(lambda: sessions.clinic_session(db, cid, row_id)).patient.external_id
             if confirm.strip() != external_id:
-                raise ValueError(f"--confirm {confirm!r} is not the patient's external id; repeat it exactly to "
-                                 f"erase this {kind} and everything under it for good")
+                raise CliError("cli.erase_confirm", confirm=confirm)
             if kind == "patient":
                 session_ids, shas = _domain(lambda: patients.delete_patient(db, cid, row_id))
                 pid, sid = row_id, None
@@ -167,8 +173,7 @@ def retention(settings: Settings | None, *, days: int | None = None, apply: bool
     settings = settings or get_settings(require_key=False)  # no secret key used here
     days = settings.retention_days if days is None else days
     if days <= 0:
-        raise ValueError("the retention policy is off (CHAKAMO_RETENTION_DAYS is 0); give --days N or set "
-                         "CHAKAMO_RETENTION_DAYS")
+        raise CliError("cli.retention_off")
     database = _database(settings)
     try:
         store = open_storage(settings)
@@ -182,9 +187,11 @@ def retention(settings: Settings | None, *, days: int | None = None, apply: bool
 
 def add_parsers(sub) -> None:
     """Register ``patients``, ``sessions`` and ``retention`` on the ``chakamo`` subparsers."""
+    groups = []
     for kind in ("patient", "session"):
         group = sub.add_parser(f"{kind}s", help=f"correct or erase a {kind} (operator)")
         actions = group.add_subparsers(dest="action", required=True)
+        groups.append(actions)
         fix = actions.add_parser("correct", help=f"correct a {kind}'s fields (audited)")
         fix.add_argument("--clinic", required=True, metavar="NAME")
         fix.add_argument("row_id", type=int, metavar="ID")
@@ -198,29 +205,34 @@ def add_parsers(sub) -> None:
     ret = sub.add_parser("retention", help="list (dry run) or erase the sessions past the retention period")
     ret.add_argument("--days", type=int, default=None, help="(default: CHAKAMO_RETENTION_DAYS)")
     ret.add_argument("--apply", action="store_true", help="erase them (without: a dry run)")
+    for parser in (*[p for g in groups for p in g.choices.values()], ret):   # their output and errors in --lang
+        parser.add_argument("--lang", choices=LANGUAGE_NAMES, default=None,
+                            help="language of the messages (default: English)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Carry out a parsed ``patients`` / ``sessions`` / ``retention`` command."""
     if args.command == "retention":
         r = retention(None, days=args.days, apply=args.apply)
-        verb = "erased" if args.apply else "due (dry run: nothing erased; --apply erases them)"
-        print(f"retention {r.days} days at {r.now:%Y-%m-%d %H:%M} UTC: {len(r.due)} session(s) {verb}")
+        print(_say(args.lang, "cli.retention_erased" if args.apply else "cli.retention_due", days=r.days,
+                   now=f"{r.now:%Y-%m-%d %H:%M}", n=len(r.due)))
         for d in r.due:
-            print(f"  session {d.session_id} (clinic {d.clinic_id}, patient {d.patient_id}), last activity "
-                  f"{d.last_activity:%Y-%m-%d}")
+            print(_say(args.lang, "cli.retention_session", session=d.session_id, clinic=d.clinic_id,
+                       patient=d.patient_id, last=f"{d.last_activity:%Y-%m-%d}"))
         if args.apply:
-            print(f"{r.erased_files} stored file(s) erased, {r.kept_files} kept (still referenced), "
-                  f"{r.swept_files} orphan(s) swept")
+            print(_say(args.lang, "cli.retention_files", erased=r.erased_files, kept=r.kept_files,
+                       swept=r.swept_files))
         return 0
     kind = args.command[:-1]
+    named = _say(args.lang, f"cli.kind_{kind}")
     if args.action == "correct":
         changed = correct(None, kind, clinic=args.clinic, row_id=args.row_id, sets=args.sets)
-        print(f"{kind} {args.row_id}: " + (f"corrected {', '.join(changed)}" if changed else "nothing changed"))
+        print(_say(args.lang, "cli.corrected", kind=named, id=args.row_id, fields=", ".join(changed)) if changed
+              else _say(args.lang, "cli.unchanged", kind=named, id=args.row_id))
     else:
         out = erase(None, kind, clinic=args.clinic, row_id=args.row_id, confirm=args.confirm)
-        print(f"{kind} {args.row_id} erased: {out['sessions']} session(s), {out['files_erased']} stored file(s) "
-              f"erased, {out['files_kept']} kept (another record has the same content)")
+        print(_say(args.lang, "cli.erased", kind=named, id=args.row_id, sessions=out["sessions"],
+                   erased=out["files_erased"], kept=out["files_kept"]))
     return 0
 
 

@@ -22,8 +22,28 @@ from app import choices
 COMMANDS = ("demo", "process", "view")
 
 
-def _progress(stage: str, fraction: float) -> None:
-    print(f"[{100 * fraction:3.0f} %] {stage}", file=sys.stderr, flush=True)
+def _stage(lang: str | None, stage: str) -> str:
+    """A pipeline stage's name (``"read"``, ``"right knee"``…) in ``lang`` (:data:`app.web.messages.CATALOGUE`'s
+    ``cli.stage_*``; a stage without an entry as it is)."""
+    from app.cli.admin import _say
+    from app.web.messages import CATALOGUE
+
+    side, _, rest = stage.partition(" ")
+    if side in ("right", "left") and rest:
+        return _say(lang, f"cli.stage_{side}", stage=_stage(lang, rest))
+    code = "cli.stage_render" if "render process" in stage else f"cli.stage_{stage}"
+    return _say(lang, code) if code in CATALOGUE else stage
+
+
+def _progress(lang: str | None):
+    """``process``'s progress callback: ``[ 30 %] segments`` on stderr, in ``lang``."""
+    from app.cli.admin import _say
+
+    def say(stage: str, fraction: float) -> None:
+        print(_say(lang, "cli.progress", percent=100 * fraction, stage=_stage(lang, stage)), file=sys.stderr,
+              flush=True)
+
+    return say
 
 
 def add_parsers(sub) -> None:
@@ -97,7 +117,8 @@ def _exclusions(args: argparse.Namespace) -> tuple:
     excluded by the user running the command (ValueError naming the option when the list is malformed)."""
     import getpass
 
-    from app.pipeline.exclusions import parse_cli
+    from app.cli.admin import CliError
+    from app.pipeline.exclusions import BadCycle, parse_cli
 
     if not args.exclude_cycles.strip():
         return ()
@@ -107,8 +128,8 @@ def _exclusions(args: argparse.Namespace) -> tuple:
         by = "command line"
     try:
         return parse_cli(args.exclude_cycles, reason=args.exclude_reason, by=by)
-    except ValueError as exc:
-        raise ValueError(f"--exclude-cycles: {exc}") from None
+    except BadCycle as exc:
+        raise CliError("cli.exclude_cycles", item=exc.item) from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -134,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
                                      calibration=args.calibration, task=args.task, heading=args.heading,
                                      expected_fs_hz=expected_fs_hz, language=args.lang or choices.DEFAULT_LANGUAGE,
                                      involved=args.involved, exclusions=_exclusions(args))
-            _, written = process_folder(args.session, args.out, options, progress=_progress, renderer=renderer,
+            _, written = process_folder(args.session, args.out, options, progress=_progress(args.lang), renderer=renderer,
                                         compare_with=args.compare_with)
         for path in written:
             print(path)

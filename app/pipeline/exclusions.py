@@ -59,6 +59,14 @@ def now_iso() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
 
 
+class BadCycle(ValueError):
+    """An ``--exclude-cycles`` item that is neither a cycle number nor ``knee:number`` (``item``)."""
+
+    def __init__(self, item: str) -> None:
+        self.item = item
+        super().__init__(f"{item!r}: a cycle number (e.g. 3) or knee:number (e.g. right:3)")
+
+
 def parse_cli(text: str, *, reason: str = "", by: str = "", at: str | None = None) -> tuple[CycleExclusion, ...]:
     """``--exclude-cycles 3,7`` (the only knee) or ``right:3,left:7`` (a session of both knees); ValueError with the
     item that is wrong."""
@@ -70,7 +78,7 @@ def parse_cli(text: str, *, reason: str = "", by: str = "", at: str | None = Non
         try:
             cycle = int(number)
         except ValueError:
-            raise ValueError(f"{item!r}: a cycle number (e.g. 3) or knee:number (e.g. right:3)") from None
+            raise BadCycle(item) from None
         out.append(CycleExclusion(cycle, knee or None, reason, by, at or now_iso()))
     return normalised(out)
 
@@ -87,4 +95,4 @@ def normalised(exclusions: Iterable[CycleExclusion]) -> tuple[CycleExclusion, ..
     return tuple(keyed[k] for k in sorted(keyed))
 
 
-__all__ = ["CycleExclusion", "from_records", "normalised", "now_iso", "parse_cli"]
+__all__ = ["BadCycle", "CycleExclusion", "from_records", "normalised", "now_iso", "parse_cli"]

@@ -78,6 +78,104 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "es": "El servidor está ocupado comprobando contraseñas; vuelva a intentarlo en un momento (no se ha cambiado "
               "nada).",
         "pt": "O servidor está ocupado a verificar palavras-passe; tente de novo dentro de momentos (nada foi alterado)."},
+    # ``chakamo patients|sessions correct|erase`` and ``chakamo retention`` (app/cli/records.py), in --lang
+    "cli.set_not_pair": {
+        "en": "--set {pair!r} is not FIELD=VALUE; e.g. --set name=\"Ana Pérez\"",
+        "es": "--set {pair!r} no es CAMPO=VALOR; p. ej. --set name=\"Ana Pérez\"",
+        "pt": "--set {pair!r} não é CAMPO=VALOR; p. ex. --set name=\"Ana Pérez\""},
+    "cli.set_field": {
+        "en": "{field} cannot be corrected; correct {fields}",
+        "es": "{field} no se puede corregir; corrija {fields}",
+        "pt": "{field} não pode ser corrigido; corrija {fields}"},
+    "cli.set_not_date": {
+        "en": "{field}={value!r} is not a date (YYYY-MM-DD); correct the value",
+        "es": "{field}={value!r} no es una fecha (AAAA-MM-DD); corrija el valor",
+        "pt": "{field}={value!r} não é uma data (AAAA-MM-DD); corrija o valor"},
+    "cli.set_not_number": {
+        "en": "{field}={value!r} is not a number; correct the value",
+        "es": "{field}={value!r} no es un número; corrija el valor",
+        "pt": "{field}={value!r} não é um número; corrija o valor"},
+    "cli.set_nothing": {
+        "en": "nothing to correct; give at least one --set FIELD=VALUE",
+        "es": "nada que corregir; indique al menos un --set CAMPO=VALOR",
+        "pt": "nada a corrigir; indique pelo menos um --set CAMPO=VALOR"},
+    "cli.erase_confirm": {
+        "en": "--confirm {confirm!r} is not the patient's external id; repeat it exactly to erase the record and "
+              "everything under it for good (nothing was erased)",
+        "es": "--confirm {confirm!r} no es el identificador externo del paciente; repítalo exactamente para borrar "
+              "el registro y todo lo que contiene para siempre (no se ha borrado nada)",
+        "pt": "--confirm {confirm!r} não é o identificador externo do paciente; repita-o exatamente para apagar o "
+              "registo e tudo o que contém de vez (nada foi apagado)"},
+    "cli.corrected": {
+        "en": "{kind} {id}: corrected {fields}",
+        "es": "{kind} {id}: corregidos {fields}",
+        "pt": "{kind} {id}: corrigidos {fields}"},
+    "cli.unchanged": {
+        "en": "{kind} {id}: nothing changed",
+        "es": "{kind} {id}: no ha cambiado nada",
+        "pt": "{kind} {id}: nada foi alterado"},
+    "cli.erased": {
+        "en": "{kind} {id} erased: {sessions} session(s), {erased} stored file(s) erased, {kept} kept (another "
+              "record has the same content)",
+        "es": "{kind} {id} borrado: {sessions} sesión(es), {erased} archivo(s) guardado(s) borrado(s), {kept} "
+              "conservado(s) (otro registro tiene el mismo contenido)",
+        "pt": "{kind} {id} apagado: {sessions} sessão(ões), {erased} ficheiro(s) guardado(s) apagado(s), {kept} "
+              "mantido(s) (outro registo tem o mesmo conteúdo)"},
+    #: the record kinds of ``chakamo patients|sessions``, as the sentences above name them
+    "cli.kind_patient": {"en": "patient", "es": "paciente", "pt": "paciente"},
+    "cli.kind_session": {"en": "session", "es": "sesión", "pt": "sessão"},
+    "cli.retention_off": {
+        "en": "the retention policy is off (CHAKAMO_RETENTION_DAYS is 0); give --days N or set "
+              "CHAKAMO_RETENTION_DAYS",
+        "es": "la política de conservación está desactivada (CHAKAMO_RETENTION_DAYS es 0); indique --days N o "
+              "defina CHAKAMO_RETENTION_DAYS",
+        "pt": "a política de conservação está desativada (CHAKAMO_RETENTION_DAYS é 0); indique --days N ou "
+              "defina CHAKAMO_RETENTION_DAYS"},
+    "cli.retention_due": {
+        "en": "retention {days} days at {now} UTC: {n} session(s) due (dry run: nothing erased; --apply erases them)",
+        "es": "conservación {days} días a las {now} UTC: {n} sesión(es) vencida(s) (simulación: no se ha borrado "
+              "nada; --apply las borra)",
+        "pt": "conservação {days} dias às {now} UTC: {n} sessão(ões) vencida(s) (simulação: nada foi apagado; "
+              "--apply apaga-as)"},
+    "cli.retention_erased": {
+        "en": "retention {days} days at {now} UTC: {n} session(s) erased",
+        "es": "conservación {days} días a las {now} UTC: {n} sesión(es) borrada(s)",
+        "pt": "conservação {days} dias às {now} UTC: {n} sessão(ões) apagada(s)"},
+    "cli.retention_session": {
+        "en": "  session {session} (clinic {clinic}, patient {patient}), last activity {last}",
+        "es": "  sesión {session} (clínica {clinic}, paciente {patient}), última actividad {last}",
+        "pt": "  sessão {session} (clínica {clinic}, paciente {patient}), última atividade {last}"},
+    "cli.retention_files": {
+        "en": "{erased} stored file(s) erased, {kept} kept (still referenced), {swept} orphan(s) swept",
+        "es": "{erased} archivo(s) guardado(s) borrado(s), {kept} conservado(s) (aún referenciados), {swept} "
+              "huérfano(s) eliminado(s)",
+        "pt": "{erased} ficheiro(s) guardado(s) apagado(s), {kept} mantido(s) (ainda referenciados), {swept} "
+              "órfão(s) eliminado(s)"},
+    # ``chakamo process``'s progress lines on stderr (app/cli/session.py), in --lang: the pipeline's stage names
+    "cli.progress": {"en": "[{percent:3.0f} %] {stage}", "es": "[{percent:3.0f} %] {stage}",
+                     "pt": "[{percent:3.0f} %] {stage}"},
+    "cli.stage_read": {"en": "read", "es": "lectura", "pt": "leitura"},
+    "cli.stage_accelerometer": {"en": "accelerometer", "es": "acelerómetro", "pt": "acelerómetro"},
+    "cli.stage_magnetometer": {"en": "magnetometer", "es": "magnetómetro", "pt": "magnetómetro"},
+    "cli.stage_segments": {"en": "segments", "es": "segmentos", "pt": "segmentos"},
+    "cli.stage_knee": {"en": "knee", "es": "rodilla", "pt": "joelho"},
+    "cli.stage_task": {"en": "task", "es": "tarea", "pt": "tarefa"},
+    "cli.stage_reports": {"en": "reports", "es": "informes", "pt": "relatórios"},
+    "cli.stage_render": {"en": "reports (render process)", "es": "informes (proceso de dibujo)",
+                         "pt": "relatórios (processo de desenho)"},
+    "cli.stage_write": {"en": "write", "es": "escritura", "pt": "escrita"},
+    "cli.stage_done": {"en": "done", "es": "terminado", "pt": "concluído"},
+    "cli.stage_right": {"en": "{stage} (right knee)", "es": "{stage} (rodilla derecha)",
+                        "pt": "{stage} (joelho direito)"},
+    "cli.stage_left": {"en": "{stage} (left knee)", "es": "{stage} (rodilla izquierda)",
+                       "pt": "{stage} (joelho esquerdo)"},
+    "cli.exclude_cycles": {
+        "en": "--exclude-cycles: {item!r} is not a cycle number (e.g. 3) or knee:number (e.g. right:3); correct the "
+              "list",
+        "es": "--exclude-cycles: {item!r} no es un número de ciclo (p. ej. 3) ni rodilla:número (p. ej. right:3); "
+              "corrija la lista",
+        "pt": "--exclude-cycles: {item!r} não é um número de ciclo (p. ex. 3) nem joelho:número (p. ex. right:3); "
+              "corrija a lista"},
     # ``chakamo tokens`` (app/cli/admin.py), in --lang
     "cli.token_created": {
         "en": "API token for {clinic!r} ({details}). It is shown only now: store it in the hospital system; send it "

@@ -276,7 +276,7 @@ function dropZone(ctx, segment, role) {
   const title = segment ? label("recording", role) : t("wizard.other_files_title");
   const hint = segment ? t(`wizard.role_hint.${role}`) : t("wizard.other_files_hint");
   const inputId = `file-${segment || "other"}-${role || "any"}`;
-  const input = h("input", { type: "file", multiple: true, accept: ".csv,.xlsx,.json,.zip", id: inputId, class: "visually-hidden",
+  const input = h("input", { type: "file", multiple: true, accept: ".csv,.xlsx,.json,.zip,.h5", id: inputId, class: "visually-hidden",
     tabindex: "-1", "aria-hidden": "true" });
   const list = h("ul", { class: "files" });
   const status = h("div", { class: "zone-status", role: "status" });

@@ -9,7 +9,7 @@ The iez walks are raw int16 counts without a header (an MPU-6050 logger's own la
 refused, naming the file as not of a format ChakaMo reads.  The BROAD trials are HDF5 files of the dataset's own
 layout (``imu_acc``, ``opt_quat``…, no ``/Sensors``): refused by the command line as HDF5 that is not an APDM Opal
 recording, naming what they hold (they were asked to be "exported again from Mobility Lab", as an old APDM file
-would be); the web upload takes no HDF5 file at all (415, ``request.file_type``, naming the file).  Each MetaBase recording itself is read
+would be); the web upload takes HDF5 only as APDM's ``.h5``, so a ``.hdf5`` is refused at the door (415, ``request.file_type``, naming the file).  Each MetaBase recording itself is read
 (acc, gyro 100 Hz, magnetometer 20 Hz, the MAC from its name)."""
 
 from __future__ import annotations
@@ -125,7 +125,7 @@ def test_the_api_refuses_it_for_the_right_reason(tmp_path, name, files, manifest
     with TestClient(create_app(settings)) as c:
         _, sid = new_session(c, h)
         r = c.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=upload)
-        if code == "opal.not_apdm":   # the web upload takes no HDF5 at all (APDM's .h5 is read by the command line)
+        if code == "opal.not_apdm":   # the web upload takes HDF5 only as APDM's .h5: BROAD's .hdf5 is refused
             assert r.status_code == 415 and r.json()["code"] == "request.file_type", r.text
             assert all(names in text and ".hdf5" in text for text in r.json()["message"].values())
             return

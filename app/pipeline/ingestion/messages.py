@@ -282,6 +282,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "nuevo.",
         "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o ficheiro está danificado: exporte-o de "
               "novo."},
+    "opal.too_large": {
+        "en": "{file}: {dataset} declares {shape} entries (at most {limit}: two hours at 200 Hz, 64 sensors); "
+              "export shorter recordings from Mobility Lab / Motion Studio.",
+        "es": "{file}: {dataset} declara {shape} entradas (como máximo {limit}: dos horas a 200 Hz, 64 sensores); "
+              "exporte grabaciones más cortas desde Mobility Lab / Motion Studio.",
+        "pt": "{file}: {dataset} declara {shape} entradas (no máximo {limit}: duas horas a 200 Hz, 64 sensores); "
+              "exporte gravações mais curtas do Mobility Lab / Motion Studio."},
     "phyphox.linear_acceleration": {
         "en": "{file}: {member} holds '{column}', phyphox's acceleration without gravity, which the sensor "
               "calibration needs; record with the \"Acceleration with g\" experiment and export it again.",

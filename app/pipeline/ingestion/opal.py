@@ -14,6 +14,11 @@ declared unit, so the factors live in one place.  Each sensor of the file is one
 (and side) come from its label, the role from the file name; ``session.json`` may pick a sensor with
 ``"sensor": "<id>"`` in a ``recordings`` entry.  Files of format version 3 (``/<case>/Calibrated/...``) are
 refused with advice.  Needs ``h5py`` (imported when a ``.h5`` file is read).
+
+Caps (the file may come from a web upload): a compressed dataset may declare any size, so each dataset's declared
+shape is checked before a byte of it is read: at most :data:`MAX_SAMPLES` samples (two hours at 200 Hz; a
+recording of ``N`` samples then takes at most ``N · 3 · 8`` bytes a dataset once read as float64) and at most
+:data:`MAX_SENSORS` sensors per file.
 """
 
 from __future__ import annotations
@@ -27,6 +32,10 @@ from app.pipeline.ingestion.model import IngestionError, Stream
 from app.pipeline.ingestion.tables import check_stamps
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
 
+#: samples per dataset: 2 h at 200 Hz (Opals record at 20–128 Hz)
+MAX_SAMPLES = 2 * 3600 * 200
+#: sensors per file (a Mobility Lab system has at most a few dozen)
+MAX_SENSORS = 64
 _DATASETS = {"acc": ("Accelerometer", "m/s2"), "gyr": ("Gyroscope", "rad/s"), "mag": ("Magnetometer", "uT")}
 
 
@@ -72,6 +81,9 @@ def list_sensors(path: str | os.PathLike) -> dict[str, str]:
     path = Path(path)
     with _open(path) as f:
         _check_apdm(path, f)
+        if len(f["Sensors"]) > MAX_SENSORS:
+            raise IngestionError("opal.too_large", file=path, dataset="/Sensors", shape=str(len(f["Sensors"])),
+                                 limit=MAX_SENSORS)
         out = {}
         for sid in f["Sensors"]:
             conf = f["Sensors"][sid].get("Configuration")
@@ -97,6 +109,11 @@ def read_opal(path: str | os.PathLike, sensor: str | None = None) -> tuple[Strea
         missing = [name for name, _ in _DATASETS.values() if name not in g] + ([] if "Time" in g else ["Time"])
         if missing:
             raise IngestionError("opal.datasets_missing", file=path, sensor=sensor, datasets=", ".join(missing))
+        for name in ("Time", *(n for n, _ in _DATASETS.values())):   # declared sizes, before any byte is read
+            shape = getattr(g[name], "shape", None) or ()
+            if len(shape) > 2 or (shape and shape[0] > MAX_SAMPLES) or (len(shape) == 2 and shape[1] > 3):
+                raise IngestionError("opal.too_large", file=path, dataset=f"/Sensors/{sensor}/{name}",
+                                     shape=str(shape), limit=MAX_SAMPLES)
         t_s = np.asarray(g["Time"][()], dtype=np.float64) * 1e-6
         conf = g.get("Configuration")
         rate = conf.attrs.get("Sample Rate") if conf is not None else None

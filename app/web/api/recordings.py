@@ -8,7 +8,8 @@ it arrives too, whatever the headers say (a chunked body has no Content-Length):
 files of the largest size plus a little room for the multipart framing it is refused (413); a declared
 Content-Length above that is refused before a byte is read.  A body may hold at most ``max_files + 4``
 parts, and besides the files only the form fields ``segment`` and ``role`` (400 for any other).  A file
-name whose type is not allowed (``.csv``, ``.xlsx``, ``.json``, ``.zip``: :data:`app.settings.ALLOWED_SUFFIXES`) is refused (415) before its bytes are read;
+name whose type is not allowed (``.csv``, ``.xlsx``, ``.json``, ``.zip``, APDM's
+``.h5``: :data:`app.settings.ALLOWED_SUFFIXES`) is refused (415) before its bytes are read;
 more than ``CHAKAMO_MAX_FILES`` files per request or per session answers 413.  Only when the whole request
 has been read are the blobs committed and the recordings inserted (all or none,
 :func:`app.store.recordings.store_upload`), then the session's files are checked by the ingestion

@@ -98,3 +98,24 @@ def test_process_excludes_the_cycles_named_and_says_who_and_why(tmp_path, capsys
         assert main(["process", str(session), "--out", str(tmp_path / "bad"), "--exclude-cycles", bad]) == 2
         assert words in capsys.readouterr().err.strip().splitlines()[-1], bad
         assert not (tmp_path / "bad").exists()
+
+
+def test_process_progress_and_exclusion_refusal_speak_the_language_of_lang(tmp_path, capsys):
+    """``chakamo process --lang``: the progress lines on stderr name the pipeline's stages in that language (they
+    were English whatever --lang said), and a malformed ``--exclude-cycles`` is refused in it, nothing written."""
+    from app.pipeline.demo import write_session
+
+    session = tmp_path / "session"
+    write_session(session, simulate_session(seed=7, side="right", n_cycles=4))
+    assert main(["process", str(session), "--out", str(tmp_path / "out"), "--lang", "pt"]) == 0
+    err = capsys.readouterr().err
+    for line in ("[  0 %] leitura", "] acelerómetro", "] magnetómetro", "] segmentos", "] joelho", "[100 %] concluído"):
+        assert line in err, err
+    assert "] read" not in err and "] done" not in err, err
+    for lang, words in (("en", "--exclude-cycles: 'two' is not a cycle number"),
+                        ("es", "--exclude-cycles: 'two' no es un número de ciclo"),
+                        ("pt", "--exclude-cycles: 'two' não é um número de ciclo")):
+        assert main(["process", str(session), "--out", str(tmp_path / "bad"), "--exclude-cycles", "two",
+                     "--lang", lang]) == 2
+        assert words in capsys.readouterr().err.strip().splitlines()[-1], lang
+        assert not (tmp_path / "bad").exists()

@@ -127,3 +127,70 @@ def test_cli_corrects_and_erases_with_confirmation(world, capsys):
         get_settings.cache_clear()
         os.environ.pop("CHAKAMO_DATA_DIR")
         os.environ.pop("CHAKAMO_ENV")
+
+
+@pytest.mark.parametrize("lang, words", [
+    ("en", {"corrected": "patient {pid}: corrected name", "unchanged": "patient {pid}: nothing changed",
+            "pair": "is not FIELD=VALUE", "field": "cannot be corrected", "date": "is not a date (YYYY-MM-DD)",
+            "number": "is not a number", "confirm": "is not the patient's external id",
+            "off": "the retention policy is off", "due": "1 session(s) due (dry run",
+            "line": "  session {sid} (clinic", "erased": "session(s) erased",
+            "files": "1 stored file(s) erased, 0 kept", "gone": "patient {pid} erased: 0 session(s)"}),
+    ("es", {"corrected": "paciente {pid}: corregidos name", "unchanged": "paciente {pid}: no ha cambiado nada",
+            "pair": "no es CAMPO=VALOR", "field": "no se puede corregir", "date": "no es una fecha (AAAA-MM-DD)",
+            "number": "no es un número", "confirm": "no es el identificador externo del paciente",
+            "off": "la política de conservación está desactivada", "due": "1 sesión(es) vencida(s) (simulación",
+            "line": "  sesión {sid} (clínica", "erased": "sesión(es) borrada(s)",
+            "files": "1 archivo(s) guardado(s) borrado(s), 0 conservado(s)",
+            "gone": "paciente {pid} borrado: 0 sesión(es)"}),
+    ("pt", {"corrected": "paciente {pid}: corrigidos name", "unchanged": "paciente {pid}: nada foi alterado",
+            "pair": "não é CAMPO=VALOR", "field": "não pode ser corrigido", "date": "não é uma data (AAAA-MM-DD)",
+            "number": "não é um número", "confirm": "não é o identificador externo do paciente",
+            "off": "a política de conservação está desativada", "due": "1 sessão(ões) vencida(s) (simulação",
+            "line": "  sessão {sid} (clínica", "erased": "sessão(ões) apagada(s)",
+            "files": "1 ficheiro(s) guardado(s) apagado(s), 0 mantido(s)",
+            "gone": "paciente {pid} apagado: 0 sessão(ões)"}),
+])
+def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang, words):
+    """``chakamo patients|sessions correct|erase`` and ``chakamo retention --lang es|en|pt``: what they print and
+    their refusals (their own and the data layer's) in that language (they were English only, with no ``--lang``)."""
+    from app.cli.main import main
+    from app.settings import get_settings
+
+    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(world["settings"].data_dir))
+    monkeypatch.setenv("CHAKAMO_ENV", "development")
+    monkeypatch.delenv("CHAKAMO_RETENTION_DAYS", raising=False)
+    get_settings.cache_clear()
+    pid, sid = world["pid"], world["sid"]
+    words = {k: v.format(pid=pid, sid=sid) for k, v in words.items()}
+
+    def said(argv, code=0):
+        assert main([*argv, "--lang", lang]) == code, argv
+        out = capsys.readouterr()
+        return out.out if code == 0 else out.err
+
+    fix = ["patients", "correct", "--clinic", "Ret", str(pid)]
+    try:
+        assert words["corrected"] in said([*fix, "--set", "name=Ana"])
+        assert words["unchanged"] in said([*fix, "--set", "name=Ana"])
+        assert words["pair"] in said([*fix, "--set", "name"], 2)
+        assert words["field"] in said([*fix, "--set", "colour=red"], 2)
+        assert words["date"] in said([*fix, "--set", "birth_date=ayer"], 2)
+        assert words["number"] in said([*fix, "--set", "height_cm=alto"], 2)
+        from app.cli.admin import CliError
+        from app.cli.records import correct
+
+        with pytest.raises(CliError) as exc:   # the data layer's own refusal, by its catalogue code
+            correct(None, "patient", clinic="Ret", row_id=pid, sets=["side=up"])
+        assert exc.value.code == "store.unknown_value" and (lang == "en") == (exc.value.message(lang) == str(exc.value))
+        assert exc.value.message(lang) in said([*fix, "--set", "side=up"], 2)
+        assert words["confirm"] in said(["sessions", "erase", "--clinic", "Ret", str(sid), "--confirm", "X"], 2)
+        assert words["off"] in said(["retention"], 2)
+        monkeypatch.setattr("app.store.models.utcnow", lambda: world["last"] + dt.timedelta(days=31))
+        due = said(["retention", "--days", "30"])
+        assert words["due"] in due and words["line"] in due, due
+        applied = said(["retention", "--days", "30", "--apply"])
+        assert words["erased"] in applied and words["files"] in applied, applied
+        assert words["gone"] in said(["patients", "erase", "--clinic", "Ret", str(pid), "--confirm", "RET-1"])
+    finally:
+        get_settings.cache_clear()

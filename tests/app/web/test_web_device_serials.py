@@ -4,7 +4,7 @@ and used by its same-sensor check.
 Truth: the serial each format's public description puts in the file, written by the project's own writers —
 Xsens MT Manager's ``// DeviceId:`` preamble line, Shimmer Consensys's ``Shimmer_XXXX`` column prefix, Sensor
 Logger's ``device id`` column of ``Metadata.csv``, a phyphox ``meta/device.csv`` ``uniqueID`` row — and, for the
-APDM Opal ``.h5`` (read by the command line only), the ``/Sensors/<id>`` group name.  A phyphox export with only
+APDM Opal ``.h5``, the ``/Sensors/<id>`` group name.  A phyphox export with only
 ``deviceModel`` (a model, not a serial) stores none."""
 
 from __future__ import annotations
