@@ -98,7 +98,7 @@ def method_items(results: dict[str, Any], lang: str) -> list[tuple[str, str]]:
     calibration asked for (``results["calibration_method"]``, static or functional) beside the one the recordings
     allowed and the pipeline used (``results["calibration"]["protocol"]["segment"]``: a session without a supine
     recording is calibrated on the task even when static was asked for), and the knee-angle convention
-    (``results["angle_method"]``) with its signs.  Only what results.json says; a line it has nothing for is left
+    (``results["angle_method"]``, Grood–Suntay when absent) with its signs.  Only what results.json says; a line it has nothing for is left
     out."""
     asked = results.get("calibration_method")
     asked_text = _segment_methods(asked, lang) if isinstance(asked, str) and asked else ""
@@ -115,7 +115,8 @@ def method_items(results: dict[str, Any], lang: str) -> list[tuple[str, str]]:
     else:
         text = ""
     items = [(tr("protocol_segment_label", lang), text)] if text else []
-    convention = results.get("angle_method")
+    # a results.json older than the option was computed in Grood–Suntay, the default (app.choices.ANGLE_CONVENTIONS)
+    convention = results.get("angle_method") or "grood_suntay"
     if isinstance(convention, str) and i18n.has(f"angle_method_{convention}"):
         items.append((tr("protocol_angles_label", lang),
                       tr(f"angle_method_{convention}", lang) + tr("method.angles_mirrored", lang)))

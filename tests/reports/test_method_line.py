@@ -94,3 +94,33 @@ def test_the_demo_session_names_its_calibration_convention_and_heading(demo_ri):
         assert t("quality_heading", lang) in words and _words(heading_sentence(r, lang)) in words
         html_text = _html_text(render_html(ri))
         assert _words(heading_sentence(r, lang)) in html_text
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_a_results_file_without_the_angle_convention_names_the_default(lang):
+    """An older results.json (no ``angle_method``) was computed in Grood–Suntay, the only convention then and the
+    default since (app.choices.ANGLE_CONVENTIONS): the PDF and the HTML say so, as the PDF did before the method lines."""
+    from app.choices import ANGLE_CONVENTIONS, DEFAULT_ANGLE_CONVENTION
+
+    assert DEFAULT_ANGLE_CONVENTION == "grood_suntay" in {c.name for c in ANGLE_CONVENTIONS}
+    ri = _synthetic_ri(lang)
+    ri.results.pop("angle_method", None)
+    for text in (" ".join(pdf_pages(render_pdf(ri))), _html_text(render_html(ri))):
+        assert t("protocol_angles_label", lang) in text and _words(t("angle_method_grood_suntay", lang)) in text
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_both_conventions_state_the_signs_their_angles_have(side):
+    """Both texts name the same positive directions, and both conventions give a knee flexed, in varus and rotated
+    internally (estimators.knee K1, clinical signs) positive angles, on either leg."""
+    import numpy as np
+
+    from estimators.knee import knee_angles, knee_quaternion
+
+    q = knee_quaternion(np.radians([40.0, 5.0, 8.0]), side)
+    for method in ("grood_suntay", "thesis_zyx"):
+        assert (knee_angles(q, side, method=method) > 0).all()
+    for lang in LANGUAGES:
+        signs = [t(f"angle_method_{m}", lang).split(";")[1] for m in ("grood_suntay", "thesis_zyx")]
+        assert signs[0] == signs[1] and len(signs[0]) > 10
