@@ -124,3 +124,28 @@ def test_both_conventions_state_the_signs_their_angles_have(side):
     for lang in LANGUAGES:
         signs = [t(f"angle_method_{m}", lang).split(";")[1] for m in ("grood_suntay", "thesis_zyx")]
         assert signs[0] == signs[1] and len(signs[0]) > 10
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_two_knees_calibrated_differently_have_a_line_each(lang):
+    """A session of both knees (results.json ``knees``): one calibration line while the knees share their
+    calibration, one per knee, named, when the recordings allowed each a different one."""
+    from reports.labels import method_items
+
+    ri = _synthetic_ri(lang)
+    ri.results["calibration_method"] = "static"
+    protocol = {"segment": "static", "magnetometer": ["ellipsoid"], "recordings": ["task"]}
+    ri.results["calibration"]["protocol"] = protocol
+    knee = {side: {"calibration": {"protocol": dict(protocol)}} for side in ("left", "right")}
+    same = method_items({**ri.results, "knees": knee}, lang)
+    assert [label for label, _ in same].count(t("protocol_segment_label", lang)) == 1
+    knee["left"]["calibration"]["protocol"]["segment"] = "standing_functional"
+    ri.results["knees"] = knee
+    items = dict(method_items(ri.results, lang))
+    for side, used in (("left", "standing_functional"), ("right", "static")):
+        label = f"{t('protocol_segment_label', lang)} ({t(f'knees.{side}', lang)})"
+        assert _words(t(f"method.segment.{used}", lang)) in items[label]
+    html_text = _html_text(render_html(ri))
+    for label, text in items.items():
+        assert _words(label) in html_text and _words(text) in html_text
