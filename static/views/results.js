@@ -79,6 +79,18 @@ function analysisSelector(sessionId, analyses, current) {
     analyses.length > 1 ? h("span", { class: "hint" }, t("results.analyses_n", { n: analyses.length })) : null);
 }
 
+/** The sensor-to-segment calibration the pipeline used (results.json `calibration.protocol.segment`: one code, or
+ *  one per segment), and the one asked for when the recordings allowed another (a session without a supine
+ *  recording is calibrated on the task): what the reports' method line says (reports.labels.method_items). */
+export function calibrationUsed(r, analysis) {
+  const asked = r.calibration_method || analysis.calibration;
+  const seg = ((r.calibration || {}).protocol || {}).segment;
+  const used = typeof seg === "string" ? [seg] : (Array.isArray(seg) ? seg : []);
+  if (!used.length) return label("calibration", asked);
+  const text = [...new Set(used)].map((c) => label("calibration", c)).join(" / ");
+  return asked && used.some((c) => c !== asked) ? `${text} (${t("results.calibration_asked", { asked: label("calibration", asked) })})` : text;
+}
+
 function renderResults(body, session, patient, analysis, r, section, warnings) {
   const cycles = r.cycles || {};
   const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
@@ -86,7 +98,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       [t("results.filter"), label("filter", (r.filter && r.filter.name) || analysis.filter)],
       // the convention and calibration the numbers were computed with (a ZYX run reads other angles of one knee)
       [t("wizard.angle_convention"), label("angle_convention", r.angle_method || analysis.angle_method)],
-      [t("wizard.calibration"), label("calibration", r.calibration_method || analysis.calibration)],
+      [t("wizard.calibration"), calibrationUsed(r, analysis)],
       [t("results.cycles"), t("results.cycles_value", { accepted: cycles.accepted ?? "—", detected: cycles.detected ?? "—" })],
       [t("session.step_height"), session.step_height_m ? `${num(session.step_height_m * 100, 0)} cm` : "—"],
       [t("results.software"), (r.software && r.software.version) || "—"]]
