@@ -75,14 +75,13 @@ def heading_sentence(results: dict[str, Any], lang: str) -> str | None:
 
 
 def calibration_sentence(results: dict[str, Any], lang: str) -> str | None:
-    """Which calibration the session had (``results["calibration"]["protocol"]``): the sensor-to-segment method,
-    the magnetometer's and the accelerometer's, one sentence; None for a results file without it."""
+    """Which sensor calibrations the session had (``results["calibration"]["protocol"]``): the magnetometer's and
+    the accelerometer's models, one sentence; None for a results file without them.  The sensor-to-segment
+    calibration is the method line's (:func:`method_items`), said once."""
     p = get_path(results, "calibration", "protocol")
     if not isinstance(p, dict):
         return None
-    segment = p.get("segment")
-    parts = [code_label("calibration.segment", s, lang) for s in ([segment] if isinstance(segment, str) else segment or [])]
-    parts += [code_label("calibration.magnetometer", m, lang) for m in p.get("magnetometer") or []]
+    parts = [code_label("calibration.magnetometer", m, lang) for m in p.get("magnetometer") or []]
     parts += [code_label("calibration.accelerometer", m, lang) for m in p.get("accelerometer") or []]
     return "; ".join(parts) + "." if parts else None
 
@@ -93,29 +92,44 @@ def _segment_methods(value: Any, lang: str) -> str:
     return " / ".join(code_label("method.segment", c, lang) for c in codes)
 
 
+def _calibration_text(asked: Any, used: Any, lang: str) -> str:
+    """The calibration asked for beside the one used (both ``method.segment.*`` codes; ``used`` may be one per
+    segment); "" when neither is known."""
+    asked_text = _segment_methods(asked, lang) if isinstance(asked, str) and asked else ""
+    used_text = _segment_methods(used, lang)
+    if asked_text and used_text:
+        same = used == asked or (isinstance(used, list) and set(used) == {asked})
+        return (tr("method.calibration_as_asked", lang, used=used_text) if same
+                else tr("method.calibration_asked_used", lang, asked=asked_text, used=used_text))
+    if used_text:
+        return tr("method.calibration_used", lang, used=used_text)
+    if asked_text:
+        return tr("method.calibration_asked", lang, asked=asked_text)
+    return ""
+
+
 def method_items(results: dict[str, Any], lang: str) -> list[tuple[str, str]]:
     """``(label, text)`` of how the numbers were computed, for the report's method section: the sensor-to-segment
     calibration asked for (``results["calibration_method"]``, static or functional) beside the one the recordings
     allowed and the pipeline used (``results["calibration"]["protocol"]["segment"]``: a session without a supine
     recording is calibrated on the task even when static was asked for), and the knee-angle convention
-    (``results["angle_method"]``) with its signs.  Only what results.json says; a line it has nothing for is left
-    out."""
+    (``results["angle_method"]``, Grood–Suntay when absent) with its signs.  A session of both knees whose knees
+    were calibrated differently (``results["knees"][side]``) has one calibration line per knee.  Only what
+    results.json says; a line it has nothing for is left out."""
     asked = results.get("calibration_method")
-    asked_text = _segment_methods(asked, lang) if isinstance(asked, str) and asked else ""
-    used = get_path(results, "calibration", "protocol", "segment")
-    used_text = _segment_methods(used, lang)
-    if asked_text and used_text:
-        same = used == asked or (isinstance(used, list) and set(used) == {asked})
-        text = (tr("method.calibration_as_asked", lang, used=used_text) if same
-                else tr("method.calibration_asked_used", lang, asked=asked_text, used=used_text))
-    elif used_text:
-        text = tr("method.calibration_used", lang, used=used_text)
-    elif asked_text:
-        text = tr("method.calibration_asked", lang, asked=asked_text)
+    knees = results.get("knees") if isinstance(results.get("knees"), dict) else {}
+    used_per_knee = {side: get_path(k, "calibration", "protocol", "segment")
+                     for side, k in sorted(knees.items()) if isinstance(k, dict)}
+    label = tr("protocol_segment_label", lang)
+    if len(used_per_knee) > 1 and len({repr(u) for u in used_per_knee.values()}) > 1:
+        items = [(f"{label} ({tr(f'knees.{side}', lang) if i18n.has(f'knees.{side}') else side})",
+                  _calibration_text(asked, used, lang)) for side, used in used_per_knee.items()]
+        items = [(lab, text) for lab, text in items if text]
     else:
-        text = ""
-    items = [(tr("protocol_segment_label", lang), text)] if text else []
-    convention = results.get("angle_method")
+        text = _calibration_text(asked, get_path(results, "calibration", "protocol", "segment"), lang)
+        items = [(label, text)] if text else []
+    # a results.json older than the option was computed in Grood–Suntay, the default (app.choices.ANGLE_CONVENTIONS)
+    convention = results.get("angle_method") or "grood_suntay"
     if isinstance(convention, str) and i18n.has(f"angle_method_{convention}"):
         items.append((tr("protocol_angles_label", lang),
                       tr(f"angle_method_{convention}", lang) + tr("method.angles_mirrored", lang)))

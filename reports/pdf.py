@@ -282,7 +282,7 @@ def _quality(pdf: ReportPDF, ri: ReportInput) -> None:
                      MISSING if reliable is None else pdf.tr("yes" if reliable else "no")])
     pdf.grid(rows, (1.2, 1, 1.3, 1.3, 1.3, 0.8), align=("LEFT",) + ("RIGHT",) * 5, bold_cols=(0,))
 
-    # which calibration the recordings allowed (the full protocol, no supine, the task alone; no figure-eight)
+    # the magnetometer's and the accelerometer's calibration models (the sensor-to-segment one is the method line's)
     calibration = calibration_sentence(r, pdf.lang)
     if calibration:
         pdf.ensure_space(12)

@@ -58,7 +58,7 @@ from app.web.fhir_push import FhirPush
 from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
-from app.web.viser_client import viser_router
+from app.web.viser_client import unpack_in_background, viser_router
 from estimators import __version__
 
 log = logging.getLogger("chakamo")
@@ -127,6 +127,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
+        unpack_in_background(_viser_client_dir() / "index.html")  # viser's client unpacked beside the migrations
         db.migrate(settings.sealing_key)
         with db.session() as s:
             if not s.scalar(select(func.count()).select_from(User)):

@@ -127,25 +127,47 @@ def unpacked_client(shipped: Path) -> Unpacked | None:
         if shipped not in _cache:
             try:
                 _cache[shipped] = unpack(shipped.read_text(encoding="utf-8"))
-            except (OSError, ValueError) as exc:
-                log.warning("viser's client is served as shipped (its loader unpacks it in the browser): %s", exc)
+            except Exception as exc:  # any failure (a payload zstd/gzip cannot decode too): the shipped file still works
+                log.warning("viser's client is served as shipped (its loader unpacks it in the browser): %r", exc)
                 _cache[shipped] = None
         return _cache[shipped]
 
 
-def _accepts_gzip(request: Request) -> bool:
-    return any(part.split(";")[0].strip() == "gzip" for part in request.headers.get("accept-encoding", "").split(","))
+def unpack_in_background(shipped: Path) -> threading.Thread:
+    """:func:`unpacked_client` started in a thread of its own (the app's start-up: a second or two on a busy machine,
+    beside the start-up rather than in the first viewer's request)."""
+    thread = threading.Thread(target=unpacked_client, args=(shipped,), name="viser-unpack", daemon=True)
+    thread.start()
+    return thread
+
+
+def _accepts_gzip(accept_encoding: str) -> bool:
+    """Whether an ``Accept-Encoding`` header (RFC 9110 §12.5.3: case-insensitive codings, each with an optional
+    ``q`` weight, ``q=0`` meaning "not acceptable") accepts gzip, by name or by ``*``."""
+    weights: dict[str, float] = {}
+    for part in accept_encoding.split(","):
+        coding, *params = (p.strip() for p in part.split(";"))
+        q = 1.0
+        for param in params:
+            key, _, value = param.partition("=")
+            if key.strip().lower() == "q":
+                try:
+                    q = float(value)
+                except ValueError:
+                    q = 0.0
+        if coding:
+            weights[coding.lower()] = q
+    return weights.get("gzip", weights.get("x-gzip", weights.get("*", 0.0))) > 0
 
 
 def viser_router(shipped: Path) -> APIRouter:
-    """``GET /viser/`` and ``/viser/index.html`` (the unpacked page), ``GET /viser/{asset}`` (its files).  Mounted
-    before the ``/viser`` static folder, which still answers anything else of the shipped build."""
+    """``GET``/``HEAD /viser/`` and ``/viser/index.html`` (the unpacked page), ``/viser/{asset}`` (its files).  Mounted
+    before the ``/viser`` static folder, which still answers anything else of the shipped build.  The unpacking
+    itself is started by the app's start-up (:func:`unpack_in_background`) or, failing that, by the first request."""
     router = APIRouter(include_in_schema=False)
-    # unpacked beside the start-up (a second or two on a busy machine), not in the first viewer's request
-    threading.Thread(target=unpacked_client, args=(shipped,), name="viser-unpack", daemon=True).start()
 
-    @router.get("/viser/")
-    @router.get("/viser/index.html")
+    @router.api_route("/viser/", methods=["GET", "HEAD"])
+    @router.api_route("/viser/index.html", methods=["GET", "HEAD"])
     def index():
         client = unpacked_client(shipped)
         if client is None:
@@ -153,18 +175,19 @@ def viser_router(shipped: Path) -> APIRouter:
         return Response(client.index_html, media_type="text/html; charset=utf-8",
                         headers={"Cache-Control": "no-cache"})
 
-    @router.get("/viser/{name}")
+    @router.api_route("/viser/{name}", methods=["GET", "HEAD"])
     def asset(name: str, request: Request):
         client = unpacked_client(shipped)
         found = client.assets.get(name) if client is not None else None
         if found is None:
             return Response(status_code=404)
         headers = {"Cache-Control": IMMUTABLE, "Vary": "Accept-Encoding"}
-        if _accepts_gzip(request):
+        if _accepts_gzip(request.headers.get("accept-encoding", "")):
             return Response(found.gzipped, media_type=found.media_type, headers={**headers, "Content-Encoding": "gzip"})
         return Response(found.body, media_type=found.media_type, headers=headers)
 
     return router
 
 
-__all__ = ["B88_ALPHABET", "IMMUTABLE", "Unpacked", "b88_decode", "unpack", "unpacked_client", "viser_router"]
+__all__ = ["B88_ALPHABET", "IMMUTABLE", "Unpacked", "b88_decode", "unpack", "unpack_in_background", "unpacked_client",
+           "viser_router"]

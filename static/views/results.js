@@ -79,6 +79,18 @@ function analysisSelector(sessionId, analyses, current) {
     analyses.length > 1 ? h("span", { class: "hint" }, t("results.analyses_n", { n: analyses.length })) : null);
 }
 
+/** The sensor-to-segment calibration the pipeline used (results.json `calibration.protocol.segment`: one code, or
+ *  one per segment), and the one asked for when the recordings allowed another (a session without a supine
+ *  recording is calibrated on the task): what the reports' method line says (reports.labels.method_items). */
+export function calibrationUsed(r, analysis) {
+  const asked = r.calibration_method || analysis.calibration;
+  const seg = ((r.calibration || {}).protocol || {}).segment;
+  const used = typeof seg === "string" ? [seg] : (Array.isArray(seg) ? seg : []);
+  if (!used.length) return label("calibration", asked);
+  const text = [...new Set(used)].map((c) => label("calibration", c)).join(" / ");
+  return asked && used.some((c) => c !== asked) ? `${text} (${t("results.calibration_asked", { asked: label("calibration", asked) })})` : text;
+}
+
 function renderResults(body, session, patient, analysis, r, section, warnings) {
   const cycles = r.cycles || {};
   const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
@@ -86,7 +98,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       [t("results.filter"), label("filter", (r.filter && r.filter.name) || analysis.filter)],
       // the convention and calibration the numbers were computed with (a ZYX run reads other angles of one knee)
       [t("wizard.angle_convention"), label("angle_convention", r.angle_method || analysis.angle_method)],
-      [t("wizard.calibration"), label("calibration", r.calibration_method || analysis.calibration)],
+      [t("wizard.calibration"), calibrationUsed(r, analysis)],
       [t("results.cycles"), t("results.cycles_value", { accepted: cycles.accepted ?? "—", detected: cycles.detected ?? "—" })],
       [t("session.step_height"), session.step_height_m ? `${num(session.step_height_m * 100, 0)} cm` : "—"],
       [t("results.software"), (r.software && r.software.version) || "—"]]
@@ -98,6 +110,9 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     h("h2", { id: "h-curves" }, t("results.curves")), h("p", { class: "hint" }, t("results.curves_hint")),
     h("div", { class: "charts" }, charts));
 
+  // the charts' gate (every plotly chart of the page waits on it, the cycles' too): opened by drawCharts
+  let openGate;
+  const chartsGate = new Promise((resolve) => { openGate = resolve; });
   const knees = kneesSection(r);
   const kneeCharts = knees ? [...knees.querySelectorAll(".chart")] : [];
   clear(body).append(summary, curves, ...(knees ? [knees] : []),
@@ -105,7 +120,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
-    cyclesSection(session, analysis, r),
+    cyclesSection(session, analysis, r, chartsGate),
     qualitySection(r, warnings),
     compareSection(session, analysis),
     interpretationSection(session, analysis),
@@ -113,14 +128,16 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     downloadsSection(session.id, analysis.id),
     sceneSection(session.id, analysis.id, r, () => drawCharts()));
 
-  // The charts wait for the 3D view's first frames, at most CHARTS_WAIT_MS: the page and viser's client (a
-  // same-origin frame) share one main thread, where plotly's start (its 3.5 MB script run, then three charts) sat
-  // between the client's start and its first frame (issue 17 §4: python -m benchmarks.scene_first_frame).  The
-  // script is fetched meanwhile (preloadPlotly), so the wait costs the charts its run only.
+  // The charts wait for the 3D view's first frames, at most CHARTS_WAIT_MS (0: no wait): the page and viser's
+  // client (a same-origin frame) share one main thread, where plotly's start (its 3.5 MB script run, then three
+  // charts) sat between the client's start and its first frame (issue 17 §4: python -m
+  // benchmarks.scene_first_frame).  The script is fetched meanwhile (preloadPlotly), so the wait costs the charts
+  // its run only.  Whether the wait gains anything is not measured yet; CHARTS_WAIT_MS = 0 removes it.
   let drawn = false;
   const drawCharts = () => {
     if (drawn || !section.isConnected) return;
     drawn = true;
+    openGate();
     ANGLES.forEach((a, i) => {
       const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
       drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
@@ -129,15 +146,20 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
     });
   };
-  preloadPlotly();
-  setTimeout(drawCharts, CHARTS_WAIT_MS);
+  if (CHARTS_WAIT_MS > 0) {
+    preloadPlotly();
+    setTimeout(drawCharts, CHARTS_WAIT_MS);
+  } else {
+    drawCharts();
+  }
   const observer = new MutationObserver(() => {
     if (!section.isConnected) { charts.forEach(purge); kneeCharts.forEach(purge); observer.disconnect(); }
   });
   observer.observe(document.getElementById("main"), { childList: true });
 }
 
-/** The longest the charts wait for the 3D view's first frames (a loaded machine, a scene that does not load). */
+/** The longest the charts (the curves, both knees', the cycles') wait for the 3D view's first frames (a loaded
+ *  machine, a scene that does not load); 0: they draw at once, no wait. */
 const CHARTS_WAIT_MS = 2000;
 
 const SIDE_COLOURS = { left: "#1f4e79", right: "#d66e16" };

@@ -94,3 +94,58 @@ def test_the_demo_session_names_its_calibration_convention_and_heading(demo_ri):
         assert t("quality_heading", lang) in words and _words(heading_sentence(r, lang)) in words
         html_text = _html_text(render_html(ri))
         assert _words(heading_sentence(r, lang)) in html_text
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_a_results_file_without_the_angle_convention_names_the_default(lang):
+    """An older results.json (no ``angle_method``) was computed in Grood–Suntay, the only convention then and the
+    default since (app.choices.ANGLE_CONVENTIONS): the PDF and the HTML say so, as the PDF did before the method lines."""
+    from app.choices import ANGLE_CONVENTIONS, DEFAULT_ANGLE_CONVENTION
+
+    assert DEFAULT_ANGLE_CONVENTION == "grood_suntay" in {c.name for c in ANGLE_CONVENTIONS}
+    ri = _synthetic_ri(lang)
+    ri.results.pop("angle_method", None)
+    for text in (" ".join(pdf_pages(render_pdf(ri))), _html_text(render_html(ri))):
+        assert t("protocol_angles_label", lang) in text and _words(t("angle_method_grood_suntay", lang)) in text
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_both_conventions_state_the_signs_their_angles_have(side):
+    """Both texts name the same positive directions, and both conventions give a knee flexed, in varus and rotated
+    internally (estimators.knee K1, clinical signs) positive angles, on either leg."""
+    import numpy as np
+
+    from estimators.knee import knee_angles, knee_quaternion
+
+    q = knee_quaternion(np.radians([40.0, 5.0, 8.0]), side)
+    for method in ("grood_suntay", "thesis_zyx"):
+        assert (knee_angles(q, side, method=method) > 0).all()
+    for lang in LANGUAGES:
+        signs = [t(f"angle_method_{m}", lang).split(";")[1] for m in ("grood_suntay", "thesis_zyx")]
+        assert signs[0] == signs[1] and len(signs[0]) > 10
+
+
+@needs_poppler
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_two_knees_calibrated_differently_have_a_line_each(lang):
+    """A session of both knees (results.json ``knees``): one calibration line while the knees share their
+    calibration, one per knee, named, when the recordings allowed each a different one."""
+    from reports.labels import method_items
+
+    ri = _synthetic_ri(lang)
+    ri.results["calibration_method"] = "static"
+    protocol = {"segment": "static", "magnetometer": ["ellipsoid"], "recordings": ["task"]}
+    ri.results["calibration"]["protocol"] = protocol
+    knee = {side: {"calibration": {"protocol": dict(protocol)}} for side in ("left", "right")}
+    same = method_items({**ri.results, "knees": knee}, lang)
+    assert [label for label, _ in same].count(t("protocol_segment_label", lang)) == 1
+    knee["left"]["calibration"]["protocol"]["segment"] = "standing_functional"
+    ri.results["knees"] = knee
+    items = dict(method_items(ri.results, lang))
+    for side, used in (("left", "standing_functional"), ("right", "static")):
+        label = f"{t('protocol_segment_label', lang)} ({t(f'knees.{side}', lang)})"
+        assert _words(t(f"method.segment.{used}", lang)) in items[label]
+    html_text = _html_text(render_html(ri))
+    for label, text in items.items():
+        assert _words(label) in html_text and _words(text) in html_text

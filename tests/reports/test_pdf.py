@@ -410,8 +410,8 @@ def test_the_quality_section_says_which_heading_the_angles_use(lang, used):
 @pytest.mark.parametrize("segment, mag, acc", [("static", "ellipsoid", "bias"), ("standing_functional", "factory", "none"),
                                                ("task_functional", "factory", "none"), ("static", "ellipsoid", "bias_scale")])
 def test_the_report_says_which_calibration_was_used(lang, segment, mag, acc):
-    """results.json's ``calibration.protocol`` (sensor-to-segment, magnetometer and accelerometer models) is printed in
-    the PDF and the HTML, translated."""
+    """results.json's ``calibration.protocol`` magnetometer and accelerometer models are printed in the PDF and the
+    HTML, translated; the sensor-to-segment calibration is said once, on the method line (test_method_line.py)."""
     import html as _html
 
     from reports.html import render_html
@@ -422,11 +422,13 @@ def test_the_report_says_which_calibration_was_used(lang, segment, mag, acc):
                                              "recordings": ["task"]}
     sentence = calibration_sentence(ri.results, lang)
     assert sentence and "calibration." not in sentence  # every code has its translation
-    other = calibration_sentence({"calibration": {"protocol": {"segment": "static" if segment != "static" else
-                                                               "task_functional", "magnetometer": [mag],
-                                                               "accelerometer": [acc]}}}, lang)
+    other = calibration_sentence({"calibration": {"protocol": {"segment": segment, "magnetometer": [
+        "sphere" if mag != "sphere" else "factory"], "accelerometer": [acc]}}}, lang)
     assert sentence != other
     without = calibration_sentence({"calibration": {"protocol": {"segment": segment, "magnetometer": [mag]}}}, lang)
     assert sentence != without  # the accelerometer's model is said
-    assert _flat(sentence) in _flat(_text(render_pdf(ri)))
+    pdf_text, html_text = _flat(_text(render_pdf(ri))), _html.unescape(render_html(ri))
+    assert _flat(sentence) in pdf_text
+    segment_name = _flat(t(f"method.segment.{segment}", lang))
+    assert pdf_text.count(segment_name) == 1 and " ".join(html_text.split()).count(segment_name) == 1
     assert sentence in _html.unescape(render_html(ri))

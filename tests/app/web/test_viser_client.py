@@ -58,6 +58,37 @@ def test_a_client_file_of_another_layout_is_served_as_shipped(tmp_path):
         assert c.get("/viser/client-0123456789ab.js").status_code == 404
 
 
+def test_a_client_file_of_the_layout_that_does_not_decode_is_served_as_shipped(tmp_path):
+    """The loader's layout around a payload that is not a zstd frame (and a decoder that is not gzip): zstandard's
+    and gzip's own errors, not ValueError; the page is still the shipped file, at every request."""
+    from fastapi import FastAPI
+    from fastapi.testclient import TestClient
+
+    from app.web.viser_client import viser_router
+
+    bad = tmp_path / "index.html"
+    bad.write_text(f'<html><script data-p="{_b88_encode(b"not a zstd frame")}" data-ss="3" data-cs="4">'
+                   f'const gzWasm="{_b88_encode(b"not gzip")}";</script></html>', encoding="utf-8")
+    assert unpacked_client(bad) is None
+    app = FastAPI()
+    app.include_router(viser_router(bad))
+    with TestClient(app, raise_server_exceptions=False) as c:
+        for _ in range(2):
+            r = c.get("/viser/index.html")
+            assert r.status_code == 200 and r.text == bad.read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(("header", "gzip_ok"), [
+    ("gzip", True), ("GZIP", True), ("deflate, gzip;q=0.5", True), ("br;q=1.0, GZip ; Q=0.8", True), ("*", True),
+    ("x-gzip", True), ("gzip;q=0", False), ("gzip; q=0.000", False), ("identity", False), ("", False),
+    ("*;q=0", False), ("gzip;q=0, *", False), ("br, *;q=0.1", True), ("gzipped", False)])
+def test_accept_encoding_weights(header, gzip_ok):
+    """RFC 9110 §12.5.3: codings compared case-insensitively, ``q=0`` refuses one, ``*`` stands for the rest."""
+    from app.web.viser_client import _accepts_gzip
+
+    assert _accepts_gzip(header) is gzip_ok
+
+
 def test_the_page_links_its_files_sent_compressed_and_cached(client):
     page = client.get("/viser/index.html", params={"playbackPath": "/api/v1/sessions/3/scene.viser"})
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
@@ -74,9 +105,17 @@ def test_the_page_links_its_files_sent_compressed_and_cached(client):
         assert "content-security-policy" in r.headers  # viser's CSP, as on the shipped file
         plain = client.get(f"/viser/{name}", headers={"Accept-Encoding": "identity"})
         assert "content-encoding" not in plain.headers
-        assert plain.content == r.content  # (httpx undid the gzip)
+        # the server's bytes as sent (httpx not undoing the gzip): a gzip stream of the plain file, and smaller
+        with client.stream("GET", f"/viser/{name}", headers={"Accept-Encoding": "gzip"}) as raw:
+            assert raw.headers["content-encoding"] == "gzip"
+            sent = b"".join(raw.iter_raw())
+        assert sent[:2] == b"\x1f\x8b" and gzip.decompress(sent) == plain.content and len(sent) < len(plain.content)
         assert hashlib.sha256(plain.content).hexdigest()[:12] == name.split("-")[1].split(".")[0]
-        assert len(gzip.compress(plain.content)) < len(plain.content)
+        refused = client.get(f"/viser/{name}", headers={"Accept-Encoding": "gzip;q=0"})
+        assert "content-encoding" not in refused.headers and refused.content == plain.content
+        head = client.head(f"/viser/{name}", headers={"Accept-Encoding": "GZIP"})
+        assert head.status_code == 200 and head.headers["content-encoding"] == "gzip" and not head.content
+    assert client.head("/viser/index.html").status_code == 200 and client.head("/viser/").status_code == 200
     assert client.get("/viser/client-000000000000.js").status_code == 404
     assert client.get("/viser/index.html", params={"playbackPath": "http://evil.example/x.viser"}).status_code == 400
 
