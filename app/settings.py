@@ -13,7 +13,7 @@
 | ``CHAKAMO_REDISPATCH_S`` | 120 | celery: a job still queued this long after it was handed to the broker, while the broker's queue is empty, is handed again (a broker restarted empty) |
 | ``CHAKAMO_JOB_TIME_LIMIT_S`` | 1800 | celery: a job running longer is stopped (its worker process is replaced) and run again, then failed after 3 attempts |
 | ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
-| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in ``CHAKAMO_CHECK_PROCESSES`` warm helper processes, off its GIL (0: none) |
+| ``CHAKAMO_RENDER_PROCESSES`` | 1 | with any (≥ 1): each embedded job thread computes and renders its jobs in a warm helper process of its own at background priority (:mod:`app.jobs.compute`), and the API server checks uploads in ``CHAKAMO_CHECK_PROCESSES`` warm helper processes, both off its GIL (0: none, both in the server's threads) |
 | ``CHAKAMO_CHECK_PROCESSES`` | 2 | with render processes: helper processes checking uploads, one clinic's check at a time each (:mod:`app.store.checks`) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |

@@ -418,7 +418,7 @@ def lower_priority() -> bool:
     return True
 
 
-def _exit_with_parent(parent_pid: int) -> None:
+def exit_with_parent(parent_pid: int) -> None:
     """In a render or check helper process: run at the background priority (:data:`BACKGROUND_NICE`), and exit as
     soon as the server process is gone (even killed with SIGKILL)."""
     lower_priority()
@@ -451,7 +451,7 @@ class RenderPool:
         from concurrent.futures import ProcessPoolExecutor
 
         self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_exit_with_parent, initargs=(os.getpid(),))
+                                         initializer=exit_with_parent, initargs=(os.getpid(),))
         self._warm = self._pool.submit(self._warm_fn)
 
     def restart(self) -> None:
@@ -519,5 +519,5 @@ def warm_up(processing: bool = True) -> None:
 
 
 __all__ = ["BACKGROUND_NICE", "FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "patient_json", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S",
-           "ForkedRenderers", "RenderPool", "collect", "lower_priority", "preload_renderers", "render_all", "render_artefact",
+           "ForkedRenderers", "RenderPool", "collect", "exit_with_parent", "lower_priority", "preload_renderers", "render_all", "render_artefact",
            "render_many", "render_named", "warm_up"]

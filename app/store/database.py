@@ -3,6 +3,20 @@
 ``Database(url)`` owns one engine; SQLite gets WAL journaling (readers never wait for the job threads'
 writes), ``synchronous=FULL`` (a commit — an acknowledged upload — survives a power cut; NORMAL could
 roll the last commits back), foreign keys on and a busy timeout, on every connection.
+
+**SQLite's one write lock, queued** (issue 16 finding 10h).  A SQLite database has one write lock; a writer that
+finds it taken sleeps in SQLite's busy handler (1, 2, 5, 10 … then 100 ms at a time) and tries again.  Under an
+upload burst that handler decided who wrote next: a writer that had waited long looked again only every 100 ms while
+newcomers slipped in first, and every waiter held a pooled connection meanwhile (``py-spy dump`` of ``chakamo
+serve`` as ``benchmarks.load``'s burst began: 34 request threads inside SQLite's ``execute``, 25 of them reads
+whose audit row their commit was writing).  So the server's writers of one database file queue in the process at
+a :class:`WriteGate` (one per file, :func:`write_gate`, shared by every engine on it), first come first served,
+and each is let in the moment the one before commits or rolls back — no polling.  The gate is taken where pysqlite
+opens a write transaction (just before the first INSERT/UPDATE/DELETE/REPLACE outside one: reads take nothing,
+and a read-only request never waits for it) and given back by ``commit()``, ``rollback()`` or ``close()`` of that
+connection (:class:`GatedConnection`, the engine's connection class).  A writer waits at most
+:data:`WRITE_WAIT_S` (SQLite's own busy timeout), then gets SQLite's "database is locked".  Other processes on the
+same file (the ``chakamo`` commands) still meet this one in SQLite's busy handler, as before.
 :func:`ensure_blob` records a stored file with the dialect's ``INSERT … ON CONFLICT DO NOTHING``
 (SQLite, PostgreSQL): two transactions storing equal content at the same time never collide.
 ``Database.migrate()`` upgrades the schema to the newest revision of ``app/store/migrations`` programmatically
@@ -12,7 +26,9 @@ Nothing is created at import time.
 
 from __future__ import annotations
 
+import sqlite3
 import threading
+from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -24,6 +40,119 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.store.models import Base, Blob
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
+
+
+class WriteGate:
+    """A first-come, first-served queue for one SQLite database's single write lock, in this process (module
+    docstring).  :meth:`acquire` hands the gate over to waiters in the order they came; :meth:`release` gives it
+    to the next one at once (no polling)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._held = False
+        self._waiters: deque[threading.Event] = deque()
+
+    def acquire(self, timeout_s: float) -> bool:
+        """Take the gate, waiting at most ``timeout_s`` behind the writers that came first; False on timeout."""
+        with self._lock:
+            if not self._held and not self._waiters:
+                self._held = True
+                return True
+            turn = threading.Event()
+            self._waiters.append(turn)
+        if turn.wait(timeout_s):
+            return True
+        with self._lock:
+            if turn.is_set():  # handed over between the timeout and this lock
+                return True
+            self._waiters.remove(turn)
+            return False
+
+    def release(self) -> None:
+        with self._lock:
+            if self._waiters:
+                self._waiters.popleft().set()  # handed over: the gate stays held, by the next writer
+            else:
+                self._held = False
+
+    @property
+    def waiting(self) -> int:
+        """Writers queued behind the holder right now."""
+        return len(self._waiters)
+
+
+#: one gate per SQLite database file in this process (every engine on that file shares it)
+_GATES: dict[str, WriteGate] = {}
+_GATES_LOCK = threading.Lock()
+#: longest wait for the write gate, as SQLite's own busy timeout (then "database is locked", as SQLite says)
+WRITE_WAIT_S = 15.0
+#: the statements before which pysqlite opens a write transaction (it begins none for reads)
+_DML = ("INSERT", "UPDATE", "DELETE", "REPLACE")
+
+
+def write_gate(path: str) -> WriteGate:
+    """The :class:`WriteGate` of the SQLite database file ``path`` (created at the first call)."""
+    key = str(Path(path).resolve())
+    with _GATES_LOCK:
+        return _GATES.setdefault(key, WriteGate())
+
+
+class _GatedCursor(sqlite3.Cursor):
+    def execute(self, sql, parameters=(), /):
+        self.connection.enter_write(sql)
+        return super().execute(sql, parameters)
+
+    def executemany(self, sql, seq_of_parameters, /):
+        self.connection.enter_write(sql)
+        return super().executemany(sql, seq_of_parameters)
+
+
+class GatedConnection(sqlite3.Connection):
+    """A pysqlite connection whose write transactions queue at the database's :class:`WriteGate`: pysqlite opens a
+    transaction just before the first INSERT/UPDATE/DELETE/REPLACE outside one, and that is where the gate is
+    taken; ``commit()`` / ``rollback()`` / ``close()`` give it back once SQLite's lock is free (module docstring)."""
+
+    def __init__(self, database, *args, **kwargs) -> None:
+        super().__init__(database, *args, **kwargs)
+        self._gate = None if str(database) in ("", ":memory:") or str(database).startswith("file:") \
+            else write_gate(str(database))
+        self._holds = False
+
+    def cursor(self, factory=_GatedCursor):
+        return super().cursor(factory)
+
+    def enter_write(self, sql: str) -> None:
+        if self._gate is None or self._holds or self.in_transaction:
+            return
+        if sql.lstrip()[:7].upper().startswith(_DML):
+            if not self._gate.acquire(WRITE_WAIT_S):
+                raise sqlite3.OperationalError("database is locked")
+            self._holds = True
+
+    def _leave(self) -> None:
+        if self._holds and not self.in_transaction:
+            self._holds = False
+            self._gate.release()
+
+    def commit(self) -> None:
+        try:
+            super().commit()
+        finally:
+            self._leave()
+
+    def rollback(self) -> None:
+        try:
+            super().rollback()
+        finally:
+            self._leave()
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            if self._holds:
+                self._holds = False
+                self._gate.release()
 
 
 def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
@@ -55,7 +184,7 @@ def make_engine(url: str) -> Engine:
         if path and path != ":memory:":
             Path(path).parent.mkdir(parents=True, exist_ok=True)
             pool = dict(pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW, pool_timeout=POOL_TIMEOUT_S)
-        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15}, **pool)
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15, "factory": GatedConnection}, **pool)
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
     return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,
