@@ -19,7 +19,6 @@
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
 | ``CHAKAMO_MAX_BODY_KB`` | 1024 | largest request body of any route but the recordings upload (413 above it, :mod:`app.web.limits`) |
 | ``CHAKAMO_MAX_UPLOADS`` | 8 | uploads streamed at the same time (more answer 503: try again) |
-| ``CHAKAMO_RENDER_TIMEOUT_S`` | 300 | longest wait for the render process; then the job thread renders itself |
 | ``CHAKAMO_SESSION_HOURS`` | 12 | browser login lifetime |
 | ``CHAKAMO_RETENTION_DAYS`` | 0 (off) | sessions with no activity for this many days are erased with their files (``chakamo retention``, :mod:`app.store.retention`) |
 | ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
@@ -100,7 +99,6 @@ class Settings(BaseSettings):
     max_files: int = Field(40, ge=1, validation_alias="CHAKAMO_MAX_FILES")
     max_body_kb: int = Field(1024, ge=16, validation_alias="CHAKAMO_MAX_BODY_KB")
     max_uploads: int = Field(8, ge=1, le=256, validation_alias="CHAKAMO_MAX_UPLOADS")
-    render_timeout_s: float = Field(300.0, gt=0, validation_alias="CHAKAMO_RENDER_TIMEOUT_S")
     session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
     retention_days: int = Field(0, ge=0, le=36500, validation_alias="CHAKAMO_RETENTION_DAYS")
     public_url: str | None = Field(None, validation_alias="CHAKAMO_PUBLIC_URL")

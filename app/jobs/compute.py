@@ -22,6 +22,8 @@ helper holds no lock of the server's, so its low priority delays nobody but itse
 A helper that dies under a job (killed, out of memory) is replaced and the job fails with the internal error's
 sentence (:class:`HelperDied`; it may be what killed the helper: not run again by itself).  The artefacts are
 rendered in the helper too, one after another (no render process beside it: the helper is the background).
+No time limit: at the background priority on a machine busy with other work a job may take long, and it goes
+on rather than fail (its heartbeat, written by the job thread, says it is alive).
 """
 
 from __future__ import annotations
@@ -39,8 +41,8 @@ log = logging.getLogger("chakamo.jobs")
 RELAY_EVERY_S = 0.25
 
 
-def compute(folder: Path, options, lang: str, session_id: int, paired_id: int | None, progress, pool=None,
-            render_timeout_s: float | None = None) -> tuple[dict, dict[tuple[str, str], bytes]]:
+def compute(folder: Path, options, lang: str, session_id: int, paired_id: int | None,
+            progress) -> tuple[dict, dict[tuple[str, str], bytes]]:
     """``(results, files)`` of the session in ``folder`` processed with ``options`` (a
     :class:`app.pipeline.session.ProcessOptions`): ``results.json``'s content (the server's folder replaced by
     ``session {session_id}``, :func:`public_results`) and every artefact ``{(name, lang): bytes}``
@@ -49,15 +51,14 @@ def compute(folder: Path, options, lang: str, session_id: int, paired_id: int | 
     :class:`~app.pipeline.session.PipelineError` for data that cannot be processed."""
     from app.pipeline.ingestion import load_knees
     from app.pipeline.knees import process_knees
-    from app.pipeline.render import PIPELINE_SHARE, RENDER_TIMEOUT_S, render_all
+    from app.pipeline.render import PIPELINE_SHARE, render_all
     from app.pipeline.results import build_knees_results
 
     loaded = load_knees(folder)
     knees = process_knees(loaded, options, web=True,
                           progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
     results = public_results(build_knees_results(knees), session_id, paired_id)
-    files = render_all(knees.primary, results, lang, progress, pool, render_timeout_s or RENDER_TIMEOUT_S,
-                       knees=knees)
+    files = render_all(knees.primary, results, lang, progress, knees=knees)
     return results, files
 
 

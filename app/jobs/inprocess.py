@@ -52,7 +52,7 @@ from sqlalchemy.pool import NullPool
 from app.store.database import Database
 from app.jobs.work import LEASE_S, Outcome, TransientJobError, mark_dispatched, run_job, sweep
 from app.jobs.compute import JobProcess
-from app.pipeline.render import RENDER_TIMEOUT_S, warm_up
+from app.pipeline.render import warm_up
 from app.store.blobs import Storage
 
 log = logging.getLogger("chakamo.jobs")
@@ -153,11 +153,11 @@ class ThreadJobRunner:
     RETRY_S, RETRY_MAX_S = 1.0, 30.0
 
     def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
-                 render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
+                 render_processes: int = 0,
                  lease_s: float = LEASE_S, housekeeping: Callable[[], None] | None = None) -> None:
         self.housekeeping = housekeeping
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
-        self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
+        self.render_processes = render_processes
         self.lease_s = lease_s
         self.lock = RunnerLock(db)
         #: one helper process per worker thread (module docstring), started by :meth:`start`
@@ -224,8 +224,8 @@ class ThreadJobRunner:
         wait_s, attempt = self.RETRY_S, None
         while not self._stop.is_set():
             try:
-                return run_job(job_id, self.db, self.store, self.tmp_root, None, self.render_timeout_s,
-                               self.lease_s, resume_attempt=attempt, helper=helper)
+                return run_job(job_id, self.db, self.store, self.tmp_root, self.lease_s, resume_attempt=attempt,
+                               helper=helper)
             except TransientJobError as exc:
                 attempt = exc.attempt if exc.attempt is not None else attempt
                 log.warning("job %s: %s; running it again in %g s", job_id, exc, wait_s)

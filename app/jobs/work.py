@@ -31,7 +31,8 @@ A job's work (:func:`run_job`): copy the session's stored files into a temporary
 ``session.json`` (:mod:`app.store.workspace`), load and process them (:func:`app.pipeline.session.process_session`, its
 ``progress(stage, fraction)`` calls written to the job row), build ``results.json`` once and render every
 artefact from one report input (:func:`app.pipeline.render.render_all`: the PDFs in every language, the Excel files,
-report.html, scene.viser, timeseries.npz; part of them in the warm render process), store them as blobs
+report.html, scene.viser, timeseries.npz) — that computation (:func:`app.jobs.compute.compute`) in a helper
+process at background priority when the engine gives one (the embedded engine does), — then store them as blobs
 (:func:`app.store.erasure.reserve_blob`, under the blob's lock: identical artefacts of concurrent jobs never
 collide, nor an erasure of the same bytes) and record a new
 :class:`~app.store.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the data
@@ -63,7 +64,7 @@ from app.store.analyses import supersede
 from app.store.erasure import reserve_blob
 from app.store.models import Analysis, Artefact, Clinic, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
-from app.pipeline.render import MEDIA, RENDER_TIMEOUT_S, RenderPool
+from app.pipeline.render import MEDIA
 from app.store.blobs import Storage, discarding
 from app.settings import get_settings
 
@@ -275,8 +276,7 @@ def _identifier_system() -> str | None:
 Outcome = Literal["done", "failed", "busy", "finished"]
 
 
-def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None = None,
-            render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S,
+def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, lease_s: float = LEASE_S,
             resume_attempt: int | None = None, helper: "JobProcess | None" = None) -> Outcome:
     """Claim and run job ``job_id`` (module docstring).  Returns ``done`` or ``failed`` when this call ran it,
     ``busy`` when another worker holds it (running, lease not expired), ``finished`` when it had already ended
@@ -296,11 +296,11 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
             raise TransientJobError(f"job {job_id}: database unreachable", resume_attempt) from exc
         raise
     with heartbeat(db, job_id, attempt, lease_s):
-        return _run_claimed(job_id, attempt, db, store, tmp_root, pool, render_timeout_s, helper)
+        return _run_claimed(job_id, attempt, db, store, tmp_root, helper)
 
 
-def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
-                 render_timeout_s: float, helper: "JobProcess | None") -> Outcome:
+def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path,
+                 helper: "JobProcess | None") -> Outcome:
     from app.jobs.compute import compute
     from app.pipeline.ingestion import IngestionError
     from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions
@@ -335,8 +335,7 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
             if helper is not None:  # off this process: app.jobs.compute says why
                 results, files = helper.run(progress, folder, options, job.lang, session.id, paired_id)
             else:
-                results, files = compute(folder, options, job.lang, session.id, paired_id, progress, pool,
-                                         render_timeout_s)
+                results, files = compute(folder, options, job.lang, session.id, paired_id, progress)
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
         contents = {stored[key]: data for key, data in files.items()}
