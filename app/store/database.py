@@ -10,8 +10,12 @@ upload burst that handler decided who wrote next: a writer that had waited long 
 newcomers slipped in first, and every waiter held a pooled connection meanwhile (``py-spy dump`` of ``chakamo
 serve`` as ``benchmarks.load``'s burst began: 34 request threads inside SQLite's ``execute``, 25 of them reads
 whose audit row their commit was writing).  So the server's writers of one database file queue in the process at
-a :class:`WriteGate` (one per file, :func:`write_gate`, shared by every engine on it), first come first served,
-and each is let in the moment the one before commits or rolls back — no polling.  The gate is taken where pysqlite
+a :class:`WriteGate` (one per file, :func:`write_gate`, shared by every engine on it): the moment a writer commits
+or rolls back, the writer that has waited longest is woken — no polling.  Not a strict hand-over: the gate is free
+from the release on, and a writer that is running just then may take it first.  A hand-over to a thread the
+operating system has not scheduled yet keeps the lock idle until it runs (a lock convoy); on a machine starved of
+CPU that can cost more than the order saves (the first version of this gate handed over; two login-flood runs with
+it at load 25–29 were worse than main's, noisy as such runs are).  The gate is taken where pysqlite
 opens a write transaction (just before the first INSERT/UPDATE/DELETE/REPLACE outside one: reads take nothing,
 and a read-only request never waits for it) and given back by ``commit()``, ``rollback()`` or ``close()`` of that
 connection (:class:`GatedConnection`, the engine's connection class).  A writer waits at most
@@ -28,7 +32,6 @@ from __future__ import annotations
 
 import sqlite3
 import threading
-from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -43,42 +46,39 @@ MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
 
 
 class WriteGate:
-    """A first-come, first-served queue for one SQLite database's single write lock, in this process (module
-    docstring).  :meth:`acquire` hands the gate over to waiters in the order they came; :meth:`release` gives it
-    to the next one at once (no polling)."""
+    """A queue for one SQLite database's single write lock, in this process (module docstring).  :meth:`release`
+    wakes the writer that has waited longest at once (no polling); a writer arriving at that moment may still go
+    first (no strict hand-over: see the module docstring)."""
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()
+        self._cond = threading.Condition(threading.Lock())
         self._held = False
-        self._waiters: deque[threading.Event] = deque()
+        self._waiting = 0
 
     def acquire(self, timeout_s: float) -> bool:
-        """Take the gate, waiting at most ``timeout_s`` behind the writers that came first; False on timeout."""
-        with self._lock:
-            if not self._held and not self._waiters:
+        """Take the gate, waiting at most ``timeout_s``; False on timeout."""
+        with self._cond:
+            if not self._held:
                 self._held = True
                 return True
-            turn = threading.Event()
-            self._waiters.append(turn)
-        if turn.wait(timeout_s):
+            self._waiting += 1
+            try:
+                if not self._cond.wait_for(lambda: not self._held, timeout_s):
+                    return False
+            finally:
+                self._waiting -= 1
+            self._held = True
             return True
-        with self._lock:
-            if turn.is_set():  # handed over between the timeout and this lock
-                return True
-            self._waiters.remove(turn)
-            return False
 
     def release(self) -> None:
-        with self._lock:
-            if self._waiters:
-                self._waiters.popleft().set()  # handed over: the gate stays held, by the next writer
-            else:
-                self._held = False
+        with self._cond:
+            self._held = False
+            self._cond.notify()  # the longest waiter (Condition wakes its waiters in the order they came)
 
     @property
     def waiting(self) -> int:
-        """Writers queued behind the holder right now."""
-        return len(self._waiters)
+        """Writers waiting for the gate right now."""
+        return self._waiting
 
 
 #: one gate per SQLite database file in this process (every engine on that file shares it)

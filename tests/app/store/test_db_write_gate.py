@@ -4,8 +4,8 @@ Before, a writer that found the lock taken slept in SQLite's busy handler (1, 2,
 tried again: a writer waiting long retried only every 100 ms while newcomers slipped in, and every waiter held a
 pooled connection meanwhile.  ``py-spy dump`` of ``chakamo serve`` at the start of ``benchmarks.load``'s upload
 burst found 34 request threads inside SQLite's ``execute``, 25 of them reads whose audit row was being written by
-their commit.  Now the writers of one database file wait at :class:`app.store.database.WriteGate`, in the order
-they came, and each is let in as soon as the one before commits."""
+their commit.  Now the writers of one database file wait at :class:`app.store.database.WriteGate`, and the one
+that has waited longest is woken as soon as the one before commits."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def _writer(db, i: int, order: list[int]) -> threading.Thread:
     return t
 
 
-def test_writers_wait_at_the_gate_in_the_order_they_came(db, tmp_path):
+def test_queued_writers_are_woken_in_the_order_they_came(db, tmp_path):
     from app.store.database import write_gate
 
     gate = write_gate(str(tmp_path / "w.db"))
@@ -64,7 +64,7 @@ def test_writers_wait_at_the_gate_in_the_order_they_came(db, tmp_path):
         holder.close()
     for t in threads:
         t.join(30)
-    assert order == [1, 2, 3, 4, 5]  # first come, first served (before: whoever's sleep ended first)
+    assert order == [1, 2, 3, 4, 5]  # the longest waiter woken first (before: whoever's sleep ended first)
     assert gate.waiting == 0
     with db.session() as s:
         assert s.scalar(text("SELECT count(*) FROM t")) == 6
