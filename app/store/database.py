@@ -150,9 +150,15 @@ class GatedConnection(sqlite3.Connection):
         try:
             super().close()
         finally:
-            if self._holds:
-                self._holds = False
-                self._gate.release()
+            self._drop()
+
+    def __del__(self) -> None:  # collected unclosed: SQLite frees its lock with the connection, the gate goes too
+        self._drop()
+
+    def _drop(self) -> None:
+        if getattr(self, "_holds", False):
+            self._holds = False
+            self._gate.release()
 
 
 def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
