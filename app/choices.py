@@ -80,6 +80,20 @@ MEASURE_RANGES: dict[str, tuple[float, float]] = {"height_cm": (30.0, 260.0), "m
 #: an API token's longest lifetime, days (``chakamo tokens create --days``, ``POST /tokens``, the admin page)
 TOKEN_MAX_DAYS = 3650
 
+#: The live checks' own thresholds, for what the pipeline has no counterpart of (the rest of :func:`live_checks` is
+#: the pipeline's): a step-up cycle is counted live when one segment's rate about its main axis, averaged over
+#: LIVE_CYCLE_AVERAGE_S, rises above LIVE_CYCLE_RISE_RAD_S (60 °/s) after having fallen below LIVE_CYCLE_FALL_RAD_S
+#: (20 °/s); the pipeline finds cycles on the knee's flexion angle (estimators.motor_task), which the browser does
+#: not compute before the task's end, so the live count only predicts it (shown as approximate);
+LIVE_CYCLE_AVERAGE_S = 0.3
+LIVE_CYCLE_RISE_RAD_S = 1.0471975511965976      # 60 °/s
+LIVE_CYCLE_FALL_RAD_S = 0.3490658503988659      # 20 °/s
+#: and a magnetometer sample nearer than this to the live hard-iron estimate (the centre of the box the samples span so
+#: far) gives no direction worth binning: the pipeline bins directions after its ellipsoid fit, which the browser does
+#: not make, so live coverage only predicts the pipeline's (the Earth's field is 25–65 µT; a still sensor's samples
+#: sit within their noise of their own box's centre).
+LIVE_MIN_FIELD_UT = 15.0
+
 #: ``chakamo markov --method`` (research: not in GET /options)
 MARKOV_METHODS: tuple[str, ...] = ("auto", "mjls", "kf", "sme", "smea")
 
@@ -118,7 +132,37 @@ def options() -> dict[str, list[dict[str, Any]]]:
     return out
 
 
+def live_checks() -> dict[str, dict[str, float | int]]:
+    """The thresholds of the recording page's live checks (``static/metawear/checks.js``), served in
+    ``GET /options`` as ``live_checks`` so that the browser holds no copy of a number the pipeline judges by:
+
+    * ``stillness`` (postures): the pipeline's still window and limits — ``window_s`` of
+      :class:`estimators.knee.CalibrationParams` (5 s), ``max_gyr_sd_rad_s`` and ``max_acc_sd_m_s2``
+      (:data:`estimators.knee.STILL_MAX_GYR_SD_RAD_S`, ``STILL_MAX_ACC_SD_M_S2``), the total SD over the window with
+      ddof 1 as :func:`estimators.knee.stillest_window`: live "still" is exactly the pipeline's condition on the last
+      ``window_s``, so a posture that was still live has the still window the calibration needs;
+    * ``coverage`` (figure-eight): the pipeline's ``min_cell_samples`` per cell (of the same 20 cells) and the share of
+      cells below which it warns, ``complete_fraction`` (:data:`estimators.magnetometer.MIN_CELL_SAMPLES`, ``COVERAGE_WARN``), with the
+      live-only ``min_field_ut`` (:data:`LIVE_MIN_FIELD_UT`: the live directions are only hard-iron-corrected);
+    * ``cycles`` (task): live-only, ``average_s``, ``rise_rad_s``, ``fall_rad_s`` (:data:`LIVE_CYCLE_RISE_RAD_S`...:
+      a prediction of the pipeline's cycles, which it finds on the knee angle).
+
+    Imported here, not at the top: this module stays free of numpy for the CLI's ``--help``."""
+    from estimators import knee, magnetometer
+
+    still = knee.CalibrationParams()
+    return {
+        "stillness": {"window_s": still.window_s, "max_gyr_sd_rad_s": still.max_gyr_sd_rad_s,
+                      "max_acc_sd_m_s2": still.max_acc_sd_m_s2},
+        "coverage": {"min_cell_samples": magnetometer.MIN_CELL_SAMPLES,
+                     "complete_fraction": magnetometer.COVERAGE_WARN, "min_field_ut": LIVE_MIN_FIELD_UT},
+        "cycles": {"average_s": LIVE_CYCLE_AVERAGE_S, "rise_rad_s": LIVE_CYCLE_RISE_RAD_S,
+                   "fall_rad_s": LIVE_CYCLE_FALL_RAD_S},
+    }
+
+
 __all__ = ["ANGLE_CONVENTIONS", "ANGLE_CONVENTION_NAMES", "CALIBRATIONS", "CALIBRATION_NAMES", "Choice",
            "DEFAULT_ANGLE_CONVENTION", "DEFAULT_CALIBRATION", "DEFAULT_FILTER", "DEFAULT_HEADING", "DEFAULT_LANGUAGE", "DEFAULT_TASK",
-           "FILTERS", "FILTER_NAMES", "HEADINGS", "HEADING_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "MARKOV_METHODS", "MEASURE_RANGES", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
-           "TASK_NAMES", "TOKEN_MAX_DAYS", "TOKEN_SCOPES", "TOKEN_SCOPE_RESOURCES", "USER_ROLES", "USER_ROLE_NAMES", "default", "names", "options"]
+           "FILTERS", "FILTER_NAMES", "HEADINGS", "HEADING_NAMES", "LANGUAGES", "LANGUAGE_NAMES", "LIVE_CYCLE_AVERAGE_S",
+           "LIVE_CYCLE_FALL_RAD_S", "LIVE_CYCLE_RISE_RAD_S", "LIVE_MIN_FIELD_UT", "MARKOV_METHODS", "MEASURE_RANGES", "OPTION_LISTS", "SIDES", "SIDE_NAMES", "TASKS",
+           "TASK_NAMES", "TOKEN_MAX_DAYS", "TOKEN_SCOPES", "TOKEN_SCOPE_RESOURCES", "USER_ROLES", "USER_ROLE_NAMES", "default", "live_checks", "names", "options"]

@@ -63,9 +63,11 @@ Beside the all-trials table (one parameter set, the defaults), each project meth
 are chosen on one half of the ten trials and scored on the other half, for both splits (``SPLITS``):
 half A = trials 02 10 18 24 30, half B = 07 15 27 32 35 (undisturbed 02–18 / disturbed 24–35 split
 3+2 and 2+3).  The grid (``GRIDS``, stated in the table) is small; the choice minimises the mean total
-RMSE over the tuning half, per mode (switches that act only on the field, ``NINE_D_ONLY``, are not
+RMSE over the tuning half, per mode (keys that act only on the field, ``NINE_D_ONLY``, are not
 varied in 6D).  ``chakamo``'s grid includes ``offline_mag_bias`` (on/off): the feature's design looked at
-trials 32 and 35 (half B), so each tuning half must choose it for the held-out score to be evidence.  The table prints, per mode and split, the chosen values, the
+trials 32 and 35 (half B), so each tuning half must choose it for the held-out score to be evidence; likewise
+``offline_impact_acc_th_m_s2`` (40 m/s² or never, the pause of the motion bias after an impact), designed on trial 24
+(half A).  The table prints, per mode and split, the chosen values, the
 tuned-half score and the held-out half's undisturbed / disturbed means, beside VQF offline and online
 on the same held-out trials.
 
@@ -439,7 +441,7 @@ SPLITS: dict[str, tuple[str, ...]] = {"A": ("02", "10", "18", "24", "30"), "B": 
 GRIDS: dict[str, dict[str, tuple[Any, ...]]] = {
     "chakamo": {"offline_tau_mag_s": (10.0, 20.0, 40.0),
                 "bias_sigma_motion_rad_s": (0.1 * _DEG, 0.2 * _DEG, 0.4 * _DEG, 0.8 * _DEG, 1.6 * _DEG),
-                "offline_mag_bias": (False, True)},
+                "offline_mag_bias": (False, True), "offline_impact_acc_th_m_s2": (40.0, float("inf"))},
     "guo": {"acc_noise_rad": (0.1, 0.2, 0.4), "mag_noise_rad": (0.075, 0.15, 0.3)},
     "madgwick": {"beta_rad_s": (0.02, 0.03, 0.05, 0.1)},
     "valenti_cf": {"tau_acc_s": (-0.01 / np.log1p(-0.01), 2.0, 5.0), "tau_mag_s": (5.0, 8.0, 10.0, 20.0)},
@@ -448,7 +450,7 @@ GRIDS: dict[str, dict[str, tuple[Any, ...]]] = {
 
 
 #: grid keys that only act on the field: not varied in 6D (every value gives the same run)
-NINE_D_ONLY = frozenset({"offline_mag_bias"})
+NINE_D_ONLY = frozenset({"offline_mag_bias", "offline_tau_mag_s"})
 
 
 def _grid(name: str, mode: str = "9d") -> list[dict[str, Any]]:

@@ -14,16 +14,23 @@ Printed per variant and reading time (median and worst of ``--repeats`` fresh br
 * ``scroll → frame``: from the scroll to the 3D view to the first bone frame (0 when it was drawn before): what the
   clinician sees blank.
 
-Variants: ``now`` (static/views/scene.js: the frame's source given once the page has drawn) and ``before`` (the
-results page of commit 95bd85e, served in place of today's through Playwright's routing: an iframe with
-``loading=lazy``, started only when scrolled to).  The load average is printed beside the table: timings on a
-shared machine are noisy.  Usage: ``python -m benchmarks.scene_first_frame [--repeats 3] [--read-s 0 3]``.
+Variants (alternated run by run, so a changing load falls on each alike): ``now`` (today's page and viser's client
+as the server sends it: unpacked, :mod:`app.web.viser_client`), ``packed`` (today's page with viser's shipped
+single-file client, served in place of the unpacked one through Playwright's routing: its loader decodes and
+compiles the client on the page's main thread), ``charts_first`` (the unpacked client, the results page of commit
+432c3a7: the charts drawn at once instead of after the 3D view's first frames) and ``before`` (the results page of
+commit 95bd85e, an iframe with ``loading=lazy``, started only when scrolled to).  The load average and the benchmark's CPU time are printed beside
+the table: timings on a shared machine are noisy.
+``--trace DIR`` adds one run per variant with Chromium's performance trace (written there) and prints the page's
+main-thread tasks of 50 ms or more, with their longest parts: where the time to the first frame goes.
+Usage: ``python -m benchmarks.scene_first_frame [--repeats 3] [--read-s 0 3] [--variants packed now] [--trace DIR]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import socket
 import statistics
@@ -35,7 +42,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-BEFORE_COMMIT = "95bd85e"
+#: the results page (static/views/results.js) of these commits, for the variants that replay it
+VARIANT_COMMITS = {"before": "95bd85e", "charts_first": "432c3a7"}
 EMAIL, PASSWORD = "viewer@clinic.test", "correct horse battery staple"
 ARGS = ("--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--hide-scrollbars",
         "--enable-unsafe-swiftshader")
@@ -103,19 +111,28 @@ def _demo_session(base: str, token: str, folder: Path) -> int:
     return sid
 
 
-def _old_results_js() -> bytes:
-    return subprocess.run(["git", "-C", str(ROOT), "show", f"{BEFORE_COMMIT}:static/views/results.js"],
+def _old_results_js(commit: str) -> bytes:
+    return subprocess.run(["git", "-C", str(ROOT), "show", f"{commit}:static/views/results.js"],
                           capture_output=True, check=True).stdout
 
 
-def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: bytes) -> tuple[float, float]:
-    """One cold run: ``(page → frame, scroll → frame)`` in ms."""
+def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: dict[str, bytes],
+         trace: Path | None = None) -> tuple[float, float]:
+    """One cold run: ``(page → frame, scroll → frame)`` in ms; with ``trace``, Chromium's performance trace of it
+    (from the results page's opening to the first bone frame) is written there."""
     context = browser.new_context(viewport={"width": 1280, "height": 900}, locale="en-GB")
     context.set_default_timeout(180_000)
     context.add_init_script(INIT)
-    if variant == "before":
+    if variant in old_js:
         context.route("**/static/views/results.js", lambda route: route.fulfill(
-            body=old_js, content_type="text/javascript; charset=utf-8"))
+            body=old_js[variant], content_type="text/javascript; charset=utf-8"))
+    if variant == "packed":
+        from app.web.headers import VISER_CSP
+        from reports.scene import static_client_path
+
+        shipped = static_client_path().read_bytes()
+        context.route(lambda url: "/viser/index.html" in url, lambda route: route.fulfill(
+            body=shipped, content_type="text/html", headers={"Content-Security-Policy": VISER_CSP}))
     page = context.new_page()
     try:
         page.goto(f"{base}/#/patients")
@@ -123,6 +140,9 @@ def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: byte
         page.locator("input[name=password]").fill(PASSWORD)
         page.locator("form.login button[type=submit]").click()
         page.locator("h1").wait_for()
+        if trace is not None:
+            browser.start_tracing(page=page, path=str(trace), categories=list(TRACE_CATEGORIES))
+            page.evaluate("performance.mark('results-page')")
         page.goto(f"{base}/#/sessions/{sid}")
         opened = page.evaluate("performance.timeOrigin + performance.now()")  # a hash change: no new navigation
         page.locator("#rom-table").wait_for()
@@ -134,6 +154,9 @@ def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: byte
             frame = next((f for f in page.frames if "/viser/" in f.url), None)
             bone = frame.evaluate("window.__firstBone || 0") if frame is not None else 0
             if bone:
+                if trace is not None:
+                    frame.evaluate("performance.mark('first-bone')")
+                    browser.stop_tracing()
                 return bone - opened, max(0.0, bone - scrolled)
             page.wait_for_timeout(50)
         raise RuntimeError("the 3D view never drew the bones")
@@ -141,10 +164,45 @@ def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: byte
         context.close()
 
 
+#: light enough not to slow the page much: tasks, script compile and run, loading, user timing marks
+TRACE_CATEGORIES = ("devtools.timeline", "v8.execute", "blink.user_timing", "loading", "toplevel")
+
+
+def trace_summary(path: Path, min_ms: float = 50.0) -> list[str]:
+    """The renderer main thread's tasks of at least ``min_ms`` in a trace written by :func:`_one`, each with its
+    start (ms from the results page's opening) and its longest inner events (script URLs where the trace names them):
+    where the time to the first frame went."""
+    import json
+
+    events = json.loads(path.read_text())
+    events = events["traceEvents"] if isinstance(events, dict) else events
+    names = {(e["pid"], e["tid"]): e["args"]["name"] for e in events if e.get("ph") == "M" and e.get("name") == "thread_name"}
+    marks = {e["name"]: e["ts"] for e in events if "blink.user_timing" in e.get("cat", "") and e.get("name") in
+             ("results-page", "first-bone")}
+    t0 = marks.get("results-page", min(e["ts"] for e in events if e.get("ts")))
+    lines = [f"first bone frame at {(marks['first-bone'] - t0) / 1000:.0f} ms" if "first-bone" in marks else ""]
+    for key in (k for k, v in names.items() if v == "CrRendererMain"):
+        spans = [e for e in events if (e["pid"], e["tid"]) == key and e.get("ph") == "X"]
+        for task in sorted((e for e in spans if e.get("name") in ("RunTask", "ThreadControllerImpl::RunTask")
+                            and e.get("dur", 0) >= min_ms * 1000),
+                           key=lambda e: e["ts"]):
+            inner = sorted((e for e in spans if e is not task and task["ts"] <= e["ts"] and
+                            e["ts"] + e.get("dur", 0) <= task["ts"] + task["dur"] and e.get("dur", 0) >= 10_000),
+                           key=lambda e: -e["dur"])[:3]
+            what = "; ".join(f"{e['name']} {e['dur'] / 1000:.0f} ms"
+                             + (f" {((e.get('args') or {}).get('data') or {}).get('url', '')[-40:]}"
+                                if ((e.get("args") or {}).get("data") or {}).get("url") else "") for e in inner)
+            lines.append(f"  {(task['ts'] - t0) / 1000:7.0f} ms  {task['dur'] / 1000:6.0f} ms  {what}")
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--read-s", type=float, nargs="+", default=[0.0, 3.0])
+    parser.add_argument("--trace", type=Path, default=None,
+                        help="a folder: one more run per variant with Chromium's performance trace, summarised")
+    parser.add_argument("--variants", nargs="+", choices=("before", "packed", "charts_first", "now"), default=["packed", "now"])
     args = parser.parse_args(argv)
     chromium = shutil.which("chromium")
     if chromium is None:
@@ -156,26 +214,42 @@ def main(argv: list[str] | None = None) -> int:
     base, token, stop = _serve(tmp / "data")
     try:
         sid = _demo_session(base, token, tmp / "demo")
-        old_js = _old_results_js()
+        old_js = {v: _old_results_js(c) for v, c in VARIANT_COMMITS.items() if v in args.variants}
         rows = []
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=chromium, headless=True, args=list(ARGS))
             for read_s in args.read_s:
-                for variant in ("before", "now"):
-                    runs = [_one(browser, base, sid, variant, read_s, old_js) for _ in range(args.repeats)]
-                    page, scroll = [r[0] for r in runs], [r[1] for r in runs]
+                runs = {v: [] for v in args.variants}
+                for _ in range(args.repeats):
+                    for variant in args.variants:   # alternated: packed, now, packed, now...
+                        runs[variant].append(_one(browser, base, sid, variant, read_s, old_js))
+                for variant, rs in runs.items():
+                    page, scroll = [r[0] for r in rs], [r[1] for r in rs]
                     rows.append((variant, read_s, statistics.median(page), max(page), statistics.median(scroll),
                                  max(scroll)))
+            traces = []
+            if args.trace is not None:
+                args.trace.mkdir(parents=True, exist_ok=True)
+                for variant in args.variants:
+                    path = args.trace / f"scene-{variant}.json"
+                    _one(browser, base, sid, variant, args.read_s[0], old_js, trace=path)
+                    traces.append((variant, path))
             browser.close()
     finally:
         stop()
         shutil.rmtree(tmp, ignore_errors=True)
     load = os.getloadavg()
+    cpu = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = sum(r.ru_utime + r.ru_stime for r in cpu)
     print(f"3D view first frame, Chromium (software WebGL), {args.repeats} cold runs each; "
-          f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on {os.cpu_count()} CPUs")
+          f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on {os.cpu_count()} CPUs; "
+          f"CPU time {cpu_s:.0f} s (this process and its browser)")
     print(f"{'variant':8} {'read s':>6} {'page→frame median':>18} {'worst':>8} {'scroll→frame median':>20} {'worst':>8}")
     for variant, read_s, pm, pw_, sm, sw in rows:
         print(f"{variant:8} {read_s:6.1f} {pm:15.0f} ms {pw_:5.0f} ms {sm:17.0f} ms {sw:5.0f} ms")
+    for variant, path in traces:
+        print(f"\n{variant}: main-thread tasks ≥ 50 ms in {path} (ms from the results page's opening, length, longest parts)")
+        print("\n".join(trace_summary(path)))
     return 0
 
 

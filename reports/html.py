@@ -30,7 +30,7 @@ import numpy as np
 from reports import i18n, knees
 from reports.figures import reference_keypoints
 from reports.labels import (EXCLUDED, all_excluded_lines, calibration_sentence, code_label, cycle_and_phase_per_sample,
-                            get_path, heading_sentence, identity_items, phase_names, phase_spans_pct,
+                            get_path, heading_sentence, identity_items, method_items, phase_names, phase_spans_pct,
                             reference_sentence, session_rows, signature_line, signed_line, split_rejected, tr)
 from reports.warning_text import warning_text
 from reports.model import ANGLES, ReportInput
@@ -61,6 +61,8 @@ tr.rejected td{background:#fdecec} tr.outside td{background:#fff4e0;font-weight:
 ul.warnings li{margin:3px 0} .muted{color:#5c677d}
 header p.identity{font-size:.92em} header .muted-h{opacity:.75} p.interp{white-space:pre-wrap}
 footer{font-size:.85em;color:#5c677d;text-align:center;padding:12px}
+section{overflow-x:auto}
+@media (max-width:820px){main{padding:12px} section{padding:12px} th,td{padding:4px 5px}}
 """
 
 
@@ -306,7 +308,9 @@ def _quality_block(r: dict[str, Any], lang: str) -> str:
     rejected, _ = split_rejected(cycles)
     summary = tr("html.cycles_summary", lang, detected=cycles.get("detected", i18n.MISSING),
                  accepted=cycles.get("accepted", i18n.MISSING), rejected=len(rejected))
-    parts = [f"<p>{_e(summary)}</p>"]
+    # how the numbers were computed: the calibration asked for and used, the angle convention (reports.labels)
+    parts = [f'<p class="method"><strong>{_e(label)}:</strong> {_e(text)}</p>' for label, text in method_items(r, lang)]
+    parts.append(f"<p>{_e(summary)}</p>")
     # the clinician's exclusions (every knee's), then the pipeline's
     items = [_e(line) for line in all_excluded_lines(r, lang)]
     for rej in rejected:

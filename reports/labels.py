@@ -25,7 +25,7 @@ __all__ = ["get_path", "tr", "code_label", "phase_specs", "phase_names", "phase_
            "cycle_and_phase_per_sample", "session_rows", "age_years", "identity_items", "identity_line",
            "recorded_text", "filter_label", "angle_method_label", "signature_line", "signed_line", "split_rejected",
            "excluded_lines", "all_excluded_lines", "calibration_sentence", "heading_sentence", "reference_sentence",
-           "EXCLUDED"]
+           "method_items", "EXCLUDED"]
 
 _DEFAULT_PHASES = (("impulse", "onset", "countermovement_peak"),
                    ("extension", "countermovement_peak", "far_left"),
@@ -85,6 +85,41 @@ def calibration_sentence(results: dict[str, Any], lang: str) -> str | None:
     parts += [code_label("calibration.magnetometer", m, lang) for m in p.get("magnetometer") or []]
     parts += [code_label("calibration.accelerometer", m, lang) for m in p.get("accelerometer") or []]
     return "; ".join(parts) + "." if parts else None
+
+
+def _segment_methods(value: Any, lang: str) -> str:
+    """A sensor-to-segment calibration code (or one per segment, a list) by its human name (``method.segment.*``)."""
+    codes = [value] if isinstance(value, str) else [v for v in value or [] if isinstance(v, str)]
+    return " / ".join(code_label("method.segment", c, lang) for c in codes)
+
+
+def method_items(results: dict[str, Any], lang: str) -> list[tuple[str, str]]:
+    """``(label, text)`` of how the numbers were computed, for the report's method section: the sensor-to-segment
+    calibration asked for (``results["calibration_method"]``, static or functional) beside the one the recordings
+    allowed and the pipeline used (``results["calibration"]["protocol"]["segment"]``: a session without a supine
+    recording is calibrated on the task even when static was asked for), and the knee-angle convention
+    (``results["angle_method"]``) with its signs.  Only what results.json says; a line it has nothing for is left
+    out."""
+    asked = results.get("calibration_method")
+    asked_text = _segment_methods(asked, lang) if isinstance(asked, str) and asked else ""
+    used = get_path(results, "calibration", "protocol", "segment")
+    used_text = _segment_methods(used, lang)
+    if asked_text and used_text:
+        same = used == asked or (isinstance(used, list) and set(used) == {asked})
+        text = (tr("method.calibration_as_asked", lang, used=used_text) if same
+                else tr("method.calibration_asked_used", lang, asked=asked_text, used=used_text))
+    elif used_text:
+        text = tr("method.calibration_used", lang, used=used_text)
+    elif asked_text:
+        text = tr("method.calibration_asked", lang, asked=asked_text)
+    else:
+        text = ""
+    items = [(tr("protocol_segment_label", lang), text)] if text else []
+    convention = results.get("angle_method")
+    if isinstance(convention, str) and i18n.has(f"angle_method_{convention}"):
+        items.append((tr("protocol_angles_label", lang),
+                      tr(f"angle_method_{convention}", lang) + tr("method.angles_mirrored", lang)))
+    return items
 
 
 #: the reason code of a cycle the clinician excluded (estimators.motor_task.EXCLUDED)

@@ -9,8 +9,9 @@
 2. patient and session: name or ID, the identity above, session date, professional, side, step height, weight,
    height, observations (everything typed by people is printed as literal text: no markup, no formulas);
 3. motor task (single-leg step-up, step height, the three phases) and protocol (sensor placement,
-   magnetometer ellipsoid calibration, sensor-to-segment calibration from standing and supine postures,
-   the orientation filter ``results["filter"]["name"]``, the knee-angle convention);
+   magnetometer ellipsoid calibration, the orientation filter ``results["filter"]["name"]``, the sensor-to-segment
+   calibration asked for and the one used, the knee-angle convention with its signs:
+   :func:`reports.labels.method_items`);
 4. phase table (the session task's phases, :func:`reports.labels.phase_names`; step-up: impulse,
    extension, fall: time mean ± SD in s and % of the cycle) and range-of-motion
    table (range, maximum, minimum: mean ± SD in degrees per angle);
@@ -52,7 +53,7 @@ from fpdf.enums import XPos, YPos
 from reports import bones, figures, fonts, knees
 from reports.i18n import MISSING, fmt_date, fmt_mean_sd, fmt_number, has, t
 from reports.labels import (all_excluded_lines, calibration_sentence, code_label, filter_label, get_path,
-                            heading_sentence, identity_items, identity_line, phase_names, reference_sentence,
+                            heading_sentence, identity_items, identity_line, method_items, phase_names, reference_sentence,
                             signature_line, signed_line, split_rejected, tr)
 from reports.model import ReportInput
 from reports.pdf_page import DECIMALS, FONT, GREY, ReportPDF, user_text
@@ -130,11 +131,10 @@ def _task_and_protocol(pdf: ReportPDF, ri: ReportInput) -> None:
     pdf.section("section_protocol")
     pdf.labelled(pdf.tr("protocol_sensors_label"), pdf.tr("protocol_sensors"))
     pdf.labelled(pdf.tr("protocol_mag_label"), pdf.tr("protocol_mag"))
-    pdf.labelled(pdf.tr("protocol_segment_label"), pdf.tr("protocol_segment"))
     pdf.labelled(pdf.tr("protocol_filter_label"), filter_label(r, pdf.lang) or MISSING)
-    method = str(r.get("angle_method") or "grood_suntay")
-    pdf.labelled(pdf.tr("protocol_angles_label"),
-                 pdf.tr(f"angle_method_{method}") if has(f"angle_method_{method}") else method)
+    # the sensor-to-segment calibration asked for and used, the angle convention: from results.json (reports.labels)
+    for label, text in method_items(r, pdf.lang):
+        pdf.labelled(label, text)
 
 
 def _tables(pdf: ReportPDF, ri: ReportInput) -> None:

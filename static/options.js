@@ -8,9 +8,9 @@ import { t } from "./i18n.js";
 
 let pending = null;
 
-/** The option lists (a promise, cached; a failed fetch is retried on the next call). */
-export function options() {
-  if (!pending) pending = api("GET", "/options").catch((err) => { pending = null; throw err; });
+/** The option lists (a promise, cached; a failed fetch is retried on the next call, and `fresh` asks again). */
+export function options(fresh = false) {
+  if (!pending || fresh) pending = api("GET", "/options").catch((err) => { pending = null; throw err; });
   return pending;
 }
 

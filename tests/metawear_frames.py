@@ -28,6 +28,18 @@ FRAMES = {
 }
 #: the module info answers' implementation byte of each chip (accelerometer, gyroscope)
 IMPLEMENTATION = {"BMI160": (1, 0), "BMI270": (4, 1)}
+#: the LED module (0x02): play (register 1, [1]) and stop clearing the patterns (register 2, [1])
+LED_PLAY = bytes((0x02, 0x01, 0x01))
+LED_STOP_AND_CLEAR = bytes((0x02, 0x02, 0x01))
+LED_COLOURS = {"green": 0, "red": 1, "blue": 2}
+
+
+def led_pattern(colour: str, high: int, low: int, rise_ms: int, high_ms: int, fall_ms: int, pulse_ms: int,
+                delay_ms: int, repeat: int) -> bytes:
+    """The LED module's pattern command (register 3) of one colour: colour, 0x02, the two intensities (0–31), five
+    uint16 LE times in ms (rise, high, fall, pulse duration, delay) and the repeat count."""
+    return bytes((0x02, 0x03, LED_COLOURS[colour], 0x02)) + struct.pack(
+        "<BBHHHHHB", high, low, rise_ms, high_ms, fall_ms, pulse_ms, delay_ms, repeat)
 
 
 def board_units(kind: str, values_si: np.ndarray) -> np.ndarray:

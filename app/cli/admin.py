@@ -140,22 +140,22 @@ def _clinic(s, name: str):
     clinic = s.scalar(select(Clinic).where(Clinic.name == name))
     if clinic is None:
         known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
-        raise CliError("cli.clinic_unknown", name=name, known=known)
+        raise CliError("store.clinic_unknown", name=name, known=known)
     return clinic
 
 
 def create_clinic(settings: Settings | None, name: str) -> int:
-    """Create clinic ``name``; returns its id.  ValueError if the name is empty or taken."""
+    """Create clinic ``name``; returns its id.  :class:`CliError` if the name is empty or taken."""
     name = name.strip()
     if not name:
-        raise ValueError("the clinic name is empty; give a name, e.g. chakamo clinics create \"Clínica Norte\"")
+        raise CliError("cli.clinic_name_empty")
     from sqlalchemy import select
 
     from app.store.models import Clinic
 
     with _session(settings) as s:
         if s.scalar(select(Clinic.id).where(Clinic.name == name)) is not None:
-            raise ValueError(f"a clinic named {name!r} already exists; choose another name")
+            raise CliError("cli.clinic_exists", name=name)
         clinic = Clinic(name=name)
         s.add(clinic)
         s.flush()
@@ -164,26 +164,26 @@ def create_clinic(settings: Settings | None, name: str) -> int:
 
 def create_user(settings: Settings | None, *, clinic: str, email: str, role: str, password: str,
                 name: str = "") -> int:
-    """Create a user of clinic ``clinic``; returns the id.  ValueError for a bad role, weak password or
-    an email that already has an account in that clinic (accounts are per clinic: the same email may have an
-    account in another clinic)."""
+    """Create a user of clinic ``clinic``; returns the id.  :class:`CliError` (a ValueError) for a bad role, weak
+    password or an email that already has an account in that clinic (accounts are per clinic: the same email may
+    have an account in another clinic)."""
     if role not in ROLES:
-        raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
+        raise CliError("cli.role_unknown", role=role, roles=", ".join(ROLES))
     email = email.strip().lower()
     if "@" not in email or len(email) < 3:
-        raise ValueError(f"{email!r} is not an email address; give the user's email")
+        raise CliError("cli.email_invalid", email=email)
     from app.store import accounts
     from app.store.errors import DomainError
     from app.web.audit import record_operator
-    from app.web.security import check_password_strength, hash_password
+    from app.web.security import hash_password
 
-    check_password_strength(password, email=email, name=name)
+    _strong(password, email=email, name=name)
     with _session(settings) as s:
         c = _clinic(s, clinic)
         try:  # the API's own insert: the taken-email check and the unique constraint's race
             user = accounts.add_user(s, c.id, email=email, name=name, role=role, password_hash=hash_password(password))
         except DomainError:  # the operator is told which clinic (an admin in the API is not: finding 10b)
-            raise ValueError(f"the email {email} already has an account in {clinic!r}; use another email") from None
+            raise CliError("cli.email_taken", email=email, clinic=clinic) from None
         record_operator(s, clinic_id=c.id, action="user_create", user_id=user.id,
                         detail=f"user {user.id} role {role}")
         return user.id
@@ -195,7 +195,7 @@ def create_token(settings: Settings | None, *, clinic: str, label: str = "", rol
     refused that many days from now (None: never); ``scopes``: :data:`app.choices.TOKEN_SCOPES` it may use
     within its role (None: all)."""
     if role not in ROLES:
-        raise ValueError(f"role {role!r} is unknown; use one of {', '.join(ROLES)}")
+        raise CliError("cli.role_unknown", role=role, roles=", ".join(ROLES))
     from app.store import tokens
     from app.store.errors import DomainError
     from app.web.audit import record_operator
@@ -289,20 +289,32 @@ def add_parsers(sub) -> None:
     t_rotate.add_argument("--grace-hours", type=float, default=24.0, metavar="H",
                           help="hours the old token keeps working (default 24; 0: ends now)")
     _add_account_parsers(users, tokens)
-    for parser in tokens.choices.values():   # create, rotate, list, revoke: their output and errors in --lang
-        parser.add_argument("--lang", choices=LANGUAGE_NAMES, default=None,
+    for parser in (*clinics.choices.values(), *users.choices.values(), *tokens.choices.values()):
+        parser.add_argument("--lang", choices=LANGUAGE_NAMES, default=None,   # their output and errors in --lang
                             help="language of the messages (default: English)")
 
 
-def _read_password(from_stdin: bool) -> str:
+def _read_password(from_stdin: bool, lang: str | None = None) -> str:
     if from_stdin:
         return sys.stdin.readline().rstrip("\r\n")
     from app.web.passwords import MIN_PASSWORD_LENGTH
 
-    first = getpass.getpass(f"Password (at least {MIN_PASSWORD_LENGTH} characters): ")
-    if getpass.getpass("Repeat the password: ") != first:
-        raise ValueError("the two passwords differ; run the command again")
+    first = getpass.getpass(_say(lang, "cli.password_prompt", min=MIN_PASSWORD_LENGTH))
+    if getpass.getpass(_say(lang, "cli.password_repeat")) != first:
+        raise CliError("cli.passwords_differ")
     return first
+
+
+def _strong(password: str, *, email: str, name: str) -> None:
+    """The web application's password rules (:func:`app.web.security.check_password_strength`), refused as a
+    :class:`CliError` of the rule's own catalogue entry (printed in ``--lang``)."""
+    from app.web.passwords import WeakPassword
+    from app.web.security import check_password_strength
+
+    try:
+        check_password_strength(password, email=email, name=name)
+    except WeakPassword as exc:
+        raise CliError(exc.code, **exc.params) from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -311,12 +323,13 @@ def run(args: argparse.Namespace) -> int:
         serve(args.host, args.port, args.proxy_headers, args.forwarded_allow_ips)
     elif args.command == "clinics":
         clinic_id = create_clinic(None, args.name)
-        print(f"clinic {args.name!r} created (id {clinic_id})")
+        print(_say(args.lang, "cli.clinic_created", name=args.name.strip(), id=clinic_id))
     elif args.command == "users" and args.action == "create":
-        password = _read_password(args.password_stdin)
+        password = _read_password(args.password_stdin, args.lang)
         user_id = create_user(None, clinic=args.clinic, email=args.email, role=args.role, password=password,
                               name=args.name)
-        print(f"user {args.email.strip().lower()} ({args.role}) created in {args.clinic!r} (id {user_id})")
+        print(_say(args.lang, "cli.user_created", email=args.email.strip().lower(), role=args.role,
+                   clinic=args.clinic, id=user_id))
     elif args.command == "tokens" and args.action == "create":
         token = create_token(None, clinic=args.clinic, label=args.label, role=args.role,
                              expires_days=args.expires_days, scopes=args.scope)
@@ -354,11 +367,11 @@ def _user(s, email: str, clinic: str | None = None):
         stmt = stmt.where(User.clinic_id == _clinic(s, clinic).id)
     users = list(s.scalars(stmt.order_by(User.id)))
     if not users:
-        where = f" in {clinic!r}" if clinic is not None else ""
-        raise ValueError(f"no user with the email {email!r}{where}; check it (emails are the login names)")
+        if clinic is not None:
+            raise CliError("cli.user_unknown_in", email=email, clinic=clinic)
+        raise CliError("cli.user_unknown", email=email)
     if len(users) > 1:
-        names = ", ".join(repr(u.clinic.name) for u in users)
-        raise ValueError(f"the email {email!r} has accounts in several clinics ({names}); say which with --clinic")
+        raise CliError("cli.user_ambiguous", email=email, clinics=", ".join(repr(u.clinic.name) for u in users))
     return users[0]
 
 
@@ -423,11 +436,11 @@ def set_password(settings: Settings | None, *, email: str, password: str, clinic
     many were closed.  ValueError for an unknown email, an ambiguous one without ``clinic``, or a weak password
     (nothing changes)."""
     from app.web.audit import record_operator
-    from app.web.security import check_password_strength, hash_password
+    from app.web.security import hash_password
 
     with _session(settings) as s:
         user = _user(s, email, clinic)
-        check_password_strength(password, email=user.email, name=user.name)
+        _strong(password, email=user.email, name=user.name)
         user.password_hash = hash_password(password)
         closed = _close_browser_sessions(s, user.id)
         record_operator(s, clinic_id=user.clinic_id, action="password_change", user_id=user.id,
@@ -483,13 +496,13 @@ def run_account(args: argparse.Namespace) -> int:
             print(_say(args.lang, "cli.token_revoked", id=r["id"], clinic=r["clinic"], label=label))
     elif args.command == "users" and args.action == "deactivate":
         closed = deactivate_user(None, email=args.email, clinic=args.clinic)
-        print(f"user {args.email.strip().lower()} deactivated: logins refused, {closed} browser session(s) closed")
+        print(_say(args.lang, "cli.user_deactivated", email=args.email.strip().lower(), closed=closed))
     elif args.command == "users" and args.action == "set-password":
         if not args.password_stdin:  # an unknown email is said before the prompts, not after
             _check_user_exists(args.email, args.clinic)
-        password = _read_password(args.password_stdin)
+        password = _read_password(args.password_stdin, args.lang)
         closed = set_password(None, email=args.email, password=password, clinic=args.clinic)
-        print(f"password of {args.email.strip().lower()} changed; {closed} browser session(s) closed")
+        print(_say(args.lang, "cli.password_changed", email=args.email.strip().lower(), closed=closed))
     else:  # pragma: no cover - argparse only lets the registered actions through
         raise ValueError(f"unknown action {args.command} {args.action}; see chakamo {args.command} --help")
     return 0

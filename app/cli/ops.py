@@ -44,8 +44,9 @@ def add_parsers(sub) -> None:
     rep.add_argument("--filter", required=True, choices=choices.FILTER_NAMES, help="orientation filter")
     rep.add_argument("--since", required=True, type=_date, metavar="YYYY-MM-DD", help="first session date")
     rep.add_argument("--clinic", default=None, metavar="NAME", help="only this clinic's sessions (default: all)")
-    rep.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=choices.DEFAULT_LANGUAGE,
-                     help=f"report language (default: {choices.DEFAULT_LANGUAGE})")
+    rep.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=None,
+                     help=f"language of the reports and of the messages (default: reports in "
+                          f"{choices.DEFAULT_LANGUAGE}, messages in English)")
     rep.add_argument("--force", action="store_true",
                      help="queue sessions already analysed by this pipeline version with this filter too")
 
@@ -72,17 +73,32 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--concurrency must be at least 1")
         run_worker(settings, args.concurrency, args.loglevel)
     elif args.command == "reprocess":
-        from app.jobs.reprocess import reprocess
-
-        outcomes, summary = reprocess(settings, filter_name=args.filter, since=args.since, clinic=args.clinic,
-                                      lang=args.lang, force=args.force)
-        for o in outcomes:
-            job = f"job {o.job_id}" if o.job_id is not None else ""
-            print(f"session {o.session_id:>6}  {o.patient:<20.20}  {o.date.isoformat()}  {o.status:<9}  {job:<10}  "
-                  f"{o.note}".rstrip())
-        counts = {s: sum(o.status == s for o in outcomes) for s in ("queued", "current", "busy", "not ready")}
-        print(f"{len(outcomes)} sessions: " + ", ".join(f"{n} {s}" for s, n in counts.items()) + f". {summary}.")
+        _reprocess(settings, args)
     return 0
+
+
+def _reprocess(settings, args: argparse.Namespace) -> None:
+    """``chakamo reprocess``: the table of outcomes and the hand-over, in ``--lang`` (English when not given)."""
+    from app.cli.admin import CliError
+    from app.jobs.reprocess import STATUSES, reprocess
+    from app.pipeline.service_messages import render_item
+    from app.store.errors import DomainError
+    from app.web.messages import render
+
+    lang = args.lang or "en"
+    try:
+        outcomes, summary = reprocess(settings, filter_name=args.filter, since=args.since, clinic=args.clinic,
+                                      lang=args.lang or choices.DEFAULT_LANGUAGE, force=args.force)
+    except DomainError as exc:
+        raise CliError(exc.code, **exc.params) from None
+    words = dict(zip(STATUSES, render("cli.reprocess_statuses", lang).split("|")))
+    for o in outcomes:
+        job = render("cli.reprocess_job", lang, id=o.job_id) if o.job_id is not None else ""
+        note = render_item(o.note, lang) if o.note else ""
+        print(f"{o.session_id:>6}  {o.patient:<20.20}  {o.date.isoformat()}  {words[o.status]:<9}  {job:<12}  "
+              f"{note}".rstrip())
+    counts = ", ".join(f"{sum(o.status == s for o in outcomes)} {words[s]}" for s in STATUSES)
+    print(render("cli.reprocess_counts", lang, n=len(outcomes), counts=counts, summary=render_item(summary, lang)))
 
 
 __all__ = ["COMMANDS", "add_parsers", "run"]

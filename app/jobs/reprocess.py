@@ -31,25 +31,31 @@ from sqlalchemy import select
 
 from app.choices import FILTER_NAMES
 from app.jobs.queue import NotReady, UpToDate, enqueue, previous_choices
-from app.pipeline.service_messages import render_item
 from app.settings import Settings
 from app.store.blobs import open_storage
 from app.store.checks import IngestionChecker
 from app.store.database import Database
 from app.store.models import Clinic, KneeSession, utcnow
+from app.store.errors import NotFound
 from app.store.sessions import Busy
+
+
+#: the outcomes, in the order ``chakamo reprocess`` counts them
+STATUSES = ("queued", "current", "busy", "not ready")
 
 
 @dataclass(frozen=True)
 class Outcome:
-    """What happened to one session: ``status`` (module docstring), the job id when queued, a note."""
+    """What happened to one session: ``status`` (module docstring, one of :data:`STATUSES`), the job id when
+    queued, a note: a message as stored (``{"code", "params"}``: :func:`app.pipeline.service_messages.render_item`
+    says it in any language) or None."""
 
     session_id: int
     patient: str
     date: dt.date
     status: str
     job_id: int | None = None
-    note: str = ""
+    note: dict | str | None = None
 
 
 def _candidates(db: Database, since: dt.date, clinic: str | None) -> list[int]:
@@ -58,7 +64,8 @@ def _candidates(db: Database, since: dt.date, clinic: str | None) -> list[int]:
         if clinic is not None:
             clinic_id = s.scalar(select(Clinic.id).where(Clinic.name == clinic))
             if clinic_id is None:
-                raise ValueError(f"no clinic named {clinic!r}; `chakamo clinics create` makes one")
+                known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
+                raise NotFound(code="store.clinic_unknown", name=clinic, known=known)
             query = query.where(KneeSession.clinic_id == clinic_id)
         return list(s.scalars(query.order_by(KneeSession.date, KneeSession.id)))
 
@@ -79,16 +86,24 @@ def _queue_one(db: Database, checker: IngestionChecker, session_id: int, filter_
                           unless_current=not force, **choices)
             return Outcome(**base, status="queued", job_id=job.id)
     except Busy as busy:  # also one queued by the API at the same moment: that one stands
-        return Outcome(**base, status="busy", job_id=busy.job_id, note=f"job {busy.job_id} is queued or running")
+        return Outcome(**base, status="busy", job_id=busy.job_id, note=_item(busy))
     except NotReady as not_ready:
-        return Outcome(**base, status="not ready", note=render_item(not_ready.reason or "files not checked"))
+        return Outcome(**base, status="not ready",
+                       note=not_ready.reason or {"code": "session.no_files_yet", "params": {}})
     except UpToDate as current:
-        return Outcome(**base, status="current", note=str(current))
+        return Outcome(**base, status="current", note=_item(current))
+
+
+def _item(error) -> dict:
+    """A domain error as a stored message (its code and params)."""
+    return {"code": error.code, "params": dict(error.params)}
 
 
 def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: str | None = None,
-              lang: str = "es", force: bool = False) -> tuple[list[Outcome], str]:
-    """Queue the cohort's jobs (module docstring); returns the outcomes and one sentence on the hand-over."""
+              lang: str = "es", force: bool = False) -> tuple[list[Outcome], dict]:
+    """Queue the cohort's jobs (module docstring); returns the outcomes and one sentence on the hand-over (a stored
+    message: :func:`app.pipeline.service_messages.render_item`).  :class:`~app.store.errors.NotFound` for an
+    unknown ``clinic``."""
     if filter_name not in FILTER_NAMES:
         raise ValueError(f"unknown filter {filter_name!r}; use one of {', '.join(FILTER_NAMES)}")
     db = Database(settings.db_url)
@@ -98,7 +113,7 @@ def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: s
         outcomes = [_queue_one(db, checker, sid, filter_name, lang, force) for sid in _candidates(db, since, clinic)]
         job_ids = [o.job_id for o in outcomes if o.status == "queued"]
         if not job_ids:
-            return outcomes, "no job queued"
+            return outcomes, {"code": "jobs.reprocess_none", "params": {}}
         if settings.job_backend == "celery":
             from app.jobs.celery_engine import CeleryJobRunner
 
@@ -109,13 +124,11 @@ def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: s
                     break
                 sent += 1
             if sent < len(job_ids):
-                return outcomes, (f"{len(job_ids)} jobs queued, {sent} handed to the broker; the others are sent "
-                                  "when it answers (the server's and the workers' sweepers)")
-            return outcomes, f"{len(job_ids)} jobs queued and handed to the Celery workers"
-        return outcomes, (f"{len(job_ids)} jobs queued; the running `chakamo serve` takes them within seconds "
-                          "(or at its next start)")
+                return outcomes, {"code": "jobs.reprocess_celery_partly", "params": {"n": len(job_ids), "sent": sent}}
+            return outcomes, {"code": "jobs.reprocess_celery", "params": {"n": len(job_ids)}}
+        return outcomes, {"code": "jobs.reprocess_embedded", "params": {"n": len(job_ids)}}
     finally:
         db.dispose()
 
 
-__all__ = ["Outcome", "reprocess"]
+__all__ = ["STATUSES", "Outcome", "reprocess"]

@@ -321,6 +321,28 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "No job {job_id} in your clinic; check the id.",
         "es": "No hay trabajo {job_id} en su clínica; compruebe el id.",
         "pt": "Não há tarefa {job_id} na sua clínica; verifique o id."},
+    "store.clinic_unknown": {
+        "en": "no clinic named {name!r} (known: {known}); create it with `chakamo clinics create`",
+        "es": "no hay ninguna clínica llamada {name!r} (conocidas: {known}); créela con `chakamo clinics create`",
+        "pt": "não há nenhuma clínica chamada {name!r} (conhecidas: {known}); crie-a com `chakamo clinics create`"},
+    # the hand-over of ``chakamo reprocess``'s jobs (app/jobs/reprocess.py)
+    "jobs.reprocess_none": {"en": "no job queued", "es": "ningún trabajo en cola", "pt": "nenhuma tarefa em fila"},
+    "jobs.reprocess_celery": {
+        "en": "{n} jobs queued and handed to the Celery workers",
+        "es": "{n} trabajos en cola y entregados a los workers de Celery",
+        "pt": "{n} tarefas em fila e entregues aos workers do Celery"},
+    "jobs.reprocess_celery_partly": {
+        "en": "{n} jobs queued, {sent} handed to the broker; the others are sent when it answers (the server's and "
+              "the workers' sweepers)",
+        "es": "{n} trabajos en cola, {sent} entregados al broker; los demás se envían cuando responda (los barridos "
+              "del servidor y de los workers)",
+        "pt": "{n} tarefas em fila, {sent} entregues ao broker; as outras são enviadas quando ele responder (as "
+              "varreduras do servidor e dos workers)"},
+    "jobs.reprocess_embedded": {
+        "en": "{n} jobs queued; the running `chakamo serve` takes them within seconds (or at its next start)",
+        "es": "{n} trabajos en cola; el `chakamo serve` en marcha los toma en segundos (o en su próximo arranque)",
+        "pt": "{n} tarefas em fila; o `chakamo serve` em execução recolhe-as em segundos (ou no seu próximo "
+              "arranque)"},
     "store.busy": {
         "en": "Session {session_id} is being processed (job {job_id}); {what} when that job has finished.",
         "es": "La sesión {session_id} se está procesando (trabajo {job_id}); {what} cuando ese trabajo haya terminado.",

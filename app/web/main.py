@@ -17,7 +17,7 @@ answers its sentence in es/en/pt.  Every error answer is an RFC 7807 problem (``
 
 Routes besides ``/api/v1`` (see ``app.web.api``): ``/`` (``static/index.html``, the single-page UI), ``/static``
 (the repository's ``static/`` folder), ``/vendor/plotly.min.js`` (from the installed ``plotly`` package),
-``/viser/`` (viser's built client, which plays ``scene.viser``), ``/docs`` (Swagger UI 5 from the
+``/viser/`` (viser's built client, which plays ``scene.viser``, served unpacked: :mod:`app.web.viser_client`), ``/docs`` (Swagger UI 5 from the
 ``fastapi-offline`` package's static folder: no CDN, clinics are often offline; Swagger UI 4 cannot read the
 OpenAPI 3.1 document FastAPI writes), ``/healthz`` (the process answers: for
 a liveness probe) and ``/readyz`` (200 only when the database answers and the job engine can take jobs —
@@ -58,6 +58,7 @@ from app.web.fhir_push import FhirPush
 from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
+from app.web.viser_client import viser_router
 from estimators import __version__
 
 log = logging.getLogger("chakamo")
@@ -285,6 +286,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                                    swagger_favicon_url="/docs-assets/favicon.png")
 
     app.mount("/static", StaticFiles(directory=STATIC_DIR, check_dir=False), name="static")
+    # viser's client unpacked once per process (app.web.viser_client); the shipped build folder behind it
+    app.include_router(viser_router(_viser_client_dir() / "index.html"))
     app.mount("/viser", StaticFiles(directory=_viser_client_dir(), html=True), name="viser")
     return app
 

@@ -116,10 +116,76 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "no API token with id {id}; see the ids with `chakamo tokens list --clinic NAME`",
         "es": "no hay ningún token de API con id {id}; vea los ids con `chakamo tokens list --clinic NOMBRE`",
         "pt": "não há nenhum token de API com id {id}; veja os ids com `chakamo tokens list --clinic NOME`"},
-    "cli.clinic_unknown": {
-        "en": "no clinic named {name!r} (known: {known}); create it with `chakamo clinics create`",
-        "es": "no hay ninguna clínica llamada {name!r} (conocidas: {known}); créela con `chakamo clinics create`",
-        "pt": "não há nenhuma clínica chamada {name!r} (conhecidas: {known}); crie-a com `chakamo clinics create`"},
+    # ``chakamo clinics`` and ``chakamo users`` (app/cli/admin.py), in --lang
+    "cli.clinic_created": {
+        "en": "clinic {name!r} created (id {id})",
+        "es": "clínica {name!r} creada (id {id})",
+        "pt": "clínica {name!r} criada (id {id})"},
+    "cli.clinic_name_empty": {
+        "en": "the clinic name is empty; give a name, e.g. chakamo clinics create \"Clínica Norte\"",
+        "es": "el nombre de la clínica está vacío; indique un nombre, p. ej. chakamo clinics create \"Clínica Norte\"",
+        "pt": "o nome da clínica está vazio; indique um nome, p. ex. chakamo clinics create \"Clínica Norte\""},
+    "cli.clinic_exists": {
+        "en": "a clinic named {name!r} already exists; choose another name",
+        "es": "ya existe una clínica llamada {name!r}; elija otro nombre",
+        "pt": "já existe uma clínica chamada {name!r}; escolha outro nome"},
+    "cli.role_unknown": {
+        "en": "role {role!r} is unknown; use one of {roles}",
+        "es": "el rol {role!r} no existe; use uno de {roles}",
+        "pt": "o papel {role!r} não existe; use um de {roles}"},
+    "cli.email_invalid": {
+        "en": "{email!r} is not an email address; give the user's email",
+        "es": "{email!r} no es una dirección de correo; indique el correo del usuario",
+        "pt": "{email!r} não é um endereço de e-mail; indique o e-mail do utilizador"},
+    "cli.email_taken": {
+        "en": "the email {email} already has an account in {clinic!r}; use another email",
+        "es": "el correo {email} ya tiene una cuenta en {clinic!r}; use otro correo",
+        "pt": "o e-mail {email} já tem uma conta em {clinic!r}; use outro e-mail"},
+    "cli.user_created": {
+        "en": "user {email} ({role}) created in {clinic!r} (id {id})",
+        "es": "usuario {email} ({role}) creado en {clinic!r} (id {id})",
+        "pt": "utilizador {email} ({role}) criado em {clinic!r} (id {id})"},
+    "cli.user_unknown": {
+        "en": "no user with the email {email!r}; check it (emails are the login names)",
+        "es": "no hay ningún usuario con el correo {email!r}; compruébelo (los correos son los nombres de acceso)",
+        "pt": "não há nenhum utilizador com o e-mail {email!r}; verifique-o (os e-mails são os nomes de acesso)"},
+    "cli.user_unknown_in": {
+        "en": "no user with the email {email!r} in {clinic!r}; check it (emails are the login names)",
+        "es": "no hay ningún usuario con el correo {email!r} en {clinic!r}; compruébelo (los correos son los nombres "
+              "de acceso)",
+        "pt": "não há nenhum utilizador com o e-mail {email!r} em {clinic!r}; verifique-o (os e-mails são os nomes "
+              "de acesso)"},
+    "cli.user_ambiguous": {
+        "en": "the email {email!r} has accounts in several clinics ({clinics}); say which with --clinic",
+        "es": "el correo {email!r} tiene cuentas en varias clínicas ({clinics}); indique cuál con --clinic",
+        "pt": "o e-mail {email!r} tem contas em várias clínicas ({clinics}); indique qual com --clinic"},
+    "cli.user_deactivated": {
+        "en": "user {email} deactivated: logins refused, {closed} browser session(s) closed",
+        "es": "usuario {email} desactivado: inicios de sesión rechazados, {closed} sesión(es) de navegador cerrada(s)",
+        "pt": "utilizador {email} desativado: inícios de sessão recusados, {closed} sessão(ões) de navegador "
+              "fechada(s)"},
+    "cli.password_changed": {
+        "en": "password of {email} changed; {closed} browser session(s) closed",
+        "es": "contraseña de {email} cambiada; {closed} sesión(es) de navegador cerrada(s)",
+        "pt": "palavra-passe de {email} alterada; {closed} sessão(ões) de navegador fechada(s)"},
+    "cli.password_prompt": {
+        "en": "Password (at least {min} characters): ",
+        "es": "Contraseña (al menos {min} caracteres): ",
+        "pt": "Palavra-passe (pelo menos {min} caracteres): "},
+    "cli.password_repeat": {
+        "en": "Repeat the password: ", "es": "Repita la contraseña: ", "pt": "Repita a palavra-passe: "},
+    "cli.passwords_differ": {
+        "en": "the two passwords differ; run the command again",
+        "es": "las dos contraseñas no coinciden; ejecute la orden de nuevo",
+        "pt": "as duas palavras-passe não coincidem; execute o comando de novo"},
+    # ``chakamo reprocess`` (app/cli/ops.py), in --lang: the statuses of its table (separated by "|"), a job, the end
+    "cli.reprocess_statuses": {"en": "queued|current|busy|not ready", "es": "en cola|al día|ocupada|no lista",
+                               "pt": "em fila|em dia|ocupada|não pronta"},
+    "cli.reprocess_job": {"en": "job {id}", "es": "trabajo {id}", "pt": "tarefa {id}"},
+    "cli.reprocess_counts": {
+        "en": "{n} sessions: {counts}. {summary}.",
+        "es": "{n} sesiones: {counts}. {summary}.",
+        "pt": "{n} sessões: {counts}. {summary}."},
     "account.browser_only": {
         "en": "This needs a browser login (an API token has no password or sessions); log in with your email.",
         "es": "Esto requiere iniciar sesión en el navegador (un token de API no tiene contraseña ni sesiones); inicie "

@@ -33,12 +33,12 @@ rotation.  The paper's measurement quaternion is the fixed point of
 :math:`q = \tfrac14(W_a+I)(W_m+I)\,q` (5.38), the intersection of the two +1 eigenspaces.  In
 closed form it is the rotation whose matrix has the rows east :math:`= \hat m\times\hat a/m_N`,
 north :math:`=\hat a\times\text{east}`, up :math:`=\hat a` (TRIAD), converted by Shepperd's method,
-which has no pole at any attitude (``measurement="triad"``; :func:`measurement_9d` is the readable
-version, found as the null vector of :math:`[W_a-I;\ W_m-I]`).
+which has no pole at any attitude (``measurement="triad"``, the default; :func:`measurement_9d` is the
+readable version, found as the null vector of :math:`[W_a-I;\ W_m-I]`).
 
 Equivalently, :math:`q_{am} = q_h\otimes q_a`: any accelerometer-consistent quaternion
 :math:`q_a`, turned about the vertical by the heading :math:`q_h` that makes the horizontal field
-point north.  ChakaMo's default (``measurement="decoupled"``, deviation 2) keeps this structure but
+point north.  The option ``measurement="decoupled"`` (deviation 2) keeps this structure but
 takes :math:`q_a = \tfrac12(W_a+I)q^-_t/\|\cdot\|` (5.37 applied to the prediction: the
 accelerometer-consistent quaternion nearest to it) and computes the heading with the *predicted*
 tilt: with :math:`l = R(q^-_t)\hat m`, :math:`q_h \propto (l_h + l_y, 0, 0, l_x)`,
@@ -91,29 +91,36 @@ decimated to 95 Hz scores as at 286 Hz).  The thesis ran :math:`\sigma_{acc}=0.0
 (:class:`GuoParams`) were chosen once for all trials of BROAD (Laidig et al. 2021, 9D total RMSE,
 mean of the undisturbed / disturbed trials here): 2.2° / 3.8° (6D 1.4° / 3.0°), against 5.4° / 7.4°
 for BROAD's published Madgwick; the paper's filter without deviations 2, 7 and 8 scores 18.1° / 15.3°.
+Today (TRIAD measurement, deviations 10 and 14): 2.13° / 3.21° (6D 1.13° / 2.63°); chosen on one half of the
+trials and scored on the other (``python -m benchmarks.broad``): 2.71° / 4.08° (A→B), 1.45° / 1.82° (B→A).
 They also keep a simulated knee step-up with a BMI160-like constant gyroscope bias of 1.3–2.1 °/s at
-≤ 1.8° RMS (thigh and shank, seeds 70–75 of ``ImuSpec.random``; 35–42° without deviation 12).
+≤ 1.9° RMS (thigh 0.5–1.5°, shank 0.4–1.9°, seeds 70–75 of ``ImuSpec.random``; 35–42° without deviation 12).
 
 Deviations from the paper (and why)
 -----------------------------------
 1. **Frame.** The paper's references are :math:`A^G=(0,0,1)`, :math:`M^G=(m_N,0,m_D)` in a
    north-based frame; we re-derive :math:`W_m` in ENU with :math:`M^E=(0,m_N,m_D)` (north is y).
    :math:`W_a` is unchanged.  The output is ``q_earth_sensor`` (ChakaMo convention).
-2. **Decoupled heading (default).** In the TRIAD solution the heading inherits the accelerometer's
-   direction error amplified by :math:`|m_D|/m_N` (≈ 2.5 at a 68° dip); during fast translations
-   the specific force is tens of degrees off the vertical and the heading is destroyed (BROAD
-   trials 15, 30: 27°, 36°).  Tilting the magnetometer with the predicted attitude instead keeps
-   magnetometer and accelerometer errors apart.  ``measurement="triad"`` restores the paper.
-   The price, measured: the measured heading carries the *state's* tilt error δ as δ·tan(dip), an error
-   correlated with the state that no :math:`\Sigma_\nu` models, and slow, so the bias state (deviation 12)
-   learns a wrong vertical bias from it (held-out gait seed 8: heading 6.4° RMS).  Inflating
-   :math:`\sigma^2_{\theta_z}` by :math:`\tan^2(\text{dip})\,\sigma^2_{tilt}` (the predicted tilt variance
-   about the horizontal field) changes nothing (6.4°): the predicted σ_tilt ≈ 1° is small beside
-   :math:`\sigma_m/l_h` ≈ 20°.  With the accelerometer stage of deviation 14 the paper's TRIAD is better on
-   everything that moves (gait seeds 0–5 / held-out 6–11 worst heading 3.5° / 6.4° → 1.9° / 3.7°; step-up
-   with a 1.7 °/s bias 1.76° → 1.14°; 700 °/s turns 0.53° → 0.21°; BROAD 9D held out A→B 2.80° / 4.02° →
-   2.71° / 4.08°, B→A 1.49° / 2.43° → 1.45° / 1.82°) but converges too slowly in heading from a wrong start at
-   rest (after 2 s from 60° / 90° off: 2.6° / 9.7°, the test asks < 2°), so it is not the default yet.
+2. **Decoupled heading (an option; the default until the dip reference of deviation 10).**  In the TRIAD
+   solution the heading inherits the accelerometer's direction error amplified by :math:`|m_D|/m_N` (≈ 2.5
+   at a 68° dip); on the raw samples, during fast translations the specific force is tens of degrees off
+   the vertical and the heading is destroyed (BROAD trials 15, 30: 27°, 36°).  ``measurement="decoupled"``
+   tilts the magnetometer with the predicted attitude instead, keeping magnetometer and accelerometer
+   errors apart.  Its price, measured: the measured heading carries the *state's* tilt error δ as
+   δ·tan(dip), an error correlated with the state that no :math:`\Sigma_\nu` models, and slow, so the bias
+   state (deviation 12) learns a wrong vertical bias from it (held-out gait seed 8: heading 6.4° RMS;
+   inflating :math:`\sigma^2_{\theta_z}` by :math:`\tan^2(\text{dip})\,\sigma^2_{tilt}` changes nothing, the
+   predicted σ_tilt ≈ 1° being small beside :math:`\sigma_m/l_h` ≈ 20°); and from a large wrong start its
+   heading, measured through a wrong tilt, can hold a false equilibrium (12 random starts of 20–175° at rest
+   and 12 while turning: 3 and 2 of them stay 44–103° off after 3 s).  With the accelerometer stage of
+   deviation 14 the paper's TRIAD no longer sees the raw translations and is better on everything that
+   moves, so it is the default again (decoupled → TRIAD: gait seeds 0–5 / held-out 6–11 worst heading
+   RMS 3.5° / 6.4° → 1.9° / 3.7°, tilt 2.7° / 4.3° → 2.3° / 3.4°; step-up with a 1.3–2.1 °/s bias, thigh 0.7–3.1° → 0.5–1.5°, shank
+   0.6–2.8° → 0.4–1.9°; 700 °/s turns 0.5° / 1.1° → 0.3° / 0.7° heading RMS (median / worst, seeds 0–5);
+   BROAD 9D all ten 2.10° / 3.43° → 2.13° / 3.21°, held out A→B 2.80° / 4.02° → 2.71° / 4.08°, B→A
+   1.49° / 2.43° → 1.45° / 1.82°).  What had kept it from being the default, its slow heading convergence
+   from a wrong start (after 2 s from 90° off: 9.7°), was the dip reference, not the measurement
+   (deviation 10).
 3. **Fixed point, not one product.** The paper's symbolic expression applies
    :math:`\tfrac14(W_a+I)(W_m+I)` once to :math:`q_{t-1}`; one application is a contraction towards
    the solution, not the solution, so that "measurement" keeps part of the previous state.
@@ -133,7 +140,9 @@ Deviations from the paper (and why)
    :math:`\varepsilon_{tilt} = \angle(R(q^-)\hat a, e_z)` correct at a bounded rate instead of
    dragging the estimate); the magnetometer variance by
    :math:`1 + (\Delta\|m\|/\|m\|_{ref}/\text{mag\_norm\_tol})^2 + (\Delta l_z/\text{mag\_dip\_tol})^2`
-   (field norm and predicted dip against references tracked with ``mag_ref_tau_s``, state 20–21)
+   (field norm and predicted dip against references tracked with ``mag_ref_tau_s``, state 20–21, which
+   start from the first field sample: its norm and its dynamic dip :math:`m_D = \hat a\cdot\hat m`,
+   deviation 10)
    and by :math:`\max(1, |\psi|/\text{mag\_innov\_tol})` with :math:`\psi` the heading innovation.
    The tilt bound is never below the filter's own predicted tilt uncertainty (deviation 13).
 8. **Gyroscope bias at rest** (not in the paper): after ``rest_min_s`` of
@@ -145,9 +154,32 @@ Deviations from the paper (and why)
 9. **6D variant** (``mag=None``, or a missing or gravity-parallel magnetometer sample): the
    measurement is :math:`q_a` alone, whose heading is the prediction's; its heading is unobserved:
    :math:`\Sigma_\theta = \mathrm{diag}(\sigma_a^2,\sigma_a^2,1\,\mathrm{rad}^2)`.
-10. **Initial state.** The base class aligns :math:`q_0` on the first 0.1 s of accelerometer and
-    magnetometer data (TRIAD); :math:`\Sigma_0 = \tfrac14\sigma_0^2 I` (``init_noise_rad``).  Large
-    initial errors converge at the bounded rate of deviation 7 (90°: < 2° in 2 s; 170°: in 8 s).
+10. **Initial state.** The base class aligns :math:`q_0` on the first 2 s of accelerometer and
+    magnetometer data (motion-compensated TRIAD, base module docstring), trusted with
+    :math:`\Sigma_0 = \tfrac14\,\text{ALIGNED\_STD\_RAD}^2 I`; a start given as ``q0`` has
+    :math:`\Sigma_0 = \tfrac14\sigma_0^2 I` (``init_noise_rad``).  The dip
+    reference of deviation 7 starts from the data, not from the state: :math:`l_{z,ref} = m_D = \hat a\cdot
+    \hat m` of the first field sample.  That is the dynamic dip Guo et al. build their reference field
+    from at every sample (5.38): the field's vertical component in *any* frame (:math:`\hat a\cdot\hat m =
+    (R\hat a)\cdot(R\hat m)`), so it needs no attitude.  The dip test itself is ours (deviation 7).
+    Why: the dip the test compares, :math:`l_z = e_z^T R(q^-)\hat m`, moves with the state's tilt error.
+    To first order, with an earth-frame attitude error :math:`\delta` and the true field direction
+    :math:`(0, m_N, m_D)`,
+
+    .. math::  l_z = e_z^T(I + [\delta\times])\,(0, m_N, m_D)^T = m_D + m_N\,\delta_E,
+
+    so a reference read from the prediction of a wrong start (:math:`\delta_E` large) is off by
+    :math:`m_N\delta_E` and stays off for ``mag_ref_tau_s``: once the tilt has converged, the correct field
+    reads as a dip disturbance and the magnetometer variance is multiplied by
+    :math:`1 + (m_N\delta_{E,0}/\text{mag\_dip\_tol})^2` (the 90° start of the tests: reference +0.30 for a
+    true −0.89, a factor ≈ 140 that decayed to 97 in 2 s), and the heading corrects at a crawl: the
+    disturbance rejection had locked onto a wrong reference (issue 13 §1).  The first sample's
+    :math:`\hat a` may carry body acceleration; with the accelerometer stage of deviation 14 it is the
+    motion-compensated specific force, and an error there decays with ``mag_ref_tau_s`` like any other.
+    Large initial errors then converge at the bounded rate of deviation 7: 60° / 90° / 170° about the
+    tests' axis at rest 0.1° / 0.1° / 0.1° after 2 s / 2 s / 8 s (before: 2.6° / 9.7° / 5.5° with TRIAD);
+    24 random starts of 20–175° about random axes, at rest or turning at up to 2 rad/s, ≤ 0.9° after 3 s
+    (before: up to 27° with TRIAD, up to 136° with the decoupled heading).
 11. **Missing samples**: a missing accelerometer sample skips the correction (prediction only);
     a missing gyroscope sample predicts with zero rate and does not update the bias.
 12. **Gyroscope bias as a Kalman state** (not in the paper).  Why: with the robust weights of
@@ -187,10 +219,12 @@ Deviations from the paper (and why)
     is 8° off the vertical there.  The stage runs inside this kernel so that its strapdown subtracts the
     bias estimate of deviation 12.  Gait scenarios of the tests (in motion from sample 0, 3–6 g heel
     strikes), worst heading RMS / tilt on seeds 0–5: 7.5° / 10.2° → 3.5° / 2.7° (held-out seeds 6–11: 6.4° /
-    4.3°, not met); BROAD (10 shared trials, 9D, undisturbed / disturbed) 2.16° / 3.85° → 2.09° / 3.43°.  The
-    price, measured: on pure rotation the in-motion bias state learns more slowly (deviation 12's test runs
-    with the stage off), and the simulated knee step-up with a BMI160-like bias reads 0.9–1.8° (thigh) and
-    0.6–2.8° (shank) instead of 0.4–1.2° and 0.5–0.7°.
+    4.3°, not met), both with the decoupled heading of deviation 2; with the TRIAD measurement, the default
+    since, 1.9° / 2.3° (held out 3.7° / 3.4°).  BROAD (10 shared trials, 9D, undisturbed / disturbed)
+    2.16° / 3.85° → 2.09° / 3.43° (decoupled).  The price, measured: on pure rotation the in-motion bias
+    state learns more slowly (deviation 12's test runs with the stage off), and the simulated knee step-up
+    with a BMI160-like bias read 0.9–1.8° (thigh) and 0.6–2.8° (shank) instead of 0.4–1.2° and 0.5–0.7°
+    (decoupled, then; TRIAD with the stage: 0.5–1.5° and 0.4–1.9°).
 
 Why ours differs from ``ahrs.filters.FKF`` (0.4.0): it uses the one-step product (3), normalises the
 measurement and then multiplies it by 0.25 (the state's norm collapses to 0.25), passes the σ's as
@@ -240,7 +274,8 @@ class GuoParams:
     mag_norm_tol: relative deviation (-) of ‖m‖ from its tracked reference at which the magnetometer
         variance is doubled; default ``inf`` (off: it did not help on BROAD, the dip test does).
     mag_dip_tol: deviation of the field's vertical component l_z = (R(q⁻) m̂)_z (sine of the dip)
-        from its tracked reference at which the magnetometer variance is doubled; default 0.1.
+        from its tracked reference (which starts from the first sample's â·m̂, deviation 10) at which the
+        magnetometer variance is doubled; default 0.1.
     mag_innov_tol_rad: heading innovation (rad) beyond which the magnetometer variance grows in
         proportion (Huber weight); default 0.05.
     mag_ref_tau_s: time constant, s, with which the norm and dip references follow the data; 10.
@@ -254,8 +289,8 @@ class GuoParams:
     acc_lowpass_s: time constant, s, of the motion-compensated accelerometer the update reads (base module
         docstring, :mod:`~estimators.orientation.acc_lowpass`; ours, not in the paper); 0 feeds the raw
         samples (the paper).  Default 1.5.
-    measurement: ``"decoupled"`` (default; heading from the predicted tilt) or ``"triad"`` (the
-        paper's fixed point); see deviation 2 of the module docstring.
+    measurement: ``"triad"`` (default: the paper's fixed point (5.38)) or ``"decoupled"`` (heading from the
+        predicted tilt); see deviation 2 of the module docstring.
 
     Every tolerance accepts ``math.inf`` to switch its test off.
     """
@@ -276,7 +311,7 @@ class GuoParams:
     rest_min_s: float = 1.0
     bias_init_rad_s: float = 0.03
     bias_walk_rad_s15: float = 0.0
-    measurement: str = "decoupled"
+    measurement: str = "triad"
     acc_lowpass_s: float = 1.5
 
     def __post_init__(self) -> None:
@@ -432,7 +467,7 @@ def _reference_step(state: FloatArray, acc, gyr, mag, acc_ok: bool, gyr_ok: bool
         if (np.linalg.norm(np.cross(m_unit, a)) if paper else l_h) > MIN_FIELD_COS:
             m_norm = np.linalg.norm(mag)
             if new[20] <= 0.0:
-                new[20], new[21] = m_norm, l_earth[2]
+                new[20], new[21] = m_norm, a @ m_unit  # the dynamic dip m_D = â·m̂ of (5.38), not the state
             rel = (m_norm - new[20]) / new[20]
             heading = np.arctan2(l_earth[0], l_earth[1])  # heading innovation
             var_mag = (p.mag_noise_rad**2

@@ -254,12 +254,15 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
         ey = vz * ux - vx * uz
         ez = vx * uy - vy * ux
         mN = math.sqrt(ex * ex + ey * ey + ez * ez)
-        lh = math.sqrt(lx * lx + ly * ly)
+        mD = ux * vx + uy * vy + uz * vz  # the dynamic dip m_D = â·m̂ (5.38): needs no attitude
+        lh = 0.0
+        if not paper_triad:
+            lh = math.sqrt(lx * lx + ly * ly)
         if (mN if paper_triad else lh) > MIN_FIELD_COS:
             # disturbance: field norm and dip against tracked references, heading innovation
-            if state[20] <= 0.0:
+            if state[20] <= 0.0:  # first field sample: the references start from the data (deviation 10)
                 state[20] = mn
-                state[21] = lz
+                state[21] = mD
             rel = (mn - state[20]) / state[20]
             ddip = lz - state[21]
             vm = var_mag * (1.0 + rel * rel * inv_norm_tol2 + ddip * ddip * inv_dip_tol2)
@@ -270,26 +273,30 @@ def guo_step(state, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, gyr_ok, mag_ok, 
             state[21] += ref_alpha * (lz - state[21])
             if paper_triad:
                 # fixed point of ¼(W_a+I)(W_m+I): rows of R_earth_sensor are east, north, up (Shepperd)
-                mD = ux * vx + uy * vy + uz * vz
-                ex /= mN; ey /= mN; ez /= mN
+                imN = 1.0 / mN
+                ex *= imN; ey *= imN; ez *= imN
                 nx = uy * ez - uz * ey
                 ny = uz * ex - ux * ez
                 nz = ux * ey - uy * ex
                 tr = ex + ny + uz
                 if tr >= ex and tr >= ny and tr >= uz:
                     r = 2.0 * math.sqrt(1.0 + tr)
-                    m0 = 0.25 * r; m1 = (uy - nz) / r; m2 = (ez - ux) / r; m3 = (nx - ey) / r
+                    ir = 1.0 / r
+                    m0 = 0.25 * r; m1 = (uy - nz) * ir; m2 = (ez - ux) * ir; m3 = (nx - ey) * ir
                 elif ex >= ny and ex >= uz:
                     r = 2.0 * math.sqrt(max(1.0 + ex - ny - uz, 0.0))
-                    m0 = (uy - nz) / r; m1 = 0.25 * r; m2 = (ey + nx) / r; m3 = (ez + ux) / r
+                    ir = 1.0 / r
+                    m0 = (uy - nz) * ir; m1 = 0.25 * r; m2 = (ey + nx) * ir; m3 = (ez + ux) * ir
                 elif ny >= uz:
                     r = 2.0 * math.sqrt(max(1.0 - ex + ny - uz, 0.0))
-                    m0 = (ez - ux) / r; m1 = (ey + nx) / r; m2 = 0.25 * r; m3 = (nz + uy) / r
+                    ir = 1.0 / r
+                    m0 = (ez - ux) * ir; m1 = (ey + nx) * ir; m2 = 0.25 * r; m3 = (nz + uy) * ir
                 else:
                     r = 2.0 * math.sqrt(max(1.0 - ex - ny + uz, 0.0))
-                    m0 = (nx - ey) / r; m1 = (ez + ux) / r; m2 = (nz + uy) / r; m3 = 0.25 * r
-                tyz = mD * va / mN
-                tzz = (vm + mD * mD * va) / (mN * mN)
+                    ir = 1.0 / r
+                    m0 = (nx - ey) * ir; m1 = (ez + ux) * ir; m2 = (nz + uy) * ir; m3 = 0.25 * r
+                tyz = mD * va * imN
+                tzz = (vm + mD * mD * va) * (imN * imN)
             else:
                 # heading about the vertical that turns the predicted horizontal field north:
                 # q_h ∝ (l_h + l_y, 0, 0, l_x); q_am = q_h ⊗ q_a  (deviation 2)

@@ -118,12 +118,15 @@ export class MetaWearSensor {
     return this.info.battery;
   }
 
-  /** Write commands in order (one write each). */
+  /** Write commands in order (one write each), after every earlier write has settled.  A failed write fails
+   * its own caller only: the queue goes on past it (a refused blink must not block the next configure and
+   * start, or a reconnection's stop). */
   write(commands) {
-    this.queue = this.queue.then(async () => {
+    const run = this.queue.catch(() => {}).then(async () => {
       for (const c of commands) await this.command.writeValueWithResponse(c);
     });
-    return this.queue;
+    this.queue = run;
+    return run;
   }
 
   /** Write `command` and wait for the first notification `match(decoded)` accepts. */
@@ -157,6 +160,12 @@ export class MetaWearSensor {
     }
     const i = this.waiting.findIndex((w) => w.match(answer));
     if (i >= 0) this.waiting.splice(i, 1)[0].resolve(answer);
+  }
+
+  /** Blink the sensor's LED (protocol.blinkLed): shows the clinician which physical sensor this one is. */
+  async blink(colour = "green") {
+    if (!this.device.gatt.connected) throw new SensorError("disconnected");
+    await this.write(protocol.blinkLed(colour));
   }
 
   /** Configure the protocol's rates and ranges and start the three streams. */

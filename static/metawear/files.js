@@ -8,7 +8,7 @@
 
 import * as protocol from "./protocol.js";
 import { StreamTimeline, stampMs } from "./timeline.js";
-import { csvText, fileName } from "./csv.js";
+import { csvText, fileName, utcOffsetMin } from "./csv.js";
 
 /** {segment: {stream: {epochMs: [...], values: [[x, y, z], ...], lost, driftPpm}}} of a step's records;
  * chips: {segment: the chips of the sensor that recorded it} (their data registers differ, ./protocol.js). */
@@ -58,17 +58,19 @@ async function sha256Hex(text) {
 }
 
 /** The three files of one sensor's step, named as MetaBase names a recording's files (label, serial and the
- * recording's first stamp shared): [{name, text, sha256}]; label names role and segment
+ * recording's first stamp, in the browser's local time, shared): [{name, text, sha256}]; label names role and segment
  * (e.g. "task-thigh"), sensor = {serial, firmware}. */
 export async function filesOf(streams, label, sensor) {
   const files = [];
   const kinds = ["acc", "gyr", "mag"].filter((k) => streams[k] && streams[k].epochMs.length > 0);
   // the three names share the recording's first stamp: the ingestion groups a recording's files by it
   const startMs = Math.min(...kinds.map((k) => streams[k].epochMs[0]));
+  // local time, as MetaBase writes it: the browser's UTC offset at the recording's start, for all three files
+  const offsetMin = utcOffsetMin(startMs);
   for (const stream of kinds) {
     const s = streams[stream];
-    const text = csvText(stream, s.epochMs, s.values);
-    const name = fileName(label, startMs, sensor.serial, stream, s.rateHz, sensor.firmware || "unknown");
+    const text = csvText(stream, s.epochMs, s.values, offsetMin);
+    const name = fileName(label, startMs, sensor.serial, stream, s.rateHz, sensor.firmware || "unknown", offsetMin);
     files.push({ name, text, sha256: await sha256Hex(text) });
   }
   return files;

@@ -29,6 +29,10 @@
 //   magnetometer 0x15 (BMM150): 0x01 power, 0x02 interrupt enable, 0x03 data rate, 0x04 repetitions
 //     [(xy − 1)/2, z − 1], 0x05 data, 0x09 packed
 //   settings 0x11: 0x0c battery state, read → [charge %, voltage mV as uint16]
+//   LED 0x02 (the board's RGB LED; MbientLab's LED module description): 0x01 play ([1] play, [2] autoplay,
+//     [0] pause), 0x02 stop ([1] stop and clear the patterns, [0] stop), 0x03 pattern of one colour:
+//     [colour (0 green, 1 red, 2 blue), 0x02, high intensity, low intensity (0–31), rise ms, high ms, fall ms,
+//      pulse duration ms, delay ms (uint16 LE each; the delay from module revision 1), repeat count (0xff: forever)]
 //   Subscribing to a data register ([module, register, 1]) makes the board notify it; [module, register, 0] stops.
 //
 // Configuration (ODR and range codes from the Bosch datasheets; the board forwards the two config bytes)
@@ -53,7 +57,7 @@ export const FIRMWARE_CHAR = 0x2a26;
 export const MODEL_CHAR = 0x2a24;
 export const SERIAL_CHAR = 0x2a25;
 
-export const MODULE = Object.freeze({ ACCELEROMETER: 0x03, SETTINGS: 0x11, GYRO: 0x13, MAGNETOMETER: 0x15 });
+export const MODULE = Object.freeze({ LED: 0x02, ACCELEROMETER: 0x03, SETTINGS: 0x11, GYRO: 0x13, MAGNETOMETER: 0x15 });
 const READ = 0x80;
 const REG = Object.freeze({ POWER: 0x01, INTERRUPT: 0x02, CONFIG: 0x03, MODULE_INFO: 0x00, BATTERY: 0x0c,
   MAG_RATE: 0x03, MAG_REPETITIONS: 0x04 });
@@ -117,6 +121,35 @@ export function readModuleInfo(module) {
 /** Command that reads the battery state (answer decoded as {kind: "battery", chargePercent, voltageMv}). */
 export function readBattery() {
   return Uint8Array.of(MODULE.SETTINGS, READ | REG.BATTERY);
+}
+
+const LED_REG = Object.freeze({ PLAY: 0x01, STOP: 0x02, PATTERN: 0x03 });
+export const LED_COLOUR = Object.freeze({ green: 0, red: 1, blue: 2 });
+/** The blink that shows which physical sensor is which: full brightness 200 ms of every 500 ms, six times (3 s). */
+export const BLINK = Object.freeze({ high: 31, low: 0, riseMs: 0, highMs: 200, fallMs: 0, pulseMs: 500, delayMs: 0, repeat: 6 });
+
+/** Commands that blink the board's LED in `colour` ("green", "red", "blue") with `pattern` (BLINK's fields): clear
+ * what it had, write the pattern, play it. */
+export function blinkLed(colour = "green", pattern = BLINK) {
+  const c = pick(LED_COLOUR, colour, "LED colour");
+  const p = pattern;
+  for (const [name, max] of [["high", 31], ["low", 31], ["repeat", 255]]) {
+    if (!Number.isInteger(p[name]) || p[name] < 0 || p[name] > max) throw new ProtocolError(`LED ${name} ${p[name]} is not 0–${max}`);
+  }
+  const config = new Uint8Array(17);
+  const view = new DataView(config.buffer);
+  config.set([MODULE.LED, LED_REG.PATTERN, c, 0x02, p.high, p.low]);
+  [p.riseMs, p.highMs, p.fallMs, p.pulseMs, p.delayMs].forEach((ms, i) => {
+    if (!Number.isInteger(ms) || ms < 0 || ms > 0xffff) throw new ProtocolError(`LED time ${ms} ms is not 0–65535`);
+    view.setUint16(6 + 2 * i, ms, true);
+  });
+  config[16] = p.repeat;
+  return [stopLed(), config, Uint8Array.of(MODULE.LED, LED_REG.PLAY, 0x01)];
+}
+
+/** Command that stops the LED and clears its patterns. */
+export function stopLed() {
+  return Uint8Array.of(MODULE.LED, LED_REG.STOP, 0x01);
 }
 
 /** Commands that set rates and ranges of the three sensors (nothing streams yet).

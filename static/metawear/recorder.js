@@ -78,8 +78,14 @@ function incomplete(records, streams, config = PROTOCOL_CONFIG) {
 }
 
 export class Recorder {
-  /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer. */
-  constructor(sessionId, store, send) {
+  /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer; liveChecks: the
+   * thresholds of the live checks as the server serves them (GET /options "live_checks", ./checks.js). */
+  constructor(sessionId, store, send, liveChecks) {
+    if (!liveChecks?.stillness || !liveChecks.coverage || !liveChecks.cycles) {
+      throw Object.assign(new Error("the live checks' thresholds (GET /options live_checks) are missing"),
+        { code: "live_checks_missing" });
+    }
+    this.limits = liveChecks;
     this.sessionId = sessionId;
     this.store = store;
     this.send = send;
@@ -156,8 +162,13 @@ export class Recorder {
     this.step = role;
     this.counts = Object.fromEntries(SEGMENTS.map((s) => [s, { acc: 0, gyr: 0, mag: 0 }]));
     this.bad = Object.fromEntries(SEGMENTS.map((s) => [s, 0]));
+    // each step runs the one check it shows: coverage on the figure-eight, stillness on the postures, cycles on the task
+    const fs = PROTOCOL_CONFIG.gyrHz;
+    const posture = role === "standing" || role === "lying";
     this.checks = Object.fromEntries(SEGMENTS.map((s) => [s, {
-      coverage: new SphereCoverage(), stillness: new Stillness(100), cycles: new CycleCounter(100) }]));
+      coverage: role === "mag_calibration" ? new SphereCoverage(this.limits.coverage) : null,
+      stillness: posture ? new Stillness(fs, this.limits.stillness) : null,
+      cycles: role === "task" ? new CycleCounter(fs, this.limits.cycles) : null }]));
     if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
     this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
     // a failed write keeps its records queued and is retried at the next tick; meanwhile it is shown (live)
@@ -186,14 +197,14 @@ export class Recorder {
     const posture = this.postures[segment][this.step];
     const tilt = this.tilts?.[segment];
     for (const v of values) {
-      if (kind === "mag") c.coverage.push(v);
+      if (kind === "mag") c.coverage?.push(v);
       else if (kind === "acc") {
-        c.stillness.pushAcc(v);
+        c.stillness?.pushAcc(v);
         posture?.push(v);
         tilt?.pushAcc(v);
       } else {
-        c.stillness.pushGyr(v);
-        c.cycles.push(v);
+        c.stillness?.pushGyr(v);
+        c.cycles?.push(v);
         tilt?.pushGyr(v);
       }
     }
@@ -218,8 +229,10 @@ export class Recorder {
     if (!this.checks) return null;
     const live = Object.fromEntries(SEGMENTS.map((s) => {
       const c = this.checks[s];
-      return [s, { samples: this.counts[s], bad: this.bad[s], coverage: c.coverage.coverage(), still: c.stillness.still(),
-        stillS: c.stillness.stillSamples / 100, cycles: c.cycles.cycles,
+      // the step's own check; the others null
+      return [s, { samples: this.counts[s], bad: this.bad[s], coverage: c.coverage?.coverage() ?? null,
+        still: c.stillness?.still() ?? null, stillS: c.stillness?.stillSeconds() ?? null,
+        stillNeedS: c.stillness?.windowS ?? null, cycles: c.cycles?.cycles ?? null,
         state: this.sensors[s]?.state, battery: this.sensors[s]?.info.battery }];
     }));
     return { ...live, bufferError: this.bufferError ? String(this.bufferError.message || this.bufferError) : null };

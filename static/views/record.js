@@ -1,10 +1,12 @@
 // Recording mode: the protocol recorded straight from two MetaMotion sensors over Web Bluetooth
 // (#/sessions/3/record), instead of exporting files from the vendor's app and dropping them in the wizard.
 //
-// 1 Sensors: connect two (the browser's chooser), each shown with firmware, battery and state; identify
+// 1 Sensors: connect two (the browser's chooser), each shown with firmware, battery and state and a button that
+//   blinks its LED (which physical sensor is which); identify
 //   which is on the thigh (the clinician moves the thigh: static/metawear/recorder.js), or swap by hand.
 // 2 Steps: the protocol's four recordings, each from both sensors at once, with its live check (figure-eight:
-//   sphere cells reached; postures: still or moving and the seconds still; task: cycles counted, approximate,
+//   sphere cells reached of those the pipeline needs; postures: still or moving, the seconds still and the still
+//   window the pipeline needs; task: cycles counted, approximate; thresholds served by GET /options live_checks;
 //   and the knee flexion preview, static/metawear/preview.js, once both postures were recorded in this visit),
 //   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
@@ -21,11 +23,13 @@ import { api, upload } from "../api.js";
 import { h, append, clear, alertBox, errorText, label, num } from "../dom.js";
 import { t } from "../i18n.js";
 import { canEdit } from "../app.js";
+import { options } from "../options.js";
 import { pickSensor, MetaWearSensor, bluetoothErrorCode } from "../metawear/device.js";
 import { PacketStore } from "../metawear/store.js";
 import { Recorder, STEPS, SEGMENTS, fileLabel } from "../metawear/recorder.js";
+import { CELL_COUNT } from "../metawear/checks.js";
 
-const REFRESH_MS = 100;   // the live figures and the flexion preview
+const REFRESH_MS = 100;   // the live figures (the flexion preview follows every animation frame: previewFrame)
 
 async function send(sessionId, segment, role, files) {
   // files already stored with the same content (an earlier attempt answered after all) are not sent again
@@ -44,26 +48,35 @@ async function send(sessionId, segment, role, files) {
   return { recordings };
 }
 
-function sensorCard(sensor, segment) {
+function sensorCard(sensor, segment, fail) {
   const i = sensor.info;
+  // the sensor's LED blinks: which physical sensor this card is (before strapping it, or to check the assignment)
+  const blink = h("button", { type: "button", class: "secondary blink", disabled: sensor.state !== "connected"
+    && sensor.state !== "streaming" }, t("record.blink"));
+  blink.addEventListener("click", () => sensor.blink().catch(fail));
   return h("li", { class: "card sensor", "data-segment": segment || null },
     h("h3", {}, segment ? `${label("segment", segment)} — ${i.name}` : i.name),
     h("p", {}, t("record.sensor_line", { serial: i.serial || "—", firmware: i.firmware || "—",
       battery: i.battery ? num(i.battery.chargePercent, 0) : "—" })),
-    h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)));
+    h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)), blink);
+}
+
+// the flexion preview's text (the live list's line and previewFrame's every-frame update)
+function previewText(flexion) {
+  return t("record.preview", { deg: flexion === null ? "—" : num(flexion, 0) });
 }
 
 function liveLine(role, live, flexion) {
-  const preview = role === "task" ? h("li", { class: "preview" }, t("record.preview", {
-    deg: flexion === null ? "—" : num(flexion, 0) })) : null;
+  const preview = role === "task" ? h("li", { class: "preview" }, previewText(flexion)) : null;
   const stored = live.bufferError ? h("li", { class: "buffer-error" }, t("record.buffer_error")) : null;
   return [preview, stored, ...SEGMENTS.map((s) => {
     const l = live[s];
     const samples = t("record.samples", { acc: l.samples.acc, gyr: l.samples.gyr, mag: l.samples.mag });
     let check = "";
-    if (role === "mag_calibration") check = t("record.coverage", { cells: l.coverage.cells });
-    else if (role === "task") check = t("record.cycles", { n: l.cycles });
-    else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0) });
+    if (role === "mag_calibration") {
+      check = t("record.coverage", { cells: l.coverage.cells, total: CELL_COUNT, need: l.coverage.need });
+    } else if (role === "task") check = t("record.cycles", { n: l.cycles });
+    else check = t(l.still ? "record.still" : "record.moving", { s: num(l.stillS, 0), need: num(l.stillNeedS, 0) });
     const bad = l.bad ? h("span", { class: "bad-packets" }, ` · ${t("record.bad_packets", { n: l.bad })}`) : "";
     return h("li", { "data-segment": s }, `${label("segment", s)}: `, h("span", { class: "check" }, check),
       ` · ${samples}`, bad, ` · ${t(`record.state.${l.state}`)}`);
@@ -73,6 +86,7 @@ function liveLine(role, live, flexion) {
 export function recordView(sessionId) {
   const section = h("section", { class: "view record" });
   const message = h("div", { class: "form-message", "aria-live": "polite" });
+  const optionsMessage = h("div", { class: "options-message", "aria-live": "polite" });   // until the recorder exists
   const sensorsList = h("ul", { class: "sensors" });
   const identifyArea = h("div", { class: "identify" });
   const stepsList = h("ol", { class: "record-steps" });
@@ -80,7 +94,7 @@ export function recordView(sessionId) {
   const state = { sensors: [], recorder: null, store: null, status: {}, active: null, busy: false };
   for (const role of STEPS) state.status[role] = "todo";
 
-  section.append(h("h1", {}, t("record.title")), h("p", { class: "lead" }, t("record.lead")), message);
+  section.append(h("h1", {}, t("record.title")), h("p", { class: "lead" }, t("record.lead")), optionsMessage, message);
   if (!canEdit()) {
     section.append(alertBox(t("record.read_only"), "info"));
     return section;
@@ -123,8 +137,10 @@ export function recordView(sessionId) {
   });
 
   const identifyButton = h("button", { type: "button", class: "identify" }, t("record.identify"));
+  let identifying = false;
   identifyButton.addEventListener("click", async () => {
     clear(message).append(alertBox(t("record.move_thigh"), "info"));
+    identifying = true;
     identifyButton.disabled = true;
     try {
       const [thigh, shank] = await state.recorder.identify(...state.sensors);
@@ -134,7 +150,7 @@ export function recordView(sessionId) {
     } catch (err) {
       fail(err);
     }
-    identifyButton.disabled = false;
+    identifying = false;
     draw();
   });
 
@@ -227,7 +243,7 @@ export function recordView(sessionId) {
       buttons.push(h("button", { type: "button", class: "stop", onclick: () => finish(role, () => state.recorder.stop()) },
         t("record.stop")));
     } else if (status === "unsent") {
-      buttons.push(h("button", { type: "button", class: "retry", disabled: state.busy,
+      buttons.push(h("button", { type: "button", class: "retry", disabled: state.busy || !state.recorder,
         onclick: () => finish(role, () => state.recorder.upload(role)) }, t("record.retry")));
     }
     if (status !== "recording" && status !== "uploading") {
@@ -251,13 +267,14 @@ export function recordView(sessionId) {
     state.drawn = true;
     const attached = state.recorder ? SEGMENTS.map((s) => state.recorder.sensors[s]).filter(Boolean) : [];
     clear(sensorsList).append(...(attached.length === 2
-      ? SEGMENTS.map((s) => sensorCard(state.recorder.sensors[s], s))
-      : state.sensors.map((s) => sensorCard(s, null))));
+      ? SEGMENTS.map((s) => sensorCard(state.recorder.sensors[s], s, fail))
+      : state.sensors.map((s) => sensorCard(s, null, fail))));
     connectButton.disabled = state.sensors.length >= 2;
     const connected = state.sensors.length === 2 && state.sensors.every((s) => s.state === "connected");
     clear(identifyArea).append(...(attached.length < 2 ? [identifyButton] : []),
       ...(attached.length === 2 && !state.active ? [swapButton] : []));
     identifyButton.hidden = !connected;
+    identifyButton.disabled = !state.recorder || identifying;
     clear(stepsList).append(...STEPS.map(stepItem));
     clear(done).append(STEPS.every((r) => state.status[r] === "stored")
       ? h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button" }, t("record.to_wizard")) : "");
@@ -283,23 +300,53 @@ export function recordView(sessionId) {
       if (item) append(clear(item), liveLine(state.active, state.recorder.live(), state.recorder.flexion()));
     }
   }, REFRESH_MS);
+  // the flexion preview's text, every animation frame in which it changed: it shows the newest samples one frame
+  // after they arrive instead of waiting up to REFRESH_MS (benchmarks/preview_lag.py measures it)
+  const previewFrame = () => {
+    if (!section.isConnected) return;
+    if (state.active === "task") {
+      const li = stepsList.querySelector('[data-role="task"] ul.live li.preview');
+      const text = previewText(state.recorder.flexion());
+      if (li && li.textContent !== text) li.textContent = text;
+    }
+    requestAnimationFrame(previewFrame);
+  };
+  requestAnimationFrame(previewFrame);
 
   section.append(
     h("div", { class: "card" }, h("h2", {}, t("record.sensors_title")), sensorsList,
       h("div", { class: "actions" }, connectButton), identifyArea),
     h("div", {}, h("h2", {}, t("record.steps_title")), stepsList), done);
 
+  // the recorder needs the live checks' thresholds, the server's (app/choices.py live_checks: the pipeline's own);
+  // without them nothing can be recorded or uploaded: said, with a button that asks the server again
+  async function makeRecorder(again = false) {
+    try {
+      const served = await options(again);
+      state.recorder = new Recorder(sessionId, state.store,
+        (segment, role, files) => send(sessionId, segment, role, files), served.live_checks);
+      clear(optionsMessage);
+    } catch (err) {
+      const again = h("button", { type: "button", class: "secondary options-retry" }, t("record.options_retry"));
+      again.addEventListener("click", () => { again.disabled = true; makeRecorder(true); });
+      const key = err && err.code === "live_checks_missing" ? "record.error.live_checks_missing" : "record.error.options";
+      clear(optionsMessage).append(alertBox(t(key)), again);
+    }
+    draw();
+  }
+
   PacketStore.open().then(async (store) => {
     state.store = store;
-    state.recorder = new Recorder(sessionId, store, (segment, role, files) => send(sessionId, segment, role, files));
-    // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified)
-    for (const role of await store.steps(sessionId)) state.status[role] = "unsent";
-    const session = await api("GET", `/sessions/${sessionId}`);
+    // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified),
+    // listed whether or not the options can be read
+    const [buffered, session] = await Promise.all([store.steps(sessionId), api("GET", `/sessions/${sessionId}`)]);
+    for (const role of buffered) state.status[role] = "unsent";
     for (const role of STEPS) {
       const stored = (session.recordings || []).filter((r) => r.role === role && SEGMENTS.includes(r.segment));
       if (state.status[role] === "todo" && stored.length >= 2 * 3) state.status[role] = "stored";
     }
     draw();
+    await makeRecorder();
   }).catch(fail);
   draw();
   return section;

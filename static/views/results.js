@@ -11,7 +11,7 @@
 import { api, apiUrl } from "../api.js";
 import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
 import { t, lang, LANGUAGES } from "../i18n.js";
-import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
+import { ANGLES, drawCurve, loadPlotly, preloadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate, canEdit } from "../app.js";
 import { cyclesSection, technicalNotes } from "./cycles.js";
@@ -111,20 +111,34 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     interpretationSection(session, analysis),
     pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id, r));
+    sceneSection(session.id, analysis.id, r, () => drawCharts()));
 
-  ANGLES.forEach((a, i) => {
-    const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
-    drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
-  });
-  ANGLES.forEach((a, i) => {
-    if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
-  });
+  // The charts wait for the 3D view's first frames, at most CHARTS_WAIT_MS: the page and viser's client (a
+  // same-origin frame) share one main thread, where plotly's start (its 3.5 MB script run, then three charts) sat
+  // between the client's start and its first frame (issue 17 §4: python -m benchmarks.scene_first_frame).  The
+  // script is fetched meanwhile (preloadPlotly), so the wait costs the charts its run only.
+  let drawn = false;
+  const drawCharts = () => {
+    if (drawn || !section.isConnected) return;
+    drawn = true;
+    ANGLES.forEach((a, i) => {
+      const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
+      drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
+    });
+    ANGLES.forEach((a, i) => {
+      if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+    });
+  };
+  preloadPlotly();
+  setTimeout(drawCharts, CHARTS_WAIT_MS);
   const observer = new MutationObserver(() => {
     if (!section.isConnected) { charts.forEach(purge); kneeCharts.forEach(purge); observer.disconnect(); }
   });
   observer.observe(document.getElementById("main"), { childList: true });
 }
+
+/** The longest the charts wait for the 3D view's first frames (a loaded machine, a scene that does not load). */
+const CHARTS_WAIT_MS = 2000;
 
 const SIDE_COLOURS = { left: "#1f4e79", right: "#d66e16" };
 

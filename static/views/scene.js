@@ -53,8 +53,18 @@ function seek(frame, seconds) {
   return true;
 }
 
-/** The 3D card of analysis `analysisId` of session `sessionId` (`r`: its results.json, for the cycles). */
-export function sceneSection(sessionId, analysisId, r) {
+/** Call `then` after the client in `frame` has drawn `n` more frames (its own requestAnimationFrame; a frame out of
+ * view may draw none, so the caller keeps a time limit of its own). */
+function afterFrames(frame, n, then) {
+  let win = null;
+  try { win = frame.contentWindow; } catch (_) { /* not same-origin */ }
+  if (!win || n <= 0) { then(); return; }
+  win.requestAnimationFrame(() => afterFrames(frame, n - 1, then));
+}
+
+/** The 3D card of analysis `analysisId` of session `sessionId` (`r`: its results.json, for the cycles); `onShown`
+ * (optional) is called once, when the recording plays and the client has drawn two frames since, or when it failed. */
+export function sceneSection(sessionId, analysisId, r, onShown = () => {}) {
   const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
   const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
   // eager (no loading=lazy): the page grew (the cycles and pairing cards), which put the frame beyond Chromium's
@@ -82,11 +92,13 @@ export function sceneSection(sessionId, analysisId, r) {
       loading.remove();
       jump.disabled = false;
       box.dataset.ready = "true";
+      afterFrames(frame, 2, onShown);
     } else if (Date.now() - started > READY_TIMEOUT_MS) {
       clearInterval(ready);
       loading.textContent = t("scene.failed");
       loading.classList.add("error");
       box.dataset.ready = "failed";
+      onShown();
     }
   }, 100);
   return h("section", { class: "card scene", "aria-labelledby": "h-scene" },

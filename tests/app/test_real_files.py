@@ -6,7 +6,10 @@ Truth: the data's READMEs.  The three MetaBase exports are one sensor each, of n
 days (2019, 2020 and 2021; the 2019 and 2020 ones by one sensor, MAC F1E55E2FE95F, renamed "Werable1" by its
 user): as a session each is refused for its missing second sensor, and any two of them for sharing no time.
 The iez walks are raw int16 counts without a header (an MPU-6050 logger's own layout, no format ChakaMo reads):
-refused, naming the file as not of a format ChakaMo reads.  Each MetaBase recording itself is read
+refused, naming the file as not of a format ChakaMo reads.  The BROAD trials are HDF5 files of the dataset's own
+layout (``imu_acc``, ``opt_quat``…, no ``/Sensors``): refused by the command line as HDF5 that is not an APDM Opal
+recording, naming what they hold (they were asked to be "exported again from Mobility Lab", as an old APDM file
+would be); the web upload takes no HDF5 file at all (415, ``request.file_type``, naming the file).  Each MetaBase recording itself is read
 (acc, gyro 100 Hz, magnetometer 20 Hz, the MAC from its name)."""
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import pytest
 from app.pipeline.ingestion import read_recording
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
-META, IEZ = DATA / "metabase", DATA / "iez"
+META, IEZ, BROAD = DATA / "metabase", DATA / "iez", DATA / "broad"
 pytestmark = pytest.mark.skipif(not (META.is_dir() and IEZ.is_dir()), reason="../shared/data is absent")
 
 
@@ -59,6 +62,8 @@ def _cases() -> list[tuple[str, list[Path], dict | None, str, str]]:
     cases.append(("metabase-all", sorted(META.glob("*.csv")), None, "session.no_sensor", ""))
     for p in sorted(IEZ.glob("*.csv")):
         cases.append((p.stem, [p], None, "session.no_recordings", p.name))
+    for p in sorted(BROAD.glob("*.hdf5")):   # one IMU and optical truth in BROAD's own HDF5 layout, not APDM's
+        cases.append((p.stem, [p], None, "opal.not_apdm", p.name))
     return cases
 
 
@@ -77,7 +82,7 @@ def _folder(tmp_path: Path, files: list[Path], manifest: dict | None) -> Path:
 
 def test_every_real_file_is_in_a_case():
     covered = {p.name for _, files, _, _, _ in CASES for p in files}
-    assert covered == {p.name for p in [*META.glob("*.csv"), *IEZ.glob("*.csv")]}
+    assert covered == {p.name for p in [*META.glob("*.csv"), *IEZ.glob("*.csv"), *BROAD.glob("*.hdf5")]}
 
 
 @pytest.mark.parametrize("k", sorted(_recordings()) if META.is_dir() else [])
@@ -97,7 +102,8 @@ def test_the_command_line_refuses_it_for_the_right_reason(tmp_path, name, files,
     assert run.returncode != 0 and not (tmp_path / "out" / "results.json").exists()
     error = run.stderr.strip().splitlines()[-1]
     key = {"session.no_sensor": "no se encontró ningún sensor", "session.one_sensor": "solo se encontró el sensor",
-           "align.no_overlap_pair": "se solapan solo", "session.no_recordings": "no se encontró ninguna grabación"}
+           "align.no_overlap_pair": "se solapan solo", "session.no_recordings": "no se encontró ninguna grabación",
+           "opal.not_apdm": "un archivo HDF5 que no es una grabación de APDM Opal"}
     assert key[code] in error and names in error, error
 
 
@@ -112,12 +118,17 @@ def test_the_api_refuses_it_for_the_right_reason(tmp_path, name, files, manifest
 
     settings = make_settings(tmp_path / "data")
     h = clinic_token(settings, "Real")
-    upload = [("files", (p.name, p.read_bytes(), "text/csv")) for p in files]
+    upload = [("files", (p.name, p.read_bytes(), "text/csv" if p.suffix == ".csv" else "application/x-hdf5"))
+              for p in files]
     if manifest is not None:
         upload.append(("files", ("session.json", json.dumps(manifest).encode(), "application/json")))
     with TestClient(create_app(settings)) as c:
         _, sid = new_session(c, h)
         r = c.post(f"/api/v1/sessions/{sid}/recordings", headers=h, files=upload)
+        if code == "opal.not_apdm":   # the web upload takes no HDF5 at all (APDM's .h5 is read by the command line)
+            assert r.status_code == 415 and r.json()["code"] == "request.file_type", r.text
+            assert all(names in text and ".hdf5" in text for text in r.json()["message"].values())
+            return
         assert r.status_code == 201, r.text
         ingestion = c.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
         stored = c.get(f"/api/v1/sessions/{sid}", headers=h).json()["recordings"]

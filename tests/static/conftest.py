@@ -23,10 +23,8 @@ def _serve(route):
     return route.fulfill(body=file.read_bytes(), content_type=mimetypes.guess_type(file.name)[0] or "text/javascript")
 
 
-@pytest.fixture
-def static_page(browser):
-    """A blank page of the ``localhost`` origin whose scripts ``import('/metawear/…')``; uncaught errors fail."""
-    context = browser.new_context()
+def _page(browser, **context_options):
+    context = browser.new_context(**context_options)
     context.route(f"{ORIGIN}/**", _serve)
     page = context.new_page()
     errors: list[str] = []
@@ -35,3 +33,15 @@ def static_page(browser):
     yield page
     context.close()
     assert not errors, f"JavaScript errors: {errors}"
+
+
+@pytest.fixture
+def static_page(browser):
+    """A blank page of the ``localhost`` origin whose scripts ``import('/metawear/…')``; uncaught errors fail."""
+    yield from _page(browser)
+
+
+@pytest.fixture
+def zoned_page(browser, request):
+    """:func:`static_page` in the time zone ``request.param`` (an IANA name: the browser's local time)."""
+    yield from _page(browser, timezone_id=request.param)

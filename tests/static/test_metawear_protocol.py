@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from estimators.physics import STANDARD_GRAVITY_M_S2
-from metawear_frames import LSB, board_units, counts, sensor_notifications
+from metawear_frames import LED_PLAY, LED_STOP_AND_CLEAR, LSB, board_units, counts, led_pattern, sensor_notifications
 
 IMPORT = "const p = await import('/metawear/protocol.js');"
 
@@ -150,3 +150,43 @@ def test_bluetooth_errors_are_said_in_three_languages(static_page):
     for lang in ("es", "en", "pt"):
         table = json.loads((static / f"{lang}.json").read_text(encoding="utf-8"))
         assert all(table.get(f"record.error.{code}") for code in out["table"].values()), lang
+
+
+def test_the_led_blink_commands(static_page):
+    """The blink that tells the sensors apart: stop and clear, the pattern of one colour (full brightness 200 ms of
+    every 500 ms, six times), play; the twin's bytes from the same public description.  Bad input is refused."""
+    out = static_page.evaluate(f"""async () => {{ {IMPORT}
+        const hex = (cs) => cs.map((c) => Array.from(c, (b) => b.toString(16).padStart(2, '0')).join(''));
+        const refused = (f) => {{ try {{ f(); return null; }} catch (e) {{ return e.message; }} }};
+        return {{green: hex(p.blinkLed()), red: hex(p.blinkLed('red')), stop: hex([p.stopLed()]),
+                 slow: hex(p.blinkLed('blue', {{...p.BLINK, highMs: 1000, pulseMs: 2000, repeat: 255}})),
+                 colour: refused(() => p.blinkLed('purple')), bright: refused(() => p.blinkLed('green', {{...p.BLINK, high: 32}})),
+                 long: refused(() => p.blinkLed('green', {{...p.BLINK, pulseMs: 70000}}))}}; }}""")
+    blink = led_pattern("green", 31, 0, 0, 200, 0, 500, 0, 6)
+    assert out["green"] == _hex([LED_STOP_AND_CLEAR, blink, LED_PLAY])
+    # module, register, colour, 0x02 | high, low | rise, high, fall, pulse, delay (ms, uint16 LE) | repeat
+    assert blink.hex() == "02030002" "1f00" "0000" "c800" "0000" "f401" "0000" "06"
+    assert out["red"][1] == led_pattern("red", 31, 0, 0, 200, 0, 500, 0, 6).hex()
+    assert out["slow"][1] == led_pattern("blue", 31, 0, 0, 1000, 0, 2000, 0, 255).hex()
+    assert out["stop"] == [LED_STOP_AND_CLEAR.hex()]
+    assert "purple" in out["colour"] and "32" in out["bright"] and "70000" in out["long"]
+
+
+def test_a_failed_write_does_not_block_the_later_ones(static_page):
+    """One write the board refuses (a blink while the link is busy) fails for its caller only: the next writes on
+    that sensor (configure and start, a reconnection's stop) still go out, in order.  The GATT characteristic is
+    the browser's boundary, played here by an object whose first write rejects as Web Bluetooth's do."""
+    out = static_page.evaluate("""async () => { const d = await import('/metawear/device.js');
+        const device = { name: 'MetaWear', id: 'x', addEventListener() {}, gatt: { connected: true } };
+        const sensor = new d.MetaWearSensor(device);
+        const written = [];
+        let calls = 0;
+        sensor.command = { async writeValueWithResponse(c) {
+            calls += 1;
+            if (calls === 1) throw new DOMException('GATT operation failed', 'NetworkError');
+            written.push(Array.from(c)); } };
+        const first = await sensor.write([new Uint8Array([1])]).then(() => 'ok', (e) => e.name);
+        const second = await sensor.write([new Uint8Array([2]), new Uint8Array([3])]).then(() => 'ok', (e) => e.name);
+        const third = await sensor.write([new Uint8Array([4])]).then(() => 'ok', (e) => e.name);
+        return { first, second, third, written }; }""")
+    assert out == {"first": "NetworkError", "second": "ok", "third": "ok", "written": [[2], [3], [4]]}

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from app.choices import live_checks
 from app.pipeline.ingestion.metabase import file_name, write_metabase_csv, write_recording_metabase
 from app.pipeline.ingestion.units import unit_factor
 from metawear_frames import LSB, counts, notifications
@@ -57,6 +58,49 @@ def test_a_stream_is_the_file_metabase_writes(static_page, session, tmp_path, ki
                                [kind, epoch_ms.tolist(), board.tolist(), rate])
     assert out["text"] == path.read_text(encoding="utf-8")
     assert out["name"] == file_name("task-thigh", int(epoch_ms[0]), "D4F1A2B3C4E5", kind, rate, firmware="1.7.3")
+
+
+#: time zones of the browser, with their UTC offset in November 2026 (h) and the local day of the simulated
+#: session's start (2026-11-22 10:00 UTC, app.pipeline.demo.EPOCH0_S) there
+ZONES = [("Pacific/Kiritimati", 14.0, "2026-11-23"), ("America/St_Johns", -3.5, "2026-11-22"),
+         ("Pacific/Pago_Pago", -11.0, "2026-11-21"), ("UTC", 0.0, "2026-11-22")]
+
+
+@pytest.mark.parametrize("zoned_page, offset_h, local_day", ZONES, indirect=["zoned_page"])
+def test_files_carry_the_browsers_local_time_as_metabase_does(zoned_page, session, tmp_path, offset_h, local_day):
+    """files.js writes a step's three files with the browser's local time in their names and time column (MetaBase
+    writes the phone's): the files the project's writer makes at that UTC offset, and the server's reader dates
+    the recording by that local day (the report's "recordings' date")."""
+    from app.pipeline.ingestion import read_recording
+
+    streams = session.recordings[("thigh", "standing")]
+    rates = {"acc": 100.0, "gyr": 100.0, "mag": 20.0}
+    board = {"acc": "g", "gyr": "deg/s", "mag": "uT"}
+    ms = {k: np.round(t[:300] * 1e3).astype(np.int64) for k, (t, _) in streams.items()}
+    si = {k: (ms[k] / 1e3, counts(k, v[:300]) / LSB[k] * unit_factor(k, board[k])) for k, (_, v) in streams.items()}
+    # the floats the Python writer formats, handed to files.js in the board's units (µT for the magnetometer)
+    quantised = {k: v / unit_factor(k, FILE_UNIT[k]) * (1e6 if k == "mag" else 1) for k, (_, v) in si.items()}
+    files = zoned_page.evaluate("""async ([ms, values, rates]) => { const f = await import('/metawear/files.js');
+        const streams = {};
+        for (const k of ['acc', 'gyr', 'mag']) streams[k] = {epochMs: ms[k], values: values[k], rateHz: rates[k]};
+        return f.filesOf(streams, 'standing-thigh', {serial: 'D4F1A2B3C4E5', firmware: '1.7.3'}); }""",
+                                [{k: m.tolist() for k, m in ms.items()}, {k: v.tolist() for k, v in quantised.items()}, rates])
+    (tmp_path / "py").mkdir()
+    expected = write_recording_metabase(tmp_path / "py", "standing-thigh", "D4F1A2B3C4E5", si, firmware="1.7.3",
+                                        utc_offset_h=offset_h)
+    assert sorted(f["name"] for f in files) == sorted(p.name for p in expected)
+    for p in expected:
+        browser = next(f for f in files if f["name"] == p.name)
+        assert browser["text"] == p.read_text(encoding="utf-8"), p.name
+    assert all(f["name"].split("_")[2].startswith(local_day) for f in files)
+    folder = tmp_path / "browser"
+    folder.mkdir()
+    for f in files:
+        (folder / f["name"]).write_text(f["text"], encoding="utf-8")
+    raw = read_recording(sorted(folder.iterdir()))
+    assert raw.extras["started"].value[:10] == local_day
+    # the epoch column stays UTC whatever the zone: the samples' times are the same instants
+    np.testing.assert_array_equal(np.round(raw.acc.t_s * 1e3).astype(np.int64), ms["acc"])
 
 
 def _arrivals(rng, n: int) -> np.ndarray:
@@ -238,7 +282,7 @@ def test_an_incomplete_step_is_not_uploaded(static_page, session, missing):
                 frames = frames[:int(len(frames) * (1 - missing[2]))]
             records += [{"segment": segment, "stream": kind, "run": 0, "arrivalMs": f.arrival_s * 1e3 + 5.0,
                          "bytes": list(f.payload)} for f in frames]
-    out = static_page.evaluate("""async (records) => {
+    out = static_page.evaluate("""async ([records, limits]) => {
         const s = await import('/metawear/store.js');
         const { Recorder } = await import('/metawear/recorder.js');
         const db = await s.PacketStore.open('chakamo-incomplete');
@@ -249,13 +293,39 @@ def test_an_incomplete_step_is_not_uploaded(static_page, session, missing):
         const send = async (segment, role, files) => {
             sent.push(segment);
             return {recordings: files.map((f, id) => ({id, file_name: f.name, sha256: f.sha256}))}; };
-        const rec = new Recorder(9, db, send);
+        const rec = new Recorder(9, db, send, limits);
         rec.sensors = {thigh: {info: {serial: 'D4F1A2B3C4E5', firmware: '1.7.3'}},
                        shank: {info: {serial: 'C1D2E3F4A5B6', firmware: '1.7.3'}}};
         let code = null;
         try { await rec.upload('lying'); } catch (e) { code = e.code; }
-        return {code, sent, left: (await db.step(9, 'lying')).length}; }""", records)
+        return {code, sent, left: (await db.step(9, 'lying')).length}; }""", [records, live_checks()])
     if missing is None:
         assert out == {"code": None, "sent": ["thigh", "shank"], "left": 0}
     else:
         assert out == {"code": "incomplete", "sent": [], "left": len(records)}
+
+
+@pytest.mark.parametrize("zoned_page", ["Europe/Madrid"], indirect=True)
+def test_a_recording_across_a_daylight_saving_change_keeps_its_starts_offset(zoned_page, tmp_path):
+    """Madrid leaves summer time (UTC+2) for UTC+1 at 2026-10-25 01:00 UTC: a stream recorded from 00:59:58 to
+    01:00:02 UTC is named and written at its start's +02:00 for every row (the project's writer at that offset),
+    while its epoch column stays UTC; what the browser itself says after the change is +01:00."""
+    from app.pipeline.ingestion.metabase import write_metabase_csv
+
+    change_ms = 1792890000000                      # 2026-10-25T01:00:00Z
+    ms = [change_ms - 2000, change_ms - 1000, change_ms, change_ms + 1000, change_ms + 2000]
+    values = [[0.0, 0.0, 1.0]] * len(ms)
+    out = zoned_page.evaluate("""async ([ms, values]) => { const c = await import('/metawear/csv.js');
+        return { text: c.csvText('acc', ms, values), name: c.fileName('standing-thigh', ms[0], 'D4F1A2B3C4E5', 'acc',
+                 100, '1.7.3'), before: c.utcOffsetMin(ms[0]), after: c.utcOffsetMin(ms[4]) }; }""", [ms, values])
+    assert (out["before"], out["after"]) == (120, 60)
+    lines = out["text"].splitlines()
+    assert lines[0].startswith("epoch (ms),time (+02:00),")
+    assert [r.split(",")[1] for r in lines[1:]] == ["2026-10-25T02:59:58.000", "2026-10-25T02:59:59.000",
+                                                      "2026-10-25T03:00:00.000", "2026-10-25T03:00:01.000",
+                                                      "2026-10-25T03:00:02.000"]
+    assert [int(r.split(",")[0]) for r in lines[1:]] == ms
+    assert out["name"] == "standing-thigh_MetaWear_2026-10-25T02.59.58.000_D4F1A2B3C4E5_Accelerometer_100.000Hz_1.7.3.csv"
+    python = write_metabase_csv(tmp_path / "a.csv", "acc", np.asarray(ms), np.asarray(values) * 9.80665,
+                                utc_offset_h=2.0).read_text(encoding="utf-8")
+    assert out["text"] == python

@@ -11,8 +11,7 @@ File names ``{calibracion-sensor|standing|laydown|step}-{muslo|pierna}-{ID}-{ddm
 The time base is elapsed seconds (no epoch): the two sensors' recordings are assumed to start together.
 A workbook with several sheets: the one sheet whose header has this layout is used (and the choice is
 noted); none or several such sheets is refused.  The cells are read by :mod:`.xlsx_cells` (the sheet XML
-matched by regular expressions, openpyxl's values: ~0.1 s of CPU for a 10-cycle session's eight workbooks where
-openpyxl took 1.6 s); ``openpyxl`` reads the shared strings and writes the test workbooks.
+matched by regular expressions, the data rows by numpy over the bytes: :mod:`.xlsx_scan`; openpyxl's values); ``openpyxl`` reads the shared strings and writes the test workbooks.
 
 Size caps (issue 16, finding 4: a 70 kB crafted workbook unpacked to 18 MB of identical rows and cost
 10–30 s of CPU; the cost of reading grows with rows and cells, about 0.1 ms a row measured here).  An .xlsx
@@ -198,6 +197,38 @@ def open_workbook(path: str | os.PathLike) -> Workbook:
         wb.close()
         raise IngestionError("xlsx.cannot_open", file=path, reason=f"{type(exc).__name__}: {exc}"[:200]) from None
     return wb
+
+
+class OneWorkbook:
+    """The ``.xlsx`` files of one recording, opened (:func:`open_workbook`: the caps) one at a time: called with a
+    path, the workbook of that path, open; opening another closes the one before (its sheets' XML, up to
+    :data:`MAX_SHEET_MB`, is dropped with it), so a phyphox set of several workbooks holds one in memory, and the
+    sniff and the reader of the same file share one opening.  ``None`` for a path that is not an ``.xlsx``.
+    :meth:`close` (or a ``with`` block) closes the last one."""
+
+    def __init__(self) -> None:
+        self._path: Path | None = None
+        self._wb: Workbook | None = None
+
+    def __call__(self, path: Path) -> Workbook | None:
+        path = Path(path)
+        if path.suffix.lower() != ".xlsx":
+            return None
+        if path != self._path:
+            self.close()
+            self._wb, self._path = open_workbook(path), path
+        return self._wb
+
+    def close(self) -> None:
+        if self._wb is not None:
+            self._wb.close()
+        self._wb = self._path = None
+
+    def __enter__(self) -> OneWorkbook:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None,

@@ -236,6 +236,19 @@ CATALOGUE: dict[str, dict[str, str]] = {
               "desde Mobility Lab / Motion Studio.",
         "pt": "{file}: não pode ser aberto como ficheiro HDF5 ({reason}); copie-o de novo ou exporte-o de novo do "
               "Mobility Lab / Motion Studio."},
+    "opal.not_apdm": {
+        "en": "{file}: an HDF5 file that is not an APDM Opal recording (no /Sensors group; it holds {datasets}). "
+              "ChakaMo reads HDF5 only as Mobility Lab / Motion Studio export it: write the recording's "
+              "accelerometer, gyroscope and magnetometer as a generic CSV (a header with units, e.g. acc_x (m/s^2)) "
+              "and upload that.",
+        "es": "{file}: un archivo HDF5 que no es una grabación de APDM Opal (sin grupo /Sensors; contiene "
+              "{datasets}). ChakaMo lee HDF5 solo como lo exportan Mobility Lab / Motion Studio: escriba el "
+              "acelerómetro, el giroscopio y el magnetómetro de la grabación como un CSV genérico (una cabecera con "
+              "unidades, p. ej. acc_x (m/s^2)) y súbalo.",
+        "pt": "{file}: um ficheiro HDF5 que não é uma gravação APDM Opal (sem grupo /Sensors; contém {datasets}). "
+              "O ChakaMo lê HDF5 apenas como o Mobility Lab / Motion Studio o exportam: escreva o acelerómetro, o "
+              "giroscópio e o magnetómetro da gravação como um CSV genérico (um cabeçalho com unidades, p. ex. "
+              "acc_x (m/s^2)) e envie-o."},
     "opal.not_v5": {
         "en": "{file}: not an APDM file of format version 5 (no /Sensors group); export it again from Mobility "
               "Lab / Motion Studio in the current HDF5 format.",

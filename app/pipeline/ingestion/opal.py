@@ -54,12 +54,24 @@ def _open(path: Path):
         raise IngestionError("opal.cannot_open", file=path, reason=str(exc)[:160]) from None
 
 
+def _check_apdm(path: Path, f) -> None:
+    """Refuse an HDF5 file without ``/Sensors``: an older APDM file (it carries ``FileFormatVersion``) is asked to
+    be exported again; any other HDF5 file (e.g. a dataset's own layout, like BROAD's ``imu_acc``…) is named as
+    not an APDM recording, with what it holds."""
+    if "Sensors" in f:
+        return
+    if "FileFormatVersion" in f.attrs:
+        raise IngestionError("opal.not_v5", file=path)
+    names = sorted(f.keys())
+    held = ", ".join(names[:8]) + (", …" if len(names) > 8 else "") if names else "-"
+    raise IngestionError("opal.not_apdm", file=path, datasets=held)
+
+
 def list_sensors(path: str | os.PathLike) -> dict[str, str]:
     """``{sensor id: label}`` of an APDM file (label ``""`` when the file gives none)."""
     path = Path(path)
     with _open(path) as f:
-        if "Sensors" not in f:
-            raise IngestionError("opal.not_v5", file=path)
+        _check_apdm(path, f)
         out = {}
         for sid in f["Sensors"]:
             conf = f["Sensors"][sid].get("Configuration")

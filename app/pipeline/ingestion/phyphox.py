@@ -30,8 +30,9 @@ here (:mod:`.units`); Android's and iOS's phyphox both give the specific force w
 Size caps (the thesis workbook's, issue 16 finding 4, and a zip bomb's).  An ``.xlsx`` is opened by
 :func:`.excel.open_workbook` (the same caps, one definition) before its sheets are parsed (:mod:`.xlsx_cells`,
 the thesis reader's cell reader), in the sniff too: a refusal there is the refusal the thesis reader would give,
-raised once.  :func:`.session.read_recording` opens a workbook once and hands it to the sniff and to the reader
-(phyphox's or the thesis'), so its sheets are checked and decompressed once.  Rows are
+raised once.  :func:`.session.read_recording` opens the workbooks one at a time (:class:`.excel.OneWorkbook`) and hands each to
+the sniff and to the reader (phyphox's or the thesis'): a single workbook's sheets are checked and decompressed
+once, and a set of several holds one in memory at a time.  Rows are
 read up to :data:`.excel.MAX_ROWS` and :data:`MAX_COLUMNS` columns.  A zip member is refused when its declared
 size passes :data:`MAX_MEMBER_MB`, the members read when they pass :data:`MAX_ZIP_MB` in all, the archive when
 it lists more than :data:`MAX_MEMBERS` entries; a member is read in pieces that stop at its cap, so a declared
@@ -320,22 +321,22 @@ def _streams_of(path: Path, where: str, header: list[str], table: np.ndarray) ->
     return out
 
 
-def read_phyphox(paths: Sequence[str | os.PathLike], workbooks: dict[Path, Workbook] | None = None
+def read_phyphox(paths: Sequence[str | os.PathLike], workbooks: excel.OneWorkbook | None = None
                  ) -> tuple[Stream, Stream, Stream, str | None]:
     """Read one recording from phyphox exports (one file with the three sensors, or one file per sensor)
     → ``(acc m/s², gyr rad/s, mag µT, the phone's id or None)`` (module docstring).
 
-    ``workbooks``: the ``.xlsx`` files among ``paths`` already open (:func:`.excel.open_workbook`), by path.
+    ``workbooks``: the opener of the ``.xlsx`` files among ``paths`` (:class:`.excel.OneWorkbook`: one open at a
+    time, the one the sniff left open read without opening it again), else each is opened and closed here.
     The phone's id is the ``meta/device.csv`` unique-id row of the zips (:func:`_device_id`), when every file is
     a zip and all give the same one."""
     paths = [Path(p) for p in paths]
-    workbooks = workbooks or {}
     notes: list = []
     found: dict[str, tuple] = {}
     offsets = []
     ids = []
     for p in paths:
-        tables, offset, device = _tables(p, notes, workbooks.get(p))
+        tables, offset, device = _tables(p, notes, workbooks(p) if workbooks is not None else None)
         offsets.append(offset)
         ids.append(device)
         for where, header, table in tables:

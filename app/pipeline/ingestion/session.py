@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from app.pipeline.ingestion.align import align_pair, align_recording, check_rates
-from app.pipeline.ingestion.excel import open_workbook, read_thesis_xlsx
+from app.pipeline.ingestion.excel import OneWorkbook, read_thesis_xlsx
 from app.pipeline.ingestion.generic import read_generic_csv
 from app.pipeline.ingestion.labels import (AmbiguousLabel, LOW_STEP_M, parse_thesis_name, recognise_role, recognise_segment, recognise_side,
                                   recognise_step_height)
@@ -55,7 +55,6 @@ from app.pipeline.ingestion.sensorlogger import looks_like_sensorlogger, read_se
 from app.pipeline.ingestion.shimmer import looks_like_shimmer, read_shimmer
 from app.pipeline.ingestion.units import check_gyro_unit
 from app.pipeline.ingestion.xsens import looks_like_xsens, read_xsens
-from app.pipeline.ingestion.xlsx_cells import Workbook
 
 MANIFEST = "session.json"
 #: keys of session.json; from ``name`` on they are only shown in the reports' patient block and identity line,
@@ -95,16 +94,7 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
             raise IngestionError("file.not_found", file=p)
     notes: tuple[str, ...] = ()
     sensor_id = None
-    books: dict[Path, Workbook] = {}
-
-    def book(p: Path) -> Workbook | None:
-        """An ``.xlsx`` opened once (:func:`.excel.open_workbook`: the caps) for the phyphox sniff and the reader."""
-        if p.suffix.lower() != ".xlsx":
-            return None
-        if p not in books:
-            books[p] = open_workbook(p)
-        return books[p]
-
+    book = OneWorkbook()   # the .xlsx files, one open at a time, shared by the phyphox sniff and the reader
     try:
         if all(parse_file_name(p) for p in paths):
             groups = group_metabase_files(paths)
@@ -130,7 +120,7 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
                 facts["firmware"] = Recognition(name["firmware"], "MetaBase file name", name["firmware"])
         elif all(p.suffix.lower() in (".csv", ".txt", ".zip", ".xlsx") for p in paths) \
                 and all(looks_like_phyphox(p, book(p)) for p in paths):
-            acc, gyr, mag, sensor_id = read_phyphox(paths, books)
+            acc, gyr, mag, sensor_id = read_phyphox(paths, book)
             stems = [p.stem for p in paths]
             label = os.path.commonprefix(stems).strip(" _-") if len(stems) > 1 else stems[0]
             label, fmt, method = label or stems[0], "phyphox", "file name"
@@ -158,8 +148,7 @@ def read_recording(files: Sequence[str | os.PathLike], *, sheet: str | None = No
         else:
             raise IngestionError("recording.bad_file_set", file=paths[0], files=", ".join(p.name for p in paths))
     finally:
-        for wb in books.values():
-            wb.close()
+        book.close()
     found = {}
     for name, finder in (("role", recognise_role), ("segment", recognise_segment), ("side", recognise_side),
                          ("step", recognise_step_height)):

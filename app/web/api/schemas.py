@@ -175,6 +175,40 @@ class TaskOptionOut(OptionOut):
     phases: list[str]
 
 
+class StillnessChecksOut(BaseModel):
+    """The postures' live stillness check: the pipeline's still window (s) and its limits on the window's total SD
+    (ddof 1) of the gyroscope (rad/s) and the accelerometer (m/s²) (estimators.knee)."""
+
+    window_s: float
+    max_gyr_sd_rad_s: float
+    max_acc_sd_m_s2: float
+
+
+class CoverageChecksOut(BaseModel):
+    """The figure-eight's live sphere coverage: samples a direction cell needs, the share of the 20 cells below
+    which the pipeline warns (estimators.magnetometer), the live-only least field from the hard-iron estimate (µT)."""
+
+    min_cell_samples: int
+    complete_fraction: float
+    min_field_ut: float
+
+
+class CycleChecksOut(BaseModel):
+    """The task's live cycle count (live-only): averaging window (s), rise and fall thresholds (rad/s)."""
+
+    average_s: float
+    rise_rad_s: float
+    fall_rad_s: float
+
+
+class LiveChecksOut(BaseModel):
+    """The recording page's live checks' thresholds (:func:`app.choices.live_checks`)."""
+
+    stillness: StillnessChecksOut
+    coverage: CoverageChecksOut
+    cycles: CycleChecksOut
+
+
 class OptionsOut(BaseModel):
     """``GET /options``: every option list (:mod:`app.choices`)."""
 
@@ -194,6 +228,8 @@ class OptionsOut(BaseModel):
     measure_ranges: dict[str, dict[str, float]]
     roles: list[str]
     token_max_days: int
+    #: the recording page's live checks' thresholds (app.choices.live_checks)
+    live_checks: LiveChecksOut
 
 
 class ClinicOut(BaseModel):

@@ -3,7 +3,8 @@ at 768 px the header and the ROM table were cut and the page scrolled sideways; 
 overflowed at 1280 px).
 
 For each page — login, patients, a patient with sessions, the wizard's three steps, the results of a processed
-session, the account, and the three admin pages — the checks are facts of the drawn page:
+session, the account, the three admin pages, the Bluetooth recording page and the not-found page — the checks are
+facts of the drawn page:
 
 * ``document.documentElement.scrollWidth <= innerWidth`` (no sideways scroll);
 * the full-page screenshot is exactly the viewport's width (Chromium widens it to the scroll width) and is not
@@ -11,6 +12,9 @@ session, the account, and the three admin pages — the checks are facts of the 
 * nothing of the header (brand, menu, user, language), no button of the sessions table, no cell or button of the
   ROM, users and tokens tables lies outside the viewport or outside its card (bounding boxes); the tokens table
   is drawn with a token in it (the fixture creates one).
+
+The HTML report (``report.html`` in the page's language) and the API's ``/docs`` (Swagger UI) are checked for the first
+only: no sideways scroll.
 """
 
 from __future__ import annotations
@@ -80,11 +84,13 @@ def _pages(pid: int, sid: int):
         ("wizard-1", f"#/sessions/{sid}/wizard", "ol.steps li:nth-child(1) button", ".sensor"),
         ("wizard-2", f"#/sessions/{sid}/wizard", "ol.steps li:nth-child(2) button", ".ingestion-box"),
         ("wizard-3", f"#/sessions/{sid}/wizard", "ol.steps li:nth-child(3) button", "form.process-form"),
-        ("results", f"#/sessions/{sid}", None, "#rom-table"),
+        ("results", f"#/sessions/{sid}", None, "#curve-flexion .main-svg"),   # the charts drawn (after the 3D view)
         ("account", "#/account", None, "#session-list li"),
         ("admin-users", "#/admin/users", None, "#users-table"),
         ("admin-tokens", "#/admin/tokens", None, "#tokens-table td"),
         ("admin-audit", "#/admin/audit", None, "#audit-table"),
+        ("record", f"#/sessions/{sid}/record", None, "section.record h1"),
+        ("not-found", "#/no-such-page", None, "section.view h1"),
     ]
 
 
@@ -132,6 +138,15 @@ def test_every_page_fits_768_and_1280(browser, server, processed, slow_expect, l
                 expect(page.locator(ready).first).to_be_visible()
                 page.wait_for_timeout(300)   # charts and late cards settle
                 _check_drawn(page, width, f"{name} @ {width} ({locale})")
+            # the pages outside the app's frame: the HTML report (in the page's language) and the API's /docs
+            lang = locale[:2]
+            for name, url, ready in (("report.html", f"/api/v1/sessions/{sid}/report.html?lang={lang}", "#quality"),
+                                     ("docs", "/docs", ".opblock")):
+                page.goto(f"{server}{url}")
+                expect(page.locator(ready).first).to_be_visible()
+                page.wait_for_timeout(300)
+                scroll = page.evaluate("() => [document.documentElement.scrollWidth, innerWidth]")
+                assert scroll[0] <= scroll[1], f"{name} @ {width} ({locale}): scrolls sideways ({scroll[0]} > {scroll[1]} px)"
         assert errors == []
     finally:
         context.close()

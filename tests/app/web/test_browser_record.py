@@ -10,7 +10,7 @@ this test's page only).  The streams are a simulated session (:func:`app.pipelin
 by the protocol's Python twin (``metawear_frames.py``).
 
 The clinician's path, with a MetaMotion R (BMI160) on the thigh and a MetaMotion S (BMI270) on the shank:
-connect the two sensors through the browser's chooser (battery and firmware shown)
+connect the two sensors through the browser's chooser (battery and firmware shown; one blinks its LED when asked)
 → "which is the thigh sensor?": the sensor connected SECOND is moved (so the page must reorder them) → the four
 steps, each started, streamed (the shank loses 1 % of its task notifications, and its link drops for 5 s in
 the middle of the task: the page reconnects, re-configures and goes on), stopped and uploaded; each step is
@@ -34,11 +34,12 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
 
-from metawear_frames import LSB, counts, sensor_notifications
+from metawear_frames import LED_PLAY, LED_STOP_AND_CLEAR, LSB, counts, led_pattern, sensor_notifications
 from metawear_peripherals import STAND_IN, Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
@@ -51,11 +52,22 @@ CHUNK_S = 1.0          # simulated seconds of packets delivered per call
 BLACKOUT_S = 5.0
 #: the boards: the thigh's a MetaMotion R (BMI160), the shank's a MetaMotion S (BMI270, other data registers)
 CHIP = {"thigh": "BMI160", "shank": "BMI270"}
+#: the browser's time zone (UTC+14 all year, no daylight saving) and the local day of the simulated session there
+TIMEZONE, UTC_OFFSET_H, LOCAL_DAY = "Pacific/Kiritimati", 14.0, "2026-11-23"
+#: the still window GET /options is made to serve in this test (the pipeline's is 5 s)
+SERVED_WINDOW_S = 4.0
+#: what GET /options really serves as live_checks: the pipeline's still window and limits as its docstrings state them
+#: (estimators.knee: 5 s, 0.05 rad/s, 0.3 m/s²), its 3 samples per cell and warning below 75 % of the 20 cells
+#: (estimators.magnetometer), and the live-only values of app/choices.py (15 µT; 0.3 s, 60 °/s, 20 °/s)
+SERVED_REAL = {"stillness": {"window_s": 5.0, "max_gyr_sd_rad_s": 0.05, "max_acc_sd_m_s2": 0.3},
+               "coverage": {"min_cell_samples": 3, "complete_fraction": 0.75, "min_field_ut": 15.0},
+               "cycles": {"average_s": 0.3, "rise_rad_s": pytest.approx(np.pi / 3), "fall_rad_s": pytest.approx(np.pi / 9)}}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def bt_browser(browser):
-    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not)."""
+    """A second Chromium of the same Playwright, with Web Bluetooth exposed (the shared one has not); one per test:
+    its Bluetooth emulation can be enabled only once."""
     chromium = shutil.which("chromium")
     b = browser.browser_type.launch(executable_path=chromium, headless=True, args=list(ARGS))
     try:
@@ -176,23 +188,48 @@ def _process(context, base, sid) -> dict:
     return r.json()
 
 
-def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
-    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
-
-    expect = slow_expect
-    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000})
+@contextmanager
+def _logged_in(bt_browser, base, expect, **context_options):
+    """A context of the Bluetooth Chromium (the notification stand-in installed), logged in on the patients' page:
+    (context, page); closed at the end, and any JavaScript error of the page fails the test."""
+    context = bt_browser.new_context(locale="en-US", viewport={"width": 1280, "height": 1000}, **context_options)
     context.set_default_timeout(WAIT_MS)
     context.add_init_script(STAND_IN)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     try:
-        log_in(page, server)
+        log_in(page, base)
         expect(page.get_by_role("heading", level=1)).to_have_text("Patients")
+        yield context, page
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
+    from app.pipeline.ingestion.metabase import read_metabase_csv, write_metabase_csv, write_recording_metabase
+
+    expect = slow_expect
+    # the browser 14 h east of Greenwich: the simulated session (2026-11-22 from 10:00 UTC) is recorded on the
+    # 23rd there, the day MetaBase would name its files with and the report must print as the recordings' date
+    with _logged_in(bt_browser, server, expect, timezone_id=TIMEZONE) as (context, page):
         sid = _api_session(context, server, "BLE-001", "right")
         bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
         shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B6", "MetaWear-S1", battery_percent=64, chip=CHIP["shank"]))
         thigh = bench.add(Peripheral("D4:F1:A2:B3:C4:E5", "MetaWear-S2", firmware="1.5.0", chip=CHIP["thigh"]))
+        # the live checks take their thresholds from GET /options (app.choices.live_checks): served with another
+        # still window here, the page must say that one (the real answer holds the pipeline's 5 s)
+        served = {}
+
+        def options(route):
+            answer = route.fetch()
+            body = answer.json()
+            served["real"] = answer.json()["live_checks"]      # parsed again: the server's, untouched
+            body["live_checks"]["stillness"]["window_s"] = SERVED_WINDOW_S
+            route.fulfill(json=body)
+
+        context.route("**/api/v1/options", options)
         page.goto(f"{server}/#/sessions/{sid}/record")
         expect(page.get_by_role("heading", level=1)).to_have_text("Record with the sensors")
 
@@ -206,6 +243,13 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         expect(cards.nth(0)).to_contain_text("battery 64 %")
         expect(cards.nth(1)).to_contain_text("firmware 1.5.0")
         expect(page.get_by_role("button", name="Connect a sensor")).to_be_disabled()
+        # which physical sensor is which: its card's button blinks that board's LED (the emulated board gets the
+        # LED module's commands: stop and clear, the pattern, play), and only that board's
+        before = (len(shank.commands), len(thigh.commands))
+        cards.nth(0).get_by_role("button", name="Blink its light").click()
+        blink = [LED_STOP_AND_CLEAR, led_pattern("green", 31, 0, 0, 200, 0, 500, 0, 6), LED_PLAY]
+        bench.wait(lambda: shank.commands[before[0]:] == blink, "the shank's LED blinking")
+        assert len(thigh.commands) == before[1]
 
         # --- the thigh is the sensor that moves (connected second: the page must reorder)
         page.get_by_role("button", name="Which is the thigh sensor?").click()
@@ -279,6 +323,13 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             expect(step.locator("ul.live")).to_contain_text(
                 {"mag_calibration": "regions of directions", "standing": "still", "lying": "still",
                  "task": "cycles counted"}[role])
+            if role in ("standing", "lying"):
+                # the served still window, not a number of the page's own
+                expect(step.locator("ul.live li[data-segment=thigh] .check")).to_contain_text(
+                    f"{SERVED_WINDOW_S:.0f} s in a row needed")
+                assert served["real"] == SERVED_REAL
+            if role == "mag_calibration":
+                expect(step.locator("ul.live li[data-segment=thigh] .check")).to_contain_text("(15 needed)")
             # every packet of both boards understood (none counted as bad)
             assert step.locator(".bad-packets").count() == 0, step.locator("ul.live").inner_text()
             if role == "task":
@@ -341,7 +392,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 (tmp_path / name).write_bytes(data)
                 stream = read_metabase_csv(tmp_path / name)
                 rewritten = write_metabase_csv(again / name, stream.kind, np.round(stream.t_s * 1e3).astype(np.int64),
-                                               stream.values).read_bytes()
+                                               stream.values, utc_offset_h=UTC_OFFSET_H).read_bytes()
                 assert rewritten == data, name                     # the browser wrote the writer's file
 
         # --- the truth as files: the simulator's samples (quantised as the boards send them, on the simulator's
@@ -363,6 +414,11 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
 
         recorded = _process(context, server, sid)
         uploaded = _process(context, server, sid2)
+        # the browser named its files with its local time, as MetaBase does: the recordings' date is the local day
+        # (the truth files, written at UTC+0, give the UTC day: 2026-11-22)
+        assert recorded["session"]["recorded"] == {"first": LOCAL_DAY, "last": LOCAL_DAY, "zone": None}, (
+            recorded["session"]["recorded"])
+        assert uploaded["session"]["recorded"]["first"] == "2026-11-22"
         # the recorded session against the simulator's own samples: its stamps are rebuilt from arrival times
         # (within 12 ms of the true clock, tests/static/test_metawear_recording.py) and it lacks the shank's 5 s
         # gap and 1 % of its task packets, so: the cycles of the gap missing (at most two), and the mean flexion
@@ -379,6 +435,59 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                               for a, b in truth.cycles_s])
         assert abs(recorded["rom_deg"]["flexion"]["range"]["mean"] - true_range) < 5.0, (
             recorded["rom_deg"]["flexion"]["range"], true_range)
-    finally:
-        context.close()
-    assert not errors, f"JavaScript errors: {errors}"
+
+
+def test_the_page_says_when_the_options_cannot_be_read(bt_browser, server, slow_expect):  # noqa: F811
+    """GET /options failing (or answering without live_checks): the takes buffered by an earlier visit are still
+    listed, the page says why nothing can be recorded (translated) and offers to ask again; "Which is the thigh
+    sensor?" and "Upload again" stay disabled until the recorder exists; asked again with the server answering,
+    recording is possible."""
+    expect = slow_expect
+    with _logged_in(bt_browser, server, expect) as (context, page):
+        sid = _api_session(context, server, "BLE-003", "right")
+        # a take of the lying step left in this browser's buffer by an earlier visit, never acknowledged
+        assert page.evaluate("""async (sid) => { const s = await import('/static/metawear/store.js');
+            const db = await s.PacketStore.open();
+            db.add({ session: sid, step: 'lying', segment: 'thigh', stream: 'acc', run: 0, arrivalMs: 1,
+                     bytes: new Uint8Array([3, 4, 1, 2, 3, 4, 5, 6]).buffer });
+            await db.flush(); return db.steps(sid); }""", sid) == ["lying"]
+        answer = {"mode": "fail"}
+
+        def options(route):
+            if answer["mode"] == "fail":
+                return route.fulfill(status=503, content_type="application/json", body='{"detail": "busy"}')
+            body = route.fetch().json()
+            if answer["mode"] == "without":
+                del body["live_checks"]
+            return route.fulfill(json=body)
+
+        context.route("**/api/v1/options", options)
+        page.goto(f"{server}/#/sessions/{sid}/record")
+        expect(page.get_by_role("heading", level=1)).to_have_text("Record with the sensors")
+        alert = page.locator(".options-message [role=alert]")
+        expect(alert).to_have_text("The recording settings could not be read from the server, so nothing can be "
+                                   "recorded or uploaded yet. Check the connection and try again.")
+        lying = page.locator("li.record-step[data-role=lying]")
+        expect(lying).to_have_attribute("data-status", "unsent")
+        expect(lying.get_by_role("button", name="Upload again")).to_be_disabled()
+
+        bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
+        for k, address in enumerate(("C1:D2:E3:F4:A5:B6", "D4:F1:A2:B3:C4:E5"), start=1):
+            bench.add(Peripheral(address, f"MetaWear-{k}"))
+            bench.choose = address
+            page.get_by_role("button", name="Connect a sensor").click()
+            bench.wait(lambda k=k: page.locator(".sensor-state[data-state=connected]").count() == k, f"sensor {k}")
+        identify = page.get_by_role("button", name="Which is the thigh sensor?")
+        expect(identify).to_be_visible()
+        expect(identify).to_be_disabled()
+
+        answer["mode"] = "without"
+        page.get_by_role("button", name="Try again").click()
+        expect(alert).to_contain_text("lacks the live checks' thresholds")
+        expect(identify).to_be_disabled()
+
+        answer["mode"] = "real"
+        page.get_by_role("button", name="Try again").click()
+        expect(alert).to_have_count(0)
+        expect(identify).to_be_enabled()
+        expect(lying.get_by_role("button", name="Upload again")).to_be_enabled()

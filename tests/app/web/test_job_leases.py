@@ -129,6 +129,8 @@ def test_run_job_says_busy_or_finished_for_a_job_it_cannot_claim(settings, stopp
 
 def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings, world):
     from app.jobs.reprocess import reprocess
+    from app.pipeline.service_messages import render_item
+    from app.store.errors import NotFound
 
     client, h, session_id = world
     job = wait_job(client, client.post(f"/api/v1/sessions/{session_id}/process", json={"filter": "guo"},
@@ -138,10 +140,11 @@ def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings
 
     outcomes, summary = reprocess(settings, filter_name="guo", since=since)
     assert [(o.session_id, o.status) for o in outcomes] == [(session_id, "current")], outcomes
-    assert summary == "no job queued"
+    assert summary == {"code": "jobs.reprocess_none", "params": {}}
 
     outcomes, summary = reprocess(settings, filter_name="madgwick", since=since, clinic="Leases")
-    assert [o.status for o in outcomes] == ["queued"] and "chakamo serve" in summary
+    assert [o.status for o in outcomes] == ["queued"] and "chakamo serve" in render_item(summary)
+    assert "`chakamo serve` em execução" in render_item(summary, "pt")
     job = wait_job(client, outcomes[0].job_id, h, timeout_s=120)  # found by the server's sweeper
     assert job["status"] == "done" and job["filter"] == "madgwick", job
 
@@ -151,9 +154,15 @@ def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings
     assert [o.status for o in forced] == ["queued"]
     busy, _ = reprocess(settings, filter_name="valenti_cf", since=since, force=True)
     assert [o.status for o in busy] == ["busy"]  # one job per session at a time
+    # the note says it in every language (it was English only): the API's own refusal of a busy session
+    assert busy[0].note["code"] == "store.busy"
+    assert "está a ser processada" in render_item(busy[0].note, "pt") and "processe-a de novo" in \
+        render_item(busy[0].note, "pt")
+    assert "se está procesando" in render_item(busy[0].note, "es")
     assert reprocess(settings, filter_name="guo", since=dt.date.today() + dt.timedelta(days=1))[0] == []
-    with pytest.raises(ValueError, match="no clinic named"):
+    with pytest.raises(NotFound) as unknown:
         reprocess(settings, filter_name="guo", since=since, clinic="Nowhere")
+    assert unknown.value.code == "store.clinic_unknown" and "'Leases'" in str(unknown.value)
     with pytest.raises(ValueError, match="unknown filter"):
         reprocess(settings, filter_name="kalman9000", since=since)
 
@@ -171,6 +180,14 @@ def test_cli_reprocess_and_worker_messages(settings, world, monkeypatch, capsys)
         assert main(["reprocess", "--filter", "guo", "--since", "2000-01-01"]) == 0
         out = capsys.readouterr().out
         assert "LEASE-1" in out and "queued" in out and out.strip().splitlines()[-1].startswith("1 sessions: 1 queued")
+        # --lang: the table, its notes and the hand-over in that language (the job queued just now is busy, or done)
+        assert main(["reprocess", "--filter", "guo", "--since", "2000-01-01", "--lang", "pt"]) == 0
+        out = capsys.readouterr().out
+        assert ("ocupada" in out or "em dia" in out) and out.strip().splitlines()[-1].startswith("1 sessões: ")
+        assert ("está a ser processada" in out or "análise" in out) and "nenhuma tarefa em fila" in out
+        assert main(["reprocess", "--filter", "guo", "--since", "2000-01-01", "--clinic", "Nowhere",
+                     "--lang", "es"]) == 2
+        assert "no hay ninguna clínica llamada 'Nowhere'" in capsys.readouterr().err
         assert main(["worker"]) == 2  # the embedded engine needs no worker: one sentence says what to set
         assert "CHAKAMO_JOB_BACKEND=celery" in capsys.readouterr().err
         with pytest.raises(SystemExit):

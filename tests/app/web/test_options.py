@@ -4,6 +4,7 @@ and the estimator registries."""
 from __future__ import annotations
 
 import argparse
+import math
 
 import pytest
 
@@ -30,7 +31,8 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     assert r.status_code == 200, r.text
     body = r.json()
     assert set(body) == {"filters", "tasks", "languages", "calibrations", "angle_conventions", "headings", "sides",
-                         "sexes", "token_scopes", "audit_actions", "measure_ranges", "roles", "token_max_days"}
+                         "sexes", "token_scopes", "audit_actions", "measure_ranges", "roles", "token_max_days",
+                         "live_checks"}
     from app.web.audit import ACTIONS
 
     # one definition each (app.choices), which the patient form and the admin pages read from here
@@ -38,6 +40,16 @@ def test_options_need_a_caller_and_list_every_option_once(client, settings):
     assert body["roles"] == list(choices.USER_ROLE_NAMES) and body["token_max_days"] == choices.TOKEN_MAX_DAYS
 
     assert body["sexes"] == list(choices.SEX_NAMES)
+    # the recording page's live checks read their thresholds from here: the pipeline's still window and limits as
+    # its docstrings state them (estimators.knee: 5 s, 0.05 rad/s, 0.3 m/s²), its 3 samples in each of the 20
+    # direction cells and its warning below 75 % of them (estimators.magnetometer), and the live-only values
+    # (app/choices.py: 15 µT; 0.3 s, 60 °/s, 20 °/s)
+    live = body["live_checks"]
+    assert live["stillness"] == {"window_s": 5.0, "max_gyr_sd_rad_s": 0.05, "max_acc_sd_m_s2": 0.3}
+    assert live["coverage"] == {"min_cell_samples": 3, "complete_fraction": 0.75, "min_field_ut": 15.0}
+    assert type(live["coverage"]["min_cell_samples"]) is int                  # a count, not 3.0
+    assert live["cycles"] == {"average_s": 0.3, "rise_rad_s": pytest.approx(math.pi / 3),
+                              "fall_rad_s": pytest.approx(math.pi / 9)}
     assert body["token_scopes"] == list(choices.TOKEN_SCOPES) and body["audit_actions"] == list(ACTIONS)
     for key in choices.OPTION_LISTS:
         items = body[key]
@@ -143,3 +155,18 @@ def test_the_calibration_and_angle_convention_chosen_reach_the_results(client, s
     assert results["angle_method"] == "thesis_zyx"
     methods = {seg: c["method"] for seg, c in results["calibration"]["segment"].items()}
     assert methods and all("functional" in m for m in methods.values()), methods
+
+
+def test_the_live_checks_schema_names_every_threshold(client):
+    """The OpenAPI document lists live_checks' keys and types (a model, not a free dict of floats): the cell count
+    is an integer."""
+    doc = client.get("/openapi.json").json()
+    schemas = doc["components"]["schemas"]
+    ref = schemas["OptionsOut"]["properties"]["live_checks"]["$ref"].rsplit("/", 1)[-1]
+    parts = {k: schemas[v["$ref"].rsplit("/", 1)[-1]]["properties"] for k, v in schemas[ref]["properties"].items()}
+    assert {k: set(v) for k, v in parts.items()} == {
+        "stillness": {"window_s", "max_gyr_sd_rad_s", "max_acc_sd_m_s2"},
+        "coverage": {"min_cell_samples", "complete_fraction", "min_field_ut"},
+        "cycles": {"average_s", "rise_rad_s", "fall_rad_s"}}
+    assert parts["coverage"]["min_cell_samples"]["type"] == "integer"
+    assert parts["stillness"]["window_s"]["type"] == "number"

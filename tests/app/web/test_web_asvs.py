@@ -30,6 +30,9 @@ PUBLIC = {
     ("GET", "/readyz"): "readiness probe: database and broker reachable, no data",
     ("GET", "/"): "the single-page UI shell (static HTML, no data)",
     ("GET", "/vendor/plotly.min.js"): "a static library",
+    ("GET", "/viser/"): "viser's client page (unpacked from the installed package, no data)",
+    ("GET", "/viser/index.html"): "viser's client page (unpacked from the installed package, no data)",
+    ("GET", "/viser/{name}"): "viser's client files (unpacked from the installed package, no data)",
     ("GET", "/docs"): "the API documentation page",
     ("GET", "/openapi.json"): "the API description (no data)",
 }

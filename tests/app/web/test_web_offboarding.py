@@ -260,3 +260,52 @@ def test_chakamo_tokens_speaks_the_language_of_lang(settings, cli_env, capsys, l
                       (["tokens", "create", "--clinic", CLINIC, "--scope", "everything"], "scope")):
         assert main([*argv, "--lang", lang]) == 2
         assert words[key] in capsys.readouterr().err, argv
+
+
+@pytest.mark.parametrize("lang, words", [
+    ("es", {"clinic": "clínica 'Clínica Este' creada", "exists": "ya existe una clínica llamada",
+            "empty": "el nombre de la clínica está vacío", "user": "usuario ana@clinic.test (clinician) creado en",
+            "taken": "ya tiene una cuenta en", "email": "no es una dirección de correo",
+            "short": "La contraseña debe tener al menos", "off": "desactivado: inicios de sesión rechazados",
+            "changed": "contraseña de ana@clinic.test cambiada", "unknown": "no hay ningún usuario con el correo",
+            "differ": "las dos contraseñas no coinciden", "prompt": "Contraseña (al menos"}),
+    ("pt", {"clinic": "clínica 'Clínica Este' criada", "exists": "já existe uma clínica chamada",
+            "empty": "o nome da clínica está vazio", "user": "utilizador ana@clinic.test (clinician) criado em",
+            "taken": "já tem uma conta em", "email": "não é um endereço de e-mail",
+            "short": "A palavra-passe deve ter pelo menos", "off": "desativado: inícios de sessão recusados",
+            "changed": "palavra-passe de ana@clinic.test alterada", "unknown": "não há nenhum utilizador com o e-mail",
+            "differ": "as duas palavras-passe não coincidem", "prompt": "Palavra-passe (pelo menos"}),
+])
+def test_chakamo_clinics_and_users_speak_the_language_of_lang(settings, cli_env, capsys, monkeypatch, lang, words):
+    """``chakamo clinics create`` and ``chakamo users create|deactivate|set-password --lang es|pt``: what they
+    print, their prompts and their refusals (their own and the password rules') in that language (they were
+    English whatever the clinic's language, and had no ``--lang``)."""
+    import getpass
+    import io
+
+    from app.cli.main import main
+
+    def said(argv, code=0, stdin=None):
+        if stdin is not None:
+            monkeypatch.setattr("sys.stdin", io.StringIO(stdin))
+        assert main([*argv, "--lang", lang]) == code, argv
+        out = capsys.readouterr()
+        return out.out if code == 0 else out.err
+
+    assert words["clinic"] in said(["clinics", "create", CLINIC])
+    assert words["exists"] in said(["clinics", "create", CLINIC], 2)
+    assert words["empty"] in said(["clinics", "create", "  "], 2)
+    new_user = ["users", "create", "--clinic", CLINIC, "--email", EMAIL, "--role", "clinician", "--password-stdin"]
+    assert words["short"] in said(new_user, 2, "short\n")
+    assert words["user"] in said(new_user, 0, PASSWORD + "\n")
+    assert words["taken"] in said(new_user, 2, PASSWORD + "\n")
+    assert words["email"] in said([*new_user[:4], "--email", "ana", *new_user[6:]], 2, PASSWORD + "\n")
+    prompts = []
+    answers = iter([NEW_PASSWORD, NEW_PASSWORD + "x"])
+    monkeypatch.setattr(getpass, "getpass", lambda prompt="": prompts.append(prompt) or next(answers))
+    assert words["differ"] in said(["users", "set-password", "--email", EMAIL], 2)
+    assert words["prompt"] in prompts[0]
+    assert words["changed"] in said(["users", "set-password", "--email", EMAIL, "--password-stdin"], 0,
+                                    NEW_PASSWORD + "\n")
+    assert words["off"] in said(["users", "deactivate", "--email", EMAIL])
+    assert words["unknown"] in said(["users", "deactivate", "--email", "nobody@clinic.test"], 2)

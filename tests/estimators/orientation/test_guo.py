@@ -144,6 +144,23 @@ def test_converges_from_a_wrong_start_at_rest(wrong_deg, within_s):
     assert inclination_deg(q6[-1], q_true) < 2.0
 
 
+@pytest.mark.parametrize("moving", [False, True], ids=["at-rest", "in-motion"])
+def test_converges_from_any_wrong_start(moving):
+    """Twelve random wrong starts of 20–175° about random axes, at rest and while turning (up to 2 rad/s).
+
+    Every start is within 2° of the truth after 3 s (measured worst 0.9°).  When the dip reference came from the
+    wrong prior instead of the data's m_D (deviation 10), the dip test read the correct field as a disturbance
+    for the reference's 10 s: worst 27° after 3 s with the TRIAD measurement, 136° with the decoupled heading
+    (deviation 2), the default then."""
+    rng = np.random.default_rng(11 + moving)
+    for case in range(12):
+        q_start = quat.normalize(rng.normal(size=4))
+        q_true, acc, gyr, mag = rotating_body(300, q0=q_start, rest_s=0.0 if moving else 10.0, noise=True, seed=case)
+        q0 = quat.multiply(quat.from_axis_angle(rng.normal(size=3), np.radians(rng.uniform(20.0, 175.0))), q_true[0])
+        q = Guo().estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q0).orientation_
+        assert np.degrees(quat.angle_between(q[-1], q_true[-1])) < 2.0, case
+
+
 def test_6d_variant_tracks_inclination_and_keeps_heading():
     q_true, acc, gyr, _ = rotating_body(1500, noise=True, seed=1)
     method = Guo()

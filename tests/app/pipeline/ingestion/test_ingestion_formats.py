@@ -189,6 +189,31 @@ def test_apdm_file_not_hdf5_is_refused(tmp_path):
     assert exc.value.code == "opal.cannot_open" and p.name in exc.value.message("pt")
 
 
+def test_an_hdf5_file_of_another_layout_is_not_called_an_old_apdm_file(tmp_path):
+    """An HDF5 file of a dataset's own layout (BROAD's ``imu_acc``, ``imu_gyr``… in ``../shared/data/broad``) was
+    refused as an APDM file of an older version, to be "exported again from Mobility Lab"; it is named as HDF5 that
+    is not an APDM recording, with what it holds.  An APDM file without ``/Sensors`` (its ``FileFormatVersion``
+    says it is APDM's) is still asked to be exported again."""
+    import h5py
+
+    other, old = tmp_path / "trial.hdf5", tmp_path / "old.h5"
+    with h5py.File(other, "w") as f:
+        f["imu_acc"] = np.zeros((4, 3))
+        f["opt_quat"] = np.zeros((4, 4))
+    with h5py.File(old, "w") as f:
+        f.attrs["FileFormatVersion"] = 3
+        f["Data"] = np.zeros(3)
+    for path, code in ((other, "opal.not_apdm"), (old, "opal.not_v5")):
+        with pytest.raises(IngestionError) as exc:
+            read_recording([path])
+        assert exc.value.code == code
+    with pytest.raises(IngestionError) as exc:
+        read_recording([other])
+    for lang in ("es", "en", "pt"):
+        text = exc.value.message(lang)
+        assert "trial.hdf5" in text and "imu_acc, opt_quat" in text and "Mobility Lab" in text and "CSV" in text
+
+
 @pytest.mark.parametrize("platform,total", [("android", True), ("android", False), ("ios", False)])
 def test_sensor_logger_zips_give_specific_force(tmp_path, sim_session, platform, total):
     """TotalAcceleration, or Accelerometer (no gravity) + Gravity; iPhone's default frames negated back."""

@@ -112,3 +112,44 @@ def test_session_json_lists_the_exports(tmp_path, streams):
         {"files": ["a-muslo.zip"], "role": "task"}, {"files": ["a-pierna.zip"], "role": "task"}]}))
     session = load_session(tmp_path)
     assert sorted(session.recordings) == [("shank", "task"), ("thigh", "task")]
+
+
+def test_a_set_of_workbooks_is_read_one_workbook_at_a_time(tmp_path, streams, monkeypatch):
+    """Three experiments exported apart as Excel (one sensor each): read as one recording, each value as written,
+    with one workbook open at a time (each may hold its sheets' XML, up to 64 MB: they were all open at once), and
+    a workbook opened once when it is alone (the sniff's opening is the reader's)."""
+    import openpyxl
+
+    from app.pipeline.ingestion.xlsx_cells import Workbook
+
+    names = {"acc": "Acceleration {} (m/s^2)", "gyr": "Gyroscope {} (rad/s)", "mag": "Magnetic field {} (µT)"}
+    for kind, title in (("acc", "Acceleration with g"), ("gyr", "Gyroscope"), ("mag", "Magnetometer")):
+        book = openpyxl.Workbook()   # a one-sensor experiment's Excel export: its set on one sheet
+        book.active.append(["Time (s)"] + [names[kind].format(a) for a in "xyz"])
+        for tk, vk in zip(*streams[kind]):
+            book.active.append([float(tk), *map(float, vk)])
+        book.save(tmp_path / f"step-muslo {title}.xlsx")
+    open_now, most, opened = set(), [0], []
+    real_init, real_close = Workbook.__init__, Workbook.close
+
+    def opening(wb, path):
+        real_init(wb, path)
+        open_now.add(id(wb))
+        opened.append(path)
+        most[0] = max(most[0], len(open_now))
+
+    def closing(wb):
+        open_now.discard(id(wb))
+        real_close(wb)
+
+    monkeypatch.setattr(Workbook, "__init__", opening)
+    monkeypatch.setattr(Workbook, "close", closing)
+    rec = read_recording(sorted(tmp_path.glob("step-muslo *.xlsx")))
+    assert rec.label == "step-muslo" and most[0] == 1 and not open_now
+    for kind, s in zip(("acc", "gyr", "mag"), (rec.acc, rec.gyr, rec.mag)):
+        np.testing.assert_allclose(s.values, streams[kind][1], rtol=1e-8, atol=1e-9)
+    opened.clear()
+    (tmp_path / "alone").mkdir()
+    one = write_phyphox(tmp_path / "alone" / "step-muslo-ML1.xlsx", streams, layout="xlsx")
+    read_recording([one])
+    assert opened == [one]

@@ -235,3 +235,132 @@ def test_a_header_cell_of_blanks_is_matched_in_linear_time():
     assert _name_unit("a" + " " * 1_000_000 + "b") is None
     assert _name_unit("  x-axis   (deg/s) ") == ("x-axis", "deg/s")
     assert "expected 'elapsed (s)'" in _layout_problem(["t" + " " * 1_000_000 + "(s"] + HEADER[1:])
+
+
+# ------------------------------------------------------------------ the numpy scan of plain number cells
+
+
+def _regex_cells(body: bytes):
+    """The cells of ``body`` by the regular expression reader's own pattern (the reference of the scan): ``(col,
+    row, value)`` of each, or ``None`` when a ``<c`` is not such a cell."""
+    from app.pipeline.ingestion import xlsx_cells as x
+    from app.pipeline.ingestion.xlsx_scan import references
+
+    cells = x._FAST.findall(body)
+    if len(cells) != body.count(b"<c"):
+        return None
+    refs = np.array([c[0] for c in cells], dtype=bytes)
+    col, row = references(refs) if cells else (np.zeros(0), np.zeros(0))
+    return [(int(c), int(r), float(v[2])) for c, r, v in zip(col, row, cells)]
+
+
+_PLAIN = (b'<row r="2" spans="1:3"><c r="A2" s="1"><v>0.25</v></c><c r="B2" t="n"><v>-3E-3</v></c>'
+          b'<c r="C2" s="2" t="n"><v>12</v></c></row><row r="3"/><row r="4"><c r="AB4"><v>1.5e2</v></c>'
+          b'<c r="XFD4" t="n" s="7"><v>-0.000001</v></c></row>')
+
+
+@pytest.mark.parametrize("body,plain", [
+    (_PLAIN, True),
+    (_PLAIN.replace(b"</row><row", b"</row>\n  <row"), True),   # blanks between rows: ignored, as openpyxl does
+    (_PLAIN.replace(b'<c r="B2" t="n">', b'<c r="B2" t="s">'), False),     # a shared string
+    (_PLAIN.replace(b"<v>12</v>", b"<v></v>"), False),                    # an empty value
+    (_PLAIN.replace(b"<v>12</v>", b"<v> 12</v>"), False),                 # a blank in a value
+    (_PLAIN.replace(b"<v>12</v>", b"<f>A2</f><v>12</v>"), False),         # a formula
+    (_PLAIN.replace(b'<c r="A2" s="1">', b'<c s="1" r="A2">'), False),    # r not first
+    (_PLAIN.replace(b'<c r="A2" s="1">', b"<c r='A2' s='1'>"), False),    # single quotes
+    (_PLAIN.replace(b'r="AB4"', b'r="ab4"'), False),                       # lower-case column
+    (_PLAIN.replace(b'r="AB4"', b'r="ABCD4"'), False),                     # four letters
+    (_PLAIN.replace(b'r="AB4"', b'r="AB1234567890"'), False),              # ten digits
+    (_PLAIN.replace(b'r="AB4"', b'r="4"'), False),                         # no column
+    (_PLAIN.replace(b'<c r="A2" s="1">', b'<c r="A2" s="1" foo="2">'), False),   # another attribute
+    (_PLAIN.replace(b"<v>0.25</v></c>", b"<v>0.25</v> </c>"), False),     # text inside the cell
+    (_PLAIN.replace(b'<row r="3"/>', b"<!-- a > b --><row r=\"3\"/>"), False),   # a comment
+    (_PLAIN.replace(b'<row r="3"/>', b'<row r="3"/>x > y'), False),        # '>' in text
+    (_PLAIN.replace(b'<c r="C2"', b'<x:c r="C2"').replace(b"</c></row><row r=\"3\"/>",
+                                                          b"</x:c></row><row r=\"3\"/>"), False),   # a prefix
+    (_PLAIN.replace(b"</row><row r=\"3\"/>", b"<row r=\"3\"/>"), False),  # a row never closed
+    (_PLAIN.replace(b'<c r="A2" s="1"><v>0.25</v></c>', b'<c r="A2" s="1"/>'), False),   # an empty cell
+    (_PLAIN.replace(b"<v>12</v>", b"<v>1&#46;2</v>"), False),             # an entity in a number
+    (_PLAIN.replace(b"<v>12</v>", b"<v>" + b"1" * 50 + b"</v>"), False),  # longer than the scan reads
+    (b"", False),
+])
+def test_the_scan_reads_plain_cells_as_the_regular_expressions_do(body, plain):
+    """The scan (:func:`.xlsx_scan.plain_cells`) reads a sheet of plain number cells as :data:`.xlsx_cells._FAST`
+    reads it, and leaves anything else (``None``) to the regular expressions."""
+    from app.pipeline.ingestion.xlsx_scan import plain_cells
+
+    found = plain_cells(body)
+    assert (found is not None) == plain
+    if plain:
+        col, row, values, cells_at, rows_at = found
+        assert list(zip(col.tolist(), row.tolist(), values.tolist())) == _regex_cells(body)
+        assert [body[i:i + 3] for i in cells_at] == [b'<c '] * len(col)
+        assert [body[i:i + 5] for i in rows_at] == [b"<row "] * 3
+
+
+def test_the_scan_agrees_with_the_regular_expressions_on_mutated_sheets():
+    """Random edits of a sheet of plain cells (a byte replaced, inserted or deleted, around the tags): wherever
+    the scan reads the result, it reads what the regular expressions read (differential test)."""
+    from app.pipeline.ingestion.xlsx_scan import plain_cells
+
+    rng = np.random.default_rng(14)
+    alphabet = np.frombuffer(b'<>/"= rcvstn0123456789.-eEABZ\n', np.uint8)
+    accepted = 0
+    for _ in range(3000):
+        body = bytearray(_PLAIN)
+        for _ in range(int(rng.integers(1, 3))):
+            i = int(rng.integers(0, len(body)))
+            action = rng.integers(0, 3)
+            if action == 0:
+                body[i] = int(rng.choice(alphabet))
+            elif action == 1:
+                body.insert(i, int(rng.choice(alphabet)))
+            else:
+                del body[i]
+        found = plain_cells(bytes(body))
+        if found is not None:
+            accepted += 1
+            reference = _regex_cells(bytes(body))
+            assert reference is not None, bytes(body)
+            assert list(zip(found[0].tolist(), found[1].tolist(), found[2].tolist())) == reference, bytes(body)
+    assert accepted > 100   # the edits inside values, references and numbers that keep the cells plain
+
+
+def test_excel_style_sheets_take_the_scan_and_read_like_openpyxl(tmp_path, monkeypatch):
+    """A sheet as Excel writes it (styles, no type, ``spans``, an empty row, two- and three-letter columns) is
+    read by the scan, with openpyxl's values; so is the thesis writer's workbook."""
+    from app.pipeline.ingestion import xlsx_cells
+
+    taken = []
+
+    def spy(body, start=0):
+        found = scan(body, start)
+        taken.append(found is not None)
+        return found
+
+    scan = xlsx_cells.plain_cells
+    monkeypatch.setattr(xlsx_cells, "plain_cells", spy)
+    head = '<row r="1"><c r="A1" t="inlineStr"><is><t>elapsed (s)</t></is></c></row>'
+    path = _with_sheet(tmp_path / "excel.xlsx", _sheet_xml(head + _PLAIN.decode()))
+    for max_row in (1, 3, 10):
+        _same(path, max_row, 30)
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 2, 0.01)
+    thesis = write_thesis_xlsx(tmp_path / "step-muslo-P01-01012024-1.xlsx", (t, rng.normal(0, 9.81, (t.size, 3))),
+                               rng.normal(0, 2, (t.size, 3)), (t[::5], rng.normal(0, 40, (t[::5].size, 3))))
+    _same(thesis, MAX_ROWS + 1, len(HEADER))
+    assert taken and all(taken)
+
+
+def test_the_scan_is_linear_on_crafted_sheets():
+    """Sheets within the caps that defeat the scan in every step (a million ``<``, a million distinct attribute
+    texts, tags that never close): each is answered in a few numpy passes (no time asserted: a quadratic step
+    would not finish)."""
+    from app.pipeline.ingestion.xlsx_scan import MAX_FORMS, plain_cells
+
+    assert plain_cells(b"<" * 1_000_000) is None
+    assert plain_cells(b'<row r="1">' * 200_000) is None
+    forms = b"".join(b'<c r="A%d" s="%d"><v>1</v></c>' % (i + 2, i) for i in range(MAX_FORMS + 1))
+    assert plain_cells(b'<row r="2">' + forms + b"</row>") is None    # more distinct texts than read
+    many = b"".join(b'<row r="%d"><c r="A%d" s="1"><v>%d</v></c></row>' % (i, i, i) for i in range(2, 100_000))
+    assert plain_cells(many)[2][-1] == 99_999.0
