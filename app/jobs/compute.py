@@ -31,7 +31,8 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
+import threading
+from concurrent.futures import CancelledError, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
@@ -80,6 +81,11 @@ class HelperDied(RuntimeError):
     """The job's helper process ended under it (it has been replaced)."""
 
 
+class HelperStopped(RuntimeError):
+    """The server stopped the job's helper under it (:meth:`JobProcess.shutdown`): the job is not failed, it
+    resumes at the next start."""
+
+
 _progress_pipe = None  # in a helper: the write end of its progress pipe (set by _helper_start)
 
 
@@ -106,6 +112,8 @@ class JobProcess:
     engine gives each job thread its own."""
 
     def __init__(self) -> None:
+        self._lock = threading.Lock()  # restart() (the job thread) against shutdown() (the server's)
+        self._stopping = False
         self._start()
 
     def _start(self) -> None:
@@ -134,17 +142,45 @@ class JobProcess:
     def run(self, progress, folder: Path, options, lang: str, session_id: int, paired_id: int | None):
         """:func:`compute` in the helper, its ``progress`` calls made here (in the calling thread, which may write
         them to the database); its exceptions are raised here.  :class:`HelperDied` when the helper ended under
-        it (replaced)."""
-        future = self._pool.submit(_compute_here, folder, options, lang, session_id, paired_id)
-        while not future.done():
-            self._relay(progress, RELAY_EVERY_S)
-        self._relay(progress, 0.0)
+        it (replaced); :class:`HelperStopped` when :meth:`shutdown` stopped it.
+
+        A helper found dead before the job (it died while idle: killed, out of memory) is replaced and the job
+        submitted to the new one — not this job's doing, so not its failure.  If the relay of the progress raises
+        (the job was superseded, the database failed), the helper is replaced before the exception goes on: left
+        computing, it would hold up the next job and send that job its own progress."""
+        args = (_compute_here, folder, options, lang, session_id, paired_id)
+        try:
+            if self._stopping:
+                raise HelperStopped("the job helper process was stopped")
+            if not self._alive():
+                raise BrokenProcessPool("the job helper process is gone")
+            future = self._pool.submit(*args)
+        except BrokenProcessPool:
+            log.warning("the idle job helper process had ended; starting a new one")
+            self.restart()
+            future = self._pool.submit(*args)
+        try:
+            while not future.done():
+                self._relay(progress, RELAY_EVERY_S)
+            self._relay(progress, 0.0)
+        except BaseException:
+            if self._stopping:
+                raise HelperStopped("the job helper process was stopped") from None
+            self.restart()  # the helper would go on with an abandoned job
+            raise
         try:
             return future.result()
-        except BrokenProcessPool:
+        except (BrokenProcessPool, CancelledError):
+            if self._stopping:
+                raise HelperStopped("the job helper process was stopped") from None
             log.error("the job helper process ended under a job; starting a new one")
             self.restart()
             raise HelperDied("the job helper process ended") from None
+
+    def _alive(self) -> bool:
+        """False when the helper is known dead (its pool broken, or its process exited)."""
+        procs = getattr(self._pool, "_processes", None) or {}
+        return not getattr(self._pool, "_broken", False) and all(p.exitcode is None for p in list(procs.values()))
 
     def _relay(self, progress, wait_s: float) -> None:
         while self._progress.poll(wait_s):
@@ -155,17 +191,30 @@ class JobProcess:
             progress(stage, fraction)
             wait_s = 0.0
 
-    def restart(self) -> None:
-        """Replace the helper (its work is abandoned)."""
-        for proc in list(getattr(self._pool, "_processes", {}).values()):  # no public way to stop a worker
+    def _stop(self) -> None:
+        """Terminate the helper, drop its pool and close the progress pipe."""
+        for proc in list((getattr(self._pool, "_processes", None) or {}).values()):  # no public way to stop one
             proc.terminate()
         self._pool.shutdown(wait=False, cancel_futures=True)
         self._progress.close()
         self._progress_w.close()
-        self._start()
+
+    def restart(self) -> None:
+        """Replace the helper (its work is abandoned); after :meth:`shutdown`, nothing."""
+        with self._lock:
+            if self._stopping:
+                return
+            self._stop()
+            self._start()
 
     def shutdown(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the helper now, its job too (the interpreter's exit would otherwise wait for that job): the job
+        thread gets :class:`HelperStopped` and leaves the job to resume at the next start."""
+        with self._lock:
+            if self._stopping:
+                return
+            self._stopping = True
+            self._stop()
 
 
-__all__ = ["HelperDied", "JobProcess", "RELAY_EVERY_S", "compute"]
+__all__ = ["HelperDied", "HelperStopped", "JobProcess", "RELAY_EVERY_S", "compute"]

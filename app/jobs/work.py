@@ -301,7 +301,7 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, lease_s: 
 
 def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path,
                  helper: "JobProcess | None") -> Outcome:
-    from app.jobs.compute import compute
+    from app.jobs.compute import HelperStopped, compute
     from app.pipeline.ingestion import IngestionError
     from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions
     from app.pipeline.exclusions import from_records
@@ -374,6 +374,9 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                      + (f"; {revised} earlier analyses superseded (cycles chosen by the clinician)"
                                         if revised else "")]
         return "done"
+    except HelperStopped:  # the server is stopping: the job stays running and resumes at the next start
+        log.warning("job %s: the server stopped its helper process; it resumes at the next start", job_id)
+        raise TransientJobError(f"job {job_id}: the server is stopping", attempt) from None
     except Superseded:  # the sweeper gave the job to another run (this one looked lost): that run stands
         log.warning("job %s: attempt %s was taken over by another run; its results are dropped", job_id, attempt)
         return "finished"
