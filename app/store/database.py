@@ -48,12 +48,21 @@ MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
 class WriteGate:
     """A queue for one SQLite database's single write lock, in this process (module docstring).  :meth:`release`
     wakes the writer that has waited longest at once (no polling); a writer arriving at that moment may still go
-    first (no strict hand-over: see the module docstring)."""
+    first (no strict hand-over: see the module docstring).
+
+    The lock is re-entrant: an unclosed connection holding the gate gives it back from its finaliser
+    (:meth:`GatedConnection.__del__`, SQLAlchemy's pool finaliser's rollback), which a garbage-collection pass may
+    run in any thread at any allocation — also in a thread that is inside :meth:`acquire` or :meth:`release` here,
+    holding this lock (with a plain lock that thread deadlocked on itself, and every writer after it).  Nothing
+    between a waiter's look at the gate and its sleep allocates a collected object (the predicate is made once), so
+    a nested release cannot slip in there; were one missed, the waiter would still find the gate free when its
+    timeout ends (``wait_for`` looks once more) — late, not failed."""
 
     def __init__(self) -> None:
-        self._cond = threading.Condition(threading.Lock())
+        self._cond = threading.Condition(threading.RLock())
         self._held = False
         self._waiting = 0
+        self._free = lambda: not self._held  # made once: nothing to allocate while waiting
 
     def acquire(self, timeout_s: float) -> bool:
         """Take the gate, waiting at most ``timeout_s``; False on timeout."""
@@ -63,7 +72,7 @@ class WriteGate:
                 return True
             self._waiting += 1
             try:
-                if not self._cond.wait_for(lambda: not self._held, timeout_s):
+                if not self._cond.wait_for(self._free, timeout_s):
                     return False
             finally:
                 self._waiting -= 1

@@ -127,3 +127,40 @@ def test_a_writer_that_waits_past_the_timeout_gets_database_is_locked(db, tmp_pa
         holder.commit()
         holder.close()
     assert not gate._held
+
+
+def test_a_connection_collected_inside_the_gate_s_own_lock_gives_the_gate_back(tmp_path):
+    """An unclosed writer's connection in a reference cycle gives the gate back from its finaliser, which a
+    garbage-collection pass runs wherever it starts — here in a thread that is inside the gate's critical section
+    (any allocation in :meth:`WriteGate.acquire` / :meth:`~WriteGate.release` may start one).  With a plain lock
+    that thread deadlocked on itself and no writer got the gate again."""
+    import gc
+    import sqlite3
+
+    from app.store.database import GatedConnection, write_gate
+
+    path = tmp_path / "cycle.db"
+    conn = sqlite3.connect(path, factory=GatedConnection, check_same_thread=False)
+    conn.execute("CREATE TABLE t (x INTEGER)")
+    conn.commit()
+    gate = write_gate(str(path))
+    conn.cursor().execute("INSERT INTO t VALUES (1)")
+    assert gate._held
+    cycle = [conn]
+    cycle.append(cycle)
+    del conn, cycle
+
+    def collect_inside_the_gate():
+        with gate._cond:
+            gc.collect()
+
+    t = threading.Thread(target=collect_inside_the_gate, daemon=True)
+    t.start()
+    t.join(60)
+    assert not t.is_alive(), "the collecting thread deadlocked on the gate's own lock"
+    took = []
+    w = threading.Thread(target=lambda: took.append(gate.acquire(5.0)), daemon=True)
+    w.start()
+    w.join(60)
+    assert took == [True]
+    gate.release()
