@@ -30,6 +30,7 @@ Nothing is created at import time.
 
 from __future__ import annotations
 
+import re
 import sqlite3
 import threading
 from collections.abc import Iterator
@@ -97,6 +98,13 @@ _GATES_LOCK = threading.Lock()
 WRITE_WAIT_S = 15.0
 #: the statements before which pysqlite opens a write transaction (it begins none for reads)
 _DML = ("INSERT", "UPDATE", "DELETE", "REPLACE")
+#: what pysqlite skips before it looks at a statement's first word: whitespace, ``-- …`` and ``/* … */`` comments
+_LEADING = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?(?:\*/|$))*", re.DOTALL)
+
+
+def _is_dml(sql: str) -> bool:
+    """Whether pysqlite opens a write transaction before ``sql`` (its first word after whitespace and comments)."""
+    return sql[_LEADING.match(sql).end():][:7].upper().startswith(_DML)
 
 
 def write_gate(path: str) -> WriteGate:
@@ -107,13 +115,24 @@ def write_gate(path: str) -> WriteGate:
 
 
 class _GatedCursor(sqlite3.Cursor):
+    """A cursor that takes the gate before a write; a statement that fails before its transaction began (it
+    could not be prepared) gives the gate back at once."""
+
     def execute(self, sql, parameters=(), /):
         self.connection.enter_write(sql)
-        return super().execute(sql, parameters)
+        try:
+            return super().execute(sql, parameters)
+        except BaseException:
+            self.connection._leave()
+            raise
 
     def executemany(self, sql, seq_of_parameters, /):
         self.connection.enter_write(sql)
-        return super().executemany(sql, seq_of_parameters)
+        try:
+            return super().executemany(sql, seq_of_parameters)
+        except BaseException:
+            self.connection._leave()
+            raise
 
 
 class GatedConnection(sqlite3.Connection):
@@ -133,7 +152,7 @@ class GatedConnection(sqlite3.Connection):
     def enter_write(self, sql: str) -> None:
         if self._gate is None or self._holds or self.in_transaction:
             return
-        if sql.lstrip()[:7].upper().startswith(_DML):
+        if _is_dml(sql):
             if not self._gate.acquire(WRITE_WAIT_S):
                 raise sqlite3.OperationalError("database is locked")
             self._holds = True

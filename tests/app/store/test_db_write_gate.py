@@ -164,3 +164,29 @@ def test_a_connection_collected_inside_the_gate_s_own_lock_gives_the_gate_back(t
     w.join(60)
     assert took == [True]
     gate.release()
+
+
+def test_a_write_after_a_comment_takes_the_gate_and_a_statement_that_fails_to_prepare_gives_it_back(tmp_path):
+    """pysqlite skips leading comments before it decides a statement writes (it then opens the transaction): the
+    gate must be taken there too.  A write that cannot even be prepared opens no transaction: the gate goes back
+    at once, not at the connection's next commit."""
+    import sqlite3
+
+    from app.store.database import GatedConnection, write_gate
+
+    path = tmp_path / "comments.db"
+    conn = sqlite3.connect(path, factory=GatedConnection, check_same_thread=False)
+    try:
+        conn.execute("CREATE TABLE t (x INTEGER)")
+        conn.commit()
+        gate = write_gate(str(path))
+        for sql in ("/* audit */ INSERT INTO t VALUES (1)", "-- audit\nUPDATE t SET x = 2"):
+            conn.cursor().execute(sql)
+            assert conn.in_transaction and gate._held, sql
+            conn.commit()
+            assert not gate._held
+        with pytest.raises(sqlite3.OperationalError):
+            conn.cursor().execute("INSERT INTO no_such_table VALUES (1)")
+        assert not conn.in_transaction and not gate._held
+    finally:
+        conn.close()
