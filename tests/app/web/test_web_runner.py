@@ -142,10 +142,14 @@ def test_a_hung_helper_process_is_replaced():
     pool = RenderPool(1)
     try:
         assert pool.wait_warm()
+        (stuck,) = pool._pool._processes.values()
         hung = pool.submit(time.sleep, 600)  # the only helper is now busy for ten minutes
         pool.restart()
+        stuck.join(60)
+        assert stuck.exitcode is not None  # the stuck helper was stopped, not left sleeping beside the new one
         assert hung.cancelled() or hung.done()
         assert pool.wait_warm()  # the replacement is up
+        assert stuck.pid not in pool._pool._processes
         assert pool.submit(sum, [1, 2]).result(60) == 3
     finally:
         pool.shutdown()
