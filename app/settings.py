@@ -13,13 +13,12 @@
 | ``CHAKAMO_REDISPATCH_S`` | 120 | celery: a job still queued this long after it was handed to the broker, while the broker's queue is empty, is handed again (a broker restarted empty) |
 | ``CHAKAMO_JOB_TIME_LIMIT_S`` | 1800 | celery: a job running longer is stopped (its worker process is replaced) and run again, then failed after 3 attempts |
 | ``CHAKAMO_BROKER_VISIBILITY_TIMEOUT_S`` | 3600 | Redis: an unacknowledged message (its worker died) is delivered again after this long |
-| ``CHAKAMO_RENDER_PROCESSES`` | 1 | helper processes rendering reports beside the job thread; with any, the API server also checks uploads in ``CHAKAMO_CHECK_PROCESSES`` warm helper processes, off its GIL (0: none) |
+| ``CHAKAMO_RENDER_PROCESSES`` | 1 | with any (≥ 1): each embedded job thread computes and renders its jobs in a warm helper process of its own at background priority (:mod:`app.jobs.compute`), and the API server checks uploads in ``CHAKAMO_CHECK_PROCESSES`` warm helper processes, both off its GIL (0: none, both in the server's threads) |
 | ``CHAKAMO_CHECK_PROCESSES`` | 2 | with render processes: helper processes checking uploads, one clinic's check at a time each (:mod:`app.store.checks`) |
 | ``CHAKAMO_MAX_FILE_MB`` | 50 | largest uploaded file |
 | ``CHAKAMO_MAX_FILES`` | 40 | most files per upload request and per session |
 | ``CHAKAMO_MAX_BODY_KB`` | 1024 | largest request body of any route but the recordings upload (413 above it, :mod:`app.web.limits`) |
 | ``CHAKAMO_MAX_UPLOADS`` | 8 | uploads streamed at the same time (more answer 503: try again) |
-| ``CHAKAMO_RENDER_TIMEOUT_S`` | 300 | longest wait for the render process; then the job thread renders itself |
 | ``CHAKAMO_SESSION_HOURS`` | 12 | browser login lifetime |
 | ``CHAKAMO_RETENTION_DAYS`` | 0 (off) | sessions with no activity for this many days are erased with their files (``chakamo retention``, :mod:`app.store.retention`) |
 | ``CHAKAMO_PUBLIC_URL`` | none | this server's address as its users reach it (``https://chakamo.hospital.example``): the namespace of the FHIR identifiers, never taken from a request's ``Host`` in production |
@@ -101,7 +100,6 @@ class Settings(BaseSettings):
     max_files: int = Field(40, ge=1, validation_alias="CHAKAMO_MAX_FILES")
     max_body_kb: int = Field(1024, ge=16, validation_alias="CHAKAMO_MAX_BODY_KB")
     max_uploads: int = Field(8, ge=1, le=256, validation_alias="CHAKAMO_MAX_UPLOADS")
-    render_timeout_s: float = Field(300.0, gt=0, validation_alias="CHAKAMO_RENDER_TIMEOUT_S")
     session_hours: float = Field(12.0, gt=0, validation_alias="CHAKAMO_SESSION_HOURS")
     retention_days: int = Field(0, ge=0, le=36500, validation_alias="CHAKAMO_RETENTION_DAYS")
     public_url: str | None = Field(None, validation_alias="CHAKAMO_PUBLIC_URL")

@@ -6,7 +6,8 @@ Used by :mod:`benchmarks.api_upload`, :mod:`benchmarks.api_load` and :mod:`bench
 * :func:`open_loop_get` — ``rate`` GET requests per second for ``seconds`` seconds, each sent at its scheduled
   time whether or not the earlier ones have answered (open loop), so a slow server cannot slow the load down
   and hide its own latency (the "coordinated omission" of closed-loop generators);
-* :func:`latency_row` — one markdown row ``| name | n | p50 | p95 | p99 | max | non-200 |`` in milliseconds.
+* :func:`latency_row` — one markdown row ``| name | n | p50 | p95 | p99 | max | non-200 |`` in milliseconds;
+* :func:`tree_cpu_s` — the CPU seconds of the server process and of its helper processes (Linux).
 """
 
 from __future__ import annotations
@@ -69,6 +70,32 @@ def open_loop_get(base: str, headers: dict, paths: list[str], rate: float,
 
     with ThreadPoolExecutor(1, thread_name_prefix="open-loop") as pool:
         return pool.submit(asyncio.run, _open_loop(base, headers, paths, rate, seconds)).result()
+
+
+def tree_cpu_s(pid: int) -> tuple[float, float] | None:
+    """CPU seconds (user + system) used so far by process ``pid`` and by its live child processes together (the
+    server and its helpers), from ``/proc``; None where there is no ``/proc`` (not Linux) or ``pid`` is gone."""
+    import os
+
+    def own(p: int) -> float:
+        with open(f"/proc/{p}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+    try:
+        server = own(pid)
+        helpers = 0.0
+        for entry in os.listdir("/proc"):
+            if entry.isdigit():
+                try:
+                    with open(f"/proc/{entry}/stat") as f:
+                        if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                            helpers += own(int(entry))
+                except (OSError, ValueError, IndexError):
+                    continue
+    except (OSError, ValueError, IndexError):
+        return None
+    return server, helpers
 
 
 def latency_row(name: str, ms: np.ndarray, bad: int) -> str:

@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.http_load import demo_session, latency_table, open_loop_get
+from benchmarks.http_load import demo_session, latency_table, open_loop_get, tree_cpu_s
 from benchmarks.live_services import Missing
 from benchmarks.load_stack import Stack, failure_excerpt, running_stack
 
@@ -312,6 +312,10 @@ def print_tables(s: Summary, stack: Stack, args: argparse.Namespace) -> None:
         print(f"\nRead endpoints {title}: {args.read_rate:g} requests/s for {args.read_seconds:g} s, open loop "
               "(goal p95 < 50 ms)\n")
         print(latency_table(results, s.read_paths))
+    cpu = tree_cpu_s(stack.api.proc.pid)
+    if cpu is not None:
+        print(f"\nCPU used by the API process since it started: {cpu[0]:.1f} s; by its live helper processes (job, "
+              f"check): {cpu[1]:.1f} s")
     print(f"\n1-minute load average at the end: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs (client, API, "
           "workers and databases share them, and the machine is shared: numbers are noisy)")
 

@@ -96,8 +96,8 @@ def make_celery(settings: Settings):
     def process_job(task, job_id: int, resume_attempt: int | None = None) -> str:
         ctx = _context()
         try:
-            outcome = run_job(int(job_id), ctx.db, ctx.store, ctx.tmp_root, None, ctx.settings.render_timeout_s,
-                              ctx.settings.job_lease_s, resume_attempt=resume_attempt)
+            outcome = run_job(int(job_id), ctx.db, ctx.store, ctx.tmp_root, ctx.settings.job_lease_s,
+                              resume_attempt=resume_attempt)
         except TransientJobError as exc:  # the retry resumes the same run: an outage is not one of its attempts
             log.warning("%s; retrying", exc)
             raise task.retry(exc=exc, countdown=backoff_s(task.request.retries),

@@ -20,14 +20,15 @@ sweep and the retention policy, :func:`app.web.housekeeping.housekeeping`) runs 
 every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the
 running jobs and says whether they all stopped; the application disposes the database only then.
 
-**Priority** (issue 16 finding 10h): the worker threads run at the server's own priority.  Lowering them
-(``os.nice`` is per thread on Linux) was tried and dropped: a lowered thread inside the API process still holds
-the interpreter's lock while it runs Python and holds the database's write lock while it stores (progress,
-heartbeats, artefacts) — on a starved machine every request thread then waits on the least favoured thread of
-the machine (priority inversion), and ``benchmarks.load`` showed no gain.  Background work runs at a lower
-priority only where it has a process of its own: the render and upload-check helpers
-(:func:`app.pipeline.render.lower_priority`), and Celery workers (``nice chakamo worker``).  The workers are at
-most ``CHAKAMO_WORKERS`` (default 2).
+**Priority** (issue 16 finding 10h): with ``render_processes`` > 0 (``CHAKAMO_RENDER_PROCESSES``, default 1) each
+worker thread has a helper process of its own (:class:`app.jobs.compute.JobProcess`) that computes its jobs —
+reading, processing, rendering — at the background priority, off this process' interpreter lock; the thread keeps
+the database and the blob store (progress, heartbeats, the stored analysis) at the server's priority.  The worker
+threads themselves are not lowered: a lowered thread inside the API process would hold the interpreter's lock
+while it runs Python and the database's write lock while it stores — every request thread would then wait on the
+least favoured thread of the machine (priority inversion).  With ``render_processes`` = 0 the jobs are computed
+in the worker threads (tests, a machine that cannot spare the memory).  The workers are at most
+``CHAKAMO_WORKERS`` (default 2).
 
 **A database that is away or busy** (:class:`app.jobs.work.TransientJobError`: an outage, or no pooled connection
 free within the pool's timeout because the server is starved): the worker waits (:attr:`ThreadJobRunner.RETRY_S`,
@@ -50,7 +51,8 @@ from sqlalchemy.pool import NullPool
 
 from app.store.database import Database
 from app.jobs.work import LEASE_S, Outcome, TransientJobError, mark_dispatched, run_job, sweep
-from app.pipeline.render import RENDER_TIMEOUT_S, RenderPool, warm_up
+from app.jobs.compute import JobProcess
+from app.pipeline.render import warm_up
 from app.store.blobs import Storage
 
 log = logging.getLogger("chakamo.jobs")
@@ -151,14 +153,15 @@ class ThreadJobRunner:
     RETRY_S, RETRY_MAX_S = 1.0, 30.0
 
     def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
-                 render_processes: int = 0, render_timeout_s: float = RENDER_TIMEOUT_S,
+                 render_processes: int = 0,
                  lease_s: float = LEASE_S, housekeeping: Callable[[], None] | None = None) -> None:
         self.housekeeping = housekeeping
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
-        self.render_processes, self.render_timeout_s = render_processes, render_timeout_s
+        self.render_processes = render_processes
         self.lease_s = lease_s
         self.lock = RunnerLock(db)
-        self.pool: RenderPool | None = None
+        #: one helper process per worker thread (module docstring), started by :meth:`start`
+        self.helpers: list[JobProcess] = []
         self._queue: queue.Queue[int | None] = queue.Queue()
         self._threads: list[threading.Thread] = []
         self._stop = threading.Event()
@@ -172,18 +175,20 @@ class ThreadJobRunner:
         if n_tmp or n_up:
             log.info("removed %d temporary session folders and %d unfinished uploads left by a crash", n_tmp, n_up)
         self._stop.clear()
-        if self.render_processes > 0 and self.pool is None:
-            self.pool = RenderPool(self.render_processes)
+        if self.render_processes > 0 and not self.helpers:
+            self.helpers = [JobProcess() for _ in range(self.workers)]
         # holding the lock, every job left running was a dead server's: a zero lease requeues them all now
         pending = sweep(self.db, lease_s=0.0, redispatch_s=0.0, why="server stopped")
         for i in range(self.workers):
-            t = threading.Thread(target=self._work, name=f"chakamo-job-{i}", daemon=True)
+            t = threading.Thread(target=self._work, args=(self.helpers[i] if self.helpers else None,),
+                                 name=f"chakamo-job-{i}", daemon=True)
             t.start()
             self._threads.append(t)
         for job_id in pending:
             self.submit(job_id)
         threading.Thread(target=self._sweep_loop, name="chakamo-sweeper", daemon=True).start()
-        threading.Thread(target=warm_up, name="chakamo-warm-up", daemon=True).start()
+        if not self.helpers:  # the jobs are computed in this process: import what they need now
+            threading.Thread(target=warm_up, name="chakamo-warm-up", daemon=True).start()
 
     def submit(self, job_id: int) -> None:
         mark_dispatched(self.db, [job_id])
@@ -211,15 +216,16 @@ class ThreadJobRunner:
             except Exception:  # noqa: BLE001 — e.g. the database is restarting: sweep again next time
                 log.warning("job sweep failed; trying again in %g s", self.SWEEP_EVERY_S, exc_info=True)
 
-    def run(self, job_id: int) -> Outcome | None:
-        """Run job ``job_id`` in the calling thread; while the database is away or busy
+    def run(self, job_id: int, helper: JobProcess | None = None) -> Outcome | None:
+        """Run job ``job_id`` in the calling thread (its computation in ``helper``, if given); while the database is
+        away or busy
         (:class:`~app.jobs.work.TransientJobError`), wait and run the same attempt again (module docstring).
         None when the runner stopped before it could run."""
         wait_s, attempt = self.RETRY_S, None
         while not self._stop.is_set():
             try:
-                return run_job(job_id, self.db, self.store, self.tmp_root, self.pool, self.render_timeout_s,
-                               self.lease_s, resume_attempt=attempt)
+                return run_job(job_id, self.db, self.store, self.tmp_root, self.lease_s, resume_attempt=attempt,
+                               helper=helper)
             except TransientJobError as exc:
                 attempt = exc.attempt if exc.attempt is not None else attempt
                 log.warning("job %s: %s; running it again in %g s", job_id, exc, wait_s)
@@ -227,13 +233,13 @@ class ThreadJobRunner:
                 wait_s = min(2.0 * wait_s, self.RETRY_MAX_S)
         return None
 
-    def _work(self) -> None:
+    def _work(self, helper: JobProcess | None) -> None:
         while True:
             job_id = self._queue.get()
             if job_id is None or self._stop.is_set():  # a queued job left here stays queued in the database
                 return
             try:
-                self.run(job_id)
+                self.run(job_id, helper)
             except Exception:  # noqa: BLE001 — an unexpected error outside the job's own handling: keep the worker
                 log.exception("worker could not run job %s (the sweeper runs it again)", job_id)
 
@@ -256,9 +262,9 @@ class ThreadJobRunner:
         if alive:
             log.warning("%d job threads still running at shutdown; their jobs resume at the next start", len(alive))
         self._threads.clear()
-        if self.pool is not None:
-            self.pool.shutdown()
-            self.pool = None
+        for helper in self.helpers:
+            helper.shutdown()
+        self.helpers = []
         if not alive:  # a thread still running its job keeps the lock: no other runner may take that job over
             self.lock.release()
         return not alive

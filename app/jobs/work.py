@@ -31,7 +31,8 @@ A job's work (:func:`run_job`): copy the session's stored files into a temporary
 ``session.json`` (:mod:`app.store.workspace`), load and process them (:func:`app.pipeline.session.process_session`, its
 ``progress(stage, fraction)`` calls written to the job row), build ``results.json`` once and render every
 artefact from one report input (:func:`app.pipeline.render.render_all`: the PDFs in every language, the Excel files,
-report.html, scene.viser, timeseries.npz; part of them in the warm render process), store them as blobs
+report.html, scene.viser, timeseries.npz) — that computation (:func:`app.jobs.compute.compute`) in a helper
+process at background priority when the engine gives one (the embedded engine does), — then store them as blobs
 (:func:`app.store.erasure.reserve_blob`, under the blob's lock: identical artefacts of concurrent jobs never
 collide, nor an erasure of the same bytes) and record a new
 :class:`~app.store.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the data
@@ -52,7 +53,7 @@ import secrets
 import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Literal, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 from sqlalchemy import or_, select, update
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
@@ -63,9 +64,12 @@ from app.store.analyses import supersede
 from app.store.erasure import reserve_blob
 from app.store.models import Analysis, Artefact, Clinic, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
-from app.pipeline.render import MEDIA, PIPELINE_SHARE, RENDER_TIMEOUT_S, RenderPool, render_all
+from app.pipeline.render import MEDIA
 from app.store.blobs import Storage, discarding
 from app.settings import get_settings
+
+if TYPE_CHECKING:
+    from app.jobs.compute import JobProcess
 
 log = logging.getLogger("chakamo.jobs")
 
@@ -269,31 +273,17 @@ def _identifier_system() -> str | None:
         return None
 
 
-def _public_results(results: dict, session_id: int, paired_id: int | None = None) -> dict:
-    """results.json without the server's temporary folder in it (in each knee's part too); a paired session's
-    provenance names its partner (``session.paired_session_id``: the session the other knee's files came from)."""
-    for part in [results, *(results.get("knees") or {}).values()]:
-        sess = part.get("session", {})
-        sess["folder"] = f"session {session_id}"
-        if paired_id is not None:
-            sess["paired_session_id"] = paired_id
-        for src in sess.get("recognised", {}).values():
-            if isinstance(src, dict) and "files" in src:
-                src["files"] = [Path(f).name for f in src["files"]]
-    return results
-
-
 Outcome = Literal["done", "failed", "busy", "finished"]
 
 
-def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None = None,
-            render_timeout_s: float = RENDER_TIMEOUT_S, lease_s: float = LEASE_S,
-            resume_attempt: int | None = None) -> Outcome:
+def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, lease_s: float = LEASE_S,
+            resume_attempt: int | None = None, helper: "JobProcess | None" = None) -> Outcome:
     """Claim and run job ``job_id`` (module docstring).  Returns ``done`` or ``failed`` when this call ran it,
     ``busy`` when another worker holds it (running, lease not expired), ``finished`` when it had already ended
     (or is unknown).  Never raises for bad data; raises :class:`TransientJobError` when the database went away
     (the job is then left to the sweeper or to the engine's retry, which passes the error's ``attempt`` back as
-    ``resume_attempt``: the same run goes on, not a new attempt)."""
+    ``resume_attempt``: the same run goes on, not a new attempt).  ``helper``: the computation runs in that
+    process (:class:`app.jobs.compute.JobProcess`), else in this thread."""
     try:
         if resume_attempt is not None and reclaim(db, job_id, resume_attempt):
             attempt = resume_attempt
@@ -306,16 +296,15 @@ def run_job(job_id: int, db: Database, store: Storage, tmp_root: Path, pool: Ren
             raise TransientJobError(f"job {job_id}: database unreachable", resume_attempt) from exc
         raise
     with heartbeat(db, job_id, attempt, lease_s):
-        return _run_claimed(job_id, attempt, db, store, tmp_root, pool, render_timeout_s)
+        return _run_claimed(job_id, attempt, db, store, tmp_root, helper)
 
 
-def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path, pool: RenderPool | None,
-                 render_timeout_s: float) -> Outcome:
-    from app.pipeline.ingestion import IngestionError, load_knees
-    from app.pipeline.knees import process_knees
+def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_root: Path,
+                 helper: "JobProcess | None") -> Outcome:
+    from app.jobs.compute import HelperStopped, compute
+    from app.pipeline.ingestion import IngestionError
     from app.pipeline.session import PIPELINE_VERSION, PipelineError, ProcessOptions
     from app.pipeline.exclusions import from_records
-    from app.pipeline.results import build_knees_results
     from app.store.pairing import partner_files
     from app.store.workspace import materialise, public_message
 
@@ -342,11 +331,11 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         # the reports' identity line: the clinic's name and the record numbers' system (issue 17 §3)
         with materialise(store, tmp_root, session, patient, recordings, paired, clinic=clinic_name,
                          identifier_system=identifier_system) as folder:
-            loaded = load_knees(folder)
-            knees = process_knees(loaded, options, web=True,
-                                  progress=lambda st, f: progress(st, 0.02 + (PIPELINE_SHARE - 0.02) * f))
-        results = _public_results(build_knees_results(knees), session.id, paired[0].id if paired else None)
-        files = render_all(knees.primary, results, job.lang, progress, pool, render_timeout_s, knees=knees)
+            paired_id = paired[0].id if paired else None
+            if helper is not None:  # off this process: app.jobs.compute says why
+                results, files = helper.run(progress, folder, options, job.lang, session.id, paired_id)
+            else:
+                results, files = compute(folder, options, job.lang, session.id, paired_id, progress)
         progress("store", 0.99)
         stored = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
         contents = {stored[key]: data for key, data in files.items()}
@@ -385,6 +374,9 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                                      + (f"; {revised} earlier analyses superseded (cycles chosen by the clinician)"
                                         if revised else "")]
         return "done"
+    except HelperStopped:  # the server is stopping: the job stays running and resumes at the next start
+        log.warning("job %s: the server stopped its helper process; it resumes at the next start", job_id)
+        raise TransientJobError(f"job {job_id}: the server is stopping", attempt) from None
     except Superseded:  # the sweeper gave the job to another run (this one looked lost): that run stands
         log.warning("job %s: attempt %s was taken over by another run; its results are dropped", job_id, attempt)
         return "finished"

@@ -2,12 +2,11 @@
 
 :func:`render_all` builds ``results.json`` and ``timeseries.npz`` and renders ``report.pdf`` and ``report.html`` in
 every language of :data:`reports.i18n.LANGUAGES`, ``angles.xlsx``, ``quaternions.xlsx`` and ``scene.viser``
-(:func:`render_artefact` is one of them).  With a :class:`RenderPool` (one warm helper
-process, ``CHAKAMO_RENDER_PROCESSES``) the other-language PDFs and angles.xlsx are rendered there while the
-job thread renders the rest; if the process fails, or gives no answer within ``timeout_s``
-(``CHAKAMO_RENDER_TIMEOUT_S``), the job thread renders them itself and a hung process is replaced.
-:func:`warm_up` imports the report modules and runs the default filter once, so a job never pays for that.
-The job runner (:mod:`app.jobs.work`) calls :func:`render_all`; nothing here touches the database.
+(:func:`render_artefact` is one of them), one after another in the calling process — a job's helper process
+(:mod:`app.jobs.compute`) or a Celery worker.  :func:`warm_up` imports the report modules and runs the default
+filter once, so a job never pays for that.  :class:`RenderPool` is a warm spawned helper process at background
+priority (the upload checks' helpers, :class:`app.store.checks.CheckPool`).  The job's computation
+(:func:`app.jobs.compute.compute`) calls :func:`render_all`; nothing here touches the database.
 """
 
 from __future__ import annotations
@@ -20,7 +19,6 @@ import signal
 import tempfile
 import threading
 import time
-from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
 
 from reports.i18n import LANGUAGES
@@ -41,10 +39,6 @@ MEDIA = {
 }
 #: share of the progress bar taken by the pipeline; the rest is the reports
 PIPELINE_SHARE = 0.6
-#: default longest wait for the render process (seconds)
-RENDER_TIMEOUT_S = 300.0
-
-
 def render_artefact(ri, name: str, lang: str = "") -> bytes:
     """One artefact of report input ``ri`` as bytes (top-level: runs in the render process too)."""
     if name == "report.pdf":
@@ -74,11 +68,6 @@ def render_artefact(ri, name: str, lang: str = "") -> bytes:
     raise ValueError(f"unknown artefact {name!r}")
 
 
-def render_many(ri, keys: list[tuple[str, str]]) -> dict[tuple[str, str], bytes]:
-    """:func:`render_artefact` for each ``(name, lang)`` of ``keys``."""
-    return {key: render_artefact(ri, *key) for key in keys}
-
-
 def patient_json(patient) -> bytes:
     """``patient.json``: the identity block the job's reports printed (:class:`reports.model.Patient`, every field),
     kept with the analysis so its reports can be rendered again later (a signed interpretation) with the identity
@@ -88,14 +77,9 @@ def patient_json(patient) -> bytes:
     return json.dumps(dataclasses.asdict(patient), ensure_ascii=False, sort_keys=True).encode("utf-8")
 
 
-def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | None" = None,
-               timeout_s: float = RENDER_TIMEOUT_S, knees=None) -> dict[tuple[str, str], bytes]:
-    """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF or the HTML report).
-
-    With a warm :class:`RenderPool`, the two other-language PDFs and angles.xlsx are rendered in the
-    render process while this thread renders the rest (the report code holds the GIL: threads would not
-    overlap); without one, or if that process fails or does not answer within ``timeout_s``, everything is
-    rendered here.  ``progress(stage, fraction)`` is told each step.  ``knees``: the
+def render_all(outcome, results: dict, lang: str, progress, knees=None) -> dict[tuple[str, str], bytes]:
+    """Every artefact from one report input: ``{(name, lang): bytes}`` (lang "" unless a PDF or the HTML report),
+    the reports in ``lang`` first.  ``progress(stage, fraction)`` is told each step.  ``knees``: the
     :class:`app.pipeline.knees.KneesOutcome` of a session of both knees (``outcome`` its top-level knee).
     """
     from app.pipeline.results import report_input, results_json, timeseries_npz
@@ -104,37 +88,12 @@ def render_all(outcome, results: dict, lang: str, progress, pool: "RenderPool | 
     files: dict[tuple[str, str], bytes] = {("results.json", ""): results_json(results).encode("utf-8"),
                                            ("timeseries.npz", ""): timeseries_npz(outcome, knees),
                                            ("patient.json", ""): patient_json(ri.patient)}
-    others = [(name, x) for x in LANGS if x != lang for name in ("report.pdf", "report.html")]
-    # about equal halves (measured: a PDF 0.2-0.4 s, angles.xlsx 0.1 s, quaternions.xlsx 0.2 s, html 0.05 s,
-    # scene 0.2 s)
-    local = [("report.pdf", lang), ("report.html", lang), ("scene.viser", ""), ("quaternions.xlsx", "")]
-    remote = [*others, ("angles.xlsx", "")]
-    future = pool.submit(render_many, ri, remote) if pool is not None else None
-    if future is None:
-        local, remote = local + remote, []
-    for i, (name, x) in enumerate(local):
-        progress(f"{name} {x}".strip(), PIPELINE_SHARE + (1 - PIPELINE_SHARE) * i / (len(local) + 1))
+    keys = [("report.pdf", lang), ("report.html", lang), ("scene.viser", ""), ("quaternions.xlsx", ""),
+            ("angles.xlsx", ""), *[(name, x) for x in LANGS if x != lang for name in ("report.pdf", "report.html")]]
+    for i, (name, x) in enumerate(keys):
+        progress(f"{name} {x}".strip(), PIPELINE_SHARE + (1 - PIPELINE_SHARE) * i / (len(keys) + 1))
         files[(name, x)] = render_artefact(ri, name, x)
-    if future is not None:
-        progress("reports (render process)", 0.95)
-        files |= collect(future, pool, timeout_s, lambda: render_many(ri, remote))
     return files
-
-
-def collect(future, pool: "RenderPool | None", timeout_s: float, fallback):
-    """The result of ``future`` from the render process, or ``fallback()`` (rendering in this thread) when
-    the process failed or gave no answer within ``timeout_s`` — then the hung process is replaced."""
-    try:
-        return future.result(timeout=timeout_s)
-    except FutureTimeout:  # a hung render process must not block this worker forever
-        future.cancel()
-        log.error("the render process did not answer within %.0f s; rendering in the job thread", timeout_s)
-        if pool is not None:
-            pool.restart()
-        return fallback()
-    except Exception:  # noqa: BLE001 — e.g. the render process died: render here instead
-        log.exception("render process failed; rendering in the job thread")
-        return fallback()
 
 
 #: ``chakamo process``'s rendered artefacts as two groups of about equal cost, one per forked render process:
@@ -418,7 +377,7 @@ def lower_priority() -> bool:
     return True
 
 
-def _exit_with_parent(parent_pid: int) -> None:
+def exit_with_parent(parent_pid: int) -> None:
     """In a render or check helper process: run at the background priority (:data:`BACKGROUND_NICE`), and exit as
     soon as the server process is gone (even killed with SIGKILL)."""
     lower_priority()
@@ -431,7 +390,7 @@ def _exit_with_parent(parent_pid: int) -> None:
 
 
 class RenderPool:
-    """One warm helper process for report rendering (``CHAKAMO_RENDER_PROCESSES``; 0 = none).
+    """A warm helper process (or ``processes`` of them) at background priority: the upload checks' helpers.
 
     Started with ``spawn`` (forking a threaded server is unsafe), exits when the server process does (even
     one killed with SIGKILL), and is warmed up by ``warm`` (default :func:`warm_up`: the report modules);
@@ -451,7 +410,7 @@ class RenderPool:
         from concurrent.futures import ProcessPoolExecutor
 
         self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_exit_with_parent, initargs=(os.getpid(),))
+                                         initializer=exit_with_parent, initargs=(os.getpid(),))
         self._warm = self._pool.submit(self._warm_fn)
 
     def restart(self) -> None:
@@ -518,6 +477,6 @@ def warm_up(processing: bool = True) -> None:
         log.exception("warm-up run of the orientation filter failed")
 
 
-__all__ = ["BACKGROUND_NICE", "FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "patient_json", "RENDER_TIME_IMPORTS", "RENDER_TIMEOUT_S",
-           "ForkedRenderers", "RenderPool", "collect", "lower_priority", "preload_renderers", "render_all", "render_artefact",
-           "render_many", "render_named", "warm_up"]
+__all__ = ["BACKGROUND_NICE", "FORK_GROUPS", "LANGS", "MEDIA", "PIPELINE_SHARE", "patient_json", "RENDER_TIME_IMPORTS",
+           "ForkedRenderers", "RenderPool", "exit_with_parent", "lower_priority", "preload_renderers", "render_all", "render_artefact",
+           "render_named", "warm_up"]

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
-from sqlalchemy import update
+from sqlalchemy import bindparam, update
 from sqlalchemy.orm import Session
 
 from app.pipeline.service_messages import item, item_texts, render
@@ -187,9 +187,12 @@ def save_ingestion(db_: Database, session_id: int, version: int, ingestion: dict
                          .values(ingestion=ingestion, ingestion_version=version))
         if res.rowcount != 1:
             return False
-        for name, device in (ingestion.get("devices") or {}).items():
-            db.execute(update(Recording).where(Recording.session_id == session_id, Recording.file_name == name)
-                       .values(device=device))
+        devices = [{"b_name": name, "b_device": device} for name, device in (ingestion.get("devices") or {}).items()]
+        if devices:  # one statement for every file (executemany), under the write lock no longer than that
+            table = Recording.__table__
+            db.connection().execute(update(table).where(table.c.session_id == session_id,
+                                                        table.c.file_name == bindparam("b_name"))
+                                    .values(device=bindparam("b_device")), devices)
         return True
 
 

@@ -3,6 +3,24 @@
 ``Database(url)`` owns one engine; SQLite gets WAL journaling (readers never wait for the job threads'
 writes), ``synchronous=FULL`` (a commit — an acknowledged upload — survives a power cut; NORMAL could
 roll the last commits back), foreign keys on and a busy timeout, on every connection.
+
+**SQLite's one write lock, queued** (issue 16 finding 10h).  A SQLite database has one write lock; a writer that
+finds it taken sleeps in SQLite's busy handler (1, 2, 5, 10 … then 100 ms at a time) and tries again.  Under an
+upload burst that handler decided who wrote next: a writer that had waited long looked again only every 100 ms while
+newcomers slipped in first, and every waiter held a pooled connection meanwhile (``py-spy dump`` of ``chakamo
+serve`` as ``benchmarks.load``'s burst began: 34 request threads inside SQLite's ``execute``, 25 of them reads
+whose audit row their commit was writing).  So the server's writers of one database file queue in the process at
+a :class:`WriteGate` (one per file, :func:`write_gate`, shared by every engine on it): the moment a writer commits
+or rolls back, the writer that has waited longest is woken — no polling.  Not a strict hand-over: the gate is free
+from the release on, and a writer that is running just then may take it first.  A hand-over to a thread the
+operating system has not scheduled yet keeps the lock idle until it runs (a lock convoy); on a machine starved of
+CPU that can cost more than the order saves (the first version of this gate handed over; two login-flood runs with
+it at load 25–29 were worse than main's, noisy as such runs are).  The gate is taken where pysqlite
+opens a write transaction (just before the first INSERT/UPDATE/DELETE/REPLACE outside one: reads take nothing,
+and a read-only request never waits for it) and given back by ``commit()``, ``rollback()`` or ``close()`` of that
+connection (:class:`GatedConnection`, the engine's connection class).  A writer waits at most
+:data:`WRITE_WAIT_S` (SQLite's own busy timeout), then gets SQLite's "database is locked".  Other processes on the
+same file (the ``chakamo`` commands) still meet this one in SQLite's busy handler, as before.
 :func:`ensure_blob` records a stored file with the dialect's ``INSERT … ON CONFLICT DO NOTHING``
 (SQLite, PostgreSQL): two transactions storing equal content at the same time never collide.
 ``Database.migrate()`` upgrades the schema to the newest revision of ``app/store/migrations`` programmatically
@@ -12,6 +30,8 @@ Nothing is created at import time.
 
 from __future__ import annotations
 
+import re
+import sqlite3
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -24,6 +44,149 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.store.models import Base, Blob
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
+
+
+class WriteGate:
+    """A queue for one SQLite database's single write lock, in this process (module docstring).  :meth:`release`
+    wakes the writer that has waited longest at once (no polling); a writer arriving at that moment may still go
+    first (no strict hand-over: see the module docstring).
+
+    The lock is re-entrant: an unclosed connection holding the gate gives it back from its finaliser
+    (:meth:`GatedConnection.__del__`, SQLAlchemy's pool finaliser's rollback), which a garbage-collection pass may
+    run in any thread at any allocation — also in a thread that is inside :meth:`acquire` or :meth:`release` here,
+    holding this lock (with a plain lock that thread deadlocked on itself, and every writer after it).  Nothing
+    between a waiter's look at the gate and its sleep allocates a collected object (the predicate is made once), so
+    a nested release cannot slip in there; were one missed, the waiter would still find the gate free when its
+    timeout ends (``wait_for`` looks once more) — late, not failed."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition(threading.RLock())
+        self._held = False
+        self._waiting = 0
+        self._free = lambda: not self._held  # made once: nothing to allocate while waiting
+
+    def acquire(self, timeout_s: float) -> bool:
+        """Take the gate, waiting at most ``timeout_s``; False on timeout."""
+        with self._cond:
+            if not self._held:
+                self._held = True
+                return True
+            self._waiting += 1
+            try:
+                if not self._cond.wait_for(self._free, timeout_s):
+                    return False
+            finally:
+                self._waiting -= 1
+            self._held = True
+            return True
+
+    def release(self) -> None:
+        with self._cond:
+            self._held = False
+            self._cond.notify()  # the longest waiter (Condition wakes its waiters in the order they came)
+
+    @property
+    def waiting(self) -> int:
+        """Writers waiting for the gate right now."""
+        return self._waiting
+
+
+#: one gate per SQLite database file in this process (every engine on that file shares it)
+_GATES: dict[str, WriteGate] = {}
+_GATES_LOCK = threading.Lock()
+#: longest wait for the write gate, as SQLite's own busy timeout (then "database is locked", as SQLite says)
+WRITE_WAIT_S = 15.0
+#: the statements before which pysqlite opens a write transaction (it begins none for reads)
+_DML = ("INSERT", "UPDATE", "DELETE", "REPLACE")
+#: what pysqlite skips before it looks at a statement's first word: whitespace, ``-- …`` and ``/* … */`` comments
+_LEADING = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?(?:\*/|$))*", re.DOTALL)
+
+
+def _is_dml(sql: str) -> bool:
+    """Whether pysqlite opens a write transaction before ``sql`` (its first word after whitespace and comments)."""
+    return sql[_LEADING.match(sql).end():][:7].upper().startswith(_DML)
+
+
+def write_gate(path: str) -> WriteGate:
+    """The :class:`WriteGate` of the SQLite database file ``path`` (created at the first call)."""
+    key = str(Path(path).resolve())
+    with _GATES_LOCK:
+        return _GATES.setdefault(key, WriteGate())
+
+
+class _GatedCursor(sqlite3.Cursor):
+    """A cursor that takes the gate before a write; a statement that fails before its transaction began (it
+    could not be prepared) gives the gate back at once."""
+
+    def execute(self, sql, parameters=(), /):
+        self.connection.enter_write(sql)
+        try:
+            return super().execute(sql, parameters)
+        except BaseException:
+            self.connection._leave()
+            raise
+
+    def executemany(self, sql, seq_of_parameters, /):
+        self.connection.enter_write(sql)
+        try:
+            return super().executemany(sql, seq_of_parameters)
+        except BaseException:
+            self.connection._leave()
+            raise
+
+
+class GatedConnection(sqlite3.Connection):
+    """A pysqlite connection whose write transactions queue at the database's :class:`WriteGate`: pysqlite opens a
+    transaction just before the first INSERT/UPDATE/DELETE/REPLACE outside one, and that is where the gate is
+    taken; ``commit()`` / ``rollback()`` / ``close()`` give it back once SQLite's lock is free (module docstring)."""
+
+    def __init__(self, database, *args, **kwargs) -> None:
+        super().__init__(database, *args, **kwargs)
+        self._gate = None if str(database) in ("", ":memory:") or str(database).startswith("file:") \
+            else write_gate(str(database))
+        self._holds = False
+
+    def cursor(self, factory=_GatedCursor):
+        return super().cursor(factory)
+
+    def enter_write(self, sql: str) -> None:
+        if self._gate is None or self._holds or self.in_transaction:
+            return
+        if _is_dml(sql):
+            if not self._gate.acquire(WRITE_WAIT_S):
+                raise sqlite3.OperationalError("database is locked")
+            self._holds = True
+
+    def _leave(self) -> None:
+        if self._holds and not self.in_transaction:
+            self._holds = False
+            self._gate.release()
+
+    def commit(self) -> None:
+        try:
+            super().commit()
+        finally:
+            self._leave()
+
+    def rollback(self) -> None:
+        try:
+            super().rollback()
+        finally:
+            self._leave()
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            self._drop()
+
+    def __del__(self) -> None:  # collected unclosed: SQLite frees its lock with the connection, the gate goes too
+        self._drop()
+
+    def _drop(self) -> None:
+        if getattr(self, "_holds", False):
+            self._holds = False
+            self._gate.release()
 
 
 def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
@@ -55,7 +218,7 @@ def make_engine(url: str) -> Engine:
         if path and path != ":memory:":
             Path(path).parent.mkdir(parents=True, exist_ok=True)
             pool = dict(pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW, pool_timeout=POOL_TIMEOUT_S)
-        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15}, **pool)
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15, "factory": GatedConnection}, **pool)
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
     return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,

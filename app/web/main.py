@@ -112,7 +112,7 @@ def make_runner(settings: Settings, db: Database, store: Storage):
     from app.web.housekeeping import housekeeping
 
     return ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
-                           render_processes=settings.render_processes, render_timeout_s=settings.render_timeout_s,
+                           render_processes=settings.render_processes,
                            lease_s=settings.job_lease_s, housekeeping=lambda: housekeeping(settings, db, store))
 
 

@@ -55,9 +55,11 @@ def test_a_job_whose_artefact_equals_content_being_erased_keeps_its_file(env, mo
     import os
     import types
 
+    import app.jobs.compute as compute
     import app.jobs.work as work
     import app.pipeline.ingestion as ingestion
     import app.pipeline.knees as knees
+    import app.pipeline.render as render
     import app.pipeline.results as results
     import app.store.workspace as workspace
     from app.store.erasure import erase_pending
@@ -78,8 +80,8 @@ def test_a_job_whose_artefact_equals_content_being_erased_keeps_its_file(env, mo
     monkeypatch.setattr(knees, "process_knees", lambda loaded, options, progress, web=False: types.SimpleNamespace(primary=None))
     monkeypatch.setattr(results, "build_knees_results", lambda outcome: {"cycles": {"accepted": 3},
                                                                           "quality": {"warnings": []}})
-    monkeypatch.setattr(work, "_public_results", lambda res, sid, paired_id=None: res)
-    monkeypatch.setattr(work, "render_all", lambda *a, **k: {("quaternions.xlsx", None): DATA})
+    monkeypatch.setattr(compute, "public_results", lambda res, sid, paired_id=None: res)
+    monkeypatch.setattr(render, "render_all", lambda *a, **k: {("quaternions.xlsx", None): DATA})
     owned = work._owned
 
     def stage() -> str:

@@ -1,5 +1,5 @@
-"""Background work under CPU starvation (issue 16 finding 10h): the render and upload-check helper processes run
-at a lower CPU priority than the API, and a job whose database connection could not be had in time
+"""Background work under CPU starvation (issue 16 finding 10h): the jobs' computation, the render and the
+upload-check helper processes run at a lower CPU priority than the API, outside its process, and a job whose database connection could not be had in time
 (SQLAlchemy's pool ``TimeoutError``, seen under load) waits and runs the same attempt again instead of failing.
 The pool-timeout tests run on SQLite and on PostgreSQL (``settings``)."""
 
@@ -26,6 +26,45 @@ def test_helper_processes_run_below_the_api_s_priority():
         assert pool.submit(os.nice, 0).result(60) == min(19, mine + BACKGROUND_NICE)
     finally:
         pool.shutdown()
+
+
+def test_a_job_is_computed_in_a_helper_process_below_the_api_s_priority(settings, stopped, monkeypatch):
+    """``py-spy record --gil`` of ``chakamo serve`` during ``benchmarks.load``: the job threads' reading,
+    processing and rendering held the interpreter's lock for about half of the samples, and every request thread
+    queued behind them.  The embedded engine now computes each job in a warm helper process at the background
+    priority (:class:`app.jobs.compute.JobProcess`); the job thread only writes to the database.  Here the server
+    process' own :func:`app.jobs.compute.compute` refuses to run: the job must still be done."""
+    import app.jobs.compute as compute
+    from app.jobs.inprocess import ThreadJobRunner
+    from app.pipeline.render import BACKGROUND_NICE
+    from app.store.models import Job
+
+    client, _, session_id = stopped
+
+    def not_here(*args, **kwargs):
+        raise AssertionError("the job was computed in the server process")
+
+    monkeypatch.setattr(compute, "compute", not_here)
+    old = client.app.state.runner
+    job_id = _job(old.db, session_id)  # queued before the start: the runner hands it over at once
+    runner = ThreadJobRunner(old.db, old.store, old.tmp_root, workers=1, render_processes=1)
+    runner.start()
+    try:
+        (helper,) = runner.helpers
+        assert helper.wait_warm()
+        assert os.getpriority(os.PRIO_PROCESS, helper.pid) == min(19, os.nice(0) + BACKGROUND_NICE)
+        status, log_lines = None, []
+        for _ in range(1200):
+            with old.db.session() as s:
+                job = s.get(Job, job_id)
+                status, log_lines = job.status, list(job.log)
+            if status in ("done", "failed"):
+                break
+            threading.Event().wait(0.25)
+        assert status == "done", log_lines
+        assert any("orientation thigh" in line for line in log_lines)  # the helper's progress, relayed
+    finally:
+        runner.shutdown()
 
 
 def _tight_pool(settings):

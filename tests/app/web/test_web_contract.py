@@ -17,7 +17,7 @@ from web_helpers import demo_files, make_settings, wait_job
 
 @pytest.fixture
 def pooled_client(tmp_path):
-    """The production-like app: a warm render process beside the job thread."""
+    """The production-like app: the jobs computed in warm helper processes (app.jobs.compute)."""
     from fastapi.testclient import TestClient
 
     from app.web.main import create_app
@@ -25,7 +25,7 @@ def pooled_client(tmp_path):
     settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1)
     app = create_app(settings)
     with TestClient(app) as c:
-        assert app.state.runner.pool.wait_warm()
+        assert all(helper.wait_warm() for helper in app.state.runner.helpers)
         yield c, settings
 
 
@@ -58,7 +58,7 @@ def test_minimal_hospital_contract(pooled_client, demo_dir):
     assert job["status"] == "done", job
     assert job["progress"] == 1.0 and job["error"] is None and job["analysis_id"] is not None
     assert any("orientation thigh" in line for line in job["log"])
-    assert any("render process" in line for line in job["log"])
+    assert any("scene.viser" in line for line in job["log"])  # the helper process's progress, relayed
 
     r = client.get(f"/api/v1/sessions/{session_id}/results", headers=h)
     assert r.status_code == 200

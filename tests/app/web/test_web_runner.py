@@ -132,20 +132,24 @@ def test_concurrent_jobs_storing_identical_artefacts_both_finish(client, setting
     assert states == [("done", None), ("done", None)], states
 
 
-def test_a_hung_render_process_is_abandoned_and_replaced():
-    """The render process is stuck: the job thread stops waiting after the timeout, renders itself, and a
-    fresh render process takes over for the next jobs."""
+def test_a_hung_helper_process_is_replaced():
+    """A helper process is stuck (a check that never ends): :meth:`RenderPool.restart` stops it and a fresh,
+    warm one takes over (the upload checks' helpers, app.store.checks.CheckPool)."""
     import time
 
-    from app.pipeline.render import RenderPool, collect
+    from app.pipeline.render import RenderPool
 
     pool = RenderPool(1)
     try:
         assert pool.wait_warm()
-        hung = pool.submit(time.sleep, 600)  # the only render process is now busy for ten minutes
-        got = collect(hung, pool, 0.5, lambda: {"report.pdf": b"rendered in the job thread"})
-        assert got == {"report.pdf": b"rendered in the job thread"}
+        (stuck,) = pool._pool._processes.values()
+        hung = pool.submit(time.sleep, 600)  # the only helper is now busy for ten minutes
+        pool.restart()
+        stuck.join(60)
+        assert stuck.exitcode is not None  # the stuck helper was stopped, not left sleeping beside the new one
+        assert hung.cancelled() or hung.done()
         assert pool.wait_warm()  # the replacement is up
+        assert stuck.pid not in pool._pool._processes
         assert pool.submit(sum, [1, 2]).result(60) == 3
     finally:
         pool.shutdown()

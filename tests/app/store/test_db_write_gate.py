@@ -1,0 +1,192 @@
+"""SQLite's one write lock, queued first come first served inside the server process (issue 16 finding 10h).
+
+Before, a writer that found the lock taken slept in SQLite's busy handler (1, 2, 5 … then 100 ms steps) and
+tried again: a writer waiting long retried only every 100 ms while newcomers slipped in, and every waiter held a
+pooled connection meanwhile.  ``py-spy dump`` of ``chakamo serve`` at the start of ``benchmarks.load``'s upload
+burst found 34 request threads inside SQLite's ``execute``, 25 of them reads whose audit row was being written by
+their commit.  Now the writers of one database file wait at :class:`app.store.database.WriteGate`, and the one
+that has waited longest is woken as soon as the one before commits."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+from sqlalchemy import text
+
+
+@pytest.fixture
+def db(tmp_path):
+    from app.store.database import Database
+
+    database = Database(f"sqlite:///{tmp_path}/w.db")
+    with database.engine.begin() as conn:
+        conn.execute(text("CREATE TABLE t (x INTEGER)"))
+    yield database
+    database.dispose()
+
+
+def _wait_for(condition, what: str, timeout_s: float = 30.0) -> None:
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, what
+        time.sleep(0.005)
+
+
+def _writer(db, i: int, order: list[int]) -> threading.Thread:
+    def write() -> None:
+        with db.session() as s:
+            s.execute(text("INSERT INTO t VALUES (:i)"), {"i": i})
+            order.append(i)
+
+    t = threading.Thread(target=write)
+    t.start()
+    return t
+
+
+def test_queued_writers_are_woken_in_the_order_they_came(db, tmp_path):
+    from app.store.database import write_gate
+
+    gate = write_gate(str(tmp_path / "w.db"))
+    holder = db.sessions()
+    holder.execute(text("INSERT INTO t VALUES (0)"))  # a write transaction open: the gate is held
+    order: list[int] = []
+    threads = []
+    try:
+        for i in range(1, 6):
+            threads.append(_writer(db, i, order))
+            # each writer queues at the gate (before: it slept in SQLite's busy handler, invisible here)
+            _wait_for(lambda n=i: gate.waiting == n, f"writer {i} queued at the gate")
+        assert order == []
+    finally:
+        holder.commit()
+        holder.close()
+    for t in threads:
+        t.join(30)
+    assert order == [1, 2, 3, 4, 5]  # the longest waiter woken first (before: whoever's sleep ended first)
+    assert gate.waiting == 0
+    with db.session() as s:
+        assert s.scalar(text("SELECT count(*) FROM t")) == 6
+
+
+def test_the_gate_is_given_back_on_rollback_and_close_and_not_taken_by_reads(db, tmp_path):
+    from app.store.database import write_gate
+
+    gate = write_gate(str(tmp_path / "w.db"))
+    s = db.sessions()
+    s.execute(text("SELECT count(*) FROM t"))  # a read takes nothing
+    assert not gate._held
+    s.execute(text("INSERT INTO t VALUES (1)"))
+    assert gate._held
+    s.rollback()
+    assert not gate._held
+    s.execute(text("UPDATE t SET x = 2"))
+    s.close()  # closed without a commit: rolled back, the gate given back
+    assert not gate._held
+    order: list[int] = []
+    _writer(db, 7, order).join(30)
+    assert order == [7]
+
+
+def test_every_engine_on_one_file_shares_its_gate(db, tmp_path):
+    """The server opens a second engine on its database (the webhook sender): both must queue at one gate, or
+    their writers would meet in SQLite's busy handler again."""
+    from app.store.database import Database, write_gate
+
+    other = Database(f"sqlite:///{tmp_path}/w.db")
+    gate = write_gate(str(tmp_path / "w.db"))
+    holder = db.sessions()
+    holder.execute(text("INSERT INTO t VALUES (1)"))
+    order: list[int] = []
+    try:
+        t = _writer(other, 2, order)
+        _wait_for(lambda: gate.waiting == 1, "the other engine's writer queued at the same gate")
+    finally:
+        holder.commit()
+        holder.close()
+    t.join(30)
+    assert order == [2]
+    other.dispose()
+
+
+def test_a_writer_that_waits_past_the_timeout_gets_database_is_locked(db, tmp_path, monkeypatch):
+    import app.store.database as database
+    from sqlalchemy.exc import OperationalError
+
+    monkeypatch.setattr(database, "WRITE_WAIT_S", 0.2)
+    gate = database.write_gate(str(tmp_path / "w.db"))
+    holder = db.sessions()
+    holder.execute(text("INSERT INTO t VALUES (1)"))
+    try:
+        with pytest.raises(OperationalError, match="database is locked"):  # what SQLite's own timeout says
+            with db.session() as s:
+                s.execute(text("INSERT INTO t VALUES (2)"))
+        assert gate.waiting == 0  # the one that gave up left the queue
+    finally:
+        holder.commit()
+        holder.close()
+    assert not gate._held
+
+
+def test_a_connection_collected_inside_the_gate_s_own_lock_gives_the_gate_back(tmp_path):
+    """An unclosed writer's connection in a reference cycle gives the gate back from its finaliser, which a
+    garbage-collection pass runs wherever it starts — here in a thread that is inside the gate's critical section
+    (any allocation in :meth:`WriteGate.acquire` / :meth:`~WriteGate.release` may start one).  With a plain lock
+    that thread deadlocked on itself and no writer got the gate again."""
+    import gc
+    import sqlite3
+
+    from app.store.database import GatedConnection, write_gate
+
+    path = tmp_path / "cycle.db"
+    conn = sqlite3.connect(path, factory=GatedConnection, check_same_thread=False)
+    conn.execute("CREATE TABLE t (x INTEGER)")
+    conn.commit()
+    gate = write_gate(str(path))
+    conn.cursor().execute("INSERT INTO t VALUES (1)")
+    assert gate._held
+    cycle = [conn]
+    cycle.append(cycle)
+    del conn, cycle
+
+    def collect_inside_the_gate():
+        with gate._cond:
+            gc.collect()
+
+    t = threading.Thread(target=collect_inside_the_gate, daemon=True)
+    t.start()
+    t.join(60)
+    assert not t.is_alive(), "the collecting thread deadlocked on the gate's own lock"
+    took = []
+    w = threading.Thread(target=lambda: took.append(gate.acquire(5.0)), daemon=True)
+    w.start()
+    w.join(60)
+    assert took == [True]
+    gate.release()
+
+
+def test_a_write_after_a_comment_takes_the_gate_and_a_statement_that_fails_to_prepare_gives_it_back(tmp_path):
+    """pysqlite skips leading comments before it decides a statement writes (it then opens the transaction): the
+    gate must be taken there too.  A write that cannot even be prepared opens no transaction: the gate goes back
+    at once, not at the connection's next commit."""
+    import sqlite3
+
+    from app.store.database import GatedConnection, write_gate
+
+    path = tmp_path / "comments.db"
+    conn = sqlite3.connect(path, factory=GatedConnection, check_same_thread=False)
+    try:
+        conn.execute("CREATE TABLE t (x INTEGER)")
+        conn.commit()
+        gate = write_gate(str(path))
+        for sql in ("/* audit */ INSERT INTO t VALUES (1)", "-- audit\nUPDATE t SET x = 2"):
+            conn.cursor().execute(sql)
+            assert conn.in_transaction and gate._held, sql
+            conn.commit()
+            assert not gate._held
+        with pytest.raises(sqlite3.OperationalError):
+            conn.cursor().execute("INSERT INTO no_such_table VALUES (1)")
+        assert not conn.in_transaction and not gate._held
+    finally:
+        conn.close()
