@@ -2,8 +2,8 @@
 // scene.viser in an <iframe>, with a jump-to-cycle control like `chakamo view`'s.
 //
 // First frame: the client boots (served unpacked: app/web/viser_client.py), fetches the recording and draws, on
-// the page's own thread (a same-origin frame); the page's plotly charts wait for its first frames (results.js
-// CHARTS_WAIT_MS).  A lazy iframe started all of that only
+// the page's own thread (a same-origin frame); the page's plotly charts could wait for its first frames (results.js
+// CHARTS_WAIT_MS, off: measured no gain).  A lazy iframe started all of that only
 // once within Chromium's lazy-loading distance of the view; the frame now starts with the page, so the boot runs while
 // the clinician reads the numbers above, and a "loading" line stands in the box until the recording plays (no blank
 // box).  `python -m benchmarks.scene_first_frame` measures both in Chromium.  (Tried: giving the source at the first

@@ -165,8 +165,12 @@ def plain_cells(body: bytes | bytearray, start: int = 0
     # Before any array one entry per tag: a part of plain rows holds only ``<row``/``</row>`` and four tags per
     # ``<c ``, so any other tag means "not plain", told by C byte counts without allocating (a crafted sheet of
     # 31 M ``<>`` pairs, 66 kB zipped, cost about 1 GB of positions before this check).
+    # A plain part also holds at least 5.5 bytes a tag (the least cell, ``<c r="A1"><v>1</v></c>``, is 22 bytes for
+    # four tags; ``<row >``, ``</row>`` 6 bytes, ``<row />`` 7), so a dense padding that keeps the counts (``<c ><><><>``)
+    # is refused before any array too.
     tags = body.count(b"<", start)
-    if tags != 4 * body.count(b"<c ", start) + body.count(b"<row", start) + body.count(b"</row", start):
+    if (tags != 4 * body.count(b"<c ", start) + body.count(b"<row", start) + body.count(b"</row", start)
+            or 5 * tags > len(body) - start):
         return None
     raw = np.frombuffer(body, dtype=np.uint8)[start:]
     lt = np.flatnonzero(raw == _LT)
