@@ -308,6 +308,8 @@ def raw_sql_places(source: str) -> list[tuple[int, str | None, str]]:
             if isinstance(arg, (ast.Name, ast.Attribute, ast.Subscript)) and name == "execute" \
                     and not (isinstance(f, ast.Attribute) and "cursor" in ast.unparse(f.value)):
                 continue  # session.execute(stmt) with an ORM statement built above
+            if isinstance(arg, ast.Name) and isinstance(f, ast.Attribute) and ast.unparse(f.value) == "super()":
+                continue  # a cursor's override passing its caller's SQL on (the caller's own call is scanned)
             how = name
         else:
             continue
