@@ -255,6 +255,23 @@ def tapped_body(fs: float, n: int, every_s: float, jump_deg: float, seed: int):
     return acc, gyr, bias
 
 
+def late_bias_errors(acc, gyr, bias, fs=100.0):
+    """RMS error (°/s) of the causal filter's bias over the second half, against the simulator's ``bias``, with
+    the impact pause (8a) at 40 m/s² and without it (``inf``): ``{40.0: …, inf: …}``."""
+    from estimators.orientation.base import validate_imu
+    from estimators.orientation.chakamo import coefficients
+
+    late = np.arange(len(acc)) >= len(acc) // 2
+    errors = {}
+    for th in (40.0, math.inf):
+        method = Chakamo(ChakamoParams(offline=False, impact_acc_th_m_s2=th))
+        data = validate_imu(acc, gyr, None, fs_hz=fs)
+        _, _, aux = kern.chakamo_batch(data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok,
+                                       coefficients(method.params, fs), method._initial_state_for(data, None), True)
+        errors[th] = rmse(np.degrees(np.linalg.norm(aux[late, kern.A_BIAS:kern.A_BIAS + 3] - bias, axis=1)))
+    return errors
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_impacts_do_not_throw_the_motion_bias(seed):
     """(8a): the tilt a tap adds to the strapdown is not read as bias; the bias is still learnt in motion.
@@ -263,19 +280,7 @@ def test_impacts_do_not_throw_the_motion_bias(seed):
     unseen by the gyroscope.  Truth: the simulator's bias.  Without the pause (``impact_acc_th_m_s2=inf``, the
     filter before (8a)) the bias error over the last minute is 0.054-0.076°/s RMS; with it about 0.02°/s.
     """
-    from estimators.orientation.base import validate_imu
-    from estimators.orientation.chakamo import coefficients
-
-    fs, n = 100.0, 12000
-    acc, gyr, bias = tapped_body(fs, n, every_s=15.0, jump_deg=1.0, seed=seed)
-    errors = {}
-    for th in (40.0, math.inf):
-        method = Chakamo(ChakamoParams(offline=False, impact_acc_th_m_s2=th))
-        data = validate_imu(acc, gyr, None, fs_hz=fs)
-        _, _, aux = kern.chakamo_batch(data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok,
-                                       coefficients(method.params, fs), method._initial_state_for(data, None), True)
-        late = np.arange(n) >= n // 2
-        errors[th] = rmse(np.degrees(np.linalg.norm(aux[late, kern.A_BIAS:kern.A_BIAS + 3] - bias, axis=1)))
+    errors = late_bias_errors(*tapped_body(100.0, 12000, every_s=15.0, jump_deg=1.0, seed=seed))
     assert errors[40.0] < 0.035  # °/s, of a 0.5°/s bias
     assert errors[math.inf] > 1.5 * errors[40.0]
 
@@ -288,19 +293,7 @@ def test_repeated_impacts_do_not_pause_the_motion_bias(seed):
     from 5 s on an 80 m/s² shock every 1 s.  Pausing at every impact (the first form of (8a)) froze the bias from
     the first shock on; the isolated-impact form learns it as well as the filter without the pause.
     """
-    from estimators.orientation.base import validate_imu
-    from estimators.orientation.chakamo import coefficients
-
-    fs, n = 100.0, 12000
-    acc, gyr, bias = tapped_body(fs, n, every_s=1.0, jump_deg=0.0, seed=seed)
-    errors = {}
-    for th in (40.0, math.inf):
-        method = Chakamo(ChakamoParams(offline=False, impact_acc_th_m_s2=th))
-        data = validate_imu(acc, gyr, None, fs_hz=fs)
-        _, _, aux = kern.chakamo_batch(data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok,
-                                       coefficients(method.params, fs), method._initial_state_for(data, None), True)
-        late = np.arange(n) >= n // 2
-        errors[th] = rmse(np.degrees(np.linalg.norm(aux[late, kern.A_BIAS:kern.A_BIAS + 3] - bias, axis=1)))
+    errors = late_bias_errors(*tapped_body(100.0, 12000, every_s=1.0, jump_deg=0.0, seed=seed))
     assert errors[40.0] < 0.035  # °/s, of a 0.5°/s bias
     assert errors[40.0] < errors[math.inf] + 0.005
 
