@@ -36,11 +36,8 @@ import argparse
 import base64
 import math
 import os
-import shutil
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -51,7 +48,7 @@ for folder in (ROOT / "tests", ROOT / "tests" / "app" / "web"):     # the browse
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))
 
-from benchmarks.scene_first_frame import EMAIL, PASSWORD, _serve  # noqa: E402
+from benchmarks.scene_first_frame import EMAIL, PASSWORD, chromium_path, file_at, served_app  # noqa: E402
 from metawear_frames import notifications  # noqa: E402
 from metawear_peripherals import STAND_IN, Bench, Peripheral  # noqa: E402
 
@@ -185,15 +182,15 @@ def old_record_js(commit: str) -> bytes:
     does not hand the live checks' thresholds of GET /options to the Recorder, which today's recorder.js requires:
     its page never makes a recorder and the run would wait for the sensors' identification forever, so it is
     refused (SystemExit with the reason), as is a commit git does not know."""
-    done = subprocess.run(["git", "-C", str(ROOT), "show", f"{commit}:static/views/record.js"], capture_output=True)
-    if done.returncode != 0:
-        raise SystemExit(f"--before {commit}: git has no static/views/record.js at that commit "
-                         f"({done.stderr.decode(errors='replace').strip()})")
-    if b"live_checks" not in done.stdout:
+    try:
+        js = file_at(commit, "static/views/record.js")
+    except FileNotFoundError as exc:
+        raise SystemExit(f"--before {commit}: {exc}") from None
+    if b"live_checks" not in js:
         raise SystemExit(f"--before {commit}: its record.js predates 913bbb8 (it does not pass GET /options' "
                          "live_checks to the Recorder, which today's recorder.js requires, so the page never records "
                          "and the run would wait forever); compare with 913bbb8 or a later commit")
-    return done.stdout
+    return js
 
 
 def one_run(browser, base: str, token: str, run: int, args) -> dict:
@@ -302,18 +299,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="serve that commit's static/views/record.js instead of today's (an old-vs-new pair)")
     args = parser.parse_args(argv)
     args.old_js = old_record_js(args.before) if args.before else None
-    chromium = shutil.which("chromium")
+    chromium = chromium_path()
     if chromium is None:
         print("chromium not installed: nothing measured")
         return 1
     from playwright.sync_api import sync_playwright
 
-    tmp = Path(tempfile.mkdtemp(prefix="chakamo-preview-lag-"))
-    base, token, stop = _serve(tmp / "data")
     cpu0 = time.process_time()
     load0 = os.getloadavg()
     out = {"dom": [], "frame": [], "late": [], "unseen": 0, "error": [], "long": []}
-    try:
+    with served_app("chakamo-preview-lag-") as (base, token):
         with sync_playwright() as pw:
             for run in range(args.repeats):
                 # a browser per run: its Bluetooth emulation is enabled once per browser
@@ -324,9 +319,6 @@ def main(argv: list[str] | None = None) -> int:
                     browser.close()
                 for key, value in one.items():
                     out[key] += value
-    finally:
-        stop()
-        shutil.rmtree(tmp, ignore_errors=True)
     load1 = os.getloadavg()
     print(f"Live flexion preview lag ({'record.js of ' + args.before if args.before else 'today'}), headless Chromium, {args.repeats} run(s) of {args.seconds:.0f} s of task, a "
           f"{args.step_deg:.0f}° switch every {args.hold_s[0]}–{args.hold_s[1]} s, BLE interval {args.interval_ms:.1f} ms")

@@ -17,10 +17,10 @@ Printed per variant and reading time (median and worst of ``--repeats`` fresh br
 Variants (alternated run by run, so a changing load falls on each alike): ``now`` (today's page and viser's client
 as the server sends it: unpacked, :mod:`app.web.viser_client`), ``packed`` (today's page with viser's shipped
 single-file client, served in place of the unpacked one through Playwright's routing: its loader decodes and
-compiles the client on the page's main thread), ``charts_first`` (the unpacked client, the results page of commit
-432c3a7: the charts drawn at once instead of after the 3D view's first frames) and ``before`` (the results page of
-commit 95bd85e, an iframe with ``loading=lazy``, started only when scrolled to).  The load average and the benchmark's CPU time are printed beside
-the table: timings on a shared machine are noisy.
+compiles the client on the page's main thread) and ``before`` (the results page of commit 95bd85e, an iframe with
+``loading=lazy``, started only when scrolled to).  (A ``charts_first`` variant, the page of 432c3a7, measured the
+charts' wait for the 3D view's first frames at commit 3735802; the wait is gone, so that page is today's.)  The
+load average and the benchmark's CPU time are printed beside the table: timings on a shared machine are noisy.
 ``--trace DIR`` adds one run per variant with Chromium's performance trace (written there) and prints the page's
 main-thread tasks of 50 ms or more, with their longest parts: where the time to the first frame goes.
 Usage: ``python -m benchmarks.scene_first_frame [--repeats 3] [--read-s 0 3] [--variants packed now] [--trace DIR]``.
@@ -29,6 +29,7 @@ Usage: ``python -m benchmarks.scene_first_frame [--repeats 3] [--read-s 0 3] [--
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
 import shutil
@@ -43,7 +44,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the results page (static/views/results.js) of these commits, for the variants that replay it
-VARIANT_COMMITS = {"before": "95bd85e", "charts_first": "432c3a7"}
+VARIANT_COMMITS = {"before": "95bd85e"}
 EMAIL, PASSWORD = "viewer@clinic.test", "correct horse battery staple"
 ARGS = ("--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--hide-scrollbars",
         "--enable-unsafe-swiftshader")
@@ -90,15 +91,45 @@ def _serve(data_dir: Path):
     return f"http://127.0.0.1:{port}", token, stop
 
 
-def _demo_session(base: str, token: str, folder: Path) -> int:
+@contextlib.contextmanager
+def served_app(prefix: str = "chakamo-bench-"):
+    """:func:`_serve` on a temporary data folder (named ``prefix``…): yields ``(base_url, token)``; on leaving, the
+    server stops and the folder is deleted."""
+    tmp = Path(tempfile.mkdtemp(prefix=prefix))
+    try:
+        base, token, stop = _serve(tmp / "data")
+        try:
+            yield base, token
+        finally:
+            stop()
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def chromium_path() -> str | None:
+    """Debian's ``chromium`` (the browser both benchmarks drive), or None when it is not installed."""
+    return shutil.which("chromium")
+
+
+def file_at(commit: str, path: str) -> bytes:
+    """The file ``path`` (from the repository's root) as it was at ``commit``: ``git show commit:path``; a
+    FileNotFoundError with git's reason when git does not know the commit or the file there."""
+    done = subprocess.run(["git", "-C", str(ROOT), "show", f"{commit}:{path}"], capture_output=True)
+    if done.returncode != 0:
+        raise FileNotFoundError(f"git has no {path} at {commit} ({done.stderr.decode(errors='replace').strip()})")
+    return done.stdout
+
+
+def _demo_session(base: str, token: str) -> int:
     """The demo session (10 step-up cycles) uploaded and processed through the API; its id."""
     import httpx
 
     from app.pipeline.demo import simulate_session, write_session
 
-    paths = write_session(folder, simulate_session(seed=7, side="right", n_cycles=10))
     h = {"Authorization": f"Bearer {token}"}
-    with httpx.Client(base_url=f"{base}/api/v1", headers=h, timeout=120) as c:
+    with tempfile.TemporaryDirectory(prefix="chakamo-demo-") as folder, \
+            httpx.Client(base_url=f"{base}/api/v1", headers=h, timeout=120) as c:
+        paths = write_session(Path(folder), simulate_session(seed=7, side="right", n_cycles=10))
         pid = c.post("/patients", json={"external_id": "BENCH-3D", "side": "right"}).json()["id"]
         sid = c.post(f"/patients/{pid}/sessions", json={"step_height_m": 0.17}).json()["id"]
         files = [("files", (p.name, p.read_bytes(), "text/csv")) for p in sorted(paths) if p.suffix == ".csv"]
@@ -109,11 +140,6 @@ def _demo_session(base: str, token: str, folder: Path) -> int:
         if j["status"] != "done":
             raise SystemExit(f"processing failed: {j}")
     return sid
-
-
-def _old_results_js(commit: str) -> bytes:
-    return subprocess.run(["git", "-C", str(ROOT), "show", f"{commit}:static/views/results.js"],
-                          capture_output=True, check=True).stdout
 
 
 def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: dict[str, bytes],
@@ -202,19 +228,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--read-s", type=float, nargs="+", default=[0.0, 3.0])
     parser.add_argument("--trace", type=Path, default=None,
                         help="a folder: one more run per variant with Chromium's performance trace, summarised")
-    parser.add_argument("--variants", nargs="+", choices=("before", "packed", "charts_first", "now"), default=["packed", "now"])
+    parser.add_argument("--variants", nargs="+", choices=("before", "packed", "now"), default=["packed", "now"])
     args = parser.parse_args(argv)
-    chromium = shutil.which("chromium")
+    chromium = chromium_path()
     if chromium is None:
         print("chromium not installed: nothing measured")
         return 1
     from playwright.sync_api import sync_playwright
 
-    tmp = Path(tempfile.mkdtemp(prefix="chakamo-scene-bench-"))
-    base, token, stop = _serve(tmp / "data")
-    try:
-        sid = _demo_session(base, token, tmp / "demo")
-        old_js = {v: _old_results_js(c) for v, c in VARIANT_COMMITS.items() if v in args.variants}
+    old_js = {v: file_at(c, "static/views/results.js") for v, c in VARIANT_COMMITS.items() if v in args.variants}
+    with served_app("chakamo-scene-bench-") as (base, token):
+        sid = _demo_session(base, token)
         rows = []
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=chromium, headless=True, args=list(ARGS))
@@ -235,9 +259,6 @@ def main(argv: list[str] | None = None) -> int:
                     _one(browser, base, sid, variant, args.read_s[0], old_js, trace=path)
                     traces.append((variant, path))
             browser.close()
-    finally:
-        stop()
-        shutil.rmtree(tmp, ignore_errors=True)
     load = os.getloadavg()
     cpu = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu_s = sum(r.ru_utime + r.ru_stime for r in cpu)

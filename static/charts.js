@@ -34,13 +34,6 @@ export function loadPlotly() {
   return plotlyPromise;
 }
 
-/** Fetch /vendor/plotly.min.js into the cache without running it (a preload link), for a page that runs it later. */
-export function preloadPlotly() {
-  if (window.Plotly || document.querySelector('link[rel="preload"][href="/vendor/plotly.min.js"]')) return;
-  document.head.append(Object.assign(document.createElement("link"),
-    { rel: "preload", as: "script", href: "/vendor/plotly.min.js" }));
-}
-
 function separators() {
   return lang() === "en" ? ".," : ",.";
 }

@@ -169,7 +169,7 @@ export class Recorder {
       coverage: role === "mag_calibration" ? new SphereCoverage(this.limits.coverage) : null,
       stillness: posture ? new Stillness(fs, this.limits.stillness) : null,
       cycles: role === "task" ? new CycleCounter(fs, this.limits.cycles) : null }]));
-    if (role === "standing" || role === "lying") for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
+    if (posture) for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
     this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
     // a failed write keeps its records queued and is retried at the next tick; meanwhile it is shown (live)
     this.bufferError = null;

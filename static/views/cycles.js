@@ -24,7 +24,7 @@ const CHOOSABLE = (c) => c.accepted || c.reason === EXCLUDED || c.reason === "rm
 const COLOURS = { accepted: "#1f77b4", rejected: "#c62828", excluded: "#8a8f98" };
 
 /** The cycles card: one block per knee (two in a session of both knees), and the reprocess action. */
-export function cyclesSection(session, analysis, r, chartsGate = Promise.resolve()) {
+export function cyclesSection(session, analysis, r) {
   const knees = r.knees && Object.keys(r.knees).length === 2
     ? Object.entries(r.knees).sort().map(([side, k]) => [side, k]) : [[null, r]];
   const job = (session.jobs || []).find((j) => j.id === analysis.job_id) || {};
@@ -43,14 +43,12 @@ export function cyclesSection(session, analysis, r, chartsGate = Promise.resolve
     editable ? h("div", { class: "actions" }, button) : h("p", { class: "hint", id: "cycles-locked" },
       t(analysis.superseded_at ? "cycles.superseded" : "cycles.read_only")),
     status);
-  // drawn when scrolled near, and not before `chartsGate` (results.js: the page's charts wait for the 3D view's
-  // first frames): plotly shares the page's one thread with the 3D view's boot (scene.js), and a tall viewport has
-  // this chart within reach at once
+  // drawn when scrolled near: plotly shares the page's one thread with the 3D view's boot (scene.js)
   const observer = new IntersectionObserver((entries) => entries.forEach((e) => {
     if (!e.isIntersecting) return;
     observer.unobserve(e.target);
     const b = blocks.find((x) => x.chart === e.target);
-    chartsGate.then(() => b.draw()).catch((err) => b.chart.replaceWith(alertBox(errorText(err))));
+    b.draw().catch((err) => b.chart.replaceWith(alertBox(errorText(err))));
   }), { rootMargin: "200px" });
   blocks.forEach((b) => observer.observe(b.chart));
   return section;

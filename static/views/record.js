@@ -327,10 +327,10 @@ export function recordView(sessionId) {
         (segment, role, files) => send(sessionId, segment, role, files), served.live_checks);
       clear(optionsMessage);
     } catch (err) {
-      const again = h("button", { type: "button", class: "secondary options-retry" }, t("record.options_retry"));
-      again.addEventListener("click", () => { again.disabled = true; makeRecorder(true); });
+      const retry = h("button", { type: "button", class: "secondary options-retry" }, t("record.options_retry"));
+      retry.addEventListener("click", () => { retry.disabled = true; makeRecorder(true); });
       const key = err && err.code === "live_checks_missing" ? "record.error.live_checks_missing" : "record.error.options";
-      clear(optionsMessage).append(alertBox(t(key)), again);
+      clear(optionsMessage).append(alertBox(t(key)), retry);
     }
     draw();
   }

@@ -11,7 +11,7 @@
 import { api, apiUrl } from "../api.js";
 import { h, clear, alertBox, errorText, date, dateTime, meanSd, label, num } from "../dom.js";
 import { t, lang, LANGUAGES } from "../i18n.js";
-import { ANGLES, drawCurve, loadPlotly, preloadPlotly, purge } from "../charts.js";
+import { ANGLES, drawCurve, loadPlotly, purge } from "../charts.js";
 import { patientTitle, statusBadge } from "./patients.js";
 import { navigate, canEdit } from "../app.js";
 import { cyclesSection, technicalNotes } from "./cycles.js";
@@ -110,9 +110,6 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     h("h2", { id: "h-curves" }, t("results.curves")), h("p", { class: "hint" }, t("results.curves_hint")),
     h("div", { class: "charts" }, charts));
 
-  // the charts' gate (every plotly chart of the page waits on it, the cycles' too): opened by drawCharts
-  let openGate;
-  const chartsGate = new Promise((resolve) => { openGate = resolve; });
   const knees = kneesSection(r);
   const kneeCharts = knees ? [...knees.querySelectorAll(".chart")] : [];
   clear(body).append(summary, curves, ...(knees ? [knees] : []),
@@ -120,49 +117,26 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
       h("section", { class: "card grow", "aria-labelledby": "h-rom" }, h("h2", { id: "h-rom" }, t("results.rom")), romTable(r)),
       h("section", { class: "card grow", "aria-labelledby": "h-phases" }, h("h2", { id: "h-phases" }, t("results.phases")), phaseTable(r))),
     r.reference ? referenceSection(r.reference) : null,
-    cyclesSection(session, analysis, r, chartsGate),
+    cyclesSection(session, analysis, r),
     qualitySection(r, warnings),
     compareSection(session, analysis),
     interpretationSection(session, analysis),
     pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id, r, () => drawCharts()));
+    sceneSection(session.id, analysis.id, r));
 
-  // The charts wait for the 3D view's first frames, at most CHARTS_WAIT_MS (0: no wait): the page and viser's
-  // client (a same-origin frame) share one main thread, where plotly's start (its 3.5 MB script run, then three
-  // charts) sat between the client's start and its first frame (issue 17 §4: python -m
-  // benchmarks.scene_first_frame).  The script is fetched meanwhile (preloadPlotly), so the wait costs the charts
-  // its run only.  Measured on a quiet machine (3 cold runs each, page open to first 3D frame): the wait gave
-  // 3164 ms against 2894 ms without it and 3317 ms before this change, and 2344 ms instead of 68 ms once scrolled
-  // to, so it is off (0); the mechanism stays for a slower device where a trace shows it helps.
-  let drawn = false;
-  const drawCharts = () => {
-    if (drawn || !section.isConnected) return;
-    drawn = true;
-    openGate();
-    ANGLES.forEach((a, i) => {
-      const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
-      drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
-    });
-    ANGLES.forEach((a, i) => {
-      if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
-    });
-  };
-  if (CHARTS_WAIT_MS > 0) {
-    preloadPlotly();
-    setTimeout(drawCharts, CHARTS_WAIT_MS);
-  } else {
-    drawCharts();
-  }
+  ANGLES.forEach((a, i) => {
+    const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
+    drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
+  });
+  ANGLES.forEach((a, i) => {
+    if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+  });
   const observer = new MutationObserver(() => {
     if (!section.isConnected) { charts.forEach(purge); kneeCharts.forEach(purge); observer.disconnect(); }
   });
   observer.observe(document.getElementById("main"), { childList: true });
 }
-
-/** The longest the charts (the curves, both knees', the cycles') wait for the 3D view's first frames (a loaded
- *  machine, a scene that does not load); 0: they draw at once, no wait. */
-const CHARTS_WAIT_MS = 0;
 
 const SIDE_COLOURS = { left: "#1f4e79", right: "#d66e16" };
 

@@ -2,12 +2,13 @@
 // scene.viser in an <iframe>, with a jump-to-cycle control like `chakamo view`'s.
 //
 // First frame: the client boots (served unpacked: app/web/viser_client.py), fetches the recording and draws, on
-// the page's own thread (a same-origin frame); the page's plotly charts could wait for its first frames (results.js
-// CHARTS_WAIT_MS, off: measured no gain).  A lazy iframe started all of that only
-// once within Chromium's lazy-loading distance of the view; the frame now starts with the page, so the boot runs while
-// the clinician reads the numbers above, and a "loading" line stands in the box until the recording plays (no blank
-// box).  `python -m benchmarks.scene_first_frame` measures both in Chromium.  (Tried: giving the source at the first
-// idle moment after the charts; on a loaded machine the idle callback waited its whole timeout, later than eager.)
+// the page's own thread (a same-origin frame), after and among the page's plotly charts.  A lazy iframe started all
+// of that only once within Chromium's lazy-loading distance of the view; the frame now starts with the page, so the
+// boot runs while the clinician reads the numbers above, and a "loading" line stands in the box until the recording
+// plays (no blank box).  `python -m benchmarks.scene_first_frame` measures both in Chromium.  (Tried: giving the
+// source at the first idle moment after the charts; on a loaded machine the idle callback waited its whole timeout,
+// later than eager.)
+// Tried: charts held until its first frames (3735802): no gain on a quiet machine, 3164 ms with vs 2894 without; scrolled-to 2344 vs 68 ms.
 //
 // Jump to cycle: the recorded scene's time axis is the task's (sample 0 at 0 s: results.json cycles.boundaries_s),
 // and viser's playback client has no API to seek from outside; its time field is a plain <input> in the same-origin
@@ -54,18 +55,8 @@ function seek(frame, seconds) {
   return true;
 }
 
-/** Call `then` after the client in `frame` has drawn `n` more frames (its own requestAnimationFrame; a frame out of
- * view may draw none, so the caller keeps a time limit of its own). */
-function afterFrames(frame, n, then) {
-  let win = null;
-  try { win = frame.contentWindow; } catch (_) { /* not same-origin */ }
-  if (!win || n <= 0) { then(); return; }
-  win.requestAnimationFrame(() => afterFrames(frame, n - 1, then));
-}
-
-/** The 3D card of analysis `analysisId` of session `sessionId` (`r`: its results.json, for the cycles); `onShown`
- * (optional) is called once, when the recording plays and the client has drawn two frames since, or when it failed. */
-export function sceneSection(sessionId, analysisId, r, onShown = () => {}) {
+/** The 3D card of analysis `analysisId` of session `sessionId` (`r`: its results.json, for the cycles). */
+export function sceneSection(sessionId, analysisId, r) {
   const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
   const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
   // eager (no loading=lazy): the page grew (the cycles and pairing cards), which put the frame beyond Chromium's
@@ -93,13 +84,11 @@ export function sceneSection(sessionId, analysisId, r, onShown = () => {}) {
       loading.remove();
       jump.disabled = false;
       box.dataset.ready = "true";
-      afterFrames(frame, 2, onShown);
     } else if (Date.now() - started > READY_TIMEOUT_MS) {
       clearInterval(ready);
       loading.textContent = t("scene.failed");
       loading.classList.add("error");
       box.dataset.ready = "failed";
-      onShown();
     }
   }, 100);
   return h("section", { class: "card scene", "aria-labelledby": "h-scene" },

@@ -22,7 +22,7 @@ def _known(commit: str) -> bool:
 @pytest.mark.skipif(not _known("913bbb8"), reason="no git history with 913bbb8 here")
 def test_a_commit_before_the_served_thresholds_is_refused(monkeypatch):
     started = []
-    monkeypatch.setattr(preview_lag, "_serve", lambda *a: started.append(a))
+    monkeypatch.setattr(preview_lag, "served_app", lambda *a: started.append(a))
     with pytest.raises(SystemExit) as exc:
         preview_lag.main(["--before", "913bbb8^", "--seconds", "1"])
     assert "predates 913bbb8" in str(exc.value.code) and not started

@@ -80,24 +80,42 @@ def _window(rng, gyr_sd, acc_sd, n=500):
     return acc, gyr
 
 
+#: samples pushed before a window in the prefixed runs: not a multiple of the window's 500, so the judged window
+#: ends mid-way between two of the running sums' fresh summations and its verdict rests on the O(1) updates (the
+#: prefix's samples leaving the sums one by one), not on a summation of exactly the window
+PREFIX_N = 237
+
+
+def _prefix(rng):
+    """A still stretch with another mean (the gyroscope 30 °/s off, SD half of each limit): left in the sums, it
+    would make every window read as moving."""
+    acc, gyr = _window(rng, 0.5 * GYR_LIMIT, 0.5 * ACC_LIMIT, n=PREFIX_N)
+    return acc, gyr + 30.0
+
+
 def test_the_stillness_window_is_the_pipelines_judgement(static_page):
     """Live "still" on the last window is the pipeline's verdict on that window (estimators.knee.stillest_window's
     ``still`` on exactly those samples, its limits and ddof 1), on windows built just inside and just outside each
-    limit, and where ddof 0 and ddof 1 disagree: a mix of still and not still."""
+    limit, and where ddof 0 and ddof 1 disagree: a mix of still and not still.  Each window is judged alone and
+    after a prefix (:func:`_prefix`), which the last window no longer holds: the verdict must not change."""
     rng = np.random.default_rng(3)
     windows = [_window(rng, g * GYR_LIMIT, a * ACC_LIMIT) for g, a in NEAR]
+    prefix = _prefix(np.random.default_rng(9))
     assert LIMITS["stillness"] == {"window_s": 5.0, "max_gyr_sd_rad_s": GYR_LIMIT, "max_acc_sd_m_s2": ACC_LIMIT}
-    live = static_page.evaluate("""async ([windows, limits]) => { const c = await import('/metawear/checks.js');
-        return windows.map(([acc, gyr]) => { const s = new c.Stillness(100, limits); const before = [];
-            for (let i = 0; i < acc.length; i++) { s.pushAcc(acc[i]); s.pushGyr(gyr[i]); before.push(s.still()); }
-            return [s.still(), before.slice(0, -1).some(Boolean)]; }); }""",
-                                [[[a.tolist(), g.tolist()] for a, g in windows], LIMITS["stillness"]])
     pipeline = [knee.stillest_window(a * 9.80665, np.deg2rad(g), fs_hz=100.0).still for a, g in windows]
-    assert [v for v, _ in live] == pipeline
+    for pre in (None, prefix):
+        runs = [(a, g) if pre is None else (np.vstack([pre[0], a]), np.vstack([pre[1], g])) for a, g in windows]
+        live = static_page.evaluate("""async ([windows, limits]) => { const c = await import('/metawear/checks.js');
+            return windows.map(([acc, gyr]) => { const s = new c.Stillness(100, limits); const before = [];
+                for (let i = 0; i < acc.length; i++) { s.pushAcc(acc[i]); s.pushGyr(gyr[i]); before.push(s.still()); }
+                return [s.still(), before.slice(0, -1).some(Boolean)]; }); }""",
+                                    [[[a.tolist(), g.tolist()] for a, g in runs], LIMITS["stillness"]])
+        assert [v for v, _ in live] == pipeline, "with the prefix" if pre is not None else "alone"
+        if pre is None:
+            assert not any(early for _, early in live)      # nothing is still before a whole window arrived
     # the verdicts expected from the windows' construction: below both limits, ddof 1
     assert pipeline == [g <= 1 and a <= 1 for g, a in NEAR]
     assert 3 <= sum(pipeline) <= len(pipeline) - 3
-    assert not any(early for _, early in live)              # nothing is still before a whole window arrived
 
 
 def test_seconds_still_are_the_union_of_still_windows(static_page):

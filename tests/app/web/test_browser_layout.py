@@ -84,7 +84,7 @@ def _pages(pid: int, sid: int):
         ("wizard-1", f"#/sessions/{sid}/wizard", "ol.steps li:nth-child(1) button", ".sensor"),
         ("wizard-2", f"#/sessions/{sid}/wizard", "ol.steps li:nth-child(2) button", ".ingestion-box"),
         ("wizard-3", f"#/sessions/{sid}/wizard", "ol.steps li:nth-child(3) button", "form.process-form"),
-        ("results", f"#/sessions/{sid}", None, "#curve-flexion .main-svg"),   # the charts drawn (after the 3D view)
+        ("results", f"#/sessions/{sid}", None, "#curve-flexion .main-svg"),   # the charts drawn
         ("account", "#/account", None, "#session-list li"),
         ("admin-users", "#/admin/users", None, "#users-table"),
         ("admin-tokens", "#/admin/tokens", None, "#tokens-table td"),
