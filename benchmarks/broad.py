@@ -65,9 +65,7 @@ half A = trials 02 10 18 24 30, half B = 07 15 27 32 35 (undisturbed 02–18 / d
 3+2 and 2+3).  The grid (``GRIDS``, stated in the table) is small; the choice minimises the mean total
 RMSE over the tuning half, per mode (keys that act only on the field, ``NINE_D_ONLY``, are not
 varied in 6D).  ``chakamo``'s grid includes ``offline_mag_bias`` (on/off): the feature's design looked at
-trials 32 and 35 (half B), so each tuning half must choose it for the held-out score to be evidence; likewise
-``offline_impact_acc_th_m_s2`` (30, 40, 60 m/s² or never, the pause of the motion bias after an isolated impact, off
-by default), designed on trial 24 (half A).  The table prints, per mode and split, the chosen values, the
+trials 32 and 35 (half B), so each tuning half must choose it for the held-out score to be evidence.  The table prints, per mode and split, the chosen values, the
 tuned-half score and the held-out half's undisturbed / disturbed means, beside VQF offline and online
 on the same held-out trials.
 
@@ -441,7 +439,7 @@ SPLITS: dict[str, tuple[str, ...]] = {"A": ("02", "10", "18", "24", "30"), "B": 
 GRIDS: dict[str, dict[str, tuple[Any, ...]]] = {
     "chakamo": {"offline_tau_mag_s": (10.0, 20.0, 40.0),
                 "bias_sigma_motion_rad_s": (0.1 * _DEG, 0.2 * _DEG, 0.4 * _DEG, 0.8 * _DEG, 1.6 * _DEG),
-                "offline_mag_bias": (False, True), "offline_impact_acc_th_m_s2": (30.0, 40.0, 60.0, float("inf"))},
+                "offline_mag_bias": (False, True)},
     "guo": {"acc_noise_rad": (0.1, 0.2, 0.4), "mag_noise_rad": (0.075, 0.15, 0.3)},
     "madgwick": {"beta_rad_s": (0.02, 0.03, 0.05, 0.1)},
     "valenti_cf": {"tau_acc_s": (-0.01 / np.log1p(-0.01), 2.0, 5.0), "tau_mag_s": (5.0, 8.0, 10.0, 20.0)},

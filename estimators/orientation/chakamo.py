@@ -60,35 +60,16 @@ Causal filter (one sample, ``dt = 1/fs``)
    rotations).  Robustness: scalar measurements are applied sequentially, innovations are clipped to
    ±``bias_clip_rad_s`` (one burst of linear acceleration cannot throw the estimate), the variances
    never grow beyond the initial one, and the estimate is clipped to ±``bias_clip_rad_s``.
-   *Impacts* (8a): a shock (a tap on the sensor, a heel strike) turns the sensor faster and more briefly
-   than the gyroscope resolves, so the strapdown (1) takes an orientation jump :math:`\delta\theta` that no bias
-   explains.  The inclination correction (3-4) removes its tilt through the low-pass (2), whose poles have
-   real part :math:`-1/\tau_{acc}` (:math:`\omega_c = \sqrt2/\tau_{acc}`, ζ = 1/√2): for about
-   :math:`3\tau_{acc}` the correction rate carries :math:`\delta\theta` spread over time, and (8) would read it as
-   a bias of order :math:`\delta\theta/\tau_{acc}` (1° → 0.3°/s at τ_acc = 3 s, above ``bias_sigma_motion_rad_s``)
-   whose vertical part then turns the heading.  So an *isolated* impact pauses (8) for :math:`3\tau_{acc}`
-   (``IMPACT_SETTLE_TAUS``): a sample whose specific-force norm departs from the low-passed one by more than
-   :math:`a_{imp}` (``impact_acc_th_m_s2``), :math:`\big||a| - |\bar a_I|\big| > a_{imp}`, is an impact (samples
-   above it closer than ``IMPACT_MERGE_S`` = 0.2 s are one impact, its ringing); it is isolated when no other
-   impact came in the :math:`3\tau_{acc}` before it, and then (8) pauses for :math:`3\tau_{acc}`; a repeated
-   impact (a walk's heel strikes, 1 s apart) ends the pause, so a repeated-impact motion is paused at most
-   until its second impact.  While paused, the bias keeps its estimate and its covariance grows by (5).  The
-   field's bias measurement (12b) is not paused: the heading lag it reads settles with τ_mag, not τ_acc.
-
-   *Off by default* (``impact_acc_th_m_s2`` and ``offline_impact_acc_th_m_s2`` = inf: the filter is the one
-   before (8a)), because it did not pay, measured: (i) BROAD trial 24 (finger taps of 5–15 g during rotations;
-   the strapdown with the rest bias tilts 0.5–1° at some taps and ChakaMo's motion bias wanders 0.03–0.05°/s
-   off the rest bias while VQF's stays put) gained 6D 0.92° → 0.80° only when *every* impact paused, but its
-   taps come within 3 τ_acc of each other, so the isolated form leaves it at 0.92°; (ii) pausing at every
-   impact also pauses the offline passes for most of a walk (heel strikes of 4–6.5 g off 1 g, no threshold
-   separates them from the taps): ``benchmarks.walking`` knee RMSE 1.38° → 1.42° (6D), 1.37° → 1.41° (9D);
-   the isolated form still costs 1.38° → 1.41° and 1.37° → 1.40° (presumably the first and last strike of
-   each 5–15 s clip, which pause the passes until the next; not measured separately); (iii) the threshold's held-out choice rests on one trial at one value:
-   half B chooses 40 m/s² in 6D by trial 15 alone (isolated form: 1.317°, 1.300°, 1.318° at 30, 40, 60 m/s², 1.318°
-   off) and scores B→A 3.07°, as off (VQF 6D 3.00°: not met).  See the README for the numbers.  In the offline
-   passes the pauses of an isolated impact do not overlap (the forward pass pauses after it, the backward pass
-   before it), so the smoother (13) has the other pass's estimate across each gap.  The option stays for recordings with sparse shocks (the tests'
-   ``test_impacts_do_not_throw_the_motion_bias``: taps 15 s apart, bias error 0.054–0.076°/s → 0.02°/s).
+   *Tried and not kept* (an impact pause, "(8a)"): BROAD trial 24 (finger taps of 5–15 g during rotations)
+   is ChakaMo's worst 6D disturbed trial; there the strapdown with the rest bias tilts 0.5–1° at some taps and
+   the motion bias (8) wanders 0.03–0.05°/s off the rest bias while VQF's stays put.  Pausing (8) for
+   3 τ_acc after a sample whose specific-force norm departs from the low-passed one by more than a threshold
+   gained trial 24 (6D 0.92° → 0.80°) only when *every* impact paused; that form also paused the offline passes
+   for most of a walk (heel strikes of 4–6.5 g, no threshold separates them from the taps) and cost
+   ``benchmarks.walking`` knee RMSE 1.38° → 1.42° (6D), 1.37° → 1.41° (9D).  Pausing only after isolated
+   impacts cost 1.38° → 1.41° and 1.37° → 1.40° and left trial 24 at 0.92° (its taps repeat), 6D trial 24 at
+   30 / 40 / 60 m/s²: 0.91 / 0.92 / 0.90° against 0.92° without.  Held out, 6D B→A stayed 3.07° (VQF 6D 3.00°).
+   Not kept: it gained nothing on BROAD, cost walking, and its only support was our own simulator.
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
    target :math:`\delta^* = \operatorname{atan2}(m_x, m_y)` (the field's horizontal part on +y),  (9)
    :math:`\delta \leftarrow \delta + k\,\operatorname{wrap}(\delta^* - \delta)`,
@@ -191,7 +172,7 @@ filter (two half batches through ``update`` equal one causal batch); ``estimate`
 smoother when ``params.offline`` is true and ``state_`` is then the forward filter's final state.
 :meth:`Chakamo.estimate_causal` and :meth:`Chakamo.estimate_offline` are explicit entry points.
 
-State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 94, first four = ``q``).
+State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 92, first four = ``q``).
 
 Accuracy and speed
 ------------------
@@ -204,10 +185,9 @@ the tests (held out: seeds 6–11, BROAD, ``benchmarks.heading``): ``offline_mag
 ``offline_heading_width_rad``; the others are VQF's published defaults where the concepts correspond.  Weak spot: trial 35 (magnet attached at 4 cm)
 in the causal 9D filter (≈ 55 s of field rejection, gyroscope heading drift); offline it is fixed by (13a).
 
-Held out (``python -m benchmarks.broad``, parameters, ``offline_mag_bias`` and ``offline_impact_acc_th_m_s2``
-among them, chosen on one half of the ten trials, scored on the other; undisturbed / disturbed total RMSE, °): 9D
-A→B 1.11/2.78 (offline VQF 2.26/3.18), B→A 1.06/1.12 (VQF 1.26/2.73); 6D A→B 1.40/2.01 (VQF 6D 1.49/2.26), B→A
-0.64/3.07 (VQF 6D 0.81/3.00: *not met*; (8a) does not close it, see there).  These defaults' own numbers on all
+Held out (``python -m benchmarks.broad``, parameters, ``offline_mag_bias`` among them, chosen on one half of the ten trials, scored on the other; undisturbed / disturbed total RMSE, °): 9D
+A→B 1.11/2.77 (offline VQF 2.26/3.18), B→A 1.06/1.12 (VQF 1.26/2.73); 6D A→B 1.40/2.01 (VQF 6D 1.49/2.26), B→A
+0.64/3.07 (VQF 6D 0.81/3.00: *not met*; an impact pause did not close it, see (8)).  These defaults' own numbers on all
 ten: 9D 1.08/2.13 (1.07/2.37 without (13a)), 6D 1.01/2.49.
 
 References
@@ -244,11 +224,6 @@ from estimators.orientation.base import (
 _DEG = math.pi / 180.0
 #: reference correlation time of the motion bias measurement (8), s (see ``coefficients``)
 MOTION_NOISE_TAU_S = 3.0
-#: the motion bias measurement pauses this many ``tau_acc_s`` after an impact (8a): the Butterworth poles (2)
-#: have real part -1/τ_acc, so 3 τ_acc leaves e^{-3} ≈ 5 % of the jump's correction transient
-IMPACT_SETTLE_TAUS = 3.0
-#: samples above the impact threshold closer than this belong to one impact (a tap's or heel strike's ringing), s
-IMPACT_MERGE_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -296,11 +271,6 @@ class ChakamoParams:
         0 = the plain weighted mean (14). Default 5°.
     offline_mag_bias: 9D only, the offline smoother's forward and backward passes estimate the bias also from
         the heading corrections (12b), whatever ``mag_bias`` (the causal filter's switch) says (13a). Default True.
-    impact_acc_th_m_s2: the causal filter's impact threshold: an accelerometer sample whose norm departs from the
-        low-passed specific force's norm by more than this pauses the motion bias measurement (8) for
-        ``3 tau_acc_s`` after an isolated impact (8a), m/s²; ``inf`` never pauses. Default inf (off: see (8a)).
-    offline_impact_acc_th_m_s2: the same threshold for the offline smoother's forward and backward passes (8a),
-        whatever ``impact_acc_th_m_s2`` says, m/s². Default inf (off: see (8a)).
     """
 
     tau_acc_s: float = 3.0
@@ -332,8 +302,6 @@ class ChakamoParams:
     offline_mag_guard_s: float = 0.25
     offline_heading_width_rad: float = 5.0 * _DEG
     offline_mag_bias: bool = True
-    impact_acc_th_m_s2: float = math.inf
-    offline_impact_acc_th_m_s2: float = math.inf
 
     def __post_init__(self) -> None:
         positive = ("tau_acc_s", "tau_mag_s", "bias_sigma_init_rad_s", "bias_forgetting_s", "bias_clip_rad_s",
@@ -342,8 +310,6 @@ class ChakamoParams:
                     "offline_tau_mag_s", "offline_mag_sigma")
         for name in positive:
             check_parameter(name, getattr(self, name), low_open=True)
-        for name in ("impact_acc_th_m_s2", "offline_impact_acc_th_m_s2"):
-            check_parameter(name, getattr(self, name), low_open=True, allow_inf=True)
         non_negative = ("rest_min_s", "bias_motion_rate_scale", "mag_min_undisturbed_s", "mag_new_field_s",
                         "mag_max_rejection_s", "offline_mag_guard_s", "offline_heading_width_rad")
         for name in non_negative:
@@ -393,9 +359,6 @@ def coefficients(p: ChakamoParams, fs_hz: float) -> FloatArray:
     c[kern.C_RMAG] = p.bias_sigma_mag_rad_s ** 2 * p.tau_mag_s / dt
     c[kern.C_TAUMAG] = p.tau_mag_s
     c[kern.C_MAGGATE] = 3.0 * p.bias_sigma_init_rad_s * p.tau_mag_s  # (12b) gate: the lag of a 3σ bias error
-    c[kern.C_IMPTH] = p.impact_acc_th_m_s2
-    c[kern.C_IMPHOLD] = IMPACT_SETTLE_TAUS * p.tau_acc_s  # (8a): the low-pass's envelope e^{-t/τ_acc} at 5 %
-    c[kern.C_IMPMERGE] = IMPACT_MERGE_S
 
     c[kern.C_SCALE2] = (p.bias_motion_rate_scale / p.bias_sigma_motion_rad_s) ** 2
     return c
@@ -513,8 +476,7 @@ class Chakamo(OrientationMethod):
                            np.ascontiguousarray(flags.mag_missing[::-1]), np.ascontiguousarray(flags.acc_saturated[::-1]),
                            step_aligned(flags.gyr_saturated, False)))
         state0_b = self._initial_state_for(rev, None)
-        # (13a): the passes learn the vertical bias from the field; (8a): they pause it after impacts
-        passes = replace(p, mag_bias=p.offline_mag_bias, impact_acc_th_m_s2=p.offline_impact_acc_th_m_s2)
+        passes = replace(p, mag_bias=p.offline_mag_bias)  # (13a): the passes learn the vertical bias from the field
         if reference:
             _, s_fwd, aux_f = self._causal(data, state0, reference=True, want_aux=True, params=passes)
             _, _, aux_b = self._causal(rev, state0_b, reference=True, want_aux=True, params=passes)
@@ -524,11 +486,6 @@ class Chakamo(OrientationMethod):
                 _, s_fwd, aux_f = self._causal(data, state0, reference=False, want_aux=True, params=passes)
                 _, _, aux_b = backward.result()
         aux_b = aux_b[::-1]
-        # the returned state seeds a following causal update(), whose own switch is impact_acc_th_m_s2: it must
-        # not inherit the passes' pause (8a)
-        s_fwd = s_fwd.copy()
-        s_fwd[kern.S_TIMP] = 0.0
-        s_fwd[kern.S_TREC] = 0.0
         # (13) two-filter bias smoother
         smooth = ref.smooth_bias_reference if reference else kern.smooth_bias_batch
         bias = smooth(aux_f[:, kern.A_BIAS:kern.A_BIAS + 3], np.ascontiguousarray(aux_f[:, kern.A_P:kern.A_P + 6]),

@@ -34,9 +34,6 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
                       its product with b̂_used (1), for the heading bias measurement (12b)
 ``91``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
-``92``    t_impact    time left in the pause of the motion bias measurement after an impact (s), for (8a)
-``93``    t_recent    time left in which a new impact is a repeated one: 3 τ_acc after the last sample above the
-                      impact threshold (s), for (8a)
 ====================  ==========================================================================
 
 Coefficient vector ``c`` (built by ``chakamo.coefficients``; indices are the ``C_*`` constants):
@@ -59,15 +56,14 @@ S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = 0, 4, 8, 12, 13, 19, 22
 S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = 23, 26, 32, 35, 38, 39
 S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = (
     40, 41, 42, 43, 44, 45, 46, 47, 48)
-S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP, S_TIMP, S_TREC = 49, 67, 73, 85, 86, 87, 91, 92, 93
-STATE_SIZE = 94
+S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = 49, 67, 73, 85, 86, 87, 91
+STATE_SIZE = 92
 
 # --- coefficient indices
 (C_DT, C_B0, C_B1, C_B2, C_A1, C_A2, C_NINIT, C_KREST, C_THG2, C_THA2, C_RESTMIN, C_RREST, C_RMOT,
  C_QBIAS, C_CLIP, C_RESTON, C_MOTON, C_KMAG, C_KREF, C_NORMTH, C_DIPTH, C_NEWS, C_MAXREJ, C_REJON,
- C_KCAND, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG, C_MAGGATE, C_IMPTH,
- C_IMPHOLD, C_IMPMERGE) = range(37)
-COEFF_SIZE = 37
+ C_KCAND, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG, C_MAGGATE) = range(34)
+COEFF_SIZE = 34
 
 # --- auxiliary per-sample outputs (columns of ``aux``)
 A_BIAS, A_P, A_REST, A_MAGUSED, A_MAGNEAR = 0, 3, 9, 10, 11
@@ -173,20 +169,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
             _bias_scalar_update(s, h0, h1, h2, s[S_GREST + i] - s[S_BIAS + i], c[C_RREST], c[C_CLIP])
 
     # (3) inclination from low-passed acceleration in the quasi-inertial frame  [eqs. 2-4]
-    s[S_TIMP] = max(0.0, s[S_TIMP] - dt)
-    s[S_TREC] = max(0.0, s[S_TREC] - dt)
     if acc_ok:
-        # an isolated impact (specific force far from its low-pass, none in the 3 τ_acc before) pauses the
-        # motion bias measurement; a repeated one (gait) ends the pause                         [eq. 8a]
-        if s[S_NACC] > 0.0:
-            dev = (math.sqrt(ax * ax + ay * ay + az * az)
-                   - math.sqrt(s[S_ALP] ** 2 + s[S_ALP + 1] ** 2 + s[S_ALP + 2] ** 2))
-            if abs(dev) > c[C_IMPTH]:
-                if s[S_TREC] <= 0.0:
-                    s[S_TIMP] = c[C_IMPHOLD]
-                elif c[C_IMPHOLD] - s[S_TREC] > c[C_IMPMERGE]:
-                    s[S_TIMP] = 0.0
-                s[S_TREC] = c[C_IMPHOLD]
         aix, aiy, aiz = qrot(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3], ax, ay, az)
         n = s[S_NACC]
         if n < c[C_NINIT]:
@@ -232,7 +215,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
             s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3] = q
             _qnorm(s, S_QEI)
             # (4) bias during motion from the correction rate                  [eq. 8]
-            if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT] and s[S_TIMP] <= 0.0:
+            if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT]:
                 un = math.sqrt(c1 * c1 + c2 * c2)  # log of the correction (as quaternion.log)
                 scale = (2.0 / c0 if un < 1e-12 else 2.0 * math.atan2(un, c0) / un) / dt
                 y0, y1 = c1 * scale, c2 * scale

@@ -12,11 +12,11 @@ import numpy as np
 from estimators import quaternion as quat
 from estimators.orientation.chakamo_kernels import (
     AUX_SIZE, A_BIAS, A_MAGNEAR, A_MAGUSED, A_P, A_REST, C_A1, C_A2, C_B0, C_B1, C_B2, C_CLIP, C_DIPTH, C_DT, C_KCAND,
-    C_IMPHOLD, C_IMPMERGE, C_IMPTH, C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAGGATE, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
+    C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAGGATE, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
     C_NORMTH, C_P0, C_QBIAS, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
     C_THA2, C_THG2, S_ALP, S_AREST, S_BIAS, S_DELTA, S_GREST, S_LP, S_MCANDD, S_MCANDN, S_MDIST, S_MLP,
     S_MREFD, S_MREFN, S_MREFOK, S_NACC, S_NMAG, S_P, S_Q, S_QEI, S_QIS, S_REST, S_RLP, S_RLPOUT, S_TCAND,
-    S_TIMP, S_TREC, S_TREJ, S_TREST, S_TSUP, S_TUND, S_ULP, S_W2,
+    S_TREJ, S_TREST, S_TSUP, S_TUND, S_ULP, S_W2,
 )
 
 
@@ -58,17 +58,8 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
     if s[S_REST] > 0.5 and c[C_RESTON] > 0.5:
         for i in range(3):
             b, p = _bias_update_reference(b, p, np.eye(3)[i], g_lp[i] - b[i], c[C_RREST], c[C_CLIP])
-    # (3) inclination; an impact pauses the motion bias measurement (8a)
-    s[S_TIMP] = max(0.0, s[S_TIMP] - dt)
-    s[S_TREC] = max(0.0, s[S_TREC] - dt)
+    # (3) inclination
     if acc_ok:
-        if s[S_NACC] > 0.0 and abs(np.linalg.norm(acc) - np.linalg.norm(s[S_ALP:S_ALP + 3])) > c[C_IMPTH]:
-            since_last = c[C_IMPHOLD] - s[S_TREC]  # time since the last sample above the threshold (capped)
-            if s[S_TREC] <= 0.0:  # isolated: pause
-                s[S_TIMP] = c[C_IMPHOLD]
-            elif since_last > c[C_IMPMERGE]:  # a new impact within 3 tau_acc of the last: repeated, no pause
-                s[S_TIMP] = 0.0
-            s[S_TREC] = c[C_IMPHOLD]
         acc_i = quat.rotate(s[S_QIS:S_QIS + 4], acc)
         n = s[S_NACC]
         bb = c[[C_B0, C_B1, C_B2]]
@@ -96,7 +87,7 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
             else:
                 corr = quat.normalize(np.array([1.0 + acc_e[2], acc_e[1], -acc_e[0], 0.0]))
             s[S_QEI:S_QEI + 4] = quat.normalize(quat.multiply(corr, s[S_QEI:S_QEI + 4]))
-            if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT] and s[S_TIMP] <= 0.0:
+            if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT]:
                 rate = quat.log(corr) / dt  # rotation vector of the correction per second
                 r_ei = quat.to_matrix(s[S_QEI:S_QEI + 4])
                 m_mat = r_ei @ r_lp

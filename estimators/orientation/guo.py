@@ -160,8 +160,8 @@ Deviations from the paper (and why)
     :math:`\Sigma_0 = \tfrac14\sigma_0^2 I` (``init_noise_rad``).  The dip
     reference of deviation 7 starts from the data, not from the state: :math:`l_{z,ref} = m_D = \hat g\cdot
     \hat{\bar m}`, the alignment window's motion-compensated gravity and mean field (base module docstring),
-    also when ``q0`` is given, and then the accelerometer stage of deviation 14 too starts from the window's
-    gravity.  Both used to come from sample 0 alone: gait scenarios (seeds 0–11) with ``q0`` = truth read
+    also when ``q0`` is given (:meth:`Guo._seed_from_window`; the accelerometer stage of deviation 14 too starts
+    from the window's gravity then, as for every method with that stage: base class).  Both used to come from sample 0 alone: gait scenarios (seeds 0–11) with ``q0`` = truth read
     2.1–18.4° heading RMS, 22–83° with a 4 g impact on sample 0; now 0.8–3.9° and 0.6–3.4° (test
     ``test_a_heel_strike_on_sample_0_with_q0_given``).  Without a field row in the window the first field
     sample's :math:`\hat a\cdot\hat m` seeds it.  :math:`m_D` is the dynamic dip Guo et al. build their reference field
@@ -274,12 +274,10 @@ import numpy as np
 from estimators.orientation import acc_lowpass
 from estimators.orientation.base import (
     ALIGNED_STD_RAD,
-    INIT_WINDOW_S,
     Alignment,
     ImuInput,
     OrientationMethod,
     check_parameter,
-    initial_alignment,
 )
 from estimators.orientation.guo_kernels import FREE_VAR_RAD2, G_M_S2, MIN_FIELD_COS, guo_batch
 
@@ -568,6 +566,7 @@ class Guo(OrientationMethod):
     state_size = STATE_SIZE
     uses_acc_lowpass = True
     lowpass_in_kernel = True
+    seeds_from_window = True
 
     def _state_from_quaternion(self, q: FloatArray, data: ImuInput) -> FloatArray:
         state = np.zeros(STATE_SIZE)
@@ -582,24 +581,12 @@ class Guo(OrientationMethod):
         state = self._state_from_quaternion(alignment.q, data)
         std = min(self.params.init_noise_rad, ALIGNED_STD_RAD)
         state[4:20] = (0.25 * std**2 * np.eye(4)).ravel()
+        return state
+
+    def _seed_from_window(self, state: FloatArray, alignment: Alignment, data: ImuInput) -> None:
+        """The dip and norm references (deviation 10) need no attitude, only the window's gravity and field, so a
+        start given as ``q0`` seeds them from the window too (from sample 0 alone a heel strike there misled them)."""
         _seed_field_references(state, alignment, data.dt_s)
-        return state
-
-    def _initial_state_for(self, data: ImuInput, q0, window_s: float = INIT_WINDOW_S) -> FloatArray:
-        """A start given as ``q0`` still reads the alignment window for the field references and the stage.
-
-        The dip reference (deviation 10) and the accelerometer stage (deviation 14) need no attitude, only the
-        window's motion-compensated gravity and field; seeded from sample 0 alone, a heel strike there
-        (or the raw sample's body acceleration) misled them.
-        """
-        state = super()._initial_state_for(data, q0, window_s)
-        if q0 is not None:
-            alignment = initial_alignment(data, window_s=window_s, regression=self.align_by_regression)
-            _seed_field_references(state, alignment, data.dt_s)
-            if self._lowpass_on:
-                state[-acc_lowpass.SIZE:] = acc_lowpass.initial_block(
-                    alignment.acc_mean, self._lowpass_coefficients(data.fs_hz), alignment.velocity_start, data.dt_s)
-        return state
 
     def _kernel_args(self, data: ImuInput) -> tuple:
         p = self.params

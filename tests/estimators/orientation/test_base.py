@@ -72,6 +72,20 @@ def test_saturation_marks_acc_unusable_and_flags_gyr():
     assert data.flags.gyr_saturated.tolist() == [False, False, True, False]
 
 
+def test_rows_without_a_direction_are_unusable_not_flagged():
+    """A row whose squared norm underflows below the smallest normal float64 (1e-170 per axis: 3e-340) has no
+    direction a kernel can divide by, in either stream: unusable, yet not missing (no flag, it is a number);
+    1e-150 per axis (3e-300) still has one."""
+    acc, gyr, mag = sensor_readings(quat.identity(), 5)
+    acc[1] = 1e-170
+    acc[2] = 1e-150
+    mag[3] = 1e-170
+    data = validate_imu(acc, gyr, mag, fs_hz=100.0)
+    assert data.acc_ok.tolist() == [True, False, True, True, True]
+    assert data.mag_ok.tolist() == [True, True, True, False, True]
+    assert not data.flags.any.any()
+
+
 @pytest.mark.parametrize(
     "kwargs, message",
     [

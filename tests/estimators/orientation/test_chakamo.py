@@ -72,14 +72,9 @@ def realistic():
     acc[120:123] = np.nan
     mag[200] = np.nan
     gyr[150] = np.nan
-    # vertical shocks (8a), with tau_acc 0.5 s (pause 1.5 s = 75 samples): an isolated one of two samples at 170
-    # (pauses), a repeated one at 215 (ends the pause), an isolated one at 380 (the forward pass ends paused)
-    acc[170:172] += [[0.0, 0.0, 40.0], [0.0, 0.0, -30.0]]
-    acc[215] += [0.0, 0.0, 40.0]
-    acc[380] += [0.0, 0.0, 40.0]
-    # fast kernels; small time constants so that every branch (rest, motion bias, new field, impact) runs
+    # fast kernels; small time constants so that every branch (rest, motion bias, new field) runs
     params = dict(tau_acc_s=0.5, tau_mag_s=1.0, rest_min_s=0.5, mag_ref_tau_s=1.0, mag_new_field_s=0.3,
-                  mag_max_rejection_s=0.4, impact_acc_th_m_s2=20.0, offline_impact_acc_th_m_s2=20.0)
+                  mag_max_rejection_s=0.4)
     return acc, gyr, mag, fs, params
 
 
@@ -110,16 +105,6 @@ def test_kernel_state_and_aux_equal_reference(realistic):
     assert np.max(np.abs(a1 - a2)) <= 1e-9
     assert a1[:, kern.A_REST].any() and not a1[:, kern.A_REST].all()  # rest and motion both exercised
     assert (a1[:, kern.A_MAGUSED] == 0).any()  # the disturbance was rejected somewhere
-    # (8a) in both forms: the isolated shock at 170 pauses, its second sample is the same impact, the shock at
-    # 215 (0.9 s later, within 3 tau_acc) is a repeated one and ends the pause
-    for stop, paused in ((171, True), (173, True), (214, True), (216, False)):
-        _, sk, _ = kern.chakamo_batch(data.acc[:stop], data.gyr[:stop], data.mag[:stop], data.acc_ok[:stop],
-                                      data.mag_ok[:stop], c, state0, False)
-        _, sr, _ = ref.chakamo_batch_reference(data.acc[:stop], data.gyr[:stop], data.mag[:stop],
-                                               data.acc_ok[:stop], data.mag_ok[:stop], c, state0, False)
-        assert np.max(np.abs(sk - sr)) <= 1e-9
-        assert (sk[kern.S_TIMP] > 0.0) == paused, stop
-        assert sk[kern.S_TREC] > 0.0
     p_f = np.ascontiguousarray(a1[:, kern.A_P:kern.A_P + 6])
     b_f = np.ascontiguousarray(a1[:, kern.A_BIAS:kern.A_BIAS + 3])
     p_b, b_b = p_f[::-1].copy(), b_f[::-1].copy() + 0.01
@@ -234,70 +219,6 @@ def test_motion_bias_reduces_drift():
     assert np.linalg.norm(b_est - bias) < 0.5 * np.linalg.norm(bias)
 
 
-def tapped_body(fs: float, n: int, every_s: float, jump_deg: float, seed: int):
-    """A rotating body tapped every ``every_s`` from 5 s: a 3-sample shock (80, -60, -20 m/s² along the sensor's z)
-    and an orientation jump of ``jump_deg`` about a random axis that the gyroscope does not see (8a)."""
-    rng = np.random.default_rng(seed)
-    q, w = rotating_body(n, fs, scale=0.8)
-    taps = set(range(int(5 * fs), n - int(3 * fs), int(every_s * fs)))
-    steps = quat.exp(w / fs)
-    for k in range(1, n):
-        q[k] = quat.normalize(quat.multiply(q[k - 1], steps[k]))
-        if k in taps:
-            axis = rng.standard_normal(3)
-            q[k] = quat.normalize(quat.multiply(q[k], quat.exp(math.radians(jump_deg) * axis / np.linalg.norm(axis))))
-    bias = np.array([0.006, -0.005, 0.004])
-    acc, gyr, _ = imu(q, w, fs, bias=bias, seed=seed)
-    acc += 0.02 * rng.standard_normal(acc.shape)
-    gyr += 0.002 * rng.standard_normal(gyr.shape)
-    for k in taps:
-        acc[k:k + 3] += [[0.0, 0.0, 80.0], [0.0, 0.0, -60.0], [0.0, 0.0, -20.0]]
-    return acc, gyr, bias
-
-
-def late_bias_errors(acc, gyr, bias, fs=100.0):
-    """RMS error (°/s) of the causal filter's bias over the second half, against the simulator's ``bias``, with
-    the impact pause (8a) at 40 m/s² and without it (``inf``): ``{40.0: …, inf: …}``."""
-    from estimators.orientation.base import validate_imu
-    from estimators.orientation.chakamo import coefficients
-
-    late = np.arange(len(acc)) >= len(acc) // 2
-    errors = {}
-    for th in (40.0, math.inf):
-        method = Chakamo(ChakamoParams(offline=False, impact_acc_th_m_s2=th))
-        data = validate_imu(acc, gyr, None, fs_hz=fs)
-        _, _, aux = kern.chakamo_batch(data.acc, data.gyr, data.mag_array, data.acc_ok, data.mag_ok,
-                                       coefficients(method.params, fs), method._initial_state_for(data, None), True)
-        errors[th] = rmse(np.degrees(np.linalg.norm(aux[late, kern.A_BIAS:kern.A_BIAS + 3] - bias, axis=1)))
-    return errors
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_impacts_do_not_throw_the_motion_bias(seed):
-    """(8a): the tilt a tap adds to the strapdown is not read as bias; the bias is still learnt in motion.
-
-    No rest anywhere (the bias, 0.5°/s, is learnt from motion only); a tap every 15 s turns the sensor by 1°
-    unseen by the gyroscope.  Truth: the simulator's bias.  Without the pause (``impact_acc_th_m_s2=inf``, the
-    filter before (8a)) the bias error over the last minute is 0.054-0.076°/s RMS; with it about 0.02°/s.
-    """
-    errors = late_bias_errors(*tapped_body(100.0, 12000, every_s=15.0, jump_deg=1.0, seed=seed))
-    assert errors[40.0] < 0.035  # °/s, of a 0.5°/s bias
-    assert errors[math.inf] > 1.5 * errors[40.0]
-
-
-@pytest.mark.parametrize("seed", [0, 1])
-def test_repeated_impacts_do_not_pause_the_motion_bias(seed):
-    """(8a) pauses only for isolated impacts: shocks every second (a walk's heel strikes) never stop (8).
-
-    No rest anywhere, a 0.5°/s bias (truth: the simulator's) that only the motion measurement (8) can learn, and
-    from 5 s on an 80 m/s² shock every 1 s.  Pausing at every impact (the first form of (8a)) froze the bias from
-    the first shock on; the isolated-impact form learns it as well as the filter without the pause.
-    """
-    errors = late_bias_errors(*tapped_body(100.0, 12000, every_s=1.0, jump_deg=0.0, seed=seed))
-    assert errors[40.0] < 0.035  # °/s, of a 0.5°/s bias
-    assert errors[40.0] < errors[math.inf] + 0.005
-
-
 def test_linear_acceleration_is_rejected_by_quasi_inertial_filter():
     fs = 100.0
     n = 1500
@@ -384,25 +305,11 @@ def test_update_with_offline_params_runs_causal(realistic):
     assert np.array_equal(q, causal)
 
 
-
-def test_offline_state_carries_no_impact_pause(realistic):
-    """The offline passes' pause (8a) stays in the passes: the forward pass ends paused (shock at 380, 0.4 s
-    before the end), but ``state_`` seeds a following causal ``update()``, whose own switch is off."""
-    acc, gyr, mag, fs, params = realistic
-    p = {**params, "impact_acc_th_m_s2": math.inf}
-    offline = Chakamo(ChakamoParams(offline=True, **p)).estimate(acc, gyr, None, fs_hz=fs)
-    causal = Chakamo(ChakamoParams(offline=False, **{**p, "impact_acc_th_m_s2": 20.0})).estimate(acc, gyr, None,
-                                                                                                  fs_hz=fs)
-    assert causal.state_[kern.S_TIMP] > 0.0  # the same pass, causally with the pause: ends paused
-    assert offline.state_[kern.S_TIMP] == 0.0 and offline.state_[kern.S_TREC] == 0.0
-
-
 @pytest.mark.parametrize(
     "kwargs",
     [dict(tau_acc_s=0.0), dict(tau_mag_s=-1.0), dict(rest_min_s=-0.1), dict(mag_norm_th=float("nan")),
      dict(mag_dip_th_rad=4.0), dict(bias_clip_rad_s=float("inf")), dict(offline=1), dict(rest_bias="yes"),
-     dict(rest_gyr_th_rad_s=True), dict(impact_acc_th_m_s2=0.0),
-     dict(offline_impact_acc_th_m_s2=float("nan"))],
+     dict(rest_gyr_th_rad_s=True)],
 )
 def test_parameter_validation(kwargs):
     name = next(iter(kwargs))

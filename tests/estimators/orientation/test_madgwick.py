@@ -7,6 +7,7 @@ import pytest
 
 from estimators import quaternion as quat
 from estimators.orientation import make
+from estimators.orientation.base import alignment_samples
 from estimators.orientation.madgwick import Madgwick, MadgwickParams
 from orientation_signals import FIELD_ENU_UT, FS_HZ, GRAVITY_ENU, Q_Z90, angle_deg, rotating_body
 
@@ -76,7 +77,8 @@ def test_two_half_batches_equal_one_batch():
     q, acc, gyr, mag, q_start = rotating_body(300, seed=4)
     m = Madgwick(MadgwickParams(beta_rad_s=0.1))
     full = m.estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q_start)
-    state = m.initial_state(acc[0], mag[0], q0=q_start)
+    w = alignment_samples(FS_HZ)  # q0 gives the attitude; the stage still reads the window estimate reads
+    state = m.initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=FS_HZ, q0=q_start)
     # split inside the 1 s warm-up: the elapsed time travels in the state
     first, state = m.update(state, acc[:50], gyr[:50], mag[:50], fs_hz=FS_HZ)
     assert state[4] == pytest.approx(0.5)

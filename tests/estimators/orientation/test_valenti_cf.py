@@ -9,7 +9,7 @@ import pytest
 
 from estimators import quaternion as quat
 from estimators.orientation import make
-from estimators.orientation.base import validate_imu
+from estimators.orientation.base import alignment_samples, validate_imu
 from estimators.orientation.valenti_cf import (
     TAU_DEFAULT_S,
     ValentiCF,
@@ -43,7 +43,8 @@ def test_kernel_matches_reference(use_mag, kwargs):
 def test_reference_state_matches_kernel_state():
     _, acc, gyr, mag, q_start = rotating_body(200, seed=7, still=True, gyr_noise=0.001)
     m = ValentiCF(ValentiCFParams(estimate_bias=True))
-    state0 = m.initial_state(acc[0], mag[0], q0=q_start)
+    w = alignment_samples(FS_HZ)  # q0 gives the attitude; the stage still reads the window estimate reads
+    state0 = m.initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=FS_HZ, q0=q_start)
     _, s_fast = m.update(state0, acc, gyr, mag, fs_hz=FS_HZ)
     _, s_slow = m._filter(validate_imu(acc, gyr, mag, fs_hz=FS_HZ), state0, reference=True)
     assert np.abs(s_fast[4:7]).max() > 1e-3  # the bias estimate really moved
@@ -149,7 +150,8 @@ def test_two_half_batches_equal_one_batch():
     q, acc, gyr, mag, q_start = rotating_body(300, seed=5, gyr_noise=0.001)
     m = ValentiCF(ValentiCFParams(estimate_bias=True))
     full = m.estimate(acc, gyr, mag, fs_hz=FS_HZ, q0=q_start)
-    state = m.initial_state(acc[0], mag[0], q0=q_start)
+    w = alignment_samples(FS_HZ)  # q0 gives the attitude; the stage still reads the window estimate reads
+    state = m.initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=FS_HZ, q0=q_start)
     first, state = m.update(state, acc[:50], gyr[:50], mag[:50], fs_hz=FS_HZ)  # inside the warm-up
     assert state[10] == pytest.approx(0.5)
     second, state = m.update(state, acc[50:], gyr[50:], mag[50:], fs_hz=FS_HZ)
