@@ -152,8 +152,6 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{erased} ficheiro(s) guardado(s) apagado(s), {kept} mantido(s) (ainda referenciados), {swept} "
               "órfão(s) eliminado(s)"},
     # ``chakamo process``'s progress lines on stderr (app/cli/session.py), in --lang: the pipeline's stage names
-    "cli.progress": {"en": "[{percent:3.0f} %] {stage}", "es": "[{percent:3.0f} %] {stage}",
-                     "pt": "[{percent:3.0f} %] {stage}"},
     "cli.stage_read": {"en": "read", "es": "lectura", "pt": "leitura"},
     "cli.stage_accelerometer": {"en": "accelerometer", "es": "acelerómetro", "pt": "acelerómetro"},
     "cli.stage_magnetometer": {"en": "magnetometer", "es": "magnetómetro", "pt": "magnetómetro"},
@@ -165,8 +163,6 @@ CATALOGUE: dict[str, dict[str, str]] = {
     "cli.stage_knee": {"en": "knee", "es": "rodilla", "pt": "joelho"},
     "cli.stage_task": {"en": "task", "es": "tarea", "pt": "tarefa"},
     "cli.stage_reports": {"en": "reports", "es": "informes", "pt": "relatórios"},
-    "cli.stage_render": {"en": "reports (render process)", "es": "informes (proceso de dibujo)",
-                         "pt": "relatórios (processo de desenho)"},
     "cli.stage_write": {"en": "write", "es": "escritura", "pt": "escrita"},
     "cli.stage_done": {"en": "done", "es": "terminado", "pt": "concluído"},
     "cli.stage_right": {"en": "{stage} (right knee)", "es": "{stage} (rodilla derecha)",
