@@ -231,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
               else _say(args.lang, "cli.unchanged", kind=named, id=args.row_id))
     else:
         out = erase(None, kind, clinic=args.clinic, row_id=args.row_id, confirm=args.confirm)
-        print(_say(args.lang, "cli.erased", kind=named, id=args.row_id, sessions=out["sessions"],
+        print(_say(args.lang, f"cli.erased_{kind}", id=args.row_id, sessions=out["sessions"],
                    erased=out["files_erased"], kept=out["files_kept"]))
     return 0
 

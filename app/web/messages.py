@@ -114,13 +114,21 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{kind} {id}: nothing changed",
         "es": "{kind} {id}: no ha cambiado nada",
         "pt": "{kind} {id}: nada foi alterado"},
-    "cli.erased": {
-        "en": "{kind} {id} erased: {sessions} session(s), {erased} stored file(s) erased, {kept} kept (another "
+    # one sentence a kind: the participle agrees with it ("sesión 5 borrada", "sessão 5 apagada")
+    "cli.erased_patient": {
+        "en": "patient {id} erased: {sessions} session(s), {erased} stored file(s) erased, {kept} kept (another "
               "record has the same content)",
-        "es": "{kind} {id} borrado: {sessions} sesión(es), {erased} archivo(s) guardado(s) borrado(s), {kept} "
+        "es": "paciente {id} borrado: {sessions} sesión(es), {erased} archivo(s) guardado(s) borrado(s), {kept} "
               "conservado(s) (otro registro tiene el mismo contenido)",
-        "pt": "{kind} {id} apagado: {sessions} sessão(ões), {erased} ficheiro(s) guardado(s) apagado(s), {kept} "
+        "pt": "paciente {id} apagado: {sessions} sessão(ões), {erased} ficheiro(s) guardado(s) apagado(s), {kept} "
               "mantido(s) (outro registo tem o mesmo conteúdo)"},
+    "cli.erased_session": {
+        "en": "session {id} erased: {erased} stored file(s) erased, {kept} kept (another record has the same "
+              "content)",
+        "es": "sesión {id} borrada: {erased} archivo(s) guardado(s) borrado(s), {kept} conservado(s) (otro "
+              "registro tiene el mismo contenido)",
+        "pt": "sessão {id} apagada: {erased} ficheiro(s) guardado(s) apagado(s), {kept} mantido(s) (outro registo "
+              "tem o mesmo conteúdo)"},
     #: the record kinds of ``chakamo patients|sessions``, as the sentences above name them
     "cli.kind_patient": {"en": "patient", "es": "paciente", "pt": "paciente"},
     "cli.kind_session": {"en": "session", "es": "sesión", "pt": "sessão"},
