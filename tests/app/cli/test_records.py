@@ -190,10 +190,10 @@ def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang
         assert words["field"] in said([*fix, "--set", "colour=red"], 2)
         assert words["date"] in said([*fix, "--set", "birth_date=ayer"], 2)
         assert words["number"] in said([*fix, "--set", "height_cm=alto"], 2)
-        from app.cli.admin import CliError
         from app.cli.records import correct
+        from app.store.errors import DomainError
 
-        with pytest.raises(CliError) as exc:   # the data layer's own refusal, by its catalogue code
+        with pytest.raises(DomainError) as exc:   # the data layer's own refusal, by its catalogue code
             correct(None, "patient", clinic="Ret", row_id=pid, sets=["side=up"])
         assert exc.value.code == "store.unknown_value" and (lang == "en") == (exc.value.message(lang) == str(exc.value))
         assert exc.value.message(lang) in said([*fix, "--set", "side=up"], 2)
