@@ -133,15 +133,10 @@ def _say(lang: str | None, code: str, **params) -> str:
 
 
 def _clinic(s, name: str):
-    from sqlalchemy import select
+    """Clinic ``name`` (:func:`app.store.accounts.clinic_named`: ``store.clinic_unknown`` when there is none)."""
+    from app.store.accounts import clinic_named
 
-    from app.store.models import Clinic
-
-    clinic = s.scalar(select(Clinic).where(Clinic.name == name))
-    if clinic is None:
-        known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
-        raise CliError("store.clinic_unknown", name=name, known=known)
-    return clinic
+    return clinic_named(s, name)
 
 
 def create_clinic(settings: Settings | None, name: str) -> int:
