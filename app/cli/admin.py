@@ -133,15 +133,10 @@ def _say(lang: str | None, code: str, **params) -> str:
 
 
 def _clinic(s, name: str):
-    from sqlalchemy import select
+    """Clinic ``name`` (:func:`app.store.accounts.clinic_named`: ``store.clinic_unknown`` when there is none)."""
+    from app.store.accounts import clinic_named
 
-    from app.store.models import Clinic
-
-    clinic = s.scalar(select(Clinic).where(Clinic.name == name))
-    if clinic is None:
-        known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
-        raise CliError("store.clinic_unknown", name=name, known=known)
-    return clinic
+    return clinic_named(s, name)
 
 
 def create_clinic(settings: Settings | None, name: str) -> int:
@@ -197,18 +192,14 @@ def create_token(settings: Settings | None, *, clinic: str, label: str = "", rol
     if role not in ROLES:
         raise CliError("cli.role_unknown", role=role, roles=", ".join(ROLES))
     from app.store import tokens
-    from app.store.errors import DomainError
     from app.web.audit import record_operator
     from app.web.security import new_token, sha256_hex
 
     token = new_token()
     with _session(settings) as s:
         c = _clinic(s, clinic)
-        try:
-            row = tokens.add_token(s, c.id, token_sha256=sha256_hex(token), role=role, label=label,
-                                   expires_days=expires_days, scopes=scopes)
-        except DomainError as exc:
-            raise (CliError(exc.code, **exc.params) if exc.code else ValueError(str(exc))) from None
+        row = tokens.add_token(s, c.id, token_sha256=sha256_hex(token), role=role, label=label,
+                               expires_days=expires_days, scopes=scopes)
         record_operator(s, clinic_id=c.id, action="token_create", token_id=row.id,
                         detail=f"token {row.id} role {role}" + (f" ({label})" if label else "")
                         + (f" scopes {row.scopes}" if row.scopes else "")
@@ -220,16 +211,12 @@ def rotate_token(settings: Settings | None, token_id: int, *, grace_hours: float
     """A successor of API token ``token_id`` (same clinic, label, role, scopes, lifetime) and the old one ending
     ``grace_hours`` from now: ``(new token, {"id", "new_id", "clinic", "old_expires_at", "expires_at"})``."""
     from app.store import tokens
-    from app.store.errors import DomainError
     from app.web.audit import record_operator
     from app.web.security import new_token, sha256_hex
 
     token = new_token()
     with _session(settings) as s:
-        try:
-            old, new = tokens.rotate_token(s, token_id, sha256_hex(token), grace_hours=grace_hours)
-        except DomainError as exc:
-            raise (CliError(exc.code, **exc.params) if exc.code else ValueError(str(exc))) from None
+        old, new = tokens.rotate_token(s, token_id, sha256_hex(token), grace_hours=grace_hours)
         record_operator(s, clinic_id=old.clinic_id, action="token_rotate", token_id=new.id,
                         detail=f"token {new.id} replaces token {old.id} (ends {old.expires_at:%Y-%m-%d %H:%M} UTC)")
         info = {"id": old.id, "new_id": new.id, "clinic": old.clinic.name, "old_expires_at": old.expires_at,

@@ -57,9 +57,11 @@ def _build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _build_parser().parse_args(argv)
     group = next(g for g in GROUPS if args.command in g.COMMANDS)
+    from app.store.errors import DomainError  # the data layer's refusals (cheap: no database stack)
+
     try:
         return group.run(args)
-    except (ValueError, OSError) as exc:  # a file problem names the file and says what to do, in --lang if given
+    except (ValueError, OSError, DomainError) as exc:  # a file problem, a refusal: what to do, in --lang if given
         lang = getattr(args, "lang", None) or "en"
         text = exc.message(lang) if callable(getattr(exc, "message", None)) else str(exc)
         print(f"chakamo {args.command}: error: {text}", file=sys.stderr)

@@ -79,18 +79,13 @@ def run(args: argparse.Namespace) -> int:
 
 def _reprocess(settings, args: argparse.Namespace) -> None:
     """``chakamo reprocess``: the table of outcomes and the hand-over, in ``--lang`` (English when not given)."""
-    from app.cli.admin import CliError
     from app.jobs.reprocess import STATUSES, reprocess
     from app.pipeline.service_messages import render_item
-    from app.store.errors import DomainError
     from app.web.messages import render
 
     lang = args.lang or "en"
-    try:
-        outcomes, summary = reprocess(settings, filter_name=args.filter, since=args.since, clinic=args.clinic,
-                                      lang=args.lang or choices.DEFAULT_LANGUAGE, force=args.force)
-    except DomainError as exc:
-        raise CliError(exc.code, **exc.params) from None
+    outcomes, summary = reprocess(settings, filter_name=args.filter, since=args.since, clinic=args.clinic,
+                                  lang=args.lang or choices.DEFAULT_LANGUAGE, force=args.force)
     words = dict(zip(STATUSES, render("cli.reprocess_statuses", lang).split("|")))
     for o in outcomes:
         job = render("cli.reprocess_job", lang, id=o.job_id) if o.job_id is not None else ""

@@ -20,8 +20,9 @@ Every change is audited as the operator (actor kind ``operator``, "chakamo CLI (
 :func:`app.web.audit.record_operator`, in the transaction that makes it; the erasures leave their
 ``blob_erasures`` records (hash, size, when; never the content).  The same rules as the API apply (the data
 layer's functions are the same): refused while a job of the session is queued or running, another clinic's ids
-are unknown.  Errors are ``ValueError`` with one sentence (:class:`app.cli.admin.CliError`: a catalogue entry; the CLI prints it
-in ``--lang``, exit status 2); what the commands print is in ``--lang`` too (English when not given).
+are unknown.  Errors are ``ValueError`` with one sentence (:class:`app.cli.admin.CliError`: a catalogue entry), or
+the data layer's own :class:`app.store.errors.DomainError` as it is; the CLI prints either in ``--lang``, exit
+status 2; what the commands print is in ``--lang`` too (English when not given).
 """
 
 from __future__ import annotations
@@ -81,19 +82,6 @@ def _parse_sets(pairs: list[str], fields: tuple[str, ...]) -> dict[str, Any]:
     return values
 
 
-def _domain(call):
-    """Run ``call`` turning the data layer's refusals into :class:`CliError` (their catalogue entry, printed in
-    ``--lang``; a refusal without a code keeps its English sentence)."""
-    from app.store.errors import DomainError
-
-    try:
-        return call()
-    except DomainError as exc:
-        if exc.code is None:
-            raise ValueError(exc.detail) from None
-        raise CliError(exc.code, **exc.params) from None
-
-
 def _clinic_id(db, clinic: str) -> int:
     from app.cli.admin import _clinic
 
@@ -111,10 +99,10 @@ def correct(settings: Settings | None, kind: str, *, clinic: str, row_id: int, s
     with _session(settings) as db:
         cid = _clinic_id(db, clinic)
         if kind == "patient":
-            row, changed, _ = _domain(lambda: patients.correct_patient(db, cid, row_id, values))
+            row, changed, _ = patients.correct_patient(db, cid, row_id, values)
             pid, sid = row.id, None
         else:
-            row, changed, _ = _domain(lambda: sessions.correct_session(db, cid, row_id, values))
+            row, changed, _ = sessions.correct_session(db, cid, row_id, values)
             pid, sid = row.patient_id, row.id
         if changed:
             record_operator(db, clinic_id=cid, action="update", actor=_actor(), patient_id=pid, session_id=sid,
@@ -137,16 +125,16 @@ def erase(settings: Settings | None, kind: str, *, clinic: str, row_id: int, con
         with database.session() as db:
             cid = _clinic_id(db, clinic)
             if kind == "patient":
-                external_id = _domain(lambda: patients.clinic_patient(db, cid, row_id)).external_id
+                external_id = patients.clinic_patient(db, cid, row_id).external_id
             else:
-                external_id = _domain(lambda: sessions.clinic_session(db, cid, row_id)).patient.external_id
+                external_id = sessions.clinic_session(db, cid, row_id).patient.external_id
             if confirm.strip() != external_id:
                 raise CliError("cli.erase_confirm", confirm=confirm)
             if kind == "patient":
-                session_ids, shas = _domain(lambda: patients.delete_patient(db, cid, row_id))
+                session_ids, shas = patients.delete_patient(db, cid, row_id)
                 pid, sid = row_id, None
             else:
-                pid, shas = _domain(lambda: sessions.delete_session(db, cid, row_id))
+                pid, shas = sessions.delete_session(db, cid, row_id)
                 session_ids, sid = [row_id], row_id
             event = record_operator(db, clinic_id=cid, action="delete", actor=_actor(), patient_id=pid,
                                     session_id=sid, resource=f"chakamo {kind}s erase {row_id}")
@@ -231,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
               else _say(args.lang, "cli.unchanged", kind=named, id=args.row_id))
     else:
         out = erase(None, kind, clinic=args.clinic, row_id=args.row_id, confirm=args.confirm)
-        print(_say(args.lang, "cli.erased", kind=named, id=args.row_id, sessions=out["sessions"],
+        print(_say(args.lang, f"cli.erased_{kind}", id=args.row_id, sessions=out["sessions"],
                    erased=out["files_erased"], kept=out["files_kept"]))
     return 0
 

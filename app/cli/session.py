@@ -23,25 +23,24 @@ COMMANDS = ("demo", "process", "view")
 
 
 def _stage(lang: str | None, stage: str) -> str:
-    """A pipeline stage's name (``"read"``, ``"right knee"``…) in ``lang`` (:data:`app.web.messages.CATALOGUE`'s
-    ``cli.stage_*``; a stage without an entry as it is)."""
+    """A pipeline stage's name (``"read"``, ``"orientation thigh"``, ``"right knee"``…) in ``lang``
+    (:data:`app.web.messages.CATALOGUE`'s ``cli.stage_*``, its words joined by ``_`` as ``stageText`` of
+    static/views/wizard.js joins them; a stage without an entry as it is)."""
     from app.cli.admin import _say
     from app.web.messages import CATALOGUE
 
     side, _, rest = stage.partition(" ")
     if side in ("right", "left") and rest:
         return _say(lang, f"cli.stage_{side}", stage=_stage(lang, rest))
-    code = "cli.stage_render" if "render process" in stage else f"cli.stage_{stage}"
+    code = f"cli.stage_{stage.replace(' ', '_')}"
     return _say(lang, code) if code in CATALOGUE else stage
 
 
 def _progress(lang: str | None):
-    """``process``'s progress callback: ``[ 30 %] segments`` on stderr, in ``lang``."""
-    from app.cli.admin import _say
+    """``process``'s progress callback: ``[ 30 %] segments`` on stderr, the stage in ``lang``."""
 
     def say(stage: str, fraction: float) -> None:
-        print(_say(lang, "cli.progress", percent=100 * fraction, stage=_stage(lang, stage)), file=sys.stderr,
-              flush=True)
+        print(f"[{100 * fraction:3.0f} %] {_stage(lang, stage)}", file=sys.stderr, flush=True)
 
     return say
 

@@ -31,12 +31,13 @@ from sqlalchemy import select
 
 from app.choices import FILTER_NAMES
 from app.jobs.queue import NotReady, UpToDate, enqueue, previous_choices
+from app.pipeline.service_messages import item
 from app.settings import Settings
+from app.store.accounts import clinic_named
 from app.store.blobs import open_storage
 from app.store.checks import IngestionChecker
 from app.store.database import Database
-from app.store.models import Clinic, KneeSession, utcnow
-from app.store.errors import NotFound
+from app.store.models import KneeSession, utcnow
 from app.store.sessions import Busy
 
 
@@ -62,11 +63,7 @@ def _candidates(db: Database, since: dt.date, clinic: str | None) -> list[int]:
     with db.session() as s:
         query = select(KneeSession.id).where(KneeSession.date >= since, KneeSession.recordings.any())
         if clinic is not None:
-            clinic_id = s.scalar(select(Clinic.id).where(Clinic.name == clinic))
-            if clinic_id is None:
-                known = ", ".join(repr(c) for c in s.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
-                raise NotFound(code="store.clinic_unknown", name=clinic, known=known)
-            query = query.where(KneeSession.clinic_id == clinic_id)
+            query = query.where(KneeSession.clinic_id == clinic_named(s, clinic).id)
         return list(s.scalars(query.order_by(KneeSession.date, KneeSession.id)))
 
 
@@ -88,15 +85,14 @@ def _queue_one(db: Database, checker: IngestionChecker, session_id: int, filter_
     except Busy as busy:  # also one queued by the API at the same moment: that one stands
         return Outcome(**base, status="busy", job_id=busy.job_id, note=_item(busy))
     except NotReady as not_ready:
-        return Outcome(**base, status="not ready",
-                       note=not_ready.reason or {"code": "session.no_files_yet", "params": {}})
+        return Outcome(**base, status="not ready", note=not_ready.params["reason"])
     except UpToDate as current:
         return Outcome(**base, status="current", note=_item(current))
 
 
 def _item(error) -> dict:
-    """A domain error as a stored message (its code and params)."""
-    return {"code": error.code, "params": dict(error.params)}
+    """A domain error as a stored message (:func:`app.pipeline.service_messages.item`)."""
+    return item(error.code, error.params, str(error))
 
 
 def reprocess(settings: Settings, *, filter_name: str, since: dt.date, clinic: str | None = None,

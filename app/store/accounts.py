@@ -13,7 +13,7 @@ from sqlalchemy import case, delete, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.store.errors import Conflict
+from app.store.errors import Conflict, NotFound
 from app.store.models import ApiToken, BrowserSession, Clinic, LoginAttempts, User, utcnow
 
 
@@ -174,6 +174,16 @@ def login_account(db: Session, email: str, clinic: str | None = None) -> User | 
         stmt = stmt.join(Clinic, Clinic.id == User.clinic_id).where(Clinic.name == clinic)
     found = list(db.scalars(stmt.order_by(User.id).limit(2)))
     return found[0] if len(found) == 1 else None
+
+
+def clinic_named(db: Session, name: str) -> Clinic:
+    """Clinic ``name`` for the operator's commands; :class:`NotFound` (``store.clinic_unknown``, naming the known
+    clinics) when there is none."""
+    clinic = db.scalar(select(Clinic).where(Clinic.name == name))
+    if clinic is None:
+        known = ", ".join(repr(c) for c in db.scalars(select(Clinic.name).order_by(Clinic.name))) or "-"
+        raise NotFound(code="store.clinic_unknown", name=name, known=known)
+    return clinic
 
 
 def clinic_users(db: Session, clinic_id: int) -> list[User]:

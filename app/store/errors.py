@@ -19,13 +19,23 @@ class DomainError(Exception):
     A bare ``detail`` is English only: ``tests/app/pipeline/test_check_messages.py`` refuses one in the store."""
 
     def __init__(self, detail: str | None = None, *, code: str | None = None, **params: Any) -> None:
-        if code is not None:   # the service table, else the ingestion's (a file's refusal passed on)
-            from app.pipeline.ingestion.messages import render as ingestion_render
-            from app.pipeline.service_messages import CATALOGUE, render
-
-            detail = render(code, params, "en") if code in CATALOGUE else ingestion_render(code, params, "en")
+        self.code, self.params = code, params
+        detail = self.message("en") if code is not None else detail
         super().__init__(detail)
-        self.detail, self.code, self.params = detail, code, params
+        self.detail = detail
+
+    def message(self, lang: str = "en") -> str:
+        """The sentence in ``lang`` (es/en/pt): entry ``code`` of the service table, else of the ingestion's (a
+        file's refusal passed on); a bare ``detail`` as it is (``chakamo`` prints it in ``--lang``:
+        :func:`app.cli.main.main`)."""
+        if self.code is None:
+            return self.detail
+        from app.pipeline.ingestion.messages import render as ingestion_render
+        from app.pipeline.service_messages import CATALOGUE, render
+
+        if self.code in CATALOGUE:
+            return render(self.code, self.params, lang)
+        return ingestion_render(self.code, self.params, lang)
 
 
 class NotFound(DomainError):

@@ -114,13 +114,21 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{kind} {id}: nothing changed",
         "es": "{kind} {id}: no ha cambiado nada",
         "pt": "{kind} {id}: nada foi alterado"},
-    "cli.erased": {
-        "en": "{kind} {id} erased: {sessions} session(s), {erased} stored file(s) erased, {kept} kept (another "
+    # one sentence a kind: the participle agrees with it ("sesión 5 borrada", "sessão 5 apagada")
+    "cli.erased_patient": {
+        "en": "patient {id} erased: {sessions} session(s), {erased} stored file(s) erased, {kept} kept (another "
               "record has the same content)",
-        "es": "{kind} {id} borrado: {sessions} sesión(es), {erased} archivo(s) guardado(s) borrado(s), {kept} "
+        "es": "paciente {id} borrado: {sessions} sesión(es), {erased} archivo(s) guardado(s) borrado(s), {kept} "
               "conservado(s) (otro registro tiene el mismo contenido)",
-        "pt": "{kind} {id} apagado: {sessions} sessão(ões), {erased} ficheiro(s) guardado(s) apagado(s), {kept} "
+        "pt": "paciente {id} apagado: {sessions} sessão(ões), {erased} ficheiro(s) guardado(s) apagado(s), {kept} "
               "mantido(s) (outro registo tem o mesmo conteúdo)"},
+    "cli.erased_session": {
+        "en": "session {id} erased: {erased} stored file(s) erased, {kept} kept (another record has the same "
+              "content)",
+        "es": "sesión {id} borrada: {erased} archivo(s) guardado(s) borrado(s), {kept} conservado(s) (otro "
+              "registro tiene el mismo contenido)",
+        "pt": "sessão {id} apagada: {erased} ficheiro(s) guardado(s) apagado(s), {kept} mantido(s) (outro registo "
+              "tem o mesmo conteúdo)"},
     #: the record kinds of ``chakamo patients|sessions``, as the sentences above name them
     "cli.kind_patient": {"en": "patient", "es": "paciente", "pt": "paciente"},
     "cli.kind_session": {"en": "session", "es": "sesión", "pt": "sessão"},
@@ -152,17 +160,17 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{erased} ficheiro(s) guardado(s) apagado(s), {kept} mantido(s) (ainda referenciados), {swept} "
               "órfão(s) eliminado(s)"},
     # ``chakamo process``'s progress lines on stderr (app/cli/session.py), in --lang: the pipeline's stage names
-    "cli.progress": {"en": "[{percent:3.0f} %] {stage}", "es": "[{percent:3.0f} %] {stage}",
-                     "pt": "[{percent:3.0f} %] {stage}"},
     "cli.stage_read": {"en": "read", "es": "lectura", "pt": "leitura"},
     "cli.stage_accelerometer": {"en": "accelerometer", "es": "acelerómetro", "pt": "acelerómetro"},
     "cli.stage_magnetometer": {"en": "magnetometer", "es": "magnetómetro", "pt": "magnetómetro"},
+    "cli.stage_orientation_thigh": {"en": "orientation of the thigh sensor", "es": "orientación del sensor del muslo",
+                                    "pt": "orientação do sensor da coxa"},
+    "cli.stage_orientation_shank": {"en": "orientation of the shank sensor",
+                                    "es": "orientación del sensor de la pierna", "pt": "orientação do sensor da perna"},
     "cli.stage_segments": {"en": "segments", "es": "segmentos", "pt": "segmentos"},
     "cli.stage_knee": {"en": "knee", "es": "rodilla", "pt": "joelho"},
     "cli.stage_task": {"en": "task", "es": "tarea", "pt": "tarefa"},
     "cli.stage_reports": {"en": "reports", "es": "informes", "pt": "relatórios"},
-    "cli.stage_render": {"en": "reports (render process)", "es": "informes (proceso de dibujo)",
-                         "pt": "relatórios (processo de desenho)"},
     "cli.stage_write": {"en": "write", "es": "escritura", "pt": "escrita"},
     "cli.stage_done": {"en": "done", "es": "terminado", "pt": "concluído"},
     "cli.stage_right": {"en": "{stage} (right knee)", "es": "{stage} (rodilla derecha)",

@@ -202,8 +202,10 @@ def open_workbook(path: str | os.PathLike) -> Workbook:
 class OneWorkbook:
     """The ``.xlsx`` files of one recording, opened (:func:`open_workbook`: the caps) one at a time: called with a
     path, the workbook of that path, open; opening another closes the one before (its sheets' XML, up to
-    :data:`MAX_SHEET_MB`, is dropped with it), so a phyphox set of several workbooks holds one in memory, and the
-    sniff and the reader of the same file share one opening.  ``None`` for a path that is not an ``.xlsx``.
+    :data:`MAX_SHEET_MB`, is dropped with it), so a phyphox set of several workbooks holds one in memory.  A single
+    workbook's sniff and reader share one opening; a set of ``N`` is opened ``2N`` times (the sniff walks them
+    all, then the reader starts again from the first: memory bounded, not time).  ``None`` for a path that is not
+    an ``.xlsx``.
     :meth:`close` (or a ``with`` block) closes the last one."""
 
     def __init__(self) -> None:

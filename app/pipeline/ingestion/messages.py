@@ -277,10 +277,10 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "pt": "{file}: o sensor {sensor} não tem dados de {datasets}; exporte a gravação de novo com "
               "acelerómetro, giroscópio e magnetómetro."},
     "opal.bad_shape": {
-        "en": "{file}: {dataset} has shape {shape}, expected ({n}, 3); the file is damaged — export it again.",
-        "es": "{file}: {dataset} tiene forma {shape}, se esperaba ({n}, 3); el archivo está dañado: expórtelo de "
+        "en": "{file}: {dataset} has shape {shape}, expected {expected}; the file is damaged — export it again.",
+        "es": "{file}: {dataset} tiene forma {shape}, se esperaba {expected}; el archivo está dañado: expórtelo de "
               "nuevo.",
-        "pt": "{file}: {dataset} tem forma {shape}, esperava-se ({n}, 3); o ficheiro está danificado: exporte-o de "
+        "pt": "{file}: {dataset} tem forma {shape}, esperava-se {expected}; o ficheiro está danificado: exporte-o de "
               "novo."},
     "opal.too_large": {
         "en": "{file}: {dataset} declares {shape} entries (at most {limit}: two hours at 200 Hz, 64 sensors); "

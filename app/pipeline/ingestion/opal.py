@@ -16,7 +16,8 @@ declared unit, so the factors live in one place.  Each sensor of the file is one
 refused with advice.  Needs ``h5py`` (imported when a ``.h5`` file is read).
 
 Caps (the file may come from a web upload): a compressed dataset may declare any size, so each dataset's declared
-shape is checked before a byte of it is read: at most :data:`MAX_SAMPLES` samples (two hours at 200 Hz; a
+shape is checked before a byte of it is read: ``(N,)`` stamps and ``(N, 3)`` values (another shape is a damaged
+file, ``opal.bad_shape``), at most :data:`MAX_SAMPLES` samples (two hours at 200 Hz; a
 recording of ``N`` samples then takes at most ``N · 3 · 8`` bytes a dataset once read as float64) and at most
 :data:`MAX_SENSORS` sensors per file.
 """
@@ -109,9 +110,14 @@ def read_opal(path: str | os.PathLike, sensor: str | None = None) -> tuple[Strea
         missing = [name for name, _ in _DATASETS.values() if name not in g] + ([] if "Time" in g else ["Time"])
         if missing:
             raise IngestionError("opal.datasets_missing", file=path, sensor=sensor, datasets=", ".join(missing))
-        for name in ("Time", *(n for n, _ in _DATASETS.values())):   # declared sizes, before any byte is read
+        samples = (getattr(g["Time"], "shape", None) or (0,))[0]
+        for name in ("Time", *(n for n, _ in _DATASETS.values())):   # declared shapes, before any byte is read
             shape = getattr(g[name], "shape", None) or ()
-            if len(shape) > 2 or (shape and shape[0] > MAX_SAMPLES) or (len(shape) == 2 and shape[1] > 3):
+            expected = "(N,)" if name == "Time" else f"({samples}, 3)"
+            if len(shape) != (1 if name == "Time" else 2) or (name != "Time" and shape[1] != 3):
+                raise IngestionError("opal.bad_shape", file=path, dataset=f"/Sensors/{sensor}/{name}",
+                                     shape=str(shape), expected=expected)
+            if shape[0] > MAX_SAMPLES:
                 raise IngestionError("opal.too_large", file=path, dataset=f"/Sensors/{sensor}/{name}",
                                      shape=str(shape), limit=MAX_SAMPLES)
         t_s = np.asarray(g["Time"][()], dtype=np.float64) * 1e-6
@@ -124,7 +130,7 @@ def read_opal(path: str | os.PathLike, sensor: str | None = None) -> tuple[Strea
         v = arrays[kind]
         if v.ndim != 2 or v.shape != (len(t_s), 3):
             raise IngestionError("opal.bad_shape", file=path, dataset=f"/Sensors/{sensor}/{name}",
-                                 shape=str(v.shape), n=len(t_s))
+                                 shape=str(v.shape), expected=f"({len(t_s)}, 3)")
         v = v * unit_factor(kind, unit)
         check_magnitude(kind, v, unit, path)
         streams.append(Stream(kind=kind, t_s=t_s, values=v, declared_unit=unit, file=path,

@@ -32,7 +32,7 @@ Size caps (the thesis workbook's, issue 16 finding 4, and a zip bomb's).  An ``.
 the thesis reader's cell reader), in the sniff too: a refusal there is the refusal the thesis reader would give,
 raised once.  :func:`.session.read_recording` opens the workbooks one at a time (:class:`.excel.OneWorkbook`) and hands each to
 the sniff and to the reader (phyphox's or the thesis'): a single workbook's sheets are checked and decompressed
-once, and a set of several holds one in memory at a time.  Rows are
+once, and a set of several holds one in memory at a time (each opened twice: by the sniff, then by the reader).  Rows are
 read up to :data:`.excel.MAX_ROWS` and :data:`MAX_COLUMNS` columns.  A zip member is refused when its declared
 size passes :data:`MAX_MEMBER_MB`, the members read when they pass :data:`MAX_ZIP_MB` in all, the archive when
 it lists more than :data:`MAX_MEMBERS` entries; a member is read in pieces that stop at its cap, so a declared
@@ -327,7 +327,8 @@ def read_phyphox(paths: Sequence[str | os.PathLike], workbooks: excel.OneWorkboo
     → ``(acc m/s², gyr rad/s, mag µT, the phone's id or None)`` (module docstring).
 
     ``workbooks``: the opener of the ``.xlsx`` files among ``paths`` (:class:`.excel.OneWorkbook`: one open at a
-    time, the one the sniff left open read without opening it again), else each is opened and closed here.
+    time, the one the sniff left open read without opening it again: for a set, the sniff's last, so the others are
+    opened again), else each is opened and closed here.
     The phone's id is the ``meta/device.csv`` unique-id row of the zips (:func:`_device_id`), when every file is
     a zip and all give the same one."""
     paths = [Path(p) for p in paths]

@@ -22,9 +22,10 @@ write them: each row ``<row …>…</row>`` (or ``<row …/>``) holds cells ``<c
 4. the values (non-empty, no blank, at most :data:`MAX_VALUE_BYTES`) converted by numpy in one call (the same
    correctly rounded decimal → binary64 as ``float``).
 
-On the thesis session's eight workbooks (``python -m benchmarks.read_formats --formats xlsx``) this took the
-reading from ~0.5 s to ~0.3 s of CPU on a loaded machine (the regular expressions' ``findall`` made three
-objects a cell, and the array of them a fourth).
+On the demo session's eight workbooks in the thesis' layout (``python -m benchmarks.read_formats --formats
+xlsx``, CPU, load 3–4.6) reading takes 0.38–0.40 s with this scan against 0.57–0.59 s before it (80cff72: the
+regular expressions' ``findall`` made three objects a cell, and the array of them a fourth), about 1.5× less;
+the scan alone against that ``findall``: ``python -m benchmarks.xlsx_scan``.
 """
 
 from __future__ import annotations
@@ -166,8 +167,9 @@ def plain_cells(body: bytes | bytearray, start: int = 0
     # ``<c ``, so any other tag means "not plain", told by C byte counts without allocating (a crafted sheet of
     # 31 M ``<>`` pairs, 66 kB zipped, cost about 1 GB of positions before this check).
     # A plain part also holds at least 5.5 bytes a tag (the least cell, ``<c r="A1"><v>1</v></c>``, is 22 bytes for
-    # four tags; ``<row >``, ``</row>`` 6 bytes, ``<row />`` 7), so a dense padding that keeps the counts (``<c ><><><>``)
-    # is refused before any array too.
+    # four tags; ``<row >``, ``</row>`` 6 bytes, ``<row />`` 7); the check asks for 5, a bound safely under that
+    # least 5.5 (no plain part is refused by it), so a dense padding that keeps the counts (``<c ><><><>``, 2.5
+    # bytes a tag) is refused before any array too.
     tags = body.count(b"<", start)
     if (tags != 4 * body.count(b"<c ", start) + body.count(b"<row", start) + body.count(b"</row", start)
             or 5 * tags > len(body) - start):

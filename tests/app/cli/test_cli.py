@@ -112,6 +112,13 @@ def test_process_progress_and_exclusion_refusal_speak_the_language_of_lang(tmp_p
     for line in ("[  0 %] leitura", "] acelerómetro", "] magnetómetro", "] segmentos", "] joelho", "[100 %] concluído"):
         assert line in err, err
     assert "] read" not in err and "] done" not in err, err
+    # the two orientation stages ("orientation thigh", two words) were English whatever --lang said
+    assert "] orientação do sensor da coxa" in err and "] orientação do sensor da perna" in err, err
+    assert "orientation" not in err, err
+    assert main(["process", str(session), "--out", str(tmp_path / "out_es"), "--lang", "es"]) == 0
+    err = capsys.readouterr().err
+    assert "] orientación del sensor del muslo" in err and "] orientación del sensor de la pierna" in err, err
+    assert "orientation" not in err, err
     for lang, words in (("en", "--exclude-cycles: 'two' is not a cycle number"),
                         ("es", "--exclude-cycles: 'two' no es un número de ciclo"),
                         ("pt", "--exclude-cycles: 'two' não é um número de ciclo")):

@@ -40,6 +40,18 @@ def world(tmp_path):
             "path": settings.blob_dir / (h := hashlib.sha256(DATA).hexdigest())[:2] / h[2:]}
 
 
+def _new_session(world, pid: int) -> int:
+    """A new session of patient ``pid`` of clinic "Ret" (through the API, as ``world`` made the first)."""
+    from fastapi.testclient import TestClient
+    from web_helpers import clinic_token
+
+    from app.web.main import create_app
+
+    with TestClient(create_app(world["settings"])) as c:
+        return c.post(f"/api/v1/patients/{pid}/sessions", json={},
+                      headers=clinic_token(world["settings"], "Ret")).json()["id"]
+
+
 def _events(settings, action: str) -> list:
     from sqlalchemy import select
 
@@ -135,21 +147,22 @@ def test_cli_corrects_and_erases_with_confirmation(world, capsys):
             "number": "is not a number", "confirm": "is not the patient's external id",
             "off": "the retention policy is off", "due": "1 session(s) due (dry run",
             "line": "  session {sid} (clinic", "erased": "session(s) erased",
-            "files": "1 stored file(s) erased, 0 kept", "gone": "patient {pid} erased: 0 session(s)"}),
+            "files": "1 stored file(s) erased, 0 kept", "gone": "patient {pid} erased: 0 session(s)",
+            "session_gone": "session {new} erased: 0 stored file(s)"}),
     ("es", {"corrected": "paciente {pid}: corregidos name", "unchanged": "paciente {pid}: no ha cambiado nada",
             "pair": "no es CAMPO=VALOR", "field": "no se puede corregir", "date": "no es una fecha (AAAA-MM-DD)",
             "number": "no es un número", "confirm": "no es el identificador externo del paciente",
             "off": "la política de conservación está desactivada", "due": "1 sesión(es) vencida(s) (simulación",
             "line": "  sesión {sid} (clínica", "erased": "sesión(es) borrada(s)",
             "files": "1 archivo(s) guardado(s) borrado(s), 0 conservado(s)",
-            "gone": "paciente {pid} borrado: 0 sesión(es)"}),
+            "gone": "paciente {pid} borrado: 0 sesión(es)", "session_gone": "sesión {new} borrada: 0 archivo(s)"}),
     ("pt", {"corrected": "paciente {pid}: corrigidos name", "unchanged": "paciente {pid}: nada foi alterado",
             "pair": "não é CAMPO=VALOR", "field": "não pode ser corrigido", "date": "não é uma data (AAAA-MM-DD)",
             "number": "não é um número", "confirm": "não é o identificador externo do paciente",
             "off": "a política de conservação está desativada", "due": "1 sessão(ões) vencida(s) (simulação",
             "line": "  sessão {sid} (clínica", "erased": "sessão(ões) apagada(s)",
             "files": "1 ficheiro(s) guardado(s) apagado(s), 0 mantido(s)",
-            "gone": "paciente {pid} apagado: 0 sessão(ões)"}),
+            "gone": "paciente {pid} apagado: 0 sessão(ões)", "session_gone": "sessão {new} apagada: 0 ficheiro(s)"}),
 ])
 def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang, words):
     """``chakamo patients|sessions correct|erase`` and ``chakamo retention --lang es|en|pt``: what they print and
@@ -162,7 +175,7 @@ def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang
     monkeypatch.delenv("CHAKAMO_RETENTION_DAYS", raising=False)
     get_settings.cache_clear()
     pid, sid = world["pid"], world["sid"]
-    words = {k: v.format(pid=pid, sid=sid) for k, v in words.items()}
+    words = {k: v.format(pid=pid, sid=sid, new="{new}") for k, v in words.items()}
 
     def said(argv, code=0):
         assert main([*argv, "--lang", lang]) == code, argv
@@ -177,10 +190,10 @@ def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang
         assert words["field"] in said([*fix, "--set", "colour=red"], 2)
         assert words["date"] in said([*fix, "--set", "birth_date=ayer"], 2)
         assert words["number"] in said([*fix, "--set", "height_cm=alto"], 2)
-        from app.cli.admin import CliError
         from app.cli.records import correct
+        from app.store.errors import DomainError
 
-        with pytest.raises(CliError) as exc:   # the data layer's own refusal, by its catalogue code
+        with pytest.raises(DomainError) as exc:   # the data layer's own refusal, by its catalogue code
             correct(None, "patient", clinic="Ret", row_id=pid, sets=["side=up"])
         assert exc.value.code == "store.unknown_value" and (lang == "en") == (exc.value.message(lang) == str(exc.value))
         assert exc.value.message(lang) in said([*fix, "--set", "side=up"], 2)
@@ -191,6 +204,9 @@ def test_cli_records_speak_the_language_of_lang(world, capsys, monkeypatch, lang
         assert words["due"] in due and words["line"] in due, due
         applied = said(["retention", "--days", "30", "--apply"])
         assert words["erased"] in applied and words["files"] in applied, applied
+        new = _new_session(world, pid)   # "sesión 5 borrado": the participle agrees with the kind
+        assert words["session_gone"].format(new=new) in said(["sessions", "erase", "--clinic", "Ret", str(new),
+                                                              "--confirm", "RET-1"])
         assert words["gone"] in said(["patients", "erase", "--clinic", "Ret", str(pid), "--confirm", "RET-1"])
     finally:
         get_settings.cache_clear()

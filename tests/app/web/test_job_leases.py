@@ -159,10 +159,17 @@ def test_reprocess_queues_a_cohort_once_and_the_running_server_takes_it(settings
     assert "está a ser processada" in render_item(busy[0].note, "pt") and "processe-a de novo" in \
         render_item(busy[0].note, "pt")
     assert "se está procesando" in render_item(busy[0].note, "es")
+    # stored as every message is (service_messages.item): with its English text for older readers
+    assert busy[0].note["text"] == render_item(busy[0].note, "en") and "being processed" in busy[0].note["text"]
     assert reprocess(settings, filter_name="guo", since=dt.date.today() + dt.timedelta(days=1))[0] == []
     with pytest.raises(NotFound) as unknown:
         reprocess(settings, filter_name="guo", since=since, clinic="Nowhere")
     assert unknown.value.code == "store.clinic_unknown" and "'Leases'" in str(unknown.value)
+    from app.cli.admin import create_token
+
+    with pytest.raises(NotFound) as same:   # one lookup (app.store.accounts.clinic_named) for the operator's commands
+        create_token(settings, clinic="Nowhere")
+    assert (same.value.code, same.value.params) == (unknown.value.code, unknown.value.params)
     with pytest.raises(ValueError, match="unknown filter"):
         reprocess(settings, filter_name="kalman9000", since=since)
 

@@ -181,6 +181,27 @@ def test_apdm_opal_file_with_two_sensors_needs_the_sensor_named(opal_dir):
     assert rec.segment.value == "thigh" and rec.role.value == "task"
 
 
+def test_apdm_dataset_of_a_wrong_shape_is_damaged_not_too_large(tmp_path, opal_dir, monkeypatch):
+    """An accelerometer dataset of shape (N, 4) was refused as ``opal.too_large`` ("export shorter recordings")
+    though it holds 200 samples; it is a damaged file (``opal.bad_shape``), named before a byte is read.  Too many
+    sensors is still ``opal.too_large``, of ``/Sensors``."""
+    from app.pipeline.ingestion import opal
+    from app.pipeline.ingestion.opal import write_opal
+
+    t = 1.7e9 + np.arange(200) / 100.0
+    one = {"label": "Right Thigh", "rate_hz": 100.0, "t_s": t, "acc": np.tile([0.0, 0.0, 9.81, 0.0], (200, 1)),
+           "gyr": np.zeros((200, 3)), "mag": np.tile([20.0, 0.0, -40.0], (200, 1))}
+    path = write_opal(tmp_path / "step.h5", {"XI-001234": one})
+    with pytest.raises(IngestionError) as exc:
+        read_recording([path])
+    assert exc.value.code == "opal.bad_shape" and exc.value.params["dataset"] == "/Sensors/XI-001234/Accelerometer"
+    assert "(200, 4)" in exc.value.message("es") and "(200, 3)" in exc.value.message("pt")
+    monkeypatch.setattr(opal, "MAX_SENSORS", 1)
+    with pytest.raises(IngestionError) as exc:
+        read_recording([opal_dir / "step.h5"], sensor="XI-001234")
+    assert exc.value.code == "opal.too_large" and exc.value.params["dataset"] == "/Sensors"
+
+
 def test_apdm_file_not_hdf5_is_refused(tmp_path):
     p = tmp_path / "step.h5"
     p.write_text("not hdf5")
