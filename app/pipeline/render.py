@@ -402,24 +402,37 @@ class RenderPool:
     def __init__(self, processes: int, warm=None) -> None:
         self.processes = processes
         self._warm_fn = warm or warm_up
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # restart() (a request's or a job's thread) against shutdown() (the server's)
+        self._stopping = False
         self._start()
 
     def _start(self) -> None:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=exit_with_parent, initargs=(os.getpid(),))
-        self._warm = self._pool.submit(self._warm_fn)
+        ctx = multiprocessing.get_context("spawn")
+        initializer, initargs = self._initializer(ctx)
+        self._pool = ProcessPoolExecutor(self.processes, mp_context=ctx, initializer=initializer, initargs=initargs)
+        self._warm = self._pool.submit(self._warm_fn)  # starts the process now, not at the first task
+
+    def _initializer(self, ctx):
+        """``(initializer, initargs)`` of the processes (made with the ``spawn`` context ``ctx``): background
+        priority and exit with the server (:func:`exit_with_parent`); a subclass may add to it."""
+        return exit_with_parent, (os.getpid(),)
+
+    def _stop(self) -> None:
+        """Terminate the processes (their work too) and drop the pool."""
+        for proc in list((getattr(self._pool, "_processes", None) or {}).values()):  # no public way to stop one
+            proc.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
 
     def restart(self) -> None:
-        """Replace a hung process by a fresh one (its work is abandoned; the caller renders it itself)."""
+        """Replace a hung or dead process by a fresh one (its work is abandoned); after :meth:`shutdown`,
+        nothing."""
         with self._lock:
-            old = self._pool
-            for proc in list(getattr(old, "_processes", {}).values()):  # no public way to stop a hung worker
-                proc.terminate()
-            old.shutdown(wait=False, cancel_futures=True)
+            if self._stopping:
+                return
+            self._stop()
             self._start()
 
     def submit(self, fn, *args):
@@ -441,7 +454,14 @@ class RenderPool:
             return False
 
     def shutdown(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the processes now, their work too: the interpreter's exit would otherwise wait for a running task
+        (a server stopping during an upload check, or a job).  The caller waiting for that task gets
+        :class:`~concurrent.futures.process.BrokenProcessPool`; :meth:`restart` does nothing afterwards."""
+        with self._lock:
+            if self._stopping:
+                return
+            self._stopping = True
+            self._stop()
 
 
 def warm_up(processing: bool = True) -> None:
