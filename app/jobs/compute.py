@@ -14,7 +14,7 @@ job threads and the request threads are one process (a job thread given a lower 
 lock and the database's write lock at that priority: every request then waits on the least favoured thread of
 the machine).  A :class:`JobProcess` is a warm helper process (spawned; it imports the pipeline and the report
 modules and loads the orientation filter's kernels once, :func:`app.pipeline.render.warm_up`) at the background
-priority of the render and check helpers (:data:`app.pipeline.render.BACKGROUND_NICE`), which exits with the
+priority of the upload checks' helpers (:data:`app.pipeline.render.BACKGROUND_NICE`), which exits with the
 server.  The job thread keeps everything that takes a lock: the database writes (progress, the stored analysis)
 and the blob store; it relays the helper's progress calls to the job row (one pipe, read while it waits).  The
 helper holds no lock of the server's, so its low priority delays nobody but itself.

@@ -41,7 +41,7 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             assert client.delete(f"/api/v1/sessions/{sid}/recordings/{first}", headers=h).status_code == 204
             after_delete.append(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"])
             if pool is not None:
-                assert handed == ["check_ingestion"] * 2 and "render pool unavailable" in caplog.text  # fell back
+                assert handed == ["check_ingestion"] * 2 and "helper process pool unavailable" in caplog.text  # fell back
     assert answers[0]["ok"] and answers[0] == answers[1]
     assert not after_delete[0]["ok"] and after_delete[0] == after_delete[1]  # a recording missing, said alike
 
