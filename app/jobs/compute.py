@@ -14,7 +14,7 @@ job threads and the request threads are one process (a job thread given a lower 
 lock and the database's write lock at that priority: every request then waits on the least favoured thread of
 the machine).  A :class:`JobProcess` is a warm helper process (spawned; it imports the pipeline and the report
 modules and loads the orientation filter's kernels once, :func:`app.pipeline.render.warm_up`) at the background
-priority of the render and check helpers (:data:`app.pipeline.render.BACKGROUND_NICE`), which exits with the
+priority of the upload checks' helpers (:data:`app.pipeline.render.BACKGROUND_NICE`), which exits with the
 server.  The job thread keeps everything that takes a lock: the database writes (progress, the stored analysis)
 and the blob store; it relays the helper's progress calls to the job row (one pipe, read while it waits).  The
 helper holds no lock of the server's, so its low priority delays nobody but itself.
@@ -29,12 +29,12 @@ on rather than fail (its heartbeat, written by the job thread, says it is alive)
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import os
-import threading
-from concurrent.futures import CancelledError, ProcessPoolExecutor
+from concurrent.futures import CancelledError
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+
+from app.pipeline.render import RenderPool, exit_with_parent, warm_up
 
 log = logging.getLogger("chakamo.jobs")
 
@@ -91,8 +91,6 @@ _progress_pipe = None  # in a helper: the write end of its progress pipe (set by
 
 def _helper_start(parent_pid: int, pipe) -> None:
     """A helper's initializer: background priority, exit with the server, keep the progress pipe."""
-    from app.pipeline.render import exit_with_parent
-
     global _progress_pipe
     exit_with_parent(parent_pid)
     _progress_pipe = pipe
@@ -107,37 +105,25 @@ def _compute_here(folder: Path, options, lang: str, session_id: int, paired_id: 
     return compute(folder, options, lang, session_id, paired_id, _send_progress)
 
 
-class JobProcess:
+class JobProcess(RenderPool):
     """One warm helper process running one job's :func:`compute` at a time (module docstring); the embedded
-    engine gives each job thread its own."""
+    engine gives each job thread its own.  A :class:`~app.pipeline.render.RenderPool` of one (its start, warm-up,
+    :meth:`restart` and :meth:`shutdown`) with a progress pipe from the helper.  After :meth:`shutdown` (the
+    server stopping) the job thread gets :class:`HelperStopped` and leaves the job to resume at the next start."""
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()  # restart() (the job thread) against shutdown() (the server's)
-        self._stopping = False
-        self._start()
+        super().__init__(1, warm=warm_up)
 
-    def _start(self) -> None:
-        from app.pipeline.render import warm_up
-
-        ctx = multiprocessing.get_context("spawn")
+    def _initializer(self, ctx):
+        """The helper's initializer (:func:`_helper_start`) with a fresh progress pipe (one per helper)."""
         self._progress, self._progress_w = ctx.Pipe(duplex=False)
-        self._pool = ProcessPoolExecutor(1, mp_context=ctx, initializer=_helper_start,
-                                         initargs=(os.getpid(), self._progress_w))
-        self._warm = self._pool.submit(warm_up)  # starts the helper now, not at the first job
+        return _helper_start, (os.getpid(), self._progress_w)
 
     @property
     def pid(self) -> int | None:
         """The helper's process id (None before it started)."""
         procs = list(getattr(self._pool, "_processes", {}) or {})
         return procs[0] if procs else None
-
-    def wait_warm(self, timeout_s: float = 120.0) -> bool:
-        """Block until the helper is warm (tests, benchmarks); True if it is usable."""
-        try:
-            self._warm.result(timeout_s)
-            return True
-        except Exception:  # noqa: BLE001
-            return False
 
     def run(self, progress, folder: Path, options, lang: str, session_id: int, paired_id: int | None):
         """:func:`compute` in the helper, its ``progress`` calls made here (in the calling thread, which may write
@@ -193,28 +179,9 @@ class JobProcess:
 
     def _stop(self) -> None:
         """Terminate the helper, drop its pool and close the progress pipe."""
-        for proc in list((getattr(self._pool, "_processes", None) or {}).values()):  # no public way to stop one
-            proc.terminate()
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        super()._stop()
         self._progress.close()
         self._progress_w.close()
-
-    def restart(self) -> None:
-        """Replace the helper (its work is abandoned); after :meth:`shutdown`, nothing."""
-        with self._lock:
-            if self._stopping:
-                return
-            self._stop()
-            self._start()
-
-    def shutdown(self) -> None:
-        """Stop the helper now, its job too (the interpreter's exit would otherwise wait for that job): the job
-        thread gets :class:`HelperStopped` and leaves the job to resume at the next start."""
-        with self._lock:
-            if self._stopping:
-                return
-            self._stopping = True
-            self._stop()
 
 
 __all__ = ["HelperDied", "HelperStopped", "JobProcess", "RELAY_EVERY_S", "compute"]

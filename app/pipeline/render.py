@@ -1,11 +1,12 @@
-"""Artefact rendering: every output file of an analysis from one report input, and the warm render process.
+"""Artefact rendering: every output file of an analysis from one report input, and the server's warm helper processes.
 
 :func:`render_all` builds ``results.json`` and ``timeseries.npz`` and renders ``report.pdf`` and ``report.html`` in
 every language of :data:`reports.i18n.LANGUAGES`, ``angles.xlsx``, ``quaternions.xlsx`` and ``scene.viser``
 (:func:`render_artefact` is one of them), one after another in the calling process — a job's helper process
 (:mod:`app.jobs.compute`) or a Celery worker.  :func:`warm_up` imports the report modules and runs the default
 filter once, so a job never pays for that.  :class:`RenderPool` is a warm spawned helper process at background
-priority (the upload checks' helpers, :class:`app.store.checks.CheckPool`).  The job's computation
+priority: the upload checks' helpers (:class:`app.store.checks.CheckPool`) and, as their base class, the embedded
+engine's job helpers (:class:`app.jobs.compute.JobProcess`, which render too).  The job's computation
 (:func:`app.jobs.compute.compute`) calls :func:`render_all`; nothing here touches the database.
 """
 
@@ -174,7 +175,8 @@ class ForkedRenderers:
     fails or dies is not fatal: what it did not deliver is rendered (or read) in the parent.
 
     Only for a process with a single thread and no event loop (fork copies none of them, nor the locks they
-    hold): the CLI creates it first thing; servers use :class:`RenderPool` (spawned).  Use as a context
+    hold): the CLI creates it first thing; a server renders in its spawned job helpers
+    (:class:`app.jobs.compute.JobProcess`, a :class:`RenderPool`) or its Celery workers.  Use as a context
     manager, or call :meth:`close`.  Without ``os.fork`` (Windows), or with other threads running, nothing is
     forked: :meth:`render` renders in the caller and :meth:`session` is None.
     """
@@ -360,7 +362,7 @@ class ForkedRenderers:
         self.close()
 
 
-#: nice increment of the render and upload-check helper processes (:class:`RenderPool`): under CPU starvation
+#: nice increment of the server's helper processes (:class:`RenderPool`: upload checks and jobs): under CPU starvation
 #: the scheduler serves the API process first (issue 16 finding 10h); 10 gives a busy nice-0 process about nine
 #: times the CPU of a busy helper (the kernel's weights 1024 : 110).  Only processes: a lowered thread of the API
 #: process would hold the interpreter's and the database's locks at that priority (:mod:`app.jobs.inprocess`)
@@ -378,7 +380,7 @@ def lower_priority() -> bool:
 
 
 def exit_with_parent(parent_pid: int) -> None:
-    """In a render or check helper process: run at the background priority (:data:`BACKGROUND_NICE`), and exit as
+    """In a server's helper process (an upload check's or a job's): run at the background priority (:data:`BACKGROUND_NICE`), and exit as
     soon as the server process is gone (even killed with SIGKILL)."""
     lower_priority()
     def watch() -> None:
@@ -390,11 +392,14 @@ def exit_with_parent(parent_pid: int) -> None:
 
 
 class RenderPool:
-    """A warm helper process (or ``processes`` of them) at background priority: the upload checks' helpers.
+    """A warm helper process (or ``processes`` of them) at background priority: the upload checks' helpers
+    (:class:`app.store.checks.CheckPool`), and the base of the embedded engine's job helpers
+    (:class:`app.jobs.compute.JobProcess`, which submits to its pool itself).
 
     Started with ``spawn`` (forking a threaded server is unsafe), exits when the server process does (even
     one killed with SIGKILL), and is warmed up by ``warm`` (default :func:`warm_up`: the report modules);
-    :meth:`submit` returns None until it is warm, so a job never waits for its start-up.  :meth:`restart`
+    :meth:`submit` returns None until it is warm, so a caller never waits for its start-up (it does the work
+    itself meanwhile).  :meth:`restart`
     replaces a hung or dead process — only then: work that raised leaves the process as it is (the upload
     checks' helpers are pools of one, :class:`app.store.checks.CheckPool`).
     """
@@ -402,34 +407,48 @@ class RenderPool:
     def __init__(self, processes: int, warm=None) -> None:
         self.processes = processes
         self._warm_fn = warm or warm_up
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # restart() (a request's or a job's thread) against shutdown() (the server's)
+        self._stopping = False
         self._start()
 
     def _start(self) -> None:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        self._pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=exit_with_parent, initargs=(os.getpid(),))
-        self._warm = self._pool.submit(self._warm_fn)
+        ctx = multiprocessing.get_context("spawn")
+        initializer, initargs = self._initializer(ctx)
+        self._pool = ProcessPoolExecutor(self.processes, mp_context=ctx, initializer=initializer, initargs=initargs)
+        self._warm = self._pool.submit(self._warm_fn)  # starts the process now, not at the first task
+
+    def _initializer(self, ctx):
+        """``(initializer, initargs)`` of the processes (made with the ``spawn`` context ``ctx``): background
+        priority and exit with the server (:func:`exit_with_parent`); a subclass may add to it."""
+        return exit_with_parent, (os.getpid(),)
+
+    def _stop(self) -> None:
+        """Terminate the processes (their work too) and drop the pool."""
+        for proc in list((getattr(self._pool, "_processes", None) or {}).values()):  # no public way to stop one
+            proc.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
 
     def restart(self) -> None:
-        """Replace a hung process by a fresh one (its work is abandoned; the caller renders it itself)."""
+        """Replace a hung or dead process by a fresh one (its work is abandoned); after :meth:`shutdown`,
+        nothing."""
         with self._lock:
-            old = self._pool
-            for proc in list(getattr(old, "_processes", {}).values()):  # no public way to stop a hung worker
-                proc.terminate()
-            old.shutdown(wait=False, cancel_futures=True)
+            if self._stopping:
+                return
+            self._stop()
             self._start()
 
     def submit(self, fn, *args):
-        """``fn(*args)`` in the render process, or None when it is not warm or not usable."""
+        """``fn(*args)`` in the helper process, or None when it is not warm or not usable (the caller does the
+        work itself)."""
         if not self._warm.done() or self._warm.exception() is not None:
             return None
         try:
             return self._pool.submit(fn, *args)
-        except Exception:  # noqa: BLE001 — a broken pool: the caller renders itself
-            log.exception("render pool unavailable")
+        except Exception:  # noqa: BLE001 — a broken or shut-down pool: the caller does the work itself
+            log.exception("helper process pool unavailable")
             return None
 
     def wait_warm(self, timeout_s: float = 120.0) -> bool:
@@ -441,7 +460,14 @@ class RenderPool:
             return False
 
     def shutdown(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the processes now, their work too: the interpreter's exit would otherwise wait for a running task
+        (a server stopping during an upload check, or a job).  The caller waiting for that task gets
+        :class:`~concurrent.futures.process.BrokenProcessPool`; :meth:`restart` does nothing afterwards."""
+        with self._lock:
+            if self._stopping:
+                return
+            self._stopping = True
+            self._stop()
 
 
 def warm_up(processing: bool = True) -> None:

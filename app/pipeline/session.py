@@ -113,7 +113,7 @@ class PipelineError(ValueError):
 
         return str(self) if self.code == "text" else render_message(self.code, self.params, lang)
 
-    def __reduce__(self):  # pickle (job engines, the render pool): rebuilt from code and params
+    def __reduce__(self):  # pickle (job engines, the helper processes): rebuilt from code and params
         return (_rebuild_pipeline_error, (self.code, dict(self.params), str(self)))
 
 

@@ -119,17 +119,16 @@ class _GatedCursor(sqlite3.Cursor):
     could not be prepared) gives the gate back at once."""
 
     def execute(self, sql, parameters=(), /):
-        self.connection.enter_write(sql)
-        try:
-            return super().execute(sql, parameters)
-        except BaseException:
-            self.connection._leave()
-            raise
+        return self._gated(super().execute, sql, parameters)
 
     def executemany(self, sql, seq_of_parameters, /):
+        return self._gated(super().executemany, sql, seq_of_parameters)
+
+    def _gated(self, call, sql, parameters):
+        """``call(sql, parameters)`` after taking the gate if ``sql`` opens a write transaction."""
         self.connection.enter_write(sql)
         try:
-            return super().executemany(sql, seq_of_parameters)
+            return call(sql, parameters)
         except BaseException:
             self.connection._leave()
             raise
@@ -138,7 +137,11 @@ class _GatedCursor(sqlite3.Cursor):
 class GatedConnection(sqlite3.Connection):
     """A pysqlite connection whose write transactions queue at the database's :class:`WriteGate`: pysqlite opens a
     transaction just before the first INSERT/UPDATE/DELETE/REPLACE outside one, and that is where the gate is
-    taken; ``commit()`` / ``rollback()`` / ``close()`` give it back once SQLite's lock is free (module docstring)."""
+    taken; ``commit()`` / ``rollback()`` / ``close()`` give it back once SQLite's lock is free (module docstring).
+
+    Only this connection's cursors (:meth:`cursor`, what SQLAlchemy uses) take the gate: pysqlite's shortcuts
+    ``Connection.execute`` / ``executemany`` / ``executescript`` make a plain cursor in C, past :meth:`cursor`,
+    and so bypass it.  Nothing in the app calls them on a gated connection."""
 
     def __init__(self, database, *args, **kwargs) -> None:
         super().__init__(database, *args, **kwargs)
@@ -218,7 +221,7 @@ def make_engine(url: str) -> Engine:
         if path and path != ":memory:":
             Path(path).parent.mkdir(parents=True, exist_ok=True)
             pool = dict(pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW, pool_timeout=POOL_TIMEOUT_S)
-        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 15, "factory": GatedConnection}, **pool)
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": WRITE_WAIT_S, "factory": GatedConnection}, **pool)
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
     return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,

@@ -190,3 +190,25 @@ def test_a_write_after_a_comment_takes_the_gate_and_a_statement_that_fails_to_pr
         assert not conn.in_transaction and not gate._held
     finally:
         conn.close()
+
+
+def test_executemany_takes_the_gate_and_commit_gives_it_back(tmp_path):
+    """A write through a cursor's ``executemany`` (SQLAlchemy's path for one statement over many rows, e.g.
+    :func:`app.store.checks.save_ingestion`'s devices) opens a write transaction like ``execute``: it holds the
+    gate until the commit."""
+    import sqlite3
+
+    from app.store.database import GatedConnection, write_gate
+
+    path = tmp_path / "many.db"
+    conn = sqlite3.connect(path, factory=GatedConnection, check_same_thread=False)
+    try:
+        conn.cursor().execute("CREATE TABLE t (x INTEGER)")
+        gate = write_gate(str(path))
+        conn.cursor().executemany("INSERT INTO t VALUES (?)", [(1,), (2,)])
+        assert conn.in_transaction and gate._held
+        conn.commit()
+        assert not gate._held
+        assert conn.cursor().execute("SELECT count(*) FROM t").fetchone() == (2,)
+    finally:
+        conn.close()

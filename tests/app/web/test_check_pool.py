@@ -41,7 +41,7 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             assert client.delete(f"/api/v1/sessions/{sid}/recordings/{first}", headers=h).status_code == 204
             after_delete.append(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"])
             if pool is not None:
-                assert handed == ["check_ingestion"] * 2 and "render pool unavailable" in caplog.text  # fell back
+                assert handed == ["check_ingestion"] * 2 and "helper process pool unavailable" in caplog.text  # fell back
     assert answers[0]["ok"] and answers[0] == answers[1]
     assert not after_delete[0]["ok"] and after_delete[0] == after_delete[1]  # a recording missing, said alike
 
@@ -168,3 +168,42 @@ def test_the_gate_follows_the_helpers_and_a_check_waits_for_a_slot_only_so_long(
         assert pool.wait_warm(120)
         stored = client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
         assert stored != answer and "ok" in stored  # not stored: checked when the session is opened
+
+
+def test_shutdown_stops_a_helper_in_the_middle_of_a_check():
+    """Review finding (RenderPool depth): a server stopping while a check runs stops that check's helper process
+    — before, ``shutdown`` only refused new work and the interpreter's exit waited for the running check (a
+    15 s check: 21.9 s to exit).  The caller waiting for the check is told the helper is gone."""
+    import threading
+    import time
+    from concurrent.futures.process import BrokenProcessPool
+
+    from app.store.checks import CheckPool
+
+    pool = CheckPool(1)
+    try:
+        assert pool.wait_warm(120)
+        (helper,) = pool.helpers
+        (proc,) = helper._pool._processes.values()
+        outcome = []
+
+        def check():
+            try:
+                outcome.append(pool.run(time.sleep, 60, timeout_s=120))
+            except BaseException as exc:  # noqa: BLE001 — recorded for the assertion below
+                outcome.append(exc)
+
+        caller = threading.Thread(target=check, daemon=True)
+        caller.start()
+        deadline = time.monotonic() + 60
+        while not helper._pool._pending_work_items and time.monotonic() < deadline:  # the check was handed over
+            time.sleep(0.05)
+        time.sleep(0.5)  # and the helper took it
+    finally:
+        pool.shutdown()
+    proc.join(10)
+    assert proc.exitcode is not None, "the helper still runs its check after shutdown()"
+    caller.join(10)
+    assert len(outcome) == 1 and isinstance(outcome[0], BrokenProcessPool), outcome
+    pool.helpers[0].restart()  # after shutdown: nothing started again
+    assert not pool.helpers[0]._pool._processes
