@@ -212,7 +212,7 @@ in the causal 9D filter (≈ 55 s of field rejection, gyroscope heading drift); 
 
 Held out (``python -m benchmarks.broad``, parameters, ``offline_mag_bias`` among them, chosen on one half of the ten trials, scored on the other; undisturbed / disturbed total RMSE, °): 9D
 A→B 1.11/2.77 (offline VQF 2.26/3.18), B→A 1.06/1.12 (VQF 1.26/2.73); 6D A→B 1.40/2.01 (VQF 6D 1.49/2.26), B→A
-0.64/3.07 (VQF 6D 0.81/3.00: *not met*; neither an impact pause (8) nor four cause-level changes (8b) closed it).  These defaults' own numbers on all
+0.64/3.07 (VQF 6D 0.81/3.00: *not met*; neither an impact pause (8) nor the cause-level changes of (8b) closed it).  These defaults' own numbers on all
 ten: 9D 1.08/2.13 (1.07/2.37 without (13a)), 6D 1.01/2.49.
 
 References
