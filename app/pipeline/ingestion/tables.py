@@ -123,6 +123,7 @@ class Rows(Sequence):
 
     def __init__(self, lines: list[str], delimiter: str) -> None:
         self.lines, self.delimiter = lines, delimiter
+        self._nan_lines: list[str] | None = None
 
     def __len__(self) -> int:
         return len(self.lines)
@@ -137,7 +138,22 @@ class Rows(Sequence):
         return (ln.split(d) for ln in self.lines)
 
     def pop(self) -> list[str]:
+        self._nan_lines = None
         return self.lines.pop().split(self.delimiter)
+
+    def empty_as_nan(self) -> list[str]:
+        """The lines with every empty cell written ``nan`` (what :func:`numeric_columns`' cell-by-cell path makes
+        of it), for ``numpy.loadtxt``; made once (a generic CSV reads three streams from one file).  A cell of
+        only blanks stays as it is: loadtxt refuses it and the cell-by-cell path reads it."""
+        if self._nan_lines is None:
+            d = self.delimiter
+            text = "\n".join(self.lines)
+            for _ in range(2):   # ",,," : the first pass fills every other gap, the second the rest
+                text = text.replace(d + d, f"{d}nan{d}")
+            text = text.replace("\n" + d, f"\nnan{d}").replace(d + "\n", f"{d}nan\n")
+            text = ("nan" if text.startswith(d) else "") + text + ("nan" if text.endswith(d) else "")
+            self._nan_lines = text.split("\n")
+        return self._nan_lines
 
     def widths(self) -> list[int]:
         """Cells per row (separators + 1), without splitting."""
@@ -203,20 +219,16 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
     quote-free file are parsed by ``numpy.loadtxt``; any cell it refuses (empty, text) falls back to the
     cell-by-cell path below, whose message names the row and column.
     """
-    lines = rows.lines if isinstance(rows, Rows) else None
-    if lines:
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                out = np.loadtxt(lines, delimiter=rows.delimiter, usecols=tuple(columns), dtype=np.float64,
-                                 comments=None, ndmin=2)
-        except ValueError:
-            out = None
+    if isinstance(rows, Rows) and rows.lines:
+        out = _loadtxt(rows.lines, rows.delimiter, columns)
+        if out is None:   # empty cells (a stream sampled less often than the file's rows): NaN, as below
+            out = _loadtxt(rows.empty_as_nan(), rows.delimiter, columns)
         if out is not None and out.shape == (len(rows), len(columns)) and first_huge_cell(out, max_abs) is None:
             return out
     out = np.empty((len(rows), len(columns)))
+    cells = list(rows)   # each row split once (Rows splits on every access)
     for j, c in enumerate(columns):
-        col = [r[c] for r in rows]
+        col = [r[c] for r in cells]
         try:
             out[:, j] = np.array(col, dtype=np.float64)
         except ValueError:
@@ -236,6 +248,17 @@ def numeric_columns(path: Path, header: Sequence[str], rows: list[list[str]], co
         raise IngestionError("cell.infinite" if np.isinf(out[i, j]) else "cell.huge", file=path, row=i + first_row,
                              column=header[columns[j]], value=f"{out[i, j]:.3g}")
     return out
+
+
+def _loadtxt(lines: list[str], delimiter: str, columns: Sequence[int]) -> FloatArray | None:
+    """``numpy.loadtxt`` of ``columns`` of ``lines`` (float64, 2-D), None when it refuses a cell."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return np.loadtxt(lines, delimiter=delimiter, usecols=tuple(columns), dtype=np.float64, comments=None,
+                              ndmin=2)
+    except ValueError:
+        return None
 
 
 def first_huge_cell(table: np.ndarray, max_abs: float | None = None) -> tuple[int, int] | None:
