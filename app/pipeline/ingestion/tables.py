@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import io
 import operator
-import re
 import warnings
 from pathlib import Path
 from collections.abc import Sequence
@@ -66,7 +65,7 @@ def parse_table(path: Path, text: str, notes: list | None = None,
         delimiter = "\t" if first.count("\t") > max(first.count(","), first.count(";")) else \
             ";" if first.count(";") > 0 and first.count(";") >= first.count(",") else ","
     semicolon = delimiter == ";"
-    lines = text.splitlines() if '"' not in text and not _ODD_BREAKS.search(text) else None
+    lines = text.splitlines() if '"' not in text and not any(c in text for c in _ODD_BREAKS) else None
     if lines is not None and max(map(len, lines), default=0) < _CSV_FIELD_LIMIT:
         while lines and not lines[-1].replace(delimiter, "").strip():
             lines.pop()
@@ -161,8 +160,10 @@ class Rows(Sequence):
         return [c + 1 for c in counts] if len(set(counts)) > 1 else [counts[0] + 1] * len(counts) if counts else []
 
 
-#: line breaks str.splitlines() knows and csv does not (\v, \f, \x1c-\x1e, NEL, LS, PS): such a file takes csv
-_ODD_BREAKS = re.compile("[\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029]")
+#: line breaks str.splitlines() knows and csv does not (\v, \f, \x1c-\x1e, NEL, LS, PS): such a file takes csv.
+#: Looked for one character at a time (``in``: a memchr each, ~0.2 ms a 1.6 MB file; a character class regular
+#: expression took 8.5 ms, a quarter of reading a MetaBase session)
+_ODD_BREAKS = "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"
 #: beyond csv's per-field limit a damaged file must still fail as csv fails it (one huge "cell")
 _CSV_FIELD_LIMIT = csv.field_size_limit()
 

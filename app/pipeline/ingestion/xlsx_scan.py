@@ -35,6 +35,8 @@ import re
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from app.pipeline.ingestion.model import rows_all
+
 #: the attributes of a plain number cell after its reference (style and the number type, as spreadsheet programs
 #: write them)
 NUMBER_ATTRS = rb'(?: s="\d+")?(?: t="n")?(?: s="\d+")?'
@@ -208,7 +210,7 @@ def plain_cells(body: bytes | bytearray, start: int = 0
                 break
             if not _NUMBER_ATTRS.fullmatch(rest[first, :rest_len[first]].tobytes()):
                 return None
-            undecided &= ~(np.all(words == words[first], axis=1) & (rest_len == rest_len[first]))
+            undecided &= ~(rows_all(words == words[first]) & (rest_len == rest_len[first]))
         if undecided.any():
             return None
     # the values: non-empty, no blank, converted at once
