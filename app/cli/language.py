@@ -50,6 +50,22 @@ ARGPARSE = {
 HELP = {
     "Clinical 3D knee kinematics from two IMUs.": "cli.description",
     "show program's version number and exit": "cli.version_help",
+    "simulate a session with known truth, process it, print the accuracy": "cli.help_demo",
+    "process one recorded session folder into results.json": "cli.help_process",
+    "serve the live 3D femur-tibia animation of a processed session": "cli.help_view",
+    "foot-mounted pedestrian dead reckoning of one walk": "cli.help_walk",
+    "Markovian Kalman filters on a multi-segment research CSV": "cli.help_markov",
+    "run the web application (embedded default: SQLite, local files)": "cli.help_serve",
+    "manage clinics (tenants)": "cli.help_clinics",
+    "manage user accounts": "cli.help_users",
+    "manage API tokens": "cli.help_tokens",
+    "correct or erase a patient (operator)": "cli.help_patients",
+    "correct or erase a session (operator)": "cli.help_sessions",
+    "list (dry run) or erase the sessions past the retention period": "cli.help_retention",
+    "upgrade the database schema to this release and exit": "cli.help_migrate",
+    "run a Celery worker for the processing jobs (CHAKAMO_JOB_BACKEND=celery)": "cli.help_worker",
+    "queue every session since a date for processing with a filter": "cli.help_reprocess",
+    "language of the messages (default: English)": "cli.help_lang_messages",
 }
 
 _current: list[str] = []   # the language of the parse in progress (a stack: a subparser parses inside its parent)

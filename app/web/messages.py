@@ -299,6 +299,71 @@ CATALOGUE: dict[str, dict[str, str]] = {
                         "pt": "Cinemática clínica 3D do joelho com dois sensores inerciais."},
     "cli.version_help": {"en": "show program's version number and exit", "es": "muestra la versión del programa y termina",
                          "pt": "mostra a versão do programa e termina"},
+    # the one-line help of each command on `chakamo --help` and of the --lang option (app/cli/language.py's HELP)
+    "cli.help_demo": {
+        "en": "simulate a session with known truth, process it, print the accuracy",
+        "es": "simular una sesión con verdad conocida, procesarla e imprimir la exactitud",
+        "pt": "simular uma sessão com verdade conhecida, processá-la e mostrar a exatidão"},
+    "cli.help_process": {
+        "en": "process one recorded session folder into results.json",
+        "es": "procesar la carpeta de una sesión grabada en results.json",
+        "pt": "processar a pasta de uma sessão gravada em results.json"},
+    "cli.help_view": {
+        "en": "serve the live 3D femur-tibia animation of a processed session",
+        "es": "servir la animación 3D en vivo de fémur y tibia de una sesión procesada",
+        "pt": "servir a animação 3D ao vivo do fémur e da tíbia de uma sessão processada"},
+    "cli.help_walk": {
+        "en": "foot-mounted pedestrian dead reckoning of one walk",
+        "es": "navegación a estima de una marcha con un sensor en el pie",
+        "pt": "navegação por estima de uma marcha com um sensor no pé"},
+    "cli.help_markov": {
+        "en": "Markovian Kalman filters on a multi-segment research CSV",
+        "es": "filtros de Kalman markovianos sobre un CSV de investigación de varios segmentos",
+        "pt": "filtros de Kalman markovianos sobre um CSV de investigação de vários segmentos"},
+    "cli.help_serve": {
+        "en": "run the web application (embedded default: SQLite, local files)",
+        "es": "ejecutar la aplicación web (integrada por defecto: SQLite, archivos locales)",
+        "pt": "executar a aplicação web (integrada por omissão: SQLite, ficheiros locais)"},
+    "cli.help_clinics": {
+        "en": "manage clinics (tenants)",
+        "es": "gestionar clínicas (inquilinos)",
+        "pt": "gerir clínicas (inquilinos)"},
+    "cli.help_users": {
+        "en": "manage user accounts",
+        "es": "gestionar cuentas de usuario",
+        "pt": "gerir contas de utilizador"},
+    "cli.help_tokens": {
+        "en": "manage API tokens",
+        "es": "gestionar tokens de API",
+        "pt": "gerir tokens de API"},
+    "cli.help_patients": {
+        "en": "correct or erase a patient (operator)",
+        "es": "corregir o borrar un paciente (operador)",
+        "pt": "corrigir ou apagar um paciente (operador)"},
+    "cli.help_sessions": {
+        "en": "correct or erase a session (operator)",
+        "es": "corregir o borrar una sesión (operador)",
+        "pt": "corrigir ou apagar uma sessão (operador)"},
+    "cli.help_retention": {
+        "en": "list (dry run) or erase the sessions past the retention period",
+        "es": "listar (simulacro) o borrar las sesiones que superan el plazo de conservación",
+        "pt": "listar (simulação) ou apagar as sessões que ultrapassam o prazo de conservação"},
+    "cli.help_migrate": {
+        "en": "upgrade the database schema to this release and exit",
+        "es": "actualizar el esquema de la base de datos a esta versión y terminar",
+        "pt": "atualizar o esquema da base de dados para esta versão e terminar"},
+    "cli.help_worker": {
+        "en": "run a Celery worker for the processing jobs (CHAKAMO_JOB_BACKEND=celery)",
+        "es": "ejecutar un trabajador Celery para los trabajos de procesamiento (CHAKAMO_JOB_BACKEND=celery)",
+        "pt": "executar um trabalhador Celery para as tarefas de processamento (CHAKAMO_JOB_BACKEND=celery)"},
+    "cli.help_reprocess": {
+        "en": "queue every session since a date for processing with a filter",
+        "es": "poner en cola todas las sesiones desde una fecha para procesarlas con un filtro",
+        "pt": "pôr em fila todas as sessões desde uma data para as processar com um filtro"},
+    "cli.help_lang_messages": {
+        "en": "language of the messages (default: English)",
+        "es": "idioma de los mensajes (por defecto: inglés)",
+        "pt": "idioma das mensagens (por omissão: inglês)"},
     "cli.argparse_usage": {"en": "usage: ", "es": "uso: ", "pt": "utilização: "},
     "cli.argparse_positionals": {"en": "positional arguments", "es": "argumentos posicionales",
                                  "pt": "argumentos posicionais"},

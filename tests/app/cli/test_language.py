@@ -160,3 +160,31 @@ def test_serve_start_up_line_in_lang(lang, tmp_path):
         proc.terminate()
         proc.wait(timeout=60)
     assert first == say("cli.serve_started", lang, host="127.0.0.1", port=port, data_dir=tmp_path)
+
+
+def _help_texts(parser) -> set[str]:
+    texts = {parser.description}
+    for action in parser._actions:
+        texts.add(action.help)
+        for sub in getattr(action, "_get_subactions", lambda: [])():
+            texts.add(sub.help)
+        for child in (action.choices or {}).values() if isinstance(action.choices, dict) else ():
+            texts |= _help_texts(child)
+    return texts
+
+
+def test_every_translated_help_text_is_one_the_parser_shows():
+    """HELP is keyed by the English text: an English help changed in add_parsers would lose its translation
+    silently, so every key must still be a help text of the parser."""
+    from app.cli.main import _build_parser
+
+    shown = _help_texts(_build_parser())
+    assert set(HELP) <= shown, set(HELP) - shown
+
+
+@pytest.mark.parametrize("lang", ["es", "pt"])
+def test_the_commands_are_listed_in_lang(lang, capsys):
+    with pytest.raises(SystemExit):
+        main(["--help", "--lang", lang])
+    out = capsys.readouterr().out
+    assert say("cli.help_process", lang) in out and say("cli.description", lang) in out
