@@ -110,7 +110,9 @@ def _ngettext(singular: str, plural: str, n: int) -> str:
 
 @contextmanager
 def _speaking(lang: str | None) -> Iterator[None]:
-    """argparse's msgids in ``lang`` (English: untouched) while the block runs."""
+    """argparse's msgids in ``lang`` (English: untouched) while the block runs: ``argparse._`` and
+    ``argparse.ngettext``, the names argparse calls them through, are swapped for the block and restored after it
+    (process-wide: ``chakamo`` parses once, on its main thread, before any other thread starts)."""
     if lang in (None, "en"):
         yield
         return
