@@ -1,6 +1,6 @@
 """Set-up commands of the web application (``chakamo serve``, ``clinics``, ``users``, ``tokens``).
 
-``chakamo serve [--host 127.0.0.1] [--port 8000] [--proxy-headers --forwarded-allow-ips IPS]``
+``chakamo serve [--host 127.0.0.1] [--port 8000] [--proxy-headers --forwarded-allow-ips IPS] [--lang es|en|pt]``
     The web application on the embedded default (SQLite, local files, in-process jobs) under
     ``CHAKAMO_DATA_DIR``; loopback unless ``--host`` says otherwise.  Behind a reverse proxy (TLS),
     ``--proxy-headers`` takes the client address and scheme from the proxy's ``X-Forwarded-*`` headers, trusted
@@ -127,9 +127,9 @@ class CliError(ValueError):
 
 def _say(lang: str | None, code: str, **params) -> str:
     """Sentence ``code`` of :data:`app.web.messages.CATALOGUE` in ``lang`` (``--lang``; English when not given)."""
-    from app.web.messages import render
+    from app.cli.language import say
 
-    return render(code, lang or "en", **params)
+    return say(code, lang or "en", **params)
 
 
 def _clinic(s, name: str):
@@ -225,15 +225,15 @@ def rotate_token(settings: Settings | None, token_id: int, *, grace_hours: float
 
 
 def serve(host: str = "127.0.0.1", port: int = 8000, proxy_headers: bool = False,
-          forwarded_allow_ips: str = "127.0.0.1") -> None:
-    """Run the web application with uvicorn until interrupted."""
+          forwarded_allow_ips: str = "127.0.0.1", lang: str | None = None) -> None:
+    """Run the web application with uvicorn until interrupted (its start-up line in ``lang``, English when None)."""
     import uvicorn
 
     from app.web.main import UVICORN_OPTIONS, create_app
     from app.settings import get_settings
 
     settings = get_settings()  # errors (e.g. no secret key) before anything starts
-    print(f"ChakaMo on http://{host}:{port}/ (data in {settings.data_dir}); Ctrl-C stops it", file=sys.stderr)
+    print(_say(lang, "cli.serve_started", host=host, port=port, data_dir=settings.data_dir), file=sys.stderr)
     uvicorn.run(create_app(settings), host=host, port=port, log_level="info", proxy_headers=proxy_headers,
                 forwarded_allow_ips=forwarded_allow_ips if proxy_headers else None, **UVICORN_OPTIONS)
 
@@ -247,6 +247,8 @@ def add_parsers(sub) -> None:
                          help="behind a reverse proxy: trust its X-Forwarded-For/-Proto headers")
     serve_p.add_argument("--forwarded-allow-ips", default="127.0.0.1", metavar="IPS",
                          help="addresses of the proxies whose headers are trusted (default: 127.0.0.1)")
+    serve_p.add_argument("--lang", choices=LANGUAGE_NAMES, default=None,
+                         help="language of the start-up line and of the errors (default: English)")
 
     clinics = sub.add_parser("clinics", help="manage clinics (tenants)").add_subparsers(dest="action", required=True)
     c_create = clinics.add_parser("create", help="create a clinic")
@@ -307,7 +309,7 @@ def _strong(password: str, *, email: str, name: str) -> None:
 def run(args: argparse.Namespace) -> int:
     """Carry out a parsed ``serve`` / ``clinics`` / ``users`` / ``tokens`` command."""
     if args.command == "serve":
-        serve(args.host, args.port, args.proxy_headers, args.forwarded_allow_ips)
+        serve(args.host, args.port, args.proxy_headers, args.forwarded_allow_ips, args.lang)
     elif args.command == "clinics":
         clinic_id = create_clinic(None, args.name)
         print(_say(args.lang, "cli.clinic_created", name=args.name.strip(), id=clinic_id))

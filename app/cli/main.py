@@ -26,7 +26,9 @@ The parser is built from the command groups below (:data:`GROUPS`: each module h
 ``add_parsers(sub)`` and ``run(args)``), whose choices all come from :mod:`app.choices`; nothing heavier than
 the option lists is imported until a command runs, so ``chakamo --help`` starts fast.
 
-Errors a user can cause end with a one-line message on stderr and exit status 2; nothing is written.
+Errors a user can cause end with a one-line message on stderr and exit status 2; nothing is written.  Every
+sentence of ``chakamo``'s own, argparse's usage errors and ``--help`` frame included, speaks ``--lang`` when the
+command line gives it, English otherwise (:mod:`app.cli.language`).
 """
 
 from __future__ import annotations
@@ -35,18 +37,18 @@ import time
 
 _T0 = time.perf_counter()  # the start of `total` in CHAKAMO_TIMINGS (app.pipeline.timings)
 
-import argparse  # noqa: E402
 import sys  # noqa: E402
 
-from app.cli import admin, ops, records, research, session  # noqa: E402
+from app.cli import admin, language, ops, records, research, session  # noqa: E402
 from estimators import __version__  # noqa: E402
 
 #: the command groups, in the order ``chakamo --help`` lists them
 GROUPS = (session, research, admin, records, ops)
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="chakamo", description="Clinical 3D knee kinematics from two IMUs.")
+def _build_parser(lang: str | None = None) -> language.Parser:
+    """The ``chakamo`` parser; argparse's own sentences (usage errors, the help frame) in ``lang``."""
+    parser = language.Parser(prog="chakamo", lang=lang, description="Clinical 3D knee kinematics from two IMUs.")
     parser.add_argument("--version", action="version", version=f"chakamo {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for group in GROUPS:
@@ -55,7 +57,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = _build_parser(language.requested(argv)).parse_args(argv)
     group = next(g for g in GROUPS if args.command in g.COMMANDS)
     from app.store.errors import DomainError  # the data layer's refusals (cheap: no database stack)
 
@@ -64,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError, DomainError) as exc:  # a file problem, a refusal: what to do, in --lang if given
         lang = getattr(args, "lang", None) or "en"
         text = exc.message(lang) if callable(getattr(exc, "message", None)) else str(exc)
-        print(f"chakamo {args.command}: error: {text}", file=sys.stderr)
+        print(language.error_line(f"chakamo {args.command}", text, lang), end="", file=sys.stderr)
         return 2
     finally:
         from app.pipeline import timings

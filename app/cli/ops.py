@@ -1,10 +1,10 @@
 """Operations commands of the scaled-out deployment (``chakamo migrate``, ``worker``, ``reprocess``).
 
-``chakamo migrate``
+``chakamo migrate [--lang es|en|pt]``
     Upgrade the database (``DATABASE_URL``) to the newest schema and exit: run it once before starting the
     API servers and workers of a new release (``docker/compose.yaml`` has it as a one-shot service), so that
     several processes never race to migrate.
-``chakamo worker [--concurrency N] [--loglevel INFO]``
+``chakamo worker [--concurrency N] [--loglevel INFO] [--lang es|en|pt]``
     A Celery worker (``CHAKAMO_JOB_BACKEND=celery``, ``CHAKAMO_BROKER_URL``) running the processing jobs of
     every API server on this database (:mod:`app.jobs.celery_engine`); ``N`` processes (default ``CHAKAMO_WORKERS``).
     SIGTERM finishes the running jobs first; any number of workers on any number of machines sharing
@@ -13,13 +13,15 @@
     Queue a cohort for processing with another filter or a new pipeline version (:mod:`app.jobs.reprocess`);
     prints one line per session and what was done, idempotent (a second run queues nothing new).
 
-Errors the user can fix raise ``ValueError`` with one sentence (the CLI prints it and exits with status 2).
+Errors the user can fix raise ``ValueError`` with one sentence (the CLI prints it in ``--lang`` and exits with
+status 2); the start-up lines an operator sees speak ``--lang`` too (English when not given).
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime as dt
+import sys
 
 from app import choices
 
@@ -27,16 +29,22 @@ COMMANDS = ("migrate", "worker", "reprocess")
 
 
 def _date(text: str) -> dt.date:
+    """``--since``: an ISO date (refused in the language of the command line: :mod:`app.cli.language`)."""
     try:
         return dt.date.fromisoformat(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a date; write it as YYYY-MM-DD") from None
+        from app.cli.language import say
+
+        raise argparse.ArgumentTypeError(say("cli.not_a_date", value=text)) from None
 
 
 def add_parsers(sub) -> None:
     """Register ``migrate``, ``worker`` and ``reprocess`` on the ``chakamo`` subparsers."""
-    sub.add_parser("migrate", help="upgrade the database schema to this release and exit")
+    migrate = sub.add_parser("migrate", help="upgrade the database schema to this release and exit")
     worker = sub.add_parser("worker", help="run a Celery worker for the processing jobs (CHAKAMO_JOB_BACKEND=celery)")
+    for parser in (migrate, worker):   # their start-up lines and errors in --lang
+        parser.add_argument("--lang", choices=choices.LANGUAGE_NAMES, default=None,
+                            help="language of the messages (default: English)")
     worker.add_argument("--concurrency", type=int, default=None, metavar="N",
                         help="worker processes (default: CHAKAMO_WORKERS)")
     worker.add_argument("--loglevel", default="INFO", choices=("DEBUG", "INFO", "WARNING", "ERROR"))
@@ -53,6 +61,8 @@ def add_parsers(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Carry out a parsed ``migrate`` / ``worker`` / ``reprocess`` command."""
+    from app.cli.admin import CliError
+    from app.cli.language import say
     from app.settings import get_settings
 
     settings = get_settings()
@@ -65,12 +75,16 @@ def run(args: argparse.Namespace) -> int:
             db.migrate(settings.sealing_key)
         finally:
             db.dispose()
-        print(f"database schema up to date ({db.engine.url.render_as_string(hide_password=True)})")
+        print(say("cli.migrated", args.lang, url=db.engine.url.render_as_string(hide_password=True)))
     elif args.command == "worker":
-        from app.jobs.celery_engine import run_worker
-
+        if settings.job_backend != "celery":   # run_worker's own refusal, before celery is imported, in --lang
+            raise CliError("cli.worker_needs_celery")
         if args.concurrency is not None and args.concurrency < 1:
-            raise ValueError("--concurrency must be at least 1")
+            raise CliError("cli.concurrency_min")
+        from app.jobs.celery_engine import QUEUE, run_worker
+
+        print(say("cli.worker_started", args.lang, n=args.concurrency or settings.workers, queue=QUEUE),
+              file=sys.stderr, flush=True)
         run_worker(settings, args.concurrency, args.loglevel)
     elif args.command == "reprocess":
         _reprocess(settings, args)

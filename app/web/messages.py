@@ -292,6 +292,145 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "{n} sessions: {counts}. {summary}.",
         "es": "{n} sesiones: {counts}. {summary}.",
         "pt": "{n} sessões: {counts}. {summary}."},
+    # ``chakamo``'s own words in --lang (app/cli/language.py): argparse's, whose English entries are argparse's msgids
+    # (%-placeholders: argparse fills them), the help frame, and the start-up lines of serve, migrate and worker
+    "cli.description": {"en": "Clinical 3D knee kinematics from two IMUs.",
+                        "es": "Cinemática clínica 3D de la rodilla con dos sensores inerciales.",
+                        "pt": "Cinemática clínica 3D do joelho com dois sensores inerciais."},
+    "cli.version_help": {"en": "show program's version number and exit", "es": "muestra la versión del programa y termina",
+                         "pt": "mostra a versão do programa e termina"},
+    # the one-line help of each command on `chakamo --help` and of the --lang option (app/cli/language.py's HELP)
+    "cli.help_demo": {
+        "en": "simulate a session with known truth, process it, print the accuracy",
+        "es": "simular una sesión con verdad conocida, procesarla e imprimir la exactitud",
+        "pt": "simular uma sessão com verdade conhecida, processá-la e mostrar a exatidão"},
+    "cli.help_process": {
+        "en": "process one recorded session folder into results.json",
+        "es": "procesar la carpeta de una sesión grabada en results.json",
+        "pt": "processar a pasta de uma sessão gravada em results.json"},
+    "cli.help_view": {
+        "en": "serve the live 3D femur-tibia animation of a processed session",
+        "es": "servir la animación 3D en vivo de fémur y tibia de una sesión procesada",
+        "pt": "servir a animação 3D ao vivo do fémur e da tíbia de uma sessão processada"},
+    "cli.help_walk": {
+        "en": "foot-mounted pedestrian dead reckoning of one walk",
+        "es": "navegación a estima de una marcha con un sensor en el pie",
+        "pt": "navegação por estima de uma marcha com um sensor no pé"},
+    "cli.help_markov": {
+        "en": "Markovian Kalman filters on a multi-segment research CSV",
+        "es": "filtros de Kalman markovianos sobre un CSV de investigación de varios segmentos",
+        "pt": "filtros de Kalman markovianos sobre um CSV de investigação de vários segmentos"},
+    "cli.help_serve": {
+        "en": "run the web application (embedded default: SQLite, local files)",
+        "es": "ejecutar la aplicación web (integrada por defecto: SQLite, archivos locales)",
+        "pt": "executar a aplicação web (integrada por omissão: SQLite, ficheiros locais)"},
+    "cli.help_clinics": {
+        "en": "manage clinics (tenants)",
+        "es": "gestionar clínicas (inquilinos)",
+        "pt": "gerir clínicas (inquilinos)"},
+    "cli.help_users": {
+        "en": "manage user accounts",
+        "es": "gestionar cuentas de usuario",
+        "pt": "gerir contas de utilizador"},
+    "cli.help_tokens": {
+        "en": "manage API tokens",
+        "es": "gestionar tokens de API",
+        "pt": "gerir tokens de API"},
+    "cli.help_patients": {
+        "en": "correct or erase a patient (operator)",
+        "es": "corregir o borrar un paciente (operador)",
+        "pt": "corrigir ou apagar um paciente (operador)"},
+    "cli.help_sessions": {
+        "en": "correct or erase a session (operator)",
+        "es": "corregir o borrar una sesión (operador)",
+        "pt": "corrigir ou apagar uma sessão (operador)"},
+    "cli.help_retention": {
+        "en": "list (dry run) or erase the sessions past the retention period",
+        "es": "listar (simulacro) o borrar las sesiones que superan el plazo de conservación",
+        "pt": "listar (simulação) ou apagar as sessões que ultrapassam o prazo de conservação"},
+    "cli.help_migrate": {
+        "en": "upgrade the database schema to this release and exit",
+        "es": "actualizar el esquema de la base de datos a esta versión y terminar",
+        "pt": "atualizar o esquema da base de dados para esta versão e terminar"},
+    "cli.help_worker": {
+        "en": "run a Celery worker for the processing jobs (CHAKAMO_JOB_BACKEND=celery)",
+        "es": "ejecutar un trabajador Celery para los trabajos de procesamiento (CHAKAMO_JOB_BACKEND=celery)",
+        "pt": "executar um trabalhador Celery para as tarefas de processamento (CHAKAMO_JOB_BACKEND=celery)"},
+    "cli.help_reprocess": {
+        "en": "queue every session since a date for processing with a filter",
+        "es": "poner en cola todas las sesiones desde una fecha para procesarlas con un filtro",
+        "pt": "pôr em fila todas as sessões desde uma data para as processar com um filtro"},
+    "cli.help_lang_messages": {
+        "en": "language of the messages (default: English)",
+        "es": "idioma de los mensajes (por defecto: inglés)",
+        "pt": "idioma das mensagens (por omissão: inglês)"},
+    "cli.argparse_usage": {"en": "usage: ", "es": "uso: ", "pt": "utilização: "},
+    "cli.argparse_positionals": {"en": "positional arguments", "es": "argumentos posicionales",
+                                 "pt": "argumentos posicionais"},
+    "cli.argparse_options": {"en": "options", "es": "opciones", "pt": "opções"},
+    "cli.argparse_help": {"en": "show this help message and exit", "es": "muestra esta ayuda y termina",
+                          "pt": "mostra esta ajuda e termina"},
+    "cli.argparse_error": {"en": "%(prog)s: error: %(message)s\n", "es": "%(prog)s: error: %(message)s\n",
+                           "pt": "%(prog)s: erro: %(message)s\n"},
+    "cli.argparse_argument": {"en": "argument %(argument_name)s: %(message)s",
+                              "es": "argumento %(argument_name)s: %(message)s",
+                              "pt": "argumento %(argument_name)s: %(message)s"},
+    "cli.argparse_unrecognized": {"en": "unrecognized arguments: %s", "es": "argumentos no reconocidos: %s",
+                                  "pt": "argumentos não reconhecidos: %s"},
+    "cli.argparse_required": {"en": "the following arguments are required: %s",
+                              "es": "faltan estos argumentos obligatorios: %s",
+                              "pt": "faltam estes argumentos obrigatórios: %s"},
+    "cli.argparse_one_of": {"en": "one of the arguments %s is required", "es": "se necesita uno de los argumentos %s",
+                            "pt": "é necessário um dos argumentos %s"},
+    "cli.argparse_not_allowed": {"en": "not allowed with argument %s", "es": "no se admite junto con el argumento %s",
+                                 "pt": "não é admitido com o argumento %s"},
+    "cli.argparse_ignored": {"en": "ignored explicit argument %r", "es": "argumento explícito ignorado: %r",
+                             "pt": "argumento explícito ignorado: %r"},
+    "cli.argparse_expected_one": {"en": "expected one argument", "es": "se esperaba un valor",
+                                  "pt": "esperava-se um valor"},
+    "cli.argparse_expected_at_most_one": {"en": "expected at most one argument", "es": "se esperaba un valor como máximo",
+                                          "pt": "esperava-se um valor no máximo"},
+    "cli.argparse_expected_at_least_one": {"en": "expected at least one argument", "es": "se esperaba al menos un valor",
+                                           "pt": "esperava-se pelo menos um valor"},
+    "cli.argparse_expected_n": {"en": "expected %s arguments", "es": "número de valores esperado: %s",
+                                "pt": "número de valores esperado: %s"},
+    "cli.argparse_ambiguous": {"en": "ambiguous option: %(option)s could match %(matches)s",
+                               "es": "opción ambigua: %(option)s puede ser %(matches)s",
+                               "pt": "opção ambígua: %(option)s pode ser %(matches)s"},
+    "cli.argparse_invalid_value": {"en": "invalid %(type)s value: %(value)r",
+                                   "es": "valor no válido (%(type)s): %(value)r",
+                                   "pt": "valor inválido (%(type)s): %(value)r"},
+    "cli.argparse_invalid_choice": {"en": "invalid choice: %(value)r (choose from %(choices)s)",
+                                    "es": "opción no válida: %(value)r (elija entre %(choices)s)",
+                                    "pt": "opção inválida: %(value)r (escolha entre %(choices)s)"},
+    "cli.argparse_invalid_choice_command": {"en": "unknown parser %(parser_name)r (choices: %(choices)s)",
+                                            "es": "orden desconocida %(parser_name)r (elija entre %(choices)s)",
+                                            "pt": "comando desconhecido %(parser_name)r (escolha entre %(choices)s)"},
+    "cli.not_a_date": {"en": "{value!r} is not a date; write it as YYYY-MM-DD (e.g. 2026-03-01)",
+                       "es": "{value!r} no es una fecha; escríbala como AAAA-MM-DD (p. ej. 2026-03-01)",
+                       "pt": "{value!r} não é uma data; escreva-a como AAAA-MM-DD (p. ex. 2026-03-01)"},
+    "cli.serve_started": {
+        "en": "ChakaMo on http://{host}:{port}/ (data in {data_dir}); Ctrl-C stops it",
+        "es": "ChakaMo en http://{host}:{port}/ (datos en {data_dir}); Ctrl-C lo detiene",
+        "pt": "ChakaMo em http://{host}:{port}/ (dados em {data_dir}); Ctrl-C para-o"},
+    "cli.migrated": {"en": "database schema up to date ({url})", "es": "esquema de la base de datos al día ({url})",
+                     "pt": "esquema da base de dados atualizado ({url})"},
+    "cli.worker_started": {
+        "en": "ChakaMo worker: {n} processes on the queue {queue}; SIGTERM lets the running jobs finish, then stops it",
+        "es": "Trabajador de ChakaMo: {n} procesos en la cola {queue}; SIGTERM deja terminar los trabajos en curso y "
+              "después lo detiene",
+        "pt": "Trabalhador do ChakaMo: {n} processos na fila {queue}; SIGTERM deixa terminar as tarefas em curso e "
+              "depois para-o"},
+    "cli.worker_needs_celery": {
+        "en": "chakamo worker runs the distributed jobs: set CHAKAMO_JOB_BACKEND=celery and "
+              "CHAKAMO_BROKER_URL=redis://HOST:6379/0 (the embedded `chakamo serve` needs no worker)",
+        "es": "chakamo worker ejecuta los trabajos distribuidos: defina CHAKAMO_JOB_BACKEND=celery y "
+              "CHAKAMO_BROKER_URL=redis://HOST:6379/0 (el `chakamo serve` integrado no necesita ningún trabajador)",
+        "pt": "chakamo worker executa as tarefas distribuídas: defina CHAKAMO_JOB_BACKEND=celery e "
+              "CHAKAMO_BROKER_URL=redis://HOST:6379/0 (o `chakamo serve` integrado não precisa de nenhum trabalhador)"},
+    "cli.concurrency_min": {"en": "--concurrency must be at least 1; give a number of processes such as 2",
+                            "es": "--concurrency debe ser al menos 1; indique un número de procesos, p. ej. 2",
+                            "pt": "--concurrency deve ser pelo menos 1; indique um número de processos, p. ex. 2"},
     "account.browser_only": {
         "en": "This needs a browser login (an API token has no password or sessions); log in with your email.",
         "es": "Esto requiere iniciar sesión en el navegador (un token de API no tiene contraseña ni sesiones); inicie "

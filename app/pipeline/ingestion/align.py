@@ -28,7 +28,8 @@ from typing import Sequence
 
 import numpy as np
 
-from app.pipeline.ingestion.model import AlignedRecording, FloatArray, IngestionError, Note, RawRecording, Stream
+from app.pipeline.ingestion.model import (AlignedRecording, FloatArray, IngestionError, Note, RawRecording, Stream,
+                                          rows_all, rows_any)
 
 GAP_PERIODS = 2.5
 #: Relative tolerance between a stream's measured rate and the expected one.
@@ -40,7 +41,7 @@ def common_span(streams: Sequence[Stream]) -> tuple[float, float]:
     """``(t0, t1)``: the latest first stamp and the earliest last stamp (valid rows only)."""
     firsts, lasts = [], []
     for s in streams:
-        ok = np.all(np.isfinite(s.values), axis=1)
+        ok = rows_all(np.isfinite(s.values))
         if not ok.any():
             raise IngestionError("stream.no_valid_sample", file=s.file, stream=s.kind)
         firsts.append(s.t_s[ok][0])
@@ -50,7 +51,7 @@ def common_span(streams: Sequence[Stream]) -> tuple[float, float]:
 
 def resample(stream: Stream, t_grid: FloatArray) -> FloatArray:
     """Linear interpolation of ``stream`` at ``t_grid`` (same time base), NaN inside gaps (module docstring)."""
-    ok = np.all(np.isfinite(stream.values), axis=1)
+    ok = rows_all(np.isfinite(stream.values))
     t, v = stream.t_s[ok], stream.values[ok]
     out = np.stack([np.interp(t_grid, t, v[:, i]) for i in range(3)], axis=1)
     period = float(np.median(np.diff(stream.t_s)))
@@ -104,7 +105,7 @@ def _aligned(rec: RawRecording, t: FloatArray, fs_hz: float, segment: str, role:
     notes += [Note(f"{k} started {before:.2f} s before the common span (cut)",
                    {"variant": "stream_cut_before", "stream": k, "seconds": before})
               for k, (before, _) in cut.items() if before > 0.5]
-    nan_rows = {k: int(np.isnan(v).any(axis=1).sum()) for k, v in arrays.items()}
+    nan_rows = {k: int(rows_any(np.isnan(v)).sum()) for k, v in arrays.items()}
     notes += [Note(f"{k}: {n} grid rows missing (gaps in the stream)",
                    {"variant": "rows_missing", "stream": k, "rows": n}) for k, n in nan_rows.items() if n]
     if rec.acc.time_base != "epoch":

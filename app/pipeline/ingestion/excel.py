@@ -40,7 +40,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from app.pipeline.ingestion.model import IngestionError, Note, Stream
+from app.pipeline.ingestion.model import IngestionError, Note, Stream, rows_all
 from app.pipeline.ingestion.tables import check_stamps, first_huge_cell
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
 from app.pipeline.ingestion.xlsx_cells import Workbook, count_tags
@@ -305,7 +305,7 @@ def read_thesis_xlsx(path: str | os.PathLike, sheet: str | None = None,
             bad = unit if f is None else t_unit
             raise IngestionError("xlsx.unit_unknown", file=path, unit=bad)
         block = table[:, [t_col, *axes]]
-        used = ~np.all(np.isnan(block), axis=1)
+        used = ~rows_all(np.isnan(block))
         last = int(np.nonzero(used)[0][-1]) + 1 if used.any() else 0
         block = block[:last]
         if last == 0:

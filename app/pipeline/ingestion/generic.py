@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from app.pipeline.files import write_text_atomic
-from app.pipeline.ingestion.model import IngestionError, Stream
+from app.pipeline.ingestion.model import IngestionError, Stream, rows_all
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, read_csv_rows
 from app.pipeline.ingestion.units import check_magnitude, normalise_unit, normalised_field, unit_factor
 
@@ -78,7 +78,7 @@ def read_generic_csv(path: str | os.PathLike) -> tuple[Stream, Stream, Stream]:
             bad = unit if factor is None else t_unit
             raise IngestionError("generic.unit_unknown", file=path, unit=bad)
         data = numeric_columns(path, header, rows, [t_i, *axes])
-        keep = ~np.all(np.isnan(data[:, 1:]), axis=1)     # rows where this stream was not sampled
+        keep = ~rows_all(np.isnan(data[:, 1:]))     # rows where this stream was not sampled
         rows_used = np.nonzero(keep)[0]
         t_s = data[keep, 0] * t_factor
         if rows_used.size == 0:

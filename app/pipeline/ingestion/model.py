@@ -54,6 +54,23 @@ class IngestionError(ValueError):
         return (_rebuild_error, (self.code, dict(self.params), str(self)))
 
 
+def rows_all(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``mask.all(axis=1)`` of a narrow ``(n, k)`` bool array, one column at a time: numpy's reduction along a
+    short last axis costs ~15 ns a row (0.65 ms for 36 000 × 3), the columns ~1 ns (0.05 ms)."""
+    out = np.ones(len(mask), dtype=bool)
+    for k in range(mask.shape[1]):
+        out &= mask[:, k]
+    return out
+
+
+def rows_any(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``mask.any(axis=1)`` of a narrow ``(n, k)`` bool array, one column at a time (:func:`rows_all`)."""
+    out = np.zeros(len(mask), dtype=bool)
+    for k in range(mask.shape[1]):
+        out |= mask[:, k]
+    return out
+
+
 def _plain(value: Any) -> Any:
     """A message parameter as JSON can carry it: paths as text, numpy scalars as Python numbers."""
     if isinstance(value, Path):

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from app.pipeline.ingestion.phyphox import check_zip, read_member
-from app.pipeline.ingestion.model import IngestionError, Note, Stream
+from app.pipeline.ingestion.model import IngestionError, Note, Stream, rows_all
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, parse_table
 from app.pipeline.ingestion.units import check_magnitude
 
@@ -112,7 +112,7 @@ def read_sensorlogger(path: str | os.PathLike) -> tuple[Stream, Stream, Stream, 
         else:
             t_a, lin, src = _table(path, z, members["Accelerometer.csv"], notes)
             t_g, grav, _ = _table(path, z, members["Gravity.csv"], notes)
-            ok = np.isfinite(grav).all(axis=1)
+            ok = rows_all(np.isfinite(grav))
             if ok.sum() < 2:
                 raise IngestionError("stream.all_empty", file=path)
             acc = lin + np.stack([np.interp(t_a, t_g[ok], grav[ok, i]) for i in range(3)], axis=1)

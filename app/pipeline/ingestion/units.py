@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.pipeline.ingestion.model import FloatArray, IngestionError, Stream
+from app.pipeline.ingestion.model import FloatArray, IngestionError, Stream, rows_all
 from estimators.physics import STANDARD_GRAVITY_M_S2 as G_M_S2
 
 ACC_UNITS = {"g": G_M_S2, "mg": G_M_S2 * 1e-3, "m/s2": 1.0}
@@ -156,8 +156,8 @@ def gyro_scale_ratio(acc: Stream, gyr: Stream, window_s: float = 0.5,
 
     ``None`` when there is too little motion (fewer than 3 such windows) to judge.
     """
-    ok_g = np.all(np.isfinite(gyr.values), axis=1)
-    ok_a = np.all(np.isfinite(acc.values), axis=1)
+    ok_g = rows_all(np.isfinite(gyr.values))
+    ok_a = rows_all(np.isfinite(acc.values))
     if ok_g.sum() < 10 or ok_a.sum() < 10:
         return None
     t = gyr.t_s[ok_g]

@@ -294,7 +294,7 @@ class Workbook:
             cells, n_cells = _FAST.findall(body), body.count(b"<c")
             cells_at, rows_at = tag_positions(body)
         if not (cells or len(plain_col)) or len(cells) != n_cells \
-                or (b":c" in body and _PREFIXED_CELL.search(body)):
+                or (body.find(b":") >= 0 and b":c" in body and _PREFIXED_CELL.search(body)):   # memchr first
             return self._table_of_rows(name, max_row, max_col)
         head = np.array(cells, dtype=bytes).reshape(-1, 3)   # bytes arrays: no object per cell
         ref, kind, value = head[:, 0], head[:, 1], head[:, 2]

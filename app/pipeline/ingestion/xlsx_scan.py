@@ -33,7 +33,8 @@ from __future__ import annotations
 import re
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+
+from app.pipeline.ingestion.model import rows_all
 
 #: the attributes of a plain number cell after its reference (style and the number type, as spreadsheet programs
 #: write them)
@@ -64,13 +65,18 @@ def references(refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _windows(data: np.ndarray, start: np.ndarray, width: int) -> np.ndarray:
-    """``(n, width)`` bytes of ``data`` from each ``start`` (``data`` padded with ``width`` bytes at its end)."""
-    return sliding_window_view(data, width)[start]
+    """``(n, width)`` bytes of ``data`` (contiguous) from each ``start`` (``data`` padded with ``width`` bytes at its
+    end), a copy of their own.  Gathered as one ``width``-byte item each, from a view whose items overlap (stride
+    1): 2.3-2.7x faster than a ``sliding_window_view``'s rows (0.26 vs 0.61 ms for 12 000 windows of 13 bytes),
+    which numpy copies byte run by byte run."""
+    items = np.ndarray(buffer=data, dtype=f"V{width}", shape=(max(len(data) - width + 1, 0),), strides=(1,))
+    return items[start].view(np.uint8).reshape(-1, width)
 
 
 def _cut(window: np.ndarray, length: np.ndarray) -> np.ndarray:
-    """``window`` with the bytes from each row's ``length`` on set to zero."""
-    return window * (np.arange(window.shape[1]) < length[:, None])
+    """``window`` (a copy of its own: :func:`_windows`) with the bytes from each row's ``length`` on set to zero,
+    in place."""
+    return np.multiply(window, np.arange(window.shape[1]) < length[:, None], out=window)
 
 
 def _as_words(window: np.ndarray) -> np.ndarray:
@@ -208,7 +214,7 @@ def plain_cells(body: bytes | bytearray, start: int = 0
                 break
             if not _NUMBER_ATTRS.fullmatch(rest[first, :rest_len[first]].tobytes()):
                 return None
-            undecided &= ~(np.all(words == words[first], axis=1) & (rest_len == rest_len[first]))
+            undecided &= ~(rows_all(words == words[first]) & (rest_len == rest_len[first]))
         if undecided.any():
             return None
     # the values: non-empty, no blank, converted at once

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.pipeline.ingestion.model import IngestionError, Stream
+from app.pipeline.ingestion.model import IngestionError, Stream, rows_all
 from app.pipeline.ingestion.tables import check_stamps, numeric_columns, parse_table, read_text
 from app.pipeline.ingestion.units import check_magnitude, unit_factor
 
@@ -104,7 +104,7 @@ def read_xsens(path: str | os.PathLike) -> tuple[Stream, Stream, Stream, str | N
     streams = []
     for kind, prefix, unit in (("acc", "Acc", "m/s2"), ("gyr", "Gyr", "rad/s"), ("mag", "Mag", "normalised")):
         values = numeric_columns(path, header, rows, [index[f"{prefix}_{a}"] for a in "XYZ"], first_row=k + 2)
-        keep = ~np.isnan(values).all(axis=1)
+        keep = ~rows_all(np.isnan(values))
         if not keep.any():
             raise IngestionError("stream.all_empty", file=path)
         values = values[keep] * (unit_factor(kind, unit) if kind != "mag" else 1.0)
