@@ -334,7 +334,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             assert step.locator(".bad-packets").count() == 0, step.locator("ul.live").inner_text()
             if role == "task":
                 # the angle preview runs (axes from this visit's standing and supine steps; its accuracy, and the
-                # left leg's mirror: test_browser_record_results.py, static/metawear preview tests)
+                # left leg's mirror: test_browser_record_results.py, tests/static/test_metawear_checks.py)
                 expect(step.locator("ul.live li.preview")).to_have_text(re.compile(
                     r"Knee angles \(preview\): Flexion-extension -?\d+° · Adduction-abduction -?\d+° · "
                     r"Internal-external rotation -?\d+°"))
