@@ -200,6 +200,11 @@ def old_page_js(commit: str) -> dict[str, bytes]:
     return out
 
 
+def _serve(body: bytes):
+    """A route handler answering ``body`` as JavaScript (one argument: Playwright passes the request to a second)."""
+    return lambda route: route.fulfill(body=body, content_type="text/javascript; charset=utf-8")
+
+
 def one_run(browser, base: str, token: str, run: int, args) -> dict:
     """One fresh page and session through the postures to a paced task: the switches' lags (``dom``, ``frame``, ms),
     how late the pacer handed each switch's packet to the page (``late``, ms: the machine's, not the page's), the
@@ -210,8 +215,7 @@ def one_run(browser, base: str, token: str, run: int, args) -> dict:
     context.add_init_script(STAND_IN)
     context.add_init_script(PROBE)
     for path, body in (args.old_js or {}).items():
-        context.route(f"**/{path}", lambda route, body=body: route.fulfill(
-            body=body, content_type="text/javascript; charset=utf-8"))
+        context.route(f"**/{path}", _serve(body))
     page = context.new_page()
     try:
         page.goto(f"{base}/#/patients")
