@@ -5,7 +5,7 @@ angles follows the simulator's truth while the task is recorded.
 The browser path (the machinery of ``test_browser_record.py``: the real app under uvicorn, Chromium's DevTools
 ``BluetoothEmulation`` with two MetaMotion peripherals and its documented notification stand-in): connect both
 sensors, identify the thigh, record the four steps of the simulated session (:func:`app.pipeline.demo.simulate_session`,
-seed 7, right knee; framed by the protocol's Python twin ``metawear_frames.py``, no packet lost, no drop), each
+seed 7 a right knee, seed 3 a left one; framed by the protocol's Python twin ``metawear_frames.py``, no packet lost, no drop), each
 uploaded by the page; then the app's job processes the session.  The file path, as a clinic does it: the same
 samples — the int16 counts the boards sent, in project units, on the simulator's clock — written by the project's
 MetaBase writer with the same sensors' names, serials and firmware, uploaded through ``POST /sessions/{id}/recordings``
@@ -13,9 +13,14 @@ into a second session of another patient, processed by the same job.
 
 What differs by construction: each notification reaches the page ``Bench.notify``'s 4 ms after its last sample was
 taken (the air), and the page stamps samples from arrival times (static/metawear/timeline.js), so every sample of the
-browser's files is stamped 4 ms later than the files' (checked below); every time *difference* is the same.  So the two
-results.json must be equal but for the keys that hold an absolute time or the identity of the session (EXCLUDED, each
-with its reason), numbers bit for bit.
+browser's files is stamped 4 ms later than the files' (checked below), but for the samples whose true time lies at half
+a millisecond, which the two roundings (the page's line through the arrivals, the writer's of the simulator's float
+epoch) send either way: 1 ms more or less (151 of 66 530 samples in the right session).  The value columns are equal
+(checked), so the stamps are the only difference in the input.  The two results.json must be equal but for the keys
+that hold an absolute time or the session's own name (EXCLUDED, each with its reason) and the time stamp inside the
+file names they list (NAME_STAMP); numbers are not bit-equal (the stamps move a posture's still window, a resampling
+instant, a fit's sample count by one sample now and then), so they are compared within REL_TOL / ABS_TOL, and the
+test prints how many numbers are not bit-equal and the largest difference.
 
 The preview (static/metawear/preview.js): after each second of the task delivered, the three angles the page shows
 (integer degrees) against the simulator's knee angles at the last shank sample delivered.  Tolerances, fixed from six
@@ -34,13 +39,14 @@ import math
 import re
 
 import numpy as np
+import pytest
 
 from metawear_frames import LSB, counts
 from metawear_peripherals import Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     _api_session, csrf_header, server, slow_expect)
 from test_browser_record import (  # noqa: F401 - the fixtures are used by name
-    CHIP, CHUNK_S, ROLES, _deliver, _logged_in, _process, _stored_files, _streams, bt_browser, simulated)
+    CHIP, CHUNK_S, ROLES, _deliver, _logged_in, _process, _stored_files, _streams, bt_browser)
 
 #: results.json keys left out of the comparison, each for its reason; everything else must be equal
 EXCLUDED = {
@@ -52,9 +58,13 @@ EXCLUDED = {
 #: the time stamp inside a MetaBase file name (its first sample's local time, ms): in the names results.json lists
 #: (recognised files, warnings' file) the browser's is 4 ms later; replaced by "<start>" in every string
 NAME_STAMP = re.compile(r"_MetaWear_\d{4}-\d\d-\d\dT\d\d\.\d\d\.\d\d\.\d{3}_")
-#: numbers: equal within REL_TOL of their size or ABS_TOL (module docstring: the stamps' 4 ± 1 ms); numbers inside a
-#: sentence within one unit of the last decimal printed
-REL_TOL = ABS_TOL = 1e-3
+#: numbers: equal within REL_TOL of their size or ABS_TOL (module docstring: the stamps' 4 ± 1 ms move a window or a
+#: resampling instant by a sample now and then); numbers inside a sentence within one unit of the last decimal printed.
+#: ABS_TOL: one unit of the 0.01 that the per-cycle curves are stored rounded to (a 1e-4° difference can flip it:
+#: 0.58° against 0.57° seen), with float noise; about ten times below what the reports print (0.1°).  Measured: the
+#: right session's largest difference 2.8e-4 (relative, or absolute below 1), the left one's 1.5e-3 (the standing
+#: posture's heading offset, −0.4196° against −0.4211°) and that rounding flip; both failed the first bound, 1e-3.
+REL_TOL, ABS_TOL = 1e-3, 0.011
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
 #: the preview's tolerances (module docstring), degrees: RMS and largest error per angle
 PREVIEW_RMS_DEG = 1.5
@@ -166,18 +176,21 @@ def _deliver_task(bench, page, sensors, packets, truth):
     return seen
 
 
+@pytest.mark.parametrize("side, seed", [("right", 7), ("left", 3)])
 def test_a_session_recorded_in_the_browser_gives_the_results_of_its_files(  # noqa: F811
-        bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
+        bt_browser, server, slow_expect, side, seed, tmp_path):  # noqa: F811
+    from app.pipeline.demo import simulate_session
     from app.pipeline.ingestion.metabase import write_recording_metabase
 
     expect = slow_expect
+    simulated = simulate_session(seed=seed, side=side, n_cycles=8)
     task_epoch = simulated.role_epoch_s["task"]
 
     def truth(t_s):
         return np.rad2deg(simulated.motion.knee_angles_at(np.array([t_s - task_epoch])))[0]
 
     with _logged_in(bt_browser, server, expect, timezone_id="UTC") as (context, page):
-        sid = _api_session(context, server, "BLE-EQ-1", "right")
+        sid = _api_session(context, server, f"BLE-EQ-{side}", side)
         bench = Bench(bt_browser.new_browser_cdp_session(), context.new_cdp_session(page), page)
         thigh = bench.add(Peripheral("D4:F1:A2:B3:C4:E7", "MetaWear-T7", chip=CHIP["thigh"]))
         shank = bench.add(Peripheral("C1:D2:E3:F4:A5:B8", "MetaWear-S8", chip=CHIP["shank"]))
