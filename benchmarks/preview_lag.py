@@ -1,4 +1,4 @@
-"""How far the recording page's live knee-flexion preview lags behind the data (issue 18's goal: ≤ 200 ms).
+"""How far the recording page's live knee angle preview lags behind the data (issue 18's goal: ≤ 200 ms).
 
 Runs the real app (uvicorn on loopback, a temporary data folder) and its recording page in headless Chromium with
 two emulated MetaMotion sensors: the browser tests' machinery (``tests/app/web/metawear_peripherals.py``: Chromium's
@@ -9,8 +9,9 @@ record the standing and supine postures (the preview's segment axes), then start
 The task's samples have known content: the thigh stands still, vertical; the shank holds a knee flexion of 0° or
 ``--step-deg`` (40°) for a time drawn in ``--hold-s`` (0.5–0.8 s, so that the switches fall at every phase of
 the page's refresh) and switches within one gyroscope notification (three
-samples at ±step/0.03 s about the segment's z axis, the accelerometer's posture switching with it), so the preview
-must read ≈ 0° or ≈ 40° and cross 20° in the first frame that includes that notification.  The notifications of
+samples at ±step/0.03 s about the segment's z axis, the accelerometer's posture switching with it), so the preview's
+flexion (the first of its three angles) must read ≈ 0° or ≈ 40° and cross 20° in the first frame that includes that
+notification.  The notifications of
 both sensors (acc and gyro three samples each, magnetometer one, at 100/100/20 Hz) are framed by the protocol's
 Python twin (``tests/metawear_frames.py``) and leave the sensor at the BLE connection events after their last
 sample (``--interval-ms``, 15 ms): that connection event is the packet's *arrival*.
@@ -26,7 +27,8 @@ by one frame (~17 ms) when the page writes the text inside an animation frame ca
 Printed: median, p95 and max over the switches, for the packet's handing to the page (the pacer's lateness: a
 loaded machine's, which delays a real notification's event just as well), the DOM update and the frame; the
 page's long tasks (over 50 ms, PerformanceObserver "longtask"); the load average and the CPU time of this process; ``--seconds`` of task per run, ``--repeats`` runs (each a fresh browser, page and session).
-``--before COMMIT`` serves that commit's ``static/views/record.js`` (Playwright's routing) for an old-vs-new pair.
+``--before COMMIT`` serves that commit's recording page — ``static/views/record.js`` and ``static/metawear/*.js``
+(Playwright's routing) — for an old-vs-new pair.
 Usage: ``python -m benchmarks.preview_lag [--seconds 60] [--repeats 1] [--before COMMIT]``.
 """
 
@@ -56,7 +58,7 @@ ARGS = ("--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions
         "--enable-experimental-web-platform-features")
 G = 9.80665
 MAG_UT = np.array([20.0, 0.0, -40.0])
-#: the preview's text watched, each change stamped (DOM) and its next frame stamped (frame)
+#: the preview's text watched (its first number: the flexion), each change stamped (DOM) and its next frame stamped
 PROBE = """
 (() => {
   window.__previews = [];
@@ -177,20 +179,30 @@ def _session(base: str, token: str, external_id: str) -> int:
         return c.post(f"/patients/{pid}/sessions", json={}).json()["id"]
 
 
-def old_record_js(commit: str) -> bytes:
-    """``static/views/record.js`` of ``commit``, served with today's other modules.  A record.js older than 913bbb8
-    does not hand the live checks' thresholds of GET /options to the Recorder, which today's recorder.js requires:
-    its page never makes a recorder and the run would wait for the sensors' identification forever, so it is
-    refused (SystemExit with the reason), as is a commit git does not know."""
-    try:
-        js = file_at(commit, "static/views/record.js")
-    except FileNotFoundError as exc:
-        raise SystemExit(f"--before {commit}: {exc}") from None
-    if b"live_checks" not in js:
-        raise SystemExit(f"--before {commit}: its record.js predates 913bbb8 (it does not pass GET /options' "
-                         "live_checks to the Recorder, which today's recorder.js requires, so the page never records "
-                         "and the run would wait forever); compare with 913bbb8 or a later commit")
-    return js
+#: the recording page's modules a ``--before`` commit is served with: its own, so that they agree with each other
+PAGE_JS = ("static/views/record.js", "static/metawear/checks.js", "static/metawear/csv.js", "static/metawear/device.js",
+           "static/metawear/files.js", "static/metawear/preview.js", "static/metawear/protocol.js",
+           "static/metawear/recorder.js", "static/metawear/store.js", "static/metawear/timeline.js")
+
+
+def old_page_js(commit: str) -> dict[str, bytes]:
+    """The recording page's modules (PAGE_JS) as they were at ``commit``, by path, served instead of today's so that
+    they agree with each other (an old record.js with today's recorder.js may call what it no longer has).  A commit
+    git does not know, or without a recording page, is refused at once (SystemExit with git's reason); a module the
+    commit lacks is served as today's."""
+    out = {}
+    for path in PAGE_JS:
+        try:
+            out[path] = file_at(commit, path)
+        except FileNotFoundError as exc:
+            if path == "static/views/record.js":
+                raise SystemExit(f"--before {commit}: {exc}") from None
+    return out
+
+
+def _serve(body: bytes):
+    """A route handler answering ``body`` as JavaScript (one argument: Playwright passes the request to a second)."""
+    return lambda route: route.fulfill(body=body, content_type="text/javascript; charset=utf-8")
 
 
 def one_run(browser, base: str, token: str, run: int, args) -> dict:
@@ -202,9 +214,8 @@ def one_run(browser, base: str, token: str, run: int, args) -> dict:
     context.set_default_timeout(180_000)
     context.add_init_script(STAND_IN)
     context.add_init_script(PROBE)
-    if args.old_js is not None:
-        context.route("**/static/views/record.js", lambda route: route.fulfill(
-            body=args.old_js, content_type="text/javascript; charset=utf-8"))
+    for path, body in (args.old_js or {}).items():
+        context.route(f"**/{path}", _serve(body))
     page = context.new_page()
     try:
         page.goto(f"{base}/#/patients")
@@ -296,9 +307,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--interval-ms", type=float, default=15.0, help="BLE connection interval")
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--before", default=None, metavar="COMMIT",
-                        help="serve that commit's static/views/record.js instead of today's (an old-vs-new pair)")
+                        help="serve that commit's recording page (PAGE_JS) instead of today's (an old-vs-new pair)")
     args = parser.parse_args(argv)
-    args.old_js = old_record_js(args.before) if args.before else None
+    args.old_js = old_page_js(args.before) if args.before else None
     chromium = chromium_path()
     if chromium is None:
         print("chromium not installed: nothing measured")
@@ -320,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
                 for key, value in one.items():
                     out[key] += value
     load1 = os.getloadavg()
-    print(f"Live flexion preview lag ({'record.js of ' + args.before if args.before else 'today'}), headless Chromium, {args.repeats} run(s) of {args.seconds:.0f} s of task, a "
+    print(f"Live angle preview lag ({'recording page of ' + args.before if args.before else 'today'}), headless Chromium, {args.repeats} run(s) of {args.seconds:.0f} s of task, a "
           f"{args.step_deg:.0f}° switch every {args.hold_s[0]}–{args.hold_s[1]} s, BLE interval {args.interval_ms:.1f} ms")
     print(f"load average before {load0[0]:.1f} / {load0[1]:.1f} / {load0[2]:.1f}, after {load1[0]:.1f} / "
           f"{load1[1]:.1f} / {load1[2]:.1f} on {os.cpu_count()} CPUs; CPU time of this process (server, bench) "

@@ -15,7 +15,7 @@
 // is the thigh's (none within 30 s: the streams stop and the clinician is asked to try again).
 
 import { SphereCoverage, Stillness, CycleCounter } from "./checks.js";
-import { MeanForce, Tilt, segmentAxes, flexionDeg } from "./preview.js";
+import { MeanForce, KneePreview, segmentAxes } from "./preview.js";
 import { streamsOf, filesOf } from "./files.js";
 import { PROTOCOL_CONFIG } from "./protocol.js";
 
@@ -79,8 +79,9 @@ function incomplete(records, streams, config = PROTOCOL_CONFIG) {
 
 export class Recorder {
   /** sessionId; store: a PacketStore; send(segment, role, files) → the upload route's answer; liveChecks: the
-   * thresholds of the live checks as the server serves them (GET /options "live_checks", ./checks.js). */
-  constructor(sessionId, store, send, liveChecks) {
+   * thresholds of the live checks as the server serves them (GET /options "live_checks", ./checks.js); side: the
+   * knee recorded, "right" or "left" (the angle preview's signs, ./preview.js). */
+  constructor(sessionId, store, send, liveChecks, side = "right") {
     if (!liveChecks?.stillness || !liveChecks.coverage || !liveChecks.cycles) {
       throw Object.assign(new Error("the live checks' thresholds (GET /options live_checks) are missing"),
         { code: "live_checks_missing" });
@@ -96,8 +97,10 @@ export class Recorder {
     this.counts = null;
     this.listeners = new Set();
     this.flushTimer = null;
-    this.postures = Object.fromEntries(SEGMENTS.map((s) => [s, {}]));   // segment → role → MeanForce
-    this.tilts = null;
+    this.side = side;
+    // segment → role → {acc, gyr}: MeanForce of each stream (the preview's segment axes and gyroscope bias)
+    this.postures = Object.fromEntries(SEGMENTS.map((s) => [s, {}]));
+    this.preview = null;
   }
 
   changed() {
@@ -110,7 +113,8 @@ export class Recorder {
     this.runs[segment] = this.runs[segment] ?? 0;
     sensor.handlers.onSamples = (kind, values, arrivalMs, raw) => this.samples(segment, kind, values, arrivalMs, raw);
     // a new run from the drop on: nothing of the reconnection is stamped on the old run's line
-    sensor.handlers.onDropped = () => { this.runs[segment] += 1; this.changed(); };
+    // and the angle preview takes that sensor's attitude from scratch (the gap's motion is unknown)
+    sensor.handlers.onDropped = () => { this.runs[segment] += 1; this.preview?.restart(segment); this.changed(); };
     sensor.handlers.onReconnect = () => this.changed();
     // a notification the board's table cannot decode (its chip misread, a corrupted packet): counted, shown
     sensor.handlers.onBadPacket = () => { if (this.step) this.bad[segment] += 1; };
@@ -169,8 +173,8 @@ export class Recorder {
       coverage: role === "mag_calibration" ? new SphereCoverage(this.limits.coverage) : null,
       stillness: posture ? new Stillness(fs, this.limits.stillness) : null,
       cycles: role === "task" ? new CycleCounter(fs, this.limits.cycles) : null }]));
-    if (posture) for (const s of SEGMENTS) this.postures[s][role] = new MeanForce();
-    this.tilts = role === "task" ? { thigh: new Tilt(100), shank: new Tilt(100) } : null;
+    if (posture) for (const s of SEGMENTS) this.postures[s][role] = { acc: new MeanForce(), gyr: new MeanForce() };
+    this.preview = role === "task" ? this.kneePreview(fs) : null;
     // a failed write keeps its records queued and is retried at the next tick; meanwhile it is shown (live)
     this.bufferError = null;
     this.flushTimer = setInterval(() => this.store.flush().then(() => { this.bufferError = null; },
@@ -195,33 +199,42 @@ export class Recorder {
     this.counts[segment][kind] += values.length;
     const c = this.checks[segment];
     const posture = this.postures[segment][this.step];
-    const tilt = this.tilts?.[segment];
+    const preview = this.preview;
     for (const v of values) {
       if (kind === "mag") c.coverage?.push(v);
       else if (kind === "acc") {
         c.stillness?.pushAcc(v);
-        posture?.push(v);
-        tilt?.pushAcc(v);
+        posture?.acc.push(v);
+        preview?.pushAcc(segment, v);
       } else {
         c.stillness?.pushGyr(v);
         c.cycles?.push(v);
-        tilt?.pushGyr(v);
+        posture?.gyr.push(v);
+        preview?.pushGyr(segment, v);
       }
     }
   }
 
-  /** Knee flexion preview, degrees (./preview.js), once standing and supine were recorded in this visit;
-   * null otherwise and outside the task. */
-  flexion() {
-    if (!this.tilts) return null;
+  /** The knee angle preview of a task (./preview.js) from the standing and supine steps recorded in this visit:
+   * their mean specific force (the segment axes) and mean gyroscope (its bias, both postures still); null
+   * without them. */
+  kneePreview(fsHz) {
     const axes = {};
+    const bias = {};
     for (const s of SEGMENTS) {
-      const standing = this.postures[s].standing?.mean();
-      const lying = this.postures[s].lying?.mean();
-      if (!standing || !lying) return null;
-      axes[s] = segmentAxes(standing, lying);
+      const { standing, lying } = this.postures[s];
+      if (!standing?.acc.n || !lying?.acc.n) return null;
+      axes[s] = segmentAxes(standing.acc.mean(), lying.acc.mean());
+      const n = standing.gyr.n + lying.gyr.n;
+      bias[s] = n ? standing.gyr.sum.map((v, i) => (v + lying.gyr.sum[i]) / n) : [0, 0, 0];
     }
-    return flexionDeg(this.tilts, axes);
+    return new KneePreview(axes, bias, this.side, fsHz);
+  }
+
+  /** The knee angles' preview, degrees, [flexion, adduction, internal rotation] (./preview.js), during a task
+   * once standing and supine were recorded in this visit; null otherwise. */
+  angles() {
+    return this.preview?.angles() ?? null;
   }
 
   /** The live figures of the step being recorded, per segment. */

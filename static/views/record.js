@@ -7,7 +7,8 @@
 // 2 Steps: the protocol's four recordings, each from both sensors at once, with its live check (figure-eight:
 //   sphere cells reached of those the pipeline needs; postures: still or moving, the seconds still and the still
 //   window the pipeline needs; task: cycles counted, approximate; thresholds served by GET /options live_checks;
-//   and the knee flexion preview, static/metawear/preview.js, once both postures were recorded in this visit),
+//   and the preview of the three knee angles — the reports' names, order and signs, the left leg mirrored —
+//   static/metawear/preview.js, once both postures were recorded in this visit),
 //   the samples received and lost, and the sensors' state (reconnecting after a drop).  Stopping a step
 //   uploads it at once as MetaBase CSV files (segment and role fields); only an upload whose stored sha256
 //   match the browser's clears the step's buffer (IndexedDB), so nothing unacknowledged is lost: a failed
@@ -28,8 +29,9 @@ import { pickSensor, MetaWearSensor, bluetoothErrorCode } from "../metawear/devi
 import { PacketStore } from "../metawear/store.js";
 import { Recorder, STEPS, SEGMENTS, fileLabel } from "../metawear/recorder.js";
 import { CELL_COUNT } from "../metawear/checks.js";
+import { ANGLES } from "../charts.js";
 
-const REFRESH_MS = 100;   // the live figures (the flexion preview follows every animation frame: previewFrame)
+const REFRESH_MS = 100;   // the live figures (the angle preview follows every animation frame: previewFrame)
 
 async function send(sessionId, segment, role, files) {
   // files already stored with the same content (an earlier attempt answered after all) are not sent again
@@ -61,13 +63,19 @@ function sensorCard(sensor, segment, fail) {
     h("p", { class: "sensor-state", "data-state": sensor.state }, t(`record.state.${sensor.state}`)), blink);
 }
 
-// the flexion preview's text (the live list's line and previewFrame's every-frame update)
-function previewText(flexion) {
-  return t("record.preview", { deg: flexion === null ? "—" : num(flexion, 0) });
+// the angle preview's text of one angle (the live list's line and previewFrame's every-frame update): the
+// reports' angle names (static/charts.js ANGLES, label "angle.*") and order, degrees with their clinical signs
+function angleText(name, deg) {
+  return t("record.preview_angle", { angle: label("angle", name), deg: deg === null ? "—" : num(deg, 0) });
 }
 
-function liveLine(role, live, flexion) {
-  const preview = role === "task" ? h("li", { class: "preview" }, previewText(flexion)) : null;
+function previewLine(angles) {
+  return h("li", { class: "preview" }, h("span", { class: "preview-title" }, t("record.preview_title")), " ",
+    ...ANGLES.flatMap((name, i) => [i ? " · " : "", h("span", { "data-angle": name }, angleText(name, angles?.[i] ?? null))]));
+}
+
+function liveLine(role, live, angles) {
+  const preview = role === "task" ? previewLine(angles) : null;
   const stored = live.bufferError ? h("li", { class: "buffer-error" }, t("record.buffer_error")) : null;
   return [preview, stored, ...SEGMENTS.map((s) => {
     const l = live[s];
@@ -258,7 +266,7 @@ export function recordView(sessionId) {
       h("p", { class: "hint" }, t(`wizard.role_hint.${role}`)),
       h("p", { class: "step-status" }, t(`record.status.${status}`),
         lost ? ` · ${t("record.lost", { thigh: lost.thigh, shank: lost.shank })}` : ""),
-      live ? h("ul", { class: "live" }, liveLine(role, live, state.recorder.flexion())) : null,
+      live ? h("ul", { class: "live" }, liveLine(role, live, state.recorder.angles())) : null,
       h("div", { class: "actions" }, buttons));
   }
 
@@ -297,17 +305,20 @@ export function recordView(sessionId) {
     }
     if (state.active) {
       const item = stepsList.querySelector(`[data-role="${state.active}"] ul.live`);
-      if (item) append(clear(item), liveLine(state.active, state.recorder.live(), state.recorder.flexion()));
+      if (item) append(clear(item), liveLine(state.active, state.recorder.live(), state.recorder.angles()));
     }
   }, REFRESH_MS);
-  // the flexion preview's text, every animation frame in which it changed: it shows the newest samples one frame
+  // the angle preview's text, every animation frame in which it changed: it shows the newest samples one frame
   // after they arrive instead of waiting up to REFRESH_MS (benchmarks/preview_lag.py measures it)
   const previewFrame = () => {
     if (!section.isConnected) return;
     if (state.active === "task") {
-      const li = stepsList.querySelector('[data-role="task"] ul.live li.preview');
-      const text = previewText(state.recorder.flexion());
-      if (li && li.textContent !== text) li.textContent = text;
+      const angles = state.recorder.angles();
+      ANGLES.forEach((name, i) => {
+        const span = stepsList.querySelector(`[data-role="task"] ul.live li.preview [data-angle="${name}"]`);
+        const text = angleText(name, angles?.[i] ?? null);
+        if (span && span.textContent !== text) span.textContent = text;
+      });
     }
     requestAnimationFrame(previewFrame);
   };
@@ -324,7 +335,7 @@ export function recordView(sessionId) {
     try {
       const served = await options(again);
       state.recorder = new Recorder(sessionId, state.store,
-        (segment, role, files) => send(sessionId, segment, role, files), served.live_checks);
+        (segment, role, files) => send(sessionId, segment, role, files), served.live_checks, state.side);
       clear(optionsMessage);
     } catch (err) {
       const retry = h("button", { type: "button", class: "secondary options-retry" }, t("record.options_retry"));
@@ -340,6 +351,8 @@ export function recordView(sessionId) {
     // steps buffered by an earlier visit and never acknowledged: offered again (their sensors must be identified),
     // listed whether or not the options can be read
     const [buffered, session] = await Promise.all([store.steps(sessionId), api("GET", `/sessions/${sessionId}`)]);
+    // the knee recorded (the angle preview's signs: the left leg mirrored): the session's paired knee, else the patient's
+    state.side = session.knee || (await api("GET", `/patients/${session.patient_id}`)).side;
     for (const role of buffered) state.status[role] = "unsent";
     for (const role of STEPS) {
       const stored = (session.recordings || []).filter((r) => r.role === role && SEGMENTS.includes(r.segment));

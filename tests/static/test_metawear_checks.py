@@ -187,41 +187,50 @@ def test_board_units_of_the_twin_are_the_decoders():
 
 
 @pytest.mark.parametrize("seed", [9, 4])
-def test_the_knee_flexion_preview_against_the_simulated_truth(static_page, seed):
-    """preview.js on the simulator's decoded samples: axes from the standing and supine recordings, flexion over the
-    task against the true knee flexion (the simulator's Grood & Suntay angle) at each gyroscope sample; the filter's
-    time constant was fixed before this test (1 s), on no data."""
+def test_the_knee_angle_preview_against_the_simulated_truth(static_page, seed):
+    """preview.js on the simulator's decoded samples: axes and gyroscope bias from the standing and supine recordings,
+    the three angles over the task (seed 9 a right knee, seed 4 a left one: the mirror) against the simulator's Grood
+    & Suntay angles at each gyroscope sample.  The filters' time constants were fixed before any test (1 s, 10 s), on
+    no data; the bounds (RMS ≤ 1.5° per angle) from six other simulated sessions (test_browser_record_results.py's
+    docstring).  The true adduction (2–7°) and rotation (−3–6°) are small: a preview stuck at 0°, a sign not mirrored
+    or the gyroscope's bias left in (rotation 12° RMS, measured) fails."""
     from app.pipeline.demo import simulate_session
 
     session = simulate_session(seed=seed, side="right" if seed == 9 else "left", n_cycles=5)
     data = {seg: {role: {k: _board(session, seg, role, k) for k in ("acc", "gyr")}
-                  for role in ("standing", "lying", "task")} for seg in ("thigh", "shank")}
-    t_gyr = {seg: session.recordings[(seg, "task")]["gyr"][0] for seg in ("thigh", "shank")}
-    flex = np.asarray(static_page.evaluate("""async (data) => { const p = await import('/metawear/preview.js');
-        const axes = {}, tilts = {};
+                  for role in ("standing", "lying")} for seg in ("thigh", "shank")}
+    # the task's samples in time order, as they reach the page (the shank's clock runs 0.8 % fast: index k of the two
+    # sensors is not the same instant); the preview read at each shank gyroscope sample
+    events = sorted((t, seg, kind, v) for seg in ("thigh", "shank") for kind in ("acc", "gyr")
+                    for t, v in zip(session.recordings[(seg, "task")][kind][0], _board(session, seg, "task", kind)))
+    task = [[seg, kind, v] for _, seg, kind, v in events]
+    t_shank = np.array([t for t, seg, kind, _ in events if seg == "shank" and kind == "gyr"])
+    angles = np.asarray(static_page.evaluate("""async ([data, task, side]) => {
+        const p = await import('/metawear/preview.js');
+        const axes = {}, bias = {};
         for (const seg of ['thigh', 'shank']) {
-            const stand = new p.MeanForce(), lie = new p.MeanForce();
+            const stand = new p.MeanForce(), lie = new p.MeanForce(), gyr = new p.MeanForce();
             data[seg].standing.acc.forEach((g) => stand.push(g));
             data[seg].lying.acc.forEach((g) => lie.push(g));
+            for (const role of ['standing', 'lying']) data[seg][role].gyr.forEach((w) => gyr.push(w));
             axes[seg] = p.segmentAxes(stand.mean(), lie.mean());
-            tilts[seg] = new p.Tilt(100);
+            bias[seg] = gyr.mean();
         }
-        const n = Math.min(data.thigh.task.gyr.length, data.shank.task.gyr.length);
+        const knee = new p.KneePreview(axes, bias, side);
         const out = [];
-        for (let k = 0; k < n; k++) {
-            for (const seg of ['thigh', 'shank']) {
-                if (k < data[seg].task.acc.length) tilts[seg].pushAcc(data[seg].task.acc[k]);
-                tilts[seg].pushGyr(data[seg].task.gyr[k]);
-            }
-            out.push(p.flexionDeg(tilts, axes));
+        for (const [seg, kind, v] of task) {
+            if (kind === 'acc') knee.pushAcc(seg, v);
+            else knee.pushGyr(seg, v);
+            if (seg === 'shank' && kind === 'gyr') out.push(knee.angles() ?? [NaN, NaN, NaN]);
         }
-        return out; }""", data), dtype=float)
-    # the truth at the thigh's gyroscope times (the simulator's phone clock: task time from the role's start)
-    t = t_gyr["thigh"][:len(flex)] - session.role_epoch_s["task"]
+        return out; }""", [data, task, session.side]), dtype=float)
+    # the truth at the shank's gyroscope times (the simulator's phone clock: task time from the role's start)
+    t = t_shank - session.role_epoch_s["task"]
     motion = session.motion
-    truth = np.rad2deg(motion.knee_angles_at(np.clip(t, motion.t_s[0], motion.t_s[-1]))[:, 0])
+    truth = np.rad2deg(motion.knee_angles_at(np.clip(t, motion.t_s[0], motion.t_s[-1])))
     settled = slice(200, None)                       # the filter's first 2 s
-    rmse = float(np.sqrt(np.mean((flex[settled] - truth[settled]) ** 2)))
-    print(f"seed {seed}: preview flexion RMSE {rmse:.2f} deg over {len(flex)} samples, truth range {np.ptp(truth):.1f} deg")
-    assert rmse < 6.0
-    assert np.corrcoef(flex[settled], truth[settled])[0, 1] > 0.98
+    rmse = np.sqrt(np.mean((angles[settled] - truth[settled]) ** 2, axis=0))
+    print(f"seed {seed}: preview RMSE flexion {rmse[0]:.2f}, adduction {rmse[1]:.2f}, rotation {rmse[2]:.2f} deg over "
+          f"{len(angles)} samples; truth ranges {np.ptp(truth, axis=0).round(1)} deg")
+    assert (rmse <= 1.5).all(), rmse
+    assert np.corrcoef(angles[settled, 0], truth[settled, 0])[0, 1] > 0.98

@@ -333,8 +333,11 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
             # every packet of both boards understood (none counted as bad)
             assert step.locator(".bad-packets").count() == 0, step.locator("ul.live").inner_text()
             if role == "task":
-                # the flexion preview runs (axes from this visit's standing and supine steps)
-                expect(step.locator("ul.live li.preview")).to_have_text(re.compile(r"Knee flexion \(preview\): -?\d+°"))
+                # the angle preview runs (axes from this visit's standing and supine steps; its accuracy, and the
+                # left leg's mirror: test_browser_record_results.py, tests/static/test_metawear_checks.py)
+                expect(step.locator("ul.live li.preview")).to_have_text(re.compile(
+                    r"Knee angles \(preview\): Flexion-extension -?\d+° · Adduction-abduction -?\d+° · "
+                    r"Internal-external rotation -?\d+°"))
             flaky["role"] = role
             step.get_by_role("button", name="Stop and upload").click()
             bench.wait(lambda step=step: step.get_attribute("data-status") in ("stored", "unsent"), f"{role} uploaded")
