@@ -144,6 +144,8 @@ class JobProcess(RenderPool):
         except BrokenProcessPool:
             log.warning("the idle job helper process had ended; starting a new one")
             self.restart()
+            if self._stopping:  # shutdown() came meanwhile: restart() did nothing, the pool is gone
+                raise HelperStopped("the job helper process was stopped") from None
             future = self._pool.submit(*args)
         try:
             while not future.done():

@@ -440,10 +440,15 @@ class RenderPool:
             self._stop()
             self._start()
 
+    @property
+    def stopping(self) -> bool:
+        """True once :meth:`shutdown` began: the helper's work was stopped by the server, not by a fault."""
+        return self._stopping
+
     def submit(self, fn, *args):
         """``fn(*args)`` in the helper process, or None when it is not warm or not usable (the caller does the
-        work itself)."""
-        if not self._warm.done() or self._warm.exception() is not None:
+        work itself).  After :meth:`shutdown`: None, quietly (a server stopping is not a fault to log)."""
+        if self._stopping or not self._warm.done() or self._warm.exception() is not None:
             return None
         try:
             return self._pool.submit(fn, *args)

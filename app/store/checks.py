@@ -127,6 +127,11 @@ class CheckTimedOut(Exception):
     """The check took longer than its limit; its helper process was replaced."""
 
 
+class CheckStopped(Exception):
+    """The server's shutdown stopped the check's helper (:meth:`RenderPool.shutdown`): no verdict on the files,
+    nothing stored, and not run in the request's thread either (it would hold up the server's exit)."""
+
+
 class CheckPool:
     """``processes`` single-process helpers (:class:`app.pipeline.render.RenderPool` ``(1)`` each), so that one
     hung check is stopped without stopping another clinic's, which runs in another helper."""
@@ -149,7 +154,8 @@ class CheckPool:
     def run(self, fn, *args, timeout_s: float = CHECK_TIMEOUT_S, wait_s: float = CHECK_WAIT_S):
         """``(True, fn(*args))`` from a free helper, or ``(False, None)`` when none is usable yet (still
         starting: the caller runs it itself).  :class:`CheckTimedOut` past ``timeout_s``, and
-        :class:`BrokenProcessPool` when the helper died under it: either way that helper is replaced.  An
+        :class:`BrokenProcessPool` when the helper died under it: either way that helper is replaced;
+        :class:`CheckStopped` when the server's shutdown stopped it (or had already begun).  An
         exception ``fn`` raised is raised here, its helper kept; :class:`CheckBusy` when no helper was free
         within ``wait_s`` (:attr:`gate` admits at most as many checks as there are helpers: a bound only)."""
         try:
@@ -157,6 +163,8 @@ class CheckPool:
         except queue.Empty:
             raise CheckBusy from None
         try:
+            if helper.stopping:  # the server is stopping: neither a helper nor this thread runs the check
+                raise CheckStopped
             future = helper.submit(fn, *args)
             if future is None:
                 return False, None
@@ -167,6 +175,8 @@ class CheckPool:
                 helper.restart()
                 raise CheckTimedOut from None
             except BrokenProcessPool:
+                if helper.stopping:  # shutdown() terminated it under the check: the files are not at fault
+                    raise CheckStopped from None
                 helper.restart()
                 raise
         finally:
@@ -219,6 +229,9 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
     except CheckBusy:
         log.warning("ingestion check of session %s not run: no check slot free within %.0f s", session_id, wait_s)
         return _failed("session.check_busy", seconds=round(wait_s))  # not stored: checked again later
+    except CheckStopped:
+        log.info("ingestion check of session %s stopped by the server's shutdown; it runs again later", session_id)
+        return _failed("session.check_deferred")  # not stored: a stale check is redone at the next read
     save_ingestion(db_, session_id, version, ingestion)
     return ingestion
 
@@ -280,4 +293,4 @@ class IngestionChecker:
 
 __all__ = ["CHECK_CONCURRENCY", "CHECK_DEFERRED", "CHECK_GATE", "CHECK_TIMEOUT_S", "CHECK_WAIT_S", "CHECKS_PER_CLINIC",
            "CheckBusy", "CheckGate",
-           "CheckPool", "CheckTimedOut", "IngestionChecker", "ingestion_view", "refresh_ingestion", "save_ingestion", "warm_checks"]
+           "CheckPool", "CheckStopped", "CheckTimedOut", "IngestionChecker", "ingestion_view", "refresh_ingestion", "save_ingestion", "warm_checks"]

@@ -1066,6 +1066,14 @@ def _fill(value: Any, lang: str, catalogue: Mapping[str, Mapping[str, str]] | No
     return value
 
 
+#: a code whose parameters were renamed: the new ones from those a stored message (a session's check, a failed
+#: job's error; rendered again at every read) still carries.  ``opal.bad_shape`` said ``({n}, 3)`` until its
+#: ``{expected}`` also had to say a one-column shape (``/Time``).
+STORED_PARAMS: dict[str, Any] = {
+    "opal.bad_shape": lambda p: {"expected": f"({p['n']}, 3)"} if "n" in p else {},
+}
+
+
 def render(code: str, params: Mapping[str, Any], lang: str = "en",
            catalogue: Mapping[str, Mapping[str, str]] | None = None) -> str:
     """The message ``code`` in ``lang`` (``es``/``en``/``pt``; others give English), filled from ``params``.
@@ -1075,6 +1083,8 @@ def render(code: str, params: Mapping[str, Any], lang: str = "en",
     ``{name}`` rather than failing: a message must never hide the error."""
     entry = (CATALOGUE if catalogue is None else catalogue)[code]
     template = entry.get(lang) or entry["en"]
+    if code in STORED_PARAMS:  # a message stored (checks, job errors) before its parameters were renamed
+        params = STORED_PARAMS[code](params) | dict(params)
     values = {k: _fill(v, lang, catalogue) for k, v in params.items()}
     try:
         text = template.format_map(values)

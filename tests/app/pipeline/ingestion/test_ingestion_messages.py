@@ -170,3 +170,15 @@ def test_an_ambiguous_label_is_explained_in_each_language(folder):
     assert "names more than one role: standing ('standing'), task ('step')" in str(exc)
     assert "nombra más de un papel: standing ('standing'), task ('step')" in exc.message("es")
     assert "nomeia mais de um papel" in exc.message("pt") and "names more" not in exc.message("pt")
+
+
+def test_a_message_stored_before_its_parameters_were_renamed_still_reads():
+    """Review finding: ``opal.bad_shape``'s ``({n}, 3)`` became ``{expected}``; a session's check or a job's
+    error stored before (``{"code", "params": {"n": ...}}``, rendered again at every read) showed a literal
+    ``{expected}`` in every language."""
+    stored = {"file": "walk.h5", "dataset": "/Sensors/XI-1/Accelerometer", "shape": "(200, 4)", "n": 200}
+    for lang in LANGUAGES:
+        text = render("opal.bad_shape", stored, lang)
+        assert "(200, 3)" in text and "{" not in text, (lang, text)
+    fresh = render("opal.bad_shape", {**stored, "expected": "(200,)"}, "en")
+    assert "expected (200,)" in fresh  # a new message's own parameter wins
