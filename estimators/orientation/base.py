@@ -543,10 +543,11 @@ class OrientationMethod(ABC):
         """The start state: aligned on the first ``window_s`` of data, or at ``q0`` when it is given.
 
         ``q0`` gives only the attitude.  What needs none, the accelerometer stage's gravity and start
-        velocity and the method's own window-seeded parts (:meth:`_seed_from_window`), is still read from
-        the window's motion-compensated data (read once): seeded from sample 0 alone, a heel strike there
-        or the raw sample's body acceleration misled them (gait seeds 6–7, ``q0`` = truth, a 4 g strike on
-        sample 0: Madgwick and both Valenti filters, heading RMS up to 46°, test
+        velocity and the method's own window-seeded parts (:meth:`_seed_from_window`: Guo's field references,
+        ChakaMo's running mean and field reference), is still read from the window's motion-compensated data
+        (read once), for every method: seeded from sample 0 alone, a heel strike there or the raw sample's body
+        acceleration misled them (gait seeds 6–7, ``q0`` = truth, a 4 g strike on sample 0: Madgwick and both
+        Valenti filters, heading RMS up to 46°; causal ChakaMo tilt up to 55°; test
         ``test_a_heel_strike_on_sample_0_with_q0_given``).
         """
         if q0 is None:
