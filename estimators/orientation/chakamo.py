@@ -447,9 +447,13 @@ class Chakamo(OrientationMethod):
         sample seen with an unconverged inclination.  Neither needs the attitude's heading or tilt to be
         right.  From a ``q0`` the two used to start empty, so the inclination (3-4), applied in full at every
         sample, took sample 0's raw specific force for gravity: gait seeds 6–7 with ``q0`` = truth read tilt up
-        to 56° and heading RMS 8.6–15° (against 4.3–6.5° from the aligned start; test
-        ``test_a_heel_strike_on_sample_0_with_q0_given``).  The heading mean (10) still starts empty from a
-        ``q0`` (its heading is given, not read from the window's field).
+        to 56° and heading RMS 8.6–15° (against 4.3–6.5° from the aligned start); from the window they read the
+        aligned start's tilt (5.5–7.2° max) and heading RMS 5.2–7.8° (test
+        ``test_a_heel_strike_on_sample_0_with_q0_given``; offline 0.1–1.2°, was 0.4–1.6°).  The heading mean (10)
+        still starts empty from a ``q0``, as a start that may be wrong is corrected fast (base module docstring);
+        seeded with the window's field rows it trusted the given heading and read 4.1–5.0° on those clips, which
+        only a true ``q0`` earns.  The rest-detection low-pass ``a_rest`` starts from sample 0 in both starts (it
+        only delays the rest detection after an impact there).
         """
         n_init = math.ceil(self.params.tau_acc_s * data.fs_hz)
         state[kern.S_ALP:kern.S_ALP + 3] = quat.rotate(state[kern.S_QIS:kern.S_QIS + 4], alignment.acc_mean)
