@@ -15,7 +15,7 @@ Contract
 
 Online form (state in, state out)
 ---------------------------------
-``state = method.initial_state(acc, mag)`` aligns a new state on the first samples, and
+``state = method.initial_state(acc, mag, fs_hz=...)`` aligns a new state on the first samples, and
 ``q, state = method.update(state, acc, gyr, mag, fs_hz=...)`` runs the *same* compiled kernel on
 one sample ``(3,)`` or a block ``(n, 3)``.  Running two halves of a recording through
 ``update`` gives exactly the result of one batch.  The state is a 1-D float64 array whose first
@@ -491,18 +491,26 @@ class OrientationMethod(ABC):
     ) -> FloatArray:
         """A fresh state aligned on ``acc`` (and ``mag``): one sample ``(3,)`` or the first samples ``(n, 3)``.
 
-        Without ``gyr`` the samples are averaged as they are (a sensor at rest); with ``gyr`` (rad/s,
-        same rows) and ``fs_hz`` they are motion-compensated as ``estimate`` does (module docstring), so
-        ``initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=fs)`` with ``w = alignment_samples(fs)`` is the
-        state ``estimate`` starts from.
+        ``fs_hz`` is the rate ``update`` will run at.  Without ``gyr`` the samples are averaged as they are (a
+        sensor at rest); with ``gyr`` (rad/s, same rows) they are motion-compensated as ``estimate`` does (module
+        docstring), so ``initial_state(acc[:w], mag[:w], gyr=gyr[:w], fs_hz=fs)`` with ``w = alignment_samples(fs)``
+        is the state ``estimate`` starts from (and without ``gyr`` too when the window's rates are zero).  A start
+        with rate-dependent parts (the accelerometer stage's filter, a method's window-seeded parts: every default
+        method) needs ``fs_hz`` also without ``gyr``, with or without ``q0``, and refuses to guess it
+        (``ValueError``): the state used to be built at 1 Hz there, and ``update`` at 100 Hz then read the stage's
+        1 Hz steady state (Madgwick online vs batch 2.2°, Guo online 88–111° off the truth).
         """
         acc_arr = np.atleast_2d(np.asarray(acc, dtype=np.float64))
-        if gyr is None:
-            gyr_arr, fs = np.zeros_like(acc_arr), 1.0
-        else:
-            if fs_hz is None:
+        if fs_hz is None:
+            if gyr is not None:
                 raise ValueError("initial_state with gyr needs fs_hz (the sample rate, Hz) to integrate it")
-            gyr_arr, fs = np.atleast_2d(np.asarray(gyr, dtype=np.float64)), check_fs(fs_hz)
+            if self._start_needs_rate:
+                raise ValueError(f"initial_state of {self.name!r} needs fs_hz (the sample rate, Hz, that update "
+                                 "will run at): its start state holds rate-dependent parts")
+            fs = 1.0  # nothing in this start depends on the rate
+        else:
+            fs = check_fs(fs_hz)
+        gyr_arr = np.zeros_like(acc_arr) if gyr is None else np.atleast_2d(np.asarray(gyr, dtype=np.float64))
         data = validate_imu(acc_arr, gyr_arr, mag if mag is None else np.atleast_2d(mag), fs_hz=fs)
         self._check_dimension(data.mag is not None)
         return self._initial_state_for(data, q0, window_s=data.n / fs)
@@ -535,10 +543,11 @@ class OrientationMethod(ABC):
         """The start state: aligned on the first ``window_s`` of data, or at ``q0`` when it is given.
 
         ``q0`` gives only the attitude.  What needs none, the accelerometer stage's gravity and start
-        velocity and the method's own window-seeded parts (:meth:`_seed_from_window`), is still read from
-        the window's motion-compensated data (read once): seeded from sample 0 alone, a heel strike there
-        or the raw sample's body acceleration misled them (gait seeds 6–7, ``q0`` = truth, a 4 g strike on
-        sample 0: Madgwick and both Valenti filters, heading RMS up to 46°, test
+        velocity and the method's own window-seeded parts (:meth:`_seed_from_window`: Guo's field references,
+        ChakaMo's running mean and field reference), is still read from the window's motion-compensated data
+        (read once), for every method: seeded from sample 0 alone, a heel strike there or the raw sample's body
+        acceleration misled them (gait seeds 6–7, ``q0`` = truth, a 4 g strike on sample 0: Madgwick and both
+        Valenti filters, heading RMS up to 46°; causal ChakaMo tilt up to 55°; test
         ``test_a_heel_strike_on_sample_0_with_q0_given``).
         """
         if q0 is None:
@@ -563,6 +572,11 @@ class OrientationMethod(ABC):
         whether the start is aligned or given as ``q0``; here none (a method that has some sets
         ``seeds_from_window``)."""
         return None
+
+    @property
+    def _start_needs_rate(self) -> bool:
+        """Whether the start state depends on ``fs_hz`` (the stage's coefficients, window-seeded parts)."""
+        return self._lowpass_on or self.seeds_from_window
 
     @property
     def _lowpass_on(self) -> bool:

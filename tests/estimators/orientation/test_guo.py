@@ -194,7 +194,7 @@ def test_covariance_stays_symmetric_positive_definite():
     acc[300:320] *= 2.5
     mag[400:450] += 30.0
     method = Guo()
-    state = method.initial_state(acc[:10], mag[:10])
+    state = method.initial_state(acc[:10], mag[:10], fs_hz=FS_HZ)
     for start in range(0, 600, 50):
         _, state = method.update(state, acc[start:start + 50], gyr[start:start + 50], mag[start:start + 50],
                                  fs_hz=FS_HZ)
@@ -276,11 +276,11 @@ def test_registry_and_state_layout():
     q = estimate(acc, gyr, mag, fs_hz=FS_HZ, method="guo", acc_noise_rad=0.1)
     assert q.shape == (200, 4)
     method = make("guo")
-    state = method.initial_state(acc[:5], mag[:5])
+    state = method.initial_state(acc[:5], mag[:5], fs_hz=FS_HZ)
     assert state.shape == (STATE_SIZE,)
     # an aligned start is trusted (base module docstring); a start given as q0 has init_noise_rad
     np.testing.assert_allclose(state[4:20].reshape(4, 4), 0.25 * ALIGNED_STD_RAD**2 * np.eye(4))
-    state = method.initial_state(acc[:5], mag[:5], q0=q_true[0])
+    state = method.initial_state(acc[:5], mag[:5], fs_hz=FS_HZ, q0=q_true[0])
     np.testing.assert_allclose(state[4:20].reshape(4, 4), 0.25 * 0.5**2 * np.eye(4))
 
 

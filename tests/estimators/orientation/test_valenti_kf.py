@@ -237,7 +237,7 @@ def test_covariance_stays_symmetric_positive_definite():
     acc[305:335] = np.nan  # a gap: prediction only, P grows (each block keeps a valid sample)
     method = ValentiKF()
     for m in (mag, None):
-        state = method.initial_state(acc[:10], None if m is None else m[:10])
+        state = method.initial_state(acc[:10], None if m is None else m[:10], fs_hz=FS)
         traces = []
         for start in range(0, 1200, 20):
             block = slice(start, start + 20)
