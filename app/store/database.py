@@ -139,9 +139,10 @@ class GatedConnection(sqlite3.Connection):
     transaction just before the first INSERT/UPDATE/DELETE/REPLACE outside one, and that is where the gate is
     taken; ``commit()`` / ``rollback()`` / ``close()`` give it back once SQLite's lock is free (module docstring).
 
-    Only this connection's cursors (:meth:`cursor`, what SQLAlchemy uses) take the gate: pysqlite's shortcuts
-    ``Connection.execute`` / ``executemany`` / ``executescript`` make a plain cursor in C, past :meth:`cursor`,
-    and so bypass it.  Nothing in the app calls them on a gated connection."""
+    Only these cursors' ``execute`` / ``executemany`` (:meth:`cursor`, what SQLAlchemy uses) take the gate.  Three
+    ways past it: pysqlite's shortcuts ``Connection.execute`` / ``executemany`` / ``executescript`` make a plain
+    cursor in C, past :meth:`cursor`; and a gated cursor's own ``executescript`` is not wrapped (a script may
+    open and close its own transactions).  Nothing in the app uses any of them on a gated connection."""
 
     def __init__(self, database, *args, **kwargs) -> None:
         super().__init__(database, *args, **kwargs)
@@ -196,7 +197,7 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA foreign_keys=ON")
-    cursor.execute("PRAGMA busy_timeout=15000")
+    cursor.execute(f"PRAGMA busy_timeout={round(WRITE_WAIT_S * 1000)}")  # SQLite's own wait: the gate's bound
     cursor.execute("PRAGMA synchronous=FULL")
     cursor.close()
 

@@ -212,3 +212,17 @@ def test_executemany_takes_the_gate_and_commit_gives_it_back(tmp_path):
         assert conn.cursor().execute("SELECT count(*) FROM t").fetchone() == (2,)
     finally:
         conn.close()
+
+
+def test_sqlite_s_own_busy_wait_is_the_gate_s_bound(tmp_path, monkeypatch):
+    """Review finding: the connect timeout followed WRITE_WAIT_S but the PRAGMA every pooled connection runs
+    still set 15 s, and it overrides the connect timeout: one definition now."""
+    import app.store.database as database
+
+    monkeypatch.setattr(database, "WRITE_WAIT_S", 2.5)
+    engine = database.make_engine(f"sqlite:///{tmp_path / 'b.db'}")
+    try:
+        with engine.connect() as conn:
+            assert conn.execute(text("PRAGMA busy_timeout")).scalar() == 2500
+    finally:
+        engine.dispose()
