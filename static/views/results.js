@@ -110,6 +110,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     h("h2", { id: "h-curves" }, t("results.curves")), h("p", { class: "hint" }, t("results.curves_hint")),
     h("div", { class: "charts" }, charts));
 
+  const scene = sceneSection(session.id, analysis.id, r);
   const knees = kneesSection(r);
   const kneeCharts = knees ? [...knees.querySelectorAll(".chart")] : [];
   clear(body).append(summary, curves, ...(knees ? [knees] : []),
@@ -123,14 +124,19 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     interpretationSection(session, analysis),
     pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id, r));
+    scene);
 
-  ANGLES.forEach((a, i) => {
-    const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
-    drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
-  });
-  ANGLES.forEach((a, i) => {
-    if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+  // the charts (plotly: 1.5-3 s of evaluation on the main thread) start once the 3D view's still first frame is
+  // painted, or could not be, within 1.5 s at most (scene.js)
+  scene.firstFrame.then(() => {
+    if (!section.isConnected) return;
+    ANGLES.forEach((a, i) => {
+      const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
+      drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
+    });
+    ANGLES.forEach((a, i) => {
+      if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+    });
   });
   const observer = new MutationObserver(() => {
     if (!section.isConnected) { charts.forEach(purge); kneeCharts.forEach(purge); observer.disconnect(); }
