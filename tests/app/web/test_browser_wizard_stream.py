@@ -17,7 +17,8 @@ import re
 
 import numpy as np
 import pytest
-from test_browser_e2e import PROCESS_WAIT_MS, csrf_header, log_in, open_page, server, slow_expect  # noqa: F401
+from test_browser_e2e import (PROCESS_WAIT_MS, _tables, csrf_header, log_in, open_page, server,  # noqa: F401
+                              slow_expect)
 
 from app.pipeline.demo import simulate_session, write_session
 
@@ -61,7 +62,7 @@ def _bar_filled(png: bytes) -> float:
     from PIL import Image
 
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
-    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    r, b = img[..., 0], img[..., 2]
     filled = (b - r > 60) & (b > 120)
     return float(filled.any(axis=0).mean())
 
@@ -72,7 +73,7 @@ def test_progress_arrives_through_the_event_stream(browser, server, slow_expect,
     page.on("request", lambda r: requests.append((r.method, r.url, r.resource_type)))
     try:
         log_in(page, server)
-        slow_expect(page.locator("h1")).to_be_visible()
+        slow_expect(page.locator("h1")).to_have_text(_tables()["en"]["patients.title"])
         sid = _uploaded_session(context, server, demo_files, "SSE-1")
         job_id = _process_in_wizard(page, server, sid, slow_expect)
         box = page.locator("#job")
@@ -98,7 +99,7 @@ def test_progress_falls_back_to_polling_without_the_stream(browser, server, slow
     page.on("request", lambda r: requests.append((r.method, r.url)))
     try:
         log_in(page, server)
-        slow_expect(page.locator("h1")).to_be_visible()
+        slow_expect(page.locator("h1")).to_have_text(_tables()["en"]["patients.title"])
         sid = _uploaded_session(context, server, demo_files, "SSE-2")
         job_id = _process_in_wizard(page, server, sid, slow_expect)
         assert page.locator("#job").get_attribute("data-via") == "polling"
