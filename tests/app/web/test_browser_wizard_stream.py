@@ -17,6 +17,7 @@ import re
 
 import numpy as np
 import pytest
+from screens import look_at
 from test_browser_e2e import (PROCESS_WAIT_MS, _tables, csrf_header, log_in, open_page, server,  # noqa: F401
                               slow_expect)
 
@@ -85,6 +86,7 @@ def test_progress_arrives_through_the_event_stream(browser, server, slow_expect,
         assert len(polls) <= 1, polls   # only the end's full state, no polling while the stream was healthy
         assert page.locator("#job-progress").evaluate("(p) => p.value") == 1
         slow_expect(page.locator("#see-results")).to_be_visible()
+        look_at(page, box, page.locator("#see-results"))
         png = box.screenshot()
         assert _bar_filled(png) > 0.3, "the finished job box shows no filled progress bar"
         assert not errors, errors
