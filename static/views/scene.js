@@ -60,25 +60,35 @@ function seek(frame, seconds) {
   return true;
 }
 
+/** The still first frame's <img> of analysis `analysisId`: made (and so requested) as soon as the page knows the
+ *  analysis, while it still fetches the results, then handed to sceneSection. */
+export function stillImage(sessionId, analysisId) {
+  return h("img", { id: "scene-still", class: "scene-still", alt: t("scene.still_alt"), elementtiming: "scene-still",
+    src: apiUrl(`/sessions/${sessionId}/scene.png`, { analysis_id: analysisId }) });
+}
+
 /** A promise resolved once `img` is on screen (decoded, then one painted frame), failed to load, or after `ms`. */
 function painted(img, ms) {
   const shown = img.decode().then(() => new Promise((resolve) => requestAnimationFrame(() => setTimeout(() => resolve("painted"), 0))));
   return Promise.race([shown.catch(() => "failed"), new Promise((resolve) => setTimeout(() => resolve("late"), ms))]);
 }
 
-/** The 3D card of analysis `analysisId` of session `sessionId` (`r`: its results.json, for the cycles).  Its
- *  `firstFrame` promise resolves ("painted", "failed" or "late") once the still first frame is painted (or could not be): the page's charts wait
+/** The 3D card of analysis `analysisId` of session `sessionId` (`r`: its results.json, for the cycles);
+ *  `preloaded`: its still from stillImage, when the page made it earlier.  Its `firstFrame` promise resolves
+ *  ("painted", "failed" or "late") once the still first frame is painted (or could not be): the page's charts wait
  *  for it, so that plotly's evaluation does not hold the picture back. */
-export function sceneSection(sessionId, analysisId, r) {
+export function sceneSection(sessionId, analysisId, r, preloaded = null) {
   const scene = apiUrl(`/sessions/${sessionId}/scene.viser`, { analysis_id: analysisId });
   const src = `/viser/index.html?playbackPath=${encodeURIComponent(scene)}`;
   // eager (no loading=lazy): the page grew (the cycles and pairing cards), which put the frame beyond Chromium's
   // lazy-loading distance, so its boot would start only when scrolled to; its src is set once the still is painted
   const frame = h("iframe", { id: "scene-frame", title: t("results.scene_title"), allow: "fullscreen" });
-  const still = h("img", { id: "scene-still", class: "scene-still", alt: t("scene.still_alt"), elementtiming: "scene-still",
-    src: apiUrl(`/sessions/${sessionId}/scene.png`, { analysis_id: analysisId }) });
+  const still = preloaded || stillImage(sessionId, analysisId);
   const stillNote = h("p", { class: "scene-still-note", id: "scene-still-note", role: "status" }, t("scene.still_note"));
-  still.addEventListener("error", () => { still.remove(); stillNote.textContent = t("scene.loading"); });
+  const broken = () => { still.remove(); stillNote.textContent = t("scene.loading"); };
+  const failedEarly = still.complete && still.naturalWidth === 0;   // it failed before this card was made
+  if (failedEarly) broken();
+  else still.addEventListener("error", broken);
   const cycles = r.cycles || {};
   const bounds = cycles.boundaries_s || [];
   const accepted = new Set(cycles.accepted_indices || []);
@@ -89,7 +99,7 @@ export function sceneSection(sessionId, analysisId, r) {
   jump.addEventListener("change", () => {
     if (jump.value !== "") seek(frame, Number(jump.value));
   });
-  const box = h("div", { class: "scene-box", "data-ready": "still" }, frame, still, stillNote);
+  const box = h("div", { class: "scene-box", "data-ready": "still" }, frame, failedEarly ? null : still, stillNote);
   const firstFrame = painted(still, STILL_WAIT_MS);
   // the still (or its caption) until the recording plays (its playback bar exists); then the jump control works.
   // The poll stops then, when the page is left, or after READY_TIMEOUT_MS with an error in the box
