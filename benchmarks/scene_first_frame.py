@@ -3,27 +3,31 @@ frame within 1 s of opening it).
 
 Runs the real app (uvicorn on loopback, a temporary data folder), processes the demo session through the API, then
 opens the session's results page in headless Chromium (Debian's ``chromium``, software WebGL) as a clinician would:
-the page opens, the clinician reads for ``--read-s`` seconds (0 and 3 by default), then scrolls to the 3D view.  An
-init script in every frame notes the first WebGL draw of the bone meshes (``drawElements`` of ≥ 1000 indices: femur
-and tibia are ~14 500 each; the grid and the background draw fewer) on the wall clock, so the numbers are the
-client's own, not a screenshot's (a screenshot of software WebGL takes seconds on a loaded machine).
+the page opens, the clinician reads for ``--read-s`` seconds (0 and 3 by default), then scrolls to the 3D view.
+An init script in every frame notes, on the wall clock, the client's own paints (not a screenshot's: a screenshot of
+software WebGL takes seconds on a loaded machine):
 
-Printed per variant and reading time (median and worst of ``--repeats`` fresh browser contexts, cold caches):
+* ``still``: the paint of the still first frame that ChakaMo draws from the recording (``#scene-still``,
+  ``reports/scene_still.py``: the same meshes, poses and camera as viser's first frame, flat-shaded, no label), by
+  the browser's Element Timing (``renderTime`` of the image marked ``elementtiming="scene-still"``: reported when it
+  is painted in the viewport);
+* ``viser``: viser's first WebGL draw of the bone meshes (``drawElements`` of ≥ 1000 indices: femur and tibia are
+  ~14 500 each; the grid and the background draw fewer);
+* ``charts``: the first plotly chart drawn (``.js-plotly-plot``), which the still now goes before.
 
-* ``page → frame``: from the results page's navigation to the first bone frame;
-* ``scroll → frame``: from the scroll to the 3D view to the first bone frame (0 when it was drawn before): what the
-  clinician sees blank.
+Printed per variant and reading time (median and worst of ``--repeats`` fresh browser contexts, cold caches), from
+the results page's navigation (``page →``) and from the scroll to the 3D view (``scroll →``, 0 when drawn before):
+the first frame the clinician sees (the still where there is one, else viser's) and viser's own.
 
-Variants (alternated run by run, so a changing load falls on each alike): ``now`` (today's page and viser's client
-as the server sends it: unpacked, :mod:`app.web.viser_client`), ``packed`` (today's page with viser's shipped
-single-file client, served in place of the unpacked one through Playwright's routing: its loader decodes and
-compiles the client on the page's main thread) and ``before`` (the results page of commit 95bd85e, an iframe with
-``loading=lazy``, started only when scrolled to).  (A ``charts_first`` variant, the page of 432c3a7, measured the
-charts' wait for the 3D view's first frames at commit 3735802; the wait is gone, so that page is today's.)  The
-load average and the benchmark's CPU time are printed beside the table: timings on a shared machine are noisy.
-``--trace DIR`` adds one run per variant with Chromium's performance trace (written there) and prints the page's
-main-thread tasks of 50 ms or more, with their longest parts: where the time to the first frame goes.
-Usage: ``python -m benchmarks.scene_first_frame [--repeats 3] [--read-s 0 3] [--variants packed now] [--trace DIR]``.
+Variants (alternated run by run, so a changing load falls on each alike): ``now`` (this tree's page), ``main``
+(the results page and 3D view of commit c3da1c0, before the still: viser's frame started with the page) and
+``before`` (the results page of commit 95bd85e, an iframe with ``loading=lazy``, started only when scrolled to),
+replayed through Playwright's routing on today's server; ``packed`` (today's page with viser's shipped single-file
+client served in place of the unpacked one).  The load average and the benchmark's CPU time are printed beside the
+table: timings on a shared machine are noisy.  ``--trace DIR`` adds one run per variant with Chromium's performance
+trace (written there) and prints the page's main-thread tasks of 50 ms or more, with their longest parts: where the
+time to the first frame goes.
+Usage: ``python -m benchmarks.scene_first_frame [--repeats 3] [--read-s 0 3] [--variants main now] [--trace DIR]``.
 """
 
 from __future__ import annotations
@@ -43,14 +47,28 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the results page (static/views/results.js) of these commits, for the variants that replay it
-VARIANT_COMMITS = {"before": "95bd85e"}
+#: the front-end files of these commits, for the variants that replay them: variant -> (commit, paths)
+VARIANT_COMMITS = {"before": ("95bd85e", ("static/views/results.js",)),
+                   "main": ("c3da1c0", ("static/views/results.js", "static/views/scene.js"))}
 EMAIL, PASSWORD = "viewer@clinic.test", "correct horse battery staple"
 ARGS = ("--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--hide-scrollbars",
         "--enable-unsafe-swiftshader")
-#: the first WebGL draw of many indices (the bone meshes), on the wall clock, in whichever frame draws it
+#: the first WebGL draw of many indices (the bone meshes), on the wall clock, in whichever frame draws it; the still's
+#: paint (Element Timing) and the first plotly chart in the page
 INIT = """
 (() => {
+  try {
+    new PerformanceObserver((list) => {
+      for (const e of list.getEntries()) {
+        if (e.identifier === "scene-still" && e.renderTime && !window.__still) window.__still = performance.timeOrigin + e.renderTime;
+      }
+    }).observe({ type: "element", buffered: true });
+  } catch (_) { /* no Element Timing */ }
+  if (window === window.top) {
+    new MutationObserver(() => {
+      if (!window.__charts && document.querySelector(".js-plotly-plot")) window.__charts = performance.timeOrigin + performance.now();
+    }).observe(document, { childList: true, subtree: true });
+  }
   const mark = (count) => { if (count >= 1000 && !window.__firstBone) window.__firstBone = performance.timeOrigin + performance.now(); };
   for (const C of [window.WebGLRenderingContext, window.WebGL2RenderingContext]) {
     if (!C) continue;
@@ -142,16 +160,22 @@ def _demo_session(base: str, token: str) -> int:
     return sid
 
 
-def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: dict[str, bytes],
-         trace: Path | None = None) -> tuple[float, float]:
-    """One cold run: ``(page → frame, scroll → frame)`` in ms; with ``trace``, Chromium's performance trace of it
-    (from the results page's opening to the first bone frame) is written there."""
+def _fulfil_with(body: bytes):
+    """A route handler answering with ``body`` as JavaScript."""
+    return lambda route: route.fulfill(body=body, content_type="text/javascript; charset=utf-8")
+
+
+def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: dict[str, dict[str, bytes]],
+         trace: Path | None = None) -> dict[str, float]:
+    """One cold run: ``{"still", "viser", "charts"}`` (ms from the results page's opening; ``still`` NaN when the page
+    has none) and ``"still_scroll"``, ``"viser_scroll"`` (ms from the scroll to the 3D view, 0 when drawn before);
+    with ``trace``, Chromium's performance trace of it (from the results page's opening to viser's first bone frame)
+    is written there."""
     context = browser.new_context(viewport={"width": 1280, "height": 900}, locale="en-GB")
     context.set_default_timeout(180_000)
     context.add_init_script(INIT)
-    if variant in old_js:
-        context.route("**/static/views/results.js", lambda route: route.fulfill(
-            body=old_js[variant], content_type="text/javascript; charset=utf-8"))
+    for path, body in old_js.get(variant, {}).items():
+        context.route(f"**/{path}", _fulfil_with(body))
     if variant == "packed":
         from app.web.headers import VISER_CSP
         from reports.scene import static_client_path
@@ -173,19 +197,23 @@ def _one(browser, base: str, sid: int, variant: str, read_s: float, old_js: dict
         opened = page.evaluate("performance.timeOrigin + performance.now()")  # a hash change: no new navigation
         page.locator("#rom-table").wait_for()
         page.wait_for_timeout(read_s * 1000)
-        page.locator("#scene-frame").scroll_into_view_if_needed()
+        page.locator(".scene-box").scroll_into_view_if_needed()
         scrolled = page.evaluate("performance.timeOrigin + performance.now()")
-        frame = None
-        for _ in range(1200):
+        has_still = page.locator("#scene-still").count() > 0 or page.evaluate("!!window.__still")
+        for _ in range(2400):
             frame = next((f for f in page.frames if "/viser/" in f.url), None)
             bone = frame.evaluate("window.__firstBone || 0") if frame is not None else 0
-            if bone:
+            still, charts = page.evaluate("[window.__still || 0, window.__charts || 0]")
+            if bone and charts and (still or not has_still):
                 if trace is not None:
                     frame.evaluate("performance.mark('first-bone')")
                     browser.stop_tracing()
-                return bone - opened, max(0.0, bone - scrolled)
+                nan = float("nan")
+                return {"still": still - opened if still else nan, "viser": bone - opened, "charts": charts - opened,
+                        "still_scroll": max(0.0, still - scrolled) if still else nan,
+                        "viser_scroll": max(0.0, bone - scrolled)}
             page.wait_for_timeout(50)
-        raise RuntimeError("the 3D view never drew the bones")
+        raise RuntimeError("the 3D view never drew the bones (or the still, or the charts never came)")
     finally:
         context.close()
 
@@ -228,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--read-s", type=float, nargs="+", default=[0.0, 3.0])
     parser.add_argument("--trace", type=Path, default=None,
                         help="a folder: one more run per variant with Chromium's performance trace, summarised")
-    parser.add_argument("--variants", nargs="+", choices=("before", "packed", "now"), default=["packed", "now"])
+    parser.add_argument("--variants", nargs="+", choices=("before", "main", "packed", "now"), default=["main", "now"])
     args = parser.parse_args(argv)
     chromium = chromium_path()
     if chromium is None:
@@ -236,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     from playwright.sync_api import sync_playwright
 
-    old_js = {v: file_at(c, "static/views/results.js") for v, c in VARIANT_COMMITS.items() if v in args.variants}
+    old_js = {v: {p: file_at(c, p) for p in paths} for v, (c, paths) in VARIANT_COMMITS.items() if v in args.variants}
     with served_app("chakamo-scene-bench-") as (base, token):
         sid = _demo_session(base, token)
         rows = []
@@ -245,12 +273,10 @@ def main(argv: list[str] | None = None) -> int:
             for read_s in args.read_s:
                 runs = {v: [] for v in args.variants}
                 for _ in range(args.repeats):
-                    for variant in args.variants:   # alternated: packed, now, packed, now...
-                        runs[variant].append(_one(browser, base, sid, variant, read_s, old_js))
+                    for variant in args.variants:   # alternated: main, now, main, now...
+                        runs[variant].append((_one(browser, base, sid, variant, read_s, old_js), os.getloadavg()[0]))
                 for variant, rs in runs.items():
-                    page, scroll = [r[0] for r in rs], [r[1] for r in rs]
-                    rows.append((variant, read_s, statistics.median(page), max(page), statistics.median(scroll),
-                                 max(scroll)))
+                    rows.append((variant, read_s, [r for r, _ in rs], [load for _, load in rs]))
             traces = []
             if args.trace is not None:
                 args.trace.mkdir(parents=True, exist_ok=True)
@@ -263,11 +289,23 @@ def main(argv: list[str] | None = None) -> int:
     cpu = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu_s = sum(r.ru_utime + r.ru_stime for r in cpu)
     print(f"3D view first frame, Chromium (software WebGL), {args.repeats} cold runs each; "
-          f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on {os.cpu_count()} CPUs; "
+          f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on {os.cpu_count()} CPUs at the end; "
           f"CPU time {cpu_s:.0f} s (this process and its browser)")
-    print(f"{'variant':8} {'read s':>6} {'page→frame median':>18} {'worst':>8} {'scroll→frame median':>20} {'worst':>8}")
-    for variant, read_s, pm, pw_, sm, sw in rows:
-        print(f"{variant:8} {read_s:6.1f} {pm:15.0f} ms {pw_:5.0f} ms {sm:17.0f} ms {sw:5.0f} ms")
+    print("first frame = ChakaMo's still of the recording's first state where the page has one, else viser's own; "
+          "median (worst) ms")
+    print(f"{'variant':8} {'read s':>6} {'load 1 min':>10} {'page→first frame':>18} {'scroll→first':>14} "
+          f"{'page→viser frame':>18} {'scroll→viser':>14} {'page→charts':>14}")
+
+    def cell(values: list[float]) -> str:
+        values = [v for v in values if v == v]
+        return f"{statistics.median(values):.0f} ({max(values):.0f})" if values else "—"
+
+    for variant, read_s, rs, loads in rows:
+        first = [r["still"] if r["still"] == r["still"] else r["viser"] for r in rs]
+        first_scroll = [r["still_scroll"] if r["still_scroll"] == r["still_scroll"] else r["viser_scroll"] for r in rs]
+        print(f"{variant:8} {read_s:6.1f} {statistics.median(loads):10.1f} {cell(first):>18} {cell(first_scroll):>14} "
+              f"{cell([r['viser'] for r in rs]):>18} {cell([r['viser_scroll'] for r in rs]):>14} "
+              f"{cell([r['charts'] for r in rs]):>14}")
     for variant, path in traces:
         print(f"\n{variant}: main-thread tasks ≥ 50 ms in {path} (ms from the results page's opening, length, longest parts)")
         print("\n".join(trace_summary(path)))

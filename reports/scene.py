@@ -399,13 +399,12 @@ def scene_html(ri: ReportInput, *, rate_hz: float = SCENE_RATE_HZ, dark_mode: bo
         return _record(server, data, rate_hz, LABEL_EVERY).as_html(dark_mode=dark_mode)
 
 
-def read_scene(source: str | os.PathLike | bytes) -> dict[str, Any]:
-    """Decode a ``.viser`` recording: ``{"durationSeconds", "messages": [(t_s, {"type", "name", ...})],
-    "viserVersion", "binaryBufferLengths"}`` (binary arrays left as placeholders)."""
+def inner_payload(raw: bytes) -> tuple[bytes, dict[str, Any]]:
+    """A ``.viser`` recording's decompressed inner payload and its decoded msgpack part (module docstring's
+    layout): ``(inner, {"durationSeconds", "messages", "viserVersion", "binaryBufferLengths"})``."""
     import msgspec.msgpack
     import zstandard
 
-    raw = source if isinstance(source, bytes) else Path(source).read_bytes()
     if len(raw) < 16:
         raise ValueError("not a .viser recording: too short")
     inner_size = int.from_bytes(raw[:8], "little")
@@ -413,4 +412,12 @@ def read_scene(source: str | os.PathLike | bytes) -> dict[str, Any]:
     if len(inner) != inner_size:
         raise ValueError(f"corrupt .viser recording: {len(inner)} bytes decompressed, {inner_size} announced")
     n = int.from_bytes(inner[:8], "little")
-    return msgspec.msgpack.decode(inner[8:8 + n])
+    return inner, msgspec.msgpack.decode(inner[8:8 + n])
+
+
+def read_scene(source: str | os.PathLike | bytes) -> dict[str, Any]:
+    """Decode a ``.viser`` recording: ``{"durationSeconds", "messages": [(t_s, {"type", "name", ...})],
+    "viserVersion", "binaryBufferLengths"}`` (binary arrays left as placeholders; :mod:`reports.scene_still`
+    reads them)."""
+    raw = source if isinstance(source, bytes) else Path(source).read_bytes()
+    return inner_payload(raw)[1]

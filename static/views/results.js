@@ -16,7 +16,7 @@ import { patientTitle, statusBadge } from "./patients.js";
 import { navigate, canEdit } from "../app.js";
 import { cyclesSection, technicalNotes } from "./cycles.js";
 import { pairingSection } from "./pairing.js";
-import { sceneSection } from "./scene.js";
+import { sceneSection, stillImage } from "./scene.js";
 
 /** The results page of session `sessionId`; `query` may carry analysis_id. */
 export function resultsView(sessionId, query) {
@@ -52,6 +52,7 @@ export function resultsView(sessionId, query) {
     const superseded = analysis.superseded_at   // Node.append would print a null: only the notice, when due
       ? [h("div", { class: "notice warning", role: "status", id: "superseded" }, t("results.superseded"))] : [];
     clear(section).append(...head, ...superseded, analysisSelector(sessionId, analyses, analysis), body);
+    const still = stillImage(sessionId, analysis.id);   // its request goes beside the results' (scene.js)
     let results, warnings;
     try {
       // the warnings in every language come beside results.json (GET .../warnings); without them, English
@@ -62,7 +63,7 @@ export function resultsView(sessionId, query) {
       clear(body).append(alertBox(errorText(err)));
       return;
     }
-    renderResults(body, session, patient, analysis, results, section, warnings);
+    renderResults(body, session, patient, analysis, results, section, warnings, still);
   })();
   return section;
 }
@@ -91,7 +92,7 @@ export function calibrationUsed(r, analysis) {
   return asked && used.some((c) => c !== asked) ? `${text} (${t("results.calibration_asked", { asked: label("calibration", asked) })})` : text;
 }
 
-function renderResults(body, session, patient, analysis, r, section, warnings) {
+function renderResults(body, session, patient, analysis, r, section, warnings, still) {
   const cycles = r.cycles || {};
   const summary = h("div", { class: "card summary" }, h("dl", { class: "details inline" },
     [[t("patient.side"), label("side", r.side || patient.side)],
@@ -110,6 +111,7 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     h("h2", { id: "h-curves" }, t("results.curves")), h("p", { class: "hint" }, t("results.curves_hint")),
     h("div", { class: "charts" }, charts));
 
+  const scene = sceneSection(session.id, analysis.id, r, still);
   const knees = kneesSection(r);
   const kneeCharts = knees ? [...knees.querySelectorAll(".chart")] : [];
   clear(body).append(summary, curves, ...(knees ? [knees] : []),
@@ -123,14 +125,19 @@ function renderResults(body, session, patient, analysis, r, section, warnings) {
     interpretationSection(session, analysis),
     pairingSection(session, patient),
     downloadsSection(session.id, analysis.id),
-    sceneSection(session.id, analysis.id, r));
+    scene);
 
-  ANGLES.forEach((a, i) => {
-    const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
-    drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
-  });
-  ANGLES.forEach((a, i) => {
-    if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+  // the charts (plotly: 1.5-3 s of evaluation on the main thread) start once the 3D view's still first frame is
+  // painted, or could not be, within 1.5 s at most (scene.js)
+  scene.firstFrame.then(() => {
+    if (!section.isConnected) return;
+    ANGLES.forEach((a, i) => {
+      const keys = a === "flexion" ? (r.reference || {}).keypoints : null;
+      drawCurve(charts[i], a, (r.curves || {})[a], r.phases, keys).catch((err) => charts[i].replaceWith(alertBox(errorText(err))));
+    });
+    ANGLES.forEach((a, i) => {
+      if (kneeCharts[i]) drawKnees(kneeCharts[i], a, r.knees).catch((err) => kneeCharts[i].replaceWith(alertBox(errorText(err))));
+    });
   });
   const observer = new MutationObserver(() => {
     if (!section.isConnected) { charts.forEach(purge); kneeCharts.forEach(purge); observer.disconnect(); }

@@ -28,9 +28,13 @@
 //   them (session.json "split").  "Back to the automatic cuts" stores none.  The browser keeps nothing.
 // - Every sentence of the check is shown in the UI's language (`message_texts` / `error_message`: the server
 //   stores codes and renders them in es/en/pt); a check stored before that falls back to its English text.
-// - Progress: GET /jobs/{id} every 300 ms while the page is shown; <progress> carries the fraction.
+// - Progress: the API's server-sent event stream (GET /events, app/web/api/webhooks.py: `event: job` with the status,
+//   progress and stage of each of the clinic's jobs, checked every second) through an EventSource; the job's end
+//   reads GET /jobs/{id} once for its error, log and analysis.  If the stream cannot be opened, or breaks twice
+//   without coming back, or ends (a closed login: `event: end`), the bar falls back to GET /jobs/{id} every 300 ms.
+//   <progress> carries the fraction; the job box says which way the news came (data-via="stream" | "polling").
 
-import { api, upload } from "../api.js";
+import { api, apiUrl, upload } from "../api.js";
 import { h, append, clear, field, alertBox, errorText, date, bytes, label, num } from "../dom.js";
 import { t, lang } from "../i18n.js";
 import { options, fillSelect } from "../options.js";
@@ -760,6 +764,33 @@ function showProgress(ctx, jobId) {
   clear(ctx.progressArea).append(box);
   box.scrollIntoView({ block: "nearest" });
 
+  const render = (job) => {
+    const fraction = Math.max(0, Math.min(1, Number(job.progress) || 0));
+    bar.value = job.status === "done" ? 1 : fraction;
+    pct.textContent = `${num(100 * bar.value, 0)} %`;
+    box.dataset.status = job.status;
+    stage.textContent = job.status === "queued" ? t("wizard.queued") : stageText(job.stage);
+    if (job.status === "done" || job.status === "failed") {
+      ctx.activeJob = null;
+      if (form && form.isConnected) form.querySelector("button[type=submit]").disabled = !canEdit();
+    }
+    if (job.status === "done") {
+      stage.textContent = t("wizard.done");
+      const go = h("a", { href: `#/sessions/${ctx.sessionId}?analysis_id=${job.analysis_id ?? ""}`, class: "button-link primary",
+        id: "see-results" }, t("wizard.see_results"));
+      clear(outcome).append(go);
+      go.focus();
+    }
+    if (job.status === "failed") {
+      append(clear(outcome), [
+        h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.failed")), " ",
+          (job.error_message && job.error_message[lang()]) || job.error || t("error.unknown")),
+        (job.log || []).length ? h("details", {}, h("summary", {}, t("wizard.job_log")),
+          h("pre", { class: "log" }, (job.log || []).join("\n"))) : null]);
+    }
+  };
+  const ended = (job) => job.status === "done" || job.status === "failed";
+
   let failures = 0;
   const poll = async () => {
     if (!box.isConnected) return;          // the user left the page: stop polling
@@ -777,32 +808,74 @@ function showProgress(ctx, jobId) {
       return;
     }
     if (!box.isConnected) return;
-    const fraction = Math.max(0, Math.min(1, Number(job.progress) || 0));
-    bar.value = job.status === "done" ? 1 : fraction;
-    pct.textContent = `${num(100 * bar.value, 0)} %`;
-    box.dataset.status = job.status;
-    stage.textContent = job.status === "queued" ? t("wizard.queued") : stageText(job.stage);
-    if (job.status === "done" || job.status === "failed") {
-      ctx.activeJob = null;
-      if (form && form.isConnected) form.querySelector("button[type=submit]").disabled = !canEdit();
-    }
-    if (job.status === "done") {
-      stage.textContent = t("wizard.done");
-      const go = h("a", { href: `#/sessions/${ctx.sessionId}?analysis_id=${job.analysis_id ?? ""}`, class: "button-link primary",
-        id: "see-results" }, t("wizard.see_results"));
-      clear(outcome).append(go);
-      go.focus();
-      return;
-    }
-    if (job.status === "failed") {
-      append(clear(outcome), [
-        h("div", { class: "notice error", role: "alert" }, h("strong", {}, t("wizard.failed")), " ",
-          (job.error_message && job.error_message[lang()]) || job.error || t("error.unknown")),
-        (job.log || []).length ? h("details", {}, h("summary", {}, t("wizard.job_log")),
-          h("pre", { class: "log" }, (job.log || []).join("\n"))) : null]);
-      return;
-    }
-    setTimeout(poll, POLL_MS);
+    render(job);
+    if (!ended(job)) setTimeout(poll, POLL_MS);
   };
-  poll();
+  followStream(box, jobId, render, ended, poll);
+}
+
+const STREAM_QUIET_MS = 4000;   // no news of the job this long after the stream opened: its state is read once
+
+/** The job's news from the server-sent event stream (GET /events) into `render`, until it ends (then its full
+ *  state, GET /jobs/{id}, once) or the box leaves the page; `fallback()` (polling) takes over if the stream cannot
+ *  be opened, breaks twice in a row without coming back, or ends.  The box counts the events it received
+ *  (data-events) and says which way the news came (data-via). */
+function followStream(box, jobId, render, ended, fallback) {
+  if (typeof EventSource === "undefined") {
+    box.dataset.via = "polling";
+    fallback();
+    return;
+  }
+  const source = new EventSource(apiUrl("/events"), { withCredentials: true });
+  box.dataset.via = "stream";
+  box.dataset.events = "0";
+  let opened = false;
+  let errors = 0;
+  let heard = false;
+  let done = false;
+  const stop = () => { done = true; source.close(); clearInterval(watch); };
+  const toPolling = () => {
+    if (done) return;
+    stop();
+    box.dataset.via = "polling";
+    fallback();
+  };
+  const readOnce = async () => {            // the job itself: with its error text, log and analysis
+    try {
+      const job = await api("GET", `/jobs/${jobId}`);
+      if (box.isConnected) render(job);
+      return job;
+    } catch (_) {
+      toPolling();
+      return null;
+    }
+  };
+  const finish = () => { stop(); readOnce(); };
+  const watch = setInterval(() => { if (!box.isConnected) stop(); }, 2000);
+  source.addEventListener("open", () => {
+    opened = true;
+    errors = 0;
+    setTimeout(async () => {
+      if (heard || done || !box.isConnected) return;
+      const job = await readOnce();
+      if (job && ended(job)) stop();
+    }, STREAM_QUIET_MS);
+  });
+  source.addEventListener("job", (event) => {
+    if (done) return;
+    if (!box.isConnected) { stop(); return; }
+    let job;
+    try { job = JSON.parse(event.data); } catch (_) { return; }
+    if (Number(job.id) !== Number(jobId)) return;      // another of the clinic's jobs
+    heard = true;
+    errors = 0;
+    box.dataset.events = String(Number(box.dataset.events) + 1);
+    if (ended(job)) finish();
+    else render(job);
+  });
+  source.addEventListener("end", toPolling);  // the login closed or the token expired: polling says so plainly
+  source.addEventListener("error", () => {
+    errors += 1;
+    if (!opened || source.readyState === EventSource.CLOSED || errors >= 2) toPolling();
+  });
 }

@@ -92,6 +92,20 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
     return Response(data, media_type=art.media_type, headers=headers)
 
 
+@router.get("/{session_id}/scene.png", response_class=Response, responses={200: {"content": {"image/png": {}}}})
+def scene_png(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
+              analysis_id: int | None = None):
+    """The 3D view's first frame as a still picture, drawn from scene.viser's first state
+    (:mod:`reports.scene_still`): what the results page shows until viser's client plays the recording."""
+    from reports.scene_still import still_png
+
+    session = scoped_session(db, principal, session_id)
+    analysis = pick_analysis(db, session, analysis_id)
+    png = still_png(store.read(artefact(db, analysis, "scene.viser").sha256))
+    audit.record(db, request, principal, "download", patient_id=session.patient_id, session_id=session.id)
+    return Response(png, media_type="image/png", headers={STATUS_HEADER: analysis_status(analysis)})
+
+
 @router.get("/{session_id}/report.pdf", response_class=Response,
             responses={200: {"content": {"application/pdf": {}}}})
 def report_pdf(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,

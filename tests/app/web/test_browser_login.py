@@ -1,10 +1,12 @@
 """Logging in when one email has accounts in two clinics (issue 16 finding 10b: accounts are per clinic), in real
 Chromium, in Portuguese: without the clinic the form refuses with the sentence that says to name it; with the
 clinic's name typed in the form's clinic field the user lands in that clinic's patient list (read back through
-``/auth/me``).  Texts from static/i18n/pt.json."""
+``/auth/me``).  Texts from static/i18n/pt.json.  Both screens are looked at (``screens.look_at``: not blank, the refusal and the
+clinic field shown, no sideways scroll)."""
 
 from __future__ import annotations
 
+from screens import look_at
 from test_browser_e2e import SETTINGS, _tables, log_in, open_page, server, slow_expect  # noqa: F401 — fixtures
 
 TWO = "two.clinics@clinic.test"
@@ -23,9 +25,11 @@ def test_an_email_with_accounts_in_two_clinics_logs_in_by_naming_the_clinic(brow
     try:
         log_in(page, server, TWO, PASSWORD_B)  # no clinic named: which account is unknown
         slow_expect(page.locator("form.login .form-message")).to_contain_text(pt["login.failed"])
+        look_at(page, page.locator("form.login .form-message"), page.locator("input[name=clinic]"))
         page.locator("input[name=clinic]").fill("Clínica Sul")
         page.locator("form.login button[type=submit]").click()
         slow_expect(page.locator("h1")).to_have_text(pt["patients.title"])
+        look_at(page, page.locator("h1"))
         me = context.request.get(f"{server}/api/v1/auth/me").json()
         assert me["user"]["email"] == TWO and me["user"]["name"] == "Clínica Sul", me
         assert not errors, errors

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import pytest
 
+from screens import look_at
 from test_browser_e2e import _tables, log_in, open_page, server, slow_expect  # noqa: F401 - fixtures
 
 
@@ -36,6 +37,7 @@ def test_decimals_sex_and_professional_in_every_language(browser, server, slow_e
         said = tr["patient.number_invalid"].split("{field}")[1].split("{example}")[0]
         expect(form.locator("[role=alert]")).to_contain_text(said.strip())
         expect(height).to_have_attribute("aria-invalid", "true")
+        look_at(page, form.locator("[role=alert]"), height)   # the refusal is on screen beside the field
         height.fill("300")
         form.get_by_role("button", name=tr["patients.create"]).click()
         expect(form.locator("[role=alert]")).to_contain_text(tr["patient.number_range"].split("{min}")[0]
@@ -52,6 +54,7 @@ def test_decimals_sex_and_professional_in_every_language(browser, server, slow_e
         details = page.locator("dl.details")
         expect(details).to_contain_text(tr["sex.female"])
         expect(details).to_contain_text(tr["patient.created_at"])
+        look_at(page, page.locator("h1"), details)
         assert tr["patient.created_at"] != "Alta"
 
         # the correction form shows the stored value as this language writes it, and saves a change

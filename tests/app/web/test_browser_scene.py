@@ -1,6 +1,7 @@
-"""The results page's 3D view (static/views/scene.js) in real Chromium, in English: the frame gets its source as soon
-as the page has drawn (not when scrolled to: no ``loading=lazy``), a "loading" line stands in the box until the
-recording plays, and the jump-to-cycle control seeks viser's client to the cycle's start (the task's time axis:
+"""The results page's 3D view (static/views/scene.js) in real Chromium, in English: the still first frame that ChakaMo
+draws from the recording (GET scene.png, reports/scene_still.py: bone-coloured pixels in it) is painted first, then
+the frame gets its source (not when scrolled to: no ``loading=lazy``) and the still gives way to viser's canvas
+once the recording plays, and the jump-to-cycle control seeks viser's client to the cycle's start (the task's time axis:
 results.json ``cycles.boundaries_s``) and plays from there — the client's own time field then reads the cycle's
 start or a little after it, and the screenshot of the frame shows femur and tibia (the bone-colour check of
 tests/reports/test_browser.py).  Nothing is timed here: ``python -m benchmarks.scene_first_frame`` measures."""
@@ -37,13 +38,21 @@ def test_the_3d_view_loads_with_the_page_and_jumps_to_a_cycle(browser, server, s
         sid, _ = processed_session(context, page, server, demo_files, "EN-SCENE", "left", "en")
         r = context.request.get(f"{api}/sessions/{sid}/results").json()
 
+        still = context.request.get(f"{api}/sessions/{sid}/scene.png")
+        assert still.ok and still.headers["content-type"] == "image/png"
+        from PIL import Image
+
+        assert _bone_pixels(np.asarray(Image.open(io.BytesIO(still.body())).convert("RGB"))) > 300, \
+            "no bones in the still first frame"
         page.goto(f"{server}/#/sessions/{sid}")
         frame = page.locator("#scene-frame")
         # the source is set without scrolling to the view (the page's top is shown)
         slow_expect(frame).to_have_attribute("src", re.compile(r"^/viser/index\.html\?playbackPath="))
         assert frame.get_attribute("loading") is None
         slow_expect(page.locator(".scene-box")).to_have_attribute("data-ready", "true")
-        assert page.locator("#scene-loading").count() == 0
+        # the still was painted before viser's frame got its source, and gave way to viser's canvas
+        assert page.locator(".scene-box").get_attribute("data-still") == "painted"
+        assert page.locator("#scene-still").count() == 0 and page.locator("#scene-still-note").count() == 0
         jump = page.locator("#scene-cycle")
         accepted = r["cycles"]["accepted_indices"]
         slow_expect(jump.locator("option")).to_have_count(len(accepted) + 1)
