@@ -248,7 +248,7 @@ def add_parsers(sub) -> None:
     serve_p.add_argument("--forwarded-allow-ips", default="127.0.0.1", metavar="IPS",
                          help="addresses of the proxies whose headers are trusted (default: 127.0.0.1)")
     serve_p.add_argument("--lang", choices=LANGUAGE_NAMES, default=None,
-                         help="language of the start-up line and of the errors (default: English)")
+                         help="language of the messages (default: English)")
 
     clinics = sub.add_parser("clinics", help="manage clinics (tenants)").add_subparsers(dest="action", required=True)
     c_create = clinics.add_parser("create", help="create a clinic")

@@ -72,16 +72,21 @@ _current: list[str] = []   # the language of the parse in progress (a stack: a s
 
 
 def requested(argv: Sequence[str]) -> str | None:
-    """The language ``--lang X`` / ``--lang=X`` asks for anywhere on the command line (None when it names none
-    of es/en/pt: argparse then refuses the value itself, in English)."""
+    """The language the command line asks for, read as argparse will read it: the last ``--lang X`` /
+    ``--lang=X`` wins, and so does an abbreviation argparse accepts (``--lan es``, ``--la=pt``: at least
+    ``--la``, since ``--l`` may be another option's).  None when it names none of es/en/pt: argparse then
+    refuses the value itself, in English."""
+    found = None
     for i, arg in enumerate(argv):
         if arg == "--":
             break
-        value = argv[i + 1] if arg == "--lang" and i + 1 < len(argv) else arg.partition("=")[2] \
-            if arg.startswith("--lang=") else None
-        if value in LANGUAGE_NAMES:
-            return value
-    return None
+        name, eq, value = arg.partition("=")
+        if len(name) < 4 or not "--lang".startswith(name):
+            continue
+        if not eq:
+            value = argv[i + 1] if i + 1 < len(argv) else None
+        found = value
+    return found if found in LANGUAGE_NAMES else None
 
 
 def say(code: str, lang: str | None = None, **params) -> str:

@@ -123,6 +123,24 @@ def test_the_language_is_read_from_the_whole_command_line():
     assert requested(["process", "--", "--lang", "es"]) is None
 
 
+def test_the_language_is_the_one_argparse_reads(capsys):
+    """Review finding: the last ``--lang`` wins and argparse's abbreviations count (``--lan es`` was parsed as
+    Spanish by argparse but its errors came out in English; ``--lang pt --lang es`` erred in Portuguese)."""
+    assert requested(["process", "--lang", "pt", "--lang", "es"]) == "es"
+    assert requested(["process", "--lan", "es"]) == "es" and requested(["process", "--la=pt"]) == "pt"
+    assert requested(["process", "--l", "es"]) is None and requested(["process", "--langx", "es"]) is None
+    with pytest.raises(SystemExit):
+        main(["process", "--bogus", "--lan", "es"])
+    assert say("cli.argparse_required", "es").split("%")[0] in capsys.readouterr().err
+
+
+def test_serve_s_lang_option_is_explained_in_lang(capsys):
+    """Review finding: ``serve --help --lang pt`` printed its ``--lang`` line in English."""
+    with pytest.raises(SystemExit):
+        main(["serve", "--help", "--lang", "pt"])
+    assert say("cli.help_lang_messages", "pt") in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("lang", LANGS)
 def test_migrate_says_it_in_lang(lang, tmp_path):
     out = _chakamo("migrate", "--lang", lang, data_dir=tmp_path)
