@@ -64,6 +64,48 @@ def references(refs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return col, row
 
 
+def occurrences(data: bytes | bytearray, texts: list[bytes], start: int = 0, end: int | None = None,
+                block: int = 1 << 17) -> list[int]:
+    """``[data.count(text, start, end) for text in texts]`` (``start``, ``end`` not negative) for texts that cannot
+    overlap themselves (no proper prefix of a text is also its suffix, as ``<row``, ``<c ``, ``:c``: then every
+    match is counted, as ``bytes.count`` counts them), by numpy compares of one block of positions at a time.
+
+    Each text's bytes are compared with the bytes at each position plus their offset, and the matches counted:
+    3-4x less CPU than one ``bytes.count`` a text (whose two-way search runs at ~1.5 GB/s; a compare runs at
+    ~13 GB/s), with three block-sized masks at most (``block`` bytes each, reused: the memory does not grow with
+    ``data``, so a crafted sheet is refused by counts before any array one entry per tag).  The last positions,
+    where a text would run past ``end``, are counted by ``bytes.count`` on those few bytes."""
+    for text in texts:
+        if not text or any(text[:k] == text[-k:] for k in range(1, len(text))):
+            raise ValueError(f"{text!r} is empty or can overlap itself")
+    end = len(data) if end is None else min(end, len(data))
+    counts = [0] * len(texts)
+    if end <= start:
+        return counts
+    v = np.frombuffer(data, dtype=np.uint8)
+    stop = max(end - max(map(len, texts)) + 1, start)   # positions whose longest text ends within data[:end]
+    size = min(block, stop - start)
+    first, match, other = (np.empty(size, dtype=bool) for _ in range(3))
+    for at in range(start, stop, block):
+        n = min(block, stop - at)
+        lead = None
+        for i, text in enumerate(texts):
+            if text[0] != lead:
+                lead = text[0]
+                np.equal(v[at:at + n], lead, out=first[:n])
+            if len(text) == 1:
+                counts[i] += int(np.count_nonzero(first[:n]))
+                continue
+            np.equal(v[at + 1:at + 1 + n], text[1], out=match[:n])
+            np.logical_and(match[:n], first[:n], out=match[:n])
+            for k in range(2, len(text)):
+                np.equal(v[at + k:at + k + n], text[k], out=other[:n])
+                np.logical_and(match[:n], other[:n], out=match[:n])
+            counts[i] += int(np.count_nonzero(match[:n]))
+    tail = bytes(data[stop:end])
+    return [c + tail.count(text) for c, text in zip(counts, texts)]
+
+
 def _windows(data: np.ndarray, start: np.ndarray, width: int) -> np.ndarray:
     """``(n, width)`` bytes of ``data`` (contiguous) from each ``start`` (``data`` padded with ``width`` bytes at its
     end), a copy of their own.  Gathered as one ``width``-byte item each, from a view whose items overlap (stride
@@ -176,15 +218,16 @@ def plain_cells(body: bytes | bytearray, start: int = 0
     # four tags; ``<row >``, ``</row>`` 6 bytes, ``<row />`` 7); the check asks for 5, a bound safely under that
     # least 5.5 (no plain part is refused by it), so a dense padding that keeps the counts (``<c ><><><>``, 2.5
     # bytes a tag) is refused before any array too.
-    tags = body.count(b"<", start)
-    if (tags != 4 * body.count(b"<c ", start) + body.count(b"<row", start) + body.count(b"</row", start)
-            or 5 * tags > len(body) - start):
+    tags, cells, rows, ends = occurrences(body, [b"<", b"<c ", b"<row", b"</row"], start)
+    if tags != 4 * cells + rows + ends or 5 * tags > len(body) - start:
         return None
     raw = np.frombuffer(body, dtype=np.uint8)[start:]
-    lt = np.flatnonzero(raw == _LT)
-    gt = np.flatnonzero(raw == _GT)
-    if len(lt) == 0 or len(lt) != len(gt) or not (np.all(lt < gt) and np.all(gt[:-1] < lt[1:])):
+    # every '<' and '>' in one pass: they alternate, '<' first, when the even ones are all '<' and the odd all '>'
+    marks = np.flatnonzero((raw == _LT) | (raw == _GT))
+    lt, gt = marks[0::2], marks[1::2]
+    if len(marks) == 0 or len(marks) % 2 or not (np.all(raw[lt] == _LT) and np.all(raw[gt] == _GT)):
         return None
+    lt, gt = np.ascontiguousarray(lt), np.ascontiguousarray(gt)
     data = np.concatenate([raw, np.zeros(64, dtype=np.uint8)])   # every window below fits
     found = _cells_in_rows(data, lt, gt)
     if found is None:
@@ -277,4 +320,4 @@ def in_order(body: bytes | bytearray, row: np.ndarray, col: np.ndarray, cells_at
     return bool(np.all(r[1:] > r[:-1])) and int(which.min(initial=0)) >= 0 and np.array_equal(r[which], row)
 
 
-__all__ = ["MAX_FORMS", "NUMBER_ATTRS", "in_order", "plain_cells", "references", "tag_positions"]
+__all__ = ["MAX_FORMS", "NUMBER_ATTRS", "in_order", "occurrences", "plain_cells", "references", "tag_positions"]
