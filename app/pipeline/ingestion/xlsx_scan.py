@@ -9,8 +9,10 @@ each step is a fixed number of numpy passes over the bytes or the tags: linear t
 write them: each row ``<row …>…</row>`` (or ``<row …/>``) holds cells ``<c r="B12"[ s="3"][ t="n"][ s="3"]>
 <v>-0.123</v></c>`` (the plain number cells :data:`.xlsx_cells._FAST` reads), and nothing else is a tag:
 
-1. every ``<`` and every ``>`` of the bytes; they must alternate, ``<`` first (so no ``<`` or ``>`` lies in a
-   value, an attribute, a text or a comment: those sheets are left to the regular expressions);
+0. the counts of ``<``, ``<c ``, ``<row`` and ``</row`` (:func:`occurrences`) must balance, at least 5 bytes a
+   tag, before any array one entry per tag;
+1. every ``<`` and every ``>`` of the bytes, found in one pass; they must alternate, ``<`` first (so no ``<`` or
+   ``>`` lies in a value, an attribute, a text or a comment: those sheets are left to the regular expressions);
 2. each tag's kind from the byte after its ``<`` and its length, then the rest of its name on the tags of that
    kind: rows one after another (``<row `` … ``</row>``, or ``<row …/>``), each holding whole cells of four
    adjacent tags (``<c r="``, ``<v>``, ``</v>``, ``</c>``); text between rows and cells is ignored, as openpyxl
@@ -212,7 +214,8 @@ def plain_cells(body: bytes | bytearray, start: int = 0
     and rows; float64 values; the positions in ``body`` of each ``<c`` and each ``<row``, for :func:`in_order`)
     when that part holds rows of plain number cells only (module docstring), else ``None``."""
     # Before any array one entry per tag: a part of plain rows holds only ``<row``/``</row>`` and four tags per
-    # ``<c ``, so any other tag means "not plain", told by C byte counts without allocating (a crafted sheet of
+    # ``<c ``, so any other tag means "not plain", told by counts (:func:`occurrences`: one 128 kB block of masks
+    # at a time, however long the sheet) before any array one entry per tag (a crafted sheet of
     # 31 M ``<>`` pairs, 66 kB zipped, cost about 1 GB of positions before this check).
     # A plain part also holds at least 5.5 bytes a tag (the least cell, ``<c r="A1"><v>1</v></c>``, is 22 bytes for
     # four tags; ``<row >``, ``</row>`` 6 bytes, ``<row />`` 7); the check asks for 5, a bound safely under that
@@ -227,7 +230,6 @@ def plain_cells(body: bytes | bytearray, start: int = 0
     lt, gt = marks[0::2], marks[1::2]
     if len(marks) == 0 or len(marks) % 2 or not (np.all(raw[lt] == _LT) and np.all(raw[gt] == _GT)):
         return None
-    lt, gt = np.ascontiguousarray(lt), np.ascontiguousarray(gt)
     data = np.concatenate([raw, np.zeros(64, dtype=np.uint8)])   # every window below fits
     found = _cells_in_rows(data, lt, gt)
     if found is None:
