@@ -29,8 +29,8 @@ xlsx``, CPU, load 3–4.6) reading takes 0.38–0.40 s with this scan against 0.
 regular expressions' ``findall`` made three objects a cell, and the array of them a fourth), about 1.5× less;
 the scan alone against that ``findall``: ``python -m benchmarks.xlsx_scan``.  Step 0 by numpy compares instead of
 four ``bytes.count`` (and the caps' ``<row``/``<c`` counts of :func:`.xlsx_cells.count_tags` likewise), step 1 in
-one pass: ``python -m benchmarks.read_formats --formats xlsx --repeats 7``, nine pairs alternated with the commit
-before (load 3.0–6.9, CPU): median 0.244 s (0.228–0.307) against 0.308 s (0.266–0.358), eight pairs of nine
+one pass: ``python -m benchmarks.read_formats --formats xlsx --repeats 7``, nine pairs alternated with main at
+2d78824 (load 3.0–6.9, CPU): median 0.244 s (0.228–0.307) against 0.308 s (0.266–0.358), eight pairs of nine
 faster, by 0.043 s in the median pair.
 """
 
