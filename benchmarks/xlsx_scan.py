@@ -1,6 +1,7 @@
 r"""One .xlsx sheet's data rows found by :func:`app.pipeline.ingestion.xlsx_scan.plain_cells` vs by the regular
 expression :data:`app.pipeline.ingestion.xlsx_cells._FAST` (its ``findall`` alone, and with the conversion that
-:meth:`~app.pipeline.ingestion.xlsx_cells.Workbook.table` does after it: references and floats by numpy).
+:meth:`~app.pipeline.ingestion.xlsx_cells.Workbook.table` does after it: references and floats by numpy); and the
+scan's first step, its tag counts, by :func:`app.pipeline.ingestion.xlsx_scan.occurrences` vs ``bytes.count``.
 
 Usage: ``python -m benchmarks.xlsx_scan [--cycles 10] [--repeats 9]``
 
@@ -31,7 +32,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from app.pipeline.demo import simulate_session, write_session
     from app.pipeline.ingestion.xlsx_cells import _FAST, Workbook
-    from app.pipeline.ingestion.xlsx_scan import plain_cells, references
+    from app.pipeline.ingestion.xlsx_scan import occurrences, plain_cells, references
 
     work = Path(tempfile.mkdtemp(prefix="chakamo-xlsx-scan-"))
     try:
@@ -47,8 +48,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             references(head[:, 0])
             head[:, 2].astype(np.float64)
 
+        texts = [b"<", b"<c ", b"<row", b"</row"]
         ways = {"plain_cells": lambda: plain_cells(body, cut), "_FAST.findall": lambda: _FAST.findall(body, cut),
-                "findall + conversion": findall_and_convert}
+                "findall + conversion": findall_and_convert,
+                "its counts (numpy)": lambda: occurrences(body, texts, cut),
+                "its counts (bytes)": lambda: [body.count(t, cut) for t in texts]}
         cpus: dict[str, list[float]] = {k: [] for k in ways}
         for _ in range(args.repeats):
             for k, run in ways.items():

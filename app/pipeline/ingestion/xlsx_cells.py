@@ -38,7 +38,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from app.pipeline.ingestion.xlsx_scan import in_order, plain_cells, references, tag_positions
+from app.pipeline.ingestion.xlsx_scan import in_order, occurrences, plain_cells, references, tag_positions
 
 _MAIN = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
 _REL = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
@@ -102,15 +102,19 @@ def count_tags(data: bytes | bytearray, name: bytes, end: int | None = None, sta
     """Start tags ``<name …>`` (with or without a namespace prefix: ``<x:name/>``) in ``data[start:end]``, or a few
     more.
 
-    One ``bytes.count`` of ``<name`` (a C scan, ~10× faster than a regular expression): it also counts the
+    One count of ``<name`` (:func:`.xlsx_scan.occurrences`: numpy compares, 3-4x less CPU than ``bytes.count``,
+    which is ~10× faster than a regular expression): it also counts the
     other tags whose name begins so (``<cols>``, ``<col>``, ``<cfRule>``, ``<rowBreaks>``: a few a sheet, none
     inside ``<sheetData>``), so as a cap it is stricter by those few, never looser.  A regular expression
-    (exact) only when a ``:name`` occurs (a prefixed tag, or that text in a value); it is looked for only where a
-    ``:`` occurs at all (a one-byte search, ~20× faster than one of ``:name``)."""
+    (exact) only when a ``:name`` occurs (a prefixed tag, or that text in a value); it is looked for (in the same
+    compares as ``<name``) only where a ``:`` occurs at all (a one-byte search)."""
     end = len(data) if end is None else end
-    if data.find(b":", start, end) >= 0 and data.find(b":" + name, start, end) >= 0:
-        return len(re.compile(rb"<" + _P + re.escape(name) + rb"[\s/>]").findall(data, start, end))
-    return data.count(b"<" + name, start, end)
+    if data.find(b":", start, end) >= 0:
+        tags, prefixed = occurrences(data, [b"<" + name, b":" + name], start, end)
+        if prefixed:
+            return len(re.compile(rb"<" + _P + re.escape(name) + rb"[\s/>]").findall(data, start, end))
+        return tags
+    return occurrences(data, [b"<" + name], start, end)[0]
 
 
 def _content(body: bytes, ref: bytes) -> bytes:

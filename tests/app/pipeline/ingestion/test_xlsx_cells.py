@@ -385,3 +385,23 @@ def test_a_sheet_of_foreign_tags_is_refused_before_its_tags_are_counted_in_array
         assert peak < len(body) // 4, (padding, peak)        # was 8–16 × len(body)
     plain = b"".join(b'<row r="%d"><c r="A%d"><v>%d</v></c></row>' % (i, i, i) for i in range(2, 1002))
     assert plain_cells(plain)[2][-1] == 1001.0
+
+
+def test_tag_counts_are_bytes_counts():
+    """:func:`.xlsx_scan.occurrences` (numpy compares, a block at a time) counts what ``bytes.count`` counts, on
+    random bytes of the tags' alphabet, any range and block size (matches across block edges and at the end), and
+    refuses a text that could overlap itself (``bytes.count`` would count fewer)."""
+    from app.pipeline.ingestion.xlsx_scan import occurrences
+
+    rng = np.random.default_rng(14)
+    alphabet = np.frombuffer(b'<:/crows >"', np.uint8)
+    texts = [b"<", b"<c ", b"<row", b"</row", b"<c", b":c", b":row", b"<si"]
+    for _ in range(2000):
+        data = rng.choice(alphabet, size=int(rng.integers(0, 80))).tobytes()
+        start, end = int(rng.integers(0, 12)), int(rng.integers(0, 90))
+        block = int(rng.choice([1, 2, 3, 7, 64, 1 << 17]))
+        for kind in (bytes, bytearray):
+            assert occurrences(kind(data), texts, start, end, block) == [data.count(t, start, end) for t in texts]
+    assert occurrences(b"<c " * 100_000, [b"<c "]) == [100_000]
+    with pytest.raises(ValueError):
+        occurrences(b"aaaa", [b"aa"])
