@@ -46,7 +46,7 @@ from metawear_peripherals import Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     _api_session, csrf_header, server, slow_expect)
 from test_browser_record import (  # noqa: F401 - the fixtures are used by name
-    CHIP, CHUNK_S, ROLES, _deliver, _logged_in, _process, _stored_files, _streams, bt_browser)
+    CHIP, CHUNK_S, ROLES, _deliver, _identify, _logged_in, _process, _stored_files, _streams, bt_browser)
 
 #: results.json keys left out of the comparison, each for its reason; everything else must be equal
 EXCLUDED = {
@@ -202,18 +202,7 @@ def test_a_session_recorded_in_the_browser_gives_the_results_of_its_files(  # no
             page.get_by_role("button", name="Connect a sensor").click()
             bench.wait(lambda k=k: page.locator(".sensor-state[data-state=connected]").count() == k, f"{p.name} connected")
         # the thigh is the sensor that moves
-        page.get_by_role("button", name="Which is the thigh sensor?").click()
-        bench.wait(lambda: thigh.is_streaming and shank.is_streaming, "both sensors streaming to identify")
-        moving = [n for n in _streams(simulated, "thigh", "task") if n.arrival_s > simulated.role_epoch_s["task"] + 3]
-        still = _streams(simulated, "shank", "standing")
-        offset = still[0].arrival_s - moving[0].arrival_s
-        for i in range(0, 600, 30):
-            bench.notify(thigh, [type(n)(n.arrival_s + offset, n.kind, n.payload) for n in moving[i:i + 30]])
-            bench.notify(shank, still[i:i + 30])
-            bench.pump()
-            if not thigh.is_streaming:
-                break
-        bench.wait(lambda: page.locator("ul.sensors li[data-segment]").count() == 2, "the sensors identified")
+        _identify(bench, page, simulated, thigh, shank)
         expect(page.locator("ul.sensors li[data-segment=thigh]")).to_contain_text("MetaWear-T7")
 
         seen = []
