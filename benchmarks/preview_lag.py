@@ -28,7 +28,7 @@ Printed: median, p95 and max over the switches, for the packet's handing to the 
 loaded machine's, which delays a real notification's event just as well), the DOM update and the frame; the
 page's long tasks (over 50 ms, PerformanceObserver "longtask"); the load average and the CPU time of this process; ``--seconds`` of task per run, ``--repeats`` runs (each a fresh browser, page and session).
 ``--before COMMIT`` serves that commit's recording page — ``static/views/record.js`` and ``static/metawear/*.js``
-(Playwright's routing) — for an old-vs-new pair.
+(Playwright's routing), and the translation keys it has that today's tables lack — for an old-vs-new pair.
 Usage: ``python -m benchmarks.preview_lag [--seconds 60] [--repeats 1] [--before COMMIT]``.
 """
 
@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import json
 import math
 import os
 import statistics
@@ -185,11 +186,17 @@ PAGE_JS = ("static/views/record.js", "static/metawear/checks.js", "static/metawe
            "static/metawear/recorder.js", "static/metawear/store.js", "static/metawear/timeline.js")
 
 
+#: the translation tables, served to a ``--before`` page as today's plus the keys only that commit has
+I18N = tuple(f"static/i18n/{code}.json" for code in ("en", "es", "pt"))
+
+
 def old_page_js(commit: str) -> dict[str, bytes]:
     """The recording page's modules (PAGE_JS) as they were at ``commit``, by path, served instead of today's so that
     they agree with each other (an old record.js with today's recorder.js may call what it no longer has).  A commit
     git does not know, or without a recording page, is refused at once (SystemExit with git's reason); a module the
-    commit lacks is served as today's."""
+    commit lacks is served as today's.  The translation tables (I18N) are today's with the commit's keys that today's
+    lack added: the old page's texts (its flexion preview's "record.preview", which the probe reads, deleted since)
+    and today's modules' (login, navigation) both found."""
     out = {}
     for path in PAGE_JS:
         try:
@@ -197,12 +204,21 @@ def old_page_js(commit: str) -> dict[str, bytes]:
         except FileNotFoundError as exc:
             if path == "static/views/record.js":
                 raise SystemExit(f"--before {commit}: {exc}") from None
+    for path in I18N:
+        try:
+            old = json.loads(file_at(commit, path))
+        except FileNotFoundError:
+            old = {}
+        out[path] = json.dumps({**old, **json.loads((ROOT / path).read_text(encoding="utf-8"))},
+                               ensure_ascii=False).encode()
     return out
 
 
-def _serve(body: bytes):
-    """A route handler answering ``body`` as JavaScript (one argument: Playwright passes the request to a second)."""
-    return lambda route: route.fulfill(body=body, content_type="text/javascript; charset=utf-8")
+def _serve(body: bytes, path: str):
+    """A route handler answering ``body`` as ``path``'s type, JavaScript or JSON (one argument: Playwright passes the
+    request to a second)."""
+    kind = "application/json" if path.endswith(".json") else "text/javascript"
+    return lambda route: route.fulfill(body=body, content_type=f"{kind}; charset=utf-8")
 
 
 def one_run(browser, base: str, token: str, run: int, args) -> dict:
@@ -215,7 +231,7 @@ def one_run(browser, base: str, token: str, run: int, args) -> dict:
     context.add_init_script(STAND_IN)
     context.add_init_script(PROBE)
     for path, body in (args.old_js or {}).items():
-        context.route(f"**/{path}", _serve(body))
+        context.route(f"**/{path}", _serve(body, path))
     page = context.new_page()
     try:
         page.goto(f"{base}/#/patients")

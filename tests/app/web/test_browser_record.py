@@ -150,6 +150,24 @@ def _deliver(bench, sensors, packets, blackout=None, lose_every=None):
     return delivered, {name: sum((len(packets[name][k].payload) - 2) // 6 for k in v) for name, v in lost.items()}
 
 
+def _identify(bench, page, simulated, thigh, shank):
+    """"Which is the thigh sensor?": the thigh's packets are the task's gait (from its third second), the shank's the
+    standing posture's, on one clock, 30 packets of each at a time until the page stops the streams; then both cards
+    carry their segment."""
+    page.get_by_role("button", name="Which is the thigh sensor?").click()
+    bench.wait(lambda: thigh.is_streaming and shank.is_streaming, "both sensors streaming to identify")
+    moving = [n for n in _streams(simulated, "thigh", "task") if n.arrival_s > simulated.role_epoch_s["task"] + 3]
+    still = _streams(simulated, "shank", "standing")
+    offset = still[0].arrival_s - moving[0].arrival_s
+    for i in range(0, 600, 30):
+        bench.notify(thigh, [type(n)(n.arrival_s + offset, n.kind, n.payload) for n in moving[i:i + 30]])
+        bench.notify(shank, still[i:i + 30])
+        bench.pump()
+        if not thigh.is_streaming:
+            break
+    bench.wait(lambda: page.locator("ul.sensors li[data-segment]").count() == 2, "the sensors identified")
+
+
 def _names(context, base, sid, role) -> set[str]:
     """The names of the files the server holds for ``role`` in session ``sid``."""
     session = context.request.get(f"{base}/api/v1/sessions/{sid}").json()
@@ -252,18 +270,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         assert len(thigh.commands) == before[1]
 
         # --- the thigh is the sensor that moves (connected second: the page must reorder)
-        page.get_by_role("button", name="Which is the thigh sensor?").click()
-        bench.wait(lambda: thigh.is_streaming and shank.is_streaming, "both sensors streaming to identify")
-        moving = [n for n in _streams(simulated, "thigh", "task") if n.arrival_s > simulated.role_epoch_s["task"] + 3]
-        still = _streams(simulated, "shank", "standing")
-        offset = still[0].arrival_s - moving[0].arrival_s
-        for i in range(0, 600, 30):
-            bench.notify(thigh, [type(n)(n.arrival_s + offset, n.kind, n.payload) for n in moving[i:i + 30]])
-            bench.notify(shank, still[i:i + 30])
-            bench.pump()
-            if not thigh.is_streaming:
-                break
-        bench.wait(lambda: page.locator("ul.sensors li[data-segment]").count() == 2, "the sensors identified")
+        _identify(bench, page, simulated, thigh, shank)
         expect(page.locator("ul.sensors li[data-segment=thigh]")).to_contain_text("MetaWear-S2")
         expect(page.locator("ul.sensors li[data-segment=shank]")).to_contain_text("MetaWear-S1")
 

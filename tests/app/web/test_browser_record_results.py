@@ -18,9 +18,12 @@ a millisecond, which the two roundings (the page's line through the arrivals, th
 epoch) send either way: 1 ms more or less (151 of 66 530 samples in the right session).  The value columns are equal
 (checked), so the stamps are the only difference in the input.  The two results.json must be equal but for the keys
 that hold an absolute time or the session's own name (EXCLUDED, each with its reason) and the time stamp inside the
-file names they list (NAME_STAMP); numbers are not bit-equal (the stamps move a posture's still window, a resampling
-instant, a fit's sample count by one sample now and then), so they are compared within REL_TOL / ABS_TOL, and the
-test prints how many numbers are not bit-equal and the largest difference.
+file names they list (NAME_STAMP); numbers are not bit-equal (the stamps move a resampling instant, a still window, a
+fit's sample count by a sample now and then), so each is compared within the bound of its quantity (BOUNDS, each with
+its reason and the differences measured), and the test prints per quantity how many numbers are not bit-equal and the
+largest difference against its bound.  A number inside a sentence (a warning's message) is a printed rounding: a whole
+number must be equal, a decimal may differ by one unit of its last decimal (a value at a rounding tie: "gyr ran on
+1.545 s" prints 1.54 or 1.55 as the float noise of the epoch seconds falls).
 
 The preview (static/metawear/preview.js): after each second of the task delivered, the three angles the page shows
 (integer degrees) against the simulator's knee angles at the last shank sample delivered.  Tolerances, fixed from six
@@ -46,7 +49,7 @@ from metawear_peripherals import Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     _api_session, csrf_header, server, slow_expect)
 from test_browser_record import (  # noqa: F401 - the fixtures are used by name
-    CHIP, CHUNK_S, ROLES, _deliver, _logged_in, _process, _stored_files, _streams, bt_browser)
+    CHIP, CHUNK_S, ROLES, _deliver, _identify, _logged_in, _process, _stored_files, _streams, bt_browser)
 
 #: results.json keys left out of the comparison, each for its reason; everything else must be equal
 EXCLUDED = {
@@ -58,13 +61,46 @@ EXCLUDED = {
 #: the time stamp inside a MetaBase file name (its first sample's local time, ms): in the names results.json lists
 #: (recognised files, warnings' file) the browser's is 4 ms later; replaced by "<start>" in every string
 NAME_STAMP = re.compile(r"_MetaWear_\d{4}-\d\d-\d\dT\d\d\.\d\d\.\d\d\.\d{3}_")
-#: numbers: equal within REL_TOL of their size or ABS_TOL (module docstring: the stamps' 4 ± 1 ms move a window or a
-#: resampling instant by a sample now and then); numbers inside a sentence within one unit of the last decimal printed.
-#: ABS_TOL: one unit of the 0.01 that the per-cycle curves are stored rounded to (a 1e-4° difference can flip it:
-#: 0.58° against 0.57° seen), with float noise; about ten times below what the reports print (0.1°).  Measured: the
-#: right session's largest difference 2.8e-4 (relative, or absolute below 1), the left one's 1.5e-3 (the standing
-#: posture's heading offset, −0.4196° against −0.4211°) and that rounding flip; both failed the first bound, 1e-3.
-REL_TOL, ABS_TOL = 1e-3, 0.011
+#: numbers, by quantity: (name, pattern of its paths in results.json, relative bound, absolute bound, unit); the first
+#: entry that matches a number gives its bounds (math.isclose).  Measured, the largest difference of each (seed 7 right
+#: / seed 3 left): per-cycle curves 0.01° / 0.01° (rounding flips, 0.58° against 0.57°: 3 / 14 of them); accelerometer
+#: calibration 6.3e-5 / 2.1e-4 m/s² (the shank's bias z); soft-iron 3e-6 / 6.5e-6; the fit's samples 1 / 1; quaternion
+#: components 3.2e-6 / 1.1e-5; angles 7e-4° / 1.8e-3° (a cycle's largest internal rotation); the rest 1e-4 / 1.6e-4
+#: relative.  A 1.2° change of a quaternion or a 33 times larger residual fails.
+BOUNDS = (
+    # stored rounded to 0.01° (app/pipeline/results.py): one unit (a 1e-4° difference can flip it), with float noise
+    ("per-cycle curves", re.compile(r"/per_cycle\[\d+\]/flexion_deg\[\d+\]$"), 0.0, 0.011, "°"),
+    # The shank's accelerometer calibration, a named cause: the shank's three calibration recordings lose their last
+    # grid sample in the browser's session, not in the files'.  Their streams' common span is a whole number of
+    # periods (29.96 s, 59.97 s: the magnetometer's first to last stamp) and app/pipeline/ingestion/align.py
+    # ``_grid`` takes floor((t1 − t0)·fs + 1e-6) on epoch seconds, whose float error (one ulp at 1.8e9 s, 2.4e-7 s:
+    # 2.4e-5 of a 100 Hz sample) exceeds that 1e-6: (t1 − t0)·fs is 2995.99998 with the browser's +4 ms (2996 samples),
+    # 2996.0000038 with the files' (2997): the product's defect, reported; not the page's (its stamps are the files'
+    # plus 4 ms, to the millisecond, at both ends).  The
+    # figure-eight's last rest then averages 44 samples, not 45: its norm moves by 1.3e-4 m/s², and the residual,
+    # which with four poses for three parameters only says how the two rests disagree (estimators.accelerometer, eq.
+    # A5), by 13 % (right) and 18 % (left); the bias along z by 6e-5 and 2.1e-4 m/s².  With that floor and the
+    # interpolation's edge on epoch seconds given 1e-6 s, offline, the residuals agree to 3e-5 relative and the
+    # biases to 1e-8 m/s².  Bound: g·0.01° = 1.7e-3 m/s², a bias difference that tilts the vertical by the angles'
+    # bound.
+    ("accelerometer calibration", re.compile(r"^/calibration/accelerometer/\w+/(bias_m_s2\[\d\]|residual_rms_m_s2)$"),
+     0.0, 1.7e-3, "m/s²"),
+    # unit quaternions: a rotation by 0.01° (the angles' bound) moves a component by at most sin(0.005°) = 8.7e-5
+    ("quaternion components", re.compile(r"/q_sensor_segment\[\d\]$"), 0.0, 1e-4, ""),
+    # the magnetometer's soft-iron matrix, about the identity (its off-diagonal elements near 0, so absolute): a
+    # change E with every |E_ij| ≤ 5e-5 has ‖E‖₂ ≤ 1.5e-4, turning a calibrated field by at most 0.01°.  The shank's
+    # figure-eight lost the same last sample (the accelerometer's cause): 5997 samples against 5998
+    ("soft-iron matrix", re.compile(r"/soft_iron\[\d\]\[\d\]$"), 0.0, 5e-5, ""),
+    # the samples the shank's figure-eight holds: that one (5997 against 5998)
+    ("magnetometer fit's samples", re.compile(r"^/calibration/magnetometer/\w+/quality/n_samples$"), 0.0, 1, "samples"),
+    # every other whole number (counts, indices, cycle numbers): equal (None: both numbers JSON integers)
+    ("whole numbers", None, 0.0, 0.0, ""),
+    # every other angle (the mean curves, ROM, offsets): a tenth of what the reports print (0.1°); absolute, as an
+    # angle's zero is no reference for a relative bound (the rotation curve crosses it)
+    ("angles", re.compile(r"^/curves/|_deg(/|\[|$)"), 0.0, 0.01, "°"),
+    # the rest (s, %, µT, rad/s, °/s, fractions): relative, float noise absolute
+    ("the rest", re.compile(""), 1e-3, 1e-9, "relative"),
+)
 NUMBER = re.compile(r"-?\d+(?:\.\d+)?")
 #: the preview's tolerances (module docstring), degrees: RMS and largest error per angle
 PREVIEW_RMS_DEG = 1.5
@@ -74,19 +110,41 @@ LATENCY_MS = 4          # Bench.notify's air
 
 
 def _same_text(a: str, b: str) -> bool:
+    """Two sentences equal but for the file names' stamps and printed roundings (module docstring): whole numbers
+    equal, decimals within one unit of their last decimal."""
     a, b = NAME_STAMP.sub("_MetaWear_<start>_", a), NAME_STAMP.sub("_MetaWear_<start>_", b)
     if NUMBER.sub("#", a) != NUMBER.sub("#", b):
         return False
     for x, y in zip(NUMBER.findall(a), NUMBER.findall(b)):
-        unit = 10.0 ** -len(x.partition(".")[2])
-        if abs(float(x) - float(y)) > unit + 1e-12:
+        decimals = len(x.partition(".")[2])
+        unit = 10.0 ** -decimals if decimals else 0.0
+        if decimals != len(y.partition(".")[2]) or abs(float(x) - float(y)) > unit + 1e-12:
             return False
     return True
 
 
+def _bound(path: str, a, b) -> tuple:
+    """The BOUNDS entry (name, pattern, relative bound, absolute bound, unit) of the numbers ``a``, ``b`` at ``path``."""
+    whole = isinstance(a, int) and isinstance(b, int)
+    return next(e for e in BOUNDS if (e[1].search(path) if e[1] is not None else whole))
+
+
+def _numbers(a, b, path=""):
+    """(path, a, b) of every pair of numbers at the same place of two JSON documents (keys in EXCLUDED skipped)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) & set(b) - EXCLUDED):
+            yield from _numbers(a[k], b[k], f"{path}/{k}")
+    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            yield from _numbers(x, y, f"{path}[{i}]")
+    elif isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool) \
+            and not isinstance(b, bool):
+        yield path, a, b
+
+
 def _differences(a, b, path=""):
-    """The paths where two JSON documents differ beyond the tolerances (keys in EXCLUDED skipped at any depth), with
-    both values, and the largest relative difference of the numbers that are not bit-equal."""
+    """The paths where two JSON documents differ beyond the bounds (keys in EXCLUDED skipped at any depth), with both
+    values."""
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
         for k in sorted(set(a) | set(b)):
@@ -106,19 +164,22 @@ def _differences(a, b, path=""):
     if isinstance(a, bool) or isinstance(b, bool) or a is None or b is None:
         return [] if a == b else [(path, a, b)]
     if isinstance(a, (int, float)) and isinstance(b, (int, float)):
-        return [] if math.isclose(a, b, rel_tol=REL_TOL, abs_tol=ABS_TOL) else [(path, a, b)]
+        _, _, rel, tol, _ = _bound(path, a, b)
+        return [] if math.isclose(a, b, rel_tol=rel, abs_tol=tol) else [(path, a, b)]
     return [] if a == b else [(path, a, b)]
 
 
-def _not_bit_equal(a, b) -> list[float]:
-    """|a − b| of every number of two JSON documents that differs at all (the same shapes)."""
-    if isinstance(a, dict):
-        return [d for k in a if k in b and k not in EXCLUDED for d in _not_bit_equal(a[k], b[k])]
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [d for x, y in zip(a, b) for d in _not_bit_equal(x, y)]
-    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool) and a != b:
-        return [abs(a - b) / max(1.0, abs(a), abs(b))]
-    return []
+def _not_bit_equal(a, b) -> dict[str, tuple[int, float, str]]:
+    """Per quantity (BOUNDS' name): how many numbers differ at all, and the largest difference (relative where the
+    bound is, else in the unit) with its path."""
+    out: dict[str, tuple[int, float, str]] = {}
+    for path, x, y in _numbers(a, b):
+        if x != y:
+            name, _, rel, _, _ = _bound(path, x, y)
+            d = abs(x - y) / max(abs(x), abs(y)) if rel else abs(x - y)
+            n, worst, where = out.get(name, (0, -1.0, ""))
+            out[name] = (n + 1, *((d, path) if d > worst else (worst, where)))
+    return out
 
 
 def _as_exported(session, segment, role):
@@ -202,18 +263,7 @@ def test_a_session_recorded_in_the_browser_gives_the_results_of_its_files(  # no
             page.get_by_role("button", name="Connect a sensor").click()
             bench.wait(lambda k=k: page.locator(".sensor-state[data-state=connected]").count() == k, f"{p.name} connected")
         # the thigh is the sensor that moves
-        page.get_by_role("button", name="Which is the thigh sensor?").click()
-        bench.wait(lambda: thigh.is_streaming and shank.is_streaming, "both sensors streaming to identify")
-        moving = [n for n in _streams(simulated, "thigh", "task") if n.arrival_s > simulated.role_epoch_s["task"] + 3]
-        still = _streams(simulated, "shank", "standing")
-        offset = still[0].arrival_s - moving[0].arrival_s
-        for i in range(0, 600, 30):
-            bench.notify(thigh, [type(n)(n.arrival_s + offset, n.kind, n.payload) for n in moving[i:i + 30]])
-            bench.notify(shank, still[i:i + 30])
-            bench.pump()
-            if not thigh.is_streaming:
-                break
-        bench.wait(lambda: page.locator("ul.sensors li[data-segment]").count() == 2, "the sensors identified")
+        _identify(bench, page, simulated, thigh, shank)
         expect(page.locator("ul.sensors li[data-segment=thigh]")).to_contain_text("MetaWear-T7")
 
         seen = []
@@ -282,6 +332,7 @@ def test_a_session_recorded_in_the_browser_gives_the_results_of_its_files(  # no
         assert flipped <= 0.01 * total, off_by_one
         differences = _differences(recorded, uploaded)
         assert not differences, "\n".join(f"{p}: {a!r} != {b!r}" for p, a, b in differences[:60])
-        relative = _not_bit_equal(recorded, uploaded)
-        print(f"stamps 1 ms off the air's 4 ms: {flipped} of {total} samples; numbers not bit-equal: {len(relative)}, "
-              f"largest relative difference {max(relative, default=0.0):.2e}")
+        print(f"stamps 1 ms off the air's 4 ms: {flipped} of {total} samples; numbers not bit-equal, per quantity:")
+        for name, (n, worst, where) in _not_bit_equal(recorded, uploaded).items():
+            _, _, rel, tol, unit = next(e for e in BOUNDS if e[0] == name)
+            print(f"  {name}: {n}, largest {worst:.2g} {unit} (bound {rel or tol:g}) at {where}")
