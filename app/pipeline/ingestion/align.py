@@ -13,7 +13,8 @@ Assumptions about the stamps
 Method
 ------
 The grid runs over the span common to all streams, :math:`[t_0, t_1] = [\max_s t_s^{first}, \min_s
-t_s^{last}]`, at ``fs_hz``: :math:`t_k = t_0 + k/f_s`, :math:`k = 0..\lfloor (t_1-t_0) f_s\rfloor`.  Each
+t_s^{last}]`, at ``fs_hz``: :math:`t_k = t_0 + k/f_s`, :math:`k = 0..\lfloor (t_1-t_0+\epsilon) f_s\rfloor`
+(:math:`\epsilon` = :data:`SAME_INSTANT_S`: the float rounding of epoch seconds must not drop the last sample).  Each
 stream is linearly interpolated on its own stamps (the 20 Hz magnetometer is interpolated, never
 repeated).  Rows with NaN are dropped from their stream before interpolation; a grid instant strictly
 inside an interval without valid samples longer than 2.5 periods of that stream (a gap) is NaN in that
@@ -32,6 +33,13 @@ from app.pipeline.ingestion.model import (AlignedRecording, FloatArray, Ingestio
                                           rows_all, rows_any)
 
 GAP_PERIODS = 2.5
+#: Two stamps closer than this are the same instant (the grid's last sample, the edges of a stream).  Stamps are
+#: whole milliseconds (MetaBase, the browser's recordings) or finer; as float seconds near an epoch of 1.8e9 s
+#: they carry a rounding error of one ulp, 2.4e-7 s, so an exact test (the earlier 1e-9 s, or 1e-6 of a sample
+#: at 100 Hz) could drop a span's last sample when the span is a whole number of periods: the same samples
+#: stamped 4 ms later gave 2996 grid rows instead of 2997.  10 µs is 40 ulps there and a hundredth of a
+#: millisecond stamp.
+SAME_INSTANT_S = 1e-5
 #: Relative tolerance between a stream's measured rate and the expected one.
 RATE_TOLERANCE = 0.03
 MAG_MIN_FS_HZ = 5.0
@@ -56,9 +64,9 @@ def resample(stream: Stream, t_grid: FloatArray) -> FloatArray:
     out = np.stack([np.interp(t_grid, t, v[:, i]) for i in range(3)], axis=1)
     period = float(np.median(np.diff(stream.t_s)))
     j = np.clip(np.searchsorted(t, t_grid, side="right"), 1, len(t) - 1)
-    inside = (t_grid - t[j - 1] > 1e-9) & (t[j] - t_grid > 1e-9)
+    inside = (t_grid - t[j - 1] > SAME_INSTANT_S) & (t[j] - t_grid > SAME_INSTANT_S)
     gap = ((t[j] - t[j - 1]) > GAP_PERIODS * period) & inside
-    gap |= (t_grid < t[0] - 1e-9) | (t_grid > t[-1] + 1e-9)
+    gap |= (t_grid < t[0] - SAME_INSTANT_S) | (t_grid > t[-1] + SAME_INSTANT_S)
     out[gap] = np.nan
     return out
 
@@ -91,7 +99,7 @@ def _grid(t0: float, t1: float, fs_hz: float, what: str, files: str) -> FloatArr
     if t1 - t0 < 1.0:
         raise IngestionError("align.no_overlap_pair" if what == "pair" else "align.no_overlap", file=files,
                              seconds=max(t1 - t0, 0.0))
-    n = int(np.floor((t1 - t0) * fs_hz + 1e-6)) + 1
+    n = int(np.floor((t1 - t0 + SAME_INSTANT_S) * fs_hz)) + 1
     return t0 + np.arange(n) / fs_hz
 
 

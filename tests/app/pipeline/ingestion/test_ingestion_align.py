@@ -94,3 +94,19 @@ def test_simulated_task_pair_matches_the_truth(sim_session):
         assert np.max(np.abs(clean)) > 0.5                               # the check sees real motion
         mag_clean = np.stack([np.interp(t_true, imu.mag.t_true_s, imu.mag.clean[:, i]) for i in range(3)], axis=1)
         assert np.sqrt(np.mean((rec.mag - mag_clean) ** 2)) < 1.5         # µT: noise + 20 Hz interpolation
+
+
+@pytest.mark.parametrize("epoch_ms", [0, 1_767_225_600_000, 1_767_225_600_002, 1_800_000_000_123])
+def test_a_span_of_whole_periods_keeps_its_last_sample_at_any_epoch(epoch_ms):
+    """The same millisecond stamps 4 ms later gave one grid row fewer (2996 instead of 2997: the browser's
+    recordings against the same samples as files, issue 18): near an epoch of 1.8e9 s a float second carries a
+    rounding error of 2.4e-7 s, above the grid's former 1e-6-of-a-sample margin, so a span of a whole number of
+    periods lost its last instant at some epochs (1_767_225_600_002 ms here), and the edge tests (1e-9 s) would
+    have made it NaN.  The grid now has every instant at every epoch, none NaN."""
+    ms = epoch_ms + np.arange(3001) * 10                            # 100 Hz in whole milliseconds, as stamped
+    ms_mag = epoch_ms + 10 + np.arange(600) * 50                    # 20 Hz, from 10 ms to 29.96 s: the span
+    rec = RawRecording(_stream("acc", ms / 1000.0), _stream("gyr", ms / 1000.0), _stream("mag", ms_mag / 1000.0),
+                       fmt="test", segment=None, role=None, label="x")
+    a = align_recording(rec, 100.0, "shank", "standing")
+    assert len(a.t_s) == 2996                                       # 29.95 s at 100 Hz, both ends included
+    assert not np.isnan(a.acc).any() and not np.isnan(a.mag).any()
