@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from urllib.parse import urlparse
 
+from screens import look_at
 from test_browser_e2e import WAIT_MS, server, slow_expect  # noqa: F401 — fixtures
 
 
@@ -33,6 +34,7 @@ def test_docs_page_lists_the_operations_of_the_openapi_document(browser, server,
         expect(page.locator(".swagger-ui .info .title")).to_contain_text("ChakaMo")
         expect(page.locator(".opblock").first).to_be_visible()
         assert page.get_by_text("Unable to render this definition").count() == 0
+        look_at(page, page.locator(".swagger-ui .info .title"), page.locator(".opblock").first)
         shown = set()
         for block in page.locator(".opblock-summary").all():
             method = block.locator(".opblock-summary-method").inner_text().strip().upper()
@@ -45,6 +47,9 @@ def test_docs_page_lists_the_operations_of_the_openapi_document(browser, server,
         upload.locator("xpath=ancestor::div[contains(@class,'opblock-summary')]").filter(
             has=page.locator(".opblock-summary-method", has_text="POST")).first.click()
         expect(page.locator(".opblock.is-open .responses-table").first).to_be_visible()
+        opened = page.locator(".opblock.is-open")
+        opened.locator(".responses-table").first.scroll_into_view_if_needed()
+        look_at(page, opened.locator(".responses-table").first, opened.locator(".opblock-summary-path"))
         assert not errors, errors
         foreign = [u for u in requested if urlparse(u).netloc and urlparse(u).netloc != urlparse(server).netloc]
         assert not foreign, f"/docs fetched from another origin: {foreign}"

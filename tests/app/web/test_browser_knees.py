@@ -7,6 +7,7 @@ trend names its series.  Texts are read from static/i18n/pt.json."""
 from __future__ import annotations
 
 import pytest
+from screens import look_at
 from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_walk_knees, write_knees_session
@@ -58,11 +59,14 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         tags = other.locator(".tag.knee")
         slow_expect(tags.first).to_be_visible()
         assert tags.count() == len(walk_files[0]), (tags.count(), len(walk_files[0]))
+        look_at(page, other.locator(".knee-files-note"), tags.first, page.locator("button.next"))
         page.locator("button.next").click()  # the wizard opens at step 2 (the files are there): on to step 3
         involved = page.locator("select[name=involved]")
         slow_expect(involved.locator("option")).to_have_count(3)  # the patient's, right, left
         involved.select_option("left")
-        page.get_by_role("button", name=pt["wizard.process"], exact=True).click()
+        process = page.get_by_role("button", name=pt["wizard.process"], exact=True)
+        look_at(page, involved, process)
+        process.click()
         slow_expect(page.locator("#job")).to_have_attribute("data-status", "done", timeout=PROCESS_WAIT_MS)
         page.locator("#see-results").click()
         slow_expect(page.locator("#knees")).to_be_visible()
@@ -74,6 +78,14 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         row = page.locator("#lsi-table tr", has_text=pt["knees.param.swing_peak_flexion"]).first
         slow_expect(row).to_contain_text(_fmt(swing["lsi_pct"]))
         assert 75.0 < swing["lsi_pct"] < 85.0
+        # the page's top: the summary, which names the calibration used (results.js calibrationUsed)
+        summary = page.locator(".card.summary")
+        page.evaluate("() => scrollTo(0, 0)")
+        look_at(page, summary, summary.locator("dd", has_text=pt["calibration.static"]).first)
+        page.locator("#knees-flexion").scroll_into_view_if_needed()
+        look_at(page, page.locator("#knees-flexion .main-svg").first)
+        row.scroll_into_view_if_needed()
+        look_at(page, row)
 
         while context.request.get(f"{api}/jobs/{job['job_id']}").json()["status"] not in ("done", "failed"):
             page.wait_for_timeout(500)
@@ -83,6 +95,8 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
         slow_expect(table).to_be_visible()
         slow_expect(table.locator("tr", has_text=pt["knees.param.swing_peak_flexion"]).first).to_contain_text("+")
         assert page.locator("#compare-mismatch").count() == 0
+        # not looked at yet: the comparison table is 2145 px wide in 1280 px (its session headings do not wrap), the
+        # second session's and the change's columns off the screen; look_at(page, table) fails until the page is fixed
 
         page.goto(f"{server}/#/patients/{pid}")
         version = context.request.get(f"{api}/patients/{pid}/trend").json()["pipeline_version"]
@@ -90,6 +104,8 @@ def test_two_knees_lsi_and_comparison_in_the_browser(browser, server, slow_expec
             pt["patient.trend_series"].format(filter=pt["filter.chakamo"], version=version,
                                               angles=pt["angle_convention.grood_suntay"],
                                               calibration=pt["calibration.static"]))
+        page.locator("#trend-series").scroll_into_view_if_needed()
+        look_at(page, page.locator("#trend-series"))
         assert not errors, errors
     finally:
         context.close()

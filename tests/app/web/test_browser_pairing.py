@@ -9,6 +9,7 @@ the patient's side, left, is involved).  Undoing the pairing from the card leave
 from __future__ import annotations
 
 import pytest
+from screens import look_at
 from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_walk_knees, write_knees_session
@@ -48,8 +49,12 @@ def test_pair_two_sessions_and_see_both_knees(browser, server, slow_expect, knee
         assert page.locator("#pair-button").is_disabled()
         page.locator("#pair-with").select_option(str(sids["right"]))
         page.locator("#pair-knee").select_option("left")
+        card.scroll_into_view_if_needed()
+        look_at(page, card.locator("h2"), page.locator("#pair-with"), page.locator("#pair-knee"),
+                page.locator("#pair-button"))
         page.locator("#pair-button").click()
         slow_expect(page.locator("#pair-state")).to_contain_text(pt["pair.knee.left"])
+        look_at(page, page.locator("#pair-state"), page.locator("#pair-process"), page.locator("#pair-undo"))
         page.locator("#pair-process").click()
         for _ in range(PROCESS_WAIT_MS // 250):
             if "analysis_id=" in page.url:
@@ -63,10 +68,16 @@ def test_pair_two_sessions_and_see_both_knees(browser, server, slow_expect, knee
         assert swing["lsi_pct"] == pytest.approx(80.0, abs=4.0)
         row = page.locator("#lsi-table tr", has_text=pt["knees.param.swing_peak_flexion"]).first
         slow_expect(row).to_contain_text(f"{swing['lsi_pct']:.1f}".replace(".", ","))
+        page.locator("#knees-flexion").scroll_into_view_if_needed()
+        look_at(page, page.locator("#knees-flexion .main-svg").first)
+        row.scroll_into_view_if_needed()
+        look_at(page, row)
         assert context.request.get(f"{api}/sessions/{sids['right']}").json()["paired_session_id"] == sids["left"]
 
         page.locator("#pair-undo").click()
         slow_expect(page.locator("#pair-with")).to_be_visible()
+        page.locator("#pair-with").scroll_into_view_if_needed()
+        look_at(page, page.locator("#pair-with"), page.locator("#pair-knee"))
         assert context.request.get(f"{api}/sessions/{sids['left']}").json()["paired_session_id"] is None
         assert not errors, errors
     finally:

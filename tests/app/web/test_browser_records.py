@@ -9,6 +9,7 @@ import hashlib
 
 import pytest
 
+from screens import look_at
 from test_browser_e2e import csrf_header, _tables, log_in, open_page, server, slow_expect  # noqa: F401 — fixtures
 
 DATA = b"acc_x (g),acc_y (g),acc_z (g)\n0.0,0.0,1.0\n# browser erasure\n"
@@ -37,10 +38,12 @@ def test_edit_patient_and_delete_session_and_patient_with_confirmation(browser, 
         page.goto(f"{server}/#/patients/{pid}")
         page.get_by_role("button", name=tr["patient.edit"]).click()
         form = page.locator("#edit-patient")
+        look_at(page, form.locator("input[name=name]"), form.get_by_role("button", name=tr["common.save"]))
         form.locator("input[name=name]").fill("Ana <b>Edit</b>")
         form.get_by_role("button", name=tr["common.save"]).click()
         slow_expect(page.locator("h1")).to_have_text("Ana <b>Edit</b> (BR-ERASE)")  # text, never markup
         assert context.request.get(f"{api}/patients/{pid}").json()["version"] == 2
+        look_at(page, page.locator("h1"), page.locator("[data-action=delete-session]"))
 
         # the session: the dialog says what is lost; Cancel keeps it
         page.locator("[data-action=delete-session]").click()
@@ -49,6 +52,8 @@ def test_edit_patient_and_delete_session_and_patient_with_confirmation(browser, 
         slow_expect(dialog).to_contain_text(tr["sessions.delete_text"])
         box = dialog.bounding_box()
         assert box and box["width"] > 200 and box["height"] > 80  # shown, not a zero-size element
+        look_at(page, dialog, dialog.get_by_role("button", name=tr["common.cancel"]),
+                dialog.get_by_role("button", name=tr["common.delete_for_good"]))
         dialog.get_by_role("button", name=tr["common.cancel"]).click()
         slow_expect(dialog).to_have_count(0)
         assert context.request.get(f"{api}/sessions/{sid}").status == 200
@@ -65,10 +70,12 @@ def test_edit_patient_and_delete_session_and_patient_with_confirmation(browser, 
         dialog.locator("input[name=confirm]").fill("BR-ERAS")
         dialog.get_by_role("button", name=tr["common.delete_for_good"]).click()
         slow_expect(dialog).to_contain_text(tr["patient.delete_mismatch"])
+        look_at(page, dialog, dialog.get_by_text(tr["patient.delete_mismatch"]), dialog.locator("input[name=confirm]"))
         assert context.request.get(f"{api}/patients/{pid}").status == 200
         dialog.locator("input[name=confirm]").fill("BR-ERASE")
         dialog.get_by_role("button", name=tr["common.delete_for_good"]).click()
         slow_expect(page.locator("h1")).to_have_text(tr["patients.title"])
+        look_at(page, page.locator("h1"))
         assert context.request.get(f"{api}/patients/{pid}").status == 404
         assert errors == []
     finally:
