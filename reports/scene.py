@@ -406,7 +406,7 @@ def scene_html(ri: ReportInput, *, rate_hz: float = SCENE_RATE_HZ, dark_mode: bo
 MAX_INNER_BYTES = 64 * 2**20
 
 
-def inner_bytes(raw: bytes, limit: int = MAX_INNER_BYTES) -> bytes:
+def inner_bytes(raw: bytes, limit: int = MAX_INNER_BYTES) -> bytearray:
     """A ``.viser`` recording's decompressed inner payload (module docstring's layout), never more than ``limit``
     bytes decompressed (:data:`MAX_INNER_BYTES`): ``ValueError`` for a payload that is, or says it is, larger, or
     that does not decompress to the size it states."""
@@ -417,31 +417,34 @@ def inner_bytes(raw: bytes, limit: int = MAX_INNER_BYTES) -> bytes:
     inner_size = int.from_bytes(raw[:8], "little")
     if inner_size > limit:
         raise ValueError(f"the .viser recording states {inner_size} bytes decompressed, more than {limit}")
-    chunks, total = [], 0
+    inner, total = bytearray(inner_size), 0   # filled in place: no second copy of the payload
+    view = memoryview(inner)
     try:
         with zstandard.ZstdDecompressor().stream_reader(raw[8:]) as reader:
-            while total <= inner_size:
-                chunk = reader.read(min(1 << 20, inner_size + 1 - total))
-                if not chunk:
+            while total < inner_size:
+                got = reader.readinto(view[total:])
+                if not got:
                     break
-                chunks.append(chunk)
-                total += len(chunk)
+                total += got
+            beyond = len(reader.read(1))
     except zstandard.ZstdError as exc:
         raise ValueError(f"corrupt .viser recording: {exc}") from exc
-    if total != inner_size:
-        raise ValueError(f"corrupt .viser recording: {'more than ' if total > inner_size else ''}{total} bytes "
+    finally:
+        view.release()
+    if total != inner_size or beyond:
+        raise ValueError(f"corrupt .viser recording: {'more than ' if beyond else ''}{total} bytes "
                          f"decompressed, {inner_size} announced")
-    return b"".join(chunks)
+    return inner
 
 
-def inner_payload(raw: bytes) -> tuple[bytes, dict[str, Any]]:
+def inner_payload(raw: bytes) -> tuple[bytearray, dict[str, Any]]:
     """A ``.viser`` recording's decompressed inner payload (:func:`inner_bytes`) and its decoded msgpack part
     (module docstring's layout): ``(inner, {"durationSeconds", "messages", "viserVersion", "binaryBufferLengths"})``."""
     import msgspec.msgpack
 
     inner = inner_bytes(raw)
     n = int.from_bytes(inner[:8], "little")
-    return inner, msgspec.msgpack.decode(inner[8:8 + n])
+    return inner, msgspec.msgpack.decode(memoryview(inner)[8:8 + n])
 
 
 def read_scene(source: str | os.PathLike | bytes) -> dict[str, Any]:

@@ -93,7 +93,7 @@ def first_state(raw: bytes) -> dict[str, Any]:
     inner = inner_bytes(raw)
     n = int.from_bytes(inner[:8], "little")
     try:
-        recording = msgspec.msgpack.decode(inner[8:8 + n], type=_Recording)
+        recording = msgspec.msgpack.decode(memoryview(inner)[8:8 + n], type=_Recording)
     except msgspec.DecodeError as exc:
         raise ValueError(f"not a .viser recording the still can read: {exc}") from exc
     major = recording.viserVersion.split(".")[0]
