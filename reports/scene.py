@@ -399,20 +399,52 @@ def scene_html(ri: ReportInput, *, rate_hz: float = SCENE_RATE_HZ, dark_mode: bo
         return _record(server, data, rate_hz, LABEL_EVERY).as_html(dark_mode=dark_mode)
 
 
-def inner_payload(raw: bytes) -> tuple[bytes, dict[str, Any]]:
-    """A ``.viser`` recording's decompressed inner payload and its decoded msgpack part (module docstring's
-    layout): ``(inner, {"durationSeconds", "messages", "viserVersion", "binaryBufferLengths"})``."""
-    import msgspec.msgpack
+#: the largest decompressed ``.viser`` payload read back, bytes.  The file states its own size, and zstd ignores an
+#: output limit when the frame header states its content size too (a 12.8 KB file can ask for 400 MB), so the
+#: payload is read through a streaming decompressor that stops at this many bytes.  A 30-minute task's recording
+#: decompresses to a few MB.
+MAX_INNER_BYTES = 64 * 2**20
+
+
+def inner_bytes(raw: bytes, limit: int = MAX_INNER_BYTES) -> bytearray:
+    """A ``.viser`` recording's decompressed inner payload (module docstring's layout), never more than ``limit``
+    bytes decompressed (:data:`MAX_INNER_BYTES`): ``ValueError`` for a payload that is, or says it is, larger, or
+    that does not decompress to the size it states."""
     import zstandard
 
     if len(raw) < 16:
         raise ValueError("not a .viser recording: too short")
     inner_size = int.from_bytes(raw[:8], "little")
-    inner = zstandard.ZstdDecompressor().decompress(raw[8:], max_output_size=inner_size)
-    if len(inner) != inner_size:
-        raise ValueError(f"corrupt .viser recording: {len(inner)} bytes decompressed, {inner_size} announced")
+    if inner_size > limit:
+        raise ValueError(f"the .viser recording states {inner_size} bytes decompressed, more than {limit}")
+    inner, total = bytearray(inner_size), 0   # filled in place: no second copy of the payload
+    view = memoryview(inner)
+    try:
+        with zstandard.ZstdDecompressor().stream_reader(raw[8:]) as reader:
+            while total < inner_size:
+                got = reader.readinto(view[total:])
+                if not got:
+                    break
+                total += got
+            beyond = len(reader.read(1))
+    except zstandard.ZstdError as exc:
+        raise ValueError(f"corrupt .viser recording: {exc}") from exc
+    finally:
+        view.release()
+    if total != inner_size or beyond:
+        raise ValueError(f"corrupt .viser recording: {'more than ' if beyond else ''}{total} bytes "
+                         f"decompressed, {inner_size} announced")
+    return inner
+
+
+def inner_payload(raw: bytes) -> tuple[bytearray, dict[str, Any]]:
+    """A ``.viser`` recording's decompressed inner payload (:func:`inner_bytes`) and its decoded msgpack part
+    (module docstring's layout): ``(inner, {"durationSeconds", "messages", "viserVersion", "binaryBufferLengths"})``."""
+    import msgspec.msgpack
+
+    inner = inner_bytes(raw)
     n = int.from_bytes(inner[:8], "little")
-    return inner, msgspec.msgpack.decode(inner[8:8 + n])
+    return inner, msgspec.msgpack.decode(memoryview(inner)[8:8 + n])
 
 
 def read_scene(source: str | os.PathLike | bytes) -> dict[str, Any]:

@@ -26,6 +26,8 @@ import functools
 import io
 from typing import Any
 
+import msgspec
+import msgspec.msgpack
 import numpy as np
 
 from estimators import quaternion as quat
@@ -38,6 +40,12 @@ WIDTH, HEIGHT = 960, 480
 NEAR_M = 0.01
 GRID_RGB = (200, 200, 200)
 SECTION_RGB = (140, 140, 140)
+#: the viser major version whose recordings the still reads (the dependency is ``viser>=1.0,<2``; 0.x meshes had
+#: no ``props``)
+VISER_MAJOR = "1"
+#: caps on what one recording may ask the still to draw (the bones have a few thousand of each; a grid line per
+#: cell of the ground's 10 cm grid: a few hundred)
+MAX_VERTICES, MAX_FACES, MAX_GRID_LINES = 200_000, 400_000, 2_000
 
 
 def _resolve(obj: Any, buffers: list[memoryview], dtypes: dict) -> Any:
@@ -51,40 +59,76 @@ def _resolve(obj: Any, buffers: list[memoryview], dtypes: dict) -> Any:
     return obj
 
 
+class _Recording(msgspec.Struct):
+    """The msgpack part of a ``.viser`` recording as the still reads it: each message's time decoded, the message
+    itself kept as its raw msgpack bytes (``msgspec.Raw``), so only the messages of t = 0 are decoded."""
+    messages: list[tuple[float, msgspec.Raw]]
+    viserVersion: str = ""  # noqa: N815 (the file's own field name)
+    binaryBufferLengths: list[int] = []  # noqa: N815, RUF012
+
+
+def _mesh(props: dict, name: str) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+    """A ``MeshMessage``'s (vertices (n, 3), faces (m, 3), rgb), checked: at most :data:`MAX_VERTICES` /
+    :data:`MAX_FACES`, every face index a vertex."""
+    vertices = np.asarray(props["vertices"], dtype=float).reshape(-1, 3)
+    faces = np.asarray(props["faces"], dtype=np.int64).reshape(-1, 3)
+    if len(vertices) > MAX_VERTICES or len(faces) > MAX_FACES:
+        raise ValueError(f"mesh {name}: {len(vertices)} vertices, {len(faces)} faces, more than the still draws "
+                         f"({MAX_VERTICES}, {MAX_FACES})")
+    if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise ValueError(f"mesh {name}: a face names a vertex it does not have")
+    return vertices, faces, tuple(int(c) for c in props.get("color") or (200, 200, 200))
+
+
 def first_state(raw: bytes) -> dict[str, Any]:
     """The recording's state at t = 0: ``{"meshes": {path: (vertices (n, 3), faces (m, 3), rgb)}, "wxyz": {path:
-    (4,)}, "position": {path: (3,)}, "grids": {path: props}, "camera": {"position", "look_at", "up"}}``."""
-    from reports.scene import inner_payload
+    (4,)}, "position": {path: (3,)}, "grids": {path: props}, "camera": {"position", "look_at", "up"}}``.
 
-    inner, recording = inner_payload(raw)
-    offset = 8 + int.from_bytes(inner[:8], "little")
+    Bounded: the payload is decompressed through :func:`reports.scene.inner_bytes` (at most
+    :data:`reports.scene.MAX_INNER_BYTES`), only the messages of t = 0 are decoded, meshes and grids are capped
+    (:data:`MAX_VERTICES`, :data:`MAX_FACES`, :data:`MAX_GRID_LINES`).  ``ValueError`` for a recording the still
+    cannot read: another viser major version than :data:`VISER_MAJOR`, a message of a shape it does not know."""
+    from reports.scene import inner_bytes
+
+    inner = inner_bytes(raw)
+    n = int.from_bytes(inner[:8], "little")
+    try:
+        recording = msgspec.msgpack.decode(memoryview(inner)[8:8 + n], type=_Recording)
+    except msgspec.DecodeError as exc:
+        raise ValueError(f"not a .viser recording the still can read: {exc}") from exc
+    major = recording.viserVersion.split(".")[0]
+    if major != VISER_MAJOR:
+        raise ValueError(f"the recording was made by viser {recording.viserVersion or '(unknown)'}; the still reads "
+                         f"viser {VISER_MAJOR}.x")
+    offset = 8 + n
     buffers = []
-    for n in recording.get("binaryBufferLengths") or ():
+    for size in recording.binaryBufferLengths:
         offset += (8 - offset % 8) % 8
-        buffers.append(memoryview(inner)[offset:offset + n])
-        offset += n
+        buffers.append(memoryview(inner)[offset:offset + size])
+        offset += size
     state: dict[str, Any] = {"meshes": {}, "wxyz": {}, "position": {}, "grids": {}, "camera": {}}
-    for t_s, message in recording["messages"]:
-        if t_s > 0:
-            break
-        kind, name = message.get("type"), message.get("name")
-        if kind == "MeshMessage":
-            props = _resolve(message["props"], buffers, {})
-            state["meshes"][name] = (np.asarray(props["vertices"], dtype=float).reshape(-1, 3),
-                                     np.asarray(props["faces"], dtype=np.int64).reshape(-1, 3),
-                                     tuple(int(c) for c in props.get("color") or (200, 200, 200)))
-        elif kind == "SetOrientationMessage":
-            state["wxyz"][name] = np.asarray(message["wxyz"], dtype=float)
-        elif kind == "SetPositionMessage":
-            state["position"][name] = np.asarray(message["position"], dtype=float)
-        elif kind == "GridMessage":
-            state["grids"][name] = message["props"]
-        elif kind == "SetCameraPositionMessage":
-            state["camera"]["position"] = np.asarray(message["position"], dtype=float)
-        elif kind == "SetCameraLookAtMessage":
-            state["camera"]["look_at"] = np.asarray(message["look_at"], dtype=float)
-        elif kind == "SetCameraUpDirectionMessage":
-            state["camera"]["up"] = np.asarray(message["position"], dtype=float)
+    try:
+        for t_s, encoded in recording.messages:
+            if t_s > 0:
+                break
+            message = msgspec.msgpack.decode(encoded)
+            kind, name = message.get("type"), message.get("name")
+            if kind == "MeshMessage":
+                state["meshes"][name] = _mesh(_resolve(message["props"], buffers, {}), name)
+            elif kind == "SetOrientationMessage":
+                state["wxyz"][name] = np.asarray(message["wxyz"], dtype=float).reshape(4)
+            elif kind == "SetPositionMessage":
+                state["position"][name] = np.asarray(message["position"], dtype=float).reshape(3)
+            elif kind == "GridMessage":
+                state["grids"][name] = dict(message["props"])
+            elif kind == "SetCameraPositionMessage":
+                state["camera"]["position"] = np.asarray(message["position"], dtype=float).reshape(3)
+            elif kind == "SetCameraLookAtMessage":
+                state["camera"]["look_at"] = np.asarray(message["look_at"], dtype=float).reshape(3)
+            elif kind == "SetCameraUpDirectionMessage":
+                state["camera"]["up"] = np.asarray(message["position"], dtype=float).reshape(3)
+    except (KeyError, IndexError, TypeError, AttributeError, msgspec.DecodeError) as exc:
+        raise ValueError(f"a message of the recording's start the still cannot read: {exc!r}") from exc
     return state
 
 
@@ -121,6 +165,10 @@ def _grid_segments(props: dict, origin: np.ndarray) -> list[tuple[np.ndarray, np
     """The grid's lines (plane ``xy``, centred on ``origin``): (start, end, is a section line)."""
     w, h = float(props.get("width", 1.0)), float(props.get("height", 1.0))
     cell, section = float(props.get("cell_size", 0.1)), float(props.get("section_size", 1.0))
+    if not all(np.isfinite(x) and x > 0 for x in (w, h, cell, section)):
+        raise ValueError(f"a grid of width {w}, height {h}, cell {cell}, section {section}: not positive and finite")
+    if w / cell + h / cell + 2 > MAX_GRID_LINES:
+        raise ValueError(f"a grid of {w} × {h} with cell {cell}: more than {MAX_GRID_LINES} lines")
     lines = []
     for along, span, size in ((0, w, h), (1, h, w)):
         for k in range(int(round(span / cell)) + 1):
@@ -186,4 +234,5 @@ def still_png(raw: bytes, width: int = WIDTH, height: int = HEIGHT) -> bytes:
     return out.getvalue()
 
 
-__all__ = ["FOV_DEG", "HEIGHT", "WIDTH", "first_state", "still_png", "world_points"]
+__all__ = ["FOV_DEG", "HEIGHT", "MAX_FACES", "MAX_GRID_LINES", "MAX_VERTICES", "VISER_MAJOR", "WIDTH", "first_state",
+           "still_png", "world_points"]

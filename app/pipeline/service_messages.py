@@ -214,6 +214,13 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "Analysis {analysis_id} has no {name}{in_lang}; process the session again to make it.",
         "es": "El análisis {analysis_id} no tiene {name}{in_lang}; procese la sesión de nuevo para generarlo.",
         "pt": "A análise {analysis_id} não tem {name}{in_lang}; processe a sessão de novo para gerá-lo."},
+    "store.no_still": {
+        "en": "The 3D recording of analysis {analysis_id} cannot be drawn as a still picture; open the 3D view, or "
+              "process the session again to record it anew.",
+        "es": "La grabación 3D del análisis {analysis_id} no se puede dibujar como imagen fija; abra la vista 3D o "
+              "procese la sesión de nuevo para grabarla otra vez.",
+        "pt": "A gravação 3D da análise {analysis_id} não pode ser desenhada como imagem fixa; abra a vista 3D ou "
+              "processe a sessão de novo para a gravar outra vez."},
     "store.interpretation_empty": {
         "en": "The interpretation's {field} is empty; write it first.",
         "es": "El campo {field} de la interpretación está vacío; escríbalo primero.",

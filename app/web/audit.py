@@ -29,6 +29,7 @@ route                                                   action        patient / 
 ``DELETE /patients/{id}``, ``DELETE /sessions/{id}``    ``delete``    patient / (session)
 ``GET /sessions/{id}/results``                          ``view``      patient / session
 ``GET /sessions/{id}/report.pdf`` … ``scene.viser``     ``download``  patient / session
+``GET /sessions/{id}/scene.png`` (the 3D view's still)  ``download``  patient / session
 ``GET /fhir/DiagnosticReport/{id}``                     ``export``    patient / session
 ``POST /sessions/{id}/process``                         ``process``   patient / session
 ``GET /sessions/{id}/interpretation``                   ``view``      patient / session

@@ -817,9 +817,13 @@ function showProgress(ctx, jobId) {
 const STREAM_QUIET_MS = 4000;   // no news of the job this long after the stream opened: its state is read once
 
 /** The job's news from the server-sent event stream (GET /events) into `render`, until it ends (then its full
- *  state, GET /jobs/{id}, once) or the box leaves the page; `fallback()` (polling) takes over if the stream cannot
- *  be opened, breaks twice in a row without coming back, or ends.  The box counts the events it received
- *  (data-events) and says which way the news came (data-via). */
+ *  state, GET /jobs/{id}, once) or the box leaves the page; `fallback()` (polling, which retries a failed read)
+ *  takes over if the stream cannot be opened, breaks twice in a row without coming back, or ends, and if a read of
+ *  GET /jobs/{id} fails (a network blip, 503, a restart: also the one read at the end, which would otherwise leave
+ *  the bar standing).  Every (re)connection that brings no news of the job within STREAM_QUIET_MS reads its state
+ *  once: the server ends each stream after 10 minutes and a new one only looks back 5 s, so a job that ended while
+ *  the page reconnected is found this way.  The box counts the events it received (data-events) and says which way
+ *  the news came (data-via). */
 function followStream(box, jobId, render, ended, fallback) {
   if (typeof EventSource === "undefined") {
     box.dataset.via = "polling";
@@ -833,9 +837,11 @@ function followStream(box, jobId, render, ended, fallback) {
   let errors = 0;
   let heard = false;
   let done = false;
+  let polling = false;
   const stop = () => { done = true; source.close(); clearInterval(watch); };
-  const toPolling = () => {
-    if (done) return;
+  const toPolling = () => {             // at most once, also after stop(): the end's read can fail after it
+    if (polling) return;
+    polling = true;
     stop();
     box.dataset.via = "polling";
     fallback();
@@ -855,6 +861,7 @@ function followStream(box, jobId, render, ended, fallback) {
   source.addEventListener("open", () => {
     opened = true;
     errors = 0;
+    heard = false;                          // a reconnection: news of the job from this stream, else one read
     setTimeout(async () => {
       if (heard || done || !box.isConnected) return;
       const job = await readOnce();

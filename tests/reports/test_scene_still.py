@@ -1,10 +1,16 @@
 """The still first frame (reports/scene_still.py) reads the recording's own first state and draws it where viser's
 camera sees it.  Truth: the scene's input (:class:`reports.scene.SceneData`: the meshes of :mod:`reports.bones`, the
-first sample's segment orientations, the heading removal, the tibia length), not the recording path under test."""
+first sample's segment orientations, the heading removal, the tibia length), not the recording path under test.
+
+A recording the still cannot draw is refused with one ``ValueError`` (the route answers it as ``store.no_still``),
+and what a crafted recording can make it do is bounded: files built from a real recording with one thing changed
+(the size its zstd frame states, a grid's cell, a mesh, the viser version) are refused with little memory
+(tracemalloc) and few grid lines, not timed."""
 
 from __future__ import annotations
 
 import io
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -73,3 +79,118 @@ def test_a_recording_without_meshes_is_refused():
         server.stop()
     with pytest.raises(ValueError, match="no mesh"):
         still_png(raw)
+
+
+def _rewrite(raw: bytes, edit) -> bytes:
+    """``raw`` with its msgpack part and binary buffers changed by ``edit(recording, buffers)`` (in place), repacked in the same layout
+    (``[u64 size][zstd([u64 n][msgpack][8-byte aligned buffers])]``, reports/scene.py's docstring)."""
+    import msgspec.msgpack
+    import zstandard
+
+    from reports.scene import inner_payload
+
+    inner = inner_payload(raw)[0]
+    n = int.from_bytes(inner[:8], "little")
+    recording = msgspec.msgpack.decode(inner[8:8 + n])
+    offset, buffers = 8 + n, []
+    for size in recording["binaryBufferLengths"]:
+        offset += (8 - offset % 8) % 8
+        buffers.append(inner[offset:offset + size])
+        offset += size
+    edit(recording, buffers)
+    packed = msgspec.msgpack.encode(recording)
+    out = bytearray(len(packed).to_bytes(8, "little") + packed)
+    for buf in buffers:
+        out += b"\0" * ((8 - len(out) % 8) % 8) + buf
+    return len(out).to_bytes(8, "little") + zstandard.ZstdCompressor().compress(bytes(out))
+
+
+def _messages(recording, kind):
+    return [m for t, m in recording["messages"] if t == 0 and m.get("type") == kind]
+
+
+def test_the_rewrite_helper_keeps_a_recording_drawable(recorded):
+    _, raw = recorded
+    assert still_png(_rewrite(raw, lambda rec, buffers: None)) == still_png(raw)
+
+
+def _peak_bytes(call) -> int:
+    tracemalloc.start()
+    try:
+        call()
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    return peak
+
+
+def test_a_frame_stating_a_huge_size_is_not_decompressed_beyond_the_cap():
+    """A zstd frame whose header states its own content size (80 MB of zeros, ~2.6 kB compressed) behind a file
+    header stating 1 kB: zstd's output limit is ignored for such a frame, the streaming read is not."""
+    import zstandard
+
+    from reports.scene import read_scene
+
+    size = 80 * 2**20
+    packer = zstandard.ZstdCompressor().compressobj(size=size)
+    frame = b"".join(packer.compress(bytes(2**20)) for _ in range(size // 2**20)) + packer.flush()
+    assert zstandard.frame_content_size(frame) == size and len(frame) < 10_000
+    bomb = (1000).to_bytes(8, "little") + frame
+    peak = _peak_bytes(lambda: pytest.raises(ValueError, read_scene, bomb))
+    assert peak < 4 * 2**20, peak
+    with pytest.raises(ValueError, match="more than"):
+        first_state((size).to_bytes(8, "little") + frame)   # a stated size over MAX_INNER_BYTES: not even read
+
+
+def test_a_grid_of_too_many_lines_is_refused(recorded, monkeypatch):
+    """A ground grid of 2 m with a 20 µm cell would be 200,000 lines: refused, and no line is drawn (counted)."""
+    import reports.scene_still as still
+
+    _, raw = recorded
+
+    def tiny_cell(rec, buffers):
+        _messages(rec, "GridMessage")[0]["props"]["cell_size"] = 2e-5
+
+    crafted = _rewrite(raw, tiny_cell)
+    drawn = []
+    real = still._grid_segments
+    monkeypatch.setattr(still, "_grid_segments", lambda *a: drawn.extend(real(*a)) or drawn)
+    with pytest.raises(ValueError, match="lines"):
+        still_png(crafted)
+    assert drawn == []
+
+
+def test_meshes_beyond_the_caps_or_with_faces_out_of_range_are_refused(recorded):
+    _, raw = recorded
+
+    def faces_of_the_tibia(rec, buffers):   # the femur (2,438 vertices) given the tibia's faces (up to 2,479)
+        tibia, femur = _messages(rec, "MeshMessage")
+        femur["props"]["faces"] = dict(tibia["props"]["faces"])
+
+    def too_many_vertices(rec, buffers):    # the femur given a vertex buffer of MAX_VERTICES + 1 points
+        from reports.scene_still import MAX_VERTICES
+
+        buffers.append(np.zeros((MAX_VERTICES + 1, 3), dtype=np.float32).tobytes())
+        rec["binaryBufferLengths"].append(len(buffers[-1]))
+        _messages(rec, "MeshMessage")[1]["props"]["vertices"]["__binary_index"] = len(buffers) - 1
+
+    with pytest.raises(ValueError, match="names a vertex"):
+        still_png(_rewrite(raw, faces_of_the_tibia))
+    with pytest.raises(ValueError, match="vertices"):
+        still_png(_rewrite(raw, too_many_vertices))
+
+
+def test_another_viser_major_version_or_an_unknown_message_shape_is_refused(recorded):
+    _, raw = recorded
+
+    def old_version(rec, buffers):
+        rec["viserVersion"] = "0.2.23"
+
+    def no_props(rec, buffers):   # viser 0.x's MeshMessage: its fields at the top, no ``props``
+        mesh = _messages(rec, "MeshMessage")[0]
+        mesh.update(mesh.pop("props"))
+
+    with pytest.raises(ValueError, match="viser 0.2.23"):
+        still_png(_rewrite(raw, old_version))
+    with pytest.raises(ValueError, match="cannot read"):
+        still_png(_rewrite(raw, no_props))

@@ -1,5 +1,7 @@
 """Downloads of an analysis' artefacts: report.pdf (es, en, pt), angles.xlsx, quaternions.xlsx, report.html,
-scene.viser, timeseries.npz (the task's angles and orientations, :func:`app.pipeline.results.timeseries_npz`).
+scene.viser, timeseries.npz (the task's angles and orientations, :func:`app.pipeline.results.timeseries_npz`), and
+scene.png, the 3D view's first frame drawn from scene.viser per request (:mod:`reports.scene_still`; 404
+``store.no_still`` for a recording it cannot draw; inline, not stored).
 Checksums are verified on every read (:meth:`app.store.blobs.BlobStore.read`).
 
 Files to keep (PDF, Excel, npz) come as attachments named
@@ -14,8 +16,9 @@ The file name's recordings' date comes from the analysis' small ``patient.json``
 printed), not from its results.json.
 report.html carries ``Content-Security-Policy: sandbox allow-scripts; default-src 'none'; …``
 (:data:`app.web.headers.REPORT_HTML_CSP`): it holds text typed by people (patient name, notes), so even if
-escaping failed its scripts could not act as the logged-in user, nor reach the network.  Every download is
-audited (``download`` of the session's patient, :mod:`app.web.audit`), in the request's transaction.
+escaping failed its scripts could not act as the logged-in user, nor reach the network.  Every download,
+scene.png included, is audited (``download`` of the session's patient, :mod:`app.web.audit`), in the request's
+transaction.
 A superseded analysis (:mod:`app.store.analyses`) is never the default: without ``analysis_id`` the downloads
 answer 409 "process the session again"; asked for by id it is served with ``X-Analysis-Status: superseded``
 and a file name ending in ``-superseded`` (:mod:`.results`).
@@ -24,6 +27,7 @@ and a file name ending in ``-superseded`` (:mod:`.results`).
 from __future__ import annotations
 
 import json
+import logging
 import re
 import unicodedata
 
@@ -31,12 +35,15 @@ from fastapi import APIRouter, Request
 from fastapi.responses import Response
 
 from app.store.analyses import artefact, find_artefact, pick_analysis
+from app.store.errors import NotFound
 from app.store.signed_reports import PATIENT_JSON, signed_artefact
 from app.web import audit
 from app.web.api.deps import DbDep, Reader, StoreDep, scoped_session
 from app.web.api.schemas import Lang
 from app.web.records import STATUS_HEADER, analysis_status
 from app.web.headers import REPORT_HTML_CSP
+
+log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/sessions", tags=["artefacts"],
                    responses={409: {"description": "the latest analysis is superseded (process the session again), "
@@ -96,12 +103,18 @@ def _send(db, store, principal, request: Request, session_id: int, name: str, an
 def scene_png(session_id: int, principal: Reader, db: DbDep, store: StoreDep, request: Request,
               analysis_id: int | None = None):
     """The 3D view's first frame as a still picture, drawn from scene.viser's first state
-    (:mod:`reports.scene_still`): what the results page shows until viser's client plays the recording."""
+    (:mod:`reports.scene_still`): what the results page shows until viser's client plays the recording.  A
+    recording the still cannot draw (another viser major version, no mesh, beyond the still's caps) is refused
+    like a missing artefact: 404 ``store.no_still``."""
     from reports.scene_still import still_png
 
     session = scoped_session(db, principal, session_id)
     analysis = pick_analysis(db, session, analysis_id)
-    png = still_png(store.read(artefact(db, analysis, "scene.viser").sha256))
+    try:
+        png = still_png(store.read(artefact(db, analysis, "scene.viser").sha256))
+    except ValueError as exc:  # a recording the still cannot draw (another viser major, no mesh, over a cap)
+        log.warning("analysis %s: no still of its scene.viser: %s", analysis.id, exc)
+        raise NotFound(code="store.no_still", analysis_id=analysis.id) from exc
     audit.record(db, request, principal, "download", patient_id=session.patient_id, session_id=session.id)
     return Response(png, media_type="image/png", headers={STATUS_HEADER: analysis_status(analysis)})
 

@@ -93,6 +93,7 @@ READ_ROUTES = [
     ("GET", "/api/v1/sessions/{sid}/quaternions.xlsx", "download", "pid", "sid"),
     ("GET", "/api/v1/sessions/{sid}/report.html", "download", "pid", "sid"),
     ("GET", "/api/v1/sessions/{sid}/scene.viser", "download", "pid", "sid"),
+    ("GET", "/api/v1/sessions/{sid}/scene.png", "download", "pid", "sid"),
     ("GET", "/api/v1/sessions/{sid}/timeseries.npz", "download", "pid", "sid"),
     ("GET", "/api/v1/fhir/DiagnosticReport/{sid}", "export", "pid", "sid"),
 ]

@@ -33,7 +33,7 @@ READS = ["/api/v1/patients/{pid}", "/api/v1/patients/{pid}/sessions", "/api/v1/p
          "/api/v1/sessions/{sid}/results?analysis_id={aid}", "/api/v1/sessions/{sid}/report.pdf?lang=pt",
          "/api/v1/sessions/{sid}/angles.xlsx", "/api/v1/sessions/{sid}/quaternions.xlsx",
          "/api/v1/sessions/{sid}/report.html", "/api/v1/sessions/{sid}/scene.viser",
-         "/api/v1/fhir/DiagnosticReport/{sid}"]
+         "/api/v1/sessions/{sid}/scene.png", "/api/v1/fhir/DiagnosticReport/{sid}"]
 
 
 @pytest.mark.parametrize("path", READS)
@@ -91,6 +91,7 @@ ANALYSIS_READS = ["/api/v1/sessions/{bsid}/results?analysis_id={aid}",
                   "/api/v1/sessions/{bsid}/report.pdf?analysis_id={aid}",
                   "/api/v1/sessions/{bsid}/angles.xlsx?analysis_id={aid}",
                   "/api/v1/sessions/{bsid}/scene.viser?analysis_id={aid}",
+                  "/api/v1/sessions/{bsid}/scene.png?analysis_id={aid}",
                   "/api/v1/fhir/DiagnosticReport/{bsid}?analysis_id={aid}"]
 
 
@@ -148,3 +149,57 @@ def test_a_damaged_stored_file_answers_a_reference_not_a_path(world, caplog):
     ref = detail.split("reference ")[1][:8]
     assert any(ref in rec.getMessage() and sha[:12] in rec.getMessage() for rec in caplog.records)
     assert c.get(f"/api/v1/sessions/{world['sid']}/results", headers=world["a"]).status_code == 200
+
+
+def _scene_bytes(world, data: bytes | None) -> bytes:
+    """Swap the stored scene.viser of clinic A's analysis for ``data`` (a blob row and file of its own, as the
+    store keeps them), or with ``None`` only read it: the bytes it had."""
+    from sqlalchemy import select
+
+    from app.store.blobs import BlobStore
+    from app.store.database import Database
+    from app.store.models import Artefact, Blob
+
+    db, store = Database(world["settings"].db_url), BlobStore(world["settings"].blob_dir)
+    try:
+        with db.session() as s:
+            art = s.scalars(select(Artefact).where(Artefact.analysis_id == world["aid"],
+                                                   Artefact.name == "scene.viser")).one()
+            old = store.read(art.sha256)
+            if data is not None:
+                sha, size = store.put(data)
+                if s.get(Blob, sha) is None:
+                    s.add(Blob(sha256=sha, size_bytes=size))
+                    s.flush()
+                art.sha256, art.size_bytes = sha, size
+        return old
+    finally:
+        db.dispose()
+
+
+def test_a_scene_the_still_cannot_draw_is_refused_in_three_languages(world):
+    """A stored scene.viser of another viser major version (0.x: no ``props`` on its meshes): 404
+    ``store.no_still`` with the catalogue's sentence in es/en/pt, like a missing artefact, not a bare 500."""
+    import msgspec.msgpack
+    import zstandard
+
+    from app.pipeline.service_messages import CATALOGUE
+    from reports.scene import inner_payload
+
+    c, url = world["client"], f"/api/v1/sessions/{world['sid']}/scene.png"
+    good = _scene_bytes(world, None)
+    inner, recording = inner_payload(good)
+    n = int.from_bytes(inner[:8], "little")
+    recording["viserVersion"] = "0.2.23"
+    packed = msgspec.msgpack.encode(recording)   # the buffers' alignment is not kept: the version is read first
+    body = len(packed).to_bytes(8, "little") + packed + inner[8 + n:]
+    old = _scene_bytes(world, len(body).to_bytes(8, "little") + zstandard.ZstdCompressor().compress(body))
+    try:
+        r = c.get(url, headers=world["a"])
+        assert r.status_code == 404, (r.status_code, r.text[:300])
+        assert r.json()["code"] == "store.no_still"
+        assert r.json()["message"] == {lang: CATALOGUE["store.no_still"][lang].format(analysis_id=world["aid"])
+                                       for lang in ("es", "en", "pt")}
+    finally:
+        _scene_bytes(world, old)
+    assert c.get(url, headers=world["a"]).status_code == 200
