@@ -35,6 +35,9 @@
 | ``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` | none (webhooks refused) | comma-separated host names a webhook URL may name (``*.hospital.example`` for subdomains, ``*`` any); a name resolving to a loopback, private, link-local or multicast address is refused at send time unless named exactly here (:mod:`app.web.webhooks`) |
 | ``CHAKAMO_WEBHOOK_RETRY_S`` | 10 | first webhook retry's wait, doubling each time (:mod:`app.web.webhooks`) |
 
+A refusal is a :class:`SettingsError` of a code of :data:`MESSAGES` (es/en/pt; ``str()`` English, ``chakamo``
+prints it in ``--lang``); pydantic's own refusals (a bound, not a number, not a choice) are said of their variable.
+
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
 missing or short secret key is then a clear start-up error of the server (the command line's set-up commands
 use no key and do not ask for one: :func:`get_settings` ``require_key=False``; ``development`` uses a fixed, publicly known

@@ -4,7 +4,8 @@
 what was wrong and what to do.  :func:`refusal` builds the ``HTTPException`` of a code in the language the
 request asks for (``Accept-Language``; the browser UI sends its own choice, see ``static/api.js``; English when
 none of es/en/pt is asked) and names the code in the ``X-ChakaMo-Code`` header, so a program can tell refusals
-apart without parsing sentences.  The CLI, which speaks English, uses the exceptions' own English text.
+apart without parsing sentences.  The ``cli.*`` entries are ``chakamo``'s words in ``--lang`` (:mod:`app.cli.language`),
+and the ``settings.*`` ones the refusals of the environment (:data:`app.settings.MESSAGES`, kept there).
 """
 
 from __future__ import annotations

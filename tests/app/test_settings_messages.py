@@ -39,7 +39,7 @@ def test_each_sentence_in_three_languages_with_the_same_placeholders(code):
     texts = MESSAGES[code]
     assert set(texts) == set(LANGUAGES)
     assert placeholders(texts["es"]) == placeholders(texts["en"]) == placeholders(texts["pt"])
-    assert texts["es"] != texts["en"] != texts["pt"]
+    assert len(set(texts.values())) == 3   # really translated
     assert CATALOGUE[code] is texts   # one table: the CLI catalogue holds it (and the consistency tests read it)
 
 
