@@ -35,6 +35,9 @@
 | ``CHAKAMO_WEBHOOK_ALLOWED_HOSTS`` | none (webhooks refused) | comma-separated host names a webhook URL may name (``*.hospital.example`` for subdomains, ``*`` any); a name resolving to a loopback, private, link-local or multicast address is refused at send time unless named exactly here (:mod:`app.web.webhooks`) |
 | ``CHAKAMO_WEBHOOK_RETRY_S`` | 10 | first webhook retry's wait, doubling each time (:mod:`app.web.webhooks`) |
 
+A refusal is a :class:`SettingsError` of a code of :data:`MESSAGES` (es/en/pt; ``str()`` English, ``chakamo``
+prints it in ``--lang``); pydantic's own refusals (a bound, not a number, not a choice) are said of their variable.
+
 Decisions: the default environment is ``production`` so that a forgotten variable fails safe; a
 missing or short secret key is then a clear start-up error of the server (the command line's set-up commands
 use no key and do not ask for one: :func:`get_settings` ``require_key=False``; ``development`` uses a fixed, publicly known
@@ -46,12 +49,13 @@ import time: :func:`get_settings` builds them on first use and caches them; test
 from __future__ import annotations
 
 import re
+import typing
 from contextvars import ContextVar
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 #: the development key: public, so refused outside development
@@ -63,8 +67,149 @@ DEV_SECRET_KEY = "chakamo-development-key-not-secret-do-not-use-in-production"
 ALLOWED_SUFFIXES = (".csv", ".xlsx", ".json", ".zip", ".h5")
 
 
+#: every refusal of the environment, in es/en/pt: ``MESSAGES[code][lang]`` is a :meth:`str.format` template of the
+#: :class:`SettingsError`'s params; each names the variable and says what to set.  The CLI catalogue
+#: (:data:`app.web.messages.CATALOGUE`) holds this table too, so the consistency tests read it; it lives here
+#: because the settings sit below everything that could render it (``tests/test_architecture.py``).
+MESSAGES: dict[str, dict[str, str]] = {
+    "settings.public_url": {
+        "en": "CHAKAMO_PUBLIC_URL={value!r} is not an http(s) address; set it to the address users reach this server "
+              "at, e.g. https://chakamo.hospital.example",
+        "es": "CHAKAMO_PUBLIC_URL={value!r} no es una dirección http(s); defínala como la dirección con la que los "
+              "usuarios llegan a este servidor, p. ej. https://chakamo.hospital.example",
+        "pt": "CHAKAMO_PUBLIC_URL={value!r} não é um endereço http(s); defina-a com o endereço pelo qual os "
+              "utilizadores chegam a este servidor, p. ex. https://chakamo.hospital.example"},
+    "settings.not_a_uri": {
+        "en": "{var}={value!r} is not a URI; give e.g. urn:oid:1.2.3 or https://hospital.example/mrn, or unset it",
+        "es": "{var}={value!r} no es un URI; indique p. ej. urn:oid:1.2.3 o https://hospital.example/mrn, o "
+              "elimine la variable",
+        "pt": "{var}={value!r} não é um URI; indique p. ex. urn:oid:1.2.3 ou https://hospital.example/mrn, ou "
+              "elimine a variável"},
+    "settings.identifier_base": {
+        "en": "CHAKAMO_FHIR_IDENTIFIER_BASE={value!r} is not an http(s) address: the identifier systems are "
+              "<base>/sessions and <base>/patients, which a urn: cannot be extended into; give e.g. "
+              "https://chakamo.hospital.example/api/v1, or leave it unset (CHAKAMO_PUBLIC_URL/api/v1)",
+        "es": "CHAKAMO_FHIR_IDENTIFIER_BASE={value!r} no es una dirección http(s): los sistemas de identificadores "
+              "son <base>/sessions y <base>/patients, que no pueden añadirse a un urn:; indique p. ej. "
+              "https://chakamo.hospital.example/api/v1, o no la defina (CHAKAMO_PUBLIC_URL/api/v1)",
+        "pt": "CHAKAMO_FHIR_IDENTIFIER_BASE={value!r} não é um endereço http(s): os sistemas de identificadores são "
+              "<base>/sessions e <base>/patients, que não se podem acrescentar a um urn:; indique p. ex. "
+              "https://chakamo.hospital.example/api/v1, ou não a defina (CHAKAMO_PUBLIC_URL/api/v1)"},
+    "settings.push_url": {
+        "en": "CHAKAMO_FHIR_PUSH_URL={value!r} is not an http(s) address; give the FHIR server's base, e.g. "
+              "https://fhir.hospital.example/fhir",
+        "es": "CHAKAMO_FHIR_PUSH_URL={value!r} no es una dirección http(s); indique la base del servidor FHIR, p. ej. "
+              "https://fhir.hospital.example/fhir",
+        "pt": "CHAKAMO_FHIR_PUSH_URL={value!r} não é um endereço http(s); indique a base do servidor FHIR, p. ex. "
+              "https://fhir.hospital.example/fhir"},
+    "settings.push_https": {
+        "en": "CHAKAMO_FHIR_PUSH_URL={value!r} must be https outside development (the reports carry patient data); "
+              "give the FHIR server's https:// address",
+        "es": "CHAKAMO_FHIR_PUSH_URL={value!r} debe ser https fuera de desarrollo (los informes llevan datos de "
+              "pacientes); indique la dirección https:// del servidor FHIR",
+        "pt": "CHAKAMO_FHIR_PUSH_URL={value!r} tem de ser https fora de desenvolvimento (os relatórios contêm dados "
+              "de doentes); indique o endereço https:// do servidor FHIR"},
+    "settings.broker_url": {
+        "en": "CHAKAMO_BROKER_URL={value!r} is not a Redis URL; set it to redis://HOST:6379/0 (the broker the Celery "
+              "workers read)",
+        "es": "CHAKAMO_BROKER_URL={value!r} no es una URL de Redis; defínala como redis://HOST:6379/0 (el "
+              "intermediario que leen los trabajadores de Celery)",
+        "pt": "CHAKAMO_BROKER_URL={value!r} não é um URL do Redis; defina-o como redis://HOST:6379/0 (o "
+              "intermediário que os trabalhadores do Celery leem)"},
+    "settings.no_secret_key": {
+        "en": "CHAKAMO_SECRET_KEY is not set; set it to a long random string (e.g. the output of "
+              "`python -c \"import secrets; print(secrets.token_urlsafe(48))\"`), or set CHAKAMO_ENV=development "
+              "for a local trial",
+        "es": "CHAKAMO_SECRET_KEY no está definida; defínala como una cadena aleatoria larga (p. ej. la salida de "
+              "`python -c \"import secrets; print(secrets.token_urlsafe(48))\"`), o defina CHAKAMO_ENV=development "
+              "para una prueba local",
+        "pt": "CHAKAMO_SECRET_KEY não está definida; defina-a como uma cadeia aleatória longa (p. ex. o resultado de "
+              "`python -c \"import secrets; print(secrets.token_urlsafe(48))\"`), ou defina CHAKAMO_ENV=development "
+              "para um ensaio local"},
+    "settings.weak_secret_key": {
+        "en": "CHAKAMO_SECRET_KEY is too weak (the development key, or shorter than {min} characters); set a long "
+              "random string",
+        "es": "CHAKAMO_SECRET_KEY es demasiado débil (la clave de desarrollo, o de menos de {min} caracteres); "
+              "defina una cadena aleatoria larga",
+        "pt": "CHAKAMO_SECRET_KEY é demasiado fraca (a chave de desenvolvimento, ou com menos de {min} caracteres); "
+              "defina uma cadeia aleatória longa"},
+    # pydantic's own refusals of a variable (its English sentence names no variable), by kind
+    "settings.at_least": {
+        "en": "{var}={value!r} is too small; set it to {limit} or more, or unset it for the default",
+        "es": "{var}={value!r} es demasiado pequeño; defínalo en {limit} o más, o elimínelo para usar el valor por "
+              "defecto",
+        "pt": "{var}={value!r} é demasiado pequeno; defina-o com {limit} ou mais, ou elimine-o para usar o valor "
+              "predefinido"},
+    "settings.more_than": {
+        "en": "{var}={value!r} is too small; set it to more than {limit}, or unset it for the default",
+        "es": "{var}={value!r} es demasiado pequeño; defínalo en más de {limit}, o elimínelo para usar el valor por "
+              "defecto",
+        "pt": "{var}={value!r} é demasiado pequeno; defina-o com mais de {limit}, ou elimine-o para usar o valor "
+              "predefinido"},
+    "settings.at_most": {
+        "en": "{var}={value!r} is too large; set it to {limit} or less, or unset it for the default",
+        "es": "{var}={value!r} es demasiado grande; defínalo en {limit} o menos, o elimínelo para usar el valor por "
+              "defecto",
+        "pt": "{var}={value!r} é demasiado grande; defina-o com {limit} ou menos, ou elimine-o para usar o valor "
+              "predefinido"},
+    "settings.not_an_integer": {
+        "en": "{var}={value!r} is not a whole number; give one such as 2, or unset it for the default",
+        "es": "{var}={value!r} no es un número entero; indique uno como 2, o elimínelo para usar el valor por "
+              "defecto",
+        "pt": "{var}={value!r} não é um número inteiro; indique um como 2, ou elimine-o para usar o valor "
+              "predefinido"},
+    "settings.not_a_number": {
+        "en": "{var}={value!r} is not a number; give one such as 2.5 (a point before the decimals), or unset it for "
+              "the default",
+        "es": "{var}={value!r} no es un número; indique uno como 2.5 (con punto antes de los decimales), o elimínelo "
+              "para usar el valor por defecto",
+        "pt": "{var}={value!r} não é um número; indique um como 2.5 (com ponto antes das casas decimais), ou "
+              "elimine-o para usar o valor predefinido"},
+    "settings.not_a_choice": {
+        "en": "{var}={value!r} is not one of {choices}; set one of them, or unset it for the default",
+        "es": "{var}={value!r} no es ninguno de {choices}; defina uno de ellos, o elimínelo para usar el valor por "
+              "defecto",
+        "pt": "{var}={value!r} não é nenhum de {choices}; defina um deles, ou elimine-o para usar o valor "
+              "predefinido"},
+    "settings.invalid": {
+        "en": "{var}={value!r} cannot be used ({detail}); correct it, or unset it for the default",
+        "es": "{var}={value!r} no se puede usar ({detail}); corríjalo, o elimínelo para usar el valor por defecto",
+        "pt": "{var}={value!r} não pode ser usado ({detail}); corrija-o, ou elimine-o para usar o valor "
+              "predefinido"},
+}
+
+#: the shortest ``CHAKAMO_SECRET_KEY`` accepted outside development
+MIN_KEY_CHARS = 32
+
+
 class SettingsError(ValueError):
-    """The environment asks for something unsafe or unavailable; the message says what to set."""
+    """The environment asks for something unsafe or unavailable: ``SettingsError(code, **params)``, entry ``code``
+    of :data:`MESSAGES`; ``str()`` is English (logs, programs), :meth:`message` any of es/en/pt (``chakamo``
+    prints it in ``--lang``: :func:`app.cli.main.main`).  :attr:`parts` holds one ``(code, params)`` per refusal
+    (several when pydantic found several: :func:`get_settings`).  A ``code`` that is no entry of :data:`MESSAGES` is
+    taken as an English sentence of its own (the FHIR push's start-up refusals, :mod:`app.web.fhir_push`)."""
+
+    def __init__(self, code: str, /, **params) -> None:
+        self.code, self.params = code, params
+        self.parts: tuple[tuple[str, dict], ...] = ((code, params),)
+        super().__init__(self.message("en"))
+
+    @classmethod
+    def joined(cls, parts: list[tuple[str, dict]]) -> "SettingsError":
+        """One error of several refusals (their sentences joined by "; ")."""
+        error = cls(parts[0][0], **parts[0][1])
+        error.parts = tuple(parts)
+        error.args = (error.message("en"),)
+        return error
+
+    def message(self, lang: str) -> str:
+        """The sentences of :attr:`parts` in ``lang`` (English for a language not in :data:`MESSAGES`)."""
+        return "; ".join(_render(code, params, lang) for code, params in self.parts)
+
+
+def _render(code: str, params: dict, lang: str) -> str:
+    texts = MESSAGES.get(code)
+    return code if texts is None else texts.get(lang, texts["en"]).format(**params)
 
 
 def _default_data_dir() -> Path:
@@ -115,8 +260,8 @@ class Settings(BaseSettings):
     fhir_code_system: str | None = Field(None, validation_alias="CHAKAMO_FHIR_CODE_SYSTEM")
     #: how a DiagnosticReport names its patient: ``contained`` (a Patient inside it) or ``identifier`` (a logical
     #: reference by the record number in CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, for a hospital that owns the Patient)
-    fhir_patient: str = Field("contained", pattern="^(contained|identifier|reference)$",
-                              validation_alias="CHAKAMO_FHIR_PATIENT")
+    fhir_patient: Literal["contained", "identifier", "reference"] = Field("contained",
+                                                                         validation_alias="CHAKAMO_FHIR_PATIENT")
     #: the base URL of the hospital's FHIR server the reports are pushed to (``app.web.fhir_push``); None: no push
     fhir_push_url: str | None = Field(None, validation_alias="CHAKAMO_FHIR_PUSH_URL")
     #: the names of the clinics whose reports are pushed, comma-separated (each opts in; ``app.web.fhir_push``)
@@ -145,31 +290,25 @@ class Settings(BaseSettings):
             return None
         value = value.strip().rstrip("/")
         if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]+(/[\w.\-~/]*)?", value):
-            raise SettingsError(f"CHAKAMO_PUBLIC_URL={value!r} is not an http(s) address; set it to the address "
-                                "users reach this server at, e.g. https://chakamo.hospital.example")
+            raise SettingsError("settings.public_url", value=value)
         return value
 
     @field_validator("patient_identifier_system", "fhir_identifier_base", "fhir_code_system", "accession_system",
                      mode="after")
     @classmethod
-    def _identifier_system(cls, value: str | None) -> str | None:
+    def _identifier_system(cls, value: str | None, info: ValidationInfo) -> str | None:
         if value is None or not value.strip():
             return None
         value = value.strip()
         if not re.fullmatch(r"(urn:[a-z0-9][a-z0-9-]*:\S+|https?://\S+)", value, flags=re.IGNORECASE) or "|" in value:
-            raise SettingsError(f"{value!r} is not a URI (CHAKAMO_PATIENT_IDENTIFIER_SYSTEM, CHAKAMO_FHIR_IDENTIFIER_BASE, "
-                                "CHAKAMO_FHIR_CODE_SYSTEM, CHAKAMO_ACCESSION_SYSTEM); give e.g. urn:oid:1.2.3 or "
-                                "https://hospital.example/mrn")
+            raise SettingsError("settings.not_a_uri", var=_variable(info.field_name), value=value)
         return value
 
     @field_validator("fhir_identifier_base", mode="after")
     @classmethod
     def _identifier_base(cls, value: str | None) -> str | None:
         if value is not None and not re.match(r"https?://", value, flags=re.IGNORECASE):
-            raise SettingsError(f"CHAKAMO_FHIR_IDENTIFIER_BASE={value!r} is not an http(s) address: the identifier "
-                                "systems are <base>/sessions and <base>/patients, which a urn: cannot be extended "
-                                "into; give e.g. https://chakamo.hospital.example/api/v1, or leave it unset "
-                                "(CHAKAMO_PUBLIC_URL/api/v1)")
+            raise SettingsError("settings.identifier_base", value=value)
         return value
 
     @property
@@ -184,8 +323,7 @@ class Settings(BaseSettings):
             return None
         value = value.strip().rstrip("/")
         if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]+(/[\w.\-~/]*)?", value):
-            raise SettingsError(f"CHAKAMO_FHIR_PUSH_URL={value!r} is not an http(s) address; give the FHIR server's "
-                                "base, e.g. https://fhir.hospital.example/fhir")
+            raise SettingsError("settings.push_url", value=value)
         return value
 
     @property
@@ -212,21 +350,15 @@ class Settings(BaseSettings):
     @model_validator(mode="after")
     def _refuse_insecure(self) -> "Settings":
         if self.job_backend == "celery" and not self.broker_url.startswith(("redis://", "rediss://")):
-            raise SettingsError(f"CHAKAMO_BROKER_URL={self.broker_url!r} is not a Redis URL; set it to "
-                                "redis://HOST:6379/0 (the broker the Celery workers read).")
+            raise SettingsError("settings.broker_url", value=self.broker_url)
         if self.fhir_push_url:  # its host is checked against CHAKAMO_FHIR_PUSH_ALLOWED_HOSTS by app.web.fhir_push
             if not self.development and not self.fhir_push_url.lower().startswith("https://"):
-                raise SettingsError("CHAKAMO_FHIR_PUSH_URL must be https outside development (the reports carry "
-                                    "patient data)")
+                raise SettingsError("settings.push_https", value=self.fhir_push_url)
         if self.env == "production" and _KEY_NEEDED.get():
             if not self.secret_key:
-                raise SettingsError(
-                    "CHAKAMO_SECRET_KEY is not set; set it to a long random string (e.g. the output of "
-                    "`python -c \"import secrets; print(secrets.token_urlsafe(48))\"`), or set "
-                    "CHAKAMO_ENV=development for a local trial.")
-            if len(self.secret_key) < 32 or self.secret_key == DEV_SECRET_KEY:
-                raise SettingsError("CHAKAMO_SECRET_KEY is too weak (the development key, or shorter than 32 "
-                                    "characters); set a long random string.")
+                raise SettingsError("settings.no_secret_key")
+            if len(self.secret_key) < MIN_KEY_CHARS or self.secret_key == DEV_SECRET_KEY:
+                raise SettingsError("settings.weak_secret_key", min=MIN_KEY_CHARS)
         return self
 
     @property
@@ -255,6 +387,40 @@ class Settings(BaseSettings):
         return int(self.max_file_mb * 1024 * 1024)
 
 
+def _variable(field: str | None) -> str:
+    """The environment variable of field ``field`` (its validation alias)."""
+    info = Settings.model_fields.get(field or "")
+    return str(info.validation_alias) if info is not None and info.validation_alias else str(field)
+
+
+#: pydantic's error types -> the :data:`MESSAGES` entry saying the same of a variable, and the bound it names
+_PYDANTIC = {"greater_than_equal": ("settings.at_least", "ge"), "greater_than": ("settings.more_than", "gt"),
+             "less_than_equal": ("settings.at_most", "le"),
+             "int_parsing": ("settings.not_an_integer", None), "int_from_float": ("settings.not_an_integer", None),
+             "float_parsing": ("settings.not_a_number", None), "literal_error": ("settings.not_a_choice", None)}
+
+
+def _parts(error: dict) -> list[tuple[str, dict]]:
+    """The ``(code, params)`` of one of pydantic's errors: our own refusal's parts, or its kind said of the variable
+    its ``loc`` names (the variable's value shown, but never a secret's)."""
+    own = error.get("ctx", {}).get("error")
+    if isinstance(own, SettingsError):
+        return list(own.parts)
+    var = str(error["loc"][0]) if error.get("loc") else "?"
+    value = "***" if ("SECRET" in var or "TOKEN" in var) else error.get("input")
+    code, bound = _PYDANTIC.get(error["type"], ("settings.invalid", None))
+    if code == "settings.not_a_choice":
+        field = next((f for f, i in Settings.model_fields.items() if i.validation_alias == var), None)
+        options = typing.get_args(Settings.model_fields[field].annotation) if field else ()
+        return [(code, {"var": var, "value": value, "choices": ", ".join(map(str, options)) or "?"})]
+    if code == "settings.invalid":
+        return [(code, {"var": var, "value": value, "detail": error.get("msg", "")})]
+    params = {"var": var, "value": value}
+    if bound:
+        params["limit"] = error.get("ctx", {}).get(bound)
+    return [(code, params)]
+
+
 #: False while settings are read for a command that uses no secret key (:func:`get_settings`)
 _KEY_NEEDED: ContextVar[bool] = ContextVar("chakamo_key_needed", default=True)
 
@@ -269,14 +435,11 @@ def get_settings(require_key: bool = True) -> Settings:
         return Settings()
     except SettingsError:
         raise
-    except ValueError as exc:  # pydantic's ValidationError wraps our SettingsError: keep its one sentence
-        errors = getattr(exc, "errors", None)
-        if callable(errors):
-            msgs = [str(e.get("ctx", {}).get("error", e.get("msg"))) for e in errors()]
-            raise SettingsError("; ".join(msgs)) from None
-        raise
+    except ValidationError as exc:  # pydantic's error wraps our SettingsErrors and its own: one sentence each
+        raise SettingsError.joined([part for e in exc.errors() for part in _parts(e)]) from None
     finally:
         _KEY_NEEDED.reset(token)
 
 
-__all__ = ["ALLOWED_SUFFIXES", "DEV_SECRET_KEY", "Settings", "SettingsError", "get_settings"]
+__all__ = ["ALLOWED_SUFFIXES", "DEV_SECRET_KEY", "MESSAGES", "MIN_KEY_CHARS", "Settings", "SettingsError",
+           "get_settings"]

@@ -234,7 +234,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, proxy_headers: bool = False
 
     settings = get_settings()  # errors (e.g. no secret key) before anything starts
     print(_say(lang, "cli.serve_started", host=host, port=port, data_dir=settings.data_dir), file=sys.stderr)
-    uvicorn.run(create_app(settings), host=host, port=port, log_level="info", proxy_headers=proxy_headers,
+    uvicorn.run(create_app(settings, lang=lang), host=host, port=port, log_level="info", proxy_headers=proxy_headers,
                 forwarded_allow_ips=forwarded_allow_ips if proxy_headers else None, **UVICORN_OPTIONS)
 
 

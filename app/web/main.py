@@ -6,7 +6,7 @@ Start-up (the lifespan): create the data folders, apply the Alembic migrations, 
 another server runs this database's jobs, clears a crashed run's temporary files and resumes the jobs a
 previous run left queued or running; or :class:`app.jobs.celery_engine.CeleryJobRunner`, which hands jobs to the
 Celery workers), and when the database has no user yet print how
-to create the first admin (there are no default accounts or passwords).  It also starts the webhook sender (:class:`app.web.webhooks.WebhookSender`).  Shutdown stops the runner after
+to create the first admin (in ``create_app``'s ``lang``: ``chakamo serve --lang``) (there are no default accounts or passwords).  It also starts the webhook sender (:class:`app.web.webhooks.WebhookSender`).  Shutdown stops the runner after
 its current jobs (the database is disposed only when they have all stopped).  Errors that would show server
 internals (a damaged stored file) answer a sentence with a reference id; the details go to the server log.
 Middleware (plain ASGI), outermost first: :class:`app.web.headers.SecurityHeaders`,
@@ -51,7 +51,7 @@ from app.store.models import User
 from app.web.headers import AllowedHosts, SecurityHeaders
 from app.web.limits import BodyLimit
 from app.web.problems import document_errors, problem_response
-from app.web.messages import CODE_HEADER
+from app.web.messages import CODE_HEADER, render
 from app.web.refusals import Refusal, members as refusal_members
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
 from app.web.fhir_push import FhirPush
@@ -64,13 +64,6 @@ from estimators import __version__
 log = logging.getLogger("chakamo")
 
 STATIC_DIR = Path(_app_pkg.__file__).resolve().parents[1] / "static"
-FIRST_ADMIN_HINT = (
-    "ChakaMo has no user yet. Create a clinic and its first admin:\n"
-    "  chakamo clinics create \"My clinic\"\n"
-    "  chakamo users create --clinic \"My clinic\" --email you@example.org --role admin --name \"Your Name\"\n"
-    "(the second command asks for the password; use the same CHAKAMO_DATA_DIR / DATABASE_URL as the server)")
-
-
 def _plotly_js() -> Path:
     import plotly
 
@@ -116,8 +109,9 @@ def make_runner(settings: Settings, db: Database, store: Storage):
                            lease_s=settings.job_lease_s, housekeeping=lambda: housekeeping(settings, db, store))
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """A new ChakaMo application for ``settings`` (default: :func:`app.settings.get_settings`)."""
+def create_app(settings: Settings | None = None, lang: str | None = None) -> FastAPI:
+    """A new ChakaMo application for ``settings`` (default: :func:`app.settings.get_settings`); ``lang``: the
+    language of its start-up words to the operator (``chakamo serve --lang``; English when None)."""
     settings = settings or get_settings()
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     settings.tmp_dir.mkdir(parents=True, exist_ok=True)
@@ -131,7 +125,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         db.migrate(settings.sealing_key)
         with db.session() as s:
             if not s.scalar(select(func.count()).select_from(User)):
-                print(FIRST_ADMIN_HINT, file=sys.stderr, flush=True)
+                print(render("cli.first_admin", lang or "en"), file=sys.stderr, flush=True)
         try:
             runner.start()  # refuses (RunnerLocked) when another server runs this database's jobs
         except Exception:
@@ -293,4 +287,4 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
-__all__ = ["FIRST_ADMIN_HINT", "STATIC_DIR", "UVICORN_OPTIONS", "create_app", "make_runner"]
+__all__ = ["STATIC_DIR", "UVICORN_OPTIONS", "create_app", "make_runner"]

@@ -4,7 +4,8 @@
 what was wrong and what to do.  :func:`refusal` builds the ``HTTPException`` of a code in the language the
 request asks for (``Accept-Language``; the browser UI sends its own choice, see ``static/api.js``; English when
 none of es/en/pt is asked) and names the code in the ``X-ChakaMo-Code`` header, so a program can tell refusals
-apart without parsing sentences.  The CLI, which speaks English, uses the exceptions' own English text.
+apart without parsing sentences.  The ``cli.*`` entries are ``chakamo``'s words in ``--lang`` (:mod:`app.cli.language`),
+and the ``settings.*`` ones the refusals of the environment (:data:`app.settings.MESSAGES`, kept there).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import string
 from typing import TYPE_CHECKING
 
 from fastapi import HTTPException
+
+from app.settings import MESSAGES as SETTINGS_MESSAGES
 
 if TYPE_CHECKING:
     from fastapi import Request
@@ -413,6 +416,23 @@ CATALOGUE: dict[str, dict[str, str]] = {
         "en": "ChakaMo on http://{host}:{port}/ (data in {data_dir}); Ctrl-C stops it",
         "es": "ChakaMo en http://{host}:{port}/ (datos en {data_dir}); Ctrl-C lo detiene",
         "pt": "ChakaMo em http://{host}:{port}/ (dados em {data_dir}); Ctrl-C para-o"},
+    # the server's start-up words to its operator in `chakamo serve --lang` (app/web/main.py: no user yet), and the
+    # refusals of the environment (app/settings.py's table: the settings sit below this module, so they keep it)
+    "cli.first_admin": {
+        "en": "ChakaMo has no user yet. Create a clinic and its first admin:\n"
+              "  chakamo clinics create \"My clinic\"\n"
+              "  chakamo users create --clinic \"My clinic\" --email you@example.org --role admin --name \"Your Name\"\n"
+              "(the second command asks for the password; use the same CHAKAMO_DATA_DIR / DATABASE_URL as the server)",
+        "es": "ChakaMo aún no tiene ningún usuario. Cree una clínica y su primer administrador:\n"
+              "  chakamo clinics create \"Mi clínica\"\n"
+              "  chakamo users create --clinic \"Mi clínica\" --email usted@example.org --role admin --name \"Su Nombre\"\n"
+              "(la segunda orden pide la contraseña; use el mismo CHAKAMO_DATA_DIR / DATABASE_URL que el servidor)",
+        "pt": "O ChakaMo ainda não tem nenhum utilizador. Crie uma clínica e o seu primeiro administrador:\n"
+              "  chakamo clinics create \"A minha clínica\"\n"
+              "  chakamo users create --clinic \"A minha clínica\" --email o.seu.nome@example.org --role admin "
+              "--name \"O Seu Nome\"\n"
+              "(o segundo comando pede a palavra-passe; use o mesmo CHAKAMO_DATA_DIR / DATABASE_URL que o servidor)"},
+    **SETTINGS_MESSAGES,
     "cli.migrated": {"en": "database schema up to date ({url})", "es": "esquema de la base de datos al día ({url})",
                      "pt": "esquema da base de dados atualizado ({url})"},
     "cli.worker_started": {
