@@ -197,7 +197,6 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA foreign_keys=ON")
-    cursor.execute(f"PRAGMA busy_timeout={round(WRITE_WAIT_S * 1000)}")  # SQLite's own wait: the gate's bound
     cursor.execute("PRAGMA synchronous=FULL")
     cursor.close()
 

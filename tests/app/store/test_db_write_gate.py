@@ -215,8 +215,8 @@ def test_executemany_takes_the_gate_and_commit_gives_it_back(tmp_path):
 
 
 def test_sqlite_s_own_busy_wait_is_the_gate_s_bound(tmp_path, monkeypatch):
-    """Review finding: the connect timeout followed WRITE_WAIT_S but the PRAGMA every pooled connection runs
-    still set 15 s, and it overrides the connect timeout: one definition now."""
+    """Review finding: the connect timeout followed WRITE_WAIT_S but a PRAGMA every pooled connection ran still set
+    15 s, overriding it; the PRAGMA is gone (pysqlite's ``timeout`` is SQLite's busy timeout): one definition."""
     import app.store.database as database
 
     monkeypatch.setattr(database, "WRITE_WAIT_S", 2.5)

@@ -271,7 +271,6 @@ def test_hashing_is_bounded_in_concurrency():
 RAW_SQL_ALLOWED = {
     ("store/database.py", "PRAGMA journal_mode=WAL"): "SQLite connection setting on connect; no ORM equivalent",
     ("store/database.py", "PRAGMA foreign_keys=ON"): "SQLite connection setting on connect",
-    ("store/database.py", "PRAGMA busy_timeout=15000"): "SQLite connection setting on connect",
     ("store/database.py", "PRAGMA synchronous=FULL"): "SQLite connection setting on connect",
     ("web/main.py", "SELECT 1"): "/readyz: is the database reachable (no data, no input)",
     ("jobs/inprocess.py", "SELECT pg_try_advisory_lock(:k)"): "PostgreSQL advisory lock: one in-process runner "
