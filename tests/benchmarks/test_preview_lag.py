@@ -4,6 +4,7 @@ before any server or browser starts."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -33,4 +34,5 @@ def test_the_commits_page_is_served_whole():
     page = preview_lag.old_page_js("34ed36f")
     assert b"recorder.flexion()" in page["static/views/record.js"]
     assert b"flexion()" in page["static/metawear/recorder.js"]
-    assert set(page) == set(preview_lag.PAGE_JS)
+    assert set(page) == set(preview_lag.PAGE_JS) | set(preview_lag.I18N)  # and the tables, with its old keys
+    assert "record.preview" in json.loads(page["static/i18n/pt.json"])  # the old page's text, deleted since
