@@ -48,6 +48,27 @@ def test_pydantic_kinds_map_to_sentences_of_the_table():
         assert code in MESSAGES
 
 
+def _refusal(monkeypatch, tmp_path, env: dict[str, str], clean: bool = False) -> SettingsError:
+    """The SettingsError ``get_settings()`` raises in development on ``tmp_path`` with ``env`` set (``clean``: every
+    other CHAKAMO_ variable of this process' environment removed first)."""
+    from app.settings import get_settings
+
+    if clean:
+        for key in [k for k in os.environ if k.startswith("CHAKAMO_")]:
+            monkeypatch.delenv(key)
+    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("CHAKAMO_ENV", "development")
+    for key, value in env.items():
+        monkeypatch.setenv(key, value)
+    get_settings.cache_clear()
+    try:
+        with pytest.raises(SettingsError) as caught:
+            get_settings()
+    finally:
+        get_settings.cache_clear()
+    return caught.value
+
+
 @pytest.mark.parametrize("env,code,variable", [
     ({"CHAKAMO_PUBLIC_URL": "ftp://x"}, "settings.public_url", "CHAKAMO_PUBLIC_URL"),
     ({"CHAKAMO_ACCESSION_SYSTEM": "hospital numbers"}, "settings.not_a_uri", "CHAKAMO_ACCESSION_SYSTEM"),
@@ -64,21 +85,7 @@ def test_pydantic_kinds_map_to_sentences_of_the_table():
     ({"CHAKAMO_ENV": "staging"}, "settings.not_a_choice", "CHAKAMO_ENV"),
 ])
 def test_each_refusal_names_its_variable_in_every_language(env, code, variable, monkeypatch, tmp_path):
-    from app.settings import get_settings
-
-    for key in [k for k in os.environ if k.startswith("CHAKAMO_")]:
-        monkeypatch.delenv(key)
-    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(tmp_path))
-    monkeypatch.setenv("CHAKAMO_ENV", "development")
-    for key, value in env.items():
-        monkeypatch.setenv(key, value)
-    get_settings.cache_clear()
-    try:
-        with pytest.raises(SettingsError) as caught:
-            get_settings()
-    finally:
-        get_settings.cache_clear()
-    error = caught.value
+    error = _refusal(monkeypatch, tmp_path, env, clean=True)
     assert [c for c, _ in error.parts] == [code]
     assert str(error) == error.message("en")
     for lang in LANGUAGES:
@@ -87,37 +94,15 @@ def test_each_refusal_names_its_variable_in_every_language(env, code, variable, 
 
 
 def test_the_choices_offered_are_the_fields_own(monkeypatch, tmp_path):
-    from app.settings import get_settings
-
-    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(tmp_path))
-    monkeypatch.setenv("CHAKAMO_ENV", "development")
-    monkeypatch.setenv("CHAKAMO_FHIR_PATIENT", "inline")
-    get_settings.cache_clear()
-    try:
-        with pytest.raises(SettingsError) as caught:
-            get_settings()
-    finally:
-        get_settings.cache_clear()
-    assert caught.value.parts == (("settings.not_a_choice", {"var": "CHAKAMO_FHIR_PATIENT", "value": "inline",
+    assert _refusal(monkeypatch, tmp_path, {"CHAKAMO_FHIR_PATIENT": "inline"}).parts == (("settings.not_a_choice", {"var": "CHAKAMO_FHIR_PATIENT", "value": "inline",
                                                               "choices": "contained, identifier, reference"}),)
 
 
 def test_several_refusals_are_joined_one_sentence_each(monkeypatch, tmp_path):
-    from app.settings import get_settings
-
-    monkeypatch.setenv("CHAKAMO_DATA_DIR", str(tmp_path))
-    monkeypatch.setenv("CHAKAMO_ENV", "development")
-    monkeypatch.setenv("CHAKAMO_WORKERS", "0")
-    monkeypatch.setenv("CHAKAMO_PUBLIC_URL", "chakamo.example")
-    get_settings.cache_clear()
-    try:
-        with pytest.raises(SettingsError) as caught:
-            get_settings()
-    finally:
-        get_settings.cache_clear()
-    assert sorted(c for c, _ in caught.value.parts) == ["settings.at_least", "settings.public_url"]
+    error = _refusal(monkeypatch, tmp_path, {"CHAKAMO_WORKERS": "0", "CHAKAMO_PUBLIC_URL": "chakamo.example"})
+    assert sorted(c for c, _ in error.parts) == ["settings.at_least", "settings.public_url"]
     for lang in LANGUAGES:
-        text = caught.value.message(lang)
+        text = error.message(lang)
         assert text.count("; CHAKAMO_") == 1 and "CHAKAMO_WORKERS='0'" in text, text
 
 

@@ -31,10 +31,9 @@ def demo_files(tmp_path_factory):
             if p.suffix == ".csv"]
 
 
-def processed_session(context, page, base: str, files: list[dict], external_id: str, side: str,
-                      lang: str) -> tuple[int, int]:
-    """A new patient's session with ``files`` uploaded and processed through the API with the logged-in browser's
-    cookie and CSRF token: ``(session id, analysis id)``."""
+def uploaded_session(context, base: str, files: list[dict], external_id: str, side: str = "right") -> int:
+    """A new patient's session with ``files`` uploaded through the API (not processed) with the logged-in browser's
+    cookie and CSRF token: its id."""
     api = f"{base}/api/v1"
     csrf = csrf_header(context, api)
     pid = context.request.post(f"{api}/patients", data={"external_id": external_id, "side": side},
@@ -44,6 +43,15 @@ def processed_session(context, page, base: str, files: list[dict], external_id: 
     for f in files:
         r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf, multipart={"files": f})
         assert r.status == 201, r.text()
+    return sid
+
+
+def processed_session(context, page, base: str, files: list[dict], external_id: str, side: str,
+                      lang: str) -> tuple[int, int]:
+    """:func:`uploaded_session`, then processed: ``(session id, analysis id)``."""
+    api = f"{base}/api/v1"
+    sid = uploaded_session(context, base, files, external_id, side)
+    csrf = csrf_header(context, api)
     job_id = context.request.post(f"{api}/sessions/{sid}/process", data={"lang": lang}, headers=csrf).json()["job_id"]
     while (job := context.request.get(f"{api}/jobs/{job_id}").json())["status"] not in ("done", "failed"):
         page.wait_for_timeout(500)

@@ -188,6 +188,14 @@ def _stored_files(context, base, sid):
     return out
 
 
+def _upload_file(context, api: str, csrf: dict, sid: int, segment: str, role: str, path) -> None:
+    """Upload the CSV at ``path`` to session ``sid`` as ``segment``'s ``role`` recording, as a clinic's file would."""
+    r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf, multipart={
+        "segment": segment, "role": role,
+        "files": {"name": path.name, "mimeType": "text/csv", "buffer": path.read_bytes()}})
+    assert r.status == 201, r.text()
+
+
 def _process(context, base, sid) -> dict:
     api = f"{base}/api/v1"
     csrf = csrf_header(context, api)
@@ -417,10 +425,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 streams = _true_streams(simulated, seg, role, shift_s=1.0 if role == "standing" else 0.0)
                 for path in write_recording_metabase(truth_dir, f"{role}-{seg}", {"thigh": "0AC0FFEE0001", "shank": "0AC0FFEE0002"}[seg],
                                                      streams, firmware="1.7.3"):
-                    r = context.request.post(f"{api}/sessions/{sid2}/recordings", headers=csrf, multipart={
-                        "segment": seg, "role": role,
-                        "files": {"name": path.name, "mimeType": "text/csv", "buffer": path.read_bytes()}})
-                    assert r.status == 201, r.text()
+                    _upload_file(context, api, csrf, sid2, seg, role, path)
 
         recorded = _process(context, server, sid)
         uploaded = _process(context, server, sid2)

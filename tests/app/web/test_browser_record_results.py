@@ -49,7 +49,7 @@ from metawear_peripherals import Bench, Peripheral
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     _api_session, csrf_header, server, slow_expect)
 from test_browser_record import (  # noqa: F401 - the fixtures are used by name
-    CHIP, CHUNK_S, ROLES, _deliver, _identify, _logged_in, _process, _stored_files, _streams, bt_browser)
+    CHIP, CHUNK_S, ROLES, _deliver, _identify, _logged_in, _process, _stored_files, _streams, _upload_file, bt_browser)
 
 #: results.json keys left out of the comparison, each for its reason; everything else must be equal
 EXCLUDED = {
@@ -301,10 +301,7 @@ def test_a_session_recorded_in_the_browser_gives_the_results_of_its_files(  # no
                 shifts = [int(b.split(",")[0]) - int(a.split(",")[0]) for a, b in zip(ours[1:], theirs[1:])]
                 assert set(shifts) <= {LATENCY_MS - 1, LATENCY_MS, LATENCY_MS + 1}, (path.name, set(shifts))
                 off_by_one[path.name] = sum(x != LATENCY_MS for x in shifts), len(shifts)
-                r = context.request.post(f"{api}/sessions/{sid2}/recordings", headers=csrf, multipart={
-                    "segment": seg, "role": role,
-                    "files": {"name": path.name, "mimeType": "text/csv", "buffer": path.read_bytes()}})
-                assert r.status == 201, r.text()
+                _upload_file(context, api, csrf, sid2, seg, role, path)
 
         recorded = _process(context, server, sid)
         uploaded = _process(context, server, sid2)

@@ -26,7 +26,8 @@ import re
 import numpy as np
 import pytest
 from screens import look_at
-from test_browser_e2e import (PROCESS_WAIT_MS, _tables, csrf_header, log_in, open_page, server,  # noqa: F401
+from test_browser_cycles import uploaded_session
+from test_browser_e2e import (PROCESS_WAIT_MS, _tables, log_in, open_page, server,  # noqa: F401
                               slow_expect)
 
 from app.pipeline.demo import simulate_session, write_session
@@ -38,20 +39,6 @@ def demo_files(tmp_path_factory):
     paths = write_session(folder, simulate_session(seed=3, side="right", n_cycles=3))
     return [{"name": p.name, "mimeType": "text/csv", "buffer": p.read_bytes()} for p in sorted(paths)
             if p.suffix == ".csv"]
-
-
-def _uploaded_session(context, base: str, files: list[dict], external_id: str) -> int:
-    """A new patient's session with ``files`` uploaded through the API (not processed): its id."""
-    api = f"{base}/api/v1"
-    csrf = csrf_header(context, api)
-    pid = context.request.post(f"{api}/patients", data={"external_id": external_id, "side": "right"},
-                               headers=csrf).json()["id"]
-    sid = context.request.post(f"{api}/patients/{pid}/sessions", data={"step_height_m": 0.17},
-                               headers=csrf).json()["id"]
-    for f in files:
-        r = context.request.post(f"{api}/sessions/{sid}/recordings", headers=csrf, multipart={"files": f})
-        assert r.status == 201, r.text()
-    return sid
 
 
 def _process_in_wizard(page, base: str, sid: int, expect) -> int:
@@ -83,7 +70,7 @@ def test_progress_arrives_through_the_event_stream(browser, server, slow_expect,
     try:
         log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(_tables()["en"]["patients.title"])
-        sid = _uploaded_session(context, server, demo_files, "SSE-1")
+        sid = uploaded_session(context, server, demo_files, "SSE-1")
         job_id = _process_in_wizard(page, server, sid, slow_expect)
         box = page.locator("#job")
         assert box.get_attribute("data-via") == "stream"
@@ -110,7 +97,7 @@ def test_progress_falls_back_to_polling_without_the_stream(browser, server, slow
     try:
         log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(_tables()["en"]["patients.title"])
-        sid = _uploaded_session(context, server, demo_files, "SSE-2")
+        sid = uploaded_session(context, server, demo_files, "SSE-2")
         job_id = _process_in_wizard(page, server, sid, slow_expect)
         assert page.locator("#job").get_attribute("data-via") == "polling"
         polls = [r for r in requests if r[0] == "GET" and re.search(rf"/api/v1/jobs/{job_id}(\?|$)", r[1])]
@@ -139,7 +126,7 @@ def test_a_failed_read_at_the_end_falls_back_to_polling(browser, server, slow_ex
     try:
         log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(_tables()["en"]["patients.title"])
-        sid = _uploaded_session(context, server, demo_files, "SSE-3")
+        sid = uploaded_session(context, server, demo_files, "SSE-3")
         _process_in_wizard(page, server, sid, slow_expect)
         assert len(refused) == 1, refused
         assert page.locator("#job").get_attribute("data-via") == "polling"
@@ -173,7 +160,7 @@ def test_a_job_that_ended_while_the_stream_reconnected_is_shown(browser, server,
     try:
         log_in(page, server)
         slow_expect(page.locator("h1")).to_have_text(_tables()["en"]["patients.title"])
-        sid = _uploaded_session(context, server, demo_files, "SSE-4")
+        sid = uploaded_session(context, server, demo_files, "SSE-4")
         _process_in_wizard(page, server, sid, slow_expect)
         told = [k for k, c in enumerate(connections) if "event: job" in c]
         assert len(told) == 1 and len(connections) > told[0] + 1, connections
