@@ -119,7 +119,8 @@ Causal filter (one sample, ``dt = 1/fs``)
    5.55°, 30 5.67°).  Held out (grid 0 / 0.005 / 0.01 / 0.02): B→A chooses 0.01 and reads 0.54/2.06 (VQF 6D
    0.81/3.00: met), A→B chooses 0.02 and reads 1.56/3.32 (VQF 6D 1.49/2.26: both lost; today 1.40/2.01).
    9D (both halves choose 0.02): A→B 1.16/3.02 (today 1.11/2.77, offline VQF 2.26/3.18), B→A 0.98/1.20 (today
-   1.06/1.12, VQF 1.26/2.73).  Not kept: it closes one split by breaking the other; a scale state that is
+   1.06/1.12, VQF 1.26/2.73); ``benchmarks.walking`` knee RMSE at 0.01 / 0.02: 9D 1.37 / 1.38°, 6D 1.39 / 1.40°
+   (today 1.37°, 1.38°).  Not kept: it closes one split by breaking the other; a scale state that is
    robust to its prior (misalignment terms, learning gated by observability) is the lead left open (the
    prototype: branch ``h/est9-scale-proto``, compiled kernel only, no numpy twin).  (8b)
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
