@@ -151,8 +151,18 @@ _bearer_doc = HTTPBearer(auto_error=False, description="An API token from `chaka
 
 
 def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depends(_bearer_doc)) -> Principal:
-    """The authenticated caller, or 401; 403 for a cookie-authenticated unsafe request without CSRF header."""
-    return resolve_principal(request, db, settings)
+    """The authenticated caller, or 401; 403 for a cookie-authenticated unsafe request without CSRF header.
+
+    Ends the request session's transaction before returning, which gives its pooled connection back: the route
+    runs on another thread-pool thread, and a request parked between the two hops must not hold a connection.
+    Held, it deadlocked an upload burst (issue 16): all 40 request threads sat in the pool waiting for a
+    connection (``resolve_principal``'s first query) while the 40 connections belonged to authenticated requests
+    waiting for a thread to run their route, until the pool's timeout.  The commit writes nothing (authentication
+    only reads) and expires nothing (``expire_on_commit=False``): the caller's rows stay loaded, and the route's
+    first query checks a connection out again."""
+    principal = resolve_principal(request, db, settings)
+    db.commit()
+    return principal
 
 
 def _refuse(request: Request, status: int, code: str, why: str, *, clinic_id: int | None = None,
