@@ -49,6 +49,7 @@ from app.settings import Settings
 from app.store import accounts, tokens
 from app.store.blobs import BlobStore
 from app.store.checks import IngestionChecker
+from app.store.database import POOL_OVERFLOW, POOL_SIZE
 from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotFound, PreconditionFailed
 from app.store.models import Job, KneeSession, Patient, User, utcnow
 from app.store.patients import clinic_patient
@@ -66,7 +67,28 @@ async def get_settings_dep(request: Request) -> Settings:
     return request.app.state.settings
 
 
-def get_db(request: Request) -> Iterator[Session]:
+#: requests holding a request session (:data:`DbDep`) at once, fewer than the pool's connections
+#: (:data:`app.store.database.POOL_SIZE` + ``POOL_OVERFLOW``): the others wait for a turn without a thread
+#: (:func:`_session_turn`); the ten left over serve what takes a connection only inside one thread hop (uploads'
+#: and logins' own sessions, refusals' records, the job threads)
+REQUEST_SESSIONS = POOL_SIZE + POOL_OVERFLOW - 10
+
+
+async def _session_turn(request: Request):
+    """A turn to hold a request session, waited for on the event loop (no thread held) and kept until the
+    session has committed and closed.
+
+    Why: a request session keeps its pooled connection from the route's first query until its commit, across
+    a thread hop (a ``def`` route, then its response's validation on another pool thread).  Unbounded, every
+    connection could belong to a request parked for a thread while every thread (40) sat in the pool waiting for
+    a connection: nothing moved until the pool's timeout (10 s, then 500s) — the upload burst of issue 16.  With
+    fewer turns than connections, a thread waiting in the pool always waits for a connection held by a thread
+    that moves on (or by a commit, which runs off the threads' limit)."""
+    async with request.app.state.session_turns:
+        yield
+
+
+def get_db(request: Request, _turn: Annotated[None, Depends(_session_turn, scope="function")]) -> Iterator[Session]:
     """One database session per request, committed when the route returns normally, before the response."""
     with request.app.state.db.session() as s:
         yield s

@@ -6,10 +6,14 @@ by a request that waits for a thread (what stalled reads in the 20-clinician bur
 
 from __future__ import annotations
 
+import time
+from concurrent.futures import ThreadPoolExecutor
+
 from starlette.requests import Request
 from web_helpers import clinic_token
 
-from app.web.api.deps import get_principal
+from app.store.database import POOL_OVERFLOW, POOL_SIZE
+from app.web.api.deps import REQUEST_SESSIONS, get_principal
 
 
 def _request(app, headers: dict[str, str], path: str = "/api/v1/patients") -> Request:
@@ -27,3 +31,36 @@ def test_authenticating_ends_the_transaction_before_the_route_runs(client, setti
         assert principal.clinic_name == "A" and principal.role == "clinician"  # still loaded, usable by the route
     assert client.get("/api/v1/patients", headers=headers).status_code == 200
 
+
+def test_requests_past_the_bound_wait_for_a_turn_without_a_session(client, settings):
+    """At most ``REQUEST_SESSIONS`` requests hold a request session at once, fewer than the pool's connections; the
+    next waits on the event loop (no thread, no connection) and goes on when a turn is given back."""
+    headers = clinic_token(settings, "A")
+    turns = client.app.state.session_turns
+    assert REQUEST_SESSIONS < POOL_SIZE + POOL_OVERFLOW
+    for _ in range(REQUEST_SESSIONS):  # every turn taken, as by requests parked between two thread hops
+        client.portal.call(turns.acquire)
+    with ThreadPoolExecutor(1) as pool:
+        answer = pool.submit(client.get, "/api/v1/patients", headers=headers)
+        deadline = time.monotonic() + 60
+        while not turns._waiters and time.monotonic() < deadline:  # the request reached its turn's queue
+            time.sleep(0.05)
+        assert turns._waiters and not answer.done()
+        client.portal.call(_release, turns)
+        assert answer.result(timeout=60).status_code == 200
+    for _ in range(REQUEST_SESSIONS - 1):
+        client.portal.call(_release, turns)
+
+
+async def _release(turns) -> None:
+    turns.release()
+
+
+def test_many_parallel_reads_all_answer(client, settings):
+    """Three times as many parallel reads as there are pooled connections: each answers 200 (none waits out the
+    pool's timeout, as when every thread waited for a connection held by a request waiting for a thread)."""
+    headers = clinic_token(settings, "A")
+    n = 3 * (POOL_SIZE + POOL_OVERFLOW)
+    with ThreadPoolExecutor(n) as pool:
+        codes = list(pool.map(lambda _: client.get("/api/v1/patients", headers=headers).status_code, range(n)))
+    assert codes == [200] * n
