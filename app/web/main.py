@@ -240,7 +240,7 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
     app.openapi = openapi
 
     @app.get("/healthz", include_in_schema=False)
-    def healthz():
+    async def healthz():  # async: the process answers even while every request thread is busy (no thread hop)
         return {"status": "ok"}
 
     @app.get("/readyz", include_in_schema=False)
