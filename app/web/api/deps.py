@@ -70,7 +70,8 @@ async def get_settings_dep(request: Request) -> Settings:
 #: requests holding a request session (:data:`DbDep`) at once, fewer than the pool's connections
 #: (:data:`app.store.database.POOL_SIZE` + ``POOL_OVERFLOW``): the others wait for a turn without a thread
 #: (:func:`_session_turn`); the ten left over serve what takes a connection only inside one thread hop (uploads'
-#: and logins' own sessions, refusals' records, the job threads)
+#: and logins' own sessions, refusals' records, the job threads).  More of those at once only wait in the pool for
+#: a moment: none of them, and no turn holder, waits for a second connection while holding one (``_refuse``)
 REQUEST_SESSIONS = POOL_SIZE + POOL_OVERFLOW - 10
 
 
@@ -187,10 +188,13 @@ def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depen
     return principal
 
 
-def _refuse(request: Request, status: int, code: str, why: str, *, clinic_id: int | None = None,
+def _refuse(request: Request, db: Session, status: int, code: str, why: str, *, clinic_id: int | None = None,
             user_id: int | None = None, actor: str = "", headers: dict | None = None, **params) -> HTTPException:
     """The :class:`~app.web.refusals.Refusal` (catalogue ``code``) of a refused authentication, recorded first
-    (``denied``, :mod:`app.web.audit`)."""
+    (``denied``, :mod:`app.web.audit`).  ``db``'s transaction (the look-up, which only read) ends before the record's
+    own session takes a connection: a thread never waits in the pool while holding a connection, or a flood of
+    wrong credentials could hold every connection and wait for a second (:func:`_session_turn`'s argument)."""
+    db.commit()
     record_refusal(request.app.state.db, request, status, why, clinic_id=clinic_id, user_id=user_id, actor=actor)
     return Refusal(status, code, headers=headers, **params)
 
@@ -203,14 +207,14 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
     if auth:
         scheme, _, token = auth.partition(" ")
         if scheme.lower() != "bearer" or not token.strip():
-            raise _refuse(request, 401, "auth.bearer_malformed", "malformed Authorization header",
+            raise _refuse(request, db, 401, "auth.bearer_malformed", "malformed Authorization header",
                           headers={"WWW-Authenticate": "Bearer"})
         row = accounts.active_token(db, sha256_hex(token.strip()))
         if row is None:
-            raise _refuse(request, 401, "auth.token_unknown", "unknown or revoked API token",
+            raise _refuse(request, db, 401, "auth.token_unknown", "unknown or revoked API token",
                           headers={"WWW-Authenticate": "Bearer"})
         if tokens.expired(row):
-            raise _refuse(request, 401, "auth.token_expired", "expired API token",
+            raise _refuse(request, db, 401, "auth.token_expired", "expired API token",
                           clinic_id=row.clinic_id, headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
         principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
                               token_id=row.id, scopes=tokens.scopes_of(row), token_expires_at=row.expires_at)
@@ -223,11 +227,11 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
     if row is None or row.expires_at <= utcnow() or not row.user.active:
         why = "unknown or closed session" if row is None else \
             "expired session" if row.expires_at <= utcnow() else "deactivated account"
-        raise _refuse(request, 401, "auth.login_closed", why,
+        raise _refuse(request, db, 401, "auth.login_closed", why,
                       clinic_id=row.user.clinic_id if row else None, user_id=row.user_id if row else None,
                       actor=row.user.email if row else "")
     if request.method in _UNSAFE and not csrf_ok(settings.key, sid, request.headers.get(CSRF_HEADER)):
-        raise _refuse(request, 403, "auth.csrf", "missing or wrong CSRF header", clinic_id=row.user.clinic_id,
+        raise _refuse(request, db, 403, "auth.csrf", "missing or wrong CSRF header", clinic_id=row.user.clinic_id,
                       user_id=row.user_id, actor=row.user.email, header=CSRF_HEADER)
     user = row.user
     principal = Principal(clinic_id=user.clinic_id, clinic_name=user.clinic.name, role=user.role, via="cookie",

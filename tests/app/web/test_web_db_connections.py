@@ -6,8 +6,13 @@ by a request that waits for a thread (what stalled reads in the 20-clinician bur
 
 from __future__ import annotations
 
+import threading
 import time
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+from sqlalchemy import event
 
 from starlette.requests import Request
 from web_helpers import clinic_token
@@ -36,16 +41,17 @@ def test_requests_past_the_bound_wait_for_a_turn_without_a_session(client, setti
     """At most ``REQUEST_SESSIONS`` requests hold a request session at once, fewer than the pool's connections; the
     next waits on the event loop (no thread, no connection) and goes on when a turn is given back."""
     headers = clinic_token(settings, "A")
-    turns = client.app.state.session_turns
-    assert REQUEST_SESSIONS < POOL_SIZE + POOL_OVERFLOW
+    turns, pool_of_connections = client.app.state.session_turns, client.app.state.db.engine.pool
     for _ in range(REQUEST_SESSIONS):  # every turn taken, as by requests parked between two thread hops
         client.portal.call(turns.acquire)
+    connections = pool_of_connections.checkedout()
     with ThreadPoolExecutor(1) as pool:
         answer = pool.submit(client.get, "/api/v1/patients", headers=headers)
         deadline = time.monotonic() + 60
         while not turns._waiters and time.monotonic() < deadline:  # the request reached its turn's queue
             time.sleep(0.05)
         assert turns._waiters and not answer.done()
+        assert pool_of_connections.checkedout() == connections  # it waits holding no connection
         client.portal.call(_release, turns)
         assert answer.result(timeout=60).status_code == 200
     for _ in range(REQUEST_SESSIONS - 1):
@@ -54,6 +60,48 @@ def test_requests_past_the_bound_wait_for_a_turn_without_a_session(client, setti
 
 async def _release(turns) -> None:
     turns.release()
+
+
+@pytest.mark.parametrize("who", ["unknown token", "malformed header", "closed browser session"])
+@pytest.mark.parametrize("what", ["read", "upload"])
+def test_a_refused_caller_never_holds_two_connections(client, settings, who, what):
+    """A refusal is recorded in a session of its own (app.web.audit.record_refusal): the look-up's transaction
+    ends first.  A thread holding one connection while it waits for a second breaks the turns' progress argument
+    (a flood of wrong credentials on the upload route, which takes no turn, could hold every connection and wait
+    for one more); before, each of these held two."""
+    clinic_token(settings, "A")  # a clinic, so the refusal has somewhere to be recorded
+    held, most, lock = Counter(), Counter(), threading.Lock()
+
+    def checkout(*_):
+        with lock:
+            me = threading.get_ident()
+            held[me] += 1
+            most[me] = max(most[me], held[me])
+
+    def checkin(*_):
+        with lock:
+            held[threading.get_ident()] -= 1
+
+    headers, cookies = {"unknown token": ({"Authorization": "Bearer not-a-token"}, {}),
+                        "malformed header": ({"Authorization": "Basic abc"}, {}),
+                        "closed browser session": ({}, {"chakamo_session": "closed"})}[who]
+    client.cookies.clear()
+    client.cookies.update(cookies)
+    pool = client.app.state.db.engine.pool
+    event.listen(pool, "checkout", checkout)
+    event.listen(pool, "checkin", checkin)
+    try:
+        if what == "read":
+            answer = client.get("/api/v1/patients", headers=headers)
+        else:
+            answer = client.post("/api/v1/sessions/1/recordings", headers=headers,
+                                 files=[("files", ("a.csv", b"t,x\n", "text/csv"))])
+    finally:
+        event.remove(pool, "checkout", checkout)
+        event.remove(pool, "checkin", checkin)
+        client.cookies.clear()
+    assert answer.status_code == 401, answer.text
+    assert most and max(most.values()) == 1, dict(most)
 
 
 def test_many_parallel_reads_all_answer(client, settings):
