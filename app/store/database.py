@@ -207,7 +207,8 @@ def _sqlite_pragmas(dbapi_connection, connection_record) -> None:
 #: timeout for the one write lock *holding its connection*, so during an upload burst (each upload places its
 #: files under that lock) 15 waiting writers used to leave no connection for any other request — a plain read,
 #: which in WAL mode never waits for a writer, waited 30 s for a connection, and the pile-up fed itself
-#: (issue 16 finding 10h)
+#: (issue 16 finding 10h).  A request's own session holds its connection across thread hops, so the server lets
+#: fewer requests hold one at once than there are connections (``REQUEST_SESSIONS`` in app/web/api/deps.py)
 POOL_SIZE, POOL_OVERFLOW, POOL_TIMEOUT_S = 20, 20, 10.0
 
 

@@ -26,6 +26,7 @@ the broker is reachable, or the embedded workers run; else 503 naming what is do
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import secrets
 import sys
@@ -46,6 +47,7 @@ from sqlalchemy.exc import TimeoutError as PoolTimeout
 
 import app as _app_pkg
 from app.web.api import api_router
+from app.web.api.deps import REQUEST_SESSIONS
 from app.store.database import Database
 from app.store.models import User
 from app.web.headers import AllowedHosts, SecurityHeaders
@@ -168,6 +170,8 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
     app.state.login_in_flight = InFlight(app.state.login_throttle)
     #: uploads streaming at the same time (non-blocking acquire: a full server answers 503 at once)
     app.state.upload_slots = threading.BoundedSemaphore(settings.max_uploads)
+    #: turns to hold a request session (app/web/api/deps.py, _session_turn): waited for on the event loop
+    app.state.session_turns = asyncio.Semaphore(REQUEST_SESSIONS)
     app.include_router(api_router())
 
     # inner first: the body limit's 413 gets the security headers too
@@ -236,7 +240,7 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
     app.openapi = openapi
 
     @app.get("/healthz", include_in_schema=False)
-    def healthz():
+    async def healthz():  # async: the process answers even while every request thread is busy (no thread hop)
         return {"status": "ok"}
 
     @app.get("/readyz", include_in_schema=False)

@@ -49,6 +49,7 @@ from app.settings import Settings
 from app.store import accounts, tokens
 from app.store.blobs import BlobStore
 from app.store.checks import IngestionChecker
+from app.store.database import POOL_OVERFLOW, POOL_SIZE
 from app.store.errors import Conflict, DomainError, Invalid, LimitExceeded, NotFound, PreconditionFailed
 from app.store.models import Job, KneeSession, Patient, User, utcnow
 from app.store.patients import clinic_patient
@@ -66,7 +67,29 @@ async def get_settings_dep(request: Request) -> Settings:
     return request.app.state.settings
 
 
-def get_db(request: Request) -> Iterator[Session]:
+#: requests holding a request session (:data:`DbDep`) at once, fewer than the pool's connections
+#: (:data:`app.store.database.POOL_SIZE` + ``POOL_OVERFLOW``): the others wait for a turn without a thread
+#: (:func:`_session_turn`); the ten left over serve what takes a connection only inside one thread hop (uploads'
+#: and logins' own sessions, refusals' records, the job threads).  More of those at once only wait in the pool for
+#: a moment: none of them, and no turn holder, waits for a second connection while holding one (``_refuse``)
+REQUEST_SESSIONS = POOL_SIZE + POOL_OVERFLOW - 10
+
+
+async def _session_turn(request: Request):
+    """A turn to hold a request session, waited for on the event loop (no thread held) and kept until the
+    session has committed and closed.
+
+    Why: a request session keeps its pooled connection from the route's first query until its commit, across
+    a thread hop (a ``def`` route, then its response's validation on another pool thread).  Unbounded, every
+    connection could belong to a request parked for a thread while every thread (40) sat in the pool waiting for
+    a connection: nothing moved until the pool's timeout (10 s, then 500s) — the upload burst of issue 16.  With
+    fewer turns than connections, a thread waiting in the pool always waits for a connection held by a thread
+    that moves on (or by a commit, which runs off the threads' limit)."""
+    async with request.app.state.session_turns:
+        yield
+
+
+def get_db(request: Request, _turn: Annotated[None, Depends(_session_turn, scope="function")]) -> Iterator[Session]:
     """One database session per request, committed when the route returns normally, before the response."""
     with request.app.state.db.session() as s:
         yield s
@@ -151,14 +174,27 @@ _bearer_doc = HTTPBearer(auto_error=False, description="An API token from `chaka
 
 
 def get_principal(request: Request, db: DbDep, settings: SettingsDep, _doc=Depends(_bearer_doc)) -> Principal:
-    """The authenticated caller, or 401; 403 for a cookie-authenticated unsafe request without CSRF header."""
-    return resolve_principal(request, db, settings)
+    """The authenticated caller, or 401; 403 for a cookie-authenticated unsafe request without CSRF header.
+
+    Ends the request session's transaction before returning, which gives its pooled connection back: the route
+    runs on another thread-pool thread, and a request parked between the two hops must not hold a connection.
+    Held, it deadlocked an upload burst (issue 16): all 40 request threads sat in the pool waiting for a
+    connection (``resolve_principal``'s first query) while the 40 connections belonged to authenticated requests
+    waiting for a thread to run their route, until the pool's timeout.  The commit writes nothing (authentication
+    only reads) and expires nothing (``expire_on_commit=False``): the caller's rows stay loaded, and the route's
+    first query checks a connection out again."""
+    principal = resolve_principal(request, db, settings)
+    db.commit()
+    return principal
 
 
-def _refuse(request: Request, status: int, code: str, why: str, *, clinic_id: int | None = None,
+def _refuse(request: Request, db: Session, status: int, code: str, why: str, *, clinic_id: int | None = None,
             user_id: int | None = None, actor: str = "", headers: dict | None = None, **params) -> HTTPException:
     """The :class:`~app.web.refusals.Refusal` (catalogue ``code``) of a refused authentication, recorded first
-    (``denied``, :mod:`app.web.audit`)."""
+    (``denied``, :mod:`app.web.audit`).  ``db``'s transaction (the look-up, which only read) ends before the record's
+    own session takes a connection: a thread never waits in the pool while holding a connection, or a flood of
+    wrong credentials could hold every connection and wait for a second (:func:`_session_turn`'s argument)."""
+    db.commit()
     record_refusal(request.app.state.db, request, status, why, clinic_id=clinic_id, user_id=user_id, actor=actor)
     return Refusal(status, code, headers=headers, **params)
 
@@ -171,14 +207,14 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
     if auth:
         scheme, _, token = auth.partition(" ")
         if scheme.lower() != "bearer" or not token.strip():
-            raise _refuse(request, 401, "auth.bearer_malformed", "malformed Authorization header",
+            raise _refuse(request, db, 401, "auth.bearer_malformed", "malformed Authorization header",
                           headers={"WWW-Authenticate": "Bearer"})
         row = accounts.active_token(db, sha256_hex(token.strip()))
         if row is None:
-            raise _refuse(request, 401, "auth.token_unknown", "unknown or revoked API token",
+            raise _refuse(request, db, 401, "auth.token_unknown", "unknown or revoked API token",
                           headers={"WWW-Authenticate": "Bearer"})
         if tokens.expired(row):
-            raise _refuse(request, 401, "auth.token_expired", "expired API token",
+            raise _refuse(request, db, 401, "auth.token_expired", "expired API token",
                           clinic_id=row.clinic_id, headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
         principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
                               token_id=row.id, scopes=tokens.scopes_of(row), token_expires_at=row.expires_at)
@@ -191,11 +227,11 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
     if row is None or row.expires_at <= utcnow() or not row.user.active:
         why = "unknown or closed session" if row is None else \
             "expired session" if row.expires_at <= utcnow() else "deactivated account"
-        raise _refuse(request, 401, "auth.login_closed", why,
+        raise _refuse(request, db, 401, "auth.login_closed", why,
                       clinic_id=row.user.clinic_id if row else None, user_id=row.user_id if row else None,
                       actor=row.user.email if row else "")
     if request.method in _UNSAFE and not csrf_ok(settings.key, sid, request.headers.get(CSRF_HEADER)):
-        raise _refuse(request, 403, "auth.csrf", "missing or wrong CSRF header", clinic_id=row.user.clinic_id,
+        raise _refuse(request, db, 403, "auth.csrf", "missing or wrong CSRF header", clinic_id=row.user.clinic_id,
                       user_id=row.user_id, actor=row.user.email, header=CSRF_HEADER)
     user = row.user
     principal = Principal(clinic_id=user.clinic_id, clinic_name=user.clinic.name, role=user.role, via="cookie",

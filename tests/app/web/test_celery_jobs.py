@@ -151,10 +151,15 @@ def test_jobs_run_on_celery_workers_and_readyz_sees_the_broker(deployment, demo_
     row = _job_row(dep, job["id"])
     assert row.attempts == 1 and row.pipeline_version and row.dispatched_at is not None
 
-    runner = dep.client.app.state.runner  # the same job delivered twice more (a duplicate, a re-dispatch)
+    # the same job delivered twice more (a duplicate, a re-dispatch).  Counted from here: on a loaded machine the
+    # sweeper may already have re-sent the job while the worker was starting (queue empty, job still queued after
+    # CHAKAMO_REDISPATCH_S) — a delivery that found it running or finished, as designed
+    finished = _worker_log(dep).count(": 'finished'")
+    runner = dep.client.app.state.runner
     assert runner.publish(job["id"]) and runner.publish(job["id"])
-    wait_until(lambda: _worker_log(dep).count("succeeded") >= 3, 30, "the duplicates delivered", every_s=0.2)
-    assert _worker_log(dep).count(": 'finished'") == 2  # each found the job finished
+    wait_until(lambda: _worker_log(dep).count(": 'finished'") >= finished + 2, 30, "the duplicates delivered",
+               every_s=0.2)
+    assert _worker_log(dep).count(": 'done'") == 1  # each duplicate found the job finished: it ran once
     assert _job_row(dep, job["id"]).attempts == 1  # not run again
     assert _analyses(dep, session_id) == 1
 

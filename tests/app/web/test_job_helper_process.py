@@ -11,6 +11,7 @@ import threading
 import time
 
 import pytest
+from helper_processes import ended
 
 
 def _steps(folder, options, lang, session_id, paired_id):
@@ -59,22 +60,7 @@ def _kill(jp):
     pid = jp.pid
     proc = jp._pool._processes[pid]
     os.kill(pid, signal.SIGKILL)
-    assert _ended(proc) == -signal.SIGKILL
-
-
-def _ended(proc, timeout_s: float = 60.0):
-    """``proc``'s exit code once it has ended.  Waits on the process' sentinel, not ``Process.join``: the
-    executor's own thread also joins its workers, and when it reaps the child first this thread's join returns
-    with ``exitcode`` still None (CPython 3.11's ``Popen.poll`` answers None on ECHILD) until that thread
-    stores the code."""
-    import time
-    from multiprocessing.connection import wait
-
-    assert wait([proc.sentinel], timeout_s), "the process did not end"
-    deadline = time.monotonic() + timeout_s
-    while proc.exitcode is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return proc.exitcode
+    assert ended(proc) == -signal.SIGKILL
 
 
 def test_a_helper_that_died_while_idle_is_replaced_and_the_next_job_runs(compute, helper, monkeypatch):
@@ -139,5 +125,5 @@ def test_shutdown_stops_the_helper_under_a_job_and_the_job_is_not_failed(compute
     t.join(120)
     assert not t.is_alive()
     assert [type(e) for e in outcome] == [compute.HelperStopped]
-    assert _ended(proc) is not None
+    assert ended(proc) is not None
     assert helper._progress.closed and helper._progress_w.closed

@@ -104,9 +104,26 @@ def test_a_job_waits_for_a_connection_instead_of_failing(settings, stopped, capl
     db = _tight_pool(settings)
     job_id = _job(db, session_id, status="queued")
     held = db.engine.connect()
-    threading.Timer(1.0, held.close).start()
-    with caplog.at_level(logging.WARNING, logger="chakamo.jobs"):
-        assert _runner(client, db).run(job_id) == "done"
+    retried = threading.Event()
+
+    class _OnRetry(logging.Handler):
+        def emit(self, record):
+            if "running it again" in record.getMessage():
+                retried.set()
+
+    def give_back():  # once the job has met the busy pool (not after a fixed time: a loaded machine may be slower)
+        retried.wait(60)
+        held.close()
+
+    on_retry = _OnRetry()
+    logging.getLogger("chakamo.jobs").addHandler(on_retry)
+    threading.Thread(target=give_back, daemon=True).start()
+    try:
+        with caplog.at_level(logging.WARNING, logger="chakamo.jobs"):
+            assert _runner(client, db).run(job_id) == "done"
+    finally:
+        logging.getLogger("chakamo.jobs").removeHandler(on_retry)
+        retried.set()
     assert "running it again" in caplog.text
     with db.session() as s:
         job = s.get(Job, job_id)

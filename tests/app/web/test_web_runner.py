@@ -140,6 +140,7 @@ def test_a_hung_helper_process_is_replaced():
     from concurrent.futures.process import BrokenProcessPool
 
     from app.pipeline.render import RenderPool
+    from helper_processes import ended
 
     pool = RenderPool(1)
     try:
@@ -147,13 +148,7 @@ def test_a_hung_helper_process_is_replaced():
         (stuck,) = pool._pool._processes.values()
         hung = pool.submit(time.sleep, 600)  # the only helper is now busy for ten minutes
         pool.restart()
-        # the stuck helper was stopped, not left sleeping beside the new one; the executor's thread may reap it
-        # before this join does (the join then returns at once and the exit code appears a moment later)
-        stuck.join(60)
-        deadline = time.monotonic() + 60
-        while stuck.exitcode is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert stuck.exitcode is not None
+        assert ended(stuck) is not None  # the stuck helper was stopped, not left sleeping beside the new one
         # The abandoned work ends for whoever waits on it, not ten minutes later: cancelled if restart() came before
         # the executor's thread handed it to the process, else failed (BrokenProcessPool) once that thread sees the
         # process gone, a moment after restart() returns on a loaded machine. So wait, as a caller's result() does
