@@ -32,7 +32,6 @@ Waits are generous; nothing is timed.
 from __future__ import annotations
 
 import hashlib
-import io
 import re
 import shutil
 from contextlib import contextmanager
@@ -42,7 +41,7 @@ import pytest
 
 from metawear_frames import LED_PLAY, LED_STOP_AND_CLEAR, LSB, counts, led_pattern, sensor_notifications
 from metawear_peripherals import STAND_IN, Bench, Peripheral
-from screens import look_at_widths
+from screens import NAVY, colour_share, look_at_widths
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
     PROCESS_WAIT_MS, SETTINGS, WAIT_MS, _api_session, log_in, server, slow_expect)
@@ -58,8 +57,6 @@ CHIP = {"thigh": "BMI160", "shank": "BMI270"}
 TIMEZONE, UTC_OFFSET_H, LOCAL_DAY = "Pacific/Kiritimati", 14.0, "2026-11-23"
 #: the still window GET /options is made to serve in this test (the pipeline's is 5 s)
 SERVED_WINDOW_S = 4.0
-#: the primary button's fill (static/style.css --navy)
-NAVY = (0x1D, 0x35, 0x57)
 #: what GET /options really serves as live_checks: the pipeline's still window and limits as its docstrings state them
 #: (estimators.knee: 5 s, 0.05 rad/s, 0.3 m/s²), its 3 samples per cell and warning below 75 % of the 20 cells
 #: (estimators.magnetometer), and the live-only values of app/choices.py (15 µT; 0.3 s, 60 °/s, 20 °/s)
@@ -235,14 +232,6 @@ def _logged_in(bt_browser, base, expect, **context_options):
     finally:
         context.close()
     assert not errors, f"JavaScript errors: {errors}"
-
-
-def _share(png: bytes, colour: tuple[int, int, int]) -> float:
-    """The share of a screenshot's pixels that are ``colour``."""
-    from PIL import Image
-
-    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
-    return float((np.abs(img - colour).sum(axis=2) < 30).mean())
 
 
 def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, slow_expect, simulated, tmp_path):  # noqa: F811
@@ -424,7 +413,7 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # none of the stylesheet's)
         onward = page.get_by_role("link", name="All four steps stored: process the session")
         look_at_widths(page, page.locator("p.record-done"), task_step, task_step.locator(".step-status"), onward)
-        assert _share(onward.screenshot(), NAVY) > 0.5, "the way on to processing is not drawn as a button"
+        assert colour_share(onward.screenshot(), NAVY) > 0.5, "the way on to processing is not drawn as a button"
 
         assert page.evaluate("""async () => { const s = await import('/static/metawear/store.js');
             const db = await s.PacketStore.open(); return (await db.steps(%d)).length; }""" % sid) == 0

@@ -18,32 +18,12 @@ import time
 
 import numpy as np
 
-from screens import WIDTHS, look_at_widths
+from screens import colour_share, look_at_widths
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     PROCESS_WAIT_MS, _api_session, _tables, demo_files, log_in, open_page, server, slow_expect)
 
 FILE_NAME = re.compile(r"\.(pdf|html|viser|xlsx|json|npz|csv)\b", re.I)
 RED, GREEN = (0xB3, 0x26, 0x1E), (0x9F, 0xC5, 0xA1)     # style.css: --bad, .zone.filled's border
-
-
-def _share(img: np.ndarray, colour: tuple[int, int, int]) -> float:
-    return float((np.abs(img.astype(int) - colour).sum(axis=2) < 40).mean())
-
-
-def _cut_options(form) -> list[str]:
-    """The options of the form's menus whose text, once chosen, would not show whole in the closed menu: each option
-    goes in a copy of its menu sized to its content (Chromium sizes such a menu to its text and arrow), which must be
-    no wider than the menu."""
-    return form.evaluate("""(form) => [...form.querySelectorAll('select')].flatMap((s) => [...s.options].filter((o) => {
-        const probe = s.cloneNode(false);
-        probe.removeAttribute('id');
-        probe.append(new Option(o.text));
-        Object.assign(probe.style, { width: 'auto', minWidth: '0', maxWidth: 'none', position: 'absolute', visibility: 'hidden' });
-        s.parentNode.append(probe);
-        const need = probe.getBoundingClientRect().width;
-        probe.remove();
-        return need > s.getBoundingClientRect().width + 0.5;
-      }).map((o) => `${s.name}: ${o.text}`))""")
 
 
 def _lines(locator) -> int:
@@ -92,14 +72,11 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
         calibration.select_option("functional")
         page.get_by_label(es["wizard.angle_convention"]).select_option("thesis_zyx")
         # looked at: the form with both choices and Process; every menu's every choice reads whole once chosen, at
-        # both widths (they were cut: "De pie + eje de flexión de l", "Ángulos de Euler ZYX de la" at 1280 px)
+        # both widths (look_at's cut_options: they were cut, "De pie + eje de flexión de l", "Ángulos de Euler ZYX
+        # de la" at 1280 px)
         process = page.get_by_role("button", name=es["wizard.process"], exact=True)
         form = page.locator("form.process-form")
         look_at_widths(page, form, calibration, page.get_by_label(es["wizard.angle_convention"]), process)
-        for width in WIDTHS:
-            page.set_viewport_size({"width": width, "height": 900})
-            assert not _cut_options(form), (width, _cut_options(form))
-        page.set_viewport_size({"width": 1280, "height": 900})
         process.click()
         seen = set()
         job = page.locator("#job")
@@ -113,11 +90,10 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
             page.wait_for_timeout(50)
         expect(job).to_have_attribute("data-status", "done", timeout=PROCESS_WAIT_MS)
         # looked at: the finished job, its bar full, the way to the results; "100 %" on one line (it wrapped at 768 px)
-        look_at_widths(page, job, job.locator("#job-progress"), page.locator("#see-results"))
-        for width in WIDTHS:
-            page.set_viewport_size({"width": width, "height": 900})
+        def one_line(width):
             assert _lines(job.locator(".pct")) == 1, (width, job.locator(".pct").inner_text())
-        page.set_viewport_size({"width": 1280, "height": 900})
+
+        look_at_widths(page, job, job.locator("#job-progress"), page.locator("#see-results"), each=one_line)
         ran = context.request.get(f"{server}/api/v1/sessions/{sid}").json()["jobs"][0]
         assert (ran["calibration"], ran["angle_convention"]) == ("functional", "thesis_zyx")
         assert not [s for s in seen if FILE_NAME.search(s)], seen
@@ -165,7 +141,8 @@ def test_a_rejected_file_turns_its_zone_red_not_saved(browser, server, slow_expe
         look_at_widths(page, zone, zone.locator(".rejected-note"), zone.locator("ul.files"))
         img = np.asarray(Image.open(io.BytesIO(zone.screenshot())).convert("RGB"))
         edge = np.concatenate([img[:3].reshape(-1, 3), img[-3:].reshape(-1, 3)])[None]
-        assert _share(edge, RED) > 0.3 and _share(edge, GREEN) < 0.05, (_share(edge, RED), _share(edge, GREEN))
+        red, green = colour_share(edge, RED, tolerance=40), colour_share(edge, GREEN, tolerance=40)
+        assert red > 0.3 and green < 0.05, (red, green)
 
         # removing it: the zone is empty again, neither red nor green
         zone.get_by_role("button", name=pt["wizard.remove_file"].replace("{name}", bad.name)).click()
