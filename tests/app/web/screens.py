@@ -28,7 +28,7 @@ MEASURES = 40
 _KEPT = itertools.count()
 
 
-def _rgb(image) -> np.ndarray:
+def rgb(image) -> np.ndarray:
     """A PNG's bytes or an RGB array, as an RGB array of ints."""
     if isinstance(image, (bytes, bytearray)):
         from PIL import Image
@@ -39,7 +39,7 @@ def _rgb(image) -> np.ndarray:
 
 def ink_share(png: bytes) -> float:
     """The share of a PNG's pixels that differ (by more than 30 in R + G + B) from its most common colour."""
-    img = _rgb(png).reshape(-1, 3)
+    img = rgb(png).reshape(-1, 3)
     colours, counts = np.unique(img, axis=0, return_counts=True)
     background = colours[np.argmax(counts)]
     return float((np.abs(img - background).sum(axis=1) > 30).mean())
@@ -48,7 +48,7 @@ def ink_share(png: bytes) -> float:
 def colour_share(image, colour: tuple[int, int, int], tolerance: int = 30) -> float:
     """The share of an image's pixels (a PNG's bytes or an RGB array) within ``tolerance`` (in R + G + B) of
     ``colour``."""
-    return float((np.abs(_rgb(image) - colour).sum(axis=-1) < tolerance).mean())
+    return float((np.abs(rgb(image) - colour).sum(axis=-1) < tolerance).mean())
 
 
 def _box(page, locator):

@@ -19,23 +19,15 @@ only: no sideways scroll.
 
 from __future__ import annotations
 
-import io
 import time
 
 import numpy as np
 import pytest
 
-from screens import NAVY, WIDTHS, colour_share, look_at
+from screens import NAVY, WIDTHS, colour_share, look_at, rgb
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
     demo_files, log_in, open_page, server, slow_expect)
-
-
-
-def _image(png: bytes) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +88,7 @@ def _pages(pid: int, sid: int):
 def _check_drawn(page, width: int, what: str) -> None:
     scroll = page.evaluate("() => [document.documentElement.scrollWidth, innerWidth]")
     assert scroll[0] <= scroll[1], f"{what}: scrolls sideways ({scroll[0]} > {scroll[1]} px)"
-    img = _image(page.screenshot(full_page=True))
+    img = rgb(page.screenshot(full_page=True))
     assert img.shape[1] == width, f"{what}: the page is {img.shape[1]} px wide"
     header = page.locator("header.topbar").bounding_box()
     band = img[2:int(header["height"]) - 2]
