@@ -96,8 +96,12 @@ _CUT_TEXT = """(root) => [root, ...root.querySelectorAll('*')].flatMap((e) => {
 #: the options of the menus of a locator (itself or those it holds) whose text, once chosen, would not show whole in
 #: the closed menu: each option goes in a copy of its menu sized to its content (Chromium sizes such a menu to its text
 #: and arrow), which must be no wider than the menu.  (Step 3's menus were cut so: "De pie + eje de flexión de l".)
+#: Passed over, as :data:`_CUT_TEXT`'s deliberate exception: a menu cut with an ellipsis whose ``title`` holds its
+#: chosen option whole (the results page's analysis menu at 768 px; choosing another draws the page again).
 _CUT_OPTIONS = """(root) => [...(root.matches('select') ? [root] : []), ...root.querySelectorAll('select')]
   .filter((s) => s.getClientRects().length)
+  .filter((s) => !(getComputedStyle(s).textOverflow === 'ellipsis' && s.title && s.selectedIndex >= 0
+                   && s.title.trim() === s.options[s.selectedIndex].text.trim()))
   .flatMap((s) => [...s.options].filter((o) => {
     const probe = s.cloneNode(false);
     probe.removeAttribute('id');

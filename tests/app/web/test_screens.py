@@ -64,6 +64,9 @@ def _draw(page, body: str):
     (f"<form id=it><select name=c style='width:120px'><option>Grood</option><option>{LONG}</option></select></form>",
      "menu choices cut"),
     (f"<select id=it style='width:120px'><option>Grood</option><option>{LONG}</option></select>", "menu choices cut"),
+    (f"<select id=it style='width:120px;text-overflow:ellipsis'><option>{LONG}</option></select>", "menu choices cut"),
+    (f"<select id=it title='Grood' style='width:120px;text-overflow:ellipsis'><option>Grood</option>"
+     f"<option selected>{LONG}</option></select>", "menu choices cut"),  # its title is not the chosen option
     ("<p id=it>narrow</p><p style='width:2000px'>wide</p>", "scrolls sideways"),
     ("<p id=it style='margin-top:2000px'>below</p>", "off screen"),
 ])
@@ -78,6 +81,7 @@ def test_look_at_refuses_what_a_person_would_not_see_whole(page, body, said):
     f"<p id=it title='{LONG}' style='width:120px;overflow:hidden;white-space:nowrap;text-overflow:ellipsis'>{LONG}</p>",
     f"<div id=it style='width:120px;overflow:auto;white-space:nowrap'>{LONG}</div>",    # scrolls: reachable
     "<form id=it><select style='width:120px'><option>Grood</option><option>Euler</option></select></form>",
+    f"<select id=it title='{LONG}' style='width:120px;text-overflow:ellipsis'><option>{LONG}</option></select>",
     "<p id=it>a<span style='position:absolute;width:1px;height:1px;overflow:hidden;clip:rect(0 0 0 0)'>"
     f"{LONG}</span></p>",                                              # a label for screen readers only
 ])
