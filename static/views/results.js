@@ -454,7 +454,7 @@ function interpretationSection(session, analysis) {
   act("GET", base);
   return h("section", { class: "card interpretation", id: "interpretation", "aria-labelledby": "h-interp" },
     h("h2", { id: "h-interp" }, t("interp.title")), h("p", { class: "hint" }, t("interp.hint")), status,
-    h("label", { for: "interp-text" }, t("interp.text")), text, reasonField,
+    h("div", { class: "field" }, h("label", { for: "interp-text" }, t("interp.text")), text), reasonField,
     h("div", { class: "actions wrap" }, save, sign, amend, amendSave), out, historyBox);
 }
 
