@@ -285,7 +285,7 @@ export function recordView(sessionId) {
     identifyButton.disabled = !state.recorder || identifying;
     clear(stepsList).append(...STEPS.map(stepItem));
     clear(done).append(STEPS.every((r) => state.status[r] === "stored")
-      ? h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button" }, t("record.to_wizard")) : "");
+      ? h("a", { href: `#/sessions/${sessionId}/wizard`, class: "button-link primary" }, t("record.to_wizard")) : "");
   }
 
   // leaving the page lets go of the sensors; a step being recorded stays in the buffer, offered on the next visit

@@ -74,6 +74,8 @@ function analysisSelector(sessionId, analyses, current) {
     t("results.analysis_option", { id: a.id, filter: label("filter", a.filter),
       angles: label("angle_convention", a.angle_method), date: dateTime(a.created_at),
       cycles: a.accepted_cycles ?? "—" }))));
+  // at a tablet's width the chosen analysis ends in an ellipsis (style.css): its title holds it whole
+  select.title = select.selectedIndex >= 0 ? select.options[select.selectedIndex].text : "";
   select.addEventListener("change", () => navigate(`#/sessions/${sessionId}?analysis_id=${select.value}`));
   return h("div", { class: "card toolbar analysis-picker" },
     h("label", { for: "analysis" }, t("results.analysis")), select,
@@ -452,7 +454,7 @@ function interpretationSection(session, analysis) {
   act("GET", base);
   return h("section", { class: "card interpretation", id: "interpretation", "aria-labelledby": "h-interp" },
     h("h2", { id: "h-interp" }, t("interp.title")), h("p", { class: "hint" }, t("interp.hint")), status,
-    h("label", { for: "interp-text" }, t("interp.text")), text, reasonField,
+    h("div", { class: "field" }, h("label", { for: "interp-text" }, t("interp.text")), text), reasonField,
     h("div", { class: "actions wrap" }, save, sign, amend, amendSave), out, historyBox);
 }
 

@@ -9,12 +9,10 @@ entry nor the pages.  Same server as test_browser_e2e.py (its ``server`` fixture
 
 from __future__ import annotations
 
-import io
 import json
 import urllib.request
 
-import numpy as np
-
+from screens import NAVY, colour_share, rgb
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     EMAIL, PASSWORD, SETTINGS, _tables, log_in, open_page, server, slow_expect)
 
@@ -29,12 +27,6 @@ def _bearer_get(url: str, token: str) -> int:
             return answer.status
     except urllib.error.HTTPError as err:
         return err.code
-
-
-def _image(png: bytes) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
 
 def test_admin_manages_users_tokens_and_reads_the_audit_log(browser, server, slow_expect):  # noqa: F811
@@ -144,9 +136,9 @@ def test_admin_manages_users_tokens_and_reads_the_audit_log(browser, server, slo
         page.locator("select[name=action]").select_option("")
         page.get_by_role("button", name=pt["admin.audit_apply"]).click()
         expect(rows).to_have_count(50)
-        img = _image(page.screenshot(full_page=True))
+        img = rgb(page.screenshot(full_page=True))
         assert img.shape[1] == 768, f"the page is {img.shape[1]} px wide at 768: it scrolls sideways"
-        navy = (np.abs(img[:40].astype(int) - (0x1D, 0x35, 0x57)).sum(axis=2) < 30).mean()
+        navy = colour_share(img[:40], NAVY)
         assert navy > 0.5, f"the header is not drawn ({navy:.0%} navy)"
         table = page.locator("#audit-table").bounding_box()
         assert table and table["x"] >= 0 and table["x"] + table["width"] <= 768

@@ -15,6 +15,7 @@ import io
 
 import numpy as np
 import pytest
+from screens import look_at_widths
 from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_session, write_session
@@ -120,6 +121,8 @@ def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(brow
         slow_expect(row2).to_contain_text("tropezó al subir")
         slow_expect(row2).to_contain_text("admin@clinic.test")
         slow_expect(page.locator("#exclude-only-2")).to_be_checked()
+        # looked at: the excluded cycle's row, its reason and who excluded it
+        look_at_widths(page, row2, page.locator("#reason-only-2"))
         page.locator("#cycles-chart-only").scroll_into_view_if_needed()
         slow_expect(page.locator("#cycles-chart-only .scatterlayer .trace")).to_have_count(N_CYCLES)
         page.wait_for_timeout(500)  # plotly's transition

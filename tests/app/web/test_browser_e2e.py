@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from screens import look_at, look_at_widths
+
 STATIC = Path(__file__).resolve().parents[3] / "static"
 EMAIL, PASSWORD = "admin@clinic.test", "correct horse battery staple"
 WAIT_MS = 120_000            # one UI step on a loaded machine
@@ -248,6 +250,7 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
 
     # --- login
     page.goto(f"{base}/")
+    look_at_widths(page, page.locator("form.login"), page.get_by_label("Email"), page.get_by_role("button", name="Log in"))
     page.get_by_label("Email").fill(EMAIL)
     page.get_by_label("Password").fill(PASSWORD)
     page.get_by_role("button", name="Log in").click()
@@ -264,11 +267,14 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
     page.get_by_role("button", name="Create patient").click()
     expect(page.get_by_role("heading", level=1)).to_have_text(f"{name} (E2E-001)")
     assert page.locator("main img").count() == 0 and page.locator("main b").count() == 0
+    # looked at: the new patient's page, its name (markup shown as text) whole in the heading, "New session"
+    look_at_widths(page, page.get_by_role("heading", level=1), page.get_by_role("button", name="New session"))
 
     # the list finds it by search
     page.get_by_role("link", name="Patients", exact=True).first.click()
     page.get_by_label("Search").fill("e2e-0")
     expect(page.locator("#patients-table tbody tr")).to_have_count(1)
+    look_at(page, page.get_by_label("Search"), page.locator("#patients-table tbody tr"))
     page.get_by_role("link", name="E2E-001").click()
 
     # --- new session → wizard
@@ -291,16 +297,26 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
     expect(box).to_contain_text("ready to process")
     assert box.locator("ul.messages li").count() >= 1, "the ingestion messages are shown"
     _no_raw_values(page)
+    # looked at: the check's box saying ready, its messages; a filled zone with its three files
+    look_at_widths(page, box, box.locator("ul.messages"))
+    task = page.locator(".zone[data-segment=shank][data-role=task]")
+    look_at_widths(page, task, task.locator("h3"), task.locator("ul.files"))
 
     # --- step 3: process, the progress bar runs to its end
     page.get_by_role("button", name="Next").click()
     expect(page.get_by_label("Orientation filter")).to_have_value("chakamo")
     page.get_by_label("Report language").select_option("pt")
+    # looked at: step 3's form, every choice of its menus whole once chosen (in English: the zones test looks in
+    # Spanish, the layout test in Spanish and Portuguese), and Process
+    form = page.locator("form.process-form")
+    look_at_widths(page, form, page.get_by_label("Orientation filter"), page.get_by_label("Report language"),
+                   page.get_by_role("button", name="Process", exact=True))
     page.get_by_role("button", name="Process", exact=True).click()
     bar = page.locator("progress#job-progress")
     expect(bar).to_be_visible()
     expect(page.locator("#job")).to_have_attribute("data-status", "done", timeout=PROCESS_WAIT_MS)
     assert float(bar.evaluate("el => el.value")) == pytest.approx(1.0)
+    look_at_widths(page, page.locator("#job"), bar, page.locator("#see-results"))
 
     # --- results
     page.locator("#see-results").click()
@@ -318,6 +334,11 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
     expect(page.locator("#reference-table tbody tr").nth(1)).to_contain_text("Impulse (% of the cycle)")
     expect(page.locator(".quality")).to_be_visible()
     _no_raw_values(page)
+    # looked at: the heading, the flexion chart, the ROM table, the reference table
+    look_at_widths(page, page.get_by_role("heading", level=1))
+    look_at_widths(page, page.locator("#curve-flexion"), page.locator("#curve-flexion svg.main-svg").first)
+    look_at_widths(page, page.locator("#rom-table"), rows.first)
+    look_at_widths(page, page.locator("#reference-table"))
 
     # the 3D view: viser's client in the iframe draws femur and tibia
     frame = page.locator("#scene-frame")
@@ -357,6 +378,8 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
     expect(page).to_have_url(re.compile(rf"analysis_id={first}$"))
     expect(page.locator(".summary")).to_contain_text("ChakaMo")
     expect(page.locator("#curve-flexion svg.main-svg").first).to_be_attached()
+    # looked at: the analysis menu (filter, convention, date, cycles) beside its label, and the summary
+    look_at_widths(page, page.locator(".analysis-picker"), picker, page.locator(".summary"))
 
     # --- the patient page draws the ROM trend of the processed session
     page.locator("nav.crumbs a").nth(1).click()
@@ -364,12 +387,15 @@ def _run_flow(page, base: str, zones: dict, tmp_path: Path) -> None:
     expect(page.locator("#sessions-table tbody tr")).to_have_count(1)
     expect(page.locator("#sessions-table .badge.status-done")).to_be_visible()
     _no_raw_values(page)
+    look_at_widths(page, page.locator("#trend-chart"), page.locator("#trend-chart svg.main-svg").first)
+    look_at_widths(page, page.locator("#sessions-table"), page.locator("#sessions-table .badge.status-done"))
 
     # --- the language switcher re-renders the page in Spanish and is remembered
     page.get_by_label("Language").select_option("es")
     expect(page.get_by_role("heading", name="Sesiones")).to_be_visible()
     page.reload()
     expect(page.get_by_role("heading", name="Sesiones")).to_be_visible()
+    look_at_widths(page, page.locator("#sessions-table"), page.get_by_role("heading", name="Sesiones"))
 
     # --- log out: the cookie no longer opens the app
     page.get_by_role("button", name="Cerrar sesión").click()

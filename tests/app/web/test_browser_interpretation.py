@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from screens import look_at_widths
 from test_browser_e2e import csrf_header, SETTINGS, _tables, demo_files, log_in, open_page, server, slow_expect  # noqa: F401
 
 CLINICIAN, PASSWORD = "clinica@clinic.test", "another long enough password"
@@ -90,6 +91,16 @@ def test_clinician_signs_and_amends_in_the_browser(browser, server, demo_files, 
         slow_expect(history.first).to_contain_text(first)
         slow_expect(history.first).to_contain_text("plazo corregido")
         slow_expect(page.locator("#interp-text")).to_have_value(second)
+        # looked at: who signed and that it was amended, the text, the earlier version with its reason
+        look_at_widths(page, status)
+
+        def as_wide_as_its_card(width):   # it was a 200 px box beside its label, the label at its foot
+            ratio = page.locator("#interp-text").evaluate("(e) => e.getBoundingClientRect().width"
+                                                          " / e.closest('section').clientWidth")
+            assert ratio > 0.8, (width, ratio)
+
+        look_at_widths(page, page.locator("#interp-text"), each=as_wide_as_its_card)
+        look_at_widths(page, history.first)
 
         shot = tmp_path / "interpretation.png"
         section.screenshot(path=str(shot))

@@ -19,24 +19,15 @@ only: no sideways scroll.
 
 from __future__ import annotations
 
-import io
 import time
 
 import numpy as np
 import pytest
 
+from screens import NAVY, WIDTHS, colour_share, look_at, rgb
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
     demo_files, log_in, open_page, server, slow_expect)
-
-NAVY = (0x1D, 0x35, 0x57)
-WIDTHS = (768, 1280)
-
-
-def _image(png: bytes) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
 
 @pytest.fixture(scope="module")
@@ -97,11 +88,11 @@ def _pages(pid: int, sid: int):
 def _check_drawn(page, width: int, what: str) -> None:
     scroll = page.evaluate("() => [document.documentElement.scrollWidth, innerWidth]")
     assert scroll[0] <= scroll[1], f"{what}: scrolls sideways ({scroll[0]} > {scroll[1]} px)"
-    img = _image(page.screenshot(full_page=True))
+    img = rgb(page.screenshot(full_page=True))
     assert img.shape[1] == width, f"{what}: the page is {img.shape[1]} px wide"
     header = page.locator("header.topbar").bounding_box()
     band = img[2:int(header["height"]) - 2]
-    navy = float((np.abs(band.astype(int) - NAVY).sum(axis=2) < 30).mean())
+    navy = colour_share(band, NAVY)
     assert navy > 0.5, f"{what}: the header is not drawn ({navy:.0%} navy)"
     body = img[int(header["height"]):]
     assert len(np.unique(body.reshape(-1, 3)[::97], axis=0)) > 8, f"{what}: a blank page"
@@ -138,6 +129,8 @@ def test_every_page_fits_768_and_1280(browser, server, processed, slow_expect, l
                 expect(page.locator(ready).first).to_be_visible()
                 page.wait_for_timeout(300)   # charts and late cards settle
                 _check_drawn(page, width, f"{name} @ {width} ({locale})")
+                if name == "wizard-3":   # step 3's menus: every choice reads whole once chosen (look_at's cut_options)
+                    look_at(page, page.locator("form.process-form"))
             # the pages outside the app's frame: the HTML report (in the page's language) and the API's /docs
             lang = locale[:2]
             for name, url, ready in (("report.html", f"/api/v1/sessions/{sid}/report.html?lang={lang}", "#quality"),

@@ -41,6 +41,7 @@ import pytest
 
 from metawear_frames import LED_PLAY, LED_STOP_AND_CLEAR, LSB, counts, led_pattern, sensor_notifications
 from metawear_peripherals import STAND_IN, Bench, Peripheral
+from screens import NAVY, colour_share, look_at_widths
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
     PROCESS_WAIT_MS, SETTINGS, WAIT_MS, _api_session, log_in, server, slow_expect)
@@ -269,6 +270,10 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         expect(cards.nth(0)).to_contain_text("battery 64 %")
         expect(cards.nth(1)).to_contain_text("firmware 1.5.0")
         expect(page.get_by_role("button", name="Connect a sensor")).to_be_disabled()
+        # looked at: both cards (name, battery, firmware, state), "Which is the thigh sensor?" offered
+        look_at_widths(page, page.locator("section.record > div.card"), cards.nth(0), cards.nth(1),
+                       cards.nth(0).get_by_role("button", name="Blink its light"),
+                       page.get_by_role("button", name="Which is the thigh sensor?"))
         # which physical sensor is which: its card's button blinks that board's LED (the emulated board gets the
         # LED module's commands: stop and clear, the pattern, play), and only that board's
         before = (len(shank.commands), len(thigh.commands))
@@ -281,6 +286,10 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         _identify(bench, page, simulated, thigh, shank)
         expect(page.locator("ul.sensors li[data-segment=thigh]")).to_contain_text("MetaWear-S2")
         expect(page.locator("ul.sensors li[data-segment=shank]")).to_contain_text("MetaWear-S1")
+        # looked at: the cards named by their segment, the swap offered, the first step ready to start
+        look_at_widths(page, page.locator("section.record > div.card"), page.locator("ul.sensors li[data-segment=thigh] h3"),
+                       page.locator("ul.sensors li[data-segment=shank] h3"),
+                       page.get_by_role("button", name="Swap thigh and shank"))
 
         # --- the four steps
         sensors = {"thigh": thigh, "shank": shank}
@@ -353,6 +362,11 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 expect(step.locator("ul.live li.preview")).to_have_text(re.compile(
                     r"Knee angles \(preview\): Flexion-extension -?\d+° · Adduction-abduction -?\d+° · "
                     r"Internal-external rotation -?\d+°"))
+                # looked at: the step recording, its preview line (redrawn every 100 ms: look_at measures it again
+                # when it was replaced meanwhile), each sensor's line, the stop
+                look_at_widths(page, step, step.locator("ul.live li.preview"), step.locator("ul.live li[data-segment=thigh]"),
+                               step.locator("ul.live li[data-segment=shank]"),
+                               step.get_by_role("button", name="Stop and upload"))
             flaky["role"] = role
             step.get_by_role("button", name="Stop and upload").click()
             bench.wait(lambda step=step: step.get_attribute("data-status") in ("stored", "unsent"), f"{role} uploaded")
@@ -362,6 +376,9 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
                 # stored are not re-sent
                 assert step.get_attribute("data-status") == "unsent"
                 expect(page.locator(".form-message [role=alert]")).to_contain_text("busy")
+                # looked at: the refusal said at the page's top, the step kept to be sent again
+                look_at_widths(page, page.locator("h1"), page.locator(".form-message [role=alert]"))
+                look_at_widths(page, step, step.locator(".step-status"), step.get_by_role("button", name="Upload again"))
                 assert page.evaluate("async () => (await (await import('/static/metawear/store.js'))"
                                      ".PacketStore.open()).steps(%d)" % sid) == ["task"]
                 asked = []
@@ -391,6 +408,12 @@ def test_two_sensors_record_the_protocol_through_the_page(bt_browser, server, sl
         # the emulated air losses inside the shank's runs are counted (the 5 s gap is between runs, not a loss)
         expect(task_step.locator(".step-status")).to_contain_text(f"thigh 0, shank {sent['task'][1]['shank']}")
         expect(page.get_by_role("link", name="All four steps stored: process the session")).to_be_visible()
+        # looked at, at both widths: the task's losses said, every step stored, the way on to processing drawn as
+        # the page's primary button (navy), not a plain link under the last card (the class it had, "button", is
+        # none of the stylesheet's)
+        onward = page.get_by_role("link", name="All four steps stored: process the session")
+        look_at_widths(page, page.locator("p.record-done"), task_step, task_step.locator(".step-status"), onward)
+        assert colour_share(onward.screenshot(), NAVY) > 0.5, "the way on to processing is not drawn as a button"
 
         assert page.evaluate("""async () => { const s = await import('/static/metawear/store.js');
             const db = await s.PacketStore.open(); return (await db.steps(%d)).length; }""" % sid) == 0

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from screens import look_at_widths
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     csrf_header,
     EMAIL, PASSWORD, PROCESS_WAIT_MS, WAIT_MS, _api_session, open_page, server, slow_expect)
@@ -72,6 +73,8 @@ def test_the_clinician_moves_a_cut_in_spanish_and_reads_it_in_portuguese(
             expect(sensor.locator("svg.split-trace polyline")).to_have_count(1)
             expect(sensor.locator("svg.split-trace .parts rect")).to_have_count(4)   # figure-eight, standing, supine, task
             expect(sensor.locator(".cut")).to_have_count(8)
+            # looked at: the sensor's trace with the parts, its heading naming its file above it
+            look_at_widths(page, sensor.locator("svg.split-trace"), sensor.locator("h4"))
         # the automatic standing start is where the simulator put it
         thigh = editor.locator(".split-sensor[data-segment=thigh]")
         start = thigh.locator("input[name=split-thigh-standing-from]")

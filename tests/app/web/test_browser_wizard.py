@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from screens import look_at_widths as _look
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     EMAIL, PASSWORD, _api_session, _no_raw_values, demo_files, open_page, server, slow_expect)
 
@@ -47,8 +48,16 @@ def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow
         page.goto(f"{server}/#/sessions/{sid}/wizard")
         expect(page.get_by_role("heading", name="1. Which sensor is on which segment?")).to_be_visible()
         page.get_by_label("Name or MAC (optional)").first.fill("MetaWear " + THIGH_MAC.replace(":", "").lower())
+        # looked at: the two sensors' cards (name or MAC, the segment chosen) and the way on
+        sensors = page.locator(".card.sensor")
+        _look(page, sensors.nth(0), sensors.nth(1), sensors.nth(0).locator("input[name=sensor-1]"),
+              page.get_by_role("button", name="Next"))
         page.get_by_role("button", name="Next").click()
         expect(page.get_by_role("heading", name="2. The four recordings of each sensor")).to_be_visible()
+        # looked at: the step's heading and the thigh's group of four zones, named with the sensor typed
+        thigh = page.locator("fieldset[data-segment=thigh]")
+        _look(page, page.get_by_role("heading", name="2. The four recordings of each sensor"), thigh.locator("legend"),
+              *[thigh.locator(f".zone[data-role={role}] h3") for role in ("mag_calibration", "standing", "lying", "task")])
 
         # the shank's task recording dropped on the THIGH's task zone: a warning naming the files' MAC
         thigh_task = page.locator(".zone[data-segment=thigh][data-role=task]")
@@ -58,6 +67,10 @@ def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow
         expect(warning).to_contain_text("Not the thigh sensor?")
         expect(warning).to_contain_text(SHANK_MAC)
         expect(warning).to_contain_text(THIGH_MAC)
+        # looked at: the zone's warning (both MACs spelled out) whole on the screen, and its three files listed: a
+        # file name too long for the zone ends in an ellipsis on purpose, its title holding it whole (look_at's
+        # cut_text lets exactly that pass)
+        _look(page, thigh_task, warning, thigh_task.locator("ul.files"))
 
         # the shank's own files in the shank zone: nothing to say (only the thigh's MAC is known)
         shank_task = page.locator(".zone[data-segment=shank][data-role=task]")
@@ -79,11 +92,13 @@ def test_files_of_the_other_sensor_are_flagged(browser, server, demo_files, slow
         expect(warning).to_contain_text("Sensors swapped?")
         expect(warning).to_contain_text(SHANK_MAC)
         assert page.locator(".zone-mac [role=alert]").count() == 1    # the other zones hold the right files
+        _look(page, page.locator(".zone[data-segment=thigh][data-role=task]"), warning)
 
         # the same warning in Spanish once the language is switched (the page is drawn again)
         page.get_by_label("Language").select_option("es")
-        expect(page.locator(".zone[data-segment=thigh][data-role=task] .zone-mac [role=alert]")).to_contain_text(
-            "¿Sensores intercambiados?")
+        zone = page.locator(".zone[data-segment=thigh][data-role=task]")
+        expect(zone.locator(".zone-mac [role=alert]")).to_contain_text("¿Sensores intercambiados?")
+        _look(page, zone, zone.locator(".zone-mac [role=alert]"), zone.get_by_role("button", name="Elegir archivos"))
     finally:
         context.close()
     assert not errors, f"JavaScript errors: {errors}"
@@ -113,9 +128,11 @@ def test_one_sensor_on_both_segments_is_flagged_from_the_server(browser, server,
         expect(shank_standing.locator("ul.files li")).to_have_count(3)
         for zone in (thigh_task, shank_standing):
             expect(zone.locator(".zone-mac [role=alert]")).to_contain_text(SHANK_MAC.replace(":", ""))
+            _look(page, zone, zone.locator(".zone-mac [role=alert]"))
         page.get_by_label("Language").select_option("pt")
-        expect(page.locator(".zone[data-segment=thigh][data-role=task] .zone-mac [role=alert]")).to_contain_text(
-            "coxa")
+        zone = page.locator(".zone[data-segment=thigh][data-role=task]")
+        expect(zone.locator(".zone-mac [role=alert]")).to_contain_text("coxa")
+        _look(page, zone, zone.locator(".zone-mac [role=alert]"), zone.locator("ul.files"))
     finally:
         context.close()
     assert not errors, f"JavaScript errors: {errors}"

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from screens import colour_share, look_at_widths
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     PROCESS_WAIT_MS, _api_session, _tables, demo_files, log_in, open_page, server, slow_expect)
 
@@ -25,8 +26,10 @@ FILE_NAME = re.compile(r"\.(pdf|html|viser|xlsx|json|npz|csv)\b", re.I)
 RED, GREEN = (0xB3, 0x26, 0x1E), (0x9F, 0xC5, 0xA1)     # style.css: --bad, .zone.filled's border
 
 
-def _share(img: np.ndarray, colour: tuple[int, int, int]) -> float:
-    return float((np.abs(img.astype(int) - colour).sum(axis=2) < 40).mean())
+def _lines(locator) -> int:
+    """How many lines the text of ``locator`` is drawn on."""
+    return locator.evaluate("(e) => { const r = document.createRange(); r.selectNodeContents(e);"
+                            " return new Set([...r.getClientRects()].map((q) => Math.round(q.top))).size; }")
 
 
 def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, demo_files, slow_expect):  # noqa: F811
@@ -52,6 +55,13 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
             expect(zone).to_have_attribute("data-state", "filled")
         expect(page.locator(".zone[data-segment=''] ul.files li")).to_have_count(0)
         expect(page.locator(".title-row .badge")).to_have_text(es["status.ready"])
+        # looked at: the badge beside the title; each segment's four zones filled, their files listed; the check's box
+        look_at_widths(page, page.locator(".title-row"), page.locator(".title-row .badge"), page.locator("h1"))
+        for seg in ("thigh", "shank"):
+            for role in ("mag_calibration", "standing", "lying", "task"):
+                zone = page.locator(f".zone[data-segment={seg}][data-role={role}]")
+                look_at_widths(page, zone, zone.locator("h3"), zone.locator("ul.files"))
+        look_at_widths(page, page.locator(".ingestion-box.ok"), page.locator(".ingestion-box.ok .ok-line"))
 
         # step 3: the two choices of GET /options, in Spanish, sent with the request
         page.locator("button.next").click()
@@ -61,16 +71,29 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
             [es["angle_convention.grood_suntay"], es["angle_convention.thesis_zyx"]])
         calibration.select_option("functional")
         page.get_by_label(es["wizard.angle_convention"]).select_option("thesis_zyx")
-        page.get_by_role("button", name=es["wizard.process"], exact=True).click()
+        # looked at: the form with both choices and Process; every menu's every choice reads whole once chosen, at
+        # both widths (look_at's cut_options: they were cut, "De pie + eje de flexión de l", "Ángulos de Euler ZYX
+        # de la" at 1280 px)
+        process = page.get_by_role("button", name=es["wizard.process"], exact=True)
+        form = page.locator("form.process-form")
+        look_at_widths(page, form, calibration, page.get_by_label(es["wizard.angle_convention"]), process)
+        process.click()
         seen = set()
         job = page.locator("#job")
         expect(job).to_be_visible()
+        # looked at: the job's box with its bar and stage, whatever stage it is at
+        look_at_widths(page, job, job.locator("#job-progress"), job.locator("h3"))
         deadline = time.monotonic() + PROCESS_WAIT_MS / 1000   # a job that never ends fails the test, not hangs it
         while job.get_attribute("data-status") not in ("done", "failed"):
             assert time.monotonic() < deadline, f"the job did not end in {PROCESS_WAIT_MS / 1000:.0f} s: {seen}"
             seen.add(page.locator("#job .stage").inner_text())
             page.wait_for_timeout(50)
         expect(job).to_have_attribute("data-status", "done", timeout=PROCESS_WAIT_MS)
+        # looked at: the finished job, its bar full, the way to the results; "100 %" on one line (it wrapped at 768 px)
+        def one_line(width):
+            assert _lines(job.locator(".pct")) == 1, (width, job.locator(".pct").inner_text())
+
+        look_at_widths(page, job, job.locator("#job-progress"), page.locator("#see-results"), each=one_line)
         ran = context.request.get(f"{server}/api/v1/sessions/{sid}").json()["jobs"][0]
         assert (ran["calibration"], ran["angle_convention"]) == ("functional", "thesis_zyx")
         assert not [s for s in seen if FILE_NAME.search(s)], seen
@@ -114,9 +137,12 @@ def test_a_rejected_file_turns_its_zone_red_not_saved(browser, server, slow_expe
         expect(zone.locator(".rejected-note")).to_contain_text(bad.name)
         expect(zone.locator(".zone-status .ok")).to_have_count(0)        # never "stored" in green
         expect(page.locator(".title-row .badge")).to_have_text(pt["status.incomplete"])
+        # looked at: the red zone, the refusal naming the file, the file listed
+        look_at_widths(page, zone, zone.locator(".rejected-note"), zone.locator("ul.files"))
         img = np.asarray(Image.open(io.BytesIO(zone.screenshot())).convert("RGB"))
         edge = np.concatenate([img[:3].reshape(-1, 3), img[-3:].reshape(-1, 3)])[None]
-        assert _share(edge, RED) > 0.3 and _share(edge, GREEN) < 0.05, (_share(edge, RED), _share(edge, GREEN))
+        red, green = colour_share(edge, RED, tolerance=40), colour_share(edge, GREEN, tolerance=40)
+        assert red > 0.3 and green < 0.05, (red, green)
 
         # removing it: the zone is empty again, neither red nor green
         zone.get_by_role("button", name=pt["wizard.remove_file"].replace("{name}", bad.name)).click()
