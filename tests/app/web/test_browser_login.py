@@ -35,3 +35,30 @@ def test_an_email_with_accounts_in_two_clinics_logs_in_by_naming_the_clinic(brow
         assert not errors, errors
     finally:
         context.close()
+
+
+LONG_CLINIC = "Clínica de Fisioterapia e Reabilitação do Hospital Universitário de Santa Maria"
+
+
+def test_a_long_clinic_name_in_the_header_can_be_read_whole(browser, server, slow_expect):  # noqa: F811
+    """Below 1100 px the header ellipsises the clinic's name; its title carries it whole (look_at's cut-text check
+    fails an ellipsis without one: the header's names had none)."""
+    from app.cli import admin as admin_cli
+
+    settings = SETTINGS[server]
+    admin_cli.create_clinic(settings, LONG_CLINIC)
+    admin_cli.create_user(settings, clinic=LONG_CLINIC, email="long.clinic@clinic.test", role="clinician",
+                          name="Long Clinic", password=PASSWORD_A)
+    pt = _tables()["pt"]
+    context, page, errors = open_page(browser, "pt-PT")
+    try:
+        page.set_viewport_size({"width": 1000, "height": 900})
+        log_in(page, server, "long.clinic@clinic.test", PASSWORD_A)
+        slow_expect(page.locator("h1")).to_have_text(pt["patients.title"])
+        clinic = page.locator("#who .clinic")
+        assert clinic.evaluate("e => e.scrollWidth > e.clientWidth")  # cut at this width
+        assert clinic.get_attribute("title") == LONG_CLINIC
+        look_at(page, page.locator("#who"))
+        assert not errors, errors
+    finally:
+        context.close()
