@@ -46,8 +46,9 @@ def test_every_refusal_code_is_in_a_catalogue_in_three_languages():
     for where, name, node in _calls():
         if name == "Refusal" and len(node.args) >= 2 and isinstance(getattr(node.args[1], "value", None), str):
             codes.add((where, node.args[1].value))
-        if name == "_refuse" and len(node.args) >= 3 and isinstance(getattr(node.args[2], "value", None), str):
-            codes.add((where, node.args[2].value))
+        # _refuse(request, db, status, code, why): the code is its fourth argument
+        if name == "_refuse" and len(node.args) >= 4 and isinstance(getattr(node.args[3], "value", None), str):
+            codes.add((where, node.args[3].value))
         if name == "FhirExportError" and node.args:   # the FHIR export's reasons, quoted by its 409
             assert isinstance(getattr(node.args[0], "value", None), str), (where, node.lineno)
             codes.add((where, node.args[0].value))
