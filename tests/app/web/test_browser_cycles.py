@@ -11,11 +11,10 @@ from static/i18n/es.json; the screenshot of the cycles chart is looked at (the e
 
 from __future__ import annotations
 
-import io
 
 import numpy as np
 import pytest
-from screens import look_at_widths
+from screens import look_at_widths, rgb
 from test_browser_e2e import csrf_header, PROCESS_WAIT_MS, _tables, log_in, open_page, server, slow_expect  # noqa: F401
 
 from app.pipeline.demo import simulate_session, write_session
@@ -70,10 +69,7 @@ def _next_analysis(page, previous: int) -> int:
 
 
 def _grey_pixels(png: bytes) -> int:
-    from PIL import Image
-
-    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
-    return int((np.abs(rgb - np.array(EXCLUDED_GREY)).sum(axis=2) <= 12).sum())
+    return int((np.abs(rgb(png) - np.array(EXCLUDED_GREY)).sum(axis=2) <= 12).sum())
 
 
 def test_cycles_shown_excluded_with_a_reason_reprocessed_and_included_again(browser, server, slow_expect,  # noqa: F811

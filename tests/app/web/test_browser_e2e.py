@@ -25,7 +25,6 @@ script builds HTML from strings (``innerHTML`` and friends) or carries inline ev
 
 from __future__ import annotations
 
-import io
 import json
 import re
 import socket
@@ -36,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from screens import look_at, look_at_widths
+from screens import look_at, look_at_widths, rgb
 
 STATIC = Path(__file__).resolve().parents[3] / "static"
 EMAIL, PASSWORD = "admin@clinic.test", "correct horse battery staple"
@@ -190,17 +189,15 @@ def slow_expect(browser):
 # --------------------------------------------------------------------------------------- screenshots
 def _bone_pixels(img: np.ndarray) -> int:
     """Shaded bone (warm off-white): the same test as tests/reports/test_browser.py."""
-    rgb = img.astype(np.int16)
-    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    pixels = img.astype(np.int16)
+    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
     return int(((r - b >= 8) & (r - b <= 60) & (r >= g) & (r >= 60) & (r <= 245)).sum())
 
 
 def _poll_screenshot(locator, until, timeout_s: float = 120.0) -> np.ndarray:
-    from PIL import Image
-
     deadline = time.monotonic() + timeout_s
     while True:
-        img = np.asarray(Image.open(io.BytesIO(locator.screenshot(timeout=timeout_s * 1000))).convert("RGB"))
+        img = rgb(locator.screenshot(timeout=timeout_s * 1000))
         if until(img) or time.monotonic() > deadline:
             return img
         locator.page.wait_for_timeout(500)

@@ -14,6 +14,7 @@ import re
 import numpy as np
 import pytest
 from test_browser_cycles import processed_session
+from screens import rgb
 from test_browser_e2e import (_bone_pixels, _poll_screenshot, _tables, log_in, open_page, server,  # noqa: F401
                               slow_expect)
 
@@ -40,9 +41,7 @@ def test_the_3d_view_loads_with_the_page_and_jumps_to_a_cycle(browser, server, s
 
         still = context.request.get(f"{api}/sessions/{sid}/scene.png")
         assert still.ok and still.headers["content-type"] == "image/png"
-        from PIL import Image
-
-        assert _bone_pixels(np.asarray(Image.open(io.BytesIO(still.body())).convert("RGB"))) > 300, \
+        assert _bone_pixels(rgb(still.body())) > 300, \
             "no bones in the still first frame"
         page.goto(f"{server}/#/sessions/{sid}")
         frame = page.locator("#scene-frame")

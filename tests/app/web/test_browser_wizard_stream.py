@@ -23,9 +23,8 @@ import io
 import json
 import re
 
-import numpy as np
 import pytest
-from screens import look_at
+from screens import look_at, rgb
 from test_browser_cycles import uploaded_session
 from test_browser_e2e import (PROCESS_WAIT_MS, _tables, log_in, open_page, server,  # noqa: F401
                               slow_expect)
@@ -55,9 +54,7 @@ def _process_in_wizard(page, base: str, sid: int, expect) -> int:
 def _bar_filled(png: bytes) -> float:
     """The share of the job box's columns, in the progress bar's row band, that hold the bar's filled colour (a
     saturated blue-ish pixel: Chromium's default accent or the app's); a blank box gives 0."""
-    from PIL import Image
-
-    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    img = rgb(png)
     r, b = img[..., 0], img[..., 2]
     filled = (b - r > 60) & (b > 120)
     return float(filled.any(axis=0).mean())

@@ -12,13 +12,12 @@ Portuguese, with the demo session's real MetaBase files:
 
 from __future__ import annotations
 
-import io
 import re
 import time
 
 import numpy as np
 
-from screens import colour_share, look_at_widths
+from screens import colour_share, look_at_widths, rgb
 from test_browser_e2e import (  # noqa: F401 - the fixtures are used by name
     PROCESS_WAIT_MS, _api_session, _tables, demo_files, log_in, open_page, server, slow_expect)
 
@@ -117,7 +116,6 @@ def test_bulk_drop_fills_the_zones_and_options_reach_the_job(browser, server, de
 
 
 def test_a_rejected_file_turns_its_zone_red_not_saved(browser, server, slow_expect, tmp_path):  # noqa: F811
-    from PIL import Image
 
     expect = slow_expect
     pt = _tables()["pt"]
@@ -139,7 +137,7 @@ def test_a_rejected_file_turns_its_zone_red_not_saved(browser, server, slow_expe
         expect(page.locator(".title-row .badge")).to_have_text(pt["status.incomplete"])
         # looked at: the red zone, the refusal naming the file, the file listed
         look_at_widths(page, zone, zone.locator(".rejected-note"), zone.locator("ul.files"))
-        img = np.asarray(Image.open(io.BytesIO(zone.screenshot())).convert("RGB"))
+        img = rgb(zone.screenshot())
         edge = np.concatenate([img[:3].reshape(-1, 3), img[-3:].reshape(-1, 3)])[None]
         red, green = colour_share(edge, RED, tolerance=40), colour_share(edge, GREEN, tolerance=40)
         assert red > 0.3 and green < 0.05, (red, green)
