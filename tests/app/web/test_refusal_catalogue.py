@@ -42,13 +42,21 @@ def test_no_new_english_only_http_exception():
 
 
 def test_every_refusal_code_is_in_a_catalogue_in_three_languages():
+    import inspect
+
+    from app.web.api.deps import _refuse
+
+    # the code's place is read from _refuse's own signature (a hard-coded place went stale when db was added, and
+    # its calls' codes silently dropped out); every call must name its code as a constant there
+    at = list(inspect.signature(_refuse).parameters).index("code")
     codes = set()
     for where, name, node in _calls():
         if name == "Refusal" and len(node.args) >= 2 and isinstance(getattr(node.args[1], "value", None), str):
             codes.add((where, node.args[1].value))
-        # _refuse(request, db, status, code, why): the code is its fourth argument
-        if name == "_refuse" and len(node.args) >= 4 and isinstance(getattr(node.args[3], "value", None), str):
-            codes.add((where, node.args[3].value))
+        if name == "_refuse" and isinstance(node.func, ast.Name) and where == "web/api/deps.py":
+            code = node.args[at] if len(node.args) > at else None
+            assert isinstance(getattr(code, "value", None), str), (where, node.lineno, "_refuse without a code")
+            codes.add((where, code.value))
         if name == "FhirExportError" and node.args:   # the FHIR export's reasons, quoted by its 409
             assert isinstance(getattr(node.args[0], "value", None), str), (where, node.lineno)
             codes.add((where, node.args[0].value))
