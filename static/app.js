@@ -112,7 +112,7 @@ function updateNav() {
   // the clinic's name is ellipsised below 1100 px: its title keeps it whole (as the user's line, which can be long too)
   const clinicName = (u.clinic && u.clinic.name) || "";
   const userLine = `${u.name || u.email} · ${t(`role.${u.role}`)}`;
-  who.append(h("span", { class: "clinic", title: clinicName }, clinicName),
+  who.append(h("span", { class: "clinic", title: clinicName || null }, clinicName),
     h("span", { class: "user", title: userLine }, userLine),
     h("a", { href: "#/account", class: "account-link" }, t("nav.account")),
     h("button", { type: "button", class: "secondary small", onclick: logout }, t("nav.logout")));

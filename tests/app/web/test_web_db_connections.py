@@ -68,7 +68,8 @@ def test_a_refused_caller_never_holds_two_connections(client, settings, who, wha
     """A refusal is recorded in a session of its own (app.web.audit.record_refusal): the look-up's transaction
     ends first.  A thread holding one connection while it waits for a second breaks the turns' progress argument
     (a flood of wrong credentials on the upload route, which takes no turn, could hold every connection and wait
-    for one more); before, each of these held two."""
+    for one more).  Before, an unknown token and a closed session held two; a malformed header is refused before any
+    look-up (one before too: it guards the order, it did not fail)."""
     clinic_token(settings, "A")  # a clinic, so the refusal has somewhere to be recorded
     held, most, lock = Counter(), Counter(), threading.Lock()
 
