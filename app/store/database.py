@@ -41,6 +41,7 @@ from sqlalchemy import create_engine, event, make_url
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from app.store.group_commit import GroupCommit
 from app.store.models import Base, Blob
 
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
@@ -224,9 +225,26 @@ def make_engine(url: str) -> Engine:
             pool = dict(pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW, pool_timeout=POOL_TIMEOUT_S)
         engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": WRITE_WAIT_S, "factory": GatedConnection}, **pool)
         event.listen(engine, "connect", _sqlite_pragmas)
-        return engine
-    return create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,
-                         pool_timeout=POOL_TIMEOUT_S)
+    else:
+        engine = create_engine(url, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=POOL_OVERFLOW,
+                               pool_timeout=POOL_TIMEOUT_S)
+    event.listen(engine, "before_cursor_execute", _note_write)
+    return engine
+
+
+_WROTE = "chakamo_wrote"  # Connection.info: a write statement ran in the connection's current transaction
+_CONNECTIONS = "chakamo_connections"  # Session.info: the connections of its current transaction
+
+
+def _note_write(conn, cursor, statement, parameters, context, executemany) -> None:
+    if _is_dml(statement):
+        conn.info[_WROTE] = True
+
+
+def _track_connection(session: Session, transaction, connection) -> None:
+    """``after_begin``: a session's transaction took ``connection``, which has written nothing in it yet."""
+    connection.info[_WROTE] = False
+    session.info.setdefault(_CONNECTIONS, []).append(connection)
 
 
 def alembic_config(engine: Engine):
@@ -269,6 +287,29 @@ def _add_queued(session: Session) -> None:
 def _drop_queued(session: Session, transaction) -> None:
     if transaction.parent is None:  # the outermost transaction ended without them (rolled back, closed): they go
         session.info.pop(_AT_COMMIT, None)  # with it, as rows flushed in it would (a savepoint's end keeps them)
+        session.info.pop(_CONNECTIONS, None)
+
+
+def _only_queued(db: Session) -> list:
+    """The rows :func:`add_at_commit` queued, taken out of ``db``, when they are all its transaction would write
+    (nothing flushed or executed that writes, nothing pending); else ``[]`` and ``db`` keeps them."""
+    if not db.info.get(_AT_COMMIT) or db.new or db.dirty or db.deleted:
+        return []
+    if any(c.info.get(_WROTE) for c in db.info.get(_CONNECTIONS, ())):
+        return []
+    return db.info.pop(_AT_COMMIT)
+
+
+def _hook_sessions() -> None:
+    """Register the :class:`~sqlalchemy.orm.Session` events of :func:`add_at_commit` and of the group commit's
+    choice (:func:`_only_queued`) once, before a session of a :class:`Database` begins (never at import)."""
+    global _at_commit_hooked
+    with _at_commit_lock:
+        if not _at_commit_hooked:
+            event.listen(Session, "before_commit", _add_queued)
+            event.listen(Session, "after_transaction_end", _drop_queued)
+            event.listen(Session, "after_begin", _track_connection)
+            _at_commit_hooked = True
 
 
 def add_at_commit(db: Session, row) -> None:
@@ -282,13 +323,9 @@ def add_at_commit(db: Session, row) -> None:
     until SQLite's busy timeout (15 s) gives up on the waiters: reads timed out at 30 s (issue 16 finding 2).
     A row added at commit takes the lock only inside the commit, which holds no pool thread while it waits (the
     dependency's exit runs without the pool's limit).  Not touched by autoflush: the row is outside the session
-    until then.  The hook is registered on :class:`~sqlalchemy.orm.Session` at the first call (never at import)."""
-    global _at_commit_hooked
-    with _at_commit_lock:
-        if not _at_commit_hooked:
-            event.listen(Session, "before_commit", _add_queued)
-            event.listen(Session, "after_transaction_end", _drop_queued)
-            _at_commit_hooked = True
+    until then.  The hooks are registered on :class:`~sqlalchemy.orm.Session` by the first :class:`Database` or call
+    (never at import).  In :meth:`Database.session`, rows that are all the transaction writes go to the group commit."""
+    _hook_sessions()
     if not db.in_transaction():
         db.begin()  # the row belongs to a transaction: its end without a commit drops it
     db.info.setdefault(_AT_COMMIT, []).append(row)
@@ -301,17 +338,27 @@ class Database:
         self.url = url
         self.engine = make_engine(url)
         self.sessions = sessionmaker(self.engine, expire_on_commit=False)
+        self.group = GroupCommit(self.sessions)
+        _hook_sessions()
 
     @contextmanager
     def session(self) -> Iterator[Session]:
-        """A session committed on success, rolled back on error, always closed."""
+        """A session committed on success, rolled back on error, always closed.
+
+        When the rows :func:`add_at_commit` queued are all its transaction writes (a read's audit event), they are
+        written by the database's group commit (:mod:`app.store.group_commit`) after the session has closed (its
+        connection back in the pool meanwhile), together with other sessions' such rows; the exit returns once they
+        are committed, and raises :class:`~app.store.group_commit.GroupWriteFailed` if they were refused."""
         with self.sessions() as db:
             try:
                 yield db
+                grouped = _only_queued(db)
                 db.commit()
             except BaseException:
                 db.rollback()
                 raise
+        if grouped:
+            self.group.write(grouped)
 
     def migrate(self, sealing_key: bytes | None = None) -> None:
         """Upgrade the schema to the newest revision (idempotent).  ``sealing_key``: ``CHAKAMO_SECRET_KEY``'s bytes

@@ -290,13 +290,13 @@ def test_a_read_writes_its_event_only_inside_its_commit(tmp_path):
     thread-pool thread it must queue for, and commits after that, so the read held SQLite's one write lock while
     it queued for a pool thread — and when every pool thread was a request waiting for that lock (a flood of
     logins), nothing moved until SQLite's busy timeout: reads timed out at 30 s.  Observed on the real engine's
-    events: each audit ``INSERT`` runs inside ``Session.commit`` (the dependency's exit, which waits for no
-    pool thread)."""
+    events: each audit ``INSERT`` runs inside the session dependency's exit, which waits for no pool thread — in
+    the group commit (:mod:`app.store.group_commit`, a read's event is all its transaction writes), after the
+    request's session has closed."""
     import traceback
 
     from fastapi.testclient import TestClient
     from sqlalchemy import event
-    from sqlalchemy.orm import Session
 
     from app.cli import admin as admin_cli
     from app.web.main import create_app
@@ -310,8 +310,10 @@ def test_a_read_writes_its_event_only_inside_its_commit(tmp_path):
 
         def on_execute(conn, cursor, statement, *args):
             if statement.lstrip().upper().startswith("INSERT INTO AUDIT_EVENTS"):
-                inserts.append(any(f.name == Session.commit.__name__ and f.filename.endswith("orm/session.py")
-                                   for f in traceback.extract_stack()))
+                stack = traceback.extract_stack()
+                inserts.append(any(f.name == "get_db" for f in stack)
+                               and any(f.name == "_insert" and f.filename.endswith(("store/group_commit.py", "store\\group_commit.py")) for f in stack)
+                               and not any(f.name == "run_endpoint_function" for f in stack))
 
         event.listen(engine, "before_cursor_execute", on_execute)
         try:

@@ -1,0 +1,148 @@
+"""Group commit: rows that are all a transaction writes (a read's audit event) are written together with every such
+row that arrives meanwhile — one transaction, one write lock, one flush to disk for the lot.
+
+Why (issue 16, the 20-clinician upload burst on the embedded default): every audited read was a write transaction
+of its own, and on SQLite all writers of the file queue for one write lock (:class:`app.store.database.WriteGate`),
+each holding it across its commit's ``fsync`` (``synchronous=FULL``).  At 50 reads/s beside the uploads and the
+jobs' progress, ``py-spy dump`` of the server found a dozen request threads waiting at that gate on average, for
+their one-row commits; reads that write no row (``GET /jobs/{id}``) answered twice as fast as audited ones.  A
+database's group commit is the known cure: a commit that has to wait anyway takes the others' rows with it.
+
+How — leader and followers, no thread of its own.  :meth:`GroupCommit.write` queues the caller's rows.  A caller
+that finds no batch being written leads: it takes the queued rows (at most :data:`MAX_BATCH_ROWS`; its own always
+among them), writes them in one transaction of a session of its own, and wakes the callers whose rows those were.
+If rows arrived meanwhile it hands the lead to the first of their callers, who writes the next batch (the leader's
+own request has waited its turn and goes on).  While one batch is written, the next one gathers: the busier the
+server, the larger the batches, and one writer at a time takes the lock for all of them.
+
+Fail closed, per caller: a caller returns only once its rows are committed; if the database refuses a row of a batch,
+each of its callers' rows is written again alone, and only a caller whose own rows the database refuses gets the error
+(:class:`GroupWriteFailed`; a read then answers 500 without its data, as when its own commit failed).  The rows get
+their ids and column defaults when written (an ``at_commit`` row has no id before, as documented there).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import inspect, insert
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.orm import sessionmaker
+
+#: most rows written in one batch (a bound on one transaction's size, far above a burst's batches)
+MAX_BATCH_ROWS = 500
+
+
+class GroupWriteFailed(RuntimeError):
+    """The database refused this caller's rows (its cause is the database's error)."""
+
+
+@dataclass(eq=False)
+class _Caller:
+    rows: list[tuple[type, dict[str, Any]]]
+    woken: threading.Event = field(default_factory=threading.Event)
+    lead: bool = False  # woken to write the next batch
+    error: BaseException | None = None
+
+
+def values_of(row) -> tuple[type, dict[str, Any]]:
+    """``(mapped class, column values)`` of a new ORM ``row``: the values set on it, without the primary key and
+    without unset (None) columns that have a default (the insert fills those in)."""
+    mapper = inspect(row).mapper
+    out: dict[str, Any] = {}
+    for attr in mapper.column_attrs:
+        value = getattr(row, attr.key)
+        column = attr.columns[0]
+        if value is None and (column.primary_key or column.default is not None or column.server_default is not None):
+            continue
+        out[attr.key] = value
+    return mapper.class_, out
+
+
+class GroupCommit:
+    """The group commit of one database (module docstring), writing with sessions of ``sessions``."""
+
+    def __init__(self, sessions: sessionmaker, max_batch_rows: int = MAX_BATCH_ROWS) -> None:
+        self._sessions = sessions
+        self._max = max_batch_rows
+        self._lock = threading.Lock()
+        self._queue: list[_Caller] = []
+        self._writing = False  # a leader is writing (then a caller that arrives waits)
+
+    def write(self, rows: Sequence) -> None:
+        """Write the new ORM ``rows`` (their column values as they are now), together with other callers' rows;
+        return once they are committed.  Raises :class:`GroupWriteFailed` when the database refused them."""
+        me = _Caller([values_of(r) for r in rows])
+        with self._lock:
+            self._queue.append(me)
+            lead = not self._writing
+            self._writing = True
+        if not lead:
+            me.woken.wait()
+            if not me.lead:
+                if me.error is not None:
+                    raise GroupWriteFailed(f"the database refused {len(me.rows)} row(s)") from me.error
+                return
+        self._lead(me)
+
+    def _lead(self, me: _Caller) -> None:
+        with self._lock:  # the queue's head is this caller (a new leader finds an empty queue, a handed lead is first)
+            n, rows = 0, 0
+            while n < len(self._queue) and (n == 0 or rows + len(self._queue[n].rows) <= self._max):
+                rows += len(self._queue[n].rows)
+                n += 1
+            batch, self._queue = self._queue[:n], self._queue[n:]
+        try:
+            self._commit(batch)
+        finally:
+            with self._lock:
+                following = self._queue[0] if self._queue else None
+                if following is None:
+                    self._writing = False
+                else:
+                    following.lead = True
+            for caller in batch:
+                if caller is not me:
+                    caller.woken.set()
+            if following is not None:
+                following.woken.set()
+        if me.error is not None:
+            raise GroupWriteFailed(f"the database refused {len(me.rows)} row(s)") from me.error
+
+    def _commit(self, batch: list[_Caller]) -> None:
+        """Write every caller's rows in one transaction; if the database refused a row, each caller's alone
+        (``error`` set on those it refuses).  A database that cannot write at all (locked past the write wait,
+        disk full or away: ``OperationalError``) fails the whole batch at once — writing each alone would only
+        wait as long again per caller.  Never raises (the callers must all be woken)."""
+        try:
+            self._insert([row for caller in batch for row in caller.rows])
+            return
+        except BaseException as exc:  # noqa: BLE001 — given to the callers
+            if len(batch) == 1 or isinstance(exc, OperationalError) or not isinstance(exc, Exception):
+                for caller in batch:
+                    caller.error = exc
+                return
+        for caller in batch:
+            try:
+                self._insert(caller.rows)
+            except BaseException as exc:  # noqa: BLE001
+                caller.error = exc
+
+    def _insert(self, rows: list[tuple[type, dict[str, Any]]]) -> None:
+        by_class: dict[type, list[dict[str, Any]]] = {}
+        for cls, values in rows:
+            by_class.setdefault(cls, []).append(values)
+        with self._sessions() as db:
+            try:
+                for cls, values in by_class.items():
+                    db.execute(insert(cls), values)
+                db.commit()
+            except BaseException:
+                db.rollback()
+                raise
+
+
+__all__ = ["GroupCommit", "GroupWriteFailed", "MAX_BATCH_ROWS", "values_of"]

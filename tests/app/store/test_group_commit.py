@@ -1,0 +1,184 @@
+"""Group commit of the reads' audit events (issue 16: the 20-clinician upload burst).
+
+Every audited read was a one-row write transaction; on SQLite they all queued for the file's one write lock, each
+holding it across its commit's flush to disk.  Now the events that are all their transaction writes go to
+:class:`app.store.group_commit.GroupCommit`: those that arrive while one batch is written go in the next, one
+transaction for all of them.  A transaction that writes anything else keeps its event in its own commit (the
+event and the data commit together or not at all), and a refused event fails its own caller only."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+from sqlalchemy import event, func, select, text
+
+
+@pytest.fixture
+def db(tmp_path):
+    from app.store.database import Database
+
+    database = Database(f"sqlite:///{tmp_path}/g.db")
+    database.migrate()
+    with database.engine.begin() as conn:
+        conn.execute(text("CREATE TABLE other (x INTEGER)"))
+    yield database
+    database.dispose()
+
+
+def _wait_for(condition, what: str, timeout_s: float = 30.0) -> None:
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, what
+        time.sleep(0.005)
+
+
+def _event(actor: str):
+    from app.store.models import AuditEvent
+
+    return AuditEvent(clinic_id=None, actor_kind="anonymous", actor=actor, action="view", resource="GET /x",
+                      client="127.0.0.1")
+
+
+def _read(db, actor: str, errors: dict) -> threading.Thread:
+    """A read's transaction: a query, then its audit event queued for the commit (as ``app.web.audit.record``)."""
+    from app.store.database import add_at_commit
+
+    def run() -> None:
+        try:
+            with db.session() as s:
+                s.execute(text("SELECT count(*) FROM other"))
+                add_at_commit(s, _event(actor))
+        except Exception as exc:  # noqa: BLE001 — the test looks at it
+            errors[actor] = exc
+
+    t = threading.Thread(target=run)
+    t.start()
+    return t
+
+
+def _audit_inserts(db) -> list[str]:
+    """The stack's name of each INSERT into audit_events from now on (``group`` or ``own``)."""
+    import traceback
+
+    seen: list[str] = []
+
+    def on_execute(conn, cursor, statement, *args):
+        if statement.lstrip().upper().startswith("INSERT INTO AUDIT_EVENTS"):
+            grouped = any(f.filename.endswith(("store/group_commit.py", "store\\group_commit.py")) for f in traceback.extract_stack())
+            seen.append("group" if grouped else "own")
+
+    event.listen(db.engine, "before_cursor_execute", on_execute)
+    return seen
+
+
+def _actors(db) -> list[str]:
+    from app.store.models import AuditEvent
+
+    with db.session() as s:
+        return sorted(s.scalars(select(AuditEvent.actor)))
+
+
+def _hold_the_write_lock(db):
+    """A writer that holds the database's write lock until ``release()`` (as an upload's transaction would)."""
+    holder = db.sessions()
+    holder.execute(text("INSERT INTO other VALUES (1)"))
+    return holder
+
+
+def test_events_that_arrive_while_one_is_written_are_written_together(db):
+    from app.store.models import AuditEvent
+
+    inserts = _audit_inserts(db)
+    holder = _hold_the_write_lock(db)
+    errors: dict = {}
+    threads = [_read(db, "first", errors)]  # leads; waits at the write lock
+    _wait_for(lambda: db.group._writing, "the first read's event being written")
+    threads += [_read(db, f"r{i}", errors) for i in range(9)]
+    _wait_for(lambda: len(db.group._queue) == 9, "nine more events queued behind it")
+    holder.commit()
+    holder.close()
+    for t in threads:
+        t.join(30)
+    assert errors == {}
+    assert _actors(db) == sorted(["first"] + [f"r{i}" for i in range(9)])
+    assert inserts == ["group", "group"]  # the first alone, then the nine in one statement — not ten transactions
+    with db.session() as s:
+        ids = list(s.scalars(select(AuditEvent.id).order_by(AuditEvent.id)))
+        assert ids == list(range(1, 11)) and s.scalar(select(func.count()).select_from(AuditEvent)) == 10
+
+
+def test_an_event_beside_other_writes_commits_with_them_or_not_at_all(db):
+    from app.store.database import add_at_commit
+
+    inserts = _audit_inserts(db)
+    with db.session() as s:
+        s.execute(text("INSERT INTO other VALUES (7)"))
+        add_at_commit(s, _event("with data"))
+    assert inserts == ["own"] and _actors(db) == ["with data"]
+
+    with db.engine.begin() as conn:  # a database that refuses audit rows (as a full disk would)
+        conn.execute(text("CREATE TRIGGER no_audit BEFORE INSERT ON audit_events "
+                          "BEGIN SELECT RAISE(ABORT, 'disk full'); END"))
+    with pytest.raises(Exception, match="disk full"):
+        with db.session() as s:
+            s.execute(text("INSERT INTO other VALUES (8)"))
+            add_at_commit(s, _event("refused"))
+    with db.session() as s:  # the data went with its event
+        assert s.scalar(text("SELECT count(*) FROM other WHERE x = 8")) == 0
+
+
+def test_a_refused_event_fails_its_own_read_only(db):
+    from app.store.group_commit import GroupWriteFailed
+
+    with db.engine.begin() as conn:
+        conn.execute(text("CREATE TRIGGER no_bad BEFORE INSERT ON audit_events WHEN NEW.actor LIKE 'bad%' "
+                          "BEGIN SELECT RAISE(ABORT, 'refused'); END"))
+    holder = _hold_the_write_lock(db)
+    errors: dict = {}
+    threads = [_read(db, "lead", errors)]
+    _wait_for(lambda: db.group._writing, "the first read's event being written")
+    threads += [_read(db, actor, errors) for actor in ("good1", "bad", "good2")]
+    _wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
+    holder.commit()
+    holder.close()
+    for t in threads:
+        t.join(30)
+    assert set(errors) == {"bad"} and isinstance(errors["bad"], GroupWriteFailed)
+    assert "refused" in str(errors["bad"].__cause__)
+    assert _actors(db) == ["good1", "good2", "lead"]
+    assert not db.group._writing and db.group._queue == []  # nobody left waiting
+
+
+def test_a_read_alone_is_written_at_once(db):
+    """No batch to wait for: the leader writes its own event and returns (what a quiet server does)."""
+    errors: dict = {}
+    _read(db, "alone", errors).join(30)
+    assert errors == {} and _actors(db) == ["alone"] and not db.group._writing
+
+
+def test_a_database_that_cannot_write_fails_the_batch_at_once(db, monkeypatch):
+    """Locked past the write wait (or a full disk): every caller of the batch gets the error from one attempt —
+    not one more wait per caller, as writing each alone would."""
+    import app.store.database as database
+    from app.store.group_commit import GroupWriteFailed
+
+    monkeypatch.setattr(database, "WRITE_WAIT_S", 2.0)  # the others queue meanwhile
+    inserts = _audit_inserts(db)
+    holder = _hold_the_write_lock(db)
+    errors: dict = {}
+    try:
+        threads = [_read(db, "lead", errors)]
+        _wait_for(lambda: db.group._writing, "the first read's event being written")
+        threads += [_read(db, f"r{i}", errors) for i in range(3)]
+        _wait_for(lambda: len(db.group._queue) == 3 or errors, "three events queued behind it")
+        for t in threads:
+            t.join(30)
+    finally:
+        holder.commit()
+        holder.close()
+    assert sorted(errors) == ["lead", "r0", "r1", "r2"]
+    assert all(isinstance(e, GroupWriteFailed) and "locked" in str(e.__cause__) for e in errors.values())
+    assert inserts == ["group", "group"]  # the three queued failed together (one attempt), not once each
+    assert _actors(db) == [] and not db.group._writing
