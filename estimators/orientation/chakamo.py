@@ -147,6 +147,10 @@ Causal filter (one sample, ``dt = 1/fs``)
    vibration, a real in-motion gyroscope error that (8) follows (6D 1.24° at 0.0125°/s against VQF 6D's
    1.71°); no grid point tells the two apart.  Trial 30 is a heading drift of ≈ 16° over 110 s of fast
    rotation, the same in ours and VQF 6D (5.13° against 5.19°), which only a scale state (viii–ix) reaches.
+   A directional form of ``s`` (the scale error's drift is :math:`k\,R_{IS}\omega`, so row j of (8) gets
+   :math:`s_d^2\,(R_{E'I}\,LP(R_{IS}\omega))_j^2` on top of its noise; compiled kernel only): with ``s`` kept, half A
+   gains at :math:`s_d` 0.02 (1.587 → 1.548; at 0.0125°/s 24 0.85°, 30 5.06°) and half B loses (1.717 → 1.897: 27,
+   32, 35), so B chooses 0 and nothing changes; in place of ``s`` (8) diverges at σ_motion 0.05°/s (10 2.8–5.9°).
    None is kept: each closes nothing held out.  (8b)
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
    target :math:`\delta^* = \operatorname{atan2}(m_x, m_y)` (the field's horizontal part on +y),  (9)
