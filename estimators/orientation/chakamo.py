@@ -151,7 +151,12 @@ Causal filter (one sample, ``dt = 1/fs``)
    :math:`s_d^2\,(R_{E'I}\,LP(R_{IS}\omega))_j^2` on top of its noise; compiled kernel only): with ``s`` kept, half A
    gains at :math:`s_d` 0.02 (1.587 → 1.548; at 0.0125°/s 24 0.85°, 30 5.06°) and half B loses (1.717 → 1.897: 27,
    32, 35), so B chooses 0 and nothing changes; in place of ``s`` (8) diverges at σ_motion 0.05°/s (10 2.8–5.9°).
-   None is kept: each closes nothing held out.  (8b)
+   A steeper rate term, :math:`s^2 LP(|\omega|^4)` (1 rad/s units) in place of :math:`s^2 LP(|\omega|^2)`: half A
+   gains (s 0.002, 0.0125°/s: 1.493, 24 0.69°, 30 5.03°; all ten 0.89/2.50), half B loses (at s 0.002 1.855 at
+   best, 27 1.54–1.77°), so a form switch {|ω|², |ω|⁴} in the grid is chosen off by B; with ``s`` in the grid as
+   well B chooses |ω|², s 0.001 (1.389) as above; with the |ω|⁴ form alone (s 0.001 / 0.002 / 0.004) B chooses
+   0.001 at 0.05°/s and A reads 0.87/2.93 (undisturbed lost: VQF 6D 0.81; trial 10 1.14°: slow translation
+   needs the noise in slow motion that trial 27 does not want).  None is kept: each closes nothing held out.  (8b)
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
    target :math:`\delta^* = \operatorname{atan2}(m_x, m_y)` (the field's horizontal part on +y),  (9)
    :math:`\delta \leftarrow \delta + k\,\operatorname{wrap}(\delta^* - \delta)`,
