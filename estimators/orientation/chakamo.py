@@ -131,7 +131,32 @@ Causal filter (one sample, ``dt = 1/fs``)
    choices and scores as the factor-2 grid 0.0125–1.6°/s, at the old run time) half A chooses 0.05 and half B
    0.0125: 6D A→B 1.41/1.95 (was 1.40/2.01; VQF 6D 1.49/2.26), B→A 0.68/3.01 (was 0.64/3.07; VQF 6D 0.81/3.00,
    3.009 against 2.999: *not met*, and no σ_motion meets it: 3.007 at 0.0001°/s); 9D unchanged (A 0.8, B 1.6°/s).
-   The default stays 0.2°/s: the halves disagree (0.05 and 0.0125°/s in 6D, 0.8 and 1.6°/s in 9D).  (8b)
+   The default stays 0.2°/s: the halves disagree (0.05 and 0.0125°/s in 6D, 0.8 and 1.6°/s in 9D).
+   (xi) A second 6D grid key beside that σ_motion grid (each tried alone; 6D, held out B→A undisturbed /
+   disturbed; today 0.68/3.01).  In every case half B takes the point that trusts (8) most, which trial 27
+   (phone vibration) rewards, and half A pays: ``tau_acc_s`` 1.5 / 2 / 3 / 4.5 / 6 s: B chooses 2 s at
+   0.0125°/s (27 1.24 → 0.45°), A then reads 1.91/3.03 (trial 10 0.53 → 4.25°; at 1.5 s 9.16°); with
+   2.5 / 3 / 3.5 s B chooses 2.5 s, 1.02/3.02; with 3 / 3.5 s B keeps 3 s and A→B moves to 1.39/2.00.
+   ``bias_motion_rate_scale`` 0 / 0.001 / 0.002 / 0.004 / 0.008: B chooses 0.001, A reads 2.07/3.25 (at 0 and
+   0.0125°/s (8) diverges: 10 32°, 15 24°).  ``bias_forgetting_s`` 50 / 100 / 200 / 400 s: B chooses 50 s,
+   1.18/3.10.  ``bias_sigma_rest_rad_s`` 0.01 / 0.03 / 0.1°/s: B chooses 0.01, 0.67/3.03.  Trial 24's gap
+   to VQF 6D is heading only (at B's choice: inclination 0.51° as VQF's, heading 0.73° against 0.62°): over
+   the 120 s of taps the smoothed bias moves 0.02–0.07°/s off the rest bias on every axis and comes back to
+   it at the closing rest, while offline VQF's stays within 0.01°/s (its process noise is 25 × smaller:
+   (iii)).  But trial 27's wander is of the same size and helps: its heading drifts ≈ 0.05°/s through the
+   vibration, a real in-motion gyroscope error that (8) follows (6D 1.24° at 0.0125°/s against VQF 6D's
+   1.71°); no grid point tells the two apart.  Trial 30 is a heading drift of ≈ 16° over 110 s of fast
+   rotation, the same in ours and VQF 6D (5.13° against 5.19°), which only a scale state (viii–ix) reaches.
+   A directional form of ``s`` (the scale error's drift is :math:`k\,R_{IS}\omega`, so row j of (8) gets
+   :math:`s_d^2\,(R_{E'I}\,LP(R_{IS}\omega))_j^2` on top of its noise; compiled kernel only): with ``s`` kept, half A
+   gains at :math:`s_d` 0.02 (1.587 → 1.548; at 0.0125°/s 24 0.85°, 30 5.06°) and half B loses (1.717 → 1.897: 27,
+   32, 35), so B chooses 0 and nothing changes; in place of ``s`` (8) diverges at σ_motion 0.05°/s (10 2.8–5.9°).
+   A steeper rate term, :math:`s^2 LP(|\omega|^4)` (1 rad/s units) in place of :math:`s^2 LP(|\omega|^2)`: half A
+   gains (s 0.002, 0.0125°/s: 1.493, 24 0.69°, 30 5.03°; all ten 0.89/2.50), half B loses (at s 0.002 1.855 at
+   best, 27 1.54–1.77°), so a form switch {|ω|², |ω|⁴} in the grid is chosen off by B; with ``s`` in the grid as
+   well B chooses |ω|², s 0.001 (1.389) as above; with the |ω|⁴ form alone (s 0.001 / 0.002 / 0.004) B chooses
+   0.001 at 0.05°/s and A reads 0.87/2.93 (undisturbed lost: VQF 6D 0.81; trial 10 1.14°: slow translation
+   needs the noise in slow motion that trial 27 does not want).  None is kept: each closes nothing held out.  (8b)
 5. *Heading* ([VQF] §3.3): :math:`m_{E'} = q_{E'I} q_{IS} m q_{IS}^* q_{E'I}^*`,
    target :math:`\delta^* = \operatorname{atan2}(m_x, m_y)` (the field's horizontal part on +y),  (9)
    :math:`\delta \leftarrow \delta + k\,\operatorname{wrap}(\delta^* - \delta)`,
