@@ -242,7 +242,10 @@ def _note_write(conn, cursor, statement, parameters, context, executemany) -> No
 
 
 def _track_connection(session: Session, transaction, connection) -> None:
-    """``after_begin``: a session's transaction took ``connection``, which has written nothing in it yet."""
+    """``after_begin``: a session's transaction took ``connection``, which has written nothing in it yet (a
+    savepoint's begin is no new transaction: what the connection wrote before it stands)."""
+    if transaction.nested:
+        return
     connection.info[_WROTE] = False
     session.info.setdefault(_CONNECTIONS, []).append(connection)
 
@@ -292,7 +295,12 @@ def _drop_queued(session: Session, transaction) -> None:
 
 def _only_queued(db: Session) -> list:
     """The rows :func:`add_at_commit` queued, taken out of ``db``, when they are all its transaction would write
-    (nothing flushed or executed that writes, nothing pending); else ``[]`` and ``db`` keeps them."""
+    (nothing flushed or executed that writes, nothing pending); else ``[]`` and ``db`` keeps them.
+
+    Seen as writes: every statement SQLAlchemy executes whose first word is INSERT/UPDATE/DELETE/REPLACE
+    (:func:`_note_write`: flushes, ``update()``/``delete()``, ``text()``, ``connection().execute``).  Not seen — so
+    never to be used beside an ``add_at_commit`` row: a raw driver cursor, ``executescript``, and a write that
+    starts with ``WITH`` (which pysqlite's own transaction start, and so the write gate, does not see either)."""
     if not db.info.get(_AT_COMMIT) or db.new or db.dirty or db.deleted:
         return []
     if any(c.info.get(_WROTE) for c in db.info.get(_CONNECTIONS, ())):

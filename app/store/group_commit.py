@@ -17,7 +17,10 @@ server, the larger the batches, and one writer at a time takes the lock for all 
 
 Fail closed, per caller: a caller returns only once its rows are committed; if the database refuses a row of a batch,
 each of its callers' rows is written again alone, and only a caller whose own rows the database refuses gets the error
-(:class:`GroupWriteFailed`; a read then answers 500 without its data, as when its own commit failed).  The rows get
+(:class:`GroupWriteFailed`; a read then answers 500 without its data, as when its own commit failed).  A database that
+cannot write at all fails the batch at once.  One batch at a time: while a leader waits for the write lock (at most
+the gate's wait, :data:`app.store.database.WRITE_WAIT_S`), the audited reads of the process wait behind it — as
+they waited at the lock before, one by one.  The rows get
 their ids and column defaults when written (an ``at_commit`` row has no id before, as documented there).
 """
 
@@ -29,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from sqlalchemy import inspect, insert
-from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import DataError, IntegrityError
 from sqlalchemy.orm import sessionmaker
 
 #: most rows written in one batch (a bound on one transaction's size, far above a burst's batches)
@@ -46,6 +49,16 @@ class _Caller:
     woken: threading.Event = field(default_factory=threading.Event)
     lead: bool = False  # woken to write the next batch
     error: BaseException | None = None
+
+
+def _raise(caller: _Caller) -> None:
+    """Raise the error of ``caller``'s rows, if any: the database's as :class:`GroupWriteFailed`, an interruption
+    (not an ``Exception``) as it is."""
+    if caller.error is None:
+        return
+    if not isinstance(caller.error, Exception):
+        raise caller.error
+    raise GroupWriteFailed(f"the database refused {len(caller.rows)} row(s)") from caller.error
 
 
 def values_of(row) -> tuple[type, dict[str, Any]]:
@@ -81,12 +94,29 @@ class GroupCommit:
             lead = not self._writing
             self._writing = True
         if not lead:
-            me.woken.wait()
+            try:
+                me.woken.wait()
+            except BaseException:  # interrupted while queued: leave the queue, pass on a lead handed over
+                self._abandon(me)
+                raise
             if not me.lead:
-                if me.error is not None:
-                    raise GroupWriteFailed(f"the database refused {len(me.rows)} row(s)") from me.error
+                _raise(me)
                 return
         self._lead(me)
+
+    def _abandon(self, me: _Caller) -> None:
+        with self._lock:
+            if me in self._queue:  # not taken into a batch yet (a batch's callers are woken by their leader)
+                self._queue.remove(me)
+            if not me.lead:
+                return
+            following = self._queue[0] if self._queue else None
+            if following is None:
+                self._writing = False
+            else:
+                following.lead = True
+        if following is not None:
+            following.woken.set()
 
     def _lead(self, me: _Caller) -> None:
         with self._lock:  # the queue's head is this caller (a new leader finds an empty queue, a handed lead is first)
@@ -109,27 +139,31 @@ class GroupCommit:
                     caller.woken.set()
             if following is not None:
                 following.woken.set()
-        if me.error is not None:
-            raise GroupWriteFailed(f"the database refused {len(me.rows)} row(s)") from me.error
+        _raise(me)
 
     def _commit(self, batch: list[_Caller]) -> None:
-        """Write every caller's rows in one transaction; if the database refused a row, each caller's alone
-        (``error`` set on those it refuses).  A database that cannot write at all (locked past the write wait,
-        disk full or away: ``OperationalError``) fails the whole batch at once — writing each alone would only
-        wait as long again per caller.  Never raises (the callers must all be woken)."""
+        """Write every caller's rows in one transaction; if the database refused a row (``IntegrityError``,
+        ``DataError``: that row's fault), each caller's alone (``error`` set on those it refuses).  Any other
+        failure — locked past the write wait, a full disk, no pooled connection, the server away — fails the
+        whole batch at once: writing each alone would only wait as long again per caller.  Never raises (the
+        callers must all be woken); an interruption (``BaseException``) stops the writing and reaches every caller."""
         try:
             self._insert([row for caller in batch for row in caller.rows])
             return
         except BaseException as exc:  # noqa: BLE001 — given to the callers
-            if len(batch) == 1 or isinstance(exc, OperationalError) or not isinstance(exc, Exception):
+            if len(batch) == 1 or not isinstance(exc, (IntegrityError, DataError)):
                 for caller in batch:
                     caller.error = exc
                 return
-        for caller in batch:
+        for i, caller in enumerate(batch):
             try:
                 self._insert(caller.rows)
-            except BaseException as exc:  # noqa: BLE001
+            except (IntegrityError, DataError) as exc:
                 caller.error = exc
+            except BaseException as exc:  # noqa: BLE001 — the rest cannot be written either
+                for rest in batch[i:]:
+                    rest.error = exc
+                return
 
     def _insert(self, rows: list[tuple[type, dict[str, Any]]]) -> None:
         by_class: dict[type, list[dict[str, Any]]] = {}

@@ -80,6 +80,14 @@ def _actors(db) -> list[str]:
         return sorted(s.scalars(select(AuditEvent.actor)))
 
 
+def _leader_waits_at_the_lock(db) -> None:
+    """Wait until a leader has taken its batch and waits for the write lock (the gate's queue holds it)."""
+    from app.store.database import write_gate
+
+    gate = write_gate(db.engine.url.database)
+    _wait_for(lambda: gate.waiting == 1, "a leader waiting for the write lock")
+
+
 def _hold_the_write_lock(db):
     """A writer that holds the database's write lock until ``release()`` (as an upload's transaction would)."""
     holder = db.sessions()
@@ -94,7 +102,7 @@ def test_events_that_arrive_while_one_is_written_are_written_together(db):
     holder = _hold_the_write_lock(db)
     errors: dict = {}
     threads = [_read(db, "first", errors)]  # leads; waits at the write lock
-    _wait_for(lambda: db.group._writing, "the first read's event being written")
+    _leader_waits_at_the_lock(db)
     threads += [_read(db, f"r{i}", errors) for i in range(9)]
     _wait_for(lambda: len(db.group._queue) == 9, "nine more events queued behind it")
     holder.commit()
@@ -138,7 +146,7 @@ def test_a_refused_event_fails_its_own_read_only(db):
     holder = _hold_the_write_lock(db)
     errors: dict = {}
     threads = [_read(db, "lead", errors)]
-    _wait_for(lambda: db.group._writing, "the first read's event being written")
+    _leader_waits_at_the_lock(db)
     threads += [_read(db, actor, errors) for actor in ("good1", "bad", "good2")]
     _wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
     holder.commit()
@@ -161,24 +169,91 @@ def test_a_read_alone_is_written_at_once(db):
 def test_a_database_that_cannot_write_fails_the_batch_at_once(db, monkeypatch):
     """Locked past the write wait (or a full disk): every caller of the batch gets the error from one attempt —
     not one more wait per caller, as writing each alone would."""
-    import app.store.database as database
+    from app.store.database import WriteGate
     from app.store.group_commit import GroupWriteFailed
 
-    monkeypatch.setattr(database, "WRITE_WAIT_S", 2.0)  # the others queue meanwhile
+    entered, give_up = [], threading.Event()
+
+    def acquire(self, timeout_s):  # a write lock that stays taken until the test gives up on it
+        entered.append(timeout_s)
+        give_up.wait(30)
+        return False  # what the gate answers past its wait: "database is locked"
+
+    monkeypatch.setattr(WriteGate, "acquire", acquire)
     inserts = _audit_inserts(db)
-    holder = _hold_the_write_lock(db)
     errors: dict = {}
-    try:
-        threads = [_read(db, "lead", errors)]
-        _wait_for(lambda: db.group._writing, "the first read's event being written")
-        threads += [_read(db, f"r{i}", errors) for i in range(3)]
-        _wait_for(lambda: len(db.group._queue) == 3 or errors, "three events queued behind it")
-        for t in threads:
-            t.join(30)
-    finally:
-        holder.commit()
-        holder.close()
+    threads = [_read(db, "lead", errors)]
+    _wait_for(lambda: len(entered) == 1, "the leader waiting for the write lock")
+    threads += [_read(db, f"r{i}", errors) for i in range(3)]
+    _wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
+    give_up.set()
+    for t in threads:
+        t.join(30)
     assert sorted(errors) == ["lead", "r0", "r1", "r2"]
     assert all(isinstance(e, GroupWriteFailed) and "locked" in str(e.__cause__) for e in errors.values())
     assert inserts == ["group", "group"]  # the three queued failed together (one attempt), not once each
-    assert _actors(db) == [] and not db.group._writing
+    assert not db.group._writing and db.group._queue == []
+
+
+def _own(db, write) -> list[str]:
+    """Where the event of a transaction that also ran ``write(session)`` was written."""
+    from app.store.database import add_at_commit
+
+    inserts = _audit_inserts(db)
+    with db.session() as s:
+        write(s)
+        s.execute(text("SELECT 1"))
+        add_at_commit(s, _event("beside a write"))
+    return inserts
+
+
+def test_every_kind_of_write_keeps_the_event_in_its_own_commit(db):
+    """The group commit takes an event only when nothing else was written: a flushed row, an autoflushed one, a
+    pending one, an ORM ``update()``, a statement on the session's connection, one before a savepoint."""
+    from sqlalchemy import update
+
+    from app.store.models import Clinic
+
+    def flushed(s):
+        s.add(Clinic(name="A"))
+        s.flush()
+
+    def autoflushed(s):
+        s.add(Clinic(name="B"))
+        s.scalar(select(func.count()).select_from(Clinic))
+
+    def pending(s):
+        s.add(Clinic(name="C"))
+
+    def orm_update(s):
+        s.execute(update(Clinic).where(Clinic.name == "A").values(name="A2"))
+
+    def on_connection(s):
+        s.connection().execute(text("INSERT INTO other VALUES (3)"))
+
+    def before_savepoint(s):
+        s.execute(text("INSERT INTO other VALUES (4)"))
+        with s.begin_nested():
+            s.execute(text("SELECT 1"))
+
+    for write in (flushed, autoflushed, pending, orm_update, on_connection, before_savepoint):
+        assert _own(db, write) == ["own"], write.__name__
+    assert _own(db, lambda s: s.execute(text("SELECT count(*) FROM other"))) == ["group"]  # a read: grouped
+
+
+def test_an_interrupted_follower_passes_on_the_lead(db):
+    """A caller interrupted while it waits in the queue leaves it; handed the lead, it hands it on — nobody
+    behind it waits for ever."""
+    from app.store.group_commit import _Caller
+
+    group = db.group
+    me = _Caller([])
+    with group._lock:  # as if a leader had just handed ``me`` the lead, with another caller queued behind
+        behind = _Caller([])
+        group._queue[:] = [me, behind]
+        group._writing = True
+        me.lead = True
+    group._abandon(me)
+    assert group._queue == [behind] and behind.lead and behind.woken.is_set() and group._writing
+    group._abandon(behind)
+    assert group._queue == [] and not group._writing
