@@ -22,11 +22,6 @@ def active_token(db: Session, token_sha256: str) -> ApiToken | None:
     return db.scalar(select(ApiToken).where(ApiToken.token_sha256 == token_sha256, ApiToken.revoked_at.is_(None)))
 
 
-def token_label(db: Session, token_id: int) -> str | None:
-    token = db.get(ApiToken, token_id)
-    return token.label if token is not None else None
-
-
 def browser_session(db: Session, session_sha256: str) -> BrowserSession | None:
     """The browser session of this cookie hash (expired or not: the caller decides)."""
     return db.scalar(select(BrowserSession).where(BrowserSession.session_sha256 == session_sha256))
@@ -224,4 +219,4 @@ def add_user(db: Session, clinic_id: int, *, email: str, name: str, role: str, p
 __all__ = ["active_token", "add_user", "attempt_wait_s", "browser_session", "clinic_user", "clinic_user_by_email",
            "clinic_users", "close_browser_session", "close_user_browser_sessions", "delete_attempts_of_email",
            "login_account", "open_browser_session", "prune_attempts", "refund_attempt", "refuse_taken_email",
-           "reserve_attempt", "reset_attempts", "token_label", "user_browser_sessions", "user_by_id"]
+           "reserve_attempt", "reset_attempts", "user_browser_sessions", "user_by_id"]

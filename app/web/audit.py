@@ -85,7 +85,6 @@ from typing import TYPE_CHECKING
 
 from sqlalchemy.orm import Session
 
-from app.store.accounts import token_label
 from app.store.audit import add_event
 from app.store.models import AuditEvent
 
@@ -107,11 +106,11 @@ ACTIONS: tuple[str, ...] = ("list", "search", "view", "create", "upload", "delet
 _RESOURCE_CHARS, _CLIENT_CHARS, _ACTOR_CHARS, _DETAIL_CHARS = 300, 64, 320, 300
 
 
-def _actor(db: Session, principal: "Principal") -> tuple[str, int | None, int | None, str]:
+def _actor(principal: "Principal") -> tuple[str, int | None, int | None, str]:
     """``(actor_kind, user_id, token_id, label)`` of the caller."""
     if principal.user is not None:
         return "user", principal.user.id, None, principal.user.email
-    name = token_label(db, principal.token_id) if principal.token_id is not None else None
+    name = principal.token_label
     label = f"token {principal.token_id}" + (f" ({name})" if name else "")
     return "token", None, principal.token_id, label
 
@@ -141,7 +140,7 @@ def record(db: Session, request: "Request", principal: "Principal", action: str,
     that rolls ``db`` back (:meth:`app.store.checks.IngestionChecker.ensure_fresh` does).  Raises ``ValueError``
     for an action outside :data:`ACTIONS` (a programming error, caught by the tests)."""
     _check(action)
-    kind, user_id, token_id, label = _actor(db, principal)
+    kind, user_id, token_id, label = _actor(principal)
     resource, client = _where(request)
     # the request's commit comes before its answer (DbDep): a failing insert fails the request, no data answered
     return add_event(db, at_commit=not now, clinic_id=principal.clinic_id, actor_kind=kind, user_id=user_id,
@@ -173,7 +172,7 @@ def record_refusal(database: "Database", request: "Request", status: int, detail
     try:
         with database.session() as db:
             if principal is not None:
-                kind, uid, tid, label = _actor(db, principal)
+                kind, uid, tid, label = _actor(principal)
                 user_id, token_id, actor = uid, tid, label
                 clinic_id = principal.clinic_id if clinic_id is None else clinic_id
             else:

@@ -167,6 +167,8 @@ class Principal:
     scopes: frozenset[str] | None = None
     #: when the caller's API token ends (None: never, and for browser sessions)
     token_expires_at: dt.datetime | None = None
+    #: the caller's API token's label (the audit log names the token by it; None for browser sessions)
+    token_label: str | None = None
 
 
 #: declares the bearer scheme in OpenAPI (the /docs "Authorize" button); the header is parsed below
@@ -217,7 +219,8 @@ def resolve_principal(request: Request, db: Session, settings: Settings) -> Prin
             raise _refuse(request, db, 401, "auth.token_expired", "expired API token",
                           clinic_id=row.clinic_id, headers={"WWW-Authenticate": 'Bearer error="invalid_token"'})
         principal = Principal(clinic_id=row.clinic_id, clinic_name=row.clinic.name, role=row.role, via="bearer",
-                              token_id=row.id, scopes=tokens.scopes_of(row), token_expires_at=row.expires_at)
+                              token_id=row.id, scopes=tokens.scopes_of(row), token_expires_at=row.expires_at,
+                              token_label=row.label)
         request.state.principal = principal
         return principal
     sid = request.cookies.get(COOKIE)
