@@ -9,7 +9,9 @@ work and written by its commit, which comes before the answer: it commits togeth
 ``create`` event, an upload and its ``upload`` event) or not at all.  For reads this means a read whose
 audit row cannot be written fails (500) instead of disclosing data unrecorded — ASVS 7.1 wants the log
 complete, and an unlogged disclosure of patient data is worse than a refused one; the price is that a full
-or read-only database blocks reads as well as writes.  A request refused before its data was loaded leaves
+or read-only database blocks reads as well as writes.  A read's event, the only row its transaction writes, is
+written by the database's group commit (:mod:`app.store.group_commit`) together with the other reads' events that
+arrive meanwhile — still before the answer, still failing the read if it is refused.  A request refused before its data was loaded leaves
 no data event (nothing was disclosed) but a ``denied`` security event (below).
 
 What the routes record (one event per request):

@@ -1,10 +1,20 @@
 """One clinic, one patient and two empty sessions in a migrated database with a blob store: the world the
-erasure tests (tests/app/store/test_erasure*.py) start from."""
+erasure tests (tests/app/store/test_erasure*.py) start from; and :func:`wait_for`, the store tests' bounded wait for
+another thread to reach a state."""
 
 from __future__ import annotations
 
+import time
 from contextlib import contextmanager
 from pathlib import Path
+
+
+def wait_for(condition, what: str, timeout_s: float = 30.0) -> None:
+    """Poll ``condition()`` until it holds; fail with ``what`` after ``timeout_s``."""
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, what
+        time.sleep(0.005)
 
 
 @contextmanager

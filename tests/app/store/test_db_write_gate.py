@@ -10,10 +10,10 @@ that has waited longest is woken as soon as the one before commits."""
 from __future__ import annotations
 
 import threading
-import time
 
 import pytest
 from sqlalchemy import text
+from store_world import wait_for
 
 
 @pytest.fixture
@@ -25,13 +25,6 @@ def db(tmp_path):
         conn.execute(text("CREATE TABLE t (x INTEGER)"))
     yield database
     database.dispose()
-
-
-def _wait_for(condition, what: str, timeout_s: float = 30.0) -> None:
-    end = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < end, what
-        time.sleep(0.005)
 
 
 def _writer(db, i: int, order: list[int]) -> threading.Thread:
@@ -57,7 +50,7 @@ def test_queued_writers_are_woken_in_the_order_they_came(db, tmp_path):
         for i in range(1, 6):
             threads.append(_writer(db, i, order))
             # each writer queues at the gate (before: it slept in SQLite's busy handler, invisible here)
-            _wait_for(lambda n=i: gate.waiting == n, f"writer {i} queued at the gate")
+            wait_for(lambda n=i: gate.waiting == n, f"writer {i} queued at the gate")
         assert order == []
     finally:
         holder.commit()
@@ -101,7 +94,7 @@ def test_every_engine_on_one_file_shares_its_gate(db, tmp_path):
     order: list[int] = []
     try:
         t = _writer(other, 2, order)
-        _wait_for(lambda: gate.waiting == 1, "the other engine's writer queued at the same gate")
+        wait_for(lambda: gate.waiting == 1, "the other engine's writer queued at the same gate")
     finally:
         holder.commit()
         holder.close()

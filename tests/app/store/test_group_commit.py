@@ -9,10 +9,10 @@ event and the data commit together or not at all), and a refused event fails its
 from __future__ import annotations
 
 import threading
-import time
 
 import pytest
 from sqlalchemy import event, func, select, text
+from store_world import wait_for
 
 
 @pytest.fixture
@@ -25,13 +25,6 @@ def db(tmp_path):
         conn.execute(text("CREATE TABLE other (x INTEGER)"))
     yield database
     database.dispose()
-
-
-def _wait_for(condition, what: str, timeout_s: float = 30.0) -> None:
-    end = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < end, what
-        time.sleep(0.005)
 
 
 def _event(actor: str):
@@ -85,7 +78,7 @@ def _leader_waits_at_the_lock(db) -> None:
     from app.store.database import write_gate
 
     gate = write_gate(db.engine.url.database)
-    _wait_for(lambda: gate.waiting == 1, "a leader waiting for the write lock")
+    wait_for(lambda: gate.waiting == 1, "a leader waiting for the write lock")
 
 
 def _hold_the_write_lock(db):
@@ -104,7 +97,7 @@ def test_events_that_arrive_while_one_is_written_are_written_together(db):
     threads = [_read(db, "first", errors)]  # leads; waits at the write lock
     _leader_waits_at_the_lock(db)
     threads += [_read(db, f"r{i}", errors) for i in range(9)]
-    _wait_for(lambda: len(db.group._queue) == 9, "nine more events queued behind it")
+    wait_for(lambda: len(db.group._queue) == 9, "nine more events queued behind it")
     holder.commit()
     holder.close()
     for t in threads:
@@ -148,7 +141,7 @@ def test_a_refused_event_fails_its_own_read_only(db):
     threads = [_read(db, "lead", errors)]
     _leader_waits_at_the_lock(db)
     threads += [_read(db, actor, errors) for actor in ("good1", "bad", "good2")]
-    _wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
+    wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
     holder.commit()
     holder.close()
     for t in threads:
@@ -183,9 +176,9 @@ def test_a_database_that_cannot_write_fails_the_batch_at_once(db, monkeypatch):
     inserts = _audit_inserts(db)
     errors: dict = {}
     threads = [_read(db, "lead", errors)]
-    _wait_for(lambda: len(entered) == 1, "the leader waiting for the write lock")
+    wait_for(lambda: len(entered) == 1, "the leader waiting for the write lock")
     threads += [_read(db, f"r{i}", errors) for i in range(3)]
-    _wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
+    wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
     give_up.set()
     for t in threads:
         t.join(30)
