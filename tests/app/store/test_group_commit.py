@@ -88,7 +88,21 @@ def _hold_the_write_lock(db):
     return holder
 
 
-def test_events_that_arrive_while_one_is_written_are_written_together(db):
+@pytest.fixture
+def patient_lock(monkeypatch):
+    """The write lock's wait made longer than any wait of these tests (a slow machine must not give up first)."""
+    import app.store.database as database
+
+    monkeypatch.setattr(database, "WRITE_WAIT_S", 120.0)
+
+
+def _join(threads) -> None:
+    for t in threads:
+        t.join(60)
+        assert not t.is_alive(), "a read still waiting"
+
+
+def test_events_that_arrive_while_one_is_written_are_written_together(db, patient_lock):
     from app.store.models import AuditEvent
 
     inserts = _audit_inserts(db)
@@ -100,8 +114,7 @@ def test_events_that_arrive_while_one_is_written_are_written_together(db):
     wait_for(lambda: len(db.group._queue) == 9, "nine more events queued behind it")
     holder.commit()
     holder.close()
-    for t in threads:
-        t.join(30)
+    _join(threads)
     assert errors == {}
     assert _actors(db) == sorted(["first"] + [f"r{i}" for i in range(9)])
     assert inserts == ["group", "group"]  # the first alone, then the nine in one statement — not ten transactions
@@ -130,7 +143,7 @@ def test_an_event_beside_other_writes_commits_with_them_or_not_at_all(db):
         assert s.scalar(text("SELECT count(*) FROM other WHERE x = 8")) == 0
 
 
-def test_a_refused_event_fails_its_own_read_only(db):
+def test_a_refused_event_fails_its_own_read_only(db, patient_lock):
     from app.store.group_commit import GroupWriteFailed
 
     with db.engine.begin() as conn:
@@ -144,8 +157,7 @@ def test_a_refused_event_fails_its_own_read_only(db):
     wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
     holder.commit()
     holder.close()
-    for t in threads:
-        t.join(30)
+    _join(threads)
     assert set(errors) == {"bad"} and isinstance(errors["bad"], GroupWriteFailed)
     assert "refused" in str(errors["bad"].__cause__)
     assert _actors(db) == ["good1", "good2", "lead"]
@@ -155,7 +167,7 @@ def test_a_refused_event_fails_its_own_read_only(db):
 def test_a_read_alone_is_written_at_once(db):
     """No batch to wait for: the leader writes its own event and returns (what a quiet server does)."""
     errors: dict = {}
-    _read(db, "alone", errors).join(30)
+    _join([_read(db, "alone", errors)])
     assert errors == {} and _actors(db) == ["alone"] and not db.group._writing
 
 
@@ -180,8 +192,7 @@ def test_a_database_that_cannot_write_fails_the_batch_at_once(db, monkeypatch):
     threads += [_read(db, f"r{i}", errors) for i in range(3)]
     wait_for(lambda: len(db.group._queue) == 3, "three events queued behind it")
     give_up.set()
-    for t in threads:
-        t.join(30)
+    _join(threads)
     assert sorted(errors) == ["lead", "r0", "r1", "r2"]
     assert all(isinstance(e, GroupWriteFailed) and "locked" in str(e.__cause__) for e in errors.values())
     assert inserts == ["group", "group"]  # the three queued failed together (one attempt), not once each
@@ -250,3 +261,30 @@ def test_an_interrupted_follower_passes_on_the_lead(db):
     assert group._queue == [behind] and behind.lead and behind.woken.is_set() and group._writing
     group._abandon(behind)
     assert group._queue == [] and not group._writing
+
+
+def test_a_follower_interrupted_while_queued_leaves_the_queue(db, patient_lock, monkeypatch):
+    """An interruption (KeyboardInterrupt, SystemExit) of a queued caller reaches it as it is and takes it out of the
+    queue: the leader's batch and the next callers go on without it."""
+    import app.store.group_commit as group_commit
+
+    class Interrupted(threading.Event):
+        def wait(self, timeout=None):
+            raise KeyboardInterrupt
+
+    holder = _hold_the_write_lock(db)
+    errors: dict = {}
+    leader = _read(db, "lead", errors)
+    _leader_waits_at_the_lock(db)
+    real = group_commit._Caller
+    monkeypatch.setattr(group_commit, "_Caller", lambda rows: real(rows, woken=Interrupted()))
+    with pytest.raises(KeyboardInterrupt):
+        db.group.write([_event("interrupted")])
+    monkeypatch.setattr(group_commit, "_Caller", real)
+    assert db.group._queue == [] and db.group._writing  # the leader still writes its batch
+    holder.commit()
+    holder.close()
+    _join([leader])
+    after = _read(db, "after", errors)
+    _join([after])
+    assert errors == {} and _actors(db) == ["after", "lead"] and not db.group._writing
