@@ -17,7 +17,7 @@ def add_event(db: Session, *, at_commit: bool = False, **columns) -> AuditEvent:
     commit; the event has no id before it)."""
     event = AuditEvent(**columns)
     if at_commit:
-        event.at = event.at or utcnow()  # when it happened, not when the commit (or the group commit) writes it
+        event.at = utcnow()  # when it happened, not when the commit (or the group commit) writes it
         add_at_commit(db, event)
         return event
     db.add(event)

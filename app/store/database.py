@@ -332,8 +332,8 @@ def add_at_commit(db: Session, row) -> None:
     A row added at commit takes the lock only inside the commit, which holds no pool thread while it waits (the
     dependency's exit runs without the pool's limit).  Not touched by autoflush: the row is outside the session
     until then.  The hooks are registered on :class:`~sqlalchemy.orm.Session` by the first :class:`Database` or call
-    (never at import).  In :meth:`Database.session`, rows that are all the transaction writes go to the group commit,
-which writes a row's column values only (standalone rows such as audit events; not a row with related rows)."""
+    (never at import).  In :meth:`Database.session`, rows that are all the transaction writes go to the group
+    commit, which writes a row's column values only (standalone rows such as audit events, not related rows)."""
     _hook_sessions()
     if not db.in_transaction():
         db.begin()  # the row belongs to a transaction: its end without a commit drops it

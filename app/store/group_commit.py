@@ -114,15 +114,18 @@ class GroupCommit:
         with self._lock:
             if me in self._queue:  # not taken into a batch yet (a batch's callers are woken by their leader)
                 self._queue.remove(me)
-            if not me.lead:
-                return
-            following = self._queue[0] if self._queue else None
-            if following is None:
-                self._writing = False
-            else:
-                following.lead = True
+            following = self._pass_lead() if me.lead else None
         if following is not None:
             following.woken.set()
+
+    def _pass_lead(self) -> _Caller | None:
+        """With the lock held: the queue's head, made the next leader (to be woken), or None and no one writes."""
+        following = self._queue[0] if self._queue else None
+        if following is None:
+            self._writing = False
+        else:
+            following.lead = True
+        return following
 
     def _lead(self, me: _Caller) -> None:
         with self._lock:  # the queue's head is this caller (a new leader finds an empty queue, a handed lead is first)
@@ -135,11 +138,7 @@ class GroupCommit:
             self._commit(batch)
         finally:
             with self._lock:
-                following = self._queue[0] if self._queue else None
-                if following is None:
-                    self._writing = False
-                else:
-                    following.lead = True
+                following = self._pass_lead()
             for caller in batch:
                 if caller is not me:
                     caller.woken.set()
@@ -175,14 +174,9 @@ class GroupCommit:
         by_class: dict[type, list[dict[str, Any]]] = {}
         for cls, values in rows:
             by_class.setdefault(cls, []).append(values)
-        with self._sessions() as db:
-            try:
-                for cls, values in by_class.items():
-                    db.execute(insert(cls), values)
-                db.commit()
-            except BaseException:
-                db.rollback()
-                raise
+        with self._sessions.begin() as db:  # committed at the end, rolled back on any error
+            for cls, values in by_class.items():
+                db.execute(insert(cls), values)
 
 
 __all__ = ["GroupCommit", "GroupWriteFailed", "MAX_BATCH_ROWS", "values_of"]

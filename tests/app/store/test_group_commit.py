@@ -36,13 +36,14 @@ def _event(actor: str):
 
 def _read(db, actor: str, errors: dict) -> threading.Thread:
     """A read's transaction: a query, then its audit event queued for the commit (as ``app.web.audit.record``)."""
-    from app.store.database import add_at_commit
+    from app.store.audit import add_event
 
     def run() -> None:
         try:
             with db.session() as s:
                 s.execute(text("SELECT count(*) FROM other"))
-                add_at_commit(s, _event(actor))
+                add_event(s, at_commit=True, clinic_id=None, actor_kind="anonymous", actor=actor, action="view",
+                          resource="GET /x", client="127.0.0.1")
         except Exception as exc:  # noqa: BLE001 — the test looks at it
             errors[actor] = exc
 
@@ -112,6 +113,9 @@ def test_events_that_arrive_while_one_is_written_are_written_together(db, patien
     _leader_waits_at_the_lock(db)
     threads += [_read(db, f"r{i}", errors) for i in range(9)]
     wait_for(lambda: len(db.group._queue) == 9, "nine more events queued behind it")
+    from app.store.models import utcnow
+
+    queued_by = utcnow()
     holder.commit()
     holder.close()
     _join(threads)
@@ -121,6 +125,8 @@ def test_events_that_arrive_while_one_is_written_are_written_together(db, patien
     with db.session() as s:
         ids = list(s.scalars(select(AuditEvent.id).order_by(AuditEvent.id)))
         assert ids == list(range(1, 11)) and s.scalar(select(func.count()).select_from(AuditEvent)) == 10
+        # each event's time is when its read added it, not when the group wrote it (after the lock was freed)
+        assert all(at <= queued_by for at in s.scalars(select(AuditEvent.at)))
 
 
 def test_an_event_beside_other_writes_commits_with_them_or_not_at_all(db):
