@@ -4,7 +4,7 @@
 
 A real uvicorn server in a child process on 127.0.0.1 (:func:`benchmarks.api_upload.running_server`, a
 temporary data dir) holds one processed demo session.  An open-loop generator
-(:func:`benchmarks.http_load.open_loop_get`: asyncio + httpx) then sends ``rate`` requests per second for
+(:func:`benchmarks.http_load.open_loop_get`: asyncio, HTTP/1.1 keep-alive) then sends ``rate`` requests per second for
 ``seconds`` seconds — each request leaves at its scheduled time whether or not earlier ones have answered, so
 a slow server cannot slow the load down — cycling over the endpoints a UI page or a hospital system polls:
 patient list and search, patient, session, job, results.json, the trend, ``/auth/me`` and ``/healthz``.

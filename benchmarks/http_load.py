@@ -5,7 +5,8 @@ Used by :mod:`benchmarks.api_upload`, :mod:`benchmarks.api_load` and :mod:`bench
 * :func:`demo_session` — the 24 MetaBase files of the demo session, as ``chakamo demo`` simulates it;
 * :func:`open_loop_get` — ``rate`` GET requests per second for ``seconds`` seconds, each sent at its scheduled
   time whether or not the earlier ones have answered (open loop), so a slow server cannot slow the load down
-  and hide its own latency (the "coordinated omission" of closed-loop generators);
+  and hide its own latency (the "coordinated omission" of closed-loop generators); a lean HTTP/1.1 client of
+  its own (:class:`_Http11`), so that what it reports is the server's time, not the client's;
 * :func:`latency_row` — one markdown row ``| name | n | p50 | p95 | p99 | max | non-200 |`` in milliseconds;
 * :func:`tree_cpu_s` — the CPU seconds of the server process and of its helper processes (Linux).
 """
@@ -15,6 +16,8 @@ from __future__ import annotations
 import asyncio
 import time
 from pathlib import Path
+from typing import NamedTuple
+from urllib.parse import urlsplit
 
 import numpy as np
 
@@ -31,45 +34,142 @@ def demo_session(folder: Path) -> list[Path]:
     return sorted(folder.glob("*.csv"))
 
 
-async def _open_loop(base: str, headers: dict, paths: list[str], rate: float,
-                     seconds: float) -> list[tuple[str, float, int]]:
-    import httpx
+class Read(NamedTuple):
+    """One GET of :func:`open_loop_get`."""
 
-    out: list[tuple[str, float, int]] = []
-    limits = httpx.Limits(max_connections=200, max_keepalive_connections=50)
-    async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30, limits=limits) as client:
-        async def one(path: str) -> None:
-            t = time.perf_counter()
+    path: str
+    ms: float  # from its scheduled time to its answer's last byte
+    status: int  # -1: no answer (refused, reset, timed out)
+    late_ms: float  # how long after its scheduled time the client began to send it (the client's own delay)
+
+
+class _Http11:
+    """The open loop's HTTP/1.1 client: GETs on ``asyncio`` streams, keep-alive connections reused last in first
+    out, a new connection whenever none is idle (no pool limit, so no request waits in the client for a
+    connection).
+
+    Why not httpx: under a server backlog of a few hundred requests, httpx's asynchronous pool spent seconds of
+    its own per request on the 2-core machine: during the 20-clinician burst of :mod:`benchmarks.load` it reported
+    ``/healthz`` at p50 6.1 s / p95 17 s while a sequential ``curl`` of ``/healthz`` in the same run answered p50
+    4 ms / p95 51 ms, and the server's own timing of its GETs (an ASGI wrapper) said p50 27 ms / p95 342 ms for
+    the job polls.  This client only writes a request line and reads the answer by its ``Content-Length`` (or its
+    chunks, or to the end of the connection)."""
+
+    def __init__(self, base: str, headers: dict, timeout_s: float) -> None:
+        url = urlsplit(base)
+        self._host, self._port = url.hostname or "127.0.0.1", url.port or 80
+        self._headers = "".join(f"{k}: {v}\r\n" for k, v in headers.items())
+        self._timeout_s = timeout_s
+        self._idle: list[tuple[asyncio.StreamReader, asyncio.StreamWriter]] = []
+
+    async def get(self, path: str, on_send) -> int:
+        """The status of ``GET path`` (-1 without an answer); ``on_send()`` is called as the request is written."""
+        try:
+            return await asyncio.wait_for(self._get(path, on_send), self._timeout_s)
+        except (OSError, EOFError, ValueError, asyncio.TimeoutError, asyncio.IncompleteReadError,
+                asyncio.LimitOverrunError):
+            return -1
+
+    async def _get(self, path: str, on_send) -> int:
+        request = f"GET {path} HTTP/1.1\r\nHost: {self._host}:{self._port}\r\n{self._headers}\r\n".encode("latin-1")
+        sent = False
+        while True:
+            reused = bool(self._idle)
+            reader, writer = self._idle.pop() if reused else await asyncio.open_connection(self._host, self._port)
             try:
-                status = (await client.get(path)).status_code
-            except httpx.HTTPError:
-                status = -1
-            out.append((path, (time.perf_counter() - t) * 1000, status))
+                if not sent:
+                    on_send()
+                    sent = True
+                writer.write(request)
+                head = await reader.readuntil(b"\r\n\r\n")
+            except (OSError, asyncio.IncompleteReadError):
+                writer.close()
+                if reused:  # an idle connection the server had closed (its keep-alive timeout): try a new one
+                    continue
+                raise
+            except BaseException:
+                writer.close()
+                raise
+            break
+        try:
+            status, keep = await _read_body(reader, head)
+        except BaseException:
+            writer.close()
+            raise
+        if keep:
+            self._idle.append((reader, writer))
+        else:
+            writer.close()
+        return status
 
-        tasks = []
-        t0 = time.perf_counter()
+    def close(self) -> None:
+        for _, writer in self._idle:
+            writer.close()
+        self._idle.clear()
+
+
+async def _read_body(reader: asyncio.StreamReader, head: bytes) -> tuple[int, bool]:
+    """Read the body the response ``head`` announces; ``(status, whether the connection may be reused)``."""
+    lines = head.decode("latin-1").split("\r\n")
+    status = int(lines[0].split(" ", 2)[1])
+    fields = {k.strip().lower(): v.strip().lower() for k, _, v in (ln.partition(":") for ln in lines[1:] if ln)}
+    keep = fields.get("connection") != "close"
+    if "chunked" in fields.get("transfer-encoding", ""):
+        while True:
+            size = int((await reader.readuntil(b"\r\n")).split(b";")[0], 16)
+            if size == 0:
+                while await reader.readuntil(b"\r\n") != b"\r\n":  # trailers, then the blank line
+                    pass
+                break
+            await reader.readexactly(size + 2)
+    elif "content-length" in fields:
+        await reader.readexactly(int(fields["content-length"]))
+    else:  # delimited by the end of the connection
+        await reader.read()
+        keep = False
+    return status, keep
+
+
+async def _open_loop(base: str, headers: dict, paths: list[str], rate: float, seconds: float,
+                     timeout_s: float) -> list[Read]:
+    out: list[Read] = []
+    client = _Http11(base, headers, timeout_s)
+
+    async def one(path: str, due: float) -> None:
+        left = [due]
+        status = await client.get(path, lambda: left.__setitem__(0, time.perf_counter()))
+        out.append(Read(path, (time.perf_counter() - due) * 1000, status, (left[0] - due) * 1000))
+
+    tasks = []
+    t0 = time.perf_counter()
+    try:
         for i in range(int(rate * seconds)):
-            delay = t0 + i / rate - time.perf_counter()
+            due = t0 + i / rate
+            delay = due - time.perf_counter()
             if delay > 0:
                 await asyncio.sleep(delay)
-            tasks.append(asyncio.create_task(one(paths[i % len(paths)])))
+            tasks.append(asyncio.create_task(one(paths[i % len(paths)], due)))
         await asyncio.gather(*tasks)
+    finally:
+        client.close()
     return out
 
 
-def open_loop_get(base: str, headers: dict, paths: list[str], rate: float,
-                  seconds: float) -> list[tuple[str, float, int]]:
-    """``(path, latency_ms, status)`` of ``int(rate * seconds)`` GETs cycling over ``paths`` (module docstring).
+def open_loop_get(base: str, headers: dict, paths: list[str], rate: float, seconds: float,
+                  timeout_s: float = 30.0) -> list[Read]:
+    """The :class:`Read` of each of ``int(rate * seconds)`` GETs cycling over ``paths`` (module docstring).
 
-    ``status`` is -1 when the request failed without an answer (refused, reset, 30 s timeout).  Bounded: the
-    last request leaves after ``seconds`` and every request gives up after 30 s.  Runs its own event loop, so
-    it may be called from a thread or a child process (``benchmarks.load`` does the latter, so the clients'
-    threads there cannot delay it through the GIL).  The loop runs in a thread of its own, so a caller whose
-    thread already runs an event loop (e.g. a test session holding Playwright's) is no obstacle."""
+    Each request's latency counts from its scheduled time, so a client that falls behind adds its delay to the
+    figures rather than hiding it; ``late_ms`` says how much of it was the client's (:func:`latency_table` prints
+    it).  Bounded: the last request leaves after ``seconds`` and every request gives up after ``timeout_s``.  Runs
+    its own event loop, so it may be called from a thread or a child process (``benchmarks.load`` does the
+    latter, so the clients' threads there cannot delay it through the GIL).  The loop runs in a thread of its own,
+    so a caller whose thread already runs an event loop (e.g. a test session holding Playwright's) is no
+    obstacle."""
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(1, thread_name_prefix="open-loop") as pool:
-        return pool.submit(asyncio.run, _open_loop(base, headers, paths, rate, seconds)).result()
+        return pool.submit(asyncio.run, _open_loop(base, headers, paths, rate, seconds, timeout_s)).result()
 
 
 def tree_cpu_s(pid: int) -> tuple[float, float] | None:
@@ -106,14 +206,20 @@ def latency_row(name: str, ms: np.ndarray, bad: int) -> str:
     return f"| {name} | {len(ms)} | {p50:.1f} | {p95:.1f} | {p99:.1f} | {ms.max():.1f} | {bad} |"
 
 
-def latency_table(results: list[tuple[str, float, int]], paths: list[str]) -> str:
-    """The per-endpoint and overall table of :func:`open_loop_get`'s ``results`` (non-200 counted as bad)."""
+def latency_table(results: list[Read], paths: list[str]) -> str:
+    """The per-endpoint and overall table of :func:`open_loop_get`'s ``results`` (non-200 counted as bad), and a
+    line on the client's own delay in sending (its ``late_ms``): when that is not small against the latencies,
+    the client, not the server, is what was measured."""
     lines = [LATENCY_HEADER]
     for path in paths:
-        rows = [(ms, st) for p, ms, st in results if p == path]
-        lines.append(latency_row(path, np.array([ms for ms, _ in rows]), sum(st != 200 for _, st in rows)))
-    lines.append(latency_row("**all**", np.array([ms for _, ms, _ in results]), sum(st != 200 for *_, st in results)))
+        rows = [r for r in results if r.path == path]
+        lines.append(latency_row(path, np.array([r.ms for r in rows]), sum(r.status != 200 for r in rows)))
+    lines.append(latency_row("**all**", np.array([r.ms for r in results]), sum(r.status != 200 for r in results)))
+    if results:
+        late = np.percentile([r.late_ms for r in results], [50, 95, 100])
+        lines.append(f"\nthe client sent each request after its scheduled time by p50 {late[0]:.1f} / p95 {late[1]:.1f} / "
+                     f"max {late[2]:.1f} ms (included in the latencies above)")
     return "\n".join(lines)
 
 
-__all__ = ["LATENCY_HEADER", "demo_session", "latency_row", "latency_table", "open_loop_get"]
+__all__ = ["LATENCY_HEADER", "Read", "demo_session", "latency_row", "latency_table", "open_loop_get"]

@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.http_load import demo_session, latency_table, open_loop_get, tree_cpu_s
+from benchmarks.http_load import Read, demo_session, latency_table, open_loop_get, tree_cpu_s
 from benchmarks.live_services import Missing
 from benchmarks.load_stack import Stack, failure_excerpt, running_stack
 
@@ -190,8 +190,8 @@ class Summary:
     clinicians: list[Clinician]
     jobs: dict[str, int]  # done / failed / lost, from the API at the end
     lost: list[str]  # one sentence per loss
-    read_during: list[tuple[str, float, int]]
-    read_after: list[tuple[str, float, int]]
+    read_during: list[Read]
+    read_after: list[Read]
     read_paths: list[str]
     t0: float  # time.monotonic() when the clinicians were released
     wall_s: float  # clinicians released → last one finished
@@ -202,7 +202,7 @@ class Summary:
 
     @property
     def read_errors(self) -> int:
-        return sum(st != 200 for *_, st in self.read_during + self.read_after)
+        return sum(r.status != 200 for r in self.read_during + self.read_after)
 
     @property
     def exit_status(self) -> int:

@@ -84,7 +84,7 @@ def flood_process(base: str, n: int, seconds: float, addresses: int) -> list[tup
 
 
 def run(logins: int, seconds: float, rate: float, addresses: int) -> tuple[list, list, list[str]]:
-    """The reads ``(path, ms, status)``, the logins ``(status, ms)`` and the read paths of one flood."""
+    """The reads (:class:`benchmarks.http_load.Read`), the logins ``(status, ms)`` and the read paths of one flood."""
     import httpx
 
     with tempfile.TemporaryDirectory() as tmp, running_server(Path(tmp) / "data") as (base, headers):
@@ -116,11 +116,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Clinician reads at {args.rate:g}/s for {args.seconds:g} s during {args.logins} parallel anonymous logins "
           f"from {args.addresses} address(es) (real uvicorn on loopback, embedded default; goal reads p95 < 100 ms)\n")
     print(LATENCY_HEADER)
-    ms = np.array([m for _, m, s in reads])
-    print(latency_row("clinician reads (all)", ms, sum(s != 200 for _, _, s in reads)))
+    ms = np.array([r.ms for r in reads])
+    print(latency_row("clinician reads (all)", ms, sum(r.status != 200 for r in reads)))
     for p in paths:
-        sel = [(m, s) for q, m, s in reads if q == p]
-        print(latency_row(f"`GET {p}`", np.array([m for m, _ in sel]), sum(s != 200 for _, s in sel)))
+        sel = [r for r in reads if r.path == p]
+        print(latency_row(f"`GET {p}`", np.array([r.ms for r in sel]), sum(r.status != 200 for r in sel)))
     lat = np.array([m for _, m in flood])
     print(latency_row("anonymous logins", lat, sum(s != 401 for s, _ in flood)))
     counts = Counter(s for s, _ in flood)

@@ -29,6 +29,6 @@ def test_two_clinicians_on_the_inprocess_backend_lose_nothing(capsys):
         assert c.poll_s and c.finished_at is not None
     # 50 requests/s for 2 s, twice, over 9 endpoints, every one answered 200
     assert len(summary.read_during) == len(summary.read_after) == 100 and summary.read_errors == 0
-    assert {p for p, _, _ in summary.read_after} == set(summary.read_paths)
+    assert {r.path for r in summary.read_after} == set(summary.read_paths)
     out = capsys.readouterr().out
     assert "| jobs | done | failed | lost |" in out and "| 2 | 2 | 0 | 0 | 0 |" in out
