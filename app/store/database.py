@@ -52,49 +52,87 @@ class WriteGate:
     wakes the writer that has waited longest at once (no polling); a writer arriving at that moment may still go
     first (no strict hand-over: see the module docstring).
 
+    Writers taking it with ``first=True`` (the group commit's batches, :func:`writes_first`) go ahead of the others:
+    a release wakes the longest waiting of them if any, and no other writer takes the gate while one of them waits.
+    One such batch holds the audit rows of every read waiting to answer, which would otherwise queue behind each
+    upload and patient creation of a burst (issue 16 finding 10h).  The others are not starved: the group commit
+    has one batch writing at a time, and each batch takes every row that arrived before it.
+
     The lock is re-entrant: an unclosed connection holding the gate gives it back from its finaliser
     (:meth:`GatedConnection.__del__`, SQLAlchemy's pool finaliser's rollback), which a garbage-collection pass may
     run in any thread at any allocation — also in a thread that is inside :meth:`acquire` or :meth:`release` here,
     holding this lock (with a plain lock that thread deadlocked on itself, and every writer after it).  Nothing
-    between a waiter's look at the gate and its sleep allocates a collected object (the predicate is made once), so
-    a nested release cannot slip in there; were one missed, the waiter would still find the gate free when its
+    between a waiter's look at the gate and its sleep allocates a collected object (the predicates are made once),
+    so a nested release cannot slip in there; were one missed, the waiter would still find the gate free when its
     timeout ends (``wait_for`` looks once more) — late, not failed."""
 
     def __init__(self) -> None:
-        self._cond = threading.Condition(threading.RLock())
+        lock = threading.RLock()
+        self._cond = threading.Condition(lock)  # the writers in arrival order
+        self._first = threading.Condition(lock)  # the writers going first
         self._held = False
         self._waiting = 0
+        self._waiting_first = 0
         self._free = lambda: not self._held  # made once: nothing to allocate while waiting
+        self._free_for_others = lambda: not self._held and not self._waiting_first
 
-    def acquire(self, timeout_s: float) -> bool:
-        """Take the gate, waiting at most ``timeout_s``; False on timeout."""
+    def acquire(self, timeout_s: float, first: bool = False) -> bool:
+        """Take the gate, waiting at most ``timeout_s`` (ahead of the other writers when ``first``); False on
+        timeout."""
         with self._cond:
-            if not self._held:
+            if self._free() if first else self._free_for_others():
                 self._held = True
                 return True
-            self._waiting += 1
-            try:
-                if not self._cond.wait_for(self._free, timeout_s):
-                    return False
-            finally:
-                self._waiting -= 1
-            self._held = True
-            return True
+            taken = False
+            if first:
+                self._waiting_first += 1
+                try:
+                    taken = self._first.wait_for(self._free, timeout_s)
+                finally:
+                    self._waiting_first -= 1
+                    if not taken and self._free_for_others():  # interrupted after a release woke it: the
+                        self._cond.notify()  # gate it was given is free, and the others wait for no one now
+            else:
+                self._waiting += 1
+                try:
+                    taken = self._cond.wait_for(self._free_for_others, timeout_s)
+                finally:
+                    self._waiting -= 1
+            if taken:
+                self._held = True
+            return taken
 
     def release(self) -> None:
         with self._cond:
             self._held = False
-            self._cond.notify()  # the longest waiter (Condition wakes its waiters in the order they came)
+            # the longest waiter (a Condition wakes its waiters in the order they came), a first-going one before
+            (self._first if self._waiting_first else self._cond).notify()
 
     @property
     def waiting(self) -> int:
-        """Writers waiting for the gate right now."""
-        return self._waiting
+        """Writers waiting for the gate right now (those going first included)."""
+        return self._waiting + self._waiting_first
 
 
 #: one gate per SQLite database file in this process (every engine on that file shares it)
 _GATES: dict[str, WriteGate] = {}
 _GATES_LOCK = threading.Lock()
+#: this thread's write transactions take the gate ahead of the other writers (:func:`writes_first`)
+_GOING_FIRST = threading.local()
+
+
+@contextmanager
+def writes_first() -> Iterator[None]:
+    """Inside it, the write transactions this thread opens on a SQLite file take its :class:`WriteGate` ahead of the
+    writers waiting there (the group commit's batches: :class:`app.store.group_commit.GroupCommit`); elsewhere a
+    no-op."""
+    _GOING_FIRST.on = True
+    try:
+        yield
+    finally:
+        _GOING_FIRST.on = False
+
+
 #: longest wait for the write gate, as SQLite's own busy timeout (then "database is locked", as SQLite says)
 WRITE_WAIT_S = 15.0
 #: the statements before which pysqlite opens a write transaction (it begins none for reads)
@@ -158,7 +196,7 @@ class GatedConnection(sqlite3.Connection):
         if self._gate is None or self._holds or self.in_transaction:
             return
         if _is_dml(sql):
-            if not self._gate.acquire(WRITE_WAIT_S):
+            if not self._gate.acquire(WRITE_WAIT_S, first=getattr(_GOING_FIRST, "on", False)):
                 raise sqlite3.OperationalError("database is locked")
             self._holds = True
 
@@ -347,7 +385,7 @@ class Database:
         self.url = url
         self.engine = make_engine(url)
         self.sessions = sessionmaker(self.engine, expire_on_commit=False)
-        self.group = GroupCommit(self.sessions)
+        self.group = GroupCommit(self.sessions, first=writes_first)
         _hook_sessions()
 
     @contextmanager
@@ -385,4 +423,5 @@ class Database:
         self.engine.dispose()
 
 
-__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blob", "make_engine"]
+__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blob", "make_engine",
+           "writes_first"]

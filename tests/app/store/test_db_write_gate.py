@@ -219,3 +219,39 @@ def test_sqlite_s_own_busy_wait_is_the_gate_s_bound(tmp_path, monkeypatch):
             assert conn.execute(text("PRAGMA busy_timeout")).scalar() == 2500
     finally:
         engine.dispose()
+
+
+def test_a_writer_going_first_is_woken_before_the_writers_queued_earlier(db, tmp_path):
+    """The group commit's batch (the audit rows of every read waiting to answer) goes ahead of uploads and
+    creations queued at the lock: ``py-spy dump`` in a burst found 11–26 reads waiting behind 14 such writers."""
+    from app.store.database import write_gate, writes_first
+
+    gate = write_gate(str(tmp_path / "w.db"))
+    holder = db.sessions()
+    holder.execute(text("INSERT INTO t VALUES (0)"))
+    order: list[int] = []
+    threads = []
+
+    def first_writer() -> None:
+        with writes_first(), db.session() as s:
+            s.execute(text("INSERT INTO t VALUES (99)"))
+            order.append(99)
+
+    try:
+        for i in (1, 2):
+            threads.append(_writer(db, i, order))
+            wait_for(lambda n=i: gate.waiting == n, f"writer {i} queued at the gate")
+        threads.append(threading.Thread(target=first_writer))
+        threads[-1].start()
+        wait_for(lambda: gate.waiting == 3, "the first-going writer queued last")
+        threads.append(_writer(db, 3, order))  # arrives after it: waits, the gate is promised
+        wait_for(lambda: gate.waiting == 4, "a writer after it queued")
+    finally:
+        holder.commit()
+        holder.close()
+    for t in threads:
+        t.join(30)
+        assert not t.is_alive()
+    assert order == [99, 1, 2, 3]
+    assert gate.waiting == 0 and not gate._held
+

@@ -185,7 +185,7 @@ def test_a_database_that_cannot_write_fails_the_batch_at_once(db, monkeypatch):
 
     entered, give_up = [], threading.Event()
 
-    def acquire(self, timeout_s):  # a write lock that stays taken until the test gives up on it
+    def acquire(self, timeout_s, first=False):  # a write lock that stays taken until the test gives up on it
         entered.append(timeout_s)
         give_up.wait(30)
         return False  # what the gate answers past its wait: "database is locked"
@@ -294,3 +294,37 @@ def test_a_follower_interrupted_while_queued_leaves_the_queue(db, patient_lock, 
     after = _read(db, "after", errors)
     _join([after])
     assert errors == {} and _actors(db) == ["after", "lead"] and not db.group._writing
+
+
+def test_a_batch_goes_ahead_of_the_writers_waiting_for_the_lock(db, patient_lock):
+    """The reads' batch holds every waiting read's answer: it is written before the uploads and creations that
+    queued for the write lock earlier (in a burst's first seconds 11–26 reads waited behind 14 of them)."""
+    from app.store.database import write_gate
+
+    written: list[str] = []
+
+    def on_execute(conn, cursor, statement, *args):
+        words = statement.split()
+        if words[:2] == ["INSERT", "INTO"]:
+            written.append(words[2])
+
+    event.listen(db.engine, "after_cursor_execute", on_execute)  # run: the gate was taken
+    gate = write_gate(db.engine.url.database)
+    holder = _hold_the_write_lock(db)
+    written.clear()
+
+    def data_writer() -> None:
+        with db.session() as s:
+            s.execute(text("INSERT INTO other VALUES (2)"))
+
+    errors: dict = {}
+    threads = [threading.Thread(target=data_writer)]
+    threads[0].start()
+    wait_for(lambda: gate.waiting == 1, "a data writer queued at the lock")
+    threads.append(_read(db, "read", errors))
+    wait_for(lambda: gate.waiting == 2, "the read's batch queued after it")
+    holder.commit()
+    holder.close()
+    _join(threads)
+    assert errors == {} and _actors(db) == ["read"]
+    assert written == ["audit_events", "other"]  # the batch first, then the writer that queued before it
