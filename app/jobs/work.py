@@ -33,7 +33,7 @@ A job's work (:func:`run_job`): copy the session's stored files into a temporary
 artefact from one report input (:func:`app.pipeline.render.render_all`: the PDFs in every language, the Excel files,
 report.html, scene.viser, timeseries.npz) — that computation (:func:`app.jobs.compute.compute`) in a helper
 process at background priority when the engine gives one (the embedded engine does), — then store them as blobs
-(:func:`app.store.erasure.reserve_blob`, under the blob's lock: identical artefacts of concurrent jobs never
+(:func:`app.store.erasure.reserve_blobs`, under the blobs' locks: identical artefacts of concurrent jobs never
 collide, nor an erasure of the same bytes) and record a new
 :class:`~app.store.models.Analysis` in one transaction.  Earlier analyses stay.  A problem with the data
 (ingestion or pipeline error) fails the job with the pipeline's sentence as ``error``; an unexpected
@@ -61,11 +61,11 @@ from sqlalchemy.exc import TimeoutError as PoolTimeout
 
 from app.store.database import Database
 from app.store.analyses import supersede
-from app.store.erasure import reserve_blob
+from app.store.erasure import reserve_blobs
 from app.store.models import Analysis, Artefact, Clinic, Job, KneeSession, Patient, Recording, utcnow
 from app.pipeline.messages import render_message
 from app.pipeline.render import MEDIA
-from app.store.blobs import Storage, discarding
+from app.store.blobs import Storage, commit_all, discarding
 from app.settings import get_settings
 
 if TYPE_CHECKING:
@@ -347,11 +347,10 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
                 sealed[key] = store.sealed(contents[key])
             with db.session() as s:
                 row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
-                for sha, size in sorted(contents):
-                    # the file is placed under its blob's lock, as an upload's: the same bytes may be another
-                    # session's artefact being erased right now (app.store.erasure)
-                    reserve_blob(s, sha, size)
-                    sealed[sha, size].commit()
+                # the files are placed under their blobs' locks, as an upload's: the same bytes may be another
+                # session's artefact being erased right now (app.store.erasure)
+                reserve_blobs(s, sorted(contents))
+                commit_all([sealed[key] for key in sorted(contents)])
                 analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
                                     calibration=job.calibration, angle_method=job.angle_method,
                                     accepted_cycles=int(results["cycles"]["accepted"]),

@@ -68,6 +68,7 @@ class BlobWriter:
         self._path = Path(name)
         self._hash = hashlib.sha256()
         self.size_bytes = 0
+        self._stored_intact = False  # seal() found this content already stored, intact
 
     def write(self, chunk: bytes) -> None:
         """Append ``chunk``; raises :class:`TooLarge` (and discards the file) past ``max_bytes``."""
@@ -94,28 +95,35 @@ class BlobWriter:
         self._file.flush()
         os.fsync(self._file.fileno())
         self._file.close()
+        # the same content already stored: verified here, so that placing it under the locks is a look and a
+        # touch, not a read of the whole stored file (only an eraser removes such a file meanwhile: looked for)
+        target = self._store.path(self._hash.hexdigest())
+        self._stored_intact = target.is_file() and _file_sha256(target) == self._hash.hexdigest()
 
     def commit(self) -> str:
         """Move the file to its content address, durably (module docstring; :meth:`seal` first if the caller did
         not); returns the sha256 hex digest.  A file already stored there is kept and its modification time
         refreshed (the eraser reads it: :mod:`app.store.erasure`)."""
+        return commit_all([self])[0]
+
+    def _place(self) -> tuple[str, Path | None]:
+        """:meth:`commit` but the folder's fsync: ``(digest, the folder to fsync, or None when nothing moved)``."""
         self.seal()
         digest = self._hash.hexdigest()
         target = self._store.path(digest)
         target.parent.mkdir(parents=True, exist_ok=True)
-        if target.is_file() and _file_sha256(target) == digest:
+        if target.is_file() and (self._stored_intact or _file_sha256(target) == digest):
             try:
                 os.utime(target)
             except FileNotFoundError:  # erased meanwhile by a sweep that saw no row: store this copy
                 pass
             else:
                 self._path.unlink(missing_ok=True)  # already stored, intact
-                return digest
+                return digest, None
         if target.exists():
             log.warning("stored file %s… was damaged; replaced by a good copy", digest[:12])
         os.replace(self._path, target)
-        _fsync_dir(target.parent)
-        return digest
+        return digest, target.parent
 
     def discard(self) -> None:
         if not self._file.closed:
@@ -149,6 +157,24 @@ def _fsync_dir(folder: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def commit_all(writers: list[BlobWriter]) -> list[str]:
+    """:meth:`BlobWriter.commit` of each of ``writers`` (their digests, in order): every file moved first, then
+    the folders that received one fsynced together, in threads of their own — one wait for the disk rather than
+    one per file.  Callers hold their blobs' locks (on SQLite the database's one write lock) across this, so its
+    length is every other writer's wait (issue 16: an upload of 24 files fsynced 24 folders one after another
+    there)."""
+    placed = [w._place() for w in writers]
+    folders = sorted({folder for _, folder in placed if folder is not None})
+    if len(folders) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(min(len(folders), 8), thread_name_prefix="chakamo-fsync") as pool:
+            list(pool.map(_fsync_dir, folders))
+    elif folders:
+        _fsync_dir(folders[0])
+    return [digest for digest, _ in placed]
 
 
 class BlobStore:
@@ -292,4 +318,4 @@ def open_storage(settings: "Settings") -> BlobStore:
     return BlobStore(settings.blob_dir)
 
 
-__all__ = ["BlobStore", "BlobWriter", "CorruptBlob", "Storage", "TooLarge", "open_storage"]
+__all__ = ["BlobStore", "BlobWriter", "CorruptBlob", "Storage", "TooLarge", "commit_all", "open_storage"]

@@ -300,20 +300,31 @@ def alembic_config(engine: Engine):
 
 def ensure_blob(db: Session, sha256: str, size_bytes: int) -> None:
     """Add the :class:`Blob` row of ``sha256`` unless it exists — atomic, safe against concurrent inserts."""
+    ensure_blobs(db, [(sha256, size_bytes)])
+
+
+def ensure_blobs(db: Session, blobs: list[tuple[str, int]]) -> None:
+    """:func:`ensure_blob` for each ``(sha256, size_bytes)`` of ``blobs``, in one statement on SQLite and
+    PostgreSQL (an upload reserves its files' rows while it holds the database's write lock: one statement, not
+    one per file)."""
+    if not blobs:
+        return
     name = db.get_bind().dialect.name
     if name == "postgresql":
         from sqlalchemy.dialects.postgresql import insert
     elif name == "sqlite":
         from sqlalchemy.dialects.sqlite import insert
     else:  # another database: check, then insert (no concurrent guarantee)
-        if db.get(Blob, sha256) is None:
-            db.add(Blob(sha256=sha256, size_bytes=size_bytes))
-            db.flush()
+        for sha256, size_bytes in blobs:
+            if db.get(Blob, sha256) is None:
+                db.add(Blob(sha256=sha256, size_bytes=size_bytes))
+                db.flush()
         return
     from app.store.models import utcnow
 
-    db.execute(insert(Blob).values(sha256=sha256, size_bytes=size_bytes, created_at=utcnow())
-               .on_conflict_do_nothing(index_elements=["sha256"]))
+    now = utcnow()
+    rows = [{"sha256": sha, "size_bytes": size, "created_at": now} for sha, size in dict(blobs).items()]
+    db.execute(insert(Blob).values(rows).on_conflict_do_nothing(index_elements=["sha256"]))
 
 
 _AT_COMMIT = "chakamo_add_at_commit"  # the Session.info key of the rows add_at_commit queued
@@ -423,5 +434,6 @@ class Database:
         self.engine.dispose()
 
 
-__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blob", "make_engine",
+__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blob", "ensure_blobs",
+           "make_engine",
            "writes_first"]

@@ -32,9 +32,9 @@ from app.pipeline.ingestion import MANIFEST, ROLES, SEGMENTS, IngestionError
 from app.pipeline.ingestion.session import MAX_MANIFEST_KB, check_manifest_size
 from app.pipeline.ingestion.provenance import sensor_of_file_name
 from app.pipeline.ingestion.split import CONTINUOUS, check_split
-from app.store.blobs import BlobWriter
+from app.store.blobs import BlobWriter, commit_all
 from app.store.analyses import supersede
-from app.store.erasure import reserve_blob
+from app.store.erasure import reserve_blobs
 from app.store.errors import Conflict, Invalid, LimitExceeded, NotFound
 from app.store.models import KneeSession, Recording
 from app.store.sessions import clinic_session, files_changed, refuse_while_processing
@@ -69,13 +69,12 @@ def store_upload(db: Session, clinic_id: int, session_id: int, files: list[tuple
         raise Conflict(code="store.already_uploaded", names=", ".join(clash))
     if len(have) + len(names) > max_files:
         raise LimitExceeded(code="store.too_many_files", limit=max_files, stored=len(have))
-    rows = []
-    for name, writer in files:
-        size, sha = writer.size_bytes, writer.sha256
-        reserve_blob(db, sha, size)  # added and locked before the file is placed (module docstring)
-        writer.commit()
-        rows.append(Recording(session_id=session.id, file_name=name, size_bytes=size, sha256=sha,
-                              segment=segment, role=role, device=sensor_of_file_name(name)))
+    # every blob's row added and locked before any file is placed (module docstring), then the files placed: a
+    # few statements and one wait for the disk under the lock, whatever the number of files
+    reserve_blobs(db, [(w.sha256, w.size_bytes) for _, w in files])
+    commit_all([w for _, w in files])
+    rows = [Recording(session_id=session.id, file_name=name, size_bytes=w.size_bytes, sha256=w.sha256,
+                      segment=segment, role=role, device=sensor_of_file_name(name)) for name, w in files]
     db.add_all(rows)
     session.files_version = KneeSession.files_version + 1
     files_changed(db, session, "upload")  # a paired session reads these files too

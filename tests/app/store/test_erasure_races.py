@@ -115,7 +115,7 @@ def test_an_upload_racing_the_erasure_of_its_bytes_is_stored(env, monkeypatch):
     sa, sb = env["sids"]
     ids = _delete_and_mark(env, sa, _upload(env, sa, "thigh_task.csv"))
     counted, ensured = threading.Event(), threading.Event()
-    real_refs, real_ensure = erasure.references, database.ensure_blob
+    real_refs, real_ensure = erasure.references, database.ensure_blobs
 
     def refs(db, sha):  # the eraser, holding the blob row's lock, waits for the upload's ensure_blob
         n = real_refs(db, sha)
@@ -123,14 +123,12 @@ def test_an_upload_racing_the_erasure_of_its_bytes_is_stored(env, monkeypatch):
         assert ensured.wait(30)
         return n
 
-    def ensure(db, sha, size):
-        real_ensure(db, sha, size)
+    def ensure(db, blobs):
+        real_ensure(db, blobs)
         ensured.set()
 
     monkeypatch.setattr(erasure, "references", refs)
-    monkeypatch.setattr(database, "ensure_blob", ensure)
-    import app.store.recordings as recordings
-    monkeypatch.setattr(recordings, "ensure_blob", ensure, raising=False)
+    monkeypatch.setattr(database, "ensure_blobs", ensure)
     out = {}
     eraser = threading.Thread(target=lambda: out.update(counts=erasure.erase_pending(env["db"], env["store"], ids)))
     eraser.start()
