@@ -359,6 +359,10 @@ class ChakamoParams:
         0 = the plain weighted mean (14). Default 5°.
     offline_mag_bias: 9D only, the offline smoother's forward and backward passes estimate the bias also from
         the heading corrections (12b), whatever ``mag_bias`` (the causal filter's switch) says (13a). Default True.
+    gyr_scale_sigma: prior standard deviation of the per-axis gyroscope scale errors (8k) (-); 0 = no scale
+        states (the 3-state bias filter). Default 0.01 (1 %: a MEMS gyroscope's sensitivity tolerance, not tuned).
+    gyr_scale_forgetting_s: time over which the scale uncertainty grows back to ``gyr_scale_sigma`` (slow random
+        walk of (8k): sensitivity drifts with temperature), s. Default 10000.
     """
 
     tau_acc_s: float = 3.0
@@ -390,15 +394,17 @@ class ChakamoParams:
     offline_mag_guard_s: float = 0.25
     offline_heading_width_rad: float = 5.0 * _DEG
     offline_mag_bias: bool = True
+    gyr_scale_sigma: float = 0.01
+    gyr_scale_forgetting_s: float = 10000.0
 
     def __post_init__(self) -> None:
         positive = ("tau_acc_s", "tau_mag_s", "bias_sigma_init_rad_s", "bias_forgetting_s", "bias_clip_rad_s",
                     "bias_sigma_motion_rad_s", "bias_sigma_rest_rad_s", "bias_sigma_mag_rad_s", "rest_tau_s",
                     "rest_gyr_th_rad_s", "rest_acc_th_m_s2", "mag_ref_tau_s", "mag_norm_th", "mag_dip_th_rad",
-                    "offline_tau_mag_s", "offline_mag_sigma")
+                    "offline_tau_mag_s", "offline_mag_sigma", "gyr_scale_forgetting_s")
         for name in positive:
             check_parameter(name, getattr(self, name), low_open=True)
-        non_negative = ("rest_min_s", "bias_motion_rate_scale", "mag_min_undisturbed_s", "mag_new_field_s",
+        non_negative = ("gyr_scale_sigma", "rest_min_s", "bias_motion_rate_scale", "mag_min_undisturbed_s", "mag_new_field_s",
                         "mag_max_rejection_s", "offline_mag_guard_s", "offline_heading_width_rad")
         for name in non_negative:
             check_parameter(name, getattr(self, name))
@@ -449,6 +455,8 @@ def coefficients(p: ChakamoParams, fs_hz: float) -> FloatArray:
     c[kern.C_MAGGATE] = 3.0 * p.bias_sigma_init_rad_s * p.tau_mag_s  # (12b) gate: the lag of a 3σ bias error
 
     c[kern.C_SCALE2] = (p.bias_motion_rate_scale / p.bias_sigma_motion_rad_s) ** 2
+    c[kern.C_PK0] = p.gyr_scale_sigma ** 2
+    c[kern.C_QK] = p.gyr_scale_sigma ** 2 * dt / p.gyr_scale_forgetting_s
     return c
 
 
@@ -488,6 +496,9 @@ class Chakamo(OrientationMethod):
         s[kern.S_QEI] = 1.0
         var0 = self.params.bias_sigma_init_rad_s ** 2
         s[kern.S_P], s[kern.S_P + 3], s[kern.S_P + 5] = var0, var0, var0
+        for i in range(3):
+            s[kern.S_P6 + 7 * i] = var0
+            s[kern.S_P6 + 7 * (3 + i)] = self.params.gyr_scale_sigma ** 2
         first = int(np.flatnonzero(data.acc_ok)[0]) if data.acc_ok.any() else 0
         s[kern.S_AREST:kern.S_AREST + 3] = data.acc[first]
         return s
@@ -592,6 +603,10 @@ class Chakamo(OrientationMethod):
         bias = smooth(aux_f[:, kern.A_BIAS:kern.A_BIAS + 3], np.ascontiguousarray(aux_f[:, kern.A_P:kern.A_P + 6]),
                       np.ascontiguousarray(-aux_b[:, kern.A_BIAS:kern.A_BIAS + 3]),
                       np.ascontiguousarray(aux_b[:, kern.A_P:kern.A_P + 6]))
+        if p.gyr_scale_sigma > 0.0:  # the scale passes: information-weighted means, as (13) per axis
+            kf, pf = aux_f[:, kern.A_K:kern.A_K + 3], aux_f[:, kern.A_PK:kern.A_PK + 3]
+            kb, pb = aux_b[:, kern.A_K:kern.A_K + 3], aux_b[:, kern.A_PK:kern.A_PK + 3]
+            bias = bias + (kf * pb + kb * pf) / (pf + pb) * np.nan_to_num(data.gyr)
         # strapdown with the smoothed bias, zero-phase inclination
         strap = ref.strapdown_reference if reference else kern.strapdown_batch
         q_is = strap(_gyr_with_gaps(data), bias, np.asarray(state0[:4], np.float64), dt)
