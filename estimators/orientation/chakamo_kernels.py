@@ -16,7 +16,8 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``19:22`` a_lp        last low-pass output (m/s², I frame)
 ``22``    n_acc       accelerometer samples seen (the first ``n_init`` are averaged, not filtered)
 ``23:26`` b           gyroscope bias estimate (rad/s, sensor frame)
-``26:32`` P           bias covariance (rad²/s²), upper triangle ``P00 P01 P02 P11 P12 P22``
+``26:32`` P           bias covariance (rad²/s²), upper triangle ``P00 P01 P02 P11 P12 P22`` (with the scale
+                      states: a copy of the bias block of ``P6``, refreshed at every update)
 ``32:35`` g_rest      first-order low-pass of the gyroscope for rest detection (rad/s)
 ``35:38`` a_rest      first-order low-pass of the accelerometer for rest detection (m/s²)
 ``38``    t_rest      time the rest conditions have held (s)
@@ -34,7 +35,14 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
                       its product with b̂_used (1), for the heading bias measurement (12b)
 ``91``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
+``92:95`` k           per-axis gyroscope scale errors (-), ω_meas = (1 + diag k) ω + b, eq. (8k)
+``95:131`` P6         covariance of (b, k), 6×6 row-major (only read and written with the scale states on)
+``131:149`` W_lp      Butterworth state of R_IS·diag(ω_meas) (row-major, ``[z1(9), z2(9)]``), for eq. (8k)
+``149:158`` outputs   last outputs of that filter (9; scratch)
 ====================  ==========================================================================
+
+The scale states are on when ``c[C_PK0]`` (their prior variance) is positive; otherwise the bias filter is the
+3-state one, bit for bit as before they existed.
 
 Coefficient vector ``c`` (built by ``chakamo.coefficients``; indices are the ``C_*`` constants):
 dt, Butterworth ``b0 b1 b2 a1 a2``, n_init, rest low-pass gain, squared rest thresholds, rest time,
@@ -59,7 +67,7 @@ S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST
 S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = 49, 67, 73, 85, 86, 87, 91
 # per-axis gyroscope scale errors k (ω_meas = (1+diag k) ω + b), the full 6×6 covariance of (b, k), and the
 # Butterworth state / output of the columns of R_IS scaled by ω_j, for their measurement rows in (8)
-S_K, S_P6, S_WLP, S_WLPOUT = 92, 95, 131, 149
+S_K, S_P6, S_WLP, S_WLPOUT = 92, 95, 131, 149  # (8k)
 STATE_SIZE = 158
 #: largest scale error per axis (-)
 K_CLIP = 0.05
