@@ -68,7 +68,17 @@ Causal filter (one sample, ``dt = 1/fs``)
    through the same low-pass, so each row of (8) gains
    :math:`y = -M_{x,y}\,b - N_{x,y}\,k + v_{x,y} + \nu`, :math:`N = R_{E'I}\,LP(R_{IS}\operatorname{diag}\omega_{meas})`,
    innovation :math:`y - v_{x,y} + M_{x,y}\hat b + N_{x,y}\hat k`.                                     (8k)
-   The rest rows (7) and the heading rows (12b) carry zeros for ``k`` (at rest ω ≈ 0 shows no scale error).
+   The rest rows (7) carry zeros for ``k`` (at rest ω ≈ 0: no scale error shows).  The heading rows (12b)
+   run in motion and carry zeros for ``k`` too: they treat :math:`\hat k` as known, so their known term is
+   :math:`v_z = LP_1(r_z\cdot\hat b)` with :math:`\hat b` *alone*; the heading lag sees the total rate error
+   :math:`(b - \hat b) + \operatorname{diag}(k - \hat k)\,\omega`, so with :math:`\hat b, \hat k` exact the
+   innovation :math:`err/\tau - v_z + m_z\cdot\hat b` is then zero (the rate error the rows cannot name,
+   :math:`\operatorname{diag}(k - \hat k)\,\omega`, counts as their noise).  A :math:`v_z` built from
+   :math:`\hat b_{used}` (as first written) left the innovation at :math:`-LP_1(r_z\operatorname{diag}(\omega)\,\hat k)`
+   with no ``k`` column to explain it, and the vertical bias took up :math:`\hat k\,\omega` (tested: a known
+   scale error, the bias learnt from the heading alone, moved the bias by 0.05–0.06 °/s; now < 0.003 °/s).
+   Giving the rows their scale columns :math:`-LP_1(r_z\operatorname{diag}\omega)` would be the other
+   consistent choice; it lets the field teach ``k`` and is not done.
    Prior: :math:`\sigma_k` = ``gyr_scale_sigma`` per axis, fixed from the physics of the sensor and *not* chosen on
    BROAD: MEMS gyroscopes state a sensitivity tolerance of about ±1–3 % (the project simulator's MetaMotionR
    model draws 0.5 %), so 1 %.  Random walk as (5), :math:`P_{kk} \mathrel{+}= \sigma_k^2\,dt/T_k` capped at

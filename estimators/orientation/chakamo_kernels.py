@@ -33,7 +33,7 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``85``    w2_lp       first-order low-pass (τ_acc) of |ω - b̂|² (rad²/s²), scales the motion noise (8)
 ``86``    t_undist    time the field has stayed near the reference (s), for the hysteresis of (11)
 ``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
-                      its product with b̂_used (1), for the heading bias measurement (12b)
+                      its product with b̂ (1; without diag(k̂) ω), for the heading bias measurement (12b)
 ``91``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
 ``92:95`` k           per-axis gyroscope scale errors (-), ω_meas = (1 + diag k) ω + b, eq. (8k)
 ``95:131`` P6         covariance of (b, k), 6×6 row-major (only read and written with the scale states on)
@@ -194,6 +194,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     # a missing gyroscope row is NaN here: the orientation is held and rest detection paused
     gyr_ok = gx == gx and gy == gy and gz == gz
     bx, by, bz = s[S_BIAS], s[S_BIAS + 1], s[S_BIAS + 2]  # the bias used for this sample
+    b0x, b0y, b0z = bx, by, bz  # b̂ alone (without diag(k̂) ω), for the heading bias rows (12b)
     sc = c[C_PK0] > 0.0
     if gyr_ok and sc:  # the scale errors as a rate-proportional bias: b_used = b + diag(k) ω
         bx, by, bz = bx + s[S_K] * gx, by + s[S_K + 1] * gy, bz + s[S_K + 2] * gz
@@ -373,9 +374,11 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 k = max(c[C_KMAG], 1.0 / (s[S_NMAG] + 1.0))
                 err = _wrap(math.atan2(ex, ey) - s[S_DELTA])
                 if c[C_MAGBIAS] > 0.5:
-                    # (12b) vertical bias from the heading lag: err ≈ -τ_mag LP(R_E'S e)_z
+                    # (12b) vertical bias from the heading lag: err ≈ -τ_mag LP(R_E'S e)_z.  The rows have no
+                    # scale columns (k̂ taken as known here), so the known term is LP(r_z·b̂) without diag(k̂) ω:
+                    # with b̂ and k̂ exact the innovation is then zero (with k̂ω in it, it would be -LP(r_z diag(ω) k̂))
                     rz = qrot(qe[0], -qe[1], -qe[2], -qe[3], 0.0, 0.0, 1.0)
-                    uz = rz[0] * bx + rz[1] * by + rz[2] * bz
+                    uz = rz[0] * b0x + rz[1] * b0y + rz[2] * b0z
                     steady = s[S_NMAG] < c[C_NMAGINIT]
                     km = c[C_KMAG]
                     for i in range(3):

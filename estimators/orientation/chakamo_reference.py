@@ -55,6 +55,7 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
     # (1) strapdown
     gyr_ok = bool(np.all(np.isfinite(gyr)))  # a missing row (NaN) holds the orientation
     # the bias integrated at this sample; the scale errors act as the rate-proportional bias diag(k) ω
+    b_hat = x[:3].copy()  # b̂ alone, for the heading bias rows (12b): they treat k̂ as known
     b_used = x[:3] + x[3:] * gyr if gyr_ok and scale else x[:3].copy()
     omega = gyr - b_used
     if gyr_ok:
@@ -163,7 +164,9 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                 err = _wrap_reference(np.arctan2(mag_e[0], mag_e[1]) - s[S_DELTA])
                 if c[C_MAGBIAS] > 0.5:
                     r_es = quat.to_matrix(quat.multiply(s[S_QEI:S_QEI + 4], s[S_QIS:S_QIS + 4]))
-                    x = np.append(r_es[2], r_es[2] @ b_used)  # E' z axis in sensor coordinates, its bias term
+                    # E' z axis in sensor coordinates and its bias term, with b̂ alone (no k̂ω: the rows have no
+                    # scale columns, so with the state exact the innovation is zero)
+                    x = np.append(r_es[2], r_es[2] @ b_hat)
                     steady = s[S_NMAG] < c[C_NMAGINIT]
                     s[S_MLP:S_MLP + 4] = x if steady else s[S_MLP:S_MLP + 4] + c[C_KMAG] * (x - s[S_MLP:S_MLP + 4])
                     if not steady and s[S_REST] < 0.5 and abs(err) < c[C_MAGGATE]:
