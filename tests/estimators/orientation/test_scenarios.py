@@ -183,11 +183,12 @@ def test_chakamo_without_any_undisturbed_period_stays_bounded(seed):
     causal heading then stays within the disturbance's own reach: never worse than 2× the filter with the
     rejection switched off (which averages the wandering field), and never beyond 30°.
 
-    The yardstick is that filter without the gyroscope scale states (8k) (``gyr_scale_sigma=0``, the filter the
-    bound was set on): the scale states help both filters here (seed 1, heading RMS with / without them:
-    rejection on 17.3 / 17.9°, off 8.1 / 9.2°), the one without rejection more, so against itself the bound moved
-    by more than the filter under test gained (17.3° against 2 × 8.1 + 1 = 17.2°).  That the scale states never
-    make the rejecting filter worse here is asserted on its own."""
+    The yardstick is that filter with the same defaults, gyroscope scale states (8k) included.  With their prior
+    at 1 % (as first kept) seed 1 failed it (17.3° against 2 × 8.1 + 1 = 17.2°): the scale states helped the
+    filter without rejection more.  At the default 0.5 % it holds on every seed (heading RMS, default / bound:
+    seed 0 2.39 / 6.47°, seed 1 17.53 / 17.91°, seed 2 5.81 / 5.91°; measured with the (12b) fix, which the
+    causal default does not use).  That the scale states never make the rejecting filter worse here is asserted
+    on its own (without them: 2.70, 17.91, 6.07°)."""
     clip = gait_clip(seed=seed, duration_s=12.0, everywhere_disturbance=0.3)
 
     def heading_rms(**params) -> float:
@@ -199,5 +200,5 @@ def test_chakamo_without_any_undisturbed_period_stays_bounded(seed):
         return float(np.sqrt(np.mean(h ** 2)))
 
     h = heading_rms()
-    assert h <= 2.0 * heading_rms(mag_rejection=False, gyr_scale_sigma=0.0) + 1.0
+    assert h <= 2.0 * heading_rms(mag_rejection=False) + 1.0
     assert h <= heading_rms(gyr_scale_sigma=0.0) + 0.25
