@@ -16,7 +16,8 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``19:22`` a_lp        last low-pass output (m/s², I frame)
 ``22``    n_acc       accelerometer samples seen (the first ``n_init`` are averaged, not filtered)
 ``23:26`` b           gyroscope bias estimate (rad/s, sensor frame)
-``26:32`` P           bias covariance (rad²/s²), upper triangle ``P00 P01 P02 P11 P12 P22``
+``26:32`` P           bias covariance (rad²/s²), upper triangle ``P00 P01 P02 P11 P12 P22`` (with the scale
+                      states: a copy of the bias block of ``P6``, refreshed at every update)
 ``32:35`` g_rest      first-order low-pass of the gyroscope for rest detection (rad/s)
 ``35:38`` a_rest      first-order low-pass of the accelerometer for rest detection (m/s²)
 ``38``    t_rest      time the rest conditions have held (s)
@@ -32,9 +33,16 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``85``    w2_lp       first-order low-pass (τ_acc) of |ω - b̂|² (rad²/s²), scales the motion noise (8)
 ``86``    t_undist    time the field has stayed near the reference (s), for the hysteresis of (11)
 ``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
-                      its product with b̂_used (1), for the heading bias measurement (12b)
+                      its product with b̂ (1; without diag(k̂) ω), for the heading bias measurement (12b)
 ``91``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
+``92:95`` k           per-axis gyroscope scale errors (-), ω_meas = (1 + diag k) ω + b, eq. (8k)
+``95:131`` P6         covariance of (b, k), 6×6 row-major (only read and written with the scale states on)
+``131:149`` W_lp      Butterworth state of R_IS·diag(ω_meas) (row-major, ``[z1(9), z2(9)]``), for eq. (8k)
+``149:158`` outputs   last outputs of that filter (9; scratch)
 ====================  ==========================================================================
+
+The scale states are on when ``c[C_PK0]`` (their prior variance) is positive; otherwise the bias filter is the
+3-state one, bit for bit as before they existed.
 
 Coefficient vector ``c`` (built by ``chakamo.coefficients``; indices are the ``C_*`` constants):
 dt, Butterworth ``b0 b1 b2 a1 a2``, n_init, rest low-pass gain, squared rest thresholds, rest time,
@@ -57,17 +65,23 @@ S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = 23, 26, 32, 35, 38, 39
 S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = (
     40, 41, 42, 43, 44, 45, 46, 47, 48)
 S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = 49, 67, 73, 85, 86, 87, 91
-STATE_SIZE = 92
+# per-axis gyroscope scale errors k (ω_meas = (1+diag k) ω + b), the full 6×6 covariance of (b, k), and the
+# Butterworth state / output of the columns of R_IS scaled by ω_j, for their measurement rows in (8)
+S_K, S_P6, S_WLP, S_WLPOUT = 92, 95, 131, 149  # (8k)
+STATE_SIZE = 158
+#: largest scale error per axis (-)
+K_CLIP = 0.05
 
 # --- coefficient indices
 (C_DT, C_B0, C_B1, C_B2, C_A1, C_A2, C_NINIT, C_KREST, C_THG2, C_THA2, C_RESTMIN, C_RREST, C_RMOT,
  C_QBIAS, C_CLIP, C_RESTON, C_MOTON, C_KMAG, C_KREF, C_NORMTH, C_DIPTH, C_NEWS, C_MAXREJ, C_REJON,
- C_KCAND, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG, C_MAGGATE) = range(34)
-COEFF_SIZE = 34
+ C_KCAND, C_KW2, C_SCALE2, C_MINUND, C_P0, C_MAGBIAS, C_NMAGINIT, C_RMAG, C_TAUMAG, C_MAGGATE, C_QK, C_PK0
+ ) = range(36)
+COEFF_SIZE = 36
 
 # --- auxiliary per-sample outputs (columns of ``aux``)
-A_BIAS, A_P, A_REST, A_MAGUSED, A_MAGNEAR = 0, 3, 9, 10, 11
-AUX_SIZE = 12
+A_BIAS, A_P, A_REST, A_MAGUSED, A_MAGNEAR, A_K, A_PK = 0, 3, 9, 10, 11, 12, 15
+AUX_SIZE = 18
 
 
 # =====================================================================================
@@ -96,13 +110,62 @@ def _biquad(s, i1, i2, x, c, steady):
 
 
 @njit(cache=True)
+def _biquad9(s, start, out, r, g0, g1, g2, c, steady):
+    """:func:`_biquad` on the nine channels ``r[i]·g[i % 3]`` (``R_IS diag(ω)`` row-major), state
+    ``s[start:start + 18]`` (``[z1(9), z2(9)]``), outputs written to ``s[out:out + 9]``."""
+    b0, b1, b2, a1, a2 = c[C_B0], c[C_B1], c[C_B2], c[C_A1], c[C_A2]
+    for i in range(9):
+        g = g0 if i % 3 == 0 else (g1 if i % 3 == 1 else g2)
+        x = r[i] * g
+        if steady:
+            s[start + i] = (1.0 - b0) * x
+            s[start + 9 + i] = (b2 - a2) * x
+            s[out + i] = x
+        else:
+            y = b0 * x + s[start + i]
+            s[start + i] = b1 * x - a1 * y + s[start + 9 + i]
+            s[start + 9 + i] = b2 * x - a2 * y
+            s[out + i] = y
+
+
+@njit(cache=True)
 def _wrap(a):
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
 @njit(cache=True)
-def _bias_scalar_update(s, h0, h1, h2, innov, r, clip):
-    """Scalar Kalman update of the bias with measurement row h and innovation ``innov``."""
+def _row6(s, o, h0, h1, h2, h3, h4, h5):
+    return s[o] * h0 + s[o + 1] * h1 + s[o + 2] * h2 + s[o + 3] * h3 + s[o + 4] * h4 + s[o + 5] * h5
+
+
+@njit(cache=True)
+def _update6(s, h0, h1, h2, h3, h4, h5, innov, r, clip):
+    """Scalar Kalman update of (b, k) with row h and the full 6×6 covariance at ``S_P6`` (row-major); the bias
+    block is copied to ``S_P`` (upper triangle), which the smoother (13) reads."""
+    ph = (_row6(s, S_P6, h0, h1, h2, h3, h4, h5), _row6(s, S_P6 + 6, h0, h1, h2, h3, h4, h5),
+          _row6(s, S_P6 + 12, h0, h1, h2, h3, h4, h5), _row6(s, S_P6 + 18, h0, h1, h2, h3, h4, h5),
+          _row6(s, S_P6 + 24, h0, h1, h2, h3, h4, h5), _row6(s, S_P6 + 30, h0, h1, h2, h3, h4, h5))
+    sv = r + h0 * ph[0] + h1 * ph[1] + h2 * ph[2] + h3 * ph[3] + h4 * ph[4] + h5 * ph[5]
+    f = innov / sv
+    for i in range(3):
+        s[S_BIAS + i] = min(max(s[S_BIAS + i] + ph[i] * f, -clip), clip)
+        s[S_K + i] = min(max(s[S_K + i] + ph[3 + i] * f, -K_CLIP), K_CLIP)
+    for i in range(6):
+        g = ph[i] / sv
+        o = S_P6 + 6 * i
+        for j in range(6):
+            s[o + j] -= g * ph[j]
+    s[S_P], s[S_P + 1], s[S_P + 2] = s[S_P6], s[S_P6 + 1], s[S_P6 + 2]
+    s[S_P + 3], s[S_P + 4], s[S_P + 5] = s[S_P6 + 7], s[S_P6 + 8], s[S_P6 + 14]
+
+
+@njit(cache=True)
+def _bias_scalar_update(s, h0, h1, h2, innov, r, clip, h3, h4, h5, scale):
+    """Scalar Kalman update of the bias (and, with ``scale``, of the scale errors: :func:`_update6`) with
+    measurement row ``h`` and innovation ``innov``."""
+    if scale:
+        _update6(s, h0, h1, h2, h3, h4, h5, innov, r, clip)
+        return
     p00, p01, p02, p11, p12, p22 = s[S_P], s[S_P + 1], s[S_P + 2], s[S_P + 3], s[S_P + 4], s[S_P + 5]
     ph0 = p00 * h0 + p01 * h1 + p02 * h2
     ph1 = p01 * h0 + p11 * h1 + p12 * h2
@@ -131,6 +194,10 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     # a missing gyroscope row is NaN here: the orientation is held and rest detection paused
     gyr_ok = gx == gx and gy == gy and gz == gz
     bx, by, bz = s[S_BIAS], s[S_BIAS + 1], s[S_BIAS + 2]  # the bias used for this sample
+    b0x, b0y, b0z = bx, by, bz  # b̂ alone (without diag(k̂) ω), for the heading bias rows (12b)
+    sc = c[C_PK0] > 0.0
+    if gyr_ok and sc:  # the scale errors as a rate-proportional bias: b_used = b + diag(k) ω
+        bx, by, bz = bx + s[S_K] * gx, by + s[S_K + 1] * gy, bz + s[S_K + 2] * gz
     wx, wy, wz = gx - bx, gy - by, gz - bz
     ang = math.sqrt(wx * wx + wy * wy + wz * wz) * dt
     if gyr_ok:
@@ -161,12 +228,19 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     s[S_P] = min(s[S_P] + c[C_QBIAS], max(s[S_P], c[C_P0]))
     s[S_P + 3] = min(s[S_P + 3] + c[C_QBIAS], max(s[S_P + 3], c[C_P0]))
     s[S_P + 5] = min(s[S_P + 5] + c[C_QBIAS], max(s[S_P + 5], c[C_P0]))
+    if sc:
+        for i in range(3):
+            d = S_P6 + 7 * i
+            s[d] = min(s[d] + c[C_QBIAS], max(s[d], c[C_P0]))
+            d = S_P6 + 7 * (i + 3)
+            s[d] = min(s[d] + c[C_QK], max(s[d], c[C_PK0]))
     if s[S_REST] > 0.5 and c[C_RESTON] > 0.5:
         for i in range(3):
             h0 = 1.0 if i == 0 else 0.0
             h1 = 1.0 if i == 1 else 0.0
             h2 = 1.0 if i == 2 else 0.0
-            _bias_scalar_update(s, h0, h1, h2, s[S_GREST + i] - s[S_BIAS + i], c[C_RREST], c[C_CLIP])
+            _bias_scalar_update(s, h0, h1, h2, s[S_GREST + i] - s[S_BIAS + i], c[C_RREST], c[C_CLIP],
+                                0.0, 0.0, 0.0, sc)
 
     # (3) inclination from low-passed acceleration in the quasi-inertial frame  [eqs. 2-4]
     if acc_ok:
@@ -193,10 +267,12 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
         r = qmat(s[S_QIS], s[S_QIS + 1], s[S_QIS + 2], s[S_QIS + 3])
         ub = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz,
               r[6] * bx + r[7] * by + r[8] * bz)
-        for i in range(9):
-            s[S_RLPOUT + i] = _biquad(s, S_RLP + i, S_RLP + 9 + i, r[i], c, n < c[C_NINIT])
+        _biquad9(s, S_RLP, S_RLPOUT, r, 1.0, 1.0, 1.0, c, n < c[C_NINIT])
         for i in range(3):
             s[S_RLPOUT + 9 + i] = _biquad(s, S_ULP + i, S_ULP + 3 + i, ub[i], c, n < c[C_NINIT])
+        if sc:  # low-passes of R_IS diag(ω) (a missing gyroscope row counts as ω = 0), for eq. (8k)
+            g0, g1, g2 = (gx, gy, gz) if gyr_ok else (0.0, 0.0, 0.0)
+            _biquad9(s, S_WLP, S_WLPOUT, r, g0, g1, g2, c, n < c[C_NINIT])
         rlp = s[S_RLPOUT:S_RLPOUT + 9]
         ulp = s[S_RLPOUT + 9:S_RLPOUT + 12]
         ex, ey, ez = qrot(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
@@ -232,10 +308,24 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 v1 = e1[0] * ulp[0] + e1[1] * ulp[1] + e1[2] * ulp[2]
                 r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
                 clip = c[C_CLIP]
-                innov = y0 - v0 + m00 * s[S_BIAS] + m01 * s[S_BIAS + 1] + m02 * s[S_BIAS + 2]
-                _bias_scalar_update(s, -m00, -m01, -m02, min(max(innov, -clip), clip), r_mot, clip)
-                innov = y1 - v1 + m10 * s[S_BIAS] + m11 * s[S_BIAS + 1] + m12 * s[S_BIAS + 2]
-                _bias_scalar_update(s, -m10, -m11, -m12, min(max(innov, -clip), clip), r_mot, clip)
+                # scale rows N = R_E'I · LP(R_IS diag ω) (zero without the scale states)            [eq. 8k]
+                n00 = n01 = n02 = n10 = n11 = n12 = 0.0
+                if sc:
+                    wl = s[S_WLPOUT:S_WLPOUT + 9]
+                    n00 = e0[0] * wl[0] + e0[1] * wl[3] + e0[2] * wl[6]
+                    n01 = e0[0] * wl[1] + e0[1] * wl[4] + e0[2] * wl[7]
+                    n02 = e0[0] * wl[2] + e0[1] * wl[5] + e0[2] * wl[8]
+                    n10 = e1[0] * wl[0] + e1[1] * wl[3] + e1[2] * wl[6]
+                    n11 = e1[0] * wl[1] + e1[1] * wl[4] + e1[2] * wl[7]
+                    n12 = e1[0] * wl[2] + e1[1] * wl[5] + e1[2] * wl[8]
+                innov = (y0 - v0 + m00 * s[S_BIAS] + m01 * s[S_BIAS + 1] + m02 * s[S_BIAS + 2]
+                         + n00 * s[S_K] + n01 * s[S_K + 1] + n02 * s[S_K + 2])
+                _bias_scalar_update(s, -m00, -m01, -m02, min(max(innov, -clip), clip), r_mot, clip,
+                                    -n00, -n01, -n02, sc)
+                innov = (y1 - v1 + m10 * s[S_BIAS] + m11 * s[S_BIAS + 1] + m12 * s[S_BIAS + 2]
+                         + n10 * s[S_K] + n11 * s[S_K + 1] + n12 * s[S_K + 2])
+                _bias_scalar_update(s, -m10, -m11, -m12, min(max(innov, -clip), clip), r_mot, clip,
+                                    -n10, -n11, -n12, sc)
 
     # (5) heading from the magnetometer with disturbance rejection          [eqs. 9-12]
     used = 0.0
@@ -284,9 +374,11 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 k = max(c[C_KMAG], 1.0 / (s[S_NMAG] + 1.0))
                 err = _wrap(math.atan2(ex, ey) - s[S_DELTA])
                 if c[C_MAGBIAS] > 0.5:
-                    # (12b) vertical bias from the heading lag: err ≈ -τ_mag LP(R_E'S e)_z
+                    # (12b) vertical bias from the heading lag: err ≈ -τ_mag LP(R_E'S e)_z.  The rows have no
+                    # scale columns (k̂ taken as known here), so the known term is LP(r_z·b̂) without diag(k̂) ω:
+                    # with b̂ and k̂ exact the innovation is then zero (with k̂ω in it, it would be -LP(r_z diag(ω) k̂))
                     rz = qrot(qe[0], -qe[1], -qe[2], -qe[3], 0.0, 0.0, 1.0)
-                    uz = rz[0] * bx + rz[1] * by + rz[2] * bz
+                    uz = rz[0] * b0x + rz[1] * b0y + rz[2] * b0z
                     steady = s[S_NMAG] < c[C_NMAGINIT]
                     km = c[C_KMAG]
                     for i in range(3):
@@ -297,7 +389,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                         innov = (err / c[C_TAUMAG] - s[S_MLP + 3] + s[S_MLP] * s[S_BIAS]
                                  + s[S_MLP + 1] * s[S_BIAS + 1] + s[S_MLP + 2] * s[S_BIAS + 2])
                         _bias_scalar_update(s, -s[S_MLP], -s[S_MLP + 1], -s[S_MLP + 2],
-                                            min(max(innov, -clip), clip), c[C_RMAG], clip)
+                                            min(max(innov, -clip), clip), c[C_RMAG], clip, 0.0, 0.0, 0.0, sc)
                 s[S_NMAG] += 1.0
                 s[S_DELTA] = _wrap(s[S_DELTA] + k * err)
                 used = 1.0
@@ -334,6 +426,9 @@ def chakamo_batch(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_aux):
             for j in range(6):
                 aux[k, A_P + j] = s[S_P + j]
             aux[k, A_REST] = s[S_REST]
+            for j in range(3):
+                aux[k, A_K + j] = s[S_K + j]
+                aux[k, A_PK + j] = s[S_P6 + 7 * (3 + j)]
             aux[k, A_MAGUSED] = used
             # the field was near the reference at this sample (hysteresis aside): t_undist runs
             aux[k, A_MAGNEAR] = 1.0 if mag_ok[k] and s[S_TUND] > 0.0 else 0.0

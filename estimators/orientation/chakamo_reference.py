@@ -11,34 +11,53 @@ import numpy as np
 
 from estimators import quaternion as quat
 from estimators.orientation.chakamo_kernels import (
-    AUX_SIZE, A_BIAS, A_MAGNEAR, A_MAGUSED, A_P, A_REST, C_A1, C_A2, C_B0, C_B1, C_B2, C_CLIP, C_DIPTH, C_DT, C_KCAND,
+    AUX_SIZE, A_BIAS, A_K, A_MAGNEAR, A_MAGUSED, A_P, A_PK, A_REST, C_A1, C_A2, C_B0, C_B1, C_B2, C_CLIP, C_DIPTH, C_DT, C_KCAND,
     C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAGGATE, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
-    C_NORMTH, C_P0, C_QBIAS, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
+    C_NORMTH, C_P0, C_PK0, C_QBIAS, C_QK, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
     C_THA2, C_THG2, S_ALP, S_AREST, S_BIAS, S_DELTA, S_GREST, S_LP, S_MCANDD, S_MCANDN, S_MDIST, S_MLP,
     S_MREFD, S_MREFN, S_MREFOK, S_NACC, S_NMAG, S_P, S_Q, S_QEI, S_QIS, S_REST, S_RLP, S_RLPOUT, S_TCAND,
-    S_TREJ, S_TREST, S_TSUP, S_TUND, S_ULP, S_W2,
+    S_TREJ, S_TREST, S_TSUP, S_TUND, S_ULP, S_W2, S_K, S_P6, S_WLP, S_WLPOUT, K_CLIP,
 )
 
 
-def _bias_update_reference(b, p, h, innov, r, clip):
+def _bias_update_reference(x, p, h, innov, r, clip):
+    """Scalar Kalman update of ``x = (b, k)`` (6,) with covariance ``p`` (6, 6); b clipped to ±clip, k to ±K_CLIP."""
     gain = p @ h / (h @ p @ h + r)
-    return np.clip(b + gain * innov, -clip, clip), p - np.outer(gain, h @ p)
+    limit = np.r_[np.full(3, clip), np.full(3, K_CLIP)]
+    return np.clip(x + gain * innov, -limit, limit), p - np.outer(gain, h @ p)
 
 
-def _unpack_p(s):
+def _unpack(s, scale):
+    """``x = (b, k)`` and its 6×6 covariance: the full matrix at ``S_P6`` with the scale states, else the bias
+    block (upper triangle at ``S_P``) with a zero scale block (k then never moves)."""
+    x = np.r_[s[S_BIAS:S_BIAS + 3], s[S_K:S_K + 3]]
+    if scale:
+        return x, s[S_P6:S_P6 + 36].reshape(6, 6).copy()
     p00, p01, p02, p11, p12, p22 = s[S_P:S_P + 6]
-    return np.array([[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]])
+    p = np.zeros((6, 6))
+    p[:3, :3] = [[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]]
+    return x, p
+
+
+def _pack(s, x, p, scale):
+    s[S_BIAS:S_BIAS + 3] = x[:3]
+    s[S_P:S_P + 6] = p[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    if scale:
+        s[S_K:S_K + 3] = x[3:]
+        s[S_P6:S_P6 + 36] = p.ravel()
 
 
 def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
     """Numpy twin of :func:`chakamo_step` (``s`` updated in place); returns 1.0 if heading was corrected."""
     dt = c[C_DT]
-    b = s[S_BIAS:S_BIAS + 3].copy()
-    b_used = b.copy()  # the bias integrated at this sample
-    p = _unpack_p(s)
+    scale = c[C_PK0] > 0.0  # the scale states (8k) are on
+    x, p = _unpack(s, scale)
     # (1) strapdown
     gyr_ok = bool(np.all(np.isfinite(gyr)))  # a missing row (NaN) holds the orientation
-    omega = gyr - b
+    # the bias integrated at this sample; the scale errors act as the rate-proportional bias diag(k) ω
+    b_hat = x[:3].copy()  # b̂ alone, for the heading bias rows (12b): they treat k̂ as known
+    b_used = x[:3] + x[3:] * gyr if gyr_ok and scale else x[:3].copy()
+    omega = gyr - b_used
     if gyr_ok:
         s[S_W2] += c[C_KW2] * (omega @ omega - s[S_W2])
         if np.linalg.norm(omega) * dt > 1e-12:
@@ -54,10 +73,11 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
         s[S_TREST] = s[S_TREST] + dt if rest_now else 0.0
         s[S_REST] = float(s[S_TREST] >= c[C_RESTMIN])
     diag = np.diag(p)
-    p = p + np.diag(np.minimum(diag + c[C_QBIAS], np.maximum(diag, c[C_P0])) - diag)
+    q, p0 = np.r_[np.full(3, c[C_QBIAS]), np.full(3, c[C_QK])], np.r_[np.full(3, c[C_P0]), np.full(3, c[C_PK0])]
+    p = p + np.diag(np.minimum(diag + q, np.maximum(diag, p0)) - diag)
     if s[S_REST] > 0.5 and c[C_RESTON] > 0.5:
         for i in range(3):
-            b, p = _bias_update_reference(b, p, np.eye(3)[i], g_lp[i] - b[i], c[C_RREST], c[C_CLIP])
+            x, p = _bias_update_reference(x, p, np.eye(6)[i], g_lp[i] - x[i], c[C_RREST], c[C_CLIP])
     # (3) inclination
     if acc_ok:
         acc_i = quat.rotate(s[S_QIS:S_QIS + 4], acc)
@@ -79,6 +99,10 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
         u_lp = _biquad_reference(s, S_ULP, 3, r_is @ b_used, bb, aa, n < c[C_NINIT])
         s[S_RLPOUT:S_RLPOUT + 9] = r_lp.ravel()
         s[S_RLPOUT + 9:S_RLPOUT + 12] = u_lp
+        if scale:  # LP(R_IS diag ω), a missing gyroscope row as ω = 0
+            w_lp = _biquad_reference(s, S_WLP, 9, (r_is * (gyr if gyr_ok else np.zeros(3))).ravel(), bb, aa,
+                                     n < c[C_NINIT]).reshape(3, 3)
+            s[S_WLPOUT:S_WLPOUT + 9] = w_lp.ravel()
         acc_e = quat.rotate(s[S_QEI:S_QEI + 4], s[S_ALP:S_ALP + 3])
         if np.linalg.norm(acc_e) > 1e-9:
             acc_e = acc_e / np.linalg.norm(acc_e)
@@ -92,12 +116,13 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                 r_ei = quat.to_matrix(s[S_QEI:S_QEI + 4])
                 m_mat = r_ei @ r_lp
                 v = r_ei @ u_lp
+                n_mat = r_ei @ w_lp if scale else np.zeros((3, 3))  # (8k)
+                h_mat = np.hstack([m_mat, n_mat])
                 r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
                 for j in range(2):
-                    innov = np.clip(rate[j] - v[j] + m_mat[j] @ b, -c[C_CLIP], c[C_CLIP])
-                    b, p = _bias_update_reference(b, p, -m_mat[j], innov, r_mot, c[C_CLIP])
-    s[S_BIAS:S_BIAS + 3] = b
-    s[S_P:S_P + 6] = p[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+                    innov = np.clip(rate[j] - v[j] + h_mat[j] @ x, -c[C_CLIP], c[C_CLIP])
+                    x, p = _bias_update_reference(x, p, -h_mat[j], innov, r_mot, c[C_CLIP])
+    _pack(s, x, p, scale)
     # (5) heading
     used = 0.0
     if mag_ok:
@@ -139,17 +164,17 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                 err = _wrap_reference(np.arctan2(mag_e[0], mag_e[1]) - s[S_DELTA])
                 if c[C_MAGBIAS] > 0.5:
                     r_es = quat.to_matrix(quat.multiply(s[S_QEI:S_QEI + 4], s[S_QIS:S_QIS + 4]))
-                    x = np.append(r_es[2], r_es[2] @ b_used)  # E' z axis in sensor coordinates, its bias term
+                    # E' z axis in sensor coordinates and its bias term, with b̂ alone (no k̂ω: the rows have no
+                    # scale columns, so with the state exact the innovation is zero)
+                    x = np.append(r_es[2], r_es[2] @ b_hat)
                     steady = s[S_NMAG] < c[C_NMAGINIT]
                     s[S_MLP:S_MLP + 4] = x if steady else s[S_MLP:S_MLP + 4] + c[C_KMAG] * (x - s[S_MLP:S_MLP + 4])
                     if not steady and s[S_REST] < 0.5 and abs(err) < c[C_MAGGATE]:
                         m_z, v_z = s[S_MLP:S_MLP + 3], s[S_MLP + 3]
-                        b = s[S_BIAS:S_BIAS + 3].copy()
-                        p = _unpack_p(s)
-                        innov = np.clip(err / c[C_TAUMAG] - v_z + m_z @ b, -c[C_CLIP], c[C_CLIP])
-                        b, p = _bias_update_reference(b, p, -m_z, innov, c[C_RMAG], c[C_CLIP])
-                        s[S_BIAS:S_BIAS + 3] = b
-                        s[S_P:S_P + 6] = p[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+                        x, p = _unpack(s, scale)
+                        innov = np.clip(err / c[C_TAUMAG] - v_z + m_z @ x[:3], -c[C_CLIP], c[C_CLIP])
+                        x, p = _bias_update_reference(x, p, -np.r_[m_z, np.zeros(3)], innov, c[C_RMAG], c[C_CLIP])
+                        _pack(s, x, p, scale)
                 s[S_NMAG] += 1.0
                 s[S_DELTA] = _wrap_reference(s[S_DELTA] + k * err)
                 used = 1.0
@@ -191,6 +216,8 @@ def chakamo_batch_reference(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_
             aux[k, A_BIAS:A_BIAS + 3] = s[S_BIAS:S_BIAS + 3]
             aux[k, A_P:A_P + 6] = s[S_P:S_P + 6]
             aux[k, A_REST] = s[S_REST]
+            aux[k, A_K:A_K + 3] = s[S_K:S_K + 3]
+            aux[k, A_PK:A_PK + 3] = np.diag(s[S_P6:S_P6 + 36].reshape(6, 6))[3:]
             aux[k, A_MAGUSED] = used
             aux[k, A_MAGNEAR] = 1.0 if mag_ok[k] and s[S_TUND] > 0.0 else 0.0
     return out, s, aux

@@ -181,13 +181,24 @@ def test_chakamo_without_any_undisturbed_period_stays_bounded(seed):
     Defined behaviour (chakamo module docstring, after (12)): samples near the current reference correct the
     heading, the gyroscope bridges the others, and the reference never freezes on one wrong field.  The
     causal heading then stays within the disturbance's own reach: never worse than 2× the filter with the
-    rejection switched off (which averages the wandering field), and never beyond 30°."""
+    rejection switched off (which averages the wandering field), and never beyond 30°.
+
+    The yardstick is that filter with the same defaults, gyroscope scale states (8k) included.  With their prior
+    at 1 % (as first kept) seed 1 failed it (17.3° against 2 × 8.1 + 1 = 17.2°): the scale states helped the
+    filter without rejection more.  At the default 0.5 % it holds on every seed (heading RMS, default / bound:
+    seed 0 2.39 / 6.47°, seed 1 17.53 / 17.91°, seed 2 5.81 / 5.91°; measured with the (12b) fix, which the
+    causal default does not use).  That the scale states never make the rejecting filter worse here is asserted
+    on its own (without them: 2.70, 17.91, 6.07°)."""
     clip = gait_clip(seed=seed, duration_s=12.0, everywhere_disturbance=0.3)
-    q = make("chakamo", offline=False).estimate(clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
-    q_off = make("chakamo", offline=False, mag_rejection=False).estimate(
-        clip.acc, clip.gyr, clip.mag, fs_hz=clip.fs_hz).orientation_
-    h = np.degrees(np.abs(heading_error_rad(q, clip.q_earth_sensor)))[CONVERGED:]
-    h_off = np.degrees(np.abs(heading_error_rad(q_off, clip.q_earth_sensor)))[CONVERGED:]
-    assert np.isfinite(q).all()
-    assert h.max() <= 30.0
-    assert np.sqrt(np.mean(h ** 2)) <= 2.0 * np.sqrt(np.mean(h_off ** 2)) + 1.0
+
+    def heading_rms(**params) -> float:
+        q = make("chakamo", offline=False, **params).estimate(clip.acc, clip.gyr, clip.mag,
+                                                               fs_hz=clip.fs_hz).orientation_
+        assert np.isfinite(q).all()
+        h = np.degrees(np.abs(heading_error_rad(q, clip.q_earth_sensor)))[CONVERGED:]
+        assert h.max() <= 30.0
+        return float(np.sqrt(np.mean(h ** 2)))
+
+    h = heading_rms()
+    assert h <= 2.0 * heading_rms(mag_rejection=False) + 1.0
+    assert h <= heading_rms(gyr_scale_sigma=0.0) + 0.25
