@@ -129,6 +129,14 @@ def _biquad9(s, start, out, r, g0, g1, g2, c, steady):
 
 
 @njit(cache=True)
+def _rows_xy(e0, e1, a):
+    """Rows x and y of :math:`R_{E'I} A` for the row-major 3×3 ``a`` (``e0``, ``e1``: the rows of :math:`R_{E'I}`)."""
+    return (e0[0] * a[0] + e0[1] * a[3] + e0[2] * a[6], e0[0] * a[1] + e0[1] * a[4] + e0[2] * a[7],
+            e0[0] * a[2] + e0[1] * a[5] + e0[2] * a[8], e1[0] * a[0] + e1[1] * a[3] + e1[2] * a[6],
+            e1[0] * a[1] + e1[1] * a[4] + e1[2] * a[7], e1[0] * a[2] + e1[1] * a[5] + e1[2] * a[8])
+
+
+@njit(cache=True)
 def _wrap(a):
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
@@ -298,12 +306,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 # M = R_E'I · LP(R_IS), v = R_E'I · LP(R_IS b̂): rows x and y
                 e0 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 1.0, 0.0, 0.0)
                 e1 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 0.0, 1.0, 0.0)
-                m00 = e0[0] * rlp[0] + e0[1] * rlp[3] + e0[2] * rlp[6]
-                m01 = e0[0] * rlp[1] + e0[1] * rlp[4] + e0[2] * rlp[7]
-                m02 = e0[0] * rlp[2] + e0[1] * rlp[5] + e0[2] * rlp[8]
-                m10 = e1[0] * rlp[0] + e1[1] * rlp[3] + e1[2] * rlp[6]
-                m11 = e1[0] * rlp[1] + e1[1] * rlp[4] + e1[2] * rlp[7]
-                m12 = e1[0] * rlp[2] + e1[1] * rlp[5] + e1[2] * rlp[8]
+                m00, m01, m02, m10, m11, m12 = _rows_xy(e0, e1, rlp)
                 v0 = e0[0] * ulp[0] + e0[1] * ulp[1] + e0[2] * ulp[2]
                 v1 = e1[0] * ulp[0] + e1[1] * ulp[1] + e1[2] * ulp[2]
                 r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
@@ -311,13 +314,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                 # scale rows N = R_E'I · LP(R_IS diag ω) (zero without the scale states)            [eq. 8k]
                 n00 = n01 = n02 = n10 = n11 = n12 = 0.0
                 if sc:
-                    wl = s[S_WLPOUT:S_WLPOUT + 9]
-                    n00 = e0[0] * wl[0] + e0[1] * wl[3] + e0[2] * wl[6]
-                    n01 = e0[0] * wl[1] + e0[1] * wl[4] + e0[2] * wl[7]
-                    n02 = e0[0] * wl[2] + e0[1] * wl[5] + e0[2] * wl[8]
-                    n10 = e1[0] * wl[0] + e1[1] * wl[3] + e1[2] * wl[6]
-                    n11 = e1[0] * wl[1] + e1[1] * wl[4] + e1[2] * wl[7]
-                    n12 = e1[0] * wl[2] + e1[1] * wl[5] + e1[2] * wl[8]
+                    n00, n01, n02, n10, n11, n12 = _rows_xy(e0, e1, s[S_WLPOUT:S_WLPOUT + 9])
                 innov = (y0 - v0 + m00 * s[S_BIAS] + m01 * s[S_BIAS + 1] + m02 * s[S_BIAS + 2]
                          + n00 * s[S_K] + n01 * s[S_K + 1] + n02 * s[S_K + 2])
                 _bias_scalar_update(s, -m00, -m01, -m02, min(max(innov, -clip), clip), r_mot, clip,
