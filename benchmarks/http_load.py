@@ -66,20 +66,20 @@ class _Http11:
         """The status of ``GET path`` (-1 without an answer); ``on_send()`` is called as the request is written."""
         try:
             return await asyncio.wait_for(self._get(path, on_send), self._timeout_s)
-        except (OSError, EOFError, ValueError, asyncio.TimeoutError, asyncio.IncompleteReadError,
-                asyncio.LimitOverrunError):
+        except (OSError, EOFError, ValueError, IndexError, asyncio.TimeoutError, asyncio.IncompleteReadError,
+                asyncio.LimitOverrunError):  # IndexError: a malformed status line
             return -1
 
     async def _get(self, path: str, on_send) -> int:
         request = f"GET {path} HTTP/1.1\r\nHost: {self._host}:{self._port}\r\n{self._headers}\r\n".encode("latin-1")
         sent = False
         while True:
+            if not sent:  # the client's own delay ends here; connecting is part of the answer's time
+                on_send()
+                sent = True
             reused = bool(self._idle)
             reader, writer = self._idle.pop() if reused else await asyncio.open_connection(self._host, self._port)
             try:
-                if not sent:
-                    on_send()
-                    sent = True
                 writer.write(request)
                 head = await reader.readuntil(b"\r\n\r\n")
             except (OSError, asyncio.IncompleteReadError):
@@ -114,7 +114,9 @@ async def _read_body(reader: asyncio.StreamReader, head: bytes) -> tuple[int, bo
     status = int(lines[0].split(" ", 2)[1])
     fields = {k.strip().lower(): v.strip().lower() for k, _, v in (ln.partition(":") for ln in lines[1:] if ln)}
     keep = fields.get("connection") != "close"
-    if "chunked" in fields.get("transfer-encoding", ""):
+    if status in (204, 304) or 100 <= status < 200:  # no body by definition (RFC 9112 §6.3)
+        pass
+    elif "chunked" in fields.get("transfer-encoding", ""):
         while True:
             size = int((await reader.readuntil(b"\r\n")).split(b";")[0], 16)
             if size == 0:

@@ -91,7 +91,7 @@ def run(logins: int, seconds: float, rate: float, addresses: int) -> tuple[list,
         r = httpx.post(base + "/api/v1/patients", json={"external_id": "FLOOD-1", "side": "right"}, headers=headers)
         r.raise_for_status()
         paths = ["/api/v1/patients", f"/api/v1/patients/{r.json()['id']}"]
-        open_loop_get(base, headers, paths, 5, 1.0)  # warm the connection pool and the routes
+        open_loop_get(base, headers, paths, 5, 1.0)  # warm the routes (each call opens its own connections)
         # the flood runs in a child process: its event loop must not delay the reads' one through the GIL
         with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
             pool.submit(_noop).result()  # the child is up before the clock starts

@@ -165,15 +165,19 @@ def commit_all(writers: list[BlobWriter]) -> list[str]:
     one per file.  Callers hold their blobs' locks (on SQLite the database's one write lock) across this, so its
     length is every other writer's wait (issue 16: an upload of 24 files fsynced 24 folders one after another
     there)."""
-    placed = [w._place() for w in writers]
-    folders = sorted({folder for _, folder in placed if folder is not None})
-    if len(folders) > 1:
-        from concurrent.futures import ThreadPoolExecutor
+    placed: list[tuple[str, Path | None]] = []
+    try:
+        for w in writers:
+            placed.append(w._place())
+    finally:  # also when one failed (a full disk): the files moved so far are durable, as each was before
+        folders = sorted({folder for _, folder in placed if folder is not None})
+        if len(folders) > 1:
+            from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(min(len(folders), 8), thread_name_prefix="chakamo-fsync") as pool:
-            list(pool.map(_fsync_dir, folders))
-    elif folders:
-        _fsync_dir(folders[0])
+            with ThreadPoolExecutor(min(len(folders), 8), thread_name_prefix="chakamo-fsync") as pool:
+                list(pool.map(_fsync_dir, folders))
+        elif folders:
+            _fsync_dir(folders[0])
     return [digest for digest, _ in placed]
 
 

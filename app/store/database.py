@@ -12,7 +12,9 @@ serve`` as ``benchmarks.load``'s burst began: 34 request threads inside SQLite's
 whose audit row their commit was writing).  So the server's writers of one database file queue in the process at
 a :class:`WriteGate` (one per file, :func:`write_gate`, shared by every engine on it): the moment a writer commits
 or rolls back, the writer that has waited longest is woken — no polling.  Not a strict hand-over: the gate is free
-from the release on, and a writer that is running just then may take it first.  A hand-over to a thread the
+from the release on, and a writer that is running just then may take it first — except that while a group-commit
+batch waits (:meth:`WriteGate.acquire` with ``first``), the gate is kept for it: the others wait, and one that was
+woken and lost the race waits again behind later arrivals (bounded by :data:`WRITE_WAIT_S`).  A hand-over to a thread the
 operating system has not scheduled yet keeps the lock idle until it runs (a lock convoy); on a machine starved of
 CPU that can cost more than the order saves (the first version of this gate handed over; two login-flood runs with
 it at load 25–29 were worse than main's, noisy as such runs are).  The gate is taken where pysqlite
@@ -56,7 +58,9 @@ class WriteGate:
     a release wakes the longest waiting of them if any, and no other writer takes the gate while one of them waits.
     One such batch holds the audit rows of every read waiting to answer, which would otherwise queue behind each
     upload and patient creation of a burst (issue 16 finding 10h).  The others are not starved: the group commit
-    has one batch writing at a time, and each batch takes every row that arrived before it.
+    has one batch writing at a time, and each batch takes every row that arrived before it; but one of them woken
+    as a batch arrived waits again behind later arrivals (``Condition.wait_for`` queues it anew), within
+    :data:`WRITE_WAIT_S`.
 
     The lock is re-entrant: an unclosed connection holding the gate gives it back from its finaliser
     (:meth:`GatedConnection.__del__`, SQLAlchemy's pool finaliser's rollback), which a garbage-collection pass may
@@ -90,8 +94,8 @@ class WriteGate:
                     taken = self._first.wait_for(self._free, timeout_s)
                 finally:
                     self._waiting_first -= 1
-                    if not taken and self._free_for_others():  # interrupted after a release woke it: the
-                        self._cond.notify()  # gate it was given is free, and the others wait for no one now
+                    if not taken and not self._held:  # interrupted after a release woke it: pass the wake-up on
+                        (self._first if self._waiting_first else self._cond).notify()
             else:
                 self._waiting += 1
                 try:
@@ -126,11 +130,12 @@ def writes_first() -> Iterator[None]:
     """Inside it, the write transactions this thread opens on a SQLite file take its :class:`WriteGate` ahead of the
     writers waiting there (the group commit's batches: :class:`app.store.group_commit.GroupCommit`); elsewhere a
     no-op."""
+    before = getattr(_GOING_FIRST, "on", False)
     _GOING_FIRST.on = True
     try:
         yield
     finally:
-        _GOING_FIRST.on = False
+        _GOING_FIRST.on = before
 
 
 #: longest wait for the write gate, as SQLite's own busy timeout (then "database is locked", as SQLite says)
@@ -303,6 +308,10 @@ def ensure_blob(db: Session, sha256: str, size_bytes: int) -> None:
     ensure_blobs(db, [(sha256, size_bytes)])
 
 
+#: rows of one multi-row INSERT (3 parameters each: within the 999 of older SQLite builds)
+_ROWS_PER_INSERT = 300
+
+
 def ensure_blobs(db: Session, blobs: list[tuple[str, int]]) -> None:
     """:func:`ensure_blob` for each ``(sha256, size_bytes)`` of ``blobs``, in one statement on SQLite and
     PostgreSQL (an upload reserves its files' rows while it holds the database's write lock: one statement, not
@@ -324,7 +333,8 @@ def ensure_blobs(db: Session, blobs: list[tuple[str, int]]) -> None:
 
     now = utcnow()
     rows = [{"sha256": sha, "size_bytes": size, "created_at": now} for sha, size in dict(blobs).items()]
-    db.execute(insert(Blob).values(rows).on_conflict_do_nothing(index_elements=["sha256"]))
+    for i in range(0, len(rows), _ROWS_PER_INSERT):
+        db.execute(insert(Blob).values(rows[i:i + _ROWS_PER_INSERT]).on_conflict_do_nothing(index_elements=["sha256"]))
 
 
 _AT_COMMIT = "chakamo_add_at_commit"  # the Session.info key of the rows add_at_commit queued

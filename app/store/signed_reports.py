@@ -30,8 +30,8 @@ from app.pipeline.render import LANGS, MEDIA, render_artefact
 from app.pipeline.results import patient_of, report_input_of_files
 from app.store import interpretations
 from app.store.analyses import artefact, find_artefact
-from app.store.blobs import Storage
-from app.store.erasure import reserve_blob
+from app.store.blobs import Storage, commit_all, discarding
+from app.store.erasure import reserve_blobs
 from app.store.models import Analysis, Artefact, Clinic, Interpretation, KneeSession, User
 from app.store.workspace import build_manifest
 from reports.model import Interpretation as ReportInterpretation
@@ -82,22 +82,20 @@ def render_signed(db: Session, store: Storage, session: KneeSession, analysis: A
 
 def _store(db: Session, store: Storage, analysis: Analysis, version: int,
            files: dict[tuple[str, str], bytes]) -> dict[tuple[str, str], str]:
-    """Each of ``files`` placed under its blob's lock (:func:`app.store.erasure.reserve_blob`, as a job's) and named
+    """Each of ``files`` placed under its blob's lock (:func:`app.store.erasure.reserve_blobs`, as a job's) and named
     by an artefact ``signed-<version>-<name>`` of ``analysis``: ``{(name, lang): sha256}``."""
-    out: dict[tuple[str, str], str] = {}
-    for (name, lang), data in files.items():
-        sha, size = hashlib.sha256(data).hexdigest(), len(data)
-        writer = store.sealed(data)
-        try:
-            reserve_blob(db, sha, size)
-            writer.commit()
-        finally:
-            writer.discard()
+    digests = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
+    writers = {}
+    with discarding(writers.values()):
+        for key in sorted(digests, key=digests.get):
+            writers[key] = store.sealed(files[key])
+        reserve_blobs(db, sorted(digests.values()))  # all the rows locked first, in sha256 order, as an upload's
+        commit_all(list(writers.values()))
+    for (name, lang), (sha, size) in digests.items():
         db.add(Artefact(analysis_id=analysis.id, name=signed_name(name, version), lang=lang, media_type=MEDIA[name],
                         sha256=sha, size_bytes=size))
-        out[name, lang] = sha
     db.flush()
-    return out
+    return {key: sha for key, (sha, _) in digests.items()}
 
 
 def sign(db: Session, store: Storage, session: KneeSession, analysis: Analysis, user: User | None, expected: str,

@@ -41,6 +41,12 @@ async def _answer(reader: asyncio.StreamReader, writer: asyncio.StreamWriter, se
             writer.write(b"HTTP/1.1 200 OK\r\nContent-Length: 2\r\n\r\nok")
             await writer.drain()
             break
+        elif path == "/no-content":  # no body and no length, by definition
+            writer.write(b"HTTP/1.1 204 No Content\r\n\r\n")
+        elif path == "/garbled":
+            writer.write(b"HTTP/1.1\r\n\r\n")
+            await writer.drain()
+            break
         elif path == "/hang":
             await asyncio.sleep(3600)
         await writer.drain()
@@ -71,17 +77,18 @@ def _server():
 
 
 def test_every_framing_is_read_and_the_status_kept():
-    paths = ["/len", "/chunked", "/until-close", "/slow"]
+    paths = ["/len", "/chunked", "/until-close", "/slow", "/no-content", "/garbled"]
     with _server() as (base, _, seen):
-        reads = open_loop_get(base, {"Authorization": "Bearer t"}, paths, rate=20, seconds=0.4)
-    assert sorted((r.path, r.status) for r in reads) == sorted(
-        [("/len", 200), ("/chunked", 201), ("/until-close", 404), ("/slow", 200)] * 2)
+        reads = open_loop_get(base, {"Authorization": "Bearer t"}, paths, rate=30, seconds=0.4, timeout_s=5)
+    assert sorted((r.path, r.status) for r in reads) == sorted(  # a malformed answer counts as none
+        [("/len", 200), ("/chunked", 201), ("/until-close", 404), ("/slow", 200), ("/no-content", 204),
+         ("/garbled", -1)] * 2)
     assert sorted(seen) == sorted(f"{p} auth" for p in paths * 2)  # the headers go with every request
     slow = [r for r in reads if r.path == "/slow"]
     assert all(r.ms >= SLOW_S * 1000 for r in slow)  # from its scheduled time to the answer's last byte
     assert all(0 <= r.late_ms <= r.ms for r in reads)
     table = latency_table(reads, paths)
-    assert "| /chunked | 2 |" in table and "| **all** | 8 |" in table and "after its scheduled time" in table
+    assert "| /chunked | 2 |" in table and "| **all** | 12 |" in table and "after its scheduled time" in table
 
 
 def test_idle_connections_are_reused_and_a_dropped_one_replaced():

@@ -255,3 +255,40 @@ def test_a_writer_going_first_is_woken_before_the_writers_queued_earlier(db, tmp
     assert order == [99, 1, 2, 3]
     assert gate.waiting == 0 and not gate._held
 
+
+
+def test_a_first_going_writer_interrupted_after_its_wake_up_passes_it_on(tmp_path):
+    """A release wakes the first-going writer; if that one is interrupted before it takes the gate, the wake-up
+    goes to the next first-going writer (else that one slept its whole wait with the gate free)."""
+    from app.store.database import WriteGate
+
+    gate = WriteGate()
+    assert gate.acquire(1.0)
+    real_wait_for = gate._first.wait_for
+    woken = threading.Event()
+
+    def interrupted_wait_for(predicate, timeout):  # the first waiter: woken by the release, then interrupted
+        real_wait_for(lambda: woken.is_set() or predicate(), timeout)
+        raise KeyboardInterrupt
+
+    got: list[str] = []
+
+    def f1() -> None:
+        try:
+            gate._first.wait_for = interrupted_wait_for
+            gate.acquire(60, first=True)
+        except KeyboardInterrupt:
+            got.append("f1 interrupted")
+
+    t1 = threading.Thread(target=f1)
+    t1.start()
+    wait_for(lambda: gate.waiting == 1, "the interrupted writer waiting")
+    gate._first.wait_for = real_wait_for  # the second writer waits as usual
+    t2 = threading.Thread(target=lambda: got.append("f2" if gate.acquire(60, first=True) else "f2 timed out"))
+    t2.start()
+    wait_for(lambda: gate.waiting == 2, "a second first-going writer waiting")
+    woken.set()
+    gate.release()
+    t1.join(30)
+    t2.join(30)  # 60 s of sleep with the gate free, before the fix
+    assert not t2.is_alive() and got == ["f1 interrupted", "f2"]
