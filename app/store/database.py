@@ -23,7 +23,7 @@ and a read-only request never waits for it) and given back by ``commit()``, ``ro
 connection (:class:`GatedConnection`, the engine's connection class).  A writer waits at most
 :data:`WRITE_WAIT_S` (SQLite's own busy timeout), then gets SQLite's "database is locked".  Other processes on the
 same file (the ``chakamo`` commands) still meet this one in SQLite's busy handler, as before.
-:func:`ensure_blob` records a stored file with the dialect's ``INSERT … ON CONFLICT DO NOTHING``
+:func:`ensure_blobs` records stored files with the dialect's ``INSERT … ON CONFLICT DO NOTHING``
 (SQLite, PostgreSQL): two transactions storing equal content at the same time never collide.
 ``Database.migrate()`` upgrades the schema to the newest revision of ``app/store/migrations`` programmatically
 (no ``alembic.ini`` needed).
@@ -303,19 +303,14 @@ def alembic_config(engine: Engine):
     return cfg
 
 
-def ensure_blob(db: Session, sha256: str, size_bytes: int) -> None:
-    """Add the :class:`Blob` row of ``sha256`` unless it exists — atomic, safe against concurrent inserts."""
-    ensure_blobs(db, [(sha256, size_bytes)])
-
-
 #: rows of one multi-row INSERT (3 parameters each: within the 999 of older SQLite builds)
 _ROWS_PER_INSERT = 300
 
 
 def ensure_blobs(db: Session, blobs: list[tuple[str, int]]) -> None:
-    """:func:`ensure_blob` for each ``(sha256, size_bytes)`` of ``blobs``, in one statement on SQLite and
-    PostgreSQL (an upload reserves its files' rows while it holds the database's write lock: one statement, not
-    one per file)."""
+    """Add the :class:`Blob` row of each ``(sha256, size_bytes)`` of ``blobs`` unless it exists — atomic, safe against
+    concurrent inserts; one statement per :data:`_ROWS_PER_INSERT` rows on SQLite and PostgreSQL (an upload reserves
+    its files' rows while it holds the database's write lock: not one statement per file)."""
     if not blobs:
         return
     name = db.get_bind().dialect.name
@@ -444,6 +439,5 @@ class Database:
         self.engine.dispose()
 
 
-__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blob", "ensure_blobs",
-           "make_engine",
+__all__ = ["Base", "Database", "MIGRATIONS_DIR", "add_at_commit", "alembic_config", "ensure_blobs", "make_engine",
            "writes_first"]

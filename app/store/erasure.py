@@ -26,10 +26,10 @@ Order (each step a transaction; a crash between any two leaves a state the next 
 3. **sweep** (:func:`sweep`: the embedded runner's housekeeping at start and hourly, ``chakamo retention --apply``):
    pending marks (a crash between 1 and 2), blob rows no row references (deletions made before this module
    existed), and files on disk that no blob row names and that are older than ``grace_s`` (a writer places
-   its file, under the blob's lock, a moment before its row commits: :func:`reserve_blob`) are erased, each
+   its file, under the blob's lock, a moment before its row commits: :func:`reserve_blobs`) are erased, each
    with a mark of reason ``orphan``.
 
-Every writer places its file only under the blob's lock (:func:`reserve_blob`): an upload
+Every writer places its file only under the blob's lock (:func:`reserve_blobs`): an upload
 (:func:`app.store.recordings.store_upload`) and a job storing its artefacts (:func:`app.jobs.work.run_job`,
 whose bytes may equal another session's artefact that is being erased), and :meth:`BlobWriter.commit` refreshes the modification time of a file it finds already stored, which the eraser
 reads: a file touched after its mark was made is left for the next sweep instead of being unlinked (for
@@ -138,34 +138,29 @@ def _lock_blobs(db: Session, shas: list[str]) -> dict[str, Blob]:
     return {b.sha256: b for b in db.scalars(stmt.execution_options(populate_existing=True))}
 
 
-def reserve_blob(db: Session, sha256: str, size_bytes: int) -> Blob:
-    """The blob's row, added if missing and locked until ``db``'s transaction ends: what a writer holds before it
-    places the file (an upload, a job's artefacts).  When an eraser deleted the row while this waited for its
-    lock (PostgreSQL: the row existed when it was ensured, was gone once the lock was granted), it is added
-    again and locked again, so the file placed next is always named by a row this transaction holds."""
-    return reserve_blobs(db, [(sha256, size_bytes)])[sha256]
-
-
 def reserve_blobs(db: Session, blobs: list[tuple[str, int]]) -> dict[str, Blob]:
-    """:func:`reserve_blob` for each ``(sha256, size_bytes)`` of ``blobs``, two statements for all of them (and two
-    more for any an eraser deleted meanwhile): ``{sha256: row}``.  On SQLite every statement an upload makes
-    here is made holding the database's one write lock, which every other writer — the reads' audit batches
-    among them — waits for (issue 16: an upload's 24 files, one reservation and placement each, held it for
-    260–850 ms during the 20-clinician burst)."""
+    """The row of each ``(sha256, size_bytes)`` of ``blobs``, added if missing and locked until ``db``'s transaction
+    ends (``{sha256: row}``): what a writer holds before it places the files (an upload, a job's artefacts, a signed
+    report).  When an eraser deleted a row while this waited for its lock (PostgreSQL: the row existed when it was
+    ensured, was gone once the lock was granted), it is added again and locked again, so each file placed next is
+    named by a row this transaction holds.  Two statements for all the rows (two more per such retry): on SQLite
+    every statement here is made holding the database's one write lock, which every other writer — the reads'
+    audit batches among them — waits for (issue 16: an upload's 24 files, one reservation and placement each, held
+    it for 260–850 ms during the 20-clinician burst)."""
     from app.store.database import ensure_blobs
 
     sizes = dict(blobs)
     held: dict[str, Blob] = {}
+    missing = sorted(sizes)
     for _ in range(5):  # twice at most in practice: a row this transaction added is seen by no eraser
-        missing = sorted(set(sizes) - set(held))
         if not missing:
             return held
         ensure_blobs(db, [(sha, sizes[sha]) for sha in missing])
         held |= _lock_blobs(db, missing)
-    missing = sorted(set(sizes) - set(held))
-    if not missing:
-        return held
-    raise RuntimeError(f"the row of stored file {missing[0][:12]}… could not be reserved")
+        missing = sorted(set(sizes) - set(held))
+    if missing:
+        raise RuntimeError(f"the row of stored file {missing[0][:12]}… could not be reserved")
+    return held
 
 
 def _erase_one(database: Database, store: Storage, erasure_id: int) -> str:
@@ -284,4 +279,4 @@ def erasure_log(db: Session, clinic_id: int, limit: int = 100) -> list[BlobErasu
 
 
 __all__ = ["ORPHAN_GRACE_S", "REASONS", "ErasureCounts", "erase_pending", "erasure_log", "lock_blob", "mark", "references",
-           "reserve_blob", "reserve_blobs", "session_blobs", "sweep"]
+           "reserve_blobs", "session_blobs", "sweep"]

@@ -68,7 +68,7 @@ def _blob_race(url: str) -> None:
     """Two transactions record the same blob at the same time: both commit, one row remains."""
     from sqlalchemy import func, select
 
-    from app.store.database import Database, ensure_blob
+    from app.store.database import Database, ensure_blobs
     from app.store.models import Blob
 
     db = Database(url)
@@ -79,12 +79,12 @@ def _blob_race(url: str) -> None:
     def second() -> None:
         try:
             with db.session() as s2:
-                ensure_blob(s2, sha, 13)
+                ensure_blobs(s2, [(sha, 13)])
         except BaseException as exc:  # noqa: BLE001 — reported below
             errors.append(exc)
 
     with db.session() as s1:
-        ensure_blob(s1, sha, 13)  # inserted, not committed yet
+        ensure_blobs(s1, [(sha, 13)])  # inserted, not committed yet
         t = threading.Thread(target=second)
         t.start()
         time.sleep(0.2)  # let the second transaction reach its insert (it waits for this one, or finds the row)

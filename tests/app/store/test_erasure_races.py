@@ -117,7 +117,7 @@ def test_an_upload_racing_the_erasure_of_its_bytes_is_stored(env, monkeypatch):
     counted, ensured = threading.Event(), threading.Event()
     real_refs, real_ensure = erasure.references, database.ensure_blobs
 
-    def refs(db, sha):  # the eraser, holding the blob row's lock, waits for the upload's ensure_blob
+    def refs(db, sha):  # the eraser, holding the blob row's lock, waits for the upload's ensure_blobs
         n = real_refs(db, sha)
         counted.set()
         assert ensured.wait(30)

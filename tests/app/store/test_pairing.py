@@ -35,11 +35,11 @@ def _analysis(s, sid: int) -> int:
 
 
 def _add_file(s, sid: int, name: str) -> None:
-    from app.store.erasure import reserve_blob
+    from app.store.erasure import reserve_blobs
     from app.store.models import Recording
 
     sha = f"{abs(hash((sid, name))):064x}"[:64]
-    reserve_blob(s, sha, 1)
+    reserve_blobs(s, [(sha, 1)])
     s.add(Recording(session_id=sid, file_name=name, size_bytes=1, sha256=sha))
     s.flush()
 

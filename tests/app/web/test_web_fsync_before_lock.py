@@ -4,7 +4,7 @@ On SQLite every writing request waits for the database's one write lock; an uplo
 fsynced each file while holding it made a burst of uploads stall every clinician's audited reads.  Now the files
 are written and fsynced first (:meth:`app.store.blobs.BlobWriter.seal`) and only renamed under the locks.  The test
 records, in order, each ``os.fsync`` (of a regular file or of a folder) and each SQL statement that reserves a blob
-row (:func:`app.store.erasure.reserve_blob`, the point from which the blob's lock — and on SQLite the write lock —
+row (:func:`app.store.erasure.reserve_blobs`, the point from which the blob's lock — and on SQLite the write lock —
 is held): no regular file may be fsynced after the first reservation, in an upload and in a job's store step."""
 
 from __future__ import annotations
