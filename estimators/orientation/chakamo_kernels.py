@@ -59,15 +59,17 @@ from numba import njit
 from estimators.orientation.quat_kernels import qmat, qmul, qrot
 
 
-# --- state indices
-S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = 0, 4, 8, 12, 13, 19, 22
-S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = 23, 26, 32, 35, 38, 39
-S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = (
-    40, 41, 42, 43, 44, 45, 46, 47, 48)
-S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = 49, 67, 73, 85, 86, 87, 91
+# --- state indices: numpy int64 scalars, not Python ints.  numba types a global Python int as a literal, and
+# compiles a helper once per distinct literal argument (``_qnorm`` three times, ``_biquad9`` twice, ...): about 2 s
+# of a fresh compilation (benchmarks/speed.py, first call)
+S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = np.array([0, 4, 8, 12, 13, 19, 22], np.int64)
+S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = np.array([23, 26, 32, 35, 38, 39], np.int64)
+S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = np.array(
+    [40, 41, 42, 43, 44, 45, 46, 47, 48], np.int64)
+S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = np.array([49, 67, 73, 85, 86, 87, 91], np.int64)
 # per-axis gyroscope scale errors k (ω_meas = (1+diag k) ω + b), the full 6×6 covariance of (b, k), and the
 # Butterworth state / output of the columns of R_IS scaled by ω_j, for their measurement rows in (8)
-S_K, S_P6, S_WLP, S_WLPOUT = 92, 95, 131, 149  # (8k)
+S_K, S_P6, S_WLP, S_WLPOUT = np.array([92, 95, 131, 149], np.int64)  # (8k)
 STATE_SIZE = 158
 #: largest scale error per axis (-)
 K_CLIP = 0.05
@@ -142,17 +144,20 @@ def _wrap(a):
 
 
 @njit(cache=True)
-def _row6(s, o, h0, h1, h2, h3, h4, h5):
-    return s[o] * h0 + s[o + 1] * h1 + s[o + 2] * h2 + s[o + 3] * h3 + s[o + 4] * h4 + s[o + 5] * h5
-
-
-@njit(cache=True)
 def _update6(s, h0, h1, h2, h3, h4, h5, innov, r, clip):
     """Scalar Kalman update of (b, k) with row h and the full 6×6 covariance at ``S_P6`` (row-major); the bias
     block is copied to ``S_P`` (upper triangle), which the smoother (13) reads."""
-    ph = (_row6(s, S_P6, h0, h1, h2, h3, h4, h5), _row6(s, S_P6 + 6, h0, h1, h2, h3, h4, h5),
-          _row6(s, S_P6 + 12, h0, h1, h2, h3, h4, h5), _row6(s, S_P6 + 18, h0, h1, h2, h3, h4, h5),
-          _row6(s, S_P6 + 24, h0, h1, h2, h3, h4, h5), _row6(s, S_P6 + 30, h0, h1, h2, h3, h4, h5))
+    ph0 = ph1 = ph2 = ph3 = ph4 = ph5 = 0.0  # P6 h, summed over the columns j
+    for j in range(6):
+        hj = (h0, h1, h2, h3, h4, h5)[j]
+        o = S_P6 + j
+        ph0 += s[o] * hj
+        ph1 += s[o + 6] * hj
+        ph2 += s[o + 12] * hj
+        ph3 += s[o + 18] * hj
+        ph4 += s[o + 24] * hj
+        ph5 += s[o + 30] * hj
+    ph = (ph0, ph1, ph2, ph3, ph4, ph5)
     sv = r + h0 * ph[0] + h1 * ph[1] + h2 * ph[2] + h3 * ph[3] + h4 * ph[4] + h5 * ph[5]
     f = innov / sv
     for i in range(3):
