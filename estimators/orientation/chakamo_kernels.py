@@ -60,7 +60,7 @@ from estimators.orientation.quat_kernels import qmat, qmul, qrot
 
 
 # --- state indices: numpy int64 scalars, not Python ints.  numba types a global Python int as a literal, and
-# compiles a helper once per distinct literal argument (``_qnorm`` three times, ``_biquad9`` twice, ...): about 2 s
+# compiles a helper once per distinct literal argument (``_qnorm`` three times, ``_biquad9`` twice, ...): 0.5-1 s
 # of a fresh compilation (benchmarks/speed.py, first call)
 S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = np.array([0, 4, 8, 12, 13, 19, 22], np.int64)
 S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = np.array([23, 26, 32, 35, 38, 39], np.int64)
