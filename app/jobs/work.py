@@ -343,14 +343,14 @@ def _run_claimed(job_id: int, attempt: int, db: Database, store: Storage, tmp_ro
         # a failure leaves unplaced is discarded
         sealed = {}
         with discarding(sealed.values()):
-            for key in sorted(contents):
-                sealed[key] = store.sealed(contents[key])
+            for key, data in contents.items():
+                sealed[key] = store.sealed(data)
             with db.session() as s:
                 row = _owned(s, job_id, attempt)  # checked (and locked) first: a superseded run stores nothing
                 # the files are placed under their blobs' locks, as an upload's: the same bytes may be another
                 # session's artefact being erased right now (app.store.erasure)
-                reserve_blobs(s, sorted(contents))
-                commit_all([sealed[key] for key in sorted(contents)])
+                reserve_blobs(s, list(contents))  # locked in sha256 order by reserve_blobs
+                commit_all(list(sealed.values()))
                 analysis = Analysis(session_id=session.id, job_id=job_id, filter=job.filter, lang=job.lang,
                                     calibration=job.calibration, angle_method=job.angle_method,
                                     accepted_cycles=int(results["cycles"]["accepted"]),

@@ -87,9 +87,9 @@ def _store(db: Session, store: Storage, analysis: Analysis, version: int,
     digests = {key: (hashlib.sha256(data).hexdigest(), len(data)) for key, data in files.items()}
     writers = {}
     with discarding(writers.values()):
-        for key in sorted(digests, key=digests.get):
-            writers[key] = store.sealed(files[key])
-        reserve_blobs(db, sorted(digests.values()))  # all the rows locked first, in sha256 order, as an upload's
+        for key, data in files.items():
+            writers[key] = store.sealed(data)
+        reserve_blobs(db, list(digests.values()))  # all the rows locked first (in sha256 order), as an upload's
         commit_all(list(writers.values()))
     for (name, lang), (sha, size) in digests.items():
         db.add(Artefact(analysis_id=analysis.id, name=signed_name(name, version), lang=lang, media_type=MEDIA[name],
