@@ -555,7 +555,6 @@ class Chakamo(OrientationMethod):
         s[kern.S_QIS:kern.S_QIS + 4] = q
         s[kern.S_QEI] = 1.0
         var0 = self.params.bias_sigma_init_rad_s ** 2
-        s[kern.S_P], s[kern.S_P + 3], s[kern.S_P + 5] = var0, var0, var0
         for i in range(3):
             s[kern.S_P6 + 7 * i] = var0
             s[kern.S_P6 + 7 * (3 + i)] = self.params.gyr_scale_sigma ** 2

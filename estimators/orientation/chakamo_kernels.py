@@ -16,33 +16,31 @@ State vector (1-D float64, ``STATE_SIZE`` entries; indices are the ``S_*`` const
 ``19:22`` a_lp        last low-pass output (m/s², I frame)
 ``22``    n_acc       accelerometer samples seen (the first ``n_init`` are averaged, not filtered)
 ``23:26`` b           gyroscope bias estimate (rad/s, sensor frame)
-``26:32`` P           bias covariance (rad²/s²), upper triangle ``P00 P01 P02 P11 P12 P22`` (with the scale
-                      states: a copy of the bias block of ``P6``, refreshed at every update)
-``32:35`` g_rest      first-order low-pass of the gyroscope for rest detection (rad/s)
-``35:38`` a_rest      first-order low-pass of the accelerometer for rest detection (m/s²)
-``38``    t_rest      time the rest conditions have held (s)
-``39``    rest        1 when at rest
-``40``    m_norm_ref  reference field norm (µT); ``41`` dip_ref (rad); ``42`` reference valid (0/1)
-``43``    t_reject    time the field has been rejected as disturbed (s)
-``44``    m_norm_cand candidate norm; ``45`` candidate dip; ``46`` time the candidate has held (s)
-``47``    n_mag       undisturbed magnetometer samples since the reference was (re)set
-``48``    disturbed   1 when the last magnetometer sample was rejected
-``49:67`` R_lp        Butterworth state of R_IS (row-major, ``[z1(9), z2(9)]``), for eq. (8)
-``67:73`` u_lp        Butterworth state of R_IS·b̂ (``[z1(3), z2(3)]``), for eq. (8)
-``73:85`` outputs     last outputs of those two filters (9 + 3; scratch, overwritten every sample)
-``85``    w2_lp       first-order low-pass (τ_acc) of |ω - b̂|² (rad²/s²), scales the motion noise (8)
-``86``    t_undist    time the field has stayed near the reference (s), for the hysteresis of (11)
-``87:91`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
+``26:29`` g_rest      first-order low-pass of the gyroscope for rest detection (rad/s)
+``29:32`` a_rest      first-order low-pass of the accelerometer for rest detection (m/s²)
+``32``    t_rest      time the rest conditions have held (s)
+``33``    rest        1 when at rest
+``34``    m_norm_ref  reference field norm (µT); ``35`` dip_ref (rad); ``36`` reference valid (0/1)
+``37``    t_reject    time the field has been rejected as disturbed (s)
+``38``    m_norm_cand candidate norm; ``39`` candidate dip; ``40`` time the candidate has held (s)
+``41``    n_mag       undisturbed magnetometer samples since the reference was (re)set
+``42``    disturbed   1 when the last magnetometer sample was rejected
+``43:61`` R_lp        Butterworth state of R_IS (row-major, ``[z1(9), z2(9)]``), for eq. (8)
+``61:67`` u_lp        Butterworth state of R_IS·b̂ (``[z1(3), z2(3)]``), for eq. (8)
+``67:79`` outputs     last outputs of those two filters (9 + 3; scratch, overwritten every sample)
+``79``    w2_lp       first-order low-pass (τ_acc) of |ω - b̂|² (rad²/s²), scales the motion noise (8)
+``80``    t_undist    time the field has stayed near the reference (s), for the hysteresis of (11)
+``81:85`` m_lp        first-order low-passes (τ_mag) of the E' z axis in sensor coordinates (3) and of
                       its product with b̂ (1; without diag(k̂) ω), for the heading bias measurement (12b)
-``91``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
-``92:95`` k           per-axis gyroscope scale errors (-), ω_meas = (1 + diag k) ω + b, eq. (8k)
-``95:131`` P6         covariance of (b, k), 6×6 row-major (only read and written with the scale states on)
-``131:149`` W_lp      Butterworth state of R_IS·diag(ω_meas) (row-major, ``[z1(9), z2(9)]``), for eq. (8k)
-``149:158`` outputs   last outputs of that filter (9; scratch)
+``85``    t_support   time the field reference has been confirmed by accepted samples (s), for (12)
+``86:89`` k           per-axis gyroscope scale errors (-), ω_meas = (1 + diag k) ω + b, eq. (8k)
+``89:125`` P6         covariance of x = (b, k) (rad²/s², -), 6×6 row-major
+``125:143`` W_lp      Butterworth state of R_IS·diag(ω_meas) (row-major, ``[z1(9), z2(9)]``), for eq. (8k)
+``143:152`` outputs   last outputs of that filter (9; scratch)
 ====================  ==========================================================================
 
-The scale states are on when ``c[C_PK0]`` (their prior variance) is positive; otherwise the bias filter is the
-3-state one, bit for bit as before they existed.
+Without the scale states (``gyr_scale_sigma`` = 0: ``c[C_PK0]`` = ``c[C_QK]`` = 0) the scale block of ``P6`` and
+its cross terms stay zero, so k stays 0 and every update is the 3-state bias filter's (equal up to rounding).
 
 Coefficient vector ``c`` (built by ``chakamo.coefficients``; indices are the ``C_*`` constants):
 dt, Butterworth ``b0 b1 b2 a1 a2``, n_init, rest low-pass gain, squared rest thresholds, rest time,
@@ -60,17 +58,17 @@ from estimators.orientation.quat_kernels import qmat, qmul, qrot
 
 
 # --- state indices: numpy int64 scalars, not Python ints.  numba types a global Python int as a literal, and
-# compiles a helper once per distinct literal argument (``_qnorm`` three times, ``_biquad9`` twice, ...): 0.5-1 s
-# of a fresh compilation (benchmarks/speed.py, first call)
+# compiles a helper once per distinct literal argument (``_qnorm`` three times, ...): 0.5-1 s of a fresh
+# compilation (benchmarks/speed.py, first call; benchmarks/compile_work.py counts it per function)
 S_Q, S_QIS, S_QEI, S_DELTA, S_LP, S_ALP, S_NACC = np.array([0, 4, 8, 12, 13, 19, 22], np.int64)
-S_BIAS, S_P, S_GREST, S_AREST, S_TREST, S_REST = np.array([23, 26, 32, 35, 38, 39], np.int64)
+S_BIAS, S_GREST, S_AREST, S_TREST, S_REST = np.array([23, 26, 29, 32, 33], np.int64)
 S_MREFN, S_MREFD, S_MREFOK, S_TREJ, S_MCANDN, S_MCANDD, S_TCAND, S_NMAG, S_MDIST = np.array(
-    [40, 41, 42, 43, 44, 45, 46, 47, 48], np.int64)
-S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = np.array([49, 67, 73, 85, 86, 87, 91], np.int64)
+    [34, 35, 36, 37, 38, 39, 40, 41, 42], np.int64)
+S_RLP, S_ULP, S_RLPOUT, S_W2, S_TUND, S_MLP, S_TSUP = np.array([43, 61, 67, 79, 80, 81, 85], np.int64)
 # per-axis gyroscope scale errors k (ω_meas = (1+diag k) ω + b), the full 6×6 covariance of (b, k), and the
 # Butterworth state / output of the columns of R_IS scaled by ω_j, for their measurement rows in (8)
-S_K, S_P6, S_WLP, S_WLPOUT = np.array([92, 95, 131, 149], np.int64)  # (8k)
-STATE_SIZE = 158
+S_K, S_P6, S_WLP, S_WLPOUT = np.array([86, 89, 125, 143], np.int64)  # (8k)
+STATE_SIZE = 152
 #: largest scale error per axis (-)
 K_CLIP = 0.05
 
@@ -91,7 +89,7 @@ AUX_SIZE = 18
 # =====================================================================================
 @njit(cache=True)
 def _qnorm(s, i):
-    n = math.sqrt(s[i] ** 2 + s[i + 1] ** 2 + s[i + 2] ** 2 + s[i + 3] ** 2)
+    n = math.sqrt(s[i] * s[i] + s[i + 1] * s[i + 1] + s[i + 2] * s[i + 2] + s[i + 3] * s[i + 3])
     s[i] /= n
     s[i + 1] /= n
     s[i + 2] /= n
@@ -99,26 +97,35 @@ def _qnorm(s, i):
 
 
 @njit(cache=True)
-def _biquad(s, i1, i2, x, c, steady):
-    """One DF2T step of the Butterworth filter with state ``s[i1], s[i2]``; ``steady`` resets it to ``x``."""
-    if steady:
-        s[i1] = (1.0 - c[C_B0]) * x
-        s[i2] = (c[C_B2] - c[C_A2]) * x
-        return x
-    y = c[C_B0] * x + s[i1]
-    s[i1] = c[C_B1] * x - c[C_A1] * y + s[i2]
-    s[i2] = c[C_B2] * x - c[C_A2] * y
-    return y
+def _motion_row(s, e, y, r, clip):
+    r"""One row of the bias measurement during motion, (8) and (8k): ``e`` is a row (x or y) of :math:`R_{E'I}`,
+    ``y`` the inclination correction's rate about that axis (rad/s), ``r`` its noise variance.
+
+    The row's terms are :math:`m = e\,LP(R_{IS})`, :math:`v = e\,LP(R_{IS}\hat b)` and the scale columns
+    :math:`n = e\,LP(R_{IS}\,\mathrm{diag}\,\omega)`; the innovation :math:`y - v + m\hat b + n\hat k` (clipped) is
+    applied with :math:`h = -(m, n)` (:func:`_bias_update`).
+    """
+    rl, w = S_RLPOUT, S_WLPOUT
+    m0 = e[0] * s[rl] + e[1] * s[rl + 3] + e[2] * s[rl + 6]
+    m1 = e[0] * s[rl + 1] + e[1] * s[rl + 4] + e[2] * s[rl + 7]
+    m2 = e[0] * s[rl + 2] + e[1] * s[rl + 5] + e[2] * s[rl + 8]
+    v = e[0] * s[rl + 9] + e[1] * s[rl + 10] + e[2] * s[rl + 11]
+    n0 = e[0] * s[w] + e[1] * s[w + 3] + e[2] * s[w + 6]
+    n1 = e[0] * s[w + 1] + e[1] * s[w + 4] + e[2] * s[w + 7]
+    n2 = e[0] * s[w + 2] + e[1] * s[w + 5] + e[2] * s[w + 8]
+    innov = (y - v + m0 * s[S_BIAS] + m1 * s[S_BIAS + 1] + m2 * s[S_BIAS + 2]
+             + n0 * s[S_K] + n1 * s[S_K + 1] + n2 * s[S_K + 2])
+    _bias_update(s, -m0, -m1, -m2, -n0, -n1, -n2, min(max(innov, -clip), clip), r, clip)
 
 
 @njit(cache=True)
 def _biquad9(s, start, out, r, g0, g1, g2, c, steady):
-    """:func:`_biquad` on the nine channels ``r[i]·g[i % 3]`` (``R_IS diag(ω)`` row-major), state
-    ``s[start:start + 18]`` (``[z1(9), z2(9)]``), outputs written to ``s[out:out + 9]``."""
+    """One DF2T step of the Butterworth low-pass (coefficients ``c[C_B0..C_A2]``) on the nine channels
+    ``r[i]·g[i % 3]`` (``R_IS diag(ω)`` row-major), state ``s[start:start + 18]`` (``[z1(9), z2(9)]``), outputs
+    written to ``s[out:out + 9]``; ``steady`` sets the state to the steady state of the input instead."""
     b0, b1, b2, a1, a2 = c[C_B0], c[C_B1], c[C_B2], c[C_A1], c[C_A2]
     for i in range(9):
-        g = g0 if i % 3 == 0 else (g1 if i % 3 == 1 else g2)
-        x = r[i] * g
+        x = r[i] * (g0, g1, g2)[i % 3]
         if steady:
             s[start + i] = (1.0 - b0) * x
             s[start + 9 + i] = (b2 - a2) * x
@@ -131,22 +138,14 @@ def _biquad9(s, start, out, r, g0, g1, g2, c, steady):
 
 
 @njit(cache=True)
-def _rows_xy(e0, e1, a):
-    """Rows x and y of :math:`R_{E'I} A` for the row-major 3×3 ``a`` (``e0``, ``e1``: the rows of :math:`R_{E'I}`)."""
-    return (e0[0] * a[0] + e0[1] * a[3] + e0[2] * a[6], e0[0] * a[1] + e0[1] * a[4] + e0[2] * a[7],
-            e0[0] * a[2] + e0[1] * a[5] + e0[2] * a[8], e1[0] * a[0] + e1[1] * a[3] + e1[2] * a[6],
-            e1[0] * a[1] + e1[1] * a[4] + e1[2] * a[7], e1[0] * a[2] + e1[1] * a[5] + e1[2] * a[8])
-
-
-@njit(cache=True)
 def _wrap(a):
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
 @njit(cache=True)
-def _update6(s, h0, h1, h2, h3, h4, h5, innov, r, clip):
-    """Scalar Kalman update of (b, k) with row h and the full 6×6 covariance at ``S_P6`` (row-major); the bias
-    block is copied to ``S_P`` (upper triangle), which the smoother (13) reads."""
+def _bias_update(s, h0, h1, h2, h3, h4, h5, innov, r, clip):
+    """Scalar Kalman update of ``x = (b, k)`` with measurement row ``h`` and innovation ``innov``; the covariance
+    is the 6×6 at ``S_P6`` (row-major).  b is clipped to ±``clip``, k to ±``K_CLIP``."""
     ph0 = ph1 = ph2 = ph3 = ph4 = ph5 = 0.0  # P6 h, summed over the columns j
     for j in range(6):
         hj = (h0, h1, h2, h3, h4, h5)[j]
@@ -168,32 +167,6 @@ def _update6(s, h0, h1, h2, h3, h4, h5, innov, r, clip):
         o = S_P6 + 6 * i
         for j in range(6):
             s[o + j] -= g * ph[j]
-    s[S_P], s[S_P + 1], s[S_P + 2] = s[S_P6], s[S_P6 + 1], s[S_P6 + 2]
-    s[S_P + 3], s[S_P + 4], s[S_P + 5] = s[S_P6 + 7], s[S_P6 + 8], s[S_P6 + 14]
-
-
-@njit(cache=True)
-def _bias_scalar_update(s, h0, h1, h2, innov, r, clip, h3, h4, h5, scale):
-    """Scalar Kalman update of the bias (and, with ``scale``, of the scale errors: :func:`_update6`) with
-    measurement row ``h`` and innovation ``innov``."""
-    if scale:
-        _update6(s, h0, h1, h2, h3, h4, h5, innov, r, clip)
-        return
-    p00, p01, p02, p11, p12, p22 = s[S_P], s[S_P + 1], s[S_P + 2], s[S_P + 3], s[S_P + 4], s[S_P + 5]
-    ph0 = p00 * h0 + p01 * h1 + p02 * h2
-    ph1 = p01 * h0 + p11 * h1 + p12 * h2
-    ph2 = p02 * h0 + p12 * h1 + p22 * h2
-    sv = h0 * ph0 + h1 * ph1 + h2 * ph2 + r
-    k0, k1, k2 = ph0 / sv, ph1 / sv, ph2 / sv
-    s[S_BIAS] = min(max(s[S_BIAS] + k0 * innov, -clip), clip)
-    s[S_BIAS + 1] = min(max(s[S_BIAS + 1] + k1 * innov, -clip), clip)
-    s[S_BIAS + 2] = min(max(s[S_BIAS + 2] + k2 * innov, -clip), clip)
-    s[S_P] = p00 - k0 * ph0
-    s[S_P + 1] = p01 - k0 * ph1
-    s[S_P + 2] = p02 - k0 * ph2
-    s[S_P + 3] = p11 - k1 * ph1
-    s[S_P + 4] = p12 - k1 * ph2
-    s[S_P + 5] = p22 - k2 * ph2
 
 
 # =====================================================================================
@@ -208,8 +181,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     gyr_ok = gx == gx and gy == gy and gz == gz
     bx, by, bz = s[S_BIAS], s[S_BIAS + 1], s[S_BIAS + 2]  # the bias used for this sample
     b0x, b0y, b0z = bx, by, bz  # b̂ alone (without diag(k̂) ω), for the heading bias rows (12b)
-    sc = c[C_PK0] > 0.0
-    if gyr_ok and sc:  # the scale errors as a rate-proportional bias: b_used = b + diag(k) ω
+    if gyr_ok:  # the scale errors as a rate-proportional bias: b_used = b + diag(k) ω
         bx, by, bz = bx + s[S_K] * gx, by + s[S_K + 1] * gy, bz + s[S_K + 2] * gz
     wx, wy, wz = gx - bx, gy - by, gz - bz
     ang = math.sqrt(wx * wx + wy * wy + wz * wz) * dt
@@ -227,33 +199,29 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     if gyr_ok:
         for i in range(3):
             s[S_GREST + i] += kr * ((gx, gy, gz)[i] - s[S_GREST + i])
-        dg2 = (gx - s[S_GREST]) ** 2 + (gy - s[S_GREST + 1]) ** 2 + (gz - s[S_GREST + 2]) ** 2
-        lg2 = s[S_GREST] ** 2 + s[S_GREST + 1] ** 2 + s[S_GREST + 2] ** 2
+        l0, l1, l2 = s[S_GREST], s[S_GREST + 1], s[S_GREST + 2]
+        dg2 = (gx - l0) * (gx - l0) + (gy - l1) * (gy - l1) + (gz - l2) * (gz - l2)
+        lg2 = l0 * l0 + l1 * l1 + l2 * l2
         rest_now = dg2 < c[C_THG2] and lg2 < c[C_THG2]
         if acc_ok:
             for i in range(3):
                 s[S_AREST + i] += kr * ((ax, ay, az)[i] - s[S_AREST + i])
-            da2 = (ax - s[S_AREST]) ** 2 + (ay - s[S_AREST + 1]) ** 2 + (az - s[S_AREST + 2]) ** 2
+            l0, l1, l2 = ax - s[S_AREST], ay - s[S_AREST + 1], az - s[S_AREST + 2]
+            da2 = l0 * l0 + l1 * l1 + l2 * l2
             rest_now = rest_now and da2 < c[C_THA2]
         s[S_TREST] = s[S_TREST] + dt if rest_now else 0.0
         s[S_REST] = 1.0 if s[S_TREST] >= c[C_RESTMIN] else 0.0
-    # bias random walk: P <- P + q I, variances capped at the initial one      [eq. 5]
-    s[S_P] = min(s[S_P] + c[C_QBIAS], max(s[S_P], c[C_P0]))
-    s[S_P + 3] = min(s[S_P + 3] + c[C_QBIAS], max(s[S_P + 3], c[C_P0]))
-    s[S_P + 5] = min(s[S_P + 5] + c[C_QBIAS], max(s[S_P + 5], c[C_P0]))
-    if sc:
-        for i in range(3):
-            d = S_P6 + 7 * i
-            s[d] = min(s[d] + c[C_QBIAS], max(s[d], c[C_P0]))
-            d = S_P6 + 7 * (i + 3)
-            s[d] = min(s[d] + c[C_QK], max(s[d], c[C_PK0]))
+    # random walk: P <- P + q I, variances capped at the initial ones (bias [eq. 5], scale errors (8k))
+    for i in range(3):
+        d = S_P6 + 7 * i
+        s[d] = min(s[d] + c[C_QBIAS], max(s[d], c[C_P0]))
+        d = S_P6 + 7 * (i + 3)
+        s[d] = min(s[d] + c[C_QK], max(s[d], c[C_PK0]))
     if s[S_REST] > 0.5 and c[C_RESTON] > 0.5:
-        for i in range(3):
-            h0 = 1.0 if i == 0 else 0.0
-            h1 = 1.0 if i == 1 else 0.0
-            h2 = 1.0 if i == 2 else 0.0
-            _bias_scalar_update(s, h0, h1, h2, s[S_GREST + i] - s[S_BIAS + i], c[C_RREST], c[C_CLIP],
-                                0.0, 0.0, 0.0, sc)
+        rr, clip = c[C_RREST], c[C_CLIP]  # one row per axis: h = e_i
+        _bias_update(s, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, s[S_GREST] - s[S_BIAS], rr, clip)
+        _bias_update(s, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, s[S_GREST + 1] - s[S_BIAS + 1], rr, clip)
+        _bias_update(s, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, s[S_GREST + 2] - s[S_BIAS + 2], rr, clip)
 
     # (3) inclination from low-passed acceleration in the quasi-inertial frame  [eqs. 2-4]
     if acc_ok:
@@ -281,13 +249,20 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
         ub = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz,
               r[6] * bx + r[7] * by + r[8] * bz)
         _biquad9(s, S_RLP, S_RLPOUT, r, 1.0, 1.0, 1.0, c, n < c[C_NINIT])
-        for i in range(3):
-            s[S_RLPOUT + 9 + i] = _biquad(s, S_ULP + i, S_ULP + 3 + i, ub[i], c, n < c[C_NINIT])
-        if sc:  # low-passes of R_IS diag(ω) (a missing gyroscope row counts as ω = 0), for eq. (8k)
-            g0, g1, g2 = (gx, gy, gz) if gyr_ok else (0.0, 0.0, 0.0)
-            _biquad9(s, S_WLP, S_WLPOUT, r, g0, g1, g2, c, n < c[C_NINIT])
-        rlp = s[S_RLPOUT:S_RLPOUT + 9]
-        ulp = s[S_RLPOUT + 9:S_RLPOUT + 12]
+        for i in range(3):  # the same filter on R_IS·b̂ (the DF2T step of _biquad9, with the gain 1)
+            x = ub[i]
+            if n < c[C_NINIT]:
+                s[S_ULP + i] = (1.0 - c[C_B0]) * x
+                s[S_ULP + 3 + i] = (c[C_B2] - c[C_A2]) * x
+                s[S_RLPOUT + 9 + i] = x
+            else:
+                y = c[C_B0] * x + s[S_ULP + i]
+                s[S_ULP + i] = c[C_B1] * x - c[C_A1] * y + s[S_ULP + 3 + i]
+                s[S_ULP + 3 + i] = c[C_B2] * x - c[C_A2] * y
+                s[S_RLPOUT + 9 + i] = y
+        # low-passes of R_IS diag(ω) (a missing gyroscope row counts as ω = 0), for eq. (8k)
+        g0, g1, g2 = (gx, gy, gz) if gyr_ok else (0.0, 0.0, 0.0)
+        _biquad9(s, S_WLP, S_WLPOUT, r, g0, g1, g2, c, n < c[C_NINIT])
         ex, ey, ez = qrot(s[S_QEI], s[S_QEI + 1], s[S_QEI + 2], s[S_QEI + 3],
                            s[S_ALP], s[S_ALP + 1], s[S_ALP + 2])
         en = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -307,27 +282,11 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
             if c[C_MOTON] > 0.5 and s[S_REST] < 0.5 and n >= c[C_NINIT]:
                 un = math.sqrt(c1 * c1 + c2 * c2)  # log of the correction (as quaternion.log)
                 scale = (2.0 / c0 if un < 1e-12 else 2.0 * math.atan2(un, c0) / un) / dt
-                y0, y1 = c1 * scale, c2 * scale
-                # M = R_E'I · LP(R_IS), v = R_E'I · LP(R_IS b̂): rows x and y
-                e0 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 1.0, 0.0, 0.0)
-                e1 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 0.0, 1.0, 0.0)
-                m00, m01, m02, m10, m11, m12 = _rows_xy(e0, e1, rlp)
-                v0 = e0[0] * ulp[0] + e0[1] * ulp[1] + e0[2] * ulp[2]
-                v1 = e1[0] * ulp[0] + e1[1] * ulp[1] + e1[2] * ulp[2]
                 r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
-                clip = c[C_CLIP]
-                # scale rows N = R_E'I · LP(R_IS diag ω) (zero without the scale states)            [eq. 8k]
-                n00 = n01 = n02 = n10 = n11 = n12 = 0.0
-                if sc:
-                    n00, n01, n02, n10, n11, n12 = _rows_xy(e0, e1, s[S_WLPOUT:S_WLPOUT + 9])
-                innov = (y0 - v0 + m00 * s[S_BIAS] + m01 * s[S_BIAS + 1] + m02 * s[S_BIAS + 2]
-                         + n00 * s[S_K] + n01 * s[S_K + 1] + n02 * s[S_K + 2])
-                _bias_scalar_update(s, -m00, -m01, -m02, min(max(innov, -clip), clip), r_mot, clip,
-                                    -n00, -n01, -n02, sc)
-                innov = (y1 - v1 + m10 * s[S_BIAS] + m11 * s[S_BIAS + 1] + m12 * s[S_BIAS + 2]
-                         + n10 * s[S_K] + n11 * s[S_K + 1] + n12 * s[S_K + 2])
-                _bias_scalar_update(s, -m10, -m11, -m12, min(max(innov, -clip), clip), r_mot, clip,
-                                    -n10, -n11, -n12, sc)
+                e0 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 1.0, 0.0, 0.0)  # rows of R_E'I
+                e1 = qrot(s[S_QEI], -s[S_QEI + 1], -s[S_QEI + 2], -s[S_QEI + 3], 0.0, 1.0, 0.0)
+                _motion_row(s, e0, c1 * scale, r_mot, c[C_CLIP])
+                _motion_row(s, e1, c2 * scale, r_mot, c[C_CLIP])
 
     # (5) heading from the magnetometer with disturbance rejection          [eqs. 9-12]
     used = 0.0
@@ -390,8 +349,8 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
                         clip = c[C_CLIP]
                         innov = (err / c[C_TAUMAG] - s[S_MLP + 3] + s[S_MLP] * s[S_BIAS]
                                  + s[S_MLP + 1] * s[S_BIAS + 1] + s[S_MLP + 2] * s[S_BIAS + 2])
-                        _bias_scalar_update(s, -s[S_MLP], -s[S_MLP + 1], -s[S_MLP + 2],
-                                            min(max(innov, -clip), clip), c[C_RMAG], clip, 0.0, 0.0, 0.0, sc)
+                        _bias_update(s, -s[S_MLP], -s[S_MLP + 1], -s[S_MLP + 2], 0.0, 0.0, 0.0,
+                                     min(max(innov, -clip), clip), c[C_RMAG], clip)
                 s[S_NMAG] += 1.0
                 s[S_DELTA] = _wrap(s[S_DELTA] + k * err)
                 used = 1.0
@@ -425,8 +384,8 @@ def chakamo_batch(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_aux):
         if want_aux:
             for j in range(3):
                 aux[k, A_BIAS + j] = s[S_BIAS + j]
-            for j in range(6):
-                aux[k, A_P + j] = s[S_P + j]
+            for j in range(6):  # the bias block of P6, upper triangle
+                aux[k, A_P + j] = s[S_P6 + (0, 1, 2, 7, 8, 14)[j]]
             aux[k, A_REST] = s[S_REST]
             for j in range(3):
                 aux[k, A_K + j] = s[S_K + j]
@@ -452,7 +411,7 @@ def strapdown_batch(gyr, bias, q0, dt):
         if ang > 1e-12:
             sh = math.sin(0.5 * ang) / ang * dt
             q = qmul(q[0], q[1], q[2], q[3], math.cos(0.5 * ang), wx * sh, wy * sh, wz * sh)
-            nq = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+            nq = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
             q = (q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q
     return out
@@ -502,7 +461,7 @@ def apply_heading(q_es, delta):
     for k in range(n):
         h = 0.5 * delta[k]
         q = qmul(math.cos(h), 0.0, 0.0, math.sin(h), q_es[k, 0], q_es[k, 1], q_es[k, 2], q_es[k, 3])
-        nq = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+        nq = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq
     return out
 
@@ -510,17 +469,6 @@ def apply_heading(q_es, delta):
 # =====================================================================================
 # offline: two-filter bias smoother (13)
 # =====================================================================================
-@njit(cache=True)
-def _sym_inv(a00, a01, a02, a11, a12, a22):
-    """Inverse of a symmetric 3×3 matrix (upper triangle in and out) by cofactors."""
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    return (c00 / det, c01 / det, c02 / det, (a00 * a22 - a02 * a02) / det, (a01 * a02 - a00 * a12) / det,
-            (a00 * a11 - a01 * a01) / det)
-
-
 @njit(cache=True)
 def smooth_bias_batch(b_f, p_f, b_b, p_b):
     r"""Information-weighted mean of forward and backward bias estimates (eq. 13); ``p_*`` are ``(N, 6)``.
@@ -532,11 +480,19 @@ def smooth_bias_batch(b_f, p_f, b_b, p_b):
     out = np.empty((n, 3))
     for k in range(n):
         f0, f1, f2, f3, f4, f5 = p_f[k, 0], p_f[k, 1], p_f[k, 2], p_f[k, 3], p_f[k, 4], p_f[k, 5]
-        s = _sym_inv(f0 + p_b[k, 0], f1 + p_b[k, 1], f2 + p_b[k, 2], f3 + p_b[k, 3], f4 + p_b[k, 4], f5 + p_b[k, 5])
+        a00, a01, a02 = f0 + p_b[k, 0], f1 + p_b[k, 1], f2 + p_b[k, 2]
+        a11, a12, a22 = f3 + p_b[k, 3], f4 + p_b[k, 4], f5 + p_b[k, 5]
+        # (P_f + P_b)^-1 by cofactors (upper triangle s0 s1 s2 s3 s4 s5)
+        c00 = a11 * a22 - a12 * a12
+        c01 = a02 * a12 - a01 * a22
+        c02 = a01 * a12 - a02 * a11
+        det = a00 * c00 + a01 * c01 + a02 * c02
+        s0, s1, s2 = c00 / det, c01 / det, c02 / det
+        s3, s4, s5 = (a00 * a22 - a02 * a02) / det, (a01 * a02 - a00 * a12) / det, (a00 * a11 - a01 * a01) / det
         d0, d1, d2 = b_b[k, 0] - b_f[k, 0], b_b[k, 1] - b_f[k, 1], b_b[k, 2] - b_f[k, 2]
-        r0 = s[0] * d0 + s[1] * d1 + s[2] * d2
-        r1 = s[1] * d0 + s[3] * d1 + s[4] * d2
-        r2 = s[2] * d0 + s[4] * d1 + s[5] * d2
+        r0 = s0 * d0 + s1 * d1 + s2 * d2
+        r1 = s1 * d0 + s3 * d1 + s4 * d2
+        r2 = s2 * d0 + s4 * d1 + s5 * d2
         out[k, 0] = b_f[k, 0] + f0 * r0 + f1 * r1 + f2 * r2
         out[k, 1] = b_f[k, 1] + f1 * r0 + f3 * r1 + f4 * r2
         out[k, 2] = b_f[k, 2] + f2 * r0 + f4 * r1 + f5 * r2
@@ -572,27 +528,29 @@ def _two_sided_block_mean(x, w, decay, block, num, den, out):
         bd = den[b] + decay * bd
         tn, td = fwd_n[b] + bn - num[b], fwd_d[b] + bd - den[b]
         num[b] = tn / td if td > 1e-200 else np.nan  # gaps longer than ~700 τ: no value, interpolated over
+    # the valid blocks (value, centre) packed to the front of (num, den), then linear between their centres and
+    # constant beyond the first and the last
     half = 0.5 * (min(block, n) - 1)
-    prev = -1  # last valid block at or before the sample's centre
-    nxt = 0
-    while nxt < nb and num[nxt] != num[nxt]:
-        nxt += 1
-    if nxt >= nb:  # no valid block (every weight below ~1e-200): no heading information, as with no weight at all
-        out[:] = 0.0
+    m = 0
+    for b in range(nb):
+        if num[b] == num[b]:
+            num[m], den[m] = num[b], b * block + half
+            m += 1
+    if m == 0:  # no valid block (every weight below ~1e-200): no heading information, as with no weight at all
+        for i in range(n):
+            out[i] = 0.0
         return
-    for i in range(n):
-        while nxt < nb and nxt * block + half <= i:
-            prev = nxt
-            nxt += 1
-            while nxt < nb and num[nxt] != num[nxt]:
-                nxt += 1
-        if prev < 0:
-            out[i] = num[nxt]
-        elif nxt >= nb:
-            out[i] = num[prev]
-        else:
-            c0 = prev * block + half
-            out[i] = num[prev] + (num[nxt] - num[prev]) * (i - c0) / (nxt * block + half - c0)
+    start = min(n, int(math.ceil(den[0])))
+    for i in range(start):
+        out[i] = num[0]
+    for j in range(m - 1):  # the samples i with den[j] <= i < den[j + 1]
+        c0, c1 = den[j], den[j + 1]
+        end = min(n, int(math.ceil(c1)))
+        for i in range(start, end):
+            out[i] = num[j] + (num[j + 1] - num[j]) * (i - c0) / (c1 - c0)
+        start = end
+    for i in range(start, n):
+        out[i] = num[m - 1]
 
 
 @njit(cache=True)

@@ -15,7 +15,7 @@ from estimators.orientation.chakamo_kernels import (
     C_KMAG, C_KREF, C_KREST, C_KW2, C_MAGBIAS, C_MAGGATE, C_MAXREJ, C_MINUND, C_MOTON, C_NEWS, C_NINIT, C_NMAGINIT,
     C_NORMTH, C_P0, C_PK0, C_QBIAS, C_QK, C_REJON, C_RESTMIN, C_RESTON, C_RMAG, C_RMOT, C_RREST, C_SCALE2, C_TAUMAG,
     C_THA2, C_THG2, S_ALP, S_AREST, S_BIAS, S_DELTA, S_GREST, S_LP, S_MCANDD, S_MCANDN, S_MDIST, S_MLP,
-    S_MREFD, S_MREFN, S_MREFOK, S_NACC, S_NMAG, S_P, S_Q, S_QEI, S_QIS, S_REST, S_RLP, S_RLPOUT, S_TCAND,
+    S_MREFD, S_MREFN, S_MREFOK, S_NACC, S_NMAG, S_Q, S_QEI, S_QIS, S_REST, S_RLP, S_RLPOUT, S_TCAND,
     S_TREJ, S_TREST, S_TSUP, S_TUND, S_ULP, S_W2, S_K, S_P6, S_WLP, S_WLPOUT, K_CLIP,
 )
 
@@ -27,36 +27,26 @@ def _bias_update_reference(x, p, h, innov, r, clip):
     return np.clip(x + gain * innov, -limit, limit), p - np.outer(gain, h @ p)
 
 
-def _unpack(s, scale):
-    """``x = (b, k)`` and its 6×6 covariance: the full matrix at ``S_P6`` with the scale states, else the bias
-    block (upper triangle at ``S_P``) with a zero scale block (k then never moves)."""
-    x = np.r_[s[S_BIAS:S_BIAS + 3], s[S_K:S_K + 3]]
-    if scale:
-        return x, s[S_P6:S_P6 + 36].reshape(6, 6).copy()
-    p00, p01, p02, p11, p12, p22 = s[S_P:S_P + 6]
-    p = np.zeros((6, 6))
-    p[:3, :3] = [[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]]
-    return x, p
+def _unpack(s):
+    """``x = (b, k)`` and its 6×6 covariance (``S_P6``)."""
+    return np.r_[s[S_BIAS:S_BIAS + 3], s[S_K:S_K + 3]], s[S_P6:S_P6 + 36].reshape(6, 6).copy()
 
 
-def _pack(s, x, p, scale):
+def _pack(s, x, p):
     s[S_BIAS:S_BIAS + 3] = x[:3]
-    s[S_P:S_P + 6] = p[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
-    if scale:
-        s[S_K:S_K + 3] = x[3:]
-        s[S_P6:S_P6 + 36] = p.ravel()
+    s[S_K:S_K + 3] = x[3:]
+    s[S_P6:S_P6 + 36] = p.ravel()
 
 
 def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
     """Numpy twin of :func:`chakamo_step` (``s`` updated in place); returns 1.0 if heading was corrected."""
     dt = c[C_DT]
-    scale = c[C_PK0] > 0.0  # the scale states (8k) are on
-    x, p = _unpack(s, scale)
+    x, p = _unpack(s)  # without the scale states (8k) their block of p is zero and k stays 0
     # (1) strapdown
     gyr_ok = bool(np.all(np.isfinite(gyr)))  # a missing row (NaN) holds the orientation
     # the bias integrated at this sample; the scale errors act as the rate-proportional bias diag(k) ω
     b_hat = x[:3].copy()  # b̂ alone, for the heading bias rows (12b): they treat k̂ as known
-    b_used = x[:3] + x[3:] * gyr if gyr_ok and scale else x[:3].copy()
+    b_used = x[:3] + x[3:] * gyr if gyr_ok else x[:3].copy()
     omega = gyr - b_used
     if gyr_ok:
         s[S_W2] += c[C_KW2] * (omega @ omega - s[S_W2])
@@ -99,10 +89,10 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
         u_lp = _biquad_reference(s, S_ULP, 3, r_is @ b_used, bb, aa, n < c[C_NINIT])
         s[S_RLPOUT:S_RLPOUT + 9] = r_lp.ravel()
         s[S_RLPOUT + 9:S_RLPOUT + 12] = u_lp
-        if scale:  # LP(R_IS diag ω), a missing gyroscope row as ω = 0
-            w_lp = _biquad_reference(s, S_WLP, 9, (r_is * (gyr if gyr_ok else np.zeros(3))).ravel(), bb, aa,
-                                     n < c[C_NINIT]).reshape(3, 3)
-            s[S_WLPOUT:S_WLPOUT + 9] = w_lp.ravel()
+        # LP(R_IS diag ω), a missing gyroscope row as ω = 0
+        w_lp = _biquad_reference(s, S_WLP, 9, (r_is * (gyr if gyr_ok else np.zeros(3))).ravel(), bb, aa,
+                                 n < c[C_NINIT]).reshape(3, 3)
+        s[S_WLPOUT:S_WLPOUT + 9] = w_lp.ravel()
         acc_e = quat.rotate(s[S_QEI:S_QEI + 4], s[S_ALP:S_ALP + 3])
         if np.linalg.norm(acc_e) > 1e-9:
             acc_e = acc_e / np.linalg.norm(acc_e)
@@ -116,13 +106,13 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                 r_ei = quat.to_matrix(s[S_QEI:S_QEI + 4])
                 m_mat = r_ei @ r_lp
                 v = r_ei @ u_lp
-                n_mat = r_ei @ w_lp if scale else np.zeros((3, 3))  # (8k)
+                n_mat = r_ei @ w_lp  # (8k)
                 h_mat = np.hstack([m_mat, n_mat])
                 r_mot = c[C_RMOT] * (1.0 + c[C_SCALE2] * s[S_W2])
                 for j in range(2):
                     innov = np.clip(rate[j] - v[j] + h_mat[j] @ x, -c[C_CLIP], c[C_CLIP])
                     x, p = _bias_update_reference(x, p, -h_mat[j], innov, r_mot, c[C_CLIP])
-    _pack(s, x, p, scale)
+    _pack(s, x, p)
     # (5) heading
     used = 0.0
     if mag_ok:
@@ -171,10 +161,10 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
                     s[S_MLP:S_MLP + 4] = x if steady else s[S_MLP:S_MLP + 4] + c[C_KMAG] * (x - s[S_MLP:S_MLP + 4])
                     if not steady and s[S_REST] < 0.5 and abs(err) < c[C_MAGGATE]:
                         m_z, v_z = s[S_MLP:S_MLP + 3], s[S_MLP + 3]
-                        x, p = _unpack(s, scale)
+                        x, p = _unpack(s)
                         innov = np.clip(err / c[C_TAUMAG] - v_z + m_z @ x[:3], -c[C_CLIP], c[C_CLIP])
                         x, p = _bias_update_reference(x, p, -np.r_[m_z, np.zeros(3)], innov, c[C_RMAG], c[C_CLIP])
-                        _pack(s, x, p, scale)
+                        _pack(s, x, p)
                 s[S_NMAG] += 1.0
                 s[S_DELTA] = _wrap_reference(s[S_DELTA] + k * err)
                 used = 1.0
@@ -214,7 +204,7 @@ def chakamo_batch_reference(acc, gyr, mag, acc_ok, mag_ok, coeffs, state0, want_
         out[k] = s[S_Q:S_Q + 4]
         if want_aux:
             aux[k, A_BIAS:A_BIAS + 3] = s[S_BIAS:S_BIAS + 3]
-            aux[k, A_P:A_P + 6] = s[S_P:S_P + 6]
+            aux[k, A_P:A_P + 6] = s[S_P6:S_P6 + 36][[0, 1, 2, 7, 8, 14]]  # the bias block of P6, upper triangle
             aux[k, A_REST] = s[S_REST]
             aux[k, A_K:A_K + 3] = s[S_K:S_K + 3]
             aux[k, A_PK:A_PK + 3] = np.diag(s[S_P6:S_P6 + 36].reshape(6, 6))[3:]
