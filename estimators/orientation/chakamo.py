@@ -34,7 +34,8 @@ Causal filter (one sample, ``dt = 1/fs``)
    :math:`q_{E'I} \leftarrow c \otimes q_{E'I}` with :math:`c` the shortest rotation taking
    :math:`\hat a_{E'}` to ``z`` (axis :math:`(\hat a_y, -\hat a_x, 0)`).  The full correction is
    applied at every sample: the smoothing is done by the low-pass filter.                   (3-4)
-4. *Gyroscope bias* — a 3-state Kalman filter (6 states with the scale errors (8k)) with random-walk model, covariance ``P``:
+4. *Gyroscope bias* — a 3-state Kalman filter (6 states with the scale errors (8k); the kernel always runs the 6-state
+   form, whose scale block is zero without them) with random-walk model, covariance ``P``:
    :math:`P \leftarrow P + \sigma_{init}^2\,dt/T_{forget}\, I`                                  (5)
    * *at rest* (gyroscope low-pass :math:`\bar\omega` and the deviations of ω and a from their
      first-order low-passes (τ = ``rest_tau_s``) below ``rest_gyr_th_rad_s`` / ``rest_acc_th_m_s2``

@@ -177,7 +177,8 @@ def chakamo_step_reference(s, c, acc, gyr, mag, acc_ok, mag_ok):
 
 
 def _biquad_reference(s, start, m, x, bb, aa, steady):
-    """Numpy twin of ``_biquad`` on ``m`` channels whose state is ``s[start:start + 2m]``."""
+    """Numpy twin of ``_biquad9`` (and of the step's R_IS·b̂ filter) on ``m`` channels whose state is
+    ``s[start:start + 2m]``."""
     z1, z2 = slice(start, start + m), slice(start + m, start + 2 * m)
     if steady:
         s[z1] = (1.0 - bb[0]) * x
