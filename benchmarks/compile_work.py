@@ -6,12 +6,12 @@ Usage
 
 The first call of :mod:`benchmarks.speed` (a fresh numba cache) is mostly numba's own front end: type inference
 and lowering, in Python.  Its wall time on this two-core machine swings by ±20 % from one run to the next, so a
-change of 5 % cannot be seen in it without many runs.  This script measures the same compilation twice over:
-
-the *Python calls* made while each function compiled (its own, without the functions it compiled in turn),
-counted by ``cProfile``.  The same code compiles with the same calls (±0.5 %), whatever the machine's load.  The
-count leaves out LLVM's share (native code), so a change it favours is then confirmed on the wall time
-(:mod:`benchmarks.speed`, old and new trees alternated).
+change of 5 % cannot be seen in it without many runs.  This script counts instead the *Python calls* made while
+each function compiled (its own, without the functions it compiled in turn), with ``cProfile``.  The same code
+compiles with nearly the same calls whatever the machine's load: the total varies by under 0.5 % between runs of one
+tree, a single function's row by up to ~5 % (the offline kernels').  The count leaves out LLVM's share (native
+code), so a change it favours is then confirmed on the wall time (:mod:`benchmarks.speed`, old and new trees
+alternated).
 
 Numba announces each compilation (``numba:compile`` events), which gives the intervals.  The kernels are compiled in
 the main thread, where ``cProfile`` sees them: first a causal 9D call (the shared per-sample kernel), then the
@@ -39,10 +39,21 @@ class _Counter:
     def __init__(self) -> None:
         self.profile = cProfile.Profile()
         self.calls: collections.Counter[str] = collections.Counter()
-        self.times: collections.Counter[str] = collections.Counter()
+        self.compiles: collections.Counter[str] = collections.Counter()
+        self.enabled = False
         self._stack: list[list[Any]] = []
 
+    def start(self) -> None:
+        self.enabled = True
+        self.profile.enable()
+
+    def stop(self) -> None:
+        self.enabled = False
+        self.profile.disable()
+
     def _total_calls(self) -> int:
+        if not self.enabled:  # a compilation outside the measured calls counts nothing
+            return 0
         self.profile.disable()
         try:
             return pstats.Stats(self.profile).total_calls
@@ -60,7 +71,7 @@ class _Counter:
         name, calls0, nested = self._stack.pop()
         calls = self._total_calls() - calls0
         self.calls[name] += calls - nested
-        self.times[name] += 1
+        self.compiles[name] += 1
         if self._stack:
             self._stack[-1][2] += calls
 
@@ -69,8 +80,8 @@ def measure(method: str) -> _Counter:
     """Compile ``method``'s kernels (causal 9D, then offline 9D) with a fresh cache, counting per function."""
     if "numba" in sys.modules:
         raise RuntimeError("numba is already imported: its cache folder cannot be changed any more")
-    cache = tempfile.mkdtemp(prefix="chakamo-numba-")
-    os.environ["NUMBA_CACHE_DIR"] = cache
+    cache = tempfile.TemporaryDirectory(prefix="chakamo-numba-")
+    os.environ["NUMBA_CACHE_DIR"] = cache.name
     from numba.core import event
 
     from estimators.orientation import estimate
@@ -87,13 +98,14 @@ def measure(method: str) -> _Counter:
     listener = Listener()
     event.register("numba:compile", listener)
     acc, gyr, mag = simulated_imu(FIRST_CALL_SAMPLES)
-    counter.profile.enable()
+    counter.start()
     try:
         estimate(acc, gyr, mag, fs_hz=FS_HZ, method=method, offline=False)
         estimate(acc, gyr, mag, fs_hz=FS_HZ, method=method)
     finally:
-        counter.profile.disable()
+        counter.stop()
         event.unregister("numba:compile", listener)
+        cache.cleanup()
     return counter
 
 
@@ -102,8 +114,8 @@ def table(counter: _Counter, top: int) -> str:
     lines = [f"{'function':<{width}} | {'compiles':>8} | {'Python calls (k)':>16}",
              f"{'-' * width}-|----------|-----------------"]
     for name, calls in counter.calls.most_common(top):
-        lines.append(f"{name:<{width}} | {counter.times[name]:8d} | {calls // 1000:16d}")
-    lines.append(f"{'total (every function)':<{width}} | {sum(counter.times.values()):8d} | "
+        lines.append(f"{name:<{width}} | {counter.compiles[name]:8d} | {calls // 1000:16d}")
+    lines.append(f"{'total (every function)':<{width}} | {sum(counter.compiles.values()):8d} | "
                  f"{sum(counter.calls.values()) // 1000:16d}")
     return "\n".join(lines)
 

@@ -312,7 +312,7 @@ filter (two half batches through ``update`` equal one causal batch); ``estimate`
 smoother when ``params.offline`` is true and ``state_`` is then the forward filter's final state.
 :meth:`Chakamo.estimate_causal` and :meth:`Chakamo.estimate_offline` are explicit entry points.
 
-State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 158, first four = ``q``).
+State layout: see :mod:`estimators.orientation.chakamo_kernels` (``STATE_SIZE`` = 152, first four = ``q``).
 
 Accuracy and speed
 ------------------

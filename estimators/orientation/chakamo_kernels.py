@@ -199,15 +199,15 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
     if gyr_ok:
         for i in range(3):
             s[S_GREST + i] += kr * ((gx, gy, gz)[i] - s[S_GREST + i])
-        l0, l1, l2 = s[S_GREST], s[S_GREST + 1], s[S_GREST + 2]
+        l0, l1, l2 = s[S_GREST], s[S_GREST + 1], s[S_GREST + 2]  # the gyroscope's low-pass
         dg2 = (gx - l0) * (gx - l0) + (gy - l1) * (gy - l1) + (gz - l2) * (gz - l2)
         lg2 = l0 * l0 + l1 * l1 + l2 * l2
         rest_now = dg2 < c[C_THG2] and lg2 < c[C_THG2]
         if acc_ok:
             for i in range(3):
                 s[S_AREST + i] += kr * ((ax, ay, az)[i] - s[S_AREST + i])
-            l0, l1, l2 = ax - s[S_AREST], ay - s[S_AREST + 1], az - s[S_AREST + 2]
-            da2 = l0 * l0 + l1 * l1 + l2 * l2
+            dax, day, daz = ax - s[S_AREST], ay - s[S_AREST + 1], az - s[S_AREST + 2]  # from its low-pass
+            da2 = dax * dax + day * day + daz * daz
             rest_now = rest_now and da2 < c[C_THA2]
         s[S_TREST] = s[S_TREST] + dt if rest_now else 0.0
         s[S_REST] = 1.0 if s[S_TREST] >= c[C_RESTMIN] else 0.0
@@ -249,7 +249,7 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
         ub = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz,
               r[6] * bx + r[7] * by + r[8] * bz)
         _biquad9(s, S_RLP, S_RLPOUT, r, 1.0, 1.0, 1.0, c, n < c[C_NINIT])
-        for i in range(3):  # the same filter on R_IS·b̂ (the DF2T step of _biquad9, with the gain 1)
+        for i in range(3):  # the same filter on the three channels of R_IS·b̂ (_biquad9's step on x = ub[i])
             x = ub[i]
             if n < c[C_NINIT]:
                 s[S_ULP + i] = (1.0 - c[C_B0]) * x

@@ -254,6 +254,9 @@ def test_gyroscope_scale_errors_are_estimated(seed):
     k_est = on.state_[kern.S_K:kern.S_K + 3]  # the forward pass's final state
     assert np.all(np.abs(k_est - k_true) <= 0.35 * np.abs(k_true))
     assert np.all(off.state_[kern.S_K:kern.S_K + 3] == 0.0)
+    # without the scale states their block of P6 and its cross terms stay zero: the 6-state update is the 3-state one
+    p6 = off.state_[kern.S_P6:kern.S_P6 + 36].reshape(6, 6)
+    assert np.all(p6[3:, :] == 0.0) and np.all(p6[:, 3:] == 0.0) and np.all(np.diag(p6)[:3] > 0.0)
     assert total_rmse_deg(on) < 0.5 * total_rmse_deg(off)
     k_default = default.state_[kern.S_K:kern.S_K + 3]
     assert np.all(np.sign(k_default) == np.sign(k_true)) and np.all(np.abs(k_default) < np.abs(k_true))
