@@ -249,7 +249,10 @@ def chakamo_step(s, c, ax, ay, az, gx, gy, gz, mx, my, mz, acc_ok, mag_ok):
         ub = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz,
               r[6] * bx + r[7] * by + r[8] * bz)
         _biquad9(s, S_RLP, S_RLPOUT, r, 1.0, 1.0, 1.0, c, n < c[C_NINIT])
-        for i in range(3):  # the same filter on the three channels of R_IS·b̂ (_biquad9's step on x = ub[i])
+        # the same filter on the three channels of R_IS·b̂: _biquad9's step on x = ub[i], written here because a
+        # scalar helper called in a loop was not inlined (2x the time per sample) and one more helper costs ~0.4 M
+        # Python calls to compile (benchmarks/compile_work.py)
+        for i in range(3):
             x = ub[i]
             if n < c[C_NINIT]:
                 s[S_ULP + i] = (1.0 - c[C_B0]) * x
