@@ -26,11 +26,12 @@ LATENCY_HEADER = ("| endpoint | n | p50 (ms) | p95 (ms) | p99 (ms) | max (ms) | 
                   "| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
 
 
-def demo_session(folder: Path) -> list[Path]:
-    """The demo session's 24 MetaBase files, simulated as `chakamo demo` does (10 step-up cycles)."""
+def demo_session(folder: Path, seed: int = 7) -> list[Path]:
+    """The demo session's 24 MetaBase files, simulated as `chakamo demo` does (10 step-up cycles); another ``seed``
+    gives another patient's session (other noise, biases, mounting and motion: every file's content differs)."""
     from app.pipeline.demo import simulate_session, write_session
 
-    write_session(folder, simulate_session(seed=7, side="right", n_cycles=10))
+    write_session(folder, simulate_session(seed=seed, side="right", n_cycles=10))
     return sorted(folder.glob("*.csv"))
 
 

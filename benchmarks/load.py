@@ -1,7 +1,7 @@
 """N clinicians at once: upload a demo session, process it, poll, download — errors, losses and latencies.
 
 ``python -m benchmarks.load [--clinicians 20] [--workers 2] [--backend celery|inprocess] [--read-rate 50]
-[--read-seconds 20] [--timeout-s 900]``
+[--read-seconds 20] [--timeout-s 900] [--same-files]``
 
 Goals (issue 8): 20 concurrent session uploads processed with 0 errors and 0 lost; read endpoints p95 < 50 ms
 at 50 requests/s.
@@ -15,7 +15,9 @@ What happens:
 1. a *reference* session is uploaded and processed first (not in the tables): it warms the server and one
    worker (the first job pays the imports) and gives the read load a processed session to read;
 2. ``--clinicians`` threads start together, each one clinician with its own HTTP connection: create a patient
-   and a session → upload the 24 files of the demo session (:func:`benchmarks.http_load.demo_session`) in one
+   and a session → upload the 24 files of a demo session of its own (:func:`benchmarks.http_load.demo_session`,
+   seed 8, 9, …: every file's content differs, as in a clinic, so every file is really written and synced;
+   ``--same-files`` gives them all the reference's files, which the blob store then keeps once) in one
    request → request processing → poll the job every :data:`POLL_EVERY_S` s → download ``results`` (JSON) and
    ``report.pdf``.  An upload refused with 503 (more than ``CHAKAMO_MAX_UPLOADS`` at once, the server's
    designed back-pressure: nothing was stored) is retried after its ``Retry-After``, capped at
@@ -80,6 +82,7 @@ class Clinician:
     session_id: int | None = None
     job_id: int | None = None
     files_uploaded: int = 0  # recordings the accepted upload stored (0: not accepted)
+    sha256: set[str] = field(default_factory=set)  # the stored recordings' contents, as the server named them
     busy_retries: int = 0
     phase_s: dict[str, float] = field(default_factory=dict)
     poll_s: list[float] = field(default_factory=list)
@@ -122,6 +125,7 @@ def _upload(client, c: Clinician, files: list[Path], deadline: float) -> None:
     if stored != len(files):  # the answer must list every file sent, not just what the server chose to keep
         raise PhaseError("upload", f"POST {path} stored {stored} of the {len(files)} files sent")
     c.files_uploaded = stored
+    c.sha256 = {rec["sha256"] for rec in r.json()["recordings"]}
 
 
 def run_clinician(c: Clinician, base_url: str, headers: dict, files: list[Path], start: threading.Barrier | None,
@@ -244,9 +248,20 @@ def read_paths(ref: Clinician) -> list[str]:
             "/api/v1/auth/me", "/healthz"]
 
 
-def run(stack: Stack, files: list[Path], args: argparse.Namespace) -> Summary:
-    """The reference session, the clinicians with the read load during, the read load after, verification."""
-    ref = run_clinician(Clinician(0), stack.base_url, stack.headers, files, None, time.monotonic() + args.timeout_s)
+def sessions(folder: Path, clinicians: int, same_files: bool) -> list[list[Path]]:
+    """The files of the reference session (seed 7) and of each clinician's (seed 8, 9, …; the reference's with
+    ``same_files``), simulated on every CPU before the clock starts."""
+    seeds = [7] if same_files else list(range(7, 8 + clinicians))
+    with ProcessPoolExecutor(os.cpu_count(), mp_context=get_context("spawn")) as pool:
+        made = list(pool.map(demo_session, [folder / f"session-{s}" for s in seeds], seeds))
+    return made if not same_files else made * (clinicians + 1)
+
+
+def run(stack: Stack, files: list[list[Path]], args: argparse.Namespace) -> Summary:
+    """The reference session (``files[0]``), the clinicians (``files[i]``) with the read load during, the read load
+    after, verification."""
+    ref = run_clinician(Clinician(0), stack.base_url, stack.headers, files[0], None,
+                        time.monotonic() + args.timeout_s)
     if ref.error is not None:
         raise RuntimeError(f"the reference session could not be processed ({ref.error}); see the logs above")
     paths = read_paths(ref)
@@ -257,7 +272,7 @@ def run(stack: Stack, files: list[Path], args: argparse.Namespace) -> Summary:
         t0 = time.monotonic()
         deadline = t0 + args.timeout_s
         threads = [threading.Thread(target=run_clinician, daemon=True,
-                                    args=(c, stack.base_url, stack.headers, files, barrier, deadline))
+                                    args=(c, stack.base_url, stack.headers, files[c.index], barrier, deadline))
                    for c in clinicians]
         for th in threads:
             th.start()
@@ -283,7 +298,8 @@ def _phase_row(name: str, seconds: list[float], errors: int | None) -> str:
 def print_tables(s: Summary, stack: Stack, args: argparse.Namespace) -> None:
     """The tables of the module docstring, markdown, on stdout."""
     n = len(s.clinicians)
-    print(f"\nLoad: {n} clinicians at once, backend {stack.backend} ({stack.describe}); loopback\n")
+    what = "the same files (stored once)" if args.same_files else "a session of their own each"
+    print(f"\nLoad: {n} clinicians at once uploading {what}, backend {stack.backend} ({stack.describe}); loopback\n")
     print("| phase | n | errors | p50 (s) | p95 (s) | max (s) |\n| --- | ---: | ---: | ---: | ---: | ---: |")
     for phase in PHASES:
         samples = ([t for c in s.clinicians for t in c.poll_s] if phase.startswith("job poll")
@@ -328,6 +344,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--read-rate", type=float, default=50.0, help="read requests per second (default 50)")
     p.add_argument("--read-seconds", type=float, default=20.0, help="length of each read window (default 20 s)")
     p.add_argument("--timeout-s", type=float, default=900.0, help="longest run of the clinicians (default 900 s)")
+    p.add_argument("--same-files", action="store_true",
+                   help="every clinician uploads the reference session's files (stored once) instead of their own")
     return p
 
 
@@ -337,7 +355,7 @@ def main(argv: list[str] | None = None) -> Summary:
     if args.clinicians < 1 or args.workers < 1 or args.read_rate <= 0 or args.read_seconds <= 0:
         raise SystemExit("--clinicians, --workers, --read-rate and --read-seconds must be positive")
     with tempfile.TemporaryDirectory(prefix="chakamo-load-") as tmp:
-        files = demo_session(Path(tmp) / "session")
+        files = sessions(Path(tmp), args.clinicians, args.same_files)
         with running_stack(Path(tmp), args.backend, args.workers) as stack:
             summary = run(stack, files, args)
             print_tables(summary, stack, args)
