@@ -50,7 +50,9 @@ a successful login                                        ``login``          the
 a wrong password (or an unknown or deactivated account)   ``login_failed``   the account's clinic, or null when the
                                                                              email has none; actor ``anonymous`` with
                                                                              the email typed
-a login refused by the throttle (429), known emails only  ``login_refused``  the account's clinic
+a login refused by the throttle (429), any email          ``login_refused``  the account's clinic, or null when the
+                                                                             email has none (a refusal costs the same
+                                                                             for both: :mod:`app.web.api.auth`)
 a logout                                                  ``logout``         the user's
 401 (no, unknown, revoked or expired credentials)         ``denied``         the token's or session's clinic when known
 403 (role too low, missing CSRF header)                   ``denied``         the caller's

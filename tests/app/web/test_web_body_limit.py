@@ -141,3 +141,24 @@ def test_over_a_real_socket_the_refusal_arrives_and_the_connection_closes(tmp_pa
     finally:
         srv.should_exit = True
         thread.join(timeout=30)
+
+
+def test_the_default_limit_is_one_megabyte(tmp_path):
+    """Without ``CHAKAMO_MAX_BODY_KB`` the limit is the issue's "about 1 MB": a body of 1 MiB reaches the route
+    (422, not JSON), one byte more is refused unread (413)."""
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data")
+    assert settings.max_body_kb == 1024
+    h = clinic_token(settings, "Default") | {"content-type": "application/json"}
+    app = create_app(settings)
+    mib = 2**20
+
+    async def scenario():
+        at = await AsgiCall(app, "POST", "/api/v1/patients", h, [b"{" + b" " * (mib - 1)]).run()
+        over = AsgiCall(app, "POST", "/api/v1/patients", h, [b"{" + b" " * mib])
+        return at, await over.run()
+
+    at, over = _run(app, scenario)
+    assert at.status == 422, at.body
+    assert over.status == 413 and over._i == 0, over.body
