@@ -1,9 +1,12 @@
 """Uploads checked in the server's warm helper processes (``app.state.check_pool``, CHAKAMO_RENDER_PROCESSES > 0):
 the same answer as a check in the request thread, a helper found dead is replaced (the check never falls back to
-the server process); one clinic's long check does not hold another clinic's, and a check past its time limit is stopped, answered and never run again in the server process,
+the server process); one clinic's long check does not hold another clinic's, one clinic's second check waits
+for its first, and a check past its time limit is stopped, answered and never run again in the server process,
 nor is the next check while the helper is replaced (issue 16, finding 4)."""
 
 from __future__ import annotations
+
+import pytest
 
 from app.web.api.schemas import ingestion_out
 from web_helpers import clinic_token, demo_files, make_settings, new_session
@@ -221,6 +224,64 @@ def test_the_check_after_a_time_out_waits_for_the_new_helper_and_never_runs_in_t
         stored = [client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"] for sid in after]
         assert stored[1] == ingestion_out(checked)  # stored; the busy one was not, it is checked on this read
         assert here == [] and stored[0] == stored[1]  # the same files' own verdict, from a helper
+
+
+@pytest.mark.parametrize("processes", [2, 0], ids=["helpers", "request-threads"])
+def test_one_clinics_second_check_waits_for_its_first(tmp_path, processes):
+    """Finding 4c, "bound the checks per clinic": while one of clinic A's checks runs (it holds A's slot for
+    its whole run, as :func:`app.store.checks._check_in_slot` does), A's next check waits for it — answered
+    "busy" past its wait, run as soon as the first ends — while clinic B's check runs at once beside it.
+    With the bound removed or raised, A's second check would run beside its first and this fails."""
+    import threading
+    import time
+
+    from fastapi.testclient import TestClient
+
+    from app.store.checks import CHECK_GATE, CHECKS_PER_CLINIC, refresh_ingestion
+    from app.store.models import KneeSession
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=min(processes, 1),
+                             CHAKAMO_CHECK_PROCESSES=processes or 2)
+    with TestClient(create_app(settings)) as client:
+        pool, state = client.app.state.check_pool, client.app.state
+        assert (pool is None) == (processes == 0) and (pool is None or pool.wait_warm(120))
+        gate = pool.gate if pool is not None else CHECK_GATE
+        assert gate.total == 2 and gate.per_clinic == CHECKS_PER_CLINIC == 1
+        small = [("task-muslo-C-01012024-1.xlsx", _thesis_xlsx(tmp_path / "c.xlsx", 500))]
+        a_first, a_second = (_stored_session(client, settings, "A", small, p) for p in ("1", "2"))
+        b = _stored_session(client, settings, "B", small)
+        with state.db.session() as db:
+            clinic_a = db.get(KneeSession, a_first).clinic_id
+
+        def check(sid, **kw):
+            return refresh_ingestion(state.db, state.store, settings.tmp_dir, sid, pool, **kw)
+
+        first_runs, first_ends = threading.Event(), threading.Event()
+
+        def first():  # A's first check, still running
+            with gate.slot(clinic_a):
+                first_runs.set()
+                first_ends.wait(120)
+
+        holder = threading.Thread(target=first)
+        holder.start()
+        try:
+            assert first_runs.wait(60)
+            refused = check(a_second, wait_s=0.3)
+            assert refused["error_item"]["code"] == "session.check_busy", refused  # not beside A's first
+            other = check(b, wait_s=30)
+            assert _verdict(other), other  # another clinic: at once, beside A's first
+            answers = []
+            waiting = threading.Thread(target=lambda: answers.append(check(a_second, wait_s=120)))
+            waiting.start()
+            time.sleep(1.0)
+            assert not answers, "clinic A's second check ran beside its first"
+        finally:
+            first_ends.set()
+            holder.join(60)
+        waiting.join(120)
+        assert len(answers) == 1 and _verdict(answers[0]), answers  # ran once the first ended
 
 
 def test_the_gate_follows_the_helpers_and_a_check_waits_for_a_slot_only_so_long(tmp_path):
