@@ -165,11 +165,6 @@ class JobProcess(RenderPool):
             self.restart()
             raise HelperDied("the job helper process ended") from None
 
-    def _alive(self) -> bool:
-        """False when the helper is known dead (its pool broken, or its process exited)."""
-        procs = getattr(self._pool, "_processes", None) or {}
-        return not getattr(self._pool, "_broken", False) and all(p.exitcode is None for p in list(procs.values()))
-
     def _relay(self, progress, wait_s: float) -> None:
         while self._progress.poll(wait_s):
             try:

@@ -20,6 +20,7 @@ import signal
 import tempfile
 import threading
 import time
+from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
 
 from reports.i18n import LANGUAGES
@@ -398,8 +399,9 @@ class RenderPool:
 
     Started with ``spawn`` (forking a threaded server is unsafe), exits when the server process does (even
     one killed with SIGKILL), and is warmed up by ``warm`` (default :func:`warm_up`: the report modules);
-    :meth:`submit` returns None until it is warm, so a caller never waits for its start-up (it does the work
-    itself meanwhile).  :meth:`restart`
+    :meth:`submit` waits for its start-up no longer than its caller says, and answers None past that: the
+    caller refuses the work, it does not do it itself (an upload check done in the API process is what a
+    crafted file needs to stall it: issue 16, finding 4).  :meth:`restart`
     replaces a hung or dead process — only then: work that raised leaves the process as it is (the upload
     checks' helpers are pools of one, :class:`app.store.checks.CheckPool`).
     """
@@ -445,16 +447,38 @@ class RenderPool:
         """True once :meth:`shutdown` began: the helper's work was stopped by the server, not by a fault."""
         return self._stopping
 
-    def submit(self, fn, *args):
-        """``fn(*args)`` in the helper process, or None when it is not warm or not usable (the caller does the
-        work itself).  After :meth:`shutdown`: None, quietly (a server stopping is not a fault to log)."""
-        if self._stopping or not self._warm.done() or self._warm.exception() is not None:
-            return None
-        try:
-            return self._pool.submit(fn, *args)
-        except Exception:  # noqa: BLE001 — a broken or shut-down pool: the caller does the work itself
-            log.exception("helper process pool unavailable")
-            return None
+    def submit(self, fn, *args, wait_s: float = 0.0):
+        """``fn(*args)`` in the helper process (a future), once it is warm: its start-up (the first, or after a
+        :meth:`restart`, e.g. a check's time-out) is waited for up to ``wait_s``.  A process found dead (it
+        ended while idle: killed, out of memory; or its warm-up failed) is replaced and the new one waited for
+        within the same ``wait_s``, once.  None when no process was usable within ``wait_s``, and after
+        :meth:`shutdown` (quietly: a server stopping is not a fault to log)."""
+        deadline = time.monotonic() + wait_s
+        replaced = False
+        while not self._stopping:
+            try:
+                self._warm.result(max(0.0, deadline - time.monotonic()))
+            except FutureTimeout:  # still starting
+                return None
+            except Exception:  # noqa: BLE001 — the warm-up failed or was cancelled: a dead process
+                log.warning("the helper process' warm-up failed", exc_info=True)
+            else:
+                if self._alive():
+                    try:
+                        return self._pool.submit(fn, *args)
+                    except Exception:  # noqa: BLE001 — broken meanwhile (or shut down: the loop ends)
+                        log.warning("helper process pool unavailable", exc_info=True)
+            if replaced or self._stopping:
+                return None
+            log.warning("the idle helper process had ended; starting a new one")
+            self.restart()
+            replaced = True
+        return None
+
+    def _alive(self) -> bool:
+        """False when the helper is known dead (its pool broken, or its process exited)."""
+        procs = getattr(self._pool, "_processes", None) or {}
+        return not getattr(self._pool, "_broken", False) and all(p.exitcode is None for p in list(procs.values()))
 
     def wait_warm(self, timeout_s: float = 120.0) -> bool:
         """Block until the process is warm (benchmarks, tests); True if it is usable."""

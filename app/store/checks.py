@@ -16,12 +16,21 @@ of the others'.  With helper processes (:class:`CheckPool`, ``CHAKAMO_CHECK_PROC
 :attr:`CheckPool.gate`) and each check runs in a free one, off this process' GIL, so two clinics'
 checks run side by side.  A check that takes longer than :data:`CHECK_TIMEOUT_S` has its helper replaced
 (the only case a helper is restarted: a check that raises leaves its helper as it is) and is answered
-:data:`CHECK_TOO_SLOW`, stored for those files: it is never run again in this process (which is what it
+``session.check_too_slow``, stored for those files: it is never run again in this process (which is what it
 would stall) nor again for the same files.  A helper that died under a check is replaced the same way and
-that check answered :data:`CHECK_STOPPED`.  Only when no helper is configured, or while one is still
-starting, does a check run in the request thread.  No check waits for a slot longer than
-:data:`CHECK_WAIT_S` (the checks ahead of it finish, or are stopped, within :data:`CHECK_TIMEOUT_S`): past
-that it is answered ``session.check_busy``, not stored, and runs again when the session is opened or processed.
+that check answered ``session.check_stopped``.
+
+With helpers, no check runs in this process, ever: a check whose helper is still starting (the server's
+start, or the replacement after a time-out) or is found dead while idle (replaced then) waits for it within
+its :data:`CHECK_WAIT_S` (:meth:`app.pipeline.render.RenderPool.submit`).  Before, such a check ran in the
+request thread with no time limit, so the next crafted upload right after a time-out stalled the API
+process itself (issue 16, finding 4, from the audit).  A check runs in the calling thread, without a time
+limit, only where there is no helper by design: a server configured without them (``CHAKAMO_RENDER_PROCESSES``
+or ``CHAKAMO_CHECK_PROCESSES`` 0, the operator's choice) and the operator's command line (``chakamo
+reprocess``, :mod:`app.jobs.reprocess`: no request, no pool).  No check waits for a slot or a helper longer
+than :data:`CHECK_WAIT_S` (the checks ahead of it finish, or are stopped, within :data:`CHECK_TIMEOUT_S`; a
+helper starts in seconds): past that it is answered ``session.check_busy``, not stored, and runs again when
+the session is opened or processed.
 """
 
 from __future__ import annotations
@@ -59,7 +68,7 @@ CHECK_DEFERRED = render("session.check_deferred", {})
 CHECK_CONCURRENCY = 2
 #: of which one clinic may run at most this many: its other checks wait for it, not for the others
 CHECKS_PER_CLINIC = 1
-#: longest a check may take in a helper process; then it is stopped and answered CHECK_TOO_SLOW
+#: longest a check may take in a helper process; then it is stopped and answered ``session.check_too_slow``
 CHECK_TIMEOUT_S = 60.0
 
 
@@ -82,7 +91,7 @@ def ingestion_view(stored: dict[str, Any]) -> dict[str, Any]:
 
 
 class CheckBusy(Exception):
-    """No slot became free within the wait's bound (module docstring)."""
+    """No slot became free, or no helper warm, within the wait's bound (module docstring)."""
 
 
 class CheckGate:
@@ -152,12 +161,13 @@ class CheckPool:
         return all(h.wait_warm(timeout_s) for h in self.helpers)
 
     def run(self, fn, *args, timeout_s: float = CHECK_TIMEOUT_S, wait_s: float = CHECK_WAIT_S):
-        """``(True, fn(*args))`` from a free helper, or ``(False, None)`` when none is usable yet (still
-        starting: the caller runs it itself).  :class:`CheckTimedOut` past ``timeout_s``, and
-        :class:`BrokenProcessPool` when the helper died under it: either way that helper is replaced;
-        :class:`CheckStopped` when the server's shutdown stopped it (or had already begun).  An
-        exception ``fn`` raised is raised here, its helper kept; :class:`CheckBusy` when no helper was free
-        within ``wait_s`` (:attr:`gate` admits at most as many checks as there are helpers: a bound only)."""
+        """``fn(*args)`` from a free helper, never from this process (module docstring).
+        :class:`CheckTimedOut` past ``timeout_s``, and :class:`BrokenProcessPool` when the helper died under
+        it: either way that helper is replaced; :class:`CheckStopped` when the server's shutdown stopped it (or
+        had already begun).  An exception ``fn`` raised is raised here, its helper kept; :class:`CheckBusy`
+        when no helper was free and warm within ``wait_s`` (:attr:`gate` admits at most as many checks as
+        there are helpers: a bound only; a helper may still be starting after a time-out)."""
+        deadline = time.monotonic() + wait_s
         try:
             helper = self._free.get(timeout=wait_s)
         except queue.Empty:
@@ -165,11 +175,13 @@ class CheckPool:
         try:
             if helper.stopping:  # the server is stopping: neither a helper nor this thread runs the check
                 raise CheckStopped
-            future = helper.submit(fn, *args)
+            future = helper.submit(fn, *args, wait_s=max(0.0, deadline - time.monotonic()))
             if future is None:
-                return False, None
+                if helper.stopping:
+                    raise CheckStopped
+                raise CheckBusy  # not started (or replaced) within the wait: this thread does not run it
             try:
-                return True, future.result(timeout_s)
+                return future.result(timeout_s)
             except FutureTimeout:
                 future.cancel()
                 helper.restart()
@@ -212,9 +224,9 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
     """Run the ingestion over the session's stored files (no database connection held meanwhile; within the
     clinic's and the server's slots of ``gate``), store the result if the files did not change meanwhile
     (:func:`save_ingestion`) and return it.  With ``pool`` (a :class:`CheckPool`) the check runs in a helper
-    process, off this process' GIL, for at most ``timeout_s`` (module docstring); without it, or while no
-    helper is warm yet, it runs here.  ``gate``: the pool's (None), else :data:`CHECK_GATE`; no slot within
-    ``wait_s``: answered ``session.check_busy`` and not stored (module docstring)."""
+    process, off this process' GIL, for at most ``timeout_s``, and never here (module docstring); only
+    without one (none by design) does it run here.  ``gate``: the pool's (None), else :data:`CHECK_GATE`; no
+    slot or warm helper within ``wait_s``: answered ``session.check_busy`` and not stored (module docstring)."""
     if gate is None:
         gate = getattr(pool, "gate", None) or CHECK_GATE
     with db_.session() as db:
@@ -227,7 +239,8 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
         ingestion = _check_in_slot(gate, pool, store, tmp_dir, session, patient, recordings, timeout_s, wait_s,
                                    paired)
     except CheckBusy:
-        log.warning("ingestion check of session %s not run: no check slot free within %.0f s", session_id, wait_s)
+        log.warning("ingestion check of session %s not run: no check slot or helper free within %.0f s",
+                    session_id, wait_s)
         return _failed("session.check_busy", seconds=round(wait_s))  # not stored: checked again later
     except CheckStopped:
         log.info("ingestion check of session %s stopped by the server's shutdown; it runs again later", session_id)
@@ -240,26 +253,24 @@ def _check_in_slot(gate: CheckGate, pool, store: BlobStore, tmp_dir: Path, sessi
                    recordings, timeout_s: float, wait_s: float, paired=None) -> dict[str, Any]:
     session_id = session.id
     with gate.slot(session.clinic_id, wait_s):
-        ran, ingestion = False, None
-        if pool is not None:
-            try:
-                ran, ingestion = pool.run(check_ingestion, store, tmp_dir, session, patient, recordings, paired,
-                                          timeout_s=timeout_s, wait_s=wait_s)
-            except CheckTimedOut:
-                log.warning("ingestion check of session %s stopped after %.0f s; its helper process was replaced",
-                            session_id, timeout_s)
-                ran, ingestion = True, _failed("session.check_too_slow", seconds=round(timeout_s))
-            except BrokenProcessPool:
-                log.error("the helper process died checking session %s; it was replaced", session_id)
-                ran, ingestion = True, _failed("session.check_stopped")
-        if not ran:
-            ingestion = check_ingestion(store, tmp_dir, session, patient, recordings, paired)
-    return ingestion
+        if pool is None:  # no helper by design (module docstring): here, with no time limit
+            return check_ingestion(store, tmp_dir, session, patient, recordings, paired)
+        try:  # in a helper or not at all: never in this thread (CheckBusy, CheckStopped go to the caller)
+            return pool.run(check_ingestion, store, tmp_dir, session, patient, recordings, paired,
+                            timeout_s=timeout_s, wait_s=wait_s)
+        except CheckTimedOut:
+            log.warning("ingestion check of session %s stopped after %.0f s; its helper process was replaced",
+                        session_id, timeout_s)
+            return _failed("session.check_too_slow", seconds=round(timeout_s))
+        except BrokenProcessPool:
+            log.error("the helper process died checking session %s; it was replaced", session_id)
+            return _failed("session.check_stopped")
 
 
 @dataclass(frozen=True)
 class IngestionChecker:
-    """What a check needs: the database, the blob store, the temporary folder and the helper pool (or None)."""
+    """What a check needs: the database, the blob store, the temporary folder and the helper pool (None: the
+    checks run in the calling thread; only where there is no pool by design, module docstring)."""
 
     database: Database
     store: BlobStore

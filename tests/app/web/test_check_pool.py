@@ -1,15 +1,18 @@
 """Uploads checked in the server's warm helper processes (``app.state.check_pool``, CHAKAMO_RENDER_PROCESSES > 0):
-the same answer as a check in the request thread, a helper that is shut down falls back to the thread; one
-clinic's long check does not hold another clinic's, and a check past its time limit is stopped, answered and
-never run again in the server process (issue 16, finding 4)."""
+the same answer as a check in the request thread, a helper found dead is replaced (the check never falls back to
+the server process); one clinic's long check does not hold another clinic's, one clinic's second check waits
+for its first, and a check past its time limit is stopped, answered and never run again in the server process,
+nor is the next check while the helper is replaced (issue 16, finding 4)."""
 
 from __future__ import annotations
+
+import pytest
 
 from app.web.api.schemas import ingestion_out
 from web_helpers import clinic_token, demo_files, make_settings, new_session
 
 
-def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path, demo_dir, caplog):
+def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path, demo_dir, caplog, monkeypatch):
     import logging
 
     from fastapi.testclient import TestClient
@@ -20,6 +23,7 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
     answers, after_delete = [], []
     for processes in (1, 0):
         settings = make_settings(tmp_path / f"data{processes}", CHAKAMO_RENDER_PROCESSES=processes)
+        here = _checks_here(monkeypatch)
         with TestClient(create_app(settings)) as client:
             pool = client.app.state.check_pool
             assert (pool is not None) == bool(processes)
@@ -36,15 +40,36 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             answers.append(r.json()["ingestion"])
             if pool is not None:  # it ran there: handed over once, and its answer used (no local fallback)
                 assert handed == ["check_ingestion"] and "failed in the helper process" not in caplog.text
-                for helper in pool.helpers:  # broken helpers: the next check runs in the request thread, same answer
+                for helper in pool.helpers:  # dead helpers: replaced, the next check runs in the new one, same answer
                     _break(helper)
             first = r.json()["recordings"][0]["id"]
             assert client.delete(f"/api/v1/sessions/{sid}/recordings/{first}", headers=h).status_code == 204
             after_delete.append(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"])
             if pool is not None:
-                assert handed == ["check_ingestion"] * 2 and "helper process pool unavailable" in caplog.text  # fell back
+                assert handed == ["check_ingestion"] * 2 and "starting a new one" in caplog.text  # replaced
+                assert here == [], "a check ran in the server process"  # neither before nor after the helper died
+            else:
+                assert here  # no helper by design: the request thread checks
     assert answers[0]["ok"] and answers[0] == answers[1]
     assert not after_delete[0]["ok"] and after_delete[0] == after_delete[1]  # a recording missing, said alike
+
+
+def _verdict(answer: dict) -> bool:
+    """True when ``answer`` is the files' own check, not a check that did not run or was stopped."""
+    code = (answer.get("error_item") or {}).get("code") or ""
+    return "ok" in answer and not code.startswith("session.check_")
+
+
+def _checks_here(monkeypatch) -> list[int]:
+    """The process ids of the checks that run in this process from now on (a spawned helper imports its own,
+    unpatched copy of :mod:`app.store.workspace`, so only a check run here is counted)."""
+    import os
+
+    from app.store import workspace
+
+    here, real = [], workspace.load_knees
+    monkeypatch.setattr(workspace, "load_knees", lambda folder: here.append(os.getpid()) or real(folder))
+    return here
 
 
 def _break(helper) -> None:
@@ -75,13 +100,14 @@ def _thesis_xlsx(path, n: int):
     return write_thesis_xlsx(path, (t, acc), 0.01 * rng.standard_normal((n, 3)), (tm, mag)).read_bytes()
 
 
-def _stored_session(client, settings, clinic: str, files: list[tuple[str, bytes]]) -> int:
-    """A session of ``clinic`` with ``files`` stored through the data layer (no check run yet)."""
+def _stored_session(client, settings, clinic: str, files: list[tuple[str, bytes]], patient: str = "1") -> int:
+    """A session of ``clinic`` (of its patient ``patient``) with ``files`` stored through the data layer (no
+    check run yet)."""
     from app.store import recordings
     from app.store.models import KneeSession
 
     h = clinic_token(settings, clinic)
-    _, sid = new_session(client, h, f"{clinic}-1")
+    _, sid = new_session(client, h, f"{clinic}-{patient}")
     writers = []
     for name, data in files:
         w = client.app.state.store.writer()
@@ -147,18 +173,115 @@ def test_a_check_past_its_time_limit_is_stopped_answered_and_not_run_again_here(
     with TestClient(create_app(settings)) as client:
         pool = client.app.state.check_pool
         assert pool.wait_warm(120)
-        before = pool.run(os.getpid)[1]
+        before = pool.run(os.getpid)
         sid = _stored_session(client, settings, "Slow", [("task-muslo-S-01012024-1.xlsx",
                                                          _thesis_xlsx(tmp_path / "s.xlsx", 10_000))])
         state = client.app.state
         answer = refresh_ingestion(state.db, state.store, settings.tmp_dir, sid, pool, timeout_s=0.05)
         assert not answer["ok"] and "could not be checked within" in answer["error"], answer
-        assert pool.wait_warm(120) and pool.run(os.getpid)[1] != before  # the helper was replaced
+        assert pool.wait_warm(120) and pool.run(os.getpid) != before  # the helper was replaced
         h = clinic_token(settings, "Slow")
         stored = client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
         # stored for these files: reading the session does not check them again (the API answers the stored check
         # with its sentences rendered in every language: app.web.api.schemas.ingestion_out)
         assert stored == ingestion_out(answer)
+
+
+def test_the_check_after_a_time_out_waits_for_the_new_helper_and_never_runs_in_the_server(tmp_path, monkeypatch):
+    """Audit of finding 4: after a check's time-out its helper is replaced, and while the new one started the
+    next check ran in the request thread, with no time limit — an attacker's next crafted upload would stall
+    the API process itself.  Now that check waits for the new helper within its wait for a slot, and is
+    answered "busy" (not stored) past it; either way it never runs in this process."""
+    import os
+
+    from fastapi.testclient import TestClient
+
+    from app.store.checks import refresh_ingestion
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=1, CHAKAMO_CHECK_PROCESSES=1)
+    here = _checks_here(monkeypatch)
+    with TestClient(create_app(settings)) as client:
+        pool, state = client.app.state.check_pool, client.app.state
+        assert pool.wait_warm(120)
+        before = pool.run(os.getpid)
+        slow = _stored_session(client, settings, "Slow", [("task-muslo-S-01012024-1.xlsx",
+                                                          _thesis_xlsx(tmp_path / "s.xlsx", 10_000))])
+        after = [_stored_session(client, settings, "Next", [("task-muslo-N-01012024-1.xlsx",
+                                                             _thesis_xlsx(tmp_path / "n.xlsx", 500))], str(i))
+                 for i in (1, 2)]
+        answer = refresh_ingestion(state.db, state.store, settings.tmp_dir, slow, pool, timeout_s=0.05)
+        assert answer["error_item"]["code"] == "session.check_too_slow", answer
+        # at once, while the replacement starts (a spawned interpreter: far longer than this wait)
+        busy = refresh_ingestion(state.db, state.store, settings.tmp_dir, after[0], pool, wait_s=0.05)
+        assert here == [], "the check after the time-out ran in the server process"
+        assert busy["error_item"]["code"] == "session.check_busy", busy
+        # a check allowed its usual wait: run in the new helper once it is up
+        checked = refresh_ingestion(state.db, state.store, settings.tmp_dir, after[1], pool)
+        assert here == [] and _verdict(checked), checked
+        assert pool.run(os.getpid) not in (before, os.getpid())  # the replacement did it
+        h = clinic_token(settings, "Next")
+        stored = [client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"] for sid in after]
+        assert stored[1] == ingestion_out(checked)  # stored; the busy one was not, it is checked on this read
+        assert here == [] and stored[0] == stored[1]  # the same files' own verdict, from a helper
+
+
+@pytest.mark.parametrize("processes", [2, 0], ids=["helpers", "request-threads"])
+def test_one_clinics_second_check_waits_for_its_first(tmp_path, processes):
+    """Finding 4c, "bound the checks per clinic": while one of clinic A's checks runs (it holds A's slot for
+    its whole run, as :func:`app.store.checks._check_in_slot` does), A's next check waits for it — answered
+    "busy" past its wait, run as soon as the first ends — while clinic B's check runs at once beside it.
+    With the bound removed or raised, A's second check would run beside its first and this fails."""
+    import threading
+    import time
+
+    from fastapi.testclient import TestClient
+
+    from app.store.checks import CHECK_GATE, CHECKS_PER_CLINIC, refresh_ingestion
+    from app.store.models import KneeSession
+    from app.web.main import create_app
+
+    settings = make_settings(tmp_path / "data", CHAKAMO_RENDER_PROCESSES=min(processes, 1),
+                             CHAKAMO_CHECK_PROCESSES=processes or 2)
+    with TestClient(create_app(settings)) as client:
+        pool, state = client.app.state.check_pool, client.app.state
+        assert (pool is None) == (processes == 0) and (pool is None or pool.wait_warm(120))
+        gate = pool.gate if pool is not None else CHECK_GATE
+        assert gate.total == 2 and gate.per_clinic == CHECKS_PER_CLINIC == 1
+        small = [("task-muslo-C-01012024-1.xlsx", _thesis_xlsx(tmp_path / "c.xlsx", 500))]
+        a_first, a_second = (_stored_session(client, settings, "A", small, p) for p in ("1", "2"))
+        b = _stored_session(client, settings, "B", small)
+        with state.db.session() as db:
+            clinic_a = db.get(KneeSession, a_first).clinic_id
+
+        def check(sid, **kw):
+            return refresh_ingestion(state.db, state.store, settings.tmp_dir, sid, pool, **kw)
+
+        first_runs, first_ends = threading.Event(), threading.Event()
+
+        def first():  # A's first check, still running
+            with gate.slot(clinic_a):
+                first_runs.set()
+                first_ends.wait(120)
+
+        holder = threading.Thread(target=first)
+        holder.start()
+        try:
+            assert first_runs.wait(60)
+            refused = check(a_second, wait_s=0.3)
+            assert refused["error_item"]["code"] == "session.check_busy", refused  # not beside A's first
+            other = check(b, wait_s=30)
+            assert _verdict(other), other  # another clinic: at once, beside A's first
+            answers = []
+            waiting = threading.Thread(target=lambda: answers.append(check(a_second, wait_s=120)))
+            waiting.start()
+            time.sleep(1.0)
+            assert not answers, "clinic A's second check ran beside its first"
+        finally:
+            first_ends.set()
+            holder.join(60)
+        waiting.join(120)
+        assert len(answers) == 1 and _verdict(answers[0]), answers  # ran once the first ended
 
 
 def test_the_gate_follows_the_helpers_and_a_check_waits_for_a_slot_only_so_long(tmp_path):
