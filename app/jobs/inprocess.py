@@ -15,9 +15,9 @@ the same database refuses to start with :class:`RunnerLocked`, instead of requeu
 time — the first one's jobs.  Several processes or machines need the distributed backend
 (``CHAKAMO_JOB_BACKEND=celery``, :mod:`app.jobs.celery_engine`).  Holding the lock, ``start()`` also removes what a
 crashed server left behind: its temporary ``session-*`` folders and unfinished uploads
-(``blobs/.incoming/up-*``).  Periodic housekeeping the application hands in (``housekeeping``: the erasure
-sweep and the retention policy, :func:`app.web.housekeeping.housekeeping`) runs once after start-up and then
-every :attr:`ThreadJobRunner.HOUSEKEEPING_EVERY_S` seconds in the sweeper thread.  ``shutdown()`` waits for the
+(``blobs/.incoming/up-*``).  The periodic housekeeping (the erasure sweep, the retention policy) is not the
+runner's: every API server runs it whatever the job backend (:class:`app.web.housekeeping.Housekeeper`, one server
+at a time through a :class:`RunnerLock` of its own).  ``shutdown()`` waits for the
 running jobs and says whether they all stopped; the application disposes the database only then.
 
 **Priority** (issue 16 finding 10h): with ``render_processes`` > 0 (``CHAKAMO_RENDER_PROCESSES``, default 1) each
@@ -42,8 +42,6 @@ import logging
 import queue
 import shutil
 import threading
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 from sqlalchemy import create_engine, text
@@ -67,13 +65,17 @@ _PG_LOCK_KEY = 0x43484B4D6A6F6273
 
 
 class RunnerLock:
-    """At most one embedded job runner per database (module docstring): :meth:`acquire`, :meth:`release`."""
+    """At most one embedded job runner per database (module docstring): :meth:`acquire`, :meth:`held`,
+    :meth:`release`.  ``key`` and ``name`` make another lock of the same kind, one holder per database
+    (PostgreSQL advisory-lock key, ``<database file>.<name>.lock``): the housekeeping's
+    (:class:`app.web.housekeeping.Housekeeper`)."""
 
-    def __init__(self, db: Database) -> None:
-        self.db = db
+    def __init__(self, db: Database, key: int = _PG_LOCK_KEY, name: str = "runner") -> None:
+        self.db, self.key, self.name = db, key, name
         self._file = None
         self._conn = None
         self._engine = None
+        self._taken = False
 
     def acquire(self) -> None:
         """Take the lock or raise :class:`RunnerLocked` with a sentence saying what to do."""
@@ -82,12 +84,14 @@ class RunnerLock:
         if url.get_backend_name() == "sqlite":
             path = url.database
             if not path or path == ":memory:":
+                self._taken = True
                 return
-            where = f"{path}.runner.lock"
+            where = f"{path}.{self.name}.lock"
             try:
                 import fcntl
             except ImportError:  # no flock (Windows): one server per database is then up to the operator
                 log.warning("cannot lock %s on this system; run one ChakaMo server per database", where)
+                self._taken = True
                 return
             f = open(where, "a+")  # noqa: SIM115 — held open while the runner lives
             try:
@@ -99,15 +103,32 @@ class RunnerLock:
         elif url.get_backend_name() == "postgresql":
             # a connection of its own, outside the request pool, in autocommit (never "idle in transaction")
             self._engine = create_engine(url, poolclass=NullPool, isolation_level="AUTOCOMMIT")
-            conn = self._engine.connect()
-            if not conn.scalar(text("SELECT pg_try_advisory_lock(:k)"), {"k": _PG_LOCK_KEY}):
-                conn.close()
-                self._engine.dispose()
-                self._engine = None
+            try:
+                self._conn = self._engine.connect()
+                got = self._conn.scalar(text("SELECT pg_try_advisory_lock(:k)"), {"k": self.key})
+            except Exception:
+                self._close()  # the server is away: nothing is held
+                raise
+            if not got:
+                self._close()
                 raise RunnerLocked(self._message(url.render_as_string(hide_password=True)))
-            self._conn = conn
         else:
-            log.warning("no job-runner lock for %s; run one ChakaMo server per database", url.get_backend_name())
+            log.warning("no %s lock for %s; run one ChakaMo server per database", self.name, url.get_backend_name())
+        self._taken = True
+
+    def held(self) -> bool:
+        """Whether this lock is still held: a PostgreSQL session-level lock goes with its connection (the server
+        restarted, an idle timeout cut it), which a query on it tells; a lost one is released here (False)."""
+        if not self._taken:
+            return False
+        if self._conn is not None:
+            try:
+                self._conn.scalar(text("SELECT 1"))
+            except Exception:  # noqa: BLE001 — the connection is gone, and the lock with it
+                self._taken = False
+                self._close()
+                return False
+        return True
 
     @staticmethod
     def _message(where: str) -> str:
@@ -116,16 +137,26 @@ class RunnerLock:
                 "the distributed job backend).")
 
     def release(self) -> None:
+        self._taken = False
         if self._file is not None:
             self._file.close()  # closing the file drops the flock
             self._file = None
         if self._conn is not None:
             try:
-                self._conn.scalar(text("SELECT pg_advisory_unlock(:k)"), {"k": _PG_LOCK_KEY})
+                self._conn.scalar(text("SELECT pg_advisory_unlock(:k)"), {"k": self.key})
             except Exception:  # noqa: BLE001 — closing the connection frees it anyway
-                log.exception("could not release the job-runner lock")
-            self._conn.close()
+                log.exception("could not release the %s lock", self.name)
+        self._close()
+
+    def _close(self) -> None:
+        """Close the lock's PostgreSQL connection and engine (which frees a lock still held)."""
+        if self._conn is not None:
+            try:
+                self._conn.close()
+            except Exception:  # noqa: BLE001 — a connection the server already cut
+                pass
             self._conn = None
+        if self._engine is not None:
             self._engine.dispose()
             self._engine = None
 
@@ -147,15 +178,12 @@ class ThreadJobRunner:
 
     #: seconds between two sweeps (requeue lost jobs, pick up jobs queued by another process)
     SWEEP_EVERY_S = 5.0
-    #: seconds between two housekeeping runs (erasure sweep, retention policy)
-    HOUSEKEEPING_EVERY_S = 3600.0
     #: first wait before a job cut short by the database (away or busy) runs again, doubling up to the most
     RETRY_S, RETRY_MAX_S = 1.0, 30.0
 
     def __init__(self, db: Database, store: Storage, tmp_root: Path, workers: int = 2,
                  render_processes: int = 0,
-                 lease_s: float = LEASE_S, housekeeping: Callable[[], None] | None = None) -> None:
-        self.housekeeping = housekeeping
+                 lease_s: float = LEASE_S) -> None:
         self.db, self.store, self.tmp_root, self.workers = db, store, Path(tmp_root), workers
         self.render_processes = render_processes
         self.lease_s = lease_s
@@ -194,21 +222,8 @@ class ThreadJobRunner:
         mark_dispatched(self.db, [job_id])
         self._queue.put(job_id)
 
-    def _housekeep(self) -> None:
-        if self.housekeeping is None:
-            return
-        try:
-            self.housekeeping()
-        except Exception:  # noqa: BLE001 — e.g. the database is restarting: next time
-            log.warning("housekeeping (erasure sweep, retention) failed; trying again later", exc_info=True)
-
     def _sweep_loop(self) -> None:
-        self._housekeep()
-        last = time.monotonic()
         while not self._stop.wait(self.SWEEP_EVERY_S):
-            if time.monotonic() - last >= self.HOUSEKEEPING_EVERY_S:
-                self._housekeep()
-                last = time.monotonic()
             try:
                 # only never-handed jobs: a job handed to this runner's own queue cannot be lost while it lives
                 for job_id in sweep(self.db, self.lease_s, None):

@@ -23,7 +23,7 @@ Order (each step a transaction; a crash between any two leaves a state the next 
    unlinks it, uploader commits a row naming a missing file".  A crash after the unlink and before the commit
    leaves the mark ``pending`` and the blob row in place with no file: the next :func:`erase_pending` finds no
    reference, deletes the row, finds the file already gone, and records ``erased``.
-3. **sweep** (:func:`sweep`: the embedded runner's housekeeping at start and hourly, ``chakamo retention --apply``):
+3. **sweep** (:func:`sweep`: the API server's housekeeping at start and hourly, ``chakamo retention --apply``):
    pending marks (a crash between 1 and 2), blob rows no row references (deletions made before this module
    existed), and files on disk that no blob row names and that are older than ``grace_s`` (a writer places
    its file, under the blob's lock, a moment before its row commits: :func:`reserve_blobs`) are erased, each

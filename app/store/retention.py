@@ -15,7 +15,7 @@ patients erase``).
 session through the ``record`` callable it is given (the web layer's :func:`app.web.audit.record_operator`:
 this module does not import the web) and marking its blobs (:mod:`app.store.erasure`, reason ``retention``),
 then erases them.  ``now`` is a parameter so that tests fix the clock.  Applied by ``chakamo retention
---apply`` and by the embedded server's housekeeping (:func:`app.web.housekeeping.housekeeping`, hourly).
+--apply`` and by the API server's housekeeping, whatever the job backend (:mod:`app.web.housekeeping`, hourly).
 """
 
 from __future__ import annotations

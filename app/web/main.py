@@ -57,6 +57,7 @@ from app.web.messages import CODE_HEADER, render
 from app.web.refusals import Refusal, members as refusal_members
 from app.web.throttle import InFlight, LoginGate, LoginThrottle
 from app.web.fhir_push import FhirPush
+from app.web.housekeeping import Housekeeper
 from app.web.webhooks import WebhookSender
 from app.settings import Settings, get_settings
 from app.store.blobs import CorruptBlob, Storage, open_storage
@@ -104,11 +105,9 @@ def make_runner(settings: Settings, db: Database, store: Storage):
 
         return CeleryJobRunner(db, settings)
     from app.jobs.inprocess import ThreadJobRunner
-    from app.web.housekeeping import housekeeping
 
     return ThreadJobRunner(db, store, settings.tmp_dir, workers=settings.workers,
-                           render_processes=settings.render_processes,
-                           lease_s=settings.job_lease_s, housekeeping=lambda: housekeeping(settings, db, store))
+                           render_processes=settings.render_processes, lease_s=settings.job_lease_s)
 
 
 def create_app(settings: Settings | None = None, lang: str | None = None) -> FastAPI:
@@ -139,6 +138,9 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
                                settings.webhook_host_patterns, settings.key,
                                FhirPush(settings, store) if settings.fhir_push_url else None)
         sender.start()
+        # the erasure sweep and the retention policy, whatever the job backend, one server at a time
+        app.state.housekeeper = housekeeper = Housekeeper(settings, db, store)
+        housekeeper.start()
         if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
             store.clear_incoming(older_than_s=INCOMING_STALE_S)
         check_pool = None
@@ -151,6 +153,7 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
         finally:
             app.state.check_pool = None
             sender.stop()
+            housekeeper.stop()
             if check_pool is not None:
                 check_pool.shutdown()
             if runner.shutdown(wait=True):  # a job thread still running keeps its database

@@ -121,7 +121,7 @@ class _Statements:
         self.engine, self.seen, self.on = engine, [], False
 
     def __call__(self, conn, cursor, statement, parameters, context, executemany):
-        if self.on and threading.current_thread().name != "chakamo-sweeper":
+        if self.on and threading.current_thread().name not in ("chakamo-sweeper", "chakamo-housekeeping"):
             self.seen.append(" ".join(statement.split()))
 
     @contextmanager
