@@ -1,9 +1,13 @@
 """The user's own account and the security audit trail (issue 16 findings 7, 9, 10c): self-service password
-change that ends the other sessions, the password rules (length 12, the shipped common list, patterns, the
-user's own name), the list of one's sessions and ending them, the admins' role changes, and the audit events of
-logins, refusals and account changes.  Every refusal speaks es/en/pt."""
+change that ends the other sessions, the password rules (length 12, the shipped common list and zxcvbn's
+breached passwords, patterns, the user's own name), the list of one's sessions and ending them, the admins'
+role changes, and the audit events of logins, refusals and account changes.  Every refusal speaks es/en/pt."""
 
 from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -55,7 +59,26 @@ def test_weak_passwords_are_refused(password, code):
     assert info.value.code == code
 
 
-@pytest.mark.parametrize("password", [PASSWORD, NEW, "correct horse battery staple", "Tr0ub4dor&3xyz"])
+#: passwords of real breach dumps, 12 characters or more, that the curated list alone let through (each passed
+#: check_password_strength before the breached list was added): as listed, with case, digits or symbols around
+#: them, spaced, or their digits split by dashes
+BREACHED = ["leavemealone", "sonyericsson", "finalfantasy", "whosyourdaddy", "LeaveMeAlone2024", "Jamesbond007!",
+            "I see dead people", "1234-5665-4321"]
+
+
+@pytest.mark.parametrize("password", BREACHED)
+def test_breached_passwords_are_refused_as_common(password, monkeypatch):
+    from app.web import passwords
+
+    with pytest.raises(passwords.WeakPassword) as info:
+        passwords.check_password_strength(password, email=EMAIL, name="Inés Castro")
+    assert info.value.code == "password.common"
+    monkeypatch.setattr(passwords, "breached_passwords", lambda: frozenset())
+    passwords.check_password_strength(password, email=EMAIL, name="Inés Castro")  # the breached list refused it
+
+
+@pytest.mark.parametrize("password", [PASSWORD, NEW, "correct horse battery staple", "Tr0ub4dor&3xyz",
+                                      "siete búhos pardos al alba", "Qz7!mountain-Lark-4411"])
 def test_ordinary_passphrases_pass(password):
     from app.web.passwords import check_password_strength
 
@@ -67,6 +90,28 @@ def test_the_list_ships_with_the_package():
 
     assert COMMON_FILE.is_file() and len(common_words()) > 400
     assert {"password", "qwerty", "contrasena", "senha", "iloveyou", "admin"} <= common_words()
+
+
+def test_the_breached_list_ships_with_the_installed_package_and_is_loaded_at_first_use():
+    """zxcvbn's ranked list comes from the installed package with the network cut off, and importing the
+    password rules (as ``chakamo``'s start-up and the web application do) does not import it."""
+    code = """if True:
+        import socket, sys
+        from app.web import passwords, security
+        assert "zxcvbn" not in sys.modules, "imported at start-up"
+        def no_network(*args, **kwargs):
+            raise OSError("no network in this test")
+        socket.socket = socket.create_connection = socket.getaddrinfo = no_network
+        words = passwords.breached_passwords()
+        import zxcvbn
+        print(len(words), "password" in words, "leavemealone" in words, zxcvbn.__file__)
+    """
+    repo = Path(__file__).resolve().parents[3]
+    run = subprocess.run([sys.executable, "-c", code], cwd=repo, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    count, has_password, has_leavemealone, module = run.stdout.split()
+    assert int(count) >= 10_000 and has_password == has_leavemealone == "True"  # ASVS 2.1.7: the top 10 000 at least
+    assert repo not in Path(module).resolve().parents  # the package's data, not a copy in the repository
 
 
 def test_an_admin_cannot_create_a_user_with_a_weak_password_and_reads_why_in_spanish(client, world):
