@@ -15,9 +15,10 @@
       (``Password2024!``, ``P4ssw0rd1234``, ``adminadmin123``) — ``app/web/data/common_passwords.txt``, curated
       for this product: the passwords people choose most in English, Spanish and Portuguese, and this
       product's own words;
-   b. the password (lower case, without accents), its letters and digits alone, or its letters as in (a) —
-      whole, never split into words — is one of the 30 000 passwords of real breach dumps that the ``zxcvbn``
-      package ranks (:func:`breached_passwords`: ``leavemealone``, ``Jamesbond007!``, ``1234-5665-4321``,
+   b. the password (lower case, without accents), its letters and digits alone (any script), or its letters
+      as in (a) — whole, never split into words, and a reduced form only while it keeps at least half of the
+      password's characters (``&(]B7U+}@*Ll`` is not ``bull``, ``кот-собака-лампа-1234`` not ``1234``) — is
+      one of the 30 000 passwords of real breach dumps that the ``zxcvbn`` package ranks (:func:`breached_passwords`: ``leavemealone``, ``Jamesbond007!``, ``1234-5665-4321``,
       ``I see dead people``), more than the top 10 000 ASVS 2.1.7 names.  That list is English-centric,
       hence (a) for Spanish and Portuguese;
 4. contains the user's own email name, email domain or a part of their name of at least 4 characters
@@ -25,7 +26,8 @@
 
 Rule 3b is membership in the ranked list, not zxcvbn's score (its estimate of the guesses a password needs):
 a listed password is refused whatever its rank, anything else is left to the other rules.  Membership is
-predictable — a password is refused only when it is itself on the list, the refusal gives a reason the user
+predictable — a password is refused only when it is on the list give or take its decoration (case, accents,
+symbols, a few digits: at most half of it), the refusal gives a reason the user
 can act on ("one of the most common passwords"), and it is the blocklist NIST asks for — and fast: the whole
 check takes ~20 µs, zxcvbn's score 1.5–3 ms.  The score moves with each of zxcvbn's heuristics and word lists
 (English words, names, film titles), rates a Spanish or Portuguese phrase differently from an English one of
@@ -111,7 +113,9 @@ def _is_common(pw: str) -> bool:
             continue
         if core in words or any(core[:i] in words and core[i:] in words for i in range(3, len(core) - 2)):
             return True
-    return not breached_passwords().isdisjoint((cores | {pw, re.sub(r"[^a-z0-9]", "", pw)}) - {""})
+    # rule 3b: a reduced form counts only while it keeps half the password (module docstring)
+    forms = cores | {pw, re.sub(r"[\W_]", "", pw)}
+    return not breached_passwords().isdisjoint(f for f in forms if f and 2 * len(f) >= len(pw))
 
 
 def _personal_parts(email: str, name: str) -> set[str]:
