@@ -252,12 +252,13 @@ def refresh_ingestion(db_: Database, store: BlobStore, tmp_dir: Path, session_id
 def _check_in_slot(gate: CheckGate, pool, store: BlobStore, tmp_dir: Path, session: KneeSession, patient,
                    recordings, timeout_s: float, wait_s: float, paired=None) -> dict[str, Any]:
     session_id = session.id
+    deadline = time.monotonic() + wait_s  # one bound for the slot and the helper together (module docstring)
     with gate.slot(session.clinic_id, wait_s):
         if pool is None:  # no helper by design (module docstring): here, with no time limit
             return check_ingestion(store, tmp_dir, session, patient, recordings, paired)
         try:  # in a helper or not at all: never in this thread (CheckBusy, CheckStopped go to the caller)
             return pool.run(check_ingestion, store, tmp_dir, session, patient, recordings, paired,
-                            timeout_s=timeout_s, wait_s=wait_s)
+                            timeout_s=timeout_s, wait_s=max(0.0, deadline - time.monotonic()))
         except CheckTimedOut:
             log.warning("ingestion check of session %s stopped after %.0f s; its helper process was replaced",
                         session_id, timeout_s)

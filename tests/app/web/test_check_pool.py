@@ -390,3 +390,40 @@ def test_a_check_stopped_by_the_servers_shutdown_is_not_stored(tmp_path):
         stored = client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"]
         codes = [stored.get("error_item", {}).get("code")] if isinstance(stored, dict) else []
         assert "session.check_stopped" not in codes and "stopped unexpectedly" not in str(stored), stored
+
+
+def test_the_wait_for_a_slot_and_for_a_starting_helper_is_one_bound():
+    """Review finding: a check waited ``wait_s`` for its clinic's slot, then ``wait_s`` again for a helper still
+    starting (after a time-out) — twice the bound the docstring and ``session.check_busy``'s seconds state.  Here
+    the slot is held 2 s of a 3 s bound and the only helper never finishes starting: the check is answered busy
+    at 3 s (it was 5 s)."""
+    import functools
+    import threading
+    import time
+
+    from app.store.checks import CheckBusy, CheckPool, _check_in_slot
+
+    pool = CheckPool(1)
+    try:
+        (helper,) = pool.helpers
+        helper._warm_fn = functools.partial(time.sleep, 60)  # a start-up that does not end within the test
+        helper.restart()
+        held = threading.Event()
+
+        def other_check():  # the clinic's first check, 2 s more
+            with pool.gate.slot("clinic"):
+                held.set()
+                time.sleep(2.0)
+
+        first = threading.Thread(target=other_check)
+        first.start()
+        assert held.wait(10)
+        session = type("Session", (), {"id": 1, "clinic_id": "clinic"})()
+        t = time.monotonic()
+        with pytest.raises(CheckBusy):
+            _check_in_slot(pool.gate, pool, None, None, session, None, [], timeout_s=60, wait_s=3.0)
+        waited = time.monotonic() - t
+        first.join(10)
+    finally:
+        pool.shutdown()
+    assert 1.9 < waited < 4.0, waited  # one bound of 3 s (4.9–5 s before the fix)
