@@ -16,7 +16,8 @@ What happens:
    worker (the first job pays the imports) and gives the read load a processed session to read;
 2. ``--clinicians`` threads start together, each one clinician with its own HTTP connection: create a patient
    and a session → upload the 24 files of a demo session of its own (:func:`benchmarks.http_load.demo_session`,
-   seed 8, 9, …: every file's content differs, as in a clinic, so every file is really written and synced;
+   seed 8, 9, …: every file's content differs, as in a clinic, so every file is placed — renamed and its folder
+   synced under the write lock, a new blob row;
    ``--same-files`` gives them all the reference's files, which the blob store then keeps once) in one
    request → request processing → poll the job every :data:`POLL_EVERY_S` s → download ``results`` (JSON) and
    ``report.pdf``.  An upload refused with 503 (more than ``CHAKAMO_MAX_UPLOADS`` at once, the server's

@@ -461,16 +461,21 @@ class RenderPool:
             except FutureTimeout:  # still starting
                 return None
             except Exception:  # noqa: BLE001 — the warm-up failed or was cancelled: a dead process
-                log.warning("the helper process' warm-up failed", exc_info=True)
+                why = "its warm-up failed"
+                if not self._stopping:  # a shutdown cancels it: quiet
+                    log.warning("the helper process' warm-up failed", exc_info=True)
             else:
+                why = "it had ended while idle"
                 if self._alive():
                     try:
                         return self._pool.submit(fn, *args)
                     except Exception:  # noqa: BLE001 — broken meanwhile (or shut down: the loop ends)
-                        log.warning("helper process pool unavailable", exc_info=True)
+                        why = "its pool was unusable"
+                        if not self._stopping:
+                            log.warning("helper process pool unavailable", exc_info=True)
             if replaced or self._stopping:
                 return None
-            log.warning("the idle helper process had ended; starting a new one")
+            log.warning("replacing the helper process (%s)", why)
             self.restart()
             replaced = True
         return None

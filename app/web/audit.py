@@ -43,31 +43,31 @@ route                                                   action        patient / 
 Security events (OWASP ASVS 7.1.3, 7.2.1, 7.2.2; issue 16 finding 7) — ``status`` holds the answer's code and
 ``detail`` what changed or why (never a password or a token):
 
-========================================================  =================  ==========================================
-what                                                      action             clinic / actor
-========================================================  =================  ==========================================
-a successful login                                        ``login``          the user's
-a wrong password (or an unknown or deactivated account)   ``login_failed``   the account's clinic, or null when the
-                                                                             email has none; actor ``anonymous`` with
-                                                                             the email typed
-a login refused by the throttle (429), any email          ``login_refused``  the account's clinic, or null when the
-                                                                             email has none (a refusal costs the same
-                                                                             for both: :mod:`app.web.api.auth`)
-a logout                                                  ``logout``         the user's
-401 (no, unknown, revoked or expired credentials)         ``denied``         the token's or session's clinic when known
-403 (role too low, missing CSRF header)                   ``denied``         the caller's
-404 for another clinic's patient, session or job          ``denied``         **the owning clinic's** (its admins see
-                                                                             the attempt; the caller's clinic learns
-                                                                             nothing it could probe with)
-a user created by an admin (role in ``detail``)           ``user_create``    the admin's
-a role or active flag changed                             ``user_change``    the admin's (``role clinician -> admin``)
+========================================================  ===================  ==========================================
+what                                                      action               clinic / actor
+========================================================  ===================  ==========================================
+a successful login                                        ``login``            the user's
+a wrong password (or an unknown or deactivated account)   ``login_failed``     the account's clinic, or null when the
+                                                                               email has none; actor ``anonymous`` with
+                                                                               the email typed
+a login refused by the throttle (429), any email          ``login_refused``    the account's clinic, or null when the
+                                                                               email has none (a refusal costs the same
+                                                                               for both: :mod:`app.web.api.auth`)
+a logout                                                  ``logout``           the user's
+401 (no, unknown, revoked or expired credentials)         ``denied``           the token's or session's clinic when known
+403 (role too low, missing CSRF header)                   ``denied``           the caller's
+404 for another clinic's patient, session or job          ``denied``           **the owning clinic's** (its admins see
+                                                                               the attempt; the caller's clinic learns
+                                                                               nothing it could probe with)
+a user created by an admin (role in ``detail``)           ``user_create``      the admin's
+a role or active flag changed                             ``user_change``      the admin's (``role clinician -> admin``)
 a password changed (self-service, or by the operator)     ``password_change``  the user's
-a browser session ended by its user                       ``session_end``    the user's
-an account's login counters cleared                       ``unlock``         the admin's
-an API token created, rotated or revoked                  ``token_create`` /  the admin's; actor ``operator`` for
-                                                          ``token_rotate`` /  ``chakamo tokens`` (the command line)
+a browser session ended by its user                       ``session_end``      the user's
+an account's login counters cleared                       ``unlock``           the admin's
+an API token created, rotated or revoked                  ``token_create`` /   the admin's; actor ``operator`` for
+                                                          ``token_rotate`` /   ``chakamo tokens`` (the command line)
                                                           ``token_revoke``
-========================================================  =================  ==========================================
+========================================================  ===================  ==========================================
 
 Refusals are written in a transaction of their own (:func:`record_refusal`; the request's own is rolled back),
 and a failure to write them is logged, not answered: a refusal discloses nothing.  Refusals answered before any

@@ -45,7 +45,8 @@ def operator_recorder(actor: str):
 
 
 def housekeeping(settings, database, store, now=None) -> None:
-    """The erasure sweep, then the retention policy when it is on (module docstring); ``now`` fixes the clock."""
+    """The erasure sweep, the expiry of old ``Idempotency-Key`` records, then the retention policy when it is on
+    (module docstring); ``now`` fixes the clock."""
     from app.store.erasure import sweep
     from app.store.models import utcnow
     from app.store.retention import apply_retention

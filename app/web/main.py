@@ -137,18 +137,18 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
         sender = WebhookSender(Database(settings.db_url), settings.webhook_retry_s,
                                settings.webhook_host_patterns, settings.key,
                                FhirPush(settings, store) if settings.fhir_push_url else None)
-        sender.start()
         # the erasure sweep and the retention policy, whatever the job backend, one server at a time
         app.state.housekeeper = housekeeper = Housekeeper(settings, db, store)
-        housekeeper.start()
-        if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
-            store.clear_incoming(older_than_s=INCOMING_STALE_S)
         check_pool = None
-        if settings.render_processes > 0 and settings.check_processes > 0:  # uploads checked off this GIL
-            from app.store.checks import CheckPool
+        try:  # a start-up failing from here on stops what it started (threads, the housekeeping lock, helpers)
+            sender.start()
+            housekeeper.start()
+            if settings.job_backend == "celery":  # servers share the store: only a crashed upload's old leftovers
+                store.clear_incoming(older_than_s=INCOMING_STALE_S)
+            if settings.render_processes > 0 and settings.check_processes > 0:  # uploads checked off this GIL
+                from app.store.checks import CheckPool
 
-            app.state.check_pool = check_pool = CheckPool(settings.check_processes)
-        try:
+                app.state.check_pool = check_pool = CheckPool(settings.check_processes)
             yield
         finally:
             app.state.check_pool = None

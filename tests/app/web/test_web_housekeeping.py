@@ -102,14 +102,16 @@ def test_servers_on_the_celery_backend_apply_the_retention_policy_one_at_a_time(
         runs = [c.app.state.housekeeper.runs for c in running]
         assert min(runs) == 0 and max(runs) >= 2, runs
         leader, other = (a, b) if runs[0] else (b, a)
-        assert not other.app.state.housekeeper.lock.held()
+        assert not other.app.state.housekeeper.lock.held()  # not taken: answered without its connection
 
         # the server that housekeeps stops: the other takes over within a try and erases the next session due
         running.remove(leader)
         leader.__exit__(None, None, None)
         sid2, sha2 = _old_session(other, headers, "OLD-2", days=31)
         _wait_erased(other, headers, sid2, settings.blob_dir / sha2[:2] / sha2[2:])
-        assert other.app.state.housekeeper.runs >= 1 and other.app.state.housekeeper.lock.held()
+        # it took the lock (it runs only while holding it); its held() is not asked from this thread: on PostgreSQL it
+        # queries the lock's connection, which the housekeeping thread uses
+        assert other.app.state.housekeeper.runs >= 1
     finally:
         for c in reversed(running):
             c.__exit__(None, None, None)
