@@ -46,7 +46,7 @@ def test_uploads_are_checked_in_the_helper_process_with_the_same_answer(tmp_path
             assert client.delete(f"/api/v1/sessions/{sid}/recordings/{first}", headers=h).status_code == 204
             after_delete.append(client.get(f"/api/v1/sessions/{sid}", headers=h).json()["ingestion"])
             if pool is not None:
-                assert handed == ["check_ingestion"] * 2 and "starting a new one" in caplog.text  # replaced
+                assert handed == ["check_ingestion"] * 2 and "replacing the helper process" in caplog.text  # replaced
                 assert here == [], "a check ran in the server process"  # neither before nor after the helper died
             else:
                 assert here  # no helper by design: the request thread checks

@@ -276,6 +276,8 @@ RAW_SQL_ALLOWED = {
     ("jobs/inprocess.py", "SELECT pg_try_advisory_lock(:k)"): "PostgreSQL advisory lock: one in-process runner "
                                                           "per database (a bound key, no ORM equivalent)",
     ("jobs/inprocess.py", "SELECT pg_advisory_unlock(:k)"): "its release",
+    ("jobs/inprocess.py", "SELECT 1"): "is the lock's own connection (and the lock with it) still there (no data, "
+                                       "no input)",
     ("store/models.py", "kind = 'fhir'"): "a partial unique index's constant predicate (one FHIR push per clinic); "
                                           "DDL, no input",
 }
