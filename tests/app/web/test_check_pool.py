@@ -427,3 +427,25 @@ def test_the_wait_for_a_slot_and_for_a_starting_helper_is_one_bound():
     finally:
         pool.shutdown()
     assert 1.9 < waited < 4.0, waited  # one bound of 3 s (4.9–5 s before the fix)
+
+
+def test_a_helper_whose_warm_up_fails_is_replaced_once_and_nothing_runs_here(caplog):
+    """The cause ``RenderPool.submit`` names in its warning when it replaces a helper: a warm-up that raised (here
+    in the helper process itself).  The work is refused (None), never done by the caller, the helper replaced once
+    per call; after ``shutdown`` the same call is quiet."""
+    import functools
+    import logging
+
+    from app.pipeline.render import RenderPool
+
+    pool = RenderPool(1, warm=functools.partial(int, "not a number"))  # ValueError in the helper's warm-up
+    try:
+        with caplog.at_level(logging.WARNING, logger="chakamo.render"):
+            assert pool.submit(abs, -1, wait_s=60) is None
+        replacing = [r.getMessage() for r in caplog.records if r.getMessage().startswith("replacing")]
+        assert replacing == ["replacing the helper process (its warm-up failed)"], caplog.text
+        assert "warm-up failed" in caplog.text and "ValueError" in caplog.text
+    finally:
+        pool.shutdown()
+    caplog.clear()
+    assert pool.submit(abs, -1, wait_s=1) is None and caplog.records == []
