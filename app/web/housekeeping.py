@@ -75,6 +75,7 @@ class Housekeeper:
     TRY_EVERY_S = 60.0
 
     def __init__(self, settings, database, store) -> None:
+        # imported here: app.jobs.inprocess brings the pipeline, which `chakamo retention` (operator_recorder) never needs
         from app.jobs.inprocess import RunnerLock
 
         self.settings, self.database, self.store = settings, database, store
