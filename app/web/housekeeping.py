@@ -66,7 +66,10 @@ def housekeeping(settings, database, store, now=None) -> None:
 class Housekeeper:
     """A daemon thread of the API server: :func:`housekeeping` at start and every :attr:`EVERY_S` seconds while
     this server holds the housekeeping lock; without it, try again every :attr:`TRY_EVERY_S` seconds (module
-    docstring).  ``runs`` counts the runs this server made."""
+    docstring).  ``runs`` counts the runs this server made.  ``database`` is the housekeeper's own (disposed by
+    :meth:`stop`): the application gives it an engine apart from the requests', so that a run never holds one of
+    the connections the requests' pool is sized for (a half-sent upload's test found one checked out by the run at
+    start-up)."""
 
     #: seconds between two housekeeping runs (erasure sweep, retention policy)
     EVERY_S = 3600.0
@@ -98,6 +101,7 @@ class Housekeeper:
                 log.warning("housekeeping still running at shutdown; its lock goes with the process")
                 return
         self.lock.release()
+        self.database.dispose()
 
     def holds_lock(self) -> bool:
         """Whether this server is the one that housekeeps: the lock held, or taken now."""

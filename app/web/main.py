@@ -137,8 +137,9 @@ def create_app(settings: Settings | None = None, lang: str | None = None) -> Fas
         sender = WebhookSender(Database(settings.db_url), settings.webhook_retry_s,
                                settings.webhook_host_patterns, settings.key,
                                FhirPush(settings, store) if settings.fhir_push_url else None)
-        # the erasure sweep and the retention policy, whatever the job backend, one server at a time
-        app.state.housekeeper = housekeeper = Housekeeper(settings, db, store)
+        # the erasure sweep and the retention policy, whatever the job backend, one server at a time, on an engine
+        # of its own like the sender's (a run never takes a connection the requests' pool counts on)
+        app.state.housekeeper = housekeeper = Housekeeper(settings, Database(settings.db_url), store)
         check_pool = None
         try:  # a start-up failing from here on stops what it started (threads, the housekeeping lock, helpers)
             sender.start()

@@ -151,3 +151,32 @@ def test_a_housekeeping_lock_lost_with_its_connection_passes_to_another_server(p
         for lock in (first, second, runner):
             lock.release()
         db.dispose()
+
+
+def test_a_housekeeping_run_holds_none_of_the_requests_connections(tmp_path, monkeypatch):
+    """A run uses an engine of the housekeeper's own: while it is inside a transaction, the requests' pool has
+    nothing checked out (the run at start-up once held one of them: a half-sent-upload test counted it)."""
+    import threading
+
+    from fastapi.testclient import TestClient
+    from sqlalchemy import func, select
+
+    from app.store.models import KneeSession
+    from app.web import housekeeping
+    from app.web.main import create_app
+
+    inside, leave = threading.Event(), threading.Event()
+
+    def run(settings, database, store, now=None):  # a run's transaction, held open until the test has looked
+        with database.session() as db:
+            db.scalar(select(func.count()).select_from(KneeSession))
+            inside.set()
+            leave.wait(30)
+
+    monkeypatch.setattr(housekeeping, "housekeeping", run)
+    with TestClient(create_app(make_settings(tmp_path / "data"))) as client:
+        try:
+            assert inside.wait(30)
+            assert client.app.state.db.engine.pool.checkedout() == 0
+        finally:
+            leave.set()
